@@ -1,0 +1,109 @@
+//! Exact path geometry for Kerf.
+//!
+//! This crate owns the canonical description of a programmed move ([`Move`]) and the
+//! geometry of the paths it follows ([`Path`]: straight lines, circular arcs and helices).
+//! It knows nothing of G-code dialects, planning or time: the G-code front end produces
+//! [`Move`]s, the planner and the motion core consume them.
+//!
+//! Design decisions:
+//! - All lengths are millimetres in absolute machine coordinates; rotary axes are degrees.
+//!   Units are converted once, in the front end, never here.
+//! - An arc is stored by its exact defining data (start, end, centre, unit axis, signed
+//!   sweep) rather than by sampled points, so that every consumer evaluates the same curve.
+//!   A helix is an arc whose end differs from the start along the axis; the axial motion
+//!   is proportional to the swept angle.
+//! - `sweep_rad` is signed about `axis` by the right-hand rule and includes whole turns, so
+//!   a full circle has `|sweep_rad| = 2π` and its start equals its end.
+#![deny(missing_docs)]
+
+use nalgebra::Vector3;
+
+/// A point or direction in machine space, millimetres.
+pub type Vec3 = Vector3<f64>;
+
+/// A straight segment from `start` to `end`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Line {
+    /// Start point, mm.
+    pub start: Vec3,
+    /// End point, mm.
+    pub end: Vec3,
+}
+
+/// A circular arc or helix.
+///
+/// The circle lies in the plane through `start` normal to `axis`; `center` lies in that
+/// plane. The end point may be displaced from that plane along `axis` (a helix); the
+/// displacement grows linearly with the swept angle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Arc {
+    /// Start point, mm.
+    pub start: Vec3,
+    /// End point, mm.
+    pub end: Vec3,
+    /// Centre of the circle, in the plane of `start`, mm.
+    pub center: Vec3,
+    /// Unit normal of the plane (G17 +Z, G18 +Y, G19 +X).
+    pub axis: Vec3,
+    /// Signed swept angle about `axis` (right-hand rule; G3 positive, G2 negative),
+    /// including whole turns, radians.
+    pub sweep_rad: f64,
+}
+
+/// The geometric path of one move.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Path {
+    /// A straight line.
+    Line(Line),
+    /// A circular arc or helix.
+    Arc(Arc),
+}
+
+/// How the motion at the end of a move joins the next one.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CornerMode {
+    /// Come to a stop at the end of the move (LinuxCNC G61, G9-style exact stop).
+    ExactStop,
+    /// Blend into the next move within a path tolerance. `None` means the configured
+    /// default tolerance (LinuxCNC G64 without P).
+    Blend {
+        /// Maximum distance from the programmed path, mm.
+        tolerance_mm: Option<f64>,
+    },
+}
+
+/// One resolved move in absolute machine coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Move {
+    /// 1-based source line of the block that programmed the move.
+    pub line: u32,
+    /// `true` for a rapid (G0): it runs at the axis limits and `feed_mm_min` is `None`.
+    pub rapid: bool,
+    /// The path, in mm.
+    pub path: Path,
+    /// Programmed feed along the path, mm/min; `None` for rapids.
+    pub feed_mm_min: Option<f64>,
+    /// Rotary axes A, B, C at start and end, degrees, when the program uses them. They move
+    /// proportionally with the path.
+    pub abc_deg: Option<([f64; 3], [f64; 3])>,
+    /// How this move joins the next.
+    pub corner: CornerMode,
+}
+
+impl Path {
+    /// Start point of the path.
+    pub fn start(&self) -> Vec3 {
+        match self {
+            Path::Line(l) => l.start,
+            Path::Arc(a) => a.start,
+        }
+    }
+
+    /// End point of the path.
+    pub fn end(&self) -> Vec3 {
+        match self {
+            Path::Line(l) => l.end,
+            Path::Arc(a) => a.end,
+        }
+    }
+}

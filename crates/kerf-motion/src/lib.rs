@@ -1,0 +1,2 @@
+//! Kerf's real-time motion core: segment queue, lookahead and jerk-limited interpolation.
+#![deny(missing_docs)]

@@ -1,0 +1,1 @@
+//! Workspace tests: one binary, a module per area.
