@@ -1,1 +1,3 @@
 //! Workspace tests: one binary, a module per area.
+
+mod gcode;

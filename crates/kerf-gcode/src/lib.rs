@@ -1,2 +1,610 @@
 //! G-code front end for Kerf: lexing, dialects, modal state and exact move resolution.
+//!
+//! [`Interpreter`] reads a program written for one of five controls ([`Dialect`]) and
+//! yields, in program order, resolved [`Move`]s (absolute machine millimetres, exact
+//! lines, arcs and helices) and non-motion [`Event`]s. The first bad block ends the
+//! stream with a [`Diagnostic`] naming line, column and the problem in the words of the
+//! control's manual.
+//!
+//! ```
+//! use kerf_gcode::{Dialect, Interpreter, Item, Path, Settings};
+//!
+//! let program = "G21 G90 F600\nG1 X10\nG3 X0 Y10 I-10 J0\nM30\n";
+//! let items: Vec<Item> = Interpreter::new(program.as_bytes(), Dialect::LinuxCnc, Settings::default())
+//!     .collect::<Result<_, _>>()
+//!     .expect("a valid program");
+//! let Item::Move(quarter) = items[1] else { panic!("a move") };
+//! let Path::Arc(arc) = quarter.path else { panic!("an arc") };
+//! assert_eq!(arc.center, kerf_gcode::Vec3::zeros());
+//! assert!((arc.sweep_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+//! assert_eq!(quarter.feed_mm_min, Some(600.0));
+//! ```
+//!
+//! # Design
+//!
+//! - **Streaming, constant memory.** One source line is read at a time into a reused
+//!   buffer (lines longer than [`MAX_LINE_BYTES`] are an error); each line is lexed into a
+//!   reused word buffer, resolved against the modal state, and its items are queued in a
+//!   small reused buffer. Nothing grows with the program. On the hot path nothing is
+//!   allocated: error messages are only formatted when an error happens.
+//! - **Bytes, not chars.** The lexer works on bytes with case-insensitive letters and
+//!   converts numbers itself (exact for up to 15 significant digits; longer numbers are
+//!   converted through a general path). Comments may hold any UTF-8; invalid UTF-8, NUL
+//!   bytes and unexpected characters are errors, never panics.
+//! - **One resolution engine, dialect tables.** Each dialect maps its G codes onto shared
+//!   actions (plane, units, distance mode, motion, poles…); the geometry is computed once
+//!   in plane coordinates (u, v) with u × v = the plane normal, so G17, G18 and G19 share
+//!   one code path and `sweep_rad` is always signed about the normal by the right-hand rule.
+//! - **Blocks are atomic.** A block's items are only released when the whole block has
+//!   been resolved; after an error, nothing more is produced.
+//!
+//! Code map: `lex` (bytes to words, per-dialect syntax), `codes` (word keys, G/M code
+//! tables and modal groups of each dialect), `interp` (modal state, block execution,
+//! events), `interp::geometry` (end points, poles, polar coordinates, arcs of one motion
+//! block), `arc` (exact arc construction and the end-point tolerance rules).
+//!
+//! # Common rules (all dialects)
+//!
+//! - Output is millimetres in absolute machine coordinates; the first move starts at the
+//!   machine origin `[0, 0, 0]` and every move starts where the previous one ended.
+//!   Rotary axes A/B/C are degrees, never unit-converted; `abc_deg` is `None` until an
+//!   A/B/C word appears, then `Some((start, end))` on every later move, lines and arcs.
+//! - Missing axis words keep the current position. A zero-length line (end = start and no
+//!   rotary motion) is not emitted: the control would not move.
+//! - Feed F is modal and kept physically (converted to mm/min when read). A feed move with
+//!   no F ever programmed, or F0, is an error. Rapids carry `feed_mm_min: None`.
+//! - Events run in the control's order inside a block: S, T, M6, M3/M4/M5, M7/M8/M9
+//!   before the motion, M0/M1/M2/M30 after it (Heidenhain: M5 and M9 also after the
+//!   motion, as on the TNC). After M2/M30 the rest of the program is not read. Other M
+//!   codes are an "unknown M code" error. An `S` event carries the rpm, a `T` event the
+//!   tool number. G4 dwells are accepted and produce no item.
+//! - Block delete `/` at the start of a block skips the block (it is not even checked).
+//! - Cutter compensation G41/G42 is accepted only while the active tool's radius is zero
+//!   (tool table in [`Settings`]; the tool is the last T, or the LinuxCNC D word); with a
+//!   non-zero radius it is the error "cutter compensation not supported", never a
+//!   silently wrong path. G40 cancels it.
+//! - Work offsets: one table, [`Settings::work_offsets_mm`], serves LinuxCNC
+//!   G54–G59.3, Rockwell and Fagor G54–G59 (G54 active by default) and Sinumerik G54–G57
+//!   (G500, no offset, by default). Heidenhain has none.
+//! - Arc end points: a centre-format arc whose end radius differs from its start radius
+//!   within the tolerance is made exact by moving the centre onto the perpendicular
+//!   bisector of the chord, to the point closest to the programmed centre (LinuxCNC would
+//!   spiral instead; the difference is within the tolerance). Beyond the tolerance it is an
+//!   error. LinuxCNC uses its own rule (below); the other controls reject when
+//!   |r_end − r_start| > max(`arc_tolerance_mm`, r_start × `arc_tolerance_rel`) (the
+//!   Sinumerik MD21000/MD21010 rule; defaults 0.02828 mm and 0.001). A radius-format arc
+//!   whose |R| is short of half the chord by at most the slack (LinuxCNC 0.00127 mm,
+//!   others `arc_tolerance_mm`) is taken as a semicircle.
+//! - A full circle is a centre-format arc whose end equals its start (end words omitted or
+//!   repeated): `|sweep_rad| = 2π`, plus 2π per extra turn. Radius format cannot make one.
+//! - Helices: an axis word along the plane normal moves linearly with the angle; the
+//!   centre lies in the plane of the start point.
+//! - Not supported yet, each a clear error naming the construct: parameters and
+//!   expressions (LinuxCNC `#`, `[..]`, O-words; Sinumerik R parameters, `=` expressions
+//!   and other keywords; Fagor `P` parameters, `#` and `$` instructions), canned cycles,
+//!   inverse-time (G93) and per-revolution (G95) feed, U/V/W axes.
+//!
+//! # LinuxCNC / Tormach (`linuxcnc`, alias `tormach`)
+//!
+//! - `( )` and `;` comments; spaces are allowed anywhere, even inside numbers (`X 1 0.5`
+//!   is X10.5). A `%` line opens the program and the next `%` line ends it.
+//! - G20/G21 (default mm), G90/G91, G90.1/G91.1 (I J K absolute / incremental, default
+//!   incremental), G17/G18/G19, G61/G61.1 exact stop, G64 blend (`G64 P` = tolerance,
+//!   converted from inches under G20), G80 cancels the motion mode, G94, G97/G98/G99
+//!   accepted. There is no motion mode at start: axis words before G0/G1/G2/G3 are the
+//!   error "cannot use axis values without a G code that uses them".
+//! - Work offsets G54–G59.3; G92 (program coordinates of the current point), G92.1
+//!   (clear), G92.2 (suspend), G92.3 (restore); G53 (machine coordinates, with G0/G1 and
+//!   G90 only). G43 applies the Z length of tool H (or of the tool loaded by M6 when H is
+//!   absent) and G49 cancels it; a tool missing from the table has length 0. T selects a
+//!   tool, M6 loads it.
+//! - Arcs: centre format with I J K (a word for the axis normal to the plane is the error
+//!   "K word given for arc in XY plane" and its G18/G19 twins) or radius format R (R < 0 =
+//!   more than 180°); both is "mixed radius and centre format"; neither is "R, I, J, and K
+//!   words all missing for arc". P = number of turns (P1 = default). Centre format is
+//!   rejected when |r_start − r_end| > 100·t, or when it exceeds t and the relative error
+//!   exceeds 0.1 %, with t = 0.02828 mm (0.002828 in under G20). Radius format with end =
+//!   start is "current point same as end point of arc".
+//! - Polar `@` (distance) `^` (angle, degrees, CCW from +X) about the current XY program
+//!   zero, G0/G1 only; a missing one keeps the current point's value. Under G91 both are
+//!   added to the current point's polar coordinates (an error at the origin). Mixing them
+//!   with X/Y is an error.
+//! - Feed errors use LinuxCNC's words: "Cannot do G1 with zero feed rate", "Cannot make arc
+//!   with zero feed rate". F is kept physically across G20/G21 changes.
+//! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc,
+//!   P without G2/G3/G4/G64, Q without G64, H without G43. U, V, W and E are not supported.
+//!
+//! # Rockwell 9/Series mill (`rockwell`, Fanuc style)
+//!
+//! - `;` ENDS a block (several blocks may share a line); `( )` are comments; a leading
+//!   `O1234` program number is skipped; `%` lines as in LinuxCNC.
+//! - G20/G21 inch/mm (Fanuc style; the seed does not confirm it), G90/G91, G17/G18/G19,
+//!   G61 exact stop mode, G64 cutting mode, G09 exact stop for one block, G54–G59,
+//!   G43 H (the length of tool H from the tool table) / G49. The
+//!   motion mode at start is G01 (Fanuc power-up default).
+//! - Arcs: I J K always incremental from the start point; R± radius; when R and I/J/K are
+//!   both given, R wins. R with the end point equal to the start is a 0° arc: no motion and
+//!   no error. I J K with the end omitted or equal to the start is a full circle. No turns
+//!   word.
+//!
+//! # Sinumerik 840D (`sinumerik`)
+//!
+//! - `;` comments; `%_N_NAME_MPF` lines are skipped. Words are `X10` or `X=10`;
+//!   `X=AC(..)`/`X=IC(..)` force absolute/incremental for one value; `CR=`, `TURN=`,
+//!   `RP=`, `AP=` are recognised; parentheses outside `AC()`/`IC()` are expressions and
+//!   not supported. The motion mode at start is G0.
+//! - G70/G71 switch the geometry (positions, I J K, CR, RP) between inch and mm while F
+//!   stays in the basic unit, mm/min; G700/G710 switch F too (G700: inch/min).
+//! - Arcs: I J K incremental from the start regardless of G90/G91, `I=AC(..)` absolute;
+//!   `CR=±` radius (a full circle with CR= is an error); `TURN=n` (0..999) adds n full
+//!   circles; I J K without an end point is a full circle.
+//! - Poles: G110 (relative to the last programmed position), G111 (absolute in the
+//!   workpiece system), G112 (relative to the last pole), given by the plane's axis words
+//!   or by RP/AP; none of them is affected by G90/G91. Without a pole, the workpiece zero
+//!   is the pole. `RP=` (mm) and `AP=` (degrees from the plane's abscissa, CCW positive,
+//!   ±360°; `AP=IC(..)` relative to the last AP) give polar end points for G0/G1 and for
+//!   G2/G3 circles about the pole (checked with the arc tolerance). RP and AP are modal and
+//!   forgotten when the pole or the plane changes; a polar move that lacks one of them
+//!   then is an error.
+//! - G60 exact stop, G64 continuous path, G9 exact stop for one block. D (tool edge) and H
+//!   (auxiliary function) words are accepted and have no effect on the path.
+//!
+//! # Heidenhain TNC ISO (`heidenhain`)
+//!
+//! - `*` ends a block; `;` starts a comment. `%NAME G71 *` (or G70) opens the program and
+//!   sets mm (inch); the next `%NAME ... *` line ends it. G70/G71 are also accepted in
+//!   blocks. G30/G31 (blank form) blocks are skipped. G99 T L R defines a tool (length L,
+//!   radius R); a T word elsewhere is a tool call. There is no motion mode at start.
+//! - G90/G91 may switch per word inside a block (`G02 G91 X+5 G90 Y-5`): words after a
+//!   G90/G91 take that mode, earlier words the modal one; the last one stays modal.
+//! - `I J` (K in G18/G19) set the modal circle centre **and pole** (absolute, or under G91
+//!   relative to the last programmed position), also inside a motion block, where they
+//!   apply before the motion. G29 makes the last programmed position the centre/pole.
+//! - G02/G03 arcs turn about that centre (an end point within 0.016 mm of the start makes
+//!   a full circle); with R± they are radius arcs (R− more than 180°; a full circle needs
+//!   two half circles). G05 is an arc in the last programmed direction.
+//! - Polar lines G10 (rapid) / G11 (feed): R = polar radius, H = polar angle (−360..+360,
+//!   CCW from the plane's abscissa), about the pole; both modal; under G91 they are added
+//!   to the previous polar values. Polar circles G12 (CW) / G13 (CCW) / G15 (last
+//!   direction) about the pole with the radius of the start point: absolute H is the end
+//!   angle, reached in the programmed direction (an end angle equal to the start angle is a
+//!   full circle; |H| up to 5400° gives several turns, e.g. H+720 from 0° is two turns);
+//!   G91 H is the swept angle itself and its sign must match the direction. An axis word
+//!   along the normal makes a helix.
+//! - G41/G42 with a zero tool radius keep the programmed path. An R word in a G00/G01
+//!   block is an error (R belongs to G02/G03, G10/G11 and G99).
+//!
+//! # Fagor 8070 (`fagor`)
+//!
+//! - `;` and `( )` comments; `%name` header lines are skipped; N up to 4294967295. The
+//!   motion mode at start is G00. G70 inch / G71 mm (not confirmed by the seed). G05 and
+//!   G50 blend, G07 square corner (exact stop).
+//! - Arcs: `X Y I J` with I J K incremental from the start point and not affected by
+//!   G90/G91 (G06 in the block: I J absolute, for that block only); `X Y R±` radius (a full
+//!   circle with R is an error); with neither I/J nor R the centre is the polar origin.
+//! - Polar end points: `R` (radius) and `Q` (angle, degrees, CCW from the plane's
+//!   abscissa) about the polar origin, in G00/G01/G02/G03. In G02/G03 an `R` together with
+//!   X/Y in the plane is the arc radius, otherwise `R`/`Q` are polar. A missing R or Q
+//!   keeps the value of the last point; under G91 they are added to it. `G91 Q360` (any
+//!   non-zero multiple of 360°) about the polar origin is a whole circle (or several);
+//!   `G90 Q360` is the point at 360°.
+//! - The polar origin is part zero until `G30 I.. J..` (K in G18/G19) sets it at those
+//!   absolute part coordinates; `G30` alone makes the current point the polar origin. A
+//!   plane change resets it to part zero.
 #![deny(missing_docs)]
+
+mod arc;
+mod codes;
+mod interp;
+mod lex;
+
+pub use kerf_geom::{Arc, CornerMode, Line, Move, Path, Vec3};
+
+/// The control whose G-code dialect a program is written in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Dialect {
+    /// LinuxCNC / Tormach PathPilot.
+    LinuxCnc,
+    /// Rockwell Automation 9/Series mill (Fanuc style).
+    Rockwell,
+    /// Siemens Sinumerik 840D.
+    Sinumerik,
+    /// Heidenhain TNC in ISO programming.
+    Heidenhain,
+    /// Fagor 8070.
+    Fagor,
+}
+
+impl Dialect {
+    /// Every dialect, in a fixed order.
+    pub const ALL: [Dialect; 5] = [
+        Dialect::LinuxCnc,
+        Dialect::Rockwell,
+        Dialect::Sinumerik,
+        Dialect::Heidenhain,
+        Dialect::Fagor,
+    ];
+
+    /// "linuxcnc" (alias "tormach"), "rockwell", "sinumerik", "heidenhain", "fagor"; case-insensitive.
+    pub fn from_name(name: &str) -> Option<Dialect> {
+        let n = name.trim();
+        let eq = |s: &str| n.eq_ignore_ascii_case(s);
+        if eq("linuxcnc") || eq("tormach") {
+            Some(Dialect::LinuxCnc)
+        } else if eq("rockwell") {
+            Some(Dialect::Rockwell)
+        } else if eq("sinumerik") {
+            Some(Dialect::Sinumerik)
+        } else if eq("heidenhain") {
+            Some(Dialect::Heidenhain)
+        } else if eq("fagor") {
+            Some(Dialect::Fagor)
+        } else {
+            None
+        }
+    }
+
+    /// The canonical lowercase name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Dialect::LinuxCnc => "linuxcnc",
+            Dialect::Rockwell => "rockwell",
+            Dialect::Sinumerik => "sinumerik",
+            Dialect::Heidenhain => "heidenhain",
+            Dialect::Fagor => "fagor",
+        }
+    }
+
+    /// By extension where unambiguous: `.ngc` is LinuxCNC, `.mpf`/`.spf` Sinumerik, and
+    /// `.h`/`.i` Heidenhain only if `head` (the first bytes of the file) looks like TNC ISO.
+    /// Otherwise `None`: the caller falls back to the config, then LinuxCNC.
+    pub fn from_path(path: &std::path::Path, head: &[u8]) -> Option<Dialect> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "ngc" => Some(Dialect::LinuxCnc),
+            "mpf" | "spf" => Some(Dialect::Sinumerik),
+            "h" | "i" if looks_like_tnc_iso(head) => Some(Dialect::Heidenhain),
+            _ => None,
+        }
+    }
+}
+
+/// One entry of the tool table.
+#[derive(Clone, Debug)]
+pub struct Tool {
+    /// Tool number (T word).
+    pub number: u32,
+    /// Tool length offset, mm (applied along Z by LinuxCNC G43).
+    pub length_mm: f64,
+    /// Tool radius, mm (cutter compensation is refused when it is non-zero).
+    pub radius_mm: f64,
+}
+
+/// Machine settings the interpreter needs.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    /// LinuxCNC G54, G55, G56, G57, G58, G59, G59.1, G59.2, G59.3 offsets in mm (zero by default).
+    pub work_offsets_mm: [[f64; 3]; 9],
+    /// The tool table.
+    pub tools: Vec<Tool>,
+    /// Absolute arc end-point tolerance for Sinumerik/Heidenhain/Fagor, mm (default 0.02828).
+    pub arc_tolerance_mm: f64,
+    /// Relative arc end-point tolerance (fraction of the start radius) for
+    /// Sinumerik/Heidenhain/Fagor (default 0.001).
+    pub arc_tolerance_rel: f64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            work_offsets_mm: [[0.0; 3]; 9],
+            tools: Vec::new(),
+            arc_tolerance_mm: 0.02828,
+            arc_tolerance_rel: 0.001,
+        }
+    }
+}
+
+/// The kind of a non-motion event.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum EventCode {
+    /// Program stop.
+    M0,
+    /// Optional program stop.
+    M1,
+    /// Program end.
+    M2,
+    /// Program end and rewind.
+    M30,
+    /// Spindle on clockwise.
+    M3,
+    /// Spindle on counter-clockwise.
+    M4,
+    /// Spindle stop.
+    M5,
+    /// Tool change.
+    M6,
+    /// Mist coolant on.
+    M7,
+    /// Flood coolant on.
+    M8,
+    /// Coolant off.
+    M9,
+    /// Spindle speed, rpm.
+    S,
+    /// Tool select.
+    T,
+}
+
+impl EventCode {
+    /// The code as written: "M3", "S", "T", ...
+    pub fn as_str(self) -> &'static str {
+        match self {
+            EventCode::M0 => "M0",
+            EventCode::M1 => "M1",
+            EventCode::M2 => "M2",
+            EventCode::M30 => "M30",
+            EventCode::M3 => "M3",
+            EventCode::M4 => "M4",
+            EventCode::M5 => "M5",
+            EventCode::M6 => "M6",
+            EventCode::M7 => "M7",
+            EventCode::M8 => "M8",
+            EventCode::M9 => "M9",
+            EventCode::S => "S",
+            EventCode::T => "T",
+        }
+    }
+}
+
+/// A non-motion event, in program order among the moves.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Event {
+    /// 1-based source line.
+    pub line: u32,
+    /// What happens.
+    pub code: EventCode,
+    /// S: rpm; T: tool number; M codes: `None`.
+    pub value: Option<f64>,
+}
+
+/// One output item of the interpreter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Item {
+    /// A resolved move.
+    Move(Move),
+    /// A non-motion event.
+    Event(Event),
+}
+
+/// An error at a place in the source: the CLI prints `FILE:LINE:COL: error: MESSAGE`.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{line}:{col}: error: {message}")]
+pub struct Diagnostic {
+    /// 1-based source line.
+    pub line: u32,
+    /// 1-based column, in bytes.
+    pub col: u32,
+    /// What is wrong, in the words of the control's manual.
+    pub message: String,
+}
+
+/// The longest source line accepted, in bytes. Longer lines are an error, which keeps the
+/// interpreter's memory bounded on any input.
+pub const MAX_LINE_BYTES: usize = 64 * 1024;
+
+/// Streams items from a reader: constant memory, one source line at a time.
+///
+/// The iterator yields items in program order. After the first `Err` it yields `None`
+/// forever: nothing after a failing block is produced. The items of a block are only
+/// yielded once the whole block has been resolved without error.
+pub struct Interpreter<R: std::io::BufRead> {
+    reader: R,
+    line: Vec<u8>,
+    line_no: u32,
+    lexer: lex::Lexer,
+    words: Vec<lex::Word>,
+    block: interp::Block,
+    state: interp::State,
+    pending: Vec<Item>,
+    next_pending: usize,
+    error: Option<Diagnostic>,
+    finished: bool,
+    percent_seen: bool,
+    blocks_seen: bool,
+}
+
+impl<R: std::io::BufRead> Interpreter<R> {
+    /// An interpreter for `dialect` reading from `reader`.
+    pub fn new(reader: R, dialect: Dialect, settings: Settings) -> Self {
+        Interpreter {
+            reader,
+            line: Vec::with_capacity(256),
+            line_no: 0,
+            lexer: lex::Lexer::new(dialect),
+            words: Vec::with_capacity(32),
+            block: interp::Block::new(),
+            state: interp::State::new(dialect, settings),
+            pending: Vec::with_capacity(16),
+            next_pending: 0,
+            error: None,
+            finished: false,
+            percent_seen: false,
+            blocks_seen: false,
+        }
+    }
+
+    fn diag(&self, col: u32, message: impl Into<String>) -> Diagnostic {
+        Diagnostic {
+            line: self.line_no,
+            col,
+            message: message.into(),
+        }
+    }
+
+    /// Reads the next line into `self.line` without its line end. `Ok(false)` at the end
+    /// of the input.
+    fn read_line(&mut self) -> Result<bool, Diagnostic> {
+        use std::io::{BufRead, Read};
+        self.line.clear();
+        let limit = MAX_LINE_BYTES as u64 + 1;
+        let n = loop {
+            match (&mut self.reader)
+                .take(limit)
+                .read_until(b'\n', &mut self.line)
+            {
+                Ok(n) => break n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => {
+                    self.line_no = self.line_no.saturating_add(1);
+                    return Err(self.diag(1, format!("read error: {e}")));
+                }
+            }
+        };
+        if n == 0 {
+            return Ok(false);
+        }
+        self.line_no = self.line_no.saturating_add(1);
+        if self.line.last() == Some(&b'\n') {
+            self.line.pop();
+        } else if self.line.len() > MAX_LINE_BYTES {
+            return Err(self.diag(1, format!("line longer than {MAX_LINE_BYTES} bytes")));
+        }
+        if self.line.last() == Some(&b'\r') {
+            self.line.pop();
+        }
+        if self.line_no == 1 && self.line.starts_with(b"\xef\xbb\xbf") {
+            // A UTF-8 byte-order mark, as some Windows editors write: not part of the program.
+            // Blanking it keeps the columns of the first line right.
+            self.line[..3].copy_from_slice(b"   ");
+        }
+        Ok(true)
+    }
+
+    /// Resolves every block of the current line into `pending`, stopping at the first error.
+    fn process_line(&mut self) -> Result<(), Diagnostic> {
+        // Plain ASCII without NUL is the common case and needs no further check.
+        if self.line.iter().any(|&b| b == 0 || b >= 0x80) {
+            if let Some(i) = self.line.iter().position(|&b| b == 0) {
+                return Err(self.diag(lex::col_of(i), "NUL byte in program"));
+            }
+            if let Err(e) = std::str::from_utf8(&self.line) {
+                return Err(self.diag(lex::col_of(e.valid_up_to()), "invalid UTF-8 in program"));
+            }
+        }
+        let dialect = self.state.dialect();
+        let mut pos = 0;
+        loop {
+            let start = self.pending.len();
+            let flags = match self.lexer.next_block(&self.line, &mut pos, &mut self.words) {
+                Ok(Some(f)) => f,
+                Ok(None) => return Ok(()),
+                Err(e) => return Err(self.diag(e.col, e.message)),
+            };
+            if flags.deleted {
+                continue;
+            }
+            if flags.percent && matches!(dialect, Dialect::LinuxCnc | Dialect::Rockwell) {
+                // A `%` line opens the program; the next one ends it and the rest of the
+                // file is ignored, as on the control.
+                if self.percent_seen || self.blocks_seen {
+                    self.finished = true;
+                    return Ok(());
+                }
+                self.percent_seen = true;
+                continue;
+            }
+            if self.words.is_empty() && !flags.percent {
+                continue;
+            }
+            self.blocks_seen = true;
+            let result = self
+                .state
+                .build_block(&self.words, &mut self.block)
+                .and_then(|()| {
+                    let mut out = interp::Out {
+                        items: &mut self.pending,
+                        line: self.line_no,
+                    };
+                    self.state.exec(&self.block, flags.percent, &mut out)
+                });
+            if let Err(e) = result {
+                self.pending.truncate(start);
+                return Err(self.diag(e.col, e.message));
+            }
+            if self.state.done {
+                self.finished = true;
+                return Ok(());
+            }
+        }
+    }
+}
+
+impl<R: std::io::BufRead> Iterator for Interpreter<R> {
+    type Item = Result<Item, Diagnostic>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            if let Some(item) = self.pending.get(self.next_pending) {
+                self.next_pending += 1;
+                return Some(Ok(*item));
+            }
+            self.pending.clear();
+            self.next_pending = 0;
+            if let Some(e) = self.error.take() {
+                self.finished = true;
+                return Some(Err(e));
+            }
+            if self.finished {
+                return None;
+            }
+            match self.read_line() {
+                Ok(true) => {}
+                Ok(false) => {
+                    self.finished = true;
+                    return None;
+                }
+                Err(e) => {
+                    self.finished = true;
+                    return Some(Err(e));
+                }
+            }
+            if let Err(e) = self.process_line() {
+                self.error = Some(e);
+                self.finished = true;
+            }
+        }
+    }
+}
+
+/// True when the first bytes of a `.h`/`.i` file look like Heidenhain TNC ISO rather than
+/// plain-language (conversational) programming: a `%NAME G71 *` header or `*` block ends.
+fn looks_like_tnc_iso(head: &[u8]) -> bool {
+    let text = String::from_utf8_lossy(head);
+    if text.to_ascii_uppercase().contains("BEGIN PGM") {
+        return false;
+    }
+    let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+    let Some(first) = lines.next() else {
+        return false;
+    };
+    let upper = first.to_ascii_uppercase();
+    if upper.starts_with('%')
+        && (upper.contains("G71") || upper.contains("G70"))
+        && upper.ends_with('*')
+    {
+        return true;
+    }
+    // A block such as `N10 G00 X+0 *`; a C comment line (`/**`, ` * text *`) is not one.
+    text.lines().map(str::trim).any(|l| {
+        let mut chars = l.chars();
+        let first = chars.next().map(|c| c.to_ascii_uppercase());
+        let second = chars.next();
+        l.ends_with('*')
+            && matches!(first, Some('N' | 'G'))
+            && second.is_some_and(|c| c.is_ascii_digit() || c == ' ')
+    })
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,401 @@
+//! Word keys, G and M code tables of each dialect, and the modal groups.
+
+use crate::Dialect;
+use crate::EventCode;
+use crate::arc::Plane;
+use crate::lex::{K_AP, K_AT, K_CARET, K_CR, K_RP, K_TURN, key};
+
+// Keys of the letter words the interpreter looks at.
+pub(crate) const KX: u8 = key(b'X');
+pub(crate) const KY: u8 = key(b'Y');
+pub(crate) const KZ: u8 = key(b'Z');
+pub(crate) const KA: u8 = key(b'A');
+pub(crate) const KB: u8 = key(b'B');
+pub(crate) const KC: u8 = key(b'C');
+pub(crate) const KI: u8 = key(b'I');
+pub(crate) const KJ: u8 = key(b'J');
+pub(crate) const KK: u8 = key(b'K');
+pub(crate) const KR: u8 = key(b'R');
+pub(crate) const KH: u8 = key(b'H');
+pub(crate) const KQ: u8 = key(b'Q');
+pub(crate) const KP: u8 = key(b'P');
+pub(crate) const KF: u8 = key(b'F');
+pub(crate) const KS: u8 = key(b'S');
+pub(crate) const KT: u8 = key(b'T');
+pub(crate) const KD: u8 = key(b'D');
+pub(crate) const KL: u8 = key(b'L');
+
+/// Linear axis words, indexed like machine axes (0 = X).
+pub(crate) const XYZ: [u8; 3] = [KX, KY, KZ];
+/// Rotary axis words.
+pub(crate) const ABC: [u8; 3] = [KA, KB, KC];
+/// Centre words, indexed like the axes they are parallel to.
+pub(crate) const IJK: [u8; 3] = [KI, KJ, KK];
+
+/// The word's address as written, for messages.
+pub(crate) fn key_name(k: u8) -> String {
+    match k {
+        K_CR => "CR".into(),
+        K_TURN => "TURN".into(),
+        K_RP => "RP".into(),
+        K_AP => "AP".into(),
+        K_AT => "@".into(),
+        K_CARET => "^".into(),
+        _ => ((b'A' + k) as char).to_string(),
+    }
+}
+
+/// Motion modes (G group 1 and the Heidenhain polar motions).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Motion {
+    Rapid,
+    Linear,
+    /// Circular; `None` direction = Heidenhain G05 (last direction).
+    Arc(Option<bool>),
+    /// Heidenhain G10 (rapid) / G11 (feed) polar lines.
+    PolarLine {
+        rapid: bool,
+    },
+    /// Heidenhain G12/G13/G15 polar circles; `None` = G15.
+    PolarArc(Option<bool>),
+}
+
+/// What a G code does in a dialect.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum G {
+    Motion(Motion),
+    NoMotion,
+    Dwell,
+    Plane(Plane),
+    Units { inch: bool, feed_too: bool },
+    Distance { absolute: bool },
+    ArcDistance { absolute: bool },
+    Comp(Comp),
+    ToolLength { on: bool },
+    CoordSystem(Option<usize>),
+    Corner { exact: bool },
+    ExactStopOnce,
+    G92Set,
+    G92Reset,
+    G92Suspend,
+    G92Restore,
+    MachineCoords,
+    FeedPerMinute,
+    Pole(PoleRef),
+    PoleFromLast,
+    PolarOrigin,
+    AbsCentreOnce,
+    BlankForm,
+    ToolDef,
+    NoOp,
+    Unsupported(&'static str),
+}
+
+/// Cutter radius compensation (G40/G41/G42).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Comp {
+    Off,
+    Left,
+    Right,
+}
+
+/// What a Sinumerik pole is programmed relative to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum PoleRef {
+    /// G110: relative to the last programmed position.
+    LastPosition,
+    /// G111: absolute in the workpiece coordinate system.
+    Workpiece,
+    /// G112: relative to the last pole.
+    LastPole,
+}
+
+pub(crate) const N_GROUPS: usize = 13;
+pub(crate) const GROUP_DISTANCE: usize = 4;
+
+/// The modal group of a G action, for the "same modal group" check. Group 0 holds the
+/// non-modal codes, of which a block may use one.
+pub(crate) fn group(g: G) -> usize {
+    match g {
+        G::Motion(_) | G::NoMotion => 1,
+        G::Plane(_) => 2,
+        G::Units { .. } => 3,
+        G::Distance { .. } => GROUP_DISTANCE,
+        G::ArcDistance { .. } => 5,
+        G::Comp(_) => 6,
+        G::ToolLength { .. } => 7,
+        G::CoordSystem(_) => 8,
+        G::Corner { .. } => 9,
+        G::ExactStopOnce => 10,
+        G::FeedPerMinute => 11,
+        G::AbsCentreOnce => 12,
+        G::Dwell
+        | G::G92Set
+        | G::G92Reset
+        | G::G92Suspend
+        | G::G92Restore
+        | G::MachineCoords
+        | G::Pole(_)
+        | G::PoleFromLast
+        | G::PolarOrigin
+        | G::BlankForm
+        | G::ToolDef
+        | G::NoOp
+        | G::Unsupported(_) => 0,
+    }
+}
+
+/// What G code `code10` (the number times ten: G59.1 is 591) does in dialect `d`; `None`
+/// for a code the dialect does not know.
+pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
+    use G::*;
+    let m = |x| Some(Motion(x));
+    let common = match code10 {
+        0 => m(self::Motion::Rapid),
+        10 => m(self::Motion::Linear),
+        20 => m(self::Motion::Arc(Some(false))),
+        30 => m(self::Motion::Arc(Some(true))),
+        170 => Some(Plane(self::Plane::Xy)),
+        180 => Some(Plane(self::Plane::Zx)),
+        190 => Some(Plane(self::Plane::Yz)),
+        400 => Some(Comp(self::Comp::Off)),
+        410 => Some(Comp(self::Comp::Left)),
+        420 => Some(Comp(self::Comp::Right)),
+        900 => Some(Distance { absolute: true }),
+        910 => Some(Distance { absolute: false }),
+        _ => None,
+    };
+    if common.is_some() {
+        return common;
+    }
+    let r = match d {
+        Dialect::LinuxCnc => match code10 {
+            40 => Dwell,
+            200 => Units {
+                inch: true,
+                feed_too: true,
+            },
+            210 => Units {
+                inch: false,
+                feed_too: true,
+            },
+            430 => ToolLength { on: true },
+            490 => ToolLength { on: false },
+            530 => MachineCoords,
+            540 | 550 | 560 | 570 | 580 | 590 => CoordSystem(Some(usize::from(code10 / 10 - 54))),
+            591..=593 => CoordSystem(Some(usize::from(code10 - 591 + 6))),
+            610 | 611 => Corner { exact: true },
+            640 => Corner { exact: false },
+            800 => NoMotion,
+            901 => ArcDistance { absolute: true },
+            911 => ArcDistance { absolute: false },
+            920 => G92Set,
+            921 => G92Reset,
+            922 => G92Suspend,
+            923 => G92Restore,
+            930 => Unsupported("inverse time feed (G93) is not supported"),
+            940 => FeedPerMinute,
+            950 => Unsupported("feed per revolution (G95) is not supported"),
+            970 | 980 | 990 => NoOp,
+            50
+            | 51
+            | 52
+            | 70
+            | 80
+            | 100
+            | 280
+            | 281
+            | 300
+            | 301
+            | 330
+            | 331
+            | 382..=385
+            | 411
+            | 421
+            | 431
+            | 432
+            | 520
+            | 730
+            | 740
+            | 760
+            | 810..=890
+            | 960 => Unsupported("this G code is not supported yet"),
+            _ => return None,
+        },
+        Dialect::Rockwell => match code10 {
+            40 => Dwell,
+            90 => ExactStopOnce,
+            200 => Units {
+                inch: true,
+                feed_too: true,
+            },
+            210 => Units {
+                inch: false,
+                feed_too: true,
+            },
+            430 => ToolLength { on: true },
+            490 => ToolLength { on: false },
+            540 | 550 | 560 | 570 | 580 | 590 => CoordSystem(Some(usize::from(code10 / 10 - 54))),
+            610 => Corner { exact: true },
+            640 => Corner { exact: false },
+            800 => NoOp,
+            940 => FeedPerMinute,
+            950 => Unsupported("feed per revolution (G95) is not supported"),
+            _ => return None,
+        },
+        Dialect::Sinumerik => match code10 {
+            40 => Dwell,
+            90 => ExactStopOnce,
+            540 | 550 | 560 | 570 => CoordSystem(Some(usize::from(code10 / 10 - 54))),
+            5000 => CoordSystem(None),
+            600 => Corner { exact: true },
+            640 => Corner { exact: false },
+            700 => Units {
+                inch: true,
+                feed_too: false,
+            },
+            710 => Units {
+                inch: false,
+                feed_too: false,
+            },
+            7000 => Units {
+                inch: true,
+                feed_too: true,
+            },
+            7100 => Units {
+                inch: false,
+                feed_too: true,
+            },
+            940 => FeedPerMinute,
+            950 => Unsupported("feed per revolution (G95) is not supported"),
+            1100 => Pole(PoleRef::LastPosition),
+            1110 => Pole(PoleRef::Workpiece),
+            1120 => Pole(PoleRef::LastPole),
+            _ => return None,
+        },
+        Dialect::Heidenhain => match code10 {
+            40 => Dwell,
+            50 => Motion(self::Motion::Arc(None)),
+            60 => Unsupported("tangential arcs (G06) are not supported yet"),
+            100 => Motion(self::Motion::PolarLine { rapid: true }),
+            110 => Motion(self::Motion::PolarLine { rapid: false }),
+            120 => Motion(self::Motion::PolarArc(Some(false))),
+            130 => Motion(self::Motion::PolarArc(Some(true))),
+            150 => Motion(self::Motion::PolarArc(None)),
+            160 => Unsupported("tangential polar arcs (G16) are not supported yet"),
+            240 => Unsupported("chamfers (G24) are not supported yet"),
+            250 => Unsupported("corner rounding (G25) is not supported yet"),
+            290 => PoleFromLast,
+            300 | 310 => BlankForm,
+            700 => Units {
+                inch: true,
+                feed_too: true,
+            },
+            710 => Units {
+                inch: false,
+                feed_too: true,
+            },
+            990 => ToolDef,
+            _ => return None,
+        },
+        Dialect::Fagor => match code10 {
+            40 => Dwell,
+            50 | 500 => Corner { exact: false },
+            60 => AbsCentreOnce,
+            70 => Corner { exact: true },
+            200 => Unsupported("the general plane (G20) is not supported"),
+            300 => PolarOrigin,
+            540 | 550 | 560 | 570 | 580 | 590 => CoordSystem(Some(usize::from(code10 / 10 - 54))),
+            700 => Units {
+                inch: true,
+                feed_too: true,
+            },
+            710 => Units {
+                inch: false,
+                feed_too: true,
+            },
+            940 => FeedPerMinute,
+            950 => Unsupported("feed per revolution (G95) is not supported"),
+            _ => return None,
+        },
+    };
+    Some(r)
+}
+
+/// The event of an M code the dialects share, if it is one.
+pub(crate) fn m_event(code: u16) -> Option<EventCode> {
+    Some(match code {
+        0 => EventCode::M0,
+        1 => EventCode::M1,
+        2 => EventCode::M2,
+        30 => EventCode::M30,
+        3 => EventCode::M3,
+        4 => EventCode::M4,
+        5 => EventCode::M5,
+        6 => EventCode::M6,
+        7 => EventCode::M7,
+        8 => EventCode::M8,
+        9 => EventCode::M9,
+        _ => return None,
+    })
+}
+
+/// The word keys a dialect accepts besides G, M and N (bit k = key k).
+pub(crate) const fn allowed_keys(d: Dialect) -> u32 {
+    const fn mask(keys: &[u8]) -> u32 {
+        let mut m = 0u32;
+        let mut i = 0;
+        while i < keys.len() {
+            m |= 1 << keys[i];
+            i += 1;
+        }
+        m
+    }
+    match d {
+        Dialect::LinuxCnc => mask(&[
+            KA, KB, KC, KD, KF, KH, KI, KJ, KK, KP, KQ, KR, KS, KT, KX, KY, KZ, K_AT, K_CARET,
+        ]),
+        Dialect::Rockwell => mask(&[
+            KA, KB, KC, KD, KF, KH, KI, KJ, KK, KP, KQ, KR, KS, KT, KX, KY, KZ,
+        ]),
+        Dialect::Sinumerik => mask(&[
+            KA, KB, KC, KD, KF, KH, KI, KJ, KK, KS, KT, KX, KY, KZ, K_CR, K_TURN, K_RP, K_AP,
+        ]),
+        Dialect::Heidenhain => mask(&[KA, KB, KC, KF, KH, KI, KJ, KK, KL, KR, KS, KT, KX, KY, KZ]),
+        Dialect::Fagor => mask(&[KA, KB, KC, KD, KF, KI, KJ, KK, KQ, KR, KS, KT, KX, KY, KZ]),
+    }
+}
+
+/// A G or M number times ten (G59.1 → 591), if it has at most one decimal.
+pub(crate) fn code10(v: f64) -> Option<u16> {
+    let t = v * 10.0;
+    let r = t.round();
+    if !(0.0..=65535.0).contains(&r) || (t - r).abs() > 1e-6 {
+        return None;
+    }
+    Some(r as u16)
+}
+
+/// The G code as written, for messages.
+pub(crate) fn g_name(code10: u16) -> String {
+    if code10 % 10 == 0 {
+        format!("G{}", code10 / 10)
+    } else {
+        format!("G{}.{}", code10 / 10, code10 % 10)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn g_numbers() {
+        assert_eq!(code10(59.1), Some(591));
+        assert_eq!(code10(1.0), Some(10));
+        assert_eq!(code10(1.25), None);
+        assert_eq!(code10(-1.0), None);
+        assert_eq!(g_name(591), "G59.1");
+        assert_eq!(g_name(30), "G3");
+    }
+}

@@ -1,0 +1,696 @@
+//! Modal state and per-dialect resolution of blocks into moves and events.
+
+use kerf_geom::{CornerMode, Vec3};
+
+use crate::arc::Plane;
+use crate::codes::*;
+use crate::lex::{Form, N_KEYS, Word};
+use crate::{Dialect, Event, EventCode, Item, Settings, Tool};
+
+mod geometry;
+
+const MM_PER_INCH: f64 = 25.4;
+
+/// The most tools a program may define with Heidenhain G99.
+const MAX_TOOLS: usize = 10_000;
+
+/// A resolution error: a 1-based column and a message.
+#[derive(Debug)]
+pub(crate) struct ExecError {
+    pub col: u32,
+    pub message: String,
+}
+
+fn fail<T>(col: u32, message: impl Into<String>) -> Result<T, ExecError> {
+    Err(ExecError {
+        col,
+        message: message.into(),
+    })
+}
+
+/// The words of one block, indexed by key. Values are only meaningful where `present`
+/// has the key's bit set, so a block is reset by clearing one integer.
+pub(crate) struct Block {
+    present: u32,
+    vals: [f64; N_KEYS],
+    cols: [u32; N_KEYS],
+    forms: [Form; N_KEYS],
+    gs: [(u16, u32); 16],
+    ng: usize,
+    ms: [(u16, u32); 8],
+    nm: usize,
+    first_col: u32,
+}
+
+impl Block {
+    pub(crate) fn new() -> Self {
+        Block {
+            present: 0,
+            vals: [0.0; N_KEYS],
+            cols: [0; N_KEYS],
+            forms: [Form::Plain; N_KEYS],
+            gs: [(0, 0); 16],
+            ng: 0,
+            ms: [(0, 0); 8],
+            nm: 0,
+            first_col: 1,
+        }
+    }
+
+    fn has(&self, k: u8) -> bool {
+        self.present & (1 << k) != 0
+    }
+
+    fn get(&self, k: u8) -> Option<f64> {
+        if self.has(k) {
+            Some(self.vals[k as usize])
+        } else {
+            None
+        }
+    }
+
+    fn col(&self, k: u8) -> u32 {
+        self.cols[k as usize]
+    }
+
+    fn any(&self, keys: &[u8]) -> bool {
+        keys.iter().any(|&k| self.has(k))
+    }
+
+    fn first_of(&self, keys: &[u8]) -> Option<u8> {
+        keys.iter().copied().find(|&k| self.has(k))
+    }
+}
+
+/// Interpreter state carried from block to block.
+pub(crate) struct State {
+    dialect: Dialect,
+    settings: Settings,
+    /// Current position, machine mm.
+    pos: Vec3,
+    abc: [f64; 3],
+    abc_used: bool,
+    inch: bool,
+    feed_inch: bool,
+    absolute: bool,
+    arc_absolute: bool,
+    plane: Plane,
+    motion: Option<Motion>,
+    feed_mm_min: Option<f64>,
+    corner: CornerMode,
+    comp: Comp,
+    tool_selected: Option<u32>,
+    tool_loaded: Option<u32>,
+    tool_length_mm: f64,
+    coord_system: Option<usize>,
+    g92_mm: [f64; 3],
+    g92_saved_mm: [f64; 3],
+    /// Program zero in machine coordinates (work offset + G92 + tool length).
+    origin: Vec3,
+    /// Sinumerik pole, machine coordinates (`None` = workpiece zero).
+    pole: Option<Vec3>,
+    /// Sinumerik stored RP (mm) and AP (degrees).
+    rp_mm: Option<f64>,
+    ap_deg: Option<f64>,
+    /// Heidenhain circle centre and pole (machine coordinates).
+    cc: Option<Vec3>,
+    /// Fagor polar origin (machine coordinates; `None` = part zero).
+    polar_origin: Option<Vec3>,
+    /// Last programmed polar radius (mm) and angle (degrees) about the pole, while the
+    /// position still is that polar point (Heidenhain, Fagor).
+    polar_last: Option<(f64, f64)>,
+    /// Direction of the last arc (`true` = counter-clockwise), for Heidenhain G05/G15.
+    last_ccw: Option<bool>,
+    /// A Heidenhain `%` header has been read.
+    header_seen: bool,
+    /// The program has ended (M2/M30 or a Heidenhain end line).
+    pub(crate) done: bool,
+}
+
+/// Output of a block, in execution order.
+pub(crate) struct Out<'a> {
+    pub items: &'a mut Vec<Item>,
+    pub line: u32,
+}
+
+impl Out<'_> {
+    fn event(&mut self, code: EventCode, value: Option<f64>) {
+        self.items.push(Item::Event(Event {
+            line: self.line,
+            code,
+            value,
+        }));
+    }
+}
+
+impl State {
+    pub(crate) fn dialect(&self) -> Dialect {
+        self.dialect
+    }
+
+    pub(crate) fn new(dialect: Dialect, settings: Settings) -> Self {
+        let coord_system = match dialect {
+            Dialect::LinuxCnc | Dialect::Rockwell | Dialect::Fagor => Some(0),
+            Dialect::Sinumerik | Dialect::Heidenhain => None,
+        };
+        let motion = match dialect {
+            Dialect::LinuxCnc | Dialect::Heidenhain => None,
+            Dialect::Rockwell => Some(Motion::Linear),
+            Dialect::Sinumerik | Dialect::Fagor => Some(Motion::Rapid),
+        };
+        let mut s = State {
+            dialect,
+            settings,
+            pos: Vec3::zeros(),
+            abc: [0.0; 3],
+            abc_used: false,
+            inch: false,
+            feed_inch: false,
+            absolute: true,
+            arc_absolute: false,
+            plane: Plane::Xy,
+            motion,
+            feed_mm_min: None,
+            corner: CornerMode::Blend { tolerance_mm: None },
+            comp: Comp::Off,
+            tool_selected: None,
+            tool_loaded: None,
+            tool_length_mm: 0.0,
+            coord_system,
+            g92_mm: [0.0; 3],
+            g92_saved_mm: [0.0; 3],
+            origin: Vec3::zeros(),
+            pole: None,
+            rp_mm: None,
+            ap_deg: None,
+            cc: None,
+            polar_origin: None,
+            polar_last: None,
+            last_ccw: None,
+            header_seen: false,
+            done: false,
+        };
+        s.update_origin();
+        s
+    }
+
+    fn update_origin(&mut self) {
+        let work = match self.coord_system {
+            Some(i) => self
+                .settings
+                .work_offsets_mm
+                .get(i)
+                .copied()
+                .unwrap_or([0.0; 3]),
+            None => [0.0; 3],
+        };
+        for (i, w) in work.iter().enumerate() {
+            self.origin[i] = w + self.g92_mm[i];
+        }
+        self.origin[2] += self.tool_length_mm;
+    }
+
+    fn scale(&self) -> f64 {
+        if self.inch { MM_PER_INCH } else { 1.0 }
+    }
+
+    fn tool(&self, number: Option<u32>) -> Option<&Tool> {
+        let n = number?;
+        self.settings.tools.iter().find(|t| t.number == n)
+    }
+
+    /// Fills `blk` from the lexed words, checking repeats and per-dialect letters.
+    pub(crate) fn build_block(&self, words: &[Word], blk: &mut Block) -> Result<(), ExecError> {
+        blk.present = 0;
+        blk.ng = 0;
+        blk.nm = 0;
+        blk.first_col = words.first().map_or(1, |w| w.col);
+        // Heidenhain lets G90/G91 switch per axis inside a block: the words after a G90 or
+        // G91 take that mode, the ones before it the modal one.
+        let mut local: Option<bool> = None;
+        for w in words {
+            let letter = if w.key < 26 { b'A' + w.key } else { 0 };
+            match letter {
+                b'G' => {
+                    if blk.ng == blk.gs.len() {
+                        return fail(w.col, "too many G codes in one block");
+                    }
+                    let code = code10(w.value).ok_or_else(|| ExecError {
+                        col: w.col,
+                        message: format!("unknown G code G{}", w.value),
+                    })?;
+                    if self.dialect == Dialect::Heidenhain && (code == 900 || code == 910) {
+                        local = Some(code == 900);
+                    }
+                    blk.gs[blk.ng] = (code, w.col);
+                    blk.ng += 1;
+                    continue;
+                }
+                b'M' => {
+                    if blk.nm == blk.ms.len() {
+                        return fail(w.col, "too many M codes in one block");
+                    }
+                    let code =
+                        code10(w.value)
+                            .filter(|c| c % 10 == 0)
+                            .ok_or_else(|| ExecError {
+                                col: w.col,
+                                message: format!("unknown M code M{}", w.value),
+                            })?;
+                    blk.ms[blk.nm] = (code / 10, w.col);
+                    blk.nm += 1;
+                    continue;
+                }
+                b'N' => continue,
+                _ => {}
+            }
+            self.check_letter(w)?;
+            if blk.has(w.key) {
+                return fail(w.col, format!("word {} repeated", key_name(w.key)));
+            }
+            let k = w.key as usize;
+            blk.present |= 1 << w.key;
+            blk.vals[k] = w.value;
+            blk.cols[k] = w.col;
+            blk.forms[k] = match (w.form, local) {
+                (Form::Plain, Some(abs))
+                    if XYZ.contains(&w.key)
+                        || ABC.contains(&w.key)
+                        || IJK.contains(&w.key)
+                        || w.key == KR
+                        || w.key == KH =>
+                {
+                    if abs {
+                        Form::Abs
+                    } else {
+                        Form::Inc
+                    }
+                }
+                (f, _) => f,
+            };
+        }
+        Ok(())
+    }
+
+    fn check_letter(&self, w: &Word) -> Result<(), ExecError> {
+        let k = w.key;
+        let ok = allowed_keys(self.dialect) & (1u32 << k) != 0;
+        if ok {
+            return Ok(());
+        }
+        if matches!(k, 20..=22) {
+            return fail(w.col, "U, V and W axes are not supported");
+        }
+        if self.dialect == Dialect::Sinumerik && k == KR {
+            return fail(w.col, "R parameters are not supported yet");
+        }
+        if self.dialect == Dialect::Heidenhain && k == KQ {
+            return fail(w.col, "Q parameters are not supported yet");
+        }
+        if self.dialect == Dialect::Fagor && k == KP {
+            return fail(w.col, "arithmetic parameters (P) are not supported yet");
+        }
+        fail(w.col, format!("unknown word {}", key_name(k)))
+    }
+
+    /// Resolves one block into `out`. On error, the caller discards what this block pushed.
+    pub(crate) fn exec(
+        &mut self,
+        blk: &Block,
+        percent: bool,
+        out: &mut Out<'_>,
+    ) -> Result<(), ExecError> {
+        if percent && self.dialect == Dialect::Heidenhain {
+            // `%NAME G71 *` opens the program and names its unit; the same line at the end
+            // closes it.
+            if self.header_seen {
+                self.done = true;
+                return Ok(());
+            }
+            self.header_seen = true;
+            for &(code, col) in &blk.gs[..blk.ng] {
+                match code {
+                    700 => self.inch = true,
+                    710 => self.inch = false,
+                    _ => return fail(col, "only G70 or G71 may follow the program name"),
+                }
+            }
+            self.feed_inch = self.inch;
+            return Ok(());
+        }
+        if blk.ng == 0 && blk.nm == 0 && blk.present == 0 {
+            return Ok(());
+        }
+        let d = self.dialect;
+
+        // Classify G codes and check modal groups. Each group holds at most one code per
+        // block, so the block's codes are kept in one slot per group.
+        let mut slots: [Option<(G, u32)>; N_GROUPS] = [None; N_GROUPS];
+        for &(code, col) in &blk.gs[..blk.ng] {
+            let g = classify_g(d, code).ok_or_else(|| ExecError {
+                col,
+                message: format!("unknown G code {}", g_name(code)),
+            })?;
+            if let G::Unsupported(msg) = g {
+                if msg == "this G code is not supported yet" {
+                    return fail(col, format!("{} is not supported yet", g_name(code)));
+                }
+                return fail(col, msg);
+            }
+            if g == G::NoOp {
+                continue;
+            }
+            let grp = group(g);
+            let heidenhain_distance = d == Dialect::Heidenhain && grp == GROUP_DISTANCE;
+            if slots[grp].is_some() && !heidenhain_distance {
+                return fail(col, "two G codes used from same modal group");
+            }
+            slots[grp] = Some((g, col));
+        }
+        if matches!(slots[0], Some((G::BlankForm, _))) {
+            // Heidenhain G30/G31 describe the blank for the control's graphics: no motion.
+            return Ok(());
+        }
+        let slot = |grp: usize| slots[grp];
+
+        // M codes: check they are known before anything is emitted.
+        let mut m_pre: [Option<EventCode>; 8] = [None; 8];
+        let mut m_post: [Option<EventCode>; 8] = [None; 8];
+        let mut m_groups = 0u8;
+        for (i, &(code, col)) in blk.ms[..blk.nm].iter().enumerate() {
+            let Some(ev) = m_event(code) else {
+                return fail(col, format!("unknown M code M{code}"));
+            };
+            // Modal groups of M codes (stop, tool change, spindle, coolant): at most one
+            // of each per block, except that mist (M7) and flood (M8) may be turned on together.
+            let grp = match ev {
+                EventCode::M0 | EventCode::M1 | EventCode::M2 | EventCode::M30 => 1,
+                EventCode::M6 => 2,
+                EventCode::M3 | EventCode::M4 | EventCode::M5 => 4,
+                EventCode::M7 => 8,
+                EventCode::M8 => 16,
+                _ => 8 | 16,
+            };
+            if m_groups & grp != 0 {
+                return fail(col, "two M codes used from same modal group");
+            }
+            m_groups |= grp;
+            let after = match ev {
+                EventCode::M0 | EventCode::M1 | EventCode::M2 | EventCode::M30 => true,
+                // TNC: M5 and M9 take effect at the end of the block, M3/M4/M8 at its start.
+                EventCode::M5 | EventCode::M9 => d == Dialect::Heidenhain,
+                _ => false,
+            };
+            if after {
+                m_post[i] = Some(ev);
+            } else {
+                m_pre[i] = Some(ev);
+            }
+        }
+
+        // Units first: every value in the block is read in the new unit.
+        if let Some((G::Units { inch, feed_too }, _)) = slot(3) {
+            self.inch = inch;
+            // Sinumerik G70/G71 leave F in the basic unit of the control (mm); only
+            // G700/G710 make F follow the geometry unit.
+            self.feed_inch = feed_too && inch;
+        }
+        // Heidenhain may repeat G90/G91 in a block; the slot holds the last one, which
+        // stays modal.
+        for (g, _) in slots.iter().flatten().copied() {
+            if let G::Distance { absolute } = g {
+                self.absolute = absolute;
+            }
+            if let G::ArcDistance { absolute } = g {
+                self.arc_absolute = absolute;
+            }
+            if let G::Plane(p) = g {
+                if p != self.plane {
+                    self.plane = p;
+                    // A plane change forgets the Sinumerik polar values and the Fagor polar
+                    // origin, as their manuals say.
+                    self.rp_mm = None;
+                    self.ap_deg = None;
+                    self.polar_origin = None;
+                    self.polar_last = None;
+                }
+            }
+            if let G::Corner { exact } = g {
+                self.corner = if exact {
+                    CornerMode::ExactStop
+                } else if d == Dialect::LinuxCnc {
+                    CornerMode::Blend {
+                        tolerance_mm: match blk.get(KP) {
+                            Some(p) if p < 0.0 => {
+                                return fail(blk.col(KP), "negative P word with G64");
+                            }
+                            Some(p) => Some(p * self.scale()),
+                            None => None,
+                        },
+                    }
+                } else {
+                    CornerMode::Blend { tolerance_mm: None }
+                };
+            }
+            if let G::CoordSystem(cs) = g {
+                self.coord_system = cs;
+                self.update_origin();
+            }
+        }
+
+        // Feed.
+        if let Some(f) = blk.get(KF) {
+            if f < 0.0 {
+                return fail(blk.col(KF), "negative F word");
+            }
+            let s = if self.feed_inch { MM_PER_INCH } else { 1.0 };
+            self.feed_mm_min = Some(f * s);
+        }
+
+        // Spindle, tool and coolant events run before the motion of the block.
+        if let Some(s) = blk.get(KS) {
+            if s < 0.0 {
+                return fail(blk.col(KS), "negative spindle speed");
+            }
+            out.event(EventCode::S, Some(s));
+        }
+        if let Some(t) = blk.get(KT) {
+            let n = tool_number(t).ok_or_else(|| ExecError {
+                col: blk.col(KT),
+                message: "tool number must be a non-negative integer".into(),
+            })?;
+            if d != Dialect::Heidenhain || slot(0).is_none_or(|(g, _)| g != G::ToolDef) {
+                self.tool_selected = Some(n);
+                if d != Dialect::LinuxCnc {
+                    // On the other controls the T word (Heidenhain tool call, Sinumerik
+                    // T with automatic change) makes the tool current.
+                    self.tool_loaded = Some(n);
+                }
+                out.event(EventCode::T, Some(f64::from(n)));
+            }
+        }
+        for ev in [
+            EventCode::M6,
+            EventCode::M3,
+            EventCode::M4,
+            EventCode::M5,
+            EventCode::M7,
+            EventCode::M8,
+            EventCode::M9,
+        ] {
+            if blk.nm > 0 && m_pre.contains(&Some(ev)) {
+                if ev == EventCode::M6 {
+                    self.tool_loaded = self.tool_selected;
+                }
+                out.event(ev, None);
+            }
+        }
+
+        // Heidenhain G99: tool definition (T number, L length, R radius).
+        if d == Dialect::Heidenhain && slot(0).is_some_and(|(g, _)| g == G::ToolDef) {
+            let Some(t) = blk.get(KT).and_then(tool_number) else {
+                return fail(blk.first_col, "G99 needs a tool number T");
+            };
+            let tool = Tool {
+                number: t,
+                length_mm: blk.get(KL).unwrap_or(0.0) * self.scale(),
+                radius_mm: blk.get(KR).unwrap_or(0.0) * self.scale(),
+            };
+            // Redefinition replaces the entry and the table is capped, so that memory stays
+            // bounded whatever the program does.
+            let tools = &mut self.settings.tools;
+            if let Some(entry) = tools.iter_mut().find(|t| t.number == tool.number) {
+                *entry = tool;
+            } else if tools.len() < MAX_TOOLS {
+                tools.push(tool);
+            } else {
+                return fail(
+                    blk.first_col,
+                    format!("more than {MAX_TOOLS} tools defined"),
+                );
+            }
+            return Ok(());
+        }
+
+        // Cutter radius compensation.
+        if let Some((G::Comp(c), _)) = slot(6) {
+            self.comp = c;
+        }
+        if self.comp != Comp::Off {
+            let number = match (d, blk.get(KD)) {
+                (Dialect::LinuxCnc, Some(dv)) => tool_number(dv),
+                _ => self.tool_loaded.or(self.tool_selected),
+            };
+            if self.tool(number).is_some_and(|t| t.radius_mm != 0.0) {
+                let col = slot(6).map_or(blk.first_col, |(_, c)| c);
+                return fail(
+                    col,
+                    "cutter compensation not supported (the active tool has a non-zero radius)",
+                );
+            }
+        }
+
+        // Tool length offset.
+        if let Some((G::ToolLength { on }, _)) = slot(7) {
+            self.tool_length_mm = if on {
+                let number = match blk.get(KH) {
+                    Some(h) => Some(tool_number(h).ok_or_else(|| ExecError {
+                        col: blk.col(KH),
+                        message: "H word must be a non-negative integer".into(),
+                    })?),
+                    None => self.tool_loaded,
+                };
+                self.tool(number).map_or(0.0, |t| t.length_mm)
+            } else {
+                0.0
+            };
+            self.update_origin();
+        } else if blk.has(KH) && matches!(d, Dialect::LinuxCnc | Dialect::Rockwell) {
+            return fail(blk.col(KH), "H word with no G43 to use it");
+        }
+
+        // G92 family.
+        let mut consumed_axes = false;
+        if let Some((g, col)) = slot(0)
+            .filter(|&(g, _)| matches!(g, G::G92Set | G::G92Reset | G::G92Suspend | G::G92Restore))
+        {
+            match g {
+                G::G92Set => {
+                    if !blk.any(&XYZ) {
+                        return fail(col, "all axes missing with G92");
+                    }
+                    for (i, &k) in XYZ.iter().enumerate() {
+                        if let Some(v) = blk.get(k) {
+                            let work = self.origin[i] - self.g92_mm[i];
+                            self.g92_mm[i] = self.pos[i] - work - v * self.scale();
+                        }
+                    }
+                    consumed_axes = true;
+                }
+                G::G92Reset => {
+                    self.g92_mm = [0.0; 3];
+                    self.g92_saved_mm = [0.0; 3];
+                }
+                G::G92Suspend => {
+                    self.g92_saved_mm = self.g92_mm;
+                    self.g92_mm = [0.0; 3];
+                }
+                _ => self.g92_mm = self.g92_saved_mm,
+            }
+            self.update_origin();
+        }
+
+        // Poles and polar origins.
+        if let Some((G::Pole(r), col)) = slot(0) {
+            self.set_sinumerik_pole(blk, r, col)?;
+            consumed_axes = true;
+        }
+        if slot(0).is_some_and(|(g, _)| g == G::PoleFromLast) {
+            self.cc = Some(self.pos);
+            self.polar_last = None;
+        }
+        if let Some((_, col)) = slot(0).filter(|&(g, _)| g == G::PolarOrigin) {
+            self.set_fagor_origin(blk, col)?;
+            return self.finish_block(blk, &m_post, out);
+        }
+        if d == Dialect::Heidenhain && blk.any(&IJK) {
+            self.set_heidenhain_cc(blk)?;
+        }
+
+        // Motion.
+        let motion_g = slot(1);
+        match motion_g {
+            Some((G::Motion(m), _)) => self.motion = Some(m),
+            Some((G::NoMotion, _)) => self.motion = None,
+            _ => {}
+        }
+        let machine = slot(0).filter(|&(g, _)| g == G::MachineCoords);
+        let exact_once = slot(10).is_some();
+        let abs_centre_once = slot(12).is_some();
+        let dwell = slot(0).is_some_and(|(g, _)| g == G::Dwell);
+        let g64 = matches!(slot(9), Some((G::Corner { exact: false }, _)));
+        if d == Dialect::LinuxCnc && blk.present & (1 << KP | 1 << KQ) != 0 {
+            // LinuxCNC refuses words that no G code of the block uses.
+            let arc = matches!(self.motion, Some(Motion::Arc(_)));
+            if blk.has(KP) && !(dwell || g64 || arc) {
+                return fail(blk.col(KP), "P word with no G code that uses it");
+            }
+            if blk.has(KQ) && !g64 {
+                return fail(blk.col(KQ), "Q word with no G code that uses it");
+            }
+        }
+        if d == Dialect::Heidenhain
+            && blk.has(KR)
+            && matches!(self.motion, Some(Motion::Rapid | Motion::Linear))
+        {
+            return fail(blk.col(KR), "R word with no G02, G03, G10 or G11 to use it");
+        }
+        if !consumed_axes && !dwell {
+            let motion_col = motion_g.map_or(blk.first_col, |(_, c)| c);
+            self.motion(
+                blk,
+                out,
+                motion_col,
+                machine.map(|(_, c)| c),
+                exact_once,
+                abs_centre_once,
+            )?;
+        }
+        self.finish_block(blk, &m_post, out)
+    }
+
+    fn finish_block(
+        &mut self,
+        blk: &Block,
+        m_post: &[Option<EventCode>; 8],
+        out: &mut Out<'_>,
+    ) -> Result<(), ExecError> {
+        if blk.nm == 0 {
+            return Ok(());
+        }
+        for ev in [
+            EventCode::M5,
+            EventCode::M9,
+            EventCode::M0,
+            EventCode::M1,
+            EventCode::M2,
+            EventCode::M30,
+        ] {
+            if m_post.contains(&Some(ev)) {
+                out.event(ev, None);
+                if matches!(ev, EventCode::M2 | EventCode::M30) {
+                    self.done = true;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn tool_number(v: f64) -> Option<u32> {
+    if v >= 0.0 && v <= f64::from(u32::MAX) && v.fract() == 0.0 {
+        Some(v as u32)
+    } else {
+        None
+    }
+}

@@ -1,0 +1,18 @@
+//! Acceptance tests for issue 2, the G-code front end (`kerf-gcode`).
+//!
+//! They are written from the control manuals (`../shared/seeds/`, the dialect table and notes
+//! in DESIGN.md, and the controls' public manuals), not from the implementation: every
+//! expected coordinate is computed by hand in the test. Where a manual is silent and a test
+//! has to guess, the guess is written next to it and the test prefers properties (equal
+//! radii, exact end points) over exact numbers.
+
+mod api;
+mod cross_dialect;
+mod errors;
+mod fagor;
+mod fuzz;
+mod heidenhain;
+mod linuxcnc;
+mod rockwell;
+mod sinumerik;
+mod syntax;
