@@ -107,3 +107,13 @@ impl Path {
         }
     }
 }
+
+impl Arc {
+    /// Radius of the circle, mm (distance from `center` to `start`).
+    pub fn radius(&self) -> f64 {
+        (self.start - self.center).norm()
+    }
+}
+
+mod curve;
+pub use curve::{Curve, CurvePoint, Helix};

@@ -1,2 +1,1192 @@
 //! Kerf's real-time motion core: segment queue, lookahead and jerk-limited interpolation.
+//!
+//! [`MotionCore`] holds a fixed-capacity queue of [`PlannedSegment`]s (from `kerf-plan`)
+//! and produces one [`Setpoint`] per [`MotionCore::step`]. Everything is allocated in
+//! [`MotionCore::new`]; `push` and `step` never allocate, lock or do I/O.
+//!
+//! Design decisions:
+//! - **Sections.** Consecutive segments are grouped into sections whose limits are the
+//!   minima over their segments and interior junction caps. A segment joins the open tail
+//!   section while its limits stay within [`MERGE_RATIO`] (speed and feed:
+//!   [`MERGE_RATIO_SPEED`]) of the section's first segment and the junction before it can
+//!   be passed at that speed. The running section is frozen; segments it has passed are
+//!   released at once, so a program longer than the queue never stops for room. Dense CAM code thus becomes
+//!   a few long sections, and the one-dimensional path profile only has `a = 0` at section
+//!   boundaries, not at every tiny segment.
+//! - **Profiles.** Each section's path parameter `s(t)` is one jerk-limited profile from
+//!   `rsruckig` (position interface, `min_velocity = 0`, target = section end with the
+//!   lookahead's end speed and `a = 0`). `calculate()` runs once per section and per event
+//!   (override, hold, resume, more queue); `at_time()` samples it every cycle. Time left
+//!   over when a profile ends inside a cycle carries into the next section, so a segment
+//!   shorter than one period never slows the feed.
+//! - **Lookahead.** A backward pass over the sections with the closed-form jerk-limited
+//!   reachability of [`reach_back`] (`a = 0` at boundaries) decides the highest speed at
+//!   each section boundary from which the queue end can still be reached at rest. (A
+//!   jerk-limited partial slow-down can need more distance than a full stop, so "at most
+//!   v" at the far end is reachable from the larger of the two start speeds.) It runs in
+//!   `push` from the tail and stops at the first section whose value does not change (or
+//!   after `MAX_BACKWARD_SECTIONS`: hard speeds only grow with the queue, so a value left
+//!   stale is a lower, safe one).
+//!   Two values are kept: a *hard* one from conservative limits fixed when the section is
+//!   created (so it only ever grows as the queue grows, and is safe at any override) and a
+//!   *soft* one with the programmed feed at the current override. Profiles target the
+//!   soft speed when it is reachable and never exceed the hard one, so a feed change never
+//!   endangers an axis limit.
+//! - **Queue end = stop.** The tail section always ends at rest; the motion never commits
+//!   to more than it can stop from within the segments it holds.
+//! - **Hold / abort** plan a jerk-limited stop (velocity interface) on the path with the
+//!   lowest limits of every section it crosses, after checking that it passes every
+//!   junction at or below its hard speed and stops before the queue end; otherwise the
+//!   ordinary plan (which is slowing down anyway) runs until the check passes.
+//! - **Override** scales the programmed feed (0–200 %); it re-plans the running section
+//!   from the current state and recomputes the soft lookahead (one pass over the queue, on
+//!   the event). Rapids run at the axis limits whatever the override. Zero override stops
+//!   like a hold; raising it resumes unless the operator holds as well.
+//! - **Continuity** is checked at `push`: a segment must start where the previous one (or,
+//!   on an idle core, the machine) is, within [`CONTINUITY_MM`], or it is refused.
+//! - **Bounded cycle**: `step` does at most a few `calculate()` calls (the running
+//!   section's re-plan, the next section's profile, a hold's stop) and crosses at most
+//!   `MAX_SECTIONS_PER_STEP` section ends in one cycle; past that the leftover time of the
+//!   cycle is dropped (a delay of under one period, the motion stays continuous).
+//! - **Fallbacks**: a failed `calculate()` (never seen in the property tests) keeps the
+//!   previous profile or relaxes the speed ceiling to the entry speed; each is counted in
+//!   [`MotionCore::plan_failures`]. Ruckig formats an error message on failure, which
+//!   allocates: a healthy run has no failures and so no allocations.
 #![deny(missing_docs)]
+
+use kerf_geom::Vec3;
+pub use kerf_plan::{AxisLimits, MachineLimits, PlannedSegment};
+use rsruckig::prelude::*;
+
+pub mod driver;
+
+/// Sections merge segments whose acceleration and jerk limits are at least this fraction
+/// of the first one's.
+pub const MERGE_RATIO: f64 = 0.9;
+/// Sections merge segments whose speed limit and feed are at least this fraction of the
+/// first one's. It is tight because the lookahead's speed at a section boundary uses this
+/// conservative value: a boundary inside constant-feed code costs at most 1 % of the feed.
+pub const MERGE_RATIO_SPEED: f64 = 0.99;
+/// Highest feed override.
+pub const MAX_OVERRIDE: f64 = 2.0;
+/// Fraction of the remaining distance the lookahead assumes available (numerical margin).
+const BACKWARD_MARGIN: f64 = 0.998;
+/// Fraction of the remaining distance a profile plan may use in its own checks.
+const PLAN_MARGIN: f64 = 0.999;
+/// Profiles shorter than this are planned in scaled units (see `MotionCore::calc`), mm.
+const SCALED_BELOW_MM: f64 = 1e-5;
+/// Most sections one `push` revisits in the backward pass (bounds its work).
+const MAX_BACKWARD_SECTIONS: usize = 256;
+/// Most section changes handled within one cycle.
+const MAX_SECTIONS_PER_STEP: usize = 16;
+/// Most sections scanned when checking a hold.
+const MAX_HOLD_SCAN: usize = 64;
+
+/// One setpoint: positions of every axis at the end of a cycle.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Setpoint {
+    /// X, Y, Z (mm) and A, B, C (degrees).
+    pub position: [f64; 6],
+    /// Source line of the segment being run.
+    pub line: u32,
+    /// Index of the source move (program order), for deviation checks.
+    pub move_index: u64,
+    /// Path speed, mm/s (deg/s on rotary-only moves).
+    pub feed_mm_s: f64,
+}
+
+/// What a cycle did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepResult {
+    /// Moving along the queue.
+    Moving,
+    /// At rest with an empty queue (program finished or planner starved).
+    Idle,
+    /// At rest on the path in feed hold.
+    Held,
+}
+
+/// What the core is doing, for status reports.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MotionState {
+    /// At rest with an empty queue.
+    Idle,
+    /// Moving along the queue (including a hold waiting for a safe moment to stop).
+    Running,
+    /// Stopping on the path for a hold or an abort.
+    Stopping,
+    /// At rest on the path in feed hold (or by zero override).
+    Held,
+}
+
+/// A snapshot of the core for status messages (all O(1) to read).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Status {
+    /// What the core is doing.
+    pub state: MotionState,
+    /// Source line of the segment being run (or last run).
+    pub line: u32,
+    /// Segments in the queue.
+    pub queued: usize,
+    /// Free queue slots.
+    pub free: usize,
+    /// Path speed, mm/s.
+    pub feed_mm_s: f64,
+    /// Feed override factor the plan uses.
+    pub feed_override: f64,
+    /// Profile calculations that needed a fallback so far.
+    pub plan_failures: u64,
+}
+
+/// Why a segment was not accepted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum PushError {
+    /// The queue is full; step and try again.
+    Full,
+    /// The segment has a non-finite or non-positive length or limit.
+    Invalid,
+    /// The segment does not start where the previous one ends (or, on an idle core, where
+    /// the machine is): running it would make an axis jump.
+    Discontinuous,
+}
+
+/// Largest gap between consecutive segments that still counts as continuous, mm.
+pub const CONTINUITY_MM: f64 = 1e-6;
+
+/// The core's motion mode.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Mode {
+    /// Following the lookahead plan.
+    Run,
+    /// Running the plan while a hold waits for a safe moment.
+    HoldPending,
+    /// Stopping on the path.
+    Braking,
+    /// Stopped on the path.
+    Held,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Section {
+    /// Absolute index of the first segment.
+    first: u64,
+    count: u64,
+    length: f64,
+    /// Actual limits: minima over segments and interior junction caps.
+    v_machine: f64,
+    feed: f64,
+    accel: f64,
+    jerk: f64,
+    /// Conservative limits fixed at creation (hard lookahead).
+    c_v: f64,
+    c_feed: f64,
+    c_accel: f64,
+    c_jerk: f64,
+    /// Cap at the junction before the section.
+    start_cap: f64,
+    hard_start: f64,
+    hard_end: f64,
+    soft_start: f64,
+    soft_end: f64,
+}
+
+impl Section {
+    fn v_eff(&self, ovr: f64) -> f64 {
+        self.v_machine.min(self.feed * ovr)
+    }
+}
+
+/// The real-time motion core. See the crate documentation.
+pub struct MotionCore {
+    limits: MachineLimits,
+    period_s: f64,
+    segs: Vec<PlannedSegment>,
+    /// Offset of each segment's start within its section (parallel to `segs`).
+    seg_offset: Vec<f64>,
+    seg_head: u64,
+    seg_count: u64,
+    secs: Vec<Section>,
+    sec_head: u64,
+    sec_count: u64,
+    /// The front section is running (its limits are frozen).
+    running: bool,
+    otg: Ruckig<1, IgnoreErrorHandler>,
+    input: InputParameter<1>,
+    traj: Trajectory<1>,
+    /// Scratch trajectory: every calculation goes here and is swapped in on success.
+    scratch: Trajectory<1>,
+    /// Factor the running profile's positions are scaled by (see `calc`).
+    traj_scale: f64,
+    /// Seconds per time unit of the running profile (see `calc`).
+    traj_time_scale: f64,
+    /// Section-local position where the profile starts.
+    traj_origin: f64,
+    /// Time since the profile start, s.
+    traj_t: f64,
+    /// End speed the running profile targets.
+    traj_end_v: f64,
+    /// Set when the lookahead raised the running section's end speed.
+    replan: bool,
+    mode: Mode,
+    abort_requested: bool,
+    override_factor: f64,
+    /// A hold requested by the operator is in force.
+    user_hold: bool,
+    /// A hold caused by a zero feed override is in force.
+    override_hold: bool,
+    /// Current segment (absolute index) and section-local state.
+    cursor: u64,
+    s_local: f64,
+    v: f64,
+    a: f64,
+    last: Setpoint,
+    failures: u64,
+}
+
+impl std::fmt::Debug for MotionCore {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MotionCore")
+            .field("queued", &self.seg_count)
+            .field("sections", &self.sec_count)
+            .field("mode", &self.mode)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Distance to change speed from `v0` to `v1` with `a = 0` at both ends along the
+/// symmetric jerk-limited profile (exact: the speed curve is point-symmetric).
+pub fn change_distance(v0: f64, v1: f64, accel: f64, jerk: f64) -> f64 {
+    let dv = (v1 - v0).abs();
+    let t = if dv * jerk <= accel * accel {
+        2.0 * (dv / jerk).sqrt()
+    } else {
+        dv / accel + accel / jerk
+    };
+    0.5 * (v0 + v1) * t
+}
+
+/// Highest speed reachable from `v0` (or from which `v0` is reachable) within distance
+/// `d` with `a = 0` at both ends: the inverse of [`change_distance`] in its second
+/// argument, in closed form (a bounded Newton solve of a cubic, then a quadratic).
+pub fn reach(v0: f64, d: f64, accel: f64, jerk: f64) -> f64 {
+    if d <= 0.0 || accel <= 0.0 || jerk <= 0.0 {
+        return v0;
+    }
+    let v0 = v0.max(0.0);
+    // Short change: d = (2 v0 + j x²) x with x = sqrt(dv / j). Newton from an upper
+    // bound converges monotonically because the cubic is convex for x > 0.
+    let mut x = (d / jerk).cbrt();
+    if v0 > 0.0 {
+        x = x.min(d / (2.0 * v0));
+    }
+    for _ in 0..12 {
+        let f = jerk * x * x * x + 2.0 * v0 * x - d;
+        let df = 3.0 * jerk * x * x + 2.0 * v0;
+        if df <= 0.0 {
+            break;
+        }
+        let nx = x - f / df;
+        // Stop when Newton no longer decreases (converged, or NaN from bad input).
+        if nx.partial_cmp(&x) != Some(std::cmp::Ordering::Less) {
+            break;
+        }
+        x = nx.max(0.0);
+    }
+    let dv = jerk * x * x;
+    if dv * jerk <= accel * accel {
+        return v0 + dv;
+    }
+    // Long change with a constant-acceleration phase: dv² + B dv + C = 0.
+    let b = 2.0 * v0 + accel * accel / jerk;
+    let c = 2.0 * v0 * accel * accel / jerk - 2.0 * d * accel;
+    let disc = (b * b - 4.0 * c).max(0.0);
+    let dv = -2.0 * c / (b + disc.sqrt());
+    v0 + dv.max(0.0)
+}
+
+/// Highest speed at the start of a distance `d` from which the speed at its end can be
+/// brought to at most `v_end` (`a = 0` at both ends). Slowing down only partially can need
+/// more distance than stopping (the jerk-limited profile's time grows with the speed
+/// change), so both ending at `v_end` and ending at rest are candidates.
+pub fn reach_back(v_end: f64, d: f64, accel: f64, jerk: f64) -> f64 {
+    reach(v_end, d, accel, jerk).max(reach(0.0, d, accel, jerk))
+}
+
+impl MotionCore {
+    /// A core for `limits` holding up to `capacity` segments. All memory is allocated here.
+    pub fn new(limits: MachineLimits, capacity: usize) -> Self {
+        let capacity = capacity.max(2);
+        let dummy = PlannedSegment {
+            curve: kerf_geom::Curve::line(Vec3::zeros(), Vec3::zeros()),
+            abc_start_deg: [0.0; 3],
+            abc_end_deg: [0.0; 3],
+            length: 0.0,
+            line: 0,
+            move_index: 0,
+            feed: 0.0,
+            v_max: 0.0,
+            accel: 0.0,
+            jerk: 0.0,
+            end_cap: 0.0,
+            blend: false,
+        };
+        let dummy_sec = Section {
+            first: 0,
+            count: 0,
+            length: 0.0,
+            v_machine: 0.0,
+            feed: 0.0,
+            accel: 0.0,
+            jerk: 0.0,
+            c_v: 0.0,
+            c_feed: 0.0,
+            c_accel: 0.0,
+            c_jerk: 0.0,
+            start_cap: 0.0,
+            hard_start: 0.0,
+            hard_end: 0.0,
+            soft_start: 0.0,
+            soft_end: 0.0,
+        };
+        let mut input = InputParameter::new(None);
+        input.min_velocity = Some(DataArrayOrVec::new(None, 0.0));
+        let mut traj = Trajectory::new(None);
+        traj.reserve_sections(1);
+        let mut scratch = Trajectory::new(None);
+        scratch.reserve_sections(1);
+        MotionCore {
+            limits,
+            period_s: limits.period_s,
+            segs: vec![dummy; capacity],
+            seg_offset: vec![0.0; capacity],
+            seg_head: 0,
+            seg_count: 0,
+            secs: vec![dummy_sec; capacity],
+            sec_head: 0,
+            sec_count: 0,
+            running: false,
+            otg: Ruckig::new(None, limits.period_s),
+            input,
+            traj,
+            scratch,
+            traj_scale: 1.0,
+            traj_time_scale: 1.0,
+            traj_origin: 0.0,
+            traj_t: 0.0,
+            traj_end_v: 0.0,
+            replan: false,
+            mode: Mode::Run,
+            abort_requested: false,
+            override_factor: 1.0,
+            user_hold: false,
+            override_hold: false,
+            cursor: 0,
+            s_local: 0.0,
+            v: 0.0,
+            a: 0.0,
+            last: Setpoint::default(),
+            failures: 0,
+        }
+    }
+
+    /// The machine this core was built for.
+    pub fn limits(&self) -> &MachineLimits {
+        &self.limits
+    }
+
+    /// Capacity of the segment queue.
+    pub fn capacity(&self) -> usize {
+        self.segs.len()
+    }
+
+    /// Segments in the queue (including the one running).
+    pub fn queued(&self) -> usize {
+        self.seg_count as usize
+    }
+
+    /// Free queue slots.
+    pub fn free(&self) -> usize {
+        self.segs.len() - self.seg_count as usize
+    }
+
+    /// `true` when at rest with nothing queued.
+    pub fn is_idle(&self) -> bool {
+        self.seg_count == 0 && self.v == 0.0
+    }
+
+    /// `true` while stopped on the path in feed hold (or by zero override).
+    pub fn is_held(&self) -> bool {
+        self.mode == Mode::Held
+    }
+
+    /// A status snapshot.
+    pub fn status(&self) -> Status {
+        let state = match self.mode {
+            Mode::Held => MotionState::Held,
+            Mode::Braking => MotionState::Stopping,
+            Mode::Run | Mode::HoldPending if self.is_idle() => MotionState::Idle,
+            Mode::Run | Mode::HoldPending => MotionState::Running,
+        };
+        Status {
+            state,
+            line: self.last.line,
+            queued: self.queued(),
+            free: self.free(),
+            feed_mm_s: self.v,
+            feed_override: self.override_factor,
+            plan_failures: self.failures,
+        }
+    }
+
+    /// Number of profile calculations that failed (each fell back to a safer plan).
+    pub fn plan_failures(&self) -> u64 {
+        self.failures
+    }
+
+    /// The feed override factor the plan uses (a zero override holds instead and leaves
+    /// this at its previous value).
+    pub fn feed_override(&self) -> f64 {
+        self.override_factor
+    }
+
+    /// Sets the position the core rests at (only while idle); the first segment pushed
+    /// should start there.
+    pub fn set_position(&mut self, position: [f64; 6]) {
+        if self.is_idle() {
+            self.last.position = position;
+        }
+    }
+
+    fn seg(&self, abs: u64) -> &PlannedSegment {
+        &self.segs[(abs % self.segs.len() as u64) as usize]
+    }
+
+    fn sec_slot(&self, abs: u64) -> usize {
+        (abs % self.secs.len() as u64) as usize
+    }
+
+    fn sec(&self, abs: u64) -> &Section {
+        &self.secs[self.sec_slot(abs)]
+    }
+
+    fn sec_mut(&mut self, abs: u64) -> &mut Section {
+        let i = self.sec_slot(abs);
+        &mut self.secs[i]
+    }
+
+    /// Appends a segment. Never allocates; the lookahead work is a backward pass from the
+    /// tail that stops at the first section whose speeds do not change.
+    pub fn push(&mut self, seg: &PlannedSegment) -> Result<(), PushError> {
+        if self.seg_count as usize >= self.segs.len() {
+            return Err(PushError::Full);
+        }
+        let valid = seg.length.is_finite()
+            && seg.length > 0.0
+            && seg.v_max > 0.0
+            && seg.accel > 0.0
+            && seg.jerk > 0.0
+            && seg.feed > 0.0
+            && seg.end_cap >= 0.0;
+        if !valid {
+            return Err(PushError::Invalid);
+        }
+        let mut start = [0.0; 6];
+        seg.position_at(0.0, &mut start);
+        let mut before = self.last.position;
+        if self.seg_count > 0 {
+            let prev = *self.seg(self.seg_head + self.seg_count - 1);
+            prev.position_at(prev.length, &mut before);
+        }
+        if (0..6).any(|i| (start[i] - before[i]).abs() > CONTINUITY_MM) {
+            return Err(PushError::Discontinuous);
+        }
+        let abs = self.seg_head + self.seg_count;
+        let slot = (abs % self.segs.len() as u64) as usize;
+        self.segs[slot] = *seg;
+        self.seg_count += 1;
+
+        let seg_v = seg.v_max;
+        let seg_feed = seg.feed;
+        // The cap at the junction before this segment is the previous segment's end cap.
+        let prev_cap = if abs > self.seg_head {
+            self.seg(abs - 1).end_cap
+        } else {
+            0.0
+        };
+        let tail = self.sec_head + self.sec_count;
+        let can_merge = self.sec_count > 0 && !(self.sec_count == 1 && self.running) && {
+            let t = self.sec(tail - 1);
+            seg_v >= t.c_v
+                && seg_feed >= t.c_feed
+                && seg.accel >= t.c_accel
+                && seg.jerk >= t.c_jerk
+                && prev_cap >= t.c_v.min(t.c_feed * MAX_OVERRIDE)
+        };
+        if can_merge {
+            let t = self.sec_mut(tail - 1);
+            let offset = t.length;
+            t.length += seg.length;
+            t.count += 1;
+            t.v_machine = t.v_machine.min(seg_v).min(prev_cap);
+            t.feed = t.feed.min(seg_feed);
+            t.accel = t.accel.min(seg.accel);
+            t.jerk = t.jerk.min(seg.jerk);
+            self.seg_offset[slot] = offset;
+        } else {
+            if self.sec_count as usize >= self.secs.len() {
+                // Cannot happen: there are never more sections than segments.
+                self.seg_count -= 1;
+                return Err(PushError::Full);
+            }
+            let start_cap = if self.sec_count > 0 { prev_cap } else { 0.0 };
+            let sec = Section {
+                first: abs,
+                count: 1,
+                length: seg.length,
+                v_machine: seg_v,
+                feed: seg_feed,
+                accel: seg.accel,
+                jerk: seg.jerk,
+                c_v: MERGE_RATIO_SPEED * seg_v,
+                c_feed: MERGE_RATIO_SPEED * seg_feed,
+                c_accel: MERGE_RATIO * seg.accel,
+                c_jerk: MERGE_RATIO * seg.jerk,
+                start_cap,
+                hard_start: -1.0,
+                hard_end: 0.0,
+                soft_start: -1.0,
+                soft_end: 0.0,
+            };
+            let i = self.sec_slot(tail);
+            self.secs[i] = sec;
+            self.sec_count += 1;
+            self.seg_offset[slot] = 0.0;
+            if self.sec_count == 1 {
+                // The new section is the front one: the core was idle.
+                self.cursor = abs;
+                self.s_local = 0.0;
+            }
+        }
+        self.backward_pass(MAX_BACKWARD_SECTIONS);
+        Ok(())
+    }
+
+    /// Recomputes the lookahead speeds from the tail until they stop changing.
+    ///
+    /// `max_sections` bounds the work: values left stale beyond it are lower than they
+    /// could be (hard speeds only grow as the queue grows), so stopping early is safe.
+    fn backward_pass(&mut self, max_sections: usize) {
+        if self.sec_count == 0 {
+            return;
+        }
+        let mut visited = 0;
+        let ovr = self.override_factor;
+        let first = self.sec_head;
+        let mut k = self.sec_head + self.sec_count - 1;
+        let mut hard_end = 0.0;
+        let mut soft_end = 0.0;
+        loop {
+            let is_running = k == first && self.running;
+            let s = self.sec_mut(k);
+            s.hard_end = hard_end;
+            s.soft_end = soft_end;
+            if is_running {
+                // The running section's limits are frozen; a higher end speed is taken by
+                // re-planning its profile.
+                if hard_end.min(soft_end) > self.traj_end_v * 1.001 + 1e-9 {
+                    self.replan = true;
+                }
+                break;
+            }
+            let d = s.length * BACKWARD_MARGIN;
+            let hard = s
+                .c_v
+                .min(s.c_feed * MAX_OVERRIDE)
+                .min(s.start_cap)
+                .min(reach_back(hard_end, d, s.c_accel, s.c_jerk));
+            let soft = s
+                .v_eff(ovr)
+                .min(s.start_cap)
+                .min(hard)
+                .min(reach_back(soft_end, d, s.accel, s.jerk));
+            let changed = hard != s.hard_start || soft != s.soft_start;
+            s.hard_start = hard;
+            s.soft_start = soft;
+            visited += 1;
+            if !changed || k == first || visited >= max_sections {
+                break;
+            }
+            hard_end = hard;
+            soft_end = soft;
+            k -= 1;
+        }
+    }
+
+    /// Recomputes the whole soft lookahead (after an override change).
+    fn full_soft_pass(&mut self) {
+        // Forcing a change in every section makes the pass run to the front.
+        for k in self.sec_head..self.sec_head + self.sec_count {
+            self.sec_mut(k).soft_start = -1.0;
+        }
+        self.backward_pass(usize::MAX);
+    }
+
+    /// Sets the feed override (clamped to 0–200 %). Takes effect at once, jerk-limited.
+    pub fn set_feed_override(&mut self, factor: f64) {
+        let f = if factor.is_finite() {
+            factor.clamp(0.0, MAX_OVERRIDE)
+        } else {
+            1.0
+        };
+        // Zero override stops the motion like a hold (on the path, jerk-limited) and raising
+        // it again resumes, unless the operator also asked for a hold. Planning keeps a
+        // small positive factor so that no limit is ever zero.
+        if f == 0.0 {
+            if !self.override_hold {
+                self.override_hold = true;
+                if self.mode == Mode::Run {
+                    self.mode = Mode::HoldPending;
+                    self.try_brake();
+                }
+            }
+            return;
+        }
+        if self.override_hold {
+            self.override_hold = false;
+            if !self.user_hold {
+                self.resume_inner();
+            }
+        }
+        if f == self.override_factor {
+            return;
+        }
+        self.override_factor = f;
+        self.full_soft_pass();
+        self.replan = true;
+    }
+
+    /// Requests a feed hold: stop on the path as fast as the limits allow.
+    pub fn hold(&mut self) {
+        self.user_hold = true;
+        if self.mode == Mode::Run {
+            self.mode = Mode::HoldPending;
+            self.try_brake();
+        }
+    }
+
+    /// Resumes after a hold (or cancels a pending one).
+    pub fn resume(&mut self) {
+        self.user_hold = false;
+        if !self.override_hold {
+            self.resume_inner();
+        }
+    }
+
+    fn resume_inner(&mut self) {
+        match self.mode {
+            Mode::HoldPending => self.mode = Mode::Run,
+            Mode::Held => {
+                self.mode = Mode::Run;
+                if self.sec_count > 0 {
+                    self.plan_section_start();
+                }
+            }
+            Mode::Braking => {
+                // The stop finishes first; `step` resumes when it ends if no hold is left.
+            }
+            Mode::Run => {}
+        }
+    }
+
+    /// Aborts: stops on the path as fast as the limits allow, then drops the queue.
+    pub fn abort(&mut self) {
+        self.abort_requested = true;
+        if self.mode == Mode::Held || self.v == 0.0 && self.a == 0.0 {
+            self.clear();
+            return;
+        }
+        if self.mode == Mode::Run {
+            self.hold();
+        }
+    }
+
+    fn clear(&mut self) {
+        self.seg_head += self.seg_count;
+        self.seg_count = 0;
+        self.sec_head += self.sec_count;
+        self.sec_count = 0;
+        self.running = false;
+        self.mode = Mode::Run;
+        self.abort_requested = false;
+        self.user_hold = false;
+        self.override_hold = false;
+        self.v = 0.0;
+        self.a = 0.0;
+        self.s_local = 0.0;
+        self.last.feed_mm_s = 0.0;
+    }
+
+    /// Advances one period and writes the setpoint. Bounded work, no allocation.
+    pub fn step(&mut self, out: &mut Setpoint) -> StepResult {
+        if self.mode == Mode::Held {
+            *out = self.last;
+            if self.abort_requested {
+                self.clear();
+                return StepResult::Idle;
+            }
+            return StepResult::Held;
+        }
+        if self.sec_count == 0 {
+            self.v = 0.0;
+            self.a = 0.0;
+            self.last.feed_mm_s = 0.0;
+            *out = self.last;
+            return StepResult::Idle;
+        }
+        if !self.running {
+            self.running = true;
+            self.plan_section_start();
+        } else if self.replan && matches!(self.mode, Mode::Run | Mode::HoldPending) {
+            self.replan_running();
+        }
+        self.replan = false;
+        self.traj_t += self.period_s;
+        let mut changes = 0;
+        loop {
+            let dur = self.traj.get_duration() * self.traj_time_scale;
+            if self.traj_t < dur {
+                break;
+            }
+            if self.mode == Mode::Braking {
+                self.sample(dur);
+                self.v = 0.0;
+                self.a = 0.0;
+                self.mode = Mode::Held;
+                self.emit(out);
+                out.feed_mm_s = 0.0;
+                if !self.user_hold && !self.override_hold && !self.abort_requested {
+                    // Resumed while stopping: at rest for this cycle, moving from the next.
+                    self.resume_inner();
+                    return StepResult::Moving;
+                }
+                return StepResult::Held;
+            }
+            // The profile ends inside this cycle: carry the leftover time on.
+            let leftover = self.traj_t - dur;
+            let end_v = self.traj_end_v;
+            self.pop_section();
+            changes += 1;
+            if self.sec_count == 0 {
+                self.finish_at_end();
+                self.emit(out);
+                return StepResult::Idle;
+            }
+            self.v = end_v;
+            self.a = 0.0;
+            self.s_local = 0.0;
+            self.plan_section_start();
+            if self.mode == Mode::HoldPending {
+                self.try_brake();
+            }
+            // Pathological queues (hundreds of sections inside one period) would make the
+            // cycle unbounded: past the limit the leftover time is dropped, which delays
+            // the motion by under one period but keeps it continuous.
+            self.traj_t = if changes >= MAX_SECTIONS_PER_STEP {
+                0.0
+            } else {
+                leftover
+            };
+        }
+        let t = self.traj_t;
+        self.sample(t);
+        self.emit(out);
+        StepResult::Moving
+    }
+
+    /// Samples the profile at `t` and updates the section-local state (crossing into later
+    /// sections while braking).
+    fn sample(&mut self, t: f64) {
+        let mut p = [0.0];
+        let mut v = [0.0];
+        let mut a = [0.0];
+        {
+            let mut pos = DataArrayOrVec::Stack(p);
+            let mut vel = DataArrayOrVec::Stack(v);
+            let mut acc = DataArrayOrVec::Stack(a);
+            let mut section = None;
+            self.traj.at_time(
+                t / self.traj_time_scale,
+                &mut Some(&mut pos),
+                &mut Some(&mut vel),
+                &mut Some(&mut acc),
+                &mut None,
+                &mut section,
+            );
+            let (k, tau) = (self.traj_scale, self.traj_time_scale);
+            p[0] = pos[0] / k;
+            v[0] = vel[0] / (k * tau);
+            a[0] = acc[0] / (k * tau * tau);
+        }
+        let mut s = self.traj_origin + p[0];
+        // A braking profile may run into following sections.
+        while self.mode == Mode::Braking && self.sec_count > 1 {
+            let len = self.sec(self.sec_head).length;
+            if s <= len {
+                break;
+            }
+            self.pop_section();
+            self.traj_origin -= len;
+            s -= len;
+        }
+        let len = self.sec(self.sec_head).length;
+        self.s_local = s.clamp(0.0, len);
+        self.v = v[0].max(0.0);
+        self.a = a[0];
+    }
+
+    /// Writes the setpoint for the current section-local position.
+    fn emit(&mut self, out: &mut Setpoint) {
+        if self.sec_count == 0 {
+            *out = self.last;
+            return;
+        }
+        let sec = *self.sec(self.sec_head);
+        let last_seg = sec.first + sec.count - 1;
+        if self.cursor < sec.first {
+            self.cursor = sec.first;
+        }
+        while self.cursor < last_seg {
+            let slot = (self.cursor % self.segs.len() as u64) as usize;
+            let end = self.seg_offset[slot] + self.segs[slot].length;
+            if self.s_local < end {
+                break;
+            }
+            self.cursor += 1;
+        }
+        // Segments already passed are released at once, so that a long section frees queue
+        // room as it runs (otherwise a queue full of one section would force a stop).
+        if self.cursor > sec.first {
+            let passed = self.cursor - sec.first;
+            self.seg_head += passed;
+            self.seg_count -= passed;
+            let head = self.sec_head;
+            let front = self.sec_mut(head);
+            front.first += passed;
+            front.count -= passed;
+        }
+        let slot = (self.cursor % self.segs.len() as u64) as usize;
+        let seg = &self.segs[slot];
+        let local = self.s_local - self.seg_offset[slot];
+        seg.position_at(local, &mut self.last.position);
+        self.last.line = seg.line;
+        self.last.move_index = seg.move_index;
+        self.last.feed_mm_s = self.v;
+        *out = self.last;
+    }
+
+    /// Places the state exactly at the end of the section that just ended.
+    fn finish_at_end(&mut self) {
+        // The popped section's last segment is still in its slot: evaluate its exact end.
+        let abs = self.seg_head.wrapping_sub(1);
+        let slot = (abs % self.segs.len() as u64) as usize;
+        let seg = self.segs[slot];
+        seg.position_at(seg.length, &mut self.last.position);
+        self.last.line = seg.line;
+        self.last.move_index = seg.move_index;
+        self.v = 0.0;
+        self.a = 0.0;
+        self.last.feed_mm_s = 0.0;
+        self.s_local = 0.0;
+        self.running = false;
+        self.traj_t = 0.0;
+    }
+
+    fn pop_section(&mut self) {
+        let sec = *self.sec(self.sec_head);
+        self.seg_head += sec.count;
+        self.seg_count -= sec.count;
+        self.sec_head += 1;
+        self.sec_count -= 1;
+        self.cursor = self.seg_head;
+        if self.sec_count == 0 {
+            self.running = false;
+        }
+    }
+
+    /// Target end speed of the front section from state `(v0, a = 0)` with `rem` left,
+    /// and whether it is certainly reachable.
+    fn end_target(&self, v0: f64, rem: f64) -> (f64, bool) {
+        let sec = self.sec(self.sec_head);
+        let ovr = self.override_factor;
+        let hard = sec.hard_end;
+        let mut want = sec.soft_end.min(sec.v_eff(ovr)).min(hard);
+        if self.sec_count > 1 {
+            want = want.min(self.sec(self.sec_head + 1).v_eff(ovr));
+        } else {
+            want = 0.0;
+        }
+        let d = rem * PLAN_MARGIN;
+        let (a, j) = (sec.accel, sec.jerk);
+        let fits = |v1: f64| change_distance(v0, v1, a, j) <= d;
+        if v0 < want {
+            return (want.min(reach(v0, d, a, j)), true);
+        }
+        if fits(want) {
+            return (want, true);
+        }
+        // The soft target is out of reach; slowing down partially can be out of reach too
+        // while a full stop is not (see [`reach_back`]). Take the lowest reachable speed at
+        // or above the soft target, else the hard end speed, else a stop.
+        let top = v0.min(hard);
+        if v0 <= hard {
+            let (mut lo, mut hi) = (want, top);
+            for _ in 0..30 {
+                let mid = 0.5 * (lo + hi);
+                if fits(mid) {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            return (hi, false);
+        }
+        if fits(hard) {
+            (hard, false)
+        } else {
+            (0.0, false)
+        }
+    }
+
+    /// Plans the front section's profile from the current state at its start (or where a
+    /// hold left it, at rest).
+    fn plan_section_start(&mut self) {
+        let sec = *self.sec(self.sec_head);
+        let v0 = self.v;
+        let rem = (sec.length - self.s_local).max(0.0);
+        let (target, _) = self.end_target(v0, rem);
+        let vmax = sec.v_eff(self.override_factor).min(sec.v_machine);
+        let origin = self.s_local;
+        if self.calc(origin, v0, 0.0, rem, target, vmax, sec.accel, sec.jerk) {
+            return;
+        }
+        self.failures += 1;
+        // Entered above the feed: let the profile keep the entry speed as its ceiling.
+        let vmax2 = vmax.max(v0).min(sec.v_machine.max(v0));
+        if self.calc(origin, v0, 0.0, rem, target, vmax2, sec.accel, sec.jerk) {
+            return;
+        }
+        self.failures += 1;
+        let _ = self.calc(origin, v0, 0.0, rem, 0.0, vmax2, sec.accel, sec.jerk);
+    }
+
+    /// Re-plans the running section from the current state (more queue, override).
+    fn replan_running(&mut self) {
+        let sec = *self.sec(self.sec_head);
+        let (v0, a0) = (self.v, self.a);
+        let j = sec.jerk;
+        // Bring the acceleration to zero first, then check reachability from there.
+        let tau = a0.abs() / j;
+        let v_at = v0 + a0 * a0.abs() / (2.0 * j);
+        let d0 = v0 * tau + 0.5 * a0 * tau * tau - a0.signum() * j * tau * tau * tau / 6.0;
+        let rem = sec.length - self.s_local;
+        if v_at < 0.0 || d0 >= rem || rem <= 0.0 {
+            return;
+        }
+        let (target, sure) = self.end_target(v_at, rem - d0);
+        if !sure {
+            return;
+        }
+        // The speed still rises to `v_at` while the acceleration comes down: after an
+        // override cut that can be above the new feed, and the ceiling must allow it.
+        let peak = v0.max(v_at);
+        if peak > sec.v_machine * (1.0 + 1e-9) {
+            return;
+        }
+        let vmax = sec.v_eff(self.override_factor).max(peak);
+        if !self.calc(self.s_local, v0, a0, rem, target, vmax, sec.accel, j) {
+            // The previous profile is untouched and still valid.
+            self.failures += 1;
+        }
+    }
+
+    /// One position-interface profile calculation; on success it becomes the running
+    /// profile, on failure the running profile is left untouched.
+    ///
+    /// Very short moves are planned in scaled units: the solver's numerics fail on
+    /// remainders of nanometres (left by a stop or a hold right at a section end). With the
+    /// distance as the unit of length and `(d/j)^(1/3)` as the unit of time every input is
+    /// of order one; the profile is the same motion, sampled and scaled back.
+    #[allow(clippy::too_many_arguments)]
+    fn calc(
+        &mut self,
+        origin: f64,
+        v0: f64,
+        a0: f64,
+        distance: f64,
+        v1: f64,
+        vmax: f64,
+        accel: f64,
+        jerk: f64,
+    ) -> bool {
+        // A remainder below a picometre is taken as reached at the current speed: the step
+        // it leaves in the position is invisible even in the jerk at the period.
+        let (a0, distance, v1, vmax) = if distance < 1e-12 {
+            (0.0, 0.0, v0, vmax.max(v0))
+        } else {
+            (a0, distance, v1, vmax)
+        };
+        let (k, tau) = if distance > 0.0 && distance < SCALED_BELOW_MM {
+            (1.0 / distance, (distance / jerk).cbrt())
+        } else {
+            (1.0, 1.0)
+        };
+        // Velocity, acceleration and jerk in the scaled units.
+        let (kv, ka, kj) = (k * tau, k * tau * tau, k * tau * tau * tau);
+        let inp = &mut self.input;
+        inp.control_interface = ControlInterface::Position;
+        inp.current_position[0] = 0.0;
+        inp.current_velocity[0] = v0 * kv;
+        inp.current_acceleration[0] = a0 * ka;
+        inp.target_position[0] = distance * k;
+        inp.target_velocity[0] = v1.min(vmax) * kv;
+        inp.target_acceleration[0] = 0.0;
+        inp.max_velocity[0] = vmax.max(1e-9) * kv;
+        inp.max_acceleration[0] = accel * ka;
+        inp.max_jerk[0] = jerk * kj;
+        let ok = matches!(
+            self.otg.calculate(&self.input, &mut self.scratch),
+            Ok(RuckigResult::Working)
+        );
+        if ok {
+            std::mem::swap(&mut self.traj, &mut self.scratch);
+            self.traj_scale = k;
+            self.traj_time_scale = tau;
+            self.traj_origin = origin;
+            self.traj_t = 0.0;
+            self.traj_end_v = v1.min(vmax);
+        }
+        ok
+    }
+
+    /// Starts the hold stop if it is safe now: the stop must pass every junction within
+    /// its distance at or below the hard lookahead speed and stop before the queue end.
+    fn try_brake(&mut self) {
+        if self.sec_count == 0 || !self.running {
+            if self.v == 0.0 {
+                self.mode = if self.abort_requested {
+                    Mode::Run
+                } else {
+                    Mode::Held
+                };
+                if self.abort_requested {
+                    self.clear();
+                }
+            }
+            return;
+        }
+        let (v0, a0) = (self.v, self.a);
+        let front = *self.sec(self.sec_head);
+        let mut accel = front.accel;
+        let mut jerk = front.jerk;
+
+        for _ in 0..3 {
+            if !self.calc_brake(v0, a0, accel, jerk) {
+                self.failures += 1;
+                return;
+            }
+            let dist = self.brake_distance();
+            // Lowest limits over the sections the stop crosses.
+            let (mut a_min, mut j_min) = (front.accel, front.jerk);
+            let mut covered = front.length - self.s_local;
+            let mut k = self.sec_head + 1;
+            let mut n = 0;
+            while covered < dist && k < self.sec_head + self.sec_count && n < MAX_HOLD_SCAN {
+                let s = self.sec(k);
+                a_min = a_min.min(s.accel);
+                j_min = j_min.min(s.jerk);
+                covered += s.length;
+                k += 1;
+                n += 1;
+            }
+            if a_min >= accel && j_min >= jerk {
+                break;
+            }
+            accel = a_min;
+            jerk = j_min;
+        }
+        // Already decelerating so hard that a stop with these limits would undershoot into
+        // reverse: the running plan stops sooner anyway, so wait for the next section.
+        if a0 < 0.0 && v0 + a0 * a0.abs() / (2.0 * jerk) <= 1e-9 {
+            return;
+        }
+        let dist = self.brake_distance();
+        let v_peak = v0
+            + if a0 > 0.0 {
+                a0 * a0 / (2.0 * jerk)
+            } else {
+                0.0
+            };
+        let mut ok = true;
+        let mut boundary = front.length - self.s_local;
+        let mut k = self.sec_head;
+        let end = self.sec_head + self.sec_count;
+        let mut n = 0;
+        while boundary < dist {
+            let s = self.sec(k);
+            if k + 1 >= end || n >= MAX_HOLD_SCAN || s.hard_end < v_peak {
+                ok = false;
+                break;
+            }
+            let next = self.sec(k + 1);
+            if next.v_machine < v_peak || next.accel < accel || next.jerk < jerk {
+                ok = false;
+                break;
+            }
+            boundary += next.length;
+            k += 1;
+            n += 1;
+        }
+        if ok {
+            std::mem::swap(&mut self.traj, &mut self.scratch);
+            self.traj_scale = 1.0;
+            self.traj_time_scale = 1.0;
+            self.traj_origin = self.s_local;
+            self.traj_t = 0.0;
+            self.traj_end_v = 0.0;
+            self.mode = Mode::Braking;
+        }
+    }
+
+    fn calc_brake(&mut self, v0: f64, a0: f64, accel: f64, jerk: f64) -> bool {
+        let inp = &mut self.input;
+        inp.control_interface = ControlInterface::Velocity;
+        inp.current_position[0] = 0.0;
+        inp.current_velocity[0] = v0;
+        inp.current_acceleration[0] = a0;
+        inp.target_velocity[0] = 0.0;
+        inp.target_acceleration[0] = 0.0;
+        inp.max_acceleration[0] = accel.max(a0.abs());
+        inp.max_jerk[0] = jerk;
+        let ok = matches!(
+            self.otg.calculate(&self.input, &mut self.scratch),
+            Ok(RuckigResult::Working)
+        );
+        self.input.control_interface = ControlInterface::Position;
+        ok
+    }
+
+    fn brake_distance(&self) -> f64 {
+        let mut p = DataArrayOrVec::Stack([0.0]);
+        let mut section = None;
+        self.scratch.at_time(
+            self.scratch.get_duration(),
+            &mut Some(&mut p),
+            &mut None,
+            &mut None,
+            &mut None,
+            &mut section,
+        );
+        p[0]
+    }
+}

@@ -1,2 +1,899 @@
 //! Segment and junction limits and corner blending for Kerf.
+//!
+//! [`Planner`] turns the front end's [`Move`]s, in program order, into [`PlannedSegment`]s
+//! for the motion core. It runs off the real-time path and may allocate (it does not, per
+//! move, beyond its output). Its job is everything about a segment that does not depend on
+//! time: geometry, corner blends, and the kinematic limits along and between segments.
+//!
+//! Design decisions:
+//! - **Corner blends are circular arcs** between two straight moves, tangent to both, as
+//!   large as the tolerance allows and taking at most half of the outgoing move (and at most
+//!   what the previous blend left of the incoming move). A dense polyline that approximates
+//!   a circle therefore becomes a chain of arcs of the circle's radius: the lines vanish and
+//!   the chain can run at full feed. Corners touching an arc are not blended; they are taken
+//!   at the junction speed below (tangent joints run through, sharp ones stop).
+//!   The deviation of a circular blend from the two lines is `r (1 - cos(θ/2))` at its
+//!   midpoint (θ = turn angle), which is what the tolerance bounds.
+//! - **Per-segment limits** `(v, a, j)` along the path are chosen so that the worst case
+//!   over the segment stays within every axis limit: the tangent projection on lines, and on
+//!   arcs/helices the centripetal acceleration `κv²` and the jerk terms `σ²v³` and `3κva`
+//!   (σ = swept angle per mm), each taken at its worst sign and phase. They are constant
+//!   per segment, which is conservative but cheap and makes the lookahead closed-form.
+//!   On curved segments the budget depends on the speed: `(a, j)` are worked out (in closed
+//!   form for arcs in any plane, by bisection for helices in tilted planes) at a design
+//!   speed, the programmed feed or the curvature limit if lower; if that leaves less than
+//!   a fifth of the axis limits for the tangential motion, lower design speeds are tried
+//!   and the fastest rough segment time wins. `v_max` is that design speed, so feed
+//!   override above 100 % only speeds up straight segments.
+//!   Only [`PROFILE_SHARE`] of each axis limit is used by the path profile; the rest is left
+//!   for the junctions.
+//! - **Known limitation**: a tangent line→arc joint is a curvature step, which circular
+//!   geometry cannot avoid; its cap `sqrt(JUNCTION_SHARE·J·T·r)` is low (≈3.5 mm/s for
+//!   r = 5 mm, J = 50,000 mm/s³, T = 1 ms). Curvature-continuous transitions (clothoid or
+//!   quintic blends within the tolerance) would lift it; they are not implemented yet.
+//! - **Junction caps**: a tangent kink of Δt at speed v is a velocity step `vΔt`; a curvature
+//!   jump Δκ is an acceleration step `v²Δκ`. Sampled at the period T, these look like a jerk
+//!   of `vΔt/T²` and `v²Δκ/T`, so the speed at the junction is capped to keep them within
+//!   [`JUNCTION_SHARE`] of the jerk limit. An exact-stop corner has cap 0.
 #![deny(missing_docs)]
+
+use kerf_geom::{CornerMode, Curve, Move, Path, Vec3};
+
+/// Share of every axis limit that the path profile may use.
+pub const PROFILE_SHARE: f64 = 0.95;
+/// Share of every axis jerk limit left for the steps at junctions.
+pub const JUNCTION_SHARE: f64 = 0.05;
+/// Share of the acceleration (and jerk) budget that centripetal terms may take on curves.
+const CENTRIPETAL_SHARE: f64 = 0.75;
+/// Segments shorter than this are dropped (they cannot be seen in the output), mm.
+pub const MIN_SEGMENT_MM: f64 = 1e-9;
+/// Turn angles below this are treated as collinear (no blend needed), radians.
+const COLLINEAR_RAD: f64 = 1e-7;
+
+/// Velocity, acceleration and jerk limits of one axis (mm or degrees per s, s², s³).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AxisLimits {
+    /// Maximum velocity, mm/s (deg/s for rotary axes).
+    pub velocity: f64,
+    /// Maximum acceleration, mm/s² (deg/s²).
+    pub acceleration: f64,
+    /// Maximum jerk, mm/s³ (deg/s³).
+    pub jerk: f64,
+}
+
+/// The machine as the planner and motion core see it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MachineLimits {
+    /// Limits of X, Y, Z, A, B, C; `None` for an axis the machine does not have.
+    pub axes: [Option<AxisLimits>; 6],
+    /// Interpolation period, s.
+    pub period_s: f64,
+    /// Default blend tolerance (G64 without P), mm.
+    pub tolerance_mm: f64,
+}
+
+/// Axis names in the order of [`MachineLimits::axes`].
+pub const AXIS_NAMES: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
+
+/// One segment ready for the motion core: geometry plus its limits.
+///
+/// The path parameter `s` runs over `[0, length]`; it is the XYZ arc length, or for a move
+/// of rotary axes only, the length of the rotary motion in degrees.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlannedSegment {
+    /// XYZ geometry.
+    pub curve: Curve,
+    /// A, B, C at the start, degrees (they move linearly with `s`).
+    pub abc_start_deg: [f64; 3],
+    /// A, B, C at the end, degrees.
+    pub abc_end_deg: [f64; 3],
+    /// Length of the path parameter, mm (or deg for rotary-only moves).
+    pub length: f64,
+    /// Source line.
+    pub line: u32,
+    /// Index of the source move in program order (0-based), for path-deviation checks.
+    pub move_index: u64,
+    /// Programmed feed, path units/s; infinite for rapids.
+    pub feed: f64,
+    /// Machine speed limit on this segment (axes and curvature; on curved segments also the
+    /// programmed feed), path units/s. `accel` and `jerk` are valid for speeds up to this.
+    pub v_max: f64,
+    /// Path acceleration limit, units/s².
+    pub accel: f64,
+    /// Path jerk limit, units/s³.
+    pub jerk: f64,
+    /// Speed cap at the junction with the next segment, units/s (0 = stop).
+    pub end_cap: f64,
+    /// `true` if the segment is a corner blend (not a programmed move).
+    pub blend: bool,
+}
+
+impl PlannedSegment {
+    /// Positions of all six axes at path parameter `s`.
+    #[inline]
+    pub fn position_at(&self, s: f64, out: &mut [f64; 6]) {
+        let p = if self.curve.length() > 0.0 {
+            self.curve.point_at(s)
+        } else {
+            self.curve.start()
+        };
+        out[0] = p.x;
+        out[1] = p.y;
+        out[2] = p.z;
+        if s >= self.length {
+            out[3..6].copy_from_slice(&self.abc_end_deg);
+        } else {
+            let u = if self.length > 0.0 {
+                (s / self.length).max(0.0)
+            } else {
+                1.0
+            };
+            for i in 0..3 {
+                out[3 + i] =
+                    self.abc_start_deg[i] + (self.abc_end_deg[i] - self.abc_start_deg[i]) * u;
+            }
+        }
+    }
+
+    /// Derivatives with respect to `s` of all six axes at `s`: (tangent, curvature).
+    pub fn derivatives_at(&self, s: f64) -> ([f64; 6], [f64; 6]) {
+        let mut t = [0.0; 6];
+        let mut k = [0.0; 6];
+        if self.curve.length() > 0.0 {
+            let e = self.curve.eval(s);
+            for i in 0..3 {
+                t[i] = e.tangent[i];
+                k[i] = e.curvature[i];
+            }
+        }
+        if self.length > 0.0 {
+            for i in 0..3 {
+                t[3 + i] = (self.abc_end_deg[i] - self.abc_start_deg[i]) / self.length;
+            }
+        }
+        (t, k)
+    }
+}
+
+/// Why a move cannot be planned.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum PlanError {
+    /// The move drives an axis the machine does not have.
+    AxisNotConfigured {
+        /// Source line.
+        line: u32,
+        /// Axis name.
+        axis: char,
+    },
+    /// The move contains a non-finite coordinate or feed.
+    NotFinite {
+        /// Source line.
+        line: u32,
+    },
+    /// A feed move with zero or negative feed.
+    ZeroFeed {
+        /// Source line.
+        line: u32,
+    },
+}
+
+impl std::fmt::Display for PlanError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PlanError::AxisNotConfigured { line, axis } => {
+                write!(f, "line {line}: axis {axis} is not configured")
+            }
+            PlanError::NotFinite { line } => write!(f, "line {line}: non-finite coordinate"),
+            PlanError::ZeroFeed { line } => write!(f, "line {line}: feed move with zero feed"),
+        }
+    }
+}
+
+impl std::error::Error for PlanError {}
+
+/// The move currently waiting for its successor (its end may still be blended).
+#[derive(Clone, Copy, Debug)]
+struct Pending {
+    mv: Move,
+    move_index: u64,
+    /// Start point after the previous blend trimmed it.
+    start: Vec3,
+    /// How much the previous blend trimmed from the start, mm.
+    start_trim: f64,
+    abc_start: [f64; 3],
+    abc_end: [f64; 3],
+}
+
+/// Streaming path preparation: moves in, planned segments out (one move of delay, since a
+/// corner can only be blended once both sides are known).
+#[derive(Debug)]
+pub struct Planner {
+    limits: MachineLimits,
+    pending: Option<Pending>,
+    /// The last produced segment, held back until its end junction cap is known.
+    last: Option<PlannedSegment>,
+    /// Corner mode at the end of `last`.
+    last_corner: CornerMode,
+    next_index: u64,
+    abc_current: [f64; 3],
+}
+
+impl Planner {
+    /// A planner for a machine; the path starts at the origin with rotary axes at 0.
+    pub fn new(limits: MachineLimits) -> Self {
+        Planner {
+            limits,
+            pending: None,
+            last: None,
+            last_corner: CornerMode::ExactStop,
+            next_index: 0,
+            abc_current: [0.0; 3],
+        }
+    }
+
+    /// Adds the next move; finished segments are appended to `out`.
+    pub fn push(&mut self, mv: &Move, out: &mut Vec<PlannedSegment>) -> Result<(), PlanError> {
+        self.check(mv)?;
+        let (abc_start, abc_end) = match mv.abc_deg {
+            Some((s, e)) => (s, e),
+            None => (self.abc_current, self.abc_current),
+        };
+        self.abc_current = abc_end;
+        let index = self.next_index;
+        self.next_index += 1;
+        let mut next = Pending {
+            mv: *mv,
+            move_index: index,
+            start: mv.path.start(),
+            start_trim: 0.0,
+            abc_start,
+            abc_end,
+        };
+        if let Some(prev) = self.pending.take() {
+            if let Some((blend, d)) = self.blend(&prev, &next) {
+                let (p_start, u1) = match prev.mv.path {
+                    Path::Line(l) => (l.end, (l.end - l.start).normalize()),
+                    Path::Arc(_) => unreachable!("only lines are blended"),
+                };
+                let cut = p_start - u1 * d;
+                self.emit_line(
+                    &prev,
+                    prev.start,
+                    cut,
+                    CornerMode::Blend { tolerance_mm: None },
+                    out,
+                );
+                self.emit(blend, CornerMode::Blend { tolerance_mm: None }, out);
+                let u2 = (next.mv.path.end() - next.start).normalize();
+                next.start += u2 * d;
+                next.start_trim = d;
+            } else {
+                self.emit_move(&prev, out);
+            }
+        }
+        self.pending = Some(next);
+        Ok(())
+    }
+
+    /// Ends the program: flushes every remaining segment (the last one ends at rest).
+    pub fn finish(&mut self, out: &mut Vec<PlannedSegment>) {
+        if let Some(prev) = self.pending.take() {
+            self.emit_move(&prev, out);
+        }
+        if let Some(mut last) = self.last.take() {
+            last.end_cap = 0.0;
+            out.push(last);
+        }
+    }
+
+    fn check(&self, mv: &Move) -> Result<(), PlanError> {
+        let line = mv.line;
+        let finite = |v: &Vec3| v.iter().all(|c| c.is_finite());
+        let ok = match &mv.path {
+            Path::Line(l) => finite(&l.start) && finite(&l.end),
+            Path::Arc(a) => {
+                finite(&a.start)
+                    && finite(&a.end)
+                    && finite(&a.center)
+                    && finite(&a.axis)
+                    && a.sweep_rad.is_finite()
+            }
+        };
+        if !ok {
+            return Err(PlanError::NotFinite { line });
+        }
+        if !mv.rapid {
+            match mv.feed_mm_min {
+                Some(f) if f.is_finite() && f > 0.0 => {}
+                Some(f) if !f.is_finite() => return Err(PlanError::NotFinite { line }),
+                _ => return Err(PlanError::ZeroFeed { line }),
+            }
+        }
+        if let Some((s, e)) = mv.abc_deg {
+            for i in 0..3 {
+                if !s[i].is_finite() || !e[i].is_finite() {
+                    return Err(PlanError::NotFinite { line });
+                }
+                if s[i] != e[i] && self.limits.axes[3 + i].is_none() {
+                    return Err(PlanError::AxisNotConfigured {
+                        line,
+                        axis: AXIS_NAMES[3 + i],
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The blend arc for the corner between `prev` and `next` and the distance it takes
+    /// from each, if the corner is blended.
+    fn blend(&self, prev: &Pending, next: &Pending) -> Option<(PlannedSegment, f64)> {
+        let tol = match prev.mv.corner {
+            CornerMode::ExactStop => return None,
+            CornerMode::Blend { tolerance_mm } => tolerance_mm.unwrap_or(self.limits.tolerance_mm),
+        };
+        if tol <= 0.0 || !tol.is_finite() {
+            return None;
+        }
+        let (Path::Line(l1), Path::Line(l2)) = (prev.mv.path, next.mv.path) else {
+            return None;
+        };
+        // Rotary motion on either side would need a blend in six dimensions; take those
+        // corners at the junction speed instead.
+        if prev.abc_start != prev.abc_end || next.abc_start != next.abc_end {
+            return None;
+        }
+        let len1 = (l1.end - l1.start).norm();
+        let len2 = (l2.end - l2.start).norm();
+        if len1 < MIN_SEGMENT_MM || len2 < MIN_SEGMENT_MM {
+            return None;
+        }
+        let u1 = (l1.end - l1.start) / len1;
+        let u2 = (l2.end - l2.start) / len2;
+        let cos = u1.dot(&u2).clamp(-1.0, 1.0);
+        let normal = u1.cross(&u2);
+        let sin = normal.norm();
+        let theta = sin.atan2(cos);
+        if !(COLLINEAR_RAD..=std::f64::consts::PI - 1e-6).contains(&theta) {
+            return None;
+        }
+        // Deviation at the blend midpoint is r (1 - cos(θ/2)) = 2 r sin²(θ/4).
+        let s4 = (theta / 4.0).sin();
+        let r_tol = 0.98 * tol / (2.0 * s4 * s4);
+        let tan_half = (theta / 2.0).tan();
+        let d = (r_tol * tan_half)
+            .min(len1 - prev.start_trim)
+            .min(len2 * 0.5);
+        if d < MIN_SEGMENT_MM {
+            return None;
+        }
+        let radius = d / tan_half;
+        let axis = normal / sin;
+        let corner = l1.end;
+        let b1 = corner - u1 * d;
+        let b2 = corner + u2 * d;
+        let center = b1 + axis.cross(&u1) * radius;
+        let path = Path::Arc(kerf_geom::Arc {
+            start: b1,
+            end: b2,
+            center,
+            axis,
+            sweep_rad: theta,
+        });
+        let curve = Curve::from_path(&path);
+        let feed = feed_of(&prev.mv).min(feed_of(&next.mv));
+        let mut seg = PlannedSegment {
+            curve,
+            abc_start_deg: prev.abc_end,
+            abc_end_deg: prev.abc_end,
+            length: curve.length(),
+            line: next.mv.line,
+            move_index: prev.move_index,
+            feed,
+            v_max: 0.0,
+            accel: 0.0,
+            jerk: 0.0,
+            end_cap: 0.0,
+            blend: true,
+        };
+        self.set_limits(&mut seg, prev.mv.rapid && next.mv.rapid);
+        Some((seg, d))
+    }
+
+    fn emit_move(&mut self, p: &Pending, out: &mut Vec<PlannedSegment>) {
+        match p.mv.path {
+            Path::Line(l) => self.emit_line(p, p.start, l.end, p.mv.corner, out),
+            Path::Arc(_) => {
+                let curve = Curve::from_path(&p.mv.path);
+                self.emit_curve(p, curve, p.mv.corner, out);
+            }
+        }
+    }
+
+    fn emit_line(
+        &mut self,
+        p: &Pending,
+        start: Vec3,
+        end: Vec3,
+        corner: CornerMode,
+        out: &mut Vec<PlannedSegment>,
+    ) {
+        self.emit_curve(p, Curve::line(start, end), corner, out);
+    }
+
+    fn emit_curve(
+        &mut self,
+        p: &Pending,
+        curve: Curve,
+        corner: CornerMode,
+        out: &mut Vec<PlannedSegment>,
+    ) {
+        let xyz = curve.length();
+        let rot = (0..3)
+            .map(|i| (p.abc_end[i] - p.abc_start[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let length = if xyz >= MIN_SEGMENT_MM { xyz } else { rot };
+        if length < MIN_SEGMENT_MM {
+            return;
+        }
+        let curve = if xyz >= MIN_SEGMENT_MM {
+            curve
+        } else {
+            Curve::line(curve.start(), curve.start())
+        };
+        let mut seg = PlannedSegment {
+            curve,
+            abc_start_deg: p.abc_start,
+            abc_end_deg: p.abc_end,
+            length,
+            line: p.mv.line,
+            move_index: p.move_index,
+            feed: feed_of(&p.mv),
+            v_max: 0.0,
+            accel: 0.0,
+            jerk: 0.0,
+            end_cap: 0.0,
+            blend: false,
+        };
+        self.set_limits(&mut seg, p.mv.rapid);
+        self.emit(seg, corner, out);
+    }
+
+    fn emit(&mut self, seg: PlannedSegment, corner: CornerMode, out: &mut Vec<PlannedSegment>) {
+        if let Some(mut prev) = self.last.take() {
+            prev.end_cap = match self.last_corner {
+                CornerMode::ExactStop => 0.0,
+                CornerMode::Blend { .. } => junction_cap(&prev, &seg, &self.limits),
+            };
+            out.push(prev);
+        }
+        self.last = Some(seg);
+        self.last_corner = corner;
+    }
+
+    /// Sets `v_max`, `accel` and `jerk` of `seg` from the axis limits.
+    fn set_limits(&self, seg: &mut PlannedSegment, _rapid: bool) {
+        let (v, a, j) = segment_limits(seg, &self.limits);
+        seg.v_max = v;
+        seg.accel = a;
+        seg.jerk = j;
+    }
+}
+
+fn feed_of(mv: &Move) -> f64 {
+    if mv.rapid {
+        f64::INFINITY
+    } else {
+        mv.feed_mm_min.unwrap_or(0.0) / 60.0
+    }
+}
+
+/// Per-axis geometric weights of a segment: the largest |component| over the segment of
+/// the unit tangent split into in-plane and axial parts, and the curvature terms.
+struct Weights {
+    /// Max |tangent_i| over the segment.
+    tangent: [f64; 6],
+    /// In-plane weight `sqrt(1 - axis_i²)` (0 on lines and rotary axes).
+    plane: [f64; 6],
+    /// Axial tangent component `|axis_i| · rise/length` on helices.
+    axial: [f64; 6],
+    /// In-plane speed factor `r |sweep| / length`.
+    q: f64,
+    /// Curvature, 1/mm.
+    kappa: f64,
+    /// Sweep per unit length, rad/mm.
+    sigma: f64,
+}
+
+fn weights(seg: &PlannedSegment) -> Weights {
+    let mut w = Weights {
+        tangent: [0.0; 6],
+        plane: [0.0; 6],
+        axial: [0.0; 6],
+        q: 0.0,
+        kappa: 0.0,
+        sigma: 0.0,
+    };
+    match &seg.curve {
+        Curve::Line { dir, .. } => {
+            if seg.curve.length() > 0.0 {
+                for i in 0..3 {
+                    w.tangent[i] = dir[i].abs();
+                }
+            }
+        }
+        Curve::Helix(h) => {
+            let q = h.radius_mm * h.sweep_rad.abs() / h.length_mm;
+            let c = h.rise_mm.abs() / h.length_mm;
+            w.q = q;
+            w.sigma = h.sweep_rad.abs() / h.length_mm;
+            w.kappa = h.curvature();
+            for i in 0..3 {
+                let ax = h.axis[i].abs().min(1.0);
+                w.plane[i] = (1.0 - ax * ax).max(0.0).sqrt();
+                w.axial[i] = ax * c;
+                w.tangent[i] = w.plane[i] * q + w.axial[i];
+            }
+        }
+    }
+    for i in 0..3 {
+        w.tangent[3 + i] = (seg.abc_end_deg[i] - seg.abc_start_deg[i]).abs() / seg.length;
+    }
+    w
+}
+
+/// Path limits `(v_max, a_max, j_max)` of a segment such that every axis stays within
+/// [`PROFILE_SHARE`] of its limits for any speed up to `v_max` (curved segments: up to the
+/// programmed feed), any tangential acceleration up to `a_max` and jerk up to `j_max`.
+pub fn segment_limits(seg: &PlannedSegment, limits: &MachineLimits) -> (f64, f64, f64) {
+    let w = weights(seg);
+    let share = PROFILE_SHARE;
+    let mut v = f64::INFINITY;
+    let mut a_line = f64::INFINITY;
+    let mut j_line = f64::INFINITY;
+    let mut v2 = f64::INFINITY;
+    let mut v3 = f64::INFINITY;
+    for i in 0..6 {
+        let Some(l) = limits.axes[i] else { continue };
+        if w.tangent[i] > 0.0 {
+            v = v.min(share * l.velocity / w.tangent[i]);
+        }
+        if w.plane[i] > 0.0 && w.kappa > 0.0 {
+            // Bounds on v² and v³; the roots are taken once, after the loop.
+            v2 = v2.min(CENTRIPETAL_SHARE * share * l.acceleration / (w.plane[i] * w.kappa));
+            v3 =
+                v3.min(CENTRIPETAL_SHARE * share * l.jerk / (w.plane[i] * w.q * w.sigma * w.sigma));
+        }
+        // Straight components (lines, helix axial parts, rotary axes).
+        let straight = if w.plane[i] > 0.0 {
+            w.axial[i]
+        } else {
+            w.tangent[i]
+        };
+        if straight > 0.0 && w.plane[i] == 0.0 {
+            a_line = a_line.min(share * l.acceleration / straight);
+            j_line = j_line.min(share * l.jerk / straight);
+        }
+    }
+    if v2.is_finite() {
+        v = v.min(v2.sqrt());
+    }
+    if v3.is_finite() {
+        v = v.min(v3.cbrt());
+    }
+    if w.kappa == 0.0 {
+        return (v, a_line, j_line);
+    }
+    // Curved: the acceleration and jerk depend on the speed; design for the feed, and
+    // lower the design speed until the tangential budget left is worth having.
+    // Candidates are compared by a rough time for the segment: cruise plus one ramp.
+    let mut vd = v.min(seg.feed);
+    let mut best: Option<(f64, f64, f64, f64)> = None;
+    let a_min = limits
+        .axes
+        .iter()
+        .flatten()
+        .map(|l| l.acceleration)
+        .fold(f64::INFINITY, f64::min);
+    let j_min = limits
+        .axes
+        .iter()
+        .flatten()
+        .map(|l| l.jerk)
+        .fold(f64::INFINITY, f64::min);
+    for _ in 0..16 {
+        if let Some((a, j)) = curved_budget(&w, limits, vd, a_line, j_line) {
+            // The highest design speed that leaves a useful tangential budget wins: the
+            // segment may be one of a long chain, so its own length says little.
+            if a >= 0.2 * a_min && j >= 0.2 * j_min {
+                return (vd, a, j);
+            }
+            // Otherwise keep the candidate with the best rough time (cruise plus one ramp).
+            let time = seg.length / vd + vd / a + a / j;
+            if best.is_none_or(|b| time < b.0) {
+                best = Some((time, vd, a, j));
+            }
+        }
+        vd *= 0.8;
+    }
+    match best {
+        Some((_, v, a, j)) => (v, a, j),
+        None => (vd, 1e-3, 1e-3),
+    }
+}
+
+/// The best `(a, j)` on a curved segment at design speed `vd`, if there is a useful one.
+fn curved_budget(
+    w: &Weights,
+    limits: &MachineLimits,
+    vd: f64,
+    a_line: f64,
+    j_line: f64,
+) -> Option<(f64, f64)> {
+    let share = PROFILE_SHARE;
+    if (0..6).all(|i| w.plane[i] == 0.0 || w.axial[i] == 0.0) {
+        return curved_budget_closed(w, limits, vd, a_line, j_line);
+    }
+    let fits_acc = |a: f64| -> bool {
+        (0..6).all(|i| match limits.axes[i] {
+            None => true,
+            Some(l) => {
+                let inplane = w.plane[i] * ((w.kappa * vd * vd).powi(2) + (w.q * a).powi(2)).sqrt();
+                let straight = if w.plane[i] > 0.0 {
+                    w.axial[i]
+                } else {
+                    w.tangent[i]
+                };
+                inplane + straight * a <= share * l.acceleration
+            }
+        })
+    };
+    let fits_jerk = |a: f64, j: f64| -> bool {
+        (0..6).all(|i| match limits.axes[i] {
+            None => true,
+            Some(l) => {
+                let tang = w.q * (j + w.sigma * w.sigma * vd * vd * vd);
+                let norm = 3.0 * w.kappa * vd * a;
+                let inplane = w.plane[i] * (tang * tang + norm * norm).sqrt();
+                let straight = if w.plane[i] > 0.0 {
+                    w.axial[i]
+                } else {
+                    w.tangent[i]
+                };
+                inplane + straight * j <= share * l.jerk
+            }
+        })
+    };
+    // The smallest axis limits bound the searches from above.
+    let (mut a_cap, mut j_cap) = (a_line, j_line);
+    for l in limits.axes.iter().flatten() {
+        a_cap = a_cap.min(l.acceleration / w.q.max(1e-9));
+        j_cap = j_cap.min(l.jerk / w.q.max(1e-9));
+    }
+    let a_hi = bisect_max(fits_acc, a_cap);
+    if a_hi <= 0.0 {
+        return None;
+    }
+    let mut best: Option<(f64, f64, f64)> = None;
+    for frac in [0.05, 0.1, 0.2, 0.35, 0.5, 0.65, 0.8, 1.0] {
+        let a = a_hi * frac;
+        let j = bisect_max(|j| fits_jerk(a, j), j_cap);
+        if j <= 0.0 {
+            continue;
+        }
+        let cost = vd / a + a / j;
+        if best.is_none_or(|b| cost < b.0) {
+            best = Some((cost, a, j));
+        }
+    }
+    let (_, a, j) = best?;
+    Some((a, j))
+}
+
+/// [`curved_budget`] in closed form, for segments where no axis sees both an in-plane and
+/// an axial component (every arc in G17/G18/G19 and every blend): per axis the in-plane
+/// constraints `w·sqrt((κv²)² + (qa)²) ≤ A` and `w·sqrt((q(j + σ²v³))² + (3κva)²) ≤ J`
+/// solve directly for `a` and `j`.
+fn curved_budget_closed(
+    w: &Weights,
+    limits: &MachineLimits,
+    vd: f64,
+    a_line: f64,
+    j_line: f64,
+) -> Option<(f64, f64)> {
+    let share = PROFILE_SHARE;
+    let centripetal = w.kappa * vd * vd;
+    let mut a_hi = a_line;
+    for i in 0..6 {
+        let (Some(l), true) = (limits.axes[i], w.plane[i] > 0.0) else {
+            continue;
+        };
+        let b = share * l.acceleration / w.plane[i];
+        let room = b * b - centripetal * centripetal;
+        if room <= 0.0 {
+            return None;
+        }
+        a_hi = a_hi.min(room.sqrt() / w.q);
+    }
+    if !(a_hi > 0.0 && a_hi.is_finite()) {
+        return None;
+    }
+    let jerk_for = |a: f64| -> f64 {
+        let mut j = j_line;
+        let normal = 3.0 * w.kappa * vd * a;
+        for i in 0..6 {
+            let (Some(l), true) = (limits.axes[i], w.plane[i] > 0.0) else {
+                continue;
+            };
+            let c = share * l.jerk / w.plane[i];
+            let room = c * c - normal * normal;
+            if room <= 0.0 {
+                return 0.0;
+            }
+            j = j.min(room.sqrt() / w.q - w.sigma * w.sigma * vd * vd * vd);
+        }
+        j
+    };
+    let mut best: Option<(f64, f64, f64)> = None;
+    for frac in [0.05, 0.1, 0.2, 0.35, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0] {
+        let a = a_hi * frac;
+        let j = jerk_for(a);
+        if !(j > 0.0 && j.is_finite()) {
+            continue;
+        }
+        let cost = vd / a + a / j;
+        if best.is_none_or(|b| cost < b.0) {
+            best = Some((cost, a, j));
+        }
+    }
+    best.map(|(_, a, j)| (a, j))
+}
+
+/// Largest `x` in `[0, hi]` with `ok(x)` (assumes `ok` is monotone), to 1e-6 relative.
+fn bisect_max(ok: impl Fn(f64) -> bool, hi: f64) -> f64 {
+    if ok(hi) {
+        return hi;
+    }
+    // Find a finite bracket first when `hi` is huge.
+    let mut lo = 0.0;
+    let mut up = hi;
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + up);
+        if ok(mid) {
+            lo = mid;
+        } else {
+            up = mid;
+        }
+        if up - lo <= 1e-6 * up {
+            break;
+        }
+    }
+    lo
+}
+
+/// Speed cap at the junction from `a` to `b`, from the tangent and curvature steps seen by
+/// finite differences at the period.
+pub fn junction_cap(a: &PlannedSegment, b: &PlannedSegment, limits: &MachineLimits) -> f64 {
+    let (ta, ka) = a.derivatives_at(a.length);
+    let (tb, kb) = b.derivatives_at(0.0);
+    let t = limits.period_s;
+    let mut cap = a.v_max.min(b.v_max);
+    for i in 0..6 {
+        let dt = (tb[i] - ta[i]).abs();
+        let dk = (kb[i] - ka[i]).abs();
+        let Some(l) = limits.axes[i] else {
+            if dt > 0.0 || dk > 0.0 {
+                return 0.0;
+            }
+            continue;
+        };
+        if dt > 1e-12 {
+            cap = cap.min(JUNCTION_SHARE * (l.jerk * t * t).min(l.acceleration * t) / dt);
+        }
+        if dk > 1e-12 {
+            cap = cap.min((JUNCTION_SHARE * l.jerk * t / dk).sqrt());
+        }
+    }
+    cap.max(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kerf_geom::{Arc, Line};
+
+    fn mill() -> MachineLimits {
+        let l = AxisLimits {
+            velocity: 200.0,
+            acceleration: 2000.0,
+            jerk: 50000.0,
+        };
+        MachineLimits {
+            axes: [Some(l), Some(l), Some(l), None, None, None],
+            period_s: 0.001,
+            tolerance_mm: 0.01,
+        }
+    }
+
+    fn mv(path: Path, feed: f64) -> Move {
+        Move {
+            line: 1,
+            rapid: false,
+            path,
+            feed_mm_min: Some(feed),
+            abc_deg: None,
+            corner: CornerMode::Blend { tolerance_mm: None },
+        }
+    }
+
+    fn plan(moves: &[Move]) -> Vec<PlannedSegment> {
+        let mut p = Planner::new(mill());
+        let mut out = Vec::new();
+        for m in moves {
+            p.push(m, &mut out).unwrap();
+        }
+        p.finish(&mut out);
+        out
+    }
+
+    #[test]
+    fn diagonal_line_uses_both_axes() {
+        // Along (1, 1, 0)/√2 each axis sees 1/√2 of the path: share · limit · √2.
+        let line = Line {
+            start: Vec3::zeros(),
+            end: Vec3::new(10.0, 10.0, 0.0),
+        };
+        let segs = plan(&[mv(Path::Line(line), 60000.0)]);
+        let s2 = std::f64::consts::SQRT_2;
+        let share = PROFILE_SHARE;
+        assert!((segs[0].v_max - share * 200.0 * s2).abs() < 1e-9);
+        assert!((segs[0].accel - share * 2000.0 * s2).abs() < 1e-9);
+        assert!((segs[0].jerk - share * 50000.0 * s2).abs() < 1e-9);
+        assert_eq!(segs[0].end_cap, 0.0);
+    }
+
+    #[test]
+    fn arc_budget_respects_every_axis_at_the_feed() {
+        // r = 10 at 100 mm/s: centripetal 1000 mm/s², jerk v³/r² = 10,000 mm/s³.
+        let arc = Arc {
+            start: Vec3::new(10.0, 0.0, 0.0),
+            end: Vec3::new(-10.0, 0.0, 0.0),
+            center: Vec3::zeros(),
+            axis: Vec3::z(),
+            sweep_rad: std::f64::consts::PI,
+        };
+        let segs = plan(&[mv(Path::Arc(arc), 6000.0)]);
+        let s = &segs[0];
+        assert!((s.v_max - 100.0).abs() < 1e-9);
+        let (k, v) = (0.1, s.v_max);
+        let share = PROFILE_SHARE;
+        assert!(((k * v * v).powi(2) + s.accel.powi(2)).sqrt() <= share * 2000.0 + 1e-6);
+        let tang = s.jerk + k * k * v * v * v;
+        let norm = 3.0 * k * v * s.accel;
+        assert!((tang * tang + norm * norm).sqrt() <= share * 50000.0 + 1e-6);
+        // The budget is worth having: more than a third of the limits.
+        assert!(s.accel > 2000.0 / 3.0 && s.jerk > 50000.0 / 3.0);
+    }
+
+    #[test]
+    fn collinear_joint_runs_through_and_exact_stop_stops() {
+        let a = Vec3::zeros();
+        let b = Vec3::new(5.0, 0.0, 0.0);
+        let c = Vec3::new(9.0, 0.0, 0.0);
+        let d = Vec3::new(9.0, 4.0, 0.0);
+        let first = mv(Path::Line(Line { start: a, end: b }), 3000.0);
+        let mut second = mv(Path::Line(Line { start: b, end: c }), 3000.0);
+        second.corner = CornerMode::ExactStop;
+        let third = mv(Path::Line(Line { start: c, end: d }), 3000.0);
+        let segs = plan(&[first, second, third]);
+        assert_eq!(
+            segs.len(),
+            3,
+            "no blend at a collinear joint or an exact stop"
+        );
+        assert_eq!(segs[0].end_cap, segs[0].v_max.min(segs[1].v_max));
+        assert_eq!(segs[1].end_cap, 0.0);
+    }
+}

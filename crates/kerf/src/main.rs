@@ -1,1 +1,361 @@
-fn main() {}
+//! The `kerf` command: argument parsing, files, error messages and exit codes.
+//!
+//! Exit codes: 0 on success (and when the reader of our standard output goes away, as other
+//! Unix filters do), 2 on any error. Every error is one line on standard error in the form
+//! `FILE:LINE:COL: error: MESSAGE` or `FILE: error: MESSAGE`.
+
+use std::ffi::OsStr;
+use std::fs::File;
+use std::io::{self, BufRead, BufReader, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use kerf::sim::{SimError, SimOptions};
+use kerf::{Config, PlanError, choose_dialect};
+use kerf_gcode::{Dialect, Interpreter, Item, Move, Path as GeomPath};
+
+/// Read buffer for program files: large enough that a 1 GB program costs few system calls,
+/// small enough to keep the resident set tiny.
+const READ_BUFFER_BYTES: usize = 256 * 1024;
+
+#[derive(Parser)]
+#[command(
+    name = "kerf",
+    version,
+    about = "Kerf CNC trajectory interpolator tools"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Resolve a G-code program and print every move and event as one JSON object per line.
+    Plan(PlanArgs),
+    /// Run a program through the planner and motion core in virtual time and write the
+    /// setpoints of every period as CSV.
+    Sim(SimArgs),
+}
+
+/// The program and how to read it: shared by every subcommand.
+#[derive(Args)]
+struct ProgramArgs {
+    /// The program's dialect: linuxcnc (alias tormach), rockwell, sinumerik, heidenhain or
+    /// fagor. Without it: the file extension where unambiguous, then the config's
+    /// `dialect`, then linuxcnc.
+    #[arg(long, value_name = "D", value_parser = parse_dialect)]
+    dialect: Option<Dialect>,
+    /// Machine configuration (TOML). Without it the bundled config/kerf.toml is used.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// The G-code program; `-` reads standard input.
+    #[arg(value_name = "PROGRAM")]
+    program: PathBuf,
+}
+
+#[derive(Args)]
+struct PlanArgs {
+    #[command(flatten)]
+    program: ProgramArgs,
+}
+
+#[derive(Args)]
+struct SimArgs {
+    #[command(flatten)]
+    program: ProgramArgs,
+    /// Feed override in percent, 0 to 200.
+    #[arg(long = "override", value_name = "PCT", default_value_t = 100.0, value_parser = parse_override)]
+    override_pct: f64,
+    /// Where to write the CSV: `t,x,y,z` (then `a,b,c` when used), `line`, `feed_mm_s`.
+    #[arg(long, value_name = "FILE.csv")]
+    out: PathBuf,
+    /// Also draw the toolpath and the feed, acceleration and jerk over time as an SVG image.
+    #[arg(long, value_name = "FILE.svg")]
+    plot: Option<PathBuf>,
+}
+
+fn parse_override(text: &str) -> Result<f64, String> {
+    match text.trim_end_matches('%').parse::<f64>() {
+        Ok(pct) if (0.0..=200.0).contains(&pct) => Ok(pct),
+        _ => Err(format!(
+            "`{text}` is not a feed override from 0 to 200 percent"
+        )),
+    }
+}
+
+fn parse_dialect(name: &str) -> Result<Dialect, String> {
+    Dialect::from_name(name).ok_or_else(|| {
+        let known: Vec<&str> = Dialect::ALL.iter().map(|d| d.name()).collect();
+        format!(
+            "unknown dialect `{name}`, expected one of: {} (or tormach)",
+            known.join(", ")
+        )
+    })
+}
+
+/// How a command ended when it did not succeed.
+enum Failure {
+    /// Print this line on standard error and exit with status 2.
+    Error(String),
+    /// The reader of standard output went away: stop quietly.
+    BrokenPipe,
+}
+
+impl From<io::Error> for Failure {
+    fn from(e: io::Error) -> Self {
+        if e.kind() == io::ErrorKind::BrokenPipe {
+            Failure::BrokenPipe
+        } else {
+            Failure::Error(format!("<stdout>: error: {e}"))
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Plan(args) => run_plan(&args),
+        Command::Sim(args) => run_sim(&args),
+    };
+    match result {
+        Ok(()) | Err(Failure::BrokenPipe) => ExitCode::SUCCESS,
+        Err(Failure::Error(message)) => {
+            // Standard error may be closed too; there is nobody left to tell then.
+            let _ = writeln!(io::stderr().lock(), "{message}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn load_config(path: Option<&Path>) -> Result<Config, Failure> {
+    match path {
+        Some(path) => Config::load(path).map_err(|e| Failure::Error(e.to_string())),
+        None => Ok(Config::builtin()),
+    }
+}
+
+/// An opened program: its reader, the name errors use, and its dialect.
+struct Program {
+    reader: Box<dyn BufRead + Send>,
+    name: String,
+    dialect: Dialect,
+}
+
+fn open_program(args: &ProgramArgs, config: &Config) -> Result<Program, Failure> {
+    if args.program.as_os_str() == OsStr::new("-") {
+        // `Stdin` rather than its lock: the interpreter may run on its own thread.
+        let reader = BufReader::with_capacity(READ_BUFFER_BYTES, io::stdin());
+        return Ok(Program {
+            reader: Box::new(reader),
+            name: "<stdin>".to_string(),
+            dialect: choose_dialect(args.dialect, None, config.dialect),
+        });
+    }
+    let name = args.program.display().to_string();
+    let cannot_read =
+        |e: io::Error| Failure::Error(format!("{name}: error: cannot read program: {e}"));
+    let file = File::open(&args.program).map_err(cannot_read)?;
+    let mut reader = BufReader::with_capacity(READ_BUFFER_BYTES, file);
+    // The first bytes tell an ISO Heidenhain `.h` file from a conversational one; peeking
+    // at the buffer leaves them in place for the interpreter.
+    let dialect = {
+        let head = reader.fill_buf().map_err(cannot_read)?;
+        choose_dialect(args.dialect, Some((&args.program, head)), config.dialect)
+    };
+    Ok(Program {
+        reader: Box::new(reader),
+        name,
+        dialect,
+    })
+}
+
+fn run_plan(args: &PlanArgs) -> Result<(), Failure> {
+    let config = load_config(args.program.config.as_deref())?;
+    let program = open_program(&args.program, &config)?;
+    let stdout = io::stdout().lock();
+    match kerf::plan(program.reader, stdout, program.dialect, config.settings()) {
+        Ok(_) => Ok(()),
+        Err(PlanError::Output(e)) => Err(e.into()),
+        // These carry their own `LINE:COL: error: ...`.
+        Err(e @ (PlanError::Program(_) | PlanError::NonFinite { .. })) => {
+            Err(Failure::Error(format!("{}:{e}", program.name)))
+        }
+        Err(e) => Err(Failure::Error(format!("{}: error: {e}", program.name))),
+    }
+}
+
+fn run_sim(args: &SimArgs) -> Result<(), Failure> {
+    let config = load_config(args.program.config.as_deref())?;
+    let program = open_program(&args.program, &config)?;
+    let name = &program.name;
+
+    // The whole program is resolved and checked against the travel limits before the
+    // first setpoint: a program that would leave the machine's travel never starts.
+    let mut moves = Vec::new();
+    for item in Interpreter::new(program.reader, program.dialect, config.settings()) {
+        match item {
+            Ok(Item::Move(m)) => moves.push(m),
+            Ok(Item::Event(_)) => {}
+            Err(diagnostic) => return Err(Failure::Error(format!("{name}:{diagnostic}"))),
+        }
+    }
+    kerf::travel::check_moves(&moves, &config.axes)
+        .map_err(|e| Failure::Error(format!("{name}:{}:1: error: {e}", e.line)))?;
+
+    let create = |path: &Path| {
+        File::create(path)
+            .map_err(|e| Failure::Error(format!("{}: error: cannot create: {e}", path.display())))
+    };
+    let file = create(&args.out)?;
+    let mut plot = match &args.plot {
+        Some(path) => Some(BufWriter::new(create(path)?)),
+        None => None,
+    };
+    // An output error is in the CSV or in the plot; both names are given when there are two.
+    let outputs = match &args.plot {
+        Some(plot) => format!("{}, {}", args.out.display(), plot.display()),
+        None => args.out.display().to_string(),
+    };
+    let estimate_rows = estimated_rows(&moves, &config);
+    let mut out = ProgressWriter::new(file, estimate_rows);
+    let options = SimOptions {
+        feed_override: args.override_pct / 100.0,
+        ..SimOptions::default()
+    };
+    let result = kerf::sim::simulate_and_plot(
+        &moves,
+        &config,
+        &options,
+        &mut out,
+        plot.as_mut().map(|w| w as &mut dyn Write),
+    );
+    out.finish();
+    let summary = match result {
+        Ok(summary) => summary,
+        Err(SimError::Io(e)) => return Err(Failure::Error(format!("{outputs}: error: {e}"))),
+        Err(e) => return Err(Failure::Error(format!("{name}: error: {e}"))),
+    };
+    if let Some(mut plot) = plot {
+        plot.flush()
+            .map_err(|e| Failure::Error(format!("{outputs}: error: {e}")))?;
+    }
+    let mut stdout = io::stdout().lock();
+    writeln!(stdout, "{summary}")?;
+    if summary.plan_failures > 0 {
+        let _ = writeln!(
+            io::stderr().lock(),
+            "{name}: warning: {} motion profiles needed a fallback",
+            summary.plan_failures
+        );
+    }
+    Ok(())
+}
+
+/// A rough number of CSV rows, for the progress bar only: every move at its programmed
+/// feed (rapids at the slowest linear axis's limit), without acceleration.
+fn estimated_rows(moves: &[Move], config: &Config) -> u64 {
+    let rapid_mm_s = config
+        .axes
+        .linear()
+        .iter()
+        .map(|a| a.velocity_mm_s)
+        .fold(f64::INFINITY, f64::min);
+    let seconds: f64 = moves
+        .iter()
+        .map(|m| {
+            let length_mm = match &m.path {
+                GeomPath::Line(l) => (l.end - l.start).norm(),
+                GeomPath::Arc(a) => {
+                    let radius = (a.start - a.center).norm();
+                    let axial = (a.end - a.start).dot(&a.axis);
+                    (radius * a.sweep_rad).hypot(axial)
+                }
+            };
+            let speed_mm_s = match m.feed_mm_min {
+                Some(f) if !m.rapid && f > 0.0 => f / 60.0,
+                _ => rapid_mm_s,
+            };
+            length_mm / speed_mm_s
+        })
+        .sum();
+    let rows = seconds / (f64::from(config.period_us) * 1e-6);
+    if rows.is_finite() { rows as u64 } else { 0 }
+}
+
+/// Counts the CSV rows going to the file and shows a progress bar on standard error once
+/// the simulation has taken more than a moment (never on a non-terminal).
+struct ProgressWriter<W: Write> {
+    inner: W,
+    rows: u64,
+    estimate_rows: u64,
+    started: Instant,
+    bar: Option<ProgressBar>,
+}
+
+/// How long a simulation runs before it gets a progress bar.
+const PROGRESS_AFTER: Duration = Duration::from_millis(500);
+
+impl<W: Write> ProgressWriter<W> {
+    fn new(inner: W, estimate_rows: u64) -> Self {
+        ProgressWriter {
+            inner,
+            rows: 0,
+            estimate_rows,
+            started: Instant::now(),
+            bar: None,
+        }
+    }
+
+    fn update(&mut self) {
+        match &self.bar {
+            Some(bar) => {
+                // The estimate ignores acceleration, so the real run may be longer.
+                if self.rows > bar.length().unwrap_or(0) {
+                    bar.set_length(self.rows + self.rows / 10);
+                }
+                bar.set_position(self.rows);
+            }
+            None if self.started.elapsed() > PROGRESS_AFTER => {
+                let bar = ProgressBar::new(self.estimate_rows.max(self.rows + 1))
+                    .with_elapsed(self.started.elapsed());
+                let style = ProgressStyle::with_template(
+                    "simulating [{bar:40}] {percent:>3}% {pos}/~{len} periods, {elapsed} (eta {eta})",
+                )
+                .map(|style| style.progress_chars("=> "))
+                .unwrap_or_else(|_| ProgressStyle::default_bar());
+                bar.set_style(style);
+                bar.set_position(self.rows);
+                self.bar = Some(bar);
+            }
+            None => {}
+        }
+    }
+
+    fn finish(&mut self) {
+        if let Some(bar) = self.bar.take() {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+impl<W: Write> Write for ProgressWriter<W> {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        let before = self.rows;
+        self.rows += buf[..n].iter().filter(|&&b| b == b'\n').count() as u64;
+        // Redrawing is rate-limited by indicatif; checking the clock every few thousand
+        // rows keeps the counting cheap.
+        if self.rows / 4096 != before / 4096 {
+            self.update();
+        }
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.inner.flush()
+    }
+}

@@ -1,0 +1,226 @@
+//! Behaviour checked against numbers worked out by hand from the physics.
+
+mod common;
+use common::*;
+use kerf_geom::{Curve, Vec3};
+use kerf_motion::driver::{Event, RunOptions, run};
+use kerf_motion::{Setpoint, change_distance, reach};
+use kerf_plan::Planner;
+
+#[test]
+fn reachability_matches_hand_computed_profiles() {
+    // 0 → 100 mm/s with a = 2000, j = 50000: a²/j = 80 < 100, so there is a constant-
+    // acceleration phase; T = 100/2000 + 2000/50000 = 0.09 s, distance = 50 · 0.09 = 4.5 mm.
+    assert!((change_distance(0.0, 100.0, 2000.0, 50000.0) - 4.5).abs() < 1e-12);
+    assert!((reach(0.0, 4.5, 2000.0, 50000.0) - 100.0).abs() < 1e-9);
+    // 0 → 20 mm/s: no constant phase; T = 2·sqrt(20/50000) = 0.04 s, distance = 10 · 0.04.
+    assert!((change_distance(0.0, 20.0, 2000.0, 50000.0) - 0.4).abs() < 1e-12);
+    assert!((reach(0.0, 0.4, 2000.0, 50000.0) - 20.0).abs() < 1e-9);
+    // From 50 mm/s, 30 more: T = 2·sqrt(30/50000), distance = (50 + 80)/2 · T.
+    let d = 65.0 * 2.0 * (30.0f64 / 50000.0).sqrt();
+    assert!((reach(50.0, d, 2000.0, 50000.0) - 80.0).abs() < 1e-9);
+}
+
+#[test]
+fn right_angle_blend_has_the_tolerance_radius() {
+    let limits = mill(200.0, 2000.0, 50000.0, 0.01);
+    let a = Vec3::zeros();
+    let b = Vec3::new(10.0, 0.0, 0.0);
+    let c = Vec3::new(10.0, 10.0, 0.0);
+    let mut planner = Planner::new(limits);
+    let mut out = Vec::new();
+    planner.push(&line(1, a, b, 3000.0), &mut out).unwrap();
+    planner.push(&line(2, b, c, 3000.0), &mut out).unwrap();
+    planner.finish(&mut out);
+    assert_eq!(out.len(), 3);
+    let Curve::Helix(h) = out[1].curve else {
+        panic!("the corner should be an arc")
+    };
+    // Deviation r (1 - cos 45°) = 0.98 · tolerance (the planner keeps 2 % in hand).
+    let r = 0.98 * 0.01 / (1.0 - std::f64::consts::FRAC_1_SQRT_2);
+    assert!((h.radius_mm - r).abs() < 1e-12);
+    assert!((h.start - Vec3::new(10.0 - r, 0.0, 0.0)).norm() < 1e-12);
+    assert!((h.end - Vec3::new(10.0, r, 0.0)).norm() < 1e-12);
+    assert!((h.center - Vec3::new(10.0 - r, r, 0.0)).norm() < 1e-12);
+    // The stop at the end and the junction caps: line → arc is a curvature jump of 1/r,
+    // so v² / r ≤ JUNCTION_SHARE · J·T.
+    let cap = (kerf_plan::JUNCTION_SHARE * 50000.0 * 0.001 * r).sqrt();
+    assert!((out[0].end_cap - cap).abs() < 1e-9);
+    assert_eq!(out[2].end_cap, 0.0);
+}
+
+#[test]
+fn dense_circle_runs_at_the_feed() {
+    // 3,600 lines on r = 10 at F6000 with 2000 mm/s² and 50000 mm/s³: at 100 mm/s the
+    // centripetal acceleration is 1000 mm/s² and the jerk v³/r² = 10000 mm/s³, so the
+    // feed holds; 62.83 mm at 100 mm/s is 0.628 s plus the jerk-limited start and stop.
+    let limits = mill(200.0, 2000.0, 50000.0, 0.01);
+    let moves = polygon_circle(10.0, 3600, 6000.0);
+    let mut peak_feed: f64 = 0.0;
+    let s = run(moves, &limits, &RunOptions::default(), |_, sp| {
+        peak_feed = peak_feed.max(sp.feed_mm_s)
+    })
+    .unwrap();
+    assert!(
+        s.duration_s > 0.63 && s.duration_s < 0.80,
+        "{}",
+        s.duration_s
+    );
+    assert!(peak_feed > 99.9 && peak_feed <= 100.0 + 1e-9, "{peak_feed}");
+    assert_eq!(&s.last.position[..3], &[0.0, 0.0, 0.0]);
+    assert!(s.max_deviation_mm < 1e-5);
+}
+
+#[test]
+fn short_segments_do_not_slow_the_feed() {
+    // A straight line cut into 0.01 mm pieces (10 µs each at 60 mm/s, far below one
+    // period) must reach the programmed feed like one long line.
+    let limits = mill(200.0, 2000.0, 50000.0, 0.01);
+    let moves: Vec<_> = (0..2000)
+        .map(|k| {
+            let a = Vec3::new(0.01 * k as f64, 0.0, 0.0);
+            line(k + 1, a, a + Vec3::new(0.01, 0.0, 0.0), 3600.0)
+        })
+        .collect();
+    let end = moves.last().unwrap().path.end();
+    let one = vec![line(1, Vec3::zeros(), Vec3::new(20.0, 0.0, 0.0), 3600.0)];
+    let mut peak: f64 = 0.0;
+    let dense = run(moves, &limits, &RunOptions::default(), |_, sp| {
+        peak = peak.max(sp.feed_mm_s)
+    })
+    .unwrap();
+    let single = run(one, &limits, &RunOptions::default(), |_, _| {}).unwrap();
+    assert!((peak - 60.0).abs() < 1e-6, "{peak}");
+    assert!(dense.duration_s <= single.duration_s + 0.002);
+    assert_eq!(&dense.last.position[..3], &[end.x, end.y, end.z]);
+}
+
+#[test]
+fn hold_stops_on_the_path_and_resume_finishes() {
+    let limits = mill(200.0, 2000.0, 50000.0, 0.01);
+    let moves = vec![line(1, Vec3::zeros(), Vec3::new(100.0, 0.0, 0.0), 6000.0)];
+    let opts = RunOptions {
+        events: vec![(300, Event::Hold), (1500, Event::Resume)],
+        ..RunOptions::default()
+    };
+    let mut rows: Vec<Setpoint> = Vec::new();
+    let s = run(moves, &limits, &opts, |_, sp| rows.push(*sp)).unwrap();
+    // Braking from 100 mm/s takes 0.09 s (see the reachability test): well before 1500.
+    let held = rows[1400].position;
+    assert!(
+        rows[1300..1500]
+            .iter()
+            .all(|r| r.position == held && r.feed_mm_s == 0.0)
+    );
+    assert!(held[0] > 20.0 && held[0] < 40.0, "{held:?}");
+    assert_eq!(s.last.position[..3], [100.0, 0.0, 0.0]);
+    for f in s.fractions(&limits, 0).unwrap() {
+        assert!(f <= 1.0 + 1e-9, "{f}");
+    }
+}
+
+#[test]
+fn exact_stop_corner_stops() {
+    let limits = mill(200.0, 2000.0, 50000.0, 0.01);
+    let mut first = line(1, Vec3::zeros(), Vec3::new(10.0, 0.0, 0.0), 3000.0);
+    first.corner = kerf_geom::CornerMode::ExactStop;
+    let second = line(
+        2,
+        Vec3::new(10.0, 0.0, 0.0),
+        Vec3::new(10.0, 10.0, 0.0),
+        3000.0,
+    );
+    // The speed passes through zero at the corner; the samples either side of that instant
+    // are within one period of it, so they are nearly at rest.
+    let mut near_corner: f64 = f64::INFINITY;
+    let s = run(
+        vec![first, second],
+        &limits,
+        &RunOptions::default(),
+        |_, sp| {
+            let d =
+                (Vec3::new(sp.position[0], sp.position[1], 0.0) - Vec3::new(10.0, 0.0, 0.0)).norm();
+            if d < 0.01 {
+                near_corner = near_corner.min(sp.feed_mm_s);
+            }
+        },
+    )
+    .unwrap();
+    assert!(near_corner < 0.05, "{near_corner}");
+    assert_eq!(s.max_deviation_mm, 0.0);
+}
+
+#[test]
+fn a_program_longer_than_the_queue_never_stops() {
+    // Ten turns of the dense circle (36,000 lines) through a 4,096-segment queue: the queue
+    // frees room as segments are passed, so the feed never drops between the start and the
+    // end ramps (by more than the 1 % the lookahead keeps in hand at a section boundary).
+    let limits = mill(200.0, 2000.0, 50000.0, 0.01);
+    let one = polygon_circle(10.0, 3600, 6000.0);
+    let moves: Vec<_> = (0..10).flat_map(|_| one.iter().copied()).collect();
+    let mut feeds = Vec::new();
+    let s = run(moves, &limits, &RunOptions::default(), |_, sp| {
+        feeds.push(sp.feed_mm_s)
+    })
+    .unwrap();
+    let middle = &feeds[200..feeds.len() - 200];
+    let low = middle.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(low >= 98.99, "feed fell to {low}");
+    assert!(s.duration_s < 6.5, "{}", s.duration_s);
+}
+
+#[test]
+fn a_full_stop_can_need_less_room_than_a_partial_slow_down() {
+    // From 16.8 mm/s with a = 257, j = 2790: stopping takes 2·sqrt(16.8/2790) s at an
+    // average of 8.4 mm/s = 1.304 mm, but slowing to 4.95 mm/s takes 2·sqrt(11.85/2790) s
+    // at 10.9 mm/s = 1.419 mm. The lookahead must count the stop as a way to end "at most
+    // 4.95 mm/s".
+    let (a, j) = (257.0, 2790.0);
+    let stop = change_distance(16.8, 0.0, a, j);
+    let partial = change_distance(16.8, 4.95, a, j);
+    assert!((stop - 8.4 * 2.0 * (16.8f64 / j).sqrt()).abs() < 1e-12);
+    assert!(partial > stop);
+    let d = 1.31;
+    assert!(kerf_motion::reach_back(4.95, d, a, j) > reach(4.95, d, a, j));
+    assert!((kerf_motion::reach_back(4.95, d, a, j) - reach(0.0, d, a, j)).abs() < 1e-12);
+}
+
+#[test]
+fn status_follows_hold_resume_and_abort() {
+    use kerf_motion::{MotionCore, MotionState, PushError, StepResult};
+    let limits = mill(200.0, 2000.0, 50000.0, 0.01);
+    let mut planner = Planner::new(limits);
+    let mut segs = Vec::new();
+    let a = Vec3::zeros();
+    let b = Vec3::new(100.0, 0.0, 0.0);
+    planner.push(&line(1, a, b, 6000.0), &mut segs).unwrap();
+    planner.finish(&mut segs);
+    let mut core = MotionCore::new(limits, 16);
+    // A segment that does not start where the machine is would make it jump.
+    let mut away = segs[0];
+    away.curve = kerf_geom::Curve::line(Vec3::new(1.0, 0.0, 0.0), b);
+    assert_eq!(core.push(&away), Err(PushError::Discontinuous));
+    core.push(&segs[0]).unwrap();
+    let mut sp = Setpoint::default();
+    for _ in 0..200 {
+        assert_eq!(core.step(&mut sp), StepResult::Moving);
+    }
+    assert_eq!(core.status().state, MotionState::Running);
+    core.hold();
+    assert_eq!(core.status().state, MotionState::Stopping);
+    let mut n = 0;
+    while core.step(&mut sp) != StepResult::Held {
+        n += 1;
+        assert!(n < 200, "a stop from 100 mm/s takes about 0.1 s");
+    }
+    assert_eq!(core.status().state, MotionState::Held);
+    let held = sp.position;
+    core.resume();
+    core.step(&mut sp);
+    assert_eq!(core.status().state, MotionState::Running);
+    core.abort();
+    while core.step(&mut sp) != StepResult::Idle {}
+    assert_eq!(core.status().state, MotionState::Idle);
+    assert_eq!(core.queued(), 0);
+    assert!(sp.position[0] > held[0] && sp.position[0] < 100.0);
+}

@@ -1,0 +1,481 @@
+//! Property tests from a fixed seed: random programs and machines through the offline
+//! driver; every output is checked against the invariants by finite differences.
+
+mod common;
+use common::*;
+use kerf_geom::{CornerMode, Move, Path, Vec3};
+use kerf_motion::driver::{Event, RunOptions, Summary, run};
+use kerf_motion::{MachineLimits, Setpoint};
+
+/// xorshift64*: a tiny deterministic generator, so the test needs no extra dependency.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+    fn unit(&mut self) -> f64 {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+    /// Log-uniform in [lo, hi].
+    fn log(&mut self, lo: f64, hi: f64) -> f64 {
+        (lo.ln() + (hi.ln() - lo.ln()) * self.unit()).exp()
+    }
+    fn pick(&mut self, n: usize) -> usize {
+        (self.next() % n as u64) as usize
+    }
+}
+
+fn random_limits(rng: &mut Rng) -> MachineLimits {
+    let mut m = mill(100.0, 1000.0, 10000.0, rng.log(0.002, 0.1));
+    m.period_s = [0.00025, 0.0005, 0.001, 0.001, 0.002, 0.004][rng.pick(6)];
+    m.axes[3] = Some(kerf_motion::AxisLimits {
+        velocity: rng.log(30.0, 1000.0),
+        acceleration: rng.log(300.0, 10000.0),
+        jerk: rng.log(3000.0, 500_000.0),
+    });
+    for ax in m.axes.iter_mut().take(3) {
+        *ax = Some(kerf_motion::AxisLimits {
+            velocity: rng.log(30.0, 500.0),
+            acceleration: rng.log(300.0, 5000.0),
+            jerk: rng.log(3000.0, 200_000.0),
+        });
+    }
+    m
+}
+
+fn unit_vec(rng: &mut Rng) -> Vec3 {
+    loop {
+        let v = Vec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        );
+        if v.norm() > 0.2 && v.norm() < 1.0 {
+            return v.normalize();
+        }
+    }
+}
+
+/// A random program: lines of every length, arcs and helices, tangent and sharp corners,
+/// dense polylines, exact stops, rapids and tolerance changes.
+fn random_program(rng: &mut Rng, n: usize) -> (Vec<Move>, f64) {
+    let mut moves: Vec<Move> = Vec::new();
+    let mut p = Vec3::zeros();
+    let mut dir = Vec3::x();
+    let mut max_tol: f64 = 0.0;
+    let mut line_no = 1;
+    let mut a_deg = 0.0;
+    while moves.len() < n {
+        let feed = rng.log(60.0, 15000.0);
+        let kind = rng.pick(10);
+        let mut new: Vec<Move> = Vec::new();
+        match kind {
+            0 | 1 => {
+                // Line in a random direction, tiny to long.
+                let d = unit_vec(rng);
+                let len = rng.log(0.0005, 30.0);
+                new.push(line(line_no, p, p + d * len, feed));
+            }
+            2 => {
+                // Tangent continuation.
+                let len = rng.log(0.001, 10.0);
+                new.push(line(line_no, p, p + dir * len, feed));
+            }
+            3 | 4 => {
+                // Arc or helix in G17, G18, G19 or a tilted plane, random centre; half of
+                // them start tangent to the previous move.
+                let axis = match rng.pick(4) {
+                    0 => Vec3::z(),
+                    1 => Vec3::y(),
+                    2 => Vec3::x(),
+                    _ => unit_vec(rng),
+                };
+                let r = rng.log(0.05, 20.0);
+                let sweep = rng.range(0.05, 7.0) * if rng.pick(2) == 0 { 1.0 } else { -1.0 };
+                let in_plane = |v: Vec3| v - axis * v.dot(&axis);
+                let tangent_dir = in_plane(dir);
+                let radial = if rng.pick(2) == 0 && tangent_dir.norm() > 1e-3 {
+                    // Centre to start perpendicular to the incoming direction, on the side
+                    // that makes the arc continue it.
+                    let t = tangent_dir.normalize();
+                    axis.cross(&t) * (-sweep.signum()) * r
+                } else {
+                    let u = in_plane(unit_vec(rng));
+                    if u.norm() < 1e-3 {
+                        axis.cross(&Vec3::x()).normalize() * r
+                    } else {
+                        u.normalize() * r
+                    }
+                };
+                let rise = if kind == 4 { rng.range(-3.0, 3.0) } else { 0.0 };
+                new.push(arc_about(line_no, p, radial, axis, sweep, rise, feed));
+            }
+            5 => {
+                // Dense polyline along a circle of random radius.
+                let r = rng.log(0.5, 30.0);
+                let k = 5 + rng.pick(200);
+                let step = rng.range(0.001, 0.05) * if rng.pick(2) == 0 { 1.0 } else { -1.0 };
+                let ang0 = rng.range(0.0, std::f64::consts::TAU);
+                let center = p - Vec3::new(r * ang0.cos(), r * ang0.sin(), 0.0);
+                let mut q = p;
+                for i in 1..=k {
+                    let a = ang0 + step * i as f64;
+                    let nq = center + Vec3::new(r * a.cos(), r * a.sin(), 0.0);
+                    new.push(line(line_no, q, nq, feed));
+                    q = nq;
+                }
+            }
+            6 => {
+                // A rapid.
+                let d = unit_vec(rng);
+                let mut m = line(line_no, p, p + d * rng.log(0.01, 50.0), feed);
+                m.rapid = true;
+                m.feed_mm_min = None;
+                new.push(m);
+            }
+            8 | 9 => {
+                // Rotary motion: with a linear move, or alone.
+                let d = if kind == 8 {
+                    unit_vec(rng) * rng.log(0.01, 10.0)
+                } else {
+                    Vec3::zeros()
+                };
+                let mut m = line(line_no, p, p + d, feed);
+                let a1 = a_deg + rng.range(-90.0, 90.0);
+                m.abc_deg = Some(([a_deg, 0.0, 0.0], [a1, 0.0, 0.0]));
+                a_deg = a1;
+                new.push(m);
+            }
+            _ => {
+                // Zig-zag of short lines with sharp corners.
+                let mut q = p;
+                for i in 0..(3 + rng.pick(10)) {
+                    let d = unit_vec(rng);
+                    let nq = q + d * rng.log(0.01, 2.0) * if i % 2 == 0 { 1.0 } else { -1.0 };
+                    new.push(line(line_no, q, nq, feed));
+                    q = nq;
+                }
+            }
+        }
+        for mut m in new {
+            m.line = line_no;
+            line_no += 1;
+            m.corner = match rng.pick(10) {
+                0 => CornerMode::ExactStop,
+                1 => {
+                    let t = rng.log(0.001, 0.2);
+                    max_tol = max_tol.max(t);
+                    CornerMode::Blend {
+                        tolerance_mm: Some(t),
+                    }
+                }
+                _ => CornerMode::Blend { tolerance_mm: None },
+            };
+            p = m.path.end();
+            if m.abc_deg.is_some() && m.path.start() == m.path.end() {
+                // A rotary-only move has no direction in space; keep the previous one.
+                moves.push(m);
+                continue;
+            }
+            dir = match m.path {
+                Path::Line(l) => (l.end - l.start).normalize(),
+                Path::Arc(_) => kerf_geom::Curve::from_path(&m.path).eval(1e300).tangent,
+            };
+            moves.push(m);
+        }
+    }
+    (moves, max_tol)
+}
+
+/// Checks every invariant on one run; returns the summary.
+fn check(
+    name: &str,
+    moves: &[Move],
+    limits: &MachineLimits,
+    opts: &RunOptions,
+    tol: f64,
+) -> Summary {
+    let mut rows: Vec<(f64, Setpoint)> = Vec::new();
+    let s = run(moves.iter().copied(), limits, opts, |t, sp| {
+        rows.push((t, *sp))
+    })
+    .unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert!(!s.saw_nan, "{name}: NaN in output");
+    for w in rows.windows(2) {
+        assert!(w[1].0 > w[0].0, "{name}: time not increasing");
+    }
+    if std::env::var("KERF_DEBUG").is_ok() {
+        debug_dump(&rows, limits, opts);
+    }
+    for i in 0..4 {
+        let f = s.fractions(limits, i).unwrap();
+        assert!(
+            f.iter().all(|&x| x <= 1.01),
+            "{name}: axis {i} peaks {f:?} of the limits"
+        );
+    }
+    assert!(
+        s.max_deviation_mm <= tol * 1.0001 + 1e-9,
+        "{name}: deviation {} > {tol}",
+        s.max_deviation_mm
+    );
+    s
+}
+
+fn program_end(moves: &[Move]) -> [f64; 3] {
+    let e = moves.last().unwrap().path.end();
+    [e.x, e.y, e.z]
+}
+
+#[test]
+fn random_programs_hold_every_invariant() {
+    let mut rng = Rng(0x5eed_1234_abcd_0001);
+    for case in 0..60 {
+        let limits = random_limits(&mut rng);
+        let n = 10 + rng.pick(40);
+        let (moves, ptol) = random_program(&mut rng, n);
+        let tol = limits.tolerance_mm.max(ptol);
+        let s = check(
+            &format!("case {case}"),
+            &moves,
+            &limits,
+            &RunOptions::default(),
+            tol,
+        );
+        let end = program_end(&moves);
+        assert_eq!(&s.last.position[..3], &end[..], "case {case}: end point");
+        assert_eq!(s.last.feed_mm_s, 0.0);
+    }
+}
+
+#[test]
+fn override_changes_and_hold_resume_hold_every_invariant() {
+    let mut rng = Rng(0x0bad_cafe_0000_0002);
+    for case in 0..40 {
+        let limits = random_limits(&mut rng);
+        let n = 10 + rng.pick(30);
+        let (moves, ptol) = random_program(&mut rng, n);
+        let tol = limits.tolerance_mm.max(ptol);
+        // First find how long the program runs, then scatter events over that time.
+        let base = run(
+            moves.iter().copied(),
+            &limits,
+            &RunOptions::default(),
+            |_, _| {},
+        )
+        .unwrap();
+        let n = base.cycles.max(10);
+        let mut events = Vec::new();
+        let mut at = 1 + rng.pick(n as usize / 3) as u64;
+        while at < n {
+            let e = match rng.pick(5) {
+                0 => Event::Override(rng.range(0.0, 2.0)),
+                4 => Event::Override(0.0),
+                1 => Event::Override(rng.range(0.5, 1.5)),
+                2 => Event::Hold,
+                _ => Event::Resume,
+            };
+            events.push((at, e));
+            at += 1 + rng.pick(n as usize / 4 + 1) as u64;
+        }
+        // Always end resumed at a non-zero override so that the program finishes.
+        events.push((at, Event::Override(1.0)));
+        events.push((at + 1, Event::Resume));
+        let opts = RunOptions {
+            events,
+            max_cycles: 50 * n + 100_000,
+            ..RunOptions::default()
+        };
+        let s = check(&format!("case {case}"), &moves, &limits, &opts, tol);
+        let end = program_end(&moves);
+        assert_eq!(&s.last.position[..3], &end[..], "case {case}: end point");
+    }
+}
+
+#[test]
+fn abort_stops_on_the_path_within_the_limits() {
+    let mut rng = Rng(0xab0_0000_0003);
+    for case in 0..20 {
+        let limits = random_limits(&mut rng);
+        let (moves, ptol) = random_program(&mut rng, 20);
+        let tol = limits.tolerance_mm.max(ptol);
+        let base = run(
+            moves.iter().copied(),
+            &limits,
+            &RunOptions::default(),
+            |_, _| {},
+        )
+        .unwrap();
+        let at = 1 + rng.pick(base.cycles.max(2) as usize - 1) as u64;
+        let opts = RunOptions {
+            events: vec![(at, Event::Abort)],
+            ..RunOptions::default()
+        };
+        let s = check(&format!("abort {case}"), &moves, &limits, &opts, tol);
+        assert_eq!(s.last.feed_mm_s, 0.0);
+        assert!(
+            s.cycles <= base.cycles + 1,
+            "abort {case}: ran longer than the program"
+        );
+    }
+}
+
+#[test]
+fn identical_runs_give_identical_setpoints() {
+    let mut rng = Rng(42);
+    let limits = random_limits(&mut rng);
+    let (moves, _) = random_program(&mut rng, 60);
+    let collect = || {
+        let mut rows = Vec::new();
+        run(
+            moves.iter().copied(),
+            &limits,
+            &RunOptions::default(),
+            |t, sp| rows.push((t.to_bits(), sp.position.map(f64::to_bits), sp.line)),
+        )
+        .unwrap();
+        rows
+    };
+    assert_eq!(collect(), collect());
+}
+
+/// A long sweep for soaking (`cargo test --release -- --ignored`); seeds from `KERF_SEED`.
+#[test]
+#[ignore]
+fn soak() {
+    let seed: u64 = std::env::var("KERF_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(7);
+    let cases: usize = std::env::var("KERF_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(500);
+    let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
+    for case in 0..cases {
+        let limits = random_limits(&mut rng);
+        let n = 10 + rng.pick(80);
+        let (moves, ptol) = random_program(&mut rng, n);
+        let tol = limits.tolerance_mm.max(ptol);
+        let base = check(
+            &format!("soak {case}"),
+            &moves,
+            &limits,
+            &RunOptions::default(),
+            tol,
+        );
+        assert_eq!(
+            &base.last.position[..3],
+            &program_end(&moves)[..],
+            "soak {case}: end"
+        );
+        let n = base.cycles.max(10);
+        let mut events = Vec::new();
+        let mut at = 1 + rng.pick(n as usize / 3) as u64;
+        while at < n {
+            let e = match rng.pick(6) {
+                0 => Event::Override(rng.range(0.0, 2.0)),
+                1 => Event::Override(rng.range(0.5, 1.5)),
+                2 => Event::Hold,
+                3 => Event::Override(0.0),
+                _ => Event::Resume,
+            };
+            events.push((at, e));
+            at += 1 + rng.pick(n as usize / 4 + 1) as u64;
+        }
+        events.push((at, Event::Override(1.0)));
+        events.push((at + 1, Event::Resume));
+        let capacity = if rng.pick(3) == 0 {
+            2 + rng.pick(30)
+        } else {
+            4096
+        };
+        let opts = RunOptions {
+            events,
+            capacity,
+            max_cycles: 50 * n + 100_000,
+            ..RunOptions::default()
+        };
+        let s = check(&format!("soak ev {case}"), &moves, &limits, &opts, tol);
+        if s.last.position[..3] != program_end(&moves)[..] {
+            eprintln!(
+                "cycles {} max {} base {} last {:?} events {:?}",
+                s.cycles,
+                opts.max_cycles,
+                base.cycles,
+                s.last,
+                &opts.events[opts.events.len().saturating_sub(4)..]
+            );
+        }
+        assert_eq!(
+            &s.last.position[..3],
+            &program_end(&moves)[..],
+            "soak ev {case}: end"
+        );
+        assert_eq!(s.plan_failures, 0, "soak ev {case}: plan failures");
+    }
+}
+
+fn debug_dump(rows: &[(f64, Setpoint)], limits: &MachineLimits, opts: &RunOptions) {
+    let t = limits.period_s;
+    let mut worst = (0.0, 0usize, 0usize);
+    for k in 3..rows.len() {
+        for i in 0..3 {
+            let p = |m: usize| rows[m].1.position[i];
+            let j = ((p(k) - 3.0 * p(k - 1) + 3.0 * p(k - 2) - p(k - 3)) / (t * t * t)).abs()
+                / limits.axes[i].unwrap().jerk;
+            if j > worst.0 {
+                worst = (j, k, i);
+            }
+        }
+    }
+    if worst.0 <= 1.01 {
+        return;
+    }
+    let (_, k, axis) = worst;
+    eprintln!("worst jerk {:.2} at row {k} axis {axis}", worst.0);
+    for (c, e) in &opts.events {
+        if (*c as i64 - k as i64).abs() < 400 {
+            eprintln!("event at {c}: {e:?}");
+        }
+    }
+    for (m, (_, r)) in rows.iter().enumerate().skip(k.saturating_sub(8)).take(12) {
+        eprintln!(
+            "{m} {:?} v {} line {}",
+            &r.position[..3],
+            r.feed_mm_s,
+            r.line
+        );
+    }
+}
+
+#[test]
+fn tiny_queues_stop_in_time_and_hold_every_invariant() {
+    // With room for only a few segments the queue end (a stop) is always close ahead: the
+    // motion must keep being able to stop there, and still finish the program.
+    let mut rng = Rng(0x7171_0000_0004);
+    for case in 0..30 {
+        let limits = random_limits(&mut rng);
+        let n = 10 + rng.pick(30);
+        let (moves, ptol) = random_program(&mut rng, n);
+        let tol = limits.tolerance_mm.max(ptol);
+        let opts = RunOptions {
+            capacity: 2 + rng.pick(14),
+            ..RunOptions::default()
+        };
+        let s = check(&format!("tiny {case}"), &moves, &limits, &opts, tol);
+        assert_eq!(
+            &s.last.position[..3],
+            &program_end(&moves)[..],
+            "tiny {case}: end"
+        );
+        assert_eq!(s.plan_failures, 0, "tiny {case}");
+    }
+}

@@ -1,0 +1,827 @@
+//! The machine configuration file (TOML).
+//!
+//! A machine builder writes one file per machine; `config/kerf.toml` in the repository is a
+//! commented 3-axis mill example and is compiled into the binary as the default
+//! ([`Config::builtin`]). The file is read once, validated completely, and turned into a
+//! plain [`Config`] record; nothing downstream re-checks it.
+//!
+//! Design decisions:
+//! - Unknown keys are an error that names the key: a misspelt limit silently falling back
+//!   to a default is how a machine gets driven past what its axes can take.
+//! - Every error names the file, and the line and column where TOML gives a place, in the
+//!   same `FILE:LINE:COL: error: MESSAGE` shape as program errors.
+//! - Every quantity carries its unit in the key and in the field name (`jerk_mm_s3`).
+
+use std::io;
+use std::ops::Range;
+use std::path::Path;
+
+use kerf_gcode::{Dialect, Settings, Tool};
+use serde::Deserialize;
+use toml::Spanned;
+
+/// The bundled example configuration (`config/kerf.toml`), used when no `--config` is given.
+pub const BUILTIN_TOML: &str = include_str!("../../../config/kerf.toml");
+
+/// The name under which errors in [`BUILTIN_TOML`] are reported.
+pub const BUILTIN_ORIGIN: &str = "<built-in config/kerf.toml>";
+
+/// Default interpolation period when `period_us` is not given, microseconds.
+pub const DEFAULT_PERIOD_US: u32 = 1000;
+
+/// Default path tolerance when `tolerance_mm` is not given, mm.
+pub const DEFAULT_TOLERANCE_MM: f64 = 0.01;
+
+/// The longest period accepted, microseconds: beyond one second a "real-time" loop makes
+/// no sense and the value is more likely a unit mistake (seconds or nanoseconds).
+pub const MAX_PERIOD_US: u32 = 1_000_000;
+
+/// Limits of a linear axis (X, Y, Z).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LinearAxis {
+    /// Maximum speed, mm/s.
+    pub velocity_mm_s: f64,
+    /// Maximum acceleration, mm/s².
+    pub acceleration_mm_s2: f64,
+    /// Maximum jerk, mm/s³.
+    pub jerk_mm_s3: f64,
+    /// Lower travel limit, machine coordinates, mm.
+    pub min_mm: f64,
+    /// Upper travel limit, machine coordinates, mm.
+    pub max_mm: f64,
+}
+
+/// Limits of a rotary axis (A, B, C).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RotaryAxis {
+    /// Maximum speed, degrees/s.
+    pub velocity_deg_s: f64,
+    /// Maximum acceleration, degrees/s².
+    pub acceleration_deg_s2: f64,
+    /// Maximum jerk, degrees/s³.
+    pub jerk_deg_s3: f64,
+    /// Lower travel limit, degrees.
+    pub min_deg: f64,
+    /// Upper travel limit, degrees.
+    pub max_deg: f64,
+}
+
+/// The machine's axes: X, Y and Z always, A, B and C when the machine has them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Axes {
+    /// X axis.
+    pub x: LinearAxis,
+    /// Y axis.
+    pub y: LinearAxis,
+    /// Z axis.
+    pub z: LinearAxis,
+    /// A axis (rotary about X), if present.
+    pub a: Option<RotaryAxis>,
+    /// B axis (rotary about Y), if present.
+    pub b: Option<RotaryAxis>,
+    /// C axis (rotary about Z), if present.
+    pub c: Option<RotaryAxis>,
+}
+
+impl Axes {
+    /// The linear axes in X, Y, Z order.
+    pub fn linear(&self) -> [LinearAxis; 3] {
+        [self.x, self.y, self.z]
+    }
+
+    /// The rotary axes in A, B, C order (`None` where absent).
+    pub fn rotary(&self) -> [Option<RotaryAxis>; 3] {
+        [self.a, self.b, self.c]
+    }
+}
+
+/// One entry of the tool table.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToolEntry {
+    /// Tool number (T word).
+    pub number: u32,
+    /// Tool length offset, mm.
+    pub length_mm: f64,
+    /// Tool radius, mm.
+    pub radius_mm: f64,
+}
+
+/// A validated machine configuration.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Config {
+    /// The machine control's dialect, if the file names one.
+    pub dialect: Option<Dialect>,
+    /// Interpolation period, microseconds (> 0).
+    pub period_us: u32,
+    /// Default path tolerance for corner blending, mm (> 0).
+    pub tolerance_mm: f64,
+    /// Axis limits.
+    pub axes: Axes,
+    /// Absolute arc end-point tolerance for the dialects that make it a setting, mm.
+    pub arc_tolerance_mm: f64,
+    /// Relative arc end-point tolerance (fraction of the radius).
+    pub arc_tolerance_rel: f64,
+    /// Work offsets G54, G55, G56, G57, G58, G59, G59.1, G59.2, G59.3, mm.
+    pub work_offsets_mm: [[f64; 3]; 9],
+    /// The tool table.
+    pub tools: Vec<ToolEntry>,
+}
+
+/// A 1-based place in a text file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TextPosition {
+    /// 1-based line.
+    pub line: u32,
+    /// 1-based column, in characters.
+    pub col: u32,
+}
+
+/// Why a configuration could not be used.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("{origin}: error: cannot read config: {source}")]
+    Io {
+        /// The file as named by the user.
+        origin: String,
+        /// The underlying error.
+        source: io::Error,
+    },
+    /// The file is not valid TOML, has an unknown or missing key, or a value is out of range.
+    #[error("{origin}:{}error: {message}", position_prefix(position))]
+    Invalid {
+        /// The file as named by the user.
+        origin: String,
+        /// Where in the file, when known.
+        position: Option<TextPosition>,
+        /// What is wrong, naming the key.
+        message: String,
+    },
+}
+
+fn position_prefix(position: &Option<TextPosition>) -> String {
+    match position {
+        Some(p) => format!("{}:{}: ", p.line, p.col),
+        None => " ".to_string(),
+    }
+}
+
+impl Config {
+    /// The bundled example configuration (`config/kerf.toml`).
+    pub fn builtin() -> Config {
+        // The bundled file is checked by a unit test, so failing here would be a build
+        // defect; falling back to the same numbers keeps the binary from ever panicking.
+        Config::from_toml_str(BUILTIN_TOML, BUILTIN_ORIGIN).unwrap_or_else(|_| Config {
+            dialect: None,
+            period_us: DEFAULT_PERIOD_US,
+            tolerance_mm: DEFAULT_TOLERANCE_MM,
+            axes: Axes {
+                x: FALLBACK_AXIS,
+                y: FALLBACK_AXIS,
+                z: FALLBACK_AXIS,
+                a: None,
+                b: None,
+                c: None,
+            },
+            arc_tolerance_mm: Settings::default().arc_tolerance_mm,
+            arc_tolerance_rel: Settings::default().arc_tolerance_rel,
+            work_offsets_mm: [[0.0; 3]; 9],
+            tools: Vec::new(),
+        })
+    }
+
+    /// Reads and validates the file at `path`; errors name the path as given.
+    pub fn load(path: &Path) -> Result<Config, ConfigError> {
+        let origin = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            origin: origin.clone(),
+            source,
+        })?;
+        Config::from_toml_str(&text, &origin)
+    }
+
+    /// Parses and validates TOML text; `origin` names the text in error messages.
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Config, ConfigError> {
+        let raw: RawConfig = toml::from_str(text).map_err(|e| ConfigError::Invalid {
+            origin: origin.to_string(),
+            position: e.span().map(|s| position_of(text, s.start)),
+            message: e.message().trim_end().to_string(),
+        })?;
+        let check = Checker { text, origin };
+        check.config(raw)
+    }
+
+    /// The settings the G-code interpreter needs from this configuration.
+    pub fn settings(&self) -> Settings {
+        Settings {
+            work_offsets_mm: self.work_offsets_mm,
+            tools: self
+                .tools
+                .iter()
+                .map(|t| Tool {
+                    number: t.number,
+                    length_mm: t.length_mm,
+                    radius_mm: t.radius_mm,
+                })
+                .collect(),
+            arc_tolerance_mm: self.arc_tolerance_mm,
+            arc_tolerance_rel: self.arc_tolerance_rel,
+        }
+    }
+}
+
+const FALLBACK_AXIS: LinearAxis = LinearAxis {
+    velocity_mm_s: 100.0,
+    acceleration_mm_s2: 1000.0,
+    jerk_mm_s3: 25000.0,
+    min_mm: -500.0,
+    max_mm: 500.0,
+};
+
+/// The 1-based line and column of byte `offset` in `text`.
+fn position_of(text: &str, offset: usize) -> TextPosition {
+    let offset = offset.min(text.len());
+    // A span may in principle end inside a multi-byte character; step back to a boundary
+    // so slicing never panics.
+    let mut offset = offset;
+    while !text.is_char_boundary(offset) {
+        offset -= 1;
+    }
+    let before = &text[..offset];
+    let line = before.bytes().filter(|&b| b == b'\n').count() + 1;
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    let col = before[line_start..].chars().count() + 1;
+    TextPosition {
+        line: u32::try_from(line).unwrap_or(u32::MAX),
+        col: u32::try_from(col).unwrap_or(u32::MAX),
+    }
+}
+
+// The raw file layout. Values that are range-checked are `Spanned` so that the error can
+// point at the value, not only name the key.
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawConfig {
+    dialect: Option<Spanned<String>>,
+    period_us: Option<Spanned<i64>>,
+    tolerance_mm: Option<Spanned<f64>>,
+    axes: RawAxes,
+    #[serde(default)]
+    gcode: RawGcode,
+    #[serde(default)]
+    work_offsets: RawWorkOffsets,
+    #[serde(default)]
+    tools: Vec<RawTool>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawAxes {
+    x: RawLinearAxis,
+    y: RawLinearAxis,
+    z: RawLinearAxis,
+    a: Option<RawRotaryAxis>,
+    b: Option<RawRotaryAxis>,
+    c: Option<RawRotaryAxis>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLinearAxis {
+    velocity_mm_s: Spanned<f64>,
+    acceleration_mm_s2: Spanned<f64>,
+    jerk_mm_s3: Spanned<f64>,
+    min_mm: Spanned<f64>,
+    max_mm: Spanned<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRotaryAxis {
+    velocity_deg_s: Spanned<f64>,
+    acceleration_deg_s2: Spanned<f64>,
+    jerk_deg_s3: Spanned<f64>,
+    min_deg: Spanned<f64>,
+    max_deg: Spanned<f64>,
+}
+
+#[derive(Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawGcode {
+    arc_tolerance_mm: Option<Spanned<f64>>,
+    arc_tolerance_rel: Option<Spanned<f64>>,
+}
+
+#[derive(Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawWorkOffsets {
+    g54: Option<Spanned<Vec<f64>>>,
+    g55: Option<Spanned<Vec<f64>>>,
+    g56: Option<Spanned<Vec<f64>>>,
+    g57: Option<Spanned<Vec<f64>>>,
+    g58: Option<Spanned<Vec<f64>>>,
+    g59: Option<Spanned<Vec<f64>>>,
+    g59_1: Option<Spanned<Vec<f64>>>,
+    g59_2: Option<Spanned<Vec<f64>>>,
+    g59_3: Option<Spanned<Vec<f64>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTool {
+    number: Spanned<i64>,
+    #[serde(default)]
+    length_mm: Option<Spanned<f64>>,
+    #[serde(default)]
+    radius_mm: Option<Spanned<f64>>,
+}
+
+/// Validation with access to the source text, so that errors carry line and column.
+struct Checker<'a> {
+    text: &'a str,
+    origin: &'a str,
+}
+
+impl Checker<'_> {
+    fn error(&self, span: Range<usize>, message: String) -> ConfigError {
+        ConfigError::Invalid {
+            origin: self.origin.to_string(),
+            position: Some(position_of(self.text, span.start)),
+            message,
+        }
+    }
+
+    /// A strictly positive, finite value.
+    fn positive(&self, key: &str, value: &Spanned<f64>) -> Result<f64, ConfigError> {
+        let v = *value.get_ref();
+        if v.is_finite() && v > 0.0 {
+            Ok(v)
+        } else {
+            Err(self.error(
+                value.span(),
+                format!("`{key}` must be a positive finite number, found {v}"),
+            ))
+        }
+    }
+
+    /// A finite value.
+    fn finite(&self, key: &str, value: &Spanned<f64>) -> Result<f64, ConfigError> {
+        let v = *value.get_ref();
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.error(
+                value.span(),
+                format!("`{key}` must be a finite number, found {v}"),
+            ))
+        }
+    }
+
+    /// A travel range: both ends finite and `min < max`.
+    fn range(
+        &self,
+        keys: (&str, &str),
+        min: &Spanned<f64>,
+        max: &Spanned<f64>,
+    ) -> Result<(f64, f64), ConfigError> {
+        let lo = self.finite(keys.0, min)?;
+        let hi = self.finite(keys.1, max)?;
+        if lo < hi {
+            Ok((lo, hi))
+        } else {
+            Err(self.error(
+                max.span(),
+                format!(
+                    "`{}` ({hi}) must be greater than `{}` ({lo})",
+                    keys.1, keys.0
+                ),
+            ))
+        }
+    }
+
+    fn linear(&self, name: &str, raw: &RawLinearAxis) -> Result<LinearAxis, ConfigError> {
+        let key = |k: &str| format!("axes.{name}.{k}");
+        let (min_mm, max_mm) =
+            self.range((&key("min_mm"), &key("max_mm")), &raw.min_mm, &raw.max_mm)?;
+        Ok(LinearAxis {
+            velocity_mm_s: self.positive(&key("velocity_mm_s"), &raw.velocity_mm_s)?,
+            acceleration_mm_s2: self
+                .positive(&key("acceleration_mm_s2"), &raw.acceleration_mm_s2)?,
+            jerk_mm_s3: self.positive(&key("jerk_mm_s3"), &raw.jerk_mm_s3)?,
+            min_mm,
+            max_mm,
+        })
+    }
+
+    fn rotary(
+        &self,
+        name: &str,
+        raw: &Option<RawRotaryAxis>,
+    ) -> Result<Option<RotaryAxis>, ConfigError> {
+        let Some(raw) = raw else { return Ok(None) };
+        let key = |k: &str| format!("axes.{name}.{k}");
+        let (min_deg, max_deg) = self.range(
+            (&key("min_deg"), &key("max_deg")),
+            &raw.min_deg,
+            &raw.max_deg,
+        )?;
+        Ok(Some(RotaryAxis {
+            velocity_deg_s: self.positive(&key("velocity_deg_s"), &raw.velocity_deg_s)?,
+            acceleration_deg_s2: self
+                .positive(&key("acceleration_deg_s2"), &raw.acceleration_deg_s2)?,
+            jerk_deg_s3: self.positive(&key("jerk_deg_s3"), &raw.jerk_deg_s3)?,
+            min_deg,
+            max_deg,
+        }))
+    }
+
+    fn offset(&self, key: &str, raw: &Option<Spanned<Vec<f64>>>) -> Result<[f64; 3], ConfigError> {
+        let Some(raw) = raw else {
+            return Ok([0.0; 3]);
+        };
+        match raw.get_ref().as_slice() {
+            &[x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Ok([x, y, z]),
+            _ => Err(self.error(
+                raw.span(),
+                format!("`work_offsets.{key}` must be three finite numbers [x, y, z] in mm"),
+            )),
+        }
+    }
+
+    fn config(&self, raw: RawConfig) -> Result<Config, ConfigError> {
+        let dialect = match &raw.dialect {
+            None => None,
+            Some(name) => Some(Dialect::from_name(name.get_ref()).ok_or_else(|| {
+                let known: Vec<&str> = Dialect::ALL.iter().map(|d| d.name()).collect();
+                self.error(
+                    name.span(),
+                    format!(
+                        "unknown dialect `{}` in `dialect`, expected one of: {} (or tormach)",
+                        name.get_ref(),
+                        known.join(", ")
+                    ),
+                )
+            })?),
+        };
+
+        let period_us = match &raw.period_us {
+            None => DEFAULT_PERIOD_US,
+            Some(p) => match u32::try_from(*p.get_ref()) {
+                Ok(v) if v > 0 && v <= MAX_PERIOD_US => v,
+                _ => {
+                    return Err(self.error(
+                        p.span(),
+                        format!(
+                            "`period_us` must be between 1 and {MAX_PERIOD_US} microseconds, found {}",
+                            p.get_ref()
+                        ),
+                    ));
+                }
+            },
+        };
+
+        let tolerance_mm = match &raw.tolerance_mm {
+            None => DEFAULT_TOLERANCE_MM,
+            Some(t) => self.positive("tolerance_mm", t)?,
+        };
+
+        let axes = Axes {
+            x: self.linear("x", &raw.axes.x)?,
+            y: self.linear("y", &raw.axes.y)?,
+            z: self.linear("z", &raw.axes.z)?,
+            a: self.rotary("a", &raw.axes.a)?,
+            b: self.rotary("b", &raw.axes.b)?,
+            c: self.rotary("c", &raw.axes.c)?,
+        };
+
+        let defaults = Settings::default();
+        let arc_tolerance_mm = match &raw.gcode.arc_tolerance_mm {
+            None => defaults.arc_tolerance_mm,
+            Some(t) => self.positive("gcode.arc_tolerance_mm", t)?,
+        };
+        let arc_tolerance_rel = match &raw.gcode.arc_tolerance_rel {
+            None => defaults.arc_tolerance_rel,
+            Some(t) => self.positive("gcode.arc_tolerance_rel", t)?,
+        };
+
+        let w = &raw.work_offsets;
+        let work_offsets_mm = [
+            self.offset("g54", &w.g54)?,
+            self.offset("g55", &w.g55)?,
+            self.offset("g56", &w.g56)?,
+            self.offset("g57", &w.g57)?,
+            self.offset("g58", &w.g58)?,
+            self.offset("g59", &w.g59)?,
+            self.offset("g59_1", &w.g59_1)?,
+            self.offset("g59_2", &w.g59_2)?,
+            self.offset("g59_3", &w.g59_3)?,
+        ];
+
+        let mut tools: Vec<ToolEntry> = Vec::with_capacity(raw.tools.len());
+        for t in &raw.tools {
+            let number = match u32::try_from(*t.number.get_ref()) {
+                Ok(n) => n,
+                Err(_) => {
+                    return Err(self.error(
+                        t.number.span(),
+                        format!(
+                            "`tools.number` must be a tool number from 0 to {}, found {}",
+                            u32::MAX,
+                            t.number.get_ref()
+                        ),
+                    ));
+                }
+            };
+            if tools.iter().any(|e| e.number == number) {
+                return Err(self.error(
+                    t.number.span(),
+                    format!("tool {number} is listed twice in `tools`"),
+                ));
+            }
+            let length_mm = match &t.length_mm {
+                None => 0.0,
+                Some(l) => self.finite("tools.length_mm", l)?,
+            };
+            let radius_mm = match &t.radius_mm {
+                None => 0.0,
+                Some(r) => {
+                    let v = self.finite("tools.radius_mm", r)?;
+                    if v < 0.0 {
+                        return Err(self.error(
+                            r.span(),
+                            format!("`tools.radius_mm` must not be negative, found {v}"),
+                        ));
+                    }
+                    v
+                }
+            };
+            tools.push(ToolEntry {
+                number,
+                length_mm,
+                radius_mm,
+            });
+        }
+
+        Ok(Config {
+            dialect,
+            period_us,
+            tolerance_mm,
+            axes,
+            arc_tolerance_mm,
+            arc_tolerance_rel,
+            work_offsets_mm,
+            tools,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MINIMAL: &str = r#"
+[axes.x]
+velocity_mm_s = 100
+acceleration_mm_s2 = 1000.0
+jerk_mm_s3 = 10000.0
+min_mm = -10.0
+max_mm = 10.0
+[axes.y]
+velocity_mm_s = 100.0
+acceleration_mm_s2 = 1000.0
+jerk_mm_s3 = 10000.0
+min_mm = -10.0
+max_mm = 10.0
+[axes.z]
+velocity_mm_s = 100.0
+acceleration_mm_s2 = 1000.0
+jerk_mm_s3 = 10000.0
+min_mm = -10.0
+max_mm = 10.0
+"#;
+
+    fn err(text: &str) -> String {
+        match Config::from_toml_str(text, "m.toml") {
+            Ok(_) => panic!("expected an error for:\n{text}"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[test]
+    fn builtin_config_is_valid_and_is_the_documented_mill() {
+        let c = Config::from_toml_str(BUILTIN_TOML, BUILTIN_ORIGIN).expect("bundled config");
+        assert_eq!(c.dialect, Some(Dialect::LinuxCnc));
+        assert_eq!(c.period_us, 1000);
+        assert_eq!(c.tolerance_mm, 0.01);
+        assert_eq!(c.axes.x.velocity_mm_s, 200.0);
+        assert_eq!(c.axes.x.acceleration_mm_s2, 2000.0);
+        assert_eq!(c.axes.x.jerk_mm_s3, 50000.0);
+        assert_eq!((c.axes.x.min_mm, c.axes.x.max_mm), (-1000.0, 1000.0));
+        assert_eq!(c.axes.a, None);
+        assert_eq!(Config::builtin(), c);
+    }
+
+    #[test]
+    fn minimal_config_takes_documented_defaults() {
+        let c = Config::from_toml_str(MINIMAL, "m.toml").unwrap();
+        assert_eq!(c.dialect, None);
+        assert_eq!(c.period_us, 1000);
+        assert_eq!(c.tolerance_mm, 0.01);
+        // An integer where a float is expected is accepted as the same number.
+        assert_eq!(c.axes.x.velocity_mm_s, 100.0);
+        assert_eq!(c.arc_tolerance_mm, 0.02828);
+        assert_eq!(c.arc_tolerance_rel, 0.001);
+        assert_eq!(c.work_offsets_mm, [[0.0; 3]; 9]);
+        assert!(c.tools.is_empty());
+    }
+
+    #[test]
+    fn unknown_top_level_key_is_named_with_its_place() {
+        let text = format!("dialect = \"fagor\"\nperiod_ms = 1\n{MINIMAL}");
+        let e = err(&text);
+        assert!(e.starts_with("m.toml:2:1: error: "), "{e}");
+        assert!(e.contains("period_ms"), "{e}");
+    }
+
+    #[test]
+    fn unknown_axis_key_is_named() {
+        let text = MINIMAL.replace(
+            "jerk_mm_s3 = 10000.0\nmin_mm = -10.0\nmax_mm = 10.0\n[axes.y]",
+            "jerk_mm_s3 = 10000.0\nmin_mm = -10.0\nmax_mm = 10.0\nfeed_mm_s = 3.0\n[axes.y]",
+        );
+        let e = err(&text);
+        assert!(e.contains("feed_mm_s"), "{e}");
+        // The unknown key is on line 8 of the text (MINIMAL starts with an empty line).
+        assert!(e.starts_with("m.toml:8:"), "{e}");
+    }
+
+    #[test]
+    fn unknown_axis_table_is_named() {
+        let text = format!("{MINIMAL}[axes.u]\nvelocity_mm_s = 1.0\n");
+        let e = err(&text);
+        assert!(e.contains("`u`"), "{e}");
+    }
+
+    #[test]
+    fn missing_required_axis_is_reported() {
+        let text = MINIMAL.split("[axes.z]").next().unwrap();
+        let e = err(text);
+        assert!(e.contains("missing field `z`"), "{e}");
+    }
+
+    #[test]
+    fn non_positive_limit_points_at_the_value() {
+        let text = MINIMAL.replacen(
+            "acceleration_mm_s2 = 1000.0",
+            "acceleration_mm_s2 = -5.0",
+            1,
+        );
+        let e = err(&text);
+        // Line 4, after `acceleration_mm_s2 = ` (21 characters).
+        assert!(e.starts_with("m.toml:4:22: error: "), "{e}");
+        assert!(e.contains("axes.x.acceleration_mm_s2"), "{e}");
+        assert!(e.contains("-5"), "{e}");
+    }
+
+    #[test]
+    fn zero_jerk_and_infinite_velocity_are_rejected() {
+        let e = err(&MINIMAL.replacen("jerk_mm_s3 = 10000.0", "jerk_mm_s3 = 0", 1));
+        assert!(e.contains("axes.x.jerk_mm_s3"), "{e}");
+        let e = err(&MINIMAL.replacen("velocity_mm_s = 100.0", "velocity_mm_s = inf", 1));
+        assert!(e.contains("axes.y.velocity_mm_s"), "{e}");
+        let e = err(&MINIMAL.replacen("velocity_mm_s = 100.0", "velocity_mm_s = nan", 1));
+        assert!(e.contains("axes.y.velocity_mm_s"), "{e}");
+    }
+
+    #[test]
+    fn min_must_be_below_max() {
+        let e = err(&MINIMAL.replacen("max_mm = 10.0", "max_mm = -10.0", 1));
+        assert!(e.contains("axes.x.max_mm"), "{e}");
+        assert!(e.contains("axes.x.min_mm"), "{e}");
+        let e = err(&MINIMAL.replacen("min_mm = -10.0", "min_mm = 10.0", 1));
+        assert!(e.contains("greater than"), "{e}");
+    }
+
+    #[test]
+    fn period_must_be_positive() {
+        for bad in ["0", "-1000", "5000000000"] {
+            let e = err(&format!("period_us = {bad}\n{MINIMAL}"));
+            assert!(e.starts_with("m.toml:1:13: error: "), "{e}");
+            assert!(e.contains("period_us"), "{e}");
+        }
+        let e = err(&format!("period_us = 1.5\n{MINIMAL}"));
+        assert!(e.starts_with("m.toml:1:"), "{e}");
+    }
+
+    #[test]
+    fn tolerance_must_be_positive() {
+        let e = err(&format!("tolerance_mm = 0.0\n{MINIMAL}"));
+        assert!(e.contains("tolerance_mm"), "{e}");
+    }
+
+    #[test]
+    fn unknown_dialect_lists_the_known_ones() {
+        let e = err(&format!("dialect = \"fanuc\"\n{MINIMAL}"));
+        assert!(e.starts_with("m.toml:1:11: error: "), "{e}");
+        assert!(e.contains("fanuc"), "{e}");
+        assert!(e.contains("sinumerik"), "{e}");
+    }
+
+    #[test]
+    fn dialect_alias_tormach_is_linuxcnc() {
+        let c = Config::from_toml_str(&format!("dialect = \"tormach\"\n{MINIMAL}"), "m").unwrap();
+        assert_eq!(c.dialect, Some(Dialect::LinuxCnc));
+    }
+
+    #[test]
+    fn syntax_error_has_a_position() {
+        let e = err("period_us = = 3\n");
+        assert!(e.starts_with("m.toml:1:"), "{e}");
+    }
+
+    #[test]
+    fn rotary_axis_is_read_in_degrees() {
+        let text = format!(
+            "{MINIMAL}[axes.c]\nvelocity_deg_s = 360.0\nacceleration_deg_s2 = 3600.0\njerk_deg_s3 = 90000.0\nmin_deg = -720.0\nmax_deg = 720.0\n"
+        );
+        let c = Config::from_toml_str(&text, "m").unwrap();
+        let axis = c.axes.c.unwrap();
+        assert_eq!(axis.velocity_deg_s, 360.0);
+        assert_eq!((axis.min_deg, axis.max_deg), (-720.0, 720.0));
+        assert_eq!(c.axes.rotary(), [None, None, Some(axis)]);
+        // Linear keys on a rotary axis are a mistake worth naming.
+        let e = err(&text.replace("velocity_deg_s", "velocity_mm_s"));
+        assert!(e.contains("velocity_mm_s"), "{e}");
+    }
+
+    #[test]
+    fn settings_carry_offsets_tools_and_arc_tolerances() {
+        let text = format!(
+            "{MINIMAL}[gcode]\narc_tolerance_mm = 0.05\narc_tolerance_rel = 0.002\n[work_offsets]\ng55 = [1.0, -2.0, 3.5]\ng59_3 = [0, 0, -7]\n[[tools]]\nnumber = 3\nlength_mm = 42.5\n[[tools]]\nnumber = 7\nradius_mm = 3.0\n"
+        );
+        let s = Config::from_toml_str(&text, "m").unwrap().settings();
+        assert_eq!(s.arc_tolerance_mm, 0.05);
+        assert_eq!(s.arc_tolerance_rel, 0.002);
+        assert_eq!(s.work_offsets_mm[0], [0.0, 0.0, 0.0]);
+        assert_eq!(s.work_offsets_mm[1], [1.0, -2.0, 3.5]);
+        assert_eq!(s.work_offsets_mm[8], [0.0, 0.0, -7.0]);
+        assert_eq!(s.tools.len(), 2);
+        assert_eq!(
+            (
+                s.tools[0].number,
+                s.tools[0].length_mm,
+                s.tools[0].radius_mm
+            ),
+            (3, 42.5, 0.0)
+        );
+        assert_eq!(
+            (
+                s.tools[1].number,
+                s.tools[1].length_mm,
+                s.tools[1].radius_mm
+            ),
+            (7, 0.0, 3.0)
+        );
+    }
+
+    #[test]
+    fn bad_offsets_and_tools_are_rejected() {
+        let e = err(&format!("{MINIMAL}[work_offsets]\ng54 = [1.0, 2.0]\n"));
+        assert!(e.contains("work_offsets.g54"), "{e}");
+        let e = err(&format!("{MINIMAL}[work_offsets]\ng60 = [1.0, 2.0, 3.0]\n"));
+        assert!(e.contains("g60"), "{e}");
+        let e = err(&format!(
+            "{MINIMAL}[[tools]]\nnumber = 1\n[[tools]]\nnumber = 1\n"
+        ));
+        assert!(e.contains("tool 1 is listed twice"), "{e}");
+        let e = err(&format!("{MINIMAL}[[tools]]\nnumber = -1\n"));
+        assert!(e.contains("tools.number"), "{e}");
+        let e = err(&format!(
+            "{MINIMAL}[[tools]]\nnumber = 2\nradius_mm = -1.0\n"
+        ));
+        assert!(e.contains("tools.radius_mm"), "{e}");
+        let e = err(&format!(
+            "{MINIMAL}[[tools]]\nnumber = 2\ndiameter_mm = 1.0\n"
+        ));
+        assert!(e.contains("diameter_mm"), "{e}");
+    }
+
+    #[test]
+    fn missing_file_names_the_file() {
+        let e = Config::load(Path::new("/nonexistent/kerf.toml")).unwrap_err();
+        let s = e.to_string();
+        assert!(
+            s.starts_with("/nonexistent/kerf.toml: error: cannot read config"),
+            "{s}"
+        );
+    }
+
+    #[test]
+    fn positions_count_characters_not_bytes() {
+        assert_eq!(position_of("ab\ncd", 4), TextPosition { line: 2, col: 2 });
+        assert_eq!(position_of("é=1", 2), TextPosition { line: 1, col: 2 });
+        assert_eq!(position_of("x", 99), TextPosition { line: 1, col: 2 });
+    }
+}

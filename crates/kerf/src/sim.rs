@@ -1,0 +1,494 @@
+//! `kerf sim`: the whole pipeline in virtual time.
+//!
+//! The resolved moves go through the same [`kerf_plan::Planner`] and
+//! [`kerf_motion::MotionCore`] the daemon runs, fed by the deterministic policy of
+//! [`kerf_motion::driver`] (push while the queue has room, step one period when it is full,
+//! then step until rest), so a simulation reproduces the daemon's setpoints bit for bit.
+//!
+//! Output: one CSV row per period, `t,x,y,z` (then `a,b,c` when the program drives a rotary
+//! axis), then `line,feed_mm_s`; t in s, positions in mm (degrees for rotary axes), from
+//! t = 0 at the origin until the last move has come to rest. Floats are printed with
+//! Rust's shortest round-trip formatting, so equal runs give equal bytes.
+//!
+//! The moves are collected before the run because the CSV header depends on whether any
+//! move drives a rotary axis; the simulator is an offline tool, so that memory is fine.
+
+use std::fmt;
+use std::io::{self, BufWriter, Write};
+
+use kerf_geom::Move;
+use kerf_motion::driver::{self, Event, RunError, RunOptions, Summary};
+use kerf_motion::{AxisLimits, MachineLimits, Setpoint};
+
+use crate::config::Config;
+
+/// Options of a simulation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimOptions {
+    /// Feed override, 1.0 = 100 % (0–2).
+    pub feed_override: f64,
+    /// Motion queue capacity in segments (the daemon's default is 4,096).
+    pub queue_capacity: usize,
+    /// Events applied before the given cycle number (hold, resume, abort, override).
+    pub events: Vec<(u64, Event)>,
+}
+
+impl Default for SimOptions {
+    fn default() -> Self {
+        SimOptions {
+            feed_override: 1.0,
+            queue_capacity: 4096,
+            events: Vec::new(),
+        }
+    }
+}
+
+/// Peak velocity, acceleration and jerk of one axis as fractions of its limits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AxisReport {
+    /// Axis name (`X` … `C`).
+    pub axis: char,
+    /// Peak |v| / velocity limit.
+    pub velocity: f64,
+    /// Peak |a| / acceleration limit.
+    pub acceleration: f64,
+    /// Peak |j| / jerk limit.
+    pub jerk: f64,
+}
+
+/// What a simulation measured.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimSummary {
+    /// Time from the start until rest, s.
+    pub duration_s: f64,
+    /// Rows written (including the one at t = 0).
+    pub rows: u64,
+    /// One entry per axis in the output (X, Y, Z, then used rotary axes).
+    pub axes: Vec<AxisReport>,
+    /// Largest distance of a setpoint from the programmed path, mm.
+    pub max_deviation_mm: f64,
+    /// `true` if the program drove a rotary axis (the CSV has `a,b,c`).
+    pub rotary_used: bool,
+    /// Motion-core profile calculations that needed a fallback (0 on a healthy run).
+    pub plan_failures: u64,
+    /// The raw measurements.
+    pub raw: Summary,
+}
+
+impl fmt::Display for SimSummary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "duration {:.3} s", self.duration_s)?;
+        for a in &self.axes {
+            write!(
+                f,
+                "; {} v {:.0}% a {:.0}% j {:.0}%",
+                a.axis,
+                a.velocity * 100.0,
+                a.acceleration * 100.0,
+                a.jerk * 100.0
+            )?;
+        }
+        write!(f, "; max deviation {:.4} mm", self.max_deviation_mm)
+    }
+}
+
+/// Why a simulation failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimError {
+    /// A move could not be planned (unconfigured axis, non-finite value, zero feed).
+    #[error("{0}")]
+    Plan(#[from] RunError),
+    /// Writing the CSV failed.
+    #[error("writing the simulation output: {0}")]
+    Io(#[from] io::Error),
+}
+
+/// The motion core's view of a configuration.
+pub fn machine_limits(config: &Config) -> MachineLimits {
+    let mut axes = [None; 6];
+    for (i, l) in config.axes.linear().iter().enumerate() {
+        axes[i] = Some(AxisLimits {
+            velocity: l.velocity_mm_s,
+            acceleration: l.acceleration_mm_s2,
+            jerk: l.jerk_mm_s3,
+        });
+    }
+    for (i, r) in config.axes.rotary().iter().enumerate() {
+        axes[3 + i] = r.map(|r| AxisLimits {
+            velocity: r.velocity_deg_s,
+            acceleration: r.acceleration_deg_s2,
+            jerk: r.jerk_deg_s3,
+        });
+    }
+    MachineLimits {
+        axes,
+        period_s: config.period_us as f64 * 1e-6,
+        tolerance_mm: config.tolerance_mm,
+    }
+}
+
+/// Runs `moves` on the machine `limits`, calling `row(t, setpoint)` for every period from
+/// t = 0. Use this to plot or check the motion without a CSV.
+pub fn simulate_with<F: FnMut(f64, &Setpoint)>(
+    moves: &[Move],
+    limits: &MachineLimits,
+    options: &SimOptions,
+    row: F,
+) -> Result<SimSummary, SimError> {
+    let run_options = RunOptions {
+        capacity: options.queue_capacity,
+        feed_override: options.feed_override,
+        events: options.events.clone(),
+        max_cycles: u64::MAX,
+    };
+    let raw = driver::run(moves.iter().copied(), limits, &run_options, row)?;
+    let mut axes = Vec::new();
+    for i in 0..6 {
+        if i >= 3 && !raw.rotary_used {
+            break;
+        }
+        if let Some(f) = raw.fractions(limits, i) {
+            axes.push(AxisReport {
+                axis: kerf_plan::AXIS_NAMES[i],
+                velocity: f[0],
+                acceleration: f[1],
+                jerk: f[2],
+            });
+        }
+    }
+    Ok(SimSummary {
+        duration_s: raw.duration_s,
+        rows: raw.cycles + 1,
+        axes,
+        max_deviation_mm: raw.max_deviation_mm,
+        rotary_used: raw.rotary_used,
+        plan_failures: raw.plan_failures,
+        raw,
+    })
+}
+
+/// Runs `moves` with the machine of `config` and writes the CSV to `out`.
+pub fn simulate<W: Write>(
+    moves: &[Move],
+    config: &Config,
+    options: &SimOptions,
+    out: W,
+) -> Result<SimSummary, SimError> {
+    simulate_and_plot(moves, config, options, out, None)
+}
+
+/// [`simulate`], and with `plot` also draws the toolpath and the feed, acceleration and
+/// jerk over time as an SVG image into it (for `kerf sim --plot FILE.svg`).
+pub fn simulate_and_plot<W: Write>(
+    moves: &[Move],
+    config: &Config,
+    options: &SimOptions,
+    out: W,
+    plot: Option<&mut dyn Write>,
+) -> Result<SimSummary, SimError> {
+    let limits = machine_limits(config);
+    let rotary = moves.iter().any(|m| m.abc_deg.is_some_and(|(s, e)| s != e));
+    let mut w = BufWriter::new(out);
+    if rotary {
+        writeln!(w, "t,x,y,z,a,b,c,line,feed_mm_s")?;
+    } else {
+        writeln!(w, "t,x,y,z,line,feed_mm_s")?;
+    }
+    let mut error: Option<io::Error> = None;
+    let mut recorder = plot.is_some().then(|| PlotRecorder::new(&limits));
+    let summary = simulate_with(moves, &limits, options, |t, sp| {
+        if error.is_none() {
+            if let Err(e) = write_row(&mut w, t, sp, rotary) {
+                error = Some(e);
+            }
+        }
+        if let Some(r) = recorder.as_mut() {
+            r.push(t, sp);
+        }
+    })?;
+    if let Some(e) = error {
+        return Err(e.into());
+    }
+    w.flush()?;
+    if let (Some(out), Some(r)) = (plot, recorder) {
+        r.write_svg(out)?;
+    }
+    Ok(summary)
+}
+
+/// One plotted sample (single precision keeps long runs small).
+#[derive(Clone, Copy, Debug)]
+struct PlotPoint {
+    t: f32,
+    x: f32,
+    y: f32,
+    feed: f32,
+    /// Largest |acceleration| / limit over the linear axes, by finite differences.
+    acc: f32,
+    /// Largest |jerk| / limit over the linear axes, by finite differences.
+    jerk: f32,
+}
+
+/// Collects what the plot shows while the simulation runs.
+struct PlotRecorder {
+    limits: MachineLimits,
+    hist: [[f64; 3]; 4],
+    seen: usize,
+    points: Vec<PlotPoint>,
+}
+
+impl PlotRecorder {
+    fn new(limits: &MachineLimits) -> Self {
+        PlotRecorder {
+            limits: *limits,
+            hist: [[0.0; 3]; 4],
+            seen: 0,
+            points: Vec::new(),
+        }
+    }
+
+    fn push(&mut self, t: f64, sp: &Setpoint) {
+        self.hist.rotate_right(1);
+        self.hist[0] = [sp.position[0], sp.position[1], sp.position[2]];
+        self.seen += 1;
+        let dt = self.limits.period_s;
+        let (mut acc, mut jerk) = (0.0f64, 0.0f64);
+        for i in 0..3 {
+            let Some(l) = self.limits.axes[i] else {
+                continue;
+            };
+            let h = |k: usize| self.hist[k][i];
+            if self.seen >= 3 {
+                let a = (h(0) - 2.0 * h(1) + h(2)) / (dt * dt);
+                acc = acc.max(a.abs() / l.acceleration);
+            }
+            if self.seen >= 4 {
+                let j = (h(0) - 3.0 * h(1) + 3.0 * h(2) - h(3)) / (dt * dt * dt);
+                jerk = jerk.max(j.abs() / l.jerk);
+            }
+        }
+        self.points.push(PlotPoint {
+            t: t as f32,
+            x: sp.position[0] as f32,
+            y: sp.position[1] as f32,
+            feed: sp.feed_mm_s as f32,
+            acc: acc as f32,
+            jerk: jerk as f32,
+        });
+    }
+
+    /// Three panels: the XY toolpath (equal scales), the path feed over time, and the
+    /// largest acceleration and jerk as a fraction of the limit over time (with the 100 %
+    /// line). Time series keep the maximum of each pixel column so spikes stay visible.
+    fn write_svg(&self, out: &mut dyn Write) -> io::Result<()> {
+        let (w, h_path, h_plot, pad) = (900.0f64, 450.0f64, 200.0f64, 40.0f64);
+        let height = h_path + 2.0 * h_plot + 4.0 * pad;
+        writeln!(
+            out,
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{height}" font-family="sans-serif" font-size="12">"#
+        )?;
+        writeln!(out, r#"<rect width="100%" height="100%" fill="white"/>"#)?;
+        let pts = &self.points;
+        if pts.is_empty() {
+            return writeln!(out, "</svg>");
+        }
+        // Toolpath.
+        let (mut x0, mut x1, mut y0, mut y1) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
+        for p in pts {
+            x0 = x0.min(p.x);
+            x1 = x1.max(p.x);
+            y0 = y0.min(p.y);
+            y1 = y1.max(p.y);
+        }
+        let span = f64::from((x1 - x0).max(y1 - y0)).max(1e-9);
+        let x_span = f64::from(x1 - x0).max(1e-9);
+        let y_span = f64::from(y1 - y0).max(1e-9);
+        let scale = ((w - 2.0 * pad) / x_span).min((h_path - pad) / y_span);
+        let px = |x: f32| pad + f64::from(x - x0) * scale;
+        let py = |y: f32| pad + h_path - pad - f64::from(y - y0) * scale;
+        writeln!(
+            out,
+            r#"<text x="{pad}" y="{}">toolpath XY ({:.3} mm across)</text>"#,
+            pad - 10.0,
+            span
+        )?;
+        write!(
+            out,
+            r#"<polyline fill="none" stroke="steelblue" stroke-width="1" points=""#
+        )?;
+        let mut last = (f64::NAN, f64::NAN);
+        for p in pts {
+            let q = (px(p.x), py(p.y));
+            if (q.0 - last.0).abs() + (q.1 - last.1).abs() >= 0.5 || last.0.is_nan() {
+                write!(out, "{:.1},{:.1} ", q.0, q.1)?;
+                last = q;
+            }
+        }
+        writeln!(out, r#""/>"#)?;
+        // Time series.
+        let t_end = f64::from(pts[pts.len() - 1].t).max(1e-9);
+        let cols = (w - 2.0 * pad) as usize;
+        let column = |t: f32| ((f64::from(t) / t_end) * (cols as f64 - 1.0)) as usize;
+        let mut feed = vec![0.0f32; cols];
+        let mut acc = vec![0.0f32; cols];
+        let mut jerk = vec![0.0f32; cols];
+        for p in pts {
+            let c = column(p.t).min(cols - 1);
+            feed[c] = feed[c].max(p.feed);
+            acc[c] = acc[c].max(p.acc);
+            jerk[c] = jerk[c].max(p.jerk);
+        }
+        let feed_max = feed.iter().copied().fold(0.0f32, f32::max).max(1e-9);
+        let top2 = h_path + 2.0 * pad;
+        self.series(
+            out,
+            top2,
+            h_plot,
+            &[(&feed, "darkgreen")],
+            f64::from(feed_max),
+        )?;
+        writeln!(
+            out,
+            r#"<text x="{pad}" y="{}">path feed, 0 to {:.1} mm/s, over {:.3} s</text>"#,
+            top2 - 8.0,
+            feed_max,
+            t_end
+        )?;
+        let top3 = top2 + h_plot + pad;
+        self.series(
+            out,
+            top3,
+            h_plot,
+            &[(&acc, "darkorange"), (&jerk, "crimson")],
+            1.1,
+        )?;
+        let y100 = top3 + h_plot - h_plot / 1.1;
+        writeln!(
+            out,
+            r#"<line x1="{pad}" x2="{}" y1="{y100:.1}" y2="{y100:.1}" stroke="gray" stroke-dasharray="4 3"/>"#,
+            w - pad
+        )?;
+        writeln!(
+            out,
+            r#"<text x="{pad}" y="{}">largest axis acceleration (orange) and jerk (red) as a fraction of the limit; dashed = 100 %</text>"#,
+            top3 - 8.0
+        )?;
+        writeln!(out, "</svg>")
+    }
+
+    fn series(
+        &self,
+        out: &mut dyn Write,
+        top: f64,
+        height: f64,
+        lines: &[(&Vec<f32>, &str)],
+        y_max: f64,
+    ) -> io::Result<()> {
+        let pad = 40.0;
+        writeln!(
+            out,
+            r#"<rect x="{pad}" y="{top}" width="{}" height="{height}" fill="none" stroke="black" stroke-width="0.5"/>"#,
+            900.0 - 2.0 * pad
+        )?;
+        for (values, color) in lines {
+            write!(
+                out,
+                r#"<polyline fill="none" stroke="{color}" stroke-width="1" points=""#
+            )?;
+            for (c, v) in values.iter().enumerate() {
+                let y = top + height - (f64::from(*v) / y_max).min(1.0) * height;
+                write!(out, "{:.1},{:.1} ", pad + c as f64, y)?;
+            }
+            writeln!(out, r#""/>"#)?;
+        }
+        Ok(())
+    }
+}
+
+/// Writes one CSV row. Floats use the shortest round-trip form of the `zmij` crate (as
+/// `kerf plan` does), which is several times faster than `Display` and matters here: at a
+/// 1 ms period the rows are most of a simulation's work.
+fn write_row<W: Write>(w: &mut W, t: f64, sp: &Setpoint, rotary: bool) -> io::Result<()> {
+    let mut floats = zmij::Buffer::new();
+    let mut ints = itoa::Buffer::new();
+    let p = &sp.position;
+    let used = if rotary { 6 } else { 3 };
+    w.write_all(floats.format(t).as_bytes())?;
+    for v in &p[..used] {
+        w.write_all(b",")?;
+        w.write_all(floats.format(*v).as_bytes())?;
+    }
+    w.write_all(b",")?;
+    w.write_all(ints.format(sp.line).as_bytes())?;
+    w.write_all(b",")?;
+    w.write_all(floats.format(sp.feed_mm_s).as_bytes())?;
+    w.write_all(b"\n")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kerf_geom::{Arc, CornerMode, Line, Path, Vec3};
+
+    fn program() -> Vec<Move> {
+        let a = Vec3::zeros();
+        let b = Vec3::new(10.0, 0.0, 0.0);
+        let line = Move {
+            line: 1,
+            rapid: false,
+            path: Path::Line(Line { start: a, end: b }),
+            feed_mm_min: Some(3000.0),
+            abc_deg: None,
+            corner: CornerMode::Blend { tolerance_mm: None },
+        };
+        // A half circle back towards the start, tangent to the line.
+        let arc = Move {
+            line: 2,
+            rapid: false,
+            path: Path::Arc(Arc {
+                start: b,
+                end: Vec3::new(10.0, 10.0, 0.0),
+                center: Vec3::new(10.0, 5.0, 0.0),
+                axis: Vec3::z(),
+                sweep_rad: std::f64::consts::PI,
+            }),
+            feed_mm_min: Some(3000.0),
+            abc_deg: None,
+            corner: CornerMode::Blend { tolerance_mm: None },
+        };
+        vec![line, arc]
+    }
+
+    #[test]
+    fn csv_starts_at_the_origin_and_is_deterministic() {
+        let config = Config::builtin();
+        let mut first = Vec::new();
+        let mut svg = Vec::new();
+        let summary = simulate_and_plot(
+            &program(),
+            &config,
+            &SimOptions::default(),
+            &mut first,
+            Some(&mut svg),
+        )
+        .unwrap();
+        let mut second = Vec::new();
+        simulate(&program(), &config, &SimOptions::default(), &mut second).unwrap();
+        let svg = String::from_utf8(svg).unwrap();
+        assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+        assert_eq!(first, second);
+        let text = String::from_utf8(first).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some("t,x,y,z,line,feed_mm_s"));
+        assert_eq!(lines.next(), Some("0.0,0.0,0.0,0.0,0,0.0"));
+        let last = text.lines().last().unwrap();
+        assert!(last.ends_with(",10.0,10.0,0.0,2,0.0"), "{last}");
+        assert_eq!(summary.rows as usize, text.lines().count() - 1);
+        assert_eq!(summary.axes.len(), 3);
+        for a in &summary.axes {
+            assert!(a.velocity <= 1.01 && a.acceleration <= 1.01 && a.jerk <= 1.01);
+        }
+        assert!(summary.max_deviation_mm <= config.tolerance_mm);
+    }
+}
