@@ -5,6 +5,7 @@
 //! `s >= length` returns the stored end point exactly (not a recomputed approximation), so
 //! a motion that stops at the end of a curve stops exactly at the programmed end.
 
+pub use crate::transition::Transition;
 use crate::{Path, Vec3};
 
 /// A point on a curve with its first two derivatives with respect to arc length.
@@ -47,6 +48,10 @@ pub struct Helix {
 }
 
 /// A path ready for evaluation at arc length.
+///
+/// The transition variant is a few hundred bytes (its arc-length table is inline): curves
+/// live by value in the motion core's fixed-capacity queue, so boxing it would allocate.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Curve {
     /// A straight line.
@@ -62,6 +67,8 @@ pub enum Curve {
     },
     /// A circular arc or helix.
     Helix(Helix),
+    /// A curvature-continuous transition inserted by the planner (see [`Transition`]).
+    Transition(Transition),
 }
 
 impl Curve {
@@ -122,6 +129,7 @@ impl Curve {
         match self {
             Curve::Line { length_mm, .. } => *length_mm,
             Curve::Helix(h) => h.length_mm,
+            Curve::Transition(t) => t.length_mm,
         }
     }
 
@@ -130,6 +138,7 @@ impl Curve {
         match self {
             Curve::Line { start, .. } => *start,
             Curve::Helix(h) => h.start,
+            Curve::Transition(t) => t.start,
         }
     }
 
@@ -138,6 +147,7 @@ impl Curve {
         match self {
             Curve::Line { end, .. } => *end,
             Curve::Helix(h) => h.end,
+            Curve::Transition(t) => t.end,
         }
     }
 
@@ -168,6 +178,7 @@ impl Curve {
                     h.point_at_angle(h.sweep_rad * s / h.length_mm)
                 }
             }
+            Curve::Transition(t) => t.point_at(s),
         }
     }
 
@@ -189,6 +200,14 @@ impl Curve {
                 let curvature = -(h.e1 * cos + h.e2 * sin) * (h.radius_mm * per_mm * per_mm);
                 CurvePoint {
                     point: self.point_at(s),
+                    tangent,
+                    curvature,
+                }
+            }
+            Curve::Transition(t) => {
+                let (tangent, curvature) = t.frame_at(s);
+                CurvePoint {
+                    point: t.point_at(s),
                     tangent,
                     curvature,
                 }
@@ -218,6 +237,44 @@ impl Curve {
                 }
             }
             Curve::Helix(h) => h.distance_to(p),
+            Curve::Transition(t) => t.distance_to(p),
+        }
+    }
+
+    /// The part of a line or arc/helix between arc lengths `s0 < s1` (clamped), as a curve
+    /// of the same kind whose end points are exactly `point_at(s0)` and `point_at(s1)` of
+    /// this one. Transitions are returned unchanged (the planner never trims them).
+    pub fn trimmed(&self, s0: f64, s1: f64) -> Curve {
+        let len = self.length();
+        let s0 = s0.clamp(0.0, len);
+        let s1 = s1.clamp(s0, len);
+        let (a, b) = (self.point_at(s0), self.point_at(s1));
+        match self {
+            Curve::Line { dir, .. } => Curve::Line {
+                start: a,
+                end: b,
+                dir: *dir,
+                length_mm: s1 - s0,
+            },
+            Curve::Helix(h) => {
+                let th0 = h.sweep_rad * s0 / h.length_mm;
+                let frac = (s1 - s0) / h.length_mm;
+                let (sin, cos) = th0.sin_cos();
+                let e1 = h.e1 * cos + h.e2 * sin;
+                Curve::Helix(Helix {
+                    start: a,
+                    end: b,
+                    center: h.center + h.axis * (h.rise_mm * s0 / h.length_mm),
+                    e1,
+                    e2: h.axis.cross(&e1),
+                    axis: h.axis,
+                    radius_mm: h.radius_mm,
+                    sweep_rad: h.sweep_rad * frac,
+                    rise_mm: h.rise_mm * frac,
+                    length_mm: s1 - s0,
+                })
+            }
+            Curve::Transition(_) => *self,
         }
     }
 }

@@ -12,6 +12,9 @@
 //!   sweep) rather than by sampled points, so that every consumer evaluates the same curve.
 //!   A helix is an arc whose end differs from the start along the axis; the axial motion
 //!   is proportional to the swept angle.
+//! - Curvature-continuous transitions ([`Transition`], quintic Hermite curves with an
+//!   arc-length table) are built by the planner between moves whose curvature jumps;
+//!   [`Curve`] evaluates them like lines and arcs, at arc length, without allocation.
 //! - `sweep_rad` is signed about `axis` by the right-hand rule and includes whole turns, so
 //!   a full circle has `|sweep_rad| = 2π` and its start equals its end.
 #![deny(missing_docs)]
@@ -116,4 +119,6 @@ impl Arc {
 }
 
 mod curve;
+mod transition;
 pub use curve::{Curve, CurvePoint, Helix};
+pub use transition::{TABLE_POINTS, Transition};

@@ -9,7 +9,10 @@
 //!   minima over their segments and interior junction caps. A segment joins the open tail
 //!   section while its limits stay within [`MERGE_RATIO`] (speed and feed:
 //!   [`MERGE_RATIO_SPEED`]) of the section's first segment and the junction before it can
-//!   be passed at that speed. The running section is frozen; segments it has passed are
+//!   be passed at that speed. Its speed `min(v_max, feed)` must not be more than that
+//!   ratio *above* the first segment's either: the section runs at its minima, so a long
+//!   fast segment merged behind a short slow one (a low feed, a tight G2 transition)
+//!   would otherwise crawl at the slow one's speed. The running section is frozen; segments it has passed are
 //!   released at once, so a program longer than the queue never stops for room. Dense CAM code thus becomes
 //!   a few long sections, and the one-dimensional path profile only has `a = 0` at section
 //!   boundaries, not at every tiny segment.
@@ -44,7 +47,9 @@
 //!   like a hold; raising it resumes unless the operator holds as well.
 //! - **Continuity** is checked at `push`: a segment must start where the previous one (or,
 //!   on an idle core, the machine) is, within [`CONTINUITY_MM`], or it is refused.
-//! - **Bounded cycle**: `step` does at most a few `calculate()` calls (the running
+//! - **Bounded cycle**: evaluating a segment is O(1) on every curve kind, G2 transitions
+//!   included (table lookup, a cubic interpolation and one Newton step on the arc length,
+//!   see `kerf_geom::Transition`). `step` does at most a few `calculate()` calls (the running
 //!   section's re-plan, the next section's profile, a hold's stop) and crosses at most
 //!   `MAX_SECTIONS_PER_STEP` section ends in one cycle; past that the leftover time of the
 //!   cycle is dropped (a delay of under one period, the motion stays continuous).
@@ -519,6 +524,10 @@ impl MotionCore {
             let t = self.sec(tail - 1);
             seg_v >= t.c_v
                 && seg_feed >= t.c_feed
+                // Nor much faster: the section runs at its minima, so a fast segment behind
+                // a slow one (a slow feed, a tight transition) would crawl through it.
+                && seg_v.min(seg_feed) * MERGE_RATIO_SPEED * MERGE_RATIO_SPEED
+                    <= t.c_v.min(t.c_feed)
                 && seg.accel >= t.c_accel
                 && seg.jerk >= t.c_jerk
                 && prev_cap >= t.c_v.min(t.c_feed * MAX_OVERRIDE)

@@ -224,3 +224,74 @@ fn status_follows_hold_resume_and_abort() {
     assert_eq!(core.queued(), 0);
     assert!(sp.position[0] > held[0] && sp.position[0] < 100.0);
 }
+
+/// Line along +X into a counter-clockwise quarter arc of radius 5 (tangent), then a line
+/// along +Y (tangent): the curvature jumps by 1/5 at both joints.
+fn line_arc_line(feed: f64) -> Vec<kerf_geom::Move> {
+    let a = Vec3::zeros();
+    let b = Vec3::new(20.0, 0.0, 0.0);
+    let c = Vec3::new(25.0, 5.0, 0.0);
+    vec![
+        line(1, a, b, feed),
+        arc(
+            2,
+            b,
+            Vec3::new(20.0, 5.0, 0.0),
+            std::f64::consts::FRAC_PI_2,
+            0.0,
+            feed,
+        ),
+        line(3, c, Vec3::new(25.0, 25.0, 0.0), feed),
+    ]
+}
+
+#[test]
+fn tangent_line_arc_joints_run_at_speed() {
+    // Without a transition the curvature step 1/5 caps the joints at
+    // sqrt(0.05 · 50000 · 0.001 · 5) ≈ 3.5 mm/s; G2 transitions within 0.01 mm let them
+    // run at well over 20 mm/s.
+    let limits = mill(200.0, 2000.0, 50000.0, 0.01);
+    let moves = line_arc_line(3000.0);
+    let mut near = [f64::INFINITY; 2];
+    let s = run(moves, &limits, &RunOptions::default(), |_, sp| {
+        let p = Vec3::new(sp.position[0], sp.position[1], 0.0);
+        for (k, j) in [Vec3::new(20.0, 0.0, 0.0), Vec3::new(25.0, 5.0, 0.0)]
+            .iter()
+            .enumerate()
+        {
+            if (p - j).norm() < 0.1 {
+                near[k] = near[k].min(sp.feed_mm_s);
+            }
+        }
+    })
+    .unwrap();
+    eprintln!("joint speeds {near:?}, {} s", s.duration_s);
+    assert!(near[0] >= 20.0 && near[1] >= 20.0, "{near:?}");
+    for i in 0..3 {
+        for f in s.fractions(&limits, i).unwrap() {
+            assert!(f <= 1.01, "axis {i}: {f}");
+        }
+    }
+    assert!(s.max_deviation_mm <= 0.01, "{}", s.max_deviation_mm);
+    assert_eq!(&s.last.position[..3], &[25.0, 25.0, 0.0]);
+}
+
+#[test]
+fn a_fast_segment_behind_a_slow_one_runs_at_its_own_feed() {
+    // 1 mm at F100, then 50 mm collinear at F5000: the second move must not be merged into
+    // the first one's section (which runs at the section's minimum feed).
+    let limits = mill(200.0, 2000.0, 50000.0, 0.01);
+    let x = Vec3::x();
+    let moves = vec![
+        line(1, Vec3::zeros(), x, 100.0),
+        line(2, x, x * 51.0, 5000.0),
+    ];
+    let mut peak: f64 = 0.0;
+    let s = run(moves, &limits, &RunOptions::default(), |_, sp| {
+        peak = peak.max(sp.feed_mm_s)
+    })
+    .unwrap();
+    // 1 mm at 1.67 mm/s is 0.6 s, 50 mm at 83.3 mm/s 0.6 s, plus the ramps.
+    assert!(peak > 83.0, "{peak}");
+    assert!(s.duration_s < 1.5, "{}", s.duration_s);
+}

@@ -420,6 +420,23 @@ fn soak() {
             "soak ev {case}: end"
         );
         assert_eq!(s.plan_failures, 0, "soak ev {case}: plan failures");
+        // A tangent line/arc chain (G2 transitions at every joint) on the same machine.
+        let n = 3 + rng.pick(20);
+        let (chain, ctol) = tangent_chain(&mut rng, n);
+        let tol = limits.tolerance_mm.max(ctol);
+        let c = check(
+            &format!("soak chain {case}"),
+            &chain,
+            &limits,
+            &RunOptions::default(),
+            tol,
+        );
+        assert_eq!(
+            &c.last.position[..3],
+            &program_end(&chain)[..],
+            "soak chain {case}: end"
+        );
+        assert_eq!(c.plan_failures, 0, "soak chain {case}: plan failures");
     }
 }
 
@@ -478,4 +495,105 @@ fn tiny_queues_stop_in_time_and_hold_every_invariant() {
         );
         assert_eq!(s.plan_failures, 0, "tiny {case}");
     }
+}
+
+/// A chain of tangent lines and arcs (pocket walls with arc corners, S-curves, arcs of
+/// different radius and sense meeting tangentially, tilted planes, the odd helix or kink):
+/// every joint has a curvature jump, which the planner replaces by a G2 transition.
+fn tangent_chain(rng: &mut Rng, n: usize) -> (Vec<Move>, f64) {
+    let mut moves: Vec<Move> = Vec::new();
+    let mut p = Vec3::zeros();
+    let mut dir = Vec3::x();
+    let mut axis = Vec3::z();
+    let mut max_tol: f64 = 0.0;
+    let feed = rng.log(300.0, 12000.0);
+    for k in 0..n {
+        let line_no = k as u32 + 1;
+        let mut m = if rng.pick(3) == 0 {
+            line(line_no, p, p + dir * rng.log(0.01, 20.0), feed)
+        } else {
+            if rng.pick(6) == 0 {
+                // A new plane through the current direction.
+                let r = unit_vec(rng);
+                let n = dir.cross(&r);
+                if n.norm() > 0.1 {
+                    axis = n.normalize();
+                }
+            }
+            let r = rng.log(0.1, 30.0);
+            let sweep = rng.range(0.05, 3.0) * if rng.pick(2) == 0 { 1.0 } else { -1.0 };
+            let t = (dir - axis * dir.dot(&axis)).normalize();
+            let radial = axis.cross(&t) * (-sweep.signum()) * r;
+            let rise = if rng.pick(8) == 0 {
+                rng.range(-1.0, 1.0)
+            } else {
+                0.0
+            };
+            let start = p;
+            let radial = if rng.pick(10) == 0 {
+                // A kink: the arc does not start tangent to the previous move.
+                axis.cross(&radial).normalize() * r
+            } else {
+                radial
+            };
+            arc_about(line_no, start, radial, axis, sweep, rise, feed)
+        };
+        m.corner = match rng.pick(6) {
+            0 => {
+                let t = rng.log(0.001, 0.2);
+                max_tol = max_tol.max(t);
+                CornerMode::Blend {
+                    tolerance_mm: Some(t),
+                }
+            }
+            _ => CornerMode::Blend { tolerance_mm: None },
+        };
+        p = m.path.end();
+        dir = match m.path {
+            Path::Line(l) => (l.end - l.start).normalize(),
+            Path::Arc(_) => kerf_geom::Curve::from_path(&m.path).eval(1e300).tangent,
+        };
+        moves.push(m);
+    }
+    (moves, max_tol)
+}
+
+#[test]
+fn tangent_line_arc_chains_hold_every_invariant() {
+    let mut rng = Rng(0x62c0_ffee_0000_0005);
+    let (mut joints, mut transitions) = (0, 0);
+    for case in 0..40 {
+        let limits = random_limits(&mut rng);
+        let n = 3 + rng.pick(12);
+        let (moves, ptol) = tangent_chain(&mut rng, n);
+        let tol = limits.tolerance_mm.max(ptol);
+        let mut planner = kerf_plan::Planner::new(limits);
+        let mut segs = Vec::new();
+        for m in &moves {
+            planner.push(m, &mut segs).unwrap();
+        }
+        planner.finish(&mut segs);
+        joints += moves.len() - 1;
+        transitions += segs
+            .iter()
+            .filter(|s| matches!(s.curve, kerf_geom::Curve::Transition(_)))
+            .count();
+        let opts = if case % 4 == 3 {
+            RunOptions {
+                capacity: 2 + rng.pick(6),
+                feed_override: rng.range(0.3, 2.0),
+                ..RunOptions::default()
+            }
+        } else {
+            RunOptions::default()
+        };
+        let s = check(&format!("chain {case}"), &moves, &limits, &opts, tol);
+        let end = program_end(&moves);
+        assert_eq!(&s.last.position[..3], &end[..], "chain {case}: end point");
+        assert_eq!(s.last.feed_mm_s, 0.0);
+        assert_eq!(s.plan_failures, 0, "chain {case}");
+    }
+    // Most joints get a transition (the rest are smooth already, too tight or too short).
+    eprintln!("{transitions} transitions at {joints} joints");
+    assert!(transitions * 2 > joints, "{transitions} of {joints}");
 }

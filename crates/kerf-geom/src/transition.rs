@@ -1,0 +1,330 @@
+//! Curvature-continuous (G2) transition curves: quintic Hermite polynomials that match
+//! position, unit tangent and curvature vector at both ends, evaluated at arc length.
+//!
+//! The polynomial `p(u)`, `u ∈ [0, 1]`, has `p(0) = P0`, `p'(0) = λT0`, `p''(0) = λ²K0`,
+//! `p(1) = P1`, `p'(1) = λT1`, `p''(1) = λ²K1`, where `K` is the curvature vector (normal to
+//! `T`): with no tangential component in `p''` the curvature at the ends is exactly `K`.
+//!
+//! Arc length is not polynomial, so [`Transition::new`] precomputes a fixed table of the
+//! parameter `u` at [`TABLE_POINTS`] equally spaced arc lengths (by 5-point Gauss-Legendre
+//! quadrature). At run time `s → u` is a cubic Hermite interpolation in the table (slopes
+//! `du/ds = 1/|p'(u)|`) and one Newton step on the arc length (the quadrature from the
+//! table node to the estimate): bounded work, no allocation, and accurate to rounding for
+//! the short, smooth curves the planner builds. The end points are returned exactly.
+
+use crate::Vec3;
+
+/// Nodes of the arc-length table (equal steps in `s`).
+pub const TABLE_POINTS: usize = 33;
+
+/// 5-point Gauss-Legendre nodes and weights on [-1, 1].
+const GL_X: [f64; 5] = [
+    -0.906_179_845_938_664,
+    -0.538_469_310_105_683,
+    0.0,
+    0.538_469_310_105_683,
+    0.906_179_845_938_664,
+];
+const GL_W: [f64; 5] = [
+    0.236_926_885_056_189,
+    0.478_628_670_499_366,
+    0.568_888_888_888_889,
+    0.478_628_670_499_366,
+    0.236_926_885_056_189,
+];
+
+/// A quintic G2 transition with its arc-length table.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Transition {
+    /// Power-basis coefficients: `p(u) = Σ c[i] uⁱ`.
+    pub coef: [Vec3; 6],
+    /// Start point (returned exactly at `s <= 0`).
+    pub start: Vec3,
+    /// End point (returned exactly at `s >= length`).
+    pub end: Vec3,
+    /// Unit tangent at the start.
+    pub t0: Vec3,
+    /// Curvature vector at the start, 1/mm.
+    pub k0: Vec3,
+    /// Unit tangent at the end.
+    pub t1: Vec3,
+    /// Curvature vector at the end, 1/mm.
+    pub k1: Vec3,
+    /// Arc length, mm.
+    pub length_mm: f64,
+    /// `u` at `s = k · length / (TABLE_POINTS - 1)`.
+    pub table: [f64; TABLE_POINTS],
+}
+
+impl Transition {
+    /// The quintic from `(p0, t0, k0)` to `(p1, t1, k1)` with parameter scale `lambda`
+    /// (mm; the chord is a good choice), with its arc-length table. `t0`, `t1` must be unit
+    /// vectors and `k0 ⟂ t0`, `k1 ⟂ t1`. Returns `None` if the curve has a cusp or is
+    /// degenerate.
+    pub fn new(
+        p0: Vec3,
+        t0: Vec3,
+        k0: Vec3,
+        p1: Vec3,
+        t1: Vec3,
+        k1: Vec3,
+        lambda: f64,
+    ) -> Option<Transition> {
+        Transition::hermite(p0, t0, k0, p1, t1, k1, lambda)?.with_arc_length()
+    }
+
+    /// The polynomial only ([`Transition::poly`] and its derivatives work; arc-length
+    /// evaluation needs [`Transition::with_arc_length`]): cheap, for trying shapes.
+    pub fn hermite(
+        p0: Vec3,
+        t0: Vec3,
+        k0: Vec3,
+        p1: Vec3,
+        t1: Vec3,
+        k1: Vec3,
+        lambda: f64,
+    ) -> Option<Transition> {
+        if !(lambda > 0.0 && lambda.is_finite()) {
+            return None;
+        }
+        let v0 = t0 * lambda;
+        let v1 = t1 * lambda;
+        let a0 = k0 * (lambda * lambda);
+        let a1 = k1 * (lambda * lambda);
+        let d = p1 - p0;
+        // Quintic Hermite in power basis.
+        let c0 = p0;
+        let c1 = v0;
+        let c2 = a0 * 0.5;
+        let c3 = d * 10.0 - v0 * 6.0 - v1 * 4.0 - a0 * 1.5 + a1 * 0.5;
+        let c4 = -d * 15.0 + v0 * 8.0 + v1 * 7.0 + a0 * 1.5 - a1;
+        let c5 = d * 6.0 - v0 * 3.0 - v1 * 3.0 - a0 * 0.5 + a1 * 0.5;
+        let tr = Transition {
+            coef: [c0, c1, c2, c3, c4, c5],
+            start: p0,
+            end: p1,
+            t0,
+            k0,
+            t1,
+            k1,
+            length_mm: 0.0,
+            table: [0.0; TABLE_POINTS],
+        };
+        Some(tr)
+    }
+
+    /// Adds the arc-length table to a [`Transition::hermite`] curve; `None` if the curve
+    /// has a cusp (parametric speed below 5 % of the chord scale) or is degenerate.
+    pub fn with_arc_length(mut self) -> Option<Transition> {
+        let tr = &mut self;
+        let lambda = tr.coef[1].norm().max(tr.d1(1.0).norm());
+        // No cusp: the parametric speed stays well away from zero.
+        let mut min_speed = f64::INFINITY;
+        for i in 0..=256 {
+            min_speed = min_speed.min(tr.speed(i as f64 / 256.0));
+        }
+        if min_speed.is_nan() || min_speed <= 0.05 * lambda {
+            return None;
+        }
+        // Cumulative arc length over fine intervals, then invert at equal steps.
+        const FINE: usize = 64;
+        let mut cum = [0.0; FINE + 1];
+        for i in 0..FINE {
+            let (a, b) = (i as f64 / FINE as f64, (i + 1) as f64 / FINE as f64);
+            cum[i + 1] = cum[i] + tr.arc(a, b);
+        }
+        let length = cum[FINE];
+        if !(length > 0.0 && length.is_finite()) {
+            return None;
+        }
+        tr.length_mm = length;
+        tr.table[0] = 0.0;
+        tr.table[TABLE_POINTS - 1] = 1.0;
+        let mut j = 0;
+        for k in 1..TABLE_POINTS - 1 {
+            let s = length * k as f64 / (TABLE_POINTS - 1) as f64;
+            while j + 1 < FINE && cum[j + 1] < s {
+                j += 1;
+            }
+            let ua = j as f64 / FINE as f64;
+            // Newton from the linear estimate within the fine interval.
+            let mut u = ua + (s - cum[j]) / (cum[j + 1] - cum[j]) / FINE as f64;
+            for _ in 0..8 {
+                let err = cum[j] + tr.arc(ua, u) - s;
+                let step = err / tr.speed(u);
+                u -= step;
+                if step.abs() < 1e-15 {
+                    break;
+                }
+            }
+            tr.table[k] = u.clamp(0.0, 1.0);
+        }
+        Some(self)
+    }
+
+    /// `p(u)`.
+    #[inline]
+    pub fn poly(&self, u: f64) -> Vec3 {
+        let c = &self.coef;
+        ((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]
+    }
+
+    /// `p'(u)`.
+    #[inline]
+    pub fn d1(&self, u: f64) -> Vec3 {
+        let c = &self.coef;
+        (((c[5] * (5.0 * u) + c[4] * 4.0) * u + c[3] * 3.0) * u + c[2] * 2.0) * u + c[1]
+    }
+
+    /// `p''(u)`.
+    #[inline]
+    pub fn d2(&self, u: f64) -> Vec3 {
+        let c = &self.coef;
+        ((c[5] * (20.0 * u) + c[4] * 12.0) * u + c[3] * 6.0) * u + c[2] * 2.0
+    }
+
+    /// `|p'(u)|`, mm per unit of `u`.
+    #[inline]
+    pub fn speed(&self, u: f64) -> f64 {
+        self.d1(u).norm()
+    }
+
+    /// Arc length from `a` to `b` (5-point Gauss-Legendre).
+    #[inline]
+    fn arc(&self, a: f64, b: f64) -> f64 {
+        let h = 0.5 * (b - a);
+        let m = 0.5 * (a + b);
+        let mut sum = 0.0;
+        for i in 0..5 {
+            sum += GL_W[i] * self.speed(m + h * GL_X[i]);
+        }
+        sum * h
+    }
+
+    /// The parameter `u` at arc length `s` (clamped to `[0, 1]`).
+    #[inline]
+    pub fn param_at(&self, s: f64) -> f64 {
+        if s <= 0.0 {
+            return 0.0;
+        }
+        if s >= self.length_mm {
+            return 1.0;
+        }
+        let n = (TABLE_POINTS - 1) as f64;
+        let h = self.length_mm / n;
+        let x = s / h;
+        let k = (x.floor() as usize).min(TABLE_POINTS - 2);
+        let t = x - k as f64;
+        let (u0, u1) = (self.table[k], self.table[k + 1]);
+        let (m0, m1) = (h / self.speed(u0), h / self.speed(u1));
+        // Cubic Hermite in the interval.
+        let t2 = t * t;
+        let t3 = t2 * t;
+        let u = (2.0 * t3 - 3.0 * t2 + 1.0) * u0
+            + (t3 - 2.0 * t2 + t) * m0
+            + (-2.0 * t3 + 3.0 * t2) * u1
+            + (t3 - t2) * m1;
+        // One Newton step on the arc length from the node.
+        let sk = h * k as f64;
+        let err = sk + self.arc(u0, u) - s;
+        (u - err / self.speed(u)).clamp(0.0, 1.0)
+    }
+
+    /// Point at arc length `s` (exact end points outside the curve).
+    #[inline]
+    pub fn point_at(&self, s: f64) -> Vec3 {
+        if s <= 0.0 {
+            self.start
+        } else if s >= self.length_mm {
+            self.end
+        } else {
+            self.poly(self.param_at(s))
+        }
+    }
+
+    /// Unit tangent and curvature vector at parameter `u`.
+    pub fn frame_at_param(&self, u: f64) -> (Vec3, Vec3) {
+        let q = self.d1(u);
+        let r = self.d2(u);
+        let sq = q.norm_squared();
+        let t = q / sq.sqrt();
+        let k = (r - t * r.dot(&t)) / sq;
+        (t, k)
+    }
+
+    /// Unit tangent and curvature vector at arc length `s` (exact at the ends).
+    pub fn frame_at(&self, s: f64) -> (Vec3, Vec3) {
+        if s <= 0.0 {
+            (self.t0, self.k0)
+        } else if s >= self.length_mm {
+            (self.t1, self.k1)
+        } else {
+            self.frame_at_param(self.param_at(s))
+        }
+    }
+
+    /// Shortest distance from `p` (dense sampling refined by golden-section search; for
+    /// checks, not for the real-time path).
+    pub fn distance_to(&self, p: &Vec3) -> f64 {
+        const N: usize = 128;
+        let f = |u: f64| (self.poly(u) - p).norm();
+        let mut best = (f64::INFINITY, 0usize);
+        for i in 0..=N {
+            let d = f(i as f64 / N as f64);
+            if d < best.0 {
+                best = (d, i);
+            }
+        }
+        let mut lo = (best.1.saturating_sub(1)) as f64 / N as f64;
+        let mut hi = ((best.1 + 1).min(N)) as f64 / N as f64;
+        let g = 0.618_033_988_749_895;
+        for _ in 0..40 {
+            let a = hi - g * (hi - lo);
+            let b = lo + g * (hi - lo);
+            if f(a) < f(b) {
+                hi = b;
+            } else {
+                lo = a;
+            }
+        }
+        best.0
+            .min(f(0.5 * (lo + hi)))
+            .min((self.start - p).norm())
+            .min((self.end - p).norm())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ends_match_and_arc_length_is_consistent() {
+        // Line along +X into a CCW circle of radius 5 tangent at the origin.
+        let p0 = Vec3::new(-0.5, 0.0, 0.0);
+        let t0 = Vec3::x();
+        let k0 = Vec3::zeros();
+        let th: f64 = 0.1;
+        let c = Vec3::new(0.0, 5.0, 0.0);
+        let p1 = c + Vec3::new(5.0 * th.sin(), -5.0 * th.cos(), 0.0);
+        let t1 = Vec3::new(th.cos(), th.sin(), 0.0);
+        let k1 = (c - p1) / 25.0;
+        let tr = Transition::new(p0, t0, k0, p1, t1, k1, (p1 - p0).norm()).unwrap();
+        let (t, k) = tr.frame_at_param(0.0);
+        assert!((t - t0).norm() < 1e-12 && (k - k0).norm() < 1e-9);
+        let (t, k) = tr.frame_at_param(1.0);
+        assert!((t - t1).norm() < 1e-12 && (k - k1).norm() < 1e-9);
+        // Arc length: finite differences of point_at have unit speed.
+        let l = tr.length_mm;
+        let h = 1e-6;
+        for i in 1..50 {
+            let s = l * i as f64 / 50.0;
+            let v = (tr.point_at(s + h) - tr.point_at(s - h)).norm() / (2.0 * h);
+            assert!((v - 1.0).abs() < 1e-7, "{v}");
+        }
+        assert_eq!(tr.point_at(l), p1);
+        assert_eq!(tr.point_at(0.0), p0);
+        assert!((tr.point_at(l * (1.0 - 1e-12)) - p1).norm() < 1e-9);
+        assert!(tr.distance_to(&p0) < 1e-12);
+    }
+}
