@@ -53,6 +53,9 @@
 //!   section's re-plan, the next section's profile, a hold's stop) and crosses at most
 //!   `MAX_SECTIONS_PER_STEP` section ends in one cycle; past that the leftover time of the
 //!   cycle is dropped (a delay of under one period, the motion stays continuous).
+//! - **Slivers**: a section shorter than [`COAST_BELOW_MM`] (where neighbouring blends meet
+//!   they leave nanometre remnants of the line between them) is coasted through at the
+//!   entry speed in the time that takes, without the solver, which cannot plan it.
 //! - **Fallbacks**: a failed `calculate()` (never seen in the property tests) keeps the
 //!   previous profile or relaxes the speed ceiling to the entry speed; each is counted in
 //!   [`MotionCore::plan_failures`]. Ruckig formats an error message on failure, which
@@ -80,6 +83,8 @@ const BACKWARD_MARGIN: f64 = 0.998;
 const PLAN_MARGIN: f64 = 0.999;
 /// Profiles shorter than this are planned in scaled units (see `MotionCore::calc`), mm.
 const SCALED_BELOW_MM: f64 = 1e-5;
+/// Sections shorter than this are coasted through at the entry speed (see `calc`), mm.
+pub const COAST_BELOW_MM: f64 = 1e-6;
 /// Most sections one `push` revisits in the backward pass (bounds its work).
 const MAX_BACKWARD_SECTIONS: usize = 256;
 /// Most section changes handled within one cycle.
@@ -231,6 +236,9 @@ pub struct MotionCore {
     traj_t: f64,
     /// End speed the running profile targets.
     traj_end_v: f64,
+    /// When positive, the running "profile" is a coast at `traj_end_v` through a sliver
+    /// section this many seconds long instead of `traj` (see `calc`).
+    coast_s: f64,
     /// Set when the lookahead raised the running section's end speed.
     replan: bool,
     mode: Mode,
@@ -380,6 +388,7 @@ impl MotionCore {
             traj_origin: 0.0,
             traj_t: 0.0,
             traj_end_v: 0.0,
+            coast_s: 0.0,
             replan: false,
             mode: Mode::Run,
             abort_requested: false,
@@ -763,7 +772,7 @@ impl MotionCore {
         self.traj_t += self.period_s;
         let mut changes = 0;
         loop {
-            let dur = self.traj.get_duration() * self.traj_time_scale;
+            let dur = self.running_duration();
             if self.traj_t < dur {
                 break;
             }
@@ -813,13 +822,25 @@ impl MotionCore {
         StepResult::Moving
     }
 
+    /// Duration of the running profile (or coast), seconds.
+    fn running_duration(&self) -> f64 {
+        if self.coast_s > 0.0 {
+            self.coast_s
+        } else {
+            self.traj.get_duration() * self.traj_time_scale
+        }
+    }
+
     /// Samples the profile at `t` and updates the section-local state (crossing into later
     /// sections while braking).
     fn sample(&mut self, t: f64) {
         let mut p = [0.0];
         let mut v = [0.0];
         let mut a = [0.0];
-        {
+        if self.coast_s > 0.0 {
+            p[0] = self.traj_end_v * t.min(self.coast_s);
+            v[0] = self.traj_end_v;
+        } else {
             let mut pos = DataArrayOrVec::Stack(p);
             let mut vel = DataArrayOrVec::Stack(v);
             let mut acc = DataArrayOrVec::Stack(a);
@@ -1045,6 +1066,16 @@ impl MotionCore {
         } else {
             (a0, distance, v1, vmax)
         };
+        // A sliver section (blends that meet leave nanometre remnants of a line) is passed at
+        // the entry speed in the time it takes: no speed can change over it, and the solver
+        // fails on such inputs. Its time is kept, so the positions stay smooth.
+        if a0 == 0.0 && v0 > 0.0 && distance > 0.0 && distance < COAST_BELOW_MM {
+            self.coast_s = distance / v0;
+            self.traj_origin = origin;
+            self.traj_t = 0.0;
+            self.traj_end_v = v0;
+            return true;
+        }
         let (k, tau) = if distance > 0.0 && distance < SCALED_BELOW_MM {
             (1.0 / distance, (distance / jerk).cbrt())
         } else {
@@ -1069,6 +1100,7 @@ impl MotionCore {
         );
         if ok {
             std::mem::swap(&mut self.traj, &mut self.scratch);
+            self.coast_s = 0.0;
             self.traj_scale = k;
             self.traj_time_scale = tau;
             self.traj_origin = origin;
@@ -1158,6 +1190,7 @@ impl MotionCore {
         }
         if ok {
             std::mem::swap(&mut self.traj, &mut self.scratch);
+            self.coast_s = 0.0;
             self.traj_scale = 1.0;
             self.traj_time_scale = 1.0;
             self.traj_origin = self.s_local;

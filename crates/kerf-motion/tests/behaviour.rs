@@ -295,3 +295,31 @@ fn a_fast_segment_behind_a_slow_one_runs_at_its_own_feed() {
     assert!(peak > 83.0, "{peak}");
     assert!(s.duration_s < 1.5, "{}", s.duration_s);
 }
+
+#[test]
+fn rounded_dense_circle_holds_the_limits() {
+    // The 3,600-line circle as a CAM system writes it, every vertex rounded to 6 decimals
+    // and entered from the centre by a straight line. The rounding makes neighbouring
+    // blends meet and leaves nanometre remnants of the lines between them; the solver
+    // cannot plan such slivers, and falling back used to follow a stale profile: peaks of
+    // 2.4× the acceleration and 94× the jerk limit. Slivers are now coasted through.
+    let limits = mill(200.0, 2000.0, 50000.0, 0.01);
+    let round = |x: f64| (x * 1e6).round() / 1e6;
+    let pt = |k: usize| {
+        let th = std::f64::consts::TAU * k as f64 / 3600.0;
+        Vec3::new(round(10.0 * th.cos()), round(10.0 * th.sin()), 0.0)
+    };
+    let mut moves = vec![line(1, Vec3::zeros(), pt(0), 6000.0)];
+    for k in 1..=3600 {
+        moves.push(line(k as u32 + 1, pt(k - 1), pt(k), 6000.0));
+    }
+    let s = run(moves, &limits, &RunOptions::default(), |_, _| {}).unwrap();
+    assert_eq!(s.plan_failures, 0);
+    assert!(!s.saw_nan);
+    for i in 0..3 {
+        let f = s.fractions(&limits, i).unwrap();
+        assert!(f.iter().all(|&x| x <= 1.01), "axis {i}: {f:?}");
+    }
+    assert!(s.max_deviation_mm <= 0.01, "{}", s.max_deviation_mm);
+    assert_eq!(&s.last.position[..3], &[pt(3600).x, pt(3600).y, 0.0]);
+}
