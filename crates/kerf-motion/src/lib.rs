@@ -53,8 +53,9 @@
 //!   section's re-plan, the next section's profile, a hold's stop) and crosses at most
 //!   `MAX_SECTIONS_PER_STEP` section ends in one cycle; past that the leftover time of the
 //!   cycle is dropped (a delay of under one period, the motion stays continuous).
-//! - **Slivers**: a section shorter than [`COAST_BELOW_MM`] (where neighbouring blends meet
-//!   they leave nanometre remnants of the line between them) is coasted through at the
+//! - **Slivers**: a section shorter than [`COAST_BELOW_MM`], or taking less than
+//!   [`COAST_BELOW_S`] at its entry speed (where neighbouring blends meet
+//!   they leave nanometre remnants of the line between them), is coasted through at the
 //!   entry speed in the time that takes, without the solver, which cannot plan it.
 //! - **Fallbacks**: a failed `calculate()` (never seen in the property tests) keeps the
 //!   previous profile or relaxes the speed ceiling to the entry speed; each is counted in
@@ -85,6 +86,10 @@ const PLAN_MARGIN: f64 = 0.999;
 const SCALED_BELOW_MM: f64 = 1e-5;
 /// Sections shorter than this are coasted through at the entry speed (see `calc`), mm.
 pub const COAST_BELOW_MM: f64 = 1e-6;
+/// Sections that take less than this at the entry speed are coasted through as well, s.
+/// (At speed, the solver's scaled-unit profile for a remnant of a few nanometres is
+/// wrong: it froze the position for several cycles while the speed ran on.)
+pub const COAST_BELOW_S: f64 = 1e-6;
 /// Most sections one `push` revisits in the backward pass (bounds its work).
 const MAX_BACKWARD_SECTIONS: usize = 256;
 /// Most section changes handled within one cycle.
@@ -1069,7 +1074,11 @@ impl MotionCore {
         // A sliver section (blends that meet leave nanometre remnants of a line) is passed at
         // the entry speed in the time it takes: no speed can change over it, and the solver
         // fails on such inputs. Its time is kept, so the positions stay smooth.
-        if a0 == 0.0 && v0 > 0.0 && distance > 0.0 && distance < COAST_BELOW_MM {
+        if a0 == 0.0
+            && v0 > 0.0
+            && distance > 0.0
+            && distance < COAST_BELOW_MM.max(v0 * COAST_BELOW_S)
+        {
             self.coast_s = distance / v0;
             self.traj_origin = origin;
             self.traj_t = 0.0;

@@ -438,6 +438,110 @@ fn soak() {
             "soak chain {case}: end"
         );
         assert_eq!(c.plan_failures, 0, "soak chain {case}: plan failures");
+        // Rounded dense CAM polylines (window-aware junction caps) on the same machine.
+        let n = 50 + rng.pick(400);
+        let (poly, ptol) = rounded_polylines(&mut rng, n);
+        let tol = limits.tolerance_mm.max(ptol);
+        let r = check(
+            &format!("soak rounded {case}"),
+            &poly,
+            &limits,
+            &RunOptions::default(),
+            tol,
+        );
+        assert_eq!(
+            &r.last.position[..3],
+            &program_end(&poly)[..],
+            "soak rounded {case}: end"
+        );
+        assert_eq!(r.plan_failures, 0, "soak rounded {case}: plan failures");
+    }
+}
+
+/// Dense polylines as CAM systems write them: circles and arcs of random radius and plane,
+/// sampled at random spacing, every vertex rounded to 3–6 decimals, entered by a line.
+fn rounded_polylines(rng: &mut Rng, n: usize) -> (Vec<Move>, f64) {
+    let mut moves: Vec<Move> = Vec::new();
+    let mut p = Vec3::zeros();
+    let mut max_tol: f64 = 0.0;
+    while moves.len() < n {
+        let feed = rng.log(300.0, 12000.0);
+        let decimals = 3 + rng.pick(4) as i32;
+        let scale = 10f64.powi(decimals);
+        let round = |v: Vec3| {
+            Vec3::new(
+                (v.x * scale).round() / scale,
+                (v.y * scale).round() / scale,
+                (v.z * scale).round() / scale,
+            )
+        };
+        let axis = match rng.pick(4) {
+            0 | 1 => Vec3::z(),
+            2 => Vec3::y(),
+            _ => unit_vec(rng),
+        };
+        let u = {
+            let w = unit_vec(rng);
+            let w = w - axis * w.dot(&axis);
+            if w.norm() < 1e-3 {
+                axis.cross(&Vec3::x()).normalize()
+            } else {
+                w.normalize()
+            }
+        };
+        let v = axis.cross(&u);
+        let r = rng.log(0.5, 50.0);
+        let spacing = rng.log(0.002, 0.5).min(r);
+        let step = spacing / r * if rng.pick(2) == 0 { 1.0 } else { -1.0 };
+        let sweep = rng.range(0.3, std::f64::consts::TAU);
+        let k = ((sweep / step.abs()) as usize).clamp(5, 400);
+        let center = p + Vec3::new(rng.range(-5.0, 5.0), rng.range(-5.0, 5.0), 0.0);
+        let ang0 = rng.range(0.0, std::f64::consts::TAU);
+        let tol = if rng.pick(4) == 0 {
+            let t = rng.log(0.001, 0.1);
+            max_tol = max_tol.max(t);
+            Some(t)
+        } else {
+            None
+        };
+        let corner = CornerMode::Blend { tolerance_mm: tol };
+        let mut q = p;
+        for i in 0..=k {
+            let a = ang0 + step * i as f64;
+            let nq = round(center + (u * a.cos() + v * a.sin()) * r);
+            if (nq - q).norm() > 0.0 {
+                let mut m = line(moves.len() as u32 + 1, q, nq, feed);
+                m.corner = corner;
+                moves.push(m);
+                q = nq;
+            }
+        }
+        p = q;
+    }
+    (moves, max_tol)
+}
+
+#[test]
+fn rounded_dense_polylines_hold_every_invariant() {
+    let mut rng = Rng(0x0dec_1a1e_5eed_0003);
+    for case in 0..16 {
+        let limits = random_limits(&mut rng);
+        let n = 200 + rng.pick(600);
+        let (moves, ptol) = rounded_polylines(&mut rng, n);
+        let tol = limits.tolerance_mm.max(ptol);
+        let s = check(
+            &format!("rounded {case}"),
+            &moves,
+            &limits,
+            &RunOptions::default(),
+            tol,
+        );
+        assert_eq!(
+            &s.last.position[..3],
+            &program_end(&moves)[..],
+            "rounded {case}: end"
+        );
+        assert_eq!(s.plan_failures, 0, "rounded {case}: plan failures");
     }
 }
 
