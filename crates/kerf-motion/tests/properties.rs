@@ -229,6 +229,25 @@ fn check(
     s
 }
 
+/// [`check`] for a run that must finish: it also ends exactly at the program's end point
+/// and never needed a fallback profile.
+fn check_finished(
+    name: &str,
+    moves: &[Move],
+    limits: &MachineLimits,
+    opts: &RunOptions,
+    tol: f64,
+) -> Summary {
+    let s = check(name, moves, limits, opts, tol);
+    assert_eq!(
+        &s.last.position[..3],
+        &program_end(moves)[..],
+        "{name}: end"
+    );
+    assert_eq!(s.plan_failures, 0, "{name}: plan failures");
+    s
+}
+
 fn program_end(moves: &[Move]) -> [f64; 3] {
     let e = moves.last().unwrap().path.end();
     [e.x, e.y, e.z]
@@ -425,36 +444,24 @@ fn soak() {
         let n = 3 + rng.pick(20);
         let (chain, ctol) = tangent_chain(&mut rng, n);
         let tol = limits.tolerance_mm.max(ctol);
-        let c = check(
+        check_finished(
             &format!("soak chain {case}"),
             &chain,
             &limits,
             &RunOptions::default(),
             tol,
         );
-        assert_eq!(
-            &c.last.position[..3],
-            &program_end(&chain)[..],
-            "soak chain {case}: end"
-        );
-        assert_eq!(c.plan_failures, 0, "soak chain {case}: plan failures");
-        // Rounded dense CAM polylines (window-aware junction caps) on the same machine.
+        // Rounded dense CAM polylines on the same machine.
         let n = 50 + rng.pick(400);
         let (poly, ptol) = rounded_polylines(&mut rng, n);
         let tol = limits.tolerance_mm.max(ptol);
-        let r = check(
+        check_finished(
             &format!("soak rounded {case}"),
             &poly,
             &limits,
             &RunOptions::default(),
             tol,
         );
-        assert_eq!(
-            &r.last.position[..3],
-            &program_end(&poly)[..],
-            "soak rounded {case}: end"
-        );
-        assert_eq!(r.plan_failures, 0, "soak rounded {case}: plan failures");
     }
 }
 
@@ -529,19 +536,13 @@ fn rounded_dense_polylines_hold_every_invariant() {
         let n = 200 + rng.pick(600);
         let (moves, ptol) = rounded_polylines(&mut rng, n);
         let tol = limits.tolerance_mm.max(ptol);
-        let s = check(
+        check_finished(
             &format!("rounded {case}"),
             &moves,
             &limits,
             &RunOptions::default(),
             tol,
         );
-        assert_eq!(
-            &s.last.position[..3],
-            &program_end(&moves)[..],
-            "rounded {case}: end"
-        );
-        assert_eq!(s.plan_failures, 0, "rounded {case}: plan failures");
     }
 }
 
