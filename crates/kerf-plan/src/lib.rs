@@ -791,29 +791,41 @@ pub fn segment_limits(seg: &PlannedSegment, limits: &MachineLimits) -> (f64, f64
     // Curved: the acceleration and jerk depend on the speed; design for the feed, and
     // lower the design speed until the tangential budget left is worth having.
     // Candidates are compared by a rough time for the segment: cruise plus one ramp.
-    let mut vd = v.min(seg.feed);
-    let mut best: Option<(f64, f64, f64, f64)> = None;
-    let a_min = limits
-        .axes
+    design_speed_search(seg.length, v.min(seg.feed), &limits.axes, 16, |vd| {
+        curved_budget(&w, limits, vd, a_line, j_line)
+    })
+}
+
+/// Lowers the design speed `vd` from `v_start` by steps of 0.8 (at most `steps` times)
+/// until `budget(vd)` leaves a useful tangential `(a, j)` budget: at least a fifth of the
+/// smallest acceleration and jerk of `axes`. The highest such speed wins, because the
+/// segment may be one of a long chain and its own length says little; if none qualifies,
+/// the candidate with the best rough time for the segment (cruise plus one ramp) does.
+fn design_speed_search(
+    length: f64,
+    v_start: f64,
+    axes: &[Option<AxisLimits>],
+    steps: usize,
+    budget: impl Fn(f64) -> Option<(f64, f64)>,
+) -> (f64, f64, f64) {
+    let a_min = axes
         .iter()
         .flatten()
         .map(|l| l.acceleration)
         .fold(f64::INFINITY, f64::min);
-    let j_min = limits
-        .axes
+    let j_min = axes
         .iter()
         .flatten()
         .map(|l| l.jerk)
         .fold(f64::INFINITY, f64::min);
-    for _ in 0..16 {
-        if let Some((a, j)) = curved_budget(&w, limits, vd, a_line, j_line) {
-            // The highest design speed that leaves a useful tangential budget wins: the
-            // segment may be one of a long chain, so its own length says little.
+    let mut vd = v_start;
+    let mut best: Option<(f64, f64, f64, f64)> = None;
+    for _ in 0..steps {
+        if let Some((a, j)) = budget(vd) {
             if a >= 0.2 * a_min && j >= 0.2 * j_min {
                 return (vd, a, j);
             }
-            // Otherwise keep the candidate with the best rough time (cruise plus one ramp).
-            let time = seg.length / vd + vd / a + a / j;
+            let time = length / vd + vd / a + a / j;
             if best.is_none_or(|b| time < b.0) {
                 best = Some((time, vd, a, j));
             }
@@ -921,34 +933,7 @@ fn transition_limits(
         }
         best.map(|(_, a, j)| (a, j))
     };
-    let a_min = limits.axes[..3]
-        .iter()
-        .flatten()
-        .map(|l| l.acceleration)
-        .fold(f64::INFINITY, f64::min);
-    let j_min = limits.axes[..3]
-        .iter()
-        .flatten()
-        .map(|l| l.jerk)
-        .fold(f64::INFINITY, f64::min);
-    let mut vd = v.min(seg.feed);
-    let mut best: Option<(f64, f64, f64, f64)> = None;
-    for _ in 0..24 {
-        if let Some((a, j)) = budget(vd) {
-            if a >= 0.2 * a_min && j >= 0.2 * j_min {
-                return (vd, a, j);
-            }
-            let time = seg.length / vd + vd / a + a / j;
-            if best.is_none_or(|b| time < b.0) {
-                best = Some((time, vd, a, j));
-            }
-        }
-        vd *= 0.8;
-    }
-    match best {
-        Some((_, v, a, j)) => (v, a, j),
-        None => (vd, 1e-3, 1e-3),
-    }
+    design_speed_search(seg.length, v.min(seg.feed), &limits.axes[..3], 24, budget)
 }
 
 /// The best `(a, j)` on a curved segment at design speed `vd`, if there is a useful one.
