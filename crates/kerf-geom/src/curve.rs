@@ -299,7 +299,7 @@ impl Helix {
     /// point is at the angle of `p` projected on the plane if the arc covers it, else an end
     /// point. On a helix the candidates are that angle on the turns near `p`'s height,
     /// refined by Newton steps on the squared distance, and the end points.
-    fn distance_to(&self, p: &Vec3) -> f64 {
+    pub fn distance_to(&self, p: &Vec3) -> f64 {
         let mut best = (p - self.start).norm().min((p - self.end).norm());
         let rel = p - self.center;
         let x = rel.dot(&self.e1);

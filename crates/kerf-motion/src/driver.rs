@@ -8,7 +8,7 @@
 //! moves.
 
 use crate::{MotionCore, PushError, Setpoint, StepResult};
-use kerf_geom::{Curve, Move, Vec3};
+use kerf_geom::{Curve, Helix, Move, Path, Vec3};
 use kerf_plan::{MachineLimits, PlanError, PlannedSegment, Planner};
 
 /// An input event applied before a given cycle.
@@ -134,7 +134,12 @@ struct Runner<'a, F: FnMut(f64, &Setpoint)> {
     hist: [[f64; 6]; 4],
     hist_len: usize,
     summary: Summary,
-    curves: Vec<Curve>,
+    /// The programmed moves, for the deviation check (compact: no transition variant).
+    curves: Vec<Programmed>,
+    /// Source line of every move.
+    lines: Vec<u32>,
+    /// The move nearest to the last setpoint.
+    cursor: usize,
     last_result: StepResult,
     max_cycles: u64,
     /// After an abort nothing more is fed (the rest of the program is dropped).
@@ -158,7 +163,7 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
         }
         let mut sp = Setpoint::default();
         let r = self.core.step(&mut sp);
-        self.record(&sp);
+        self.record(&mut sp);
         let t = self.time();
         (self.sink)(t, &sp);
         self.last_result = r;
@@ -176,7 +181,7 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
         }
     }
 
-    fn record(&mut self, sp: &Setpoint) {
+    fn record(&mut self, sp: &mut Setpoint) {
         if sp.position.iter().any(|v| !v.is_finite()) || !sp.feed_mm_s.is_finite() {
             self.summary.saw_nan = true;
         }
@@ -202,16 +207,51 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
             }
         }
         if !self.curves.is_empty() {
-            let i = (sp.move_index as usize).min(self.curves.len() - 1);
             let p = Vec3::new(sp.position[0], sp.position[1], sp.position[2]);
-            let lo = i.saturating_sub(1);
-            let hi = (i + 1).min(self.curves.len() - 1);
-            let d = (lo..=hi)
-                .map(|k| self.curves[k].distance_to(&p))
-                .fold(f64::INFINITY, f64::min);
+            let (d, k) = self.nearest_move(&p, sp.move_index, sp.move_count);
             self.summary.max_deviation_mm = self.summary.max_deviation_mm.max(d);
+            // A smoothed piece stands for several moves: report the one being passed.
+            sp.line = self.lines[k];
+            sp.move_index = k as u64;
+            sp.move_count = 1;
         }
         self.summary.last = *sp;
+    }
+
+    /// Distance from `p` to the moves `move_index - 1 ..= move_index + count` (the segment's
+    /// own moves and its neighbours, whose corners a blend may cut) and the nearest of them.
+    /// Long smoothed pieces are searched from the previous nearest move on, stopping once
+    /// the moves lie farther away than the best so far by more than their length: never
+    /// less than the true distance to those moves.
+    fn nearest_move(&mut self, p: &Vec3, move_index: u64, count: u32) -> (f64, usize) {
+        let last = self.curves.len() - 1;
+        let i = (move_index as usize).min(last);
+        let lo = i.saturating_sub(1);
+        let hi = (i + count.max(1) as usize).min(last);
+        let from = if (lo..=hi).contains(&self.cursor) {
+            self.cursor.saturating_sub(1).max(lo)
+        } else {
+            lo
+        };
+        let mut best = (f64::INFINITY, i);
+        // The segment's first move and its predecessor always count.
+        for k in lo..=i.min(hi) {
+            let d = self.curves[k].distance_to(p);
+            if d < best.0 {
+                best = (d, k);
+            }
+        }
+        for k in from..=hi {
+            let c = &self.curves[k];
+            let d = c.distance_to(p);
+            if d < best.0 {
+                best = (d, k);
+            } else if k > i + 1 && (c.start() - p).norm() > best.0 + c.length() {
+                break;
+            }
+        }
+        self.cursor = best.1;
+        best
     }
 
     fn push(&mut self, seg: &PlannedSegment) -> Result<(), RunError> {
@@ -229,6 +269,62 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
                 }
                 Err(_) => return Err(RunError::Rejected { line: seg.line }),
             }
+        }
+    }
+}
+
+/// A programmed move's path as the deviation check needs it.
+enum Programmed {
+    /// Start, end, unit direction, length (as in [`Curve::Line`]).
+    Line(Vec3, Vec3, Vec3, f64),
+    Helix(Helix),
+}
+
+impl Programmed {
+    fn new(path: &Path) -> Programmed {
+        match Curve::from_path(path) {
+            Curve::Helix(h) => Programmed::Helix(h),
+            Curve::Line {
+                start,
+                end,
+                dir,
+                length_mm,
+            } => Programmed::Line(start, end, dir, length_mm),
+            Curve::Transition(_) => unreachable!("a programmed path is a line or an arc"),
+        }
+    }
+
+    fn start(&self) -> Vec3 {
+        match self {
+            Programmed::Line(start, ..) => *start,
+            Programmed::Helix(h) => h.start,
+        }
+    }
+
+    fn length(&self) -> f64 {
+        match self {
+            Programmed::Line(.., length) => *length,
+            Programmed::Helix(h) => h.length_mm,
+        }
+    }
+
+    fn distance_to(&self, p: &Vec3) -> f64 {
+        match self {
+            Programmed::Line(start, end, dir, length) => {
+                // The same arithmetic as `Curve::distance_to`.
+                if *length == 0.0 {
+                    return (p - start).norm();
+                }
+                let along = (p - start).dot(dir);
+                if along <= 0.0 {
+                    (p - start).norm()
+                } else if along >= *length {
+                    (p - end).norm()
+                } else {
+                    (p - (start + dir * along)).norm()
+                }
+            }
+            Programmed::Helix(h) => h.distance_to(p),
         }
     }
 }
@@ -258,12 +354,14 @@ where
         hist_len: 0,
         summary: Summary::default(),
         curves: Vec::new(),
+        lines: Vec::new(),
+        cursor: 0,
         last_result: StepResult::Idle,
         max_cycles: options.max_cycles,
         aborted: false,
     };
-    let start = Setpoint::default();
-    runner.record(&start);
+    let mut start = Setpoint::default();
+    runner.record(&mut start);
     (runner.sink)(0.0, &start);
     let mut planner = Planner::new(*limits);
     let mut buf = Vec::new();
@@ -273,7 +371,8 @@ where
                 runner.summary.rotary_used = true;
             }
         }
-        runner.curves.push(Curve::from_path(&mv.path));
+        runner.curves.push(Programmed::new(&mv.path));
+        runner.lines.push(mv.line);
         planner.push(&mv, &mut buf)?;
         for seg in buf.drain(..) {
             runner.push(&seg)?;

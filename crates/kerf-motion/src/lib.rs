@@ -7,8 +7,8 @@
 //! Design decisions:
 //! - **Sections.** Consecutive segments are grouped into sections whose limits are the
 //!   minima over their segments and interior junction caps. A segment joins the open tail
-//!   section while its limits stay within [`MERGE_RATIO`] (speed and feed:
-//!   [`MERGE_RATIO_SPEED`]) of the section's first segment and the junction before it can
+//!   section while its limits stay within [`MERGE_RATIO`] (jerk: [`MERGE_RATIO_JERK`];
+//!   speed and feed: [`MERGE_RATIO_SPEED`]) of the section's first segment and the junction before it can
 //!   be passed at that speed. Its speed `min(v_max, feed)` must not be more than that
 //!   ratio *above* the first segment's either: the section runs at its minima, so a long
 //!   fast segment merged behind a short slow one (a low feed, a tight G2 transition)
@@ -72,6 +72,11 @@ pub mod driver;
 /// Sections merge segments whose acceleration and jerk limits are at least this fraction
 /// of the first one's.
 pub const MERGE_RATIO: f64 = 0.9;
+/// Sections merge segments whose jerk limit is at least this fraction of the first one's.
+/// It is looser than [`MERGE_RATIO`]: a section boundary costs a return to `a = 0`, which
+/// in the middle of a speed ramp is a stall of tens of milliseconds, while running a
+/// section at a lower jerk only lengthens its ramps by `a/j`, a small term.
+pub const MERGE_RATIO_JERK: f64 = 0.6;
 /// Sections merge segments whose speed limit and feed are at least this fraction of the
 /// first one's. It is tight because the lookahead's speed at a section boundary uses this
 /// conservative value: a boundary inside constant-feed code costs at most 1 % of the feed.
@@ -106,6 +111,9 @@ pub struct Setpoint {
     pub line: u32,
     /// Index of the source move (program order), for deviation checks.
     pub move_index: u64,
+    /// Moves the segment being run stands for, from `move_index` on (more than one on a
+    /// smoothed piece of a dense polyline).
+    pub move_count: u32,
     /// Path speed, mm/s (deg/s on rotary-only moves).
     pub feed_mm_s: f64,
 }
@@ -342,6 +350,7 @@ impl MotionCore {
             length: 0.0,
             line: 0,
             move_index: 0,
+            move_count: 1,
             feed: 0.0,
             v_max: 0.0,
             accel: 0.0,
@@ -574,7 +583,7 @@ impl MotionCore {
                 c_v: MERGE_RATIO_SPEED * seg_v,
                 c_feed: MERGE_RATIO_SPEED * seg_feed,
                 c_accel: MERGE_RATIO * seg.accel,
-                c_jerk: MERGE_RATIO * seg.jerk,
+                c_jerk: MERGE_RATIO_JERK * seg.jerk,
                 start_cap,
                 hard_start: -1.0,
                 hard_end: 0.0,
@@ -916,6 +925,7 @@ impl MotionCore {
         seg.position_at(local, &mut self.last.position);
         self.last.line = seg.line;
         self.last.move_index = seg.move_index;
+        self.last.move_count = seg.move_count;
         self.last.feed_mm_s = self.v;
         *out = self.last;
     }
@@ -929,6 +939,7 @@ impl MotionCore {
         seg.position_at(seg.length, &mut self.last.position);
         self.last.line = seg.line;
         self.last.move_index = seg.move_index;
+        self.last.move_count = seg.move_count;
         self.v = 0.0;
         self.a = 0.0;
         self.last.feed_mm_s = 0.0;

@@ -68,7 +68,9 @@ fn dense_circle_runs_at_the_feed() {
     );
     assert!(peak_feed > 99.9 && peak_feed <= 100.0 + 1e-9, "{peak_feed}");
     assert_eq!(&s.last.position[..3], &[0.0, 0.0, 0.0]);
-    assert!(s.max_deviation_mm < 1e-5);
+    // Smoothed, the vertices are exact; in between the curve stays within a tenth of the
+    // tolerance of the polygon.
+    assert!(s.max_deviation_mm < 1e-3, "{}", s.max_deviation_mm);
 }
 
 #[test]
@@ -91,7 +93,12 @@ fn short_segments_do_not_slow_the_feed() {
     .unwrap();
     let single = run(one, &limits, &RunOptions::default(), |_, _| {}).unwrap();
     assert!((peak - 60.0).abs() < 1e-6, "{peak}");
-    assert!(dense.duration_s <= single.duration_s + 0.002);
+    assert!(
+        dense.duration_s <= single.duration_s + 0.002,
+        "{} {}",
+        dense.duration_s,
+        single.duration_s
+    );
     assert_eq!(&dense.last.position[..3], &[end.x, end.y, end.z]);
 }
 

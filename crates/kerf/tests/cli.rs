@@ -719,3 +719,84 @@ fn sim_program_error_names_the_place() {
         stderr(&out)
     );
 }
+
+/// The dense circle as CAM writes it: r = 10 mm through the origin, 3,600 lines at
+/// F6000, vertices rounded to `decimals`.
+fn cam_circle(decimals: usize) -> String {
+    let mut text = String::from("G21 G90 G17 G64 F6000\n");
+    for k in 1..=3600 {
+        let a = 2.0 * std::f64::consts::PI * k as f64 / 3600.0;
+        let (x, y) = (10.0 - 10.0 * a.cos(), 10.0 * a.sin());
+        text.push_str(&format!("G1 X{x:.decimals$} Y{y:.decimals$}\n"));
+    }
+    text
+}
+
+#[test]
+fn sim_runs_the_cam_rounded_dense_circle_at_the_feed() {
+    // The limits allow about 0.72 s (0.63 s at 100 mm/s plus the jerk-limited start and
+    // stop); rounded vertices must not turn into curvature noise that slows it down.
+    for decimals in [3, 4, 6] {
+        let name = format!("sim-circle-{decimals}");
+        let program = scratch(&format!("{name}.ngc"), &cam_circle(decimals));
+        let csv = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("kerf-cli-tests/{name}.csv"));
+        let out = kerf(&[
+            "sim",
+            program.to_str().unwrap(),
+            "--out",
+            csv.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let (header, rows) = read_csv(&csv);
+        assert_eq!(header, "t,x,y,z,line,feed_mm_s");
+        let last = rows.last().unwrap();
+        assert!(last[0] < 0.80, "{decimals} decimals: {} s", last[0]);
+        assert_eq!(&last[1..4], &[0.0, 0.0, 0.0], "ends on the last vertex");
+        // Every setpoint within the 0.01 mm tolerance of the polygon, checked here against
+        // the vertices as printed; the `line` column advances through the program.
+        let pts: Vec<[f64; 2]> = std::iter::once([0.0, 0.0])
+            .chain(
+                String::from_utf8_lossy(&std::fs::read(&program).unwrap())
+                    .lines()
+                    .skip(1)
+                    .map(|l| {
+                        let mut w = l.split(' ').skip(1);
+                        let x: f64 = w.next().unwrap()[1..].parse().unwrap();
+                        let y: f64 = w.next().unwrap()[1..].parse().unwrap();
+                        [x, y]
+                    }),
+            )
+            .collect();
+        let mut prev_line = 0.0;
+        for row in &rows {
+            let line = row[4];
+            assert!(
+                line >= prev_line,
+                "line column goes back: {line} after {prev_line}"
+            );
+            prev_line = line;
+            // The move on source line L runs from vertex L-2 to L-1; search around it.
+            let k = (line as usize).saturating_sub(2);
+            let d = (k.saturating_sub(3)..(k + 4).min(pts.len() - 1))
+                .map(|i| seg_distance([row[1], row[2]], pts[i], pts[i + 1]))
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                d <= 0.01,
+                "{decimals} decimals: {d} mm off at t = {}",
+                row[0]
+            );
+        }
+        assert_eq!(prev_line, 3601.0);
+    }
+}
+
+fn seg_distance(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let l2 = dx * dx + dy * dy;
+    let t = if l2 > 0.0 {
+        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    ((p[0] - a[0] - t * dx).powi(2) + (p[1] - a[1] - t * dy).powi(2)).sqrt()
+}

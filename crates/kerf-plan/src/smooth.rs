@@ -1,0 +1,714 @@
+//! Smoothing of dense polylines: runs of short, nearly collinear lines (CAM output that
+//! approximates a curve) become a chain of curvature-continuous quintic pieces that pass
+//! exactly through vertices of the polyline and stay within the path tolerance of it.
+//!
+//! Why: a polyline that approximates a circle has vertices rounded to the program's
+//! decimals. Following the vertices (or circular blends at each of them) turns that
+//! rounding into curvature noise, and every curvature jump is an acceleration step that the
+//! junction caps must slow down for: a 3,600-line circle of radius 10 mm written with four
+//! decimals crawled at a quarter of its feed. Fitting a smooth curve within the tolerance is
+//! what serious controls do with such code (a "compressor").
+//!
+//! How:
+//! - **Runs.** Consecutive feed lines join a run while they have the same feed and
+//!   tolerance, blend mode, no rotary motion, length up to [`MAX_SEGMENT_MM`], and at every
+//!   vertex a turn of at most [`MAX_TURN_RAD`] whose sag `L·θ/8` (how far a smooth curve
+//!   through the vertices lies from the longer adjacent line) is at most
+//!   [`SAG_TOL_SHARE`] of the tolerance. Coarse polygons fail that test and keep their
+//!   corner blends. Runs of fewer than [`MIN_RUN_MOVES`] moves are left alone.
+//! - **Knots** are vertices of the polyline, every [`WINDOW_MM`] or less of chord length.
+//!   At a knot the unit tangent and the curvature vector come from a weighted least-squares
+//!   quadratic through the vertices within a window around it (biweight weights in chord
+//!   length, at least two vertices each side): rounding noise averages out over the window.
+//!   The window halves (down to two vertices each side) until the quadratic explains every
+//!   vertex in it within [`RESIDUAL_TOL_SHARE`] of the tolerance, so that it does not
+//!   reach across a change of shape.
+//! - **Pieces** between consecutive knots are quintic Hermite curves
+//!   ([`kerf_geom::Transition`]) matching position, tangent and curvature at both knots, so
+//!   the chain is curvature-continuous and the joints cost no speed. Each piece is sampled
+//!   against the polyline it replaces (every setpoint must lie within the tolerance of the
+//!   programmed path) and halved until it fits within [`TRANSITION_TOL_SHARE`] of the
+//!   tolerance. A single line whose piece does not fit is kept as the line.
+//! - **Run ends** are exact vertices. Where the move before or after the run is a feed
+//!   move it joins within [`MAX_TURN_RAD`], the end knot takes that move's tangent and
+//!   curvature, so a line or arc leading into dense code is joined without a kink or a
+//!   curvature step; otherwise the end knot comes from a one-sided fit.
+//! - **Streaming.** Pieces are emitted once the data their knots depend on has arrived, and
+//!   vertices behind the current knot are dropped, so memory is bounded by the window, not
+//!   by the program.
+//!
+//! A piece replaces several programmed moves: its [`PlannedSegment`](crate::PlannedSegment)
+//! names the first one (`line`, `move_index`) and how many it covers (`move_count`).
+
+use crate::TRANSITION_TOL_SHARE;
+use kerf_geom::{Transition, Vec3};
+
+/// Longest line that may join a run, mm.
+pub const MAX_SEGMENT_MM: f64 = 10.0;
+/// Largest turn at a vertex inside a run, radians (45°).
+pub const MAX_TURN_RAD: f64 = std::f64::consts::FRAC_PI_4;
+/// Largest sag `L·θ/8` at a vertex inside a run, as a share of the tolerance.
+pub const SAG_TOL_SHARE: f64 = 0.5;
+/// Fewest moves in a run that is smoothed.
+pub const MIN_RUN_MOVES: usize = 8;
+/// Half-width of the widest fitting window, and the longest piece, mm of chord.
+pub const WINDOW_MM: f64 = 2.0;
+/// Largest residual of the window's quadratic, as a share of the tolerance.
+pub const RESIDUAL_TOL_SHARE: f64 = 0.25;
+/// Vertices kept in the buffer before dropping the ones behind the current knot.
+const DROP_ABOVE: usize = 4096;
+
+/// A vertex of the run. Segment `k` runs from vertex `k` to vertex `k + 1` and belongs to
+/// the move recorded at vertex `k + 1`.
+#[derive(Clone, Copy, Debug)]
+struct Vertex {
+    p: Vec3,
+    /// Chord length from the run start, mm.
+    sigma: f64,
+    /// Source line of the move ending here.
+    line: u32,
+    /// Index of the move ending here.
+    move_index: u64,
+}
+
+/// Position, unit tangent and curvature vector at a knot.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Knot {
+    /// Absolute vertex number.
+    idx: u64,
+    p: Vec3,
+    t: Vec3,
+    k: Vec3,
+}
+
+/// Tangent and curvature a run end must match (from the neighbouring move).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct EndFrame {
+    pub tangent: Vec3,
+    pub curvature: Vec3,
+}
+
+/// One output piece of a run, between two knots. Pieces are moved straight into
+/// segments, which hold the curve by value anyway.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Piece {
+    /// A smooth quintic.
+    Curve(Transition),
+    /// A line kept as programmed (its piece did not fit).
+    Line(Vec3, Vec3),
+}
+
+/// A piece with the moves it covers.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Emitted {
+    pub piece: Piece,
+    pub line: u32,
+    pub move_index: u64,
+    pub move_count: u32,
+}
+
+/// The vertices of the current run and the knot the next piece starts from.
+#[derive(Debug)]
+pub(crate) struct Run {
+    verts: Vec<Vertex>,
+    /// Absolute number of `verts[0]`.
+    base: u64,
+    /// Knot the next piece starts from (`None` until the start has been decided).
+    knot: Option<Knot>,
+    /// Frame the run start must match, if any.
+    start_frame: Option<EndFrame>,
+    tol: f64,
+}
+
+impl Run {
+    /// An empty run starting at `p`; `start_frame` is the tangent and curvature its start
+    /// must match, if any.
+    pub fn new(p: Vec3, start_frame: Option<EndFrame>, tol: f64) -> Run {
+        Run {
+            verts: vec![Vertex {
+                p,
+                sigma: 0.0,
+                line: 0,
+                move_index: 0,
+            }],
+            base: 0,
+            knot: None,
+            start_frame,
+            tol,
+        }
+    }
+
+    /// The last vertex.
+    pub fn end(&self) -> Vec3 {
+        self.verts[self.verts.len() - 1].p
+    }
+
+    /// Direction of the last segment.
+    pub fn last_dir(&self) -> Option<Vec3> {
+        let n = self.verts.len();
+        (n >= 2).then(|| (self.verts[n - 1].p - self.verts[n - 2].p).normalize())
+    }
+
+    /// Length of the last segment.
+    pub fn last_len(&self) -> f64 {
+        let n = self.verts.len();
+        if n >= 2 {
+            self.verts[n - 1].sigma - self.verts[n - 2].sigma
+        } else {
+            0.0
+        }
+    }
+
+    /// Appends the segment to `q` of move (`line`, `move_index`).
+    pub fn push(&mut self, q: Vec3, line: u32, move_index: u64) {
+        let last = self.verts[self.verts.len() - 1];
+        self.verts.push(Vertex {
+            p: q,
+            sigma: last.sigma + (q - last.p).norm(),
+            line,
+            move_index,
+        });
+    }
+
+    fn v(&self, idx: u64) -> &Vertex {
+        &self.verts[(idx - self.base) as usize]
+    }
+
+    fn last_idx(&self) -> u64 {
+        self.base + self.verts.len() as u64 - 1
+    }
+
+    /// Emits the pieces whose knots no longer depend on data still to come; with `finish`
+    /// the run is complete and everything is emitted, the last knot matching `end_frame`
+    /// if given.
+    pub fn emit(&mut self, finish: bool, end_frame: Option<EndFrame>, out: &mut Vec<Emitted>) {
+        if self.knot.is_none() {
+            let data = self.verts[self.verts.len() - 1].sigma - self.verts[0].sigma;
+            if !finish && (data < 2.0 * WINDOW_MM + 1e-9 || self.verts.len() < 7) {
+                return;
+            }
+            self.knot = Some(self.start_knot());
+        }
+        loop {
+            let ka = self.knot.expect("start knot set above");
+            let last = self.last_idx();
+            if ka.idx >= last {
+                break;
+            }
+            let sa = self.v(ka.idx).sigma;
+            let s_last = self.v(last).sigma;
+            if !finish && (s_last - sa < 2.0 * WINDOW_MM + 1e-9 || last < ka.idx + 6) {
+                break;
+            }
+            // Furthest vertex within the window (at least the next one); a short rest of
+            // the run is taken whole rather than left as a sliver.
+            let mut ib = ka.idx + 1;
+            while ib < last && self.v(ib + 1).sigma - sa <= WINDOW_MM {
+                ib += 1;
+            }
+            if finish
+                && s_last - self.v(ib).sigma < 0.5 * WINDOW_MM
+                && s_last - sa <= 1.5 * WINDOW_MM
+            {
+                ib = last;
+            }
+            let (piece, kb) = self.fit(ka, ib, finish, end_frame);
+            out.push(piece);
+            self.knot = Some(kb);
+        }
+        self.drop_behind();
+    }
+
+    /// The knot at vertex `idx`: the run's end knots are fixed by the neighbours where they
+    /// match, otherwise fitted.
+    fn knot_at(&self, idx: u64, finish: bool, end_frame: Option<EndFrame>) -> Knot {
+        if finish && idx == self.last_idx() {
+            if let Some(f) = end_frame {
+                return Knot {
+                    idx,
+                    p: self.v(idx).p,
+                    t: f.tangent,
+                    k: f.curvature,
+                };
+            }
+        }
+        self.fit_knot(idx)
+    }
+
+    fn start_knot(&self) -> Knot {
+        match self.start_frame {
+            Some(f) => Knot {
+                idx: self.base,
+                p: self.verts[0].p,
+                t: f.tangent,
+                k: f.curvature,
+            },
+            None => self.fit_knot(self.base),
+        }
+    }
+
+    /// The piece from knot `ka` towards vertex `ib`, halved until it fits; returns it with
+    /// its end knot.
+    fn fit(
+        &self,
+        ka: Knot,
+        mut ib: u64,
+        finish: bool,
+        end_frame: Option<EndFrame>,
+    ) -> (Emitted, Knot) {
+        loop {
+            let kb = self.knot_at(ib, finish, end_frame);
+            if let Some(tr) = self.piece(&ka, &kb) {
+                return (self.emitted(ka.idx, ib, Piece::Curve(tr)), kb);
+            }
+            if ib == ka.idx + 1 {
+                // Keep the line; the next piece starts on it with its direction.
+                let (p, q) = (self.v(ka.idx).p, self.v(ib).p);
+                let line_knot = Knot {
+                    idx: ib,
+                    p: q,
+                    t: (q - p).normalize(),
+                    k: Vec3::zeros(),
+                };
+                return (self.emitted(ka.idx, ib, Piece::Line(p, q)), line_knot);
+            }
+            ib = ka.idx + (ib - ka.idx) / 2;
+        }
+    }
+
+    fn emitted(&self, ia: u64, ib: u64, piece: Piece) -> Emitted {
+        let first = self.v(ia + 1);
+        Emitted {
+            piece,
+            line: first.line,
+            move_index: first.move_index,
+            move_count: (ib - ia).min(u32::MAX as u64) as u32,
+        }
+    }
+
+    /// The quintic between two knots if it stays within the tolerance of the polyline.
+    fn piece(&self, ka: &Knot, kb: &Knot) -> Option<Transition> {
+        let chord = (kb.p - ka.p).norm();
+        if chord.is_nan() || chord <= 0.0 {
+            return None;
+        }
+        let tr = Transition::hermite(ka.p, ka.t, ka.k, kb.p, kb.t, kb.k, chord)?;
+        let segments = (kb.idx - ka.idx) as usize;
+        let n = (3 * segments).clamp(32, 512);
+        let limit = TRANSITION_TOL_SHARE * self.tol;
+        let mut cursor = ka.idx;
+        for i in 1..n {
+            let q = tr.poly(i as f64 / n as f64);
+            let (d, c) = self.nearest(&q, cursor, ka.idx, kb.idx, limit);
+            if d.is_nan() || d > limit {
+                return None;
+            }
+            cursor = c;
+        }
+        let tr = tr.with_arc_length()?;
+        // The arc-length table must not be much longer than the polyline (a loop).
+        let poly_len = self.v(kb.idx).sigma - self.v(ka.idx).sigma;
+        (tr.length_mm <= 1.5 * poly_len + self.tol).then_some(tr)
+    }
+
+    /// Distance from `q` to the polyline segments `[lo, hi)`, searched from `cursor`
+    /// (the samples advance along the polyline): the minimum over the segments visited, so
+    /// never less than the true distance.
+    fn nearest(&self, q: &Vec3, cursor: u64, lo: u64, hi: u64, slack: f64) -> (f64, u64) {
+        let mut k = cursor.saturating_sub(1).max(lo);
+        let mut best = (f64::INFINITY, cursor);
+        while k < hi {
+            let a = self.v(k).p;
+            let b = self.v(k + 1).p;
+            let d = segment_distance(q, &a, &b);
+            if d < best.0 {
+                best = (d, k);
+            } else if k > cursor && (q - a).norm() > best.0 + slack {
+                break;
+            }
+            k += 1;
+        }
+        best
+    }
+
+    /// Tangent and curvature at vertex `idx` from the widest window whose quadratic explains
+    /// its vertices.
+    fn fit_knot(&self, idx: u64) -> Knot {
+        let first = self.base;
+        let last = self.last_idx();
+        let s0 = self.v(idx).sigma;
+        // The window must reach at least two vertices on each side that has them.
+        let lo2 = idx.saturating_sub(2).max(first);
+        let hi2 = (idx + 2).min(last);
+        let w_min = (s0 - self.v(lo2).sigma).max(self.v(hi2).sigma - s0);
+        let mut w = WINDOW_MM.max(w_min);
+        let mut fit = None;
+        loop {
+            let f = self.quadratic(idx, w);
+            let good = f.map(|f| f.residual <= RESIDUAL_TOL_SHARE * self.tol);
+            if f.is_some() {
+                fit = f;
+            }
+            if good == Some(true) || w <= w_min {
+                break;
+            }
+            w = (0.5 * w).max(w_min);
+        }
+        let p = self.v(idx).p;
+        match fit {
+            Some(f) => {
+                let sq = f.d1.norm_squared();
+                let t = f.d1 / sq.sqrt();
+                let k = (f.d2 - t * f.d2.dot(&t)) / sq;
+                Knot { idx, p, t, k }
+            }
+            None => {
+                // Degenerate data: the direction of an adjacent segment, no curvature.
+                let (a, b) = if idx < last {
+                    (p, self.v(idx + 1).p)
+                } else {
+                    (self.v(idx - 1).p, p)
+                };
+                Knot {
+                    idx,
+                    p,
+                    t: (b - a).normalize(),
+                    k: Vec3::zeros(),
+                }
+            }
+        }
+    }
+
+    /// Weighted least-squares `p(x) = p_idx + d1 x + d2 x²/2 + d3 x³/6` (x = chord length
+    /// from the vertex) over the vertices within `w` (biweight), constrained through the
+    /// vertex. The cubic term keeps the curvature of a circle from leaking into the
+    /// residual, so windows stay wide on arcs.
+    fn quadratic(&self, idx: u64, w: f64) -> Option<Quadratic> {
+        let s0 = self.v(idx).sigma;
+        let p0 = self.v(idx).p;
+        let w = w * 1.000_001;
+        // Normal equations in scaled x (x/w) for conditioning.
+        let mut m = [[0.0f64; 3]; 3];
+        let mut r = [Vec3::zeros(); 3];
+        let mut count = 0;
+        let lo = self.window_end(idx, w, false);
+        let hi = self.window_end(idx, w, true);
+        // A one-sided window (a run end) weighs its vertices equally: tapering it would
+        // leave the curvature to the few vertices next to the end.
+        let one_sided = lo == idx || hi == idx;
+        for k in lo..=hi {
+            if k == idx {
+                continue;
+            }
+            let v = self.v(k);
+            let x = (v.sigma - s0) / w;
+            let om = if one_sided {
+                1.0
+            } else {
+                (1.0 - x * x).powi(2)
+            };
+            let y = v.p - p0;
+            let basis = [x, 0.5 * x * x, x * x * x / 6.0];
+            for i in 0..3 {
+                for j in 0..3 {
+                    m[i][j] += om * basis[i] * basis[j];
+                }
+                r[i] += y * (om * basis[i]);
+            }
+            count += 1;
+        }
+        if count < 3 {
+            return None;
+        }
+        let c = solve3(&m, &r)?;
+        let d1 = c[0] / w;
+        let d2 = c[1] / (w * w);
+        let d3 = c[2] / (w * w * w);
+        if !d1.iter().chain(d2.iter()).all(|c| c.is_finite()) || d1.norm() <= 1e-9 {
+            return None;
+        }
+        let mut residual: f64 = 0.0;
+        for k in lo..=hi {
+            let v = self.v(k);
+            let x = v.sigma - s0;
+            let fit = p0 + d1 * x + d2 * (0.5 * x * x) + d3 * (x * x * x / 6.0);
+            residual = residual.max((fit - v.p).norm());
+        }
+        Some(Quadratic { d1, d2, residual })
+    }
+
+    /// The last vertex within chord distance `w` of `idx` on one side.
+    fn window_end(&self, idx: u64, w: f64, forward: bool) -> u64 {
+        let s0 = self.v(idx).sigma;
+        let mut k = idx;
+        if forward {
+            while k < self.last_idx() && self.v(k + 1).sigma - s0 < w {
+                k += 1;
+            }
+        } else {
+            while k > self.base && s0 - self.v(k - 1).sigma < w {
+                k -= 1;
+            }
+        }
+        k
+    }
+
+    /// Drops vertices no future knot window can reach.
+    fn drop_behind(&mut self) {
+        let Some(knot) = self.knot else { return };
+        if self.verts.len() <= DROP_ABOVE {
+            return;
+        }
+        let s_knot = self.v(knot.idx).sigma;
+        let mut keep_from = knot.idx.saturating_sub(2).max(self.base);
+        while keep_from > self.base && s_knot - self.v(keep_from).sigma <= 2.0 * WINDOW_MM {
+            keep_from -= 1;
+        }
+        let n = (keep_from - self.base) as usize;
+        if n > 0 {
+            self.verts.drain(..n);
+            self.base = keep_from;
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Quadratic {
+    d1: Vec3,
+    d2: Vec3,
+    residual: f64,
+}
+
+/// Solves the symmetric 3×3 system `m c = r` (one right-hand side per coordinate) by
+/// Cramer's rule; `None` if it is singular.
+fn solve3(m: &[[f64; 3]; 3], r: &[Vec3; 3]) -> Option<[Vec3; 3]> {
+    let det3 = |a: [[f64; 3]; 3]| {
+        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+            - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+    };
+    let det = det3(*m);
+    let scale = m[0][0] * m[1][1] * m[2][2];
+    if !det.is_finite() || det.abs() <= 1e-12 * scale.abs() {
+        return None;
+    }
+    let mut out = [Vec3::zeros(); 3];
+    for col in 0..3 {
+        for axis in 0..3 {
+            let mut a = *m;
+            for row in 0..3 {
+                a[row][col] = r[row][axis];
+            }
+            out[col][axis] = det3(a) / det;
+        }
+    }
+    Some(out)
+}
+
+fn segment_distance(q: &Vec3, a: &Vec3, b: &Vec3) -> f64 {
+    let ab = b - a;
+    let l2 = ab.norm_squared();
+    if l2 == 0.0 {
+        return (q - a).norm();
+    }
+    let t = ((q - a).dot(&ab) / l2).clamp(0.0, 1.0);
+    (q - (a + ab * t)).norm()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{AxisLimits, MachineLimits, PlannedSegment, Planner};
+    use kerf_geom::{CornerMode, Curve, Line, Move, Path};
+
+    fn mill() -> MachineLimits {
+        let l = AxisLimits {
+            velocity: 200.0,
+            acceleration: 2000.0,
+            jerk: 50000.0,
+        };
+        MachineLimits {
+            axes: [Some(l), Some(l), Some(l), None, None, None],
+            period_s: 0.001,
+            tolerance_mm: 0.01,
+        }
+    }
+
+    fn lines(points: &[Vec3], feed: f64) -> Vec<Move> {
+        points
+            .windows(2)
+            .enumerate()
+            .map(|(i, w)| Move {
+                line: i as u32 + 1,
+                rapid: false,
+                path: Path::Line(Line {
+                    start: w[0],
+                    end: w[1],
+                }),
+                feed_mm_min: Some(feed),
+                abc_deg: None,
+                corner: CornerMode::Blend { tolerance_mm: None },
+            })
+            .collect()
+    }
+
+    fn plan(moves: &[Move]) -> Vec<PlannedSegment> {
+        let mut p = Planner::new(mill());
+        let mut out = Vec::new();
+        for m in moves {
+            p.push(m, &mut out).unwrap();
+        }
+        p.finish(&mut out);
+        out
+    }
+
+    /// The circle of radius 10 through the origin as `n` vertices rounded to `decimals`.
+    fn rounded_circle(n: usize, decimals: i32, turns: f64) -> Vec<Vec3> {
+        let scale = 10f64.powi(decimals);
+        let r = |v: f64| (v * scale).round() / scale;
+        (0..=(n as f64 * turns) as usize)
+            .map(|k| {
+                let a = 2.0 * std::f64::consts::PI * k as f64 / n as f64;
+                Vec3::new(r(10.0 - 10.0 * a.cos()), r(10.0 * a.sin()), 0.0)
+            })
+            .collect()
+    }
+
+    /// Distance from `q` to the polyline (every segment).
+    fn polyline_distance(q: &Vec3, pts: &[Vec3]) -> f64 {
+        pts.windows(2)
+            .map(|w| segment_distance(q, &w[0], &w[1]))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    #[test]
+    fn rounded_circle_becomes_a_smooth_chain_through_its_vertices() {
+        for decimals in [3, 4, 6] {
+            let pts = rounded_circle(3600, decimals, 1.0);
+            let segs = plan(&lines(&pts, 6000.0));
+            assert!(segs.len() < 100, "{decimals}: {} segments", segs.len());
+            // The pieces cover every move once, in order.
+            let mut next = 0;
+            for s in &segs {
+                assert!(matches!(s.curve, Curve::Transition(_)), "{decimals}");
+                assert_eq!(s.move_index, next);
+                next += s.move_count as u64;
+            }
+            assert_eq!(next as usize, pts.len() - 1);
+            for (k, s) in segs.iter().enumerate() {
+                // Knots are vertices of the polyline, exactly.
+                let end = pts[(s.move_index + s.move_count as u64) as usize];
+                assert_eq!(s.curve.end(), end);
+                // Curvature-continuous joints cost no speed.
+                if k + 1 < segs.len() {
+                    let a = s.curve.eval(s.length);
+                    let b = segs[k + 1].curve.eval(0.0);
+                    assert!((a.tangent - b.tangent).norm() < 1e-12);
+                    assert!((a.curvature - b.curvature).norm() < 1e-12);
+                    assert!(s.end_cap >= 0.999 * s.v_max.min(segs[k + 1].v_max));
+                }
+                // Within the tolerance of the polyline, checked densely here.
+                for i in 0..=400 {
+                    let q = s.curve.point_at(s.length * i as f64 / 400.0);
+                    let d = polyline_distance(&q, &pts);
+                    assert!(d <= 0.01, "{decimals}: piece {k} off by {d}");
+                }
+                // Rounding noise is averaged out: the curvature is the circle's.
+                for i in 0..=20 {
+                    let kappa = s.curve.eval(s.length * i as f64 / 20.0).curvature.norm();
+                    assert!(
+                        (kappa - 0.1).abs() < 0.02,
+                        "{decimals}: piece {k} κ {kappa}"
+                    );
+                }
+                // So the feed is reachable everywhere.
+                assert!(s.v_max >= 99.9, "{decimals}: piece {k} v_max {}", s.v_max);
+            }
+        }
+    }
+
+    #[test]
+    fn a_sharp_corner_splits_the_run_and_a_coarse_polygon_is_left_alone() {
+        // Dense points along X, then a 90° turn along Y.
+        let mut pts: Vec<Vec3> = (0..=500)
+            .map(|k| Vec3::new(0.01 * k as f64, 0.0, 0.0))
+            .collect();
+        pts.extend((1..=500).map(|k| Vec3::new(5.0, 0.01 * k as f64, 0.0)));
+        let segs = plan(&lines(&pts, 3000.0));
+        let corner = Vec3::new(5.0, 0.0, 0.0);
+        let at_corner: Vec<_> = segs.iter().filter(|s| s.curve.end() == corner).collect();
+        assert_eq!(at_corner.len(), 1, "the corner is a run end");
+        assert!(at_corner[0].end_cap < 1.0, "and a kink");
+        // An 18-gon of radius 2.9 mm: 20° turns whose chords sag 0.044 mm; smoothing would
+        // leave the tolerance, so the corners are blended as before.
+        let pts: Vec<Vec3> = (0..=18)
+            .map(|k| {
+                let a = 2.0 * std::f64::consts::PI * k as f64 / 18.0;
+                Vec3::new(2.9 * a.cos(), 2.9 * a.sin(), 0.0)
+            })
+            .collect();
+        let segs = plan(&lines(&pts, 3000.0));
+        assert!(segs.iter().all(|s| s.move_count == 1));
+        assert!(segs.iter().any(|s| matches!(s.curve, Curve::Helix(_))));
+    }
+
+    #[test]
+    fn lines_leading_into_and_out_of_dense_code_join_without_a_step() {
+        // A 20 mm line along +Y, the rounded circle's first half, a 20 mm line along -Y:
+        // both joints are tangent, so the run ends take the lines' tangent and zero
+        // curvature: no kink and no curvature step. The curvature ramps up within the
+        // first piece instead, which costs some speed (within 0.01 mm, a ramp to
+        // κ = 0.1/mm must be short), but far less than a step would: its cap is
+        // sqrt(JUNCTION_SHARE·J·T/Δκ) = 5 mm/s.
+        let half = rounded_circle(3600, 4, 0.5);
+        let mut pts = vec![Vec3::new(0.0, -20.0, 0.0)];
+        pts.extend(half.iter().copied());
+        let end = *half.last().unwrap();
+        pts.push(end + Vec3::new(0.0, -20.0, 0.0));
+        let segs = plan(&lines(&pts, 6000.0));
+        assert!(matches!(segs[0].curve, Curve::Line { .. }));
+        assert!(matches!(segs[segs.len() - 1].curve, Curve::Line { .. }));
+        let step_cap = (crate::JUNCTION_SHARE * 50000.0 * 0.001 / 0.1f64).sqrt();
+        for (k, s) in segs[..segs.len() - 1].iter().enumerate() {
+            let a = s.curve.eval(s.length);
+            let b = segs[k + 1].curve.eval(0.0);
+            assert!((a.tangent - b.tangent).norm() < 1e-12);
+            assert!((a.curvature - b.curvature).norm() < 1e-12);
+            assert!(
+                s.end_cap > 5.0 * step_cap,
+                "cap {} at {:?}",
+                s.end_cap,
+                s.curve.end()
+            );
+        }
+        for s in &segs {
+            for i in 0..=200 {
+                let q = s.curve.point_at(s.length * i as f64 / 200.0);
+                assert!(polyline_distance(&q, &pts) <= 0.01);
+            }
+        }
+    }
+
+    #[test]
+    fn a_long_run_is_streamed_in_bounded_memory() {
+        // Twenty turns of the dense circle: pieces come out while the moves go in, and the
+        // run never holds much more than its drop threshold.
+        let pts = rounded_circle(3600, 4, 20.0);
+        let moves = lines(&pts, 6000.0);
+        let mut p = Planner::new(mill());
+        let mut out = Vec::new();
+        let mut most = 0;
+        for (i, m) in moves.iter().enumerate() {
+            p.push(m, &mut out).unwrap();
+            if i > 10_000 {
+                assert!(!out.is_empty(), "nothing emitted after {i} moves");
+            }
+            most = most.max(p.run.as_ref().map_or(0, |r| r.run.verts.len()));
+        }
+        p.finish(&mut out);
+        assert!(most <= DROP_ABOVE + 1, "{most}");
+        let covered: u64 = out.iter().map(|s| s.move_count as u64).sum();
+        assert_eq!(covered as usize, moves.len());
+    }
+}

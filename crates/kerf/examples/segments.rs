@@ -1,0 +1,40 @@
+//! Prints the planned segments of a program, one per line (a debugging aid):
+//! `cargo run --release -p kerf --example segments -- PROGRAM [DIALECT]`.
+
+use kerf::config::Config;
+use kerf::sim::machine_limits;
+use kerf_gcode::{Dialect, Interpreter, Item};
+use kerf_plan::Planner;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let path = args.get(1).ok_or("usage: segments PROGRAM [DIALECT]")?;
+    let config = Config::builtin();
+    let dialect = match args.get(2) {
+        Some(d) => Dialect::from_name(d).ok_or("unknown dialect")?,
+        None => Dialect::LinuxCnc,
+    };
+    let file = std::io::BufReader::new(std::fs::File::open(path)?);
+    let limits = machine_limits(&config);
+    let mut planner = Planner::new(limits);
+    let mut out = Vec::new();
+    let interp = Interpreter::new(file, dialect, config.settings());
+    for item in interp {
+        if let Item::Move(m) = item.map_err(|d| format!("{d:?}"))? {
+            planner.push(&m, &mut out)?;
+        }
+    }
+    planner.finish(&mut out);
+    for s in &out {
+        let kind = match s.curve {
+            kerf_geom::Curve::Line { .. } => "line",
+            kerf_geom::Curve::Helix(_) => "arc",
+            kerf_geom::Curve::Transition(_) => "quintic",
+        };
+        println!(
+            "{kind:8} line {:5} moves {:4} len {:8.4} v {:7.2} a {:8.1} j {:9.1} cap {:7.2}",
+            s.line, s.move_count, s.length, s.v_max, s.accel, s.jerk, s.end_cap
+        );
+    }
+    Ok(())
+}
