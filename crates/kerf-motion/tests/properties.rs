@@ -703,3 +703,54 @@ fn tangent_line_arc_chains_hold_every_invariant() {
     eprintln!("{transitions} transitions at {joints} joints");
     assert!(transitions * 2 > joints, "{transitions} of {joints}");
 }
+
+/// Raster finishing passes over a random smooth surface `z = A sin(x/λ₁) cos(y/λ₂)` as CAM
+/// writes them: points at random spacing along X, rounded to 3–5 decimals, passes joined
+/// by a step-over move (a sharp turn at each end), at a random feed.
+fn surface_passes(rng: &mut Rng, n: usize) -> Vec<Move> {
+    let amp = rng.range(0.2, 4.0);
+    let (l1, l2) = (rng.log(2.0, 20.0), rng.log(2.0, 20.0));
+    let spacing = rng.log(0.01, 0.5);
+    let stepover = rng.range(0.1, 2.0);
+    let width = rng.range(2.0, 30.0);
+    let decimals = 3 + rng.pick(3) as i32;
+    let scale = 10f64.powi(decimals);
+    let round = |v: f64| (v * scale).round() / scale;
+    let feed = rng.log(600.0, 9000.0);
+    let z = |x: f64, y: f64| amp * (x / l1).sin() * (y / l2).cos();
+    let per_pass = ((width / spacing) as usize).max(2);
+    let mut moves: Vec<Move> = Vec::new();
+    let mut p = Vec3::zeros();
+    let mut pass = 0;
+    while moves.len() < n {
+        let y = stepover * pass as f64;
+        for i in 0..=per_pass {
+            let i = if pass % 2 == 1 { per_pass - i } else { i };
+            let x = width * i as f64 / per_pass as f64;
+            let q = Vec3::new(round(x), round(y), round(z(x, y)));
+            if (q - p).norm() > 0.0 {
+                moves.push(line(moves.len() as u32 + 1, p, q, feed));
+                p = q;
+            }
+        }
+        pass += 1;
+    }
+    moves
+}
+
+#[test]
+fn cam_surface_passes_hold_every_invariant() {
+    let mut rng = Rng(0x5a4f_ace0_5eed_0007);
+    for case in 0..8 {
+        let limits = random_limits(&mut rng);
+        let n = 300 + rng.pick(700);
+        let moves = surface_passes(&mut rng, n);
+        check_finished(
+            &format!("surface {case}"),
+            &moves,
+            &limits,
+            &RunOptions::default(),
+            limits.tolerance_mm,
+        );
+    }
+}

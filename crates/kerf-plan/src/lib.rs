@@ -93,6 +93,9 @@ pub const MIN_REMNANT_MM: f64 = 1e-3;
 const MAX_CRAWL_S: f64 = 0.02;
 /// Samples of a transition for its curvature bounds.
 const LIMIT_SAMPLES: usize = 512;
+/// Samples for the curvature bounds of a smoothed piece that covers several moves: such
+/// pieces are gentle (their curvature follows a fitted window, not a corner).
+const PIECE_LIMIT_SAMPLES: usize = 128;
 /// Safety factor on the sampled curvature bounds of a transition.
 pub const LIMIT_SAFETY: f64 = 1.1;
 
@@ -1032,7 +1035,12 @@ fn weights(seg: &PlannedSegment) -> Weights {
 /// programmed feed), any tangential acceleration up to `a_max` and jerk up to `j_max`.
 pub fn segment_limits(seg: &PlannedSegment, limits: &MachineLimits) -> (f64, f64, f64) {
     if let Curve::Transition(t) = &seg.curve {
-        return transition_limits(seg, t, limits);
+        let samples = if seg.move_count > 1 {
+            PIECE_LIMIT_SAMPLES
+        } else {
+            LIMIT_SAMPLES
+        };
+        return transition_limits(seg, t, limits, samples);
     }
     let w = weights(seg);
     let share = PROFILE_SHARE;
@@ -1140,7 +1148,7 @@ struct TransitionBounds {
 }
 
 /// Bounds of a transition, sampled densely along it.
-fn transition_bounds(t: &Transition) -> TransitionBounds {
+fn transition_bounds(t: &Transition, samples: usize) -> TransitionBounds {
     let mut b = TransitionBounds {
         tangent: [0.0; 3],
         curvature: [0.0; 3],
@@ -1149,7 +1157,7 @@ fn transition_bounds(t: &Transition) -> TransitionBounds {
         kappa_rate: 0.0,
         plane: [1.0; 3],
     };
-    let n = LIMIT_SAMPLES;
+    let n = samples;
     // Frames on a grid in u; dK/ds by central differences on the grid (one-sided at the
     // ends), so each sample costs one evaluation.
     let frame = |i: usize| t.frame_at_param(i as f64 / n as f64);
@@ -1227,8 +1235,9 @@ fn transition_limits(
     seg: &PlannedSegment,
     t: &Transition,
     limits: &MachineLimits,
+    samples: usize,
 ) -> (f64, f64, f64) {
-    let b = transition_bounds(t);
+    let b = transition_bounds(t, samples);
     let (tm, km, kp) = (b.tangent, b.curvature, b.curvature_rate);
     let share = PROFILE_SHARE;
     let mut v = f64::INFINITY;
