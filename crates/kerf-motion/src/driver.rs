@@ -210,48 +210,51 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
             let p = Vec3::new(sp.position[0], sp.position[1], sp.position[2]);
             let (d, k) = self.nearest_move(&p, sp.move_index, sp.move_count);
             self.summary.max_deviation_mm = self.summary.max_deviation_mm.max(d);
-            // A smoothed piece stands for several moves: report the one being passed.
-            sp.line = self.lines[k];
-            sp.move_index = k as u64;
-            sp.move_count = 1;
+            if sp.move_count > 1 {
+                // A smoothed piece stands for several moves: report the one being passed.
+                sp.line = self.lines[k];
+                sp.move_index = k as u64;
+                sp.move_count = 1;
+            }
         }
         self.summary.last = *sp;
     }
 
     /// Distance from `p` to the moves `move_index - 1 ..= move_index + count` (the segment's
-    /// own moves and its neighbours, whose corners a blend may cut) and the nearest of them.
-    /// Long smoothed pieces are searched from the previous nearest move on, stopping once
-    /// the moves lie farther away than the best so far by more than their length: never
-    /// less than the true distance to those moves.
+    /// own moves and its neighbours, whose corners a blend may cut), and the move the
+    /// setpoint is passing. A smoothed piece stands for many moves: they are scanned from
+    /// the one passed last, on until they lie farther away than the nearest so far by more
+    /// than their length (the setpoints advance along them). The result is a minimum over
+    /// moves of the program, so it is never less than the true distance.
     fn nearest_move(&mut self, p: &Vec3, move_index: u64, count: u32) -> (f64, usize) {
         let last = self.curves.len() - 1;
         let i = (move_index as usize).min(last);
         let lo = i.saturating_sub(1);
         let hi = (i + count.max(1) as usize).min(last);
-        let from = if (lo..=hi).contains(&self.cursor) {
-            self.cursor.saturating_sub(1).max(lo)
-        } else {
-            lo
-        };
-        let mut best = (f64::INFINITY, i);
-        // The segment's first move and its predecessor always count.
-        for k in lo..=i.min(hi) {
-            let d = self.curves[k].distance_to(p);
-            if d < best.0 {
-                best = (d, k);
-            }
+        let mut best = f64::INFINITY;
+        for k in lo..=(i + 1).min(hi) {
+            best = best.min(self.curves[k].distance_to(p));
         }
+        if count <= 1 {
+            return (best, i);
+        }
+        let from = if (i..=hi).contains(&self.cursor) {
+            self.cursor
+        } else {
+            i
+        };
+        let mut local = (f64::INFINITY, from);
         for k in from..=hi {
             let c = &self.curves[k];
             let d = c.distance_to(p);
-            if d < best.0 {
-                best = (d, k);
-            } else if k > i + 1 && (c.start() - p).norm() > best.0 + c.length() {
+            if d < local.0 {
+                local = (d, k);
+            } else if k > local.1 + 1 && (c.start() - p).norm() > local.0 + c.length() {
                 break;
             }
         }
-        self.cursor = best.1;
-        best
+        self.cursor = local.1;
+        (best.min(local.0), local.1)
     }
 
     fn push(&mut self, seg: &PlannedSegment) -> Result<(), RunError> {

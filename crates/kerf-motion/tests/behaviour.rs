@@ -2,7 +2,7 @@
 
 mod common;
 use common::*;
-use kerf_geom::{Curve, Vec3};
+use kerf_geom::Vec3;
 use kerf_motion::driver::{Event, RunOptions, run};
 use kerf_motion::{Setpoint, change_distance, reach};
 use kerf_plan::Planner;
@@ -21,32 +21,93 @@ fn reachability_matches_hand_computed_profiles() {
     assert!((reach(50.0, d, 2000.0, 50000.0) - 80.0).abs() < 1e-9);
 }
 
+/// Runs `moves`, checking the limits (1 %), the tolerance and the end point; returns the
+/// summary and the lowest speed within 0.1 mm of `corner`.
+fn run_corner(
+    moves: Vec<kerf_geom::Move>,
+    limits: &kerf_motion::MachineLimits,
+    corner: Vec3,
+) -> (kerf_motion::driver::Summary, f64) {
+    let end = moves.last().unwrap().path.end();
+    let mut near = f64::INFINITY;
+    let s = run(moves, limits, &RunOptions::default(), |_, sp| {
+        let q = Vec3::new(sp.position[0], sp.position[1], sp.position[2]);
+        if (q - corner).norm() < 0.1 {
+            near = near.min(sp.feed_mm_s);
+        }
+    })
+    .unwrap();
+    assert!(
+        s.max_deviation_mm <= limits.tolerance_mm,
+        "{}",
+        s.max_deviation_mm
+    );
+    for i in 0..3 {
+        for f in s.fractions(limits, i).unwrap() {
+            assert!(f <= 1.01, "axis {i}: {f}");
+        }
+    }
+    assert_eq!(&s.last.position[..3], &[end.x, end.y, end.z]);
+    (s, near)
+}
+
 #[test]
-fn right_angle_blend_has_the_tolerance_radius() {
+fn isolated_corners_take_the_quickest_of_stop_and_blend() {
     let limits = mill(200.0, 2000.0, 50000.0, 0.01);
-    let a = Vec3::zeros();
-    let b = Vec3::new(10.0, 0.0, 0.0);
-    let c = Vec3::new(10.0, 10.0, 0.0);
-    let mut planner = Planner::new(limits);
-    let mut out = Vec::new();
-    planner.push(&line(1, a, b, 3000.0), &mut out).unwrap();
-    planner.push(&line(2, b, c, 3000.0), &mut out).unwrap();
-    planner.finish(&mut out);
-    assert_eq!(out.len(), 3);
-    let Curve::Helix(h) = out[1].curve else {
-        panic!("the corner should be an arc")
+    let (j, t): (f64, f64) = (50000.0, 0.001);
+    let exact = |mut m: kerf_geom::Move| {
+        m.corner = kerf_geom::CornerMode::ExactStop;
+        m
     };
-    // Deviation r (1 - cos 45°) = 0.98 · tolerance (the planner keeps 2 % in hand).
-    let r = 0.98 * 0.01 / (1.0 - std::f64::consts::FRAC_1_SQRT_2);
-    assert!((h.radius_mm - r).abs() < 1e-12);
-    assert!((h.start - Vec3::new(10.0 - r, 0.0, 0.0)).norm() < 1e-12);
-    assert!((h.end - Vec3::new(10.0, r, 0.0)).norm() < 1e-12);
-    assert!((h.center - Vec3::new(10.0 - r, r, 0.0)).norm() < 1e-12);
-    // The stop at the end and the junction caps: line → arc is a curvature jump of 1/r,
-    // so v² / r ≤ JUNCTION_SHARE · J·T.
-    let cap = (kerf_plan::JUNCTION_SHARE * 50000.0 * 0.001 * r).sqrt();
-    assert!((out[0].end_cap - cap).abs() < 1e-9);
-    assert_eq!(out[2].end_cap, 0.0);
+
+    // A 20 mm square at F3000 (50 mm/s), 0.01 mm: at a 90° corner any blend must slow
+    // nearly to a stop (the jerk-limited ceiling is about 5 mm/s: with ramps of
+    // 2·sqrt(v/J) the midpoint cuts the corner by v^1.5 / (6·sqrt(J))) and then crawl
+    // through it, so stopping is quicker. Stopping at every corner takes, per side at
+    // 50 mm/s with a = 1900 and j = 47500 (95 % of the limits; 50 < a²/j, so no
+    // constant-acceleration phase), ramps of 2·sqrt(50/j) over 25 · that mm each way.
+    let p = [
+        Vec3::zeros(),
+        Vec3::new(20.0, 0.0, 0.0),
+        Vec3::new(20.0, 20.0, 0.0),
+        Vec3::new(0.0, 20.0, 0.0),
+    ];
+    let square: Vec<_> = (0..4)
+        .map(|k| line(k as u32 + 1, p[k], p[(k + 1) % 4], 3000.0))
+        .collect();
+    let (blended, _) = run_corner(square.clone(), &limits, p[1]);
+    let (stopped, _) = run_corner(square.into_iter().map(exact).collect(), &limits, p[1]);
+    let (a_path, j_path) = (0.95 * 2000.0, 0.95 * j);
+    assert!(50.0 < a_path * a_path / j_path);
+    let ramp = 2.0 * (50.0 / j_path).sqrt();
+    let side = 2.0 * ramp + (20.0 - 2.0 * 25.0 * ramp) / 50.0;
+    assert!(
+        blended.duration_s <= 4.0 * side + 0.002,
+        "{} > {}",
+        blended.duration_s,
+        4.0 * side
+    );
+    assert!(blended.duration_s <= stopped.duration_s + 0.001);
+
+    // A 10° corner between 20 mm lines: a G2 blend (no curvature step at its joints) is
+    // quicker than stopping, and passes far above the curvature-step cap
+    // sqrt(JUNCTION_SHARE·J·T·r) of the circular blend it replaces, r (1 - cos 5°) =
+    // 0.98 · tolerance.
+    let th = 10f64.to_radians();
+    let b = Vec3::new(20.0, 0.0, 0.0);
+    let c = b + Vec3::new(th.cos(), th.sin(), 0.0) * 20.0;
+    let bent = vec![line(1, Vec3::zeros(), b, 3000.0), line(2, b, c, 3000.0)];
+    let r = 0.98 * 0.01 / (1.0 - (th / 2.0).cos());
+    let step_cap = (kerf_plan::JUNCTION_SHARE * j * t * r).sqrt();
+    let (blended, v_corner) = run_corner(bent.clone(), &limits, b);
+    let (stopped, _) = run_corner(bent.into_iter().map(exact).collect(), &limits, b);
+    assert!(v_corner > 5.0 * step_cap, "{v_corner} vs {step_cap}");
+    assert!(
+        blended.duration_s < stopped.duration_s,
+        "{} vs {}",
+        blended.duration_s,
+        stopped.duration_s
+    );
 }
 
 #[test]

@@ -3,7 +3,7 @@
 
 mod common;
 use common::*;
-use kerf_geom::{CornerMode, Move, Path, Vec3};
+use kerf_geom::{CornerMode, Curve, Move, Path, Vec3};
 use kerf_motion::driver::{Event, RunOptions, Summary, run};
 use kerf_motion::{MachineLimits, Setpoint};
 
@@ -752,5 +752,41 @@ fn cam_surface_passes_hold_every_invariant() {
             &RunOptions::default(),
             limits.tolerance_mm,
         );
+    }
+}
+
+#[test]
+fn measured_deviation_matches_a_brute_force_check() {
+    // The driver measures each setpoint's distance to the moves around its segment only;
+    // against every move of the program it may only be larger, never smaller, and on
+    // these programs it is the same.
+    let mut rng = Rng(0xde71_a710_5eed_0009);
+    for case in 0..6 {
+        let limits = random_limits(&mut rng);
+        let n = 40 + rng.pick(200);
+        let (moves, ptol) = rounded_polylines(&mut rng, n);
+        let curves: Vec<Curve> = moves.iter().map(|m| Curve::from_path(&m.path)).collect();
+        let mut brute: f64 = 0.0;
+        let s = run(
+            moves.iter().copied(),
+            &limits,
+            &RunOptions::default(),
+            |_, sp| {
+                let p = Vec3::new(sp.position[0], sp.position[1], sp.position[2]);
+                let d = curves
+                    .iter()
+                    .map(|c| c.distance_to(&p))
+                    .fold(f64::INFINITY, f64::min);
+                brute = brute.max(d);
+            },
+        )
+        .unwrap();
+        assert!(s.max_deviation_mm >= brute - 1e-12, "case {case}");
+        assert!(
+            s.max_deviation_mm <= brute + 1e-9,
+            "case {case}: {} vs {brute}",
+            s.max_deviation_mm
+        );
+        assert!(brute <= limits.tolerance_mm.max(ptol) + 1e-9, "case {case}");
     }
 }

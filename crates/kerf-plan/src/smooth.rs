@@ -646,7 +646,8 @@ mod tests {
         assert_eq!(at_corner.len(), 1, "the corner is a run end");
         assert!(at_corner[0].end_cap < 1.0, "and a kink");
         // An 18-gon of radius 2.9 mm: 20° turns whose chords sag 0.044 mm; smoothing would
-        // leave the tolerance, so the corners are blended as before.
+        // leave the tolerance, so the corners are left to corner blending: every segment
+        // stands for one move, and the sides are kept as lines.
         let pts: Vec<Vec3> = (0..=18)
             .map(|k| {
                 let a = 2.0 * std::f64::consts::PI * k as f64 / 18.0;
@@ -655,7 +656,11 @@ mod tests {
             .collect();
         let segs = plan(&lines(&pts, 3000.0));
         assert!(segs.iter().all(|s| s.move_count == 1));
-        assert!(segs.iter().any(|s| matches!(s.curve, Curve::Helix(_))));
+        let sides = segs
+            .iter()
+            .filter(|s| matches!(s.curve, Curve::Line { .. }))
+            .count();
+        assert_eq!(sides, 18);
     }
 
     #[test]

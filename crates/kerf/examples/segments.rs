@@ -1,5 +1,6 @@
 //! Prints the planned segments of a program, one per line (a debugging aid):
-//! `cargo run --release -p kerf --example segments -- PROGRAM [DIALECT]`.
+//! `cargo run --release -p kerf --example segments -- PROGRAM [DIALECT]` (the machine is
+//! the bundled config, or the file named by `KERF_CONFIG`).
 
 use kerf::config::Config;
 use kerf::sim::machine_limits;
@@ -9,7 +10,10 @@ use kerf_plan::Planner;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let path = args.get(1).ok_or("usage: segments PROGRAM [DIALECT]")?;
-    let config = Config::builtin();
+    let config = match std::env::var("KERF_CONFIG") {
+        Ok(path) => Config::load(std::path::Path::new(&path)).map_err(|e| format!("{e}"))?,
+        Err(_) => Config::builtin(),
+    };
     let dialect = match args.get(2) {
         Some(d) => Dialect::from_name(d).ok_or("unknown dialect")?,
         None => Dialect::LinuxCnc,
@@ -32,8 +36,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             kerf_geom::Curve::Transition(_) => "quintic",
         };
         println!(
-            "{kind:8} line {:5} moves {:4} len {:8.4} v {:7.2} a {:8.1} j {:9.1} cap {:7.2}",
-            s.line, s.move_count, s.length, s.v_max, s.accel, s.jerk, s.end_cap
+            "{kind:8} line {:5} index {:5} moves {:4} len {:8.4} v {:7.2} a {:8.1} j {:9.1} cap {:7.2}",
+            s.line, s.move_index, s.move_count, s.length, s.v_max, s.accel, s.jerk, s.end_cap
         );
     }
     Ok(())
