@@ -367,6 +367,7 @@ where
     runner.record(&mut start);
     (runner.sink)(0.0, &start);
     let mut planner = Planner::new(*limits);
+    planner.set_design_override(options.feed_override);
     let mut buf = Vec::new();
     for mv in moves {
         if let Some((s, e)) = mv.abc_deg {

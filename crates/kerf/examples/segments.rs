@@ -1,6 +1,6 @@
 //! Prints the planned segments of a program, one per line (a debugging aid):
 //! `cargo run --release -p kerf --example segments -- PROGRAM [DIALECT]` (the machine is
-//! the bundled config, or the file named by `KERF_CONFIG`).
+//! the bundled config, or the file named by `KERF_CONFIG`; `KERF_OVERRIDE` in % sets the design override).
 
 use kerf::config::Config;
 use kerf::sim::machine_limits;
@@ -21,6 +21,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let file = std::io::BufReader::new(std::fs::File::open(path)?);
     let limits = machine_limits(&config);
     let mut planner = Planner::new(limits);
+    if let Some(f) = std::env::var("KERF_OVERRIDE")
+        .ok()
+        .and_then(|v| v.parse::<f64>().ok())
+    {
+        planner.set_design_override(f / 100.0);
+    }
     let mut out = Vec::new();
     let interp = Interpreter::new(file, dialect, config.settings());
     for item in interp {

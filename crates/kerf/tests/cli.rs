@@ -800,3 +800,41 @@ fn seg_distance(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     };
     ((p[0] - a[0] - t * dx).powi(2) + (p[1] - a[1] - t * dy).powi(2)).sqrt()
 }
+
+#[test]
+fn sim_override_above_100_speeds_up_arcs_too() {
+    // A full circle of radius 10 mm at F3000 (50 mm/s): the centripetal acceleration at
+    // 100 mm/s is 1000 mm/s², well within the bundled mill, so 150 % runs at 75 mm/s and
+    // 200 % at 100 mm/s.
+    let program = scratch(
+        "sim-override-arc.ngc",
+        "G21 G90 G17 G64 F3000\nG2 X0 Y0 I10 J0\n",
+    );
+    let mut durations = Vec::new();
+    for pct in ["100", "150", "200"] {
+        let csv = Path::new(env!("CARGO_TARGET_TMPDIR"))
+            .join(format!("kerf-cli-tests/sim-override-arc-{pct}.csv"));
+        let out = kerf(&[
+            "sim",
+            "--override",
+            pct,
+            program.to_str().unwrap(),
+            "--out",
+            csv.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let (_, rows) = read_csv(&csv);
+        let peak = rows.iter().map(|r| r[5]).fold(0.0, f64::max);
+        let want = 50.0 * pct.parse::<f64>().unwrap() / 100.0;
+        assert!(
+            peak > 0.99 * want && peak <= want * (1.0 + 1e-9),
+            "{pct} %: peak {peak} mm/s"
+        );
+        durations.push(rows.last().unwrap()[0]);
+    }
+    // 62.8 mm at 50, 75 and 100 mm/s plus the ramps.
+    assert!(
+        durations[0] > 1.25 && durations[1] < 0.95 && durations[2] < 0.8,
+        "{durations:?}"
+    );
+}
