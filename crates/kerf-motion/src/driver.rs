@@ -344,39 +344,12 @@ where
     I: IntoIterator<Item = Move>,
     F: FnMut(f64, &Setpoint),
 {
-    let mut core = MotionCore::new(*limits, options.capacity);
-    core.set_feed_override(options.feed_override);
-    let mut runner = Runner {
-        core,
-        period_s: limits.period_s,
-        sink,
-        cycle: 0,
-        events: &options.events,
-        next_event: 0,
-        hist: [[0.0; 6]; 4],
-        hist_len: 0,
-        summary: Summary::default(),
-        curves: Vec::new(),
-        lines: Vec::new(),
-        cursor: 0,
-        last_result: StepResult::Idle,
-        max_cycles: options.max_cycles,
-        aborted: false,
-    };
-    let mut start = Setpoint::default();
-    runner.record(&mut start);
-    (runner.sink)(0.0, &start);
+    let mut runner = Runner::new(limits, options, sink);
     let mut planner = Planner::new(*limits);
     planner.set_design_override(options.feed_override);
     let mut buf = Vec::new();
     for mv in moves {
-        if let Some((s, e)) = mv.abc_deg {
-            if s != e {
-                runner.summary.rotary_used = true;
-            }
-        }
-        runner.curves.push(Programmed::new(&mv.path));
-        runner.lines.push(mv.line);
+        runner.add_move(&mv);
         planner.push(&mv, &mut buf)?;
         for seg in buf.drain(..) {
             runner.push(&seg)?;
@@ -386,21 +359,127 @@ where
     for seg in buf.drain(..) {
         runner.push(&seg)?;
     }
-    loop {
-        if runner.cycle >= runner.max_cycles {
-            break;
+    Ok(runner.finish())
+}
+
+/// Segments per message from the planning thread of [`run_parallel`].
+const BATCH: usize = 256;
+
+/// A batch of planned segments, each with the number of moves the planner had taken when
+/// it produced the segment (so that the deviation check sees the same moves as in
+/// [`run`]), or the error that stopped planning.
+type Batch = Result<Vec<(PlannedSegment, usize)>, PlanError>;
+
+/// [`run`] with the planner on a second thread: the same setpoints, bit for bit (the
+/// feeding policy only depends on the order of the segments), in less wall time when a
+/// second core is free. For programs held in memory (`kerf sim`).
+pub fn run_parallel<F>(
+    moves: &[Move],
+    limits: &MachineLimits,
+    options: &RunOptions,
+    sink: F,
+) -> Result<Summary, RunError>
+where
+    F: FnMut(f64, &Setpoint),
+{
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Batch>(4);
+    let design_override = options.feed_override;
+    std::thread::scope(|scope| {
+        scope.spawn(move || {
+            let mut planner = Planner::new(*limits);
+            planner.set_design_override(design_override);
+            let mut buf = Vec::new();
+            let mut batch = Vec::with_capacity(BATCH);
+            for (k, mv) in moves.iter().enumerate() {
+                if let Err(e) = planner.push(mv, &mut buf) {
+                    let _ = tx.send(Err(e));
+                    return;
+                }
+                batch.extend(buf.drain(..).map(|s| (s, k + 1)));
+                if batch.len() >= BATCH {
+                    let full = std::mem::replace(&mut batch, Vec::with_capacity(BATCH));
+                    if tx.send(Ok(full)).is_err() {
+                        return;
+                    }
+                }
+            }
+            planner.finish(&mut buf);
+            batch.extend(buf.drain(..).map(|s| (s, moves.len())));
+            let _ = tx.send(Ok(batch));
+        });
+        let mut runner = Runner::new(limits, options, sink);
+        let mut known = 0;
+        for batch in rx {
+            for (seg, moves_known) in batch? {
+                while known < moves_known {
+                    runner.add_move(&moves[known]);
+                    known += 1;
+                }
+                runner.push(&seg)?;
+            }
         }
-        let r = runner.step();
-        let events_left = runner.next_event < runner.events.len();
-        match r {
-            StepResult::Moving => {}
-            StepResult::Idle if !events_left => break,
-            StepResult::Held if !events_left => break,
-            _ => {}
-        }
+        // Dropping the receiver (on an error above) ends the planning thread's sends.
+        Ok(runner.finish())
+    })
+}
+
+impl<'a, F: FnMut(f64, &Setpoint)> Runner<'a, F> {
+    fn new(limits: &MachineLimits, options: &'a RunOptions, sink: F) -> Self {
+        let mut core = MotionCore::new(*limits, options.capacity);
+        core.set_feed_override(options.feed_override);
+        let mut runner = Runner {
+            core,
+            period_s: limits.period_s,
+            sink,
+            cycle: 0,
+            events: &options.events,
+            next_event: 0,
+            hist: [[0.0; 6]; 4],
+            hist_len: 0,
+            summary: Summary::default(),
+            curves: Vec::new(),
+            lines: Vec::new(),
+            cursor: 0,
+            last_result: StepResult::Idle,
+            max_cycles: options.max_cycles,
+            aborted: false,
+        };
+        let mut start = Setpoint::default();
+        runner.record(&mut start);
+        (runner.sink)(0.0, &start);
+        runner
     }
-    runner.summary.cycles = runner.cycle;
-    runner.summary.duration_s = runner.cycle as f64 * runner.period_s;
-    runner.summary.plan_failures = runner.core.plan_failures();
-    Ok(runner.summary)
+
+    /// Records a programmed move for the deviation check.
+    fn add_move(&mut self, mv: &Move) {
+        if let Some((s, e)) = mv.abc_deg {
+            if s != e {
+                self.summary.rotary_used = true;
+            }
+        }
+        self.curves.push(Programmed::new(&mv.path));
+        self.lines.push(mv.line);
+    }
+
+    /// Steps until the motion is at rest after the last segment (and every event is
+    /// applied), and returns the summary.
+    fn finish(mut self) -> Summary {
+        loop {
+            if self.cycle >= self.max_cycles {
+                break;
+            }
+            let r = self.step();
+            let events_left = self.next_event < self.events.len();
+            match r {
+                StepResult::Moving => {}
+                StepResult::Idle if !events_left => break,
+                StepResult::Held if !events_left => break,
+                _ => {}
+            }
+        }
+        self.summary.cycles = self.cycle;
+        self.summary.duration_s = self.cycle as f64 * self.period_s;
+        self.summary.plan_failures = self.core.plan_failures();
+        self.summary
+    }
 }

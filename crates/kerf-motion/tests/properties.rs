@@ -790,3 +790,31 @@ fn measured_deviation_matches_a_brute_force_check() {
         assert!(brute <= limits.tolerance_mm.max(ptol) + 1e-9, "case {case}");
     }
 }
+
+#[test]
+fn planning_on_a_second_thread_gives_the_same_setpoints() {
+    use kerf_motion::driver::run_parallel;
+    let mut rng = Rng(0x7417_ead5_5eed_000b);
+    for case in 0..12 {
+        let limits = random_limits(&mut rng);
+        let n = 20 + rng.pick(400);
+        let moves = match case % 3 {
+            0 => random_program(&mut rng, n).0,
+            1 => rounded_polylines(&mut rng, n).0,
+            _ => surface_passes(&mut rng, n),
+        };
+        let opts = RunOptions {
+            capacity: 4 + rng.pick(200),
+            ..RunOptions::default()
+        };
+        let mut a: Vec<(f64, Setpoint)> = Vec::new();
+        let mut b: Vec<(f64, Setpoint)> = Vec::new();
+        let sa = run(moves.iter().copied(), &limits, &opts, |t, sp| {
+            a.push((t, *sp))
+        })
+        .unwrap();
+        let sb = run_parallel(&moves, &limits, &opts, |t, sp| b.push((t, *sp))).unwrap();
+        assert_eq!(a, b, "case {case}");
+        assert_eq!(sa, sb, "case {case}");
+    }
+}

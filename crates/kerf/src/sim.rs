@@ -12,6 +12,10 @@
 //!
 //! The moves are collected before the run because the CSV header depends on whether any
 //! move drives a rotary axis; the simulator is an offline tool, so that memory is fine.
+//! Three threads share the work: the planner ([`kerf_motion::driver::run_parallel`]), the
+//! motion core with the measurements, and the CSV formatting. The output is the same, byte
+//! for byte, as with everything on one thread (the feeding policy depends only on the
+//! order of the segments; a test compares the two).
 
 use std::fmt;
 use std::io::{self, BufWriter, Write};
@@ -142,7 +146,7 @@ pub fn simulate_with<F: FnMut(f64, &Setpoint)>(
         events: options.events.clone(),
         max_cycles: u64::MAX,
     };
-    let raw = driver::run(moves.iter().copied(), limits, &run_options, row)?;
+    let raw = driver::run_parallel(moves, limits, &run_options, row)?;
     let mut axes = Vec::new();
     for i in 0..6 {
         if i >= 3 && !raw.rotary_used {
@@ -169,7 +173,7 @@ pub fn simulate_with<F: FnMut(f64, &Setpoint)>(
 }
 
 /// Runs `moves` with the machine of `config` and writes the CSV to `out`.
-pub fn simulate<W: Write>(
+pub fn simulate<W: Write + Send>(
     moves: &[Move],
     config: &Config,
     options: &SimOptions,
@@ -180,7 +184,7 @@ pub fn simulate<W: Write>(
 
 /// [`simulate`], and with `plot` also draws the toolpath and the feed, acceleration and
 /// jerk over time as an SVG image into it (for `kerf sim --plot FILE.svg`).
-pub fn simulate_and_plot<W: Write>(
+pub fn simulate_and_plot<W: Write + Send>(
     moves: &[Move],
     config: &Config,
     options: &SimOptions,
@@ -189,33 +193,59 @@ pub fn simulate_and_plot<W: Write>(
 ) -> Result<SimSummary, SimError> {
     let limits = machine_limits(config);
     let rotary = moves.iter().any(|m| m.abc_deg.is_some_and(|(s, e)| s != e));
-    let mut w = BufWriter::new(out);
-    if rotary {
-        writeln!(w, "t,x,y,z,a,b,c,line,feed_mm_s")?;
-    } else {
-        writeln!(w, "t,x,y,z,line,feed_mm_s")?;
-    }
-    let mut error: Option<io::Error> = None;
     let mut recorder = plot.is_some().then(|| PlotRecorder::new(&limits));
-    let summary = simulate_with(moves, &limits, options, |t, sp| {
-        if error.is_none() {
-            if let Err(e) = write_row(&mut w, t, sp, rotary) {
-                error = Some(e);
+    // The rows are formatted and written on a second thread, in chunks: at a 1 ms period
+    // the text is a large share of a simulation's work.
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<(f64, Setpoint)>>(4);
+    let (summary, written) = std::thread::scope(|scope| {
+        let writer = scope.spawn(move || -> io::Result<()> {
+            let mut w = BufWriter::new(out);
+            if rotary {
+                writeln!(w, "t,x,y,z,a,b,c,line,feed_mm_s")?;
+            } else {
+                writeln!(w, "t,x,y,z,line,feed_mm_s")?;
             }
+            for chunk in rx {
+                for (t, sp) in &chunk {
+                    write_row(&mut w, *t, sp, rotary)?;
+                }
+            }
+            w.flush()
+        });
+        let mut chunk = Vec::with_capacity(ROWS_PER_CHUNK);
+        let mut writer_gone = false;
+        let summary = simulate_with(moves, &limits, options, |t, sp| {
+            chunk.push((t, *sp));
+            if chunk.len() == ROWS_PER_CHUNK && !writer_gone {
+                let full = std::mem::replace(&mut chunk, Vec::with_capacity(ROWS_PER_CHUNK));
+                // A send fails only when the writer stopped on an I/O error (reported below).
+                writer_gone = tx.send(full).is_err();
+            } else if chunk.len() == ROWS_PER_CHUNK {
+                chunk.clear();
+            }
+            if let Some(r) = recorder.as_mut() {
+                r.push(t, sp);
+            }
+        });
+        if !writer_gone && !chunk.is_empty() {
+            let _ = tx.send(chunk);
         }
-        if let Some(r) = recorder.as_mut() {
-            r.push(t, sp);
-        }
-    })?;
-    if let Some(e) = error {
-        return Err(e.into());
-    }
-    w.flush()?;
+        drop(tx);
+        let written = writer
+            .join()
+            .unwrap_or_else(|_| Err(io::Error::other("the CSV writer panicked")));
+        (summary, written)
+    });
+    let summary = summary?;
+    written?;
     if let (Some(out), Some(r)) = (plot, recorder) {
         r.write_svg(out)?;
     }
     Ok(summary)
 }
+
+/// Rows per chunk handed to the CSV writer thread.
+const ROWS_PER_CHUNK: usize = 4096;
 
 /// One plotted sample (single precision keeps long runs small).
 #[derive(Clone, Copy, Debug)]
