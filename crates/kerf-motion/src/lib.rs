@@ -71,7 +71,7 @@ pub mod driver;
 
 /// Sections merge segments whose acceleration and jerk limits are at least this fraction
 /// of the first one's.
-pub const MERGE_RATIO: f64 = 0.9;
+pub const MERGE_RATIO: f64 = 0.8;
 /// Sections merge segments whose jerk limit is at least this fraction of the first one's.
 /// It is looser than [`MERGE_RATIO`]: a section boundary costs a return to `a = 0`, which
 /// in the middle of a speed ramp is a stall of tens of milliseconds, while running a

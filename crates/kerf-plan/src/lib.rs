@@ -124,6 +124,11 @@ const LIMIT_SAMPLES: usize = 512;
 const PIECE_LIMIT_SAMPLES: usize = 128;
 /// Safety factor on the sampled curvature bounds of a transition.
 pub const LIMIT_SAFETY: f64 = 1.1;
+/// Safety factor on the sampled curvature of a transition. The curvature itself is
+/// sampled directly (its derivative by finite differences, hence the larger
+/// [`LIMIT_SAFETY`]); between samples of a smooth quintic it cannot rise by more than a
+/// fraction of a per cent.
+pub const CURVATURE_SAFETY: f64 = 1.02;
 /// Parameter scales tried for a G2 corner blend, as multiples of its chord (measured: 1.2
 /// is quickest for 90°, 1.0 for shallow turns, the larger ones for reversals).
 pub const G2_LAMBDA_RATIOS: [f64; 3] = [1.0, 1.2, 1.5];
@@ -1497,10 +1502,10 @@ fn transition_bounds(t: &Transition, samples: usize) -> TransitionBounds {
     }
     for ax in 0..3 {
         b.tangent[ax] = (b.tangent[ax] * 1.001).min(1.0);
-        b.curvature[ax] *= LIMIT_SAFETY;
+        b.curvature[ax] *= CURVATURE_SAFETY;
         b.curvature_rate[ax] *= LIMIT_SAFETY;
     }
-    b.kappa *= LIMIT_SAFETY;
+    b.kappa *= CURVATURE_SAFETY;
     b.kappa_rate *= LIMIT_SAFETY;
     if let Some(normal) = plane_normal(&t.coef) {
         for ax in 0..3 {
