@@ -326,8 +326,6 @@ struct RunState {
     committed: bool,
     /// The last move of the run.
     last: Pending,
-    /// Feed, path units/s.
-    feed: f64,
     /// Tolerance, mm.
     tol: f64,
     /// The programmed tolerance (`None`: the configured one), which members must share.
@@ -350,13 +348,12 @@ impl RunState {
             unreachable!("checked by RunState::starts")
         };
         let mut run = smooth::Run::new(p.mv.path.start(), start_frame, tol);
-        run.push(p.mv.path.end(), p.mv.line, p.move_index);
+        run.push(p.mv.path.end(), p.mv.line, p.move_index, feed_of(&p.mv));
         RunState {
             run,
             buffered: vec![p],
             committed: false,
             last: p,
-            feed: feed_of(&p.mv),
             tol,
             tol_mm: tolerance_mm,
             abc: p.abc_start,
@@ -370,7 +367,6 @@ impl RunState {
                 tolerance_mm: self.tol_mm,
             })
             || !smoothable(p)
-            || feed_of(&p.mv) != self.feed
             || p.abc_start != self.abc
             || (p.mv.path.start() - self.run.end()).norm() > MIN_SEGMENT_MM
         {
@@ -384,7 +380,8 @@ impl RunState {
     }
 
     fn add(&mut self, p: Pending) {
-        self.run.push(p.mv.path.end(), p.mv.line, p.move_index);
+        self.run
+            .push(p.mv.path.end(), p.mv.line, p.move_index, feed_of(&p.mv));
         if !self.committed {
             self.buffered.push(p);
         }
@@ -568,9 +565,9 @@ impl Planner {
         }
         let Some(run) = self.run.as_mut() else { return };
         let mut pieces = std::mem::take(&mut self.pieces);
-        let (feed, abc) = (run.feed, run.abc);
+        let abc = run.abc;
         run.run.emit(false, None, &mut pieces);
-        self.emit_pieces(&mut pieces, feed, abc, None, out);
+        self.emit_pieces(&mut pieces, abc, None, out);
         self.pieces = pieces;
     }
 
@@ -594,7 +591,14 @@ impl Planner {
                 self.emit_move(&prev, out);
             }
         }
+        let blended = matches!(run.last.mv.corner, CornerMode::Blend { .. });
+        // A line that starts another run (the feed or tolerance changed, or a turn too
+        // sharp for this run) is not matched: the run ends on its fitted frame, and the
+        // next run starts on that frame where the turn fits, so a curve split into two
+        // runs stays curvature-continuous.
+        let next_run = next.filter(|n| blended && RunState::starts(n, &self.limits).is_some());
         let end_frame = match (run.last.mv.corner, next) {
+            _ if next_run.is_some() => None,
             (CornerMode::Blend { .. }, Some(n)) => {
                 let first = next_start_frame(n);
                 first.filter(|f| {
@@ -608,8 +612,14 @@ impl Planner {
         let mut pieces = std::mem::take(&mut self.pieces);
         run.run.emit(true, end_frame, &mut pieces);
         let corner = run.last.mv.corner;
-        self.emit_pieces(&mut pieces, run.feed, run.abc, Some(corner), out);
+        self.emit_pieces(&mut pieces, run.abc, Some(corner), out);
         self.pieces = pieces;
+        if let Some(n) = next_run {
+            return run
+                .run
+                .end_frame()
+                .filter(|f| turn_fits(f.tangent, line_dir(n), line_len(n), run.tol));
+        }
         end_frame
     }
 
@@ -618,7 +628,6 @@ impl Planner {
     fn emit_pieces(
         &mut self,
         pieces: &mut Vec<smooth::Emitted>,
-        feed: f64,
         abc: [f64; 3],
         last_corner: Option<CornerMode>,
         out: &mut Vec<PlannedSegment>,
@@ -637,7 +646,7 @@ impl Planner {
                 line: e.line,
                 move_index: e.move_index,
                 move_count: e.move_count,
-                feed,
+                feed: e.feed,
                 v_max: 0.0,
                 accel: 0.0,
                 jerk: 0.0,

@@ -10,8 +10,8 @@
 //! what serious controls do with such code (a "compressor").
 //!
 //! How:
-//! - **Runs.** Consecutive feed lines join a run while they have the same feed and
-//!   tolerance, blend mode, no rotary motion, length up to [`MAX_SEGMENT_MM`], and at every
+//! - **Runs.** Consecutive feed lines join a run while they have the same tolerance
+//!   (feeds may differ: a piece runs at the lowest feed of the moves it covers), blend mode, no rotary motion, length up to [`MAX_SEGMENT_MM`], and at every
 //!   vertex a turn of at most [`MAX_TURN_RAD`] whose sag `L·θ/8` (how far a smooth curve
 //!   through the vertices lies from the longer adjacent line) is at most
 //!   [`SAG_TOL_SHARE`] of the tolerance. Coarse polygons fail that test and keep their
@@ -69,6 +69,8 @@ struct Vertex {
     line: u32,
     /// Index of the move ending here.
     move_index: u64,
+    /// Programmed feed of the move ending here, mm/s.
+    feed: f64,
 }
 
 /// Position, unit tangent and curvature vector at a knot.
@@ -106,6 +108,8 @@ pub(crate) struct Emitted {
     pub line: u32,
     pub move_index: u64,
     pub move_count: u32,
+    /// The lowest programmed feed of those moves, mm/s.
+    pub feed: f64,
 }
 
 /// The vertices of the current run and the knot the next piece starts from.
@@ -133,6 +137,7 @@ impl Run {
                 sigma: 0.0,
                 line: 0,
                 move_index: 0,
+                feed: f64::INFINITY,
             }],
             base: 0,
             knot: None,
@@ -163,14 +168,15 @@ impl Run {
         }
     }
 
-    /// Appends the segment to `q` of move (`line`, `move_index`).
-    pub fn push(&mut self, q: Vec3, line: u32, move_index: u64) {
+    /// Appends the segment to `q` of move (`line`, `move_index`) at `feed` (mm/s).
+    pub fn push(&mut self, q: Vec3, line: u32, move_index: u64, feed: f64) {
         let last = self.verts[self.verts.len() - 1];
         self.verts.push(Vertex {
             p: q,
             sigma: last.sigma + (q - last.p).norm(),
             line,
             move_index,
+            feed,
         });
     }
 
@@ -282,12 +288,24 @@ impl Run {
 
     fn emitted(&self, ia: u64, ib: u64, piece: Piece) -> Emitted {
         let first = self.v(ia + 1);
+        let feed = (ia + 1..=ib)
+            .map(|k| self.v(k).feed)
+            .fold(f64::INFINITY, f64::min);
         Emitted {
             piece,
             line: first.line,
             move_index: first.move_index,
             move_count: (ib - ia).min(u32::MAX as u64) as u32,
+            feed,
         }
+    }
+
+    /// The tangent and curvature the run ended with (after the final [`Run::emit`]).
+    pub fn end_frame(&self) -> Option<EndFrame> {
+        self.knot.map(|k| EndFrame {
+            tangent: k.t,
+            curvature: k.k,
+        })
     }
 
     /// The quintic between two knots if it stays within the tolerance of the polyline.
@@ -720,5 +738,58 @@ mod tests {
         assert!(most <= 2 * DROP_ABOVE + 1, "{most}");
         let covered: u64 = out.iter().map(|s| s.move_count as u64).sum();
         assert_eq!(covered as usize, moves.len());
+    }
+
+    #[test]
+    fn feed_and_tolerance_changes_keep_the_curve_smooth() {
+        // The rounded circle with the feed alternating between F6000 and F5900 every 50
+        // moves and the tolerance between 0.01 and 0.02 mm every 300 moves: a feed change
+        // does not end a run (a piece takes the lowest feed of its moves); a tolerance
+        // change does, and the next run starts on the frame the previous one ended with.
+        let pts = rounded_circle(3600, 4, 1.0);
+        let mut moves = lines(&pts, 6000.0);
+        for (k, m) in moves.iter_mut().enumerate() {
+            if (k / 50) % 2 == 1 {
+                m.feed_mm_min = Some(5900.0);
+            }
+            let tol = if (k / 300) % 2 == 0 { 0.01 } else { 0.02 };
+            m.corner = CornerMode::Blend {
+                tolerance_mm: Some(tol),
+            };
+        }
+        let segs = plan(&moves);
+        for (k, s) in segs.iter().enumerate() {
+            let first = s.move_index as usize;
+            let covered = &moves[first..first + s.move_count as usize];
+            let lowest = covered
+                .iter()
+                .map(|m| m.feed_mm_min.unwrap() / 60.0)
+                .fold(f64::INFINITY, f64::min);
+            assert_eq!(s.feed, lowest, "piece {k}");
+            if k + 1 < segs.len() {
+                let a = s.curve.eval(s.length);
+                let b = segs[k + 1].curve.eval(0.0);
+                assert!((a.tangent - b.tangent).norm() < 1e-12, "joint {k}");
+                assert!((a.curvature - b.curvature).norm() < 1e-12, "joint {k}");
+                assert!(s.end_cap >= 0.999 * s.v_max.min(segs[k + 1].v_max));
+            }
+            for i in 0..=100 {
+                let q = s.curve.point_at(s.length * i as f64 / 100.0);
+                assert!(polyline_distance(&q, &pts) <= 0.01, "piece {k}");
+            }
+        }
+        // A run ends at every tolerance change (11 of them): a move's corner mode (its
+        // tolerance) governs the joint at its end, so the first move with the new
+        // tolerance still ends the old run, and a piece starts right after it.
+        let tol_changes: Vec<usize> = (1..moves.len())
+            .filter(|&k| moves[k].corner != moves[k - 1].corner)
+            .collect();
+        assert_eq!(tol_changes.len(), 11);
+        for k in tol_changes {
+            assert!(
+                segs.iter().any(|s| s.move_index as usize == k + 1),
+                "no piece starts after move {k}"
+            );
+        }
     }
 }
