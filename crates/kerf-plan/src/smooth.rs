@@ -10,19 +10,21 @@
 //! what serious controls do with such code (a "compressor").
 //!
 //! How:
-//! - **Runs.** Consecutive feed lines join a run while they have the same tolerance
-//!   (feeds may differ: a piece runs at the lowest feed of the moves it covers), blend mode, no rotary motion, length up to [`MAX_SEGMENT_MM`], and at every
-//!   vertex a turn of at most [`MAX_TURN_RAD`] whose sag `L·θ/8` (how far a smooth curve
-//!   through the vertices lies from the longer adjacent line) is at most
-//!   [`SAG_TOL_SHARE`] of the tolerance. Coarse polygons fail that test and keep their
-//!   corner blends. Runs of fewer than [`MIN_RUN_MOVES`] moves are left alone.
+//! - **Runs.** Consecutive feed lines join a run while they have the same tolerance (feeds
+//!   may differ: a piece runs at the lowest feed of the moves it covers), blend mode, no
+//!   rotary motion, length up to [`MAX_SEGMENT_MM`], and at every vertex a turn of at most
+//!   [`MAX_TURN_RAD`] whose sag `L·θ/8` (how far a smooth curve through the vertices lies
+//!   from the longer adjacent line) is at most [`SAG_TOL_SHARE`] of the tolerance. Coarse
+//!   polygons fail that test and keep their corner blends. Runs of fewer than
+//!   [`MIN_RUN_MOVES`] moves are left alone.
 //! - **Knots** are vertices of the polyline, every [`WINDOW_MM`] or less of chord length.
 //!   At a knot the unit tangent and the curvature vector come from a weighted least-squares
-//!   quadratic through the vertices within a window around it (biweight weights in chord
-//!   length, at least two vertices each side): rounding noise averages out over the window.
-//!   The window halves (down to two vertices each side) until the quadratic explains every
-//!   vertex in it within [`RESIDUAL_TOL_SHARE`] of the tolerance, so that it does not
-//!   reach across a change of shape.
+//!   cubic through the vertex, fitted to the vertices within a window around it (biweight
+//!   weights in chord length, uniform for the one-sided window at a run end; at least two
+//!   vertices each side): rounding noise averages out over the window. The window halves
+//!   (down to two vertices each side) until the cubic explains every vertex in it within
+//!   [`RESIDUAL_TOL_SHARE`] of the tolerance, so that it does not reach across a change
+//!   of shape.
 //! - **Pieces** between consecutive knots are quintic Hermite curves
 //!   ([`kerf_geom::Transition`]) matching position, tangent and curvature at both knots, so
 //!   the chain is curvature-continuous and the joints cost no speed. Each piece is sampled
@@ -32,7 +34,9 @@
 //! - **Run ends** are exact vertices. Where the move before or after the run is a feed
 //!   move it joins within [`MAX_TURN_RAD`], the end knot takes that move's tangent and
 //!   curvature, so a line or arc leading into dense code is joined without a kink or a
-//!   curvature step; otherwise the end knot comes from a one-sided fit.
+//!   curvature step; where the next move starts another run (a tolerance change), the run
+//!   ends on its fitted frame and the next one starts on it; otherwise the end knot comes
+//!   from a one-sided fit (and the joint is a corner).
 //! - **Streaming.** Pieces are emitted once the data their knots depend on has arrived, and
 //!   vertices behind the current knot are dropped, so memory is bounded by the window, not
 //!   by the program.
@@ -53,7 +57,7 @@ pub const SAG_TOL_SHARE: f64 = 0.5;
 pub const MIN_RUN_MOVES: usize = 8;
 /// Half-width of the widest fitting window, and the longest piece, mm of chord.
 pub const WINDOW_MM: f64 = 2.0;
-/// Largest residual of the window's quadratic, as a share of the tolerance.
+/// Largest residual of the window's cubic, as a share of the tolerance.
 pub const RESIDUAL_TOL_SHARE: f64 = 0.25;
 /// Growth of the buffer between tries to drop the vertices behind the current knot.
 const DROP_ABOVE: usize = 4096;
@@ -315,8 +319,10 @@ impl Run {
             return None;
         }
         let tr = Transition::hermite(ka.p, ka.t, ka.k, kb.p, kb.t, kb.k, chord)?;
+        // Three samples per line it replaces, and at least one per 0.05 mm (between
+        // samples the distance to a line changes by spacing² · κ / 8 at most).
         let segments = (kb.idx - ka.idx) as usize;
-        let n = (3 * segments).clamp(32, 512);
+        let n = (3 * segments).max((chord / 0.05) as usize).clamp(32, 1024);
         let limit = TRANSITION_TOL_SHARE * self.tol;
         let mut cursor = ka.idx;
         for i in 1..n {
@@ -353,7 +359,7 @@ impl Run {
         best
     }
 
-    /// Tangent and curvature at vertex `idx` from the widest window whose quadratic explains
+    /// Tangent and curvature at vertex `idx` from the widest window whose cubic explains
     /// its vertices.
     fn fit_knot(&self, idx: u64) -> Knot {
         let first = self.base;
@@ -366,7 +372,7 @@ impl Run {
         let mut w = WINDOW_MM.max(w_min);
         let mut fit = None;
         loop {
-            let f = self.quadratic(idx, w);
+            let f = self.local_fit(idx, w);
             let good = f.map(|f| f.residual <= RESIDUAL_TOL_SHARE * self.tol);
             if f.is_some() {
                 fit = f;
@@ -405,7 +411,7 @@ impl Run {
     /// from the vertex) over the vertices within `w` (biweight), constrained through the
     /// vertex. The cubic term keeps the curvature of a circle from leaking into the
     /// residual, so windows stay wide on arcs.
-    fn quadratic(&self, idx: u64, w: f64) -> Option<Quadratic> {
+    fn local_fit(&self, idx: u64, w: f64) -> Option<LocalFit> {
         let s0 = self.v(idx).sigma;
         let p0 = self.v(idx).p;
         let w = w * 1.000_001;
@@ -456,7 +462,7 @@ impl Run {
             let fit = p0 + d1 * x + d2 * (0.5 * x * x) + d3 * (x * x * x / 6.0);
             residual = residual.max((fit - v.p).norm());
         }
-        Some(Quadratic { d1, d2, residual })
+        Some(LocalFit { d1, d2, residual })
     }
 
     /// The last vertex within chord distance `w` of `idx` on one side.
@@ -496,8 +502,9 @@ impl Run {
     }
 }
 
+/// The first two derivatives of a local fit at its vertex, and its largest residual.
 #[derive(Clone, Copy, Debug)]
-struct Quadratic {
+struct LocalFit {
     d1: Vec3,
     d2: Vec3,
     residual: f64,

@@ -838,3 +838,46 @@ fn sim_override_above_100_speeds_up_arcs_too() {
         "{durations:?}"
     );
 }
+
+#[test]
+fn sim_of_the_pocket_is_the_same_in_all_five_dialects() {
+    // The pocket written for each control resolves to the same moves (to rounding), so the
+    // setpoints agree row for row: same times, positions and feeds within 1e-9.
+    let mut all = Vec::new();
+    for (dialect, file) in [
+        ("linuxcnc", "linuxcnc/pocket.ngc"),
+        ("rockwell", "rockwell/pocket.nc"),
+        ("sinumerik", "sinumerik/pocket.mpf"),
+        ("heidenhain", "heidenhain/pocket.h"),
+        ("fagor", "fagor/pocket.pim"),
+    ] {
+        let program = root().join("tests/data/programs").join(file);
+        let csv = Path::new(env!("CARGO_TARGET_TMPDIR"))
+            .join(format!("kerf-cli-tests/sim-pocket-{dialect}.csv"));
+        let out = kerf(&[
+            "sim",
+            "--dialect",
+            dialect,
+            program.to_str().unwrap(),
+            "--out",
+            csv.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{dialect}: {}", stderr(&out));
+        all.push((dialect, read_csv(&csv).1));
+    }
+    let (_, reference) = &all[0];
+    assert!(reference.len() > 10_000);
+    for (dialect, rows) in &all[1..] {
+        assert_eq!(rows.len(), reference.len(), "{dialect}");
+        for (a, b) in rows.iter().zip(reference) {
+            assert_eq!(a[0], b[0], "{dialect}: time");
+            for c in [1, 2, 3, 5] {
+                assert!(
+                    (a[c] - b[c]).abs() < 1e-9,
+                    "{dialect} at t = {}: {a:?} {b:?}",
+                    a[0]
+                );
+            }
+        }
+    }
+}
