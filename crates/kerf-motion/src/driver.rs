@@ -232,12 +232,14 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
         let lo = i.saturating_sub(1);
         let hi = (i + count.max(1) as usize).min(last);
         let mut best = f64::INFINITY;
-        for k in lo..=(i + 1).min(hi) {
-            best = best.min(self.curves[k].distance_to(p));
-        }
         if count <= 1 {
+            for k in lo..=(i + 1).min(hi) {
+                best = best.min(self.curves[k].distance_to(p));
+            }
             return (best, i);
         }
+        // A piece: its predecessor, then its own moves from the one passed last.
+        best = self.curves[lo].distance_to(p);
         let from = if (i..=hi).contains(&self.cursor) {
             self.cursor
         } else {
