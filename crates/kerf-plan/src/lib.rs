@@ -592,10 +592,10 @@ impl Planner {
             }
         }
         let blended = matches!(run.last.mv.corner, CornerMode::Blend { .. });
-        // A line that starts another run (the feed or tolerance changed, or a turn too
-        // sharp for this run) is not matched: the run ends on its fitted frame, and the
-        // next run starts on that frame where the turn fits, so a curve split into two
-        // runs stays curvature-continuous.
+        // A line that starts another run (the tolerance changed, or the turn or sag at
+        // the joint is too much for this run) is not matched: the run ends on its fitted
+        // frame, and the next run starts on that frame where the turn fits, so a curve
+        // split into two runs stays curvature-continuous.
         let next_run = next.filter(|n| blended && RunState::starts(n, &self.limits).is_some());
         let end_frame = match (run.last.mv.corner, next) {
             _ if next_run.is_some() => None,
