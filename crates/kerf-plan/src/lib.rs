@@ -118,10 +118,10 @@ pub const MIN_REMNANT_MM: f64 = 1e-3;
 /// Longest time a transition slower than a quarter of the neighbours' speed may take, s.
 const MAX_CRAWL_S: f64 = 0.02;
 /// Samples of a transition for its curvature bounds.
-const LIMIT_SAMPLES: usize = 512;
+const LIMIT_SAMPLES: usize = 128;
 /// Samples for the curvature bounds of a smoothed piece that covers several moves: such
 /// pieces are gentle (their curvature follows a fitted window, not a corner).
-const PIECE_LIMIT_SAMPLES: usize = 128;
+const PIECE_LIMIT_SAMPLES: usize = 64;
 /// Safety factor on the sampled curvature bounds of a transition.
 pub const LIMIT_SAFETY: f64 = 1.1;
 /// Safety factor on the sampled curvature of a transition. The curvature itself is
