@@ -881,3 +881,75 @@ fn sim_of_the_pocket_is_the_same_in_all_five_dialects() {
         }
     }
 }
+
+#[test]
+fn sim_of_the_example_part_follows_the_planned_moves_within_the_limits() {
+    // Two commands cross-checked: every row `kerf sim` writes for the bundled part lies
+    // within its G64 P0.01 tolerance of the moves `kerf plan` prints for it, the axes stay
+    // within the bundled limits (200 mm/s, 2000 mm/s², 50000 mm/s³) by finite differences
+    // at the 1 ms period (within 1 %), and the last row is the end of the last move.
+    use kerf_geom::{Arc, Curve, Line, Path as GeomPath, Vec3};
+    let part = root().join("config/examples/part.ngc");
+    let out = kerf(&["plan", part.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v3 = |v: &Value| {
+        let [x, y, z] = triple(v);
+        Vec3::new(x, y, z)
+    };
+    let moves: Vec<Curve> = stdout_lines(&out)
+        .iter()
+        .filter_map(|m| match m["type"].as_str() {
+            Some("line") => Some(Curve::from_path(&GeomPath::Line(Line {
+                start: v3(&m["start"]),
+                end: v3(&m["end"]),
+            }))),
+            Some("arc") => Some(Curve::from_path(&GeomPath::Arc(Arc {
+                start: v3(&m["start"]),
+                end: v3(&m["end"]),
+                center: v3(&m["center"]),
+                axis: v3(&m["axis"]),
+                sweep_rad: m["sweep_rad"].as_f64().unwrap(),
+            }))),
+            _ => None,
+        })
+        .collect();
+    assert!(moves.len() > 20);
+    let csv = Path::new(env!("CARGO_TARGET_TMPDIR")).join("kerf-cli-tests/sim-part.csv");
+    let out = kerf(&[
+        "sim",
+        part.to_str().unwrap(),
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let (_, rows) = read_csv(&csv);
+    let mut k = 0;
+    for row in &rows {
+        let p = Vec3::new(row[1], row[2], row[3]);
+        // The setpoints advance along the moves: search from the last nearest one.
+        let (d, nearest) = (k.max(1) - 1..moves.len())
+            .map(|i| (moves[i].distance_to(&p), i))
+            .fold((f64::INFINITY, k), |a, b| if b.0 < a.0 { b } else { a });
+        assert!(d <= 0.01 + 1e-9, "t = {}: {d} mm off the path", row[0]);
+        k = nearest;
+    }
+    let t = 0.001;
+    let limits = [200.0, 2000.0, 50000.0];
+    for w in rows.windows(4) {
+        for axis in 1..4 {
+            let x = |i: usize| w[i][axis];
+            let v = (x(3) - x(2)) / t;
+            let a = (x(3) - 2.0 * x(2) + x(1)) / (t * t);
+            let j = (x(3) - 3.0 * x(2) + 3.0 * x(1) - x(0)) / (t * t * t);
+            for (value, limit) in [v, a, j].iter().zip(limits) {
+                assert!(
+                    value.abs() <= 1.01 * limit,
+                    "t = {}: axis {axis}: {value} vs {limit}",
+                    w[3][0]
+                );
+            }
+        }
+    }
+    let end = moves.last().unwrap().end();
+    assert_eq!(&rows.last().unwrap()[1..4], &[end.x, end.y, end.z]);
+}
