@@ -43,7 +43,13 @@
 //!   ordinary plan (which is slowing down anyway) runs until the check passes.
 //! - **Override** scales the programmed feed (0–200 %); it re-plans the running section
 //!   from the current state and recomputes the soft lookahead (one pass over the queue, on
-//!   the event). Rapids run at the axis limits whatever the override. Zero override stops
+//!   the event). Curved segments have two levels of limits (see `kerf-plan`): the base
+//!   one for their design speed and a boost one, with lower accelerations, up to the
+//!   speed of the highest override. Each section has a hard lookahead per level; a
+//!   section runs at the boost level only while the override asks for more than its base
+//!   speed, choosing as it starts (or mid-way, when the override rises, once its state is
+//!   within the boost limits and its end is still reachable with them), and keeps that
+//!   level to its end. Stops for a hold use limits valid at both levels. Rapids run at the axis limits whatever the override. Zero override stops
 //!   like a hold; raising it resumes unless the operator holds as well.
 //! - **Continuity** is checked at `push`: a segment must start where the previous one (or,
 //!   on an idle core, the machine) is, within [`CONTINUITY_MM`], or it is refused.
@@ -201,22 +207,63 @@ struct Section {
     feed: f64,
     accel: f64,
     jerk: f64,
+    /// The same for a feed override above 100 % (the segments' `v_boost`,
+    /// `accel_boost`, `jerk_boost`; the accelerations are at most the ones above).
+    v_boost: f64,
+    accel_boost: f64,
+    jerk_boost: f64,
     /// Conservative limits fixed at creation (hard lookahead).
     c_v: f64,
     c_feed: f64,
     c_accel: f64,
     c_jerk: f64,
+    /// The same for the boost level.
+    c_v_boost: f64,
+    c_accel_boost: f64,
+    c_jerk_boost: f64,
     /// Cap at the junction before the section.
     start_cap: f64,
+    /// Hard lookahead at the base level (valid while the section runs with its base limits).
     hard_start: f64,
     hard_end: f64,
+    /// Hard lookahead at the boost level (valid with the boost limits, at any override).
+    hard_start_boost: f64,
+    hard_end_boost: f64,
     soft_start: f64,
     soft_end: f64,
+    /// The level the section runs at, fixed when it starts (see `plan_section_start`).
+    boosted: bool,
 }
 
 impl Section {
-    fn v_eff(&self, ovr: f64) -> f64 {
-        self.v_machine.min(self.feed * ovr)
+    /// Speed limit, acceleration and jerk at a level.
+    fn limits(&self, boosted: bool) -> (f64, f64, f64) {
+        if boosted {
+            (self.v_boost, self.accel_boost, self.jerk_boost)
+        } else {
+            (self.v_machine, self.accel, self.jerk)
+        }
+    }
+
+    /// The hard end speed at a level.
+    fn hard_end_at(&self, boosted: bool) -> f64 {
+        if boosted {
+            self.hard_end_boost
+        } else {
+            self.hard_end
+        }
+    }
+
+    /// Speed at override `ovr` and a level: the machine limit or the scaled feed.
+    fn v_eff(&self, ovr: f64, boosted: bool) -> f64 {
+        self.limits(boosted).0.min(self.feed * ovr)
+    }
+
+    /// The level the section is planned at for override `ovr`: the boost limits only where
+    /// the override asks for more speed than the base level allows and the boost level
+    /// has it (its accelerations are lower, so it is not used otherwise).
+    fn wants_boost(&self, ovr: f64) -> bool {
+        self.v_boost > self.v_machine && self.feed * ovr > self.v_machine
     }
 }
 
@@ -254,6 +301,9 @@ pub struct MotionCore {
     coast_s: f64,
     /// Set when the lookahead raised the running section's end speed.
     replan: bool,
+    /// The running section waits for its acceleration to come down to move to its boost
+    /// level (see `replan_running`).
+    boost_pending: bool,
     mode: Mode,
     abort_requested: bool,
     override_factor: f64,
@@ -355,6 +405,9 @@ impl MotionCore {
             v_max: 0.0,
             accel: 0.0,
             jerk: 0.0,
+            v_boost: 0.0,
+            accel_boost: 0.0,
+            jerk_boost: 0.0,
             end_cap: 0.0,
             blend: false,
         };
@@ -366,15 +419,24 @@ impl MotionCore {
             feed: 0.0,
             accel: 0.0,
             jerk: 0.0,
+            v_boost: 0.0,
+            accel_boost: 0.0,
+            jerk_boost: 0.0,
             c_v: 0.0,
             c_feed: 0.0,
             c_accel: 0.0,
             c_jerk: 0.0,
+            c_v_boost: 0.0,
+            c_accel_boost: 0.0,
+            c_jerk_boost: 0.0,
             start_cap: 0.0,
             hard_start: 0.0,
             hard_end: 0.0,
+            hard_start_boost: 0.0,
+            hard_end_boost: 0.0,
             soft_start: 0.0,
             soft_end: 0.0,
+            boosted: false,
         };
         let mut input = InputParameter::new(None);
         input.min_velocity = Some(DataArrayOrVec::new(None, 0.0));
@@ -404,6 +466,7 @@ impl MotionCore {
             traj_end_v: 0.0,
             coast_s: 0.0,
             replan: false,
+            boost_pending: false,
             mode: Mode::Run,
             abort_requested: false,
             override_factor: 1.0,
@@ -536,6 +599,18 @@ impl MotionCore {
 
         let seg_v = seg.v_max;
         let seg_feed = seg.feed;
+        // The boost level (override above 100 %); a segment without one (older producers,
+        // straight segments) has the base limits there too.
+        let (seg_vb, seg_ab, seg_jb) =
+            if seg.v_boost > seg_v && seg.accel_boost > 0.0 && seg.jerk_boost > 0.0 {
+                (
+                    seg.v_boost,
+                    seg.accel_boost.min(seg.accel),
+                    seg.jerk_boost.min(seg.jerk),
+                )
+            } else {
+                (seg_v, seg.accel, seg.jerk)
+            };
         // The cap at the junction before this segment is the previous segment's end cap.
         let prev_cap = if abs > self.seg_head {
             self.seg(abs - 1).end_cap
@@ -554,6 +629,10 @@ impl MotionCore {
                 && seg.accel >= t.c_accel
                 && seg.jerk >= t.c_jerk
                 && prev_cap >= t.c_v.min(t.c_feed * MAX_OVERRIDE)
+                && seg_vb >= t.c_v_boost
+                && seg_ab >= t.c_accel_boost
+                && seg_jb >= t.c_jerk_boost
+                && prev_cap >= t.c_v_boost.min(t.c_feed * MAX_OVERRIDE)
         };
         if can_merge {
             let t = self.sec_mut(tail - 1);
@@ -564,6 +643,9 @@ impl MotionCore {
             t.feed = t.feed.min(seg_feed);
             t.accel = t.accel.min(seg.accel);
             t.jerk = t.jerk.min(seg.jerk);
+            t.v_boost = t.v_boost.min(seg_vb).min(prev_cap);
+            t.accel_boost = t.accel_boost.min(seg_ab);
+            t.jerk_boost = t.jerk_boost.min(seg_jb);
             self.seg_offset[slot] = offset;
         } else {
             if self.sec_count as usize >= self.secs.len() {
@@ -584,11 +666,20 @@ impl MotionCore {
                 c_feed: MERGE_RATIO_SPEED * seg_feed,
                 c_accel: MERGE_RATIO * seg.accel,
                 c_jerk: MERGE_RATIO_JERK * seg.jerk,
+                v_boost: seg_vb,
+                accel_boost: seg_ab,
+                jerk_boost: seg_jb,
+                c_v_boost: MERGE_RATIO_SPEED * seg_vb,
+                c_accel_boost: MERGE_RATIO * seg_ab,
+                c_jerk_boost: MERGE_RATIO_JERK * seg_jb,
                 start_cap,
                 hard_start: -1.0,
                 hard_end: 0.0,
+                hard_start_boost: -1.0,
+                hard_end_boost: 0.0,
                 soft_start: -1.0,
                 soft_end: 0.0,
+                boosted: false,
             };
             let i = self.sec_slot(tail);
             self.secs[i] = sec;
@@ -617,16 +708,19 @@ impl MotionCore {
         let first = self.sec_head;
         let mut k = self.sec_head + self.sec_count - 1;
         let mut hard_end = 0.0;
+        let mut hard_end_boost = 0.0;
         let mut soft_end = 0.0;
         loop {
             let is_running = k == first && self.running;
             let s = self.sec_mut(k);
             s.hard_end = hard_end;
+            s.hard_end_boost = hard_end_boost;
             s.soft_end = soft_end;
             if is_running {
                 // The running section's limits are frozen; a higher end speed is taken by
                 // re-planning its profile.
-                if hard_end.min(soft_end) > self.traj_end_v * 1.001 + 1e-9 {
+                let hard = s.hard_end_at(s.boosted);
+                if hard.min(soft_end) > self.traj_end_v * 1.001 + 1e-9 {
                     self.replan = true;
                 }
                 break;
@@ -637,19 +731,34 @@ impl MotionCore {
                 .min(s.c_feed * MAX_OVERRIDE)
                 .min(s.start_cap)
                 .min(reach_back(hard_end, d, s.c_accel, s.c_jerk));
-            let soft = s
-                .v_eff(ovr)
+            let hard_boost = s
+                .c_v_boost
+                .min(s.c_feed * MAX_OVERRIDE)
                 .min(s.start_cap)
-                .min(hard)
-                .min(reach_back(soft_end, d, s.accel, s.jerk));
-            let changed = hard != s.hard_start || soft != s.soft_start;
+                .min(reach_back(
+                    hard_end_boost,
+                    d,
+                    s.c_accel_boost,
+                    s.c_jerk_boost,
+                ));
+            let level = s.wants_boost(ovr);
+            let (_, a, j) = s.limits(level);
+            let soft = s
+                .v_eff(ovr, level)
+                .min(s.start_cap)
+                .min(if level { hard_boost } else { hard })
+                .min(reach_back(soft_end, d, a, j));
+            let changed =
+                hard != s.hard_start || hard_boost != s.hard_start_boost || soft != s.soft_start;
             s.hard_start = hard;
+            s.hard_start_boost = hard_boost;
             s.soft_start = soft;
             visited += 1;
             if !changed || k == first || visited >= max_sections {
                 break;
             }
             hard_end = hard;
+            hard_end_boost = hard_boost;
             soft_end = soft;
             k -= 1;
         }
@@ -779,7 +888,9 @@ impl MotionCore {
         if !self.running {
             self.running = true;
             self.plan_section_start();
-        } else if self.replan && matches!(self.mode, Mode::Run | Mode::HoldPending) {
+        } else if (self.replan || self.boost_pending)
+            && matches!(self.mode, Mode::Run | Mode::HoldPending)
+        {
             self.replan_running();
         }
         self.replan = false;
@@ -965,15 +1076,16 @@ impl MotionCore {
     fn end_target(&self, v0: f64, rem: f64) -> (f64, bool) {
         let sec = self.sec(self.sec_head);
         let ovr = self.override_factor;
-        let hard = sec.hard_end;
-        let mut want = sec.soft_end.min(sec.v_eff(ovr)).min(hard);
+        let hard = sec.hard_end_at(sec.boosted);
+        let mut want = sec.soft_end.min(sec.v_eff(ovr, sec.boosted)).min(hard);
         if self.sec_count > 1 {
-            want = want.min(self.sec(self.sec_head + 1).v_eff(ovr));
+            let next = self.sec(self.sec_head + 1);
+            want = want.min(next.v_eff(ovr, next.wants_boost(ovr)));
         } else {
             want = 0.0;
         }
         let d = rem * PLAN_MARGIN;
-        let (a, j) = (sec.accel, sec.jerk);
+        let (_, a, j) = sec.limits(sec.boosted);
         let fits = |v1: f64| change_distance(v0, v1, a, j) <= d;
         if v0 < want {
             return (want.min(reach(v0, d, a, j)), true);
@@ -1007,52 +1119,101 @@ impl MotionCore {
     /// Plans the front section's profile from the current state at its start (or where a
     /// hold left it, at rest).
     fn plan_section_start(&mut self) {
+        self.boost_pending = false;
+        self.choose_level();
         let sec = *self.sec(self.sec_head);
         let v0 = self.v;
         let rem = (sec.length - self.s_local).max(0.0);
         let (target, _) = self.end_target(v0, rem);
-        let vmax = sec.v_eff(self.override_factor).min(sec.v_machine);
+        let (v_machine, accel, jerk) = sec.limits(sec.boosted);
+        let vmax = sec.v_eff(self.override_factor, sec.boosted).min(v_machine);
         let origin = self.s_local;
-        if self.calc(origin, v0, 0.0, rem, target, vmax, sec.accel, sec.jerk) {
+        if self.calc(origin, v0, 0.0, rem, target, vmax, accel, jerk) {
             return;
         }
         self.failures += 1;
         // Entered above the feed: let the profile keep the entry speed as its ceiling.
-        let vmax2 = vmax.max(v0).min(sec.v_machine.max(v0));
-        if self.calc(origin, v0, 0.0, rem, target, vmax2, sec.accel, sec.jerk) {
+        let vmax2 = vmax.max(v0).min(v_machine.max(v0));
+        if self.calc(origin, v0, 0.0, rem, target, vmax2, accel, jerk) {
             return;
         }
         self.failures += 1;
-        let _ = self.calc(origin, v0, 0.0, rem, 0.0, vmax2, sec.accel, sec.jerk);
+        let _ = self.calc(origin, v0, 0.0, rem, 0.0, vmax2, accel, jerk);
+    }
+
+    /// Fixes the level the front section runs at as it starts: the one the override wants
+    /// (see `Section::wants_boost`), if the entry speed is within that level's speed limit
+    /// and hard lookahead, else the other (the previous section ended within the hard
+    /// speed of the level it planned for, so one of them always fits).
+    fn choose_level(&mut self) {
+        let ovr = self.override_factor;
+        let v0 = self.v;
+        let head = self.sec_head;
+        let sec = self.sec_mut(head);
+        let fits = |v: f64, hard: f64| v0 <= v * (1.0 + 1e-9) && v0 <= hard * (1.0 + 1e-9) + 1e-9;
+        let base_ok = fits(sec.v_machine, sec.hard_start);
+        let boost_ok = fits(sec.v_boost, sec.hard_start_boost);
+        sec.boosted = if sec.wants_boost(ovr) {
+            boost_ok || !base_ok
+        } else {
+            !base_ok && boost_ok
+        };
     }
 
     /// Re-plans the running section from the current state (more queue, override).
     fn replan_running(&mut self) {
+        // The override asks for more than the running section's base level allows: move
+        // it to its boost level if the state is within that level's limits (speed and
+        // acceleration) and the end of the section is still reachable with them; else
+        // keep the base level and try again next cycle while the acceleration is too high.
+        self.boost_pending = false;
+        let head = self.sec_head;
+        let sec = *self.sec(head);
+        if !sec.boosted && sec.wants_boost(self.override_factor) {
+            if self.a.abs() <= sec.accel_boost && self.v <= sec.v_boost {
+                self.sec_mut(head).boosted = true;
+                if self.replan_at_level() {
+                    return;
+                }
+                self.sec_mut(head).boosted = false;
+            } else {
+                self.boost_pending = true;
+            }
+        }
+        self.replan_at_level();
+    }
+
+    /// [`MotionCore::replan_running`] at the running section's level; `true` if a new
+    /// profile is running.
+    fn replan_at_level(&mut self) -> bool {
         let sec = *self.sec(self.sec_head);
         let (v0, a0) = (self.v, self.a);
-        let j = sec.jerk;
+        let (v_machine, accel, j) = sec.limits(sec.boosted);
         // Bring the acceleration to zero first, then check reachability from there.
         let tau = a0.abs() / j;
         let v_at = v0 + a0 * a0.abs() / (2.0 * j);
         let d0 = v0 * tau + 0.5 * a0 * tau * tau - a0.signum() * j * tau * tau * tau / 6.0;
         let rem = sec.length - self.s_local;
         if v_at < 0.0 || d0 >= rem || rem <= 0.0 {
-            return;
+            return false;
         }
         let (target, sure) = self.end_target(v_at, rem - d0);
         if !sure {
-            return;
+            return false;
         }
         // The speed still rises to `v_at` while the acceleration comes down: after an
         // override cut that can be above the new feed, and the ceiling must allow it.
         let peak = v0.max(v_at);
-        if peak > sec.v_machine * (1.0 + 1e-9) {
-            return;
+        if peak > v_machine * (1.0 + 1e-9) {
+            return false;
         }
-        let vmax = sec.v_eff(self.override_factor).max(peak);
-        if !self.calc(self.s_local, v0, a0, rem, target, vmax, sec.accel, j) {
+        let vmax = sec.v_eff(self.override_factor, sec.boosted).max(peak);
+        if self.calc(self.s_local, v0, a0, rem, target, vmax, accel, j) {
+            true
+        } else {
             // The previous profile is untouched and still valid.
             self.failures += 1;
+            false
         }
     }
 
@@ -1148,8 +1309,10 @@ impl MotionCore {
         }
         let (v0, a0) = (self.v, self.a);
         let front = *self.sec(self.sec_head);
-        let mut accel = front.accel;
-        let mut jerk = front.jerk;
+        // The front section runs at its level; the later ones may start at either, so the
+        // stop uses the limits valid at both (the boost ones are at most the base ones).
+        let (_, mut accel, mut jerk) = front.limits(front.boosted);
+        let (front_accel, front_jerk) = (accel, jerk);
 
         for _ in 0..3 {
             if !self.calc_brake(v0, a0, accel, jerk) {
@@ -1158,14 +1321,14 @@ impl MotionCore {
             }
             let dist = self.brake_distance();
             // Lowest limits over the sections the stop crosses.
-            let (mut a_min, mut j_min) = (front.accel, front.jerk);
+            let (mut a_min, mut j_min) = (front_accel, front_jerk);
             let mut covered = front.length - self.s_local;
             let mut k = self.sec_head + 1;
             let mut n = 0;
             while covered < dist && k < self.sec_head + self.sec_count && n < MAX_HOLD_SCAN {
                 let s = self.sec(k);
-                a_min = a_min.min(s.accel);
-                j_min = j_min.min(s.jerk);
+                a_min = a_min.min(s.accel).min(s.accel_boost);
+                j_min = j_min.min(s.jerk).min(s.jerk_boost);
                 covered += s.length;
                 k += 1;
                 n += 1;
@@ -1195,12 +1358,21 @@ impl MotionCore {
         let mut n = 0;
         while boundary < dist {
             let s = self.sec(k);
-            if k + 1 >= end || n >= MAX_HOLD_SCAN || s.hard_end < v_peak {
+            // Past the front section the stop runs on limits valid at the boost level.
+            let hard = if k == self.sec_head {
+                s.hard_end_at(s.boosted)
+            } else {
+                s.hard_end_boost
+            };
+            if k + 1 >= end || n >= MAX_HOLD_SCAN || hard < v_peak {
                 ok = false;
                 break;
             }
             let next = self.sec(k + 1);
-            if next.v_machine < v_peak || next.accel < accel || next.jerk < jerk {
+            if next.v_boost < v_peak
+                || next.accel.min(next.accel_boost) < accel
+                || next.jerk.min(next.jerk_boost) < jerk
+            {
                 ok = false;
                 break;
             }

@@ -391,3 +391,77 @@ fn rounded_dense_circle_holds_the_limits() {
     assert!(s.max_deviation_mm <= 0.01, "{}", s.max_deviation_mm);
     assert_eq!(&s.last.position[..3], &[pt(3600).x, pt(3600).y, 0.0]);
 }
+
+#[test]
+fn raising_the_override_mid_arc_speeds_the_arc_up() {
+    // A full circle of radius 10 mm at F3000 (50 mm/s) on the mill: at 100 mm/s the
+    // centripetal acceleration is 1000 mm/s², within the limits, so 200 % may run it at
+    // 100 mm/s. The override goes to 200 % after 0.2 s, while the arc is running; the
+    // planner designed the arc for both (its boost level), so it speeds up at once.
+    let limits = mill(200.0, 2000.0, 50000.0, 0.01);
+    let center = Vec3::new(10.0, 0.0, 0.0);
+    let circle = vec![arc(
+        1,
+        Vec3::zeros(),
+        center,
+        std::f64::consts::TAU,
+        0.0,
+        3000.0,
+    )];
+    let plain = run(circle.clone(), &limits, &RunOptions::default(), |_, _| {}).unwrap();
+    let opts = RunOptions {
+        events: vec![(200, Event::Override(2.0))],
+        ..RunOptions::default()
+    };
+    let mut peak_after: f64 = 0.0;
+    let mut cycle = 0;
+    let s = run(circle, &limits, &opts, |_, sp| {
+        cycle += 1;
+        if cycle > 200 {
+            peak_after = peak_after.max(sp.feed_mm_s);
+        }
+    })
+    .unwrap();
+    assert!(
+        peak_after > 99.0 && peak_after <= 100.0 + 1e-9,
+        "{peak_after}"
+    );
+    assert!(
+        s.duration_s < plain.duration_s - 0.3,
+        "{} vs {}",
+        s.duration_s,
+        plain.duration_s
+    );
+    for i in 0..3 {
+        for f in s.fractions(&limits, i).unwrap() {
+            assert!(f <= 1.01, "axis {i}: {f}");
+        }
+    }
+    assert!(s.max_deviation_mm < 1e-6);
+    assert_eq!(s.plan_failures, 0);
+
+    // And back down: 200 % from the start, 100 % after 0.2 s, still within the limits.
+    let opts = RunOptions {
+        feed_override: 2.0,
+        events: vec![(200, Event::Override(1.0))],
+        ..RunOptions::default()
+    };
+    let center = Vec3::new(10.0, 0.0, 0.0);
+    let circle = vec![arc(
+        1,
+        Vec3::zeros(),
+        center,
+        std::f64::consts::TAU,
+        0.0,
+        3000.0,
+    )];
+    let end = circle[0].path.end();
+    let s = run(circle, &limits, &opts, |_, _| {}).unwrap();
+    for i in 0..3 {
+        for f in s.fractions(&limits, i).unwrap() {
+            assert!(f <= 1.01, "axis {i}: {f}");
+        }
+    }
+    assert_eq!(&s.last.position[..3], &[end.x, end.y, end.z]);
+    assert_eq!(s.plan_failures, 0);
+}

@@ -22,11 +22,14 @@
 //!   form for arcs in any plane, by bisection for helices in tilted planes) at a design
 //!   speed, the programmed feed or the curvature limit if lower; if that leaves less than
 //!   a fifth of the axis limits for the tangential motion, lower design speeds are tried
-//!   and the fastest rough segment time wins. `v_max` is that design speed, so a feed
-//!   override above 100 % speeds up curved segments only as far as they were designed for:
-//!   [`Planner::set_design_override`] designs arcs and transitions for the feed times the
-//!   override in force when they are planned (where that gains at least 10 % speed;
-//!   smoothed pieces keep the programmed feed). `kerf sim --override` passes its factor.
+//!   and the fastest rough segment time wins. `v_max` is that design speed. For a feed
+//!   override above 100 %, arcs and transitions carry a second design for the highest
+//!   override (`v_boost`, `accel_boost`, `jerk_boost`, where that gains at least 10 %
+//!   speed), which the motion core switches to while the override asks for more than
+//!   `v_max`; [`Planner::set_design_override`] moves the first design to the override in
+//!   force when the segments are planned (`kerf sim --override` passes its factor).
+//!   Smoothed pieces keep the programmed feed: boosted, their limits vary with the
+//!   direction and split the motion core's sections.
 //!   Only [`PROFILE_SHARE`] of each axis limit is used by the path profile; the rest is left
 //!   for the junctions.
 //! - **G2 transitions at joints with arcs.** A tangent line→arc, arc→line or arc→arc joint
@@ -92,6 +95,8 @@ use kerf_geom::{CornerMode, Curve, Move, Path, Transition, Vec3};
 
 mod smooth;
 
+/// Highest feed override curved segments are designed for (the motion core's highest).
+pub const MAX_DESIGN_OVERRIDE: f64 = 2.0;
 /// Share of every axis limit that the path profile may use.
 pub const PROFILE_SHARE: f64 = 0.95;
 /// Share of every axis jerk limit left for the steps at junctions.
@@ -188,7 +193,16 @@ pub struct PlannedSegment {
     pub accel: f64,
     /// Path jerk limit, units/s³.
     pub jerk: f64,
-    /// Speed cap at the junction with the next segment, units/s (0 = stop).
+    /// Speed limit while the feed override is above 100 %, units/s (at least `v_max`):
+    /// curved segments are also designed for the highest override where that is faster.
+    /// `accel_boost` and `jerk_boost` are valid for every speed up to it.
+    pub v_boost: f64,
+    /// Path acceleration limit valid up to `v_boost` (at most `accel`), units/s².
+    pub accel_boost: f64,
+    /// Path jerk limit valid up to `v_boost` (at most `jerk`), units/s³.
+    pub jerk_boost: f64,
+    /// Speed cap at the junction with the next segment, units/s (0 = stop): the geometric
+    /// cap, at most the neighbours' `v_boost` (their `v_max` bounds it at 100 %).
     pub end_cap: f64,
     /// `true` if the segment is a corner blend (not a programmed move).
     pub blend: bool,
@@ -475,7 +489,7 @@ impl Planner {
     /// planned keep their limit (the motion core never exceeds it).
     pub fn set_design_override(&mut self, factor: f64) {
         self.design_override = if factor.is_finite() {
-            factor.clamp(1.0, 2.0)
+            factor.clamp(1.0, MAX_DESIGN_OVERRIDE)
         } else {
             1.0
         };
@@ -650,6 +664,9 @@ impl Planner {
                 v_max: 0.0,
                 accel: 0.0,
                 jerk: 0.0,
+                v_boost: 0.0,
+                accel_boost: 0.0,
+                jerk_boost: 0.0,
                 end_cap: 0.0,
                 blend: true,
             };
@@ -788,6 +805,9 @@ impl Planner {
             v_max: 0.0,
             accel: 0.0,
             jerk: 0.0,
+            v_boost: 0.0,
+            accel_boost: 0.0,
+            jerk_boost: 0.0,
             end_cap: 0.0,
             blend: true,
         };
@@ -962,6 +982,9 @@ impl Planner {
             v_max: 0.0,
             accel: 0.0,
             jerk: 0.0,
+            v_boost: 0.0,
+            accel_boost: 0.0,
+            jerk_boost: 0.0,
             end_cap: 0.0,
             blend: false,
         };
@@ -1110,6 +1133,9 @@ impl Planner {
                 v_max: 0.0,
                 accel: 0.0,
                 jerk: 0.0,
+                v_boost: 0.0,
+                accel_boost: 0.0,
+                jerk_boost: 0.0,
                 end_cap: 0.0,
                 blend: true,
             };
@@ -1139,6 +1165,23 @@ impl Planner {
         seg.v_max = v;
         seg.accel = a;
         seg.jerk = j;
+        (seg.v_boost, seg.accel_boost, seg.jerk_boost) = (v, a, j);
+        // Curved segments (not smoothed pieces, which keep the programmed feed) also get a
+        // design for the highest override, which the motion core uses while the override
+        // is above 100 %. Straight segments are limited by the axes alone.
+        let curved = match seg.curve {
+            Curve::Line { .. } => false,
+            Curve::Helix(_) => true,
+            Curve::Transition(_) => seg.move_count <= 1,
+        };
+        if curved && seg.feed.is_finite() && self.design_override < MAX_DESIGN_OVERRIDE {
+            let (vb, ab, jb) = segment_limits(seg, &self.limits, MAX_DESIGN_OVERRIDE);
+            if vb > v {
+                seg.v_boost = vb;
+                seg.accel_boost = ab.min(a);
+                seg.jerk_boost = jb.min(j);
+            }
+        }
     }
 }
 
@@ -1799,7 +1842,7 @@ pub fn junction_cap(a: &PlannedSegment, b: &PlannedSegment, limits: &MachineLimi
     let (ta, ka) = a.derivatives_at(a.length);
     let (tb, kb) = b.derivatives_at(0.0);
     let t = limits.period_s;
-    let mut cap = a.v_max.min(b.v_max);
+    let mut cap = a.v_boost.max(a.v_max).min(b.v_boost.max(b.v_max));
     for i in 0..6 {
         let dt = (tb[i] - ta[i]).abs();
         let dk = (kb[i] - ka[i]).abs();
