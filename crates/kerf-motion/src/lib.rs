@@ -397,6 +397,7 @@ impl MotionCore {
             curve: kerf_geom::Curve::line(Vec3::zeros(), Vec3::zeros()),
             abc_start_deg: [0.0; 3],
             abc_end_deg: [0.0; 3],
+            abc_poly: None,
             length: 0.0,
             line: 0,
             move_index: 0,

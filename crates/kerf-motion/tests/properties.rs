@@ -818,3 +818,42 @@ fn planning_on_a_second_thread_gives_the_same_setpoints() {
         assert_eq!(sa, sb, "case {case}");
     }
 }
+
+/// Dense 4-axis code: the rounded polylines with the A axis turning along them (a steady
+/// rate plus a wave), rounded like the coordinates.
+fn rounded_polylines_with_a(rng: &mut Rng, n: usize) -> (Vec<Move>, f64) {
+    let (mut moves, tol) = rounded_polylines(rng, n);
+    let rate = rng.range(-20.0, 20.0);
+    let wave = rng.range(0.0, 10.0);
+    let period = rng.log(2.0, 40.0);
+    let mut s = 0.0;
+    let mut a0 = 0.0;
+    for m in moves.iter_mut() {
+        s += (m.path.end() - m.path.start()).norm();
+        let a1 = ((rate * s + wave * (s / period).sin()) * 1e4).round() / 1e4;
+        m.abc_deg = Some(([a0, 0.0, 0.0], [a1, 0.0, 0.0]));
+        a0 = a1;
+    }
+    (moves, tol)
+}
+
+#[test]
+fn dense_four_axis_code_holds_every_invariant() {
+    let mut rng = Rng(0xa11e_5eed_0000_000d);
+    for case in 0..12 {
+        let limits = random_limits(&mut rng);
+        let n = 100 + rng.pick(500);
+        let (moves, ptol) = rounded_polylines_with_a(&mut rng, n);
+        let tol = limits.tolerance_mm.max(ptol);
+        let s = check_finished(
+            &format!("4-axis {case}"),
+            &moves,
+            &limits,
+            &RunOptions::default(),
+            tol,
+        );
+        assert!(s.rotary_used);
+        let a_end = moves.last().unwrap().abc_deg.unwrap().1[0];
+        assert_eq!(s.last.position[3], a_end, "4-axis {case}: A at the end");
+    }
+}

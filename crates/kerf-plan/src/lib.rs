@@ -171,10 +171,14 @@ pub const AXIS_NAMES: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
 pub struct PlannedSegment {
     /// XYZ geometry.
     pub curve: Curve,
-    /// A, B, C at the start, degrees (they move linearly with `s`).
+    /// A, B, C at the start, degrees (they move linearly with `s`, unless `abc_poly`).
     pub abc_start_deg: [f64; 3],
     /// A, B, C at the end, degrees.
     pub abc_end_deg: [f64; 3],
+    /// On a smoothed piece with rotary motion: A, B, C as quintics in the parameter `u`
+    /// of the piece's [`Transition`] curve (power basis, degrees), curvature-continuous
+    /// with the neighbouring pieces. `None`: linear in `s`.
+    pub abc_poly: Option<[[f64; 6]; 3]>,
     /// Length of the path parameter, mm (or deg for rotary-only moves).
     pub length: f64,
     /// Source line.
@@ -212,6 +216,25 @@ impl PlannedSegment {
     /// Positions of all six axes at path parameter `s`.
     #[inline]
     pub fn position_at(&self, s: f64, out: &mut [f64; 6]) {
+        if let (Some(c), Curve::Transition(t)) = (&self.abc_poly, &self.curve) {
+            if s >= self.length {
+                let e = t.end;
+                out[..3].copy_from_slice(&[e.x, e.y, e.z]);
+                out[3..6].copy_from_slice(&self.abc_end_deg);
+            } else if s <= 0.0 {
+                let p = t.start;
+                out[..3].copy_from_slice(&[p.x, p.y, p.z]);
+                out[3..6].copy_from_slice(&self.abc_start_deg);
+            } else {
+                let u = t.param_at(s);
+                let p = t.poly(u);
+                out[..3].copy_from_slice(&[p.x, p.y, p.z]);
+                for i in 0..3 {
+                    out[3 + i] = poly5(&c[i], u);
+                }
+            }
+            return;
+        }
         let p = if self.curve.length() > 0.0 {
             self.curve.point_at(s)
         } else {
@@ -246,13 +269,50 @@ impl PlannedSegment {
                 k[i] = e.curvature[i];
             }
         }
-        if self.length > 0.0 {
+        if let (Some(c), Curve::Transition(tr)) = (&self.abc_poly, &self.curve) {
+            let u = tr.param_at(s);
+            let (rt, rk) = rotary_derivatives(tr, c, u);
+            t[3..6].copy_from_slice(&rt);
+            k[3..6].copy_from_slice(&rk);
+        } else if self.length > 0.0 {
             for i in 0..3 {
                 t[3 + i] = (self.abc_end_deg[i] - self.abc_start_deg[i]) / self.length;
             }
         }
         (t, k)
     }
+}
+
+/// `Σ c[k] uᵏ`.
+#[inline]
+fn poly5(c: &[f64; 6], u: f64) -> f64 {
+    ((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]
+}
+
+/// First and second derivative of `Σ c[k] uᵏ`.
+#[inline]
+fn poly5_d(c: &[f64; 6], u: f64) -> (f64, f64) {
+    let d1 = (((5.0 * c[5] * u + 4.0 * c[4]) * u + 3.0 * c[3]) * u + 2.0 * c[2]) * u + c[1];
+    let d2 = ((20.0 * c[5] * u + 12.0 * c[4]) * u + 6.0 * c[3]) * u + 2.0 * c[2];
+    (d1, d2)
+}
+
+/// Derivatives of rotary quintics `c` (in the parameter `u` of `tr`) with respect to the
+/// XYZ arc length at `u`: `dA/ds = A'/|p'|`, `d²A/ds² = (A'' - A' (p'·p'')/|p'|²)/|p'|²`.
+fn rotary_derivatives(tr: &Transition, c: &[[f64; 6]; 3], u: f64) -> ([f64; 3], [f64; 3]) {
+    let q = tr.d1(u);
+    let r = tr.d2(u);
+    let sq = q.norm_squared();
+    let speed = sq.sqrt();
+    let along = q.dot(&r) / sq;
+    let mut t = [0.0; 3];
+    let mut k = [0.0; 3];
+    for i in 0..3 {
+        let (d1, d2) = poly5_d(&c[i], u);
+        t[i] = d1 / speed;
+        k[i] = (d2 - d1 * along) / sq;
+    }
+    (t, k)
 }
 
 /// Why a move cannot be planned.
@@ -344,7 +404,6 @@ struct RunState {
     tol: f64,
     /// The programmed tolerance (`None`: the configured one), which members must share.
     tol_mm: Option<f64>,
-    abc: [f64; 3],
 }
 
 impl RunState {
@@ -361,8 +420,14 @@ impl RunState {
         let CornerMode::Blend { tolerance_mm } = p.mv.corner else {
             unreachable!("checked by RunState::starts")
         };
-        let mut run = smooth::Run::new(p.mv.path.start(), start_frame, tol);
-        run.push(p.mv.path.end(), p.mv.line, p.move_index, feed_of(&p.mv));
+        let mut run = smooth::Run::new(p.mv.path.start(), p.abc_start, start_frame, tol);
+        run.push(
+            p.mv.path.end(),
+            p.abc_end,
+            p.mv.line,
+            p.move_index,
+            feed_of(&p.mv),
+        );
         RunState {
             run,
             buffered: vec![p],
@@ -370,7 +435,6 @@ impl RunState {
             last: p,
             tol,
             tol_mm: tolerance_mm,
-            abc: p.abc_start,
         }
     }
 
@@ -381,7 +445,7 @@ impl RunState {
                 tolerance_mm: self.tol_mm,
             })
             || !smoothable(p)
-            || p.abc_start != self.abc
+            || p.abc_start != self.run.end_abc()
             || (p.mv.path.start() - self.run.end()).norm() > MIN_SEGMENT_MM
         {
             return false;
@@ -391,11 +455,17 @@ impl RunState {
         };
         let len = self.run.last_len().max(line_len(p));
         turn_fits(d, line_dir(p), len, self.tol)
+            && rotary_turn_fits(self.run.last_abc_rate(), abc_rate(p), len, self.tol)
     }
 
     fn add(&mut self, p: Pending) {
-        self.run
-            .push(p.mv.path.end(), p.mv.line, p.move_index, feed_of(&p.mv));
+        self.run.push(
+            p.mv.path.end(),
+            p.abc_end,
+            p.mv.line,
+            p.move_index,
+            feed_of(&p.mv),
+        );
         if !self.committed {
             self.buffered.push(p);
         }
@@ -403,12 +473,25 @@ impl RunState {
     }
 }
 
-/// A feed line without rotary motion, short enough for a run.
+/// A feed line short enough for a run (it may move rotary axes along, but not only them).
 fn smoothable(p: &Pending) -> bool {
     !p.mv.rapid
         && matches!(p.mv.path, Path::Line(_))
-        && p.abc_start == p.abc_end
         && (1e-6..=smooth::MAX_SEGMENT_MM).contains(&line_len(p))
+}
+
+/// Rate of A, B, C along the XYZ length of a line, degrees per mm.
+fn abc_rate(p: &Pending) -> [f64; 3] {
+    let len = line_len(p);
+    std::array::from_fn(|i| (p.abc_end[i] - p.abc_start[i]) / len)
+}
+
+/// Whether a change of rotary rate from `a` to `b` (degrees per mm) at a vertex next to a
+/// segment of length `len` may lie inside a smoothed run: a smooth A(s) through the
+/// vertices sags `len·Δ(dA/ds)/8` from the programmed linear interpolation, which must be
+/// within [`smooth::SAG_TOL_SHARE`] of the tolerance (the same number, in degrees).
+fn rotary_turn_fits(a: [f64; 3], b: [f64; 3], len: f64, tol: f64) -> bool {
+    (0..3).all(|i| len * (b[i] - a[i]).abs() / 8.0 <= smooth::SAG_TOL_SHARE * tol)
 }
 
 fn line_len(p: &Pending) -> f64 {
@@ -427,15 +510,18 @@ fn turn_fits(a: Vec3, b: Vec3, len: f64, tol: f64) -> bool {
     theta <= smooth::MAX_TURN_RAD && len * theta / 8.0 <= smooth::SAG_TOL_SHARE * tol
 }
 
-/// The tangent and curvature at the start of a feed move without rotary motion.
+/// The tangent and curvature at the start of a feed move (A, B, C move linearly along it).
 fn next_start_frame(p: &Pending) -> Option<smooth::EndFrame> {
-    if p.mv.rapid || p.abc_start != p.abc_end {
+    let c = Curve::from_path(&p.mv.path);
+    if p.mv.rapid || c.length() < MIN_SEGMENT_MM {
         return None;
     }
-    let e = Curve::from_path(&p.mv.path).eval(0.0);
+    let e = c.eval(0.0);
     Some(smooth::EndFrame {
         tangent: e.tangent,
         curvature: e.curvature,
+        abc_d: std::array::from_fn(|i| (p.abc_end[i] - p.abc_start[i]) / c.length()),
+        abc_dd: [0.0; 3],
     })
 }
 
@@ -446,7 +532,7 @@ fn joining_frame(prev: &Pending, next: &Pending, tol: f64) -> Option<smooth::End
         return None;
     };
     if prev.mv.rapid
-        || prev.abc_start != prev.abc_end
+        || prev.abc_end != next.abc_start
         || (prev.mv.path.end() - next.mv.path.start()).norm() > MIN_SEGMENT_MM
     {
         return None;
@@ -456,10 +542,16 @@ fn joining_frame(prev: &Pending, next: &Pending, tol: f64) -> Option<smooth::End
         return None;
     }
     let e = c.eval(c.length());
+    let abc_d: [f64; 3] =
+        std::array::from_fn(|i| (prev.abc_end[i] - prev.abc_start[i]) / c.length());
     // The sag is judged over the first run segment only.
-    turn_fits(e.tangent, line_dir(next), line_len(next), tol).then_some(smooth::EndFrame {
+    (turn_fits(e.tangent, line_dir(next), line_len(next), tol)
+        && rotary_turn_fits(abc_d, abc_rate(next), line_len(next), tol))
+    .then_some(smooth::EndFrame {
         tangent: e.tangent,
         curvature: e.curvature,
+        abc_d,
+        abc_dd: [0.0; 3],
     })
 }
 
@@ -579,9 +671,8 @@ impl Planner {
         }
         let Some(run) = self.run.as_mut() else { return };
         let mut pieces = std::mem::take(&mut self.pieces);
-        let abc = run.abc;
         run.run.emit(false, None, &mut pieces);
-        self.emit_pieces(&mut pieces, abc, None, out);
+        self.emit_pieces(&mut pieces, None, out);
         self.pieces = pieces;
     }
 
@@ -626,7 +717,7 @@ impl Planner {
         let mut pieces = std::mem::take(&mut self.pieces);
         run.run.emit(true, end_frame, &mut pieces);
         let corner = run.last.mv.corner;
-        self.emit_pieces(&mut pieces, run.abc, Some(corner), out);
+        self.emit_pieces(&mut pieces, Some(corner), out);
         self.pieces = pieces;
         if let Some(n) = next_run {
             return run
@@ -642,7 +733,6 @@ impl Planner {
     fn emit_pieces(
         &mut self,
         pieces: &mut Vec<smooth::Emitted>,
-        abc: [f64; 3],
         last_corner: Option<CornerMode>,
         out: &mut Vec<PlannedSegment>,
     ) {
@@ -654,8 +744,9 @@ impl Planner {
             };
             let mut seg = PlannedSegment {
                 curve,
-                abc_start_deg: abc,
-                abc_end_deg: abc,
+                abc_start_deg: e.abc_start,
+                abc_end_deg: e.abc_end,
+                abc_poly: e.abc_poly,
                 length: curve.length(),
                 line: e.line,
                 move_index: e.move_index,
@@ -797,6 +888,7 @@ impl Planner {
             curve,
             abc_start_deg: prev.abc_end,
             abc_end_deg: prev.abc_end,
+            abc_poly: None,
             length: curve.length(),
             line: next.mv.line,
             move_index: prev.move_index,
@@ -974,6 +1066,7 @@ impl Planner {
             curve,
             abc_start_deg: p.abc_start,
             abc_end_deg: p.abc_end,
+            abc_poly: None,
             length,
             line: p.mv.line,
             move_index: p.move_index,
@@ -1125,6 +1218,7 @@ impl Planner {
                 curve,
                 abc_start_deg: prev.abc_end_deg,
                 abc_end_deg: prev.abc_end_deg,
+                abc_poly: None,
                 length: curve.length(),
                 line: seg.line,
                 move_index: prev.move_index,
@@ -1503,12 +1597,12 @@ fn design_speed_search(
 
 /// Sampled bounds of a transition (with [`LIMIT_SAFETY`] on the curvature terms).
 struct TransitionBounds {
-    /// Per axis: largest `|t_i|` (unit tangent).
-    tangent: [f64; 3],
-    /// Per axis: largest `|K_i|` (curvature vector).
-    curvature: [f64; 3],
+    /// Per axis X..C: largest `|t_i|` (unit tangent; for rotary axes `dA/ds`).
+    tangent: [f64; 6],
+    /// Per axis: largest `|K_i|` (curvature vector; for rotary axes `d²A/ds²`).
+    curvature: [f64; 6],
     /// Per axis: largest `|K'_i|` (derivative of the curvature vector along the path).
-    curvature_rate: [f64; 3],
+    curvature_rate: [f64; 6],
     /// Largest curvature `κ`, 1/mm.
     kappa: f64,
     /// Largest `|K' + κ² t| = sqrt(κ'² + (κτ)²)` (the part of `K'` off the tangent), 1/mm².
@@ -1519,11 +1613,15 @@ struct TransitionBounds {
 }
 
 /// Bounds of a transition, sampled densely along it.
-fn transition_bounds(t: &Transition, samples: usize) -> TransitionBounds {
+fn transition_bounds(
+    t: &Transition,
+    abc: Option<&[[f64; 6]; 3]>,
+    samples: usize,
+) -> TransitionBounds {
     let mut b = TransitionBounds {
-        tangent: [0.0; 3],
-        curvature: [0.0; 3],
-        curvature_rate: [0.0; 3],
+        tangent: [0.0; 6],
+        curvature: [0.0; 6],
+        curvature_rate: [0.0; 6],
         kappa: 0.0,
         kappa_rate: 0.0,
         plane: [1.0; 3],
@@ -1531,20 +1629,35 @@ fn transition_bounds(t: &Transition, samples: usize) -> TransitionBounds {
     let n = samples;
     // Frames on a grid in u; dK/ds by central differences on the grid (one-sided at the
     // ends), so each sample costs one evaluation.
-    let frame = |i: usize| t.frame_at_param(i as f64 / n as f64);
+    // Six-axis frames: XYZ unit tangent and curvature vector, and the rotary axes'
+    // derivatives with respect to the XYZ arc length.
+    let frame = |i: usize| {
+        let u = i as f64 / n as f64;
+        let (tan, k) = t.frame_at_param(u);
+        let mut t6 = [tan[0], tan[1], tan[2], 0.0, 0.0, 0.0];
+        let mut k6 = [k[0], k[1], k[2], 0.0, 0.0, 0.0];
+        if let Some(c) = abc {
+            let (rt, rk) = rotary_derivatives(t, c, u);
+            t6[3..6].copy_from_slice(&rt);
+            k6[3..6].copy_from_slice(&rk);
+        }
+        (tan, k, t6, k6)
+    };
     let (mut prev, mut cur) = (frame(0), frame(0));
     for i in 0..=n {
         let next = if i < n { frame(i + 1) } else { cur };
-        let (tan, k) = cur;
+        let (tan, k, t6, k6) = cur;
         let (ia, ib) = (i.saturating_sub(1), (i + 1).min(n));
         let du = (ib - ia) as f64 / n as f64;
-        let ka = if i == 0 { cur.1 } else { prev.1 };
-        let kb = if i == n { cur.1 } else { next.1 };
-        let dk = (kb - ka) / (du * t.speed(i as f64 / n as f64));
-        for ax in 0..3 {
-            b.tangent[ax] = b.tangent[ax].max(tan[ax].abs());
-            b.curvature[ax] = b.curvature[ax].max(k[ax].abs());
-            b.curvature_rate[ax] = b.curvature_rate[ax].max(dk[ax].abs());
+        let ka = if i == 0 { cur.3 } else { prev.3 };
+        let kb = if i == n { cur.3 } else { next.3 };
+        let ds = du * t.speed(i as f64 / n as f64);
+        let dk6: [f64; 6] = std::array::from_fn(|ax| (kb[ax] - ka[ax]) / ds);
+        let dk = Vec3::new(dk6[0], dk6[1], dk6[2]);
+        for ax in 0..6 {
+            b.tangent[ax] = b.tangent[ax].max(t6[ax].abs());
+            b.curvature[ax] = b.curvature[ax].max(k6[ax].abs());
+            b.curvature_rate[ax] = b.curvature_rate[ax].max(dk6[ax].abs());
         }
         let kappa = k.norm();
         b.kappa = b.kappa.max(kappa);
@@ -1552,9 +1665,18 @@ fn transition_bounds(t: &Transition, samples: usize) -> TransitionBounds {
         prev = cur;
         cur = next;
     }
-    for ax in 0..3 {
-        b.tangent[ax] = (b.tangent[ax] * 1.001).min(1.0);
-        b.curvature[ax] *= CURVATURE_SAFETY;
+    for ax in 0..6 {
+        b.tangent[ax] *= 1.001;
+        if ax < 3 {
+            b.tangent[ax] = b.tangent[ax].min(1.0);
+        }
+        // Rotary derivatives are sampled like the curvature's derivative: the larger
+        // factor.
+        b.curvature[ax] *= if ax < 3 {
+            CURVATURE_SAFETY
+        } else {
+            LIMIT_SAFETY
+        };
         b.curvature_rate[ax] *= LIMIT_SAFETY;
     }
     b.kappa *= CURVATURE_SAFETY;
@@ -1609,11 +1731,11 @@ fn transition_limits(
     samples: usize,
     feed_scale: f64,
 ) -> (f64, f64, f64) {
-    let b = transition_bounds(t, samples);
+    let b = transition_bounds(t, seg.abc_poly.as_ref(), samples);
     let (tm, km, kp) = (b.tangent, b.curvature, b.curvature_rate);
     let share = PROFILE_SHARE;
     let mut v = f64::INFINITY;
-    for i in 0..3 {
+    for i in 0..6 {
         let Some(l) = limits.axes[i] else { continue };
         if tm[i] > 0.0 {
             v = v.min(share * l.velocity / tm[i]);
@@ -1629,15 +1751,21 @@ fn transition_limits(
     let accel_at = |vd: f64| -> Option<f64> {
         let mut per_axis = f64::INFINITY;
         let mut frenet = f64::INFINITY;
-        for i in 0..3 {
+        for i in 0..6 {
             let Some(l) = limits.axes[i] else { continue };
             let room = share * l.acceleration - km[i] * vd * vd;
-            if tm[i] > 0.0 {
-                per_axis = per_axis.min(if room > 0.0 { room / tm[i] } else { 0.0 });
+            let own = if tm[i] > 0.0 {
+                if room > 0.0 { room / tm[i] } else { 0.0 }
             } else if room <= 0.0 {
-                per_axis = 0.0;
-            }
-            if b.plane[i] > 0.0 {
+                0.0
+            } else {
+                f64::INFINITY
+            };
+            per_axis = per_axis.min(own);
+            if i >= 3 {
+                // Rotary axes have only the per-axis bound, under either choice.
+                frenet = frenet.min(own);
+            } else if b.plane[i] > 0.0 {
                 let c = share * l.acceleration / b.plane[i];
                 let n = b.kappa * vd * vd;
                 frenet = frenet.min((c * c - n * n).max(0.0).sqrt());
@@ -1649,15 +1777,20 @@ fn transition_limits(
     let jerk_at = |vd: f64, a: f64| -> f64 {
         let mut per_axis = f64::INFINITY;
         let mut frenet = f64::INFINITY;
-        for i in 0..3 {
+        for i in 0..6 {
             let Some(l) = limits.axes[i] else { continue };
             let room = share * l.jerk - 3.0 * km[i] * vd * a - kp[i] * vd * vd * vd;
-            if tm[i] > 0.0 {
-                per_axis = per_axis.min(if room > 0.0 { room / tm[i] } else { 0.0 });
+            let own = if tm[i] > 0.0 {
+                if room > 0.0 { room / tm[i] } else { 0.0 }
             } else if room <= 0.0 {
-                per_axis = 0.0;
-            }
-            if b.plane[i] > 0.0 {
+                0.0
+            } else {
+                f64::INFINITY
+            };
+            per_axis = per_axis.min(own);
+            if i >= 3 {
+                frenet = frenet.min(own);
+            } else if b.plane[i] > 0.0 {
                 let c = share * l.jerk / b.plane[i];
                 let n = 3.0 * b.kappa * vd * a + b.kappa_rate * vd * vd * vd;
                 let tangential = (c * c - n * n).max(0.0).sqrt() - b.kappa * b.kappa * vd.powi(3);

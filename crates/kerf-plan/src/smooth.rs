@@ -11,12 +11,19 @@
 //!
 //! How:
 //! - **Runs.** Consecutive feed lines join a run while they have the same tolerance (feeds
-//!   may differ: a piece runs at the lowest feed of the moves it covers), blend mode, no
-//!   rotary motion, length up to [`MAX_SEGMENT_MM`], and at every vertex a turn of at most
+//!   may differ: a piece runs at the lowest feed of the moves it covers), blend mode, an
+//!   XYZ length up to [`MAX_SEGMENT_MM`], and at every vertex a turn of at most
 //!   [`MAX_TURN_RAD`] whose sag `L·θ/8` (how far a smooth curve through the vertices lies
 //!   from the longer adjacent line) is at most [`SAG_TOL_SHARE`] of the tolerance. Coarse
 //!   polygons fail that test and keep their corner blends. Runs of fewer than
 //!   [`MIN_RUN_MOVES`] moves are left alone.
+//! - **Rotary axes** that move along the lines (4- and 5-axis CAM code) are smoothed with
+//!   them: A, B, C are fitted against the XYZ arc length in the same windows, carried by
+//!   each piece as quintics in its parameter, curvature-continuous across knots, and held
+//!   within the tolerance — the same number, in degrees — of the programmed linear
+//!   interpolation; the rate change at a vertex must sag within the same share of it. (No
+//!   control's manual sets a rotary tolerance for blending; LinuxCNC's `G64 P` is in
+//!   length units. A degree per millimetre of tolerance is the choice made here.)
 //! - **Knots** are vertices of the polyline, every [`WINDOW_MM`] or less of chord length.
 //!   At a knot the unit tangent and the curvature vector come from a weighted least-squares
 //!   cubic through the vertex, fitted to the vertices within a window around it (biweight
@@ -75,6 +82,8 @@ struct Vertex {
     move_index: u64,
     /// Programmed feed of the move ending here, mm/s.
     feed: f64,
+    /// A, B, C here, degrees.
+    abc: [f64; 3],
 }
 
 /// Position, unit tangent and curvature vector at a knot.
@@ -85,6 +94,11 @@ pub(crate) struct Knot {
     p: Vec3,
     t: Vec3,
     k: Vec3,
+    /// A, B, C (degrees) and their first and second derivatives with respect to the XYZ
+    /// arc length.
+    a: [f64; 3],
+    da: [f64; 3],
+    dda: [f64; 3],
 }
 
 /// Tangent and curvature a run end must match (from the neighbouring move).
@@ -92,6 +106,9 @@ pub(crate) struct Knot {
 pub(crate) struct EndFrame {
     pub tangent: Vec3,
     pub curvature: Vec3,
+    /// First and second derivatives of A, B, C with respect to the XYZ arc length.
+    pub abc_d: [f64; 3],
+    pub abc_dd: [f64; 3],
 }
 
 /// One output piece of a run, between two knots. Pieces are moved straight into
@@ -109,6 +126,12 @@ pub(crate) enum Piece {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Emitted {
     pub piece: Piece,
+    /// A, B, C at the piece's ends, degrees.
+    pub abc_start: [f64; 3],
+    pub abc_end: [f64; 3],
+    /// A, B, C along a curved piece, as quintics in its parameter (when the run moves a
+    /// rotary axis).
+    pub abc_poly: Option<[[f64; 6]; 3]>,
     pub line: u32,
     pub move_index: u64,
     pub move_count: u32,
@@ -129,12 +152,14 @@ pub(crate) struct Run {
     tol: f64,
     /// Buffer length at which the next drop is tried.
     drop_at: usize,
+    /// Some vertex has different A, B, C from the first: the pieces carry rotary quintics.
+    rotary: bool,
 }
 
 impl Run {
     /// An empty run starting at `p`; `start_frame` is the tangent and curvature its start
     /// must match, if any.
-    pub fn new(p: Vec3, start_frame: Option<EndFrame>, tol: f64) -> Run {
+    pub fn new(p: Vec3, abc: [f64; 3], start_frame: Option<EndFrame>, tol: f64) -> Run {
         Run {
             verts: vec![Vertex {
                 p,
@@ -142,13 +167,31 @@ impl Run {
                 line: 0,
                 move_index: 0,
                 feed: f64::INFINITY,
+                abc,
             }],
             base: 0,
             knot: None,
             start_frame,
             tol,
             drop_at: DROP_ABOVE,
+            rotary: false,
         }
+    }
+
+    /// A, B, C at the last vertex.
+    pub fn end_abc(&self) -> [f64; 3] {
+        self.verts[self.verts.len() - 1].abc
+    }
+
+    /// Rate of A, B, C along the last segment, degrees per mm.
+    pub fn last_abc_rate(&self) -> [f64; 3] {
+        let n = self.verts.len();
+        if n < 2 {
+            return [0.0; 3];
+        }
+        let (a, b) = (&self.verts[n - 2], &self.verts[n - 1]);
+        let len = b.sigma - a.sigma;
+        std::array::from_fn(|i| (b.abc[i] - a.abc[i]) / len)
     }
 
     /// The last vertex.
@@ -172,15 +215,18 @@ impl Run {
         }
     }
 
-    /// Appends the segment to `q` of move (`line`, `move_index`) at `feed` (mm/s).
-    pub fn push(&mut self, q: Vec3, line: u32, move_index: u64, feed: f64) {
+    /// Appends the segment to `q` (A, B, C at `abc`) of move (`line`, `move_index`) at
+    /// `feed` (mm/s).
+    pub fn push(&mut self, q: Vec3, abc: [f64; 3], line: u32, move_index: u64, feed: f64) {
         let last = self.verts[self.verts.len() - 1];
+        self.rotary |= abc != self.verts[0].abc;
         self.verts.push(Vertex {
             p: q,
             sigma: last.sigma + (q - last.p).norm(),
             line,
             move_index,
             feed,
+            abc,
         });
     }
 
@@ -243,6 +289,9 @@ impl Run {
                     p: self.v(idx).p,
                     t: f.tangent,
                     k: f.curvature,
+                    a: self.v(idx).abc,
+                    da: f.abc_d,
+                    dda: f.abc_dd,
                 };
             }
         }
@@ -256,6 +305,9 @@ impl Run {
                 p: self.verts[0].p,
                 t: f.tangent,
                 k: f.curvature,
+                a: self.verts[0].abc,
+                da: f.abc_d,
+                dda: f.abc_dd,
             },
             None => self.fit_knot(self.base),
         }
@@ -272,31 +324,39 @@ impl Run {
     ) -> (Emitted, Knot) {
         loop {
             let kb = self.knot_at(ib, finish, end_frame);
-            if let Some(tr) = self.piece(&ka, &kb) {
-                return (self.emitted(ka.idx, ib, Piece::Curve(tr)), kb);
+            if let Some((tr, poly)) = self.piece(&ka, &kb) {
+                return (self.emitted(ka.idx, ib, Piece::Curve(tr), poly), kb);
             }
             if ib == ka.idx + 1 {
                 // Keep the line; the next piece starts on it with its direction.
-                let (p, q) = (self.v(ka.idx).p, self.v(ib).p);
+                let (va, vb) = (self.v(ka.idx), self.v(ib));
+                let (p, q) = (va.p, vb.p);
+                let len = (q - p).norm();
                 let line_knot = Knot {
                     idx: ib,
                     p: q,
-                    t: (q - p).normalize(),
+                    t: (q - p) / len,
                     k: Vec3::zeros(),
+                    a: vb.abc,
+                    da: std::array::from_fn(|i| (vb.abc[i] - va.abc[i]) / len),
+                    dda: [0.0; 3],
                 };
-                return (self.emitted(ka.idx, ib, Piece::Line(p, q)), line_knot);
+                return (self.emitted(ka.idx, ib, Piece::Line(p, q), None), line_knot);
             }
             ib = ka.idx + (ib - ka.idx) / 2;
         }
     }
 
-    fn emitted(&self, ia: u64, ib: u64, piece: Piece) -> Emitted {
+    fn emitted(&self, ia: u64, ib: u64, piece: Piece, abc_poly: Option<[[f64; 6]; 3]>) -> Emitted {
         let first = self.v(ia + 1);
         let feed = (ia + 1..=ib)
             .map(|k| self.v(k).feed)
             .fold(f64::INFINITY, f64::min);
         Emitted {
             piece,
+            abc_start: self.v(ia).abc,
+            abc_end: self.v(ib).abc,
+            abc_poly,
             line: first.line,
             move_index: first.move_index,
             move_count: (ib - ia).min(u32::MAX as u64) as u32,
@@ -309,16 +369,35 @@ impl Run {
         self.knot.map(|k| EndFrame {
             tangent: k.t,
             curvature: k.k,
+            abc_d: k.da,
+            abc_dd: k.dda,
         })
     }
 
-    /// The quintic between two knots if it stays within the tolerance of the polyline.
-    fn piece(&self, ka: &Knot, kb: &Knot) -> Option<Transition> {
+    /// The quintic between two knots, with the rotary quintics if the run moves a rotary
+    /// axis, if they stay within the tolerance of the polyline (rotary axes: the same
+    /// number in degrees, against the programmed linear interpolation).
+    fn piece(&self, ka: &Knot, kb: &Knot) -> Option<(Transition, Option<[[f64; 6]; 3]>)> {
         let chord = (kb.p - ka.p).norm();
         if chord.is_nan() || chord <= 0.0 {
             return None;
         }
         let tr = Transition::hermite(ka.p, ka.t, ka.k, kb.p, kb.t, kb.k, chord)?;
+        // With p'(0) = λt and p''(0) = λ²K (K ⟂ t), ds/du = λ and d²s/du² = 0 at the ends,
+        // so dA/du = λ dA/ds and d²A/du² = λ² d²A/ds² there.
+        let poly = self.rotary.then(|| {
+            let l = chord;
+            std::array::from_fn(|i| {
+                hermite5(
+                    ka.a[i],
+                    l * ka.da[i],
+                    l * l * ka.dda[i],
+                    kb.a[i],
+                    l * kb.da[i],
+                    l * l * kb.dda[i],
+                )
+            })
+        });
         // Three samples per line it replaces, and at least one per 0.05 mm (between
         // samples the distance to a line changes by spacing² · κ / 8 at most).
         let segments = (kb.idx - ka.idx) as usize;
@@ -326,31 +405,43 @@ impl Run {
         let limit = TRANSITION_TOL_SHARE * self.tol;
         let mut cursor = ka.idx;
         for i in 1..n {
-            let q = tr.poly(i as f64 / n as f64);
-            let (d, c) = self.nearest(&q, cursor, ka.idx, kb.idx, limit);
+            let u = i as f64 / n as f64;
+            let q = tr.poly(u);
+            let (d, c, along) = self.nearest(&q, cursor, ka.idx, kb.idx, limit);
             if d.is_nan() || d > limit {
                 return None;
+            }
+            if let Some(poly) = &poly {
+                let (a, b) = (self.v(c).abc, self.v(c + 1).abc);
+                for ax in 0..3 {
+                    let programmed = a[ax] + (b[ax] - a[ax]) * along;
+                    let off = (eval5(&poly[ax], u) - programmed).abs();
+                    if off.is_nan() || off > limit {
+                        return None;
+                    }
+                }
             }
             cursor = c;
         }
         let tr = tr.with_arc_length()?;
         // The arc-length table must not be much longer than the polyline (a loop).
         let poly_len = self.v(kb.idx).sigma - self.v(ka.idx).sigma;
-        (tr.length_mm <= 1.5 * poly_len + self.tol).then_some(tr)
+        (tr.length_mm <= 1.5 * poly_len + self.tol).then_some((tr, poly))
     }
 
     /// Distance from `q` to the polyline segments `[lo, hi)`, searched from `cursor`
     /// (the samples advance along the polyline): the minimum over the segments visited, so
     /// never less than the true distance.
-    fn nearest(&self, q: &Vec3, cursor: u64, lo: u64, hi: u64, slack: f64) -> (f64, u64) {
+    /// Also returns the segment and the position along it (0 to 1) of the nearest point.
+    fn nearest(&self, q: &Vec3, cursor: u64, lo: u64, hi: u64, slack: f64) -> (f64, u64, f64) {
         let mut k = cursor.saturating_sub(1).max(lo);
-        let mut best = (f64::INFINITY, cursor);
+        let mut best = (f64::INFINITY, cursor.min(hi.saturating_sub(1)).max(lo), 0.0);
         while k < hi {
             let a = self.v(k).p;
             let b = self.v(k + 1).p;
-            let d = segment_distance(q, &a, &b);
+            let (d, along) = segment_distance_along(q, &a, &b);
             if d < best.0 {
-                best = (d, k);
+                best = (d, k, along);
             } else if k > cursor && (q - a).norm() > best.0 + slack {
                 break;
             }
@@ -383,25 +474,44 @@ impl Run {
             w = (0.5 * w).max(w_min);
         }
         let p = self.v(idx).p;
+        let a = self.v(idx).abc;
         match fit {
             Some(f) => {
                 let sq = f.d1.norm_squared();
-                let t = f.d1 / sq.sqrt();
+                let speed = sq.sqrt();
+                let t = f.d1 / speed;
                 let k = (f.d2 - t * f.d2.dot(&t)) / sq;
-                Knot { idx, p, t, k }
-            }
-            None => {
-                // Degenerate data: the direction of an adjacent segment, no curvature.
-                let (a, b) = if idx < last {
-                    (p, self.v(idx + 1).p)
-                } else {
-                    (self.v(idx - 1).p, p)
-                };
+                // The rotary axes against the XYZ arc length s, from their fit against the
+                // chord parameter x: dA/ds = A'/|p'|, d²A/ds² = (A'' - A' (p'·p'')/|p'|²)/|p'|².
+                let along = f.d1.dot(&f.d2) / sq;
+                let da = std::array::from_fn(|i| f.a1[i] / speed);
+                let dda = std::array::from_fn(|i| (f.a2[i] - f.a1[i] * along) / sq);
                 Knot {
                     idx,
                     p,
-                    t: (b - a).normalize(),
+                    t,
+                    k,
+                    a,
+                    da,
+                    dda,
+                }
+            }
+            None => {
+                // Degenerate data: the direction of an adjacent segment, no curvature.
+                let (va, vb) = if idx < last {
+                    (self.v(idx), self.v(idx + 1))
+                } else {
+                    (self.v(idx - 1), self.v(idx))
+                };
+                let len = (vb.p - va.p).norm();
+                Knot {
+                    idx,
+                    p,
+                    t: (vb.p - va.p) / len,
                     k: Vec3::zeros(),
+                    a,
+                    da: std::array::from_fn(|i| (vb.abc[i] - va.abc[i]) / len),
+                    dda: [0.0; 3],
                 }
             }
         }
@@ -414,10 +524,12 @@ impl Run {
     fn local_fit(&self, idx: u64, w: f64) -> Option<LocalFit> {
         let s0 = self.v(idx).sigma;
         let p0 = self.v(idx).p;
+        let a0 = Vec3::from(self.v(idx).abc);
         let w = w * 1.000_001;
-        // Normal equations in scaled x (x/w) for conditioning.
+        // Normal equations in scaled x (x/w) for conditioning; XYZ and A, B, C share them.
         let mut m = [[0.0f64; 3]; 3];
         let mut r = [Vec3::zeros(); 3];
+        let mut ra = [Vec3::zeros(); 3];
         let mut count = 0;
         let lo = self.window_end(idx, w, false);
         let hi = self.window_end(idx, w, true);
@@ -436,12 +548,16 @@ impl Run {
                 (1.0 - x * x).powi(2)
             };
             let y = v.p - p0;
+            let ya = Vec3::from(v.abc) - a0;
             let basis = [x, 0.5 * x * x, x * x * x / 6.0];
             for i in 0..3 {
                 for j in 0..3 {
                     m[i][j] += om * basis[i] * basis[j];
                 }
                 r[i] += y * (om * basis[i]);
+                if self.rotary {
+                    ra[i] += ya * (om * basis[i]);
+                }
             }
             count += 1;
         }
@@ -455,14 +571,38 @@ impl Run {
         if !d1.iter().chain(d2.iter()).all(|c| c.is_finite()) || d1.norm() <= 1e-9 {
             return None;
         }
+        let (a1, a2, a3) = if self.rotary {
+            let ca = solve3(&m, &ra)?;
+            (ca[0] / w, ca[1] / (w * w), ca[2] / (w * w * w))
+        } else {
+            (Vec3::zeros(), Vec3::zeros(), Vec3::zeros())
+        };
+        if !a1.iter().chain(a2.iter()).all(|c| c.is_finite()) {
+            return None;
+        }
+        // The largest residual, in mm for XYZ and in degrees for the rotary axes (both
+        // against the same tolerance number).
         let mut residual: f64 = 0.0;
         for k in lo..=hi {
             let v = self.v(k);
             let x = v.sigma - s0;
-            let fit = p0 + d1 * x + d2 * (0.5 * x * x) + d3 * (x * x * x / 6.0);
-            residual = residual.max((fit - v.p).norm());
+            let cubic =
+                |c1: Vec3, c2: Vec3, c3: Vec3| c1 * x + c2 * (0.5 * x * x) + c3 * (x * x * x / 6.0);
+            residual = residual.max((p0 + cubic(d1, d2, d3) - v.p).norm());
+            if self.rotary {
+                let fit = a0 + cubic(a1, a2, a3);
+                for i in 0..3 {
+                    residual = residual.max((fit[i] - v.abc[i]).abs());
+                }
+            }
         }
-        Some(LocalFit { d1, d2, residual })
+        Some(LocalFit {
+            d1,
+            d2,
+            a1: a1.into(),
+            a2: a2.into(),
+            residual,
+        })
     }
 
     /// The last vertex within chord distance `w` of `idx` on one side.
@@ -507,6 +647,9 @@ impl Run {
 struct LocalFit {
     d1: Vec3,
     d2: Vec3,
+    /// First and second derivatives of A, B, C against the chord parameter.
+    a1: [f64; 3],
+    a2: [f64; 3],
     residual: f64,
 }
 
@@ -536,14 +679,39 @@ fn solve3(m: &[[f64; 3]; 3], r: &[Vec3; 3]) -> Option<[Vec3; 3]> {
     Some(out)
 }
 
+#[cfg(test)]
 fn segment_distance(q: &Vec3, a: &Vec3, b: &Vec3) -> f64 {
+    segment_distance_along(q, a, b).0
+}
+
+/// Distance from `q` to the segment `a`–`b`, and where along it (0 to 1) the nearest point is.
+fn segment_distance_along(q: &Vec3, a: &Vec3, b: &Vec3) -> (f64, f64) {
     let ab = b - a;
     let l2 = ab.norm_squared();
     if l2 == 0.0 {
-        return (q - a).norm();
+        return ((q - a).norm(), 0.0);
     }
     let t = ((q - a).dot(&ab) / l2).clamp(0.0, 1.0);
-    (q - (a + ab * t)).norm()
+    ((q - (a + ab * t)).norm(), t)
+}
+
+/// Quintic Hermite coefficients (power basis in `u ∈ [0, 1]`) from values, first and
+/// second derivatives at both ends (derivatives with respect to `u`).
+fn hermite5(p0: f64, v0: f64, a0: f64, p1: f64, v1: f64, a1: f64) -> [f64; 6] {
+    let d = p1 - p0;
+    [
+        p0,
+        v0,
+        0.5 * a0,
+        10.0 * d - 6.0 * v0 - 4.0 * v1 - 1.5 * a0 + 0.5 * a1,
+        -15.0 * d + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1,
+        6.0 * d - 3.0 * v0 - 3.0 * v1 - 0.5 * a0 + 0.5 * a1,
+    ]
+}
+
+/// `Σ c[k] uᵏ`.
+fn eval5(c: &[f64; 6], u: f64) -> f64 {
+    ((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]
 }
 
 #[cfg(test)]
@@ -558,8 +726,13 @@ mod tests {
             acceleration: 2000.0,
             jerk: 50000.0,
         };
+        let a = AxisLimits {
+            velocity: 3600.0,
+            acceleration: 36000.0,
+            jerk: 900_000.0,
+        };
         MachineLimits {
-            axes: [Some(l), Some(l), Some(l), None, None, None],
+            axes: [Some(l), Some(l), Some(l), Some(a), None, None],
             period_s: 0.001,
             tolerance_mm: 0.01,
         }
@@ -797,6 +970,73 @@ mod tests {
                 segs.iter().any(|s| s.move_index as usize == k + 1),
                 "no piece starts after move {k}"
             );
+        }
+    }
+
+    #[test]
+    fn rotary_axes_are_smoothed_with_the_path() {
+        // The rounded circle with A turning 0.1° per line (a steady rate plus a wave): the
+        // pieces carry A as quintics that pass through the vertices' A exactly at the
+        // knots, join with continuous dA/ds and d²A/ds², and stay within the tolerance
+        // (in degrees) of the programmed linear interpolation.
+        let pts = rounded_circle(3600, 4, 1.0);
+        let mut moves = lines(&pts, 6000.0);
+        let a_at = |k: usize| {
+            let s = k as f64 * 0.01745;
+            ((0.1 * k as f64 + 2.0 * (s / 5.0).sin()) * 1e4).round() / 1e4
+        };
+        for (k, m) in moves.iter_mut().enumerate() {
+            m.abc_deg = Some(([a_at(k), 0.0, 0.0], [a_at(k + 1), 0.0, 0.0]));
+        }
+        let segs = plan(&moves);
+        assert!(segs.len() < 100, "{} segments", segs.len());
+        for (k, s) in segs.iter().enumerate() {
+            assert!(s.abc_poly.is_some(), "piece {k}");
+            let first = s.move_index as usize;
+            let last = first + s.move_count as usize;
+            assert_eq!(s.abc_start_deg[0], a_at(first));
+            assert_eq!(s.abc_end_deg[0], a_at(last));
+            let mut out = [0.0; 6];
+            s.position_at(s.length, &mut out);
+            assert_eq!(out[3], a_at(last));
+            if k + 1 < segs.len() {
+                let (ta, ka) = s.derivatives_at(s.length);
+                let (tb, kb) = segs[k + 1].derivatives_at(0.0);
+                assert!(
+                    (ta[3] - tb[3]).abs() < 1e-9,
+                    "joint {k}: {} {}",
+                    ta[3],
+                    tb[3]
+                );
+                assert!(
+                    (ka[3] - kb[3]).abs() < 1e-6,
+                    "joint {k}: {} {}",
+                    ka[3],
+                    kb[3]
+                );
+                assert!(s.end_cap >= 0.999 * s.v_max.min(segs[k + 1].v_max));
+            }
+            // A against the programmed interpolation at the nearest point of the lines the
+            // piece replaces (the circle closes on itself: not the others).
+            for i in 0..=200 {
+                s.position_at(s.length * i as f64 / 200.0, &mut out);
+                let q = Vec3::new(out[0], out[1], out[2]);
+                let (_, j, t) = (first..last)
+                    .map(|j| {
+                        let (d, t) = segment_distance_along(&q, &pts[j], &pts[j + 1]);
+                        (d, j, t)
+                    })
+                    .fold(
+                        (f64::INFINITY, 0, 0.0),
+                        |a, b| if b.0 < a.0 { b } else { a },
+                    );
+                let programmed = a_at(j) + (a_at(j + 1) - a_at(j)) * t;
+                assert!(
+                    (out[3] - programmed).abs() <= 0.01,
+                    "piece {k}: A {} vs {programmed}",
+                    out[3]
+                );
+            }
         }
     }
 }

@@ -35,16 +35,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     planner.finish(&mut out);
+    use std::io::Write;
+    let mut stdout = std::io::stdout().lock();
     for s in &out {
         let kind = match s.curve {
             kerf_geom::Curve::Line { .. } => "line",
             kerf_geom::Curve::Helix(_) => "arc",
             kerf_geom::Curve::Transition(_) => "quintic",
         };
-        println!(
+        let written = writeln!(
+            stdout,
             "{kind:8} line {:5} index {:5} moves {:4} len {:8.4} v {:7.2} a {:8.1} j {:9.1} cap {:7.2}",
             s.line, s.move_index, s.move_count, s.length, s.v_max, s.accel, s.jerk, s.end_cap
         );
+        if written.is_err() {
+            // The reader went away (`| head`).
+            break;
+        }
     }
     Ok(())
 }
