@@ -8,13 +8,14 @@
 //! - **Sections.** Consecutive segments are grouped into sections whose limits are the
 //!   minima over their segments and interior junction caps. A segment joins the open tail
 //!   section while its limits stay within [`MERGE_RATIO`] (jerk: [`MERGE_RATIO_JERK`];
-//!   speed and feed: [`MERGE_RATIO_SPEED`]) of the section's first segment and the junction before it can
-//!   be passed at that speed. Its speed `min(v_max, feed)` must not be more than that
-//!   ratio *above* the first segment's either: the section runs at its minima, so a long
-//!   fast segment merged behind a short slow one (a low feed, a tight G2 transition)
-//!   would otherwise crawl at the slow one's speed. The running section is frozen; segments it has passed are
-//!   released at once, so a program longer than the queue never stops for room. Dense CAM code thus becomes
-//!   a few long sections, and the one-dimensional path profile only has `a = 0` at section
+//!   speed and feed: [`MERGE_RATIO_SPEED`]) of the section's first segment and the
+//!   junction before it can be passed at that speed. Its speed `min(v_max, feed)` must
+//!   not be more than that ratio *above* the first segment's either: the section runs at
+//!   its minima, so a long fast segment merged behind a short slow one (a low feed, a
+//!   tight G2 transition) would otherwise crawl at the slow one's speed. The running
+//!   section is frozen; segments it has passed are released at once, so a program longer
+//!   than the queue never stops for room. Dense CAM code thus becomes a few long
+//!   sections, and the one-dimensional path profile only has `a = 0` at section
 //!   boundaries, not at every tiny segment.
 //! - **Profiles.** Each section's path parameter `s(t)` is one jerk-limited profile from
 //!   `rsruckig` (position interface, `min_velocity = 0`, target = section end with the
@@ -49,8 +50,9 @@
 //!   section runs at the boost level only while the override asks for more than its base
 //!   speed, choosing as it starts (or mid-way, when the override rises, once its state is
 //!   within the boost limits and its end is still reachable with them), and keeps that
-//!   level to its end. Stops for a hold use limits valid at both levels. Rapids run at the axis limits whatever the override. Zero override stops
-//!   like a hold; raising it resumes unless the operator holds as well.
+//!   level to its end. Stops for a hold use limits valid at both levels. Rapids run at
+//!   the axis limits whatever the override. Zero override stops like a hold; raising it
+//!   resumes unless the operator holds as well.
 //! - **Continuity** is checked at `push`: a segment must start where the previous one (or,
 //!   on an idle core, the machine) is, within [`CONTINUITY_MM`], or it is refused.
 //! - **Bounded cycle**: evaluating a segment is O(1) on every curve kind, G2 transitions
