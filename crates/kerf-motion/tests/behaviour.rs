@@ -21,6 +21,19 @@ fn reachability_matches_hand_computed_profiles() {
     assert!((reach(50.0, d, 2000.0, 50000.0) - 80.0).abs() < 1e-9);
 }
 
+/// Asserts that the first `axes` axes stayed within 1 % of their limits.
+fn assert_within_limits(
+    s: &kerf_motion::driver::Summary,
+    limits: &kerf_motion::MachineLimits,
+    axes: usize,
+) {
+    for i in 0..axes {
+        for f in s.fractions(limits, i).unwrap() {
+            assert!(f <= 1.01, "axis {i}: {f}");
+        }
+    }
+}
+
 /// Runs `moves`, checking the limits (1 %), the tolerance and the end point; returns the
 /// summary and the lowest speed within 0.1 mm of `corner`.
 fn run_corner(
@@ -42,11 +55,7 @@ fn run_corner(
         "{}",
         s.max_deviation_mm
     );
-    for i in 0..3 {
-        for f in s.fractions(limits, i).unwrap() {
-            assert!(f <= 1.01, "axis {i}: {f}");
-        }
-    }
+    assert_within_limits(&s, limits, 3);
     assert_eq!(&s.last.position[..3], &[end.x, end.y, end.z]);
     (s, near)
 }
@@ -335,11 +344,7 @@ fn tangent_line_arc_joints_run_at_speed() {
     .unwrap();
     eprintln!("joint speeds {near:?}, {} s", s.duration_s);
     assert!(near[0] >= 20.0 && near[1] >= 20.0, "{near:?}");
-    for i in 0..3 {
-        for f in s.fractions(&limits, i).unwrap() {
-            assert!(f <= 1.01, "axis {i}: {f}");
-        }
-    }
+    assert_within_limits(&s, &limits, 3);
     assert!(s.max_deviation_mm <= 0.01, "{}", s.max_deviation_mm);
     assert_eq!(&s.last.position[..3], &[25.0, 25.0, 0.0]);
 }
@@ -415,7 +420,7 @@ fn raising_the_override_mid_arc_speeds_the_arc_up() {
     };
     let mut peak_after: f64 = 0.0;
     let mut cycle = 0;
-    let s = run(circle, &limits, &opts, |_, sp| {
+    let s = run(circle.clone(), &limits, &opts, |_, sp| {
         cycle += 1;
         if cycle > 200 {
             peak_after = peak_after.max(sp.feed_mm_s);
@@ -432,11 +437,7 @@ fn raising_the_override_mid_arc_speeds_the_arc_up() {
         s.duration_s,
         plain.duration_s
     );
-    for i in 0..3 {
-        for f in s.fractions(&limits, i).unwrap() {
-            assert!(f <= 1.01, "axis {i}: {f}");
-        }
-    }
+    assert_within_limits(&s, &limits, 3);
     assert!(s.max_deviation_mm < 1e-6);
     assert_eq!(s.plan_failures, 0);
 
@@ -446,22 +447,9 @@ fn raising_the_override_mid_arc_speeds_the_arc_up() {
         events: vec![(200, Event::Override(1.0))],
         ..RunOptions::default()
     };
-    let center = Vec3::new(10.0, 0.0, 0.0);
-    let circle = vec![arc(
-        1,
-        Vec3::zeros(),
-        center,
-        std::f64::consts::TAU,
-        0.0,
-        3000.0,
-    )];
     let end = circle[0].path.end();
     let s = run(circle, &limits, &opts, |_, _| {}).unwrap();
-    for i in 0..3 {
-        for f in s.fractions(&limits, i).unwrap() {
-            assert!(f <= 1.01, "axis {i}: {f}");
-        }
-    }
+    assert_within_limits(&s, &limits, 3);
     assert_eq!(&s.last.position[..3], &[end.x, end.y, end.z]);
     assert_eq!(s.plan_failures, 0);
 }
@@ -493,10 +481,6 @@ fn dense_four_axis_circle_runs_at_the_feed() {
     assert!(s.duration_s < 1.4, "{}", s.duration_s);
     assert!(peak_feed > 49.9 && peak_feed <= 50.0 + 1e-9, "{peak_feed}");
     assert!(s.max_deviation_mm <= 0.01);
-    for i in 0..4 {
-        for f in s.fractions(&limits, i).unwrap() {
-            assert!(f <= 1.01, "axis {i}: {f}");
-        }
-    }
+    assert_within_limits(&s, &limits, 4);
     assert_eq!(s.last.position[3], 360.0);
 }

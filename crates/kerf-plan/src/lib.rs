@@ -285,7 +285,7 @@ impl PlannedSegment {
 
 /// `Σ c[k] uᵏ`.
 #[inline]
-fn poly5(c: &[f64; 6], u: f64) -> f64 {
+pub(crate) fn poly5(c: &[f64; 6], u: f64) -> f64 {
     ((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]
 }
 
@@ -1753,14 +1753,7 @@ fn transition_limits(
         let mut frenet = f64::INFINITY;
         for i in 0..6 {
             let Some(l) = limits.axes[i] else { continue };
-            let room = share * l.acceleration - km[i] * vd * vd;
-            let own = if tm[i] > 0.0 {
-                if room > 0.0 { room / tm[i] } else { 0.0 }
-            } else if room <= 0.0 {
-                0.0
-            } else {
-                f64::INFINITY
-            };
+            let own = axis_rate(share * l.acceleration - km[i] * vd * vd, tm[i]);
             per_axis = per_axis.min(own);
             if i >= 3 {
                 // Rotary axes have only the per-axis bound, under either choice.
@@ -1780,13 +1773,7 @@ fn transition_limits(
         for i in 0..6 {
             let Some(l) = limits.axes[i] else { continue };
             let room = share * l.jerk - 3.0 * km[i] * vd * a - kp[i] * vd * vd * vd;
-            let own = if tm[i] > 0.0 {
-                if room > 0.0 { room / tm[i] } else { 0.0 }
-            } else if room <= 0.0 {
-                0.0
-            } else {
-                f64::INFINITY
-            };
+            let own = axis_rate(room, tm[i]);
             per_axis = per_axis.min(own);
             if i >= 3 {
                 frenet = frenet.min(own);
@@ -1818,6 +1805,19 @@ fn transition_limits(
     let search =
         |v_start: f64| design_speed_search(seg.length, v_start, &limits.axes[..3], 24, budget);
     boosted(v, seg.feed, feed_scale, search)
+}
+
+/// The largest tangential rate (acceleration or jerk) an axis allows when `room` of its
+/// limit is left after the curvature terms and it sees `weight` of the tangential rate:
+/// none if nothing is left, any if it does not see it.
+fn axis_rate(room: f64, weight: f64) -> f64 {
+    if room <= 0.0 {
+        0.0
+    } else if weight > 0.0 {
+        room / weight
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// The best `(a, j)` on a curved segment at design speed `vd`, if there is a useful one.

@@ -51,7 +51,7 @@
 //! A piece replaces several programmed moves: its [`PlannedSegment`](crate::PlannedSegment)
 //! names the first one (`line`, `move_index`) and how many it covers (`move_count`).
 
-use crate::TRANSITION_TOL_SHARE;
+use crate::{TRANSITION_TOL_SHARE, poly5};
 use kerf_geom::{Transition, Vec3};
 
 /// Longest line that may join a run, mm.
@@ -284,15 +284,7 @@ impl Run {
     fn knot_at(&self, idx: u64, finish: bool, end_frame: Option<EndFrame>) -> Knot {
         if finish && idx == self.last_idx() {
             if let Some(f) = end_frame {
-                return Knot {
-                    idx,
-                    p: self.v(idx).p,
-                    t: f.tangent,
-                    k: f.curvature,
-                    a: self.v(idx).abc,
-                    da: f.abc_d,
-                    dda: f.abc_dd,
-                };
+                return self.frame_knot(idx, &f);
             }
         }
         self.fit_knot(idx)
@@ -300,16 +292,22 @@ impl Run {
 
     fn start_knot(&self) -> Knot {
         match self.start_frame {
-            Some(f) => Knot {
-                idx: self.base,
-                p: self.verts[0].p,
-                t: f.tangent,
-                k: f.curvature,
-                a: self.verts[0].abc,
-                da: f.abc_d,
-                dda: f.abc_dd,
-            },
+            Some(f) => self.frame_knot(self.base, &f),
             None => self.fit_knot(self.base),
+        }
+    }
+
+    /// The knot at vertex `idx` with the tangent and curvature of a neighbouring move.
+    fn frame_knot(&self, idx: u64, f: &EndFrame) -> Knot {
+        let v = self.v(idx);
+        Knot {
+            idx,
+            p: v.p,
+            t: f.tangent,
+            k: f.curvature,
+            a: v.abc,
+            da: f.abc_d,
+            dda: f.abc_dd,
         }
     }
 
@@ -415,7 +413,7 @@ impl Run {
                 let (a, b) = (self.v(c).abc, self.v(c + 1).abc);
                 for ax in 0..3 {
                     let programmed = a[ax] + (b[ax] - a[ax]) * along;
-                    let off = (eval5(&poly[ax], u) - programmed).abs();
+                    let off = (poly5(&poly[ax], u) - programmed).abs();
                     if off.is_nan() || off > limit {
                         return None;
                     }
@@ -707,11 +705,6 @@ fn hermite5(p0: f64, v0: f64, a0: f64, p1: f64, v1: f64, a1: f64) -> [f64; 6] {
         -15.0 * d + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1,
         6.0 * d - 3.0 * v0 - 3.0 * v1 - 0.5 * a0 + 0.5 * a1,
     ]
-}
-
-/// `Σ c[k] uᵏ`.
-fn eval5(c: &[f64; 6], u: f64) -> f64 {
-    ((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]
 }
 
 #[cfg(test)]

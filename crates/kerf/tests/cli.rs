@@ -527,6 +527,18 @@ fn read_csv(path: &Path) -> (String, Vec<Vec<f64>>) {
     (header, rows)
 }
 
+/// Runs `kerf sim [args] PROGRAM --out <scratch>/NAME.csv`, which must succeed, and returns
+/// the CSV's header and rows.
+fn sim_rows(name: &str, program: &Path, args: &[&str]) -> (String, Vec<Vec<f64>>) {
+    let csv = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("kerf-cli-tests/{name}.csv"));
+    let mut all = vec!["sim"];
+    all.extend_from_slice(args);
+    all.extend([program.to_str().unwrap(), "--out", csv.to_str().unwrap()]);
+    let out = kerf(&all);
+    assert!(out.status.success(), "{name}: {}", stderr(&out));
+    read_csv(&csv)
+}
+
 /// 10 mm along X at F600 (10 mm/s) on the bundled mill (X: 200 mm/s, 2000 mm/s²).
 const TEN_MM_AT_F600: &str = "G21 G90 G17\nG1 X10 F600\n";
 
@@ -739,15 +751,7 @@ fn sim_runs_the_cam_rounded_dense_circle_at_the_feed() {
     for decimals in [3, 4, 6] {
         let name = format!("sim-circle-{decimals}");
         let program = scratch(&format!("{name}.ngc"), &cam_circle(decimals));
-        let csv = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("kerf-cli-tests/{name}.csv"));
-        let out = kerf(&[
-            "sim",
-            program.to_str().unwrap(),
-            "--out",
-            csv.to_str().unwrap(),
-        ]);
-        assert!(out.status.success(), "{}", stderr(&out));
-        let (header, rows) = read_csv(&csv);
+        let (header, rows) = sim_rows(&name, &program, &[]);
         assert_eq!(header, "t,x,y,z,line,feed_mm_s");
         let last = rows.last().unwrap();
         assert!(last[0] < 0.80, "{decimals} decimals: {} s", last[0]);
@@ -812,18 +816,8 @@ fn sim_override_above_100_speeds_up_arcs_too() {
     );
     let mut durations = Vec::new();
     for pct in ["100", "150", "200"] {
-        let csv = Path::new(env!("CARGO_TARGET_TMPDIR"))
-            .join(format!("kerf-cli-tests/sim-override-arc-{pct}.csv"));
-        let out = kerf(&[
-            "sim",
-            "--override",
-            pct,
-            program.to_str().unwrap(),
-            "--out",
-            csv.to_str().unwrap(),
-        ]);
-        assert!(out.status.success(), "{}", stderr(&out));
-        let (_, rows) = read_csv(&csv);
+        let name = format!("sim-override-arc-{pct}");
+        let (_, rows) = sim_rows(&name, &program, &["--override", pct]);
         let peak = rows.iter().map(|r| r[5]).fold(0.0, f64::max);
         let want = 50.0 * pct.parse::<f64>().unwrap() / 100.0;
         assert!(
@@ -852,18 +846,11 @@ fn sim_of_the_pocket_is_the_same_in_all_five_dialects() {
         ("fagor", "fagor/pocket.pim"),
     ] {
         let program = root().join("tests/data/programs").join(file);
-        let csv = Path::new(env!("CARGO_TARGET_TMPDIR"))
-            .join(format!("kerf-cli-tests/sim-pocket-{dialect}.csv"));
-        let out = kerf(&[
-            "sim",
-            "--dialect",
+        let name = format!("sim-pocket-{dialect}");
+        all.push((
             dialect,
-            program.to_str().unwrap(),
-            "--out",
-            csv.to_str().unwrap(),
-        ]);
-        assert!(out.status.success(), "{dialect}: {}", stderr(&out));
-        all.push((dialect, read_csv(&csv).1));
+            sim_rows(&name, &program, &["--dialect", dialect]).1,
+        ));
     }
     let (_, reference) = &all[0];
     assert!(reference.len() > 10_000);
@@ -914,15 +901,7 @@ fn sim_of_the_example_part_follows_the_planned_moves_within_the_limits() {
         })
         .collect();
     assert!(moves.len() > 20);
-    let csv = Path::new(env!("CARGO_TARGET_TMPDIR")).join("kerf-cli-tests/sim-part.csv");
-    let out = kerf(&[
-        "sim",
-        part.to_str().unwrap(),
-        "--out",
-        csv.to_str().unwrap(),
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    let (_, rows) = read_csv(&csv);
+    let (_, rows) = sim_rows("sim-part", &part, &[]);
     let mut k = 0;
     for row in &rows {
         let p = Vec3::new(row[1], row[2], row[3]);
