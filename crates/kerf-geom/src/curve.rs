@@ -223,19 +223,7 @@ impl Curve {
                 end,
                 dir,
                 length_mm,
-            } => {
-                if *length_mm == 0.0 {
-                    return (p - start).norm();
-                }
-                let along = (p - start).dot(dir);
-                if along <= 0.0 {
-                    (p - start).norm()
-                } else if along >= *length_mm {
-                    (p - end).norm()
-                } else {
-                    (p - (start + dir * along)).norm()
-                }
-            }
+            } => line_distance(start, end, dir, *length_mm, p),
             Curve::Helix(h) => h.distance_to(p),
             Curve::Transition(t) => t.distance_to(p),
         }
@@ -276,6 +264,22 @@ impl Curve {
             }
             Curve::Transition(_) => *self,
         }
+    }
+}
+
+/// Shortest distance from `p` to the line from `start` to `end` with unit direction `dir`
+/// and length `length_mm` (the data of [`Curve::Line`]), mm.
+pub fn line_distance(start: &Vec3, end: &Vec3, dir: &Vec3, length_mm: f64, p: &Vec3) -> f64 {
+    if length_mm == 0.0 {
+        return (p - start).norm();
+    }
+    let along = (p - start).dot(dir);
+    if along <= 0.0 {
+        (p - start).norm()
+    } else if along >= length_mm {
+        (p - end).norm()
+    } else {
+        (p - (start + dir * along)).norm()
     }
 }
 

@@ -120,5 +120,5 @@ impl Arc {
 
 mod curve;
 mod transition;
-pub use curve::{Curve, CurvePoint, Helix};
+pub use curve::{Curve, CurvePoint, Helix, line_distance};
 pub use transition::{TABLE_POINTS, Transition};

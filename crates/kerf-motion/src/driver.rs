@@ -8,7 +8,7 @@
 //! moves.
 
 use crate::{MotionCore, PushError, Setpoint, StepResult};
-use kerf_geom::{Curve, Helix, Move, Path, Vec3};
+use kerf_geom::{Curve, Helix, Move, Path, Vec3, line_distance};
 use kerf_plan::{MachineLimits, PlanError, PlannedSegment, Planner};
 
 /// An input event applied before a given cycle.
@@ -315,20 +315,7 @@ impl Programmed {
 
     fn distance_to(&self, p: &Vec3) -> f64 {
         match self {
-            Programmed::Line(start, end, dir, length) => {
-                // The same arithmetic as `Curve::distance_to`.
-                if *length == 0.0 {
-                    return (p - start).norm();
-                }
-                let along = (p - start).dot(dir);
-                if along <= 0.0 {
-                    (p - start).norm()
-                } else if along >= *length {
-                    (p - end).norm()
-                } else {
-                    (p - (start + dir * along)).norm()
-                }
-            }
+            Programmed::Line(start, end, dir, length) => line_distance(start, end, dir, *length, p),
             Programmed::Helix(h) => h.distance_to(p),
         }
     }
