@@ -65,10 +65,22 @@
 //!   [`COAST_BELOW_S`] at its entry speed (where neighbouring blends meet
 //!   they leave nanometre remnants of the line between them), is coasted through at the
 //!   entry speed in the time that takes, without the solver, which cannot plan it.
-//! - **Fallbacks**: a failed `calculate()` (never seen in the property tests) keeps the
-//!   previous profile or relaxes the speed ceiling to the entry speed; each is counted in
-//!   [`MotionCore::plan_failures`]. Ruckig formats an error message on failure, which
-//!   allocates: a healthy run has no failures and so no allocations.
+//! - **Scaled units.** Every solver call is made in units where the numbers are of
+//!   order one (the distance as the unit of length, `(d/j)^(1/3)` as the unit of time;
+//!   `a/j` and `a³/j²` for stops). The solver's tolerances are absolute (1e-10 on the
+//!   acceleration): in mm and s, a fast machine's accelerations (1e4–1e6 mm/s²) carry
+//!   more rounding than that, and it failed on 0.23 % of ordinary feasible inputs over
+//!   the accepted range of limits, from rest to rest on a plain arc among them.
+//! - **Fallbacks** never jump. A solver result is used only if it ends where it should.
+//!   When the solver fails at a section start, [`JerkProfile`] (closed form: S-curve to a
+//!   cruise speed, cruise, S-curve to the end speed, all within the section's limits)
+//!   runs instead, to the same end speed or else to a stop at the section end (always
+//!   reachable: the entry speed is within the hard lookahead); a failed re-plan keeps the
+//!   running profile, a failed hold stop waits for the next section. Each solver failure
+//!   is counted in [`MotionCore::plan_failures`]; a stop forced because no plan within a
+//!   section existed (which the lookahead rules out) in [`MotionCore::emergency_stops`].
+//!   Ruckig formats an error message on failure, which allocates: a healthy run has no
+//!   failures and so no allocations.
 #![deny(missing_docs)]
 
 use kerf_geom::Vec3;
@@ -76,6 +88,9 @@ pub use kerf_plan::{AxisLimits, MachineLimits, PlannedSegment};
 use rsruckig::prelude::*;
 
 pub mod driver;
+mod profile;
+
+pub use profile::JerkProfile;
 
 /// Sections merge segments whose acceleration and jerk limits are at least this fraction
 /// of the first one's.
@@ -95,8 +110,6 @@ pub const MAX_OVERRIDE: f64 = 2.0;
 const BACKWARD_MARGIN: f64 = 0.998;
 /// Fraction of the remaining distance a profile plan may use in its own checks.
 const PLAN_MARGIN: f64 = 0.999;
-/// Profiles shorter than this are planned in scaled units (see `MotionCore::calc`), mm.
-const SCALED_BELOW_MM: f64 = 1e-5;
 /// Sections shorter than this are coasted through at the entry speed (see `calc`), mm.
 pub const COAST_BELOW_MM: f64 = 1e-6;
 /// Sections that take less than this at the entry speed are coasted through as well, s.
@@ -298,6 +311,9 @@ pub struct MotionCore {
     traj_t: f64,
     /// End speed the running profile targets.
     traj_end_v: f64,
+    /// The running profile is `own` (the closed-form fallback) instead of `traj`.
+    own_active: bool,
+    own: JerkProfile,
     /// When positive, the running "profile" is a coast at `traj_end_v` through a sliver
     /// section this many seconds long instead of `traj` (see `calc`).
     coast_s: f64,
@@ -320,6 +336,11 @@ pub struct MotionCore {
     a: f64,
     last: Setpoint,
     failures: u64,
+    /// Stops forced because no plan within a section existed (see `emergency_stop`).
+    emergencies: u64,
+    /// Units of the profile in `scratch` after `calc_brake` (see there).
+    brake_scale: f64,
+    brake_time_scale: f64,
 }
 
 impl std::fmt::Debug for MotionCore {
@@ -467,6 +488,8 @@ impl MotionCore {
             traj_origin: 0.0,
             traj_t: 0.0,
             traj_end_v: 0.0,
+            own_active: false,
+            own: JerkProfile::default(),
             coast_s: 0.0,
             replan: false,
             boost_pending: false,
@@ -481,6 +504,9 @@ impl MotionCore {
             a: 0.0,
             last: Setpoint::default(),
             failures: 0,
+            emergencies: 0,
+            brake_scale: 1.0,
+            brake_time_scale: 1.0,
         }
     }
 
@@ -536,6 +562,12 @@ impl MotionCore {
     /// Number of profile calculations that failed (each fell back to a safer plan).
     pub fn plan_failures(&self) -> u64 {
         self.failures
+    }
+
+    /// Number of jerk-limited stops forced because no plan within a section existed
+    /// (zero while the lookahead holds; each is also a limit-respecting stop).
+    pub fn emergency_stops(&self) -> u64 {
+        self.emergencies
     }
 
     /// The feed override factor the plan uses (a zero override holds instead and leaves
@@ -954,6 +986,8 @@ impl MotionCore {
     fn running_duration(&self) -> f64 {
         if self.coast_s > 0.0 {
             self.coast_s
+        } else if self.own_active {
+            self.own.duration_s()
         } else {
             self.traj.get_duration() * self.traj_time_scale
         }
@@ -968,6 +1002,8 @@ impl MotionCore {
         if self.coast_s > 0.0 {
             p[0] = self.traj_end_v * t.min(self.coast_s);
             v[0] = self.traj_end_v;
+        } else if self.own_active {
+            (p[0], v[0], a[0]) = self.own.at(t);
         } else {
             let mut pos = DataArrayOrVec::Stack(p);
             let mut vel = DataArrayOrVec::Stack(v);
@@ -1141,7 +1177,50 @@ impl MotionCore {
             return;
         }
         self.failures += 1;
-        let _ = self.calc(origin, v0, 0.0, rem, 0.0, vmax2, accel, jerk);
+        // The solver failed twice: the closed-form profile to the same target, else to a
+        // stop at the section end (reachable: the entry speed is within the hard lookahead,
+        // which the section's limits can stop from within its length).
+        let target = target.min(vmax2);
+        for end_v in [target, 0.0] {
+            if let Some(p) = JerkProfile::cruise_between(v0, end_v, rem, vmax2, accel, jerk) {
+                self.run_own(origin, p, end_v);
+                return;
+            }
+        }
+        // Cannot happen while the lookahead holds: stop on the path as fast as the limits
+        // allow, into the following sections if need be, then go on.
+        self.emergency_stop(accel, jerk);
+    }
+
+    /// Makes `p` the running profile from section-local position `origin`.
+    fn run_own(&mut self, origin: f64, p: JerkProfile, end_v: f64) {
+        self.own = p;
+        self.own_active = true;
+        self.coast_s = 0.0;
+        self.traj_scale = 1.0;
+        self.traj_time_scale = 1.0;
+        self.traj_origin = origin;
+        self.traj_t = 0.0;
+        self.traj_end_v = end_v;
+    }
+
+    /// A jerk-limited stop on the path from the current state (`a = 0`) with the given
+    /// limits, crossing section ends like a hold's stop; the motion goes on when it ends
+    /// unless a hold is in force. Only reached when no plan within the section exists.
+    fn emergency_stop(&mut self, accel: f64, jerk: f64) {
+        self.emergencies += 1;
+        let v0 = self.v;
+        let d = change_distance(v0, 0.0, accel, jerk);
+        match JerkProfile::cruise_between(v0, 0.0, d * (1.0 + 1e-12) + 1e-15, v0, accel, jerk) {
+            Some(p) => {
+                self.run_own(self.s_local, p, 0.0);
+                self.mode = Mode::Braking;
+            }
+            None => {
+                // At rest already: nothing to stop.
+                self.run_own(self.s_local, JerkProfile::default(), 0.0);
+            }
+        }
     }
 
     /// Fixes the level the front section runs at as it starts: the one the override wants
@@ -1255,12 +1334,19 @@ impl MotionCore {
             && distance < COAST_BELOW_MM.max(v0 * COAST_BELOW_S)
         {
             self.coast_s = distance / v0;
+            self.own_active = false;
             self.traj_origin = origin;
             self.traj_t = 0.0;
             self.traj_end_v = v0;
             return true;
         }
-        let (k, tau) = if distance > 0.0 && distance < SCALED_BELOW_MM {
+        // Scaled units: the distance is the unit of length and the time to cover it at the
+        // jerk limit alone, `(d/j)^(1/3)`, the unit of time, so every input is of order
+        // one. The solver's tolerances are absolute (1e-10 on the acceleration, 1e-8 on
+        // speed and position); in millimetres and seconds a fast machine (acceleration
+        // 1e4..1e6 mm/s²) is rounded past them and the solver fails on ordinary
+        // rest-to-rest moves (0.23 % of feasible inputs over the accepted limits).
+        let (k, tau) = if distance > 0.0 {
             (1.0 / distance, (distance / jerk).cbrt())
         } else {
             (1.0, 1.0)
@@ -1281,9 +1367,10 @@ impl MotionCore {
         let ok = matches!(
             self.otg.calculate(&self.input, &mut self.scratch),
             Ok(RuckigResult::Working)
-        );
+        ) && self.scratch_reaches(distance * k);
         if ok {
             std::mem::swap(&mut self.traj, &mut self.scratch);
+            self.own_active = false;
             self.coast_s = 0.0;
             self.traj_scale = k;
             self.traj_time_scale = tau;
@@ -1292,6 +1379,26 @@ impl MotionCore {
             self.traj_end_v = v1.min(vmax);
         }
         ok
+    }
+
+    /// A solver result is used only if its duration is finite and it ends at `target`
+    /// (scaled units, so the tolerance is relative).
+    fn scratch_reaches(&self, target: f64) -> bool {
+        let dur = self.scratch.get_duration();
+        if !dur.is_finite() || dur < 0.0 {
+            return false;
+        }
+        let mut p = DataArrayOrVec::Stack([0.0]);
+        let mut section = None;
+        self.scratch.at_time(
+            dur,
+            &mut Some(&mut p),
+            &mut None,
+            &mut None,
+            &mut None,
+            &mut section,
+        );
+        (p[0] - target).abs() <= 1e-6 * target.abs().max(1.0)
     }
 
     /// Starts the hold stop if it is safe now: the stop must pass every junction within
@@ -1385,9 +1492,10 @@ impl MotionCore {
         }
         if ok {
             std::mem::swap(&mut self.traj, &mut self.scratch);
+            self.own_active = false;
             self.coast_s = 0.0;
-            self.traj_scale = 1.0;
-            self.traj_time_scale = 1.0;
+            self.traj_scale = self.brake_scale;
+            self.traj_time_scale = self.brake_time_scale;
             self.traj_origin = self.s_local;
             self.traj_t = 0.0;
             self.traj_end_v = 0.0;
@@ -1395,24 +1503,37 @@ impl MotionCore {
         }
     }
 
+    /// A velocity-interface stop from `(v0, a0)` into `scratch`, in scaled units (the time
+    /// to build the acceleration at the jerk limit, `a/j`, and the distance `a³/j²`, for
+    /// the same reason as in `calc`); `brake_scale`/`brake_time_scale` hold the units.
     fn calc_brake(&mut self, v0: f64, a0: f64, accel: f64, jerk: f64) -> bool {
+        let a_lim = accel.max(a0.abs());
+        let tau = a_lim / jerk;
+        let k = 1.0 / (a_lim * tau * tau);
+        if !(k.is_finite() && tau.is_finite() && k > 0.0 && tau > 0.0) {
+            return false;
+        }
+        let (kv, ka) = (k * tau, k * tau * tau);
         let inp = &mut self.input;
         inp.control_interface = ControlInterface::Velocity;
         inp.current_position[0] = 0.0;
-        inp.current_velocity[0] = v0;
-        inp.current_acceleration[0] = a0;
+        inp.current_velocity[0] = v0 * kv;
+        inp.current_acceleration[0] = a0 * ka;
         inp.target_velocity[0] = 0.0;
         inp.target_acceleration[0] = 0.0;
-        inp.max_acceleration[0] = accel.max(a0.abs());
-        inp.max_jerk[0] = jerk;
+        inp.max_acceleration[0] = a_lim * ka;
+        inp.max_jerk[0] = jerk * ka * tau;
         let ok = matches!(
             self.otg.calculate(&self.input, &mut self.scratch),
             Ok(RuckigResult::Working)
-        );
+        ) && self.scratch.get_duration().is_finite();
         self.input.control_interface = ControlInterface::Position;
+        self.brake_scale = k;
+        self.brake_time_scale = tau;
         ok
     }
 
+    /// Distance of the stop in `scratch` (after `calc_brake`), mm.
     fn brake_distance(&self) -> f64 {
         let mut p = DataArrayOrVec::Stack([0.0]);
         let mut section = None;
@@ -1424,6 +1545,6 @@ impl MotionCore {
             &mut None,
             &mut section,
         );
-        p[0]
+        p[0] / self.brake_scale
     }
 }

@@ -857,3 +857,175 @@ fn dense_four_axis_code_holds_every_invariant() {
         assert_eq!(s.last.position[3], a_end, "4-axis {case}: A at the end");
     }
 }
+
+/// A machine from anywhere in the range the configuration accepts: every axis (rotary
+/// ones included) with limits log-uniform over v 10–5,000, a 100–1e6, j 1e3–1e9, and a
+/// period from 62.5 µs to 10 ms.
+fn sweep_limits(rng: &mut Rng) -> MachineLimits {
+    let mut m = mill(100.0, 1000.0, 10000.0, rng.log(0.001, 0.1));
+    m.period_s = rng.log(62.5e-6, 0.01);
+    for ax in m.axes.iter_mut() {
+        *ax = Some(kerf_motion::AxisLimits {
+            velocity: rng.log(10.0, 5000.0),
+            acceleration: rng.log(100.0, 1e6),
+            jerk: rng.log(1e3, 1e9),
+        });
+    }
+    m
+}
+
+/// The fast machine of the original report (and its neighbours in the last digit of the
+/// jerk, where the solver's failures depended on rounding).
+fn fast_machine(jerk: f64, period_s: f64) -> MachineLimits {
+    let mut m = mill(1000.0, 100_000.0, jerk, 0.01);
+    m.period_s = period_s;
+    let rot = kerf_motion::AxisLimits {
+        velocity: 1000.0,
+        acceleration: 100_000.0,
+        jerk,
+    };
+    m.axes[3] = Some(rot);
+    m.axes[4] = Some(rot);
+    m.axes[5] = Some(rot);
+    m
+}
+
+/// Spreads the A motion of a random program over A, B and C with fixed factors (so the
+/// rotary axes stay continuous).
+fn spread_rotary(moves: &mut [Move], f: [f64; 3]) {
+    for m in moves.iter_mut() {
+        if let Some((a, b)) = m.abc_deg {
+            m.abc_deg = Some((f.map(|k| a[0] * k), f.map(|k| b[0] * k)));
+        }
+    }
+}
+
+/// The feed as the operator sees it: per period, the XYZ speed measured from the
+/// setpoints never exceeds the programmed feed of the moves being run (times the
+/// override, plus 1 %). Rapids run at the axis limits and are not checked here.
+fn check_feed(name: &str, moves: &[Move], rows: &[(f64, Setpoint)], period_s: f64, ovr: f64) {
+    for w in rows.windows(2) {
+        let (a, b) = (&w[0].1, &w[1].1);
+        let lo = a.move_index.min(b.move_index).saturating_sub(1) as usize;
+        let hi = (a.move_index.max(b.move_index) as usize + 1).min(moves.len() - 1);
+        let mut feed: f64 = 0.0;
+        let mut rapid = false;
+        for m in &moves[lo..=hi] {
+            rapid |= m.rapid;
+            feed = feed.max(m.feed_mm_min.unwrap_or(f64::INFINITY) / 60.0);
+        }
+        if rapid {
+            continue;
+        }
+        let d = (0..3)
+            .map(|i| (b.position[i] - a.position[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let speed = d / period_s;
+        assert!(
+            speed <= feed * ovr * 1.01 + 1e-9,
+            "{name}: t {} speed {speed} mm/s above the feed {} x {ovr}",
+            w[1].0,
+            feed
+        );
+    }
+}
+
+/// Every limit on every axis (A, B, C included), by finite differences of the setpoints,
+/// within 1 % plus the rounding of the positions themselves (a few ulp of the largest
+/// coordinate, divided by the period's power).
+fn check_all_axes(name: &str, rows: &[(f64, Setpoint)], limits: &MachineLimits) {
+    let t = limits.period_s;
+    let big = rows
+        .iter()
+        .flat_map(|r| r.1.position)
+        .fold(1.0_f64, |m, x| m.max(x.abs()));
+    let noise = 8.0 * f64::EPSILON * big;
+    for i in 0..6 {
+        let Some(l) = limits.axes[i] else { continue };
+        for (k, w) in rows.windows(4).enumerate() {
+            let p = |j: usize| w[j].1.position[i];
+            let v = (p(3) - p(2)).abs() / t;
+            let a = (p(3) - 2.0 * p(2) + p(1)).abs() / (t * t);
+            let j = (p(3) - 3.0 * p(2) + 3.0 * p(1) - p(0)).abs() / (t * t * t);
+            let ratios = [
+                v / (l.velocity * 1.01 + noise / t),
+                a / (l.acceleration * 1.01 + 2.0 * noise / (t * t)),
+                j / (l.jerk * 1.01 + 4.0 * noise / (t * t * t)),
+            ];
+            assert!(
+                ratios.iter().all(|&r| r <= 1.0),
+                "{name}: axis {i} at row {} (t {}): v/a/j {:?} of the limits (+1 %)",
+                k + 3,
+                w[3].0,
+                ratios
+            );
+        }
+    }
+}
+
+/// One run on a swept machine: limits on every axis, path, exact end, feed, no fallback.
+fn check_swept(name: &str, moves: &[Move], limits: &MachineLimits, ovr: f64, tol: f64) {
+    let opts = RunOptions {
+        feed_override: ovr,
+        ..RunOptions::default()
+    };
+    let mut rows: Vec<(f64, Setpoint)> = vec![];
+    let s = run(moves.iter().copied(), limits, &opts, |t, sp| {
+        rows.push((t, *sp))
+    })
+    .unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert!(!s.saw_nan, "{name}: NaN");
+    check_all_axes(name, &rows, limits);
+    check_feed(name, moves, &rows, limits.period_s, ovr);
+    assert!(
+        s.max_deviation_mm <= tol * 1.0001 + 1e-9,
+        "{name}: deviation {} > {tol}",
+        s.max_deviation_mm
+    );
+    assert_eq!(
+        &s.last.position[..3],
+        &program_end(moves)[..],
+        "{name}: end"
+    );
+    assert_eq!(s.plan_failures, 0, "{name}: plan failures");
+}
+
+#[test]
+fn machines_across_the_accepted_range_hold_every_invariant() {
+    let mut rng = Rng(0x7e57_0f11_a115);
+    for case in 0..60 {
+        let limits = sweep_limits(&mut rng);
+        let n = 5 + rng.pick(20);
+        let (mut moves, ptol) = random_program(&mut rng, n);
+        let f = [
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        ];
+        spread_rotary(&mut moves, f);
+        let tol = limits.tolerance_mm.max(ptol);
+        let ovr = rng.log(0.01, 2.0);
+        check_swept(&format!("sweep {case}"), &moves, &limits, ovr, tol);
+    }
+}
+
+#[test]
+fn fast_machines_hold_every_invariant() {
+    let mut rng = Rng(0xfa57_0000_0007);
+    for case in 0..40 {
+        let jerk = [1e7, 1.0001e7, 9.999e6, 1e8, 1e9][case % 5];
+        let period = [0.001, 0.00025, 0.0000625][case % 3];
+        let limits = fast_machine(jerk, period);
+        let n = 5 + rng.pick(30);
+        let (mut moves, ptol) = if case % 4 == 3 {
+            rounded_polylines(&mut rng, 20 + n * 10)
+        } else {
+            random_program(&mut rng, n)
+        };
+        spread_rotary(&mut moves, [1.0, -0.5, 0.25]);
+        let tol = limits.tolerance_mm.max(ptol);
+        let ovr = [1.0, 2.0, 0.5, 1.37][case % 4];
+        check_swept(&format!("fast {case}"), &moves, &limits, ovr, tol);
+    }
+}

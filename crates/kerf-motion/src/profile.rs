@@ -1,0 +1,278 @@
+//! A closed-form jerk-limited path profile: the motion core's own fallback when the
+//! solver cannot plan a section.
+//!
+//! [`JerkProfile`] is a sequence of at most seven phases of constant jerk starting at rest
+//! acceleration: a speed change from `v0` to a cruise speed, a cruise, and a speed change
+//! to `v1`. Each speed change is the symmetric jerk-limited S-curve with `a = 0` at both
+//! ends (the same curve [`crate::change_distance`] measures), so the profile never
+//! exceeds the acceleration and jerk it was built with, and its speed stays between its
+//! end speeds and the cruise speed. It is built in closed form (plus a bisection on the
+//! cruise speed) without allocation, so it is safe to build inside `step()`.
+
+use crate::change_distance;
+
+/// Most phases of a profile: up (3), cruise (1), down (3).
+const MAX_PHASES: usize = 7;
+
+/// A piecewise-constant-jerk profile `s(t)` from `s = 0`, with the state at the start
+/// of every phase precomputed.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct JerkProfile {
+    phases: usize,
+    /// Start time of each phase, s (`start_s[phases]` is the duration).
+    start_s: [f64; MAX_PHASES + 1],
+    jerk: [f64; MAX_PHASES],
+    p: [f64; MAX_PHASES + 1],
+    v: [f64; MAX_PHASES + 1],
+    a: [f64; MAX_PHASES + 1],
+}
+
+impl JerkProfile {
+    /// The profile over `distance` from speed `v0` to speed `v1` (both with `a = 0`),
+    /// cruising at the highest speed in `[max(v0, v1), max(v_max, v0)]` that fits, with
+    /// acceleration `accel` and jerk `jerk`. `None` when even cruising at `max(v0, v1)`
+    /// needs more than `distance` (the end speed is out of reach) or an input is not
+    /// finite and positive where it must be.
+    pub fn cruise_between(
+        v0: f64,
+        v1: f64,
+        distance: f64,
+        v_max: f64,
+        accel: f64,
+        jerk: f64,
+    ) -> Option<Self> {
+        let finite = [v0, v1, distance, v_max, accel, jerk]
+            .iter()
+            .all(|x| x.is_finite());
+        if !finite || v0 < 0.0 || v1 < 0.0 || distance <= 0.0 || accel <= 0.0 || jerk <= 0.0 {
+            return None;
+        }
+        let need =
+            |vc: f64| change_distance(v0, vc, accel, jerk) + change_distance(vc, v1, accel, jerk);
+        let lo = v0.max(v1);
+        if need(lo) > distance {
+            return None;
+        }
+        let hi = v_max.max(lo);
+        let vc = if need(hi) <= distance {
+            hi
+        } else {
+            // `need` grows with the cruise speed above both end speeds.
+            let (mut ok, mut bad) = (lo, hi);
+            for _ in 0..60 {
+                let mid = 0.5 * (ok + bad);
+                if need(mid) <= distance {
+                    ok = mid;
+                } else {
+                    bad = mid;
+                }
+            }
+            ok
+        };
+        if vc <= 0.0 {
+            return None;
+        }
+        let mut prof = JerkProfile::default();
+        prof.v[0] = v0;
+        prof.push_change(v0, vc, accel, jerk);
+        let cruise_s = (distance - need(vc)).max(0.0) / vc;
+        prof.push_phase(cruise_s, 0.0);
+        prof.push_change(vc, v1, accel, jerk);
+        Some(prof)
+    }
+
+    /// Appends the S-curve from the current end speed `from` to `to`.
+    fn push_change(&mut self, from: f64, to: f64, accel: f64, jerk: f64) {
+        let dv = to - from;
+        if dv == 0.0 {
+            return;
+        }
+        let sign = dv.signum();
+        let dv = dv.abs();
+        let (ramp_s, hold_s) = if dv * jerk <= accel * accel {
+            ((dv / jerk).sqrt(), 0.0)
+        } else {
+            (accel / jerk, dv / accel - accel / jerk)
+        };
+        self.push_phase(ramp_s, sign * jerk);
+        self.push_phase(hold_s, 0.0);
+        self.push_phase(ramp_s, -sign * jerk);
+        // The acceleration is zero at the end of a change by construction; remove the
+        // rounding so the next phase starts exactly at rest acceleration.
+        self.a[self.phases] = 0.0;
+        // Likewise the speed is the target speed.
+        self.v[self.phases] = to;
+    }
+
+    fn push_phase(&mut self, duration_s: f64, jerk: f64) {
+        if duration_s <= 0.0 || self.phases == MAX_PHASES {
+            return;
+        }
+        let i = self.phases;
+        let (p, v, a) = Self::integrate(self.p[i], self.v[i], self.a[i], jerk, duration_s);
+        self.jerk[i] = jerk;
+        self.start_s[i + 1] = self.start_s[i] + duration_s;
+        self.p[i + 1] = p;
+        self.v[i + 1] = v;
+        self.a[i + 1] = a;
+        self.phases += 1;
+    }
+
+    fn integrate(p: f64, v: f64, a: f64, jerk: f64, t: f64) -> (f64, f64, f64) {
+        (
+            p + t * (v + t * (a / 2.0 + t * jerk / 6.0)),
+            v + t * (a + t * jerk / 2.0),
+            a + t * jerk,
+        )
+    }
+
+    /// Duration, s.
+    pub fn duration_s(&self) -> f64 {
+        self.start_s[self.phases]
+    }
+
+    /// Distance covered at the end.
+    pub fn distance(&self) -> f64 {
+        self.p[self.phases]
+    }
+
+    /// Position, speed and acceleration at time `t` (clamped to the profile).
+    pub fn at(&self, t: f64) -> (f64, f64, f64) {
+        let t = t.clamp(0.0, self.duration_s());
+        let mut i = 0;
+        while i + 1 < self.phases && t >= self.start_s[i + 1] {
+            i += 1;
+        }
+        if self.phases == 0 {
+            return (0.0, self.v[0], 0.0);
+        }
+        Self::integrate(
+            self.p[i],
+            self.v[i],
+            self.a[i],
+            self.jerk[i],
+            t - self.start_s[i],
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Checks a profile by sampling: it reaches the distance and the end speed, never
+    /// exceeds the limits, never goes backwards, and its jerk by finite differences of the
+    /// sampled positions is within the limit.
+    fn check(p: &JerkProfile, v0: f64, v1: f64, d: f64, vmax: f64, accel: f64, jerk: f64) {
+        let dur = p.duration_s();
+        assert!(dur.is_finite() && dur > 0.0);
+        let (pe, ve, ae) = p.at(dur);
+        assert!((pe - d).abs() <= 1e-9 * d.max(1.0), "end {pe} vs {d}");
+        assert!(
+            (ve - v1).abs() <= 1e-9 * v1.max(vmax).max(1.0),
+            "end speed {ve} vs {v1}"
+        );
+        // Times are absolute: a phase of microseconds late in a long profile carries the
+        // rounding of its start time (a few ulp of the duration) times the jerk.
+        let t_round = 8.0 * f64::EPSILON * dur;
+        assert!(
+            ae.abs() <= 1e-9 * accel + jerk * t_round,
+            "end acceleration {ae} {p:?}"
+        );
+        let n = 4000;
+        let dt = dur / n as f64;
+        let mut prev = [p.at(0.0).0; 4];
+        for k in 0..=n {
+            let (s, v, a) = p.at(k as f64 * dt);
+            assert!(v >= -1e-9 * vmax.max(1.0), "backwards: v {v}");
+            assert!(
+                v <= vmax.max(v0).max(v1) * (1.0 + 1e-9) + 1e-12,
+                "v {v} > {vmax}"
+            );
+            assert!(a.abs() <= accel * (1.0 + 1e-9), "a {a} > {accel}");
+            assert!(s >= prev[3] - 1e-12 * d.max(1.0));
+            prev = [prev[1], prev[2], prev[3], s];
+            if k >= 3 {
+                let j = (prev[3] - 3.0 * prev[2] + 3.0 * prev[1] - prev[0]) / (dt * dt * dt);
+                let noise = 16.0 * f64::EPSILON * d.max(1.0) / (dt * dt * dt);
+                assert!(j.abs() <= jerk * 1.0001 + noise, "jerk {j} > {jerk}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_reported_helix_input_plans_at_rest_to_rest() {
+        // The inputs the solver failed on for the helix on a fast machine.
+        let (d, vmax, a, j) = (
+            5.068011275050498,
+            50.0,
+            19000.295410786068,
+            9399969.739963412,
+        );
+        let p = JerkProfile::cruise_between(0.0, 0.0, d, vmax, a, j).unwrap();
+        check(&p, 0.0, 0.0, d, vmax, a, j);
+        // It cruises at the feed: the time is the distance at the feed plus one
+        // acceleration ramp (a/j + v/a, by symmetry of the two ramps).
+        let expect = d / vmax + vmax / a + a / j;
+        assert!((p.duration_s() - expect).abs() < 1e-9, "{}", p.duration_s());
+    }
+
+    #[test]
+    fn short_distances_peak_below_the_feed() {
+        let (vmax, a, j) = (100.0, 1000.0, 10000.0);
+        // Too short to reach the feed: the peak is where the up and down ramps meet.
+        let d = 0.5;
+        let p = JerkProfile::cruise_between(0.0, 0.0, d, vmax, a, j).unwrap();
+        check(&p, 0.0, 0.0, d, vmax, a, j);
+        let peak = (0..=1000)
+            .map(|k| p.at(k as f64 * p.duration_s() / 1000.0).1)
+            .fold(0.0, f64::max);
+        // Rest to rest over d with only jerk phases: d = 2 v t, v = j t² → v = (j d²/4)^(1/3).
+        let expect = (j * d * d / 4.0).cbrt();
+        assert!(
+            peak < vmax && (peak - expect).abs() < 1e-3 * expect,
+            "{peak} {expect}"
+        );
+    }
+
+    #[test]
+    fn unreachable_end_speeds_are_refused() {
+        // Stopping from 100 mm/s takes a fixed distance; just under it is refused.
+        let (a, j) = (1000.0, 10000.0);
+        let need = change_distance(100.0, 0.0, a, j);
+        assert!(JerkProfile::cruise_between(100.0, 0.0, need * 0.99, 200.0, a, j).is_none());
+        let p = JerkProfile::cruise_between(100.0, 0.0, need * 1.01, 200.0, a, j).unwrap();
+        check(&p, 100.0, 0.0, need * 1.01, 200.0, a, j);
+        assert!(JerkProfile::cruise_between(0.0, 0.0, 1.0, 10.0, f64::NAN, j).is_none());
+        assert!(JerkProfile::cruise_between(0.0, 0.0, 0.0, 10.0, a, j).is_none());
+    }
+
+    #[test]
+    fn random_inputs_hold_their_limits() {
+        // A fixed-seed sweep over the range of machines the configuration accepts.
+        let mut state: u64 = 0x2545_F491_4F6C_DD1D;
+        let mut unit = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut log_uniform = |lo: f64, hi: f64| (lo.ln() + unit() * (hi.ln() - lo.ln())).exp();
+        let mut built = 0;
+        for _ in 0..400 {
+            let vmax = log_uniform(1.0, 5000.0);
+            let a = log_uniform(100.0, 1e6);
+            let j = log_uniform(1e3, 1e9);
+            let d = log_uniform(1e-4, 1000.0);
+            let v0 = vmax * log_uniform(1e-3, 1.0) * if d > 1.0 { 1.0 } else { 0.0 };
+            let v1 = vmax * log_uniform(1e-3, 1.0) * if d < 10.0 { 0.0 } else { 1.0 };
+            if let Some(p) = JerkProfile::cruise_between(v0, v1, d, vmax, a, j) {
+                check(&p, v0, v1, d, vmax, a, j);
+                built += 1;
+            } else {
+                assert!(change_distance(v0, v1, a, j) > d * (1.0 - 1e-12));
+            }
+        }
+        assert!(built > 200, "{built}");
+    }
+}
