@@ -341,6 +341,9 @@ pub struct MotionCore {
     /// Units of the profile in `scratch` after `calc_brake` (see there).
     brake_scale: f64,
     brake_time_scale: f64,
+    /// Tests: make every solver call fail, to exercise the fallbacks.
+    #[cfg(test)]
+    fail_solver: bool,
 }
 
 impl std::fmt::Debug for MotionCore {
@@ -507,6 +510,8 @@ impl MotionCore {
             emergencies: 0,
             brake_scale: 1.0,
             brake_time_scale: 1.0,
+            #[cfg(test)]
+            fail_solver: false,
         }
     }
 
@@ -1346,6 +1351,10 @@ impl MotionCore {
         // speed and position); in millimetres and seconds a fast machine (acceleration
         // 1e4..1e6 mm/s²) is rounded past them and the solver fails on ordinary
         // rest-to-rest moves (0.23 % of feasible inputs over the accepted limits).
+        #[cfg(test)]
+        if self.fail_solver {
+            return false;
+        }
         let (k, tau) = if distance > 0.0 {
             (1.0 / distance, (distance / jerk).cbrt())
         } else {
@@ -1546,5 +1555,107 @@ impl MotionCore {
             &mut section,
         );
         p[0] / self.brake_scale
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kerf_geom::{Arc, CornerMode, Line, Move, Path};
+
+    fn mv(path: Path, feed_mm_min: f64) -> Move {
+        Move {
+            line: 1,
+            rapid: false,
+            path,
+            feed_mm_min: Some(feed_mm_min),
+            abc_deg: None,
+            corner: CornerMode::Blend { tolerance_mm: None },
+        }
+    }
+
+    /// With every solver call failing, the closed-form fallback runs the whole program:
+    /// no jump, every limit holds by finite differences of the positions, and the run
+    /// ends at rest exactly at the program's end.
+    #[test]
+    fn the_fallback_runs_a_program_within_the_limits() {
+        for (v, a, j, period_s) in [
+            (200.0, 2000.0, 50_000.0, 0.001),
+            (1000.0, 100_000.0, 1e7, 0.001),
+            (30.0, 300.0, 3000.0, 0.00025),
+            (5000.0, 1e6, 1e9, 0.0000625),
+        ] {
+            let axis = AxisLimits {
+                velocity: v,
+                acceleration: a,
+                jerk: j,
+            };
+            let limits = MachineLimits {
+                axes: [Some(axis), Some(axis), Some(axis), None, None, None],
+                period_s,
+                tolerance_mm: 0.01,
+            };
+            let p = |x: f64, y: f64, z: f64| Vec3::new(x, y, z);
+            let line = |a: Vec3, b: Vec3, f: f64| mv(Path::Line(Line { start: a, end: b }), f);
+            let moves = [
+                line(p(0.0, 0.0, 0.0), p(10.0, 0.0, 0.0), 3000.0),
+                line(p(10.0, 0.0, 0.0), p(10.0, 0.003, 0.0), 3000.0),
+                line(p(10.0, 0.003, 0.0), p(12.0, 5.0, 1.0), 600.0),
+                mv(
+                    Path::Arc(Arc {
+                        start: p(12.0, 5.0, 1.0),
+                        end: p(8.0, 5.0, 1.5),
+                        center: p(10.0, 5.0, 1.0),
+                        axis: Vec3::z(),
+                        sweep_rad: std::f64::consts::PI,
+                    }),
+                    6000.0,
+                ),
+                line(p(8.0, 5.0, 1.5), p(0.0, 0.0, 0.0), 12000.0),
+            ];
+            let mut planner = kerf_plan::Planner::new(limits);
+            let mut segs = Vec::new();
+            for m in &moves {
+                planner.push(m, &mut segs).unwrap();
+            }
+            planner.finish(&mut segs);
+            let mut core = MotionCore::new(limits, 64);
+            core.fail_solver = true;
+            // At rest at the origin before the first cycle.
+            let mut rows: Vec<[f64; 6]> = vec![[0.0; 6]; 3];
+            let mut sp = Setpoint::default();
+            let mut next = 0;
+            for _ in 0..10_000_000 {
+                while next < segs.len() && core.push(&segs[next]).is_ok() {
+                    next += 1;
+                }
+                let r = core.step(&mut sp);
+                rows.push(sp.position);
+                if r == StepResult::Idle && next == segs.len() {
+                    break;
+                }
+            }
+            assert!(core.plan_failures() > 0, "the fallback was not exercised");
+            assert_eq!(rows.last().unwrap()[..3], [0.0, 0.0, 0.0]);
+            // The path is about 31 mm long and no axis may exceed v.
+            let t = period_s;
+            let duration_s = (rows.len() - 3) as f64 * t;
+            assert!(duration_s > 31.0 / (v * 3f64.sqrt()), "{duration_s} s");
+            for w in rows.windows(4) {
+                let axes = w[0].iter().zip(&w[1]).zip(&w[2]).zip(&w[3]).take(3);
+                for (((q0, q1), q2), q3) in axes {
+                    let vel = (q3 - q2).abs() / t;
+                    let acc = (q3 - 2.0 * q2 + q1).abs() / (t * t);
+                    let jerk = (q3 - 3.0 * q2 + 3.0 * q1 - q0).abs() / (t * t * t);
+                    let noise = 8.0 * f64::EPSILON * 20.0;
+                    assert!(vel <= v * 1.01, "v {vel} > {v}");
+                    assert!(acc <= a * 1.01 + 2.0 * noise / (t * t), "a {acc} > {a}");
+                    assert!(
+                        jerk <= j * 1.01 + 4.0 * noise / (t * t * t),
+                        "j {jerk} > {j}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -991,10 +991,23 @@ fn check_swept(name: &str, moves: &[Move], limits: &MachineLimits, ovr: f64, tol
     assert_eq!(s.plan_failures, 0, "{name}: plan failures");
 }
 
+/// 60 machines in every test run; for a long soak set `KERF_SWEEP_SEED` and
+/// `KERF_SWEEP_CASES` (`KERF_SWEEP_SEED=3 KERF_SWEEP_CASES=2000 cargo test --release -p
+/// kerf-motion --test properties machines_across`).
 #[test]
 fn machines_across_the_accepted_range_hold_every_invariant() {
-    let mut rng = Rng(0x7e57_0f11_a115);
-    for case in 0..60 {
+    let seed: u64 = std::env::var("KERF_SWEEP_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .map_or(0x7e57_0f11_a115, |s: u64| {
+            s.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1
+        });
+    let cases: usize = std::env::var("KERF_SWEEP_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(60);
+    let mut rng = Rng(seed);
+    for case in 0..cases {
         let limits = sweep_limits(&mut rng);
         let n = 5 + rng.pick(20);
         let (mut moves, ptol) = random_program(&mut rng, n);
