@@ -67,7 +67,7 @@
 //!   entry speed in the time that takes, without the solver, which cannot plan it.
 //! - **Scaled units.** Every solver call is made in units where the numbers are of
 //!   order one (the distance as the unit of length, `(d/j)^(1/3)` as the unit of time;
-//!   `a/j` and `a³/j²` for stops). The solver's tolerances are absolute (1e-10 on the
+//!   for stops, the stop's own jerk time `sqrt(v/j)`). The solver's tolerances are absolute (1e-10 on the
 //!   acceleration): in mm and s, a fast machine's accelerations (1e4–1e6 mm/s²) carry
 //!   more rounding than that, and it failed on 0.23 % of ordinary feasible inputs over
 //!   the accepted range of limits, from rest to rest on a plain arc among them.
@@ -1512,14 +1512,22 @@ impl MotionCore {
         }
     }
 
-    /// A velocity-interface stop from `(v0, a0)` into `scratch`, in scaled units (the time
-    /// to build the acceleration at the jerk limit, `a/j`, and the distance `a³/j²`, for
-    /// the same reason as in `calc`); `brake_scale`/`brake_time_scale` hold the units.
+    /// A velocity-interface stop from `(v0, a0)` into `scratch`, in scaled units for the
+    /// same reason as in `calc`: the unit of time is the stop's own jerk time scale
+    /// (`sqrt(v/j)` or `|a|/j`, whichever is longer) and the unit of length what the jerk
+    /// covers in it, so that the state is of order one whatever limit is idle (a huge
+    /// acceleration limit must not make the speed vanish in the solver's units).
+    /// `brake_scale`/`brake_time_scale` hold the units.
     fn calc_brake(&mut self, v0: f64, a0: f64, accel: f64, jerk: f64) -> bool {
         let a_lim = accel.max(a0.abs());
-        let tau = a_lim / jerk;
-        let k = 1.0 / (a_lim * tau * tau);
-        if !(k.is_finite() && tau.is_finite() && k > 0.0 && tau > 0.0) {
+        let tau = (v0.abs() / jerk).sqrt().max(a0.abs() / jerk);
+        // At rest there is nothing to scale: the stop is empty in any units.
+        let (k, tau) = if tau > 0.0 {
+            (1.0 / (jerk * tau * tau * tau), tau)
+        } else {
+            (1.0, 1.0)
+        };
+        if !(k.is_finite() && tau.is_finite() && k > 0.0) {
             return false;
         }
         let (kv, ka) = (k * tau, k * tau * tau);

@@ -1042,3 +1042,92 @@ fn fast_machines_hold_every_invariant() {
         check_swept(&format!("fast {case}"), &moves, &limits, ovr, tol);
     }
 }
+
+/// Time to stop from path speed `v` (at `a = 0`) along the symmetric jerk-limited profile.
+fn stop_time_s(v: f64, accel: f64, jerk: f64) -> f64 {
+    if v * jerk <= accel * accel {
+        2.0 * (v / jerk).sqrt()
+    } else {
+        v / accel + accel / jerk
+    }
+}
+
+/// After a hold or a zero override at a random moment, on random programs and machines,
+/// the positions stop changing within the time a jerk-limited stop takes from the speed
+/// and acceleration measured at that moment, with a fifth of the lowest axis acceleration
+/// and jerk (`kerf-plan` lowers a curved segment's design speed until its path limits
+/// leave about that much), and the program still finishes exactly after the resume.
+#[test]
+fn hold_stops_within_the_stopping_time_and_resume_finishes() {
+    let mut rng = Rng(0x401d_0000_0001);
+    for case in 0..80 {
+        let limits = if case % 2 == 0 {
+            sweep_limits(&mut rng)
+        } else {
+            random_limits(&mut rng)
+        };
+        let n = 5 + rng.pick(20);
+        let (moves, ptol) = random_program(&mut rng, n);
+        let tol = limits.tolerance_mm.max(ptol);
+        let name = format!("hold {case}");
+        let base = check_finished(&name, &moves, &limits, &RunOptions::default(), tol);
+        let hold_at = 4 + rng.pick(base.cycles.max(5) as usize - 4) as u64;
+        let zero = rng.pick(2) == 0;
+        let resume_at = hold_at + base.cycles + 1000;
+        let events = if zero {
+            vec![
+                (hold_at, Event::Override(0.0)),
+                (resume_at, Event::Override(1.0)),
+            ]
+        } else {
+            vec![(hold_at, Event::Hold), (resume_at, Event::Resume)]
+        };
+        let opts = RunOptions {
+            events,
+            ..RunOptions::default()
+        };
+        let mut rows: Vec<(f64, Setpoint)> = vec![];
+        let s = run(moves.iter().copied(), &limits, &opts, |t, sp| {
+            rows.push((t, *sp))
+        })
+        .unwrap();
+        assert_eq!(
+            &s.last.position[..3],
+            &program_end(&moves)[..],
+            "{name}: end"
+        );
+        // rows[k] is the setpoint after cycle k; the hold applies before cycle `hold_at`.
+        let t = limits.period_s;
+        let h = hold_at as usize;
+        // Speed and acceleration in all six axes (rotary-only moves run in degrees).
+        let norm = |k: usize, f: &dyn Fn(usize, usize) -> f64| {
+            (0..6).map(|i| f(k, i).powi(2)).sum::<f64>().sqrt()
+        };
+        let p = |k: usize, i: usize| rows[k].1.position[i];
+        let v0 = norm(h - 1, &|k, i| p(k, i) - p(k - 1, i)) / t;
+        let a0 = norm(h - 1, &|k, i| p(k, i) - 2.0 * p(k - 1, i) + p(k - 2, i)) / (t * t);
+        let lowest = |f: fn(&kerf_motion::AxisLimits) -> f64| {
+            limits
+                .axes
+                .iter()
+                .flatten()
+                .map(f)
+                .fold(f64::INFINITY, f64::min)
+        };
+        let (a_path, j_path) = (0.2 * lowest(|l| l.acceleration), 0.2 * lowest(|l| l.jerk));
+        let bound =
+            a0 / j_path + stop_time_s(v0 + a0 * a0 / (2.0 * j_path), a_path, j_path) + 3.0 * t;
+        // The last cycle before the resume whose setpoint differs from the one before.
+        let resume = (resume_at as usize).min(rows.len() - 1);
+        let last_move = (h..resume)
+            .rev()
+            .find(|&k| rows[k].1.position != rows[k - 1].1.position)
+            .unwrap_or(h);
+        let took = (last_move + 1 - h) as f64 * t;
+        assert!(
+            took <= bound,
+            "{name}: zero override {zero}: still moving {took} s after the hold at {} s (v {v0}, a {a0}); a stop takes {bound} s",
+            rows[h].0
+        );
+    }
+}

@@ -1589,9 +1589,21 @@ fn design_speed_search(
         }
         vd *= 0.8;
     }
+    // No budget at any of those speeds (the curvature terms used all of it): go on
+    // lowering, as they vanish with the speed (v² and v³) and leave the whole tangential
+    // budget at a low enough one. A floor of made-up limits would crawl: a 0.07 mm G2
+    // blend took 18 s, and a hold on it 6.5 s.
+    while best.is_none() && vd > v_start * 1e-12 {
+        if let Some((a, j)) = budget(vd) {
+            best = Some((0.0, vd, a, j));
+        }
+        vd *= 0.8;
+    }
     match best {
         Some((_, v, a, j)) => (v, a, j),
-        None => (vd, 1e-3, 1e-3),
+        // Unreachable for finite limits (see above); the smallest speed tried, with the
+        // lowest axis limits scaled down as far, keeps the segment slow but finite.
+        None => (vd, a_min * 1e-12, j_min * 1e-12),
     }
 }
 
