@@ -1,0 +1,1518 @@
+//! Grammar-based fuzzing: programs generated from each dialect's grammar reach the geometry.
+//!
+//! Random bytes and token soup (`fuzz.rs`) almost always fail on line 1. Here a small model
+//! of each control writes valid programs: words the dialect knows, values in range, and end
+//! points computed ON the circle through the start point about the programmed centre (or at
+//! the programmed radius, or at the programmed polar radius about the pole), from a random
+//! angle. Some arcs are perturbed slightly (within the end-point tolerance: accepted) or
+//! grossly (beyond it: rejected). Then some programs are mutated word by word (delete,
+//! duplicate, negate, rescale or nudge a number, swap letters or words, drop or repeat a
+//! line).
+//!
+//! Every case must hold the invariants of `fuzz.rs` (no panic, bounded output, finite
+//! moves, errors inside the text) and, checked from the output alone:
+//! - every move starts where the previous one ended, the first at the origin;
+//! - every arc is a circle or helix: centre in the plane of the start, equal radii to start
+//!   and end, a non-zero sweep that reaches the end point (recomputed from the points);
+//! - an error's column lies within its line.
+//!
+//! Unmutated programs are also checked against the model, which knows what each line was
+//! written to do: the same end points, the arc direction, the centre and sweep of unperturbed
+//! arcs, an error exactly on the grossly perturbed line and nowhere else.
+//!
+//! Coverage is measured and asserted from fixed seeds: most unmutated programs yield moves
+//! and arcs, and polar moves occur in every dialect that has them.
+
+use std::cell::RefCell;
+use std::f64::consts::TAU;
+
+use proptest::prelude::*;
+use proptest::test_runner::{RngSeed, TestError, TestRunner};
+
+use kerf_tests::*;
+
+use super::fuzz::check_outcome;
+
+/// Cases per dialect and test (independent of `PROPTEST_CASES`).
+const CASES: u32 = 500;
+
+/// Random parameters of one generated block: an operation selector and uniform numbers in
+/// [0, 1) that the operation turns into values.
+type Op = (u32, [f64; 16]);
+
+/// What the model expects a line to do.
+#[derive(Clone, Copy, Debug)]
+enum Expect {
+    /// No motion (modal settings, poles, events, headers).
+    Nothing,
+    /// A straight move to `end`.
+    Line { end: [f64; 3], rapid: bool },
+    /// An arc or helix to `end` in the given direction; unperturbed arcs also know their
+    /// centre and signed sweep (including whole turns).
+    Arc {
+        end: [f64; 3],
+        ccw: bool,
+        centre: Option<[f64; 3]>,
+        sweep_rad: Option<f64>,
+        sweep_tol: f64,
+    },
+    /// The line must be rejected (an end point grossly off the circle, a radius too small).
+    Error,
+    /// The model does not predict this line.
+    Any,
+}
+
+#[derive(Clone, Debug)]
+struct GenLine {
+    text: String,
+    expect: Expect,
+    /// A polar move (LinuxCNC `@ ^`, Sinumerik RP/AP, Heidenhain G10..G15, Fagor R Q).
+    polar: bool,
+}
+
+/// A generated program: one block per line.
+#[derive(Clone, Debug)]
+struct Program {
+    lines: Vec<GenLine>,
+}
+
+impl Program {
+    fn text(&self) -> String {
+        let mut s = String::new();
+        for l in &self.lines {
+            s.push_str(&l.text);
+            s.push('\n');
+        }
+        s
+    }
+}
+
+fn lerp(t: f64, a: f64, b: f64) -> f64 {
+    a + (b - a) * t
+}
+
+/// Indices of the abscissa, ordinate and normal of plane 0 (G17), 1 (G18), 2 (G19).
+fn axes(plane: usize) -> (usize, usize, usize) {
+    match plane {
+        0 => (0, 1, 2),
+        1 => (2, 0, 1),
+        _ => (1, 2, 0),
+    }
+}
+
+const AXIS: [&str; 3] = ["X", "Y", "Z"];
+const CENTRE: [&str; 3] = ["I", "J", "K"];
+
+/// The model of one control while a program is written.
+struct Gen {
+    d: Dialect,
+    /// Current position, mm (no offsets are used: machine = program coordinates).
+    pos: [f64; 3],
+    plane: usize,
+    inch: bool,
+    absolute: bool,
+    /// LinuxCNC G90.1.
+    arc_abs: bool,
+    /// Sinumerik pole, Heidenhain circle centre/pole, Fagor polar origin (`None` = zero).
+    pole: Option<[f64; 3]>,
+    /// Sinumerik modal RP (mm) and AP (degrees).
+    rp: Option<f64>,
+    ap: Option<f64>,
+    last_ccw: Option<bool>,
+    /// The programmed polar radius (mm) and angle (degrees) while the position still is
+    /// that polar point: a missing R or angle keeps these values, and a Heidenhain absolute
+    /// H is reached from this angle (not reduced to one turn).
+    polar_last: Option<(f64, f64)>,
+    decimals: usize,
+    lines: Vec<GenLine>,
+    /// An error line was written: the rest of the program is never read.
+    stopped: bool,
+}
+
+impl Gen {
+    fn new(d: Dialect, decimals: usize) -> Self {
+        Gen {
+            d,
+            pos: [0.0; 3],
+            plane: 0,
+            inch: false,
+            absolute: true,
+            arc_abs: false,
+            pole: None,
+            rp: None,
+            ap: None,
+            last_ccw: None,
+            polar_last: None,
+            decimals,
+            lines: Vec::new(),
+            stopped: false,
+        }
+    }
+
+    fn scale(&self) -> f64 {
+        if self.inch { INCH_MM } else { 1.0 }
+    }
+
+    fn heid(&self) -> bool {
+        self.d == Dialect::Heidenhain
+    }
+
+    /// A number as the program writes it, and the value the control reads back.
+    fn num(&self, x: f64) -> (String, f64) {
+        let decimals = self.decimals + usize::from(self.inch);
+        let s = if self.heid() {
+            format!("{x:+.decimals$}")
+        } else {
+            format!("{x:.decimals$}")
+        };
+        let back: f64 = s.parse().expect("formatted number");
+        (s, back)
+    }
+
+    /// G code as the dialect writes it (`G2` or `G02`).
+    fn g(&self, n: u32) -> String {
+        match self.d {
+            Dialect::LinuxCnc | Dialect::Sinumerik => format!("G{n}"),
+            _ => format!("G{n:02}"),
+        }
+    }
+
+    fn push(&mut self, mut words: Vec<String>, expect: Expect, polar: bool) {
+        if self.heid() {
+            words.push("*".into());
+        }
+        if !polar
+            && matches!(
+                expect,
+                Expect::Line { .. } | Expect::Arc { .. } | Expect::Any
+            )
+        {
+            self.polar_last = None;
+        }
+        self.lines.push(GenLine {
+            text: words.join(" "),
+            expect,
+            polar,
+        });
+        if matches!(expect, Expect::Error) {
+            self.stopped = true;
+        }
+    }
+
+    /// The word moving axis `i` to `target_mm` in the modal distance mode, and the position
+    /// the control reaches.
+    fn coord(&self, i: usize, target_mm: f64) -> (String, f64) {
+        let s = self.scale();
+        if self.absolute {
+            let (t, v) = self.num(target_mm / s);
+            (format!("{}{t}", AXIS[i]), v * s)
+        } else {
+            let (t, v) = self.num((target_mm - self.pos[i]) / s);
+            (format!("{}{t}", AXIS[i]), self.pos[i] + v * s)
+        }
+    }
+
+    /// Polar coordinates (mm, degrees) of the current point in the plane about `pole`.
+    fn polar_of(&self, pole: [f64; 3], u: usize, v: usize) -> (f64, f64) {
+        let du = self.pos[u] - pole[u];
+        let dv = self.pos[v] - pole[v];
+        ((du * du + dv * dv).sqrt(), dv.atan2(du).to_degrees())
+    }
+
+    fn pole_or_zero(&self) -> [f64; 3] {
+        self.pole.unwrap_or([0.0; 3])
+    }
+
+    fn step(&mut self, op: &Op) {
+        if self.stopped {
+            return;
+        }
+        let (sel, p) = op;
+        let sel = sel % 100;
+        let rockwell_like = matches!(self.d, Dialect::Rockwell);
+        match sel {
+            0..=14 => self.linear(p),
+            15..=39 => self.centre_arc(p),
+            40..=51 => self.radius_arc(p),
+            52..=66 if !rockwell_like => self.polar_line(p),
+            52..=66 => self.linear(p),
+            67..=79 if !rockwell_like => self.polar_arc(p),
+            67..=79 => self.centre_arc(p),
+            80..=91 => self.modal(p),
+            _ => self.set_pole(p),
+        }
+    }
+
+    fn linear(&mut self, p: &[f64; 16]) {
+        let rapid = p[0] < 0.3;
+        let mut words = vec![self.g(u32::from(!rapid))];
+        let mut end = self.pos;
+        let mut any = false;
+        for i in 0..3 {
+            if p[1 + i] < 0.6 || (i == 2 && !any) {
+                let (w, e) = self.coord(i, lerp(p[4 + i], -60.0, 60.0));
+                words.push(w);
+                end[i] = e;
+                any = true;
+            }
+        }
+        if !rapid && p[7] < 0.2 {
+            words.push(self.feed_word(p[8]));
+        }
+        let moved = (0..3).any(|i| (end[i] - self.pos[i]).abs() > 1e-6);
+        let expect = if moved {
+            Expect::Line { end, rapid }
+        } else {
+            Expect::Any
+        };
+        self.push(words, expect, false);
+        self.pos = end;
+    }
+
+    fn feed_word(&self, t: f64) -> String {
+        let f = lerp(t, 50.0, 3000.0) / self.scale();
+        format!("F{:.1}", f.max(0.1))
+    }
+
+    /// Writes the centre (I J K) of an arc about `centre` (mm) from the current point: the
+    /// words and the centre the control reads back.
+    fn centre_words(&self, centre: [f64; 3], p: &[f64; 16], words: &mut Vec<String>) {
+        let (u, v, _) = axes(self.plane);
+        let s = self.scale();
+        let sin_ac = self.d == Dialect::Sinumerik && p[11] < 0.3;
+        for i in [u, v] {
+            let absolute = match self.d {
+                Dialect::LinuxCnc => self.arc_abs,
+                Dialect::Heidenhain => self.absolute,
+                Dialect::Sinumerik => sin_ac,
+                Dialect::Fagor => words.iter().any(|w| w == "G06"),
+                Dialect::Rockwell => false,
+            };
+            let (t, _) = if absolute {
+                self.num(centre[i] / s)
+            } else {
+                self.num((centre[i] - self.pos[i]) / s)
+            };
+            if sin_ac {
+                words.push(format!("{}=AC({t})", CENTRE[i]));
+            } else {
+                words.push(format!("{}{t}", CENTRE[i]));
+            }
+        }
+    }
+
+    /// Centre-format arcs (and full circles) in the active plane.
+    fn centre_arc(&mut self, p: &[f64; 16]) {
+        let (u, v, w) = axes(self.plane);
+        let s = self.scale();
+        let r = lerp(p[0], 0.5, 40.0);
+        let a0 = p[1] * TAU;
+        let mut centre = self.pos;
+        centre[u] = self.pos[u] - r * a0.cos();
+        centre[v] = self.pos[v] - r * a0.sin();
+        let ccw = p[2] < 0.5;
+        let full = p[3] < 0.12;
+        let sweep_abs = if full {
+            TAU
+        } else {
+            lerp(p[4], 5.0, 355.0).to_radians()
+        };
+        let extra_turns = match self.d {
+            Dialect::LinuxCnc | Dialect::Sinumerik if p[5] < 0.15 => 1 + (p[5] * 100.0) as u32 % 2,
+            _ => 0,
+        };
+        let perturb = if p[6] < 0.7 {
+            0.0
+        } else if p[6] < 0.96 {
+            lerp(p[7], -0.01, 0.01)
+        } else {
+            lerp(p[7], 1.0, 5.0)
+        };
+        let gross = perturb >= 1.0;
+        let a1 = if ccw { a0 + sweep_abs } else { a0 - sweep_abs };
+        let re = r + perturb;
+
+        // Heidenhain: the centre is a modal pole set by I J (K), here or on a line before.
+        let mut words = Vec::new();
+        if self.heid() && p[12] < 0.5 {
+            let mut cw = Vec::new();
+            self.centre_words(centre, p, &mut cw);
+            self.push(cw, Expect::Nothing, false);
+        } else if self.heid() {
+            self.centre_words(centre, p, &mut words);
+        }
+        if self.heid() {
+            // The control reads the centre back in its own unit.
+            let mut c = self.pos;
+            for i in [u, v] {
+                let (_, back) = if self.absolute {
+                    self.num(centre[i] / s)
+                } else {
+                    self.num((centre[i] - self.pos[i]) / s)
+                };
+                c[i] = if self.absolute {
+                    back * s
+                } else {
+                    self.pos[i] + back * s
+                };
+            }
+            self.pole = Some(c);
+            self.polar_last = None;
+            centre = c;
+        }
+        let g = if self.heid() && self.last_ccw == Some(ccw) && p[13] < 0.3 {
+            self.g(5)
+        } else {
+            self.g(if ccw { 3 } else { 2 })
+        };
+        words.insert(0, g);
+        if self.d == Dialect::Fagor && p[11] < 0.3 {
+            words.insert(0, "G06".into());
+        }
+
+        let mut end = self.pos;
+        let exact_start = |m: &Gen, i: usize| {
+            if !m.absolute {
+                return true;
+            }
+            let (_, back) = m.num(m.pos[i] / s);
+            back * s == m.pos[i]
+        };
+        let omit_end = full
+            && !gross
+            && !self.heid()
+            && (p[10] < 0.5 || !exact_start(self, u) || !exact_start(self, v));
+        if !omit_end {
+            let (wu, eu) = if full && perturb == 0.0 {
+                self.coord(u, self.pos[u])
+            } else {
+                self.coord(u, centre[u] + re * a1.cos())
+            };
+            let (wv, ev) = if full && perturb == 0.0 {
+                self.coord(v, self.pos[v])
+            } else {
+                self.coord(v, centre[v] + re * a1.sin())
+            };
+            words.push(wu);
+            words.push(wv);
+            end[u] = eu;
+            end[v] = ev;
+        }
+        if self.heid() && full && !gross {
+            // An end point within 0.016 mm of the start is a full circle on the TNC.
+            end[u] = self.pos[u];
+            end[v] = self.pos[v];
+        }
+        if p[8] < 0.25 {
+            let (ww, ew) = self.coord(w, self.pos[w] + lerp(p[9], -10.0, 10.0));
+            words.push(ww);
+            end[w] = ew;
+        }
+        if !self.heid() {
+            // The centre as the control reads it.
+            let before = words.len();
+            self.centre_words(centre, p, &mut words);
+            for (k, i) in [u, v].into_iter().enumerate() {
+                let word = &words[before + k];
+                let digits: String = word
+                    .trim_start_matches(|c: char| c.is_ascii_alphabetic() || c == '=' || c == '(')
+                    .trim_end_matches(')')
+                    .into();
+                let back: f64 = digits.parse().expect("centre word");
+                let absolute = match self.d {
+                    Dialect::LinuxCnc => self.arc_abs,
+                    Dialect::Sinumerik => word.contains("AC("),
+                    Dialect::Fagor => words.iter().any(|w| w == "G06"),
+                    _ => false,
+                };
+                centre[i] = if absolute {
+                    back * s
+                } else {
+                    self.pos[i] + back * s
+                };
+            }
+        }
+        match (self.d, extra_turns) {
+            (_, 0) => {}
+            (Dialect::LinuxCnc, n) => words.push(format!("P{}", n + 1)),
+            (_, n) => words.push(format!("TURN={n}")),
+        }
+        let sweep = (sweep_abs + f64::from(extra_turns) * TAU) * if ccw { 1.0 } else { -1.0 };
+        let expect = if gross {
+            Expect::Error
+        } else {
+            let exact = perturb == 0.0;
+            Expect::Arc {
+                end,
+                ccw,
+                centre: exact.then_some(centre),
+                sweep_rad: exact.then_some(sweep),
+                sweep_tol: 1e-2,
+            }
+        };
+        self.push(words, expect, false);
+        if !gross {
+            self.pos = end;
+            self.last_ccw = Some(ccw);
+        }
+    }
+
+    /// Radius-format arcs: R (CR=) with the sign choosing the short or the long way.
+    fn radius_arc(&mut self, p: &[f64; 16]) {
+        let (u, v, w) = axes(self.plane);
+        let s = self.scale();
+        let r = lerp(p[0], 1.0, 40.0);
+        let a0 = p[1] * TAU;
+        let ccw = p[2] < 0.5;
+        let long = p[3] < 0.4;
+        let sweep_abs = if long {
+            lerp(p[4], 190.0, 350.0)
+        } else {
+            lerp(p[4], 10.0, 170.0)
+        }
+        .to_radians();
+        let mut centre = self.pos;
+        centre[u] = self.pos[u] - r * a0.cos();
+        centre[v] = self.pos[v] - r * a0.sin();
+        let a1 = if ccw { a0 + sweep_abs } else { a0 - sweep_abs };
+        let mut words = vec![self.g(if ccw { 3 } else { 2 })];
+        let mut end = self.pos;
+        let (wu, eu) = self.coord(u, centre[u] + r * a1.cos());
+        let (wv, ev) = self.coord(v, centre[v] + r * a1.sin());
+        words.push(wu);
+        words.push(wv);
+        end[u] = eu;
+        end[v] = ev;
+        if p[8] < 0.25 {
+            let (ww, ew) = self.coord(w, self.pos[w] + lerp(p[9], -10.0, 10.0));
+            words.push(ww);
+            end[w] = ew;
+        }
+        let chord = ((end[u] - self.pos[u]).powi(2) + (end[v] - self.pos[v]).powi(2)).sqrt();
+        let (radius, exact, gross) = if p[6] < 0.75 {
+            (r, true, false)
+        } else if p[6] < 0.97 {
+            (r * (1.0 + lerp(p[7], -1e-4, 1e-4)), false, false)
+        } else {
+            (0.5 * chord * lerp(p[7], 0.3, 0.9), false, true)
+        };
+        let signed = if long { -radius } else { radius };
+        let (t, _) = self.num(signed / s);
+        words.push(match self.d {
+            Dialect::Sinumerik => format!("CR={t}"),
+            _ => format!("R{t}"),
+        });
+        let extra_turns = if self.d == Dialect::LinuxCnc && p[5] < 0.1 {
+            words.push("P2".into());
+            1.0
+        } else {
+            0.0
+        };
+        let sweep = (sweep_abs + extra_turns * TAU) * if ccw { 1.0 } else { -1.0 };
+        let expect = if gross {
+            Expect::Error
+        } else {
+            Expect::Arc {
+                end,
+                ccw,
+                centre: exact.then_some(centre),
+                sweep_rad: exact.then_some(sweep),
+                sweep_tol: 1e-2,
+            }
+        };
+        self.push(words, expect, false);
+        if !gross {
+            self.pos = end;
+            self.last_ccw = Some(ccw);
+        }
+    }
+
+    /// Polar lines: LinuxCNC `@ ^`, Sinumerik RP= AP=, Heidenhain G10/G11 R H, Fagor R Q.
+    fn polar_line(&mut self, p: &[f64; 16]) {
+        let rapid = p[0] < 0.25;
+        let s = self.scale();
+        let (u, v, w) = if self.d == Dialect::LinuxCnc {
+            (0, 1, 2)
+        } else {
+            axes(self.plane)
+        };
+        if self.heid() && self.pole.is_none() {
+            self.set_pole(p);
+        }
+        let pole = self.pole_or_zero();
+        let (r0, a0) = self.polar_of(pole, u, v);
+        let mut words = Vec::new();
+        let g = match self.d {
+            Dialect::Heidenhain => self.g(if rapid { 10 } else { 11 }),
+            _ => self.g(u32::from(!rapid)),
+        };
+        words.push(g);
+        let (rk, ak) = match self.d {
+            Dialect::LinuxCnc => ("@", "^"),
+            Dialect::Sinumerik => ("RP=", "AP="),
+            Dialect::Heidenhain => ("R", "H"),
+            _ => ("R", "Q"),
+        };
+        let mut r_target = lerp(p[1], 0.5, 60.0);
+        let mut a_target = lerp(p[2], -360.0, 360.0);
+        // Omit one of the two now and then: the control keeps the current (or, on the
+        // Sinumerik, the modal) value.
+        let keep_r = p[3] < 0.15 && (self.d != Dialect::Sinumerik || self.rp.is_some());
+        let keep_a = !keep_r && p[3] > 0.85 && (self.d != Dialect::Sinumerik || self.ap.is_some());
+        let sinumerik_r0 = self.rp.unwrap_or(r0);
+        let sinumerik_a0 = self.ap.unwrap_or(a0);
+        let (cur_r, cur_a) = if self.d == Dialect::Sinumerik {
+            (sinumerik_r0, sinumerik_a0)
+        } else {
+            self.polar_last.unwrap_or((r0, a0))
+        };
+        // Sinumerik RP/AP ignore G91 (only IC() is incremental); the others add to the
+        // current polar values under G91.
+        let incremental = !self.absolute && self.d != Dialect::Sinumerik;
+        if incremental && r0 < 1.0 {
+            // LinuxCNC refuses an incremental polar move at the origin; keep it simple.
+            self.linear(p);
+            return;
+        }
+        if keep_r {
+            r_target = cur_r;
+        } else {
+            if incremental {
+                let dr = lerp(p[4], -0.9 * r0.min(5.0), 5.0);
+                let (t, back) = self.num(dr / s);
+                words.push(format!("{rk}{t}"));
+                r_target = r0 + back * s;
+            } else {
+                let (t, back) = self.num(r_target / s);
+                words.push(format!("{rk}{t}"));
+                r_target = back * s;
+            }
+        }
+        if keep_a {
+            a_target = cur_a;
+        } else if incremental {
+            let (t, back) = self.num(lerp(p[5], -120.0, 120.0));
+            words.push(format!("{ak}{t}"));
+            a_target = cur_a + back;
+        } else if self.d == Dialect::Sinumerik && self.ap.is_some() && p[6] < 0.25 {
+            let (t, back) = self.num(lerp(p[5], -120.0, 120.0));
+            words.push(format!("AP=IC({t})"));
+            a_target = self.ap.unwrap_or(0.0) + back;
+        } else {
+            let (t, back) = self.num(a_target);
+            words.push(format!("{ak}{t}"));
+            a_target = back;
+        }
+        let mut end = self.pos;
+        let a = a_target.to_radians();
+        end[u] = pole[u] + r_target * a.cos();
+        end[v] = pole[v] + r_target * a.sin();
+        if p[7] < 0.25 {
+            let (ww, ew) = self.coord(w, lerp(p[8], -20.0, 20.0));
+            words.push(ww);
+            end[w] = ew;
+        }
+        if self.d == Dialect::Sinumerik {
+            self.rp = Some(r_target);
+            self.ap = Some(a_target);
+        }
+        if self.d != Dialect::Sinumerik {
+            self.polar_last = Some((r_target, a_target));
+        }
+        let moved = (0..3).any(|i| (end[i] - self.pos[i]).abs() > 1e-6);
+        let expect = if moved {
+            Expect::Line { end, rapid }
+        } else {
+            Expect::Any
+        };
+        self.push(words, expect, true);
+        self.pos = end;
+    }
+
+    /// Polar circles about the pole: Sinumerik G2/G3 RP= AP=, Heidenhain G12/G13/G15 H,
+    /// Fagor G02/G03 Q (and `G91 Q360`, and X Y with no centre).
+    fn polar_arc(&mut self, p: &[f64; 16]) {
+        if self.d == Dialect::LinuxCnc {
+            return self.centre_arc(p);
+        }
+        let (u, v, w) = axes(self.plane);
+        let s = self.scale();
+        if self.heid() && self.pole.is_none() {
+            self.set_pole(p);
+        }
+        let pole = self.pole_or_zero();
+        let (r0, a0) = self.polar_of(pole, u, v);
+        if r0 < 0.5 {
+            return self.polar_line(p);
+        }
+        let ccw = p[0] < 0.5;
+        let mut sweep_abs = lerp(p[1], 5.0, 355.0);
+        let mut words = Vec::new();
+        let mut gross = false;
+        let mut perturbed = false;
+        let mut end = self.pos;
+        let mut turns = 0u32;
+        let mut new_polar = None;
+        let dir = |x: f64| if ccw { x } else { -x };
+        match self.d {
+            Dialect::Sinumerik => {
+                words.push(self.g(if ccw { 3 } else { 2 }));
+                let a1 = a0 + dir(sweep_abs);
+                let a1 = (a1 + 180.0).rem_euclid(360.0) - 180.0;
+                let rp = if p[2] < 0.75 {
+                    r0
+                } else if p[2] < 0.96 {
+                    perturbed = true;
+                    r0 + lerp(p[3], -0.01, 0.01)
+                } else {
+                    gross = true;
+                    r0 + lerp(p[3], 1.0, 5.0)
+                };
+                let (tr, rb) = self.num(rp / s);
+                let (ta, ab) = self.num(a1);
+                words.push(format!("RP={tr}"));
+                words.push(format!("AP={ta}"));
+                if p[4] < 0.15 {
+                    turns = 1;
+                    words.push("TURN=1".into());
+                }
+                let a = ab.to_radians();
+                end[u] = pole[u] + rb * s * a.cos();
+                end[v] = pole[v] + rb * s * a.sin();
+                self.rp = Some(rb * s);
+                self.ap = Some(ab);
+            }
+            Dialect::Heidenhain => {
+                let g = if self.last_ccw == Some(ccw) && p[5] < 0.3 {
+                    15
+                } else if ccw {
+                    13
+                } else {
+                    12
+                };
+                words.push(self.g(g));
+                // The start angle as programmed (it may lie beyond one turn).
+                let a0p = self.polar_last.map_or(a0, |(_, a)| a);
+                if p[2] < 0.7 && (a0p + dir(sweep_abs)).abs() < 5400.0 {
+                    // Absolute H: the end angle, reached in the programmed direction.
+                    if !self.absolute {
+                        words.insert(0, self.g(90));
+                        self.absolute = true;
+                    }
+                    let (ta, ab) = self.num(a0p + dir(sweep_abs));
+                    words.push(format!("H{ta}"));
+                    let a = ab.to_radians();
+                    end[u] = pole[u] + r0 * a.cos();
+                    end[v] = pole[v] + r0 * a.sin();
+                    new_polar = Some((r0, ab));
+                } else {
+                    // G91 H: the swept angle itself, whole turns included.
+                    if self.absolute {
+                        words.insert(0, self.g(91));
+                        self.absolute = false;
+                    }
+                    if p[3] < 0.3 {
+                        turns = 1 + (p[3] * 30.0) as u32 % 3;
+                        sweep_abs = 0.0;
+                        words.push(format!("H{:+}", dir(360.0 * f64::from(turns))));
+                        new_polar = Some((r0, a0p + dir(360.0 * f64::from(turns))));
+                    } else {
+                        turns = (p[4] * 3.0) as u32;
+                        let h = dir(sweep_abs + 360.0 * f64::from(turns));
+                        let (ta, ab) = self.num(h);
+                        sweep_abs = ab.abs() - 360.0 * f64::from(turns);
+                        words.push(format!("H{ta}"));
+                        new_polar = Some((r0, a0p + ab));
+                        let a = (a0 + ab).to_radians();
+                        end[u] = pole[u] + r0 * a.cos();
+                        end[v] = pole[v] + r0 * a.sin();
+                    }
+                }
+            }
+            _ => {
+                // Fagor.
+                words.push(self.g(if ccw { 3 } else { 2 }));
+                if p[2] < 0.2 {
+                    // G91 Q360·n: whole circles about the polar origin.
+                    if self.absolute {
+                        words.insert(0, self.g(91));
+                        self.absolute = false;
+                    }
+                    turns = 1 + (p[3] * 30.0) as u32 % 2;
+                    sweep_abs = 0.0;
+                    let sign = if p[4] < 0.5 { 1.0 } else { -1.0 };
+                    words.push(format!("Q{}", sign * f64::from(360 * turns)));
+                    let (r_prog, a_prog) = self.polar_last.unwrap_or((r0, a0));
+                    new_polar = Some((r_prog, a_prog + sign * f64::from(360 * turns)));
+                } else if p[2] < 0.4 {
+                    // X Y with neither I J nor R: the centre is the polar origin.
+                    let a1 = (a0 + dir(sweep_abs)).to_radians();
+                    let (wu, eu) = self.coord(u, pole[u] + r0 * a1.cos());
+                    let (wv, ev) = self.coord(v, pole[v] + r0 * a1.sin());
+                    words.push(wu);
+                    words.push(wv);
+                    end[u] = eu;
+                    end[v] = ev;
+                } else {
+                    let q = dir(sweep_abs);
+                    let (ta, ab) = if self.absolute {
+                        self.num(a0 + q)
+                    } else {
+                        self.num(q)
+                    };
+                    let (r_prog, a_prog) = self.polar_last.unwrap_or((r0, a0));
+                    let a_end = if self.absolute { ab } else { a_prog + ab };
+                    let rq = if p[6] < 0.5 {
+                        None
+                    } else if p[6] < 0.96 {
+                        Some(r0)
+                    } else {
+                        gross = true;
+                        Some(r0 + lerp(p[3], 1.0, 5.0))
+                    };
+                    let mut r_end = r_prog;
+                    if let Some(r) = rq {
+                        let (tr, rb) = if self.absolute {
+                            self.num(r / s)
+                        } else {
+                            self.num((r - r_prog) / s)
+                        };
+                        words.push(format!("R{tr}"));
+                        r_end = if self.absolute {
+                            rb * s
+                        } else {
+                            r_prog + rb * s
+                        };
+                    }
+                    new_polar = Some((r_end, a_end));
+                    words.push(format!("Q{ta}"));
+                    let a = a_end.to_radians();
+                    end[u] = pole[u] + r_end * a.cos();
+                    end[v] = pole[v] + r_end * a.sin();
+                }
+            }
+        }
+        if p[8] < 0.25 {
+            let (ww, ew) = self.coord(w, self.pos[w] + lerp(p[9], -10.0, 10.0));
+            words.push(ww);
+            end[w] = ew;
+        }
+        let mut centre = pole;
+        centre[w] = self.pos[w];
+        let sweep = dir((sweep_abs + 360.0 * f64::from(turns)).to_radians());
+        let expect = if gross {
+            Expect::Error
+        } else {
+            let exact = !perturbed;
+            Expect::Arc {
+                end,
+                ccw,
+                centre: exact.then_some(centre),
+                sweep_rad: exact.then_some(sweep),
+                sweep_tol: 1e-2,
+            }
+        };
+        self.push(words, expect, true);
+        if !gross {
+            self.pos = end;
+            self.last_ccw = Some(ccw);
+            if self.d != Dialect::Sinumerik {
+                self.polar_last = new_polar;
+            }
+        }
+    }
+
+    /// Modal settings and events: plane, units, distance mode, corners, feed, dwell, M codes.
+    fn modal(&mut self, p: &[f64; 16]) {
+        let d = self.d;
+        let pick = (p[0] * 8.0) as u32;
+        let mut words = Vec::new();
+        match pick {
+            0 | 1 => {
+                let plane = (p[1] * 3.0) as usize % 3;
+                words.push(self.g(17 + plane as u32));
+                if plane != self.plane {
+                    self.rp = None;
+                    self.ap = None;
+                    self.polar_last = None;
+                    if d == Dialect::Fagor {
+                        self.pole = None;
+                    }
+                }
+                self.plane = plane;
+            }
+            2 => {
+                let inch = p[1] < 0.3;
+                let w = match d {
+                    Dialect::LinuxCnc | Dialect::Rockwell => self.g(if inch { 20 } else { 21 }),
+                    Dialect::Sinumerik if p[2] < 0.5 => self.g(if inch { 700 } else { 710 }),
+                    _ => self.g(if inch { 70 } else { 71 }),
+                };
+                words.push(w);
+                self.inch = inch;
+            }
+            3 => {
+                let absolute = p[1] < 0.6;
+                words.push(self.g(if absolute { 90 } else { 91 }));
+                self.absolute = absolute;
+            }
+            4 if d == Dialect::LinuxCnc => {
+                let abs = p[1] < 0.5;
+                words.push(if abs { "G90.1" } else { "G91.1" }.into());
+                self.arc_abs = abs;
+            }
+            4 | 5 => match d {
+                Dialect::LinuxCnc => {
+                    if p[1] < 0.5 {
+                        words.push(format!("G64 P{:.3}", lerp(p[2], 0.001, 0.1)));
+                    } else {
+                        words.push("G61".into());
+                    }
+                }
+                Dialect::Rockwell => words.push(if p[1] < 0.5 { "G64" } else { "G61" }.into()),
+                Dialect::Sinumerik => words.push(if p[1] < 0.5 { "G64" } else { "G60" }.into()),
+                Dialect::Fagor => words.push(if p[1] < 0.5 { "G05" } else { "G07" }.into()),
+                Dialect::Heidenhain => words.push(self.feed_word(p[2])),
+            },
+            6 => words.push(self.feed_word(p[1])),
+            _ => match d {
+                Dialect::LinuxCnc | Dialect::Rockwell if p[1] < 0.3 => {
+                    words.push(format!("{} P{:.2}", self.g(4), lerp(p[2], 0.0, 2.0)));
+                }
+                Dialect::Fagor if p[1] < 0.3 => {
+                    words.push(format!("G04 K{:.2}", lerp(p[2], 0.0, 2.0)));
+                }
+                _ if p[1] < 0.6 => words.push(format!("S{} M3", (p[2] * 10000.0) as u32)),
+                _ => words.push(if p[2] < 0.5 { "M8" } else { "M9" }.into()),
+            },
+        }
+        self.push(words, Expect::Nothing, false);
+    }
+
+    /// Poles: Sinumerik G110/G111/G112, Heidenhain I J (K) and G29, Fagor G30.
+    fn set_pole(&mut self, p: &[f64; 16]) {
+        let (u, v, _) = axes(self.plane);
+        let s = self.scale();
+        let mut words = Vec::new();
+        match self.d {
+            Dialect::Sinumerik => {
+                let (g, reference) = match (p[0] * 3.0) as u32 {
+                    0 => (110, self.pos),
+                    1 => (111, [0.0; 3]),
+                    _ => (112, self.pole_or_zero()),
+                };
+                words.push(self.g(g));
+                let mut pole = reference;
+                if p[1] < 0.25 {
+                    let (tr, rb) = self.num(lerp(p[2], 0.0, 30.0) / s);
+                    let (ta, ab) = self.num(lerp(p[3], -360.0, 360.0));
+                    words.push(format!("RP={tr}"));
+                    words.push(format!("AP={ta}"));
+                    let a = ab.to_radians();
+                    pole[u] += rb * s * a.cos();
+                    pole[v] += rb * s * a.sin();
+                } else {
+                    for (k, i) in [u, v].into_iter().enumerate() {
+                        let (t, back) = self.num(lerp(p[2 + k], -30.0, 30.0) / s);
+                        words.push(format!("{}{t}", AXIS[i]));
+                        pole[i] = reference[i] + back * s;
+                    }
+                }
+                self.pole = Some(pole);
+                self.rp = None;
+                self.ap = None;
+            }
+            Dialect::Heidenhain => {
+                if p[1] < 0.2 {
+                    words.push(self.g(29));
+                    self.pole = Some(self.pos);
+                } else {
+                    let mut pole = self.pos;
+                    for (k, i) in [u, v].into_iter().enumerate() {
+                        let target = lerp(p[2 + k], -40.0, 40.0);
+                        let (t, back) = if self.absolute {
+                            self.num(target / s)
+                        } else {
+                            self.num((target - self.pos[i]) / s)
+                        };
+                        words.push(format!("{}{t}", CENTRE[i]));
+                        pole[i] = if self.absolute {
+                            back * s
+                        } else {
+                            self.pos[i] + back * s
+                        };
+                    }
+                    self.pole = Some(pole);
+                }
+            }
+            Dialect::Fagor => {
+                words.push(self.g(30));
+                if p[1] < 0.3 {
+                    self.pole = Some(self.pos);
+                } else {
+                    let mut pole = self.pos;
+                    for (k, i) in [u, v].into_iter().enumerate() {
+                        let (t, back) = self.num(lerp(p[2 + k], -40.0, 40.0) / s);
+                        words.push(format!("{}{t}", CENTRE[i]));
+                        pole[i] = back * s;
+                    }
+                    self.pole = Some(pole);
+                }
+            }
+            _ => return self.modal(p),
+        }
+        self.polar_last = None;
+        self.push(words, Expect::Nothing, false);
+    }
+}
+
+/// A program of dialect `d` from the random operations.
+fn render(d: Dialect, decimals: usize, ops: &[Op]) -> Program {
+    let mut g = Gen::new(d, decimals);
+    let header: &[&str] = match d {
+        Dialect::LinuxCnc => &["%", "G21 G90 G17 G91.1 F600"],
+        Dialect::Rockwell => &["O1234", "G21 G90 G17 F600"],
+        Dialect::Sinumerik => &["%_N_FUZZ_MPF", "G71 G90 G17 F600"],
+        Dialect::Heidenhain => &["%FUZZ G71 *", "G17 G90 F600 *"],
+        Dialect::Fagor => &["%FUZZ", "G71 G90 G17 F600"],
+    };
+    for h in header {
+        g.lines.push(GenLine {
+            text: (*h).into(),
+            expect: Expect::Nothing,
+            polar: false,
+        });
+    }
+    for op in ops {
+        g.step(op);
+    }
+    if !g.stopped {
+        let end = if d == Dialect::LinuxCnc { "M2" } else { "M30" };
+        g.push(vec![end.into()], Expect::Nothing, false);
+    }
+    Program { lines: g.lines }
+}
+
+/// Word-level mutations of a generated program.
+#[derive(Clone, Debug)]
+enum Mutation {
+    DeleteWord(usize, usize),
+    DuplicateWord(usize, usize),
+    Negate(usize, usize),
+    Rescale(usize, usize, usize),
+    Nudge(usize, usize, f64),
+    SwapLetter(usize, usize, usize),
+    SwapWords(usize, usize),
+    DeleteLine(usize),
+    DuplicateLine(usize),
+    SwapLines(usize),
+}
+
+const FACTORS: &[f64] = &[
+    10.0, 0.1, 1000.0, 0.001, 0.0, -1.0, 1.0001, 360.0, 1e6, 2.0, 0.5,
+];
+const LETTERS: &[&str] = &[
+    "X", "Y", "Z", "A", "B", "C", "I", "J", "K", "R", "P", "Q", "H", "F", "G", "M", "S", "T", "D",
+    "L", "CR=", "RP=", "AP=", "TURN=", "@", "^", "I=AC(", "X=IC(",
+];
+
+fn mutation() -> impl Strategy<Value = Mutation> {
+    let at = || (any::<usize>(), any::<usize>());
+    prop_oneof![
+        at().prop_map(|(l, w)| Mutation::DeleteWord(l, w)),
+        at().prop_map(|(l, w)| Mutation::DuplicateWord(l, w)),
+        at().prop_map(|(l, w)| Mutation::Negate(l, w)),
+        (at(), 0..FACTORS.len()).prop_map(|((l, w), f)| Mutation::Rescale(l, w, f)),
+        (at(), -0.05f64..0.05).prop_map(|((l, w), x)| Mutation::Nudge(l, w, x)),
+        (at(), 0..LETTERS.len()).prop_map(|((l, w), k)| Mutation::SwapLetter(l, w, k)),
+        at().prop_map(|(l, w)| Mutation::SwapWords(l, w)),
+        any::<usize>().prop_map(Mutation::DeleteLine),
+        any::<usize>().prop_map(Mutation::DuplicateLine),
+        any::<usize>().prop_map(Mutation::SwapLines),
+    ]
+}
+
+/// Splits a word into the text before its number, the number and the text after it.
+fn split_number(word: &str) -> Option<(&str, &str, &str)> {
+    let b = word.as_bytes();
+    let start = (1..b.len()).find(|&i| {
+        b[i].is_ascii_digit()
+            || (b[i] == b'.' && b.get(i + 1).is_some_and(u8::is_ascii_digit))
+            || (matches!(b[i], b'+' | b'-')
+                && b.get(i + 1)
+                    .is_some_and(|c| c.is_ascii_digit() || *c == b'.'))
+    })?;
+    let mut end = start + 1;
+    while end < b.len() && (b[end].is_ascii_digit() || b[end] == b'.') {
+        end += 1;
+    }
+    Some((&word[..start], &word[start..end], &word[end..]))
+}
+
+fn mutate(text: &str, muts: &[Mutation]) -> String {
+    let mut lines: Vec<Vec<String>> = text
+        .lines()
+        .map(|l| l.split_whitespace().map(String::from).collect())
+        .collect();
+    for m in muts {
+        if lines.is_empty() {
+            break;
+        }
+        let n = lines.len();
+        let word = |lines: &[Vec<String>], l: usize, w: usize| -> Option<(usize, usize)> {
+            let l = l % n;
+            let len = lines[l].len();
+            (len > 0).then(|| (l, w % len))
+        };
+        match *m {
+            Mutation::DeleteWord(l, w) => {
+                if let Some((l, w)) = word(&lines, l, w) {
+                    lines[l].remove(w);
+                }
+            }
+            Mutation::DuplicateWord(l, w) => {
+                if let Some((l, w)) = word(&lines, l, w) {
+                    let copy = lines[l][w].clone();
+                    lines[l].insert(w, copy);
+                }
+            }
+            Mutation::Negate(l, w) => {
+                if let Some((l, w)) = word(&lines, l, w)
+                    && let Some((a, num, z)) = split_number(&lines[l][w])
+                {
+                    let flipped = match num.as_bytes()[0] {
+                        b'-' => format!("+{}", &num[1..]),
+                        b'+' => format!("-{}", &num[1..]),
+                        _ => format!("-{num}"),
+                    };
+                    lines[l][w] = format!("{a}{flipped}{z}");
+                }
+            }
+            Mutation::Rescale(l, w, f) => {
+                if let Some((l, w)) = word(&lines, l, w)
+                    && let Some((a, num, z)) = split_number(&lines[l][w])
+                    && let Ok(x) = num.parse::<f64>()
+                {
+                    lines[l][w] = format!("{a}{}{z}", x * FACTORS[f]);
+                }
+            }
+            Mutation::Nudge(l, w, dx) => {
+                if let Some((l, w)) = word(&lines, l, w)
+                    && let Some((a, num, z)) = split_number(&lines[l][w])
+                    && let Ok(x) = num.parse::<f64>()
+                {
+                    lines[l][w] = format!("{a}{:.4}{z}", x + dx);
+                }
+            }
+            Mutation::SwapLetter(l, w, k) => {
+                if let Some((l, w)) = word(&lines, l, w)
+                    && let Some((_, num, _)) = split_number(&lines[l][w])
+                {
+                    let close = if LETTERS[k].ends_with('(') { ")" } else { "" };
+                    lines[l][w] = format!("{}{num}{close}", LETTERS[k]);
+                }
+            }
+            Mutation::SwapWords(l, w) => {
+                if let Some((l, w)) = word(&lines, l, w)
+                    && w + 1 < lines[l].len()
+                {
+                    lines[l].swap(w, w + 1);
+                }
+            }
+            Mutation::DeleteLine(l) => {
+                lines.remove(l % n);
+            }
+            Mutation::DuplicateLine(l) => {
+                let copy = lines[l % n].clone();
+                lines.insert(l % n, copy);
+            }
+            Mutation::SwapLines(l) => {
+                let l = l % n;
+                if l + 1 < n {
+                    lines.swap(l, l + 1);
+                }
+            }
+        }
+    }
+    let mut s = String::new();
+    for l in lines {
+        s.push_str(&l.join(" "));
+        s.push('\n');
+    }
+    s
+}
+
+/// Checks, from the output alone, that the moves are continuous from the origin and that
+/// every arc is a true circle or helix whose sweep reaches its end point, and that an error
+/// points inside its line.
+fn check_geometry(d: Dialect, text: &str, out: &Outcome) {
+    let mut at = v(0.0, 0.0, 0.0);
+    for m in out.items.iter().filter_map(|i| match i {
+        Item::Move(m) => Some(m),
+        Item::Event(_) => None,
+    }) {
+        let size = m
+            .path
+            .start()
+            .iter()
+            .chain(m.path.end().iter())
+            .fold(1.0f64, |acc, c| acc.max(c.abs()));
+        let tol = 1e-9 * size;
+        assert!(
+            (m.path.start() - at).norm() <= tol,
+            "{}: move does not start where the previous one ended ({:?}): {}\n{text}",
+            d.name(),
+            at.as_slice(),
+            describe_move(m)
+        );
+        at = m.path.end();
+        if let Path::Arc(a) = m.path {
+            let r = (a.start - a.center).norm().max(1.0);
+            let res = std::panic::catch_unwind(|| check_arc_geometry(&a, tol.max(1e-9 * r)));
+            assert!(
+                res.is_ok(),
+                "{}: arc is not a circle through its end points: {}\n{text}",
+                d.name(),
+                describe_move(m)
+            );
+        }
+    }
+    if let Some(e) = &out.error {
+        let line = text
+            .split('\n')
+            .nth(e.line as usize - 1)
+            .unwrap_or_default();
+        assert!(
+            e.col as usize <= line.len() + 1,
+            "{}: error column {} beyond line {} ({} bytes): {e}\n{text}",
+            d.name(),
+            e.col,
+            e.line,
+            line.len()
+        );
+    }
+}
+
+fn close3(a: Vec3, b: [f64; 3], tol: f64) -> bool {
+    (0..3).all(|i| (a[i] - b[i]).abs() <= tol * (1.0 + b[i].abs()))
+}
+
+/// Compares an unmutated program's output with what the model wrote each line to do.
+fn check_expectations(d: Dialect, prog: &Program, text: &str, out: &Outcome) {
+    let ctx = |what: String| format!("{}: {what}\n--- program ---\n{text}", d.name());
+    let mut moves_on = vec![0usize; prog.lines.len() + 1];
+    for item in &out.items {
+        let Item::Move(m) = item else { continue };
+        let l = m.line as usize;
+        moves_on[l] += 1;
+        let exp = prog.lines[l - 1].expect;
+        match (exp, m.path) {
+            (Expect::Any, _) => {}
+            (Expect::Line { end, rapid }, Path::Line(line)) => {
+                assert!(
+                    close3(line.end, end, 1e-9) && m.rapid == rapid,
+                    "{}",
+                    ctx(format!(
+                        "line {l}: expected a {} to {end:?}, got {}",
+                        if rapid { "rapid" } else { "line" },
+                        describe_move(m)
+                    ))
+                );
+            }
+            (
+                Expect::Arc {
+                    end,
+                    ccw,
+                    centre,
+                    sweep_rad,
+                    sweep_tol,
+                },
+                Path::Arc(a),
+            ) => {
+                let ok_end = close3(a.end, end, 1e-9);
+                let ok_dir = (a.sweep_rad > 0.0) == ccw;
+                let ok_centre =
+                    centre.is_none_or(|c| (0..3).all(|i| (a.center[i] - c[i]).abs() <= 1e-2));
+                let ok_sweep = sweep_rad.is_none_or(|s| (a.sweep_rad - s).abs() <= sweep_tol);
+                assert!(
+                    ok_end && ok_dir && ok_centre && ok_sweep,
+                    "{}",
+                    ctx(format!(
+                        "line {l}: expected an arc to {end:?} {} about {centre:?} sweeping {:?} deg \
+                         (end {ok_end}, direction {ok_dir}, centre {ok_centre}, sweep {ok_sweep}), got {}",
+                        if ccw {
+                            "counter-clockwise"
+                        } else {
+                            "clockwise"
+                        },
+                        sweep_rad.map(f64::to_degrees),
+                        describe_move(m)
+                    ))
+                );
+            }
+            (exp, _) => panic!(
+                "{}",
+                ctx(format!(
+                    "line {l}: expected {exp:?}, got {}",
+                    describe_move(m)
+                ))
+            ),
+        }
+    }
+    let first_error = prog
+        .lines
+        .iter()
+        .position(|l| matches!(l.expect, Expect::Error))
+        .map(|i| i + 1);
+    match (&out.error, first_error) {
+        (Some(e), Some(l)) if e.line as usize == l => {
+            // The end point is off the circle, or the radius cannot reach it.
+            let msg = e.message.to_lowercase();
+            assert!(
+                ["radius", "end point", "end position"]
+                    .iter()
+                    .any(|w| msg.contains(w)),
+                "{}",
+                ctx(format!(
+                    "line {l}: an arc error must name the radius or end point: {e}"
+                ))
+            );
+        }
+        (Some(e), _) => {
+            let exp = prog.lines[e.line as usize - 1].expect;
+            assert!(
+                matches!(exp, Expect::Any),
+                "{}",
+                ctx(format!(
+                    "unexpected error on a line written to be {exp:?}: {e}"
+                ))
+            );
+        }
+        (None, Some(l)) => panic!(
+            "{}",
+            ctx(format!(
+                "line {l} was written to be rejected but the program was accepted"
+            ))
+        ),
+        (None, None) => {}
+    }
+    let last = out
+        .error
+        .as_ref()
+        .map_or(prog.lines.len() + 1, |e| e.line as usize);
+    for (i, l) in prog.lines.iter().enumerate().take(last - 1) {
+        if matches!(l.expect, Expect::Line { .. } | Expect::Arc { .. }) {
+            assert_eq!(
+                moves_on[i + 1],
+                1,
+                "{}",
+                ctx(format!("line {} must yield exactly one move", i + 1))
+            );
+        }
+    }
+}
+
+/// Coverage figures of one dialect.
+#[derive(Clone, Copy, Debug, Default)]
+struct Stats {
+    cases: u32,
+    with_move: u32,
+    with_arc: u32,
+    with_polar: u32,
+    with_polar_arc: u32,
+    with_error: u32,
+    moves: u64,
+    arcs: u64,
+}
+
+impl Stats {
+    fn pct(&self, n: u32) -> f64 {
+        100.0 * f64::from(n) / f64::from(self.cases.max(1))
+    }
+
+    fn report(&self, d: Dialect, what: &str) -> String {
+        format!(
+            "{what} {:<10} cases {:>4}: move {:5.1} %, arc {:5.1} %, polar move {:5.1} %, polar arc {:5.1} %, error {:5.1} % ({} moves, {} arcs)",
+            d.name(),
+            self.cases,
+            self.pct(self.with_move),
+            self.pct(self.with_arc),
+            self.pct(self.with_polar),
+            self.pct(self.with_polar_arc),
+            self.pct(self.with_error),
+            self.moves,
+            self.arcs
+        )
+    }
+}
+
+fn tally(stats: &mut Stats, out: &Outcome, polar_lines: &[bool]) {
+    stats.cases += 1;
+    let mut any_move = false;
+    let mut any_arc = false;
+    let mut polar = false;
+    let mut polar_arc = false;
+    for item in &out.items {
+        let Item::Move(m) = item else { continue };
+        any_move = true;
+        stats.moves += 1;
+        let arc = matches!(m.path, Path::Arc(_));
+        if arc {
+            any_arc = true;
+            stats.arcs += 1;
+        }
+        if polar_lines
+            .get(m.line as usize - 1)
+            .copied()
+            .unwrap_or(false)
+        {
+            polar = true;
+            polar_arc |= arc;
+        }
+    }
+    stats.with_move += u32::from(any_move);
+    stats.with_arc += u32::from(any_arc);
+    stats.with_polar += u32::from(polar);
+    stats.with_polar_arc += u32::from(polar_arc);
+    stats.with_error += u32::from(out.error.is_some());
+}
+
+fn ops() -> impl Strategy<Value = (usize, Vec<Op>)> {
+    (
+        4usize..8,
+        prop::collection::vec((0u32..100, prop::array::uniform16(0.0f64..1.0)), 4..24),
+    )
+}
+
+/// Runs `CASES` grammar cases of dialect `d` from `seed`, mutated by up to `max_mutations`
+/// word mutations (none: the model's expectations are checked too), and returns the
+/// coverage figures.
+fn run_grammar(d: Dialect, seed: u64, max_mutations: usize) -> Stats {
+    let config = ProptestConfig {
+        cases: CASES,
+        rng_seed: RngSeed::Fixed(seed),
+        failure_persistence: None,
+        max_shrink_iters: 2048,
+        ..ProptestConfig::default()
+    };
+    let mut runner = TestRunner::new(config);
+    let stats = RefCell::new(Stats::default());
+    let strategy = (
+        ops(),
+        prop::collection::vec(mutation(), usize::from(max_mutations > 0)..=max_mutations),
+    );
+    let result = runner.run(&strategy, |((decimals, ops), muts)| {
+        let prog = render(d, decimals, &ops);
+        let text = prog.text();
+        let text = if max_mutations == 0 {
+            text
+        } else {
+            mutate(&text, &muts)
+        };
+        let out = run_bytes(d, Settings::default(), text.as_bytes());
+        check_outcome(d, text.as_bytes(), &out);
+        check_geometry(d, &text, &out);
+        if max_mutations == 0 {
+            check_expectations(d, &prog, &text, &out);
+        }
+        let polar: Vec<bool> = if max_mutations == 0 {
+            prog.lines.iter().map(|l| l.polar).collect()
+        } else {
+            text.split('\n').map(|l| polar_text(d, l)).collect()
+        };
+        tally(&mut stats.borrow_mut(), &out, &polar);
+        Ok(())
+    });
+    if let Err(e) = result {
+        let detail = match &e {
+            TestError::Fail(reason, ((decimals, ops), muts)) => {
+                let prog = render(d, *decimals, ops);
+                let text = prog.text();
+                let text = if max_mutations == 0 {
+                    text
+                } else {
+                    mutate(&text, muts)
+                };
+                format!("{reason}\nminimal program ({}):\n{text}", d.name())
+            }
+            TestError::Abort(reason) => format!("aborted: {reason}"),
+        };
+        panic!("grammar fuzzing from seed {seed:#x} failed: {detail}");
+    }
+    let s = *stats.borrow();
+    assert_eq!(s.cases, CASES, "every case must run");
+    s
+}
+
+/// Has the dialect polar moves (and polar circles)?
+fn polar_kinds(d: Dialect) -> (bool, bool) {
+    match d {
+        Dialect::Rockwell => (false, false),
+        Dialect::LinuxCnc => (true, false),
+        _ => (true, true),
+    }
+}
+
+/// A line of (possibly mutated) program text that programs a polar end point or circle.
+fn polar_text(d: Dialect, line: &str) -> bool {
+    let up = line.to_ascii_uppercase();
+    let words: Vec<&str> = up.split_whitespace().collect();
+    match d {
+        Dialect::LinuxCnc => up.contains('@') || up.contains('^'),
+        Dialect::Sinumerik => up.contains("RP=") || up.contains("AP="),
+        Dialect::Heidenhain => words
+            .iter()
+            .any(|w| matches!(*w, "G10" | "G11" | "G12" | "G13" | "G15")),
+        Dialect::Fagor => words.iter().any(|w| w.starts_with('Q')),
+        Dialect::Rockwell => false,
+    }
+}
+
+/// Coverage floors, from the figures measured with the fixed seeds (see the report in the
+/// test output) with a margin: they fail if a change to the generator or the interpreter
+/// makes the programs stop short of the geometry.
+fn assert_coverage(d: Dialect, s: &Stats, what: &str, floors: [f64; 4]) {
+    let (polar, polar_arc) = polar_kinds(d);
+    let [moves, arcs, polar_moves, polar_arcs] = floors;
+    let mut short = Vec::new();
+    if s.pct(s.with_move) < moves {
+        short.push(format!("fewer than {moves} % of the cases yield a move"));
+    }
+    if s.pct(s.with_arc) < arcs {
+        short.push(format!("fewer than {arcs} % of the cases yield an arc"));
+    }
+    if polar && s.pct(s.with_polar) < polar_moves {
+        short.push(format!(
+            "fewer than {polar_moves} % of the cases yield a polar move"
+        ));
+    }
+    if polar_arc && s.pct(s.with_polar_arc) < polar_arcs {
+        short.push(format!(
+            "fewer than {polar_arcs} % of the cases yield a polar circle"
+        ));
+    }
+    assert!(
+        short.is_empty(),
+        "{}: {}",
+        s.report(d, what),
+        short.join(", ")
+    );
+}
+
+#[test]
+fn grammar_programs_reach_the_geometry_and_match_the_model() {
+    for (i, d) in Dialect::ALL.into_iter().enumerate() {
+        let s = run_grammar(d, 0x6b65_7266_0100 + i as u64, 0);
+        eprintln!("{}", s.report(d, "grammar"));
+        assert_coverage(d, &s, "grammar", [90.0, 85.0, 60.0, 50.0]);
+    }
+}
+
+#[test]
+fn mutated_grammar_programs_keep_the_invariants() {
+    for (i, d) in Dialect::ALL.into_iter().enumerate() {
+        let s = run_grammar(d, 0x6b65_7266_0200 + i as u64, 4);
+        eprintln!("{}", s.report(d, "mutated"));
+        assert_coverage(d, &s, "mutated", [60.0, 50.0, 30.0, 20.0]);
+    }
+}
