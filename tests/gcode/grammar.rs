@@ -34,7 +34,7 @@ use kerf_tests::*;
 use super::fuzz::check_outcome;
 
 /// Cases per dialect and test (independent of `PROPTEST_CASES`).
-const CASES: u32 = 500;
+const CASES: u32 = 2000;
 
 /// Random parameters of one generated block: an operation selector and uniform numbers in
 /// [0, 1) that the operation turns into values.
@@ -68,6 +68,8 @@ struct GenLine {
     expect: Expect,
     /// A polar move (LinuxCNC `@ ^`, Sinumerik RP/AP, Heidenhain G10..G15, Fagor R Q).
     polar: bool,
+    /// The modal feed after the line, mm/min.
+    feed_mm_min: f64,
 }
 
 /// A generated program: one block per line.
@@ -124,13 +126,18 @@ struct Gen {
     /// H is reached from this angle (not reduced to one turn).
     polar_last: Option<(f64, f64)>,
     decimals: usize,
+    /// Modal feed, mm/min, and whether F is read in inch/min.
+    feed_mm_min: f64,
+    feed_inch: bool,
+    /// Lexical decoration of the lines (block numbers, comments, case, spaces).
+    style: u32,
     lines: Vec<GenLine>,
     /// An error line was written: the rest of the program is never read.
     stopped: bool,
 }
 
 impl Gen {
-    fn new(d: Dialect, decimals: usize) -> Self {
+    fn new(d: Dialect, decimals: usize, style: u32) -> Self {
         Gen {
             d,
             pos: [0.0; 3],
@@ -144,6 +151,9 @@ impl Gen {
             last_ccw: None,
             polar_last: None,
             decimals,
+            feed_mm_min: 600.0,
+            feed_inch: false,
+            style,
             lines: Vec::new(),
             stopped: false,
         }
@@ -189,10 +199,12 @@ impl Gen {
         {
             self.polar_last = None;
         }
+        let text = self.decorate(words.join(" "));
         self.lines.push(GenLine {
-            text: words.join(" "),
+            text,
             expect,
             polar,
+            feed_mm_min: self.feed_mm_min,
         });
         if matches!(expect, Expect::Error) {
             self.stopped = true;
@@ -248,9 +260,34 @@ impl Gen {
         let mut words = vec![self.g(u32::from(!rapid))];
         let mut end = self.pos;
         let mut any = false;
+        // Now and then each word says itself whether it is absolute or incremental:
+        // Sinumerik `X=AC(..)`/`X=IC(..)`, Heidenhain G90/G91 before the word (the last
+        // one stays modal).
+        let forms = p[9] < 0.3 && matches!(self.d, Dialect::Sinumerik | Dialect::Heidenhain);
         for i in 0..3 {
             if p[1 + i] < 0.6 || (i == 2 && !any) {
-                let (w, e) = self.coord(i, lerp(p[4 + i], -60.0, 60.0));
+                let target = lerp(p[4 + i], -60.0, 60.0);
+                let (w, e) = if forms {
+                    let abs = p[10 + i] < 0.5;
+                    if self.heid() {
+                        // Only after a G90/G91 in the block: a plain word before the first
+                        // one is resolved in the block's new mode instead of the modal one
+                        // (reported, kerf-gcode).
+                        if abs != self.absolute || !any {
+                            words.push(self.g(if abs { 90 } else { 91 }));
+                            self.absolute = abs;
+                        }
+                        self.coord(i, target)
+                    } else {
+                        let s = self.scale();
+                        let base = if abs { 0.0 } else { self.pos[i] };
+                        let (t, back) = self.num((target - base) / s);
+                        let form = if abs { "AC" } else { "IC" };
+                        (format!("{}={form}({t})", AXIS[i]), base + back * s)
+                    }
+                } else {
+                    self.coord(i, target)
+                };
                 words.push(w);
                 end[i] = e;
                 any = true;
@@ -269,9 +306,51 @@ impl Gen {
         self.pos = end;
     }
 
-    fn feed_word(&self, t: f64) -> String {
-        let f = lerp(t, 50.0, 3000.0) / self.scale();
-        format!("F{:.1}", f.max(0.1))
+    /// A new feed (mm/min written in the program's feed unit); the model keeps what the
+    /// control reads.
+    fn feed_word(&mut self, t: f64) -> String {
+        let unit = if self.feed_inch { INCH_MM } else { 1.0 };
+        let text = format!("{:.1}", (lerp(t, 50.0, 3000.0) / unit).max(0.1));
+        let back: f64 = text.parse().expect("feed");
+        self.feed_mm_min = back * unit;
+        format!("F{text}")
+    }
+
+    /// Block numbers, comments, lower case and (LinuxCNC) spaces inside numbers, as the
+    /// program's style asks, varying from line to line; none of them changes the meaning.
+    fn decorate(&self, text: String) -> String {
+        let idx = self.lines.len() as u32;
+        let bit = |k: u32| {
+            self.style & (1 << k) != 0
+                && (idx.wrapping_mul(2_654_435_761) ^ self.style.rotate_left(k * 5)) & (1 << 9) != 0
+        };
+        let mut t = text;
+        if bit(0) && self.d == Dialect::LinuxCnc {
+            // `X1 2.5` is X12.5 on LinuxCNC: split the first number of two or more digits.
+            let b = t.as_bytes();
+            if let Some(i) = (1..b.len()).find(|&i| {
+                b[i - 1].is_ascii_digit()
+                    && b[i].is_ascii_digit()
+                    && b[..i - 1].last() != Some(&b' ')
+            }) {
+                t.insert(i, ' ');
+            }
+        }
+        if bit(1) {
+            t = t.to_ascii_lowercase();
+        }
+        if bit(2) {
+            t = format!("N{} {t}", 10 * (idx + 1));
+        }
+        if bit(3) {
+            let comment = match self.d {
+                Dialect::Rockwell => " (a comment; with text)",
+                Dialect::LinuxCnc | Dialect::Fagor if bit(4) => " (a comment)",
+                _ => " ; a comment (with text) *",
+            };
+            t.push_str(comment);
+        }
+        t
     }
 
     /// Writes the centre (I J K) of an arc about `centre` (mm) from the current point: the
@@ -848,6 +927,8 @@ impl Gen {
                     Dialect::Sinumerik if p[2] < 0.5 => self.g(if inch { 700 } else { 710 }),
                     _ => self.g(if inch { 70 } else { 71 }),
                 };
+                // Sinumerik G70/G71 leave F in mm/min; G700/G710 and the others switch it.
+                self.feed_inch = inch && (d != Dialect::Sinumerik || w == "G700");
                 words.push(w);
                 self.inch = inch;
             }
@@ -967,8 +1048,8 @@ impl Gen {
 }
 
 /// A program of dialect `d` from the random operations.
-fn render(d: Dialect, decimals: usize, ops: &[Op]) -> Program {
-    let mut g = Gen::new(d, decimals);
+fn render(d: Dialect, decimals: usize, style: u32, ops: &[Op]) -> Program {
+    let mut g = Gen::new(d, decimals, style);
     let header: &[&str] = match d {
         Dialect::LinuxCnc => &["%", "G21 G90 G17 G91.1 F600"],
         Dialect::Rockwell => &["O1234", "G21 G90 G17 F600"],
@@ -981,6 +1062,7 @@ fn render(d: Dialect, decimals: usize, ops: &[Op]) -> Program {
             text: (*h).into(),
             expect: Expect::Nothing,
             polar: false,
+            feed_mm_min: 600.0,
         });
     }
     for op in ops {
@@ -1166,12 +1248,11 @@ fn check_geometry(d: Dialect, text: &str, out: &Outcome) {
             describe_move(m)
         );
         at = m.path.end();
-        if let Path::Arc(a) = m.path {
-            let r = (a.start - a.center).norm().max(1.0);
-            let res = std::panic::catch_unwind(|| check_arc_geometry(&a, tol.max(1e-9 * r)));
-            assert!(
-                res.is_ok(),
-                "{}: arc is not a circle through its end points: {}\n{text}",
+        if let Path::Arc(a) = m.path
+            && let Err(why) = circle_error(&a)
+        {
+            panic!(
+                "{}: arc is not a circle through its end points ({why}): {}\n{text}",
                 d.name(),
                 describe_move(m)
             );
@@ -1193,6 +1274,49 @@ fn check_geometry(d: Dialect, text: &str, out: &Outcome) {
     }
 }
 
+/// Why an arc is not a circle or helix through its end points, recomputed from its points
+/// alone: the axis is ±X, ±Y or ±Z, the centre lies in the plane of the start, the radii to
+/// start and end agree, and the signed sweep reaches the end point modulo whole turns. The
+/// tolerance scales with the in-plane coordinates (a huge coordinate along the axis of a
+/// helix does not blur the circle).
+fn circle_error(a: &Arc) -> Result<(), String> {
+    let w = (0..3)
+        .find(|&i| (a.axis[i].abs() - 1.0).abs() < 1e-12)
+        .ok_or("axis not along X, Y or Z")?;
+    if (a.axis.norm() - 1.0).abs() > 1e-12 {
+        return Err("axis not a unit vector".into());
+    }
+    if (a.center[w] - a.start[w]).abs() > 1e-12 * (1.0 + a.start[w].abs()) {
+        return Err("centre not in the plane of the start".into());
+    }
+    let size = [a.start, a.end, a.center]
+        .iter()
+        .flat_map(|p| (0..3).filter(|&i| i != w).map(move |i| p[i].abs()))
+        .fold(1.0f64, f64::max);
+    let tol = 1e-9 * size;
+    let mut s_in = a.start - a.center;
+    let mut e_in = a.end - a.center;
+    s_in[w] = 0.0;
+    e_in[w] = 0.0;
+    let (r1, r2) = (s_in.norm(), e_in.norm());
+    if r1 <= 0.0 || !(a.sweep_rad.is_finite() && a.sweep_rad != 0.0) {
+        return Err(format!("radius {r1}, sweep {}", a.sweep_rad));
+    }
+    if (r1 - r2).abs() > tol {
+        return Err(format!("radius to start {r1}, to end {r2}"));
+    }
+    let chord_angle = signed_angle(s_in, e_in, a.axis);
+    let diff = (a.sweep_rad - chord_angle).rem_euclid(TAU);
+    let diff = diff.min(TAU - diff);
+    if diff > 10.0 * tol / r1 + 1e-12 {
+        return Err(format!(
+            "sweep {} rad does not reach the end (chord angle {chord_angle} rad)",
+            a.sweep_rad
+        ));
+    }
+    Ok(())
+}
+
 fn close3(a: Vec3, b: [f64; 3], tol: f64) -> bool {
     (0..3).all(|i| (a[i] - b[i]).abs() <= tol * (1.0 + b[i].abs()))
 }
@@ -1206,6 +1330,18 @@ fn check_expectations(d: Dialect, prog: &Program, text: &str, out: &Outcome) {
         let l = m.line as usize;
         moves_on[l] += 1;
         let exp = prog.lines[l - 1].expect;
+        let feed = prog.lines[l - 1].feed_mm_min;
+        if !matches!(exp, Expect::Any | Expect::Line { rapid: true, .. }) {
+            assert!(
+                m.feed_mm_min
+                    .is_some_and(|f| (f - feed).abs() <= 1e-9 * feed),
+                "{}",
+                ctx(format!(
+                    "line {l}: expected feed {feed} mm/min, got {}",
+                    describe_move(m)
+                ))
+            );
+        }
         match (exp, m.path) {
             (Expect::Any, _) => {}
             (Expect::Line { end, rapid }, Path::Line(line)) => {
@@ -1377,9 +1513,10 @@ fn tally(stats: &mut Stats, out: &Outcome, polar_lines: &[bool]) {
     stats.with_error += u32::from(out.error.is_some());
 }
 
-fn ops() -> impl Strategy<Value = (usize, Vec<Op>)> {
+fn ops() -> impl Strategy<Value = (usize, u32, Vec<Op>)> {
     (
         4usize..8,
+        any::<u32>(),
         prop::collection::vec((0u32..100, prop::array::uniform16(0.0f64..1.0)), 4..24),
     )
 }
@@ -1401,8 +1538,8 @@ fn run_grammar(d: Dialect, seed: u64, max_mutations: usize) -> Stats {
         ops(),
         prop::collection::vec(mutation(), usize::from(max_mutations > 0)..=max_mutations),
     );
-    let result = runner.run(&strategy, |((decimals, ops), muts)| {
-        let prog = render(d, decimals, &ops);
+    let result = runner.run(&strategy, |((decimals, style, ops), muts)| {
+        let prog = render(d, decimals, style, &ops);
         let text = prog.text();
         let text = if max_mutations == 0 {
             text
@@ -1425,8 +1562,8 @@ fn run_grammar(d: Dialect, seed: u64, max_mutations: usize) -> Stats {
     });
     if let Err(e) = result {
         let detail = match &e {
-            TestError::Fail(reason, ((decimals, ops), muts)) => {
-                let prog = render(d, *decimals, ops);
+            TestError::Fail(reason, ((decimals, style, ops), muts)) => {
+                let prog = render(d, *decimals, *style, ops);
                 let text = prog.text();
                 let text = if max_mutations == 0 {
                     text
