@@ -103,13 +103,40 @@ fn axes(plane: usize) -> (usize, usize, usize) {
 }
 
 const AXIS: [&str; 3] = ["X", "Y", "Z"];
+
+/// The work offsets of the machine the programs run on (G54, G55, ... G59.3).
+const WORK_OFFSETS_MM: [[f64; 3]; 9] = [
+    [12.5, -7.25, 3.0],
+    [-40.0, 25.5, -10.125],
+    [0.0, 0.0, 50.0],
+    [100.0, 0.0, 0.0],
+    [-3.3, 4.4, -5.5],
+    [7.0, 7.0, 7.0],
+    [1.0, 2.0, 3.0],
+    [-1.0, -2.0, -3.0],
+    [0.5, 0.25, 0.125],
+];
+
+fn settings() -> Settings {
+    Settings {
+        work_offsets_mm: WORK_OFFSETS_MM,
+        ..Settings::default()
+    }
+}
 const CENTRE: [&str; 3] = ["I", "J", "K"];
 
 /// The model of one control while a program is written.
 struct Gen {
     d: Dialect,
-    /// Current position, mm (no offsets are used: machine = program coordinates).
+    /// Current position, machine mm.
     pos: [f64; 3],
+    /// Program zero in machine mm: the work offset plus (LinuxCNC) G92.
+    origin: [f64; 3],
+    work: [f64; 3],
+    g92: [f64; 3],
+    /// Program zero moved since the last move: polar words are written in full (the control
+    /// keeps the polar values of the last point relative to the old zero; reported).
+    polar_stale: bool,
     plane: usize,
     inch: bool,
     absolute: bool,
@@ -138,9 +165,18 @@ struct Gen {
 
 impl Gen {
     fn new(d: Dialect, decimals: usize, style: u32) -> Self {
-        Gen {
+        let work = match d {
+            // G54 is active at start; Sinumerik starts in G500 (no offset), the TNC has none.
+            Dialect::LinuxCnc | Dialect::Rockwell | Dialect::Fagor => WORK_OFFSETS_MM[0],
+            _ => [0.0; 3],
+        };
+        let mut g = Gen {
             d,
             pos: [0.0; 3],
+            origin: [0.0; 3],
+            work: [0.0; 3],
+            g92: [0.0; 3],
+            polar_stale: false,
             plane: 0,
             inch: false,
             absolute: true,
@@ -156,7 +192,11 @@ impl Gen {
             style,
             lines: Vec::new(),
             stopped: false,
-        }
+        };
+        g.work = work;
+        g.set_origin();
+        g.polar_stale = false;
+        g
     }
 
     fn scale(&self) -> f64 {
@@ -191,13 +231,15 @@ impl Gen {
         if self.heid() {
             words.push("*".into());
         }
-        if !polar
-            && matches!(
-                expect,
-                Expect::Line { .. } | Expect::Arc { .. } | Expect::Any
-            )
-        {
+        let moves = matches!(
+            expect,
+            Expect::Line { .. } | Expect::Arc { .. } | Expect::Any
+        );
+        if !polar && moves {
             self.polar_last = None;
+        }
+        if moves {
+            self.polar_stale = false;
         }
         let text = self.decorate(words.join(" "));
         self.lines.push(GenLine {
@@ -216,8 +258,8 @@ impl Gen {
     fn coord(&self, i: usize, target_mm: f64) -> (String, f64) {
         let s = self.scale();
         if self.absolute {
-            let (t, v) = self.num(target_mm / s);
-            (format!("{}{t}", AXIS[i]), v * s)
+            let (t, v) = self.num((target_mm - self.origin[i]) / s);
+            (format!("{}{t}", AXIS[i]), v * s + self.origin[i])
         } else {
             let (t, v) = self.num((target_mm - self.pos[i]) / s);
             (format!("{}{t}", AXIS[i]), self.pos[i] + v * s)
@@ -231,8 +273,9 @@ impl Gen {
         ((du * du + dv * dv).sqrt(), dv.atan2(du).to_degrees())
     }
 
-    fn pole_or_zero(&self) -> [f64; 3] {
-        self.pole.unwrap_or([0.0; 3])
+    /// The pole, or program zero when none is set.
+    fn pole_or_origin(&self) -> [f64; 3] {
+        self.pole.unwrap_or(self.origin)
     }
 
     fn step(&mut self, op: &Op) {
@@ -280,10 +323,10 @@ impl Gen {
                         self.coord(i, target)
                     } else {
                         let s = self.scale();
-                        let base = if abs { 0.0 } else { self.pos[i] };
+                        let base = if abs { self.origin[i] } else { self.pos[i] };
                         let (t, back) = self.num((target - base) / s);
                         let form = if abs { "AC" } else { "IC" };
-                        (format!("{}={form}({t})", AXIS[i]), base + back * s)
+                        (format!("{}={form}({t})", AXIS[i]), back * s + base)
                     }
                 } else {
                     self.coord(i, target)
@@ -368,7 +411,7 @@ impl Gen {
                 Dialect::Rockwell => false,
             };
             let (t, _) = if absolute {
-                self.num(centre[i] / s)
+                self.num((centre[i] - self.origin[i]) / s)
             } else {
                 self.num((centre[i] - self.pos[i]) / s)
             };
@@ -425,12 +468,12 @@ impl Gen {
             let mut c = self.pos;
             for i in [u, v] {
                 let (_, back) = if self.absolute {
-                    self.num(centre[i] / s)
+                    self.num((centre[i] - self.origin[i]) / s)
                 } else {
                     self.num((centre[i] - self.pos[i]) / s)
                 };
                 c[i] = if self.absolute {
-                    back * s
+                    back * s + self.origin[i]
                 } else {
                     self.pos[i] + back * s
                 };
@@ -454,8 +497,8 @@ impl Gen {
             if !m.absolute {
                 return true;
             }
-            let (_, back) = m.num(m.pos[i] / s);
-            back * s == m.pos[i]
+            let (_, back) = m.num((m.pos[i] - m.origin[i]) / s);
+            back * s + m.origin[i] == m.pos[i]
         };
         let omit_end = full
             && !gross
@@ -505,7 +548,7 @@ impl Gen {
                     _ => false,
                 };
                 centre[i] = if absolute {
-                    back * s
+                    back * s + self.origin[i]
                 } else {
                     self.pos[i] + back * s
                 };
@@ -618,7 +661,7 @@ impl Gen {
         if self.heid() && self.pole.is_none() {
             self.set_pole(p);
         }
-        let pole = self.pole_or_zero();
+        let pole = self.pole_or_origin();
         let (r0, a0) = self.polar_of(pole, u, v);
         let mut words = Vec::new();
         let g = match self.d {
@@ -636,8 +679,12 @@ impl Gen {
         let mut a_target = lerp(p[2], -360.0, 360.0);
         // Omit one of the two now and then: the control keeps the current (or, on the
         // Sinumerik, the modal) value.
-        let keep_r = p[3] < 0.15 && (self.d != Dialect::Sinumerik || self.rp.is_some());
-        let keep_a = !keep_r && p[3] > 0.85 && (self.d != Dialect::Sinumerik || self.ap.is_some());
+        // After program zero moved, the control still keeps the polar values of the last
+        // point (relative to the old zero): write both words.
+        let stale = self.polar_stale && self.d != Dialect::Sinumerik;
+        let keep_r = !stale && p[3] < 0.15 && (self.d != Dialect::Sinumerik || self.rp.is_some());
+        let keep_a =
+            !stale && !keep_r && p[3] > 0.85 && (self.d != Dialect::Sinumerik || self.ap.is_some());
         let sinumerik_r0 = self.rp.unwrap_or(r0);
         let sinumerik_a0 = self.ap.unwrap_or(a0);
         let (cur_r, cur_a) = if self.d == Dialect::Sinumerik {
@@ -648,7 +695,7 @@ impl Gen {
         // Sinumerik RP/AP ignore G91 (only IC() is incremental); the others add to the
         // current polar values under G91.
         let incremental = !self.absolute && self.d != Dialect::Sinumerik;
-        if incremental && r0 < 1.0 {
+        if incremental && (r0 < 1.0 || stale) {
             // LinuxCNC refuses an incremental polar move at the origin; keep it simple.
             self.linear(p);
             return;
@@ -714,12 +761,15 @@ impl Gen {
         if self.d == Dialect::LinuxCnc {
             return self.centre_arc(p);
         }
+        if self.polar_stale && self.d == Dialect::Fagor {
+            return self.polar_line(p);
+        }
         let (u, v, w) = axes(self.plane);
         let s = self.scale();
         if self.heid() && self.pole.is_none() {
             self.set_pole(p);
         }
-        let pole = self.pole_or_zero();
+        let pole = self.pole_or_origin();
         let (r0, a0) = self.polar_of(pole, u, v);
         if r0 < 0.5 {
             return self.polar_line(p);
@@ -904,7 +954,7 @@ impl Gen {
     /// Modal settings and events: plane, units, distance mode, corners, feed, dwell, M codes.
     fn modal(&mut self, p: &[f64; 16]) {
         let d = self.d;
-        let pick = (p[0] * 8.0) as u32;
+        let pick = (p[0] * 9.0) as u32;
         let mut words = Vec::new();
         match pick {
             0 | 1 => {
@@ -956,6 +1006,24 @@ impl Gen {
                 Dialect::Heidenhain => words.push(self.feed_word(p[2])),
             },
             6 => words.push(self.feed_word(p[1])),
+            8 if d != Dialect::Heidenhain => {
+                // Work offsets: LinuxCNC G54..G59.3, Rockwell and Fagor G54..G59, Sinumerik
+                // G54..G57 and G500 (none).
+                let n = match d {
+                    Dialect::LinuxCnc => 9,
+                    Dialect::Sinumerik => 5,
+                    _ => 6,
+                };
+                let k = (p[1] * f64::from(n)) as usize % n as usize;
+                let (word, work) = match (d, k) {
+                    (Dialect::Sinumerik, 4) => ("G500".to_string(), [0.0; 3]),
+                    (_, 6..) => (format!("G59.{}", k - 5), WORK_OFFSETS_MM[k]),
+                    _ => (format!("G{}", 54 + k), WORK_OFFSETS_MM[k]),
+                };
+                words.push(word);
+                self.work = work;
+                self.set_origin();
+            }
             _ => match d {
                 Dialect::LinuxCnc | Dialect::Rockwell if p[1] < 0.3 => {
                     words.push(format!("{} P{:.2}", self.g(4), lerp(p[2], 0.0, 2.0)));
@@ -979,8 +1047,8 @@ impl Gen {
             Dialect::Sinumerik => {
                 let (g, reference) = match (p[0] * 3.0) as u32 {
                     0 => (110, self.pos),
-                    1 => (111, [0.0; 3]),
-                    _ => (112, self.pole_or_zero()),
+                    1 => (111, self.origin),
+                    _ => (112, self.pole_or_origin()),
                 };
                 words.push(self.g(g));
                 let mut pole = reference;
@@ -1035,15 +1103,41 @@ impl Gen {
                     for (k, i) in [u, v].into_iter().enumerate() {
                         let (t, back) = self.num(lerp(p[2 + k], -40.0, 40.0) / s);
                         words.push(format!("{}{t}", CENTRE[i]));
-                        pole[i] = back * s;
+                        pole[i] = self.origin[i] + back * s;
                     }
                     self.pole = Some(pole);
                 }
             }
-            _ => return self.modal(p),
+            Dialect::LinuxCnc if p[1] < 0.2 => {
+                words.push("G92.1".into());
+                self.g92 = [0.0; 3];
+                self.set_origin();
+            }
+            Dialect::LinuxCnc => {
+                // G92: the current point gets these program coordinates.
+                words.push("G92".into());
+                for i in 0..3 {
+                    if p[2 + i] < 0.6 || (i == 2 && words.len() == 1) {
+                        let (t, back) = self.num(lerp(p[5 + i], -30.0, 30.0) / s);
+                        words.push(format!("{}{t}", AXIS[i]));
+                        self.g92[i] = self.pos[i] - self.work[i] - back * s;
+                    }
+                }
+                self.set_origin();
+            }
+            Dialect::Rockwell => return self.modal(p),
         }
         self.polar_last = None;
         self.push(words, Expect::Nothing, false);
+    }
+
+    /// Program zero from the work offset and G92; polar values remembered from before are
+    /// not reused after it moved.
+    fn set_origin(&mut self) {
+        for i in 0..3 {
+            self.origin[i] = self.work[i] + self.g92[i];
+        }
+        self.polar_stale = true;
     }
 }
 
@@ -1546,7 +1640,7 @@ fn run_grammar(d: Dialect, seed: u64, max_mutations: usize) -> Stats {
         } else {
             mutate(&text, &muts)
         };
-        let out = run_bytes(d, Settings::default(), text.as_bytes());
+        let out = run_bytes(d, settings(), text.as_bytes());
         check_outcome(d, text.as_bytes(), &out);
         check_geometry(d, &text, &out);
         if max_mutations == 0 {
