@@ -559,6 +559,10 @@ impl Gen {
             (Dialect::LinuxCnc, n) => words.push(format!("P{}", n + 1)),
             (_, n) => words.push(format!("TURN={n}")),
         }
+        if p[14] < 0.15 {
+            // An event in the block: it is dropped with the block if the arc is refused.
+            words.push(if p[15] < 0.5 { "M8" } else { "S1200" }.into());
+        }
         let sweep = (sweep_abs + f64::from(extra_turns) * TAU) * if ccw { 1.0 } else { -1.0 };
         let expect = if gross {
             Expect::Error
@@ -630,6 +634,9 @@ impl Gen {
         } else {
             0.0
         };
+        if p[14] < 0.15 {
+            words.push(if p[15] < 0.5 { "M8" } else { "S1200" }.into());
+        }
         let sweep = (sweep_abs + extra_turns * TAU) * if ccw { 1.0 } else { -1.0 };
         let expect = if gross {
             Expect::Error
@@ -1496,7 +1503,19 @@ fn check_expectations(d: Dialect, prog: &Program, text: &str, out: &Outcome) {
         .map(|i| i + 1);
     match (&out.error, first_error) {
         (Some(e), Some(l)) if e.line as usize == l => {
-            // The end point is off the circle, or the radius cannot reach it.
+            // The end point is off the circle, or the radius cannot reach it; the column
+            // points at a word of the block.
+            let line = text.split('\n').nth(l - 1).unwrap_or_default().as_bytes();
+            let c = e.col as usize;
+            assert!(
+                c >= 1
+                    && line.get(c - 1).is_some_and(u8::is_ascii_alphabetic)
+                    && (c == 1 || line[c - 2] == b' '),
+                "{}",
+                ctx(format!(
+                    "line {l}: the error column does not point at a word: {e}"
+                ))
+            );
             let msg = e.message.to_lowercase();
             assert!(
                 ["radius", "end point", "end position"]
@@ -1530,6 +1549,12 @@ fn check_expectations(d: Dialect, prog: &Program, text: &str, out: &Outcome) {
         .error
         .as_ref()
         .map_or(prog.lines.len() + 1, |e| e.line as usize);
+    // A bad block yields nothing, not even the events before its motion.
+    assert!(
+        out.items.iter().all(|i| (item_line(i) as usize) < last),
+        "{}",
+        ctx(format!("items on the failing line {last}"))
+    );
     for (i, l) in prog.lines.iter().enumerate().take(last - 1) {
         if matches!(l.expect, Expect::Line { .. } | Expect::Arc { .. }) {
             assert_eq!(
