@@ -146,6 +146,15 @@ fn settings() -> Settings {
     }
 }
 
+/// The same machine with a tight arc end-point tolerance: 0.005 mm or 1e-5 of the radius.
+fn tight_settings() -> Settings {
+    Settings {
+        arc_tolerance_mm: 0.005,
+        arc_tolerance_rel: 1e-5,
+        ..settings()
+    }
+}
+
 /// The model of one control while a program is written.
 struct Gen {
     d: Dialect,
@@ -186,10 +195,12 @@ struct Gen {
     lines: Vec<GenLine>,
     /// An error line was written: the rest of the program is never read.
     stopped: bool,
+    /// The machine has the tight arc tolerance ([`tight_settings`]).
+    tight: bool,
 }
 
 impl Gen {
-    fn new(d: Dialect, decimals: usize, style: u32) -> Self {
+    fn new(d: Dialect, decimals: usize, style: u32, tight: bool) -> Self {
         let work = match d {
             // G54 is active at start; Sinumerik starts in G500 (no offset), the TNC has none.
             Dialect::LinuxCnc | Dialect::Rockwell | Dialect::Fagor => WORK_OFFSETS_MM[0],
@@ -219,11 +230,29 @@ impl Gen {
             style,
             lines: Vec::new(),
             stopped: false,
+            tight,
         };
         g.work = work;
         g.set_origin();
         g.polar_stale = false;
         g
+    }
+
+    /// The machine is set to a tight arc end-point tolerance (0.005 mm) and the control is
+    /// not LinuxCNC (which has its own fixed rule).
+    fn tight(&self) -> bool {
+        self.tight && self.d != Dialect::LinuxCnc
+    }
+
+    /// A slight radial error of an arc end point: within the default tolerance (0.02828 mm),
+    /// and beyond the tight one (0.005 mm) when the machine has it.
+    fn slight(&self, t: f64) -> f64 {
+        if self.tight() {
+            let x = 2.0 * t - 1.0;
+            (0.008 + 0.002 * x.abs()).copysign(x)
+        } else {
+            lerp(t, -0.01, 0.01)
+        }
     }
 
     fn scale(&self) -> f64 {
@@ -498,11 +527,14 @@ impl Gen {
         let perturb = if p[6] < 0.7 {
             0.0
         } else if p[6] < 0.96 {
-            lerp(p[7], -0.01, 0.01)
+            self.slight(p[7])
         } else {
             lerp(p[7], 1.0, 5.0)
         };
         let gross = perturb >= 1.0;
+        // Under the tight tolerance a slight error is too much, except on the TNC's full
+        // circle, whose end point snaps to the start.
+        let rejected = gross || (perturb != 0.0 && self.tight() && !(self.heid() && full));
         let a1 = if ccw { a0 + sweep_abs } else { a0 - sweep_abs };
         let re = r + perturb;
 
@@ -553,7 +585,7 @@ impl Gen {
             back * s + m.origin[i] == m.pos[i]
         };
         let omit_end = full
-            && !gross
+            && perturb == 0.0
             && !self.heid()
             && (p[10] < 0.5 || !exact_start(self, u) || !exact_start(self, v));
         if !omit_end {
@@ -616,7 +648,7 @@ impl Gen {
             words.push(if p[15] < 0.5 { "M8" } else { "S1200" }.into());
         }
         let sweep = (sweep_abs + f64::from(extra_turns) * TAU) * if ccw { 1.0 } else { -1.0 };
-        let expect = if gross {
+        let expect = if rejected {
             Expect::Error
         } else {
             let exact = perturb == 0.0;
@@ -629,7 +661,7 @@ impl Gen {
             }
         };
         self.push(words, expect, false);
-        if !gross {
+        if !rejected {
             self.pos = end;
             self.last_ccw = Some(ccw);
         }
@@ -854,7 +886,8 @@ impl Gen {
                     r0
                 } else if p[2] < 0.96 {
                     perturbed = true;
-                    r0 + lerp(p[3], -0.01, 0.01)
+                    gross = self.tight();
+                    r0 + self.slight(p[3])
                 } else {
                     gross = true;
                     r0 + lerp(p[3], 1.0, 5.0)
@@ -1204,8 +1237,8 @@ impl Gen {
 }
 
 /// A program of dialect `d` from the random operations.
-fn render(d: Dialect, decimals: usize, style: u32, ops: &[Op]) -> Program {
-    let mut g = Gen::new(d, decimals, style);
+fn render(d: Dialect, decimals: usize, style: u32, tight: bool, ops: &[Op]) -> Program {
+    let mut g = Gen::new(d, decimals, style, tight);
     let header: &[&str] = match d {
         Dialect::LinuxCnc => &["%", "G21 G90 G17 G91.1 F600"],
         Dialect::Rockwell => &["O1234", "G21 G90 G17 F600"],
@@ -1742,7 +1775,7 @@ fn ops() -> impl Strategy<Value = (usize, u32, Vec<Op>)> {
 /// Runs `CASES` grammar cases of dialect `d` from `seed`, mutated by up to `max_mutations`
 /// word mutations (none: the model's expectations are checked too), and returns the
 /// coverage figures.
-fn run_grammar(d: Dialect, seed: u64, max_mutations: usize) -> Stats {
+fn run_grammar(d: Dialect, seed: u64, max_mutations: usize, tight: bool) -> Stats {
     let config = ProptestConfig {
         cases: CASES,
         rng_seed: RngSeed::Fixed(seed),
@@ -1757,14 +1790,15 @@ fn run_grammar(d: Dialect, seed: u64, max_mutations: usize) -> Stats {
         prop::collection::vec(mutation(), usize::from(max_mutations > 0)..=max_mutations),
     );
     let result = runner.run(&strategy, |((decimals, style, ops), muts)| {
-        let prog = render(d, decimals, style, &ops);
+        let prog = render(d, decimals, style, tight, &ops);
         let text = prog.text();
         let text = if max_mutations == 0 {
             text
         } else {
             mutate(&text, &muts)
         };
-        let out = run_bytes(d, settings(), text.as_bytes());
+        let config = if tight { tight_settings() } else { settings() };
+        let out = run_bytes(d, config, text.as_bytes());
         check_outcome(d, text.as_bytes(), &out);
         check_geometry(d, &text, &out);
         if max_mutations == 0 {
@@ -1781,7 +1815,7 @@ fn run_grammar(d: Dialect, seed: u64, max_mutations: usize) -> Stats {
     if let Err(e) = result {
         let detail = match &e {
             TestError::Fail(reason, ((decimals, style, ops), muts)) => {
-                let prog = render(d, *decimals, *style, ops);
+                let prog = render(d, *decimals, *style, tight, ops);
                 let text = prog.text();
                 let text = if max_mutations == 0 {
                     text
@@ -1857,7 +1891,7 @@ fn assert_coverage(d: Dialect, s: &Stats, what: &str, floors: [f64; 4]) {
 #[test]
 fn grammar_programs_reach_the_geometry_and_match_the_model() {
     for (i, d) in Dialect::ALL.into_iter().enumerate() {
-        let s = run_grammar(d, 0x6b65_7266_0100 + i as u64, 0);
+        let s = run_grammar(d, 0x6b65_7266_0100 + i as u64, 0, false);
         eprintln!("{}", s.report(d, "grammar"));
         assert_coverage(d, &s, "grammar", [90.0, 85.0, 60.0, 50.0]);
     }
@@ -1866,8 +1900,24 @@ fn grammar_programs_reach_the_geometry_and_match_the_model() {
 #[test]
 fn mutated_grammar_programs_keep_the_invariants() {
     for (i, d) in Dialect::ALL.into_iter().enumerate() {
-        let s = run_grammar(d, 0x6b65_7266_0200 + i as u64, 4);
+        let s = run_grammar(d, 0x6b65_7266_0200 + i as u64, 4, false);
         eprintln!("{}", s.report(d, "mutated"));
         assert_coverage(d, &s, "mutated", [60.0, 50.0, 30.0, 20.0]);
+    }
+}
+
+#[test]
+fn a_tight_arc_tolerance_refuses_what_the_default_accepts() {
+    // The same grammar on a machine with arc_tolerance_mm = 0.005: end points 0.008 to
+    // 0.01 mm off the circle (accepted by default) must now be refused, except by LinuxCNC
+    // (its own fixed rule) and on the TNC's full circles (the end snaps to the start).
+    for (i, d) in Dialect::ALL.into_iter().enumerate() {
+        let s = run_grammar(d, 0x6b65_7266_0300 + i as u64, 0, true);
+        eprintln!("{}", s.report(d, "tight"));
+        assert_coverage(d, &s, "tight", [75.0, 65.0, 60.0, 30.0]);
+        // The refusals happen (each one on the line the model expects, checked per case).
+        if d != Dialect::LinuxCnc {
+            assert!(s.pct(s.with_error) > 50.0, "{}", s.report(d, "tight"));
+        }
     }
 }
