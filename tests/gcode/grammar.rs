@@ -30,6 +30,9 @@
 //! perturbed line (naming the radius or end point, its column at a word) with nothing
 //! yielded from that line, and no error anywhere else.
 //!
+//! The unmutated grammar also runs on a machine with a tight arc tolerance (0.005 mm), where
+//! the slight end-point errors must be refused on their line.
+//!
 //! Coverage is measured and asserted from fixed seeds: most unmutated programs yield moves
 //! and arcs, and polar moves (and polar circles) occur in every dialect that has them. The
 //! figures are printed (`cargo test -p kerf-tests gcode::grammar -- --nocapture`).
