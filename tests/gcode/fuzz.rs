@@ -32,6 +32,12 @@ fn config(seed: u64) -> ProptestConfig {
 /// Runs `bytes` in `d` and checks everything that must hold for any input.
 fn check_any_input(d: Dialect, bytes: &[u8]) {
     let out = run_bytes(d, Settings::default(), bytes);
+    check_outcome(d, bytes, &out);
+}
+
+/// Checks everything that must hold for any input `bytes` on the outcome `out` of running
+/// it in `d`.
+pub(super) fn check_outcome(d: Dialect, bytes: &[u8], out: &Outcome) {
     // Any of LF, CR may end a line; the line numbers reported cannot exceed that count.
     let max_line = 1 + bytes.iter().filter(|&&b| b == b'\n' || b == b'\r').count() as u32;
     let mut last_line = 0;

@@ -11,6 +11,7 @@ mod cross_dialect;
 mod errors;
 mod fagor;
 mod fuzz;
+mod grammar;
 mod heidenhain;
 mod linuxcnc;
 mod rockwell;
