@@ -1134,3 +1134,33 @@ fn hold_stops_within_the_stopping_time_and_resume_finishes() {
         );
     }
 }
+
+/// Regression cases from a sweep of `kerf sim` on the fast machine: a rapid, then a move
+/// of the A axis alone. The solver failed on the rapid (17 of 300 such programs) and the
+/// 26–38 mm rapid was done in the first period.
+#[test]
+fn fast_machine_rapid_then_rotary_only_move() {
+    let limits = fast_machine(1e7, 0.001);
+    let cases = [
+        ([15.7368, -29.8736, -1.0923], 36.461, None),
+        ([29.5526, 21.5968, -7.5822], 3.087, Some(10047.6)),
+        ([-9.3704, 20.8477, -2.9345], -46.524, None),
+    ];
+    for (k, (p, a_deg, feed)) in cases.into_iter().enumerate() {
+        let p = Vec3::new(p[0], p[1], p[2]);
+        let mut rapid = line(1, Vec3::zeros(), p, 1.0);
+        rapid.rapid = true;
+        rapid.feed_mm_min = None;
+        let mut rotary = line(2, p, p, feed.unwrap_or(1.0));
+        rotary.rapid = feed.is_none();
+        rotary.feed_mm_min = feed;
+        rotary.abc_deg = Some(([0.0; 3], [a_deg, 0.0, 0.0]));
+        check_swept(
+            &format!("rapid+A {k}"),
+            &[rapid, rotary],
+            &limits,
+            1.0,
+            0.01,
+        );
+    }
+}
