@@ -100,7 +100,7 @@ const MAX_OVERRIDE_PCT: f64 = 200.0;
 fn parse_override(text: &str) -> Result<f64, String> {
     match text.trim_end_matches('%').parse::<f64>() {
         Ok(pct) if (MIN_OVERRIDE_PCT..=MAX_OVERRIDE_PCT).contains(&pct) => Ok(pct),
-        Ok(pct) if pct == 0.0 => Err(format!(
+        Ok(0.0) => Err(format!(
             "--override 0 would hold the machine before the first move; the simulation could never finish (use {MIN_OVERRIDE_PCT} to {MAX_OVERRIDE_PCT})"
         )),
         _ => Err(format!(
