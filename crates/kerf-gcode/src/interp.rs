@@ -26,6 +26,9 @@ const MOTION_WORDS: [u8; 18] = [
     KX, KY, KZ, KA, KB, KC, KI, KJ, KK, KR, KQ, KH, K_CR, K_TURN, K_RP, K_AP, K_AT, K_CARET,
 ];
 
+/// The LinuxCNC words a motion uses (H and Q belong to G43 and G64 there).
+const LINUXCNC_MOTION_WORDS: [u8; 12] = [KX, KY, KZ, KA, KB, KC, KI, KJ, KK, KR, K_AT, K_CARET];
+
 /// A resolution error: a 1-based column and a message.
 #[derive(Debug)]
 pub(crate) struct ExecError {
@@ -668,7 +671,7 @@ impl State {
         }
         // A dwell block holds no motion words (checked above), except in LinuxCNC, whose
         // motion then runs after the dwell.
-        let motion_after_dwell = d == Dialect::LinuxCnc && blk.any(&MOTION_WORDS);
+        let motion_after_dwell = d == Dialect::LinuxCnc && blk.any(&LINUXCNC_MOTION_WORDS);
         if !consumed_axes && (!dwell || motion_after_dwell) {
             let motion_col = motion_g.map_or(blk.first_col, |(_, c)| c);
             self.motion(
