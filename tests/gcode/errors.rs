@@ -211,3 +211,133 @@ fn cutter_compensation_error_stops_before_the_block() {
         );
     }
 }
+
+#[test]
+fn negative_dwell_is_refused_in_every_dialect_at_the_time_word() {
+    // Each control's dwell word (LinuxCNC G4 P, Rockwell G04 X or P, Sinumerik G4 F or S,
+    // Heidenhain G04 F, Fagor G04 K) with a negative value stops the program at that word;
+    // the move before it is yielded, nothing after it.
+    let cases = [
+        (
+            Dialect::LinuxCnc,
+            "G1 X1 F100\nG4 P-1\nG1 X2\n",
+            2,
+            4,
+            "Negative P word used",
+        ),
+        (
+            Dialect::Rockwell,
+            "G01 X1 F100 ;\nG04 X-1.5 ;\nG01 X2 ;\n",
+            2,
+            5,
+            "negative dwell time X",
+        ),
+        (
+            Dialect::Rockwell,
+            "G01 X1 F100 ;\nG04 P-1 ;\nG01 X2 ;\n",
+            2,
+            5,
+            "negative dwell time P",
+        ),
+        (
+            Dialect::Sinumerik,
+            "G1 X1 F100\nN20 G4 F-2\nG1 X2\n",
+            2,
+            8,
+            "negative dwell time F",
+        ),
+        (
+            Dialect::Sinumerik,
+            "G1 X1 F100\nG4 S-3\nG1 X2\n",
+            2,
+            4,
+            "negative dwell time S",
+        ),
+        (
+            Dialect::Heidenhain,
+            "%C G71 *\nN10 G01 X+1 F100 *\nN20 G04 F-1 *\nN30 G01 X+2 *\nN40 %C G71 *\n",
+            3,
+            9,
+            "negative dwell time F",
+        ),
+        (
+            Dialect::Fagor,
+            "G01 X1 F100\nG04 K-0.5\nG01 X2\n",
+            2,
+            5,
+            "negative dwell time K",
+        ),
+    ];
+    for (d, src, line, col, message) in cases {
+        let out = run_bytes(d, Settings::default(), src.as_bytes());
+        let diag = out
+            .error
+            .unwrap_or_else(|| panic!("{}: {src:?} accepted", d.name()));
+        assert_diag(&diag, line, col, &[message]);
+        let ms = only_moves(&out.items);
+        assert_eq!(ms.len(), 1, "{}: only the move before: {ms:#?}", d.name());
+    }
+}
+
+#[test]
+fn absurdly_long_dwell_is_refused() {
+    // Up to 1e6 s (11.6 days) is accepted; beyond that the value is a mistake.
+    for (d, ok, bad, col) in [
+        (Dialect::LinuxCnc, "G4 P1000000\n", "G4 P1000001\n", 4),
+        (
+            Dialect::Rockwell,
+            "G04 X1000000 ;\n",
+            "G04 X1000000.5 ;\n",
+            5,
+        ),
+        (Dialect::Sinumerik, "G4 F1000000\n", "G4 F2000000\n", 4),
+        (Dialect::Fagor, "G04 K1000000\n", "G04 K99999999\n", 5),
+    ] {
+        let out = run_bytes(d, Settings::default(), ok.as_bytes());
+        assert!(out.error.is_none(), "{}: {ok:?}: {:?}", d.name(), out.error);
+        let diag = error(d, bad);
+        assert_diag(&diag, 1, col, &["dwell time", "at most 1000000"]);
+    }
+    let diag = error(
+        Dialect::Heidenhain,
+        "%C G71 *\nN10 G04 F1000001 *\nN20 %C G71 *\n",
+    );
+    assert_diag(&diag, 2, 9, &["dwell time F", "at most 1000000"]);
+}
+
+#[test]
+fn dwell_words_missing_repeated_or_mixed_with_motion() {
+    // LinuxCNC requires P with G4, in its own words.
+    assert_diag(
+        &error(Dialect::LinuxCnc, "G1 X1 F100\nG4\n"),
+        2,
+        1,
+        &["Dwell time P word missing with G4"],
+    );
+    // Two dwell times in one block.
+    assert_diag(
+        &error(Dialect::Rockwell, "G04 X1 P2 ;\n"),
+        1,
+        8,
+        &["dwell time given twice"],
+    );
+    assert_diag(
+        &error(Dialect::Sinumerik, "G4 F1 S2\n"),
+        1,
+        7,
+        &["dwell time given twice"],
+    );
+    // Outside LinuxCNC the dwell is a block of its own: an axis word there would otherwise
+    // be dropped silently.
+    let cases = [
+        (Dialect::Rockwell, "G04 X1 Y5 ;\n", 8, "Y word"),
+        (Dialect::Sinumerik, "G4 F2 X1\n", 7, "X word"),
+        (Dialect::Heidenhain, "%C G71 *\nG04 F2 Z+1 *\n", 8, "Z word"),
+        (Dialect::Fagor, "G04 K1 X3\n", 8, "X word"),
+    ];
+    for (d, src, col, word) in cases {
+        let diag = error(d, src);
+        let line = src.lines().count() as u32;
+        assert_diag(&diag, line, col, &["separate block", word]);
+    }
+}

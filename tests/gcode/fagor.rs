@@ -315,3 +315,11 @@ fn polar_origin_is_part_zero_by_default() {
     let ms = moves(D, "G01 X30 Y30 F100\nG01 R10 Q0\n");
     assert_feed_line(&ms[1], v(30.0, 30.0, 0.0), v(10.0, 0.0, 0.0), 100.0);
 }
+
+#[test]
+fn dwell_k_makes_no_motion() {
+    // G04 K is a dwell in seconds: K is not the centre word there, and nothing moves.
+    let ms = moves(D, "G01 X1 F100\nG04 K1.5\nG01 X2\n");
+    assert_eq!(ms.len(), 2, "{ms:#?}");
+    assert_feed_line(&ms[1], v(1.0, 0.0, 0.0), v(2.0, 0.0, 0.0), 100.0);
+}

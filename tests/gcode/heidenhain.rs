@@ -491,3 +491,13 @@ fn polar_line_with_the_tool_axis() {
     let ms = moves(D, &prog("N10 I+0 J+0 *\nN20 G11 R+10 H+90 Z-5 F100 *\n"));
     assert_feed_line(&ms[0], o(), v(0.0, 10.0, -5.0), 100.0);
 }
+
+#[test]
+fn dwell_f_is_the_dwell_time_not_the_feed() {
+    let ms = moves(
+        D,
+        "%C G71 *\nN10 G01 X+1 F100 *\nN20 G04 F2 *\nN30 G01 X+2 *\nN40 %C G71 *\n",
+    );
+    assert_eq!(ms.len(), 2, "{ms:#?}");
+    assert_feed_line(&ms[1], v(1.0, 0.0, 0.0), v(2.0, 0.0, 0.0), 100.0);
+}

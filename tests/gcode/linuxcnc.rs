@@ -935,3 +935,26 @@ fn g40_with_a_tool_radius_is_fine() {
     let ms = moves_with(D, s, "T1 M6\nG40 G1 X10 F100\n");
     assert_feed_line(&ms[0], o(), v(10.0, 0.0, 0.0), 100.0);
 }
+
+#[test]
+fn dwell_with_a_motion_in_the_same_block_keeps_the_motion() {
+    // G4 is non-modal and uses only P: the G1 X10 of the same block still moves, after the
+    // dwell (LinuxCNC's order of execution), and the feed of the block applies.
+    let ms = moves(D, "G1 X1 F100\nG4 P0.5 G1 X10 F200\nG4 P1\nG1 X12\n");
+    assert_eq!(ms.len(), 3, "{ms:#?}");
+    assert_feed_line(&ms[0], o(), v(1.0, 0.0, 0.0), 100.0);
+    assert_feed_line(&ms[1], v(1.0, 0.0, 0.0), v(10.0, 0.0, 0.0), 200.0);
+    assert_feed_line(&ms[2], v(10.0, 0.0, 0.0), v(12.0, 0.0, 0.0), 200.0);
+    assert_eq!(ms[1].line, 2);
+    // The modal G1 takes the axis words of a G4 block too; an H word (G43) does not move.
+    let ms = moves(D, "G1 X1 F100\nG4 P1 X5\nG43 H1 G4 P1\n");
+    assert_eq!(ms.len(), 2, "{ms:#?}");
+    assert_feed_line(&ms[1], v(1.0, 0.0, 0.0), v(5.0, 0.0, 0.0), 100.0);
+    // Without a motion mode, axis words with G4 are LinuxCNC's error.
+    assert_diag(
+        &error(D, "G4 P1 X5\n"),
+        1,
+        7,
+        &["cannot use axis values without a G code that uses them"],
+    );
+}

@@ -306,3 +306,13 @@ fn corner_modes_g61_g64_and_one_block_g09() {
     assert_eq!(ms[4].corner, CornerMode::ExactStop, "G61 is modal");
     assert_eq!(ms[5].corner, CornerMode::Blend { tolerance_mm: None });
 }
+
+#[test]
+fn dwell_x_is_the_time_not_a_move() {
+    // G04 X1.5 dwells; the X there is the time, not the axis.
+    for dwell in ["G04 X1.5 ;", "G04 P2 ;", "G04 ;"] {
+        let ms = moves(D, &format!("G01 X1 F100 ;\n{dwell}\nG01 X2 ;\n"));
+        assert_eq!(ms.len(), 2, "{dwell}: {ms:#?}");
+        assert_feed_line(&ms[1], v(1.0, 0.0, 0.0), v(2.0, 0.0, 0.0), 100.0);
+    }
+}

@@ -466,3 +466,19 @@ fn without_a_pole_the_workpiece_zero_is_the_pole() {
     let ms = moves(D, "G1 X5 Y5 F100\nG1 RP=10 AP=90\n");
     assert_feed_line(&ms[1], v(5.0, 5.0, 0.0), v(0.0, 10.0, 0.0), 100.0);
 }
+
+#[test]
+fn dwell_f_and_s_are_the_dwell_not_the_feed_or_the_spindle_speed() {
+    // "G4 F.." is a dwell in seconds and "G4 S.." one in spindle revolutions; the feed and
+    // spindle speed programmed before stay valid after the dwell block.
+    let its = items(D, "S1000 M3\nG1 X1 F100\nG4 F2.5\nG4 S30\nG1 X2\n");
+    let ms = only_moves(&its);
+    assert_eq!(ms.len(), 2, "{ms:#?}");
+    assert_feed_line(&ms[1], v(1.0, 0.0, 0.0), v(2.0, 0.0, 0.0), 100.0);
+    let speeds: Vec<Option<f64>> = only_events(&its)
+        .iter()
+        .filter(|e| e.code.as_str() == "S")
+        .map(|e| e.value)
+        .collect();
+    assert_eq!(speeds, [Some(1000.0)]);
+}

@@ -4,7 +4,7 @@ use kerf_geom::{CornerMode, Vec3};
 
 use crate::arc::Plane;
 use crate::codes::*;
-use crate::lex::{Form, N_KEYS, Word};
+use crate::lex::{Form, K_AP, K_AT, K_CARET, K_CR, K_RP, K_TURN, N_KEYS, Word};
 use crate::{Dialect, Event, EventCode, Item, Settings, Tool};
 
 mod geometry;
@@ -13,6 +13,21 @@ const MM_PER_INCH: f64 = 25.4;
 
 /// The most tools a program may define with Heidenhain G99.
 const MAX_TOOLS: usize = 10_000;
+
+/// The longest dwell accepted, in the unit of the dwell word (seconds; spindle revolutions
+/// for Sinumerik `G4 S`): 1e6 s is eleven and a half days, far beyond any dwell a part
+/// needs (the ISO dwell word of Fanuc-style controls stops at 99,999.999 s) and short of
+/// the values at which adding it to a clock loses precision.
+const MAX_DWELL: f64 = 1e6;
+
+/// The words that describe motion or geometry: a dwell block may not hold them, except
+/// in LinuxCNC, where the motion runs after the dwell.
+const MOTION_WORDS: [u8; 18] = [
+    KX, KY, KZ, KA, KB, KC, KI, KJ, KK, KR, KQ, KH, K_CR, K_TURN, K_RP, K_AP, K_AT, K_CARET,
+];
+
+/// The LinuxCNC words a motion uses (H and Q belong to G43 and G64 there).
+const LINUXCNC_MOTION_WORDS: [u8; 12] = [KX, KY, KZ, KA, KB, KC, KI, KJ, KK, KR, K_AT, K_CARET];
 
 /// A resolution error: a 1-based column and a message.
 #[derive(Debug)]
@@ -458,8 +473,17 @@ impl State {
             }
         }
 
+        // Dwell: the time word is checked here, before F and S are read, because on
+        // Sinumerik and Heidenhain the F (and Sinumerik S) of a dwell block is the dwell,
+        // not a feed or a spindle speed.
+        let dwell_col = slot(0).filter(|&(g, _)| g == G::Dwell).map(|(_, c)| c);
+        let dwell_word = match dwell_col {
+            Some(col) => self.check_dwell(blk, col)?,
+            None => None,
+        };
+
         // Feed.
-        if let Some(f) = blk.get(KF) {
+        if let Some(f) = blk.get(KF).filter(|_| dwell_word != Some(KF)) {
             if f < 0.0 {
                 return fail(blk.col(KF), "negative F word");
             }
@@ -468,7 +492,7 @@ impl State {
         }
 
         // Spindle, tool and coolant events run before the motion of the block.
-        if let Some(s) = blk.get(KS) {
+        if let Some(s) = blk.get(KS).filter(|_| dwell_word != Some(KS)) {
             if s < 0.0 {
                 return fail(blk.col(KS), "negative spindle speed");
             }
@@ -627,7 +651,7 @@ impl State {
         let machine = slot(0).filter(|&(g, _)| g == G::MachineCoords);
         let exact_once = slot(10).is_some();
         let abs_centre_once = slot(12).is_some();
-        let dwell = slot(0).is_some_and(|(g, _)| g == G::Dwell);
+        let dwell = dwell_col.is_some();
         let g64 = matches!(slot(9), Some((G::Corner { exact: false }, _)));
         if d == Dialect::LinuxCnc && blk.present & (1 << KP | 1 << KQ) != 0 {
             // LinuxCNC refuses words that no G code of the block uses.
@@ -645,7 +669,10 @@ impl State {
         {
             return fail(blk.col(KR), "R word with no G02, G03, G10 or G11 to use it");
         }
-        if !consumed_axes && !dwell {
+        // A dwell block holds no motion words (checked above), except in LinuxCNC, whose
+        // motion then runs after the dwell.
+        let motion_after_dwell = d == Dialect::LinuxCnc && blk.any(&LINUXCNC_MOTION_WORDS);
+        if !consumed_axes && (!dwell || motion_after_dwell) {
             let motion_col = motion_g.map_or(blk.first_col, |(_, c)| c);
             self.motion(
                 blk,
@@ -657,6 +684,77 @@ impl State {
             )?;
         }
         self.finish_block(blk, &m_post, out)
+    }
+
+    /// Checks the dwell word of a G4 block (`col` is the G4) and returns its key, if given.
+    ///
+    /// The dwell word: LinuxCNC `P` (seconds, required); Rockwell `X` or `P`; Sinumerik `F`
+    /// (seconds) or `S` (spindle revolutions); Heidenhain `F` (seconds); Fagor `K`
+    /// (seconds). Its value must be from 0 to [`MAX_DWELL`]. Except in LinuxCNC, the block
+    /// may not hold motion words (the Sinumerik manual: "G4 must be programmed in a
+    /// separate block"); a word that would be an axis elsewhere is never silently dropped.
+    fn check_dwell(&self, blk: &Block, col: u32) -> Result<Option<u8>, ExecError> {
+        let d = self.dialect;
+        let (g, words): (&str, &[u8]) = match d {
+            Dialect::LinuxCnc => ("G4", &[KP]),
+            Dialect::Rockwell => ("G04", &[KX, KP]),
+            Dialect::Sinumerik => ("G4", &[KF, KS]),
+            Dialect::Heidenhain => ("G04", &[KF]),
+            Dialect::Fagor => ("G04", &[KK]),
+        };
+        if d != Dialect::LinuxCnc {
+            if let Some(k) = MOTION_WORDS
+                .iter()
+                .copied()
+                .filter(|k| !words.contains(k))
+                .find(|&k| blk.has(k))
+            {
+                return fail(
+                    blk.col(k),
+                    format!(
+                        "{g} must be programmed in a separate block ({} word with {g})",
+                        key_name(k)
+                    ),
+                );
+            }
+        }
+        let mut given = words.iter().copied().filter(|&k| blk.has(k));
+        let Some(word) = given.next() else {
+            if d == Dialect::LinuxCnc {
+                return fail(col, "Dwell time P word missing with G4");
+            }
+            // Rockwell, Sinumerik, Heidenhain and Fagor accept G4 without a time: a dwell
+            // of zero, which for a simulation is nothing.
+            return Ok(None);
+        };
+        if let Some(second) = given.next() {
+            return fail(
+                blk.col(second),
+                format!(
+                    "dwell time given twice with {g} ({} and {})",
+                    key_name(word),
+                    key_name(second)
+                ),
+            );
+        }
+        let name = key_name(word);
+        let value = blk.vals[word as usize];
+        if value < 0.0 {
+            if d == Dialect::LinuxCnc {
+                return fail(blk.col(word), "Negative P word used");
+            }
+            return fail(
+                blk.col(word),
+                format!("negative dwell time {name} with {g}"),
+            );
+        }
+        if !(0.0..=MAX_DWELL).contains(&value) {
+            return fail(
+                blk.col(word),
+                format!("dwell time {name} with {g} must be at most 1000000, found {value}"),
+            );
+        }
+        Ok(Some(word))
     }
 
     fn finish_block(

@@ -57,7 +57,17 @@
 //!   before the motion, M0/M1/M2/M30 after it (Heidenhain: M5 and M9 also after the
 //!   motion, as on the TNC). After M2/M30 the rest of the program is not read. Other M
 //!   codes are an "unknown M code" error. An `S` event carries the rpm, a `T` event the
-//!   tool number. G4 dwells are accepted and produce no item.
+//!   tool number.
+//! - Dwells produce no item. The dwell word: LinuxCNC `G4 P` (seconds, required: "Dwell
+//!   time P word missing with G4"), Rockwell `G04 X` or `P`, Sinumerik `G4 F` (seconds)
+//!   or `G4 S` (spindle revolutions), Heidenhain `G04 F` (seconds), Fagor `G04 K`
+//!   (seconds); one of them per block. A negative value is an error at the word
+//!   (LinuxCNC: "Negative P word used"), and so is one above 1,000,000 (11.6 days in
+//!   seconds: a mistake, not a dwell). On Sinumerik and Heidenhain the F (and S) of a
+//!   dwell block is the dwell only: the feed and spindle speed programmed before stay.
+//!   LinuxCNC runs a motion of the same block after the dwell (`G4 P1 G1 X10`); the other
+//!   controls want the dwell in a block of its own ("G4 must be programmed in a separate
+//!   block"), so an axis, centre or polar word there is an error, never dropped.
 //! - Block delete `/` at the start of a block skips the block (it is not even checked).
 //! - Cutter compensation G41/G42 is accepted only while the active tool's radius is zero
 //!   (tool table in [`Settings`]; the tool is the last T, or the LinuxCNC D word); with a

@@ -13,7 +13,7 @@
 //! - Every quantity carries its unit in the key and in the field name (`jerk_mm_s3`).
 
 use std::io;
-use std::ops::Range;
+use std::ops::{Range, RangeInclusive};
 use std::path::Path;
 
 use kerf_gcode::{Dialect, Settings, Tool};
@@ -35,6 +35,45 @@ pub const DEFAULT_TOLERANCE_MM: f64 = 0.01;
 /// The longest period accepted, microseconds: beyond one second a "real-time" loop makes
 /// no sense and the value is more likely a unit mistake (seconds or nanoseconds).
 pub const MAX_PERIOD_US: u32 = 1_000_000;
+
+/// The shortest period accepted, microseconds. EtherCAT masters commonly run 62.5 to 125 µs
+/// cycles, and nothing shorter is meaningful for a PC-based interpolator; below about this
+/// the finite differences of positions at the period are dominated by floating-point
+/// rounding (at 1 µs the third difference of a clean profile reads 142 % of the jerk limit).
+pub const MIN_PERIOD_US: u32 = 50;
+
+// The accepted range of every machine number, inclusive at both ends. A value outside
+// these ranges is not a machine but a typo or a unit mistake, and some of them make a run
+// that can never finish (velocity 1e-300 mm/s) or whose arithmetic breaks down
+// (acceleration 1e300 mm/s²). Rotary axes use the same numbers in degrees.
+
+/// Axis velocity, mm/s (deg/s): from 0.001 mm/s (3.6 mm/h, slower than any feed a program
+/// can ask for in a useful time) to 100,000 mm/s (6,000 m/min, beyond the fastest linear
+/// motors).
+pub const VELOCITY_RANGE: RangeInclusive<f64> = 0.001..=100_000.0;
+
+/// Axis acceleration, mm/s² (deg/s²): from 0.01 mm/s² to 1e8 mm/s² (about 10,000 g, far
+/// beyond any machine axis).
+pub const ACCELERATION_RANGE: RangeInclusive<f64> = 0.01..=1e8;
+
+/// Axis jerk, mm/s³ (deg/s³): from 1 mm/s³ to 1e12 mm/s³ (at a 50 µs period that jerk
+/// reaches 1e8 mm/s² in 0.1 ms; higher values only mean "no jerk limit" and strain the
+/// arithmetic of the profiles).
+pub const JERK_RANGE: RangeInclusive<f64> = 1.0..=1e12;
+
+/// Path tolerance (`tolerance_mm`) and absolute arc end-point tolerance
+/// (`gcode.arc_tolerance_mm`), mm: from 1 nm (beyond any machine's resolution; smaller
+/// values only make blends vanish in rounding) to 10 mm (a "tolerance" larger than that is
+/// not a finishing path any more).
+pub const TOLERANCE_RANGE_MM: RangeInclusive<f64> = 1e-6..=10.0;
+
+/// Relative arc end-point tolerance (`gcode.arc_tolerance_rel`), a fraction of the radius:
+/// up to 10 % (beyond that the program's arcs are not arcs at all).
+pub const ARC_TOLERANCE_REL_RANGE: RangeInclusive<f64> = 1e-9..=0.1;
+
+/// The largest magnitude of a travel limit, work offset or tool length or radius, mm
+/// (degrees for rotary travel): one kilometre, larger than any machine bed.
+pub const MAX_COORDINATE_MM: f64 = 1e6;
 
 /// Limits of a linear axis (X, Y, Z).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -111,9 +150,9 @@ pub struct ToolEntry {
 pub struct Config {
     /// The machine control's dialect, if the file names one.
     pub dialect: Option<Dialect>,
-    /// Interpolation period, microseconds (> 0).
+    /// Interpolation period, microseconds ([`MIN_PERIOD_US`] to [`MAX_PERIOD_US`]).
     pub period_us: u32,
-    /// Default path tolerance for corner blending, mm (> 0).
+    /// Default path tolerance for corner blending, mm (within [`TOLERANCE_RANGE_MM`]).
     pub tolerance_mm: f64,
     /// Axis limits.
     pub axes: Axes,
@@ -239,6 +278,16 @@ const FALLBACK_AXIS: LinearAxis = LinearAxis {
     max_mm: 500.0,
 };
 
+/// A number for a message: plain where that reads well, else in exponent form, so that
+/// 1e-300 is not printed with three hundred zeros.
+fn number(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-4..1e7).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 /// The 1-based line and column of byte `offset` in `text`.
 fn position_of(text: &str, offset: usize) -> TextPosition {
     let offset = offset.min(text.len());
@@ -353,41 +402,45 @@ impl Checker<'_> {
         }
     }
 
-    /// A strictly positive, finite value.
-    fn positive(&self, key: &str, value: &Spanned<f64>) -> Result<f64, ConfigError> {
+    /// A value within `range` (inclusive; NaN is never within), in `unit`.
+    fn within(
+        &self,
+        key: &str,
+        unit: &str,
+        range: RangeInclusive<f64>,
+        value: &Spanned<f64>,
+    ) -> Result<f64, ConfigError> {
         let v = *value.get_ref();
-        if v.is_finite() && v > 0.0 {
+        if range.contains(&v) {
             Ok(v)
         } else {
             Err(self.error(
                 value.span(),
-                format!("`{key}` must be a positive finite number, found {v}"),
+                format!(
+                    "`{key}` must be between {} and {} {unit}, found {}",
+                    number(*range.start()),
+                    number(*range.end()),
+                    number(v)
+                ),
             ))
         }
     }
 
-    /// A finite value.
-    fn finite(&self, key: &str, value: &Spanned<f64>) -> Result<f64, ConfigError> {
-        let v = *value.get_ref();
-        if v.is_finite() {
-            Ok(v)
-        } else {
-            Err(self.error(
-                value.span(),
-                format!("`{key}` must be a finite number, found {v}"),
-            ))
-        }
+    /// A coordinate-like value: finite and at most [`MAX_COORDINATE_MM`] in magnitude.
+    fn coordinate(&self, key: &str, unit: &str, value: &Spanned<f64>) -> Result<f64, ConfigError> {
+        self.within(key, unit, -MAX_COORDINATE_MM..=MAX_COORDINATE_MM, value)
     }
 
-    /// A travel range: both ends finite and `min < max`.
+    /// A travel range: both ends within ±[`MAX_COORDINATE_MM`] and `min < max`.
     fn range(
         &self,
         keys: (&str, &str),
+        unit: &str,
         min: &Spanned<f64>,
         max: &Spanned<f64>,
     ) -> Result<(f64, f64), ConfigError> {
-        let lo = self.finite(keys.0, min)?;
-        let hi = self.finite(keys.1, max)?;
+        let lo = self.coordinate(keys.0, unit, min)?;
+        let hi = self.coordinate(keys.1, unit, max)?;
         if lo < hi {
             Ok((lo, hi))
         } else {
@@ -403,13 +456,26 @@ impl Checker<'_> {
 
     fn linear(&self, name: &str, raw: &RawLinearAxis) -> Result<LinearAxis, ConfigError> {
         let key = |k: &str| format!("axes.{name}.{k}");
-        let (min_mm, max_mm) =
-            self.range((&key("min_mm"), &key("max_mm")), &raw.min_mm, &raw.max_mm)?;
+        let (min_mm, max_mm) = self.range(
+            (&key("min_mm"), &key("max_mm")),
+            "mm",
+            &raw.min_mm,
+            &raw.max_mm,
+        )?;
         Ok(LinearAxis {
-            velocity_mm_s: self.positive(&key("velocity_mm_s"), &raw.velocity_mm_s)?,
-            acceleration_mm_s2: self
-                .positive(&key("acceleration_mm_s2"), &raw.acceleration_mm_s2)?,
-            jerk_mm_s3: self.positive(&key("jerk_mm_s3"), &raw.jerk_mm_s3)?,
+            velocity_mm_s: self.within(
+                &key("velocity_mm_s"),
+                "mm/s",
+                VELOCITY_RANGE,
+                &raw.velocity_mm_s,
+            )?,
+            acceleration_mm_s2: self.within(
+                &key("acceleration_mm_s2"),
+                "mm/s²",
+                ACCELERATION_RANGE,
+                &raw.acceleration_mm_s2,
+            )?,
+            jerk_mm_s3: self.within(&key("jerk_mm_s3"), "mm/s³", JERK_RANGE, &raw.jerk_mm_s3)?,
             min_mm,
             max_mm,
         })
@@ -424,14 +490,29 @@ impl Checker<'_> {
         let key = |k: &str| format!("axes.{name}.{k}");
         let (min_deg, max_deg) = self.range(
             (&key("min_deg"), &key("max_deg")),
+            "deg",
             &raw.min_deg,
             &raw.max_deg,
         )?;
         Ok(Some(RotaryAxis {
-            velocity_deg_s: self.positive(&key("velocity_deg_s"), &raw.velocity_deg_s)?,
-            acceleration_deg_s2: self
-                .positive(&key("acceleration_deg_s2"), &raw.acceleration_deg_s2)?,
-            jerk_deg_s3: self.positive(&key("jerk_deg_s3"), &raw.jerk_deg_s3)?,
+            velocity_deg_s: self.within(
+                &key("velocity_deg_s"),
+                "deg/s",
+                VELOCITY_RANGE,
+                &raw.velocity_deg_s,
+            )?,
+            acceleration_deg_s2: self.within(
+                &key("acceleration_deg_s2"),
+                "deg/s²",
+                ACCELERATION_RANGE,
+                &raw.acceleration_deg_s2,
+            )?,
+            jerk_deg_s3: self.within(
+                &key("jerk_deg_s3"),
+                "deg/s³",
+                JERK_RANGE,
+                &raw.jerk_deg_s3,
+            )?,
             min_deg,
             max_deg,
         }))
@@ -442,10 +523,14 @@ impl Checker<'_> {
             return Ok([0.0; 3]);
         };
         match raw.get_ref().as_slice() {
-            &[x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Ok([x, y, z]),
+            &[x, y, z] if [x, y, z].iter().all(|v| v.abs() <= MAX_COORDINATE_MM) => Ok([x, y, z]),
             _ => Err(self.error(
                 raw.span(),
-                format!("`work_offsets.{key}` must be three finite numbers [x, y, z] in mm"),
+                format!(
+                    "`work_offsets.{key}` must be three numbers [x, y, z] between {} and {} mm",
+                    number(-MAX_COORDINATE_MM),
+                    number(MAX_COORDINATE_MM)
+                ),
             )),
         }
     }
@@ -469,12 +554,12 @@ impl Checker<'_> {
         let period_us = match &raw.period_us {
             None => DEFAULT_PERIOD_US,
             Some(p) => match u32::try_from(*p.get_ref()) {
-                Ok(v) if v > 0 && v <= MAX_PERIOD_US => v,
+                Ok(v) if (MIN_PERIOD_US..=MAX_PERIOD_US).contains(&v) => v,
                 _ => {
                     return Err(self.error(
                         p.span(),
                         format!(
-                            "`period_us` must be between 1 and {MAX_PERIOD_US} microseconds, found {}",
+                            "`period_us` must be between {MIN_PERIOD_US} and {MAX_PERIOD_US} µs, found {}",
                             p.get_ref()
                         ),
                     ));
@@ -484,7 +569,7 @@ impl Checker<'_> {
 
         let tolerance_mm = match &raw.tolerance_mm {
             None => DEFAULT_TOLERANCE_MM,
-            Some(t) => self.positive("tolerance_mm", t)?,
+            Some(t) => self.within("tolerance_mm", "mm", TOLERANCE_RANGE_MM, t)?,
         };
 
         let axes = Axes {
@@ -499,11 +584,16 @@ impl Checker<'_> {
         let defaults = Settings::default();
         let arc_tolerance_mm = match &raw.gcode.arc_tolerance_mm {
             None => defaults.arc_tolerance_mm,
-            Some(t) => self.positive("gcode.arc_tolerance_mm", t)?,
+            Some(t) => self.within("gcode.arc_tolerance_mm", "mm", TOLERANCE_RANGE_MM, t)?,
         };
         let arc_tolerance_rel = match &raw.gcode.arc_tolerance_rel {
             None => defaults.arc_tolerance_rel,
-            Some(t) => self.positive("gcode.arc_tolerance_rel", t)?,
+            Some(t) => self.within(
+                "gcode.arc_tolerance_rel",
+                "(fraction of the radius)",
+                ARC_TOLERANCE_REL_RANGE,
+                t,
+            )?,
         };
 
         let w = &raw.work_offsets;
@@ -542,20 +632,11 @@ impl Checker<'_> {
             }
             let length_mm = match &t.length_mm {
                 None => 0.0,
-                Some(l) => self.finite("tools.length_mm", l)?,
+                Some(l) => self.coordinate("tools.length_mm", "mm", l)?,
             };
             let radius_mm = match &t.radius_mm {
                 None => 0.0,
-                Some(r) => {
-                    let v = self.finite("tools.radius_mm", r)?;
-                    if v < 0.0 {
-                        return Err(self.error(
-                            r.span(),
-                            format!("`tools.radius_mm` must not be negative, found {v}"),
-                        ));
-                    }
-                    v
-                }
+                Some(r) => self.within("tools.radius_mm", "mm", 0.0..=MAX_COORDINATE_MM, r)?,
             };
             tools.push(ToolEntry {
                 number,
@@ -713,6 +794,215 @@ max_mm = 10.0
         }
         let e = err(&format!("period_us = 1.5\n{MINIMAL}"));
         assert!(e.starts_with("m.toml:1:"), "{e}");
+    }
+
+    /// MINIMAL with every optional table, so that any key can be set by [`with_key`].
+    fn full() -> String {
+        format!(
+            "{MINIMAL}[axes.c]\nvelocity_deg_s = 360.0\nacceleration_deg_s2 = 3600.0\njerk_deg_s3 = 90000.0\nmin_deg = -720.0\nmax_deg = 720.0\n[gcode]\narc_tolerance_mm = 0.02828\narc_tolerance_rel = 0.001\n[work_offsets]\ng54 = [0.0, 0.0, 0.0]\n[[tools]]\nnumber = 1\nlength_mm = 0.0\nradius_mm = 0.0\n"
+        )
+    }
+
+    /// [`full`] with `key = value` in `table` (`""`: the top level), and the 1-based line
+    /// and column where the value starts.
+    fn with_key(table: &str, key: &str, value: &str) -> (String, String) {
+        let text = full();
+        let (text, at) = if table.is_empty() {
+            (format!("{key} = {value}\n{text}"), 0)
+        } else {
+            let header = text.find(&format!("[{table}]")).expect("table");
+            let line = header + text[header..].find(&format!("\n{key} = ")).expect("key") + 1;
+            let end = line + text[line..].find('\n').unwrap();
+            (
+                format!("{}{key} = {value}{}", &text[..line], &text[end..]),
+                line,
+            )
+        };
+        let line_no = text[..at].matches('\n').count() + 1;
+        let place = format!("m.toml:{line_no}:{}: error: ", key.len() + 4);
+        (text, place)
+    }
+
+    /// Every machine number is accepted at both ends of its documented range and rejected
+    /// just outside them, with the key, the unit and the range in the message and the
+    /// value's place in the file.
+    #[test]
+    fn every_number_has_a_range_checked_on_both_sides() {
+        // (table, key, in range, out of range, the range as the message must state it)
+        type Case<'a> = (&'a str, &'a str, &'a [&'a str], &'a [&'a str], &'a str);
+        let cases: &[Case] = &[
+            (
+                "axes.x",
+                "velocity_mm_s",
+                &["0.001", "100000"],
+                &["0.000999", "100000.01", "1e-300", "0", "-1", "inf", "nan"],
+                "between 0.001 and 100000 mm/s",
+            ),
+            (
+                "axes.y",
+                "acceleration_mm_s2",
+                &["0.01", "1e8"],
+                &["0.0099", "1.00001e8"],
+                "between 0.01 and 1e8 mm/s²",
+            ),
+            (
+                "axes.z",
+                "jerk_mm_s3",
+                &["1", "1e12"],
+                &["0.999", "1.00001e12"],
+                "between 1 and 1e12 mm/s³",
+            ),
+            (
+                "axes.c",
+                "velocity_deg_s",
+                &["0.001", "100000"],
+                &["0.000999", "100000.01"],
+                "between 0.001 and 100000 deg/s",
+            ),
+            (
+                "axes.c",
+                "acceleration_deg_s2",
+                &["0.01", "1e8"],
+                &["0.0099", "1.00001e8"],
+                "between 0.01 and 1e8 deg/s²",
+            ),
+            (
+                "axes.c",
+                "jerk_deg_s3",
+                &["1", "1e12"],
+                &["0.999", "1.00001e12"],
+                "between 1 and 1e12 deg/s³",
+            ),
+            (
+                "axes.x",
+                "min_mm",
+                &["-1e6"],
+                &["-1000000.01", "-inf", "nan"],
+                "between -1000000 and 1000000 mm",
+            ),
+            (
+                "axes.x",
+                "max_mm",
+                &["1e6"],
+                &["1000000.01", "inf"],
+                "between -1000000 and 1000000 mm",
+            ),
+            (
+                "axes.c",
+                "min_deg",
+                &["-1e6"],
+                &["-1000000.01"],
+                "between -1000000 and 1000000 deg",
+            ),
+            (
+                "axes.c",
+                "max_deg",
+                &["1e6"],
+                &["1000000.01"],
+                "between -1000000 and 1000000 deg",
+            ),
+            (
+                "",
+                "tolerance_mm",
+                &["1e-6", "10"],
+                &["9.9e-7", "10.001", "0", "nan"],
+                "between 1e-6 and 10 mm",
+            ),
+            (
+                "gcode",
+                "arc_tolerance_mm",
+                &["1e-6", "10"],
+                &["9.9e-7", "10.001", "-0.1"],
+                "between 1e-6 and 10 mm",
+            ),
+            (
+                "gcode",
+                "arc_tolerance_rel",
+                &["1e-9", "0.1"],
+                &["9.9e-10", "0.1001", "inf"],
+                "between 1e-9 and 0.1",
+            ),
+            (
+                "tools",
+                "length_mm",
+                &["-1e6", "1e6"],
+                &["-1000000.01", "1000000.01", "nan"],
+                "between -1000000 and 1000000 mm",
+            ),
+            (
+                "tools",
+                "radius_mm",
+                &["0", "1e6"],
+                &["-0.001", "1000000.01", "inf"],
+                "between 0 and 1000000 mm",
+            ),
+        ];
+        for &(table, key, good, bad, range) in cases {
+            for value in good {
+                let (text, _) = with_key(table, key, value);
+                if let Err(e) = Config::from_toml_str(&text, "m.toml") {
+                    panic!("{key} = {value} must be accepted: {e}");
+                }
+            }
+            for value in bad {
+                let (text, place) = with_key(table, key, value);
+                let e = err(&text);
+                assert!(
+                    e.starts_with(&place),
+                    "{key} = {value}: {e} (expected at {place})"
+                );
+                let full_key = if table.is_empty() {
+                    key.to_string()
+                } else {
+                    format!("{table}.{key}")
+                };
+                assert!(e.contains(&format!("`{full_key}`")), "{e}");
+                assert!(e.contains(range), "{key} = {value}: {e}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_tiny_limit_is_named_with_its_exponent() {
+        let (text, place) = with_key("axes.x", "velocity_mm_s", "1e-300");
+        let e = err(&text);
+        assert_eq!(
+            e,
+            format!(
+                "{place}`axes.x.velocity_mm_s` must be between 0.001 and 100000 mm/s, found 1e-300"
+            )
+        );
+    }
+
+    #[test]
+    fn period_has_a_lower_bound_of_50_us() {
+        for ok in ["50", "62", "1000000"] {
+            let (text, _) = with_key("", "period_us", ok);
+            let c = Config::from_toml_str(&text, "m.toml").unwrap();
+            assert_eq!(c.period_us.to_string(), ok);
+        }
+        for bad in ["49", "10", "1", "1000001"] {
+            let (text, place) = with_key("", "period_us", bad);
+            let e = err(&text);
+            assert_eq!(
+                e,
+                format!("{place}`period_us` must be between 50 and 1000000 µs, found {bad}")
+            );
+        }
+    }
+
+    #[test]
+    fn work_offsets_are_bounded() {
+        let (text, _) = with_key("work_offsets", "g54", "[1e6, -1e6, 0]");
+        let c = Config::from_toml_str(&text, "m.toml").unwrap();
+        assert_eq!(c.work_offsets_mm[0], [1e6, -1e6, 0.0]);
+        for bad in ["[1000000.01, 0, 0]", "[0, -inf, 0]", "[0, 0, nan]"] {
+            let (text, place) = with_key("work_offsets", "g54", bad);
+            let e = err(&text);
+            assert!(e.starts_with(&place), "{e}");
+            assert!(e.contains("`work_offsets.g54`"), "{e}");
+            assert!(e.contains("between -1000000 and 1000000 mm"), "{e}");
+        }
     }
 
     #[test]

@@ -67,8 +67,14 @@ struct PlanArgs {
 struct SimArgs {
     #[command(flatten)]
     program: ProgramArgs,
-    /// Feed override in percent, 0 to 200.
-    #[arg(long = "override", value_name = "PCT", default_value_t = 100.0, value_parser = parse_override)]
+    /// Feed override in percent, 0.1 to 200 (0 would hold the machine forever).
+    #[arg(
+        long = "override",
+        value_name = "PCT",
+        default_value_t = 100.0,
+        value_parser = parse_override,
+        allow_negative_numbers = true
+    )]
     override_pct: f64,
     /// Where to write the CSV: `t,x,y,z` (then `a,b,c` when used), `line`, `feed_mm_s`.
     #[arg(long, value_name = "FILE.csv")]
@@ -78,11 +84,27 @@ struct SimArgs {
     plot: Option<PathBuf>,
 }
 
+/// The smallest feed override accepted, percent. Below it a simulation runs for more than a
+/// thousand times the program's own time, and a tiny value such as 1e-300 would never end.
+const MIN_OVERRIDE_PCT: f64 = 0.1;
+
+/// The largest feed override accepted, percent.
+const MAX_OVERRIDE_PCT: f64 = 200.0;
+
+/// A feed override in percent, [`MIN_OVERRIDE_PCT`] to [`MAX_OVERRIDE_PCT`] (a trailing `%`
+/// is allowed).
+///
+/// A control at 0 % feed override holds: it does not move. Offline, that simulation could
+/// never reach the end of the program, so 0 is refused before anything runs rather than
+/// reported as a finished run that never moved.
 fn parse_override(text: &str) -> Result<f64, String> {
     match text.trim_end_matches('%').parse::<f64>() {
-        Ok(pct) if (0.0..=200.0).contains(&pct) => Ok(pct),
+        Ok(pct) if (MIN_OVERRIDE_PCT..=MAX_OVERRIDE_PCT).contains(&pct) => Ok(pct),
+        Ok(0.0) => Err(format!(
+            "--override 0 would hold the machine before the first move; the simulation could never finish (use {MIN_OVERRIDE_PCT} to {MAX_OVERRIDE_PCT})"
+        )),
         _ => Err(format!(
-            "`{text}` is not a feed override from 0 to 200 percent"
+            "`{text}` is not a feed override: it must be {MIN_OVERRIDE_PCT} to {MAX_OVERRIDE_PCT} percent"
         )),
     }
 }
