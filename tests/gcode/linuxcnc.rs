@@ -946,6 +946,25 @@ fn dwell_with_a_motion_in_the_same_block_keeps_the_motion() {
     assert_feed_line(&ms[1], v(1.0, 0.0, 0.0), v(10.0, 0.0, 0.0), 200.0);
     assert_feed_line(&ms[2], v(10.0, 0.0, 0.0), v(12.0, 0.0, 0.0), 200.0);
     assert_eq!(ms[1].line, 2);
+    // The dwell comes before the motion of its block, with its time in seconds.
+    let its = items(D, "G1 X1 F100\nG4 P0.5 G1 X10 F200\nG4 P1\nG1 X12\n");
+    let order: Vec<(u32, &str, Option<f64>)> = its
+        .iter()
+        .map(|i| match i {
+            Item::Move(m) => (m.line, "move", None),
+            Item::Event(e) => (e.line, e.code.as_str(), e.value),
+        })
+        .collect();
+    assert_eq!(
+        order,
+        [
+            (1, "move", None),
+            (2, "G4", Some(0.5)),
+            (2, "move", None),
+            (3, "G4", Some(1.0)),
+            (4, "move", None)
+        ]
+    );
     // The modal G1 takes the axis words of a G4 block too; an H word (G43) does not move.
     let ms = moves(D, "G1 X1 F100\nG4 P1 X5\nG43 H1 G4 P1\n");
     assert_eq!(ms.len(), 2, "{ms:#?}");

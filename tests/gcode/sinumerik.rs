@@ -481,4 +481,31 @@ fn dwell_f_and_s_are_the_dwell_not_the_feed_or_the_spindle_speed() {
         .map(|e| e.value)
         .collect();
     assert_eq!(speeds, [Some(1000.0)]);
+    // The dwells themselves: 2.5 s, and 30 revolutions at 1000 rpm = 1.8 s, in order
+    // between the two moves.
+    let order: Vec<String> = its
+        .iter()
+        .map(|i| match i {
+            Item::Move(m) => format!("move {}", m.line),
+            Item::Event(e) => format!("{} {:?}", e.code.as_str(), e.value),
+        })
+        .collect();
+    assert_eq!(
+        order,
+        [
+            "S Some(1000.0)",
+            "M3 None",
+            "move 2",
+            "G4 Some(2.5)",
+            "G4 Some(1.8)",
+            "move 5"
+        ]
+    );
+    // Revolutions without a spindle speed cannot be timed.
+    assert_diag(
+        &error(D, "G1 X1 F100\nG4 S30\n"),
+        2,
+        4,
+        &["G4 S", "no spindle speed S programmed"],
+    );
 }

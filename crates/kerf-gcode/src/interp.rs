@@ -116,6 +116,8 @@ pub(crate) struct State {
     comp: Comp,
     tool_selected: Option<u32>,
     tool_loaded: Option<u32>,
+    /// The last programmed spindle speed, rpm (Sinumerik `G4 S` dwells in revolutions).
+    spindle_rpm: Option<f64>,
     tool_length_mm: f64,
     coord_system: Option<usize>,
     g92_mm: [f64; 3],
@@ -189,6 +191,7 @@ impl State {
             corner: CornerMode::Blend { tolerance_mm: None },
             comp: Comp::Off,
             tool_selected: None,
+            spindle_rpm: None,
             tool_loaded: None,
             tool_length_mm: 0.0,
             coord_system,
@@ -496,6 +499,7 @@ impl State {
             if s < 0.0 {
                 return fail(blk.col(KS), "negative spindle speed");
             }
+            self.spindle_rpm = Some(s);
             out.event(EventCode::S, Some(s));
         }
         if let Some(t) = blk.get(KT) {
@@ -528,6 +532,29 @@ impl State {
                 }
                 out.event(ev, None);
             }
+        }
+
+        // The dwell runs after the spindle and coolant events and before the motion (the
+        // LinuxCNC order of execution); a G4 without a time word still stops the motion.
+        if dwell_col.is_some() {
+            let seconds = match dwell_word {
+                None => 0.0,
+                Some(KS) => {
+                    // Sinumerik G4 S: spindle revolutions at the programmed speed.
+                    let revs = blk.vals[KS as usize];
+                    match self.spindle_rpm.filter(|&rpm| rpm > 0.0) {
+                        Some(rpm) => revs * 60.0 / rpm,
+                        None => {
+                            return fail(
+                                blk.col(KS),
+                                "G4 S dwells in spindle revolutions: no spindle speed S programmed",
+                            );
+                        }
+                    }
+                }
+                Some(k) => blk.vals[k as usize],
+            };
+            out.event(EventCode::G4, Some(seconds));
         }
 
         // Heidenhain G99: tool definition (T number, L length, R radius).

@@ -58,11 +58,17 @@
 //!   motion, as on the TNC). After M2/M30 the rest of the program is not read. Other M
 //!   codes are an "unknown M code" error. An `S` event carries the rpm, a `T` event the
 //!   tool number.
-//! - Dwells produce no item. The dwell word: LinuxCNC `G4 P` (seconds, required: "Dwell
-//!   time P word missing with G4"), Rockwell `G04 X` or `P`, Sinumerik `G4 F` (seconds)
-//!   or `G4 S` (spindle revolutions), Heidenhain `G04 F` (seconds), Fagor `G04 K`
-//!   (seconds); one of them per block. A negative value is an error at the word
-//!   (LinuxCNC: "Negative P word used"), and so is one above 1,000,000 (11.6 days in
+//! - A dwell is the event `G4` with its time in seconds, after the block's spindle and
+//!   coolant events and before its motion (LinuxCNC's order of execution); the motion
+//!   before it comes to an exact stop and waits. A G4 without a time word (accepted
+//!   outside LinuxCNC) is a dwell of zero: still an exact stop. The dwell word: LinuxCNC
+//!   `G4 P` (seconds, required: "Dwell time P word missing with G4"), Rockwell `G04 X` or
+//!   `P` (both taken as seconds: the 9/Series unit of P is not confirmed, and reading a
+//!   Fanuc-style millisecond P as seconds errs on the side of waiting longer), Sinumerik
+//!   `G4 F` (seconds) or `G4 S` (spindle revolutions at the last programmed S, an error
+//!   without one), Heidenhain `G04 F` (seconds), Fagor `G04 K` (seconds); one of them per
+//!   block. A negative value is an error at the word (LinuxCNC: "Negative P word used"),
+//!   and so is one above 1,000,000 (11.6 days in
 //!   seconds: a mistake, not a dwell). On Sinumerik and Heidenhain the F (and S) of a
 //!   dwell block is the dwell only: the feed and spindle speed programmed before stay.
 //!   LinuxCNC runs a motion of the same block after the dwell (`G4 P1 G1 X10`); the other
@@ -344,6 +350,9 @@ pub enum EventCode {
     S,
     /// Tool select.
     T,
+    /// Dwell: the motion comes to an exact stop and waits; the value is the time in
+    /// seconds (zero for a dwell without a time word).
+    G4,
 }
 
 impl EventCode {
@@ -363,6 +372,7 @@ impl EventCode {
             EventCode::M9 => "M9",
             EventCode::S => "S",
             EventCode::T => "T",
+            EventCode::G4 => "G4",
         }
     }
 }
@@ -374,7 +384,7 @@ pub struct Event {
     pub line: u32,
     /// What happens.
     pub code: EventCode,
-    /// S: rpm; T: tool number; M codes: `None`.
+    /// S: rpm; T: tool number; G4: dwell seconds; M codes: `None`.
     pub value: Option<f64>,
 }
 
