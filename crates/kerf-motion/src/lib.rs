@@ -1174,6 +1174,17 @@ impl MotionCore {
         let (v_machine, accel, jerk) = sec.limits(sec.boosted);
         let vmax = sec.v_eff(self.override_factor, sec.boosted).min(v_machine);
         let origin = self.s_local;
+        if v0 > vmax * (1.0 + 1e-9) && rem > 0.0 {
+            // Entered above the speed limit of this section (its level's feed or override
+            // is lower than the one the junction was planned with): come down to it as
+            // fast as the limits allow, cruise, and meet the end speed. The solver's own
+            // way (brake to the limit, then plan) can overshoot a short section and fail.
+            let end_v = target.min(vmax);
+            if let Some(p) = JerkProfile::cruise_between(v0, end_v, rem, vmax, accel, jerk) {
+                self.run_own(origin, p, end_v);
+                return;
+            }
+        }
         if self.calc(origin, v0, 0.0, rem, target, vmax, accel, jerk) {
             return;
         }

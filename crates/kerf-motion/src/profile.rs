@@ -28,11 +28,14 @@ pub struct JerkProfile {
 }
 
 impl JerkProfile {
-    /// The profile over `distance` from speed `v0` to speed `v1` (both with `a = 0`),
-    /// cruising at the highest speed in `[max(v0, v1), max(v_max, v0)]` that fits, with
-    /// acceleration `accel` and jerk `jerk`. `None` when even cruising at `max(v0, v1)`
-    /// needs more than `distance` (the end speed is out of reach) or an input is not
-    /// finite and positive where it must be.
+    /// The profile over `distance` from speed `v0` to speed `v1` (both with `a = 0`)
+    /// through a cruise at the speed closest to `v_max` that fits, with acceleration
+    /// `accel` and jerk `jerk`: the highest in `[max(v0, v1), v_max]` when the profile
+    /// starts at or below `v_max`, else (entered above it) `v_max` itself or, if the
+    /// distance is too short to come down to it and on to `v1`, the lowest speed above it
+    /// that fits. `None` when even the direct change from `v0` to `v1` needs more than
+    /// `distance` (the end speed is out of reach) or an input is not finite and positive
+    /// where it must be.
     pub fn cruise_between(
         v0: f64,
         v1: f64,
@@ -53,21 +56,40 @@ impl JerkProfile {
         if need(lo) > distance {
             return None;
         }
-        let hi = v_max.max(lo);
-        let vc = if need(hi) <= distance {
-            hi
-        } else {
-            // `need` grows with the cruise speed above both end speeds.
-            let (mut ok, mut bad) = (lo, hi);
-            for _ in 0..60 {
-                let mid = 0.5 * (ok + bad);
-                if need(mid) <= distance {
-                    ok = mid;
-                } else {
-                    bad = mid;
+        let vc = if v0 > v_max && v_max >= v1 {
+            // Entered above the ceiling: come down to it if the distance allows, else as
+            // close to it as it allows (`need(v0)` fits, checked above).
+            if need(v_max) <= distance {
+                v_max
+            } else {
+                let (mut bad, mut ok) = (v_max, v0);
+                for _ in 0..60 {
+                    let mid = 0.5 * (ok + bad);
+                    if need(mid) <= distance {
+                        ok = mid;
+                    } else {
+                        bad = mid;
+                    }
                 }
+                ok
             }
-            ok
+        } else {
+            let hi = v_max.max(lo);
+            if need(hi) <= distance {
+                hi
+            } else {
+                // `need` grows with the cruise speed above both end speeds.
+                let (mut ok, mut bad) = (lo, hi);
+                for _ in 0..60 {
+                    let mid = 0.5 * (ok + bad);
+                    if need(mid) <= distance {
+                        ok = mid;
+                    } else {
+                        bad = mid;
+                    }
+                }
+                ok
+            }
         };
         if vc <= 0.0 {
             return None;
@@ -245,6 +267,43 @@ mod tests {
         check(&p, 100.0, 0.0, need * 1.01, 200.0, a, j);
         assert!(JerkProfile::cruise_between(0.0, 0.0, 1.0, 10.0, f64::NAN, j).is_none());
         assert!(JerkProfile::cruise_between(0.0, 0.0, 0.0, 10.0, a, j).is_none());
+    }
+
+    #[test]
+    fn entered_above_the_ceiling_comes_down_to_it() {
+        // The sweep's escape: entered at 4.75 mm/s with the feed at 1.35 mm/s and 0.0193 mm
+        // to go. Coming down takes change_distance(4.75, 1.35) = 0.0185 mm; the rest is a
+        // cruise at the feed.
+        let (v0, v1, d, a, j) = (
+            4.747193270503335,
+            1.3466370415100362,
+            0.019271730682741104,
+            1361.1076378755872,
+            370392.22397395375,
+        );
+        let p = JerkProfile::cruise_between(v0, v1, d, v1, a, j).unwrap();
+        check(&p, v0, v1, d, v1, a, j);
+        let down = change_distance(v0, v1, a, j);
+        let dv = v0 - v1;
+        let t_down = 2.0 * (dv / j).sqrt();
+        let expect = t_down + (d - down) / v1;
+        assert!(
+            (p.duration_s() - expect).abs() < 1e-12,
+            "{} {expect}",
+            p.duration_s()
+        );
+        // Too short to come all the way down first: the cruise stays as close to the
+        // ceiling as the distance allows, and the end speed is still met.
+        // Shorter than the direct change: out of reach.
+        assert!(JerkProfile::cruise_between(v0, v1, down * 0.9, v1, a, j).is_none());
+        // Too short to come down to the ceiling (1.5) before going on down to 1.0: the
+        // profile still ends at 1.0 within the distance and never speeds up.
+        let direct = change_distance(v0, 1.0, a, j);
+        let via = change_distance(v0, 1.5, a, j) + change_distance(1.5, 1.0, a, j);
+        assert!(via > direct);
+        let d3 = 0.5 * (direct + via);
+        let p = JerkProfile::cruise_between(v0, 1.0, d3, 1.5, a, j).unwrap();
+        check(&p, v0, 1.0, d3, 1.5, a, j);
     }
 
     #[test]
