@@ -37,12 +37,12 @@
 //! and arcs, and polar moves (and polar circles) occur in every dialect that has them. The
 //! figures are printed (`cargo test -p kerf-tests gcode::grammar -- --nocapture`).
 //!
-//! The generator steers around three places where kerf-gcode was found to deviate from its
-//! own documentation (reported; remove the workaround with the fix): a Heidenhain word
-//! before the first G90/G91 of its block takes the block's new mode instead of the modal
-//! one (`linear`), and after program zero moves (LinuxCNC G92/G5x, Fagor G5x) an omitted
-//! polar word or an incremental one uses the polar values of the last point relative to
-//! the old zero (`polar_stale`). Sinumerik `G4 F`/`G4 S` and Heidenhain `G04 F` (dwell
+//! Heidenhain per-word G90/G91 is written only where the mode changes, so that plain words
+//! before the block's first G90/G91 (which take the modal mode) occur. The generator steers
+//! around one place where kerf-gcode was found to deviate from its own documentation
+//! (reported; remove the workaround with the fix): after program zero moves (LinuxCNC
+//! G92/G5x, Fagor G5x) an omitted polar word or an incremental one uses the polar values of
+//! the last point relative to the old zero (`polar_stale`). Sinumerik `G4 F`/`G4 S` and Heidenhain `G04 F` (dwell
 //! times, which the interpreter takes for a feed and a spindle speed) are not generated.
 
 use std::cell::RefCell;
@@ -373,10 +373,9 @@ impl Gen {
                 let (w, e) = if forms {
                     let abs = p[10 + i] < 0.5;
                     if self.heid() {
-                        // Only after a G90/G91 in the block: a plain word before the first
-                        // one is resolved in the block's new mode instead of the modal one
-                        // (reported, kerf-gcode).
-                        if abs != self.absolute || !any {
+                        // A G90/G91 only where the mode changes: a plain word before the
+                        // block's first one takes the modal mode.
+                        if abs != self.absolute {
                             words.push(self.g(if abs { 90 } else { 91 }));
                             self.absolute = abs;
                         }

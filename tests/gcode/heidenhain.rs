@@ -491,3 +491,30 @@ fn polar_line_with_the_tool_axis() {
     let ms = moves(D, &prog("N10 I+0 J+0 *\nN20 G11 R+10 H+90 Z-5 F100 *\n"));
     assert_feed_line(&ms[0], o(), v(0.0, 10.0, -5.0), 100.0);
 }
+
+#[test]
+fn a_word_before_the_first_g90_g91_of_its_block_keeps_the_modal_mode() {
+    // [M] `G02 G91 X+5 G90 Y-5`: a word takes the mode written before it in the block; a
+    // word before the block's first G90/G91 has none written before it, so it takes the
+    // modal mode (the one in force when the block starts). By hand:
+    // N10 G90 (modal) X+10 Y+10 -> (10, 10).
+    // N20 X+20 under the modal G90 -> X 20; G91 then Y+5 -> Y 15: (20, 15). G91 stays.
+    // N30 X+5 under the modal G91 -> X 25; G90 then Y+7 -> Y 7: (25, 7). G90 stays.
+    // N40 I+1 under the modal G90 (pole at X 1), G91 then J+2 -> Y 7 + 2 = 9: pole (1, 9);
+    //     G91 stays. N50 G90 G11 R+3 H+0 -> (4, 9).
+    let ms = moves(
+        D,
+        &prog(
+            "N10 G00 X+10 Y+10 *\n\
+             N20 G00 X+20 G91 Y+5 *\n\
+             N30 G01 X+5 G90 Y+7 F100 *\n\
+             N40 I+1 G91 J+2 *\n\
+             N50 G90 G11 R+3 H+0 *\n",
+        ),
+    );
+    assert_eq!(ms.len(), 4, "{ms:?}");
+    assert_rapid(&ms[0], o(), v(10.0, 10.0, 0.0));
+    assert_rapid(&ms[1], v(10.0, 10.0, 0.0), v(20.0, 15.0, 0.0));
+    assert_feed_line(&ms[2], v(20.0, 15.0, 0.0), v(25.0, 7.0, 0.0), 100.0);
+    assert_feed_line(&ms[3], v(25.0, 7.0, 0.0), v(4.0, 9.0, 0.0), 100.0);
+}

@@ -226,8 +226,10 @@ impl State {
         blk.nm = 0;
         blk.first_col = words.first().map_or(1, |w| w.col);
         // Heidenhain lets G90/G91 switch per axis inside a block: the words after a G90 or
-        // G91 take that mode, the ones before it the modal one.
+        // G91 take that mode, the ones before the first one the modal one (the mode before
+        // the block), which exec() would otherwise replace before reading them.
         let mut local: Option<bool> = None;
+        let modal = if self.absolute { Form::Abs } else { Form::Inc };
         for w in words {
             let letter = if w.key < 26 { b'A' + w.key } else { 0 };
             match letter {
@@ -240,6 +242,16 @@ impl State {
                         message: format!("unknown G code G{}", w.value),
                     })?;
                     if self.dialect == Dialect::Heidenhain && (code == 900 || code == 910) {
+                        if local.is_none() {
+                            for k in 0..N_KEYS as u8 {
+                                if blk.has(k)
+                                    && takes_distance_mode(k)
+                                    && blk.forms[k as usize] == Form::Plain
+                                {
+                                    blk.forms[k as usize] = modal;
+                                }
+                            }
+                        }
                         local = Some(code == 900);
                     }
                     blk.gs[blk.ng] = (code, w.col);
@@ -273,13 +285,7 @@ impl State {
             blk.vals[k] = w.value;
             blk.cols[k] = w.col;
             blk.forms[k] = match (w.form, local) {
-                (Form::Plain, Some(abs))
-                    if XYZ.contains(&w.key)
-                        || ABC.contains(&w.key)
-                        || IJK.contains(&w.key)
-                        || w.key == KR
-                        || w.key == KH =>
-                {
+                (Form::Plain, Some(abs)) if takes_distance_mode(w.key) => {
                     if abs {
                         Form::Abs
                     } else {
@@ -685,6 +691,11 @@ impl State {
         }
         Ok(())
     }
+}
+
+/// Heidenhain words whose value G90/G91 make absolute or incremental.
+fn takes_distance_mode(k: u8) -> bool {
+    XYZ.contains(&k) || ABC.contains(&k) || IJK.contains(&k) || k == KR || k == KH
 }
 
 fn tool_number(v: f64) -> Option<u32> {
