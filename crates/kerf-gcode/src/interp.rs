@@ -117,7 +117,8 @@ pub(crate) struct State {
     /// Fagor polar origin (machine coordinates; `None` = part zero).
     polar_origin: Option<Vec3>,
     /// Last programmed polar radius (mm) and angle (degrees) about the pole, while the
-    /// position still is that polar point (Heidenhain, Fagor).
+    /// position still is that polar point and the pole has not moved (Heidenhain, Fagor;
+    /// LinuxCNC always measures the current point).
     polar_last: Option<(f64, f64)>,
     /// Direction of the last arc (`true` = counter-clockwise), for Heidenhain G05/G15.
     last_ccw: Option<bool>,
@@ -194,7 +195,12 @@ impl State {
         s
     }
 
+    /// Recomputes program zero after a work offset, G92 or tool length change. Polar values
+    /// are relative to the polar reference: when it moves in its plane, the programmed
+    /// polar values of the current point no longer describe it and are forgotten (the next
+    /// polar word measures the point about the new reference).
     fn update_origin(&mut self) {
+        let before = self.polar_reference();
         let work = match self.coord_system {
             Some(i) => self
                 .settings
@@ -208,6 +214,11 @@ impl State {
             self.origin[i] = w + self.g92_mm[i];
         }
         self.origin[2] += self.tool_length_mm;
+        let after = self.polar_reference();
+        let (u, v) = self.polar_axes();
+        if before[u] != after[u] || before[v] != after[v] {
+            self.polar_last = None;
+        }
     }
 
     fn scale(&self) -> f64 {

@@ -106,8 +106,11 @@
 //!   exceeds 0.1 %, with t = 0.02828 mm (0.002828 in under G20). Radius format with end =
 //!   start is "current point same as end point of arc".
 //! - Polar `@` (distance) `^` (angle, degrees, CCW from +X) about the current XY program
-//!   zero, G0/G1 only; a missing one keeps the current point's value. Under G91 both are
-//!   added to the current point's polar coordinates (an error at the origin). Mixing them
+//!   zero, G0/G1 only; a missing one keeps the current point's value, measured about the
+//!   current zero (as LinuxCNC computes it from the current position: after G92, G92.1,
+//!   G92.2, G92.3 or a G5x moved the zero, the point's distance and angle about the new
+//!   one; G43/G49 move Z only and leave them). Under G91 both are added to the current
+//!   point's polar coordinates measured the same way (an error at the origin). Mixing them
 //!   with X/Y is an error.
 //! - Feed errors use LinuxCNC's words: "Cannot do G1 with zero feed rate", "Cannot make arc
 //!   with zero feed rate". F is kept physically across G20/G21 changes.
@@ -185,7 +188,9 @@
 //! - Polar end points: `R` (radius) and `Q` (angle, degrees, CCW from the plane's
 //!   abscissa) about the polar origin, in G00/G01/G02/G03. In G02/G03 an `R` together with
 //!   X/Y in the plane is the arc radius, otherwise `R`/`Q` are polar. A missing R or Q
-//!   keeps the value of the last point; under G91 they are added to it. `G91 Q360` (any
+//!   keeps the value of the last point; under G91 they are added to it. When the polar
+//!   origin moves (G30, a plane change, or G54–G59 while it is part zero) that value is the
+//!   point's radius or angle measured about the new origin. `G91 Q360` (any
 //!   non-zero multiple of 360°) about the polar origin is a whole circle (or several);
 //!   `G90 Q360` is the point at 360°.
 //! - The polar origin is part zero until `G30 I.. J..` (K in G18/G19) sets it at those

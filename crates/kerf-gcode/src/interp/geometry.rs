@@ -397,19 +397,36 @@ impl State {
         }
     }
 
-    /// The current position in polar coordinates about the reference: the programmed
-    /// values when the last move was polar, else measured from the position.
-    pub(super) fn current_polar(&self) -> (f64, f64) {
-        if let Some(p) = self.polar_last {
-            return p;
-        }
-        let pole = self.polar_reference();
-        let (u, v, _) = self.plane.axes();
-        let (u, v) = if self.dialect == Dialect::LinuxCnc {
+    /// The axes polar coordinates work in: X and Y for LinuxCNC `@ ^`, the active plane
+    /// for the other controls.
+    pub(super) fn polar_axes(&self) -> (usize, usize) {
+        if self.dialect == Dialect::LinuxCnc {
             (0, 1)
         } else {
+            let (u, v, _) = self.plane.axes();
             (u, v)
-        };
+        }
+    }
+
+    /// The current position in polar coordinates about the reference: for Heidenhain and
+    /// Fagor the programmed values when the last move was polar about the same reference,
+    /// else (and always for LinuxCNC, which measures the current point about the current
+    /// program zero) measured from the position.
+    pub(super) fn current_polar(&self) -> (f64, f64) {
+        if let Some(p) = self
+            .polar_last
+            .filter(|_| self.dialect != Dialect::LinuxCnc)
+        {
+            return p;
+        }
+        self.measured_polar()
+    }
+
+    /// The current position's polar radius (mm) and angle (degrees, −180..180) about the
+    /// reference, measured from the position alone.
+    pub(super) fn measured_polar(&self) -> (f64, f64) {
+        let pole = self.polar_reference();
+        let (u, v) = self.polar_axes();
         let du = self.pos[u] - pole[u];
         let dv = self.pos[v] - pole[v];
         (arc::len2(du, dv), dv.atan2(du).to_degrees())
