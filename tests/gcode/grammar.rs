@@ -182,8 +182,8 @@ struct Gen {
     ap: Option<f64>,
     last_ccw: Option<bool>,
     /// The programmed polar radius (mm) and angle (degrees) while the position still is
-    /// that polar point: a missing R or angle keeps these values, and a Heidenhain absolute
-    /// H is reached from this angle (not reduced to one turn).
+    /// that polar point: a missing R or angle keeps these values (a Heidenhain absolute H
+    /// of a polar circle is a point: it never depends on them).
     polar_last: Option<(f64, f64)>,
     decimals: usize,
     /// Modal feed, mm/min, and whether F is read in inch/min.
@@ -904,13 +904,23 @@ impl Gen {
                 words.push(self.g(g));
                 // The start angle as programmed (it may lie beyond one turn).
                 let a0p = self.polar_last.map_or(a0, |(_, a)| a);
-                if p[2] < 0.7 && (a0p + dir(sweep_abs)).abs() < 5400.0 {
-                    // Absolute H: the end angle, reached in the programmed direction.
+                // Absolute H names the end point's angular position: written from the
+                // programmed or the measured start angle, and often wound by whole turns
+                // (which name the same point: the sweep stays below one turn).
+                let base = if p[10] < 0.5 { a0p } else { a0 };
+                let wind = if p[11] < 0.5 {
+                    0.0
+                } else {
+                    360.0 * (((p[11] - 0.5) * 2.0 * 29.0) as i32 - 14) as f64
+                };
+                let h_abs = base + dir(sweep_abs) + wind;
+                if p[2] < 0.7 && h_abs.abs() < 5400.0 {
+                    // Absolute H: the end point, reached in the programmed direction.
                     if !self.absolute {
                         words.insert(0, self.g(90));
                         self.absolute = true;
                     }
-                    let (ta, ab) = self.num(a0p + dir(sweep_abs));
+                    let (ta, ab) = self.num(h_abs);
                     words.push(format!("H{ta}"));
                     let a = ab.to_radians();
                     end[u] = pole[u] + r0 * a.cos();

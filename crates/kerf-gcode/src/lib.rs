@@ -169,11 +169,16 @@
 //! - Polar lines G10 (rapid) / G11 (feed): R = polar radius, H = polar angle (−360..+360,
 //!   CCW from the plane's abscissa), about the pole; both modal; under G91 they are added
 //!   to the previous polar values. Polar circles G12 (CW) / G13 (CCW) / G15 (last
-//!   direction) about the pole with the radius of the start point: absolute H is the end
-//!   angle, reached in the programmed direction (an end angle equal to the start angle is a
-//!   full circle; |H| up to 5400° gives several turns, e.g. H+720 from 0° is two turns);
-//!   G91 H is the swept angle itself and its sign must match the direction. An axis word
-//!   along the normal makes a helix.
+//!   direction) about the pole with the radius of the start point. Absolute H (up to
+//!   ±5400°) is the angular position of the end point, as seed 004 puts it: H and H ± 360°
+//!   name the same point. Choice (the manual does not say how an absolute H turns more than
+//!   once): the arc runs from the start point in the programmed direction to that point,
+//!   less than one turn, or one whole turn when it is the start point (`G13 H+720` from 0°
+//!   is one full circle, `G13 H+365` from 0° is 5°); the start point's angle is measured
+//!   from its position, so it does not matter whether it was reached with `H-360`, `H+0` or
+//!   a Cartesian move. Several turns are programmed with G91: G91 H is the swept angle
+//!   itself (H+720 is two turns) and its sign must match the direction. An axis word along
+//!   the normal makes a helix.
 //! - G41/G42 with a zero tool radius keep the programmed path. An R word in a G00/G01
 //!   block is an error (R belongs to G02/G03, G10/G11 and G99).
 //!

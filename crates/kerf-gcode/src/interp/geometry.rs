@@ -10,6 +10,10 @@ use crate::codes::*;
 use crate::lex::{Form, K_AP, K_AT, K_CARET, K_CR, K_RP, K_TURN};
 use crate::{Dialect, Item};
 
+/// Two polar angles closer than this (degrees) name the same point: the angle of a point
+/// measured from its coordinates carries rounding errors of about 1e-14°.
+const POLAR_SAME_ANGLE_DEG: f64 = 1e-9;
+
 impl State {
     /// The machine coordinate of linear axis `i` after a word with `value`, honouring the
     /// word's form, the modal distance mode and the program origin.
@@ -657,14 +661,25 @@ impl State {
                     "polar angle H out of range (-5400..+5400 degrees)",
                 );
             }
-            let sweep_deg = if self.word_absolute(blk, KH) {
-                let mut dlt = h - a0;
-                if ccw && dlt <= 0.0 {
-                    dlt += 360.0 * ((-dlt / 360.0).floor() + 1.0);
-                } else if !ccw && dlt >= 0.0 {
-                    dlt -= 360.0 * ((dlt / 360.0).floor() + 1.0);
+            let (sweep_deg, a_end) = if self.word_absolute(blk, KH) {
+                // Absolute H is the angular position of the end point (seed 004), a point:
+                // H and H ± 360° name the same one. The arc runs from the start point in
+                // the programmed direction to that point, less than one turn, or one whole
+                // turn when it is the start point. The start's angle is measured from its
+                // position, never taken from how it was programmed (after `H-360` or
+                // `H+0` or a Cartesian move to the same point, `G13 H+5` sweeps 5°).
+                let (_, a_start) = self.measured_polar();
+                let mut ahead = (h - a_start).rem_euclid(360.0);
+                if !(POLAR_SAME_ANGLE_DEG..=360.0 - POLAR_SAME_ANGLE_DEG).contains(&ahead) {
+                    ahead = 0.0;
                 }
-                dlt
+                let sweep = match (ccw, ahead == 0.0) {
+                    (true, true) => 360.0,
+                    (true, false) => ahead,
+                    (false, true) => -360.0,
+                    (false, false) => ahead - 360.0,
+                };
+                (sweep, h)
             } else {
                 if h == 0.0 || (h > 0.0) != ccw {
                     return fail(
@@ -672,9 +687,8 @@ impl State {
                         "incremental polar angle and direction of rotation disagree",
                     );
                 }
-                h
+                (h, a0 + h)
             };
-            let a_end = a0 + sweep_deg;
             if sweep_deg % 360.0 == 0.0 {
                 // Whole turns end exactly where they started, not one rounding away.
                 end[u] = start[u];
