@@ -957,7 +957,11 @@ fn polar_words_measure_the_current_point_about_the_current_program_zero() {
     assert_feed_line(&ms[1], v(10.0, 0.0, 0.0), v(5.0, 5.0, 0.0), 100.0);
     // G91 from the zero itself has no angle: LinuxCNC's error, on the polar line.
     let d = error(D, &format!("{head}G92 X0 Y0\nG91 G1 ^90\n"));
-    assert_diag_line(&d, 4, &["incremental polar"]);
+    assert_diag_line(
+        &d,
+        4,
+        &["G91 motion with polar coordinates is indeterminate"],
+    );
 
     // G92.1 puts the zero back at (0, 0): the point (5, 5) is at 5√2 mm, 45°.
     // `^0` -> (5√2, 0).

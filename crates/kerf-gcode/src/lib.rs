@@ -110,8 +110,10 @@
 //!   current zero (as LinuxCNC computes it from the current position: after G92, G92.1,
 //!   G92.2, G92.3 or a G5x moved the zero, the point's distance and angle about the new
 //!   one; G43/G49 move Z only and leave them). Under G91 both are added to the current
-//!   point's polar coordinates measured the same way (an error at the origin). Mixing them
-//!   with X/Y is an error.
+//!   point's polar coordinates measured the same way. At program zero the point has no
+//!   angle: `@` alone, and either word under G91, are LinuxCNC's errors ("Must specify
+//!   angle in polar coordinate if at the origin", "... is indeterminate when at the
+//!   origin"). Mixing them with X/Y is an error.
 //! - Feed errors use LinuxCNC's words: "Cannot do G1 with zero feed rate", "Cannot make arc
 //!   with zero feed rate". F is kept physically across G20/G21 changes.
 //! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc,

@@ -467,12 +467,31 @@ impl State {
                 let (r0, a0) = self.current_polar();
                 let at = blk.get(K_AT).map(|x| x * s);
                 let caret = blk.get(K_CARET);
+                // At program zero the current point has no angle: LinuxCNC refuses what
+                // would need it, in its own words.
+                let at_zero = r0 < 1e-9;
                 if self.absolute {
+                    if at_zero && caret.is_none() {
+                        return fail(
+                            blk.col(K_AT),
+                            "Must specify angle in polar coordinate if at the origin",
+                        );
+                    }
                     Ok((at.unwrap_or(r0), caret.unwrap_or(a0)))
                 } else {
-                    if r0 < 1e-9 {
-                        let k = blk.first_of(&[K_AT, K_CARET]).unwrap_or(K_AT);
-                        return fail(blk.col(k), "incremental polar move started at the origin");
+                    if at_zero {
+                        let (k, message) = if at.is_some() {
+                            (
+                                K_AT,
+                                "Incremental motion with polar coordinates is indeterminate when at the origin",
+                            )
+                        } else {
+                            (
+                                K_CARET,
+                                "G91 motion with polar coordinates is indeterminate when at the origin",
+                            )
+                        };
+                        return fail(blk.col(k), message);
                     }
                     Ok((r0 + at.unwrap_or(0.0), a0 + caret.unwrap_or(0.0)))
                 }
