@@ -323,3 +323,22 @@ fn dwell_k_makes_no_motion() {
     assert_eq!(ms.len(), 2, "{ms:#?}");
     assert_feed_line(&ms[1], v(1.0, 0.0, 0.0), v(2.0, 0.0, 0.0), 100.0);
 }
+
+#[test]
+fn polar_values_are_measured_again_after_part_zero_moves() {
+    // [M] Without G30 the polar origin is part zero; a missing R or Q keeps the value of
+    // the last point about the polar origin. After G55 (part zero at (0, 10)) the point
+    // (10, 0) is at 10√2 mm, -45° about the new part zero, so `Q90` -> (0, 10 + 10√2) and,
+    // in G91, `Q45` -> (10√2, 10). By hand, machine mm.
+    let mut s = Settings::default();
+    s.work_offsets_mm[1] = [0.0, 10.0, 0.0];
+    let r = 200f64.sqrt();
+    let ms = moves_with(D, s.clone(), "G01 R10 Q0 F100\nG55\nG01 Q90\n");
+    assert_feed_line(&ms[1], v(10.0, 0.0, 0.0), v(0.0, 10.0 + r, 0.0), 100.0);
+    let ms = moves_with(D, s.clone(), "G01 R10 Q0 F100\nG55\nG91 G01 Q45\n");
+    assert_feed_line(&ms[1], v(10.0, 0.0, 0.0), v(r, 10.0, 0.0), 100.0);
+    // `R5` keeps the angle -45°: (5 cos -45°, 10 + 5 sin -45°).
+    let ms = moves_with(D, s, "G01 R10 Q0 F100\nG55\nG01 R5\n");
+    let h = 5.0 * 0.5f64.sqrt();
+    assert_feed_line(&ms[1], v(10.0, 0.0, 0.0), v(h, 10.0 - h, 0.0), 100.0);
+}

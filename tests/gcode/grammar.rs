@@ -37,13 +37,12 @@
 //! and arcs, and polar moves (and polar circles) occur in every dialect that has them. The
 //! figures are printed (`cargo test -p kerf-tests gcode::grammar -- --nocapture`).
 //!
-//! The generator steers around three places where kerf-gcode was found to deviate from its
-//! own documentation (reported; remove the workaround with the fix): a Heidenhain word
-//! before the first G90/G91 of its block takes the block's new mode instead of the modal
-//! one (`linear`), and after program zero moves (LinuxCNC G92/G5x, Fagor G5x) an omitted
-//! polar word or an incremental one uses the polar values of the last point relative to
-//! the old zero (`polar_stale`). Sinumerik `G4 F`/`G4 S` and Heidenhain `G04 F` (dwell
-//! times, which the interpreter takes for a feed and a spindle speed) are not generated.
+//! Heidenhain per-word G90/G91 is written only where the mode changes, so that plain words
+//! before the block's first G90/G91 (which take the modal mode) occur. Polar words may be
+//! omitted or incremental right after program zero moved (LinuxCNC G92/G5x, Fagor G5x):
+//! the model measures the current point about the new zero. Sinumerik `G4 F`/`G4 S` and
+//! Heidenhain `G04 F` (dwell times, which the interpreter takes for a feed and a spindle
+//! speed) are not generated.
 
 use std::cell::RefCell;
 use std::f64::consts::TAU;
@@ -170,9 +169,6 @@ struct Gen {
     origin: [f64; 3],
     work: [f64; 3],
     g92: [f64; 3],
-    /// Program zero moved since the last move: polar words are written in full (the control
-    /// keeps the polar values of the last point relative to the old zero; reported).
-    polar_stale: bool,
     plane: usize,
     inch: bool,
     absolute: bool,
@@ -186,8 +182,8 @@ struct Gen {
     ap: Option<f64>,
     last_ccw: Option<bool>,
     /// The programmed polar radius (mm) and angle (degrees) while the position still is
-    /// that polar point: a missing R or angle keeps these values, and a Heidenhain absolute
-    /// H is reached from this angle (not reduced to one turn).
+    /// that polar point: a missing R or angle keeps these values (a Heidenhain absolute H
+    /// of a polar circle is a point: it never depends on them).
     polar_last: Option<(f64, f64)>,
     decimals: usize,
     /// Modal feed, mm/min, and whether F is read in inch/min.
@@ -217,7 +213,6 @@ impl Gen {
             origin: [0.0; 3],
             work: [0.0; 3],
             g92: [0.0; 3],
-            polar_stale: false,
             plane: 0,
             inch: false,
             absolute: true,
@@ -237,7 +232,6 @@ impl Gen {
         };
         g.work = work;
         g.set_origin();
-        g.polar_stale = false;
         g
     }
 
@@ -296,9 +290,6 @@ impl Gen {
         );
         if !polar && moves {
             self.polar_last = None;
-        }
-        if moves {
-            self.polar_stale = false;
         }
         let text = self.decorate(words.join(" "));
         self.lines.push(GenLine {
@@ -373,10 +364,9 @@ impl Gen {
                 let (w, e) = if forms {
                     let abs = p[10 + i] < 0.5;
                     if self.heid() {
-                        // Only after a G90/G91 in the block: a plain word before the first
-                        // one is resolved in the block's new mode instead of the modal one
-                        // (reported, kerf-gcode).
-                        if abs != self.absolute || !any {
+                        // A G90/G91 only where the mode changes: a plain word before the
+                        // block's first one takes the modal mode.
+                        if abs != self.absolute {
                             words.push(self.g(if abs { 90 } else { 91 }));
                             self.absolute = abs;
                         }
@@ -775,13 +765,10 @@ impl Gen {
         let mut r_target = lerp(p[1], 0.5, 60.0);
         let mut a_target = lerp(p[2], -360.0, 360.0);
         // Omit one of the two now and then: the control keeps the current (or, on the
-        // Sinumerik, the modal) value.
-        // After program zero moved, the control still keeps the polar values of the last
-        // point (relative to the old zero): write both words.
-        let stale = self.polar_stale && self.d != Dialect::Sinumerik;
-        let keep_r = !stale && p[3] < 0.15 && (self.d != Dialect::Sinumerik || self.rp.is_some());
-        let keep_a =
-            !stale && !keep_r && p[3] > 0.85 && (self.d != Dialect::Sinumerik || self.ap.is_some());
+        // Sinumerik, the modal) value, also right after program zero moved (then measured
+        // about the new zero).
+        let keep_r = p[3] < 0.15 && (self.d != Dialect::Sinumerik || self.rp.is_some());
+        let keep_a = !keep_r && p[3] > 0.85 && (self.d != Dialect::Sinumerik || self.ap.is_some());
         let sinumerik_r0 = self.rp.unwrap_or(r0);
         let sinumerik_a0 = self.ap.unwrap_or(a0);
         let (cur_r, cur_a) = if self.d == Dialect::Sinumerik {
@@ -792,7 +779,7 @@ impl Gen {
         // Sinumerik RP/AP ignore G91 (only IC() is incremental); the others add to the
         // current polar values under G91.
         let incremental = !self.absolute && self.d != Dialect::Sinumerik;
-        if incremental && (r0 < 1.0 || stale) {
+        if incremental && r0 < 1.0 {
             // LinuxCNC refuses an incremental polar move at the origin; keep it simple.
             self.linear(p);
             return;
@@ -858,9 +845,6 @@ impl Gen {
         if self.d == Dialect::LinuxCnc {
             return self.centre_arc(p);
         }
-        if self.polar_stale && self.d == Dialect::Fagor {
-            return self.polar_line(p);
-        }
         let (u, v, w) = axes(self.plane);
         let s = self.scale();
         if self.heid() && self.pole.is_none() {
@@ -920,13 +904,23 @@ impl Gen {
                 words.push(self.g(g));
                 // The start angle as programmed (it may lie beyond one turn).
                 let a0p = self.polar_last.map_or(a0, |(_, a)| a);
-                if p[2] < 0.7 && (a0p + dir(sweep_abs)).abs() < 5400.0 {
-                    // Absolute H: the end angle, reached in the programmed direction.
+                // Absolute H names the end point's angular position: written from the
+                // programmed or the measured start angle, and often wound by whole turns
+                // (which name the same point: the sweep stays below one turn).
+                let base = if p[10] < 0.5 { a0p } else { a0 };
+                let wind = if p[11] < 0.5 {
+                    0.0
+                } else {
+                    360.0 * (((p[11] - 0.5) * 2.0 * 29.0) as i32 - 14) as f64
+                };
+                let h_abs = base + dir(sweep_abs) + wind;
+                if p[2] < 0.7 && h_abs.abs() < 5400.0 {
+                    // Absolute H: the end point, reached in the programmed direction.
                     if !self.absolute {
                         words.insert(0, self.g(90));
                         self.absolute = true;
                     }
-                    let (ta, ab) = self.num(a0p + dir(sweep_abs));
+                    let (ta, ab) = self.num(h_abs);
                     words.push(format!("H{ta}"));
                     let a = ab.to_radians();
                     end[u] = pole[u] + r0 * a.cos();
@@ -1229,13 +1223,14 @@ impl Gen {
         self.push(words, Expect::Nothing, false);
     }
 
-    /// Program zero from the work offset and G92; polar values remembered from before are
-    /// not reused after it moved.
+    /// Program zero from the work offset and G92. The programmed polar values are
+    /// forgotten: the control measures the current point about the new zero (about a Fagor
+    /// G30 origin, which does not move, measuring gives the same values).
     fn set_origin(&mut self) {
         for i in 0..3 {
             self.origin[i] = self.work[i] + self.g92[i];
         }
-        self.polar_stale = true;
+        self.polar_last = None;
     }
 }
 

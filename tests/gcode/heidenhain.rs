@@ -59,26 +59,6 @@ fn seed_example_n120_to_n200() {
     assert_eq!(ev, vec![(3, "M3"), (8, "M3")]);
 }
 
-/// Asserts an arc about `c` from `start` to `end` that turns in the direction of the sign
-/// of `sweep_mod` and whose sweep equals `sweep_mod` modulo whole turns.
-fn assert_arc_mod_turns(m: &Move, start: Vec3, end: Vec3, c: Vec3, sweep_mod: f64) {
-    let a = as_arc(m);
-    let ctx = describe_move(m);
-    assert_point(&format!("start of {ctx}"), a.start, start, TOL);
-    assert_point(&format!("end of {ctx}"), a.end, end, TOL);
-    assert_point(&format!("centre of {ctx}"), a.center, c, TOL);
-    assert!(
-        a.sweep_rad.signum() == sweep_mod.signum(),
-        "direction of {ctx}"
-    );
-    let turns = (a.sweep_rad - sweep_mod) / TAU;
-    assert!(
-        (turns - turns.round()).abs() < 1e-9,
-        "sweep modulo 2π of {ctx}"
-    );
-    check_arc_geometry(&a, TOL);
-}
-
 #[test]
 fn polar_circles_incremental_multi_turn_and_last_direction() {
     // Continues the seed example at (5,25), pole (25,25), angle 180°.
@@ -130,28 +110,15 @@ fn polar_circles_incremental_multi_turn_and_last_direction() {
         axis_g17(),
         -2.5 * PI,
     );
-    // G90 G13 H+90 after several turns: the manual does not say whether the absolute angle
-    // is measured from the wound-up angle (-450° + ... ) or the angle of the tool's position
-    // (270°). Either way it ends at 90° counter-clockwise: +180° modulo whole turns.
-    assert_arc_mod_turns(&ms[10], v(25.0, 5.0, 0.0), v(25.0, 45.0, 0.0), c, PI);
-}
-
-#[test]
-fn polar_circle_absolute_angle_beyond_360_is_multi_turn() {
-    // Seed 004 allows H between -5400° and +5400°. Guess (the manual does not spell it
-    // out): in G90 the travel is the difference between the programmed and the current
-    // polar angle, so from 0°, G13 H+540 turns one and a half times.
-    let ms = moves(
-        D,
-        &prog("N10 I+0 J+0 *\nN20 G11 R+10 H+0 F100 *\nN30 G13 H+540 *\n"),
-    );
+    // G90 G13 H+90 after several turns: absolute H is the end point (crate doc), reached
+    // from the tool's position (270°) counter-clockwise: +180°, not wound up.
     assert_arc(
-        &ms[1],
-        v(10.0, 0.0, 0.0),
-        v(-10.0, 0.0, 0.0),
-        o(),
+        &ms[10],
+        v(25.0, 5.0, 0.0),
+        v(25.0, 45.0, 0.0),
+        c,
         axis_g17(),
-        3.0 * PI,
+        PI,
     );
 }
 
@@ -500,4 +467,112 @@ fn dwell_f_is_the_dwell_time_not_the_feed() {
     );
     assert_eq!(ms.len(), 2, "{ms:#?}");
     assert_feed_line(&ms[1], v(1.0, 0.0, 0.0), v(2.0, 0.0, 0.0), 100.0);
+}
+
+#[test]
+fn polar_circle_absolute_angle_beyond_360_names_a_point() {
+    // Seed 004: H (-5400°..+5400°) is the angular position of the end point; H+540 is the
+    // point at 180°. Kerf's documented choice: from 0° counter-clockwise that is a half
+    // circle (several turns are written with G91 H).
+    let ms = moves(
+        D,
+        &prog("N10 I+0 J+0 *\nN20 G11 R+10 H+0 F100 *\nN30 G13 H+540 *\n"),
+    );
+    assert_arc(
+        &ms[1],
+        v(10.0, 0.0, 0.0),
+        v(-10.0, 0.0, 0.0),
+        o(),
+        axis_g17(),
+        PI,
+    );
+}
+
+#[test]
+fn a_word_before_the_first_g90_g91_of_its_block_keeps_the_modal_mode() {
+    // [M] `G02 G91 X+5 G90 Y-5`: a word takes the mode written before it in the block; a
+    // word before the block's first G90/G91 has none written before it, so it takes the
+    // modal mode (the one in force when the block starts). By hand:
+    // N10 G90 (modal) X+10 Y+10 -> (10, 10).
+    // N20 X+20 under the modal G90 -> X 20; G91 then Y+5 -> Y 15: (20, 15). G91 stays.
+    // N30 X+5 under the modal G91 -> X 25; G90 then Y+7 -> Y 7: (25, 7). G90 stays.
+    // N40 I+1 under the modal G90 (pole at X 1), G91 then J+2 -> Y 7 + 2 = 9: pole (1, 9);
+    //     G91 stays. N50 G90 G11 R+3 H+0 -> (4, 9).
+    let ms = moves(
+        D,
+        &prog(
+            "N10 G00 X+10 Y+10 *\n\
+             N20 G00 X+20 G91 Y+5 *\n\
+             N30 G01 X+5 G90 Y+7 F100 *\n\
+             N40 I+1 G91 J+2 *\n\
+             N50 G90 G11 R+3 H+0 *\n",
+        ),
+    );
+    assert_eq!(ms.len(), 4, "{ms:?}");
+    assert_rapid(&ms[0], o(), v(10.0, 10.0, 0.0));
+    assert_rapid(&ms[1], v(10.0, 10.0, 0.0), v(20.0, 15.0, 0.0));
+    assert_feed_line(&ms[2], v(20.0, 15.0, 0.0), v(25.0, 7.0, 0.0), 100.0);
+    assert_feed_line(&ms[3], v(25.0, 7.0, 0.0), v(4.0, 9.0, 0.0), 100.0);
+}
+
+#[test]
+fn absolute_polar_circle_angle_does_not_depend_on_how_the_start_was_reached() {
+    // The start (10, 0) about the pole (0, 0) is reached three ways: `G11 R+10 H-360`,
+    // `G11 R+10 H+0` and `G01 X+10 Y+0`. The arc that follows depends only on that point,
+    // H and the direction (crate doc, Heidenhain: absolute H is the end point's angular
+    // position; the arc is shorter than one turn, or a whole turn back to the start).
+    let starts = [
+        "G11 R+10 H-360 F600 *",
+        "G11 R+10 H+0 F600 *",
+        "G01 X+10 Y+0 F600 *",
+    ];
+    let p5 = v(10.0 * deg(5.0).cos(), 10.0 * deg(5.0).sin(), 0.0);
+    let a = v(10.0, 0.0, 0.0);
+    // (arc block, end point, signed sweep), by hand.
+    let cases = [
+        ("G13 H+5 *", p5, deg(5.0)),         // 0° -> 5° counter-clockwise
+        ("G13 H+365 *", p5, deg(5.0)),       // 365° is the point at 5°
+        ("G13 H-355 *", p5, deg(5.0)),       // so is -355°
+        ("G12 H+5 *", p5, -deg(355.0)),      // clockwise from 0° to 5°
+        ("G13 H+720 *", a, TAU),             // the start point itself: one full circle
+        ("G12 H-360 *", a, -TAU),            // the same, clockwise
+        ("G91 G13 H+365 *", p5, deg(365.0)), // G91: the swept angle itself
+    ];
+    for start in starts {
+        for (arc, end, sweep) in cases {
+            let src = prog(&format!("N10 I+0 J+0 *\nN20 {start}\nN30 {arc}\n"));
+            let ms = moves(D, &src);
+            assert_eq!(ms.len(), 2, "{src}");
+            let m = &ms[1];
+            let got = as_arc(m);
+            assert_close(
+                &format!("{start} / {arc}: sweep"),
+                got.sweep_rad,
+                sweep,
+                1e-9,
+            );
+            assert_arc(m, a, end, o(), axis_g17(), sweep);
+        }
+    }
+}
+
+#[test]
+fn absolute_polar_circle_from_a_negative_start_angle() {
+    // By hand: G11 R+10 H-10 puts the tool at -10° (= 350°) about (0, 0).
+    // G12 H-20: clockwise from -10° to -20°, -10°. G13 H+350 from -20° (= 340°): 10°.
+    // G13 H-10 from 350°: the start point itself, one full circle.
+    let ms = moves(
+        D,
+        &prog(
+            "N10 I+0 J+0 *\n\
+             N20 G11 R+10 H-10 F600 *\n\
+             N30 G12 H-20 *\n\
+             N40 G13 H+350 *\n\
+             N50 G13 H-10 *\n",
+        ),
+    );
+    let at = |a: f64| v(10.0 * deg(a).cos(), 10.0 * deg(a).sin(), 0.0);
+    assert_arc(&ms[1], at(-10.0), at(-20.0), o(), axis_g17(), -deg(10.0));
+    assert_arc(&ms[2], at(-20.0), at(-10.0), o(), axis_g17(), deg(10.0));
+    assert_arc(&ms[3], at(-10.0), at(-10.0), o(), axis_g17(), TAU);
 }

@@ -977,3 +977,65 @@ fn dwell_with_a_motion_in_the_same_block_keeps_the_motion() {
         &["cannot use axis values without a G code that uses them"],
     );
 }
+
+#[test]
+fn polar_words_measure_the_current_point_about_the_current_program_zero() {
+    // LinuxCNC "Polar Coordinates": `@` and `^` are about the XY zero of the current
+    // coordinate system; a missing one (or, in G91, the base of an incremental one) is the
+    // current point's distance or angle measured about that zero, also after G92, G92.1,
+    // G92.2, G92.3 or a G5x moved it. Positions below are machine mm, computed by hand.
+    let head = "G21 G90 G17 F100\nG1 @10 ^0\n"; // to (10, 0)
+    let run_tail = |tail: &str| moves(D, &format!("{head}{tail}"));
+
+    // G92 X0 Y0 makes the current point the zero: its distance is 0, so `^90` stays put.
+    let ms = run_tail("G92 X0 Y0\nG1 ^90\n");
+    assert_eq!(ms.len(), 1, "{ms:?}");
+
+    // G92 X5 Y0: zero at (5, 0), the point at 5 mm, 0°. `^90` -> (5, 5).
+    let ms = run_tail("G92 X5 Y0\nG1 ^90\n");
+    assert_feed_line(&ms[1], v(10.0, 0.0, 0.0), v(5.0, 5.0, 0.0), 100.0);
+    // The same in G91: 5 mm + 0, 0° + 90°.
+    let ms = run_tail("G92 X5 Y0\nG91 G1 ^90\n");
+    assert_feed_line(&ms[1], v(10.0, 0.0, 0.0), v(5.0, 5.0, 0.0), 100.0);
+    // G91 from the zero itself has no angle: LinuxCNC's error, on the polar line.
+    let d = error(D, &format!("{head}G92 X0 Y0\nG91 G1 ^90\n"));
+    assert_diag_line(
+        &d,
+        4,
+        &["G91 motion with polar coordinates is indeterminate"],
+    );
+
+    // G92.1 puts the zero back at (0, 0): the point (5, 5) is at 5√2 mm, 45°.
+    // `^0` -> (5√2, 0).
+    let ms = run_tail("G92 X5 Y0\nG1 ^90\nG92.1\nG1 ^0\n");
+    let r = 50f64.sqrt();
+    assert_feed_line(&ms[2], v(5.0, 5.0, 0.0), v(r, 0.0, 0.0), 100.0);
+
+    // G92.2 suspends (zero (0, 0): the point (10, 0) is at 10 mm, 0°; `^180` -> (-10, 0)),
+    // G92.3 restores (zero (5, 0): the point is at 15 mm, 180°; `^90` -> (5, 15)).
+    let ms = run_tail("G92 X5 Y0\nG92.2\nG1 ^180\nG92.3\nG1 ^90\n");
+    assert_feed_line(&ms[1], v(10.0, 0.0, 0.0), v(-10.0, 0.0, 0.0), 100.0);
+    assert_feed_line(&ms[2], v(-10.0, 0.0, 0.0), v(5.0, 15.0, 0.0), 100.0);
+}
+
+#[test]
+fn polar_words_after_a_work_offset_change_and_a_tool_length() {
+    // G55 at (0, 10): the point (10, 0) is at 10√2 mm, -45° about it. `@5` keeps -45°:
+    // (5 cos -45°, 10 + 5 sin -45°). G43 moves Z only: the XY polar values stay.
+    let mut s = settings_with_tool(1, 7.0, 0.0);
+    s.work_offsets_mm[1] = [0.0, 10.0, 0.0];
+    let ms = moves_with(D, s.clone(), "G21 G90 G17 F100\nG1 @10 ^0\nG55\nG1 @5\n");
+    let h = 5.0 * 0.5f64.sqrt();
+    assert_feed_line(&ms[1], v(10.0, 0.0, 0.0), v(h, 10.0 - h, 0.0), 100.0);
+    // In G91 `^45` turns the point from -45° to 0° about (0, 10): (10√2, 10).
+    let ms = moves_with(
+        D,
+        s.clone(),
+        "G21 G90 G17 F100\nG1 @10 ^0\nG55\nG91 G1 ^45\n",
+    );
+    let r = 200f64.sqrt();
+    assert_feed_line(&ms[1], v(10.0, 0.0, 0.0), v(r, 10.0, 0.0), 100.0);
+    // G43 H1 (Z +7) then `^90`: 10 mm, 90° -> (0, 10), Z unchanged in the machine.
+    let ms = moves_with(D, s, "G21 G90 G17 F100\nG1 @10 ^0\nG43 H1\nG1 ^90\n");
+    assert_feed_line(&ms[1], v(10.0, 0.0, 0.0), v(0.0, 10.0, 0.0), 100.0);
+}

@@ -134,7 +134,8 @@ pub(crate) struct State {
     /// Fagor polar origin (machine coordinates; `None` = part zero).
     polar_origin: Option<Vec3>,
     /// Last programmed polar radius (mm) and angle (degrees) about the pole, while the
-    /// position still is that polar point (Heidenhain, Fagor).
+    /// position still is that polar point and the pole has not moved (Heidenhain, Fagor;
+    /// LinuxCNC always measures the current point).
     polar_last: Option<(f64, f64)>,
     /// Direction of the last arc (`true` = counter-clockwise), for Heidenhain G05/G15.
     last_ccw: Option<bool>,
@@ -212,7 +213,12 @@ impl State {
         s
     }
 
+    /// Recomputes program zero after a work offset, G92 or tool length change. Polar values
+    /// are relative to the polar reference: when it moves in its plane, the programmed
+    /// polar values of the current point no longer describe it and are forgotten (the next
+    /// polar word measures the point about the new reference).
     fn update_origin(&mut self) {
+        let before = self.polar_reference();
         let work = match self.coord_system {
             Some(i) => self
                 .settings
@@ -226,6 +232,11 @@ impl State {
             self.origin[i] = w + self.g92_mm[i];
         }
         self.origin[2] += self.tool_length_mm;
+        let after = self.polar_reference();
+        let (u, v) = self.polar_axes();
+        if before[u] != after[u] || before[v] != after[v] {
+            self.polar_last = None;
+        }
     }
 
     fn scale(&self) -> f64 {
@@ -244,8 +255,10 @@ impl State {
         blk.nm = 0;
         blk.first_col = words.first().map_or(1, |w| w.col);
         // Heidenhain lets G90/G91 switch per axis inside a block: the words after a G90 or
-        // G91 take that mode, the ones before it the modal one.
+        // G91 take that mode, the ones before the first one the modal one (the mode before
+        // the block), which exec() would otherwise replace before reading them.
         let mut local: Option<bool> = None;
+        let modal = if self.absolute { Form::Abs } else { Form::Inc };
         for w in words {
             let letter = if w.key < 26 { b'A' + w.key } else { 0 };
             match letter {
@@ -258,6 +271,16 @@ impl State {
                         message: format!("unknown G code G{}", w.value),
                     })?;
                     if self.dialect == Dialect::Heidenhain && (code == 900 || code == 910) {
+                        if local.is_none() {
+                            for k in 0..N_KEYS as u8 {
+                                if blk.has(k)
+                                    && takes_distance_mode(k)
+                                    && blk.forms[k as usize] == Form::Plain
+                                {
+                                    blk.forms[k as usize] = modal;
+                                }
+                            }
+                        }
                         local = Some(code == 900);
                     }
                     blk.gs[blk.ng] = (code, w.col);
@@ -291,13 +314,7 @@ impl State {
             blk.vals[k] = w.value;
             blk.cols[k] = w.col;
             blk.forms[k] = match (w.form, local) {
-                (Form::Plain, Some(abs))
-                    if XYZ.contains(&w.key)
-                        || ABC.contains(&w.key)
-                        || IJK.contains(&w.key)
-                        || w.key == KR
-                        || w.key == KH =>
-                {
+                (Form::Plain, Some(abs)) if takes_distance_mode(w.key) => {
                     if abs {
                         Form::Abs
                     } else {
@@ -810,6 +827,11 @@ impl State {
         }
         Ok(())
     }
+}
+
+/// Heidenhain words whose value G90/G91 make absolute or incremental.
+fn takes_distance_mode(k: u8) -> bool {
+    XYZ.contains(&k) || ABC.contains(&k) || IJK.contains(&k) || k == KR || k == KH
 }
 
 fn tool_number(v: f64) -> Option<u32> {

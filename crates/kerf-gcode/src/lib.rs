@@ -122,9 +122,14 @@
 //!   exceeds 0.1 %, with t = 0.02828 mm (0.002828 in under G20). Radius format with end =
 //!   start is "current point same as end point of arc".
 //! - Polar `@` (distance) `^` (angle, degrees, CCW from +X) about the current XY program
-//!   zero, G0/G1 only; a missing one keeps the current point's value. Under G91 both are
-//!   added to the current point's polar coordinates (an error at the origin). Mixing them
-//!   with X/Y is an error.
+//!   zero, G0/G1 only; a missing one keeps the current point's value, measured about the
+//!   current zero (as LinuxCNC computes it from the current position: after G92, G92.1,
+//!   G92.2, G92.3 or a G5x moved the zero, the point's distance and angle about the new
+//!   one; G43/G49 move Z only and leave them). Under G91 both are added to the current
+//!   point's polar coordinates measured the same way. At program zero the point has no
+//!   angle: `@` alone, and either word under G91, are LinuxCNC's errors ("Must specify
+//!   angle in polar coordinate if at the origin", "... is indeterminate when at the
+//!   origin"). Mixing them with X/Y is an error.
 //! - Feed errors use LinuxCNC's words: "Cannot do G1 with zero feed rate", "Cannot make arc
 //!   with zero feed rate". F is kept physically across G20/G21 changes.
 //! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc,
@@ -182,11 +187,16 @@
 //! - Polar lines G10 (rapid) / G11 (feed): R = polar radius, H = polar angle (−360..+360,
 //!   CCW from the plane's abscissa), about the pole; both modal; under G91 they are added
 //!   to the previous polar values. Polar circles G12 (CW) / G13 (CCW) / G15 (last
-//!   direction) about the pole with the radius of the start point: absolute H is the end
-//!   angle, reached in the programmed direction (an end angle equal to the start angle is a
-//!   full circle; |H| up to 5400° gives several turns, e.g. H+720 from 0° is two turns);
-//!   G91 H is the swept angle itself and its sign must match the direction. An axis word
-//!   along the normal makes a helix.
+//!   direction) about the pole with the radius of the start point. Absolute H (up to
+//!   ±5400°) is the angular position of the end point, as seed 004 puts it: H and H ± 360°
+//!   name the same point. Choice (the manual does not say how an absolute H turns more than
+//!   once): the arc runs from the start point in the programmed direction to that point,
+//!   less than one turn, or one whole turn when it is the start point (`G13 H+720` from 0°
+//!   is one full circle, `G13 H+365` from 0° is 5°); the start point's angle is measured
+//!   from its position, so it does not matter whether it was reached with `H-360`, `H+0` or
+//!   a Cartesian move. Several turns are programmed with G91: G91 H is the swept angle
+//!   itself (H+720 is two turns) and its sign must match the direction. An axis word along
+//!   the normal makes a helix.
 //! - G41/G42 with a zero tool radius keep the programmed path. An R word in a G00/G01
 //!   block is an error (R belongs to G02/G03, G10/G11 and G99).
 //!
@@ -201,7 +211,9 @@
 //! - Polar end points: `R` (radius) and `Q` (angle, degrees, CCW from the plane's
 //!   abscissa) about the polar origin, in G00/G01/G02/G03. In G02/G03 an `R` together with
 //!   X/Y in the plane is the arc radius, otherwise `R`/`Q` are polar. A missing R or Q
-//!   keeps the value of the last point; under G91 they are added to it. `G91 Q360` (any
+//!   keeps the value of the last point; under G91 they are added to it. When the polar
+//!   origin moves (G30, a plane change, or G54–G59 while it is part zero) that value is the
+//!   point's radius or angle measured about the new origin. `G91 Q360` (any
 //!   non-zero multiple of 360°) about the polar origin is a whole circle (or several);
 //!   `G90 Q360` is the point at 360°.
 //! - The polar origin is part zero until `G30 I.. J..` (K in G18/G19) sets it at those

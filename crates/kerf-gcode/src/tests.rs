@@ -96,7 +96,7 @@ fn heidenhain_seed_polar_example() {
 
 #[test]
 fn heidenhain_multi_turn_and_incremental_polar_circles() {
-    let src = "%P G71 *\nI+0 J+0 *\nG11 R+10 H+0 F100 *\nG13 H+720 Z-2 *\nG12 G91 H-90 *\nG12 G91 H+90 *\n";
+    let src = "%P G71 *\nI+0 J+0 *\nG11 R+10 H+0 F100 *\nG91 G13 H+720 Z-2 *\nG12 G91 H-90 *\nG12 G91 H+90 *\n";
     let d = Dialect::Heidenhain;
     let e = error(d, src);
     assert_eq!((e.line, e.col), (6, 9), "{e}");

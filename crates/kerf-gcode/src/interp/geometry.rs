@@ -10,6 +10,10 @@ use crate::codes::*;
 use crate::lex::{Form, K_AP, K_AT, K_CARET, K_CR, K_RP, K_TURN};
 use crate::{Dialect, Item};
 
+/// Two polar angles closer than this (degrees) name the same point: the angle of a point
+/// measured from its coordinates carries rounding errors of about 1e-14°.
+const POLAR_SAME_ANGLE_DEG: f64 = 1e-9;
+
 impl State {
     /// The machine coordinate of linear axis `i` after a word with `value`, honouring the
     /// word's form, the modal distance mode and the program origin.
@@ -397,19 +401,36 @@ impl State {
         }
     }
 
-    /// The current position in polar coordinates about the reference: the programmed
-    /// values when the last move was polar, else measured from the position.
-    pub(super) fn current_polar(&self) -> (f64, f64) {
-        if let Some(p) = self.polar_last {
-            return p;
-        }
-        let pole = self.polar_reference();
-        let (u, v, _) = self.plane.axes();
-        let (u, v) = if self.dialect == Dialect::LinuxCnc {
+    /// The axes polar coordinates work in: X and Y for LinuxCNC `@ ^`, the active plane
+    /// for the other controls.
+    pub(super) fn polar_axes(&self) -> (usize, usize) {
+        if self.dialect == Dialect::LinuxCnc {
             (0, 1)
         } else {
+            let (u, v, _) = self.plane.axes();
             (u, v)
-        };
+        }
+    }
+
+    /// The current position in polar coordinates about the reference: for Heidenhain and
+    /// Fagor the programmed values when the last move was polar about the same reference,
+    /// else (and always for LinuxCNC, which measures the current point about the current
+    /// program zero) measured from the position.
+    pub(super) fn current_polar(&self) -> (f64, f64) {
+        if let Some(p) = self
+            .polar_last
+            .filter(|_| self.dialect != Dialect::LinuxCnc)
+        {
+            return p;
+        }
+        self.measured_polar()
+    }
+
+    /// The current position's polar radius (mm) and angle (degrees, −180..180) about the
+    /// reference, measured from the position alone.
+    pub(super) fn measured_polar(&self) -> (f64, f64) {
+        let pole = self.polar_reference();
+        let (u, v) = self.polar_axes();
         let du = self.pos[u] - pole[u];
         let dv = self.pos[v] - pole[v];
         (arc::len2(du, dv), dv.atan2(du).to_degrees())
@@ -446,12 +467,31 @@ impl State {
                 let (r0, a0) = self.current_polar();
                 let at = blk.get(K_AT).map(|x| x * s);
                 let caret = blk.get(K_CARET);
+                // At program zero the current point has no angle: LinuxCNC refuses what
+                // would need it, in its own words.
+                let at_zero = r0 < 1e-9;
                 if self.absolute {
+                    if at_zero && caret.is_none() {
+                        return fail(
+                            blk.col(K_AT),
+                            "Must specify angle in polar coordinate if at the origin",
+                        );
+                    }
                     Ok((at.unwrap_or(r0), caret.unwrap_or(a0)))
                 } else {
-                    if r0 < 1e-9 {
-                        let k = blk.first_of(&[K_AT, K_CARET]).unwrap_or(K_AT);
-                        return fail(blk.col(k), "incremental polar move started at the origin");
+                    if at_zero {
+                        let (k, message) = if at.is_some() {
+                            (
+                                K_AT,
+                                "Incremental motion with polar coordinates is indeterminate when at the origin",
+                            )
+                        } else {
+                            (
+                                K_CARET,
+                                "G91 motion with polar coordinates is indeterminate when at the origin",
+                            )
+                        };
+                        return fail(blk.col(k), message);
                     }
                     Ok((r0 + at.unwrap_or(0.0), a0 + caret.unwrap_or(0.0)))
                 }
@@ -640,14 +680,25 @@ impl State {
                     "polar angle H out of range (-5400..+5400 degrees)",
                 );
             }
-            let sweep_deg = if self.word_absolute(blk, KH) {
-                let mut dlt = h - a0;
-                if ccw && dlt <= 0.0 {
-                    dlt += 360.0 * ((-dlt / 360.0).floor() + 1.0);
-                } else if !ccw && dlt >= 0.0 {
-                    dlt -= 360.0 * ((dlt / 360.0).floor() + 1.0);
+            let (sweep_deg, a_end) = if self.word_absolute(blk, KH) {
+                // Absolute H is the angular position of the end point (seed 004), a point:
+                // H and H ± 360° name the same one. The arc runs from the start point in
+                // the programmed direction to that point, less than one turn, or one whole
+                // turn when it is the start point. The start's angle is measured from its
+                // position, never taken from how it was programmed (after `H-360` or
+                // `H+0` or a Cartesian move to the same point, `G13 H+5` sweeps 5°).
+                let (_, a_start) = self.measured_polar();
+                let mut ahead = (h - a_start).rem_euclid(360.0);
+                if !(POLAR_SAME_ANGLE_DEG..=360.0 - POLAR_SAME_ANGLE_DEG).contains(&ahead) {
+                    ahead = 0.0;
                 }
-                dlt
+                let sweep = match (ccw, ahead == 0.0) {
+                    (true, true) => 360.0,
+                    (true, false) => ahead,
+                    (false, true) => -360.0,
+                    (false, false) => ahead - 360.0,
+                };
+                (sweep, h)
             } else {
                 if h == 0.0 || (h > 0.0) != ccw {
                     return fail(
@@ -655,9 +706,8 @@ impl State {
                         "incremental polar angle and direction of rotation disagree",
                     );
                 }
-                h
+                (h, a0 + h)
             };
-            let a_end = a0 + sweep_deg;
             if sweep_deg % 360.0 == 0.0 {
                 // Whole turns end exactly where they started, not one rounding away.
                 end[u] = start[u];
