@@ -13,9 +13,11 @@ use std::time::{Duration, Instant};
 
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use kerf::sim::{SimError, SimOptions};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use kerf::sim::{Prepass, PrepassError, SimError, SimOptions};
 use kerf::{Config, PlanError, choose_dialect};
-use kerf_gcode::{Dialect, Interpreter, Item, Move, Path as GeomPath};
+use kerf_gcode::{Dialect, Interpreter, Item};
 
 /// Read buffer for program files: large enough that a 1 GB program costs few system calls,
 /// small enough to keep the resident set tiny.
@@ -190,21 +192,29 @@ fn run_plan(args: &PlanArgs) -> Result<(), Failure> {
 
 fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     let config = load_config(args.program.config.as_deref())?;
-    let program = open_program(&args.program, &config)?;
-    let name = &program.name;
+    let source = SimSource::open(&args.program, &config)?;
+    let name = &source.name;
+    let options = SimOptions {
+        feed_override: args.override_pct / 100.0,
+        ..SimOptions::default()
+    };
 
-    // The whole program is resolved and checked against the travel limits before the
-    // first setpoint: a program that would leave the machine's travel never starts.
-    let mut moves = Vec::new();
-    for item in Interpreter::new(program.reader, program.dialect, config.settings()) {
+    // Pass 1: the whole program is resolved, planned and checked against the travel
+    // limits (the programmed moves and the planned path) before the first setpoint: a
+    // program that would leave the machine's travel never starts.
+    let mut prepass = Prepass::new(&config, &options);
+    let refused = |e: PrepassError| match e.line() {
+        Some(line) => Failure::Error(format!("{name}:{line}:1: error: {e}")),
+        None => Failure::Error(format!("{name}: error: {e}")),
+    };
+    for item in Interpreter::new(source.reader()?, source.dialect, config.settings()) {
         match item {
-            Ok(Item::Move(m)) => moves.push(m),
+            Ok(Item::Move(m)) => prepass.push(&m).map_err(refused)?,
             Ok(Item::Event(_)) => {}
             Err(diagnostic) => return Err(Failure::Error(format!("{name}:{diagnostic}"))),
         }
     }
-    kerf::travel::check_moves(&moves, &config.axes)
-        .map_err(|e| Failure::Error(format!("{name}:{}:1: error: {e}", e.line)))?;
+    let scan = prepass.finish().map_err(refused)?;
 
     let create = |path: &Path| {
         File::create(path)
@@ -220,21 +230,47 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
         Some(plot) => format!("{}, {}", args.out.display(), plot.display()),
         None => args.out.display().to_string(),
     };
-    let estimate_rows = estimated_rows(&moves, &config);
-    let mut out = ProgressWriter::new(file, estimate_rows);
-    let options = SimOptions {
-        feed_override: args.override_pct / 100.0,
-        ..SimOptions::default()
-    };
-    let result = kerf::sim::simulate_and_plot(
-        &moves,
+    let mut out = ProgressWriter::new(file, scan.estimated_rows(&config));
+
+    // Pass 2: the same moves again, streamed into the run. They are the ones pass 1
+    // checked unless the file changed in between, which stops the run.
+    let axes = config.axes;
+    let changed = AtomicBool::new(false);
+    let mut seen = 0u64;
+    let moves = Interpreter::new(source.reader()?, source.dialect, config.settings())
+        .map_while(|item| match item {
+            Ok(Item::Move(m)) => {
+                seen += 1;
+                if seen > scan.moves || kerf::travel::check_move(&m, &axes).is_err() {
+                    changed.store(true, Ordering::Relaxed);
+                    return None;
+                }
+                Some(Some(m))
+            }
+            Ok(Item::Event(_)) => Some(None),
+            Err(_) => {
+                changed.store(true, Ordering::Relaxed);
+                None
+            }
+        })
+        .flatten();
+    let result = kerf::sim::simulate_stream(
+        moves,
+        scan.rotary_used,
         &config,
         &options,
         &mut out,
         plot.as_mut().map(|w| w as &mut dyn Write),
     );
     out.finish();
+    let changed = changed.load(Ordering::Relaxed) || (result.is_ok() && seen != scan.moves);
     let summary = match result {
+        Ok(_) | Err(SimError::Fault { .. }) if changed => {
+            return Err(Failure::Error(format!(
+                "{name}: error: {}",
+                SimError::Changed
+            )));
+        }
         Ok(summary) => summary,
         Err(SimError::Io(e)) => return Err(Failure::Error(format!("{outputs}: error: {e}"))),
         Err(e) => return Err(Failure::Error(format!("{name}: error: {e}"))),
@@ -245,45 +281,87 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     }
     let mut stdout = io::stdout().lock();
     writeln!(stdout, "{summary}")?;
-    if summary.plan_failures > 0 {
-        let _ = writeln!(
-            io::stderr().lock(),
-            "{name}: warning: {} motion profiles needed a fallback",
-            summary.plan_failures
-        );
-    }
     Ok(())
 }
 
-/// A rough number of CSV rows, for the progress bar only: every move at its programmed
-/// feed (rapids at the slowest linear axis's limit), without acceleration.
-fn estimated_rows(moves: &[Move], config: &Config) -> u64 {
-    let rapid_mm_s = config
-        .axes
-        .linear()
-        .iter()
-        .map(|a| a.velocity_mm_s)
-        .fold(f64::INFINITY, f64::min);
-    let seconds: f64 = moves
-        .iter()
-        .map(|m| {
-            let length_mm = match &m.path {
-                GeomPath::Line(l) => (l.end - l.start).norm(),
-                GeomPath::Arc(a) => {
-                    let radius = (a.start - a.center).norm();
-                    let axial = (a.end - a.start).dot(&a.axis);
-                    (radius * a.sweep_rad).hypot(axial)
-                }
+/// The program of `kerf sim`, which is read twice (a checking pass, then the run): a file
+/// is opened again; standard input is first copied to a temporary file (removed when this
+/// is dropped), so that memory does not grow with the program.
+struct SimSource {
+    path: PathBuf,
+    name: String,
+    dialect: Dialect,
+    /// The spooled standard input, removed on drop.
+    spool: Option<PathBuf>,
+}
+
+impl SimSource {
+    fn open(args: &ProgramArgs, config: &Config) -> Result<SimSource, Failure> {
+        if args.program.as_os_str() == OsStr::new("-") {
+            let name = "<stdin>".to_string();
+            let failed =
+                |e: io::Error| Failure::Error(format!("{name}: error: cannot read program: {e}"));
+            let path = std::env::temp_dir().join(format!(
+                "kerf-sim-stdin-{}-{}",
+                std::process::id(),
+                std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map(|d| d.as_nanos())
+                    .unwrap_or(0)
+            ));
+            let mut file = File::options()
+                .write(true)
+                .create_new(true)
+                .open(&path)
+                .map_err(|e| {
+                    Failure::Error(format!(
+                        "{name}: error: cannot create a temporary copy of standard input in {}: {e}",
+                        path.display()
+                    ))
+                })?;
+            let source = SimSource {
+                path: path.clone(),
+                name: name.clone(),
+                dialect: choose_dialect(args.dialect, None, config.dialect),
+                spool: Some(path),
             };
-            let speed_mm_s = match m.feed_mm_min {
-                Some(f) if !m.rapid && f > 0.0 => f / 60.0,
-                _ => rapid_mm_s,
-            };
-            length_mm / speed_mm_s
+            io::copy(&mut io::stdin().lock(), &mut file).map_err(failed)?;
+            file.flush().map_err(failed)?;
+            return Ok(source);
+        }
+        let name = args.program.display().to_string();
+        let cannot_read =
+            |e: io::Error| Failure::Error(format!("{name}: error: cannot read program: {e}"));
+        let file = File::open(&args.program).map_err(cannot_read)?;
+        let mut reader = BufReader::with_capacity(READ_BUFFER_BYTES, file);
+        // The first bytes tell an ISO Heidenhain `.h` file from a conversational one.
+        let dialect = {
+            let head = reader.fill_buf().map_err(cannot_read)?;
+            choose_dialect(args.dialect, Some((&args.program, head)), config.dialect)
+        };
+        Ok(SimSource {
+            path: args.program.clone(),
+            name,
+            dialect,
+            spool: None,
         })
-        .sum();
-    let rows = seconds / (f64::from(config.period_us) * 1e-6);
-    if rows.is_finite() { rows as u64 } else { 0 }
+    }
+
+    /// A reader from the start of the program.
+    fn reader(&self) -> Result<Box<dyn BufRead + Send>, Failure> {
+        let file = File::open(&self.path).map_err(|e| {
+            Failure::Error(format!("{}: error: cannot read program: {e}", self.name))
+        })?;
+        Ok(Box::new(BufReader::with_capacity(READ_BUFFER_BYTES, file)))
+    }
+}
+
+impl Drop for SimSource {
+    fn drop(&mut self) {
+        if let Some(path) = &self.spool {
+            let _ = std::fs::remove_file(path);
+        }
+    }
 }
 
 /// Counts the CSV rows going to the file and shows a progress bar on standard error once

@@ -6,10 +6,17 @@
 //! points plus the points where the circle is tangent to a coordinate direction, when they
 //! fall inside the swept angle (multi-turn helices included). Rotary axes move linearly
 //! with the path, so their end values are their extremes.
+//!
+//! Issue 7 adds the planned path: corner blends, transitions and smoothed pieces leave
+//! the programmed lines within the tolerance, and near a limit that can be outside the
+//! travel. [`check_segment`] checks every planned segment: lines and arcs exactly as
+//! above; quintic curves (and rotary quintics) by sampling with a certified bound (see
+//! [`quintic_beyond`]).
 
 use std::f64::consts::TAU;
 
-use kerf_geom::{Arc, Move, Path, Vec3};
+use kerf_geom::{Arc, Curve, Move, Path, Vec3};
+use kerf_plan::PlannedSegment;
 
 use crate::config::Axes;
 
@@ -98,6 +105,240 @@ where
     I: IntoIterator<Item = &'a Move>,
 {
     moves.into_iter().try_for_each(|m| check_move(m, axes))
+}
+
+/// What kind of planned path left the travel, for the message.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlannedKind {
+    /// A corner blend or a transition the planner inserted between two moves.
+    Blend,
+    /// A smoothed piece standing for several short moves.
+    Smoothed,
+    /// The planned geometry of a programmed move.
+    Move,
+}
+
+/// A planned segment that leaves an axis's travel although the programmed moves stay in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlannedTravelError {
+    /// 1-based source line of the move the segment belongs to (for a smoothed piece, the
+    /// move nearest to where it leaves the travel, when the caller knows it).
+    pub line: u32,
+    /// The axis: `X`, `Y`, `Z`, `A`, `B` or `C`.
+    pub axis: char,
+    /// What kind of path.
+    pub kind: PlannedKind,
+    /// The farthest position found beyond the limit.
+    pub position: f64,
+    /// The limit it is beyond.
+    pub limit: f64,
+    /// `true` if `limit` is the upper limit (`max_mm`/`max_deg`).
+    pub upper: bool,
+    /// The XYZ point where it leaves (for naming the nearest move).
+    pub point: Vec3,
+}
+
+impl std::fmt::Display for PlannedTravelError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let rotary = matches!(self.axis, 'A' | 'B' | 'C');
+        let (unit, key) = match (rotary, self.upper) {
+            (false, true) => ("mm", "max_mm"),
+            (false, false) => ("mm", "min_mm"),
+            (true, true) => ("deg", "max_deg"),
+            (true, false) => ("deg", "min_deg"),
+        };
+        let by = (self.position - self.limit).abs();
+        let by = if by >= 0.001 {
+            format!("{by:.3}")
+        } else {
+            format!("{by:.1e}")
+        };
+        let (what, inside) = match self.kind {
+            PlannedKind::Blend => ("the blended path at this corner", "move the corner inside"),
+            PlannedKind::Smoothed => (
+                "the smoothed path through these moves",
+                "move the moves inside",
+            ),
+            PlannedKind::Move => ("the planned path of this move", "move it inside"),
+        };
+        write!(
+            f,
+            "{what} leaves the {axis} travel ({key} = {limit}) by {by} {unit}; lower the \
+             tolerance (G64 P) or {inside}",
+            axis = self.axis,
+            limit = self.limit,
+        )
+    }
+}
+
+impl std::error::Error for PlannedTravelError {}
+
+/// Checks one planned segment against the travel limits of `axes`: the whole curve, not
+/// only its end points. Rotary axes are checked on the axes the machine has.
+pub fn check_segment(seg: &PlannedSegment, axes: &Axes) -> Result<(), PlannedTravelError> {
+    let kind = if seg.move_count > 1 {
+        PlannedKind::Smoothed
+    } else if seg.blend {
+        PlannedKind::Blend
+    } else {
+        PlannedKind::Move
+    };
+    let error =
+        |axis: usize, position: f64, limit: f64, upper: bool, point: Vec3| PlannedTravelError {
+            line: seg.line,
+            axis: ['X', 'Y', 'Z', 'A', 'B', 'C'][axis],
+            kind,
+            position,
+            limit,
+            upper,
+            point,
+        };
+    let linear = axes.linear();
+    let point_inside = |p: &Vec3| -> Result<(), PlannedTravelError> {
+        for (i, l) in linear.iter().enumerate() {
+            if p[i] > l.max_mm + SLACK_MM {
+                return Err(error(i, p[i], l.max_mm, true, *p));
+            }
+            if p[i] < l.min_mm - SLACK_MM {
+                return Err(error(i, p[i], l.min_mm, false, *p));
+            }
+        }
+        Ok(())
+    };
+    match &seg.curve {
+        Curve::Line { start, end, .. } => {
+            point_inside(start)?;
+            point_inside(end)?;
+        }
+        Curve::Helix(h) => {
+            point_inside(&h.start)?;
+            point_inside(&h.end)?;
+            let arc = Arc {
+                start: h.start,
+                end: h.end,
+                center: h.center,
+                axis: h.axis,
+                sweep_rad: h.sweep_rad,
+            };
+            for p in arc_extremes(&arc).into_iter().flatten() {
+                point_inside(&p)?;
+            }
+        }
+        Curve::Transition(t) => {
+            point_inside(&t.start)?;
+            point_inside(&t.end)?;
+            for (i, l) in linear.iter().enumerate() {
+                let c = t.coef.map(|v| v[i]);
+                let at = |u: f64| t.poly(u);
+                if let Some((u, x)) = quintic_beyond(&c, l.max_mm + SLACK_MM, true) {
+                    return Err(error(i, x, l.max_mm, true, at(u)));
+                }
+                if let Some((u, x)) = quintic_beyond(&c, l.min_mm - SLACK_MM, false) {
+                    return Err(error(i, x, l.min_mm, false, at(u)));
+                }
+            }
+        }
+    }
+    for (i, limits) in axes.rotary().iter().enumerate() {
+        let Some(l) = limits else { continue };
+        let ends = [seg.abc_start_deg[i], seg.abc_end_deg[i]];
+        let start_point = seg.curve.start();
+        for v in ends {
+            if v > l.max_deg + SLACK_MM {
+                return Err(error(3 + i, v, l.max_deg, true, start_point));
+            }
+            if v < l.min_deg - SLACK_MM {
+                return Err(error(3 + i, v, l.min_deg, false, start_point));
+            }
+        }
+        if let (Some(poly), Curve::Transition(t)) = (&seg.abc_poly, &seg.curve) {
+            if let Some((u, v)) = quintic_beyond(&poly[i], l.max_deg + SLACK_MM, true) {
+                return Err(error(3 + i, v, l.max_deg, true, t.poly(u)));
+            }
+            if let Some((u, v)) = quintic_beyond(&poly[i], l.min_deg - SLACK_MM, false) {
+                return Err(error(3 + i, v, l.min_deg, false, t.poly(u)));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Samples of a quintic before refinement.
+const QUINTIC_SAMPLES: usize = 64;
+/// Function evaluations per quintic at most while refining near a limit.
+const QUINTIC_MAX_EVALS: usize = 20_000;
+
+/// Where the quintic `f(u) = Σ c[k] uᵏ`, `u ∈ [0, 1]`, is beyond `limit` (above it if
+/// `upper`, else below): the parameter and value of a point found beyond, or `None`.
+///
+/// The bound: on an interval of width `h` the quintic deviates from the chord through its
+/// end values by at most `M₂ h² / 8`, where `M₂ ≥ max |f''|` on `[0, 1]` is
+/// `2|c₂| + 6|c₃| + 12|c₄| + 20|c₅|`. So `max(f(a), f(b)) + M₂ h²/8` bounds `f` on
+/// `[a, b]` from above. The curve is sampled at 64 equal steps; every interval whose bound
+/// reaches the limit is halved (sampling its middle) until the bound clears the limit or a
+/// sample lies beyond it. A point is reported only when a sample is beyond the limit (the
+/// limit passed in already includes the rounding slack), so a curve that touches the limit
+/// exactly is never refused; refinement stops after 20,000 evaluations per curve, and
+/// what it may then miss is below `M₂ h²/8` of the narrowest interval reached (a few
+/// nanometres at most for the curves the planner builds).
+pub fn quintic_beyond(c: &[f64; 6], limit: f64, upper: bool) -> Option<(f64, f64)> {
+    let sign = if upper { 1.0 } else { -1.0 };
+    // Work on g = sign · f, looking for g > sign · limit.
+    let g = |u: f64| sign * (((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]);
+    let lim = sign * limit;
+    let m2 = 2.0 * c[2].abs() + 6.0 * c[3].abs() + 12.0 * c[4].abs() + 20.0 * c[5].abs();
+    let beyond = |v: f64| v > lim;
+    // Once a point is beyond, the farthest one (for the message): 1,024 samples.
+    let farthest = || {
+        let (mut best_u, mut best) = (0.0, f64::NEG_INFINITY);
+        for k in 0..=1024 {
+            let u = k as f64 / 1024.0;
+            let v = g(u);
+            if v > best {
+                (best_u, best) = (u, v);
+            }
+        }
+        Some((best_u, sign * best))
+    };
+    let mut stack: Vec<(f64, f64, f64, f64)> = Vec::new();
+    let h = 1.0 / QUINTIC_SAMPLES as f64;
+    let mut prev = (0.0, g(0.0));
+    if beyond(prev.1) {
+        return farthest();
+    }
+    for k in 1..=QUINTIC_SAMPLES {
+        let u = k as f64 * h;
+        let v = g(u);
+        if beyond(v) {
+            return farthest();
+        }
+        stack.push((prev.0, prev.1, u, v));
+        prev = (u, v);
+    }
+    let mut evals = QUINTIC_SAMPLES + 1;
+    while let Some((a, ga, b, gb)) = stack.pop() {
+        let w = b - a;
+        if ga.max(gb) + m2 * w * w / 8.0 <= lim {
+            continue;
+        }
+        if evals >= QUINTIC_MAX_EVALS {
+            break;
+        }
+        let m = 0.5 * (a + b);
+        if m <= a || m >= b {
+            continue;
+        }
+        let gm = g(m);
+        evals += 1;
+        if beyond(gm) {
+            return farthest()
+                .filter(|f| sign * f.1 > gm)
+                .or(Some((m, sign * gm)));
+        }
+        stack.push((a, ga, m, gm));
+        stack.push((m, gm, b, gb));
+    }
+    None
 }
 
 /// The points of an arc where a coordinate is at a maximum or minimum of the circle and
