@@ -157,7 +157,7 @@ impl std::fmt::Display for PlannedTravelError {
             PlannedKind::Blend => ("the blended path at this corner", "move the corner inside"),
             PlannedKind::Smoothed => (
                 "the smoothed path through these moves",
-                "move the moves inside",
+                "move the path inside",
             ),
             PlannedKind::Move => ("the planned path of this move", "move it inside"),
         };
@@ -525,6 +525,66 @@ mod tests {
         });
         let e = check_move(&m, &a).unwrap_err();
         assert_eq!((e.axis, e.position, e.unit), ('C', 400.0, " deg"));
+    }
+
+    /// The largest value of a quintic on `[0, 1]` by brute force: a million samples.
+    fn brute_max(c: &[f64; 6]) -> f64 {
+        (0..=1_000_000)
+            .map(|k| {
+                let u = k as f64 / 1e6;
+                c.iter().rev().fold(0.0, |acc, ck| acc * u + ck)
+            })
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    #[test]
+    fn quintic_beyond_agrees_with_brute_force_sampling() {
+        // Fixed-seed random quintics of the planner's scale (positions around ±1000 mm,
+        // shapes of up to a few mm), each tested against limits just above and just
+        // below its true maximum.
+        let mut state = 0x5eed_7a4e_u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for case in 0..40 {
+            let mut c = [0.0; 6];
+            c[0] = 1000.0 * next();
+            for ck in c.iter_mut().skip(1) {
+                *ck = 5.0 * next();
+            }
+            let max = brute_max(&c);
+            // A limit 1 µm below the maximum: found, with the maximum reported.
+            let (u, v) = quintic_beyond(&c, max - 1e-6, true)
+                .unwrap_or_else(|| panic!("case {case}: a 1 µm excess was missed"));
+            assert!((v - max).abs() < 1e-5, "case {case}: {v} vs {max}");
+            assert!((0.0..=1.0).contains(&u));
+            // A limit at the maximum (plus the rounding slack): nothing beyond.
+            assert_eq!(
+                quintic_beyond(&c, max + SLACK_MM, true),
+                None,
+                "case {case}"
+            );
+            // The same below, on the mirrored quintic.
+            let neg = c.map(|x| -x);
+            let (_, v) = quintic_beyond(&neg, -(max - 1e-6), false).unwrap();
+            assert!((v + max).abs() < 1e-5, "case {case}");
+            assert_eq!(quintic_beyond(&neg, -(max + SLACK_MM), false), None);
+        }
+    }
+
+    #[test]
+    fn a_quintic_that_touches_the_limit_tangentially_is_not_beyond_it() {
+        // f(u) = 1000 - 3 (1 - u)³ ... reaches 1000 at u = 1 with zero slope and
+        // curvature, the way a G2 blend ends on a line along the limit.
+        let c = [997.0, 9.0, -9.0, 3.0, 0.0, 0.0];
+        assert_eq!(quintic_beyond(&c, 1000.0 + SLACK_MM, true), None);
+        // Raised by 10 nm, it is beyond.
+        let mut up = c;
+        up[0] += 1e-8;
+        assert!(quintic_beyond(&up, 1000.0 + SLACK_MM, true).is_some());
     }
 
     #[test]
