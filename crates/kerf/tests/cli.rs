@@ -960,7 +960,7 @@ fn sim_any(name: &str, program: &Path, args: &[&str]) -> (Output, Option<Vec<Vec
 /// The summary's percentages (`X v 95% a 95% j 96%; ...`), all of them.
 fn summary_percentages(summary: &str) -> Vec<f64> {
     summary
-        .split(|c: char| c == ';' || c == ' ')
+        .split([';', ' '])
         .filter_map(|w| w.strip_suffix('%'))
         .map(|p| p.parse::<f64>().unwrap())
         .collect()
@@ -1126,13 +1126,13 @@ fn assert_inside_or_refused(name: &str, text: &str, line: usize) {
             let prefix = format!("{}:{line}:1: error: the ", program.display());
             assert!(err.starts_with(&prefix), "{name}: {err}");
             assert!(
-                err.contains("leaves the X travel (max_mm = 1000) by ")
-                    && err
-                        .trim_end()
-                        .ends_with("lower the tolerance (G64 P) or move the corner inside")
-                        | err
-                            .trim_end()
-                            .ends_with("lower the tolerance (G64 P) or move the path inside"),
+                err.contains("leaves the X travel (max_mm = 1000) by "),
+                "{name}: {err}"
+            );
+            let hint = err.trim_end().rsplit("; ").next().unwrap();
+            assert!(
+                hint == "lower the tolerance (G64 P) or move the corner inside"
+                    || hint == "lower the tolerance (G64 P) or move the path inside",
                 "{name}: {err}"
             );
             assert!(rows.is_none(), "{name}: no CSV for a refused program");
