@@ -465,13 +465,7 @@ where
             let _ = tx.send(Ok((taken, batch)));
         });
         let mut runner = Runner::new(limits, options, sink);
-        runner.monitor = monitor;
-        if let Some(m) = runner.monitor.as_mut() {
-            // The row at t = 0 is the first setpoint of the stream.
-            if let Err(v) = m.check(&runner.summary.last.position) {
-                return Err(RunError::Fault(v));
-            }
-        }
+        runner.attach(monitor)?;
         let mut pending: VecDeque<Move> = VecDeque::new();
         let mut known = 0;
         for batch in rx {
@@ -493,7 +487,46 @@ where
     })
 }
 
+/// [`run_stream`] for segments already planned (by the same [`Planner`] with the same
+/// limits and design override, which is deterministic): each segment with the number of
+/// moves the planner had taken when it produced it. No planning thread; the same
+/// setpoints as [`run_stream`] on `moves`.
+pub fn run_planned<S, F>(
+    moves: &[Move],
+    segments: S,
+    limits: &MachineLimits,
+    options: &RunOptions,
+    monitor: Option<&mut LimitMonitor>,
+    sink: F,
+) -> Result<Summary, RunError>
+where
+    S: IntoIterator<Item = (PlannedSegment, usize)>,
+    F: FnMut(f64, &Setpoint),
+{
+    let mut runner = Runner::new(limits, options, sink);
+    runner.attach(monitor)?;
+    let mut known = 0;
+    for (seg, moves_known) in segments {
+        while known < moves_known.min(moves.len()) {
+            runner.add_move(&moves[known]);
+            known += 1;
+        }
+        runner.push(&seg)?;
+    }
+    runner.finish()
+}
+
 impl<'a, F: FnMut(f64, &Setpoint)> Runner<'a, F> {
+    /// Checks every setpoint from now on with `monitor`, starting with the row at t = 0.
+    fn attach(&mut self, monitor: Option<&'a mut LimitMonitor>) -> Result<(), RunError> {
+        self.monitor = monitor;
+        if let Some(m) = self.monitor.as_mut() {
+            m.check(&self.summary.last.position)
+                .map_err(RunError::Fault)?;
+        }
+        Ok(())
+    }
+
     fn new(limits: &MachineLimits, options: &'a RunOptions, sink: F) -> Self {
         let mut core = MotionCore::new(*limits, options.capacity);
         core.set_feed_override(options.feed_override);

@@ -214,7 +214,8 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
             Err(diagnostic) => return Err(Failure::Error(format!("{name}:{diagnostic}"))),
         }
     }
-    let scan = prepass.finish().map_err(refused)?;
+    let checked = prepass.finish().map_err(refused)?;
+    let scan = checked.scan;
 
     let create = |path: &Path| {
         File::create(path)
@@ -232,36 +233,44 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     };
     let mut out = ProgressWriter::new(file, scan.estimated_rows(&config));
 
-    // Pass 2: the same moves again, streamed into the run. They are the ones pass 1
-    // checked unless the file changed in between, which stops the run.
+    // Pass 2: the run. A program small enough was kept by pass 1, moves and planned
+    // segments; a larger one is read again and streamed into the run. Those are the moves
+    // pass 1 checked unless the file changed in between, which stops the run.
     let axes = config.axes;
     let changed = AtomicBool::new(false);
-    let mut seen = 0u64;
-    let moves = Interpreter::new(source.reader()?, source.dialect, config.settings())
-        .map_while(|item| match item {
-            Ok(Item::Move(m)) => {
-                seen += 1;
-                if seen > scan.moves || kerf::travel::check_move(&m, &axes).is_err() {
-                    changed.store(true, Ordering::Relaxed);
-                    return None;
-                }
-                Some(Some(m))
-            }
-            Ok(Item::Event(_)) => Some(None),
-            Err(_) => {
-                changed.store(true, Ordering::Relaxed);
-                None
-            }
-        })
-        .flatten();
-    let result = kerf::sim::simulate_stream(
-        moves,
-        scan.rotary_used,
-        &config,
-        &options,
-        &mut out,
-        plot.as_mut().map(|w| w as &mut dyn Write),
-    );
+    let mut seen = scan.moves;
+    let plot_out = plot.as_mut().map(|w| w as &mut dyn Write);
+    let result = match checked.kept {
+        Some(kept) => kerf::sim::simulate_kept(kept, &scan, &config, &options, &mut out, plot_out),
+        None => {
+            seen = 0;
+            let moves = Interpreter::new(source.reader()?, source.dialect, config.settings())
+                .map_while(|item| match item {
+                    Ok(Item::Move(m)) => {
+                        seen += 1;
+                        if seen > scan.moves || kerf::travel::check_move(&m, &axes).is_err() {
+                            changed.store(true, Ordering::Relaxed);
+                            return None;
+                        }
+                        Some(Some(m))
+                    }
+                    Ok(Item::Event(_)) => Some(None),
+                    Err(_) => {
+                        changed.store(true, Ordering::Relaxed);
+                        None
+                    }
+                })
+                .flatten();
+            kerf::sim::simulate_stream(
+                moves,
+                scan.rotary_used,
+                &config,
+                &options,
+                &mut out,
+                plot_out,
+            )
+        }
+    };
     out.finish();
     let changed = changed.load(Ordering::Relaxed) || (result.is_ok() && seen != scan.moves);
     let summary = match result {

@@ -206,6 +206,30 @@ impl Scan {
     }
 }
 
+/// The moves and planned segments of a program small enough to keep between the passes.
+#[derive(Debug)]
+pub struct Kept {
+    moves: Vec<Move>,
+    segments: Vec<(PlannedSegment, usize)>,
+}
+
+/// Bytes of moves and planned segments the first pass keeps at most for the run, so
+/// that an ordinary program is read and planned only once (larger ones are streamed
+/// again, so memory stays bounded).
+const KEEP_BYTES: usize = 16 << 20;
+
+/// What the first pass left: what it learned, and for a program whose moves and planned
+/// segments fit in 16 MiB, those, so that the run ([`simulate_kept`]) need not read and
+/// plan it again (the planner is deterministic: the segments are the ones the run would
+/// plan). Larger programs are read again ([`simulate_stream`]).
+#[derive(Debug)]
+pub struct Checked {
+    /// What the pass learned.
+    pub scan: Scan,
+    /// The program's moves and segments, when small enough.
+    pub kept: Option<Kept>,
+}
+
 /// Moves remembered by the first pass for naming the line of a smoothed piece that leaves
 /// the travel (a piece stands for at most a few thousand moves).
 const RECENT_MOVES: usize = 1 << 16;
@@ -226,6 +250,7 @@ pub struct Prepass {
     recent_base: u64,
     rapid_mm_s: f64,
     scan: Scan,
+    kept: Option<Kept>,
 }
 
 impl Prepass {
@@ -247,6 +272,10 @@ impl Prepass {
             recent_base: 0,
             rapid_mm_s,
             scan: Scan::default(),
+            kept: Some(Kept {
+                moves: Vec::new(),
+                segments: Vec::new(),
+            }),
         }
     }
 
@@ -267,17 +296,32 @@ impl Prepass {
         self.recent
             .push_back((m.line, m.path.start(), m.path.end()));
         self.planner.push(m, &mut self.buf)?;
+        if let Some(k) = self.kept.as_mut() {
+            k.moves.push(*m);
+        }
         self.check_planned()
     }
 
     /// Checks the segments the planner still held, and returns what the pass learned.
-    pub fn finish(mut self) -> Result<Scan, PrepassError> {
+    pub fn finish(mut self) -> Result<Checked, PrepassError> {
         self.planner.finish(&mut self.buf);
         self.check_planned()?;
-        Ok(self.scan)
+        Ok(Checked {
+            scan: self.scan,
+            kept: self.kept,
+        })
     }
 
     fn check_planned(&mut self) -> Result<(), PrepassError> {
+        if let Some(k) = self.kept.as_mut() {
+            let known = self.scan.moves as usize;
+            k.segments.extend(self.buf.iter().map(|s| (*s, known)));
+            let bytes = k.moves.len() * std::mem::size_of::<Move>()
+                + k.segments.len() * std::mem::size_of::<(PlannedSegment, usize)>();
+            if bytes > KEEP_BYTES {
+                self.kept = None;
+            }
+        }
         for seg in self.buf.drain(..) {
             if let Err(mut e) = travel::check_segment(&seg, &self.axes) {
                 if seg.move_count > 1 {
@@ -357,13 +401,27 @@ pub fn simulate_with<F: FnMut(f64, &Setpoint)>(
     options: &SimOptions,
     row: F,
 ) -> Result<SimSummary, SimError> {
-    run_checked(moves.iter().copied(), limits, [0.0; 6], options, row)
+    run_checked(
+        Feed::Stream(moves.iter().copied()),
+        limits,
+        [0.0; 6],
+        options,
+        row,
+    )
+}
+
+/// Where the run's segments come from.
+enum Feed<I> {
+    /// Moves, planned on a second thread.
+    Stream(I),
+    /// Moves and segments the first pass kept.
+    Kept(Kept),
 }
 
 /// The run with its limit monitor; `scale` is the rounding scale of the positions per
 /// axis (see [`LimitMonitor::with_position_scale`]).
 fn run_checked<I, F>(
-    moves: I,
+    feed: Feed<I>,
     limits: &MachineLimits,
     scale: [f64; 6],
     options: &SimOptions,
@@ -382,10 +440,23 @@ where
     // The machine is at rest at the origin before the first setpoint.
     let mut monitor = LimitMonitor::at_rest(limits, &[0.0; 6]).with_position_scale(scale);
     let mut last = (0.0, 0u32);
-    let raw = driver::run_stream(moves, limits, &run_options, Some(&mut monitor), |t, sp| {
+    let sink = |t: f64, sp: &Setpoint| {
         last = (t, sp.line);
         row(t, sp)
-    });
+    };
+    let raw = match feed {
+        Feed::Stream(moves) => {
+            driver::run_stream(moves, limits, &run_options, Some(&mut monitor), sink)
+        }
+        Feed::Kept(k) => driver::run_planned(
+            &k.moves,
+            k.segments,
+            limits,
+            &run_options,
+            Some(&mut monitor),
+            sink,
+        ),
+    };
     let raw = match raw {
         Ok(raw) => raw,
         Err(RunError::Fault(violation)) => {
@@ -463,6 +534,35 @@ where
     I: Iterator<Item = Move> + Send,
     W: Write + Send,
 {
+    simulate_feed(Feed::Stream(moves), rotary_used, config, options, out, plot)
+}
+
+/// [`simulate_stream`] from what the first pass kept (the same setpoints, without reading
+/// and planning the program again). `options` must be those the [`Prepass`] had.
+pub fn simulate_kept<W: Write + Send>(
+    kept: Kept,
+    scan: &Scan,
+    config: &Config,
+    options: &SimOptions,
+    out: W,
+    plot: Option<&mut dyn Write>,
+) -> Result<SimSummary, SimError> {
+    let feed: Feed<std::iter::Empty<Move>> = Feed::Kept(kept);
+    simulate_feed(feed, scan.rotary_used, config, options, out, plot)
+}
+
+fn simulate_feed<I, W>(
+    feed: Feed<I>,
+    rotary_used: bool,
+    config: &Config,
+    options: &SimOptions,
+    out: W,
+    plot: Option<&mut dyn Write>,
+) -> Result<SimSummary, SimError>
+where
+    I: Iterator<Item = Move> + Send,
+    W: Write + Send,
+{
     let limits = machine_limits(config);
     let rotary = rotary_used;
     let mut scale = [0.0; 6];
@@ -495,7 +595,7 @@ where
         });
         let mut chunk = Vec::with_capacity(ROWS_PER_CHUNK);
         let mut writer_gone = false;
-        let summary = run_checked(moves, &limits, scale, options, |t, sp| {
+        let summary = run_checked(feed, &limits, scale, options, |t, sp| {
             chunk.push((t, *sp));
             if chunk.len() == ROWS_PER_CHUNK && !writer_gone {
                 let full = std::mem::replace(&mut chunk, Vec::with_capacity(ROWS_PER_CHUNK));
@@ -802,5 +902,81 @@ mod tests {
             assert!(a.velocity <= 1.01 && a.acceleration <= 1.01 && a.jerk <= 1.01);
         }
         assert!(summary.max_deviation_mm <= config.tolerance_mm);
+    }
+
+    /// A dense rounded polyline (smoothed), a few corners and an arc, as G-code moves.
+    fn mixed_program() -> Vec<Move> {
+        let mut text = String::from("G21 G90 G17 G64 F3000\n");
+        for k in 1..=400 {
+            let a = k as f64 * 0.01;
+            text += &format!("G1 X{:.3} Y{:.3}\n", 20.0 * a.sin(), 20.0 * (1.0 - a.cos()));
+        }
+        text += "G1 X0 Y30\nG3 X-10 Y20 I0 J-10\nG1 X-10 Y0 Z-2\nG0 X0 Y0 Z0\n";
+        kerf_gcode::Interpreter::new(
+            text.as_bytes(),
+            kerf_gcode::Dialect::LinuxCnc,
+            Config::builtin().settings(),
+        )
+        .filter_map(|item| match item.unwrap() {
+            kerf_gcode::Item::Move(m) => Some(m),
+            _ => None,
+        })
+        .collect()
+    }
+
+    #[test]
+    fn the_kept_first_pass_and_the_streamed_second_pass_write_the_same_csv() {
+        let config = Config::builtin();
+        let options = SimOptions::default();
+        let moves = mixed_program();
+        let mut pre = Prepass::new(&config, &options);
+        for m in &moves {
+            pre.push(m).unwrap();
+        }
+        let checked = pre.finish().unwrap();
+        assert_eq!(checked.scan.moves, moves.len() as u64);
+        assert!(!checked.scan.rotary_used);
+        let kept = checked.kept.expect("a small program is kept");
+        let mut a = Vec::new();
+        let sa = simulate_kept(kept, &checked.scan, &config, &options, &mut a, None).unwrap();
+        let mut b = Vec::new();
+        let sb = simulate_stream(
+            moves.iter().copied(),
+            false,
+            &config,
+            &options,
+            &mut b,
+            None,
+        )
+        .unwrap();
+        assert_eq!(a, b);
+        assert_eq!(sa, sb);
+        assert!(sa.rows > 1000);
+    }
+
+    #[test]
+    fn a_program_beyond_the_keep_budget_is_not_kept() {
+        // Long lines with stops in between: one segment per move.
+        let config = Config::builtin();
+        let per_move = std::mem::size_of::<Move>() + std::mem::size_of::<(PlannedSegment, usize)>();
+        let n = KEEP_BYTES / per_move + 10;
+        let mut pre = Prepass::new(&config, &SimOptions::default());
+        let mut m = mixed_program()[0];
+        m.corner = CornerMode::ExactStop;
+        for k in 0..n {
+            let (x0, x1) = if k % 2 == 0 { (0.0, 5.0) } else { (5.0, 0.0) };
+            m.path = Path::Line(Line {
+                start: Vec3::new(x0, 0.0, 0.0),
+                end: Vec3::new(x1, 0.0, 0.0),
+            });
+            m.line = k as u32 + 1;
+            pre.push(&m).unwrap();
+        }
+        let checked = pre.finish().unwrap();
+        assert_eq!(checked.scan.moves, n as u64);
+        assert!(checked.kept.is_none());
+        // Every move is 5 mm at F3000 (0.1 s): the estimate counts them all.
+        let expected_s = n as f64 * 5.0 / 50.0;
+        assert!((checked.scan.estimated_s - expected_s).abs() < 1e-6 * expected_s);
     }
 }
