@@ -10,12 +10,13 @@
 //! t = 0 at the origin until the last move has come to rest. Floats are printed with
 //! Rust's shortest round-trip formatting, so equal runs give equal bytes.
 //!
-//! Memory does not grow with the program: `kerf sim` reads it twice. The first pass
-//! ([`Prepass`]) streams the moves through the travel check and the same planner the run
-//! uses, and checks every planned segment against the travel (blends and smoothed curves
-//! included); it also learns what the CSV header needs (whether a rotary axis moves) and a
-//! row estimate for the progress bar. The second pass ([`simulate_stream`]) streams the
-//! moves again into the run. Three threads share the work: the planner
+//! Memory does not grow with the program. The first pass ([`Prepass`]) streams the moves
+//! through the travel check and the same planner the run uses, and checks every planned
+//! segment against the travel (blends and smoothed curves included); it also learns what
+//! the CSV header needs (whether a rotary axis moves) and a row estimate for the progress
+//! bar. A program whose moves and segments fit in 16 MiB is kept and run from memory
+//! ([`simulate_kept`]); a longer one is read again and streamed into the run
+//! ([`simulate_stream`]). Three threads share the work: the planner
 //! ([`kerf_motion::driver::run_stream`]), the motion core with the measurements, and the
 //! CSV formatting. The output is the same, byte for byte, as with everything on one thread
 //! (the feeding policy depends only on the order of the segments; a test compares the two).
