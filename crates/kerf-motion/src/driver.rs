@@ -314,44 +314,51 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
     }
 }
 
-/// A programmed move's path as the deviation check needs it.
+/// A programmed move's path as the deviation check needs it, compact (56 bytes; arcs,
+/// rarer in dense code, boxed): a run holds the moves of every queued segment, which for
+/// dense code smoothed into pieces can be hundreds of thousands.
 enum Programmed {
-    /// Start, end, unit direction, length (as in [`Curve::Line`]).
-    Line(Vec3, Vec3, Vec3, f64),
-    Helix(Helix),
+    /// Start and end; the direction and length are derived as in [`Curve::line`].
+    Line(Vec3, Vec3),
+    Helix(Box<Helix>),
 }
 
 impl Programmed {
     fn new(path: &Path) -> Programmed {
         match Curve::from_path(path) {
-            Curve::Helix(h) => Programmed::Helix(h),
-            Curve::Line {
-                start,
-                end,
-                dir,
-                length_mm,
-            } => Programmed::Line(start, end, dir, length_mm),
+            Curve::Helix(h) => Programmed::Helix(Box::new(h)),
+            Curve::Line { start, end, .. } => Programmed::Line(start, end),
             Curve::Transition(_) => unreachable!("a programmed path is a line or an arc"),
         }
     }
 
     fn start(&self) -> Vec3 {
         match self {
-            Programmed::Line(start, ..) => *start,
+            Programmed::Line(start, _) => *start,
             Programmed::Helix(h) => h.start,
         }
     }
 
     fn length(&self) -> f64 {
         match self {
-            Programmed::Line(.., length) => *length,
+            Programmed::Line(start, end) => (end - start).norm(),
             Programmed::Helix(h) => h.length_mm,
         }
     }
 
     fn distance_to(&self, p: &Vec3) -> f64 {
         match self {
-            Programmed::Line(start, end, dir, length) => line_distance(start, end, dir, *length, p),
+            Programmed::Line(start, end) => {
+                // Exactly as `Curve::line` derives them.
+                let delta = end - start;
+                let length = delta.norm();
+                let dir = if length > 0.0 {
+                    delta / length
+                } else {
+                    Vec3::zeros()
+                };
+                line_distance(start, end, &dir, length, p)
+            }
             Programmed::Helix(h) => h.distance_to(p),
         }
     }

@@ -9,12 +9,11 @@ use std::fs::File;
 use std::io::{self, BufRead, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use std::sync::atomic::{AtomicBool, Ordering};
-
 use kerf::sim::{Prepass, PrepassError, SimError, SimOptions};
 use kerf::{Config, PlanError, choose_dialect};
 use kerf_gcode::{Dialect, Interpreter, Item};
