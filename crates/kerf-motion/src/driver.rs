@@ -1034,4 +1034,76 @@ mod tests {
         assert_eq!(f.quantity, Quantity::Acceleration);
         assert!((f.ratio() - 90.0).abs() < 1e-6, "{f:?}");
     }
+
+    #[test]
+    fn a_monitored_run_stops_at_the_first_setpoint_that_breaks_a_limit() {
+        // Planned for 100 mm/s, watched by a monitor that allows only 50 mm/s: the run
+        // must stop at the first setpoint faster than 50.5 mm/s, found here from the
+        // setpoints of an unmonitored run of the same program.
+        use kerf_geom::{CornerMode, Line};
+        let planned = machine(1e-3, 100.0, 1000.0, 1e5);
+        let watched = machine(1e-3, 50.0, 1000.0, 1e5);
+        let mv = Move {
+            line: 7,
+            rapid: false,
+            path: Path::Line(Line {
+                start: Vec3::zeros(),
+                end: Vec3::new(30.0, 0.0, 0.0),
+            }),
+            feed_mm_min: Some(6000.0),
+            abc_deg: None,
+            corner: CornerMode::ExactStop,
+        };
+        let mut free = Vec::new();
+        run_stream(
+            [mv].into_iter(),
+            &planned,
+            &RunOptions::default(),
+            None,
+            |_, sp| free.push(sp.position[0]),
+        )
+        .unwrap();
+        let first = free
+            .windows(2)
+            .position(|w| (w[1] - w[0]) / 1e-3 > 50.0 * LIMIT_MARGIN)
+            .expect("the program runs faster than 50 mm/s")
+            + 1;
+        let mut monitor = LimitMonitor::at_rest(&watched, &[0.0; 6]);
+        let mut seen = Vec::new();
+        let result = run_stream(
+            [mv].into_iter(),
+            &planned,
+            &RunOptions::default(),
+            Some(&mut monitor),
+            |t, sp| seen.push((t, sp.position[0], sp.line)),
+        );
+        let Err(RunError::Fault(v)) = result else {
+            panic!("no fault: {result:?}");
+        };
+        assert_eq!(
+            (v.sample, v.axis, v.quantity),
+            (first as u64, 0, Quantity::Velocity)
+        );
+        // The sink saw every setpoint up to and including the offending one, no more.
+        assert_eq!(seen.len(), first + 1);
+        assert_eq!(seen.last().unwrap().1, free[first]);
+        assert_eq!(seen.last().unwrap().2, 7);
+        // The same from planned segments.
+        let mut planner = Planner::new(planned);
+        let mut segs = Vec::new();
+        planner.push(&mv, &mut segs).unwrap();
+        planner.finish(&mut segs);
+        let mut monitor = LimitMonitor::at_rest(&watched, &[0.0; 6]);
+        let mut rows = 0;
+        let result = run_planned(
+            &[mv],
+            segs.into_iter().map(|s| (s, 1)),
+            &planned,
+            &RunOptions::default(),
+            Some(&mut monitor),
+            |_, _| rows += 1,
+        );
+        assert_eq!(result, Err(RunError::Fault(v)));
+        assert_eq!(rows, first + 1);
+    }
 }
