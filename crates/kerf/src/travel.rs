@@ -587,6 +587,112 @@ mod tests {
         assert!(quintic_beyond(&up, 1000.0 + SLACK_MM, true).is_some());
     }
 
+    /// A planned segment on `curve` with rotary values `abc` at both ends.
+    fn planned(curve: Curve, abc: ([f64; 3], [f64; 3])) -> PlannedSegment {
+        PlannedSegment {
+            curve,
+            abc_start_deg: abc.0,
+            abc_end_deg: abc.1,
+            abc_poly: None,
+            length: curve.length(),
+            line: 12,
+            move_index: 0,
+            move_count: 1,
+            feed: 50.0,
+            v_max: 50.0,
+            accel: 1000.0,
+            jerk: 10000.0,
+            v_boost: 50.0,
+            accel_boost: 1000.0,
+            jerk_boost: 10000.0,
+            end_cap: 0.0,
+            blend: true,
+        }
+    }
+
+    #[test]
+    fn planned_transitions_are_checked_where_the_setpoints_go() {
+        // Fixed-seed random G2 transitions near X = 1000 (like corner blends at the
+        // limit): the farthest X is measured by evaluating the segment where the motion
+        // core does (`position_at`, 20,000 arc-length samples). A limit 0.1 µm inside it is
+        // reported, with that farthest X; a limit 1 nm outside it is not.
+        let mut state = 0x7ae5_17e5_u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut checked = 0;
+        for case in 0..60 {
+            let a0 = (next() - 0.5) * 2.0;
+            let a1 = (next() - 0.5) * 2.0;
+            let t0 = Vec3::new(a0.cos(), a0.sin(), 0.0);
+            let t1 = Vec3::new(a1.cos(), a1.sin(), 0.0);
+            let p0 = Vec3::new(1000.0 - 2.0 * next(), -1.0, 0.0);
+            let p1 = Vec3::new(1000.0 - 2.0 * next(), 1.0, 0.0);
+            let Some(tr) = kerf_geom::Transition::new(
+                p0,
+                t0,
+                Vec3::zeros(),
+                p1,
+                t1,
+                Vec3::zeros(),
+                (p1 - p0).norm(),
+            ) else {
+                continue;
+            };
+            let seg = planned(Curve::Transition(tr), ([0.0; 3], [0.0; 3]));
+            let mut out = [0.0; 6];
+            let mut max_x = f64::NEG_INFINITY;
+            for k in 0..=20_000 {
+                seg.position_at(seg.length * k as f64 / 20_000.0, &mut out);
+                max_x = max_x.max(out[0]);
+            }
+            let mut a = axes(-2000.0, 2000.0);
+            a.x.max_mm = max_x - 1e-7;
+            let e = check_segment(&seg, &a).unwrap_err();
+            assert_eq!(
+                (e.axis, e.line, e.upper, e.kind),
+                ('X', 12, true, PlannedKind::Blend)
+            );
+            assert!(
+                (e.position - max_x).abs() < 1e-6,
+                "case {case}: {e:?} vs {max_x}"
+            );
+            assert!(
+                e.to_string()
+                    .starts_with("the blended path at this corner leaves the X travel (max_mm = ")
+            );
+            a.x.max_mm = max_x + 1e-6;
+            assert_eq!(check_segment(&seg, &a), Ok(()), "case {case}");
+            checked += 1;
+        }
+        assert!(checked > 40);
+    }
+
+    #[test]
+    fn planned_rotary_ends_are_checked_on_configured_axes() {
+        let line = Curve::line(Vec3::zeros(), Vec3::new(1.0, 0.0, 0.0));
+        let seg = planned(line, ([0.0, 0.0, 0.0], [0.0, 0.0, 370.0]));
+        let mut a = axes(-10.0, 10.0);
+        assert_eq!(check_segment(&seg, &a), Ok(()), "no C axis configured");
+        a.c = Some(RotaryAxis {
+            velocity_deg_s: 360.0,
+            acceleration_deg_s2: 3600.0,
+            jerk_deg_s3: 36000.0,
+            min_deg: -360.0,
+            max_deg: 360.0,
+        });
+        let e = check_segment(&seg, &a).unwrap_err();
+        assert_eq!((e.axis, e.position, e.upper), ('C', 370.0, true));
+        assert_eq!(
+            e.to_string(),
+            "the blended path at this corner leaves the C travel (max_deg = 360) by 10.000 deg; \
+             lower the tolerance (G64 P) or move the corner inside"
+        );
+    }
+
     #[test]
     fn bundled_config_accepts_the_bundled_part_extent() {
         // The example part stays inside X -8..108, Y 0..60, Z -6..25; the bundled mill's
