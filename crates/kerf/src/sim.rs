@@ -16,10 +16,11 @@
 //! the CSV header needs (whether a rotary axis moves) and a row estimate for the progress
 //! bar. A program whose moves and segments fit in 16 MiB is kept and run from memory
 //! ([`simulate_kept`]); a longer one is read again and streamed into the run
-//! ([`simulate_stream`]). Three threads share the work: the planner
+//! ([`simulate_stream`]). Then three threads share the work: the planner
 //! ([`kerf_motion::driver::run_stream`]), the motion core with the measurements, and the
-//! CSV formatting. The output is the same, byte for byte, as with everything on one thread
-//! (the feeding policy depends only on the order of the segments; a test compares the two).
+//! CSV formatting (a kept program needs no planner thread). The output is the same, byte
+//! for byte, as with everything on one thread (the feeding policy depends only on the
+//! order of the segments; tests compare the kept, the streamed and the one-thread runs).
 //!
 //! Every setpoint is checked against the limits it was planned for by a
 //! [`LimitMonitor`] (finite differences at the period, 1 % margin plus a derived rounding
@@ -61,7 +62,9 @@ impl Default for SimOptions {
     }
 }
 
-/// Peak velocity, acceleration and jerk of one axis as fractions of its limits.
+/// Peak velocity, acceleration and jerk of one axis as fractions of its limits, by finite
+/// differences of the setpoints at the period less the rounding allowance of
+/// [`LimitMonitor`] (so a run that succeeded never shows more than 1.01).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AxisReport {
     /// Axis name (`X` … `C`).
