@@ -703,8 +703,9 @@ impl std::fmt::Display for LimitViolation {
 /// which is what rounding alone produces there), and a real 2 % excess at ordinary periods
 /// and limits is far above it.
 ///
-/// The peaks it reports ([`LimitMonitor::peak_ratios`]) are measured the same way, less the
-/// allowance, so a stream the monitor passes never shows a peak above [`LIMIT_MARGIN`].
+/// The peaks it reports ([`LimitMonitor::peak_ratios`]) are the measured ratios, except that
+/// a ratio above [`LIMIT_MARGIN`] is reduced by the allowance (down to the margin at most),
+/// so a stream the monitor passes never shows a peak above [`LIMIT_MARGIN`].
 #[derive(Clone, Copy, Debug)]
 pub struct LimitMonitor {
     /// Velocity, acceleration and jerk limit per axis; `None` for an axis the machine
@@ -722,7 +723,7 @@ pub struct LimitMonitor {
     len: usize,
     /// Setpoints checked so far.
     samples: u64,
-    /// Peak of `(|Δⁿx|/Tⁿ - allowanceₙ)⁺ / limit` per axis and quantity.
+    /// Peak ratio per axis and quantity (see [`LimitMonitor::peak_ratios`]).
     peaks: [[f64; 3]; 6],
 }
 
@@ -823,9 +824,17 @@ impl LimitMonitor {
                 };
                 let value = diff.abs() * self.inv_period[q];
                 let allowance = self.noise[q] * magnitude;
-                let ratio = (value - allowance).max(0.0) / limit[q];
+                let raw = value / limit[q];
+                let ratio = (value - allowance) / limit[q];
+                // The peak is the measured ratio; only where that is beyond the margin is
+                // the allowance taken off (down to the margin at most).
+                let shown = if raw <= LIMIT_MARGIN {
+                    raw
+                } else {
+                    ratio.max(LIMIT_MARGIN)
+                };
                 let peak = &mut self.peaks[axis][q];
-                *peak = peak.max(ratio);
+                *peak = peak.max(shown);
                 if ratio > LIMIT_MARGIN {
                     let v = LimitViolation {
                         sample,
@@ -858,9 +867,10 @@ impl LimitMonitor {
         self.samples
     }
 
-    /// The largest velocity, acceleration and jerk of axis `i` seen so far, less the
-    /// rounding allowance, as fractions of its limits (`None` for an axis the machine
-    /// does not have).
+    /// The largest velocity, acceleration and jerk of axis `i` seen so far as fractions of
+    /// its limits, where a fraction above [`LIMIT_MARGIN`] is taken less the rounding
+    /// allowance, down to the margin at most (`None` for an axis the machine does not
+    /// have).
     pub fn peak_ratios(&self, axis: usize) -> Option<[f64; 3]> {
         self.limits[axis].map(|_| self.peaks[axis])
     }
@@ -928,9 +938,10 @@ mod tests {
             // (The sine does not start at rest: nothing is assumed before it.)
             let mut m = LimitMonitor::new(&limits);
             assert_eq!(first_fault(&mut m, &stream), None, "offset {offset}");
+            // The peaks read 100 %, within the rounding noise of 9,999 mm at 62.5 µs.
             let r = m.peak_ratios(0).unwrap();
             for q in r {
-                assert!((0.97..=1.0).contains(&q), "offset {offset}: {r:?}");
+                assert!((0.97..=1.002).contains(&q), "offset {offset}: {r:?}");
             }
         }
     }

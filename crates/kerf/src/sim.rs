@@ -63,8 +63,8 @@ impl Default for SimOptions {
 }
 
 /// Peak velocity, acceleration and jerk of one axis as fractions of its limits, by finite
-/// differences of the setpoints at the period less the rounding allowance of
-/// [`LimitMonitor`] (so a run that succeeded never shows more than 1.01).
+/// differences of the setpoints at the period, as [`LimitMonitor::peak_ratios`] measures
+/// them (a run that succeeded never shows more than 1.01).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AxisReport {
     /// Axis name (`X` … `C`).
@@ -477,8 +477,7 @@ where
         if i >= 3 && !raw.rotary_used {
             break;
         }
-        // The monitor's peaks: finite differences less the rounding allowance, so a run
-        // that passed never shows more than 101 %.
+        // The monitor's peaks: a run that passed never shows more than 101 %.
         if let Some(f) = monitor.peak_ratios(i) {
             axes.push(AxisReport {
                 axis: kerf_plan::AXIS_NAMES[i],
