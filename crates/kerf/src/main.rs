@@ -292,9 +292,9 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-/// The program of `kerf sim`, which is read twice (a checking pass, then the run): a file
-/// is opened again; standard input is first copied to a temporary file (removed when this
-/// is dropped), so that memory does not grow with the program.
+/// The program of `kerf sim`, which may be read twice (a checking pass, then the run): a
+/// file is opened again; standard input, pipes and devices are first copied to a temporary
+/// file (removed when this is dropped), so that memory does not grow with the program.
 struct SimSource {
     path: PathBuf,
     name: String,
@@ -307,51 +307,36 @@ impl SimSource {
     fn open(args: &ProgramArgs, config: &Config) -> Result<SimSource, Failure> {
         if args.program.as_os_str() == OsStr::new("-") {
             let name = "<stdin>".to_string();
-            let failed =
-                |e: io::Error| Failure::Error(format!("{name}: error: cannot read program: {e}"));
-            let path = std::env::temp_dir().join(format!(
-                "kerf-sim-stdin-{}-{}",
-                std::process::id(),
-                std::time::SystemTime::now()
-                    .duration_since(std::time::UNIX_EPOCH)
-                    .map(|d| d.as_nanos())
-                    .unwrap_or(0)
-            ));
-            let mut file = File::options()
-                .write(true)
-                .create_new(true)
-                .open(&path)
-                .map_err(|e| {
-                    Failure::Error(format!(
-                        "{name}: error: cannot create a temporary copy of standard input in {}: {e}",
-                        path.display()
-                    ))
-                })?;
-            let source = SimSource {
+            let path = spool(&name, &mut io::stdin().lock())?;
+            return Ok(SimSource {
                 path: path.clone(),
-                name: name.clone(),
+                name,
                 dialect: choose_dialect(args.dialect, None, config.dialect),
                 spool: Some(path),
-            };
-            io::copy(&mut io::stdin().lock(), &mut file).map_err(failed)?;
-            file.flush().map_err(failed)?;
-            return Ok(source);
+            });
         }
         let name = args.program.display().to_string();
         let cannot_read =
             |e: io::Error| Failure::Error(format!("{name}: error: cannot read program: {e}"));
         let file = File::open(&args.program).map_err(cannot_read)?;
+        let regular = file.metadata().map_err(cannot_read)?.is_file();
         let mut reader = BufReader::with_capacity(READ_BUFFER_BYTES, file);
         // The first bytes tell an ISO Heidenhain `.h` file from a conversational one.
         let dialect = {
             let head = reader.fill_buf().map_err(cannot_read)?;
             choose_dialect(args.dialect, Some((&args.program, head)), config.dialect)
         };
+        // A pipe or device (`<(...)`, `/dev/stdin`) cannot be read twice: copy it first.
+        let spooled = if regular {
+            None
+        } else {
+            Some(spool(&name, &mut reader)?)
+        };
         Ok(SimSource {
-            path: args.program.clone(),
+            path: spooled.clone().unwrap_or_else(|| args.program.clone()),
             name,
             dialect,
-            spool: None,
+            spool: spooled,
         })
     }
 
@@ -362,6 +347,36 @@ impl SimSource {
         })?;
         Ok(Box::new(BufReader::with_capacity(READ_BUFFER_BYTES, file)))
     }
+}
+
+/// Copies `input` to a new temporary file and returns its path.
+fn spool(name: &str, input: &mut dyn io::Read) -> Result<PathBuf, Failure> {
+    let path = std::env::temp_dir().join(format!(
+        "kerf-sim-input-{}-{}",
+        std::process::id(),
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos())
+            .unwrap_or(0)
+    ));
+    let mut file = File::options()
+        .write(true)
+        .create_new(true)
+        .open(&path)
+        .map_err(|e| {
+            Failure::Error(format!(
+                "{name}: error: cannot create a temporary copy of the program in {}: {e}",
+                path.display()
+            ))
+        })?;
+    let copied = io::copy(input, &mut file).and_then(|_| file.flush());
+    if let Err(e) = copied {
+        let _ = std::fs::remove_file(&path);
+        return Err(Failure::Error(format!(
+            "{name}: error: cannot read program: {e}"
+        )));
+    }
+    Ok(path)
 }
 
 impl Drop for SimSource {
