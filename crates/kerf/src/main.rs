@@ -13,7 +13,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use clap::{Args, Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{ProgressBar, ProgressFinish, ProgressStyle};
 use kerf::sim::{Prepass, PrepassError, SimError, SimOptions};
 use kerf::{Config, PlanError, choose_dialect};
 use kerf_gcode::{Dialect, Interpreter, Item};
@@ -206,14 +206,37 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
         Some(line) => Failure::Error(format!("{name}:{line}:1: error: {e}")),
         None => Failure::Error(format!("{name}: error: {e}")),
     };
+    let started = Instant::now();
+    let mut spinner: Option<ProgressBar> = None;
+    let mut moves = 0u64;
     for item in Interpreter::new(source.reader()?, source.dialect, config.settings()) {
         match item {
-            Ok(Item::Move(m)) => prepass.push(&m).map_err(refused)?,
+            Ok(Item::Move(m)) => {
+                prepass.push(&m).map_err(refused)?;
+                moves += 1;
+                // A long program takes a while to check: say so on a terminal.
+                if moves % 16384 == 0 && started.elapsed() > PROGRESS_AFTER {
+                    let bar = spinner.get_or_insert_with(|| {
+                        // Cleared when dropped, also when the check fails.
+                        let bar = ProgressBar::new_spinner().with_finish(ProgressFinish::AndClear);
+                        if let Ok(style) = ProgressStyle::with_template(
+                            "checking the program {spinner} {pos} moves, {elapsed}",
+                        ) {
+                            bar.set_style(style);
+                        }
+                        bar
+                    });
+                    bar.set_position(moves);
+                }
+            }
             Ok(Item::Event(_)) => {}
             Err(diagnostic) => return Err(Failure::Error(format!("{name}:{diagnostic}"))),
         }
     }
     let checked = prepass.finish().map_err(refused)?;
+    if let Some(bar) = spinner {
+        bar.finish_and_clear();
+    }
     let scan = checked.scan;
 
     let create = |path: &Path| {
