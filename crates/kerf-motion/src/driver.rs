@@ -7,6 +7,8 @@
 //! differences of the setpoints, and the distance of every setpoint from the programmed
 //! moves.
 
+use std::collections::VecDeque;
+
 use crate::{MotionCore, PushError, Setpoint, StepResult};
 use kerf_geom::{Curve, Helix, Move, Path, Vec3, line_distance};
 use kerf_plan::{MachineLimits, PlanError, PlannedSegment, Planner};
@@ -105,6 +107,9 @@ pub enum RunError {
         /// Source line.
         line: u32,
     },
+    /// A setpoint broke a limit ([`LimitMonitor`]); the run stopped at it (runs with a
+    /// monitor only, see [`run_stream`]).
+    Fault(LimitViolation),
 }
 
 impl std::fmt::Display for RunError {
@@ -112,6 +117,7 @@ impl std::fmt::Display for RunError {
         match self {
             RunError::Plan(e) => e.fmt(f),
             RunError::Rejected { line } => write!(f, "line {line}: segment rejected"),
+            RunError::Fault(v) => v.fmt(f),
         }
     }
 }
@@ -134,17 +140,29 @@ struct Runner<'a, F: FnMut(f64, &Setpoint)> {
     hist: [[f64; 6]; 4],
     hist_len: usize,
     summary: Summary,
-    /// The programmed moves, for the deviation check (compact: no transition variant).
-    curves: Vec<Programmed>,
-    /// Source line of every move.
-    lines: Vec<u32>,
+    /// The programmed moves not yet passed, for the deviation check (compact: no
+    /// transition variant). Moves the setpoints have left behind are dropped, so this
+    /// holds about the moves of the queued segments, whatever the program's length.
+    curves: VecDeque<Programmed>,
+    /// Source line of every move in `curves`.
+    lines: VecDeque<u32>,
+    /// Program index of `curves[0]`.
+    base: usize,
     /// The move nearest to the last setpoint.
     cursor: usize,
     last_result: StepResult,
     max_cycles: u64,
     /// After an abort nothing more is fed (the rest of the program is dropped).
     aborted: bool,
+    /// Checks every setpoint, when the run has one.
+    monitor: Option<&'a mut LimitMonitor>,
+    /// The first setpoint that broke a limit: the run stops there.
+    fault: Option<LimitViolation>,
 }
+
+/// Moves kept behind the one being passed, for the deviation check (it looks one back;
+/// the rest is a margin).
+const MOVES_KEPT_BEHIND: usize = 16;
 
 impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
     fn step(&mut self) -> StepResult {
@@ -166,6 +184,11 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
         self.record(&mut sp);
         let t = self.time();
         (self.sink)(t, &sp);
+        if let Some(m) = self.monitor.as_mut() {
+            if let Err(v) = m.check(&sp.position) {
+                self.fault.get_or_insert(v);
+            }
+        }
         self.last_result = r;
         r
     }
@@ -212,9 +235,17 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
             self.summary.max_deviation_mm = self.summary.max_deviation_mm.max(d);
             if sp.move_count > 1 {
                 // A smoothed piece stands for several moves: report the one being passed.
-                sp.line = self.lines[k];
+                sp.line = self.lines[k - self.base];
                 sp.move_index = k as u64;
                 sp.move_count = 1;
+            }
+            // The setpoints advance through the moves in program order: the moves well
+            // behind this one are never looked at again.
+            let keep_from = (sp.move_index as usize).saturating_sub(1 + MOVES_KEPT_BEHIND);
+            while self.base < keep_from && self.curves.len() > 1 {
+                self.curves.pop_front();
+                self.lines.pop_front();
+                self.base += 1;
             }
         }
         self.summary.last = *sp;
@@ -227,19 +258,21 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
     /// than their length (the setpoints advance along them). The result is a minimum over
     /// moves of the program, so it is never less than the true distance.
     fn nearest_move(&mut self, p: &Vec3, move_index: u64, count: u32) -> (f64, usize) {
-        let last = self.curves.len() - 1;
-        let i = (move_index as usize).min(last);
-        let lo = i.saturating_sub(1);
+        // Program indices; `curves` holds `base ..= last`.
+        let last = self.base + self.curves.len() - 1;
+        let i = (move_index as usize).clamp(self.base, last);
+        let lo = i.saturating_sub(1).max(self.base);
         let hi = (i + count.max(1) as usize).min(last);
+        let curve = |k: usize| &self.curves[k - self.base];
         let mut best = f64::INFINITY;
         if count <= 1 {
             for k in lo..=(i + 1).min(hi) {
-                best = best.min(self.curves[k].distance_to(p));
+                best = best.min(curve(k).distance_to(p));
             }
             return (best, i);
         }
         // A piece: its predecessor, then its own moves from the one passed last.
-        best = self.curves[lo].distance_to(p);
+        best = curve(lo).distance_to(p);
         let from = if (i..=hi).contains(&self.cursor) {
             self.cursor
         } else {
@@ -247,7 +280,7 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
         };
         let mut local = (f64::INFINITY, from);
         for k in from..=hi {
-            let c = &self.curves[k];
+            let c = curve(k);
             let d = c.distance_to(p);
             if d < local.0 {
                 local = (d, k);
@@ -261,6 +294,9 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
 
     fn push(&mut self, seg: &PlannedSegment) -> Result<(), RunError> {
         loop {
+            if let Some(v) = self.fault {
+                return Err(RunError::Fault(v));
+            }
             if self.aborted {
                 return Ok(());
             }
@@ -278,44 +314,51 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
     }
 }
 
-/// A programmed move's path as the deviation check needs it.
+/// A programmed move's path as the deviation check needs it, compact (56 bytes; arcs,
+/// rarer in dense code, boxed): a run holds the moves of every queued segment, which for
+/// dense code smoothed into pieces can be hundreds of thousands.
 enum Programmed {
-    /// Start, end, unit direction, length (as in [`Curve::Line`]).
-    Line(Vec3, Vec3, Vec3, f64),
-    Helix(Helix),
+    /// Start and end; the direction and length are derived as in [`Curve::line`].
+    Line(Vec3, Vec3),
+    Helix(Box<Helix>),
 }
 
 impl Programmed {
     fn new(path: &Path) -> Programmed {
         match Curve::from_path(path) {
-            Curve::Helix(h) => Programmed::Helix(h),
-            Curve::Line {
-                start,
-                end,
-                dir,
-                length_mm,
-            } => Programmed::Line(start, end, dir, length_mm),
+            Curve::Helix(h) => Programmed::Helix(Box::new(h)),
+            Curve::Line { start, end, .. } => Programmed::Line(start, end),
             Curve::Transition(_) => unreachable!("a programmed path is a line or an arc"),
         }
     }
 
     fn start(&self) -> Vec3 {
         match self {
-            Programmed::Line(start, ..) => *start,
+            Programmed::Line(start, _) => *start,
             Programmed::Helix(h) => h.start,
         }
     }
 
     fn length(&self) -> f64 {
         match self {
-            Programmed::Line(.., length) => *length,
+            Programmed::Line(start, end) => (end - start).norm(),
             Programmed::Helix(h) => h.length_mm,
         }
     }
 
     fn distance_to(&self, p: &Vec3) -> f64 {
         match self {
-            Programmed::Line(start, end, dir, length) => line_distance(start, end, dir, *length, p),
+            Programmed::Line(start, end) => {
+                // Exactly as `Curve::line` derives them.
+                let delta = end - start;
+                let length = delta.norm();
+                let dir = if length > 0.0 {
+                    delta / length
+                } else {
+                    Vec3::zeros()
+                };
+                line_distance(start, end, &dir, length, p)
+            }
             Programmed::Helix(h) => h.distance_to(p),
         }
     }
@@ -348,20 +391,25 @@ where
     for seg in buf.drain(..) {
         runner.push(&seg)?;
     }
-    Ok(runner.finish())
+    runner.finish()
 }
 
 /// Segments per message from the planning thread of [`run_parallel`].
 const BATCH: usize = 256;
 
-/// A batch of planned segments, each with the number of moves the planner had taken when
-/// it produced the segment (so that the deviation check sees the same moves as in
-/// [`run`]), or the error that stopped planning.
-type Batch = Result<Vec<(PlannedSegment, usize)>, PlanError>;
+/// Moves per message at most from the planning thread of [`run_stream`] (a smoothing
+/// window may take thousands of moves before it yields a segment).
+const MOVES_PER_BATCH: usize = 4096;
+
+/// A batch from the planning thread: the moves it took since the previous batch, in
+/// program order, and the planned segments, each with the number of moves the planner had
+/// taken when it produced the segment (so that the deviation check sees the same moves as
+/// in [`run`]); or the error that stopped planning.
+type Batch = Result<(Vec<Move>, Vec<(PlannedSegment, usize)>), PlanError>;
 
 /// [`run`] with the planner on a second thread: the same setpoints, bit for bit (the
 /// feeding policy only depends on the order of the segments), in less wall time when a
-/// second core is free. For programs held in memory (`kerf sim`).
+/// second core is free. For programs held in memory; see [`run_stream`] for streams.
 pub fn run_parallel<F>(
     moves: &[Move],
     limits: &MachineLimits,
@@ -371,6 +419,26 @@ pub fn run_parallel<F>(
 where
     F: FnMut(f64, &Setpoint),
 {
+    run_stream(moves.iter().copied(), limits, options, None, sink)
+}
+
+/// [`run_parallel`] over a stream of moves (`kerf sim` reads them from the program file
+/// while the motion runs): memory does not grow with the program, only with the queue
+/// capacity. With a `monitor` every setpoint is checked as it is produced, and the run
+/// stops at the first one that breaks a limit with [`RunError::Fault`] (the sink has
+/// already seen that setpoint). The monitor keeps what it measured (its peaks) for the
+/// caller; it is given every setpoint from the row at t = 0 on.
+pub fn run_stream<I, F>(
+    moves: I,
+    limits: &MachineLimits,
+    options: &RunOptions,
+    monitor: Option<&mut LimitMonitor>,
+    sink: F,
+) -> Result<Summary, RunError>
+where
+    I: Iterator<Item = Move> + Send,
+    F: FnMut(f64, &Setpoint),
+{
     let (tx, rx) = std::sync::mpsc::sync_channel::<Batch>(4);
     let design_override = options.feed_override;
     std::thread::scope(|scope| {
@@ -378,41 +446,94 @@ where
             let mut planner = Planner::new(*limits);
             planner.set_design_override(design_override);
             let mut buf = Vec::new();
+            let mut taken = Vec::new();
             let mut batch = Vec::with_capacity(BATCH);
-            for (k, mv) in moves.iter().enumerate() {
-                if let Err(e) = planner.push(mv, &mut buf) {
+            let mut known = 0;
+            for mv in moves {
+                if let Err(e) = planner.push(&mv, &mut buf) {
                     let _ = tx.send(Err(e));
                     return;
                 }
-                batch.extend(buf.drain(..).map(|s| (s, k + 1)));
-                if batch.len() >= BATCH {
-                    let full = std::mem::replace(&mut batch, Vec::with_capacity(BATCH));
+                taken.push(mv);
+                known += 1;
+                batch.extend(buf.drain(..).map(|s| (s, known)));
+                if batch.len() >= BATCH || taken.len() >= MOVES_PER_BATCH {
+                    let full = (
+                        std::mem::take(&mut taken),
+                        std::mem::replace(&mut batch, Vec::with_capacity(BATCH)),
+                    );
                     if tx.send(Ok(full)).is_err() {
                         return;
                     }
                 }
             }
             planner.finish(&mut buf);
-            batch.extend(buf.drain(..).map(|s| (s, moves.len())));
-            let _ = tx.send(Ok(batch));
+            batch.extend(buf.drain(..).map(|s| (s, known)));
+            let _ = tx.send(Ok((taken, batch)));
         });
         let mut runner = Runner::new(limits, options, sink);
+        runner.attach(monitor)?;
+        let mut pending: VecDeque<Move> = VecDeque::new();
         let mut known = 0;
         for batch in rx {
-            for (seg, moves_known) in batch? {
+            let (new_moves, segments) = batch?;
+            pending.extend(new_moves);
+            for (seg, moves_known) in segments {
                 while known < moves_known {
-                    runner.add_move(&moves[known]);
+                    let Some(mv) = pending.pop_front() else {
+                        break;
+                    };
+                    runner.add_move(&mv);
                     known += 1;
                 }
                 runner.push(&seg)?;
             }
         }
         // Dropping the receiver (on an error above) ends the planning thread's sends.
-        Ok(runner.finish())
+        runner.finish()
     })
 }
 
+/// [`run_stream`] for segments already planned (by the same [`Planner`] with the same
+/// limits and design override, which is deterministic): each segment with the number of
+/// moves the planner had taken when it produced it. No planning thread; the same
+/// setpoints as [`run_stream`] on `moves`.
+pub fn run_planned<S, F>(
+    moves: &[Move],
+    segments: S,
+    limits: &MachineLimits,
+    options: &RunOptions,
+    monitor: Option<&mut LimitMonitor>,
+    sink: F,
+) -> Result<Summary, RunError>
+where
+    S: IntoIterator<Item = (PlannedSegment, usize)>,
+    F: FnMut(f64, &Setpoint),
+{
+    let mut runner = Runner::new(limits, options, sink);
+    runner.attach(monitor)?;
+    let mut known = 0;
+    for (seg, moves_known) in segments {
+        while known < moves_known.min(moves.len()) {
+            runner.add_move(&moves[known]);
+            known += 1;
+        }
+        runner.push(&seg)?;
+    }
+    runner.finish()
+}
+
 impl<'a, F: FnMut(f64, &Setpoint)> Runner<'a, F> {
+    /// Checks every setpoint from now on with `monitor`, starting with the row at t = 0.
+    fn attach(&mut self, monitor: Option<&'a mut LimitMonitor>) -> Result<(), RunError> {
+        self.monitor = monitor;
+        if let Some(m) = self.monitor.as_mut() {
+            m.check(&self.summary.last.position)
+                .map_err(RunError::Fault)?;
+        }
+        Ok(())
+    }
+
     fn new(limits: &MachineLimits, options: &'a RunOptions, sink: F) -> Self {
         let mut core = MotionCore::new(*limits, options.capacity);
         core.set_feed_override(options.feed_override);
@@ -426,12 +547,15 @@ impl<'a, F: FnMut(f64, &Setpoint)> Runner<'a, F> {
             hist: [[0.0; 6]; 4],
             hist_len: 0,
             summary: Summary::default(),
-            curves: Vec::new(),
-            lines: Vec::new(),
+            curves: VecDeque::new(),
+            lines: VecDeque::new(),
+            base: 0,
             cursor: 0,
             last_result: StepResult::Idle,
             max_cycles: options.max_cycles,
             aborted: false,
+            monitor: None,
+            fault: None,
         };
         let mut start = Setpoint::default();
         runner.record(&mut start);
@@ -446,14 +570,21 @@ impl<'a, F: FnMut(f64, &Setpoint)> Runner<'a, F> {
                 self.summary.rotary_used = true;
             }
         }
-        self.curves.push(Programmed::new(&mv.path));
-        self.lines.push(mv.line);
+        if self.aborted && !self.curves.is_empty() {
+            // Nothing more is run after an abort: the deviation check needs no more moves.
+            return;
+        }
+        self.curves.push_back(Programmed::new(&mv.path));
+        self.lines.push_back(mv.line);
     }
 
     /// Steps until the motion is at rest after the last segment (and every event is
-    /// applied), and returns the summary.
-    fn finish(mut self) -> Summary {
+    /// applied), and returns the summary, or the fault that stopped the run.
+    fn finish(mut self) -> Result<Summary, RunError> {
         loop {
+            if let Some(v) = self.fault {
+                return Err(RunError::Fault(v));
+            }
             if self.cycle >= self.max_cycles {
                 break;
             }
@@ -466,9 +597,524 @@ impl<'a, F: FnMut(f64, &Setpoint)> Runner<'a, F> {
                 _ => {}
             }
         }
+        if let Some(v) = self.fault {
+            return Err(RunError::Fault(v));
+        }
         self.summary.cycles = self.cycle;
         self.summary.duration_s = self.cycle as f64 * self.period_s;
         self.summary.plan_failures = self.core.plan_failures();
-        self.summary
+        Ok(self.summary)
+    }
+}
+
+/// Allowed excess over a limit before [`LimitMonitor`] reports a fault: 1 %, the margin
+/// the invariants are stated with (finite differences at the period see a jerk-limited
+/// profile's corners slightly rounded or sharpened).
+pub const LIMIT_MARGIN: f64 = 1.01;
+
+/// Rounding error of one computed setpoint position, in units of `ε·M` (`ε` =
+/// [`f64::EPSILON`], `M` = the magnitude the position is computed at, see
+/// [`LimitMonitor`]): a point on a helix or quintic, and the path parameter it is taken
+/// at, each take a handful of roundings of values of that magnitude.
+pub const POSITION_ROUNDING_ULPS: f64 = 8.0;
+
+/// What a limit check measures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Quantity {
+    /// First difference of the positions over the period.
+    Velocity,
+    /// Second difference over the period squared.
+    Acceleration,
+    /// Third difference over the period cubed.
+    Jerk,
+}
+
+impl Quantity {
+    /// `"velocity"`, `"acceleration"` or `"jerk"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Quantity::Velocity => "velocity",
+            Quantity::Acceleration => "acceleration",
+            Quantity::Jerk => "jerk",
+        }
+    }
+}
+
+/// A setpoint that broke a limit, as [`LimitMonitor`] measured it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LimitViolation {
+    /// Index of the offending setpoint among those given to [`LimitMonitor::check`]
+    /// (0 = the first).
+    pub sample: u64,
+    /// Axis index (0–5 = X, Y, Z, A, B, C).
+    pub axis: usize,
+    /// Which limit.
+    pub quantity: Quantity,
+    /// |finite difference|, units/sⁿ (infinite for a non-finite position).
+    pub value: f64,
+    /// The configured limit, units/sⁿ.
+    pub limit: f64,
+    /// The rounding allowance that was granted on top of [`LIMIT_MARGIN`], units/sⁿ.
+    pub allowance: f64,
+}
+
+impl LimitViolation {
+    /// `value / limit`.
+    pub fn ratio(&self) -> f64 {
+        self.value / self.limit
+    }
+}
+
+impl std::fmt::Display for LimitViolation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "setpoint {}: {} {} {:.0} % of the limit ({})",
+            self.sample,
+            kerf_plan::AXIS_NAMES[self.axis],
+            self.quantity.name(),
+            self.ratio() * 100.0,
+            self.limit
+        )
+    }
+}
+
+/// The last line of defence: checks every setpoint of a stream against the per-axis
+/// velocity, acceleration and jerk limits it was planned for, by finite differences of the
+/// positions at the period (the measure the invariants are stated in), and reports the
+/// first setpoint that breaks one. Fixed size, no allocation, bounded work per call: the
+/// daemon's output stage can run it in the cycle.
+///
+/// A setpoint breaks a limit `L` when the n-th difference `|Δⁿx| / Tⁿ` exceeds
+/// `LIMIT_MARGIN · L + allowanceₙ`, where the rounding allowance is derived as follows.
+/// Each position is a computed double of magnitude about `M` (the largest |x| among the
+/// n + 1 positions involved, or the configured [`LimitMonitor::with_position_scale`] if
+/// larger, because a point near zero on an arc far from it is computed from values of the
+/// arc's magnitude); it carries a rounding error `|δ| ≤ E = POSITION_ROUNDING_ULPS · ε · M`
+/// (`ε·M` bounds one ulp of `M`). The n-th difference has binomial weights whose absolute
+/// values sum to `2ⁿ`, so the errors add up to at most `2ⁿ E`; evaluating the difference
+/// itself rounds at most once per operation on operands below `2ⁿ M`, about `(n + 1) 2ⁿ ε M`
+/// more; dividing by `Tⁿ` is exact to a relative ε. Hence
+///
+/// `allowanceₙ = 2ⁿ (POSITION_ROUNDING_ULPS + n + 1) · ε · M / Tⁿ`.
+///
+/// At 1 ms and 1,000 mm that is 5e-10 mm/s, 1e-6 mm/s² and 2e-3 mm/s³: invisible. It only
+/// matters at very short periods (at 1 µs the jerk allowance is 2e6 mm/s³ at 1,000 mm,
+/// which is what rounding alone produces there), and a real 2 % excess at ordinary periods
+/// and limits is far above it.
+///
+/// The peaks it reports ([`LimitMonitor::peak_ratios`]) are the measured ratios, except that
+/// a ratio above [`LIMIT_MARGIN`] is reduced by the allowance (down to the margin at most),
+/// so a stream the monitor passes never shows a peak above [`LIMIT_MARGIN`].
+#[derive(Clone, Copy, Debug)]
+pub struct LimitMonitor {
+    /// Velocity, acceleration and jerk limit per axis; `None` for an axis the machine
+    /// does not have (not checked).
+    limits: [Option<[f64; 3]>; 6],
+    /// `1/T`, `1/T²`, `1/T³`.
+    inv_period: [f64; 3],
+    /// `allowanceₙ / M` for n = 1, 2, 3.
+    noise: [f64; 3],
+    /// Lower bound of `M` per axis.
+    scale: [f64; 6],
+    /// The last four positions, newest first.
+    hist: [[f64; 6]; 4],
+    /// How many of `hist` are valid.
+    len: usize,
+    /// Setpoints checked so far.
+    samples: u64,
+    /// Peak ratio per axis and quantity (see [`LimitMonitor::peak_ratios`]).
+    peaks: [[f64; 3]; 6],
+}
+
+impl LimitMonitor {
+    /// A monitor for `limits` that knows nothing of the motion before the first setpoint
+    /// (velocity is checked from the second setpoint on, acceleration from the third,
+    /// jerk from the fourth).
+    pub fn new(limits: &MachineLimits) -> Self {
+        let t = limits.period_s;
+        let mut axes = [None; 6];
+        for (i, a) in limits.axes.iter().enumerate() {
+            axes[i] = a.map(|a| [a.velocity, a.acceleration, a.jerk]);
+        }
+        let mut noise = [0.0; 3];
+        for (k, n) in noise.iter_mut().enumerate() {
+            let order = (k + 1) as i32;
+            *n = 2f64.powi(order) * (POSITION_ROUNDING_ULPS + order as f64 + 1.0) * f64::EPSILON
+                / t.powi(order);
+        }
+        LimitMonitor {
+            limits: axes,
+            inv_period: [1.0 / t, 1.0 / (t * t), 1.0 / (t * t * t)],
+            noise,
+            scale: [0.0; 6],
+            hist: [[0.0; 6]; 4],
+            len: 0,
+            samples: 0,
+            peaks: [[0.0; 3]; 6],
+        }
+    }
+
+    /// A monitor for a stream that starts at rest at `position` (as `kerf sim` and the
+    /// daemon do): the first setpoint is already checked against this rest.
+    pub fn at_rest(limits: &MachineLimits, position: &[f64; 6]) -> Self {
+        let mut m = LimitMonitor::new(limits);
+        m.hist = [*position; 4];
+        m.len = 4;
+        m
+    }
+
+    /// Raises the magnitude `M` of the rounding allowance to at least `scale[i]` on axis
+    /// `i` (the largest |coordinate| of the machine's travel is a good choice: the
+    /// geometry a position is computed from lies there).
+    pub fn with_position_scale(mut self, scale: [f64; 6]) -> Self {
+        for (s, v) in self.scale.iter_mut().zip(scale) {
+            *s = v.abs();
+        }
+        self
+    }
+
+    /// The rounding allowance of the n-th difference (1 = velocity … 3 = jerk) at
+    /// magnitude `magnitude`, units/sⁿ.
+    pub fn allowance(&self, quantity: Quantity, magnitude: f64) -> f64 {
+        self.noise[quantity as usize] * magnitude
+    }
+
+    /// Checks the next setpoint's positions (X, Y, Z mm; A, B, C degrees). Returns the
+    /// violation with the lowest derivative that this setpoint breaks (velocity before
+    /// acceleration before jerk; of several axes, the one with the largest ratio), and
+    /// then keeps going if called again.
+    pub fn check(&mut self, position: &[f64; 6]) -> Result<(), LimitViolation> {
+        self.hist.copy_within(0..3, 1);
+        self.hist[0] = *position;
+        self.len = (self.len + 1).min(4);
+        let sample = self.samples;
+        self.samples += 1;
+        let mut worst: Option<LimitViolation> = None;
+        for axis in 0..6 {
+            let Some(limit) = self.limits[axis] else {
+                continue;
+            };
+            let h = |k: usize| self.hist[k][axis];
+            if !h(0).is_finite() {
+                return Err(LimitViolation {
+                    sample,
+                    axis,
+                    quantity: Quantity::Velocity,
+                    value: f64::INFINITY,
+                    limit: limit[0],
+                    allowance: 0.0,
+                });
+            }
+            let mut magnitude = self.scale[axis];
+            for k in 0..self.len {
+                magnitude = magnitude.max(h(k).abs());
+            }
+            for (q, quantity) in [Quantity::Velocity, Quantity::Acceleration, Quantity::Jerk]
+                .into_iter()
+                .enumerate()
+            {
+                if self.len < q + 2 {
+                    break;
+                }
+                let diff = match quantity {
+                    Quantity::Velocity => h(0) - h(1),
+                    Quantity::Acceleration => h(0) - 2.0 * h(1) + h(2),
+                    Quantity::Jerk => h(0) - 3.0 * h(1) + 3.0 * h(2) - h(3),
+                };
+                let value = diff.abs() * self.inv_period[q];
+                let allowance = self.noise[q] * magnitude;
+                let raw = value / limit[q];
+                let ratio = (value - allowance) / limit[q];
+                // The peak is the measured ratio; only where that is beyond the margin is
+                // the allowance taken off (down to the margin at most).
+                let shown = if raw <= LIMIT_MARGIN {
+                    raw
+                } else {
+                    ratio.max(LIMIT_MARGIN)
+                };
+                let peak = &mut self.peaks[axis][q];
+                *peak = peak.max(shown);
+                if ratio > LIMIT_MARGIN {
+                    let v = LimitViolation {
+                        sample,
+                        axis,
+                        quantity,
+                        value,
+                        limit: limit[q],
+                        allowance,
+                    };
+                    worst = match worst {
+                        Some(w)
+                            if (w.quantity as usize) < q
+                                || (w.quantity == quantity && w.ratio() >= v.ratio()) =>
+                        {
+                            Some(w)
+                        }
+                        _ => Some(v),
+                    };
+                }
+            }
+        }
+        match worst {
+            Some(v) => Err(v),
+            None => Ok(()),
+        }
+    }
+
+    /// Setpoints checked so far.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// The largest velocity, acceleration and jerk of axis `i` seen so far as fractions of
+    /// its limits, where a fraction above [`LIMIT_MARGIN`] is taken less the rounding
+    /// allowance, down to the margin at most (`None` for an axis the machine does not
+    /// have).
+    pub fn peak_ratios(&self, axis: usize) -> Option<[f64; 3]> {
+        self.limits[axis].map(|_| self.peaks[axis])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kerf_plan::AxisLimits;
+
+    fn machine(period_s: f64, v: f64, a: f64, j: f64) -> MachineLimits {
+        let axis = Some(AxisLimits {
+            velocity: v,
+            acceleration: a,
+            jerk: j,
+        });
+        MachineLimits {
+            axes: [axis, axis, axis, None, None, None],
+            period_s,
+            tolerance_mm: 0.01,
+        }
+    }
+
+    /// `x(t) = offset + amp · sin(ω t)` on X at the period; Y and Z stay at `offset`.
+    fn sine(offset: f64, amp: f64, omega: f64, period_s: f64, n: usize) -> Vec<[f64; 6]> {
+        (0..n)
+            .map(|k| {
+                let t = k as f64 * period_s;
+                [
+                    offset + amp * (omega * t).sin(),
+                    offset,
+                    offset,
+                    0.0,
+                    0.0,
+                    0.0,
+                ]
+            })
+            .collect()
+    }
+
+    /// The continuous peaks of the sine: `amp ωⁿ`; finite differences at the period
+    /// measure slightly less (`amp (2 sin(ωT/2)/T)ⁿ`).
+    fn peaks(amp: f64, omega: f64) -> [f64; 3] {
+        [amp * omega, amp * omega.powi(2), amp * omega.powi(3)]
+    }
+
+    fn first_fault(m: &mut LimitMonitor, stream: &[[f64; 6]]) -> Option<LimitViolation> {
+        stream.iter().find_map(|p| m.check(p).err())
+    }
+
+    #[test]
+    fn a_stream_at_its_limits_passes_wherever_it_runs() {
+        // Limits equal to the sine's continuous peaks: the stream is exactly at 100 %.
+        for (offset, period_s) in [
+            (0.0, 1e-3),
+            (-250.0, 2.5e-4),
+            (1000.0, 1e-3),
+            (9999.0, 6.25e-5),
+            (-9999.0, 1e-2),
+        ] {
+            let (amp, omega) = (5.0, 20.0);
+            let [v, a, j] = peaks(amp, omega);
+            let limits = machine(period_s, v, a, j);
+            let stream = sine(offset, amp, omega, period_s, (1.0 / period_s) as usize);
+            // (The sine does not start at rest: nothing is assumed before it.)
+            let mut m = LimitMonitor::new(&limits);
+            assert_eq!(first_fault(&mut m, &stream), None, "offset {offset}");
+            // The peaks read 100 %, within the rounding noise of 9,999 mm at 62.5 µs.
+            let r = m.peak_ratios(0).unwrap();
+            for q in r {
+                assert!((0.97..=1.002).contains(&q), "offset {offset}: {r:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn rounding_noise_of_far_positions_at_a_short_period_is_not_a_fault() {
+        // 1 µm of motion at 9,999 mm, period 62.5 µs, jerk 1e-3 mm/s³ at the limit: one
+        // ulp of 9,999 mm (1.8e-12 mm) over T³ (2.4e-13 s³) is already 7 mm/s³, so the
+        // raw third differences are pure rounding noise far above the limit.
+        let (amp, omega, period_s) = (1e-3, 1.0, 6.25e-5);
+        let [v, a, j] = peaks(amp, omega);
+        let limits = machine(period_s, v, a, j);
+        let stream = sine(9999.0, amp, omega, period_s, 20_000);
+        let raw_jerk = stream
+            .windows(4)
+            .map(|w| (w[3][0] - 3.0 * w[2][0] + 3.0 * w[1][0] - w[0][0]).abs() / period_s.powi(3))
+            .fold(0.0, f64::max);
+        assert!(raw_jerk > 100.0 * j, "the noise is real: {raw_jerk}");
+        let mut m = LimitMonitor::new(&limits);
+        assert_eq!(first_fault(&mut m, &stream), None);
+        assert!(m.peak_ratios(0).unwrap()[2] <= LIMIT_MARGIN);
+    }
+
+    #[test]
+    fn a_two_percent_excess_is_a_fault_naming_the_quantity_and_the_first_setpoint() {
+        let (amp, omega, period_s) = (5.0, 20.0, 1e-3);
+        let [v, a, j] = peaks(amp, omega);
+        let stream = sine(1000.0, amp, omega, period_s, 1000);
+        for (q, limits) in [
+            (
+                Quantity::Velocity,
+                machine(period_s, v / 1.02, a * 2.0, j * 2.0),
+            ),
+            (
+                Quantity::Acceleration,
+                machine(period_s, v * 2.0, a / 1.02, j * 2.0),
+            ),
+            (
+                Quantity::Jerk,
+                machine(period_s, v * 2.0, a * 2.0, j / 1.02),
+            ),
+        ] {
+            let mut m = LimitMonitor::new(&limits);
+            let f = first_fault(&mut m, &stream).unwrap_or_else(|| panic!("{q:?} not caught"));
+            assert_eq!((f.axis, f.quantity), (0, q));
+            assert!((1.01..1.021).contains(&f.ratio()), "{q:?}: {f:?}");
+            // It is the first setpoint whose finite difference is beyond 1.01 × limit,
+            // computed here independently from the stream.
+            let limit = f.limit;
+            let n = q as usize + 1;
+            let first = (n..stream.len())
+                .find(|&k| {
+                    let x = |i: usize| stream[k - i][0];
+                    let d = match n {
+                        1 => x(0) - x(1),
+                        2 => x(0) - 2.0 * x(1) + x(2),
+                        _ => x(0) - 3.0 * x(1) + 3.0 * x(2) - x(3),
+                    };
+                    d.abs() / period_s.powi(n as i32) > 1.01 * limit
+                })
+                .unwrap();
+            assert_eq!(f.sample, first as u64, "{q:?}");
+        }
+    }
+
+    #[test]
+    fn a_jump_is_a_velocity_fault_at_the_setpoint_that_jumps() {
+        // The teleport: at rest at the origin, then 4.14 mm in one 1 ms period on
+        // a 1,000 mm/s machine (414 % of the velocity limit).
+        let limits = machine(1e-3, 1000.0, 1e5, 1e7);
+        let mut stream = vec![[0.0; 6]; 5];
+        stream.extend(vec![[-1.0117, -4.0119, 0.0635, 0.0, 0.0, 0.0]; 5]);
+        let mut m = LimitMonitor::at_rest(&limits, &[0.0; 6]);
+        let f = first_fault(&mut m, &stream).unwrap();
+        assert_eq!((f.sample, f.axis, f.quantity), (5, 1, Quantity::Velocity));
+        assert!((f.ratio() - 4.0119).abs() < 1e-9, "{f:?}");
+        assert_eq!(
+            f.to_string(),
+            "setpoint 5: Y velocity 401 % of the limit (1000)"
+        );
+        // A monitor that knows nothing before its first setpoint sees the same jump.
+        let mut m = LimitMonitor::new(&limits);
+        assert_eq!(first_fault(&mut m, &stream).map(|f| f.sample), Some(5));
+        // A start away from the rest position is a jump too.
+        let mut m = LimitMonitor::at_rest(&limits, &[0.0; 6]);
+        assert!(m.check(&[1.0, 0.0, 0.0, 0.0, 0.0, 0.0]).is_err());
+        // A non-finite position is a fault; an axis the machine lacks is not checked.
+        let mut m = LimitMonitor::at_rest(&limits, &[0.0; 6]);
+        assert!(m.check(&[0.0, f64::NAN, 0.0, 0.0, 0.0, 0.0]).is_err());
+        let mut m = LimitMonitor::at_rest(&limits, &[0.0; 6]);
+        assert_eq!(m.check(&[0.0, 0.0, 0.0, 50.0, 0.0, 0.0]), Ok(()));
+    }
+
+    #[test]
+    fn acceleration_before_jerk_when_both_break() {
+        // From rest, a step to a constant speed of 90 % of the velocity limit in one
+        // period: velocity holds, acceleration and jerk do not; acceleration is reported.
+        let limits = machine(1e-3, 100.0, 1000.0, 1e5);
+        let mut m = LimitMonitor::at_rest(&limits, &[0.0; 6]);
+        let f = m.check(&[0.09, 0.0, 0.0, 0.0, 0.0, 0.0]).unwrap_err();
+        assert_eq!(f.quantity, Quantity::Acceleration);
+        assert!((f.ratio() - 90.0).abs() < 1e-6, "{f:?}");
+    }
+
+    #[test]
+    fn a_monitored_run_stops_at_the_first_setpoint_that_breaks_a_limit() {
+        // Planned for 100 mm/s, watched by a monitor that allows only 50 mm/s: the run
+        // must stop at the first setpoint faster than 50.5 mm/s, found here from the
+        // setpoints of an unmonitored run of the same program.
+        use kerf_geom::{CornerMode, Line};
+        let planned = machine(1e-3, 100.0, 1000.0, 1e5);
+        let watched = machine(1e-3, 50.0, 1000.0, 1e5);
+        let mv = Move {
+            line: 7,
+            rapid: false,
+            path: Path::Line(Line {
+                start: Vec3::zeros(),
+                end: Vec3::new(30.0, 0.0, 0.0),
+            }),
+            feed_mm_min: Some(6000.0),
+            abc_deg: None,
+            corner: CornerMode::ExactStop,
+        };
+        let mut free = Vec::new();
+        run_stream(
+            [mv].into_iter(),
+            &planned,
+            &RunOptions::default(),
+            None,
+            |_, sp| free.push(sp.position[0]),
+        )
+        .unwrap();
+        let first = free
+            .windows(2)
+            .position(|w| (w[1] - w[0]) / 1e-3 > 50.0 * LIMIT_MARGIN)
+            .expect("the program runs faster than 50 mm/s")
+            + 1;
+        let mut monitor = LimitMonitor::at_rest(&watched, &[0.0; 6]);
+        let mut seen = Vec::new();
+        let result = run_stream(
+            [mv].into_iter(),
+            &planned,
+            &RunOptions::default(),
+            Some(&mut monitor),
+            |t, sp| seen.push((t, sp.position[0], sp.line)),
+        );
+        let Err(RunError::Fault(v)) = result else {
+            panic!("no fault: {result:?}");
+        };
+        assert_eq!(
+            (v.sample, v.axis, v.quantity),
+            (first as u64, 0, Quantity::Velocity)
+        );
+        // The sink saw every setpoint up to and including the offending one, no more.
+        assert_eq!(seen.len(), first + 1);
+        assert_eq!(seen.last().unwrap().1, free[first]);
+        assert_eq!(seen.last().unwrap().2, 7);
+        // The same from planned segments.
+        let mut planner = Planner::new(planned);
+        let mut segs = Vec::new();
+        planner.push(&mv, &mut segs).unwrap();
+        planner.finish(&mut segs);
+        let mut monitor = LimitMonitor::at_rest(&watched, &[0.0; 6]);
+        let mut rows = 0;
+        let result = run_planned(
+            &[mv],
+            segs.into_iter().map(|s| (s, 1)),
+            &planned,
+            &RunOptions::default(),
+            Some(&mut monitor),
+            |_, _| rows += 1,
+        );
+        assert_eq!(result, Err(RunError::Fault(v)));
+        assert_eq!(rows, first + 1);
     }
 }

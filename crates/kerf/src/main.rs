@@ -9,13 +9,14 @@ use std::fs::File;
 use std::io::{self, BufRead, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use clap::{Args, Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
-use kerf::sim::{SimError, SimOptions};
+use indicatif::{ProgressBar, ProgressFinish, ProgressStyle};
+use kerf::sim::{Prepass, PrepassError, SimError, SimOptions};
 use kerf::{Config, PlanError, choose_dialect};
-use kerf_gcode::{Dialect, Interpreter, Item, Move, Path as GeomPath};
+use kerf_gcode::{Dialect, Interpreter, Item};
 
 /// Read buffer for program files: large enough that a 1 GB program costs few system calls,
 /// small enough to keep the resident set tiny.
@@ -212,21 +213,53 @@ fn run_plan(args: &PlanArgs) -> Result<(), Failure> {
 
 fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     let config = load_config(args.program.config.as_deref())?;
-    let program = open_program(&args.program, &config)?;
-    let name = &program.name;
+    let source = SimSource::open(&args.program, &config)?;
+    let name = &source.name;
+    let options = SimOptions {
+        feed_override: args.override_pct / 100.0,
+        ..SimOptions::default()
+    };
 
-    // The whole program is resolved and checked against the travel limits before the
-    // first setpoint: a program that would leave the machine's travel never starts.
-    let mut moves = Vec::new();
-    for item in Interpreter::new(program.reader, program.dialect, config.settings()) {
+    // Pass 1: the whole program is resolved, planned and checked against the travel
+    // limits (the programmed moves and the planned path) before the first setpoint: a
+    // program that would leave the machine's travel never starts.
+    let mut prepass = Prepass::new(&config, &options);
+    let refused = |e: PrepassError| match e.line() {
+        Some(line) => Failure::Error(format!("{name}:{line}:1: error: {e}")),
+        None => Failure::Error(format!("{name}: error: {e}")),
+    };
+    let started = Instant::now();
+    let mut spinner: Option<ProgressBar> = None;
+    let mut moves = 0u64;
+    for item in Interpreter::new(source.reader()?, source.dialect, config.settings()) {
         match item {
-            Ok(Item::Move(m)) => moves.push(m),
+            Ok(Item::Move(m)) => {
+                prepass.push(&m).map_err(refused)?;
+                moves += 1;
+                // A long program takes a while to check: say so on a terminal.
+                if moves % 16384 == 0 && started.elapsed() > PROGRESS_AFTER {
+                    let bar = spinner.get_or_insert_with(|| {
+                        // Cleared when dropped, also when the check fails.
+                        let bar = ProgressBar::new_spinner().with_finish(ProgressFinish::AndClear);
+                        if let Ok(style) = ProgressStyle::with_template(
+                            "checking the program {spinner} {pos} moves, {elapsed}",
+                        ) {
+                            bar.set_style(style);
+                        }
+                        bar
+                    });
+                    bar.set_position(moves);
+                }
+            }
             Ok(Item::Event(_)) => {}
             Err(diagnostic) => return Err(Failure::Error(format!("{name}:{diagnostic}"))),
         }
     }
-    kerf::travel::check_moves(&moves, &config.axes)
-        .map_err(|e| Failure::Error(format!("{name}:{}:1: error: {e}", e.line)))?;
+    let checked = prepass.finish().map_err(refused)?;
+    if let Some(bar) = spinner {
+        bar.finish_and_clear();
+    }
+    let scan = checked.scan;
 
     let create = |path: &Path| {
         File::create(path)
@@ -242,21 +275,55 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
         Some(plot) => format!("{}, {}", args.out.display(), plot.display()),
         None => args.out.display().to_string(),
     };
-    let estimate_rows = estimated_rows(&moves, &config);
-    let mut out = ProgressWriter::new(file, estimate_rows);
-    let options = SimOptions {
-        feed_override: args.override_pct / 100.0,
-        ..SimOptions::default()
+    let mut out = ProgressWriter::new(file, scan.estimated_rows(&config));
+
+    // Pass 2: the run. A program small enough was kept by pass 1, moves and planned
+    // segments; a larger one is read again and streamed into the run. Those are the moves
+    // pass 1 checked unless the file changed in between, which stops the run.
+    let axes = config.axes;
+    let changed = AtomicBool::new(false);
+    let mut seen = scan.moves;
+    let plot_out = plot.as_mut().map(|w| w as &mut dyn Write);
+    let result = match checked.kept {
+        Some(kept) => kerf::sim::simulate_kept(kept, &scan, &config, &options, &mut out, plot_out),
+        None => {
+            seen = 0;
+            let moves = Interpreter::new(source.reader()?, source.dialect, config.settings())
+                .map_while(|item| match item {
+                    Ok(Item::Move(m)) => {
+                        seen += 1;
+                        if seen > scan.moves || kerf::travel::check_move(&m, &axes).is_err() {
+                            changed.store(true, Ordering::Relaxed);
+                            return None;
+                        }
+                        Some(Some(m))
+                    }
+                    Ok(Item::Event(_)) => Some(None),
+                    Err(_) => {
+                        changed.store(true, Ordering::Relaxed);
+                        None
+                    }
+                })
+                .flatten();
+            kerf::sim::simulate_stream(
+                moves,
+                scan.rotary_used,
+                &config,
+                &options,
+                &mut out,
+                plot_out,
+            )
+        }
     };
-    let result = kerf::sim::simulate_and_plot(
-        &moves,
-        &config,
-        &options,
-        &mut out,
-        plot.as_mut().map(|w| w as &mut dyn Write),
-    );
     out.finish();
+    let changed = changed.load(Ordering::Relaxed) || (result.is_ok() && seen != scan.moves);
     let summary = match result {
+        Ok(_) | Err(SimError::Fault { .. }) if changed => {
+            return Err(Failure::Error(format!(
+                "{name}: error: {}",
+                SimError::Changed
+            )));
+        }
         Ok(summary) => summary,
         Err(SimError::Io(e)) => return Err(Failure::Error(format!("{outputs}: error: {e}"))),
         Err(e) => return Err(Failure::Error(format!("{name}: error: {e}"))),
@@ -267,45 +334,102 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     }
     let mut stdout = io::stdout().lock();
     writeln!(stdout, "{summary}")?;
-    if summary.plan_failures > 0 {
-        let _ = writeln!(
-            io::stderr().lock(),
-            "{name}: warning: {} motion profiles needed a fallback",
-            summary.plan_failures
-        );
-    }
     Ok(())
 }
 
-/// A rough number of CSV rows, for the progress bar only: every move at its programmed
-/// feed (rapids at the slowest linear axis's limit), without acceleration.
-fn estimated_rows(moves: &[Move], config: &Config) -> u64 {
-    let rapid_mm_s = config
-        .axes
-        .linear()
-        .iter()
-        .map(|a| a.velocity_mm_s)
-        .fold(f64::INFINITY, f64::min);
-    let seconds: f64 = moves
-        .iter()
-        .map(|m| {
-            let length_mm = match &m.path {
-                GeomPath::Line(l) => (l.end - l.start).norm(),
-                GeomPath::Arc(a) => {
-                    let radius = (a.start - a.center).norm();
-                    let axial = (a.end - a.start).dot(&a.axis);
-                    (radius * a.sweep_rad).hypot(axial)
-                }
-            };
-            let speed_mm_s = match m.feed_mm_min {
-                Some(f) if !m.rapid && f > 0.0 => f / 60.0,
-                _ => rapid_mm_s,
-            };
-            length_mm / speed_mm_s
+/// The program of `kerf sim`, which may be read twice (a checking pass, then the run): a
+/// file is opened again; standard input, pipes and devices are first copied to a temporary
+/// file (removed when this is dropped), so that memory does not grow with the program.
+struct SimSource {
+    path: PathBuf,
+    name: String,
+    dialect: Dialect,
+    /// The spooled standard input, removed on drop.
+    spool: Option<PathBuf>,
+}
+
+impl SimSource {
+    fn open(args: &ProgramArgs, config: &Config) -> Result<SimSource, Failure> {
+        if args.program.as_os_str() == OsStr::new("-") {
+            let name = "<stdin>".to_string();
+            let path = spool(&name, &mut io::stdin().lock())?;
+            return Ok(SimSource {
+                path: path.clone(),
+                name,
+                dialect: choose_dialect(args.dialect, None, config.dialect),
+                spool: Some(path),
+            });
+        }
+        let name = args.program.display().to_string();
+        let cannot_read =
+            |e: io::Error| Failure::Error(format!("{name}: error: cannot read program: {e}"));
+        let file = File::open(&args.program).map_err(cannot_read)?;
+        let regular = file.metadata().map_err(cannot_read)?.is_file();
+        let mut reader = BufReader::with_capacity(READ_BUFFER_BYTES, file);
+        // The first bytes tell an ISO Heidenhain `.h` file from a conversational one.
+        let dialect = {
+            let head = reader.fill_buf().map_err(cannot_read)?;
+            choose_dialect(args.dialect, Some((&args.program, head)), config.dialect)
+        };
+        // A pipe or device (`<(...)`, `/dev/stdin`) cannot be read twice: copy it first.
+        let spooled = if regular {
+            None
+        } else {
+            Some(spool(&name, &mut reader)?)
+        };
+        Ok(SimSource {
+            path: spooled.clone().unwrap_or_else(|| args.program.clone()),
+            name,
+            dialect,
+            spool: spooled,
         })
-        .sum();
-    let rows = seconds / (f64::from(config.period_us) * 1e-6);
-    if rows.is_finite() { rows as u64 } else { 0 }
+    }
+
+    /// A reader from the start of the program.
+    fn reader(&self) -> Result<Box<dyn BufRead + Send>, Failure> {
+        let file = File::open(&self.path).map_err(|e| {
+            Failure::Error(format!("{}: error: cannot read program: {e}", self.name))
+        })?;
+        Ok(Box::new(BufReader::with_capacity(READ_BUFFER_BYTES, file)))
+    }
+}
+
+/// Copies `input` to a new temporary file and returns its path.
+fn spool(name: &str, input: &mut dyn io::Read) -> Result<PathBuf, Failure> {
+    let path = std::env::temp_dir().join(format!(
+        "kerf-sim-input-{}-{}",
+        std::process::id(),
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos())
+            .unwrap_or(0)
+    ));
+    let mut file = File::options()
+        .write(true)
+        .create_new(true)
+        .open(&path)
+        .map_err(|e| {
+            Failure::Error(format!(
+                "{name}: error: cannot create a temporary copy of the program in {}: {e}",
+                path.display()
+            ))
+        })?;
+    let copied = io::copy(input, &mut file).and_then(|_| file.flush());
+    if let Err(e) = copied {
+        let _ = std::fs::remove_file(&path);
+        return Err(Failure::Error(format!(
+            "{name}: error: cannot read program: {e}"
+        )));
+    }
+    Ok(path)
+}
+
+impl Drop for SimSource {
+    fn drop(&mut self) {
+        if let Some(path) = &self.spool {
+            let _ = std::fs::remove_file(path);
+        }
+    }
 }
 
 /// Counts the CSV rows going to the file and shows a progress bar on standard error once

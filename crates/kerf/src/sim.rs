@@ -10,21 +10,36 @@
 //! t = 0 at the origin until the last move has come to rest. Floats are printed with
 //! Rust's shortest round-trip formatting, so equal runs give equal bytes.
 //!
-//! The moves are collected before the run because the CSV header depends on whether any
-//! move drives a rotary axis; the simulator is an offline tool, so that memory is fine.
-//! Three threads share the work: the planner ([`kerf_motion::driver::run_parallel`]), the
-//! motion core with the measurements, and the CSV formatting. The output is the same, byte
+//! Memory does not grow with the program. The first pass ([`Prepass`]) streams the moves
+//! through the travel check and the same planner the run uses, and checks every planned
+//! segment against the travel (blends and smoothed curves included); it also learns what
+//! the CSV header needs (whether a rotary axis moves) and a row estimate for the progress
+//! bar. A program whose moves and segments fit in 16 MiB is kept and run from memory
+//! ([`simulate_kept`]); a longer one is read again and streamed into the run
+//! ([`simulate_stream`]). Then three threads share the work: the planner
+//! ([`kerf_motion::driver::run_stream`]), the motion core with the measurements, and the
+//! CSV formatting (a kept program needs no planner thread). The output is the same, byte
 //! for byte, as with everything on one thread (the feeding policy depends only on the
-//! order of the segments; a test compares the two).
+//! order of the segments; tests compare the kept, the streamed and the one-thread runs).
+//!
+//! Every setpoint is checked against the limits it was planned for by a
+//! [`LimitMonitor`] (finite differences at the period, 1 % margin plus a derived rounding
+//! allowance): the first setpoint that breaks one stops the run with
+//! [`SimError::Fault`]; the CSV then ends with that setpoint.
 
+use std::collections::VecDeque;
 use std::fmt;
 use std::io::{self, BufWriter, Write};
 
-use kerf_geom::Move;
-use kerf_motion::driver::{self, Event, RunError, RunOptions, Summary};
-use kerf_motion::{AxisLimits, MachineLimits, Setpoint};
+use kerf_geom::{Move, Path, Vec3, line_distance};
+use kerf_motion::driver::{
+    self, Event, LimitMonitor, LimitViolation, RunError, RunOptions, Summary,
+};
+use kerf_motion::{AxisLimits, MachineLimits, PlannedSegment, Setpoint};
+use kerf_plan::{PlanError, Planner};
 
 use crate::config::Config;
+use crate::travel::{self, PlannedTravelError, TravelError};
 
 /// Options of a simulation.
 #[derive(Clone, Debug, PartialEq)]
@@ -47,7 +62,9 @@ impl Default for SimOptions {
     }
 }
 
-/// Peak velocity, acceleration and jerk of one axis as fractions of its limits.
+/// Peak velocity, acceleration and jerk of one axis as fractions of its limits, by finite
+/// differences of the setpoints at the period, as [`LimitMonitor::peak_ratios`] measures
+/// them (a run that succeeded never shows more than 1.01).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AxisReport {
     /// Axis name (`X` … `C`).
@@ -73,7 +90,8 @@ pub struct SimSummary {
     pub max_deviation_mm: f64,
     /// `true` if the program drove a rotary axis (the CSV has `a,b,c`).
     pub rotary_used: bool,
-    /// Motion-core profile calculations that needed a fallback (0 on a healthy run).
+    /// Motion-core profile calculations that needed a fallback (0 on a healthy run; the
+    /// setpoints were checked against the limits all the same).
     pub plan_failures: u64,
     /// The raw measurements.
     pub raw: Summary,
@@ -92,7 +110,11 @@ impl fmt::Display for SimSummary {
                 a.jerk * 100.0
             )?;
         }
-        write!(f, "; max deviation {:.4} mm", self.max_deviation_mm)
+        write!(f, "; max deviation {:.4} mm", self.max_deviation_mm)?;
+        if self.plan_failures > 0 {
+            write!(f, "; {} profile fallbacks", self.plan_failures)?;
+        }
+        Ok(())
     }
 }
 
@@ -106,6 +128,247 @@ pub enum SimError {
     /// Writing the CSV failed.
     #[error("writing the simulation output: {0}")]
     Io(#[from] io::Error),
+    /// A setpoint broke a limit: the run stopped there (the CSV ends with it).
+    #[error(
+        "setpoint at t = {t_s} s (line {line}): {axis} {quantity} {percent:.0} % of the limit ({key} = {limit})",
+        axis = kerf_plan::AXIS_NAMES[violation.axis],
+        quantity = violation.quantity.name(),
+        percent = violation.ratio() * 100.0,
+        key = limit_key(violation),
+        limit = violation.limit
+    )]
+    Fault {
+        /// What broke.
+        violation: LimitViolation,
+        /// Time of the setpoint, s (as in the CSV).
+        t_s: f64,
+        /// Source line of the move being run.
+        line: u32,
+    },
+    /// The program read in the second pass was not the one checked in the first (the file
+    /// changed while it was simulated).
+    #[error("the program changed while it was simulated")]
+    Changed,
+}
+
+/// The configuration key of the limit a violation broke.
+fn limit_key(v: &LimitViolation) -> &'static str {
+    use kerf_motion::driver::Quantity::*;
+    match (v.axis < 3, v.quantity) {
+        (true, Velocity) => "velocity_mm_s",
+        (true, Acceleration) => "acceleration_mm_s2",
+        (true, Jerk) => "jerk_mm_s3",
+        (false, Velocity) => "velocity_deg_s",
+        (false, Acceleration) => "acceleration_deg_s2",
+        (false, Jerk) => "jerk_deg_s3",
+    }
+}
+
+/// Why the first pass refused a program.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PrepassError {
+    /// A programmed move leaves the travel.
+    #[error("{0}")]
+    Travel(#[from] TravelError),
+    /// The planned path (a blend or a smoothed curve) leaves the travel.
+    #[error("{0}")]
+    PlannedTravel(#[from] PlannedTravelError),
+    /// A move cannot be planned (unconfigured axis, non-finite value, zero feed).
+    #[error("{0}")]
+    Plan(#[from] PlanError),
+}
+
+impl PrepassError {
+    /// The source line the error names, if any.
+    pub fn line(&self) -> Option<u32> {
+        match self {
+            PrepassError::Travel(e) => Some(e.line),
+            PrepassError::PlannedTravel(e) => Some(e.line),
+            PrepassError::Plan(_) => None,
+        }
+    }
+}
+
+/// What the first pass learned about a program.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Scan {
+    /// Moves in the program.
+    pub moves: u64,
+    /// `true` if a move drives a rotary axis (the CSV has `a,b,c`).
+    pub rotary_used: bool,
+    /// A rough motion time, s, for the progress bar only: every move at its programmed
+    /// feed (rapids at the slowest linear axis's limit), without acceleration.
+    pub estimated_s: f64,
+}
+
+impl Scan {
+    /// The rough number of CSV rows of [`Scan::estimated_s`].
+    pub fn estimated_rows(&self, config: &Config) -> u64 {
+        let rows = self.estimated_s / (f64::from(config.period_us) * 1e-6);
+        if rows.is_finite() { rows as u64 } else { 0 }
+    }
+}
+
+/// The moves and planned segments of a program small enough to keep between the passes.
+#[derive(Debug)]
+pub struct Kept {
+    moves: Vec<Move>,
+    segments: Vec<(PlannedSegment, usize)>,
+}
+
+/// Bytes of moves and planned segments the first pass keeps at most for the run, so
+/// that an ordinary program is read and planned only once (larger ones are streamed
+/// again, so memory stays bounded).
+const KEEP_BYTES: usize = 16 << 20;
+
+/// What the first pass left: what it learned, and for a program whose moves and planned
+/// segments fit in 16 MiB, those, so that the run ([`simulate_kept`]) need not read and
+/// plan it again (the planner is deterministic: the segments are the ones the run would
+/// plan). Larger programs are read again ([`simulate_stream`]).
+#[derive(Debug)]
+pub struct Checked {
+    /// What the pass learned.
+    pub scan: Scan,
+    /// The program's moves and segments, when small enough.
+    pub kept: Option<Kept>,
+}
+
+/// Moves remembered by the first pass for naming the line of a smoothed piece that leaves
+/// the travel (a piece stands for at most a few thousand moves).
+const RECENT_MOVES: usize = 1 << 16;
+
+/// The first pass of `kerf sim`, fed one move at a time in program order: the travel of
+/// every programmed move (exact), then of every segment the planner makes of them
+/// ([`travel::check_segment`]; the planner is the one the run uses, with the same
+/// limits and design override, and it is deterministic, so the run plans the same
+/// segments). Memory is bounded: the planner holds back only what a blend or smoothing
+/// window may still change, and the last 65,536 moves are kept to name lines.
+pub struct Prepass {
+    planner: Planner,
+    axes: crate::config::Axes,
+    buf: Vec<PlannedSegment>,
+    /// Line, start and end of the last moves, by program index.
+    recent: VecDeque<(u32, Vec3, Vec3)>,
+    /// Program index of `recent[0]`.
+    recent_base: u64,
+    rapid_mm_s: f64,
+    scan: Scan,
+    kept: Option<Kept>,
+}
+
+impl Prepass {
+    /// A first pass for the machine of `config` with the run's `options`.
+    pub fn new(config: &Config, options: &SimOptions) -> Self {
+        let mut planner = Planner::new(machine_limits(config));
+        planner.set_design_override(options.feed_override);
+        let rapid_mm_s = config
+            .axes
+            .linear()
+            .iter()
+            .map(|a| a.velocity_mm_s)
+            .fold(f64::INFINITY, f64::min);
+        Prepass {
+            planner,
+            axes: config.axes,
+            buf: Vec::new(),
+            recent: VecDeque::new(),
+            recent_base: 0,
+            rapid_mm_s,
+            scan: Scan::default(),
+            kept: Some(Kept {
+                moves: Vec::new(),
+                segments: Vec::new(),
+            }),
+        }
+    }
+
+    /// Checks the next move and the segments planned so far.
+    pub fn push(&mut self, m: &Move) -> Result<(), PrepassError> {
+        travel::check_move(m, &self.axes)?;
+        if let Some((s, e)) = m.abc_deg {
+            if s != e {
+                self.scan.rotary_used = true;
+            }
+        }
+        self.scan.estimated_s += estimated_seconds(m, self.rapid_mm_s);
+        self.scan.moves += 1;
+        if self.recent.len() == RECENT_MOVES {
+            self.recent.pop_front();
+            self.recent_base += 1;
+        }
+        self.recent
+            .push_back((m.line, m.path.start(), m.path.end()));
+        self.planner.push(m, &mut self.buf)?;
+        if let Some(k) = self.kept.as_mut() {
+            k.moves.push(*m);
+        }
+        self.check_planned()
+    }
+
+    /// Checks the segments the planner still held, and returns what the pass learned.
+    pub fn finish(mut self) -> Result<Checked, PrepassError> {
+        self.planner.finish(&mut self.buf);
+        self.check_planned()?;
+        Ok(Checked {
+            scan: self.scan,
+            kept: self.kept,
+        })
+    }
+
+    fn check_planned(&mut self) -> Result<(), PrepassError> {
+        if let Some(k) = self.kept.as_mut() {
+            let known = self.scan.moves as usize;
+            k.segments.extend(self.buf.iter().map(|s| (*s, known)));
+            let bytes = k.moves.len() * std::mem::size_of::<Move>()
+                + k.segments.len() * std::mem::size_of::<(PlannedSegment, usize)>();
+            if bytes > KEEP_BYTES {
+                self.kept = None;
+            }
+        }
+        for seg in self.buf.drain(..) {
+            if let Err(mut e) = travel::check_segment(&seg, &self.axes) {
+                if seg.move_count > 1 {
+                    // Name the move of the piece nearest to where it leaves the travel.
+                    let from = seg.move_index.max(self.recent_base);
+                    let to = (seg.move_index + u64::from(seg.move_count))
+                        .min(self.recent_base + self.recent.len() as u64);
+                    let nearest = (from..to)
+                        .map(|k| {
+                            let (line, a, b) = self.recent[(k - self.recent_base) as usize];
+                            let d = b - a;
+                            let len = d.norm();
+                            let dir = if len > 0.0 { d / len } else { d };
+                            (line_distance(&a, &b, &dir, len, &e.point), line)
+                        })
+                        .fold(
+                            (f64::INFINITY, e.line),
+                            |x, y| if y.0 < x.0 { y } else { x },
+                        );
+                    e.line = nearest.1;
+                }
+                return Err(e.into());
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A move's length over its programmed feed (rapids: `rapid_mm_s`), s.
+fn estimated_seconds(m: &Move, rapid_mm_s: f64) -> f64 {
+    let length_mm = match &m.path {
+        Path::Line(l) => (l.end - l.start).norm(),
+        Path::Arc(a) => {
+            let radius = (a.start - a.center).norm();
+            let axial = (a.end - a.start).dot(&a.axis);
+            (radius * a.sweep_rad).hypot(axial)
+        }
+    };
+    let speed_mm_s = match m.feed_mm_min {
+        Some(f) if !m.rapid && f > 0.0 => f / 60.0,
+        _ => rapid_mm_s,
+    };
+    length_mm / speed_mm_s
 }
 
 /// The motion core's view of a configuration.
@@ -133,26 +396,89 @@ pub fn machine_limits(config: &Config) -> MachineLimits {
 }
 
 /// Runs `moves` on the machine `limits`, calling `row(t, setpoint)` for every period from
-/// t = 0. Use this to plot or check the motion without a CSV.
+/// t = 0. Use this to plot or check the motion without a CSV. Every setpoint is checked
+/// against the limits (see [`LimitMonitor`]); the first that breaks one ends the run with
+/// [`SimError::Fault`] after `row` has seen it.
 pub fn simulate_with<F: FnMut(f64, &Setpoint)>(
     moves: &[Move],
     limits: &MachineLimits,
     options: &SimOptions,
     row: F,
 ) -> Result<SimSummary, SimError> {
+    run_checked(
+        Feed::Stream(moves.iter().copied()),
+        limits,
+        [0.0; 6],
+        options,
+        row,
+    )
+}
+
+/// Where the run's segments come from.
+enum Feed<I> {
+    /// Moves, planned on a second thread.
+    Stream(I),
+    /// Moves and segments the first pass kept.
+    Kept(Kept),
+}
+
+/// The run with its limit monitor; `scale` is the rounding scale of the positions per
+/// axis (see [`LimitMonitor::with_position_scale`]).
+fn run_checked<I, F>(
+    feed: Feed<I>,
+    limits: &MachineLimits,
+    scale: [f64; 6],
+    options: &SimOptions,
+    mut row: F,
+) -> Result<SimSummary, SimError>
+where
+    I: Iterator<Item = Move> + Send,
+    F: FnMut(f64, &Setpoint),
+{
     let run_options = RunOptions {
         capacity: options.queue_capacity,
         feed_override: options.feed_override,
         events: options.events.clone(),
         max_cycles: u64::MAX,
     };
-    let raw = driver::run_parallel(moves, limits, &run_options, row)?;
+    // The machine is at rest at the origin before the first setpoint.
+    let mut monitor = LimitMonitor::at_rest(limits, &[0.0; 6]).with_position_scale(scale);
+    let mut last = (0.0, 0u32);
+    let sink = |t: f64, sp: &Setpoint| {
+        last = (t, sp.line);
+        row(t, sp)
+    };
+    let raw = match feed {
+        Feed::Stream(moves) => {
+            driver::run_stream(moves, limits, &run_options, Some(&mut monitor), sink)
+        }
+        Feed::Kept(k) => driver::run_planned(
+            &k.moves,
+            k.segments,
+            limits,
+            &run_options,
+            Some(&mut monitor),
+            sink,
+        ),
+    };
+    let raw = match raw {
+        Ok(raw) => raw,
+        Err(RunError::Fault(violation)) => {
+            return Err(SimError::Fault {
+                violation,
+                t_s: last.0,
+                line: last.1,
+            });
+        }
+        Err(e) => return Err(e.into()),
+    };
     let mut axes = Vec::new();
     for i in 0..6 {
         if i >= 3 && !raw.rotary_used {
             break;
         }
-        if let Some(f) = raw.fractions(limits, i) {
+        // The monitor's peaks: a run that passed never shows more than 101 %.
+        if let Some(f) = monitor.peak_ratios(i) {
             axes.push(AxisReport {
                 axis: kerf_plan::AXIS_NAMES[i],
                 velocity: f[0],
@@ -191,8 +517,66 @@ pub fn simulate_and_plot<W: Write + Send>(
     out: W,
     plot: Option<&mut dyn Write>,
 ) -> Result<SimSummary, SimError> {
-    let limits = machine_limits(config);
     let rotary = moves.iter().any(|m| m.abc_deg.is_some_and(|(s, e)| s != e));
+    simulate_stream(moves.iter().copied(), rotary, config, options, out, plot)
+}
+
+/// [`simulate_and_plot`] over a stream of moves (the second pass of `kerf sim`):
+/// `rotary_used` (from the first pass, [`Scan::rotary_used`]) decides the CSV header.
+/// Memory does not grow with the program; with `plot` the recorded plot points do grow
+/// with the motion time (24 bytes per period).
+pub fn simulate_stream<I, W>(
+    moves: I,
+    rotary_used: bool,
+    config: &Config,
+    options: &SimOptions,
+    out: W,
+    plot: Option<&mut dyn Write>,
+) -> Result<SimSummary, SimError>
+where
+    I: Iterator<Item = Move> + Send,
+    W: Write + Send,
+{
+    simulate_feed(Feed::Stream(moves), rotary_used, config, options, out, plot)
+}
+
+/// [`simulate_stream`] from what the first pass kept (the same setpoints, without reading
+/// and planning the program again). `options` must be those the [`Prepass`] had.
+pub fn simulate_kept<W: Write + Send>(
+    kept: Kept,
+    scan: &Scan,
+    config: &Config,
+    options: &SimOptions,
+    out: W,
+    plot: Option<&mut dyn Write>,
+) -> Result<SimSummary, SimError> {
+    let feed: Feed<std::iter::Empty<Move>> = Feed::Kept(kept);
+    simulate_feed(feed, scan.rotary_used, config, options, out, plot)
+}
+
+fn simulate_feed<I, W>(
+    feed: Feed<I>,
+    rotary_used: bool,
+    config: &Config,
+    options: &SimOptions,
+    out: W,
+    plot: Option<&mut dyn Write>,
+) -> Result<SimSummary, SimError>
+where
+    I: Iterator<Item = Move> + Send,
+    W: Write + Send,
+{
+    let limits = machine_limits(config);
+    let rotary = rotary_used;
+    let mut scale = [0.0; 6];
+    for (i, l) in config.axes.linear().iter().enumerate() {
+        scale[i] = l.min_mm.abs().max(l.max_mm.abs());
+    }
+    for (i, r) in config.axes.rotary().iter().enumerate() {
+        if let Some(r) = r {
+            scale[3 + i] = r.min_deg.abs().max(r.max_deg.abs());
+        }
+    }
     let mut recorder = plot.is_some().then(|| PlotRecorder::new(&limits));
     // The rows are formatted and written on a second thread, in chunks: at a 1 ms period
     // the text is a large share of a simulation's work.
@@ -214,7 +598,7 @@ pub fn simulate_and_plot<W: Write + Send>(
         });
         let mut chunk = Vec::with_capacity(ROWS_PER_CHUNK);
         let mut writer_gone = false;
-        let summary = simulate_with(moves, &limits, options, |t, sp| {
+        let summary = run_checked(feed, &limits, scale, options, |t, sp| {
             chunk.push((t, *sp));
             if chunk.len() == ROWS_PER_CHUNK && !writer_gone {
                 let full = std::mem::replace(&mut chunk, Vec::with_capacity(ROWS_PER_CHUNK));
@@ -227,6 +611,7 @@ pub fn simulate_and_plot<W: Write + Send>(
                 r.push(t, sp);
             }
         });
+        // The rows up to a fault are written too: the CSV ends with the offending setpoint.
         if !writer_gone && !chunk.is_empty() {
             let _ = tx.send(chunk);
         }
@@ -236,8 +621,8 @@ pub fn simulate_and_plot<W: Write + Send>(
             .unwrap_or_else(|_| Err(io::Error::other("the CSV writer panicked")));
         (summary, written)
     });
-    let summary = summary?;
     written?;
+    let summary = summary?;
     if let (Some(out), Some(r)) = (plot, recorder) {
         r.write_svg(out)?;
     }
@@ -520,5 +905,81 @@ mod tests {
             assert!(a.velocity <= 1.01 && a.acceleration <= 1.01 && a.jerk <= 1.01);
         }
         assert!(summary.max_deviation_mm <= config.tolerance_mm);
+    }
+
+    /// A dense rounded polyline (smoothed), a few corners and an arc, as G-code moves.
+    fn mixed_program() -> Vec<Move> {
+        let mut text = String::from("G21 G90 G17 G64 F3000\n");
+        for k in 1..=400 {
+            let a = k as f64 * 0.01;
+            text += &format!("G1 X{:.3} Y{:.3}\n", 20.0 * a.sin(), 20.0 * (1.0 - a.cos()));
+        }
+        text += "G1 X0 Y30\nG3 X-10 Y20 I0 J-10\nG1 X-10 Y0 Z-2\nG0 X0 Y0 Z0\n";
+        kerf_gcode::Interpreter::new(
+            text.as_bytes(),
+            kerf_gcode::Dialect::LinuxCnc,
+            Config::builtin().settings(),
+        )
+        .filter_map(|item| match item.unwrap() {
+            kerf_gcode::Item::Move(m) => Some(m),
+            _ => None,
+        })
+        .collect()
+    }
+
+    #[test]
+    fn the_kept_first_pass_and_the_streamed_second_pass_write_the_same_csv() {
+        let config = Config::builtin();
+        let options = SimOptions::default();
+        let moves = mixed_program();
+        let mut pre = Prepass::new(&config, &options);
+        for m in &moves {
+            pre.push(m).unwrap();
+        }
+        let checked = pre.finish().unwrap();
+        assert_eq!(checked.scan.moves, moves.len() as u64);
+        assert!(!checked.scan.rotary_used);
+        let kept = checked.kept.expect("a small program is kept");
+        let mut a = Vec::new();
+        let sa = simulate_kept(kept, &checked.scan, &config, &options, &mut a, None).unwrap();
+        let mut b = Vec::new();
+        let sb = simulate_stream(
+            moves.iter().copied(),
+            false,
+            &config,
+            &options,
+            &mut b,
+            None,
+        )
+        .unwrap();
+        assert_eq!(a, b);
+        assert_eq!(sa, sb);
+        assert!(sa.rows > 1000);
+    }
+
+    #[test]
+    fn a_program_beyond_the_keep_budget_is_not_kept() {
+        // Long lines with stops in between: one segment per move.
+        let config = Config::builtin();
+        let per_move = std::mem::size_of::<Move>() + std::mem::size_of::<(PlannedSegment, usize)>();
+        let n = KEEP_BYTES / per_move + 10;
+        let mut pre = Prepass::new(&config, &SimOptions::default());
+        let mut m = mixed_program()[0];
+        m.corner = CornerMode::ExactStop;
+        for k in 0..n {
+            let (x0, x1) = if k % 2 == 0 { (0.0, 5.0) } else { (5.0, 0.0) };
+            m.path = Path::Line(Line {
+                start: Vec3::new(x0, 0.0, 0.0),
+                end: Vec3::new(x1, 0.0, 0.0),
+            });
+            m.line = k as u32 + 1;
+            pre.push(&m).unwrap();
+        }
+        let checked = pre.finish().unwrap();
+        assert_eq!(checked.scan.moves, n as u64);
+        assert!(checked.kept.is_none());
+        // Every move is 5 mm at F3000 (0.1 s): the estimate counts them all.
+        let expected_s = n as f64 * 5.0 / 50.0;
+        assert!((checked.scan.estimated_s - expected_s).abs() < 1e-6 * expected_s);
     }
 }

@@ -6,10 +6,17 @@
 //! points plus the points where the circle is tangent to a coordinate direction, when they
 //! fall inside the swept angle (multi-turn helices included). Rotary axes move linearly
 //! with the path, so their end values are their extremes.
+//!
+//! Issue 7 adds the planned path: corner blends, transitions and smoothed pieces leave
+//! the programmed lines within the tolerance, and near a limit that can be outside the
+//! travel. [`check_segment`] checks every planned segment: lines and arcs exactly as
+//! above; quintic curves (and rotary quintics) by sampling with a certified bound (see
+//! [`quintic_beyond`]).
 
 use std::f64::consts::TAU;
 
-use kerf_geom::{Arc, Move, Path, Vec3};
+use kerf_geom::{Arc, Curve, Move, Path, Vec3};
+use kerf_plan::PlannedSegment;
 
 use crate::config::Axes;
 
@@ -98,6 +105,240 @@ where
     I: IntoIterator<Item = &'a Move>,
 {
     moves.into_iter().try_for_each(|m| check_move(m, axes))
+}
+
+/// What kind of planned path left the travel, for the message.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlannedKind {
+    /// A corner blend or a transition the planner inserted between two moves.
+    Blend,
+    /// A smoothed piece standing for several short moves.
+    Smoothed,
+    /// The planned geometry of a programmed move.
+    Move,
+}
+
+/// A planned segment that leaves an axis's travel although the programmed moves stay in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlannedTravelError {
+    /// 1-based source line of the move the segment belongs to (for a smoothed piece, the
+    /// move nearest to where it leaves the travel, when the caller knows it).
+    pub line: u32,
+    /// The axis: `X`, `Y`, `Z`, `A`, `B` or `C`.
+    pub axis: char,
+    /// What kind of path.
+    pub kind: PlannedKind,
+    /// The farthest position found beyond the limit.
+    pub position: f64,
+    /// The limit it is beyond.
+    pub limit: f64,
+    /// `true` if `limit` is the upper limit (`max_mm`/`max_deg`).
+    pub upper: bool,
+    /// The XYZ point where it leaves (for naming the nearest move).
+    pub point: Vec3,
+}
+
+impl std::fmt::Display for PlannedTravelError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let rotary = matches!(self.axis, 'A' | 'B' | 'C');
+        let (unit, key) = match (rotary, self.upper) {
+            (false, true) => ("mm", "max_mm"),
+            (false, false) => ("mm", "min_mm"),
+            (true, true) => ("deg", "max_deg"),
+            (true, false) => ("deg", "min_deg"),
+        };
+        let by = (self.position - self.limit).abs();
+        let by = if by >= 0.001 {
+            format!("{by:.3}")
+        } else {
+            format!("{by:.1e}")
+        };
+        let (what, inside) = match self.kind {
+            PlannedKind::Blend => ("the blended path at this corner", "move the corner inside"),
+            PlannedKind::Smoothed => (
+                "the smoothed path through these moves",
+                "move the path inside",
+            ),
+            PlannedKind::Move => ("the planned path of this move", "move it inside"),
+        };
+        write!(
+            f,
+            "{what} leaves the {axis} travel ({key} = {limit}) by {by} {unit}; lower the \
+             tolerance (G64 P) or {inside}",
+            axis = self.axis,
+            limit = self.limit,
+        )
+    }
+}
+
+impl std::error::Error for PlannedTravelError {}
+
+/// Checks one planned segment against the travel limits of `axes`: the whole curve, not
+/// only its end points. Rotary axes are checked on the axes the machine has.
+pub fn check_segment(seg: &PlannedSegment, axes: &Axes) -> Result<(), PlannedTravelError> {
+    let kind = if seg.move_count > 1 {
+        PlannedKind::Smoothed
+    } else if seg.blend {
+        PlannedKind::Blend
+    } else {
+        PlannedKind::Move
+    };
+    let error =
+        |axis: usize, position: f64, limit: f64, upper: bool, point: Vec3| PlannedTravelError {
+            line: seg.line,
+            axis: ['X', 'Y', 'Z', 'A', 'B', 'C'][axis],
+            kind,
+            position,
+            limit,
+            upper,
+            point,
+        };
+    let linear = axes.linear();
+    let point_inside = |p: &Vec3| -> Result<(), PlannedTravelError> {
+        for (i, l) in linear.iter().enumerate() {
+            if p[i] > l.max_mm + SLACK_MM {
+                return Err(error(i, p[i], l.max_mm, true, *p));
+            }
+            if p[i] < l.min_mm - SLACK_MM {
+                return Err(error(i, p[i], l.min_mm, false, *p));
+            }
+        }
+        Ok(())
+    };
+    match &seg.curve {
+        Curve::Line { start, end, .. } => {
+            point_inside(start)?;
+            point_inside(end)?;
+        }
+        Curve::Helix(h) => {
+            point_inside(&h.start)?;
+            point_inside(&h.end)?;
+            let arc = Arc {
+                start: h.start,
+                end: h.end,
+                center: h.center,
+                axis: h.axis,
+                sweep_rad: h.sweep_rad,
+            };
+            for p in arc_extremes(&arc).into_iter().flatten() {
+                point_inside(&p)?;
+            }
+        }
+        Curve::Transition(t) => {
+            point_inside(&t.start)?;
+            point_inside(&t.end)?;
+            for (i, l) in linear.iter().enumerate() {
+                let c = t.coef.map(|v| v[i]);
+                let at = |u: f64| t.poly(u);
+                if let Some((u, x)) = quintic_beyond(&c, l.max_mm + SLACK_MM, true) {
+                    return Err(error(i, x, l.max_mm, true, at(u)));
+                }
+                if let Some((u, x)) = quintic_beyond(&c, l.min_mm - SLACK_MM, false) {
+                    return Err(error(i, x, l.min_mm, false, at(u)));
+                }
+            }
+        }
+    }
+    for (i, limits) in axes.rotary().iter().enumerate() {
+        let Some(l) = limits else { continue };
+        let ends = [seg.abc_start_deg[i], seg.abc_end_deg[i]];
+        let start_point = seg.curve.start();
+        for v in ends {
+            if v > l.max_deg + SLACK_MM {
+                return Err(error(3 + i, v, l.max_deg, true, start_point));
+            }
+            if v < l.min_deg - SLACK_MM {
+                return Err(error(3 + i, v, l.min_deg, false, start_point));
+            }
+        }
+        if let (Some(poly), Curve::Transition(t)) = (&seg.abc_poly, &seg.curve) {
+            if let Some((u, v)) = quintic_beyond(&poly[i], l.max_deg + SLACK_MM, true) {
+                return Err(error(3 + i, v, l.max_deg, true, t.poly(u)));
+            }
+            if let Some((u, v)) = quintic_beyond(&poly[i], l.min_deg - SLACK_MM, false) {
+                return Err(error(3 + i, v, l.min_deg, false, t.poly(u)));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Samples of a quintic before refinement.
+const QUINTIC_SAMPLES: usize = 64;
+/// Function evaluations per quintic at most while refining near a limit.
+const QUINTIC_MAX_EVALS: usize = 20_000;
+
+/// Where the quintic `f(u) = Σ c[k] uᵏ`, `u ∈ [0, 1]`, is beyond `limit` (above it if
+/// `upper`, else below): the parameter and value of a point found beyond, or `None`.
+///
+/// The bound: on an interval of width `h` the quintic deviates from the chord through its
+/// end values by at most `M₂ h² / 8`, where `M₂ ≥ max |f''|` on `[0, 1]` is
+/// `2|c₂| + 6|c₃| + 12|c₄| + 20|c₅|`. So `max(f(a), f(b)) + M₂ h²/8` bounds `f` on
+/// `[a, b]` from above. The curve is sampled at 64 equal steps; every interval whose bound
+/// reaches the limit is halved (sampling its middle) until the bound clears the limit or a
+/// sample lies beyond it. A point is reported only when a sample is beyond the limit (the
+/// limit passed in already includes the rounding slack), so a curve that touches the limit
+/// exactly is never refused; refinement stops after 20,000 evaluations per curve, and
+/// what it may then miss is below `M₂ h²/8` of the narrowest interval reached (a few
+/// nanometres at most for the curves the planner builds).
+pub fn quintic_beyond(c: &[f64; 6], limit: f64, upper: bool) -> Option<(f64, f64)> {
+    let sign = if upper { 1.0 } else { -1.0 };
+    // Work on g = sign · f, looking for g > sign · limit.
+    let g = |u: f64| sign * (((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]);
+    let lim = sign * limit;
+    let m2 = 2.0 * c[2].abs() + 6.0 * c[3].abs() + 12.0 * c[4].abs() + 20.0 * c[5].abs();
+    let beyond = |v: f64| v > lim;
+    // Once a point is beyond, the farthest one (for the message): 1,024 samples.
+    let farthest = || {
+        let (mut best_u, mut best) = (0.0, f64::NEG_INFINITY);
+        for k in 0..=1024 {
+            let u = k as f64 / 1024.0;
+            let v = g(u);
+            if v > best {
+                (best_u, best) = (u, v);
+            }
+        }
+        Some((best_u, sign * best))
+    };
+    let mut stack: Vec<(f64, f64, f64, f64)> = Vec::new();
+    let h = 1.0 / QUINTIC_SAMPLES as f64;
+    let mut prev = (0.0, g(0.0));
+    if beyond(prev.1) {
+        return farthest();
+    }
+    for k in 1..=QUINTIC_SAMPLES {
+        let u = k as f64 * h;
+        let v = g(u);
+        if beyond(v) {
+            return farthest();
+        }
+        stack.push((prev.0, prev.1, u, v));
+        prev = (u, v);
+    }
+    let mut evals = QUINTIC_SAMPLES + 1;
+    while let Some((a, ga, b, gb)) = stack.pop() {
+        let w = b - a;
+        if ga.max(gb) + m2 * w * w / 8.0 <= lim {
+            continue;
+        }
+        if evals >= QUINTIC_MAX_EVALS {
+            break;
+        }
+        let m = 0.5 * (a + b);
+        if m <= a || m >= b {
+            continue;
+        }
+        let gm = g(m);
+        evals += 1;
+        if beyond(gm) {
+            return farthest()
+                .filter(|f| sign * f.1 > gm)
+                .or(Some((m, sign * gm)));
+        }
+        stack.push((a, ga, m, gm));
+        stack.push((m, gm, b, gb));
+    }
+    None
 }
 
 /// The points of an arc where a coordinate is at a maximum or minimum of the circle and
@@ -284,6 +525,172 @@ mod tests {
         });
         let e = check_move(&m, &a).unwrap_err();
         assert_eq!((e.axis, e.position, e.unit), ('C', 400.0, " deg"));
+    }
+
+    /// The largest value of a quintic on `[0, 1]` by brute force: a million samples.
+    fn brute_max(c: &[f64; 6]) -> f64 {
+        (0..=1_000_000)
+            .map(|k| {
+                let u = k as f64 / 1e6;
+                c.iter().rev().fold(0.0, |acc, ck| acc * u + ck)
+            })
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    #[test]
+    fn quintic_beyond_agrees_with_brute_force_sampling() {
+        // Fixed-seed random quintics of the planner's scale (positions around ±1000 mm,
+        // shapes of up to a few mm), each tested against limits just above and just
+        // below its true maximum.
+        let mut state = 0x5eed_7a4e_u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for case in 0..40 {
+            let mut c = [0.0; 6];
+            c[0] = 1000.0 * next();
+            for ck in c.iter_mut().skip(1) {
+                *ck = 5.0 * next();
+            }
+            let max = brute_max(&c);
+            // A limit 1 µm below the maximum: found, with the maximum reported.
+            let (u, v) = quintic_beyond(&c, max - 1e-6, true)
+                .unwrap_or_else(|| panic!("case {case}: a 1 µm excess was missed"));
+            assert!((v - max).abs() < 1e-5, "case {case}: {v} vs {max}");
+            assert!((0.0..=1.0).contains(&u));
+            // A limit at the maximum (plus the rounding slack): nothing beyond.
+            assert_eq!(
+                quintic_beyond(&c, max + SLACK_MM, true),
+                None,
+                "case {case}"
+            );
+            // The same below, on the mirrored quintic.
+            let neg = c.map(|x| -x);
+            let (_, v) = quintic_beyond(&neg, -(max - 1e-6), false).unwrap();
+            assert!((v + max).abs() < 1e-5, "case {case}");
+            assert_eq!(quintic_beyond(&neg, -(max + SLACK_MM), false), None);
+        }
+    }
+
+    #[test]
+    fn a_quintic_that_touches_the_limit_tangentially_is_not_beyond_it() {
+        // f(u) = 1000 - 3 (1 - u)³ ... reaches 1000 at u = 1 with zero slope and
+        // curvature, the way a G2 blend ends on a line along the limit.
+        let c = [997.0, 9.0, -9.0, 3.0, 0.0, 0.0];
+        assert_eq!(quintic_beyond(&c, 1000.0 + SLACK_MM, true), None);
+        // Raised by 10 nm, it is beyond.
+        let mut up = c;
+        up[0] += 1e-8;
+        assert!(quintic_beyond(&up, 1000.0 + SLACK_MM, true).is_some());
+    }
+
+    /// A planned segment on `curve` with rotary values `abc` at both ends.
+    fn planned(curve: Curve, abc: ([f64; 3], [f64; 3])) -> PlannedSegment {
+        PlannedSegment {
+            curve,
+            abc_start_deg: abc.0,
+            abc_end_deg: abc.1,
+            abc_poly: None,
+            length: curve.length(),
+            line: 12,
+            move_index: 0,
+            move_count: 1,
+            feed: 50.0,
+            v_max: 50.0,
+            accel: 1000.0,
+            jerk: 10000.0,
+            v_boost: 50.0,
+            accel_boost: 1000.0,
+            jerk_boost: 10000.0,
+            end_cap: 0.0,
+            blend: true,
+        }
+    }
+
+    #[test]
+    fn planned_transitions_are_checked_where_the_setpoints_go() {
+        // Fixed-seed random G2 transitions near X = 1000 (like corner blends at the
+        // limit): the farthest X is measured by evaluating the segment where the motion
+        // core does (`position_at`, 20,000 arc-length samples). A limit 0.1 µm inside it is
+        // reported, with that farthest X; a limit 1 nm outside it is not.
+        let mut state = 0x7ae5_17e5_u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut checked = 0;
+        for case in 0..60 {
+            let a0 = (next() - 0.5) * 2.0;
+            let a1 = (next() - 0.5) * 2.0;
+            let t0 = Vec3::new(a0.cos(), a0.sin(), 0.0);
+            let t1 = Vec3::new(a1.cos(), a1.sin(), 0.0);
+            let p0 = Vec3::new(1000.0 - 2.0 * next(), -1.0, 0.0);
+            let p1 = Vec3::new(1000.0 - 2.0 * next(), 1.0, 0.0);
+            let Some(tr) = kerf_geom::Transition::new(
+                p0,
+                t0,
+                Vec3::zeros(),
+                p1,
+                t1,
+                Vec3::zeros(),
+                (p1 - p0).norm(),
+            ) else {
+                continue;
+            };
+            let seg = planned(Curve::Transition(tr), ([0.0; 3], [0.0; 3]));
+            let mut out = [0.0; 6];
+            let mut max_x = f64::NEG_INFINITY;
+            for k in 0..=20_000 {
+                seg.position_at(seg.length * k as f64 / 20_000.0, &mut out);
+                max_x = max_x.max(out[0]);
+            }
+            let mut a = axes(-2000.0, 2000.0);
+            a.x.max_mm = max_x - 1e-7;
+            let e = check_segment(&seg, &a).unwrap_err();
+            assert_eq!(
+                (e.axis, e.line, e.upper, e.kind),
+                ('X', 12, true, PlannedKind::Blend)
+            );
+            assert!(
+                (e.position - max_x).abs() < 1e-6,
+                "case {case}: {e:?} vs {max_x}"
+            );
+            assert!(
+                e.to_string()
+                    .starts_with("the blended path at this corner leaves the X travel (max_mm = ")
+            );
+            a.x.max_mm = max_x + 1e-6;
+            assert_eq!(check_segment(&seg, &a), Ok(()), "case {case}");
+            checked += 1;
+        }
+        assert!(checked > 40);
+    }
+
+    #[test]
+    fn planned_rotary_ends_are_checked_on_configured_axes() {
+        let line = Curve::line(Vec3::zeros(), Vec3::new(1.0, 0.0, 0.0));
+        let seg = planned(line, ([0.0, 0.0, 0.0], [0.0, 0.0, 370.0]));
+        let mut a = axes(-10.0, 10.0);
+        assert_eq!(check_segment(&seg, &a), Ok(()), "no C axis configured");
+        a.c = Some(RotaryAxis {
+            velocity_deg_s: 360.0,
+            acceleration_deg_s2: 3600.0,
+            jerk_deg_s3: 36000.0,
+            min_deg: -360.0,
+            max_deg: 360.0,
+        });
+        let e = check_segment(&seg, &a).unwrap_err();
+        assert_eq!((e.axis, e.position, e.upper), ('C', 370.0, true));
+        assert_eq!(
+            e.to_string(),
+            "the blended path at this corner leaves the C travel (max_deg = 360) by 10.000 deg; \
+             lower the tolerance (G64 P) or move the corner inside"
+        );
     }
 
     #[test]

@@ -932,3 +932,333 @@ fn sim_of_the_example_part_follows_the_planned_moves_within_the_limits() {
     let end = moves.last().unwrap().end();
     assert_eq!(&rows.last().unwrap()[1..4], &[end.x, end.y, end.z]);
 }
+
+// ---------------------------------------------------------------------------------------
+// Issue 7: the limit check on every setpoint, the planned path inside the travel, and the
+// two streaming passes of `kerf sim`.
+// ---------------------------------------------------------------------------------------
+
+/// The issue's fast machine: 1 ms, 0.01 mm, and on X, Y, Z 1,000 mm/s, 100,000 mm/s²,
+/// 10,000,000 mm/s³, travel ±10,000 mm.
+const FAST_MACHINE: &str = "period_us = 1000\ntolerance_mm = 0.01\n\
+    [axes.x]\nvelocity_mm_s = 1000\nacceleration_mm_s2 = 100000\njerk_mm_s3 = 10000000\nmin_mm = -10000\nmax_mm = 10000\n\
+    [axes.y]\nvelocity_mm_s = 1000\nacceleration_mm_s2 = 100000\njerk_mm_s3 = 10000000\nmin_mm = -10000\nmax_mm = 10000\n\
+    [axes.z]\nvelocity_mm_s = 1000\nacceleration_mm_s2 = 100000\njerk_mm_s3 = 10000000\nmin_mm = -10000\nmax_mm = 10000\n";
+
+/// Runs `kerf sim` and returns the output and the CSV's rows if one was written.
+fn sim_any(name: &str, program: &Path, args: &[&str]) -> (Output, Option<Vec<Vec<f64>>>) {
+    let csv = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("kerf-cli-tests/{name}.csv"));
+    let _ = std::fs::remove_file(&csv);
+    let mut all = vec!["sim"];
+    all.extend_from_slice(args);
+    all.extend([program.to_str().unwrap(), "--out", csv.to_str().unwrap()]);
+    let out = kerf(&all);
+    let rows = csv.exists().then(|| read_csv(&csv).1);
+    (out, rows)
+}
+
+/// The summary's percentages (`X v 95% a 95% j 96%; ...`), all of them.
+fn summary_percentages(summary: &str) -> Vec<f64> {
+    summary
+        .split([';', ' '])
+        .filter_map(|w| w.strip_suffix('%'))
+        .map(|p| p.parse::<f64>().unwrap())
+        .collect()
+}
+
+/// Velocity, acceleration and jerk of column `axis` at row `k` by finite differences at
+/// `period_s`, with the machine at rest at row 0's position before t = 0.
+fn differences(rows: &[Vec<f64>], axis: usize, k: usize, period_s: f64) -> [f64; 3] {
+    let x = |i: usize| {
+        if i <= k {
+            rows[k - i][axis]
+        } else {
+            rows[0][axis]
+        }
+    };
+    [
+        (x(0) - x(1)) / period_s,
+        (x(0) - 2.0 * x(1) + x(2)) / period_s.powi(2),
+        (x(0) - 3.0 * x(1) + 3.0 * x(2) - x(3)) / period_s.powi(3),
+    ]
+}
+
+#[test]
+fn sim_on_the_fast_machine_either_holds_the_limits_or_stops_at_the_first_fault() {
+    // The issue's reproducer: the helix once ran as a 4.14 mm jump in one period with exit
+    // 0. Whatever the motion core does with it, exit 0 must mean that every row is within
+    // the limits (1 % by finite differences from the CSV) and the summary shows at most
+    // 101 %; a fault must be exit 2 with one line naming the time, axis and ratio of the
+    // CSV's last row, and every earlier row within the limits.
+    let config = scratch("fast.toml", FAST_MACHINE);
+    let program = scratch(
+        "fast-helix.ngc",
+        "G21 G90 G17 F3000\nG2 X-1.0117 Y-4.0119 Z0.0635 I-1.5765 J-1.7360\nM2\n",
+    );
+    let (out, rows) = sim_any(
+        "fast-helix",
+        &program,
+        &["--config", config.to_str().unwrap()],
+    );
+    let rows = rows.expect("the CSV is written up to the fault");
+    let limits = [1000.0, 100000.0, 1e7];
+    let within = |k: usize| {
+        (1..4).all(|axis| {
+            let d = differences(&rows, axis, k, 0.001);
+            (0..3).all(|q| d[q].abs() <= 1.01 * limits[q] + 1e-6 * limits[q])
+        })
+    };
+    match out.status.code() {
+        Some(0) => {
+            assert!((0..rows.len()).all(within), "exit 0 with a limit broken");
+            let summary = String::from_utf8(out.stdout.clone()).unwrap();
+            let p = summary_percentages(&summary);
+            assert_eq!(p.len(), 9, "{summary}");
+            assert!(p.iter().all(|&p| p <= 101.0), "{summary}");
+            let last = rows.last().unwrap();
+            assert_eq!(&last[1..4], &[-1.0117, -4.0119, 0.0635]);
+        }
+        Some(2) => {
+            let err = stderr(&out);
+            assert_eq!(err.lines().count(), 1, "{err}");
+            assert!(out.stdout.is_empty(), "no summary after a fault");
+            // `NAME: error: setpoint at t = T s (line L): AXIS QUANTITY P % of the limit
+            // (KEY = LIMIT)`
+            let prefix = format!("{}: error: setpoint at t = ", program.display());
+            let rest = err.strip_prefix(&prefix).unwrap_or_else(|| panic!("{err}"));
+            let (t, rest) = rest
+                .split_once(" s (line 2): ")
+                .unwrap_or_else(|| panic!("{err}"));
+            let words: Vec<&str> = rest.split_whitespace().collect();
+            let axis = match words[0] {
+                "X" => 1,
+                "Y" => 2,
+                "Z" => 3,
+                other => panic!("axis {other}: {err}"),
+            };
+            let (q, key) = match words[1] {
+                "velocity" => (0, "(velocity_mm_s"),
+                "acceleration" => (1, "(acceleration_mm_s2"),
+                "jerk" => (2, "(jerk_mm_s3"),
+                other => panic!("quantity {other}: {err}"),
+            };
+            let percent: f64 = words[2].parse().unwrap();
+            assert_eq!(&words[3..8], &["%", "of", "the", "limit", key], "{err}");
+            let last = rows.last().unwrap();
+            assert_eq!(
+                last[0],
+                t.parse::<f64>().unwrap(),
+                "the CSV ends at the fault"
+            );
+            let k = rows.len() - 1;
+            let measured = differences(&rows, axis, k, 0.001)[q].abs() / limits[q] * 100.0;
+            assert!(
+                (measured - percent).abs() <= 0.5 + 1e-6 * measured,
+                "{err}: measured {measured} %"
+            );
+            assert!(percent > 101.0, "{err}");
+            assert!(
+                (0..k).all(within),
+                "an earlier row broke a limit unreported"
+            );
+        }
+        other => panic!("exit {other:?}: {}", stderr(&out)),
+    }
+}
+
+#[test]
+fn sim_summary_never_shows_more_than_101_percent_on_success() {
+    // The bundled part and a fast-machine polyline: successful runs, every figure ≤ 101 %.
+    let config = scratch("fast-poly.toml", FAST_MACHINE);
+    let poly = scratch(
+        "fast-poly.ngc",
+        "G21 G90 G17 F6000\nG1 X10 Y1\nG1 X20 Y-1\nG1 X30 Y2\nG3 X40 Y2 R5\nG1 Z-3\nG0 X0 Y0 Z0\n",
+    );
+    let part = root().join("config/examples/part.ngc");
+    for (name, program, args) in [
+        ("summary-part", part.as_path(), vec![]),
+        (
+            "summary-fast",
+            poly.as_path(),
+            vec!["--config", config.to_str().unwrap()],
+        ),
+    ] {
+        let (out, _) = sim_any(name, program, &args);
+        if out.status.code() == Some(0) {
+            let summary = String::from_utf8(out.stdout).unwrap();
+            let p = summary_percentages(&summary);
+            assert_eq!(p.len(), 9, "{summary}");
+            assert!(p.iter().all(|&p| p <= 101.0), "{name}: {summary}");
+        } else {
+            // A fault is reported as such, never as a success.
+            assert_eq!(out.status.code(), Some(2), "{name}");
+            assert!(stderr(&out).contains("of the limit"), "{}", stderr(&out));
+        }
+    }
+}
+
+/// The bundled config with X travel `-1000 ..= x_max_mm`.
+fn config_with_x_max(name: &str, x_max_mm: f64) -> PathBuf {
+    let config = std::fs::read_to_string(root().join("config/kerf.toml")).unwrap();
+    let changed = config.replacen(
+        "min_mm = -1000.0\nmax_mm = 1000.0\n\n[axes.y]",
+        &format!("min_mm = -1000.0\nmax_mm = {x_max_mm:?}\n\n[axes.y]"),
+        1,
+    );
+    assert_ne!(changed, config, "the X table changed: fix this test");
+    scratch(name, &changed)
+}
+
+/// Runs a program whose programmed moves touch X = 1000 on the bundled mill (travel
+/// ±1000 mm): either it is refused before motion naming `line` with the planned path's
+/// excess, and with a wider travel its setpoints really pass X 1000 by about that much;
+/// or it runs and no setpoint passes X 1000.
+fn assert_inside_or_refused(name: &str, text: &str, line: usize) {
+    let program = scratch(&format!("{name}.ngc"), text);
+    let (out, rows) = sim_any(name, &program, &[]);
+    match out.status.code() {
+        Some(0) => {
+            let max_x = rows.unwrap().iter().map(|r| r[1]).fold(f64::MIN, f64::max);
+            assert!(max_x <= 1000.0 + 1e-9, "{name}: setpoints reach X {max_x}");
+        }
+        Some(2) => {
+            let err = stderr(&out);
+            let prefix = format!("{}:{line}:1: error: the ", program.display());
+            assert!(err.starts_with(&prefix), "{name}: {err}");
+            assert!(
+                err.contains("leaves the X travel (max_mm = 1000) by "),
+                "{name}: {err}"
+            );
+            let hint = err.trim_end().rsplit("; ").next().unwrap();
+            assert!(
+                hint == "lower the tolerance (G64 P) or move the corner inside"
+                    || hint == "lower the tolerance (G64 P) or move the path inside",
+                "{name}: {err}"
+            );
+            assert!(rows.is_none(), "{name}: no CSV for a refused program");
+            assert!(out.stdout.is_empty());
+            let by: f64 = err
+                .split("by ")
+                .nth(1)
+                .and_then(|r| r.split(' ').next())
+                .unwrap()
+                .parse()
+                .unwrap();
+            // The same program with room beyond X 1000: the setpoints pass it, by at
+            // most the stated amount (the planned curve's farthest point; the setpoints
+            // sample it) and by more than a tenth of it.
+            let wide = config_with_x_max(&format!("{name}-wide.toml"), 1001.0);
+            let (out, rows) = sim_any(
+                &format!("{name}-wide"),
+                &program,
+                &["--config", wide.to_str().unwrap()],
+            );
+            assert!(out.status.success(), "{}", stderr(&out));
+            let over = rows.unwrap().iter().map(|r| r[1]).fold(f64::MIN, f64::max) - 1000.0;
+            assert!(
+                over > 0.1 * by && over <= 1.05 * by + 5e-4,
+                "{name}: setpoints pass X 1000 by {over} mm, the message says {by}"
+            );
+        }
+        other => panic!("{name}: exit {other:?}: {}", stderr(&out)),
+    }
+}
+
+#[test]
+fn sim_corner_blend_at_the_travel_limit_stays_inside_or_is_refused() {
+    // A square with two corners on X = 1000 (stops at 90°), and shallow 5° and 10° kinks
+    // whose vertex is on X = 1000 and whose second line runs along it: the G2 corner blend
+    // ends tangent to the limit and may bulge past it.
+    assert_inside_or_refused(
+        "travel-square",
+        "G21 G90 G17 G64 F3000\nG1 X980 Y0\nG1 X1000 Y0\nG1 X1000 Y20\nG1 X980 Y20\nG1 X980 Y0\n",
+        4,
+    );
+    for (name, deg) in [("travel-kink-5", 5.0f64), ("travel-kink-10", 10.0)] {
+        let a = deg.to_radians();
+        let text = format!(
+            "G21 G90 G17 G64 F3000\nG0 X{:.4} Y{:.4}\nG1 X1000 Y0\nG1 X1000 Y20\n",
+            1000.0 - 20.0 * a.sin(),
+            -20.0 * a.cos()
+        );
+        assert_inside_or_refused(name, &text, 4);
+    }
+}
+
+#[test]
+fn sim_smoothed_cam_polyline_touching_the_travel_limit_stays_inside_or_is_refused() {
+    // CAM-like: a quarter circle of radius 10 mm in 0.2 mm steps (3 decimals) that becomes
+    // tangent to X = 1000, then 20 mm of points along X = 1000; smoothed into quintics.
+    let mut text = String::from("G21 G90 G17 G64 F3000\nG0 X990 Y-20\n");
+    let n = (10.0 * std::f64::consts::FRAC_PI_2 / 0.2) as usize;
+    for k in 1..=n {
+        let a = -FRAC_PI_2 + FRAC_PI_2 * k as f64 / n as f64;
+        text += &format!(
+            "G1 X{:.3} Y{:.3}\n",
+            990.0 + 10.0 * a.cos(),
+            -10.0 + 10.0 * a.sin()
+        );
+    }
+    for k in 1..=100 {
+        text += &format!("G1 X1000 Y{:.3}\n", -10.0 + 0.2 * k as f64);
+    }
+    // The line named is among the moves near where the curve meets X = 1000: the last
+    // of the arc's points or the first few along the limit.
+    let program = scratch("travel-cam.ngc", &text);
+    let (out, _) = sim_any("travel-cam-probe", &program, &[]);
+    let line = match out.status.code() {
+        Some(2) => {
+            let err = stderr(&out);
+            let rest = err
+                .strip_prefix(&format!("{}:", program.display()))
+                .unwrap();
+            let line: usize = rest.split(':').next().unwrap().parse().unwrap();
+            assert!((n + 2 - 5..=n + 2 + 20).contains(&line), "{err}");
+            line
+        }
+        _ => 0,
+    };
+    assert_inside_or_refused("travel-cam", &text, line);
+    // A programmed move outside still fails as before, naming its own line.
+    let outside = text.replacen("G0 X990 Y-20\n", "G0 X1000.5 Y-20\n", 1);
+    let program = scratch("travel-cam-out.ngc", &outside);
+    let (out, rows) = sim_any("travel-cam-out", &program, &[]);
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(
+        stderr(&out),
+        format!(
+            "{}:2:1: error: X 1000.5 mm is outside the travel of the X axis (-1000 mm to 1000 mm)\n",
+            program.display()
+        )
+    );
+    assert!(rows.is_none());
+}
+
+#[test]
+fn sim_reads_standard_input_twice_through_a_spool_with_the_same_output() {
+    let text = cam_circle(3);
+    let program = scratch("stdin-circle.ngc", &text);
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("kerf-cli-tests");
+    let (from_file, from_stdin) = (dir.join("stdin-file.csv"), dir.join("stdin-pipe.csv"));
+    let a = kerf(&[
+        "sim",
+        program.to_str().unwrap(),
+        "--out",
+        from_file.to_str().unwrap(),
+    ]);
+    assert!(a.status.success(), "{}", stderr(&a));
+    let b = kerf_stdin(&["sim", "-", "--out", from_stdin.to_str().unwrap()], &text);
+    assert!(b.status.success(), "{}", stderr(&b));
+    assert_eq!(a.stdout, b.stdout, "the same summary");
+    assert_eq!(
+        std::fs::read(&from_file).unwrap(),
+        std::fs::read(&from_stdin).unwrap()
+    );
+    // An error on standard input is still named `<stdin>` with its place.
+    let out = kerf_stdin(
+        &["sim", "-", "--out", from_stdin.to_str().unwrap()],
+        "G1 X1 F100\nG2 X12 R1\n",
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).starts_with("<stdin>:2:"), "{}", stderr(&out));
+}
