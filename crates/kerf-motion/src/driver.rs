@@ -26,6 +26,37 @@ pub enum Event {
     Override(f64),
 }
 
+/// One item of a program as the driver runs it: a move, or a point where the motion must
+/// come to an exact stop (a program stop, tool change, spindle or coolant change: the
+/// control waits for the motion there), or a dwell (an exact stop, then the machine rests
+/// for the time).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Input {
+    /// A programmed move.
+    Move(Move),
+    /// An exact stop at this point of the program (the path is not blended across it).
+    Stop,
+    /// An exact stop, then rest for this many seconds (rounded up to whole periods).
+    Dwell(f64),
+}
+
+impl From<Move> for Input {
+    fn from(m: Move) -> Self {
+        Input::Move(m)
+    }
+}
+
+/// Periods a dwell of `seconds` takes: whole periods, rounded up (a dwell is never cut
+/// short), ignoring the last bits of rounding in the division.
+pub fn dwell_periods(seconds: f64, period_s: f64) -> u64 {
+    let positive = |x: f64| x.is_finite() && x > 0.0;
+    if !positive(seconds) || !positive(period_s) {
+        return 0;
+    }
+    let n = seconds / period_s;
+    (n - n * 1e-12).ceil().max(0.0) as u64
+}
+
 /// Options of a run.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RunOptions {
@@ -373,18 +404,29 @@ pub fn run<I, F>(
     sink: F,
 ) -> Result<Summary, RunError>
 where
-    I: IntoIterator<Item = Move>,
+    I: IntoIterator,
+    I::Item: Into<Input>,
     F: FnMut(f64, &Setpoint),
 {
     let mut runner = Runner::new(limits, options, sink);
     let mut planner = Planner::new(*limits);
     planner.set_design_override(options.feed_override);
     let mut buf = Vec::new();
-    for mv in moves {
-        runner.add_move(&mv);
-        planner.push(&mv, &mut buf)?;
+    for input in moves {
+        let input: Input = input.into();
+        match input {
+            Input::Move(mv) => {
+                runner.add_move(&mv);
+                planner.push(&mv, &mut buf)?;
+            }
+            // The planner ends the path at rest there and starts afresh after it.
+            Input::Stop | Input::Dwell(_) => planner.finish(&mut buf),
+        }
         for seg in buf.drain(..) {
             runner.push(&seg)?;
+        }
+        if let Input::Dwell(seconds) = input {
+            runner.dwell(seconds);
         }
     }
     planner.finish(&mut buf);
@@ -405,7 +447,21 @@ const MOVES_PER_BATCH: usize = 4096;
 /// program order, and the planned segments, each with the number of moves the planner had
 /// taken when it produced the segment (so that the deviation check sees the same moves as
 /// in [`run`]); or the error that stopped planning.
-type Batch = Result<(Vec<Move>, Vec<(PlannedSegment, usize)>), PlanError>;
+type Batch = Result<(Vec<Move>, Vec<Planned>), PlanError>;
+
+/// What the run is fed after planning: a segment with the number of moves the planner had
+/// taken when it produced it (so that the deviation check sees the same moves as in
+/// [`run`]), or a dwell (the segments before it end at rest).
+// Nearly every item is a segment: boxing them to shrink the rare dwell would cost an
+// allocation per segment.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Planned {
+    /// A planned segment and the moves known when it was planned.
+    Segment(PlannedSegment, usize),
+    /// Rest for this many seconds once the motion before has stopped.
+    Dwell(f64),
+}
 
 /// [`run`] with the planner on a second thread: the same setpoints, bit for bit (the
 /// feeding policy only depends on the order of the segments), in less wall time when a
@@ -436,7 +492,8 @@ pub fn run_stream<I, F>(
     sink: F,
 ) -> Result<Summary, RunError>
 where
-    I: Iterator<Item = Move> + Send,
+    I: Iterator + Send,
+    I::Item: Into<Input>,
     F: FnMut(f64, &Setpoint),
 {
     let (tx, rx) = std::sync::mpsc::sync_channel::<Batch>(4);
@@ -449,14 +506,23 @@ where
             let mut taken = Vec::new();
             let mut batch = Vec::with_capacity(BATCH);
             let mut known = 0;
-            for mv in moves {
-                if let Err(e) = planner.push(&mv, &mut buf) {
-                    let _ = tx.send(Err(e));
-                    return;
+            for input in moves {
+                let input: Input = input.into();
+                match input {
+                    Input::Move(mv) => {
+                        if let Err(e) = planner.push(&mv, &mut buf) {
+                            let _ = tx.send(Err(e));
+                            return;
+                        }
+                        taken.push(mv);
+                        known += 1;
+                    }
+                    Input::Stop | Input::Dwell(_) => planner.finish(&mut buf),
                 }
-                taken.push(mv);
-                known += 1;
-                batch.extend(buf.drain(..).map(|s| (s, known)));
+                batch.extend(buf.drain(..).map(|s| Planned::Segment(s, known)));
+                if let Input::Dwell(seconds) = input {
+                    batch.push(Planned::Dwell(seconds));
+                }
                 if batch.len() >= BATCH || taken.len() >= MOVES_PER_BATCH {
                     let full = (
                         std::mem::take(&mut taken),
@@ -468,7 +534,7 @@ where
                 }
             }
             planner.finish(&mut buf);
-            batch.extend(buf.drain(..).map(|s| (s, known)));
+            batch.extend(buf.drain(..).map(|s| Planned::Segment(s, known)));
             let _ = tx.send(Ok((taken, batch)));
         });
         let mut runner = Runner::new(limits, options, sink);
@@ -478,7 +544,14 @@ where
         for batch in rx {
             let (new_moves, segments) = batch?;
             pending.extend(new_moves);
-            for (seg, moves_known) in segments {
+            for planned in segments {
+                let (seg, moves_known) = match planned {
+                    Planned::Segment(seg, moves_known) => (seg, moves_known),
+                    Planned::Dwell(seconds) => {
+                        runner.dwell(seconds);
+                        continue;
+                    }
+                };
                 while known < moves_known {
                     let Some(mv) = pending.pop_front() else {
                         break;
@@ -496,8 +569,8 @@ where
 
 /// [`run_stream`] for segments already planned (by the same [`Planner`] with the same
 /// limits and design override, which is deterministic): each segment with the number of
-/// moves the planner had taken when it produced it. No planning thread; the same
-/// setpoints as [`run_stream`] on `moves`.
+/// moves the planner had taken when it produced it, and the dwells in their place. No
+/// planning thread; the same setpoints as [`run_stream`] on the same input.
 pub fn run_planned<S, F>(
     moves: &[Move],
     segments: S,
@@ -507,13 +580,20 @@ pub fn run_planned<S, F>(
     sink: F,
 ) -> Result<Summary, RunError>
 where
-    S: IntoIterator<Item = (PlannedSegment, usize)>,
+    S: IntoIterator<Item = Planned>,
     F: FnMut(f64, &Setpoint),
 {
     let mut runner = Runner::new(limits, options, sink);
     runner.attach(monitor)?;
     let mut known = 0;
-    for (seg, moves_known) in segments {
+    for planned in segments {
+        let (seg, moves_known) = match planned {
+            Planned::Segment(seg, moves_known) => (seg, moves_known),
+            Planned::Dwell(seconds) => {
+                runner.dwell(seconds);
+                continue;
+            }
+        };
         while known < moves_known.min(moves.len()) {
             runner.add_move(&moves[known]);
             known += 1;
@@ -576,6 +656,33 @@ impl<'a, F: FnMut(f64, &Setpoint)> Runner<'a, F> {
         }
         self.curves.push_back(Programmed::new(&mv.path));
         self.lines.push_back(mv.line);
+    }
+
+    /// A dwell: steps until the motion queued so far has come to rest (the planner ended
+    /// it at rest), then rests for the dwell's whole periods. A hold with no resume left
+    /// to come, a fault or the cycle guard ends it early (the run ends then anyway).
+    fn dwell(&mut self, seconds: f64) {
+        if self.aborted {
+            return;
+        }
+        loop {
+            if self.fault.is_some() || self.cycle >= self.max_cycles {
+                return;
+            }
+            let r = self.step();
+            let events_left = self.next_event < self.events.len();
+            match r {
+                StepResult::Idle => break,
+                StepResult::Held if !events_left => return,
+                _ => {}
+            }
+        }
+        for _ in 0..dwell_periods(seconds, self.period_s) {
+            if self.fault.is_some() || self.cycle >= self.max_cycles {
+                return;
+            }
+            self.step();
+        }
     }
 
     /// Steps until the motion is at rest after the last segment (and every event is
@@ -881,6 +988,63 @@ mod tests {
     use super::*;
     use kerf_plan::AxisLimits;
 
+    #[test]
+    fn dwells_take_whole_periods_rounded_up() {
+        assert_eq!(dwell_periods(0.5, 0.001), 500);
+        assert_eq!(dwell_periods(0.0005, 0.001), 1);
+        assert_eq!(dwell_periods(0.001, 62.5e-6), 16);
+        assert_eq!(dwell_periods(0.3, 0.1), 3);
+        assert_eq!(dwell_periods(0.0, 0.001), 0);
+        assert_eq!(dwell_periods(f64::NAN, 0.001), 0);
+    }
+
+    #[test]
+    fn a_dwell_rests_at_an_exact_stop_the_same_in_every_runner() {
+        // Two lines at a shallow angle (blended without the dwell), a 0.1 s dwell between.
+        let limits = machine(0.001, 200.0, 2000.0, 50_000.0);
+        let mv = |a: Vec3, b: Vec3| Move {
+            line: 1,
+            rapid: false,
+            path: Path::Line(kerf_geom::Line { start: a, end: b }),
+            feed_mm_min: Some(1200.0),
+            abc_deg: None,
+            corner: kerf_geom::CornerMode::Blend { tolerance_mm: None },
+        };
+        let corner = Vec3::new(10.0, 0.0, 0.0);
+        let inputs = [
+            Input::Move(mv(Vec3::zeros(), corner)),
+            Input::Dwell(0.1),
+            Input::Move(mv(corner, Vec3::new(20.0, 2.0, 0.0))),
+        ];
+        let collect = |streamed: bool| {
+            let mut rows: Vec<[f64; 6]> = Vec::new();
+            let opts = RunOptions::default();
+            let sink = |_: f64, sp: &Setpoint| rows.push(sp.position);
+            if streamed {
+                run_stream(inputs.iter().copied(), &limits, &opts, None, sink).unwrap();
+            } else {
+                run(inputs.iter().copied(), &limits, &opts, sink).unwrap();
+            }
+            rows
+        };
+        let rows = collect(false);
+        assert_eq!(rows, collect(true));
+        let at_corner = rows.iter().filter(|p| p[..3] == [10.0, 0.0, 0.0]).count();
+        // The arrival row and 100 periods of rest.
+        assert!((101..=102).contains(&at_corner), "{at_corner}");
+        // Without the dwell the corner is blended: no setpoint is exactly on it.
+        let mut blended: Vec<[f64; 6]> = Vec::new();
+        run(
+            [inputs[0], inputs[2]],
+            &limits,
+            &RunOptions::default(),
+            |_, sp| blended.push(sp.position),
+        )
+        .unwrap();
+        assert!(!blended.iter().any(|p| p[..3] == [10.0, 0.0, 0.0]));
+        assert!(blended.len() + 90 < rows.len());
+    }
+
     fn machine(period_s: f64, v: f64, a: f64, j: f64) -> MachineLimits {
         let axis = Some(AxisLimits {
             velocity: v,
@@ -1108,7 +1272,7 @@ mod tests {
         let mut rows = 0;
         let result = run_planned(
             &[mv],
-            segs.into_iter().map(|s| (s, 1)),
+            segs.into_iter().map(|s| Planned::Segment(s, 1)),
             &planned,
             &RunOptions::default(),
             Some(&mut monitor),

@@ -17,6 +17,7 @@ use indicatif::{ProgressBar, ProgressFinish, ProgressStyle};
 use kerf::sim::{Prepass, PrepassError, SimError, SimOptions};
 use kerf::{Config, PlanError, choose_dialect};
 use kerf_gcode::{Dialect, Interpreter, Item};
+use kerf_motion::driver::Input;
 
 /// Read buffer for program files: large enough that a 1 GB program costs few system calls,
 /// small enough to keep the resident set tiny.
@@ -251,7 +252,11 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
                     bar.set_position(moves);
                 }
             }
-            Ok(Item::Event(_)) => {}
+            Ok(Item::Event(e)) => match kerf::sim::input_of_event(&e) {
+                Some(Input::Dwell(seconds)) => prepass.stop(Some(seconds)).map_err(refused)?,
+                Some(_) => prepass.stop(None).map_err(refused)?,
+                None => {}
+            },
             Err(diagnostic) => return Err(Failure::Error(format!("{name}:{diagnostic}"))),
         }
     }
@@ -296,9 +301,9 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
                             changed.store(true, Ordering::Relaxed);
                             return None;
                         }
-                        Some(Some(m))
+                        Some(Some(Input::Move(m)))
                     }
-                    Ok(Item::Event(_)) => Some(None),
+                    Ok(Item::Event(e)) => Some(kerf::sim::input_of_event(&e)),
                     Err(_) => {
                         changed.store(true, Ordering::Relaxed);
                         None

@@ -33,7 +33,7 @@ use std::io::{self, BufWriter, Write};
 
 use kerf_geom::{Move, Path, Vec3, line_distance};
 use kerf_motion::driver::{
-    self, Event, LimitMonitor, LimitViolation, RunError, RunOptions, Summary,
+    self, Event, Input, LimitMonitor, LimitViolation, Planned, RunError, RunOptions, Summary,
 };
 use kerf_motion::{AxisLimits, MachineLimits, PlannedSegment, Setpoint};
 use kerf_plan::{PlanError, Planner};
@@ -210,11 +210,37 @@ impl Scan {
     }
 }
 
+/// What a non-motion event of the program means to the motion: a dwell (`G4`) is an exact
+/// stop and a rest; a program stop (M0, M1), an end (M2, M30), a tool change (M6), a
+/// spindle (M3, M4, M5, S) or coolant (M7, M8, M9) change is an exact stop, because the
+/// control waits for the motion to finish before it acts on it (as LinuxCNC does); a tool
+/// selection (T) does not stop the motion. The simulation does not wait at a program stop
+/// (it stands for an operator who presses cycle start at once) and runs M1 like M0.
+pub fn input_of_event(e: &kerf_gcode::Event) -> Option<Input> {
+    use kerf_gcode::EventCode as C;
+    match e.code {
+        C::G4 => Some(Input::Dwell(e.value.unwrap_or(0.0))),
+        C::T => None,
+        C::M0
+        | C::M1
+        | C::M2
+        | C::M30
+        | C::M3
+        | C::M4
+        | C::M5
+        | C::M6
+        | C::M7
+        | C::M8
+        | C::M9
+        | C::S => Some(Input::Stop),
+    }
+}
+
 /// The moves and planned segments of a program small enough to keep between the passes.
 #[derive(Debug)]
 pub struct Kept {
     moves: Vec<Move>,
-    segments: Vec<(PlannedSegment, usize)>,
+    segments: Vec<Planned>,
 }
 
 /// Bytes of moves and planned segments the first pass keeps at most for the run, so
@@ -306,6 +332,20 @@ impl Prepass {
         self.check_planned()
     }
 
+    /// An exact stop or a dwell at this point of the program (see [`input_of_event`]):
+    /// the planner ends the path at rest here, as the run's will.
+    pub fn stop(&mut self, dwell_s: Option<f64>) -> Result<(), PrepassError> {
+        self.planner.finish(&mut self.buf);
+        self.check_planned()?;
+        if let Some(seconds) = dwell_s {
+            self.scan.estimated_s += seconds;
+            if let Some(k) = self.kept.as_mut() {
+                k.segments.push(Planned::Dwell(seconds));
+            }
+        }
+        Ok(())
+    }
+
     /// Checks the segments the planner still held, and returns what the pass learned.
     pub fn finish(mut self) -> Result<Checked, PrepassError> {
         self.planner.finish(&mut self.buf);
@@ -319,9 +359,10 @@ impl Prepass {
     fn check_planned(&mut self) -> Result<(), PrepassError> {
         if let Some(k) = self.kept.as_mut() {
             let known = self.scan.moves as usize;
-            k.segments.extend(self.buf.iter().map(|s| (*s, known)));
+            k.segments
+                .extend(self.buf.iter().map(|s| Planned::Segment(*s, known)));
             let bytes = k.moves.len() * std::mem::size_of::<Move>()
-                + k.segments.len() * std::mem::size_of::<(PlannedSegment, usize)>();
+                + k.segments.len() * std::mem::size_of::<Planned>();
             if bytes > KEEP_BYTES {
                 self.kept = None;
             }
@@ -406,7 +447,7 @@ pub fn simulate_with<F: FnMut(f64, &Setpoint)>(
     row: F,
 ) -> Result<SimSummary, SimError> {
     run_checked(
-        Feed::Stream(moves.iter().copied()),
+        Feed::Stream(moves.iter().copied().map(Input::Move)),
         limits,
         [0.0; 6],
         options,
@@ -432,7 +473,7 @@ fn run_checked<I, F>(
     mut row: F,
 ) -> Result<SimSummary, SimError>
 where
-    I: Iterator<Item = Move> + Send,
+    I: Iterator<Item = Input> + Send,
     F: FnMut(f64, &Setpoint),
 {
     let run_options = RunOptions {
@@ -518,7 +559,14 @@ pub fn simulate_and_plot<W: Write + Send>(
     plot: Option<&mut dyn Write>,
 ) -> Result<SimSummary, SimError> {
     let rotary = moves.iter().any(|m| m.abc_deg.is_some_and(|(s, e)| s != e));
-    simulate_stream(moves.iter().copied(), rotary, config, options, out, plot)
+    simulate_stream(
+        moves.iter().copied().map(Input::Move),
+        rotary,
+        config,
+        options,
+        out,
+        plot,
+    )
 }
 
 /// [`simulate_and_plot`] over a stream of moves (the second pass of `kerf sim`):
@@ -534,7 +582,7 @@ pub fn simulate_stream<I, W>(
     plot: Option<&mut dyn Write>,
 ) -> Result<SimSummary, SimError>
 where
-    I: Iterator<Item = Move> + Send,
+    I: Iterator<Item = Input> + Send,
     W: Write + Send,
 {
     simulate_feed(Feed::Stream(moves), rotary_used, config, options, out, plot)
@@ -550,7 +598,7 @@ pub fn simulate_kept<W: Write + Send>(
     out: W,
     plot: Option<&mut dyn Write>,
 ) -> Result<SimSummary, SimError> {
-    let feed: Feed<std::iter::Empty<Move>> = Feed::Kept(kept);
+    let feed: Feed<std::iter::Empty<Input>> = Feed::Kept(kept);
     simulate_feed(feed, scan.rotary_used, config, options, out, plot)
 }
 
@@ -563,7 +611,7 @@ fn simulate_feed<I, W>(
     plot: Option<&mut dyn Write>,
 ) -> Result<SimSummary, SimError>
 where
-    I: Iterator<Item = Move> + Send,
+    I: Iterator<Item = Input> + Send,
     W: Write + Send,
 {
     let limits = machine_limits(config);
@@ -908,43 +956,57 @@ mod tests {
     }
 
     /// A dense rounded polyline (smoothed), a few corners and an arc, as G-code moves.
-    fn mixed_program() -> Vec<Move> {
+    fn mixed_program() -> Vec<Input> {
         let mut text = String::from("G21 G90 G17 G64 F3000\n");
         for k in 1..=400 {
             let a = k as f64 * 0.01;
             text += &format!("G1 X{:.3} Y{:.3}\n", 20.0 * a.sin(), 20.0 * (1.0 - a.cos()));
         }
-        text += "G1 X0 Y30\nG3 X-10 Y20 I0 J-10\nG1 X-10 Y0 Z-2\nG0 X0 Y0 Z0\n";
+        text += "G1 X0 Y30\nG4 P0.25\nG3 X-10 Y20 I0 J-10\nM5\nG1 X-10 Y0 Z-2\nG0 X0 Y0 Z0\n";
         kerf_gcode::Interpreter::new(
             text.as_bytes(),
             kerf_gcode::Dialect::LinuxCnc,
             Config::builtin().settings(),
         )
         .filter_map(|item| match item.unwrap() {
-            kerf_gcode::Item::Move(m) => Some(m),
-            _ => None,
+            kerf_gcode::Item::Move(m) => Some(Input::Move(m)),
+            kerf_gcode::Item::Event(e) => input_of_event(&e),
         })
         .collect()
+    }
+
+    fn mixed_moves() -> Vec<Move> {
+        mixed_program()
+            .into_iter()
+            .filter_map(|i| match i {
+                Input::Move(m) => Some(m),
+                _ => None,
+            })
+            .collect()
     }
 
     #[test]
     fn the_kept_first_pass_and_the_streamed_second_pass_write_the_same_csv() {
         let config = Config::builtin();
         let options = SimOptions::default();
-        let moves = mixed_program();
+        let inputs = mixed_program();
         let mut pre = Prepass::new(&config, &options);
-        for m in &moves {
-            pre.push(m).unwrap();
+        for i in &inputs {
+            match i {
+                Input::Move(m) => pre.push(m).unwrap(),
+                Input::Stop => pre.stop(None).unwrap(),
+                Input::Dwell(s) => pre.stop(Some(*s)).unwrap(),
+            }
         }
         let checked = pre.finish().unwrap();
-        assert_eq!(checked.scan.moves, moves.len() as u64);
+        assert_eq!(checked.scan.moves, mixed_moves().len() as u64);
         assert!(!checked.scan.rotary_used);
         let kept = checked.kept.expect("a small program is kept");
         let mut a = Vec::new();
         let sa = simulate_kept(kept, &checked.scan, &config, &options, &mut a, None).unwrap();
         let mut b = Vec::new();
         let sb = simulate_stream(
-            moves.iter().copied(),
+            inputs.iter().copied(),
             false,
             &config,
             &options,
@@ -955,16 +1017,23 @@ mod tests {
         assert_eq!(a, b);
         assert_eq!(sa, sb);
         assert!(sa.rows > 1000);
+        // The dwell is in both: 250 rows at rest at (0, 30).
+        let text = String::from_utf8(a).unwrap();
+        let at_rest = text
+            .lines()
+            .filter(|l| l.split(',').skip(1).take(2).eq(["0.0", "30.0"]))
+            .count();
+        assert!((250..=252).contains(&at_rest), "{at_rest}");
     }
 
     #[test]
     fn a_program_beyond_the_keep_budget_is_not_kept() {
         // Long lines with stops in between: one segment per move.
         let config = Config::builtin();
-        let per_move = std::mem::size_of::<Move>() + std::mem::size_of::<(PlannedSegment, usize)>();
+        let per_move = std::mem::size_of::<Move>() + std::mem::size_of::<Planned>();
         let n = KEEP_BYTES / per_move + 10;
         let mut pre = Prepass::new(&config, &SimOptions::default());
-        let mut m = mixed_program()[0];
+        let mut m = mixed_moves()[0];
         m.corner = CornerMode::ExactStop;
         for k in 0..n {
             let (x0, x1) = if k % 2 == 0 { (0.0, 5.0) } else { (5.0, 0.0) };

@@ -1262,3 +1262,96 @@ fn sim_reads_standard_input_twice_through_a_spool_with_the_same_output() {
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).starts_with("<stdin>:2:"), "{}", stderr(&out));
 }
+
+/// The rows at rest at exactly `p` (x, y), in runs of consecutive rows: (first row, count).
+fn rests_at(rows: &[Vec<f64>], p: [f64; 2]) -> Vec<(usize, usize)> {
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    for (k, r) in rows.iter().enumerate() {
+        if r[1] == p[0] && r[2] == p[1] {
+            match runs.last_mut() {
+                Some((first, n)) if *first + *n == k => *n += 1,
+                _ => runs.push((k, 1)),
+            }
+        }
+    }
+    runs
+}
+
+#[test]
+fn sim_dwells_at_an_exact_stop_for_the_programmed_time_in_every_dialect() {
+    // A square corner at (10, 0) with a 0.5 s dwell between the two lines: the machine
+    // must reach the corner exactly (no blend across the dwell), rest there for 500
+    // periods of 1 ms, then go on. Without the dwell the corner is blended.
+    let programs = [
+        (
+            "dwell.ngc",
+            "G21 G90 G17 G64\nG1 X10 F600\nG4 P0.5\nG1 Y10\nM2\n",
+        ),
+        (
+            "dwell.mpf",
+            "G71 G90 G17 G64\nG1 X10 F600\nG4 F0.5\nG1 Y10\nM30\n",
+        ),
+        (
+            "dwell_r.nc",
+            "G21 G90 G17\nG1 X10 F600\nG04 X0.5\nG1 Y10\nM2\n",
+        ),
+        (
+            "dwell.h",
+            "%D G71 *\nG01 X+10 F600 *\nG04 F0.5 *\nG01 Y+10 *\nN99 %D G71 *\n",
+        ),
+        (
+            "dwell.pim",
+            "G71 G90 G17\nG01 X10 F600\nG04 K0.5\nG01 Y10\nM30\n",
+        ),
+    ];
+    for (name, text) in programs {
+        let program = scratch(name, text);
+        let dialect = match name {
+            "dwell_r.nc" => vec!["--dialect", "rockwell"],
+            "dwell.pim" => vec!["--dialect", "fagor"],
+            _ => vec![],
+        };
+        let (_, rows) = sim_rows(name, &program, &dialect);
+        let rests = rests_at(&rows, [10.0, 0.0]);
+        assert_eq!(rests.len(), 1, "{name}: {rests:?}");
+        let (first, count) = rests[0];
+        // Arrival row, 500 dwell periods, and the row the next move starts from.
+        assert!((501..=502).contains(&count), "{name}: rested {count} rows");
+        assert!(first > 900, "{name}: reached the corner at row {first}");
+        let last = rows.last().unwrap();
+        assert_eq!([last[1], last[2]], [10.0, 10.0], "{name}: end");
+    }
+    // The rest is the dwell's: the same corner without it does not rest there.
+    let program = scratch("no_dwell.ngc", "G21 G90 G17 G64\nG1 X10 F600\nG1 Y10\nM2\n");
+    let (_, rows) = sim_rows("no_dwell", &program, &[]);
+    assert!(
+        rests_at(&rows, [10.0, 0.0]).iter().all(|r| r.1 < 3),
+        "rested without a dwell"
+    );
+}
+
+#[test]
+fn sim_stops_exactly_where_the_spindle_changes() {
+    // M5 between two lines: the control waits for the motion before it stops the spindle,
+    // so the corner is not blended: every setpoint lies on one of the two lines. A tool
+    // selection (T) does not stop the motion, and the corner is blended.
+    // The second line turns by 26.6° towards (20, 5), a corner the planner blends.
+    let on_the_lines = |rows: &[Vec<f64>]| {
+        rows.iter().all(|r| {
+            let (x, y) = (r[1], r[2]);
+            y.abs() <= 1e-9 || (x >= 10.0 && (y - (x - 10.0) / 2.0).abs() <= 1e-9)
+        })
+    };
+    let program = scratch(
+        "m5.ngc",
+        "G21 G90 G17 G64\nG1 X10 F600\nM5\nG1 X20 Y5\nM2\n",
+    );
+    let (_, rows) = sim_rows("m5", &program, &[]);
+    assert!(on_the_lines(&rows), "M5: the corner was blended");
+    let program = scratch(
+        "t2.ngc",
+        "G21 G90 G17 G64\nG1 X10 F600\nT2\nG1 X20 Y5\nM2\n",
+    );
+    let (_, rows) = sim_rows("t2", &program, &[]);
+    assert!(!on_the_lines(&rows), "T2: the corner should be blended");
+}
