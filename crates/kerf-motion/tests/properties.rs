@@ -1089,8 +1089,17 @@ fn stop_time_s(v: f64, accel: f64, jerk: f64) -> f64 {
 /// leave about that much), and the program still finishes exactly after the resume.
 #[test]
 fn hold_stops_within_the_stopping_time_and_resume_finishes() {
-    let mut rng = Rng(0x401d_0000_0001);
-    for case in 0..80 {
+    // `KERF_HOLD_SEED` and `KERF_HOLD_CASES` for a longer soak.
+    let seed: u64 = std::env::var("KERF_HOLD_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .map_or(0x401d_0000_0001, sweep_seed);
+    let cases: usize = std::env::var("KERF_HOLD_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(80);
+    let mut rng = Rng(seed);
+    for case in 0..cases {
         let limits = if case % 2 == 0 {
             sweep_limits(&mut rng)
         } else {
