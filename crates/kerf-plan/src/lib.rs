@@ -85,6 +85,17 @@
 //!   5 mm/s), so an exact stop there is still a little quicker than either blend.
 //!   Corners whose blends use up the lines (coarse polygons that are not smoothed) keep
 //!   circular arcs. Rotary motion and exact stops are left alone as for arcs.
+//! - **A corner takes the smaller tolerance of its two moves**, as in LinuxCNC's `tp`:
+//!   every decision at the junction of two moves (circular or G2 blend, G2 transition,
+//!   whether a smoothed run ends on the next move's tangent or a run continues the frame
+//!   of the move before it) uses `min(tol_i, tol_{i+1})`, so `G64 P1` before a
+//!   `G64 P0.01` move does not cut that move's start by more than 0.01 mm. Smoothed runs
+//!   never span a change of tolerance (their moves share one). An **exact stop belongs to
+//!   the move that ends at the corner**: G61 (or G9) on the arriving move stops there; a
+//!   move in exact-stop mode leaving a blended corner adds no tolerance of its own, so the
+//!   arriving move's governs. This is what LinuxCNC's `tp` does (the arriving segment's
+//!   terminal condition) and what the non-modal G9/G09 of the other controls needs (an
+//!   exact stop at the end of that one block, not also at its start).
 //! - **Junction caps**: a tangent kink of Δt at speed v is a velocity step `vΔt`; a curvature
 //!   jump Δκ is an acceleration step `v²Δκ`. Sampled at the period T, these look like a jerk
 //!   of `vΔt/T²` and `v²Δκ/T`, so the speed at the junction is capped to keep them within
@@ -510,6 +521,23 @@ fn turn_fits(a: Vec3, b: Vec3, len: f64, tol: f64) -> bool {
     theta <= smooth::MAX_TURN_RAD && len * theta / 8.0 <= smooth::SAG_TOL_SHARE * tol
 }
 
+/// The tolerance of the corner where a move in mode `arriving` meets one in mode
+/// `leaving`, mm: the smaller of the two moves' tolerances (LinuxCNC's `tp` takes the
+/// minimum too), `None` for an exact stop. An exact stop belongs to the move that ends
+/// at the corner (the arriving one), as in LinuxCNC's `tp` and as G9/G09 (exact stop for
+/// one block, at its end) needs; a leaving move in exact-stop mode adds no tolerance of
+/// its own, so the arriving move's governs.
+fn corner_tolerance(arriving: CornerMode, leaving: CornerMode, default_mm: f64) -> Option<f64> {
+    let CornerMode::Blend { tolerance_mm } = arriving else {
+        return None;
+    };
+    let tol = tolerance_mm.unwrap_or(default_mm);
+    Some(match leaving {
+        CornerMode::Blend { tolerance_mm } => tol.min(tolerance_mm.unwrap_or(default_mm)),
+        CornerMode::ExactStop => tol,
+    })
+}
+
 /// The tangent and curvature at the start of a feed move (A, B, C move linearly along it).
 fn next_start_frame(p: &Pending) -> Option<smooth::EndFrame> {
     let c = Curve::from_path(&p.mv.path);
@@ -528,9 +556,11 @@ fn next_start_frame(p: &Pending) -> Option<smooth::EndFrame> {
 /// The frame at the end of `prev` if a run starting with the line `next` may continue it
 /// smoothly.
 fn joining_frame(prev: &Pending, next: &Pending, tol: f64) -> Option<smooth::EndFrame> {
-    let CornerMode::Blend { .. } = prev.mv.corner else {
+    let CornerMode::Blend { tolerance_mm } = prev.mv.corner else {
         return None;
     };
+    // The corner takes the smaller tolerance of its two moves.
+    let tol = tolerance_mm.map_or(tol, |t| t.min(tol));
     if prev.mv.rapid
         || prev.abc_end != next.abc_start
         || (prev.mv.path.end() - next.mv.path.start()).norm() > MIN_SEGMENT_MM
@@ -644,7 +674,8 @@ impl Planner {
                     CornerMode::Blend { tolerance_mm: None },
                     out,
                 );
-                self.emit(blend, CornerMode::Blend { tolerance_mm: None }, None, out);
+                let mode = CornerMode::Blend { tolerance_mm: None };
+                self.emit(blend, mode, mode, None, out);
                 let u2 = (next.mv.path.end() - next.start).normalize();
                 next.start += u2 * d;
                 next.start_trim = d;
@@ -702,6 +733,11 @@ impl Planner {
         // frame, and the next run starts on that frame where the turn fits, so a curve
         // split into two runs stays curvature-continuous.
         let next_run = next.filter(|n| blended && RunState::starts(n, &self.limits).is_some());
+        // Decisions at the joint with `next` take the smaller tolerance of the two moves.
+        let corner_tol = next.map_or(run.tol, |n| {
+            corner_tolerance(run.last.mv.corner, n.mv.corner, self.limits.tolerance_mm)
+                .map_or(run.tol, |t| t.min(run.tol))
+        });
         let end_frame = match (run.last.mv.corner, next) {
             _ if next_run.is_some() => None,
             (CornerMode::Blend { .. }, Some(n)) => {
@@ -709,7 +745,7 @@ impl Planner {
                 first.filter(|f| {
                     run.run
                         .last_dir()
-                        .is_some_and(|d| turn_fits(d, f.tangent, run.run.last_len(), run.tol))
+                        .is_some_and(|d| turn_fits(d, f.tangent, run.run.last_len(), corner_tol))
                 })
             }
             _ => None,
@@ -723,7 +759,7 @@ impl Planner {
             return run
                 .run
                 .end_frame()
-                .filter(|f| turn_fits(f.tangent, line_dir(n), line_len(n), run.tol));
+                .filter(|f| turn_fits(f.tangent, line_dir(n), line_len(n), corner_tol));
         }
         end_frame
     }
@@ -769,7 +805,13 @@ impl Planner {
                 Some(c) if i + 1 == n => c,
                 _ => CornerMode::Blend { tolerance_mm: None },
             };
-            self.emit(seg, corner, None, out);
+            self.emit(
+                seg,
+                CornerMode::Blend { tolerance_mm: None },
+                corner,
+                None,
+                out,
+            );
         }
     }
 
@@ -830,10 +872,7 @@ impl Planner {
     /// each, if the corner is blended: a circular arc, or at an isolated corner a G2 blend
     /// ([`Planner::g2_blend`]) where that costs less time ([`corner_time_s`]).
     fn blend(&self, prev: &Pending, next: &Pending) -> Option<(PlannedSegment, f64)> {
-        let tol = match prev.mv.corner {
-            CornerMode::ExactStop => return None,
-            CornerMode::Blend { tolerance_mm } => tolerance_mm.unwrap_or(self.limits.tolerance_mm),
-        };
+        let tol = corner_tolerance(prev.mv.corner, next.mv.corner, self.limits.tolerance_mm)?;
         if tol <= 0.0 || !tol.is_finite() {
             return None;
         }
@@ -1082,40 +1121,46 @@ impl Planner {
             blend: false,
         };
         self.set_limits(&mut seg, p.mv.rapid);
-        self.emit(seg, corner, Some(Curve::from_path(&p.mv.path)), out);
+        self.emit(
+            seg,
+            p.mv.corner,
+            corner,
+            Some(Curve::from_path(&p.mv.path)),
+            out,
+        );
     }
 
+    /// Appends `seg` (in mode `own`, the mode of the move it comes from, and ending in
+    /// mode `corner`) after the held-back segment, deciding the junction between them.
     fn emit(
         &mut self,
         mut seg: PlannedSegment,
+        own: CornerMode,
         corner: CornerMode,
         origin: Option<Curve>,
         out: &mut Vec<PlannedSegment>,
     ) {
         let full_length = seg.length;
         if let Some(mut prev) = self.last.take() {
-            match self.last_corner {
-                CornerMode::ExactStop => {
+            match corner_tolerance(self.last_corner, own, self.limits.tolerance_mm) {
+                None => {
                     prev.end_cap = 0.0;
                     out.push(prev);
                 }
-                CornerMode::Blend { tolerance_mm } => {
-                    let tol = tolerance_mm.unwrap_or(self.limits.tolerance_mm);
-                    match self.transition(&prev, &seg, tol, origin.as_ref()) {
-                        Some((p, mut t, s)) => {
-                            prev = p;
-                            seg = s;
-                            prev.end_cap = junction_cap(&prev, &t, &self.limits);
-                            t.end_cap = junction_cap(&t, &seg, &self.limits);
-                            out.push(prev);
-                            out.push(t);
-                        }
-                        None => {
-                            prev.end_cap = junction_cap(&prev, &seg, &self.limits);
-                            out.push(prev);
-                        }
+                Some(tol) => match self.transition(&prev, &seg, tol, origin.as_ref()) {
+                    Some((p, mut t, s)) => {
+                        prev = p;
+                        seg = s;
+                        prev.end_cap = junction_cap(&prev, &t, &self.limits);
+                        t.end_cap = junction_cap(&t, &seg, &self.limits);
+                        out.push(prev);
+                        out.push(t);
                     }
-                }
+                    None => {
+                        prev.end_cap = junction_cap(&prev, &seg, &self.limits);
+                        out.push(prev);
+                    }
+                },
             }
         }
         self.last = Some(seg);
