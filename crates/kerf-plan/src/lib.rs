@@ -1624,10 +1624,13 @@ fn design_speed_search(
     let mut best: Option<(f64, f64, f64, f64)> = None;
     for _ in 0..steps {
         if let Some((a, j)) = budget(vd) {
-            if a >= 0.2 * a_min && j >= 0.2 * j_min {
+            // Measured against the acceleration a ramp to `vd` can use, not the raw
+            // limit: a larger acceleration limit must not reject a design speed.
+            let a_useful = a_min.min((vd * j_min).sqrt());
+            if a >= 0.2 * a_useful && j >= 0.2 * j_min {
                 return (vd, a, j);
             }
-            let time = length / vd + vd / a + a / j;
+            let time = length / vd + change_time_s(vd, a, j);
             if best.is_none_or(|b| time < b.0) {
                 best = Some((time, vd, a, j));
             }
@@ -1833,19 +1836,7 @@ fn transition_limits(
     };
     let budget = |vd: f64| -> Option<(f64, f64)> {
         let a_hi = accel_at(vd)?;
-        let mut best: Option<(f64, f64, f64)> = None;
-        for frac in [0.05, 0.1, 0.2, 0.35, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0] {
-            let a = a_hi * frac;
-            let j = jerk_at(vd, a);
-            if !(j > 0.0 && j.is_finite()) {
-                continue;
-            }
-            let cost = vd / a + a / j;
-            if best.is_none_or(|b| cost < b.0) {
-                best = Some((cost, a, j));
-            }
-        }
-        best.map(|(_, a, j)| (a, j))
+        quickest_budget(vd, a_hi, |a| jerk_at(vd, a))
     };
     let search =
         |v_start: f64| design_speed_search(seg.length, v_start, &limits.axes[..3], 24, budget);
@@ -1917,20 +1908,7 @@ fn curved_budget(
     if a_hi <= 0.0 {
         return None;
     }
-    let mut best: Option<(f64, f64, f64)> = None;
-    for frac in [0.05, 0.1, 0.2, 0.35, 0.5, 0.65, 0.8, 1.0] {
-        let a = a_hi * frac;
-        let j = bisect_max(|j| fits_jerk(a, j), j_cap);
-        if j <= 0.0 {
-            continue;
-        }
-        let cost = vd / a + a / j;
-        if best.is_none_or(|b| cost < b.0) {
-            best = Some((cost, a, j));
-        }
-    }
-    let (_, a, j) = best?;
-    Some((a, j))
+    quickest_budget(vd, a_hi, |a| bisect_max(|j| fits_jerk(a, j), j_cap))
 }
 
 /// [`curved_budget`] in closed form, for segments where no axis sees both an in-plane and
@@ -1977,19 +1955,98 @@ fn curved_budget_closed(
         }
         j
     };
-    let mut best: Option<(f64, f64, f64)> = None;
-    for frac in [0.05, 0.1, 0.2, 0.35, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0] {
-        let a = a_hi * frac;
+    quickest_budget(vd, a_hi, jerk_for)
+}
+
+/// Grid ratio of [`quickest_budget`]'s coarse search over the acceleration.
+const BUDGET_GRID_RATIO: f64 = 0.7;
+/// Points of that grid: it spans `a_hi` down to `a_hi·0.7⁴⁰ ≈ 6e-7·a_hi`.
+const BUDGET_GRID_POINTS: usize = 41;
+
+/// The tangential budget `(a, j)` on a curve at design speed `vd` that makes the
+/// quickest jerk-limited change of speed by `vd` ([`change_time_s`]), for accelerations
+/// up to `a_hi` and the jerk `jerk_for(a)` the axes leave at each (it falls as `a` grows:
+/// the normal jerk `3κva` takes its share). `None` if no acceleration leaves any jerk.
+///
+/// The acceleration is chosen for the time it gives, never as a share of `a_hi`: on a
+/// machine with a large acceleration and a small jerk any fixed share of `a_hi` can leave
+/// no jerk at all (a circle of 10 mm at 10 mm/s with jerk 1,000 mm/s³ and 200,000 mm/s²:
+/// 5 % of the acceleration makes `3κva` alone 30 times the jerk), and the design speed
+/// then fell to a crawl. And it is never more than a change of speed by `vd` can use:
+/// such a ramp peaks at `sqrt(vd·j)`. A larger limit on any axis only widens the choice
+/// (more `a_hi`, more jerk at every `a`), so the time this budget gives never grows.
+fn quickest_budget(vd: f64, a_hi: f64, jerk_for: impl Fn(f64) -> f64) -> Option<(f64, f64)> {
+    if !(vd > 0.0 && a_hi > 0.0) || vd.is_infinite() {
+        return None;
+    }
+    let a_hi = a_hi.min(f64::MAX.sqrt());
+    let cost = |a: f64| -> f64 {
         let j = jerk_for(a);
-        if !(j > 0.0 && j.is_finite()) {
-            continue;
+        if j > 0.0 && j.is_finite() {
+            change_time_s(vd, a, j)
+        } else {
+            f64::INFINITY
         }
-        let cost = vd / a + a / j;
-        if best.is_none_or(|b| cost < b.0) {
-            best = Some((cost, a, j));
+    };
+    // Coarse: a geometric grid down from `a_hi`; then golden-section search (in log a)
+    // around the best grid point.
+    let mut best = (f64::INFINITY, 0usize);
+    let grid = |k: usize| a_hi * BUDGET_GRID_RATIO.powi(k as i32);
+    for k in 0..BUDGET_GRID_POINTS {
+        let c = cost(grid(k));
+        if c < best.0 {
+            best = (c, k);
         }
     }
-    best.map(|(_, a, j)| (a, j))
+    if !best.0.is_finite() {
+        return None;
+    }
+    let k = best.1;
+    let (mut lo, mut hi) = (
+        grid((k + 1).min(BUDGET_GRID_POINTS - 1)).ln(),
+        grid(k.saturating_sub(1)).ln(),
+    );
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut c1, mut c2) = (cost(x1.exp()), cost(x2.exp()));
+    for _ in 0..24 {
+        if c1 <= c2 {
+            hi = x2;
+            x2 = x1;
+            c2 = c1;
+            x1 = hi - g * (hi - lo);
+            c1 = cost(x1.exp());
+        } else {
+            lo = x1;
+            x1 = x2;
+            c1 = c2;
+            x2 = lo + g * (hi - lo);
+            c2 = cost(x2.exp());
+        }
+    }
+    let mut a = grid(k);
+    if c1.min(c2) < best.0 {
+        a = if c1 <= c2 { x1.exp() } else { x2.exp() };
+    }
+    let j = jerk_for(a);
+    // Never more acceleration than a ramp by `vd` reaches (`a = sqrt(vd·j(a))`, found by
+    // bisection): less leaves the same ramp time and more jerk room.
+    if a * a > vd * j {
+        let (mut lo, mut hi) = (0.0, a);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if mid * mid <= vd * jerk_for(mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let j_lo = jerk_for(lo);
+        if lo > 0.0 && j_lo >= j {
+            return Some((lo, j_lo));
+        }
+    }
+    Some((a, j))
 }
 
 /// Largest `x` in `[0, hi]` with `ok(x)` (assumes `ok` is monotone), to 1e-6 relative.
