@@ -1566,11 +1566,10 @@ pub fn segment_limits(
     if w.kappa == 0.0 {
         return (v, a_line, j_line);
     }
-    // Curved: the acceleration and jerk depend on the speed; design for the feed, and
-    // lower the design speed until the tangential budget left is worth having.
-    // Candidates are compared by a rough time for the segment: cruise plus one ramp.
+    // Curved: the acceleration and jerk depend on the speed; the design speed (up to the
+    // feed) is the one with the least rough time (cruise plus one ramp).
     let search = |v_start: f64| {
-        design_speed_search(seg.length, v_start, &limits.axes, 16, |vd| {
+        design_speed_search(seg.length, v_start, |vd| {
             curved_budget(&w, limits, vd, a_line, j_line)
         })
     };
@@ -1598,49 +1597,84 @@ fn boosted(
     base
 }
 
-/// Lowers the design speed `vd` from `v_start` by steps of 0.8 (at most `steps` times)
-/// until `budget(vd)` leaves a useful tangential `(a, j)` budget: at least a fifth of the
-/// smallest acceleration and jerk of `axes`. The highest such speed wins, because the
-/// segment may be one of a long chain and its own length says little; if none qualifies,
-/// the candidate with the best rough time for the segment (cruise plus one ramp) does.
+/// Distance a curved segment's design speed is chosen for at the least, mm: the segment
+/// may be one of a long chain (a dense circle, a helix in turns), so its own length says
+/// little about how long the speed is held.
+pub const DESIGN_RUN_MM: f64 = 30.0;
+/// Ratio of the design-speed candidates below the top speed.
+const DESIGN_GRID_RATIO: f64 = 0.8;
+/// Candidates of that grid: down to `0.8²⁴ ≈ 0.5 %` of the top speed.
+const DESIGN_GRID_POINTS: usize = 25;
+
+/// The design speed `vd` (at most `v_top`) and its tangential budget `budget(vd)` that
+/// give the least rough time over `max(length, DESIGN_RUN_MM)` from rest to rest: the
+/// cruise at `vd` plus one jerk-limited ramp to it ([`change_time_s`]). On a curve a
+/// higher design speed leaves less of the axis limits to the tangential motion (the
+/// centripetal terms take them), so the fastest cruise is not the quickest segment.
+///
+/// The choice is a minimum of one measure over every speed up to `v_top`, and a larger
+/// limit on any axis only raises `v_top` and every speed's budget: the measure it finds
+/// never grows with a limit. (A rule such as "the highest speed whose budget is a fifth
+/// of the axis limits" is not: a larger limit moves the threshold and can push the
+/// design speed up into a poorer budget or down to a crawl.)
 fn design_speed_search(
     length: f64,
-    v_start: f64,
-    axes: &[Option<AxisLimits>],
-    steps: usize,
+    v_top: f64,
     budget: impl Fn(f64) -> Option<(f64, f64)>,
 ) -> (f64, f64, f64) {
-    let a_min = axes
-        .iter()
-        .flatten()
-        .map(|l| l.acceleration)
-        .fold(f64::INFINITY, f64::min);
-    let j_min = axes
-        .iter()
-        .flatten()
-        .map(|l| l.jerk)
-        .fold(f64::INFINITY, f64::min);
-    let mut vd = v_start;
-    let mut best: Option<(f64, f64, f64, f64)> = None;
-    for _ in 0..steps {
-        if let Some((a, j)) = budget(vd) {
-            // Measured against the acceleration a ramp to `vd` can use, not the raw
-            // limit: a larger acceleration limit must not reject a design speed.
-            let a_useful = a_min.min((vd * j_min).sqrt());
-            if a >= 0.2 * a_useful && j >= 0.2 * j_min {
-                return (vd, a, j);
-            }
-            let time = length / vd + change_time_s(vd, a, j);
-            if best.is_none_or(|b| time < b.0) {
-                best = Some((time, vd, a, j));
+    let run_mm = length.max(DESIGN_RUN_MM);
+    let eval = |vd: f64| -> Option<(f64, f64, f64)> {
+        let (a, j) = budget(vd)?;
+        Some((run_mm / vd + change_time_s(vd, a, j), a, j))
+    };
+    if !(v_top > 0.0 && v_top.is_finite()) {
+        return (v_top.max(0.0), 1e-3, 1e-3);
+    }
+    // Coarse grid down from the top, stopping once the measure has risen well past its
+    // best (it is unimodal in practice: the cruise term falls with vd, the ramp grows);
+    // then golden-section search in log vd between the best point's neighbours.
+    let grid = |k: usize| v_top * DESIGN_GRID_RATIO.powi(k as i32);
+    let mut best: Option<(usize, (f64, f64, f64))> = None;
+    for k in 0..DESIGN_GRID_POINTS {
+        let e = eval(grid(k));
+        if let Some(e) = e {
+            if best.is_none_or(|b| e.0 < b.1.0) {
+                best = Some((k, e));
+            } else if best.is_some_and(|b| k >= b.0 + 3 && e.0 > 1.5 * b.1.0) {
+                break;
             }
         }
-        vd *= 0.8;
     }
-    match best {
-        Some((_, v, a, j)) => (v, a, j),
-        None => (vd, 1e-3, 1e-3),
+    let Some((k, mut found)) = best else {
+        return (grid(DESIGN_GRID_POINTS), 1e-3, 1e-3);
+    };
+    let mut vd = grid(k);
+    let (mut lo, mut hi) = (grid(k + 1).ln(), grid(k.saturating_sub(1)).min(v_top).ln());
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let measure = |x: f64| eval(x.exp()).map_or(f64::INFINITY, |e| e.0);
+    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut c1, mut c2) = (measure(x1), measure(x2));
+    for _ in 0..10 {
+        if c1 <= c2 {
+            hi = x2;
+            x2 = x1;
+            c2 = c1;
+            x1 = hi - g * (hi - lo);
+            c1 = measure(x1);
+        } else {
+            lo = x1;
+            x1 = x2;
+            c1 = c2;
+            x2 = lo + g * (hi - lo);
+            c2 = measure(x2);
+        }
     }
+    let x = if c1 <= c2 { x1 } else { x2 };
+    if let Some(e) = eval(x.exp()).filter(|e| e.0 < found.0) {
+        vd = x.exp();
+        found = e;
+    }
+    (vd, found.1, found.2)
 }
 
 /// Sampled bounds of a transition (with [`LIMIT_SAFETY`] on the curvature terms).
@@ -1838,8 +1872,7 @@ fn transition_limits(
         let a_hi = accel_at(vd)?;
         quickest_budget(vd, a_hi, |a| jerk_at(vd, a))
     };
-    let search =
-        |v_start: f64| design_speed_search(seg.length, v_start, &limits.axes[..3], 24, budget);
+    let search = |v_start: f64| design_speed_search(seg.length, v_start, budget);
     boosted(v, seg.feed, feed_scale, search)
 }
 
@@ -1959,9 +1992,9 @@ fn curved_budget_closed(
 }
 
 /// Grid ratio of [`quickest_budget`]'s coarse search over the acceleration.
-const BUDGET_GRID_RATIO: f64 = 0.7;
-/// Points of that grid: it spans `a_hi` down to `a_hi·0.7⁴⁰ ≈ 6e-7·a_hi`.
-const BUDGET_GRID_POINTS: usize = 41;
+const BUDGET_GRID_RATIO: f64 = 0.5;
+/// Points of that grid: it spans `a_hi` down to `a_hi·0.5²⁰ ≈ 1e-6·a_hi`.
+const BUDGET_GRID_POINTS: usize = 21;
 
 /// The tangential budget `(a, j)` on a curve at design speed `vd` that makes the
 /// quickest jerk-limited change of speed by `vd` ([`change_time_s`]), for accelerations
