@@ -278,28 +278,28 @@ fn generated_case(seed: u64, index: usize) -> (MachineLimits, Vec<Move>, Raise, 
 }
 
 /// Escapes the property search found that are not fixed yet, as `(seed, case)` of this
-/// generator (the seeds are those of `KERF_SEED`). Each slows by 1.7 % to 15 % when a
-/// limit is raised. Their cause, found by comparing the planned segments of the two runs:
-/// a curved segment's design speed (its `v_max`, and with it its tangential `(a, j)`
-/// budget) is chosen for a run of [`kerf_plan::DESIGN_RUN_MM`] or its own length; in
-/// these short programs the segment is between two stops, so a higher design speed that
-/// a raised limit makes worthwhile over 30 mm costs more ramp time than it saves; and in
-/// case (1, 110) a G2 transition at a joint is dropped because its "crawl" test compares
-/// against the neighbours' design speeds. [`known_escapes_are_still_open`] replays them.
-const KNOWN_ESCAPES: [(u64, usize); 10] = [
-    (SEED, 24),
-    (1, 82),
-    (1, 83),
-    (1, 110),
-    (1, 135),
-    (2, 44),
-    (2, 180),
-    (2, 228),
-    (2, 234),
-    (2, 268),
+/// generator (the seeds are those of `KERF_SEED`; 8 in 1,800 cases of seeds 1 to 5 and
+/// the default). Each slows by 1.2 % to 5.3 % when a limit is raised. Their cause, found
+/// by comparing the planned segments of the two runs: a smoothed piece of a dense
+/// polyline is designed (its `v_max`, and with it its tangential `(a, j)` budget) for a
+/// run of [`kerf_plan::DESIGN_RUN_MM`]; in these programs the run is a few millimetres
+/// between two stops, so the higher design speed a raised limit makes worthwhile over
+/// 30 mm costs more ramp time than it saves. (Designing the pieces, like programmed arcs,
+/// for the corner-free path known up to their end removes all of them, but slows the
+/// start of every dense run and trips a motion-core profile fallback in `alloc.rs`.)
+/// [`known_escapes_are_still_open`] replays them.
+const KNOWN_ESCAPES: [(u64, usize); 8] = [
+    (3, 261),
+    (4, 7),
+    (4, 124),
+    (4, 295),
+    (5, 11),
+    (5, 209),
+    (5, 260),
+    (5, 274),
 ];
 
-/// 40 cases in every test run (the known escapes only for the limits); for a longer
+/// 100 cases in every test run (the known escapes only for the limits); for a longer
 /// search set `KERF_SEED` and `KERF_CASES`
 /// (`KERF_SEED=3 KERF_CASES=300 cargo test --release -p kerf-motion --test monotonic`).
 #[test]
@@ -311,7 +311,7 @@ fn raising_a_limit_never_slows_a_program() {
     let cases: usize = std::env::var("KERF_CASES")
         .ok()
         .and_then(|s| s.parse().ok())
-        .unwrap_or(40);
+        .unwrap_or(100);
     let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
     for case in 0..cases {
         let m = random_machine(&mut rng);
@@ -331,7 +331,7 @@ fn raising_a_limit_never_slows_a_program() {
 /// The escapes found so far, each with the 1 % property: open work (see
 /// [`KNOWN_ESCAPES`]), run with `--ignored`.
 #[test]
-#[ignore = "open: design speeds chosen for an assumed run length (issue 7)"]
+#[ignore = "open: smoothed pieces designed for an assumed run length (issue 7)"]
 fn known_escapes_are_still_open() {
     let mut slower = Vec::new();
     for (seed, case) in KNOWN_ESCAPES {

@@ -20,9 +20,20 @@
 //!   per segment, which is conservative but cheap and makes the lookahead closed-form.
 //!   On curved segments the budget depends on the speed: `(a, j)` are worked out (in closed
 //!   form for arcs in any plane, by bisection for helices in tilted planes) at a design
-//!   speed, the programmed feed or the curvature limit if lower; if that leaves less than
-//!   a fifth of the axis limits for the tangential motion, lower design speeds are tried
-//!   and the fastest rough segment time wins. `v_max` is that design speed. For a feed
+//!   speed, chosen among all speeds up to the programmed feed (or the curvature limit if
+//!   lower) for the least rough time from rest to rest (cruise plus one jerk-limited ramp)
+//!   over the distance the speed is held: for a programmed arc the path that runs on
+//!   without a corner (tangent-continuous, no exact stop) up to its end, at most
+//!   [`DESIGN_RUN_MM`]; for a smoothed piece `DESIGN_RUN_MM`; for a blend or transition its
+//!   own length. These distances are geometry only, never the limits. At each design speed the tangential acceleration
+//!   is the one that makes that ramp quickest given the jerk the axes leave at it (the
+//!   normal jerk `3κva` grows with it), never a share of the axis limit and never more than
+//!   the ramp can use, `sqrt(v·j)`. Both choices are minima over sets that only grow when
+//!   an axis limit is raised, so raising one never lowers the design by that measure.
+//!   (Issue 7: the tangential acceleration used to be tried as fractions of the axis
+//!   limit; with a large acceleration and a small jerk every fraction left no jerk, and a
+//!   circle at F600 with jerk 1,000 mm/s³ took 503 s at 200,000 mm/s² instead of 7.2 s.)
+//!   `v_max` is that design speed. For a feed
 //!   override above 100 %, arcs and transitions carry a second design for the highest
 //!   override (`v_boost`, `accel_boost`, `jerk_boost`, where that gains at least 10 %
 //!   speed), which the motion core switches to while the override asks for more than
@@ -73,7 +84,10 @@
 //!   so for each parameter scale of [`G2_LAMBDA_RATIOS`] × chord the deviation at
 //!   `d` = 1 mm ([`DEVIATION_SAMPLES`] points, distance to the two lines) gives the largest
 //!   `d` within [`TRANSITION_TOL_SHARE`] of the tolerance, confirmed on the real lines.
-//!   The candidate (or the arc) with the smallest rough corner time wins: slow-down to the
+//!   The candidate (or the arc) with the smallest rough corner time wins (the lines'
+//!   speed in it is at most what a ramp from rest reaches over the shorter line, so that a
+//!   raised velocity limit does not make a corner between short lines look like one
+//!   approached at full speed): slow-down to the
 //!   corner speed and back with the lines' limits, plus the transit of the blend (the arc
 //!   entered at its step cap and speeding up inside). The time, not the blend's `v_max`,
 //!   decides because a longer blend with a higher `v_max` can take longer to cross: at
@@ -399,6 +413,12 @@ pub struct Planner {
     /// Feed override the curved segments are designed for (see
     /// [`Planner::set_design_override`]).
     design_override: f64,
+    /// Length of the path that runs on without a corner (tangent-continuous, no exact
+    /// stop) up to the end of `last`, mm.
+    chain_mm: f64,
+    /// The run the next programmed arc is designed for (see [`segment_limits`]), mm; 0
+    /// for every other segment.
+    run_mm: f64,
 }
 
 /// A run of lines that may be smoothed (see [`smooth`]).
@@ -600,6 +620,8 @@ impl Planner {
             run: None,
             pieces: Vec::new(),
             design_override: 1.0,
+            chain_mm: 0.0,
+            run_mm: 0.0,
         }
     }
 
@@ -960,7 +982,7 @@ impl Planner {
             tol_mm: tol,
             room_mm,
         };
-        let lines = self.corner_lines(&seg, u1, u2);
+        let lines = self.corner_lines(&seg, u1, u2, (len1 - prev.start_trim).min(len2));
         let arc_time_s = corner_time_s(&seg, d, &lines, &self.limits);
         let (best, best_time_s) = match self.g2_blend(&corner_g2, &seg, &lines, rapid) {
             Some((g2, d_g2, time_s)) if time_s < arc_time_s => ((g2, d_g2), time_s),
@@ -978,11 +1000,17 @@ impl Planner {
     /// Stand-ins for the two lines of a corner whose blend is `blend` (in along `u1`, out
     /// along `u2`), with their limits: for the junction caps with the blend and the speed
     /// the corner is approached at.
+    ///
+    /// Their speed is at most what a ramp from rest reaches over `reach_mm` (the shorter
+    /// of the two programmed lines): a corner between short lines is not approached at
+    /// the machine's speed, and judging a stop or a blend against that speed (which a
+    /// raised velocity limit raises) made short zig-zags stop where a blend is quicker.
     fn corner_lines(
         &self,
         blend: &PlannedSegment,
         u1: Vec3,
         u2: Vec3,
+        reach_mm: f64,
     ) -> (PlannedSegment, PlannedSegment) {
         let mut line_in = *blend;
         line_in.blend = false;
@@ -992,6 +1020,11 @@ impl Planner {
         line_out.curve = Curve::line(blend.curve.end(), blend.curve.end() + u2);
         self.set_limits(&mut line_in, false);
         self.set_limits(&mut line_out, false);
+        for l in [&mut line_in, &mut line_out] {
+            let v = reach_speed(reach_mm, l.v_max, l.accel, l.jerk);
+            l.v_max = v;
+            l.v_boost = l.v_boost.min(v);
+        }
         (line_in, line_out)
     }
 
@@ -1120,7 +1153,12 @@ impl Planner {
             end_cap: 0.0,
             blend: false,
         };
+        // A programmed arc is designed for the path that runs on without a corner up to
+        // its end, at most [`DESIGN_RUN_MM`]: known geometry only, so that the choice
+        // does not depend on the limits.
+        self.run_mm = (self.chain_before(&seg) + seg.length).min(DESIGN_RUN_MM);
         self.set_limits(&mut seg, p.mv.rapid);
+        self.run_mm = 0.0;
         self.emit(
             seg,
             p.mv.corner,
@@ -1141,6 +1179,7 @@ impl Planner {
         out: &mut Vec<PlannedSegment>,
     ) {
         let full_length = seg.length;
+        self.chain_mm = self.chain_before(&seg) + seg.length;
         if let Some(mut prev) = self.last.take() {
             match corner_tolerance(self.last_corner, own, self.limits.tolerance_mm) {
                 None => {
@@ -1167,6 +1206,20 @@ impl Planner {
         self.last_corner = corner;
         self.last_origin = origin;
         self.last_full_length = full_length;
+    }
+
+    /// The length of the path that runs on without a corner into `seg`: the chain ending
+    /// at the held-back segment if `seg` continues it in tangent (all six axes) and the
+    /// junction is not an exact stop, else 0.
+    fn chain_before(&self, seg: &PlannedSegment) -> f64 {
+        let Some(last) = &self.last else { return 0.0 };
+        if matches!(self.last_corner, CornerMode::ExactStop) || seg.length <= 0.0 {
+            return 0.0;
+        }
+        let (ta, _) = last.derivatives_at(last.length);
+        let (tb, _) = seg.derivatives_at(0.0);
+        let tangent = (0..6).all(|i| (ta[i] - tb[i]).abs() <= 1e-6);
+        if tangent { self.chain_mm } else { 0.0 }
     }
 
     /// A curvature-continuous transition for the joint from `prev` to `seg`, if the joint
@@ -1300,7 +1353,7 @@ impl Planner {
 
     /// Sets `v_max`, `accel` and `jerk` of `seg` from the axis limits.
     fn set_limits(&self, seg: &mut PlannedSegment, _rapid: bool) {
-        let (v, a, j) = segment_limits(seg, &self.limits, self.design_override);
+        let (v, a, j) = segment_limits(seg, &self.limits, self.design_override, self.run_mm);
         seg.v_max = v;
         seg.accel = a;
         seg.jerk = j;
@@ -1314,7 +1367,7 @@ impl Planner {
             Curve::Transition(_) => seg.move_count <= 1,
         };
         if curved && seg.feed.is_finite() && self.design_override < MAX_DESIGN_OVERRIDE {
-            let (vb, ab, jb) = segment_limits(seg, &self.limits, MAX_DESIGN_OVERRIDE);
+            let (vb, ab, jb) = segment_limits(seg, &self.limits, MAX_DESIGN_OVERRIDE, self.run_mm);
             if vb > v {
                 seg.v_boost = vb;
                 seg.accel_boost = ab.min(a);
@@ -1379,6 +1432,25 @@ fn change_time_s(dv: f64, a: f64, j: f64) -> f64 {
     } else {
         dv / a + a / j
     }
+}
+
+/// The highest speed (at most `v_max`) that a jerk-limited ramp from rest with
+/// acceleration `a` and jerk `j` reaches within `length`, by bisection.
+fn reach_speed(length: f64, v_max: f64, a: f64, j: f64) -> f64 {
+    let ramp_mm = |v: f64| 0.5 * v * change_time_s(v, a, j);
+    if !(length > 0.0 && v_max > 0.0 && a > 0.0 && j > 0.0) || ramp_mm(v_max) <= length {
+        return v_max;
+    }
+    let (mut lo, mut hi) = (0.0, v_max);
+    for _ in 0..50 {
+        let mid = 0.5 * (lo + hi);
+        if ramp_mm(mid) <= length {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
 }
 
 /// Rough time over a segment of `length` entered and left at `v_in`, speeding up on the
@@ -1512,10 +1584,14 @@ fn weights(seg: &PlannedSegment) -> Weights {
 ///
 /// `feed_scale` (at least 1) is the feed override the curved segments are designed for:
 /// their `v_max` is at most the programmed feed times it.
+///
+/// `run_mm` is the distance a curved segment's design speed is chosen for (at least its
+/// length is used): how far the path runs on without a corner, see [`DESIGN_RUN_MM`].
 pub fn segment_limits(
     seg: &PlannedSegment,
     limits: &MachineLimits,
     feed_scale: f64,
+    run_mm: f64,
 ) -> (f64, f64, f64) {
     if let Curve::Transition(t) = &seg.curve {
         // Smoothed pieces keep the programmed feed as their design speed: boosted, their
@@ -1569,7 +1645,7 @@ pub fn segment_limits(
     // Curved: the acceleration and jerk depend on the speed; the design speed (up to the
     // feed) is the one with the least rough time (cruise plus one ramp).
     let search = |v_start: f64| {
-        design_speed_search(seg.length, v_start, |vd| {
+        design_speed_search(run_mm.max(seg.length), v_start, |vd| {
             curved_budget(&w, limits, vd, a_line, j_line)
         })
     };
@@ -1622,7 +1698,7 @@ fn design_speed_search(
     v_top: f64,
     budget: impl Fn(f64) -> Option<(f64, f64)>,
 ) -> (f64, f64, f64) {
-    let run_mm = length.max(DESIGN_RUN_MM);
+    let run_mm = length;
     let eval = |vd: f64| -> Option<(f64, f64, f64)> {
         let (a, j) = budget(vd)?;
         Some((run_mm / vd + change_time_s(vd, a, j), a, j))
@@ -1872,7 +1948,12 @@ fn transition_limits(
         let a_hi = accel_at(vd)?;
         quickest_budget(vd, a_hi, |a| jerk_at(vd, a))
     };
-    let search = |v_start: f64| design_speed_search(seg.length, v_start, budget);
+    let run_mm = if seg.move_count > 1 {
+        seg.length.max(DESIGN_RUN_MM)
+    } else {
+        seg.length
+    };
+    let search = |v_start: f64| design_speed_search(run_mm, v_start, budget);
     boosted(v, seg.feed, feed_scale, search)
 }
 
