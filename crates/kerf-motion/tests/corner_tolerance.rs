@@ -215,3 +215,48 @@ fn exact_stop_is_the_arriving_moves() {
         .fold(f64::INFINITY, f64::min);
     assert!(nearest > 0.01, "the corner was not blended: {nearest} mm");
 }
+
+/// A dense polyline (smoothed into curves) along a circle of radius 50 mm, `n` segments
+/// of 0.5 mm from `start` heading +X, turning left.
+fn dense_arc(start: Vec3, n: usize, tol_mm: f64) -> Vec<Move> {
+    let r = 50.0;
+    let c = start + Vec3::new(0.0, r, 0.0);
+    let step = 0.5 / r;
+    let pt = |k: usize| {
+        let a = -std::f64::consts::FRAC_PI_2 + step * k as f64;
+        c + Vec3::new(r * a.cos(), r * a.sin(), 0.0)
+    };
+    (0..n)
+        .map(|k| with_tol(line(k as u32 + 1, pt(k), pt(k + 1), 3000.0), tol_mm))
+        .collect()
+}
+
+/// Smoothing must not bend a coarse run into a fine move: a run under `G64 P1` ending
+/// where a `G64 P0.01` line turns off by 20° (a turn a run at 1 mm would round over the
+/// last 0.5 mm segment, 0.02 mm off it), and the same the other way round.
+#[test]
+fn a_smoothed_run_takes_the_fine_tolerance_where_it_meets_a_fine_move() {
+    let limits = machine();
+    let turn = 20.0_f64.to_radians();
+    // Coarse run, then the fine line.
+    let mut moves = dense_arc(Vec3::zeros(), 40, 1.0);
+    let (p, d) = {
+        let Path::Line(l) = moves.last().unwrap().path else {
+            unreachable!()
+        };
+        (l.end, (l.end - l.start).normalize())
+    };
+    let (s, c) = turn.sin_cos();
+    let out = Vec3::new(d.x * c + d.y * s, -d.x * s + d.y * c, 0.0);
+    moves.push(with_tol(line(41, p, p + out * 10.0, 3000.0), 0.01));
+    let (_, worst) = run_and_measure(&moves, &limits);
+    assert!(worst <= 0.01 + 1e-6, "coarse run, fine line: {worst} mm");
+
+    // The fine line, then the coarse run starting 20° off its direction.
+    let dir = Vec3::new(turn.cos(), -turn.sin(), 0.0);
+    let first = with_tol(line(1, Vec3::zeros(), dir * 10.0, 3000.0), 0.01);
+    let mut moves = vec![first];
+    moves.extend(dense_arc(dir * 10.0, 40, 1.0));
+    let (_, worst) = run_and_measure(&moves, &limits);
+    assert!(worst <= 0.01 + 1e-6, "fine line, coarse run: {worst} mm");
+}

@@ -469,12 +469,15 @@ impl RunState {
         }
     }
 
-    /// Whether `p` continues the run.
+    /// Whether `p` continues the run: every member has the run's tolerance, at both of its
+    /// ends (a move under another tolerance starts a run of its own, so a coarse run
+    /// never smooths a fine move).
     fn joins(&self, p: &Pending) -> bool {
-        if self.last.mv.corner
-            != (CornerMode::Blend {
-                tolerance_mm: self.tol_mm,
-            })
+        let mode = CornerMode::Blend {
+            tolerance_mm: self.tol_mm,
+        };
+        if self.last.mv.corner != mode
+            || p.mv.corner != mode
             || !smoothable(p)
             || p.abc_start != self.run.end_abc()
             || (p.mv.path.start() - self.run.end()).norm() > MIN_SEGMENT_MM
