@@ -278,18 +278,19 @@ fn generated_case(seed: u64, index: usize) -> (MachineLimits, Vec<Move>, Raise, 
 }
 
 /// Escapes the property search found that are not fixed yet, as `(seed, case)` of this
-/// generator (the seeds are those of `KERF_SEED`; 4 in 1,800 cases of seeds 1 to 5 and
-/// the default). Each slows by 1.1 % to 5.9 % when a limit is raised. Their cause, found
-/// by comparing the planned segments of the two runs: a smoothed piece of a dense
-/// polyline is designed (its `v_max`, and with it its tangential `(a, j)` budget) for a
-/// run of [`kerf_plan::DESIGN_RUN_MM`]; in these programs the run is a few millimetres
-/// between two stops or tolerance changes, so the higher design speed a raised limit
-/// makes worthwhile over 30 mm costs more ramp time than it saves. (Designing the pieces,
-/// like programmed arcs, for the corner-free path known up to their end removed every
-/// escape found before runs were split at tolerance changes, but slows the start of every
-/// dense run and trips a motion-core profile fallback in `alloc.rs`.)
+/// generator (the seeds are those of `KERF_SEED`; 3 in 1,800 cases of seeds 1 to 5 and
+/// the default). Each slows by 1.4 % to 2.6 % when a limit is raised. Their causes, found
+/// by comparing the planned segments of the two runs: in (3, 261) and (4, 124) a smoothed
+/// piece of a dense polyline is designed (its `v_max`, and with it its tangential `(a, j)`
+/// budget) for a run of [`kerf_plan::DESIGN_RUN_MM`], while the run is well under a
+/// millimetre between two stops, so the higher design speed a raised limit makes
+/// worthwhile over 30 mm costs more ramp time than it saves (designing the pieces, like
+/// programmed arcs, for the corner-free path known up to their end removes these, but
+/// slows the start of every dense run and trips a motion-core profile fallback in
+/// `alloc.rs`); in (5, 209) every planned segment's limits are the same or higher after
+/// the raise, so the slowdown is the motion core's (sections and lookahead).
 /// [`known_escapes_are_still_open`] replays them.
-const KNOWN_ESCAPES: [(u64, usize); 4] = [(2, 44), (2, 180), (3, 116), (5, 176)];
+const KNOWN_ESCAPES: [(u64, usize); 3] = [(3, 261), (4, 124), (5, 209)];
 
 /// 100 cases in every test run (the known escapes only for the limits); for a longer
 /// search set `KERF_SEED` and `KERF_CASES`

@@ -1727,6 +1727,10 @@ fn design_speed_search(
     let Some((k, mut found)) = best else {
         return (grid(DESIGN_GRID_POINTS), 1e-3, 1e-3);
     };
+    // The usual case: the top speed is best and the measure rises just below it.
+    if k == 0 && eval(0.99 * v_top).is_none_or(|e| e.0 >= found.0) {
+        return (v_top, found.1, found.2);
+    }
     let mut vd = grid(k);
     let (mut lo, mut hi) = (grid(k + 1).ln(), grid(k.saturating_sub(1)).min(v_top).ln());
     let g = 0.5 * (5f64.sqrt() - 1.0);
@@ -2096,7 +2100,13 @@ fn quickest_budget(vd: f64, a_hi: f64, jerk_for: impl Fn(f64) -> f64) -> Option<
     if !(vd > 0.0 && a_hi > 0.0) || vd.is_infinite() {
         return None;
     }
-    let a_hi = a_hi.min(f64::MAX.sqrt());
+    // The jerk left is largest at a = 0, and a ramp by `vd` never reaches more than
+    // `sqrt(vd·j)`: nothing above `sqrt(vd·j(0))` is worth trying.
+    let j0 = jerk_for(0.0);
+    if j0.is_nan() || j0 <= 0.0 {
+        return None;
+    }
+    let a_hi = a_hi.min((vd * j0).sqrt()).min(f64::MAX.sqrt());
     let cost = |a: f64| -> f64 {
         let j = jerk_for(a);
         if j > 0.0 && j.is_finite() {
@@ -2105,20 +2115,27 @@ fn quickest_budget(vd: f64, a_hi: f64, jerk_for: impl Fn(f64) -> f64) -> Option<
             f64::INFINITY
         }
     };
-    // Coarse: a geometric grid down from `a_hi`; then golden-section search (in log a)
-    // around the best grid point.
+    // Coarse: a geometric grid down from `a_hi`, until the time has risen for two points
+    // past the best (it falls and then rises with a); then golden-section search (in
+    // log a) around the best grid point.
     let mut best = (f64::INFINITY, 0usize);
     let grid = |k: usize| a_hi * BUDGET_GRID_RATIO.powi(k as i32);
     for k in 0..BUDGET_GRID_POINTS {
         let c = cost(grid(k));
         if c < best.0 {
             best = (c, k);
+        } else if best.0.is_finite() && k >= best.1 + 2 {
+            break;
         }
     }
     if !best.0.is_finite() {
         return None;
     }
     let k = best.1;
+    if k == 0 && cost(0.99 * a_hi) >= best.0 {
+        let j = jerk_for(a_hi);
+        return Some((a_hi, j));
+    }
     let (mut lo, mut hi) = (
         grid((k + 1).min(BUDGET_GRID_POINTS - 1)).ln(),
         grid(k.saturating_sub(1)).ln(),
@@ -2126,7 +2143,7 @@ fn quickest_budget(vd: f64, a_hi: f64, jerk_for: impl Fn(f64) -> f64) -> Option<
     let g = 0.5 * (5f64.sqrt() - 1.0);
     let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
     let (mut c1, mut c2) = (cost(x1.exp()), cost(x2.exp()));
-    for _ in 0..24 {
+    for _ in 0..14 {
         if c1 <= c2 {
             hi = x2;
             x2 = x1;
