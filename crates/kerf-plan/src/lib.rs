@@ -20,9 +20,20 @@
 //!   per segment, which is conservative but cheap and makes the lookahead closed-form.
 //!   On curved segments the budget depends on the speed: `(a, j)` are worked out (in closed
 //!   form for arcs in any plane, by bisection for helices in tilted planes) at a design
-//!   speed, the programmed feed or the curvature limit if lower; if that leaves less than
-//!   a fifth of the axis limits for the tangential motion, lower design speeds are tried
-//!   and the fastest rough segment time wins. `v_max` is that design speed. For a feed
+//!   speed, chosen among all speeds up to the programmed feed (or the curvature limit if
+//!   lower) for the least rough time from rest to rest (cruise plus one jerk-limited ramp)
+//!   over the distance the speed is held: for a programmed arc the path that runs on
+//!   without a corner (tangent-continuous, no exact stop) up to its end, at most
+//!   [`DESIGN_RUN_MM`]; for a smoothed piece `DESIGN_RUN_MM`; for a blend or transition its
+//!   own length. These distances are geometry only, never the limits. At each design speed the tangential acceleration
+//!   is the one that makes that ramp quickest given the jerk the axes leave at it (the
+//!   normal jerk `3κva` grows with it), never a share of the axis limit and never more than
+//!   the ramp can use, `sqrt(v·j)`. Both choices are minima over sets that only grow when
+//!   an axis limit is raised, so raising one never lowers the design by that measure.
+//!   (Issue 7: the tangential acceleration used to be tried as fractions of the axis
+//!   limit; with a large acceleration and a small jerk every fraction left no jerk, and a
+//!   circle at F600 with jerk 1,000 mm/s³ took 503 s at 200,000 mm/s² instead of 7.2 s.)
+//!   `v_max` is that design speed. For a feed
 //!   override above 100 %, arcs and transitions carry a second design for the highest
 //!   override (`v_boost`, `accel_boost`, `jerk_boost`, where that gains at least 10 %
 //!   speed), which the motion core switches to while the override asks for more than
@@ -73,7 +84,10 @@
 //!   so for each parameter scale of [`G2_LAMBDA_RATIOS`] × chord the deviation at
 //!   `d` = 1 mm ([`DEVIATION_SAMPLES`] points, distance to the two lines) gives the largest
 //!   `d` within [`TRANSITION_TOL_SHARE`] of the tolerance, confirmed on the real lines.
-//!   The candidate (or the arc) with the smallest rough corner time wins: slow-down to the
+//!   The candidate (or the arc) with the smallest rough corner time wins (the lines'
+//!   speed in it is at most what a ramp from rest reaches over the shorter line, so that a
+//!   raised velocity limit does not make a corner between short lines look like one
+//!   approached at full speed): slow-down to the
 //!   corner speed and back with the lines' limits, plus the transit of the blend (the arc
 //!   entered at its step cap and speeding up inside). The time, not the blend's `v_max`,
 //!   decides because a longer blend with a higher `v_max` can take longer to cross: at
@@ -85,6 +99,17 @@
 //!   5 mm/s), so an exact stop there is still a little quicker than either blend.
 //!   Corners whose blends use up the lines (coarse polygons that are not smoothed) keep
 //!   circular arcs. Rotary motion and exact stops are left alone as for arcs.
+//! - **A corner takes the smaller tolerance of its two moves**, as in LinuxCNC's `tp`:
+//!   every decision at the junction of two moves (circular or G2 blend, G2 transition,
+//!   whether a smoothed run ends on the next move's tangent or a run continues the frame
+//!   of the move before it) uses `min(tol_i, tol_{i+1})`, so `G64 P1` before a
+//!   `G64 P0.01` move does not cut that move's start by more than 0.01 mm. Smoothed runs
+//!   never span a change of tolerance (their moves share one). An **exact stop belongs to
+//!   the move that ends at the corner**: G61 (or G9) on the arriving move stops there; a
+//!   move in exact-stop mode leaving a blended corner adds no tolerance of its own, so the
+//!   arriving move's governs. This is what LinuxCNC's `tp` does (the arriving segment's
+//!   terminal condition) and what the non-modal G9/G09 of the other controls needs (an
+//!   exact stop at the end of that one block, not also at its start).
 //! - **Junction caps**: a tangent kink of Δt at speed v is a velocity step `vΔt`; a curvature
 //!   jump Δκ is an acceleration step `v²Δκ`. Sampled at the period T, these look like a jerk
 //!   of `vΔt/T²` and `v²Δκ/T`, so the speed at the junction is capped to keep them within
@@ -388,6 +413,12 @@ pub struct Planner {
     /// Feed override the curved segments are designed for (see
     /// [`Planner::set_design_override`]).
     design_override: f64,
+    /// Length of the path that runs on without a corner (tangent-continuous, no exact
+    /// stop) up to the end of `last`, mm.
+    chain_mm: f64,
+    /// The run the next programmed arc is designed for (see [`segment_limits`]), mm; 0
+    /// for every other segment.
+    run_mm: f64,
 }
 
 /// A run of lines that may be smoothed (see [`smooth`]).
@@ -438,12 +469,15 @@ impl RunState {
         }
     }
 
-    /// Whether `p` continues the run.
+    /// Whether `p` continues the run: every member has the run's tolerance, at both of its
+    /// ends (a move under another tolerance starts a run of its own, so a coarse run
+    /// never smooths a fine move).
     fn joins(&self, p: &Pending) -> bool {
-        if self.last.mv.corner
-            != (CornerMode::Blend {
-                tolerance_mm: self.tol_mm,
-            })
+        let mode = CornerMode::Blend {
+            tolerance_mm: self.tol_mm,
+        };
+        if self.last.mv.corner != mode
+            || p.mv.corner != mode
             || !smoothable(p)
             || p.abc_start != self.run.end_abc()
             || (p.mv.path.start() - self.run.end()).norm() > MIN_SEGMENT_MM
@@ -510,6 +544,23 @@ fn turn_fits(a: Vec3, b: Vec3, len: f64, tol: f64) -> bool {
     theta <= smooth::MAX_TURN_RAD && len * theta / 8.0 <= smooth::SAG_TOL_SHARE * tol
 }
 
+/// The tolerance of the corner where a move in mode `arriving` meets one in mode
+/// `leaving`, mm: the smaller of the two moves' tolerances (LinuxCNC's `tp` takes the
+/// minimum too), `None` for an exact stop. An exact stop belongs to the move that ends
+/// at the corner (the arriving one), as in LinuxCNC's `tp` and as G9/G09 (exact stop for
+/// one block, at its end) needs; a leaving move in exact-stop mode adds no tolerance of
+/// its own, so the arriving move's governs.
+fn corner_tolerance(arriving: CornerMode, leaving: CornerMode, default_mm: f64) -> Option<f64> {
+    let CornerMode::Blend { tolerance_mm } = arriving else {
+        return None;
+    };
+    let tol = tolerance_mm.unwrap_or(default_mm);
+    Some(match leaving {
+        CornerMode::Blend { tolerance_mm } => tol.min(tolerance_mm.unwrap_or(default_mm)),
+        CornerMode::ExactStop => tol,
+    })
+}
+
 /// The tangent and curvature at the start of a feed move (A, B, C move linearly along it).
 fn next_start_frame(p: &Pending) -> Option<smooth::EndFrame> {
     let c = Curve::from_path(&p.mv.path);
@@ -528,9 +579,11 @@ fn next_start_frame(p: &Pending) -> Option<smooth::EndFrame> {
 /// The frame at the end of `prev` if a run starting with the line `next` may continue it
 /// smoothly.
 fn joining_frame(prev: &Pending, next: &Pending, tol: f64) -> Option<smooth::EndFrame> {
-    let CornerMode::Blend { .. } = prev.mv.corner else {
+    let CornerMode::Blend { tolerance_mm } = prev.mv.corner else {
         return None;
     };
+    // The corner takes the smaller tolerance of its two moves.
+    let tol = tolerance_mm.map_or(tol, |t| t.min(tol));
     if prev.mv.rapid
         || prev.abc_end != next.abc_start
         || (prev.mv.path.end() - next.mv.path.start()).norm() > MIN_SEGMENT_MM
@@ -570,6 +623,8 @@ impl Planner {
             run: None,
             pieces: Vec::new(),
             design_override: 1.0,
+            chain_mm: 0.0,
+            run_mm: 0.0,
         }
     }
 
@@ -644,7 +699,8 @@ impl Planner {
                     CornerMode::Blend { tolerance_mm: None },
                     out,
                 );
-                self.emit(blend, CornerMode::Blend { tolerance_mm: None }, None, out);
+                let mode = CornerMode::Blend { tolerance_mm: None };
+                self.emit(blend, mode, mode, None, out);
                 let u2 = (next.mv.path.end() - next.start).normalize();
                 next.start += u2 * d;
                 next.start_trim = d;
@@ -702,6 +758,11 @@ impl Planner {
         // frame, and the next run starts on that frame where the turn fits, so a curve
         // split into two runs stays curvature-continuous.
         let next_run = next.filter(|n| blended && RunState::starts(n, &self.limits).is_some());
+        // Decisions at the joint with `next` take the smaller tolerance of the two moves.
+        let corner_tol = next.map_or(run.tol, |n| {
+            corner_tolerance(run.last.mv.corner, n.mv.corner, self.limits.tolerance_mm)
+                .map_or(run.tol, |t| t.min(run.tol))
+        });
         let end_frame = match (run.last.mv.corner, next) {
             _ if next_run.is_some() => None,
             (CornerMode::Blend { .. }, Some(n)) => {
@@ -709,7 +770,7 @@ impl Planner {
                 first.filter(|f| {
                     run.run
                         .last_dir()
-                        .is_some_and(|d| turn_fits(d, f.tangent, run.run.last_len(), run.tol))
+                        .is_some_and(|d| turn_fits(d, f.tangent, run.run.last_len(), corner_tol))
                 })
             }
             _ => None,
@@ -723,7 +784,7 @@ impl Planner {
             return run
                 .run
                 .end_frame()
-                .filter(|f| turn_fits(f.tangent, line_dir(n), line_len(n), run.tol));
+                .filter(|f| turn_fits(f.tangent, line_dir(n), line_len(n), corner_tol));
         }
         end_frame
     }
@@ -769,7 +830,13 @@ impl Planner {
                 Some(c) if i + 1 == n => c,
                 _ => CornerMode::Blend { tolerance_mm: None },
             };
-            self.emit(seg, corner, None, out);
+            self.emit(
+                seg,
+                CornerMode::Blend { tolerance_mm: None },
+                corner,
+                None,
+                out,
+            );
         }
     }
 
@@ -830,10 +897,7 @@ impl Planner {
     /// each, if the corner is blended: a circular arc, or at an isolated corner a G2 blend
     /// ([`Planner::g2_blend`]) where that costs less time ([`corner_time_s`]).
     fn blend(&self, prev: &Pending, next: &Pending) -> Option<(PlannedSegment, f64)> {
-        let tol = match prev.mv.corner {
-            CornerMode::ExactStop => return None,
-            CornerMode::Blend { tolerance_mm } => tolerance_mm.unwrap_or(self.limits.tolerance_mm),
-        };
+        let tol = corner_tolerance(prev.mv.corner, next.mv.corner, self.limits.tolerance_mm)?;
         if tol <= 0.0 || !tol.is_finite() {
             return None;
         }
@@ -921,7 +985,7 @@ impl Planner {
             tol_mm: tol,
             room_mm,
         };
-        let lines = self.corner_lines(&seg, u1, u2);
+        let lines = self.corner_lines(&seg, u1, u2, (len1 - prev.start_trim).min(len2));
         let arc_time_s = corner_time_s(&seg, d, &lines, &self.limits);
         let (best, best_time_s) = match self.g2_blend(&corner_g2, &seg, &lines, rapid) {
             Some((g2, d_g2, time_s)) if time_s < arc_time_s => ((g2, d_g2), time_s),
@@ -939,11 +1003,17 @@ impl Planner {
     /// Stand-ins for the two lines of a corner whose blend is `blend` (in along `u1`, out
     /// along `u2`), with their limits: for the junction caps with the blend and the speed
     /// the corner is approached at.
+    ///
+    /// Their speed is at most what a ramp from rest reaches over `reach_mm` (the shorter
+    /// of the two programmed lines): a corner between short lines is not approached at
+    /// the machine's speed, and judging a stop or a blend against that speed (which a
+    /// raised velocity limit raises) made short zig-zags stop where a blend is quicker.
     fn corner_lines(
         &self,
         blend: &PlannedSegment,
         u1: Vec3,
         u2: Vec3,
+        reach_mm: f64,
     ) -> (PlannedSegment, PlannedSegment) {
         let mut line_in = *blend;
         line_in.blend = false;
@@ -953,6 +1023,11 @@ impl Planner {
         line_out.curve = Curve::line(blend.curve.end(), blend.curve.end() + u2);
         self.set_limits(&mut line_in, false);
         self.set_limits(&mut line_out, false);
+        for l in [&mut line_in, &mut line_out] {
+            let v = reach_speed(reach_mm, l.v_max, l.accel, l.jerk);
+            l.v_max = v;
+            l.v_boost = l.v_boost.min(v);
+        }
         (line_in, line_out)
     }
 
@@ -1081,47 +1156,73 @@ impl Planner {
             end_cap: 0.0,
             blend: false,
         };
+        // A programmed arc is designed for the path that runs on without a corner up to
+        // its end, at most [`DESIGN_RUN_MM`]: known geometry only, so that the choice
+        // does not depend on the limits.
+        self.run_mm = (self.chain_before(&seg) + seg.length).min(DESIGN_RUN_MM);
         self.set_limits(&mut seg, p.mv.rapid);
-        self.emit(seg, corner, Some(Curve::from_path(&p.mv.path)), out);
+        self.run_mm = 0.0;
+        self.emit(
+            seg,
+            p.mv.corner,
+            corner,
+            Some(Curve::from_path(&p.mv.path)),
+            out,
+        );
     }
 
+    /// Appends `seg` (in mode `own`, the mode of the move it comes from, and ending in
+    /// mode `corner`) after the held-back segment, deciding the junction between them.
     fn emit(
         &mut self,
         mut seg: PlannedSegment,
+        own: CornerMode,
         corner: CornerMode,
         origin: Option<Curve>,
         out: &mut Vec<PlannedSegment>,
     ) {
         let full_length = seg.length;
+        self.chain_mm = self.chain_before(&seg) + seg.length;
         if let Some(mut prev) = self.last.take() {
-            match self.last_corner {
-                CornerMode::ExactStop => {
+            match corner_tolerance(self.last_corner, own, self.limits.tolerance_mm) {
+                None => {
                     prev.end_cap = 0.0;
                     out.push(prev);
                 }
-                CornerMode::Blend { tolerance_mm } => {
-                    let tol = tolerance_mm.unwrap_or(self.limits.tolerance_mm);
-                    match self.transition(&prev, &seg, tol, origin.as_ref()) {
-                        Some((p, mut t, s)) => {
-                            prev = p;
-                            seg = s;
-                            prev.end_cap = junction_cap(&prev, &t, &self.limits);
-                            t.end_cap = junction_cap(&t, &seg, &self.limits);
-                            out.push(prev);
-                            out.push(t);
-                        }
-                        None => {
-                            prev.end_cap = junction_cap(&prev, &seg, &self.limits);
-                            out.push(prev);
-                        }
+                Some(tol) => match self.transition(&prev, &seg, tol, origin.as_ref()) {
+                    Some((p, mut t, s)) => {
+                        prev = p;
+                        seg = s;
+                        prev.end_cap = junction_cap(&prev, &t, &self.limits);
+                        t.end_cap = junction_cap(&t, &seg, &self.limits);
+                        out.push(prev);
+                        out.push(t);
                     }
-                }
+                    None => {
+                        prev.end_cap = junction_cap(&prev, &seg, &self.limits);
+                        out.push(prev);
+                    }
+                },
             }
         }
         self.last = Some(seg);
         self.last_corner = corner;
         self.last_origin = origin;
         self.last_full_length = full_length;
+    }
+
+    /// The length of the path that runs on without a corner into `seg`: the chain ending
+    /// at the held-back segment if `seg` continues it in tangent (all six axes) and the
+    /// junction is not an exact stop, else 0.
+    fn chain_before(&self, seg: &PlannedSegment) -> f64 {
+        let Some(last) = &self.last else { return 0.0 };
+        if matches!(self.last_corner, CornerMode::ExactStop) || seg.length <= 0.0 {
+            return 0.0;
+        }
+        let (ta, _) = last.derivatives_at(last.length);
+        let (tb, _) = seg.derivatives_at(0.0);
+        let tangent = (0..6).all(|i| (ta[i] - tb[i]).abs() <= 1e-6);
+        if tangent { self.chain_mm } else { 0.0 }
     }
 
     /// A curvature-continuous transition for the joint from `prev` to `seg`, if the joint
@@ -1255,7 +1356,7 @@ impl Planner {
 
     /// Sets `v_max`, `accel` and `jerk` of `seg` from the axis limits.
     fn set_limits(&self, seg: &mut PlannedSegment, _rapid: bool) {
-        let (v, a, j) = segment_limits(seg, &self.limits, self.design_override);
+        let (v, a, j) = segment_limits(seg, &self.limits, self.design_override, self.run_mm);
         seg.v_max = v;
         seg.accel = a;
         seg.jerk = j;
@@ -1269,7 +1370,7 @@ impl Planner {
             Curve::Transition(_) => seg.move_count <= 1,
         };
         if curved && seg.feed.is_finite() && self.design_override < MAX_DESIGN_OVERRIDE {
-            let (vb, ab, jb) = segment_limits(seg, &self.limits, MAX_DESIGN_OVERRIDE);
+            let (vb, ab, jb) = segment_limits(seg, &self.limits, MAX_DESIGN_OVERRIDE, self.run_mm);
             if vb > v {
                 seg.v_boost = vb;
                 seg.accel_boost = ab.min(a);
@@ -1334,6 +1435,25 @@ fn change_time_s(dv: f64, a: f64, j: f64) -> f64 {
     } else {
         dv / a + a / j
     }
+}
+
+/// The highest speed (at most `v_max`) that a jerk-limited ramp from rest with
+/// acceleration `a` and jerk `j` reaches within `length`, by bisection.
+fn reach_speed(length: f64, v_max: f64, a: f64, j: f64) -> f64 {
+    let ramp_mm = |v: f64| 0.5 * v * change_time_s(v, a, j);
+    if !(length > 0.0 && v_max > 0.0 && a > 0.0 && j > 0.0) || ramp_mm(v_max) <= length {
+        return v_max;
+    }
+    let (mut lo, mut hi) = (0.0, v_max);
+    for _ in 0..50 {
+        let mid = 0.5 * (lo + hi);
+        if ramp_mm(mid) <= length {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
 }
 
 /// Rough time over a segment of `length` entered and left at `v_in`, speeding up on the
@@ -1467,10 +1587,14 @@ fn weights(seg: &PlannedSegment) -> Weights {
 ///
 /// `feed_scale` (at least 1) is the feed override the curved segments are designed for:
 /// their `v_max` is at most the programmed feed times it.
+///
+/// `run_mm` is the distance a curved segment's design speed is chosen for (at least its
+/// length is used): how far the path runs on without a corner, see [`DESIGN_RUN_MM`].
 pub fn segment_limits(
     seg: &PlannedSegment,
     limits: &MachineLimits,
     feed_scale: f64,
+    run_mm: f64,
 ) -> (f64, f64, f64) {
     if let Curve::Transition(t) = &seg.curve {
         // Smoothed pieces keep the programmed feed as their design speed: boosted, their
@@ -1521,11 +1645,10 @@ pub fn segment_limits(
     if w.kappa == 0.0 {
         return (v, a_line, j_line);
     }
-    // Curved: the acceleration and jerk depend on the speed; design for the feed, and
-    // lower the design speed until the tangential budget left is worth having.
-    // Candidates are compared by a rough time for the segment: cruise plus one ramp.
+    // Curved: the acceleration and jerk depend on the speed; the design speed (up to the
+    // feed) is the one with the least rough time (cruise plus one ramp).
     let search = |v_start: f64| {
-        design_speed_search(seg.length, v_start, &limits.axes, 16, |vd| {
+        design_speed_search(run_mm.max(seg.length), v_start, |vd| {
             curved_budget(&w, limits, vd, a_line, j_line)
         })
     };
@@ -1553,58 +1676,102 @@ fn boosted(
     base
 }
 
-/// Lowers the design speed `vd` from `v_start` by steps of 0.8 (at most `steps` times)
-/// until `budget(vd)` leaves a useful tangential `(a, j)` budget: at least a fifth of the
-/// smallest acceleration and jerk of `axes`. The highest such speed wins, because the
-/// segment may be one of a long chain and its own length says little; if none qualifies,
-/// the candidate with the best rough time for the segment (cruise plus one ramp) does.
+/// Distance a curved segment's design speed is chosen for at the least, mm: the segment
+/// may be one of a long chain (a dense circle, a helix in turns), so its own length says
+/// little about how long the speed is held.
+pub const DESIGN_RUN_MM: f64 = 30.0;
+/// Ratio of the design-speed candidates below the top speed.
+const DESIGN_GRID_RATIO: f64 = 0.8;
+/// Candidates of that grid: down to `0.8²⁴ ≈ 0.5 %` of the top speed.
+const DESIGN_GRID_POINTS: usize = 25;
+
+/// The design speed `vd` (at most `v_top`) and its tangential budget `budget(vd)` that
+/// give the least rough time over `max(length, DESIGN_RUN_MM)` from rest to rest: the
+/// cruise at `vd` plus one jerk-limited ramp to it ([`change_time_s`]). On a curve a
+/// higher design speed leaves less of the axis limits to the tangential motion (the
+/// centripetal terms take them), so the fastest cruise is not the quickest segment.
+///
+/// The choice is a minimum of one measure over every speed up to `v_top`, and a larger
+/// limit on any axis only raises `v_top` and every speed's budget: the measure it finds
+/// never grows with a limit. (A rule such as "the highest speed whose budget is a fifth
+/// of the axis limits" is not: a larger limit moves the threshold and can push the
+/// design speed up into a poorer budget or down to a crawl.)
 fn design_speed_search(
     length: f64,
-    v_start: f64,
-    axes: &[Option<AxisLimits>],
-    steps: usize,
+    v_top: f64,
     budget: impl Fn(f64) -> Option<(f64, f64)>,
 ) -> (f64, f64, f64) {
-    let a_min = axes
-        .iter()
-        .flatten()
-        .map(|l| l.acceleration)
-        .fold(f64::INFINITY, f64::min);
-    let j_min = axes
-        .iter()
-        .flatten()
-        .map(|l| l.jerk)
-        .fold(f64::INFINITY, f64::min);
-    let mut vd = v_start;
-    let mut best: Option<(f64, f64, f64, f64)> = None;
-    for _ in 0..steps {
-        if let Some((a, j)) = budget(vd) {
-            if a >= 0.2 * a_min && j >= 0.2 * j_min {
-                return (vd, a, j);
-            }
-            let time = length / vd + vd / a + a / j;
-            if best.is_none_or(|b| time < b.0) {
-                best = Some((time, vd, a, j));
+    let run_mm = length;
+    let eval = |vd: f64| -> Option<(f64, f64, f64)> {
+        let (a, j) = budget(vd)?;
+        Some((run_mm / vd + change_time_s(vd, a, j), a, j))
+    };
+    if !(v_top > 0.0 && v_top.is_finite()) {
+        return (v_top.max(0.0), 1e-3, 1e-3);
+    }
+    // Coarse grid down from the top, stopping once the measure has risen well past its
+    // best (it is unimodal in practice: the cruise term falls with vd, the ramp grows);
+    // then golden-section search in log vd between the best point's neighbours.
+    let grid = |k: usize| v_top * DESIGN_GRID_RATIO.powi(k as i32);
+    let mut best: Option<(usize, (f64, f64, f64))> = None;
+    for k in 0..DESIGN_GRID_POINTS {
+        let e = eval(grid(k));
+        if let Some(e) = e {
+            if best.is_none_or(|b| e.0 < b.1.0) {
+                best = Some((k, e));
+            } else if best.is_some_and(|b| k >= b.0 + 3 && e.0 > 1.5 * b.1.0) {
+                break;
             }
         }
-        vd *= 0.8;
     }
     // No budget at any of those speeds (the curvature terms used all of it): go on
     // lowering, as they vanish with the speed (v² and v³) and leave the whole tangential
     // budget at a low enough one. A floor of made-up limits would crawl: a 0.07 mm G2
     // blend took 18 s, and a hold on it 6.5 s.
-    while best.is_none() && vd > v_start * 1e-12 {
-        if let Some((a, j)) = budget(vd) {
-            best = Some((0.0, vd, a, j));
+    let mut k_low = DESIGN_GRID_POINTS;
+    while best.is_none() && grid(k_low) > v_top * 1e-12 {
+        if let Some(e) = eval(grid(k_low)) {
+            best = Some((k_low, e));
         }
-        vd *= 0.8;
+        k_low += 1;
     }
-    match best {
-        Some((_, v, a, j)) => (v, a, j),
-        // Unreachable for finite limits (see above); the smallest speed tried, with the
-        // lowest axis limits scaled down as far, keeps the segment slow but finite.
-        None => (vd, a_min * 1e-12, j_min * 1e-12),
+    let Some((k, mut found)) = best else {
+        // Unreachable for finite limits (see above): the lowest speed tried, and a budget
+        // as small, keep the segment slow but finite.
+        let v = grid(k_low);
+        return (v, v, v);
+    };
+    // The usual case: the top speed is best and the measure rises just below it.
+    if k == 0 && eval(0.99 * v_top).is_none_or(|e| e.0 >= found.0) {
+        return (v_top, found.1, found.2);
     }
+    let mut vd = grid(k);
+    let (mut lo, mut hi) = (grid(k + 1).ln(), grid(k.saturating_sub(1)).min(v_top).ln());
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let measure = |x: f64| eval(x.exp()).map_or(f64::INFINITY, |e| e.0);
+    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut c1, mut c2) = (measure(x1), measure(x2));
+    for _ in 0..10 {
+        if c1 <= c2 {
+            hi = x2;
+            x2 = x1;
+            c2 = c1;
+            x1 = hi - g * (hi - lo);
+            c1 = measure(x1);
+        } else {
+            lo = x1;
+            x1 = x2;
+            c1 = c2;
+            x2 = lo + g * (hi - lo);
+            c2 = measure(x2);
+        }
+    }
+    let x = if c1 <= c2 { x1 } else { x2 };
+    if let Some(e) = eval(x.exp()).filter(|e| e.0 < found.0) {
+        vd = x.exp();
+        found = e;
+    }
+    (vd, found.1, found.2)
 }
 
 /// Sampled bounds of a transition (with [`LIMIT_SAFETY`] on the curvature terms).
@@ -1800,22 +1967,14 @@ fn transition_limits(
     };
     let budget = |vd: f64| -> Option<(f64, f64)> {
         let a_hi = accel_at(vd)?;
-        let mut best: Option<(f64, f64, f64)> = None;
-        for frac in [0.05, 0.1, 0.2, 0.35, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0] {
-            let a = a_hi * frac;
-            let j = jerk_at(vd, a);
-            if !(j > 0.0 && j.is_finite()) {
-                continue;
-            }
-            let cost = vd / a + a / j;
-            if best.is_none_or(|b| cost < b.0) {
-                best = Some((cost, a, j));
-            }
-        }
-        best.map(|(_, a, j)| (a, j))
+        quickest_budget(vd, a_hi, |a| jerk_at(vd, a))
     };
-    let search =
-        |v_start: f64| design_speed_search(seg.length, v_start, &limits.axes[..3], 24, budget);
+    let run_mm = if seg.move_count > 1 {
+        seg.length.max(DESIGN_RUN_MM)
+    } else {
+        seg.length
+    };
+    let search = |v_start: f64| design_speed_search(run_mm, v_start, budget);
     boosted(v, seg.feed, feed_scale, search)
 }
 
@@ -1884,20 +2043,7 @@ fn curved_budget(
     if a_hi <= 0.0 {
         return None;
     }
-    let mut best: Option<(f64, f64, f64)> = None;
-    for frac in [0.05, 0.1, 0.2, 0.35, 0.5, 0.65, 0.8, 1.0] {
-        let a = a_hi * frac;
-        let j = bisect_max(|j| fits_jerk(a, j), j_cap);
-        if j <= 0.0 {
-            continue;
-        }
-        let cost = vd / a + a / j;
-        if best.is_none_or(|b| cost < b.0) {
-            best = Some((cost, a, j));
-        }
-    }
-    let (_, a, j) = best?;
-    Some((a, j))
+    quickest_budget(vd, a_hi, |a| bisect_max(|j| fits_jerk(a, j), j_cap))
 }
 
 /// [`curved_budget`] in closed form, for segments where no axis sees both an in-plane and
@@ -1944,19 +2090,111 @@ fn curved_budget_closed(
         }
         j
     };
-    let mut best: Option<(f64, f64, f64)> = None;
-    for frac in [0.05, 0.1, 0.2, 0.35, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0] {
-        let a = a_hi * frac;
+    quickest_budget(vd, a_hi, jerk_for)
+}
+
+/// Grid ratio of [`quickest_budget`]'s coarse search over the acceleration.
+const BUDGET_GRID_RATIO: f64 = 0.5;
+/// Points of that grid: it spans `a_hi` down to `a_hi·0.5²⁰ ≈ 1e-6·a_hi`.
+const BUDGET_GRID_POINTS: usize = 21;
+
+/// The tangential budget `(a, j)` on a curve at design speed `vd` that makes the
+/// quickest jerk-limited change of speed by `vd` ([`change_time_s`]), for accelerations
+/// up to `a_hi` and the jerk `jerk_for(a)` the axes leave at each (it falls as `a` grows:
+/// the normal jerk `3κva` takes its share). `None` if no acceleration leaves any jerk.
+///
+/// The acceleration is chosen for the time it gives, never as a share of `a_hi`: on a
+/// machine with a large acceleration and a small jerk any fixed share of `a_hi` can leave
+/// no jerk at all (a circle of 10 mm at 10 mm/s with jerk 1,000 mm/s³ and 200,000 mm/s²:
+/// 5 % of the acceleration makes `3κva` alone 30 times the jerk), and the design speed
+/// then fell to a crawl. And it is never more than a change of speed by `vd` can use:
+/// such a ramp peaks at `sqrt(vd·j)`. A larger limit on any axis only widens the choice
+/// (more `a_hi`, more jerk at every `a`), so the time this budget gives never grows.
+fn quickest_budget(vd: f64, a_hi: f64, jerk_for: impl Fn(f64) -> f64) -> Option<(f64, f64)> {
+    if !(vd > 0.0 && a_hi > 0.0) || vd.is_infinite() {
+        return None;
+    }
+    // The jerk left is largest at a = 0, and a ramp by `vd` never reaches more than
+    // `sqrt(vd·j)`: nothing above `sqrt(vd·j(0))` is worth trying.
+    let j0 = jerk_for(0.0);
+    if j0.is_nan() || j0 <= 0.0 {
+        return None;
+    }
+    let a_hi = a_hi.min((vd * j0).sqrt()).min(f64::MAX.sqrt());
+    let cost = |a: f64| -> f64 {
         let j = jerk_for(a);
-        if !(j > 0.0 && j.is_finite()) {
-            continue;
+        if j > 0.0 && j.is_finite() {
+            change_time_s(vd, a, j)
+        } else {
+            f64::INFINITY
         }
-        let cost = vd / a + a / j;
-        if best.is_none_or(|b| cost < b.0) {
-            best = Some((cost, a, j));
+    };
+    // Coarse: a geometric grid down from `a_hi`, until the time has risen for two points
+    // past the best (it falls and then rises with a); then golden-section search (in
+    // log a) around the best grid point.
+    let mut best = (f64::INFINITY, 0usize);
+    let grid = |k: usize| a_hi * BUDGET_GRID_RATIO.powi(k as i32);
+    for k in 0..BUDGET_GRID_POINTS {
+        let c = cost(grid(k));
+        if c < best.0 {
+            best = (c, k);
+        } else if best.0.is_finite() && k >= best.1 + 2 {
+            break;
         }
     }
-    best.map(|(_, a, j)| (a, j))
+    if !best.0.is_finite() {
+        return None;
+    }
+    let k = best.1;
+    if k == 0 && cost(0.99 * a_hi) >= best.0 {
+        let j = jerk_for(a_hi);
+        return Some((a_hi, j));
+    }
+    let (mut lo, mut hi) = (
+        grid((k + 1).min(BUDGET_GRID_POINTS - 1)).ln(),
+        grid(k.saturating_sub(1)).ln(),
+    );
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut c1, mut c2) = (cost(x1.exp()), cost(x2.exp()));
+    for _ in 0..14 {
+        if c1 <= c2 {
+            hi = x2;
+            x2 = x1;
+            c2 = c1;
+            x1 = hi - g * (hi - lo);
+            c1 = cost(x1.exp());
+        } else {
+            lo = x1;
+            x1 = x2;
+            c1 = c2;
+            x2 = lo + g * (hi - lo);
+            c2 = cost(x2.exp());
+        }
+    }
+    let mut a = grid(k);
+    if c1.min(c2) < best.0 {
+        a = if c1 <= c2 { x1.exp() } else { x2.exp() };
+    }
+    let j = jerk_for(a);
+    // Never more acceleration than a ramp by `vd` reaches (`a = sqrt(vd·j(a))`, found by
+    // bisection): less leaves the same ramp time and more jerk room.
+    if a * a > vd * j {
+        let (mut lo, mut hi) = (0.0, a);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if mid * mid <= vd * jerk_for(mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let j_lo = jerk_for(lo);
+        if lo > 0.0 && j_lo >= j {
+            return Some((lo, j_lo));
+        }
+    }
+    Some((a, j))
 }
 
 /// Largest `x` in `[0, hi]` with `ok(x)` (assumes `ok` is monotone), to 1e-6 relative.

@@ -951,17 +951,18 @@ mod tests {
                 assert!(polyline_distance(&q, &pts) <= 0.01, "piece {k}");
             }
         }
-        // A run ends at every tolerance change (11 of them): a move's corner mode (its
-        // tolerance) governs the joint at its end, so the first move with the new
-        // tolerance still ends the old run, and a piece starts right after it.
+        // A run ends at every tolerance change (11 of them): every member of a run has
+        // its tolerance (a coarse run never smooths a fine move, and the joint takes the
+        // smaller tolerance of its two moves), so the first move with the new tolerance
+        // starts the next run, and a piece starts with it.
         let tol_changes: Vec<usize> = (1..moves.len())
             .filter(|&k| moves[k].corner != moves[k - 1].corner)
             .collect();
         assert_eq!(tol_changes.len(), 11);
         for k in tol_changes {
             assert!(
-                segs.iter().any(|s| s.move_index as usize == k + 1),
-                "no piece starts after move {k}"
+                segs.iter().any(|s| s.move_index as usize == k),
+                "no piece starts at move {k}"
             );
         }
     }
