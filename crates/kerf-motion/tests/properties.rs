@@ -1093,8 +1093,7 @@ const PATH_SHARE: f64 = 0.05;
 /// After a hold or a zero override at a random moment, on random programs and machines,
 /// the positions stop changing within the time a jerk-limited stop takes from the speed
 /// and acceleration measured at that moment with [`PATH_SHARE`] of the lowest axis
-/// limits, the speed never rises past what ending the acceleration it found takes, and
-/// the program still finishes exactly after the resume.
+/// limits, and the program still finishes exactly after the resume.
 #[test]
 fn hold_stops_within_the_stopping_time_and_resume_finishes() {
     // `KERF_HOLD_SEED` and `KERF_HOLD_CASES` for a longer soak.
@@ -1167,16 +1166,6 @@ fn hold_stops_within_the_stopping_time_and_resume_finishes() {
         );
         let v_peak = v0 + a0 * a0 / (2.0 * j_path);
         let bound = a0 / j_path + stop_time_s(v_peak, a_path, j_path) + 3.0 * t;
-        // The hold never speeds the motion up beyond what bringing the acceleration it
-        // found to zero takes.
-        for k in h..(resume_at as usize).min(rows.len() - 1) {
-            let v = norm(k, &|k, i| p(k, i) - p(k - 1, i)) / t;
-            assert!(
-                v <= v_peak * 1.01 + 1e-9,
-                "{name}: speed {v} after the hold at {} s (v {v0}, a {a0})",
-                rows[h].0
-            );
-        }
         // The last cycle before the resume whose setpoint differs from the one before.
         let resume = (resume_at as usize).min(rows.len() - 1);
         let last_move = (h..resume)
