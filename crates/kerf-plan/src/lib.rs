@@ -24,8 +24,10 @@
 //!   lower) for the least rough time from rest to rest (cruise plus one jerk-limited ramp)
 //!   over the distance the speed is held: for a programmed arc the path that runs on
 //!   without a corner (tangent-continuous, no exact stop) up to its end, at most
-//!   [`DESIGN_RUN_MM`]; for a smoothed piece `DESIGN_RUN_MM`; for a blend or transition its
-//!   own length. These distances are geometry only, never the limits. At each design speed the tangential acceleration
+//!   [`DESIGN_RUN_MM`]; for a smoothed piece the path that runs on without a corner
+//!   through it to the end of its run, at least the whole run, at most `DESIGN_RUN_MM`
+//!   (the smoother emits nothing of a run before that much of it is known); for a blend
+//!   or transition its own length. These distances are geometry only, never the limits. At each design speed the tangential acceleration
 //!   is the one that makes that ramp quickest given the jerk the axes leave at it (the
 //!   normal jerk `3κva` grows with it), never a share of the axis limit and never more than
 //!   the ramp can use, `sqrt(v·j)`. Both choices are minima over sets that only grow when
@@ -416,8 +418,8 @@ pub struct Planner {
     /// Length of the path that runs on without a corner (tangent-continuous, no exact
     /// stop) up to the end of `last`, mm.
     chain_mm: f64,
-    /// The run the next programmed arc is designed for (see [`segment_limits`]), mm; 0
-    /// for every other segment.
+    /// The run the next programmed arc or smoothed piece is designed for (see
+    /// [`segment_limits`]), mm; 0 for every other segment.
     run_mm: f64,
 }
 
@@ -825,7 +827,14 @@ impl Planner {
             if seg.length < MIN_SEGMENT_MM {
                 continue;
             }
+            // Designed for the path that runs on without a corner through the piece to the
+            // end of its run (at least the whole run), at most [`DESIGN_RUN_MM`]: known
+            // geometry only, as for programmed arcs.
+            self.run_mm = (self.chain_before(&seg) + e.rest_mm)
+                .max(e.design_run_mm)
+                .min(DESIGN_RUN_MM);
             self.set_limits(&mut seg, false);
+            self.run_mm = 0.0;
             let corner = match last_corner {
                 Some(c) if i + 1 == n => c,
                 _ => CornerMode::Blend { tolerance_mm: None },
@@ -1605,7 +1614,7 @@ pub fn segment_limits(
         } else {
             (LIMIT_SAMPLES, feed_scale)
         };
-        return transition_limits(seg, t, limits, samples, feed_scale);
+        return transition_limits(seg, t, limits, samples, feed_scale, run_mm);
     }
     let w = weights(seg);
     let share = PROFILE_SHARE;
@@ -1909,6 +1918,7 @@ fn transition_limits(
     limits: &MachineLimits,
     samples: usize,
     feed_scale: f64,
+    run_mm: f64,
 ) -> (f64, f64, f64) {
     let b = transition_bounds(t, seg.abc_poly.as_ref(), samples);
     let (tm, km, kp) = (b.tangent, b.curvature, b.curvature_rate);
@@ -1970,7 +1980,7 @@ fn transition_limits(
         quickest_budget(vd, a_hi, |a| jerk_at(vd, a))
     };
     let run_mm = if seg.move_count > 1 {
-        seg.length.max(DESIGN_RUN_MM)
+        seg.length.max(run_mm)
     } else {
         seg.length
     };

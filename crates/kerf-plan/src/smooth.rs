@@ -44,14 +44,22 @@
 //!   curvature step; where the next move starts another run (a tolerance change), the run
 //!   ends on its fitted frame and the next one starts on it; otherwise the end knot comes
 //!   from a one-sided fit (and the joint is a corner).
-//! - **Streaming.** Pieces are emitted once the data their knots depend on has arrived, and
-//!   vertices behind the current knot are dropped, so memory is bounded by the window, not
-//!   by the program.
+//! - **Streaming.** Pieces are emitted once the data their knots depend on has arrived and
+//!   [`DESIGN_RUN_MM`] of the run is known (or the run is finished), and vertices behind
+//!   the current knot are dropped, so memory is bounded by the window and that distance,
+//!   not by the program.
+//! - **Design run.** Each piece carries the distance its design speed is chosen for (see
+//!   [`crate::segment_limits`]): its run's length where the run is shorter than
+//!   [`DESIGN_RUN_MM`], else that; once the run is finished, also the rest of the run
+//!   from the piece's start, to which the planner adds the corner-free path before the
+//!   piece (as for programmed arcs), at most [`DESIGN_RUN_MM`]. Geometry only, so that the choice never depends on the limits: a
+//!   piece of a 3 mm run between two stops designed for 30 mm chose a higher design speed
+//!   when a limit was raised, whose ramps cost more than it saved over the 3 mm (issue 7).
 //!
 //! A piece replaces several programmed moves: its [`PlannedSegment`](crate::PlannedSegment)
 //! names the first one (`line`, `move_index`) and how many it covers (`move_count`).
 
-use crate::{TRANSITION_TOL_SHARE, poly5};
+use crate::{DESIGN_RUN_MM, TRANSITION_TOL_SHARE, poly5};
 use kerf_geom::{Transition, Vec3};
 
 /// Longest line that may join a run, mm.
@@ -137,6 +145,13 @@ pub(crate) struct Emitted {
     pub move_count: u32,
     /// The lowest programmed feed of those moves, mm/s.
     pub feed: f64,
+    /// The distance the piece's design speed is chosen for at the least, mm: the whole
+    /// run where it is shorter than [`DESIGN_RUN_MM`] (a run is emitted only once that
+    /// much of it is known, or it is finished), else [`DESIGN_RUN_MM`]. Geometry only.
+    pub design_run_mm: f64,
+    /// Chord length from the piece's start to the end of the run when the run is
+    /// finished, mm; infinite while it goes on.
+    pub rest_mm: f64,
 }
 
 /// The vertices of the current run and the knot the next piece starts from.
@@ -242,6 +257,14 @@ impl Run {
     /// the run is complete and everything is emitted, the last knot matching `end_frame`
     /// if given.
     pub fn emit(&mut self, finish: bool, end_frame: Option<EndFrame>, out: &mut Vec<Emitted>) {
+        // Nothing is emitted before [`DESIGN_RUN_MM`] of the run is known (or the run is
+        // finished), so that each piece knows the run it is designed for.
+        let s_end = self.v(self.last_idx()).sigma;
+        if !finish && s_end < DESIGN_RUN_MM {
+            return;
+        }
+        let design_run_mm = s_end.min(DESIGN_RUN_MM);
+        let first_new = out.len();
         if self.knot.is_none() {
             let data = self.verts[self.verts.len() - 1].sigma - self.verts[0].sigma;
             if !finish && (data < 2.0 * WINDOW_MM + 1e-9 || self.verts.len() < 7) {
@@ -275,6 +298,12 @@ impl Run {
             let (piece, kb) = self.fit(ka, ib, finish, end_frame);
             out.push(piece);
             self.knot = Some(kb);
+        }
+        for e in &mut out[first_new..] {
+            e.design_run_mm = design_run_mm;
+            if !finish {
+                e.rest_mm = f64::INFINITY;
+            }
         }
         self.drop_behind();
     }
@@ -359,6 +388,8 @@ impl Run {
             move_index: first.move_index,
             move_count: (ib - ia).min(u32::MAX as u64) as u32,
             feed,
+            design_run_mm: DESIGN_RUN_MM,
+            rest_mm: self.v(self.last_idx()).sigma - self.v(ia).sigma,
         }
     }
 
