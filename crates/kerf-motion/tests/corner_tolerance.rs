@@ -1,4 +1,4 @@
-//! A corner takes the smaller tolerance of its two moves (issue 7), measured from the
+//! A corner takes the smaller tolerance of its two moves, measured from the
 //! setpoints: the distance of every setpoint from the programmed path is computed here,
 //! independently of the driver's own measure.
 

@@ -1,4 +1,4 @@
-//! Raising a limit never slows a program (issue 7): fixed-seed random programs run on a
+//! Raising a limit never slows a program: fixed-seed random programs run on a
 //! random machine and again with one or more of its limits raised; the duration measured
 //! from the setpoints (cycles × period, the run finishing on the program's end point)
 //! must not grow by more than 1 %, and every limit holds in both runs (finite differences

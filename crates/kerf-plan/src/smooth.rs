@@ -54,7 +54,7 @@
 //!   from the piece's start, to which the planner adds the corner-free path before the
 //!   piece (as for programmed arcs), at most [`DESIGN_RUN_MM`]. Geometry only, so that the choice never depends on the limits: a
 //!   piece of a 3 mm run between two stops designed for 30 mm chose a higher design speed
-//!   when a limit was raised, whose ramps cost more than it saved over the 3 mm (issue 7).
+//!   when a limit was raised, whose ramps cost more than it saved over the 3 mm.
 //!
 //! A piece replaces several programmed moves: its [`PlannedSegment`](crate::PlannedSegment)
 //! names the first one (`line`, `move_index`) and how many it covers (`move_count`).
