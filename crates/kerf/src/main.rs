@@ -337,6 +337,9 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
         plot.flush()
             .map_err(|e| Failure::Error(format!("{outputs}: error: {e}")))?;
     }
+    // Exit 0 means the program ran to its end: the last setpoint is its end point.
+    scan.check_end(&summary.raw.last.position)
+        .map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
     let mut stdout = io::stdout().lock();
     writeln!(stdout, "{summary}")?;
     Ok(())

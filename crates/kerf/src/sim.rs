@@ -200,6 +200,24 @@ pub struct Scan {
     /// A rough motion time, s, for the progress bar only: every move at its programmed
     /// feed (rapids at the slowest linear axis's limit), without acceleration.
     pub estimated_s: f64,
+    /// Where the program ends: X, Y, Z (mm) and A, B, C (degrees) of the last move's end
+    /// (the origin for a program without motion). The run must end exactly there.
+    pub end: [f64; 6],
+}
+
+impl Scan {
+    /// `Err` with a message when a run that ended at rest at `position` did not reach the
+    /// program's end (the motion stopped short: exit 0 must mean the program ran).
+    pub fn check_end(&self, position: &[f64; 6]) -> Result<(), String> {
+        let off = (0..6).any(|i| (position[i] - self.end[i]).abs() > 1e-9);
+        if !off {
+            return Ok(());
+        }
+        Err(format!(
+            "the motion came to rest at X{} Y{} Z{}, not at the end of the program X{} Y{} Z{}",
+            position[0], position[1], position[2], self.end[0], self.end[1], self.end[2]
+        ))
+    }
 }
 
 impl Scan {
@@ -319,6 +337,10 @@ impl Prepass {
         }
         self.scan.estimated_s += estimated_seconds(m, self.rapid_mm_s);
         self.scan.moves += 1;
+        let e = m.path.end();
+        let end = &self.scan.end;
+        let abc = m.abc_deg.map_or([end[3], end[4], end[5]], |(_, b)| b);
+        self.scan.end = [e.x, e.y, e.z, abc[0], abc[1], abc[2]];
         if self.recent.len() == RECENT_MOVES {
             self.recent.pop_front();
             self.recent_base += 1;
@@ -983,6 +1005,29 @@ mod tests {
                 _ => None,
             })
             .collect()
+    }
+
+    #[test]
+    fn a_run_that_stops_short_of_the_program_end_is_not_a_success() {
+        let config = Config::builtin();
+        let mut pre = Prepass::new(&config, &SimOptions::default());
+        for m in mixed_moves() {
+            pre.push(&m).unwrap();
+        }
+        let scan = pre.finish().unwrap().scan;
+        // The mixed program returns to the origin with a rapid.
+        assert_eq!(scan.end, [0.0; 6]);
+        assert!(scan.check_end(&[0.0; 6]).is_ok());
+        let e = scan
+            .check_end(&[0.0, 30.0, 0.0, 0.0, 0.0, 0.0])
+            .unwrap_err();
+        assert!(
+            e.contains("X0 Y30 Z0") && e.contains("end of the program X0 Y0 Z0"),
+            "{e}"
+        );
+        assert!(scan.check_end(&[0.0, 0.0, 0.0, 1e-6, 0.0, 0.0]).is_err());
+        // A program without motion ends where it starts.
+        assert!(Scan::default().check_end(&[0.0; 6]).is_ok());
     }
 
     #[test]
