@@ -90,6 +90,7 @@ pub use kerf_plan::{AxisLimits, MachineLimits, PlannedSegment};
 use rsruckig::prelude::*;
 
 pub mod driver;
+pub mod monitor;
 mod profile;
 
 pub use profile::JerkProfile;

@@ -32,9 +32,8 @@ use std::fmt;
 use std::io::{self, BufWriter, Write};
 
 use kerf_geom::{Move, Path, Vec3, line_distance};
-use kerf_motion::driver::{
-    self, Event, Input, LimitMonitor, LimitViolation, Planned, RunError, RunOptions, Summary,
-};
+use kerf_motion::driver::{self, Event, Input, Planned, RunError, RunOptions, Summary};
+use kerf_motion::monitor::{LimitMonitor, LimitViolation};
 use kerf_motion::{AxisLimits, MachineLimits, PlannedSegment, Setpoint};
 use kerf_plan::{PlanError, Planner};
 
@@ -153,7 +152,7 @@ pub enum SimError {
 
 /// The configuration key of the limit a violation broke.
 fn limit_key(v: &LimitViolation) -> &'static str {
-    use kerf_motion::driver::Quantity::*;
+    use kerf_motion::monitor::Quantity::*;
     match (v.axis < 3, v.quantity) {
         (true, Velocity) => "velocity_mm_s",
         (true, Acceleration) => "acceleration_mm_s2",
