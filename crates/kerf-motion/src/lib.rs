@@ -67,9 +67,9 @@
 //!   entry speed in the time that takes, without the solver, which cannot plan it.
 //! - **Scaled units.** Every solver call is made in units where the numbers are of
 //!   order one (the distance as the unit of length, `(d/j)^(1/3)` as the unit of time;
-//!   for stops, the stop's own jerk time `sqrt(v/j)`). The solver's tolerances are absolute (1e-10 on the
-//!   acceleration): in mm and s, a fast machine's accelerations (1e4–1e6 mm/s²) carry
-//!   more rounding than that, and it failed on 0.3 % of ordinary feasible inputs over
+//!   for stops, the stop's own jerk time `sqrt(v/j)`). The solver's tolerances are
+//!   absolute (1e-10 on the acceleration): in mm and s, a fast machine's accelerations
+//!   (1e4–1e6 mm/s²) carry more rounding than that, and it failed on 0.3 % of ordinary feasible inputs over
 //!   the accepted range of limits (58 of the 20,000 of the unit test
 //!   `scaled_solver_calls_plan_every_feasible_section`; none in scaled units), from rest
 //!   to rest on a plain arc among them.
@@ -1236,7 +1236,7 @@ impl MotionCore {
                 self.mode = Mode::Braking;
             }
             None => {
-                // At rest already: nothing to stop.
+                // At rest (or no distance left): nothing to stop, the section ends here.
                 self.run_own(self.s_local, JerkProfile::default(), 0.0);
             }
         }
