@@ -69,8 +69,8 @@
 //!   order one (the distance as the unit of length, `(d/j)^(1/3)` as the unit of time;
 //!   for stops, the stop's own jerk time `sqrt(v/j)`). The solver's tolerances are
 //!   absolute (1e-10 on the acceleration): in mm and s, a fast machine's accelerations
-//!   (1e4–1e6 mm/s²) carry more rounding than that, and it failed on 0.3 % of ordinary feasible inputs over
-//!   the accepted range of limits (58 of the 20,000 of the unit test
+//!   (1e4–1e6 mm/s²) carry more rounding than that, and it failed on 0.3 % of ordinary
+//!   feasible inputs over the accepted range of limits (58 of the 20,000 of the unit test
 //!   `scaled_solver_calls_plan_every_feasible_section`; none in scaled units), from rest
 //!   to rest on a plain arc among them.
 //! - **Fallbacks** never jump. A solver result is used only if it ends where it should.
