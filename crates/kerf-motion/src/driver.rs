@@ -47,6 +47,22 @@ impl From<Move> for Input {
     }
 }
 
+/// Gives one input to the planner: a move is planned; at a stop or a dwell the planner
+/// ends the path at rest (it is not blended across) and starts afresh after it.
+fn plan_input(
+    planner: &mut Planner,
+    input: &Input,
+    out: &mut Vec<PlannedSegment>,
+) -> Result<(), PlanError> {
+    match input {
+        Input::Move(mv) => planner.push(mv, out),
+        Input::Stop | Input::Dwell(_) => {
+            planner.finish(out);
+            Ok(())
+        }
+    }
+}
+
 /// Periods a dwell of `seconds` takes: whole periods, rounded up (a dwell is never cut
 /// short), ignoring the last bits of rounding in the division.
 pub fn dwell_periods(seconds: f64, period_s: f64) -> u64 {
@@ -415,14 +431,10 @@ where
     let mut buf = Vec::new();
     for input in moves {
         let input: Input = input.into();
-        match input {
-            Input::Move(mv) => {
-                runner.add_move(&mv);
-                planner.push(&mv, &mut buf)?;
-            }
-            // The planner ends the path at rest there and starts afresh after it.
-            Input::Stop | Input::Dwell(_) => planner.finish(&mut buf),
+        if let Input::Move(mv) = &input {
+            runner.add_move(mv);
         }
+        plan_input(&mut planner, &input, &mut buf)?;
         for seg in buf.drain(..) {
             runner.push(&seg)?;
         }
@@ -509,16 +521,13 @@ where
             let mut known = 0;
             for input in moves {
                 let input: Input = input.into();
-                match input {
-                    Input::Move(mv) => {
-                        if let Err(e) = planner.push(&mv, &mut buf) {
-                            let _ = tx.send(Err(e));
-                            return;
-                        }
-                        taken.push(mv);
-                        known += 1;
-                    }
-                    Input::Stop | Input::Dwell(_) => planner.finish(&mut buf),
+                if let Err(e) = plan_input(&mut planner, &input, &mut buf) {
+                    let _ = tx.send(Err(e));
+                    return;
+                }
+                if let Input::Move(mv) = input {
+                    taken.push(mv);
+                    known += 1;
                 }
                 batch.extend(buf.drain(..).map(|s| Planned::Segment(s, known)));
                 if let Input::Dwell(seconds) = input {
@@ -546,21 +555,7 @@ where
             let (new_moves, segments) = batch?;
             pending.extend(new_moves);
             for planned in segments {
-                let (seg, moves_known) = match planned {
-                    Planned::Segment(seg, moves_known) => (seg, moves_known),
-                    Planned::Dwell(seconds) => {
-                        runner.dwell(seconds);
-                        continue;
-                    }
-                };
-                while known < moves_known {
-                    let Some(mv) = pending.pop_front() else {
-                        break;
-                    };
-                    runner.add_move(&mv);
-                    known += 1;
-                }
-                runner.push(&seg)?;
+                runner.feed(planned, &mut known, || pending.pop_front())?;
             }
         }
         // Dropping the receiver (on an error above) ends the planning thread's sends.
@@ -587,19 +582,9 @@ where
     let mut runner = Runner::new(limits, options, sink);
     runner.attach(monitor)?;
     let mut known = 0;
+    let mut program = moves.iter().copied();
     for planned in segments {
-        let (seg, moves_known) = match planned {
-            Planned::Segment(seg, moves_known) => (seg, moves_known),
-            Planned::Dwell(seconds) => {
-                runner.dwell(seconds);
-                continue;
-            }
-        };
-        while known < moves_known.min(moves.len()) {
-            runner.add_move(&moves[known]);
-            known += 1;
-        }
-        runner.push(&seg)?;
+        runner.feed(planned, &mut known, || program.next())?;
     }
     runner.finish()
 }
@@ -663,20 +648,8 @@ impl<'a, F: FnMut(f64, &Setpoint)> Runner<'a, F> {
     /// it at rest), then rests for the dwell's whole periods. A hold with no resume left
     /// to come, a fault or the cycle guard ends it early (the run ends then anyway).
     fn dwell(&mut self, seconds: f64) {
-        if self.aborted {
+        if self.aborted || !self.step_to_rest(false) {
             return;
-        }
-        loop {
-            if self.fault.is_some() || self.cycle >= self.max_cycles {
-                return;
-            }
-            let r = self.step();
-            let events_left = self.next_event < self.events.len();
-            match r {
-                StepResult::Idle => break,
-                StepResult::Held if !events_left => return,
-                _ => {}
-            }
         }
         for _ in 0..dwell_periods(seconds, self.period_s) {
             if self.fault.is_some() || self.cycle >= self.max_cycles {
@@ -686,25 +659,55 @@ impl<'a, F: FnMut(f64, &Setpoint)> Runner<'a, F> {
         }
     }
 
-    /// Steps until the motion is at rest after the last segment (and every event is
-    /// applied), and returns the summary, or the fault that stopped the run.
-    fn finish(mut self) -> Result<Summary, RunError> {
+    /// Steps until the motion is at rest: idle (with `events_too`, only once every event
+    /// has been applied), or held with no event left to resume it. A fault or the cycle
+    /// guard stops it early. Returns whether it came to rest idle.
+    fn step_to_rest(&mut self, events_too: bool) -> bool {
         loop {
-            if let Some(v) = self.fault {
-                return Err(RunError::Fault(v));
-            }
-            if self.cycle >= self.max_cycles {
-                break;
+            if self.fault.is_some() || self.cycle >= self.max_cycles {
+                return false;
             }
             let r = self.step();
             let events_left = self.next_event < self.events.len();
             match r {
-                StepResult::Moving => {}
-                StepResult::Idle if !events_left => break,
-                StepResult::Held if !events_left => break,
+                StepResult::Idle if !(events_too && events_left) => return true,
+                StepResult::Held if !events_left => return false,
                 _ => {}
             }
         }
+    }
+
+    /// Runs one planned item: a dwell, or a segment after recording the programmed moves
+    /// the planner had taken when it made it (`next_move` yields them in program order;
+    /// `known` counts those recorded so far).
+    fn feed(
+        &mut self,
+        planned: Planned,
+        known: &mut usize,
+        mut next_move: impl FnMut() -> Option<Move>,
+    ) -> Result<(), RunError> {
+        match planned {
+            Planned::Dwell(seconds) => {
+                self.dwell(seconds);
+                Ok(())
+            }
+            Planned::Segment(seg, moves_known) => {
+                while *known < moves_known {
+                    let Some(mv) = next_move() else {
+                        break;
+                    };
+                    self.add_move(&mv);
+                    *known += 1;
+                }
+                self.push(&seg)
+            }
+        }
+    }
+
+    /// Steps until the motion is at rest after the last segment (and every event is
+    /// applied), and returns the summary, or the fault that stopped the run.
+    fn finish(mut self) -> Result<Summary, RunError> {
+        self.step_to_rest(true);
         if let Some(v) = self.fault {
             return Err(RunError::Fault(v));
         }

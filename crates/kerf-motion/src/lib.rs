@@ -410,6 +410,21 @@ pub fn reach(v0: f64, d: f64, accel: f64, jerk: f64) -> f64 {
     v0 + dv.max(0.0)
 }
 
+/// Bisection between a value `good` where `ok` holds and one, `bad`, where it does not:
+/// after `steps` halvings, the value closest to `bad` known to satisfy `ok` (`good` itself
+/// if no midpoint does). `ok` must change only once between the two.
+pub(crate) fn bisect(mut good: f64, mut bad: f64, steps: usize, ok: impl Fn(f64) -> bool) -> f64 {
+    for _ in 0..steps {
+        let mid = 0.5 * (good + bad);
+        if ok(mid) {
+            good = mid;
+        } else {
+            bad = mid;
+        }
+    }
+    good
+}
+
 /// Highest speed at the start of a distance `d` from which the speed at its end can be
 /// brought to at most `v_end` (`a = 0` at both ends). Slowing down only partially can need
 /// more distance than stopping (the jerk-limited profile's time grows with the speed
@@ -1145,16 +1160,7 @@ impl MotionCore {
         // or above the soft target, else the hard end speed, else a stop.
         let top = v0.min(hard);
         if v0 <= hard {
-            let (mut lo, mut hi) = (want, top);
-            for _ in 0..30 {
-                let mid = 0.5 * (lo + hi);
-                if fits(mid) {
-                    hi = mid;
-                } else {
-                    lo = mid;
-                }
-            }
-            return (hi, false);
+            return (bisect(top, want, 30, fits), false);
         }
         if fits(hard) {
             (hard, false)

@@ -9,7 +9,7 @@
 //! end speeds and the cruise speed. It is built in closed form (plus a bisection on the
 //! cruise speed) without allocation, so it is safe to build inside `step()`.
 
-use crate::change_distance;
+use crate::{bisect, change_distance};
 
 /// Most phases of a profile: up (3), cruise (1), down (3).
 const MAX_PHASES: usize = 7;
@@ -62,16 +62,7 @@ impl JerkProfile {
             if need(v_max) <= distance {
                 v_max
             } else {
-                let (mut bad, mut ok) = (v_max, v0);
-                for _ in 0..60 {
-                    let mid = 0.5 * (ok + bad);
-                    if need(mid) <= distance {
-                        ok = mid;
-                    } else {
-                        bad = mid;
-                    }
-                }
-                ok
+                bisect(v0, v_max, 60, |vc| need(vc) <= distance)
             }
         } else {
             let hi = v_max.max(lo);
@@ -79,16 +70,7 @@ impl JerkProfile {
                 hi
             } else {
                 // `need` grows with the cruise speed above both end speeds.
-                let (mut ok, mut bad) = (lo, hi);
-                for _ in 0..60 {
-                    let mid = 0.5 * (ok + bad);
-                    if need(mid) <= distance {
-                        ok = mid;
-                    } else {
-                        bad = mid;
-                    }
-                }
-                ok
+                bisect(lo, hi, 60, |vc| need(vc) <= distance)
             }
         };
         if vc <= 0.0 {
