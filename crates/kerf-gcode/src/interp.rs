@@ -497,10 +497,11 @@ impl State {
         // Sinumerik and Heidenhain the F (and Sinumerik S) of a dwell block is the dwell,
         // not a feed or a spindle speed.
         let dwell_col = slot(0).filter(|&(g, _)| g == G::Dwell).map(|(_, c)| c);
-        let dwell_word = match dwell_col {
-            Some(col) => self.check_dwell(blk, col)?,
+        let dwell_checked = match dwell_col {
+            Some(col) => Some(self.check_dwell(blk, col)?),
             None => None,
         };
+        let dwell_word = dwell_checked.and_then(|(word, _)| word);
 
         // Feed.
         if let Some(f) = blk.get(KF).filter(|_| dwell_word != Some(KF)) {
@@ -553,24 +554,7 @@ impl State {
 
         // The dwell runs after the spindle and coolant events and before the motion (the
         // LinuxCNC order of execution); a G4 without a time word still stops the motion.
-        if dwell_col.is_some() {
-            let seconds = match dwell_word {
-                None => 0.0,
-                Some(KS) => {
-                    // Sinumerik G4 S: spindle revolutions at the programmed speed.
-                    let revs = blk.vals[KS as usize];
-                    match self.spindle_rpm.filter(|&rpm| rpm > 0.0) {
-                        Some(rpm) => revs * 60.0 / rpm,
-                        None => {
-                            return fail(
-                                blk.col(KS),
-                                "G4 S dwells in spindle revolutions: no spindle speed S programmed",
-                            );
-                        }
-                    }
-                }
-                Some(k) => blk.vals[k as usize],
-            };
+        if let Some((_, seconds)) = dwell_checked {
             out.event(EventCode::G4, Some(seconds));
         }
 
@@ -730,14 +714,16 @@ impl State {
         self.finish_block(blk, &m_post, out)
     }
 
-    /// Checks the dwell word of a G4 block (`col` is the G4) and returns its key, if given.
+    /// Checks the dwell word of a G4 block (`col` is the G4) and returns its key, if given,
+    /// and the dwell time in seconds (zero without a time word).
     ///
     /// The dwell word: LinuxCNC `P` (seconds, required); Rockwell `X` or `P`; Sinumerik `F`
-    /// (seconds) or `S` (spindle revolutions); Heidenhain `F` (seconds); Fagor `K`
-    /// (seconds). Its value must be from 0 to [`MAX_DWELL`]. Except in LinuxCNC, the block
+    /// (seconds) or `S` (spindle revolutions, timed at the last programmed spindle
+    /// speed); Heidenhain `F` (seconds); Fagor `K` (seconds). Its value must be from 0 to
+    /// [`MAX_DWELL`]. Except in LinuxCNC, the block
     /// may not hold motion words (the Sinumerik manual: "G4 must be programmed in a
     /// separate block"); a word that would be an axis elsewhere is never silently dropped.
-    fn check_dwell(&self, blk: &Block, col: u32) -> Result<Option<u8>, ExecError> {
+    fn check_dwell(&self, blk: &Block, col: u32) -> Result<(Option<u8>, f64), ExecError> {
         let d = self.dialect;
         let (g, words): (&str, &[u8]) = match d {
             Dialect::LinuxCnc => ("G4", &[KP]),
@@ -768,8 +754,8 @@ impl State {
                 return fail(col, "Dwell time P word missing with G4");
             }
             // Rockwell, Sinumerik, Heidenhain and Fagor accept G4 without a time: a dwell
-            // of zero, which for a simulation is nothing.
-            return Ok(None);
+            // of zero, still an exact stop.
+            return Ok((None, 0.0));
         };
         if let Some(second) = given.next() {
             return fail(
@@ -798,7 +784,17 @@ impl State {
                 format!("dwell time {name} with {g} must be at most 1000000, found {value}"),
             );
         }
-        Ok(Some(word))
+        if word != KS {
+            return Ok((Some(word), value));
+        }
+        // Sinumerik G4 S: spindle revolutions at the programmed speed.
+        match self.spindle_rpm.filter(|&rpm| rpm > 0.0) {
+            Some(rpm) => Ok((Some(word), value * 60.0 / rpm)),
+            None => fail(
+                blk.col(KS),
+                "G4 S dwells in spindle revolutions: no spindle speed S programmed",
+            ),
+        }
     }
 
     fn finish_block(
