@@ -10,46 +10,6 @@ use kerf_geom::{CornerMode, Move, Path, Vec3};
 use kerf_motion::driver::{RunOptions, Summary, run};
 use kerf_motion::{AxisLimits, MachineLimits};
 
-/// xorshift64*: a tiny deterministic generator (as in `properties.rs`).
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-    fn log(&mut self, lo: f64, hi: f64) -> f64 {
-        (lo.ln() + (hi.ln() - lo.ln()) * self.unit()).exp()
-    }
-    fn pick(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-    fn sign(&mut self) -> f64 {
-        if self.pick(2) == 0 { 1.0 } else { -1.0 }
-    }
-}
-
-fn unit_vec(rng: &mut Rng) -> Vec3 {
-    loop {
-        let v = Vec3::new(
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-        );
-        if v.norm() > 0.2 && v.norm() < 1.0 {
-            return v.normalize();
-        }
-    }
-}
-
 /// A random machine: X, Y, Z and a rotary A, each with its own limits.
 fn random_machine(rng: &mut Rng) -> MachineLimits {
     let mut m = mill(100.0, 1000.0, 10_000.0, rng.log(0.002, 0.1));
@@ -291,7 +251,7 @@ const SEED: u64 = 0x7e57_0000_0007_0005;
 /// Case `index` of the generator started from `seed`: machine, program, the raise and
 /// the tolerance to check against.
 fn generated_case(seed: u64, index: usize) -> (MachineLimits, Vec<Move>, Raise, f64) {
-    let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
+    let mut rng = Rng::seeded(seed);
     let mut case = None;
     for _ in 0..=index {
         let m = random_machine(&mut rng);
@@ -328,15 +288,9 @@ const FORMER_ESCAPES: [(u64, usize); 7] = [
 /// (`KERF_SEED=3 KERF_CASES=300 cargo test --release -p kerf-motion --test monotonic`).
 #[test]
 fn raising_a_limit_never_slows_a_program() {
-    let seed: u64 = std::env::var("KERF_SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(SEED);
-    let cases: usize = std::env::var("KERF_CASES")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(100);
-    let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
+    let seed: u64 = env_number("KERF_SEED").unwrap_or(SEED);
+    let cases: usize = env_number("KERF_CASES").unwrap_or(100);
+    let mut rng = Rng::seeded(seed);
     for case in 0..cases {
         let m = random_machine(&mut rng);
         let n = 3 + rng.pick(12);

@@ -7,31 +7,6 @@ use kerf_geom::{CornerMode, Curve, Move, Path, Vec3};
 use kerf_motion::driver::{Event, RunOptions, Summary, run};
 use kerf_motion::{MachineLimits, Setpoint};
 
-/// xorshift64*: a tiny deterministic generator, so the test needs no extra dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-    /// Log-uniform in [lo, hi].
-    fn log(&mut self, lo: f64, hi: f64) -> f64 {
-        (lo.ln() + (hi.ln() - lo.ln()) * self.unit()).exp()
-    }
-    fn pick(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-}
-
 fn random_limits(rng: &mut Rng) -> MachineLimits {
     let mut m = mill(100.0, 1000.0, 10000.0, rng.log(0.002, 0.1));
     m.period_s = [0.00025, 0.0005, 0.001, 0.001, 0.002, 0.004][rng.pick(6)];
@@ -48,19 +23,6 @@ fn random_limits(rng: &mut Rng) -> MachineLimits {
         });
     }
     m
-}
-
-fn unit_vec(rng: &mut Rng) -> Vec3 {
-    loop {
-        let v = Vec3::new(
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-        );
-        if v.norm() > 0.2 && v.norm() < 1.0 {
-            return v.normalize();
-        }
-    }
 }
 
 /// A random program: lines of every length, arcs and helices, tangent and sharp corners,
@@ -373,15 +335,9 @@ fn identical_runs_give_identical_setpoints() {
 /// (`KERF_SEED=3 KERF_CASES=500 cargo test --release -p kerf-motion --test properties soak`).
 #[test]
 fn soak() {
-    let seed: u64 = std::env::var("KERF_SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(7);
-    let cases: usize = std::env::var("KERF_CASES")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(60);
-    let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
+    let seed: u64 = env_number("KERF_SEED").unwrap_or(7);
+    let cases: usize = env_number("KERF_CASES").unwrap_or(60);
+    let mut rng = Rng::seeded(seed);
     for case in 0..cases {
         let limits = random_limits(&mut rng);
         let n = 10 + rng.pick(80);
@@ -996,8 +952,7 @@ fn check_swept(name: &str, moves: &[Move], limits: &MachineLimits, ovr: f64, tol
 
 /// Runs the swept-machine cases `0..cases` of a seed (only case `only`, if given: the
 /// earlier ones are still drawn, so a case is the same whatever else runs).
-fn run_sweep(seed: u64, cases: usize, only: Option<usize>) {
-    let mut rng = Rng(seed);
+fn run_sweep(mut rng: Rng, cases: usize, only: Option<usize>) {
     for case in 0..cases {
         let limits = sweep_limits(&mut rng);
         let n = 5 + rng.pick(20);
@@ -1017,28 +972,15 @@ fn run_sweep(seed: u64, cases: usize, only: Option<usize>) {
     }
 }
 
-/// The seed a soak's `KERF_SWEEP_SEED` stands for.
-fn sweep_seed(s: u64) -> u64 {
-    s.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1
-}
-
 /// 60 machines in every test run; for a long soak set `KERF_SWEEP_SEED` and
 /// `KERF_SWEEP_CASES` (`KERF_SWEEP_SEED=3 KERF_SWEEP_CASES=2000 cargo test --release -p
 /// kerf-motion --test properties machines_across`; `KERF_SWEEP_ONLY=N` replays case N).
 #[test]
 fn machines_across_the_accepted_range_hold_every_invariant() {
-    let seed: u64 = std::env::var("KERF_SWEEP_SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .map_or(0x7e57_0f11_a115, sweep_seed);
-    let cases: usize = std::env::var("KERF_SWEEP_CASES")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(60);
-    let only: Option<usize> = std::env::var("KERF_SWEEP_ONLY")
-        .ok()
-        .and_then(|s| s.parse().ok());
-    run_sweep(seed, cases, only);
+    let rng = env_number("KERF_SWEEP_SEED").map_or(Rng(0x7e57_0f11_a115), Rng::seeded);
+    let cases: usize = env_number("KERF_SWEEP_CASES").unwrap_or(60);
+    let only: Option<usize> = env_number("KERF_SWEEP_ONLY");
+    run_sweep(rng, cases, only);
 }
 
 /// Escapes found by long soaks, replayed in every run: (soak seed, case, what it was).
@@ -1049,7 +991,7 @@ fn swept_machine_escapes_stay_fixed() {
     // could not come down in time, a fallback.
     let escapes: &[(u64, usize)] = &[(23, 696)];
     for &(seed, case) in escapes {
-        run_sweep(sweep_seed(seed), case + 1, Some(case));
+        run_sweep(Rng::seeded(seed), case + 1, Some(case));
     }
 }
 
@@ -1097,15 +1039,8 @@ const PATH_SHARE: f64 = 0.05;
 #[test]
 fn hold_stops_within_the_stopping_time_and_resume_finishes() {
     // `KERF_HOLD_SEED` and `KERF_HOLD_CASES` for a longer soak.
-    let seed: u64 = std::env::var("KERF_HOLD_SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .map_or(0x401d_0000_0001, sweep_seed);
-    let cases: usize = std::env::var("KERF_HOLD_CASES")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(80);
-    let mut rng = Rng(seed);
+    let mut rng = env_number("KERF_HOLD_SEED").map_or(Rng(0x401d_0000_0001), Rng::seeded);
+    let cases: usize = env_number("KERF_HOLD_CASES").unwrap_or(80);
     for case in 0..cases {
         let limits = if case % 2 == 0 {
             sweep_limits(&mut rng)

@@ -100,3 +100,55 @@ pub fn arc_about(
         corner: blend(),
     }
 }
+
+/// xorshift64*: a tiny deterministic generator, so the tests need no extra dependency.
+pub struct Rng(pub u64);
+
+impl Rng {
+    /// The generator for a soak's seed number (`KERF_SEED=3` and the like): spread over
+    /// the state space, never zero.
+    pub fn seeded(seed: u64) -> Rng {
+        Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1)
+    }
+    pub fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+    pub fn unit(&mut self) -> f64 {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+    /// Log-uniform in [lo, hi].
+    pub fn log(&mut self, lo: f64, hi: f64) -> f64 {
+        (lo.ln() + (hi.ln() - lo.ln()) * self.unit()).exp()
+    }
+    pub fn pick(&mut self, n: usize) -> usize {
+        (self.next() % n as u64) as usize
+    }
+    pub fn sign(&mut self) -> f64 {
+        if self.pick(2) == 0 { 1.0 } else { -1.0 }
+    }
+}
+
+/// A random unit vector (rejection sampling in the unit ball).
+pub fn unit_vec(rng: &mut Rng) -> Vec3 {
+    loop {
+        let v = Vec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        );
+        if v.norm() > 0.2 && v.norm() < 1.0 {
+            return v.normalize();
+        }
+    }
+}
+
+/// A number from the environment (the soak knobs of the property tests), if set.
+pub fn env_number<T: std::str::FromStr>(name: &str) -> Option<T> {
+    std::env::var(name).ok().and_then(|s| s.parse().ok())
+}
