@@ -1453,16 +1453,22 @@ fn reach_speed(length: f64, v_max: f64, a: f64, j: f64) -> f64 {
     if !(length > 0.0 && v_max > 0.0 && a > 0.0 && j > 0.0) || ramp_mm(v_max) <= length {
         return v_max;
     }
-    let (mut lo, mut hi) = (0.0, v_max);
-    for _ in 0..50 {
-        let mid = 0.5 * (lo + hi);
-        if ramp_mm(mid) <= length {
-            lo = mid;
+    bisect(0.0, v_max, 50, |v| ramp_mm(v) <= length)
+}
+
+/// Bisection between `good`, where `ok` holds, and `bad`, where it does not (`ok` changes
+/// once between them): the value nearest `bad` known to satisfy `ok`, after `steps`
+/// halvings.
+fn bisect(mut good: f64, mut bad: f64, steps: usize, ok: impl Fn(f64) -> bool) -> f64 {
+    for _ in 0..steps {
+        let mid = 0.5 * (good + bad);
+        if ok(mid) {
+            good = mid;
         } else {
-            hi = mid;
+            bad = mid;
         }
     }
-    lo
+    good
 }
 
 /// Rough time over a segment of `length` entered and left at `v_in`, speeding up on the
@@ -1471,19 +1477,11 @@ fn transit_time_s(length: f64, v_in: f64, v_top: f64, a: f64, j: f64) -> f64 {
     let v_top = v_top.max(v_in);
     // Distance to speed up from `v_in` to `p` and back.
     let there_and_back = |p: f64| (v_in + p) * change_time_s(p - v_in, a, j);
-    let mut peak = v_top;
-    if there_and_back(v_top) > length {
-        let (mut lo, mut hi) = (v_in, v_top);
-        for _ in 0..50 {
-            let mid = 0.5 * (lo + hi);
-            if there_and_back(mid) <= length {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        peak = lo;
-    }
+    let peak = if there_and_back(v_top) > length {
+        bisect(v_in, v_top, 50, |p| there_and_back(p) <= length)
+    } else {
+        v_top
+    };
     let cruise = (length - there_and_back(peak)).max(0.0);
     let cruise_s = if cruise > 0.0 { cruise / peak } else { 0.0 };
     2.0 * change_time_s(peak - v_in, a, j) + cruise_s
@@ -1755,27 +1753,9 @@ fn design_speed_search(
         return (v_top, found.1, found.2);
     }
     let mut vd = grid(k);
-    let (mut lo, mut hi) = (grid(k + 1).ln(), grid(k.saturating_sub(1)).min(v_top).ln());
-    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (lo, hi) = (grid(k + 1).ln(), grid(k.saturating_sub(1)).min(v_top).ln());
     let measure = |x: f64| eval(x.exp()).map_or(f64::INFINITY, |e| e.0);
-    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
-    let (mut c1, mut c2) = (measure(x1), measure(x2));
-    for _ in 0..10 {
-        if c1 <= c2 {
-            hi = x2;
-            x2 = x1;
-            c2 = c1;
-            x1 = hi - g * (hi - lo);
-            c1 = measure(x1);
-        } else {
-            lo = x1;
-            x1 = x2;
-            c1 = c2;
-            x2 = lo + g * (hi - lo);
-            c2 = measure(x2);
-        }
-    }
-    let x = if c1 <= c2 { x1 } else { x2 };
+    let (x, _) = golden_min(lo, hi, 10, measure);
     if let Some(e) = eval(x.exp()).filter(|e| e.0 < found.0) {
         vd = x.exp();
         found = e;
@@ -2160,51 +2140,50 @@ fn quickest_budget(vd: f64, a_hi: f64, jerk_for: impl Fn(f64) -> f64) -> Option<
         let j = jerk_for(a_hi);
         return Some((a_hi, j));
     }
-    let (mut lo, mut hi) = (
+    let (lo, hi) = (
         grid((k + 1).min(BUDGET_GRID_POINTS - 1)).ln(),
         grid(k.saturating_sub(1)).ln(),
     );
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
-    let (mut c1, mut c2) = (cost(x1.exp()), cost(x2.exp()));
-    for _ in 0..14 {
-        if c1 <= c2 {
-            hi = x2;
-            x2 = x1;
-            c2 = c1;
-            x1 = hi - g * (hi - lo);
-            c1 = cost(x1.exp());
-        } else {
-            lo = x1;
-            x1 = x2;
-            c1 = c2;
-            x2 = lo + g * (hi - lo);
-            c2 = cost(x2.exp());
-        }
-    }
+    let (x, c) = golden_min(lo, hi, 14, |x| cost(x.exp()));
     let mut a = grid(k);
-    if c1.min(c2) < best.0 {
-        a = if c1 <= c2 { x1.exp() } else { x2.exp() };
+    if c < best.0 {
+        a = x.exp();
     }
     let j = jerk_for(a);
     // Never more acceleration than a ramp by `vd` reaches (`a = sqrt(vd·j(a))`, found by
     // bisection): less leaves the same ramp time and more jerk room.
     if a * a > vd * j {
-        let (mut lo, mut hi) = (0.0, a);
-        for _ in 0..60 {
-            let mid = 0.5 * (lo + hi);
-            if mid * mid <= vd * jerk_for(mid) {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
+        let lo = bisect(0.0, a, 60, |x| x * x <= vd * jerk_for(x));
         let j_lo = jerk_for(lo);
         if lo > 0.0 && j_lo >= j {
             return Some((lo, j_lo));
         }
     }
     Some((a, j))
+}
+
+/// Golden-section search for the minimum of `cost` on `[lo, hi]` (`steps` narrowings):
+/// the better of the last two points, and its cost.
+fn golden_min(mut lo: f64, mut hi: f64, steps: usize, cost: impl Fn(f64) -> f64) -> (f64, f64) {
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut c1, mut c2) = (cost(x1), cost(x2));
+    for _ in 0..steps {
+        if c1 <= c2 {
+            hi = x2;
+            x2 = x1;
+            c2 = c1;
+            x1 = hi - g * (hi - lo);
+            c1 = cost(x1);
+        } else {
+            lo = x1;
+            x1 = x2;
+            c1 = c2;
+            x2 = lo + g * (hi - lo);
+            c2 = cost(x2);
+        }
+    }
+    if c1 <= c2 { (x1, c1) } else { (x2, c2) }
 }
 
 /// Largest `x` in `[0, hi]` with `ok(x)` (assumes `ok` is monotone), to 1e-6 relative.
