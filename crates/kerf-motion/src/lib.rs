@@ -1618,14 +1618,7 @@ mod tests {
             tolerance_mm: 0.01,
         };
         let mut core = MotionCore::new(limits, 4);
-        let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
-        let mut unit = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut log_uniform = |lo: f64, hi: f64| (lo.ln() + unit() * (hi.ln() - lo.ln())).exp();
+        let mut log_uniform = crate::profile::tests::log_uniform_source(0x9e37_79b9_7f4a_7c15);
         let (mut tried, mut failed) = (0, 0);
         while tried < 20_000 {
             let vmax = log_uniform(1.0, 5000.0);

@@ -161,8 +161,21 @@ impl JerkProfile {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// A fixed-seed source of log-uniform numbers in `[lo, hi]` (xorshift64) for the
+    /// sweeps of the unit tests.
+    pub(crate) fn log_uniform_source(seed: u64) -> impl FnMut(f64, f64) -> f64 {
+        let mut state = seed;
+        move |lo: f64, hi: f64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let unit = (state >> 11) as f64 / (1u64 << 53) as f64;
+            (lo.ln() + unit * (hi.ln() - lo.ln())).exp()
+        }
+    }
 
     /// Checks a profile by sampling: it reaches the distance and the end speed, never
     /// exceeds the limits, never goes backwards, and its jerk by finite differences of the
@@ -291,14 +304,7 @@ mod tests {
     #[test]
     fn random_inputs_hold_their_limits() {
         // A fixed-seed sweep over the range of machines the configuration accepts.
-        let mut state: u64 = 0x2545_F491_4F6C_DD1D;
-        let mut unit = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut log_uniform = |lo: f64, hi: f64| (lo.ln() + unit() * (hi.ln() - lo.ln())).exp();
+        let mut log_uniform = crate::profile::tests::log_uniform_source(0x2545_F491_4F6C_DD1D);
         let mut built = 0;
         for _ in 0..400 {
             let vmax = log_uniform(1.0, 5000.0);
