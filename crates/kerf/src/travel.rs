@@ -527,6 +527,17 @@ mod tests {
         assert_eq!((e.axis, e.position, e.unit), ('C', 400.0, " deg"));
     }
 
+    /// A fixed-seed source of numbers in `[0, 1)` (a 64-bit LCG).
+    fn unit_source(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
     /// The largest value of a quintic on `[0, 1]` by brute force: a million samples.
     fn brute_max(c: &[f64; 6]) -> f64 {
         (0..=1_000_000)
@@ -542,13 +553,8 @@ mod tests {
         // Fixed-seed random quintics of the planner's scale (positions around ±1000 mm,
         // shapes of up to a few mm), each tested against limits just above and just
         // below its true maximum.
-        let mut state = 0x5eed_7a4e_u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut unit = unit_source(0x5eed_7a4e);
+        let mut next = || unit() * 2.0 - 1.0;
         for case in 0..40 {
             let mut c = [0.0; 6];
             c[0] = 1000.0 * next();
@@ -616,13 +622,7 @@ mod tests {
         // limit): the farthest X is measured by evaluating the segment where the motion
         // core does (`position_at`, 20,000 arc-length samples). A limit 0.1 µm inside it is
         // reported, with that farthest X; a limit 1 nm outside it is not.
-        let mut state = 0x7ae5_17e5_u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = unit_source(0x7ae5_17e5);
         let mut checked = 0;
         for case in 0..60 {
             let a0 = (next() - 0.5) * 2.0;
