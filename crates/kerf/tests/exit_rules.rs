@@ -70,6 +70,18 @@ fn assert_refused_without_motion(out: &Output, csv: &Path) {
     }
 }
 
+/// `kerf sim --override PCT PROGRAM --out CSV` on the bundled configuration.
+fn sim_with_override(program: &Path, csv: &Path, pct: &str) -> Output {
+    kerf(&[
+        "sim",
+        "--override",
+        pct,
+        program.to_str().unwrap(),
+        "--out",
+        csv.to_str().unwrap(),
+    ])
+}
+
 /// 1 mm along X at F600 (10 mm/s) on the bundled mill.
 const ONE_MM_AT_F600: &str = "G21 G90 G17\nG1 X1 F600\nM2\n";
 
@@ -78,14 +90,7 @@ fn override_zero_is_refused_before_any_motion() {
     let program = scratch("override-0.ngc", ONE_MM_AT_F600);
     for zero in ["0", "0%", "0.0", "-0"] {
         let csv = fresh_csv("override-0.csv");
-        let out = kerf(&[
-            "sim",
-            "--override",
-            zero,
-            program.to_str().unwrap(),
-            "--out",
-            csv.to_str().unwrap(),
-        ]);
+        let out = sim_with_override(&program, &csv, zero);
         assert_refused_without_motion(&out, &csv);
         let err = stderr(&out);
         assert!(err.starts_with("error: "), "{err}");
@@ -99,14 +104,7 @@ fn out_of_range_overrides_are_parsed_as_values_and_named() {
     let program = scratch("override-bad.ngc", ONE_MM_AT_F600);
     for bad in ["-5", "-0.5", "200.5", "0.05", "1e-300", "nan", "abc"] {
         let csv = fresh_csv("override-bad.csv");
-        let out = kerf(&[
-            "sim",
-            "--override",
-            bad,
-            program.to_str().unwrap(),
-            "--out",
-            csv.to_str().unwrap(),
-        ]);
+        let out = sim_with_override(&program, &csv, bad);
         assert_refused_without_motion(&out, &csv);
         let err = stderr(&out);
         assert!(!err.contains("unexpected argument"), "{bad}: {err}");
@@ -125,14 +123,7 @@ fn small_and_full_overrides_still_run_to_the_end_point() {
     let program = scratch("override-ok.ngc", ONE_MM_AT_F600);
     for (pct, min_s, feed_mm_s) in [("12.5", 0.8, 1.25), ("200%", 0.05, 20.0)] {
         let csv = fresh_csv("override-ok.csv");
-        let out = kerf(&[
-            "sim",
-            "--override",
-            pct,
-            program.to_str().unwrap(),
-            "--out",
-            csv.to_str().unwrap(),
-        ]);
+        let out = sim_with_override(&program, &csv, pct);
         assert_eq!(out.status.code(), Some(0), "{pct}: {}", stderr(&out));
         let rows = csv_rows(&csv);
         let last = rows.last().unwrap();
