@@ -280,6 +280,37 @@ impl Gen {
         }
     }
 
+    /// Pushes an arc block: refused, or an arc to `end` in the direction `ccw` whose centre
+    /// and signed sweep are checked when given (unperturbed arcs); an accepted arc moves
+    /// the model to `end`. Returns whether it is accepted.
+    fn push_arc(
+        &mut self,
+        words: Vec<String>,
+        refused: bool,
+        end: [f64; 3],
+        ccw: bool,
+        exact: Option<([f64; 3], f64)>,
+        polar: bool,
+    ) -> bool {
+        let expect = if refused {
+            Expect::Error
+        } else {
+            Expect::Arc {
+                end,
+                ccw,
+                centre: exact.map(|(centre, _)| centre),
+                sweep_rad: exact.map(|(_, sweep)| sweep),
+                sweep_tol: 1e-2,
+            }
+        };
+        self.push(words, expect, polar);
+        if !refused {
+            self.pos = end;
+            self.last_ccw = Some(ccw);
+        }
+        !refused
+    }
+
     fn push(&mut self, mut words: Vec<String>, expect: Expect, polar: bool) {
         if self.heid() {
             words.push("*".into());
@@ -641,23 +672,15 @@ impl Gen {
             words.push(if p[15] < 0.5 { "M8" } else { "S1200" }.into());
         }
         let sweep = (sweep_abs + f64::from(extra_turns) * TAU) * if ccw { 1.0 } else { -1.0 };
-        let expect = if rejected {
-            Expect::Error
-        } else {
-            let exact = perturb == 0.0;
-            Expect::Arc {
-                end,
-                ccw,
-                centre: exact.then_some(centre),
-                sweep_rad: exact.then_some(sweep),
-                sweep_tol: 1e-2,
-            }
-        };
-        self.push(words, expect, false);
-        if !rejected {
-            self.pos = end;
-            self.last_ccw = Some(ccw);
-        }
+        let exact = perturb == 0.0;
+        self.push_arc(
+            words,
+            rejected,
+            end,
+            ccw,
+            exact.then_some((centre, sweep)),
+            false,
+        );
     }
 
     /// Radius-format arcs: R (CR=) with the sign choosing the short or the long way.
@@ -718,22 +741,14 @@ impl Gen {
             words.push(if p[15] < 0.5 { "M8" } else { "S1200" }.into());
         }
         let sweep = (sweep_abs + extra_turns * TAU) * if ccw { 1.0 } else { -1.0 };
-        let expect = if gross {
-            Expect::Error
-        } else {
-            Expect::Arc {
-                end,
-                ccw,
-                centre: exact.then_some(centre),
-                sweep_rad: exact.then_some(sweep),
-                sweep_tol: 1e-2,
-            }
-        };
-        self.push(words, expect, false);
-        if !gross {
-            self.pos = end;
-            self.last_ccw = Some(ccw);
-        }
+        self.push_arc(
+            words,
+            gross,
+            end,
+            ccw,
+            exact.then_some((centre, sweep)),
+            false,
+        );
     }
 
     /// Polar lines: LinuxCNC `@ ^`, Sinumerik RP= AP=, Heidenhain G10/G11 R H, Fagor R Q.
@@ -1021,25 +1036,17 @@ impl Gen {
         let mut centre = pole;
         centre[w] = self.pos[w];
         let sweep = dir((sweep_abs + 360.0 * f64::from(turns)).to_radians());
-        let expect = if gross {
-            Expect::Error
-        } else {
-            let exact = !perturbed;
-            Expect::Arc {
-                end,
-                ccw,
-                centre: exact.then_some(centre),
-                sweep_rad: exact.then_some(sweep),
-                sweep_tol: 1e-2,
-            }
-        };
-        self.push(words, expect, true);
-        if !gross {
-            self.pos = end;
-            self.last_ccw = Some(ccw);
-            if self.d != Dialect::Sinumerik {
-                self.polar_last = new_polar;
-            }
+        let exact = !perturbed;
+        let accepted = self.push_arc(
+            words,
+            gross,
+            end,
+            ccw,
+            exact.then_some((centre, sweep)),
+            true,
+        );
+        if accepted && self.d != Dialect::Sinumerik {
+            self.polar_last = new_polar;
         }
     }
 
