@@ -89,7 +89,6 @@ use kerf_geom::Vec3;
 pub use kerf_plan::{AxisLimits, MachineLimits, PlannedSegment};
 use rsruckig::prelude::*;
 
-pub mod driver;
 pub mod monitor;
 mod profile;
 

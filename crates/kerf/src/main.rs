@@ -17,7 +17,7 @@ use indicatif::{ProgressBar, ProgressFinish, ProgressStyle};
 use kerf::sim::{Prepass, PrepassError, SimError, SimOptions};
 use kerf::{Config, PlanError, choose_dialect};
 use kerf_gcode::{Dialect, Interpreter, Item};
-use kerf_motion::driver::Input;
+use kerf_pipeline::Input;
 
 /// Read buffer for program files: large enough that a 1 GB program costs few system calls,
 /// small enough to keep the resident set tiny.

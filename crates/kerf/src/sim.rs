@@ -2,7 +2,7 @@
 //!
 //! The resolved moves go through the same [`kerf_plan::Planner`] and
 //! [`kerf_motion::MotionCore`] the daemon runs, fed by the deterministic policy of
-//! [`kerf_motion::driver`] (push while the queue has room, step one period when it is full,
+//! [`kerf_pipeline`] (push while the queue has room, step one period when it is full,
 //! then step until rest), so a simulation reproduces the daemon's setpoints bit for bit.
 //!
 //! Output: one CSV row per period, `t,x,y,z` (then `a,b,c` when the program drives a rotary
@@ -17,7 +17,7 @@
 //! bar. A program whose moves and segments fit in 16 MiB is kept and run from memory
 //! ([`simulate_kept`]); a longer one is read again and streamed into the run
 //! ([`simulate_stream`]). Then three threads share the work: the planner
-//! ([`kerf_motion::driver::run_stream`]), the motion core with the measurements, and the
+//! ([`kerf_pipeline::run_stream`]), the motion core with the measurements, and the
 //! CSV formatting (a kept program needs no planner thread). The output is the same, byte
 //! for byte, as with everything on one thread (the feeding policy depends only on the
 //! order of the segments; tests compare the kept, the streamed and the one-thread runs).
@@ -32,9 +32,9 @@ use std::fmt;
 use std::io::{self, BufWriter, Write};
 
 use kerf_geom::{Move, Path, Vec3, line_distance};
-use kerf_motion::driver::{self, Event, Input, Planned, RunError, RunOptions, Summary};
 use kerf_motion::monitor::{LimitMonitor, LimitViolation};
 use kerf_motion::{AxisLimits, MachineLimits, PlannedSegment, Setpoint};
+use kerf_pipeline::{self as driver, Event, Input, Planned, RunError, RunOptions, Summary};
 use kerf_plan::{PlanError, Planner};
 
 use crate::config::Config;

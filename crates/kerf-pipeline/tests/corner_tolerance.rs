@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use kerf_geom::{CornerMode, Curve, Move, Path, Vec3};
 use kerf_motion::MachineLimits;
-use kerf_motion::driver::{RunOptions, run};
+use kerf_pipeline::{RunOptions, run};
 
 fn with_tol(mut m: Move, tol_mm: f64) -> Move {
     m.corner = CornerMode::Blend {

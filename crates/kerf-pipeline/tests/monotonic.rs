@@ -7,8 +7,8 @@
 mod common;
 use common::*;
 use kerf_geom::{CornerMode, Move, Path, Vec3};
-use kerf_motion::driver::{RunOptions, Summary, run};
 use kerf_motion::{AxisLimits, MachineLimits};
+use kerf_pipeline::{RunOptions, Summary, run};
 
 /// A random machine: X, Y, Z and a rotary A, each with its own limits.
 fn random_machine(rng: &mut Rng) -> MachineLimits {
@@ -285,7 +285,7 @@ const FORMER_ESCAPES: [(u64, usize); 7] = [
 ];
 
 /// 100 cases in every test run; for a longer search set `KERF_SEED` and `KERF_CASES`
-/// (`KERF_SEED=3 KERF_CASES=300 cargo test --release -p kerf-motion --test monotonic`).
+/// (`KERF_SEED=3 KERF_CASES=300 cargo test --release -p kerf-pipeline --test monotonic`).
 #[test]
 fn raising_a_limit_never_slows_a_program() {
     let seed: u64 = env_number("KERF_SEED").unwrap_or(SEED);

@@ -3,8 +3,8 @@
 mod common;
 use common::*;
 use kerf_geom::Vec3;
-use kerf_motion::driver::{Event, RunOptions, run};
 use kerf_motion::{Setpoint, change_distance, reach};
+use kerf_pipeline::{Event, RunOptions, run};
 use kerf_plan::Planner;
 
 #[test]
@@ -23,7 +23,7 @@ fn reachability_matches_hand_computed_profiles() {
 
 /// Asserts that the first `axes` axes stayed within 1 % of their limits.
 fn assert_within_limits(
-    s: &kerf_motion::driver::Summary,
+    s: &kerf_pipeline::Summary,
     limits: &kerf_motion::MachineLimits,
     axes: usize,
 ) {
@@ -40,7 +40,7 @@ fn run_corner(
     moves: Vec<kerf_geom::Move>,
     limits: &kerf_motion::MachineLimits,
     corner: Vec3,
-) -> (kerf_motion::driver::Summary, f64) {
+) -> (kerf_pipeline::Summary, f64) {
     let end = moves.last().unwrap().path.end();
     let mut near = f64::INFINITY;
     let s = run(moves, limits, &RunOptions::default(), |_, sp| {

@@ -13,8 +13,8 @@ use std::time::Instant;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use kerf_geom::{CornerMode, Line, Move, Path, Vec3};
-use kerf_motion::driver::{RunOptions, run};
 use kerf_motion::{AxisLimits, MachineLimits, MotionCore, PlannedSegment, Setpoint};
+use kerf_pipeline::{RunOptions, run};
 use kerf_plan::Planner;
 
 fn mill() -> MachineLimits {

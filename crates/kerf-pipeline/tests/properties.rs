@@ -4,8 +4,8 @@
 mod common;
 use common::*;
 use kerf_geom::{CornerMode, Curve, Move, Path, Vec3};
-use kerf_motion::driver::{Event, RunOptions, Summary, run};
 use kerf_motion::{MachineLimits, Setpoint};
+use kerf_pipeline::{Event, RunOptions, Summary, run};
 
 fn random_limits(rng: &mut Rng) -> MachineLimits {
     let mut m = mill(100.0, 1000.0, 10000.0, rng.log(0.002, 0.1));
@@ -332,7 +332,7 @@ fn identical_runs_give_identical_setpoints() {
 
 /// A sweep on its own seed stream, with events at random cycles. It runs 60 cases in every
 /// test run; for a long soak set `KERF_SEED` and `KERF_CASES`
-/// (`KERF_SEED=3 KERF_CASES=500 cargo test --release -p kerf-motion --test properties soak`).
+/// (`KERF_SEED=3 KERF_CASES=500 cargo test --release -p kerf-pipeline --test properties soak`).
 #[test]
 fn soak() {
     let seed: u64 = env_number("KERF_SEED").unwrap_or(7);
@@ -752,7 +752,7 @@ fn measured_deviation_matches_a_brute_force_check() {
 
 #[test]
 fn planning_on_a_second_thread_gives_the_same_setpoints() {
-    use kerf_motion::driver::run_parallel;
+    use kerf_pipeline::run_parallel;
     let mut rng = Rng(0x7417_ead5_5eed_000b);
     for case in 0..12 {
         let limits = random_limits(&mut rng);

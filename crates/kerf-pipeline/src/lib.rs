@@ -1,4 +1,4 @@
-//! The offline driver: moves → [`Planner`] → [`MotionCore`] in virtual time.
+//! Kerf's planning pipeline, the offline driver: moves → [`Planner`] → [`MotionCore`] in virtual time.
 //!
 //! This is the loop `kerf sim` and the tests run, with the same deterministic feeding
 //! policy the daemon uses: push segments while the queue has room, step one period when
@@ -9,9 +9,9 @@
 
 use std::collections::VecDeque;
 
-use crate::monitor::{LimitMonitor, LimitViolation};
-use crate::{MotionCore, PushError, Setpoint, StepResult};
 use kerf_geom::{Curve, Helix, Move, Path, Vec3, line_distance};
+use kerf_motion::monitor::{LimitMonitor, LimitViolation};
+use kerf_motion::{MotionCore, PushError, Setpoint, StepResult};
 use kerf_plan::{MachineLimits, PlanError, PlannedSegment, Planner};
 
 /// An input event applied before a given cycle.
@@ -721,7 +721,7 @@ impl<'a, F: FnMut(f64, &Setpoint)> Runner<'a, F> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::monitor::*;
+    use kerf_motion::monitor::*;
     use kerf_plan::AxisLimits;
 
     #[test]

@@ -1,0 +1,154 @@
+//! Helpers shared by the motion tests: machines and programs built by hand.
+#![allow(dead_code)]
+
+use kerf_geom::{Arc, CornerMode, Line, Move, Path, Vec3};
+use kerf_motion::{AxisLimits, MachineLimits};
+
+/// A mill with the same limits on X, Y, Z.
+pub fn mill(v: f64, a: f64, j: f64, tol: f64) -> MachineLimits {
+    let l = AxisLimits {
+        velocity: v,
+        acceleration: a,
+        jerk: j,
+    };
+    MachineLimits {
+        axes: [Some(l), Some(l), Some(l), None, None, None],
+        period_s: 0.001,
+        tolerance_mm: tol,
+    }
+}
+
+pub fn blend() -> CornerMode {
+    CornerMode::Blend { tolerance_mm: None }
+}
+
+pub fn line(line_no: u32, a: Vec3, b: Vec3, feed_mm_min: f64) -> Move {
+    Move {
+        line: line_no,
+        rapid: false,
+        path: Path::Line(Line { start: a, end: b }),
+        feed_mm_min: Some(feed_mm_min),
+        abc_deg: None,
+        corner: blend(),
+    }
+}
+
+pub fn arc(line_no: u32, start: Vec3, center: Vec3, sweep: f64, rise: f64, feed: f64) -> Move {
+    let r = start - center;
+    let (s, c) = sweep.sin_cos();
+    let end = center + Vec3::new(r.x * c - r.y * s, r.x * s + r.y * c, 0.0) + Vec3::z() * rise;
+    Move {
+        line: line_no,
+        rapid: false,
+        path: Path::Arc(Arc {
+            start,
+            end,
+            center,
+            axis: Vec3::z(),
+            sweep_rad: sweep,
+        }),
+        feed_mm_min: Some(feed),
+        abc_deg: None,
+        corner: blend(),
+    }
+}
+
+/// The circle of radius `r` made of `n` lines, starting and ending at the origin (centre
+/// at (r, 0)), counter-clockwise.
+pub fn polygon_circle(r: f64, n: usize, feed: f64) -> Vec<Move> {
+    let center = Vec3::new(r, 0.0, 0.0);
+    let pt = |k: usize| {
+        let th = std::f64::consts::PI + std::f64::consts::TAU * (k % n) as f64 / n as f64;
+        if k % n == 0 {
+            Vec3::zeros()
+        } else {
+            center + Vec3::new(r * th.cos(), r * th.sin(), 0.0)
+        }
+    };
+    (0..n)
+        .map(|k| line(k as u32 + 1, pt(k), pt(k + 1), feed))
+        .collect()
+}
+
+/// An arc or helix about any unit `axis`; `radial` is the centre-to-start vector (must be
+/// perpendicular to `axis`).
+pub fn arc_about(
+    line_no: u32,
+    start: Vec3,
+    radial: Vec3,
+    axis: Vec3,
+    sweep: f64,
+    rise: f64,
+    feed: f64,
+) -> Move {
+    let center = start - radial;
+    let e2 = axis.cross(&radial);
+    let (s, c) = sweep.sin_cos();
+    let end = center + radial * c + e2 * s + axis * rise;
+    Move {
+        line: line_no,
+        rapid: false,
+        path: Path::Arc(Arc {
+            start,
+            end,
+            center,
+            axis,
+            sweep_rad: sweep,
+        }),
+        feed_mm_min: Some(feed),
+        abc_deg: None,
+        corner: blend(),
+    }
+}
+
+/// xorshift64*: a tiny deterministic generator, so the tests need no extra dependency.
+pub struct Rng(pub u64);
+
+impl Rng {
+    /// The generator for a soak's seed number (`KERF_SEED=3` and the like): spread over
+    /// the state space, never zero.
+    pub fn seeded(seed: u64) -> Rng {
+        Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1)
+    }
+    pub fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+    pub fn unit(&mut self) -> f64 {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+    /// Log-uniform in [lo, hi].
+    pub fn log(&mut self, lo: f64, hi: f64) -> f64 {
+        (lo.ln() + (hi.ln() - lo.ln()) * self.unit()).exp()
+    }
+    pub fn pick(&mut self, n: usize) -> usize {
+        (self.next() % n as u64) as usize
+    }
+    pub fn sign(&mut self) -> f64 {
+        if self.pick(2) == 0 { 1.0 } else { -1.0 }
+    }
+}
+
+/// A random unit vector (rejection sampling in the unit ball).
+pub fn unit_vec(rng: &mut Rng) -> Vec3 {
+    loop {
+        let v = Vec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        );
+        if v.norm() > 0.2 && v.norm() < 1.0 {
+            return v.normalize();
+        }
+    }
+}
+
+/// A number from the environment (the soak knobs of the property tests), if set.
+pub fn env_number<T: std::str::FromStr>(name: &str) -> Option<T> {
+    std::env::var(name).ok().and_then(|s| s.parse().ok())
+}
