@@ -1,9 +1,23 @@
-//! Kerf's planning pipeline, the offline driver: moves → [`Planner`] → [`MotionCore`] in virtual time.
+//! Kerf's planning pipeline: moves → [`Planner`] → [`MotionCore`] → a setpoint sink.
 //!
-//! This is the loop `kerf sim` and the tests run, with the same deterministic feeding
-//! policy the daemon uses: push segments while the queue has room, step one period when
-//! it is full, and after the last move step until the motion is at rest. It also measures
-//! what the invariants are about: per-axis peak velocity, acceleration and jerk by finite
+//! `kerf sim` and the daemon `kerfd` run the same code here, so that the daemon's
+//! setpoints equal the simulator's cycle for cycle:
+//!
+//! - [`Interpolator`] is the per-cycle step both run: it takes planned items from a source
+//!   ([`Poll`]) while the motion core's queue has room, rests at dwells, drops the rest of
+//!   the program after an abort, and steps the core one period. It never allocates, so the
+//!   daemon calls it on its real-time thread with a lock-free ring as the source; the
+//!   simulator calls it in virtual time with a source that blocks until the planning
+//!   thread has the next item (it is never [`Poll::Pending`]).
+//! - Motion starts once the queue is full, or the program has been received to its end
+//!   (or to a dwell, where the motion must stop anyway): with a planner that keeps up,
+//!   the core then sees the same segments at every cycle in both.
+//! - [`plan_input`] is the planning step both planning threads run: a move is planned; at
+//!   a stop or dwell the path ends at rest.
+//! - [`Sink`] consumes setpoints: the CSV writer of `kerf sim`, the daemon's publisher.
+//!
+//! The offline runs ([`run`], [`run_stream`], [`run_planned`]) also measure what the
+//! invariants are about: per-axis peak velocity, acceleration and jerk by finite
 //! differences of the setpoints, and the distance of every setpoint from the programmed
 //! moves.
 
@@ -49,7 +63,7 @@ impl From<Move> for Input {
 
 /// Gives one input to the planner: a move is planned; at a stop or a dwell the planner
 /// ends the path at rest (it is not blended across) and starts afresh after it.
-fn plan_input(
+pub fn plan_input(
     planner: &mut Planner,
     input: &Input,
     out: &mut Vec<PlannedSegment>,
@@ -178,13 +192,207 @@ impl From<PlanError> for RunError {
     }
 }
 
-struct Runner<'a, F: FnMut(f64, &Setpoint)> {
+/// Consumes the setpoints of a run, one per cycle: the CSV writer of `kerf sim`, the
+/// daemon's publisher, a test's collector. Any `FnMut(f64, &Setpoint)` is one.
+pub trait Sink {
+    /// The setpoint of the cycle at program time `t_s` (s; 0 for the row before the first
+    /// cycle).
+    fn setpoint(&mut self, t_s: f64, sp: &Setpoint);
+}
+
+impl<F: FnMut(f64, &Setpoint)> Sink for F {
+    fn setpoint(&mut self, t_s: f64, sp: &Setpoint) {
+        self(t_s, sp)
+    }
+}
+
+/// Program time of cycle `cycle` (0 is the row before the first cycle). When the period
+/// is a whole number of microseconds the product is formed in integers, so that printed
+/// times are exact decimals.
+pub fn cycle_time_s(cycle: u64, period_s: f64) -> f64 {
+    let us = (period_s * 1e6).round();
+    if (us * 1e-6 - period_s).abs() <= 1e-15 {
+        (cycle as f64 * us) / 1e6
+    } else {
+        cycle as f64 * period_s
+    }
+}
+
+/// What a source of planned items has for the [`Interpolator`] when asked.
+// Nearly every item is a segment (see [`Planned`]).
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Poll {
+    /// The next item of the program.
+    Ready(Planned),
+    /// Nothing yet: the planner has not produced the next item (the daemon's source only;
+    /// the simulator's source waits for it).
+    Pending,
+    /// The program has been received to its end.
+    End,
+}
+
+/// The per-cycle step of a program run, shared by `kerf sim` and the daemon's real-time
+/// thread (allocation-free): [`feed`](Self::feed) the motion core from a source, apply
+/// commands ([`apply`](Self::apply)), then [`step`](Self::step) one period.
+///
+/// Feeding pushes items while the queue has room. The first item that does not fit stays
+/// in hand for the next cycle; a dwell stays in hand until the motion before it has come
+/// to rest and the dwell's periods have passed. After an abort every item up to the
+/// program's end is dropped. The motion of a program starts only when the queue is full,
+/// or a dwell or the program's end has been received: the core then has the same
+/// lookahead in the simulator and in the daemon.
+pub struct Interpolator {
     core: MotionCore,
     period_s: f64,
-    sink: F,
-    cycle: u64,
-    events: &'a [(u64, Event)],
-    next_event: usize,
+    hand: Option<Planned>,
+    /// While resting at the dwell in hand: periods left.
+    dwell_left: Option<u64>,
+    started: bool,
+    ended: bool,
+    aborted: bool,
+    last: Option<StepResult>,
+}
+
+impl Interpolator {
+    /// An interpolator around `core` (its queue capacity is the lookahead window).
+    pub fn new(core: MotionCore) -> Self {
+        let period_s = core.limits().period_s;
+        Interpolator {
+            core,
+            period_s,
+            hand: None,
+            dwell_left: None,
+            started: false,
+            ended: false,
+            aborted: false,
+            last: None,
+        }
+    }
+
+    /// The motion core.
+    pub fn core(&self) -> &MotionCore {
+        &self.core
+    }
+
+    /// The motion core, for commands the interpolator does not track (positions).
+    pub fn core_mut(&mut self) -> &mut MotionCore {
+        &mut self.core
+    }
+
+    /// Applies a command before the next [`step`](Self::step).
+    pub fn apply(&mut self, event: Event) {
+        match event {
+            Event::Hold => self.core.hold(),
+            Event::Resume => self.core.resume(),
+            Event::Abort => {
+                self.core.abort();
+                self.aborted = true;
+            }
+            Event::Override(f) => self.core.set_feed_override(f),
+        }
+    }
+
+    /// `true` once the program was aborted (the rest of it is dropped).
+    pub fn aborted(&self) -> bool {
+        self.aborted
+    }
+
+    /// `true` once the motion of the program has started.
+    pub fn started(&self) -> bool {
+        self.started
+    }
+
+    /// `true` once the source reported the program's end.
+    pub fn source_ended(&self) -> bool {
+        self.ended
+    }
+
+    /// `true` while resting at a dwell.
+    pub fn dwelling(&self) -> bool {
+        self.dwell_left.is_some()
+    }
+
+    /// `true` when the program is done: received to its end, everything run, and the
+    /// last step found the motion at rest.
+    pub fn finished(&self) -> bool {
+        self.ended && self.hand.is_none() && self.last == Some(StepResult::Idle)
+    }
+
+    /// What the last step returned (`None` before the first).
+    pub fn last_step(&self) -> Option<StepResult> {
+        self.last
+    }
+
+    /// Gets ready for the next program (the core keeps its position and override).
+    pub fn next_program(&mut self) {
+        self.hand = None;
+        self.dwell_left = None;
+        self.started = false;
+        self.ended = false;
+        self.aborted = false;
+        self.last = None;
+    }
+
+    /// Pushes items from `source` while the queue has room; returns whether the motion
+    /// may step this cycle (the program's motion has started, or starts now). A segment
+    /// the core refuses is a bug of the planner, reported with its line.
+    pub fn feed(&mut self, mut source: impl FnMut() -> Poll) -> Result<bool, RunError> {
+        loop {
+            if self.hand.is_none() && !self.ended {
+                match source() {
+                    Poll::Ready(item) => self.hand = Some(item),
+                    Poll::Pending => break,
+                    Poll::End => {
+                        self.ended = true;
+                        break;
+                    }
+                }
+            }
+            match &self.hand {
+                None => break,
+                Some(_) if self.aborted => self.hand = None,
+                Some(Planned::Segment(seg, _)) => match self.core.push(seg) {
+                    Ok(()) => self.hand = None,
+                    Err(PushError::Full) => break,
+                    Err(_) => return Err(RunError::Rejected { line: seg.line }),
+                },
+                Some(Planned::Dwell(_)) => match self.dwell_left {
+                    Some(0) => {
+                        self.dwell_left = None;
+                        self.hand = None;
+                    }
+                    _ => break,
+                },
+            }
+        }
+        if !self.started {
+            // The queue is full, or the motion must stop at a dwell or the end anyway.
+            self.started = self.hand.is_some() || self.ended;
+        }
+        Ok(self.started)
+    }
+
+    /// Steps the motion one period and writes the setpoint to `out`.
+    pub fn step(&mut self, out: &mut Setpoint) -> StepResult {
+        let r = self.core.step(out);
+        if let Some(Planned::Dwell(seconds)) = self.hand {
+            match &mut self.dwell_left {
+                Some(n) => *n = n.saturating_sub(1),
+                None if r == StepResult::Idle => {
+                    self.dwell_left = Some(dwell_periods(seconds, self.period_s));
+                }
+                None => {}
+            }
+        }
+        self.last = Some(r);
+        r
+    }
+}
+
+/// What the offline runs measure from the setpoints (the daemon does not).
+struct Measure<'a> {
+    period_s: f64,
     hist: [[f64; 6]; 4],
     hist_len: usize,
     summary: Summary,
@@ -198,10 +406,6 @@ struct Runner<'a, F: FnMut(f64, &Setpoint)> {
     base: usize,
     /// The move nearest to the last setpoint.
     cursor: usize,
-    last_result: StepResult,
-    max_cycles: u64,
-    /// After an abort nothing more is fed (the rest of the program is dropped).
-    aborted: bool,
     /// Checks every setpoint, when the run has one.
     monitor: Option<&'a mut LimitMonitor>,
     /// The first setpoint that broke a limit: the run stops there.
@@ -212,46 +416,7 @@ struct Runner<'a, F: FnMut(f64, &Setpoint)> {
 /// the rest is a margin).
 const MOVES_KEPT_BEHIND: usize = 16;
 
-impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
-    fn step(&mut self) -> StepResult {
-        self.cycle += 1;
-        while self.next_event < self.events.len() && self.events[self.next_event].0 <= self.cycle {
-            match self.events[self.next_event].1 {
-                Event::Hold => self.core.hold(),
-                Event::Resume => self.core.resume(),
-                Event::Abort => {
-                    self.core.abort();
-                    self.aborted = true;
-                }
-                Event::Override(f) => self.core.set_feed_override(f),
-            }
-            self.next_event += 1;
-        }
-        let mut sp = Setpoint::default();
-        let r = self.core.step(&mut sp);
-        self.record(&mut sp);
-        let t = self.time();
-        (self.sink)(t, &sp);
-        if let Some(m) = self.monitor.as_mut() {
-            if let Err(v) = m.check(&sp.position) {
-                self.fault.get_or_insert(v);
-            }
-        }
-        self.last_result = r;
-        r
-    }
-
-    /// Time of the current cycle; a whole number of microseconds per period is multiplied
-    /// in integers so that printed times are exact decimals.
-    fn time(&self) -> f64 {
-        let us = (self.period_s * 1e6).round();
-        if (us * 1e-6 - self.period_s).abs() <= 1e-15 {
-            (self.cycle as f64 * us) / 1e6
-        } else {
-            self.cycle as f64 * self.period_s
-        }
-    }
-
+impl Measure<'_> {
     fn record(&mut self, sp: &mut Setpoint) {
         if sp.position.iter().any(|v| !v.is_finite()) || !sp.feed_mm_s.is_finite() {
             self.summary.saw_nan = true;
@@ -340,25 +505,166 @@ impl<F: FnMut(f64, &Setpoint)> Runner<'_, F> {
         (best.min(local.0), local.1)
     }
 
-    fn push(&mut self, seg: &PlannedSegment) -> Result<(), RunError> {
-        loop {
-            if let Some(v) = self.fault {
-                return Err(RunError::Fault(v));
-            }
-            if self.aborted {
-                return Ok(());
-            }
-            match self.core.push(seg) {
-                Ok(()) => return Ok(()),
-                Err(PushError::Full) => {
-                    if self.cycle >= self.max_cycles {
-                        return Ok(());
-                    }
-                    self.step();
-                }
-                Err(_) => return Err(RunError::Rejected { line: seg.line }),
+    /// Records a programmed move for the deviation check.
+    fn add_move(&mut self, mv: &Move, aborted: bool) {
+        if let Some((s, e)) = mv.abc_deg {
+            if s != e {
+                self.summary.rotary_used = true;
             }
         }
+        if aborted && !self.curves.is_empty() {
+            // Nothing more is run after an abort: the deviation check needs no more moves.
+            return;
+        }
+        self.curves.push_back(Programmed::new(&mv.path));
+        self.lines.push_back(mv.line);
+    }
+
+    fn check(&mut self, sp: &Setpoint) {
+        if let Some(m) = self.monitor.as_mut() {
+            if let Err(v) = m.check(&sp.position) {
+                self.fault.get_or_insert(v);
+            }
+        }
+    }
+}
+
+/// Where an offline run takes its planned items from: planned items in order, and the
+/// programmed moves in order (each [`Planned::Segment`] says how many moves the planner
+/// had taken when it made it; the deviation check records them before the segment runs).
+trait Source {
+    /// The next item; never [`Poll::Pending`] (the offline runs wait for the planner).
+    fn poll(&mut self) -> Poll;
+    /// The next programmed move.
+    fn next_move(&mut self) -> Option<Move>;
+    /// The planning error that ended the items early, if any (once).
+    fn take_error(&mut self) -> Option<PlanError> {
+        None
+    }
+}
+
+/// An offline run: the [`Interpolator`] in virtual time, measured, with the commands of
+/// [`RunOptions::events`] applied at their cycles.
+struct Runner<'a, F: Sink> {
+    interp: Interpolator,
+    measure: Measure<'a>,
+    period_s: f64,
+    sink: F,
+    cycle: u64,
+    events: &'a [(u64, Event)],
+    next_event: usize,
+    max_cycles: u64,
+    /// Programmed moves recorded so far.
+    known: usize,
+}
+
+impl<'a, F: Sink> Runner<'a, F> {
+    fn new(limits: &MachineLimits, options: &'a RunOptions, sink: F) -> Self {
+        let mut core = MotionCore::new(*limits, options.capacity);
+        core.set_feed_override(options.feed_override);
+        let mut runner = Runner {
+            interp: Interpolator::new(core),
+            measure: Measure {
+                period_s: limits.period_s,
+                hist: [[0.0; 6]; 4],
+                hist_len: 0,
+                summary: Summary::default(),
+                curves: VecDeque::new(),
+                lines: VecDeque::new(),
+                base: 0,
+                cursor: 0,
+                monitor: None,
+                fault: None,
+            },
+            period_s: limits.period_s,
+            sink,
+            cycle: 0,
+            events: &options.events,
+            next_event: 0,
+            max_cycles: options.max_cycles,
+            known: 0,
+        };
+        let mut start = Setpoint::default();
+        runner.measure.record(&mut start);
+        runner.sink.setpoint(0.0, &start);
+        runner
+    }
+
+    /// Checks every setpoint from now on with `monitor`, starting with the row at t = 0.
+    fn attach(&mut self, monitor: Option<&'a mut LimitMonitor>) -> Result<(), RunError> {
+        self.measure.monitor = monitor;
+        if let Some(m) = self.measure.monitor.as_mut() {
+            m.check(&self.measure.summary.last.position)
+                .map_err(RunError::Fault)?;
+        }
+        Ok(())
+    }
+
+    /// Runs the program from `source` to its end: cycles until the motion has come to
+    /// rest after the last item with every event applied, or is held with no event left
+    /// to resume it, or a setpoint broke a limit, or the cycle guard is reached.
+    fn run<S: Source>(mut self, source: &mut S) -> Result<Summary, RunError> {
+        loop {
+            let events_left = self.next_event < self.events.len();
+            if self.measure.fault.is_some() || self.cycle >= self.max_cycles {
+                break;
+            }
+            if self.interp.finished() && !events_left {
+                break;
+            }
+            if self.interp.last_step() == Some(StepResult::Held) && !events_left {
+                break;
+            }
+            self.cycle(source)?;
+        }
+        self.finish()
+    }
+
+    fn cycle<S: Source>(&mut self, source: &mut S) -> Result<StepResult, RunError> {
+        let measure = &mut self.measure;
+        let known = &mut self.known;
+        let aborted = self.interp.aborted();
+        let started = self.interp.feed(|| {
+            let polled = source.poll();
+            if let Poll::Ready(Planned::Segment(_, moves_known)) = &polled {
+                while *known < *moves_known {
+                    let Some(mv) = source.next_move() else {
+                        break;
+                    };
+                    measure.add_move(&mv, aborted);
+                    *known += 1;
+                }
+            }
+            polled
+        })?;
+        if let Some(e) = source.take_error() {
+            return Err(RunError::Plan(e));
+        }
+        debug_assert!(started, "an offline source never leaves the motion waiting");
+        self.cycle += 1;
+        while self.next_event < self.events.len() && self.events[self.next_event].0 <= self.cycle {
+            self.interp.apply(self.events[self.next_event].1);
+            self.next_event += 1;
+        }
+        let mut sp = Setpoint::default();
+        let r = self.interp.step(&mut sp);
+        self.measure.record(&mut sp);
+        self.sink
+            .setpoint(cycle_time_s(self.cycle, self.period_s), &sp);
+        self.measure.check(&sp);
+        Ok(r)
+    }
+
+    /// The summary, or the fault that stopped the run.
+    fn finish(self) -> Result<Summary, RunError> {
+        if let Some(v) = self.measure.fault {
+            return Err(RunError::Fault(v));
+        }
+        let mut summary = self.measure.summary;
+        summary.cycles = self.cycle;
+        summary.duration_s = self.cycle as f64 * self.period_s;
+        summary.plan_failures = self.interp.core().plan_failures();
+        Ok(summary)
     }
 }
 
@@ -412,6 +718,62 @@ impl Programmed {
     }
 }
 
+/// The source of [`run`]: plans each input when the run asks for the next item.
+struct Inline<I> {
+    inputs: I,
+    planner: Planner,
+    buf: Vec<PlannedSegment>,
+    ready: VecDeque<Planned>,
+    taken: VecDeque<Move>,
+    known: usize,
+    error: Option<PlanError>,
+}
+
+impl<I: Iterator<Item = Input>> Source for Inline<I> {
+    fn poll(&mut self) -> Poll {
+        loop {
+            if let Some(p) = self.ready.pop_front() {
+                return Poll::Ready(p);
+            }
+            if self.error.is_some() {
+                return Poll::End;
+            }
+            let Some(input) = self.inputs.next() else {
+                self.planner.finish(&mut self.buf);
+                let known = self.known;
+                self.ready
+                    .extend(self.buf.drain(..).map(|s| Planned::Segment(s, known)));
+                return match self.ready.pop_front() {
+                    Some(p) => Poll::Ready(p),
+                    None => Poll::End,
+                };
+            };
+            if let Err(e) = plan_input(&mut self.planner, &input, &mut self.buf) {
+                self.error = Some(e);
+                return Poll::End;
+            }
+            if let Input::Move(mv) = input {
+                self.taken.push_back(mv);
+                self.known += 1;
+            }
+            let known = self.known;
+            self.ready
+                .extend(self.buf.drain(..).map(|s| Planned::Segment(s, known)));
+            if let Input::Dwell(seconds) = input {
+                self.ready.push_back(Planned::Dwell(seconds));
+            }
+        }
+    }
+
+    fn next_move(&mut self) -> Option<Move> {
+        self.taken.pop_front()
+    }
+
+    fn take_error(&mut self) -> Option<PlanError> {
+        self.error.take()
+    }
+}
+
 /// Runs `moves` from rest at the origin; calls `sink(t, setpoint)` for every row, starting
 /// with the row at t = 0. Returns what was measured.
 pub fn run<I, F>(
@@ -425,28 +787,19 @@ where
     I::Item: Into<Input>,
     F: FnMut(f64, &Setpoint),
 {
-    let mut runner = Runner::new(limits, options, sink);
+    let runner = Runner::new(limits, options, sink);
     let mut planner = Planner::new(*limits);
     planner.set_design_override(options.feed_override);
-    let mut buf = Vec::new();
-    for input in moves {
-        let input: Input = input.into();
-        if let Input::Move(mv) = &input {
-            runner.add_move(mv);
-        }
-        plan_input(&mut planner, &input, &mut buf)?;
-        for seg in buf.drain(..) {
-            runner.push(&seg)?;
-        }
-        if let Input::Dwell(seconds) = input {
-            runner.dwell(seconds);
-        }
-    }
-    planner.finish(&mut buf);
-    for seg in buf.drain(..) {
-        runner.push(&seg)?;
-    }
-    runner.finish()
+    let mut source = Inline {
+        inputs: moves.into_iter().map(Into::into),
+        planner,
+        buf: Vec::new(),
+        ready: VecDeque::new(),
+        taken: VecDeque::new(),
+        known: 0,
+        error: None,
+    };
+    runner.run(&mut source)
 }
 
 /// Segments per message from the planning thread of [`run_parallel`].
@@ -489,6 +842,43 @@ where
     F: FnMut(f64, &Setpoint),
 {
     run_stream(moves.iter().copied(), limits, options, None, sink)
+}
+
+/// The source of [`run_stream`]: batches from the planning thread.
+struct Batches {
+    rx: std::sync::mpsc::Receiver<Batch>,
+    items: std::vec::IntoIter<Planned>,
+    pending: VecDeque<Move>,
+    error: Option<PlanError>,
+}
+
+impl Source for Batches {
+    fn poll(&mut self) -> Poll {
+        loop {
+            if let Some(p) = self.items.next() {
+                return Poll::Ready(p);
+            }
+            match self.rx.recv() {
+                Ok(Ok((moves, items))) => {
+                    self.pending.extend(moves);
+                    self.items = items.into_iter();
+                }
+                Ok(Err(e)) => {
+                    self.error = Some(e);
+                    return Poll::End;
+                }
+                Err(_) => return Poll::End,
+            }
+        }
+    }
+
+    fn next_move(&mut self) -> Option<Move> {
+        self.pending.pop_front()
+    }
+
+    fn take_error(&mut self) -> Option<PlanError> {
+        self.error.take()
+    }
 }
 
 /// [`run_parallel`] over a stream of moves (`kerf sim` reads them from the program file
@@ -549,18 +939,35 @@ where
         });
         let mut runner = Runner::new(limits, options, sink);
         runner.attach(monitor)?;
-        let mut pending: VecDeque<Move> = VecDeque::new();
-        let mut known = 0;
-        for batch in rx {
-            let (new_moves, segments) = batch?;
-            pending.extend(new_moves);
-            for planned in segments {
-                runner.feed(planned, &mut known, || pending.pop_front())?;
-            }
-        }
-        // Dropping the receiver (on an error above) ends the planning thread's sends.
-        runner.finish()
+        let mut source = Batches {
+            rx,
+            items: Vec::new().into_iter(),
+            pending: VecDeque::new(),
+            error: None,
+        };
+        // Dropping the source (and its receiver) when the run returns ends the planning
+        // thread's sends (a run stopped early).
+        runner.run(&mut source)
     })
+}
+
+/// The source of [`run_planned`].
+struct Kept<'m, S> {
+    segments: S,
+    program: std::iter::Copied<std::slice::Iter<'m, Move>>,
+}
+
+impl<S: Iterator<Item = Planned>> Source for Kept<'_, S> {
+    fn poll(&mut self) -> Poll {
+        match self.segments.next() {
+            Some(p) => Poll::Ready(p),
+            None => Poll::End,
+        }
+    }
+
+    fn next_move(&mut self) -> Option<Move> {
+        self.program.next()
+    }
 }
 
 /// [`run_stream`] for segments already planned (by the same [`Planner`] with the same
@@ -581,141 +988,11 @@ where
 {
     let mut runner = Runner::new(limits, options, sink);
     runner.attach(monitor)?;
-    let mut known = 0;
-    let mut program = moves.iter().copied();
-    for planned in segments {
-        runner.feed(planned, &mut known, || program.next())?;
-    }
-    runner.finish()
-}
-
-impl<'a, F: FnMut(f64, &Setpoint)> Runner<'a, F> {
-    /// Checks every setpoint from now on with `monitor`, starting with the row at t = 0.
-    fn attach(&mut self, monitor: Option<&'a mut LimitMonitor>) -> Result<(), RunError> {
-        self.monitor = monitor;
-        if let Some(m) = self.monitor.as_mut() {
-            m.check(&self.summary.last.position)
-                .map_err(RunError::Fault)?;
-        }
-        Ok(())
-    }
-
-    fn new(limits: &MachineLimits, options: &'a RunOptions, sink: F) -> Self {
-        let mut core = MotionCore::new(*limits, options.capacity);
-        core.set_feed_override(options.feed_override);
-        let mut runner = Runner {
-            core,
-            period_s: limits.period_s,
-            sink,
-            cycle: 0,
-            events: &options.events,
-            next_event: 0,
-            hist: [[0.0; 6]; 4],
-            hist_len: 0,
-            summary: Summary::default(),
-            curves: VecDeque::new(),
-            lines: VecDeque::new(),
-            base: 0,
-            cursor: 0,
-            last_result: StepResult::Idle,
-            max_cycles: options.max_cycles,
-            aborted: false,
-            monitor: None,
-            fault: None,
-        };
-        let mut start = Setpoint::default();
-        runner.record(&mut start);
-        (runner.sink)(0.0, &start);
-        runner
-    }
-
-    /// Records a programmed move for the deviation check.
-    fn add_move(&mut self, mv: &Move) {
-        if let Some((s, e)) = mv.abc_deg {
-            if s != e {
-                self.summary.rotary_used = true;
-            }
-        }
-        if self.aborted && !self.curves.is_empty() {
-            // Nothing more is run after an abort: the deviation check needs no more moves.
-            return;
-        }
-        self.curves.push_back(Programmed::new(&mv.path));
-        self.lines.push_back(mv.line);
-    }
-
-    /// A dwell: steps until the motion queued so far has come to rest (the planner ended
-    /// it at rest), then rests for the dwell's whole periods. A hold with no resume left
-    /// to come, a fault or the cycle guard ends it early (the run ends then anyway).
-    fn dwell(&mut self, seconds: f64) {
-        if self.aborted || !self.step_to_rest(false) {
-            return;
-        }
-        for _ in 0..dwell_periods(seconds, self.period_s) {
-            if self.fault.is_some() || self.cycle >= self.max_cycles {
-                return;
-            }
-            self.step();
-        }
-    }
-
-    /// Steps until the motion is at rest: idle (with `events_too`, only once every event
-    /// has been applied), or held with no event left to resume it. A fault or the cycle
-    /// guard stops it early. Returns whether it came to rest idle.
-    fn step_to_rest(&mut self, events_too: bool) -> bool {
-        loop {
-            if self.fault.is_some() || self.cycle >= self.max_cycles {
-                return false;
-            }
-            let r = self.step();
-            let events_left = self.next_event < self.events.len();
-            match r {
-                StepResult::Idle if !(events_too && events_left) => return true,
-                StepResult::Held if !events_left => return false,
-                _ => {}
-            }
-        }
-    }
-
-    /// Runs one planned item: a dwell, or a segment after recording the programmed moves
-    /// the planner had taken when it made it (`next_move` yields them in program order;
-    /// `known` counts those recorded so far).
-    fn feed(
-        &mut self,
-        planned: Planned,
-        known: &mut usize,
-        mut next_move: impl FnMut() -> Option<Move>,
-    ) -> Result<(), RunError> {
-        match planned {
-            Planned::Dwell(seconds) => {
-                self.dwell(seconds);
-                Ok(())
-            }
-            Planned::Segment(seg, moves_known) => {
-                while *known < moves_known {
-                    let Some(mv) = next_move() else {
-                        break;
-                    };
-                    self.add_move(&mv);
-                    *known += 1;
-                }
-                self.push(&seg)
-            }
-        }
-    }
-
-    /// Steps until the motion is at rest after the last segment (and every event is
-    /// applied), and returns the summary, or the fault that stopped the run.
-    fn finish(mut self) -> Result<Summary, RunError> {
-        self.step_to_rest(true);
-        if let Some(v) = self.fault {
-            return Err(RunError::Fault(v));
-        }
-        self.summary.cycles = self.cycle;
-        self.summary.duration_s = self.cycle as f64 * self.period_s;
-        self.summary.plan_failures = self.core.plan_failures();
-        Ok(self.summary)
-    }
+    let mut source = Kept {
+        segments: segments.into_iter(),
+        program: moves.iter().copied(),
+    };
+    runner.run(&mut source)
 }
 
 #[cfg(test)]
