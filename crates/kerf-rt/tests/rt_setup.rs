@@ -96,6 +96,13 @@ fn rt_setup_does_what_it_reports_and_rejects_bad_arguments() {
             } else {
                 assert_eq!(policy, libc::SCHED_OTHER);
             }
+            if report.timer_slack {
+                // SAFETY: PR_GET_TIMERSLACK takes no argument and returns the slack in ns.
+                let slack_ns = unsafe { libc::prctl(libc::PR_GET_TIMERSLACK) };
+                // 1 ns as set; 0 once SCHED_FIFO is in force on kernels that zero the slack
+                // of real-time threads. Either way no longer the 50 µs default.
+                assert!((0..=1).contains(&slack_ns), "timer slack {slack_ns} ns");
+            }
             if report.affinity {
                 assert_eq!(allowed_cpus(), vec![last_cpu]);
             }
@@ -107,10 +114,15 @@ fn rt_setup_does_what_it_reports_and_rejects_bad_arguments() {
     if report.mlocked {
         assert!(locked_kib() > 0, "mlockall reported but nothing is locked");
     }
-    let refused = [report.mlocked, report.fifo, report.affinity]
-        .iter()
-        .filter(|ok| !**ok)
-        .count();
+    let refused = [
+        report.mlocked,
+        report.fifo,
+        report.affinity,
+        report.timer_slack,
+    ]
+    .iter()
+    .filter(|ok| !**ok)
+    .count();
     assert_eq!(report.messages.len(), refused, "{:?}", report.messages);
     assert_eq!(report.is_realtime(), report.mlocked && report.fifo);
 
