@@ -19,9 +19,9 @@ use kerf_plan::Planner;
 
 fn mill() -> MachineLimits {
     let l = AxisLimits {
-        velocity: 200.0,
-        acceleration: 2000.0,
-        jerk: 50000.0,
+        velocity_units_s: 200.0,
+        acceleration_units_s2: 2000.0,
+        jerk_units_s3: 50000.0,
     };
     MachineLimits {
         axes: [Some(l), Some(l), Some(l), None, None, None],

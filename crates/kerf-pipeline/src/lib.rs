@@ -137,9 +137,9 @@ impl Summary {
         let l = limits.axes[i]?;
         let p = self.peaks[i];
         Some([
-            p.velocity / l.velocity,
-            p.acceleration / l.acceleration,
-            p.jerk / l.jerk,
+            p.velocity / l.velocity_units_s,
+            p.acceleration / l.acceleration_units_s2,
+            p.jerk / l.jerk_units_s3,
         ])
     }
 }
@@ -783,9 +783,9 @@ mod tests {
 
     fn machine(period_s: f64, v: f64, a: f64, j: f64) -> MachineLimits {
         let axis = Some(AxisLimits {
-            velocity: v,
-            acceleration: a,
-            jerk: j,
+            velocity_units_s: v,
+            acceleration_units_s2: a,
+            jerk_units_s3: j,
         });
         MachineLimits {
             axes: [axis, axis, axis, None, None, None],

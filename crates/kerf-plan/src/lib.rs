@@ -35,11 +35,11 @@
 //!   (Issue 7: the tangential acceleration used to be tried as fractions of the axis
 //!   limit; with a large acceleration and a small jerk every fraction left no jerk, and a
 //!   circle at F600 with jerk 1,000 mm/s³ took 503 s at 200,000 mm/s² instead of 7.2 s.)
-//!   `v_max` is that design speed. For a feed
+//!   `v_max_mm_s` is that design speed. For a feed
 //!   override above 100 %, arcs and transitions carry a second design for the highest
-//!   override (`v_boost`, `accel_boost`, `jerk_boost`, where that gains at least 10 %
+//!   override (`v_boost_mm_s`, `accel_boost_mm_s2`, `jerk_boost_mm_s3`, where that gains at least 10 %
 //!   speed), which the motion core switches to while the override asks for more than
-//!   `v_max`; [`Planner::set_design_override`] moves the first design to the override in
+//!   `v_max_mm_s`; [`Planner::set_design_override`] moves the first design to the override in
 //!   force when the segments are planned (`kerf sim --override` passes its factor).
 //!   Smoothed pieces keep the programmed feed: boosted, their limits vary with the
 //!   direction and split the motion core's sections.
@@ -118,7 +118,11 @@
 //!   [`JUNCTION_SHARE`] of the jerk limit. An exact-stop corner has cap 0.
 #![deny(missing_docs)]
 
-use kerf_geom::{CornerMode, Curve, Move, Path, Transition, Vec3};
+use kerf_geom::{CornerMode, Curve, Move, Path, Transition, Vec3, rotary_derivatives};
+
+// The planner's input and output types live in kerf-geom (the motion core reads them
+// too); re-exported here because they are this crate's API.
+pub use kerf_geom::{AXIS_NAMES, AxisLimits, MachineLimits, PlannedSegment};
 
 mod smooth;
 
@@ -164,183 +168,6 @@ pub const CURVATURE_SAFETY: f64 = 1.02;
 /// Parameter scales tried for a G2 corner blend, as multiples of its chord (measured: 1.2
 /// is quickest for 90°, 1.0 for shallow turns, the larger ones for reversals).
 pub const G2_LAMBDA_RATIOS: [f64; 3] = [1.0, 1.2, 1.5];
-
-/// Velocity, acceleration and jerk limits of one axis (mm or degrees per s, s², s³).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct AxisLimits {
-    /// Maximum velocity, mm/s (deg/s for rotary axes).
-    pub velocity: f64,
-    /// Maximum acceleration, mm/s² (deg/s²).
-    pub acceleration: f64,
-    /// Maximum jerk, mm/s³ (deg/s³).
-    pub jerk: f64,
-}
-
-/// The machine as the planner and motion core see it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MachineLimits {
-    /// Limits of X, Y, Z, A, B, C; `None` for an axis the machine does not have.
-    pub axes: [Option<AxisLimits>; 6],
-    /// Interpolation period, s.
-    pub period_s: f64,
-    /// Default blend tolerance (G64 without P), mm.
-    pub tolerance_mm: f64,
-}
-
-/// Axis names in the order of [`MachineLimits::axes`].
-pub const AXIS_NAMES: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
-
-/// One segment ready for the motion core: geometry plus its limits.
-///
-/// The path parameter `s` runs over `[0, length]`; it is the XYZ arc length, or for a move
-/// of rotary axes only, the length of the rotary motion in degrees.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PlannedSegment {
-    /// XYZ geometry.
-    pub curve: Curve,
-    /// A, B, C at the start, degrees (they move linearly with `s`, unless `abc_poly`).
-    pub abc_start_deg: [f64; 3],
-    /// A, B, C at the end, degrees.
-    pub abc_end_deg: [f64; 3],
-    /// On a smoothed piece with rotary motion: A, B, C as quintics in the parameter `u`
-    /// of the piece's [`Transition`] curve (power basis, degrees), curvature-continuous
-    /// with the neighbouring pieces. `None`: linear in `s`.
-    pub abc_poly: Option<[[f64; 6]; 3]>,
-    /// Length of the path parameter, mm (or deg for rotary-only moves).
-    pub length: f64,
-    /// Source line.
-    pub line: u32,
-    /// Index of the source move in program order (0-based), for path-deviation checks.
-    pub move_index: u64,
-    /// Number of programmed moves the segment stands for, from `move_index` on: 1, or more
-    /// for a smoothed piece of a dense polyline (see the `smooth` module).
-    pub move_count: u32,
-    /// Programmed feed, path units/s; infinite for rapids.
-    pub feed: f64,
-    /// Machine speed limit on this segment (axes and curvature; on curved segments also the
-    /// programmed feed), path units/s. `accel` and `jerk` are valid for speeds up to this.
-    pub v_max: f64,
-    /// Path acceleration limit, units/s².
-    pub accel: f64,
-    /// Path jerk limit, units/s³.
-    pub jerk: f64,
-    /// Speed limit while the feed override is above 100 %, units/s (at least `v_max`):
-    /// curved segments are also designed for the highest override where that is faster.
-    /// `accel_boost` and `jerk_boost` are valid for every speed up to it.
-    pub v_boost: f64,
-    /// Path acceleration limit valid up to `v_boost` (at most `accel`), units/s².
-    pub accel_boost: f64,
-    /// Path jerk limit valid up to `v_boost` (at most `jerk`), units/s³.
-    pub jerk_boost: f64,
-    /// Speed cap at the junction with the next segment, units/s (0 = stop): the geometric
-    /// cap, at most the neighbours' `v_boost` (their `v_max` bounds it at 100 %).
-    pub end_cap: f64,
-    /// `true` if the segment is a corner blend (not a programmed move).
-    pub blend: bool,
-}
-
-impl PlannedSegment {
-    /// Positions of all six axes at path parameter `s`.
-    #[inline]
-    pub fn position_at(&self, s: f64, out: &mut [f64; 6]) {
-        if let (Some(c), Curve::Transition(t)) = (&self.abc_poly, &self.curve) {
-            if s >= self.length {
-                let e = t.end;
-                out[..3].copy_from_slice(&[e.x, e.y, e.z]);
-                out[3..6].copy_from_slice(&self.abc_end_deg);
-            } else if s <= 0.0 {
-                let p = t.start;
-                out[..3].copy_from_slice(&[p.x, p.y, p.z]);
-                out[3..6].copy_from_slice(&self.abc_start_deg);
-            } else {
-                let u = t.param_at(s);
-                let p = t.poly(u);
-                out[..3].copy_from_slice(&[p.x, p.y, p.z]);
-                for i in 0..3 {
-                    out[3 + i] = poly5(&c[i], u);
-                }
-            }
-            return;
-        }
-        let p = if self.curve.length() > 0.0 {
-            self.curve.point_at(s)
-        } else {
-            self.curve.start()
-        };
-        out[0] = p.x;
-        out[1] = p.y;
-        out[2] = p.z;
-        if s >= self.length {
-            out[3..6].copy_from_slice(&self.abc_end_deg);
-        } else {
-            let u = if self.length > 0.0 {
-                (s / self.length).max(0.0)
-            } else {
-                1.0
-            };
-            for i in 0..3 {
-                out[3 + i] =
-                    self.abc_start_deg[i] + (self.abc_end_deg[i] - self.abc_start_deg[i]) * u;
-            }
-        }
-    }
-
-    /// Derivatives with respect to `s` of all six axes at `s`: (tangent, curvature).
-    pub fn derivatives_at(&self, s: f64) -> ([f64; 6], [f64; 6]) {
-        let mut t = [0.0; 6];
-        let mut k = [0.0; 6];
-        if self.curve.length() > 0.0 {
-            let e = self.curve.eval(s);
-            for i in 0..3 {
-                t[i] = e.tangent[i];
-                k[i] = e.curvature[i];
-            }
-        }
-        if let (Some(c), Curve::Transition(tr)) = (&self.abc_poly, &self.curve) {
-            let u = tr.param_at(s);
-            let (rt, rk) = rotary_derivatives(tr, c, u);
-            t[3..6].copy_from_slice(&rt);
-            k[3..6].copy_from_slice(&rk);
-        } else if self.length > 0.0 {
-            for i in 0..3 {
-                t[3 + i] = (self.abc_end_deg[i] - self.abc_start_deg[i]) / self.length;
-            }
-        }
-        (t, k)
-    }
-}
-
-/// `Σ c[k] uᵏ`.
-#[inline]
-pub(crate) fn poly5(c: &[f64; 6], u: f64) -> f64 {
-    ((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]
-}
-
-/// First and second derivative of `Σ c[k] uᵏ`.
-#[inline]
-fn poly5_d(c: &[f64; 6], u: f64) -> (f64, f64) {
-    let d1 = (((5.0 * c[5] * u + 4.0 * c[4]) * u + 3.0 * c[3]) * u + 2.0 * c[2]) * u + c[1];
-    let d2 = ((20.0 * c[5] * u + 12.0 * c[4]) * u + 6.0 * c[3]) * u + 2.0 * c[2];
-    (d1, d2)
-}
-
-/// Derivatives of rotary quintics `c` (in the parameter `u` of `tr`) with respect to the
-/// XYZ arc length at `u`: `dA/ds = A'/|p'|`, `d²A/ds² = (A'' - A' (p'·p'')/|p'|²)/|p'|²`.
-fn rotary_derivatives(tr: &Transition, c: &[[f64; 6]; 3], u: f64) -> ([f64; 3], [f64; 3]) {
-    let q = tr.d1(u);
-    let r = tr.d2(u);
-    let sq = q.norm_squared();
-    let speed = sq.sqrt();
-    let along = q.dot(&r) / sq;
-    let mut t = [0.0; 3];
-    let mut k = [0.0; 3];
-    for i in 0..3 {
-        let (d1, d2) = poly5_d(&c[i], u);
-        t[i] = d1 / speed;
-        k[i] = (d2 - d1 * along) / sq;
-    }
-    (t, k)
-}
 
 /// Why a move cannot be planned.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -810,21 +637,21 @@ impl Planner {
                 abc_start_deg: e.abc_start,
                 abc_end_deg: e.abc_end,
                 abc_poly: e.abc_poly,
-                length: curve.length(),
+                length_mm: curve.length(),
                 line: e.line,
                 move_index: e.move_index,
                 move_count: e.move_count,
-                feed: e.feed,
-                v_max: 0.0,
-                accel: 0.0,
-                jerk: 0.0,
-                v_boost: 0.0,
-                accel_boost: 0.0,
-                jerk_boost: 0.0,
-                end_cap: 0.0,
+                feed_mm_s: e.feed,
+                v_max_mm_s: 0.0,
+                accel_mm_s2: 0.0,
+                jerk_mm_s3: 0.0,
+                v_boost_mm_s: 0.0,
+                accel_boost_mm_s2: 0.0,
+                jerk_boost_mm_s3: 0.0,
+                end_cap_mm_s: 0.0,
                 blend: true,
             };
-            if seg.length < MIN_SEGMENT_MM {
+            if seg.length_mm < MIN_SEGMENT_MM {
                 continue;
             }
             // Designed for the path that runs on without a corner through the piece to the
@@ -858,7 +685,7 @@ impl Planner {
             self.emit_move(&prev, out);
         }
         if let Some(mut last) = self.last.take() {
-            last.end_cap = 0.0;
+            last.end_cap_mm_s = 0.0;
             out.push(last);
         }
     }
@@ -962,18 +789,18 @@ impl Planner {
             abc_start_deg: prev.abc_end,
             abc_end_deg: prev.abc_end,
             abc_poly: None,
-            length: curve.length(),
+            length_mm: curve.length(),
             line: next.mv.line,
             move_index: prev.move_index,
             move_count: 1,
-            feed,
-            v_max: 0.0,
-            accel: 0.0,
-            jerk: 0.0,
-            v_boost: 0.0,
-            accel_boost: 0.0,
-            jerk_boost: 0.0,
-            end_cap: 0.0,
+            feed_mm_s: feed,
+            v_max_mm_s: 0.0,
+            accel_mm_s2: 0.0,
+            jerk_mm_s3: 0.0,
+            v_boost_mm_s: 0.0,
+            accel_boost_mm_s2: 0.0,
+            jerk_boost_mm_s3: 0.0,
+            end_cap_mm_s: 0.0,
             blend: true,
         };
         self.set_limits(&mut seg, rapid);
@@ -1027,15 +854,15 @@ impl Planner {
         let mut line_in = *blend;
         line_in.blend = false;
         line_in.curve = Curve::line(blend.curve.start() - u1, blend.curve.start());
-        line_in.length = 1.0;
+        line_in.length_mm = 1.0;
         let mut line_out = line_in;
         line_out.curve = Curve::line(blend.curve.end(), blend.curve.end() + u2);
         self.set_limits(&mut line_in, false);
         self.set_limits(&mut line_out, false);
         for l in [&mut line_in, &mut line_out] {
-            let v = reach_speed(reach_mm, l.v_max, l.accel, l.jerk);
-            l.v_max = v;
-            l.v_boost = l.v_boost.min(v);
+            let v = reach_speed(reach_mm, l.v_max_mm_s, l.accel_mm_s2, l.jerk_mm_s3);
+            l.v_max_mm_s = v;
+            l.v_boost_mm_s = l.v_boost_mm_s.min(v);
         }
         (line_in, line_out)
     }
@@ -1092,7 +919,7 @@ impl Planner {
             let curve = Curve::Transition(tr);
             let mut seg = PlannedSegment {
                 curve,
-                length: curve.length(),
+                length_mm: curve.length(),
                 ..*template
             };
             self.set_limits(&mut seg, rapid);
@@ -1151,24 +978,24 @@ impl Planner {
             abc_start_deg: p.abc_start,
             abc_end_deg: p.abc_end,
             abc_poly: None,
-            length,
+            length_mm: length,
             line: p.mv.line,
             move_index: p.move_index,
             move_count: 1,
-            feed: feed_of(&p.mv),
-            v_max: 0.0,
-            accel: 0.0,
-            jerk: 0.0,
-            v_boost: 0.0,
-            accel_boost: 0.0,
-            jerk_boost: 0.0,
-            end_cap: 0.0,
+            feed_mm_s: feed_of(&p.mv),
+            v_max_mm_s: 0.0,
+            accel_mm_s2: 0.0,
+            jerk_mm_s3: 0.0,
+            v_boost_mm_s: 0.0,
+            accel_boost_mm_s2: 0.0,
+            jerk_boost_mm_s3: 0.0,
+            end_cap_mm_s: 0.0,
             blend: false,
         };
         // A programmed arc is designed for the path that runs on without a corner up to
         // its end, at most [`DESIGN_RUN_MM`]: known geometry only, so that the choice
         // does not depend on the limits.
-        self.run_mm = (self.chain_before(&seg) + seg.length).min(DESIGN_RUN_MM);
+        self.run_mm = (self.chain_before(&seg) + seg.length_mm).min(DESIGN_RUN_MM);
         self.set_limits(&mut seg, p.mv.rapid);
         self.run_mm = 0.0;
         self.emit(
@@ -1190,25 +1017,25 @@ impl Planner {
         origin: Option<Curve>,
         out: &mut Vec<PlannedSegment>,
     ) {
-        let full_length = seg.length;
-        self.chain_mm = self.chain_before(&seg) + seg.length;
+        let full_length = seg.length_mm;
+        self.chain_mm = self.chain_before(&seg) + seg.length_mm;
         if let Some(mut prev) = self.last.take() {
             match corner_tolerance(self.last_corner, own, self.limits.tolerance_mm) {
                 None => {
-                    prev.end_cap = 0.0;
+                    prev.end_cap_mm_s = 0.0;
                     out.push(prev);
                 }
                 Some(tol) => match self.transition(&prev, &seg, tol, origin.as_ref()) {
                     Some((p, mut t, s)) => {
                         prev = p;
                         seg = s;
-                        prev.end_cap = junction_cap(&prev, &t, &self.limits);
-                        t.end_cap = junction_cap(&t, &seg, &self.limits);
+                        prev.end_cap_mm_s = junction_cap(&prev, &t, &self.limits);
+                        t.end_cap_mm_s = junction_cap(&t, &seg, &self.limits);
                         out.push(prev);
                         out.push(t);
                     }
                     None => {
-                        prev.end_cap = junction_cap(&prev, &seg, &self.limits);
+                        prev.end_cap_mm_s = junction_cap(&prev, &seg, &self.limits);
                         out.push(prev);
                     }
                 },
@@ -1225,10 +1052,10 @@ impl Planner {
     /// junction is not an exact stop, else 0.
     fn chain_before(&self, seg: &PlannedSegment) -> f64 {
         let Some(last) = &self.last else { return 0.0 };
-        if matches!(self.last_corner, CornerMode::ExactStop) || seg.length <= 0.0 {
+        if matches!(self.last_corner, CornerMode::ExactStop) || seg.length_mm <= 0.0 {
             return 0.0;
         }
-        let (ta, _) = last.derivatives_at(last.length);
+        let (ta, _) = last.derivatives_at(last.length_mm);
         let (tb, _) = seg.derivatives_at(0.0);
         let tangent = (0..6).all(|i| (ta[i] - tb[i]).abs() <= 1e-6);
         if tangent { self.chain_mm } else { 0.0 }
@@ -1263,7 +1090,11 @@ impl Planner {
         if la < MIN_SEGMENT_MM || lb < MIN_SEGMENT_MM {
             return None;
         }
-        let v_ref = prev.v_max.min(seg.v_max).min(prev.feed).min(seg.feed);
+        let v_ref = prev
+            .v_max_mm_s
+            .min(seg.v_max_mm_s)
+            .min(prev.feed_mm_s)
+            .min(seg.feed_mm_s);
         let old = junction_cap(prev, seg, &self.limits);
         if old >= 0.9 * v_ref {
             return None;
@@ -1329,47 +1160,51 @@ impl Planner {
                 abc_start_deg: prev.abc_end_deg,
                 abc_end_deg: prev.abc_end_deg,
                 abc_poly: None,
-                length: curve.length(),
+                length_mm: curve.length(),
                 line: seg.line,
                 move_index: prev.move_index,
                 move_count: 1,
-                feed: prev.feed.min(seg.feed),
-                v_max: 0.0,
-                accel: 0.0,
-                jerk: 0.0,
-                v_boost: 0.0,
-                accel_boost: 0.0,
-                jerk_boost: 0.0,
-                end_cap: 0.0,
+                feed_mm_s: prev.feed_mm_s.min(seg.feed_mm_s),
+                v_max_mm_s: 0.0,
+                accel_mm_s2: 0.0,
+                jerk_mm_s3: 0.0,
+                v_boost_mm_s: 0.0,
+                accel_boost_mm_s2: 0.0,
+                jerk_boost_mm_s3: 0.0,
+                end_cap_mm_s: 0.0,
                 blend: true,
             };
             self.set_limits(&mut t, false);
             let mut p = *prev;
             p.curve = ca;
-            p.length = ca.length();
+            p.length_mm = ca.length();
             let mut s = *seg;
             s.curve = cb;
-            s.length = cb.length();
+            s.length_mm = cb.length();
             let new = junction_cap(&p, &t, &self.limits)
-                .min(t.v_max)
+                .min(t.v_max_mm_s)
                 .min(junction_cap(&t, &s, &self.limits));
             // The largest transition within the tolerance is the fastest; take it if it
             // beats the plain joint. A crawl through a long transition (a sharp kink with a
             // small tolerance) costs more time than stopping at the kink: both need the
             // same slow-down, so only the time spent on the transition counts.
-            let quick = new >= 0.25 * v_ref || t.length <= MAX_CRAWL_S * new;
+            let quick = new >= 0.25 * v_ref || t.length_mm <= MAX_CRAWL_S * new;
             return (new > 1.05 * old && quick).then_some((p, t, s));
         }
         None
     }
 
-    /// Sets `v_max`, `accel` and `jerk` of `seg` from the axis limits.
+    /// Sets `v_max_mm_s`, `accel_mm_s2` and `jerk_mm_s3` of `seg` from the axis limits.
     fn set_limits(&self, seg: &mut PlannedSegment, _rapid: bool) {
         let (v, a, j) = segment_limits(seg, &self.limits, self.design_override, self.run_mm);
-        seg.v_max = v;
-        seg.accel = a;
-        seg.jerk = j;
-        (seg.v_boost, seg.accel_boost, seg.jerk_boost) = (v, a, j);
+        seg.v_max_mm_s = v;
+        seg.accel_mm_s2 = a;
+        seg.jerk_mm_s3 = j;
+        (
+            seg.v_boost_mm_s,
+            seg.accel_boost_mm_s2,
+            seg.jerk_boost_mm_s3,
+        ) = (v, a, j);
         // Curved segments (not smoothed pieces, which keep the programmed feed) also get a
         // design for the highest override, which the motion core uses while the override
         // is above 100 %. Straight segments are limited by the axes alone.
@@ -1378,12 +1213,12 @@ impl Planner {
             Curve::Helix(_) => true,
             Curve::Transition(_) => seg.move_count <= 1,
         };
-        if curved && seg.feed.is_finite() && self.design_override < MAX_DESIGN_OVERRIDE {
+        if curved && seg.feed_mm_s.is_finite() && self.design_override < MAX_DESIGN_OVERRIDE {
             let (vb, ab, jb) = segment_limits(seg, &self.limits, MAX_DESIGN_OVERRIDE, self.run_mm);
             if vb > v {
-                seg.v_boost = vb;
-                seg.accel_boost = ab.min(a);
-                seg.jerk_boost = jb.min(j);
+                seg.v_boost_mm_s = vb;
+                seg.accel_boost_mm_s2 = ab.min(a);
+                seg.jerk_boost_mm_s3 = jb.min(j);
             }
         }
     }
@@ -1491,11 +1326,14 @@ fn transit_time_s(length: f64, v_in: f64, v_top: f64, a: f64, j: f64) -> f64 {
 /// the slow-down to rest and back with the lines' limits.
 fn stop_time_s(lines: &(PlannedSegment, PlannedSegment)) -> f64 {
     let (line_in, line_out) = lines;
-    let v_line = line_in.v_max.min(line_out.v_max).min(line_in.feed);
+    let v_line = line_in
+        .v_max_mm_s
+        .min(line_out.v_max_mm_s)
+        .min(line_in.feed_mm_s);
     change_time_s(
         v_line,
-        line_in.accel.min(line_out.accel),
-        line_in.jerk.min(line_out.jerk),
+        line_in.accel_mm_s2.min(line_out.accel_mm_s2),
+        line_in.jerk_mm_s3.min(line_out.jerk_mm_s3),
     )
 }
 
@@ -1511,14 +1349,23 @@ fn corner_time_s(
     limits: &MachineLimits,
 ) -> f64 {
     let (line_in, line_out) = lines;
-    let v_line = line_in.v_max.min(line_out.v_max).min(blend.feed);
-    let a_line = line_in.accel.min(line_out.accel);
-    let j_line = line_in.jerk.min(line_out.jerk);
-    let v_top = blend.v_max.min(blend.feed);
+    let v_line = line_in
+        .v_max_mm_s
+        .min(line_out.v_max_mm_s)
+        .min(blend.feed_mm_s);
+    let a_line = line_in.accel_mm_s2.min(line_out.accel_mm_s2);
+    let j_line = line_in.jerk_mm_s3.min(line_out.jerk_mm_s3);
+    let v_top = blend.v_max_mm_s.min(blend.feed_mm_s);
     let v_in = junction_cap(line_in, blend, limits)
         .min(junction_cap(blend, line_out, limits))
         .min(v_top);
-    let transit = transit_time_s(blend.length, v_in, v_top, blend.accel, blend.jerk);
+    let transit = transit_time_s(
+        blend.length_mm,
+        v_in,
+        v_top,
+        blend.accel_mm_s2,
+        blend.jerk_mm_s3,
+    );
     let dv = (v_line - v_in).max(0.0);
     // Slowing from v_line to v_in and back: 2·t over a distance (v_line + v_in)·t.
     let dip = change_time_s(dv, a_line, j_line) * dv / v_line;
@@ -1583,7 +1430,7 @@ fn weights(seg: &PlannedSegment) -> Weights {
         Curve::Transition(_) => unreachable!("transitions have their own limits"),
     }
     for i in 0..3 {
-        w.tangent[3 + i] = (seg.abc_end_deg[i] - seg.abc_start_deg[i]).abs() / seg.length;
+        w.tangent[3 + i] = (seg.abc_end_deg[i] - seg.abc_start_deg[i]).abs() / seg.length_mm;
     }
     w
 }
@@ -1624,13 +1471,16 @@ pub fn segment_limits(
     for i in 0..6 {
         let Some(l) = limits.axes[i] else { continue };
         if w.tangent[i] > 0.0 {
-            v = v.min(share * l.velocity / w.tangent[i]);
+            v = v.min(share * l.velocity_units_s / w.tangent[i]);
         }
         if w.plane[i] > 0.0 && w.kappa > 0.0 {
             // Bounds on v² and v³; the roots are taken once, after the loop.
-            v2 = v2.min(CENTRIPETAL_SHARE * share * l.acceleration / (w.plane[i] * w.kappa));
-            v3 =
-                v3.min(CENTRIPETAL_SHARE * share * l.jerk / (w.plane[i] * w.q * w.sigma * w.sigma));
+            v2 = v2
+                .min(CENTRIPETAL_SHARE * share * l.acceleration_units_s2 / (w.plane[i] * w.kappa));
+            v3 = v3.min(
+                CENTRIPETAL_SHARE * share * l.jerk_units_s3
+                    / (w.plane[i] * w.q * w.sigma * w.sigma),
+            );
         }
         // Straight components (lines, helix axial parts, rotary axes).
         let straight = if w.plane[i] > 0.0 {
@@ -1639,8 +1489,8 @@ pub fn segment_limits(
             w.tangent[i]
         };
         if straight > 0.0 && w.plane[i] == 0.0 {
-            a_line = a_line.min(share * l.acceleration / straight);
-            j_line = j_line.min(share * l.jerk / straight);
+            a_line = a_line.min(share * l.acceleration_units_s2 / straight);
+            j_line = j_line.min(share * l.jerk_units_s3 / straight);
         }
     }
     if v2.is_finite() {
@@ -1655,11 +1505,11 @@ pub fn segment_limits(
     // Curved: the acceleration and jerk depend on the speed; the design speed (up to the
     // feed) is the one with the least rough time (cruise plus one ramp).
     let search = |v_start: f64| {
-        design_speed_search(run_mm.max(seg.length), v_start, |vd| {
+        design_speed_search(run_mm.max(seg.length_mm), v_start, |vd| {
             curved_budget(&w, limits, vd, a_line, j_line)
         })
     };
-    boosted(v, seg.feed, feed_scale, search)
+    boosted(v, seg.feed_mm_s, feed_scale, search)
 }
 
 /// The design for the programmed feed (at most the machine speed `v`), or for the feed
@@ -1907,13 +1757,13 @@ fn transition_limits(
     for i in 0..6 {
         let Some(l) = limits.axes[i] else { continue };
         if tm[i] > 0.0 {
-            v = v.min(share * l.velocity / tm[i]);
+            v = v.min(share * l.velocity_units_s / tm[i]);
         }
         if km[i] > 0.0 {
-            v = v.min((CENTRIPETAL_SHARE * share * l.acceleration / km[i]).sqrt());
+            v = v.min((CENTRIPETAL_SHARE * share * l.acceleration_units_s2 / km[i]).sqrt());
         }
         if kp[i] > 0.0 {
-            v = v.min((CENTRIPETAL_SHARE * share * l.jerk / kp[i]).cbrt());
+            v = v.min((CENTRIPETAL_SHARE * share * l.jerk_units_s3 / kp[i]).cbrt());
         }
     }
     // Largest tangential acceleration at speed vd, by either bound.
@@ -1922,13 +1772,13 @@ fn transition_limits(
         let mut frenet = f64::INFINITY;
         for i in 0..6 {
             let Some(l) = limits.axes[i] else { continue };
-            let own = axis_rate(share * l.acceleration - km[i] * vd * vd, tm[i]);
+            let own = axis_rate(share * l.acceleration_units_s2 - km[i] * vd * vd, tm[i]);
             per_axis = per_axis.min(own);
             if i >= 3 {
                 // Rotary axes have only the per-axis bound, under either choice.
                 frenet = frenet.min(own);
             } else if b.plane[i] > 0.0 {
-                let c = share * l.acceleration / b.plane[i];
+                let c = share * l.acceleration_units_s2 / b.plane[i];
                 let n = b.kappa * vd * vd;
                 frenet = frenet.min((c * c - n * n).max(0.0).sqrt());
             }
@@ -1941,13 +1791,13 @@ fn transition_limits(
         let mut frenet = f64::INFINITY;
         for i in 0..6 {
             let Some(l) = limits.axes[i] else { continue };
-            let room = share * l.jerk - 3.0 * km[i] * vd * a - kp[i] * vd * vd * vd;
+            let room = share * l.jerk_units_s3 - 3.0 * km[i] * vd * a - kp[i] * vd * vd * vd;
             let own = axis_rate(room, tm[i]);
             per_axis = per_axis.min(own);
             if i >= 3 {
                 frenet = frenet.min(own);
             } else if b.plane[i] > 0.0 {
-                let c = share * l.jerk / b.plane[i];
+                let c = share * l.jerk_units_s3 / b.plane[i];
                 let n = 3.0 * b.kappa * vd * a + b.kappa_rate * vd * vd * vd;
                 let tangential = (c * c - n * n).max(0.0).sqrt() - b.kappa * b.kappa * vd.powi(3);
                 frenet = frenet.min(tangential.max(0.0));
@@ -1960,12 +1810,12 @@ fn transition_limits(
         quickest_budget(vd, a_hi, |a| jerk_at(vd, a))
     };
     let run_mm = if seg.move_count > 1 {
-        seg.length.max(run_mm)
+        seg.length_mm.max(run_mm)
     } else {
-        seg.length
+        seg.length_mm
     };
     let search = |v_start: f64| design_speed_search(run_mm, v_start, budget);
-    boosted(v, seg.feed, feed_scale, search)
+    boosted(v, seg.feed_mm_s, feed_scale, search)
 }
 
 /// The largest tangential rate (acceleration or jerk) an axis allows when `room` of its
@@ -2003,7 +1853,7 @@ fn curved_budget(
                 } else {
                     w.tangent[i]
                 };
-                inplane + straight * a <= share * l.acceleration
+                inplane + straight * a <= share * l.acceleration_units_s2
             }
         })
     };
@@ -2019,15 +1869,15 @@ fn curved_budget(
                 } else {
                     w.tangent[i]
                 };
-                inplane + straight * j <= share * l.jerk
+                inplane + straight * j <= share * l.jerk_units_s3
             }
         })
     };
     // The smallest axis limits bound the searches from above.
     let (mut a_cap, mut j_cap) = (a_line, j_line);
     for l in limits.axes.iter().flatten() {
-        a_cap = a_cap.min(l.acceleration / w.q.max(1e-9));
-        j_cap = j_cap.min(l.jerk / w.q.max(1e-9));
+        a_cap = a_cap.min(l.acceleration_units_s2 / w.q.max(1e-9));
+        j_cap = j_cap.min(l.jerk_units_s3 / w.q.max(1e-9));
     }
     let a_hi = bisect_max(fits_acc, a_cap);
     if a_hi <= 0.0 {
@@ -2054,7 +1904,7 @@ fn curved_budget_closed(
         let (Some(l), true) = (limits.axes[i], w.plane[i] > 0.0) else {
             continue;
         };
-        let b = share * l.acceleration / w.plane[i];
+        let b = share * l.acceleration_units_s2 / w.plane[i];
         let room = b * b - centripetal * centripetal;
         if room <= 0.0 {
             return None;
@@ -2071,7 +1921,7 @@ fn curved_budget_closed(
             let (Some(l), true) = (limits.axes[i], w.plane[i] > 0.0) else {
                 continue;
             };
-            let c = share * l.jerk / w.plane[i];
+            let c = share * l.jerk_units_s3 / w.plane[i];
             let room = c * c - normal * normal;
             if room <= 0.0 {
                 return 0.0;
@@ -2211,10 +2061,13 @@ fn bisect_max(ok: impl Fn(f64) -> bool, hi: f64) -> f64 {
 /// Speed cap at the junction from `a` to `b`, from the tangent and curvature steps seen by
 /// finite differences at the period.
 pub fn junction_cap(a: &PlannedSegment, b: &PlannedSegment, limits: &MachineLimits) -> f64 {
-    let (ta, ka) = a.derivatives_at(a.length);
+    let (ta, ka) = a.derivatives_at(a.length_mm);
     let (tb, kb) = b.derivatives_at(0.0);
     let t = limits.period_s;
-    let mut cap = a.v_boost.max(a.v_max).min(b.v_boost.max(b.v_max));
+    let mut cap = a
+        .v_boost_mm_s
+        .max(a.v_max_mm_s)
+        .min(b.v_boost_mm_s.max(b.v_max_mm_s));
     for i in 0..6 {
         let dt = (tb[i] - ta[i]).abs();
         let dk = (kb[i] - ka[i]).abs();
@@ -2225,10 +2078,12 @@ pub fn junction_cap(a: &PlannedSegment, b: &PlannedSegment, limits: &MachineLimi
             continue;
         };
         if dt > 1e-12 {
-            cap = cap.min(JUNCTION_SHARE * (l.jerk * t * t).min(l.acceleration * t) / dt);
+            cap = cap.min(
+                JUNCTION_SHARE * (l.jerk_units_s3 * t * t).min(l.acceleration_units_s2 * t) / dt,
+            );
         }
         if dk > 1e-12 {
-            cap = cap.min((JUNCTION_SHARE * l.jerk * t / dk).sqrt());
+            cap = cap.min((JUNCTION_SHARE * l.jerk_units_s3 * t / dk).sqrt());
         }
     }
     cap.max(0.0)
@@ -2241,9 +2096,9 @@ mod tests {
 
     fn mill() -> MachineLimits {
         let l = AxisLimits {
-            velocity: 200.0,
-            acceleration: 2000.0,
-            jerk: 50000.0,
+            velocity_units_s: 200.0,
+            acceleration_units_s2: 2000.0,
+            jerk_units_s3: 50000.0,
         };
         MachineLimits {
             axes: [Some(l), Some(l), Some(l), None, None, None],
@@ -2283,10 +2138,10 @@ mod tests {
         let segs = plan(&[mv(Path::Line(line), 60000.0)]);
         let s2 = std::f64::consts::SQRT_2;
         let share = PROFILE_SHARE;
-        assert!((segs[0].v_max - share * 200.0 * s2).abs() < 1e-9);
-        assert!((segs[0].accel - share * 2000.0 * s2).abs() < 1e-9);
-        assert!((segs[0].jerk - share * 50000.0 * s2).abs() < 1e-9);
-        assert_eq!(segs[0].end_cap, 0.0);
+        assert!((segs[0].v_max_mm_s - share * 200.0 * s2).abs() < 1e-9);
+        assert!((segs[0].accel_mm_s2 - share * 2000.0 * s2).abs() < 1e-9);
+        assert!((segs[0].jerk_mm_s3 - share * 50000.0 * s2).abs() < 1e-9);
+        assert_eq!(segs[0].end_cap_mm_s, 0.0);
     }
 
     #[test]
@@ -2301,15 +2156,15 @@ mod tests {
         };
         let segs = plan(&[mv(Path::Arc(arc), 6000.0)]);
         let s = &segs[0];
-        assert!((s.v_max - 100.0).abs() < 1e-9);
-        let (k, v) = (0.1, s.v_max);
+        assert!((s.v_max_mm_s - 100.0).abs() < 1e-9);
+        let (k, v) = (0.1, s.v_max_mm_s);
         let share = PROFILE_SHARE;
-        assert!(((k * v * v).powi(2) + s.accel.powi(2)).sqrt() <= share * 2000.0 + 1e-6);
-        let tang = s.jerk + k * k * v * v * v;
-        let norm = 3.0 * k * v * s.accel;
+        assert!(((k * v * v).powi(2) + s.accel_mm_s2.powi(2)).sqrt() <= share * 2000.0 + 1e-6);
+        let tang = s.jerk_mm_s3 + k * k * v * v * v;
+        let norm = 3.0 * k * v * s.accel_mm_s2;
         assert!((tang * tang + norm * norm).sqrt() <= share * 50000.0 + 1e-6);
         // The budget is worth having: more than a third of the limits.
-        assert!(s.accel > 2000.0 / 3.0 && s.jerk > 50000.0 / 3.0);
+        assert!(s.accel_mm_s2 > 2000.0 / 3.0 && s.jerk_mm_s3 > 50000.0 / 3.0);
     }
 
     /// Line along +X, tangent quarter arc of radius 5 (CCW), tangent line along +Y.
@@ -2369,10 +2224,10 @@ mod tests {
                 let d2 = (p(s + h) - p(s) * 2.0 + p(s - h)) / (h * h);
                 (d1, d2)
             };
-            let ea = a.curve.eval(a.length);
+            let ea = a.curve.eval(a.length_mm);
             let eb = b.curve.eval(0.0);
             let (t0, k0) = fd(&t.curve, 2.0 * h);
-            let (t1, k1) = fd(&t.curve, t.length - 2.0 * h);
+            let (t1, k1) = fd(&t.curve, t.length_mm - 2.0 * h);
             // Tangent: O(h·κ) from the offset; curvature: O(h·κ') and rounding.
             assert!((t0 - ea.tangent).norm() < 1e-3, "{t0} {}", ea.tangent);
             assert!((t1 - eb.tangent).norm() < 1e-3, "{t1} {}", eb.tangent);
@@ -2380,14 +2235,14 @@ mod tests {
             assert!((k1 - eb.curvature).norm() < 5e-3, "{k1} {}", eb.curvature);
             // Unit speed: the arc-length table is right.
             for i in 1..100 {
-                let s = t.length * i as f64 / 100.0;
+                let s = t.length_mm * i as f64 / 100.0;
                 let (d1, _) = fd(&t.curve, s);
                 assert!((d1.norm() - 1.0).abs() < 1e-6, "{}", d1.norm());
             }
             // Within the tolerance of the programmed path, measured densely.
             let dev = (0..=2000)
                 .map(|i| {
-                    let p = t.curve.point_at(t.length * i as f64 / 2000.0);
+                    let p = t.curve.point_at(t.length_mm * i as f64 / 2000.0);
                     origins
                         .iter()
                         .map(|o| o.distance_to(&p))
@@ -2397,8 +2252,8 @@ mod tests {
             assert!(dev <= 0.01 && dev > 0.001, "{dev}");
             // The joint runs far faster than the curvature-step cap sqrt(0.05·J·T·r).
             let step_cap = (JUNCTION_SHARE * 50000.0 * 0.001 * 5.0).sqrt();
-            assert!(a.end_cap > 5.0 * step_cap && t.end_cap > 5.0 * step_cap);
-            assert!(t.v_max > 5.0 * step_cap);
+            assert!(a.end_cap_mm_s > 5.0 * step_cap && t.end_cap_mm_s > 5.0 * step_cap);
+            assert!(t.v_max_mm_s > 5.0 * step_cap);
         }
     }
 
@@ -2418,8 +2273,11 @@ mod tests {
             3,
             "no blend at a collinear joint or an exact stop"
         );
-        assert_eq!(segs[0].end_cap, segs[0].v_max.min(segs[1].v_max));
-        assert_eq!(segs[1].end_cap, 0.0);
+        assert_eq!(
+            segs[0].end_cap_mm_s,
+            segs[0].v_max_mm_s.min(segs[1].v_max_mm_s)
+        );
+        assert_eq!(segs[1].end_cap_mm_s, 0.0);
     }
 
     /// Finite differences of a curve at `s` with step `h`: (first, second derivative).
@@ -2447,7 +2305,7 @@ mod tests {
         let segs = plan(&moves);
         assert_eq!(segs.len(), 2);
         assert_eq!(segs[0].curve.end(), b);
-        assert!(segs[0].end_cap < 0.01, "{}", segs[0].end_cap);
+        assert!(segs[0].end_cap_mm_s < 0.01, "{}", segs[0].end_cap_mm_s);
     }
 
     #[test]
@@ -2473,7 +2331,7 @@ mod tests {
             assert_eq!(w[0].curve.end(), w[1].curve.start());
         }
         let t = &segs[1];
-        let len = t.length;
+        let len = t.length_mm;
         // Symmetric: it takes the same distance d from both lines.
         let d = (b - t.curve.start()).norm();
         assert!((d - (t.curve.end() - b).norm()).abs() < 1e-12);
@@ -2511,13 +2369,17 @@ mod tests {
         // r (1 - cos 5°) = 0.98 · tolerance.
         let r = 0.98 * 0.01 / (1.0 - (th / 2.0).cos());
         let step_cap = (JUNCTION_SHARE * 50000.0 * 0.001 * r).sqrt();
-        assert!(t.v_max > 5.0 * step_cap, "{} vs {step_cap}", t.v_max);
-        assert_eq!(segs[0].end_cap, t.v_max);
-        assert_eq!(t.end_cap, t.v_max);
+        assert!(
+            t.v_max_mm_s > 5.0 * step_cap,
+            "{} vs {step_cap}",
+            t.v_max_mm_s
+        );
+        assert_eq!(segs[0].end_cap_mm_s, t.v_max_mm_s);
+        assert_eq!(t.end_cap_mm_s, t.v_max_mm_s);
         // Its limits hold at v_max: centripetal |K|v² within the axis acceleration.
         let k_peak = (0..=1000)
             .map(|i| t.curve.eval(len * i as f64 / 1000.0).curvature.norm())
             .fold(0.0, f64::max);
-        assert!(k_peak * t.v_max * t.v_max <= 2000.0, "{k_peak}");
+        assert!(k_peak * t.v_max_mm_s * t.v_max_mm_s <= 2000.0, "{k_peak}");
     }
 }
