@@ -1,6 +1,7 @@
 //! Kerf's real-time motion core: segment queue, lookahead and jerk-limited interpolation.
 //!
-//! [`MotionCore`] holds a fixed-capacity queue of [`PlannedSegment`]s (from `kerf-plan`)
+//! [`MotionCore`] holds a fixed-capacity queue of [`PlannedSegment`]s (from `kerf-plan`,
+//! the type lives in `kerf-geom`: this crate depends on `kerf-geom` and `rsruckig` only)
 //! and produces one [`Setpoint`] per [`MotionCore::step`]. Everything is allocated in
 //! [`MotionCore::new`]; `push` and `step` never allocate, lock or do I/O.
 //!
@@ -286,7 +287,6 @@ impl Section {
 
 /// The real-time motion core. See the crate documentation.
 pub struct MotionCore {
-    limits: MachineLimits,
     period_s: f64,
     segs: Vec<PlannedSegment>,
     /// Offset of each segment's start within its section (parallel to `segs`).
@@ -433,8 +433,10 @@ pub fn reach_back(v_end: f64, d: f64, accel: f64, jerk: f64) -> f64 {
 }
 
 impl MotionCore {
-    /// A core for `limits` holding up to `capacity` segments. All memory is allocated here.
-    pub fn new(limits: MachineLimits, capacity: usize) -> Self {
+    /// A core interpolating at `period_s` (seconds per [`MotionCore::step`]) holding up to
+    /// `capacity` segments. All memory is allocated here. The core needs no machine limits:
+    /// every limit it keeps to is carried by the segments ([`PlannedSegment`]).
+    pub fn new(period_s: f64, capacity: usize) -> Self {
         let capacity = capacity.max(2);
         let dummy = PlannedSegment {
             curve: kerf_geom::Curve::line(Vec3::zeros(), Vec3::zeros()),
@@ -489,8 +491,7 @@ impl MotionCore {
         let mut scratch = Trajectory::new(None);
         scratch.reserve_sections(1);
         MotionCore {
-            limits,
-            period_s: limits.period_s,
+            period_s,
             segs: vec![dummy; capacity],
             seg_offset: vec![0.0; capacity],
             seg_head: 0,
@@ -499,7 +500,7 @@ impl MotionCore {
             sec_head: 0,
             sec_count: 0,
             running: false,
-            otg: Ruckig::new(None, limits.period_s),
+            otg: Ruckig::new(None, period_s),
             input,
             traj,
             scratch,
@@ -530,11 +531,6 @@ impl MotionCore {
             #[cfg(test)]
             fail_solver: false,
         }
-    }
-
-    /// The machine this core was built for.
-    pub fn limits(&self) -> &MachineLimits {
-        &self.limits
     }
 
     /// Capacity of the segment queue.
@@ -1618,7 +1614,7 @@ mod tests {
             period_s: 0.001,
             tolerance_mm: 0.01,
         };
-        let mut core = MotionCore::new(limits, 4);
+        let mut core = MotionCore::new(limits.period_s, 4);
         let mut log_uniform = crate::profile::tests::log_uniform_source(0x9e37_79b9_7f4a_7c15);
         let (mut tried, mut failed) = (0, 0);
         while tried < 20_000 {
@@ -1692,7 +1688,7 @@ mod tests {
                 planner.push(m, &mut segs).unwrap();
             }
             planner.finish(&mut segs);
-            let mut core = MotionCore::new(limits, 64);
+            let mut core = MotionCore::new(limits.period_s, 64);
             core.fail_solver = true;
             // At rest at the origin before the first cycle.
             let mut rows: Vec<[f64; 6]> = vec![[0.0; 6]; 3];

@@ -601,7 +601,7 @@ impl<'a, F: FnMut(f64, &Setpoint)> Runner<'a, F> {
     }
 
     fn new(limits: &MachineLimits, options: &'a RunOptions, sink: F) -> Self {
-        let mut core = MotionCore::new(*limits, options.capacity);
+        let mut core = MotionCore::new(limits.period_s, options.capacity);
         core.set_feed_override(options.feed_override);
         let mut runner = Runner {
             core,

@@ -272,7 +272,7 @@ fn status_follows_hold_resume_and_abort() {
     let b = Vec3::new(100.0, 0.0, 0.0);
     planner.push(&line(1, a, b, 6000.0), &mut segs).unwrap();
     planner.finish(&mut segs);
-    let mut core = MotionCore::new(limits, 16);
+    let mut core = MotionCore::new(limits.period_s, 16);
     // A segment that does not start where the machine is would make it jump.
     let mut away = segs[0];
     away.curve = kerf_geom::Curve::line(Vec3::new(1.0, 0.0, 0.0), b);
