@@ -55,6 +55,39 @@ pub struct PlannedSegment {
 }
 
 impl PlannedSegment {
+    /// A segment of one programmed move (not a blend) on `curve`, its path parameter
+    /// running over `[0, length_mm]` (mm, or deg for rotary-only moves), A, B, C moving
+    /// linearly from `abc_deg.0` to `abc_deg.1`, at programmed feed `feed_mm_s`; every
+    /// limit (`v_max_mm_s` to `end_cap_mm_s`) is 0 until the planner sets it.
+    pub fn with_zero_limits(
+        curve: Curve,
+        length_mm: f64,
+        abc_deg: ([f64; 3], [f64; 3]),
+        line: u32,
+        move_index: u64,
+        feed_mm_s: f64,
+    ) -> Self {
+        PlannedSegment {
+            curve,
+            abc_start_deg: abc_deg.0,
+            abc_end_deg: abc_deg.1,
+            abc_poly: None,
+            length_mm,
+            line,
+            move_index,
+            move_count: 1,
+            feed_mm_s,
+            v_max_mm_s: 0.0,
+            accel_mm_s2: 0.0,
+            jerk_mm_s3: 0.0,
+            v_boost_mm_s: 0.0,
+            accel_boost_mm_s2: 0.0,
+            jerk_boost_mm_s3: 0.0,
+            end_cap_mm_s: 0.0,
+            blend: false,
+        }
+    }
+
     /// Positions of all six axes at path parameter `s`.
     #[inline]
     pub fn position_at(&self, s: f64, out: &mut [f64; 6]) {
@@ -155,4 +188,47 @@ pub fn rotary_derivatives(tr: &Transition, c: &[[f64; 6]; 3], u: f64) -> ([f64; 
         k[i] = (d2 - d1 * along) / sq;
     }
     (t, k)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Vec3;
+
+    #[test]
+    fn zero_limit_segment_moves_rotary_axes_linearly_along_the_line() {
+        // A 3-4-5 line in XY with A going from 10° to 40°.
+        let curve = Curve::line(Vec3::new(1.0, 1.0, 0.0), Vec3::new(4.0, 5.0, 0.0));
+        let seg = PlannedSegment::with_zero_limits(
+            curve,
+            5.0,
+            ([10.0, 0.0, 0.0], [40.0, 0.0, 0.0]),
+            7,
+            3,
+            25.0,
+        );
+        let limits = [
+            seg.v_max_mm_s,
+            seg.accel_mm_s2,
+            seg.jerk_mm_s3,
+            seg.v_boost_mm_s,
+            seg.accel_boost_mm_s2,
+            seg.jerk_boost_mm_s3,
+            seg.end_cap_mm_s,
+        ];
+        assert_eq!(limits, [0.0; 7]);
+        assert!(!seg.blend && seg.move_count == 1 && seg.abc_poly.is_none());
+        let mut p = [0.0; 6];
+        seg.position_at(2.5, &mut p);
+        let expect = [2.5, 3.0, 0.0, 25.0, 0.0, 0.0];
+        for i in 0..6 {
+            assert!((p[i] - expect[i]).abs() < 1e-12, "axis {i}: {p:?}");
+        }
+        // dA/ds = 30° over 5 mm.
+        let (t, _) = seg.derivatives_at(1.0);
+        assert!(
+            (t[3] - 6.0).abs() < 1e-12 && (t[0] - 0.6).abs() < 1e-12,
+            "{t:?}"
+        );
+    }
 }

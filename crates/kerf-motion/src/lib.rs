@@ -438,25 +438,14 @@ impl MotionCore {
     /// every limit it keeps to is carried by the segments ([`PlannedSegment`]).
     pub fn new(period_s: f64, capacity: usize) -> Self {
         let capacity = capacity.max(2);
-        let dummy = PlannedSegment {
-            curve: kerf_geom::Curve::line(Vec3::zeros(), Vec3::zeros()),
-            abc_start_deg: [0.0; 3],
-            abc_end_deg: [0.0; 3],
-            abc_poly: None,
-            length_mm: 0.0,
-            line: 0,
-            move_index: 0,
-            move_count: 1,
-            feed_mm_s: 0.0,
-            v_max_mm_s: 0.0,
-            accel_mm_s2: 0.0,
-            jerk_mm_s3: 0.0,
-            v_boost_mm_s: 0.0,
-            accel_boost_mm_s2: 0.0,
-            jerk_boost_mm_s3: 0.0,
-            end_cap_mm_s: 0.0,
-            blend: false,
-        };
+        let dummy = PlannedSegment::with_zero_limits(
+            kerf_geom::Curve::line(Vec3::zeros(), Vec3::zeros()),
+            0.0,
+            ([0.0; 3], [0.0; 3]),
+            0,
+            0,
+            0.0,
+        );
         let dummy_sec = Section {
             first: 0,
             count: 0,

@@ -11,11 +11,31 @@ use crate::{
     TRANSITION_TOL_SHARE,
 };
 
-/// Turn angles below this are treated as collinear (no blend needed), radians.
+/// Turn angles below this are treated as collinear (no blend needed), radians: 0.1 µrad
+/// bends the path by 0.1 nm per mm, far below any tolerance.
 const COLLINEAR_RAD: f64 = 1e-7;
+/// Turns within this of a full reversal are not blended, radians: `tan(θ/2)` (the blend's
+/// reach per radius) grows without bound at π.
+const REVERSAL_MARGIN_RAD: f64 = 1e-6;
+/// A circular blend is sized for this share of the tolerance at its midpoint: the 2 %
+/// margin keeps the evaluated arc inside the tolerance despite rounding.
+const BLEND_TOL_MARGIN: f64 = 0.98;
+/// Largest share of the outgoing line a blend may take: half, so the next corner's blend
+/// has the other half and neighbouring blends never overlap.
+const BLEND_SHARE_OF_OUTGOING: f64 = 0.5;
+/// A G2 blend is tried only where the room exceeds this share of the arc's reach: a G2
+/// blend within the tolerance takes more than half of what the arc would, so below that
+/// it cannot fit (dense polylines) and trying would only cost time.
+const G2_MIN_ROOM_OF_ARC: f64 = 0.5;
+/// Tries confirming a G2 blend on the programmed lines after scaling it from 1 mm.
+const G2_CONFIRM_TRIES: usize = 8;
+/// Shrink per confirming try: 0.1 %, so the eight tries cover the rounding of the scaled
+/// deviation without giving up noticeable blend size.
+const G2_CONFIRM_SHRINK: f64 = 0.999;
 
 /// Parameter scales tried for a G2 corner blend, as multiples of its chord (measured: 1.2
-/// is quickest for 90°, 1.0 for shallow turns, the larger ones for reversals).
+/// is quickest for 90°, 1.0 for shallow turns, the larger ones for reversals; three keep
+/// the per-corner cost at three candidates).
 pub const G2_LAMBDA_RATIOS: [f64; 3] = [1.0, 1.2, 1.5];
 
 impl Planner {
@@ -46,15 +66,17 @@ impl Planner {
         let normal = u1.cross(&u2);
         let sin = normal.norm();
         let theta = sin.atan2(cos);
-        if !(COLLINEAR_RAD..=std::f64::consts::PI - 1e-6).contains(&theta) {
+        if !(COLLINEAR_RAD..=std::f64::consts::PI - REVERSAL_MARGIN_RAD).contains(&theta) {
             return None;
         }
         // Deviation at the blend midpoint is r (1 - cos(θ/2)) = 2 r sin²(θ/4).
         let s4 = (theta / 4.0).sin();
-        let r_tol = 0.98 * tol / (2.0 * s4 * s4);
+        let r_tol = BLEND_TOL_MARGIN * tol / (2.0 * s4 * s4);
         let tan_half = (theta / 2.0).tan();
         let d_tol = r_tol * tan_half;
-        let d = d_tol.min(len1 - prev.start_trim).min(len2 * 0.5);
+        let d = d_tol
+            .min(len1 - prev.start_trim)
+            .min(len2 * BLEND_SHARE_OF_OUTGOING);
         if d < MIN_SEGMENT_MM {
             return None;
         }
@@ -75,31 +97,24 @@ impl Planner {
         let feed = feed_of(&prev.mv).min(feed_of(&next.mv));
         let rapid = prev.mv.rapid && next.mv.rapid;
         let mut seg = PlannedSegment {
-            curve,
-            abc_start_deg: prev.abc_end,
-            abc_end_deg: prev.abc_end,
-            abc_poly: None,
-            length_mm: curve.length(),
-            line: next.mv.line,
-            move_index: prev.move_index,
-            move_count: 1,
-            feed_mm_s: feed,
-            v_max_mm_s: 0.0,
-            accel_mm_s2: 0.0,
-            jerk_mm_s3: 0.0,
-            v_boost_mm_s: 0.0,
-            accel_boost_mm_s2: 0.0,
-            jerk_boost_mm_s3: 0.0,
-            end_cap_mm_s: 0.0,
             blend: true,
+            ..PlannedSegment::with_zero_limits(
+                curve,
+                curve.length(),
+                (prev.abc_end, prev.abc_end),
+                next.mv.line,
+                prev.move_index,
+                feed,
+            )
         };
         self.set_limits(&mut seg, rapid);
         // Isolated: both lines keep a remnant of at least [`MIN_REMNANT_MM`], so the
         // neighbouring blends do not meet. A G2 blend within the tolerance takes more than
         // half of what the arc would (about as much, except near reversals); where that
         // does not fit (dense polylines) the arc is kept without trying.
-        let room_mm = (len1 - prev.start_trim - MIN_REMNANT_MM).min(0.5 * len2 - MIN_REMNANT_MM);
-        if room_mm <= 0.5 * d_tol {
+        let room_mm = (len1 - prev.start_trim - MIN_REMNANT_MM)
+            .min(BLEND_SHARE_OF_OUTGOING * len2 - MIN_REMNANT_MM);
+        if room_mm <= G2_MIN_ROOM_OF_ARC * d_tol {
             return Some((seg, d));
         }
         let corner_g2 = G2Corner {
@@ -194,14 +209,14 @@ impl Planner {
             }
             // Rounding: confirm against the programmed lines, shrinking slightly if needed.
             let mut found = None;
-            for _ in 0..8 {
+            for _ in 0..G2_CONFIRM_TRIES {
                 if let Some(t) = c.curve(d, rho) {
                     if c.deviation(&t) <= limit_mm {
                         found = Some(t);
                         break;
                     }
                 }
-                d *= 0.999;
+                d *= G2_CONFIRM_SHRINK;
             }
             let Some(tr) = found.and_then(|t| t.with_arc_length()) else {
                 continue;

@@ -7,16 +7,24 @@ use crate::search::{bisect, bisect_max, golden_min};
 use crate::timing::change_time_s;
 use crate::{MachineLimits, PROFILE_SHARE, PlannedSegment};
 
-/// Share of the acceleration (and jerk) budget that centripetal terms may take on curves.
+/// Share of the acceleration (and jerk) budget that centripetal terms may take on curves:
+/// 75 % bounds the speed limit from curvature, leaving at least a quarter for the
+/// tangential ramps at that speed.
 const CENTRIPETAL_SHARE: f64 = 0.75;
 
-/// Samples of a transition for its curvature bounds.
+/// Samples of a transition for its curvature bounds: 128 like [`crate::DEVIATION_SAMPLES`];
+/// what rises between samples is covered by [`LIMIT_SAFETY`] and [`CURVATURE_SAFETY`].
 const LIMIT_SAMPLES: usize = 128;
 /// Samples for the curvature bounds of a smoothed piece that covers several moves: such
-/// pieces are gentle (their curvature follows a fitted window, not a corner).
+/// pieces are gentle (their curvature follows a fitted window, not a corner), so half of
+/// [`LIMIT_SAMPLES`] suffices and halves the cost on dense CAM code.
 const PIECE_LIMIT_SAMPLES: usize = 64;
-/// Safety factor on the sampled curvature bounds of a transition.
+/// Safety factor on the sampled curvature bounds of a transition: 10 % covers the
+/// finite-difference error of the curvature's derivative and its rise between samples.
 pub const LIMIT_SAFETY: f64 = 1.1;
+/// Safety factor on the sampled unit-tangent components of a transition: the tangent turns
+/// little between samples, so 0.1 % covers its rise there.
+const TANGENT_SAFETY: f64 = 1.001;
 /// Safety factor on the sampled curvature of a transition. The curvature itself is
 /// sampled directly (its derivative by finite differences, hence the larger
 /// [`LIMIT_SAFETY`]); between samples of a smooth quintic it cannot rise by more than a
@@ -180,10 +188,29 @@ fn boosted(
 /// may be one of a long chain (a dense circle, a helix in turns), so its own length says
 /// little about how long the speed is held.
 pub const DESIGN_RUN_MM: f64 = 30.0;
-/// Ratio of the design-speed candidates below the top speed.
+/// Ratio of the design-speed candidates below the top speed: 20 % steps are fine enough
+/// for the golden-section refinement between neighbours to find the minimum.
 const DESIGN_GRID_RATIO: f64 = 0.8;
-/// Candidates of that grid: down to `0.8²⁴ ≈ 0.5 %` of the top speed.
+/// Candidates of that grid: down to `0.8²⁴ ≈ 0.5 %` of the top speed, below which a
+/// design speed is a crawl.
 const DESIGN_GRID_POINTS: usize = 25;
+/// The design grid stops once this many points past the best one...
+const DESIGN_STOP_AFTER: usize = 3;
+/// ...are this much slower than it: 50 % past the best, the unimodal measure will not
+/// come back.
+const DESIGN_STOP_RATIO: f64 = 1.5;
+/// Lowest design speed tried when no grid point has a budget, × the top speed: 1e-12 is
+/// where the curvature terms (`v²`, `v³`) have vanished for any finite limits.
+const DESIGN_FLOOR_RATIO: f64 = 1e-12;
+/// Probe just below the top of a grid (design speed or acceleration): 1 % below, to see
+/// whether the measure rises there (then the top is best and no refinement is needed).
+const TOP_PROBE_RATIO: f64 = 0.99;
+/// Golden-section narrowings of the design speed between grid neighbours: `0.618¹⁰ ≈ 1 %`
+/// of the bracket, finer than the rough time it minimises.
+const DESIGN_GOLDEN_STEPS: usize = 10;
+/// Acceleration and jerk of a segment whose top speed is 0 or not finite (no speed to
+/// design for), path units/s² and /s³: tiny and positive, never 0 or infinite.
+const DEGENERATE_BUDGET: f64 = 1e-3;
 
 /// The design speed `vd` (at most `v_top`) and its tangential budget `budget(vd)` that
 /// give the least rough time over `max(length, DESIGN_RUN_MM)` from rest to rest: the
@@ -207,7 +234,7 @@ fn design_speed_search(
         Some((run_mm / vd + change_time_s(vd, a, j), a, j))
     };
     if !(v_top > 0.0 && v_top.is_finite()) {
-        return (v_top.max(0.0), 1e-3, 1e-3);
+        return (v_top.max(0.0), DEGENERATE_BUDGET, DEGENERATE_BUDGET);
     }
     // Coarse grid down from the top, stopping once the measure has risen well past its
     // best (it is unimodal in practice: the cruise term falls with vd, the ramp grows);
@@ -219,7 +246,9 @@ fn design_speed_search(
         if let Some(e) = e {
             if best.is_none_or(|b| e.0 < b.1.0) {
                 best = Some((k, e));
-            } else if best.is_some_and(|b| k >= b.0 + 3 && e.0 > 1.5 * b.1.0) {
+            } else if best
+                .is_some_and(|b| k >= b.0 + DESIGN_STOP_AFTER && e.0 > DESIGN_STOP_RATIO * b.1.0)
+            {
                 break;
             }
         }
@@ -229,7 +258,7 @@ fn design_speed_search(
     // budget at a low enough one. A floor of made-up limits would crawl: a 0.07 mm G2
     // blend took 18 s, and a hold on it 6.5 s.
     let mut k_low = DESIGN_GRID_POINTS;
-    while best.is_none() && grid(k_low) > v_top * 1e-12 {
+    while best.is_none() && grid(k_low) > v_top * DESIGN_FLOOR_RATIO {
         if let Some(e) = eval(grid(k_low)) {
             best = Some((k_low, e));
         }
@@ -242,13 +271,13 @@ fn design_speed_search(
         return (v, v, v);
     };
     // The usual case: the top speed is best and the measure rises just below it.
-    if k == 0 && eval(0.99 * v_top).is_none_or(|e| e.0 >= found.0) {
+    if k == 0 && eval(TOP_PROBE_RATIO * v_top).is_none_or(|e| e.0 >= found.0) {
         return (v_top, found.1, found.2);
     }
     let mut vd = grid(k);
     let (lo, hi) = (grid(k + 1).ln(), grid(k.saturating_sub(1)).min(v_top).ln());
     let measure = |x: f64| eval(x.exp()).map_or(f64::INFINITY, |e| e.0);
-    let (x, _) = golden_min(lo, hi, 10, measure);
+    let (x, _) = golden_min(lo, hi, DESIGN_GOLDEN_STEPS, measure);
     if let Some(e) = eval(x.exp()).filter(|e| e.0 < found.0) {
         vd = x.exp();
         found = e;
@@ -327,7 +356,7 @@ fn transition_bounds(
         cur = next;
     }
     for ax in 0..6 {
-        b.tangent[ax] *= 1.001;
+        b.tangent[ax] *= TANGENT_SAFETY;
         if ax < 3 {
             b.tangent[ax] = b.tangent[ax].min(1.0);
         }
@@ -350,6 +379,13 @@ fn transition_bounds(
     b
 }
 
+/// A curve counts as straight when its coefficients' largest cross product is below this,
+/// relative to their squared size: rounding noise, no plane to speak of.
+const STRAIGHT_REL: f64 = 1e-9;
+/// A curve counts as planar when every coefficient leaves the plane by at most this,
+/// relative to their size: a few ulps of rounding.
+const PLANAR_REL: f64 = 1e-12;
+
 /// The unit normal of the plane a polynomial curve lies in, if it is planar (and not
 /// straight).
 fn plane_normal(coef: &[Vec3; 6]) -> Option<Vec3> {
@@ -366,13 +402,13 @@ fn plane_normal(coef: &[Vec3; 6]) -> Option<Vec3> {
             }
         }
     }
-    if best.norm() <= 1e-9 * scale * scale {
+    if best.norm() <= STRAIGHT_REL * scale * scale {
         return None;
     }
     let normal = best.normalize();
     coef[1..]
         .iter()
-        .all(|c| c.dot(&normal).abs() <= 1e-12 * scale)
+        .all(|c| c.dot(&normal).abs() <= PLANAR_REL * scale)
         .then_some(normal)
 }
 
@@ -519,8 +555,8 @@ fn curved_budget(
     // The smallest axis limits bound the searches from above.
     let (mut a_cap, mut j_cap) = (a_line, j_line);
     for l in limits.axes.iter().flatten() {
-        a_cap = a_cap.min(l.acceleration_units_s2 / w.q.max(1e-9));
-        j_cap = j_cap.min(l.jerk_units_s3 / w.q.max(1e-9));
+        a_cap = a_cap.min(l.acceleration_units_s2 / w.q.max(MIN_IN_PLANE_FACTOR));
+        j_cap = j_cap.min(l.jerk_units_s3 / w.q.max(MIN_IN_PLANE_FACTOR));
     }
     let a_hi = bisect_max(fits_acc, a_cap);
     if a_hi <= 0.0 {
@@ -576,10 +612,24 @@ fn curved_budget_closed(
     quickest_budget(vd, a_hi, jerk_for)
 }
 
-/// Grid ratio of [`quickest_budget`]'s coarse search over the acceleration.
+/// Grid ratio of [`quickest_budget`]'s coarse search over the acceleration: halving
+/// spans many decades in few points; golden-section search refines between them.
 const BUDGET_GRID_RATIO: f64 = 0.5;
-/// Points of that grid: it spans `a_hi` down to `a_hi·0.5²⁰ ≈ 1e-6·a_hi`.
+/// Points of that grid: it spans `a_hi` down to `a_hi·0.5²⁰ ≈ 1e-6·a_hi`, below which an
+/// acceleration gives no usable ramp.
 const BUDGET_GRID_POINTS: usize = 21;
+/// The acceleration grid stops this many points past the best (the time falls and then
+/// rises with the acceleration, so two rising points end the search).
+const BUDGET_STOP_AFTER: usize = 2;
+/// Golden-section narrowings of the acceleration between grid neighbours:
+/// `0.618¹⁴ ≈ 0.1 %` of a bracket twice as wide (in log) as the design speed's.
+const BUDGET_GOLDEN_STEPS: usize = 14;
+/// Halvings finding the acceleration a ramp by `vd` peaks at: `2⁻⁶⁰` of the bracket, past
+/// the resolution of an f64.
+const PEAK_BISECTION_STEPS: usize = 60;
+/// Floor of the in-plane speed factor `q` when dividing by it (a helix that is nearly a
+/// straight line along its axis): keeps the quotient finite.
+const MIN_IN_PLANE_FACTOR: f64 = 1e-9;
 
 /// The tangential budget `(a, j)` on a curve at design speed `vd` that makes the
 /// quickest jerk-limited change of speed by `vd` ([`change_time_s`]), for accelerations
@@ -621,7 +671,7 @@ fn quickest_budget(vd: f64, a_hi: f64, jerk_for: impl Fn(f64) -> f64) -> Option<
         let c = cost(grid(k));
         if c < best.0 {
             best = (c, k);
-        } else if best.0.is_finite() && k >= best.1 + 2 {
+        } else if best.0.is_finite() && k >= best.1 + BUDGET_STOP_AFTER {
             break;
         }
     }
@@ -629,7 +679,7 @@ fn quickest_budget(vd: f64, a_hi: f64, jerk_for: impl Fn(f64) -> f64) -> Option<
         return None;
     }
     let k = best.1;
-    if k == 0 && cost(0.99 * a_hi) >= best.0 {
+    if k == 0 && cost(TOP_PROBE_RATIO * a_hi) >= best.0 {
         let j = jerk_for(a_hi);
         return Some((a_hi, j));
     }
@@ -637,7 +687,7 @@ fn quickest_budget(vd: f64, a_hi: f64, jerk_for: impl Fn(f64) -> f64) -> Option<
         grid((k + 1).min(BUDGET_GRID_POINTS - 1)).ln(),
         grid(k.saturating_sub(1)).ln(),
     );
-    let (x, c) = golden_min(lo, hi, 14, |x| cost(x.exp()));
+    let (x, c) = golden_min(lo, hi, BUDGET_GOLDEN_STEPS, |x| cost(x.exp()));
     let mut a = grid(k);
     if c < best.0 {
         a = x.exp();
@@ -646,7 +696,7 @@ fn quickest_budget(vd: f64, a_hi: f64, jerk_for: impl Fn(f64) -> f64) -> Option<
     // Never more acceleration than a ramp by `vd` reaches (`a = sqrt(vd·j(a))`, found by
     // bisection): less leaves the same ramp time and more jerk room.
     if a * a > vd * j {
-        let lo = bisect(0.0, a, 60, |x| x * x <= vd * jerk_for(x));
+        let lo = bisect(0.0, a, PEAK_BISECTION_STEPS, |x| x * x <= vd * jerk_for(x));
         let j_lo = jerk_for(lo);
         if lo > 0.0 && j_lo >= j {
             return Some((lo, j_lo));

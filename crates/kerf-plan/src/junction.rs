@@ -2,6 +2,10 @@
 
 use crate::{JUNCTION_SHARE, MachineLimits, PlannedSegment};
 
+/// Tangent or curvature steps at or below this (per axis, 1 and 1/mm) are rounding noise
+/// of the unit tangents and curvature vectors, not a kink: they set no cap.
+const NEGLIGIBLE_STEP: f64 = 1e-12;
+
 /// Speed cap at the junction from `a` to `b`, from the tangent and curvature steps seen by
 /// finite differences at the period.
 pub fn junction_cap(a: &PlannedSegment, b: &PlannedSegment, limits: &MachineLimits) -> f64 {
@@ -21,12 +25,12 @@ pub fn junction_cap(a: &PlannedSegment, b: &PlannedSegment, limits: &MachineLimi
             }
             continue;
         };
-        if dt > 1e-12 {
+        if dt > NEGLIGIBLE_STEP {
             cap = cap.min(
                 JUNCTION_SHARE * (l.jerk_units_s3 * t * t).min(l.acceleration_units_s2 * t) / dt,
             );
         }
-        if dk > 1e-12 {
+        if dk > NEGLIGIBLE_STEP {
             cap = cap.min((JUNCTION_SHARE * l.jerk_units_s3 * t / dk).sqrt());
         }
     }

@@ -138,20 +138,28 @@ pub use junction::junction_cap;
 pub use planner::Planner;
 pub use transition::TRANSITION_SHARE_OF_MOVE;
 
-/// Highest feed override curved segments are designed for (the motion core's highest).
+/// Highest feed override curved segments are designed for: 2.0 because that is the
+/// motion core's highest override (`kerf_motion::MAX_OVERRIDE`), so no override asks for
+/// more than a boost design covers.
 pub const MAX_DESIGN_OVERRIDE: f64 = 2.0;
-/// Share of every axis limit that the path profile may use.
+/// Share of every axis limit that the path profile may use: 95 %, so that with the 5 %
+/// of [`JUNCTION_SHARE`] the profile and the junction steps together stay within 100 %.
 pub const PROFILE_SHARE: f64 = 0.95;
-/// Share of every axis jerk limit left for the steps at junctions.
+/// Share of every axis jerk limit left for the steps at junctions: what the profile
+/// leaves (`1 - PROFILE_SHARE`).
 pub const JUNCTION_SHARE: f64 = 0.05;
-/// Segments shorter than this are dropped (they cannot be seen in the output), mm.
+/// Segments shorter than this are dropped, mm: 1 pm, far below any machine's resolution,
+/// so nothing that could be seen is lost.
 pub const MIN_SEGMENT_MM: f64 = 1e-9;
 /// Share of the tolerance a G2 transition may deviate from the programmed path at the
-/// sampled points (the rest covers the path between samples).
+/// sampled points: the other 10 % covers the path between the [`DEVIATION_SAMPLES`].
 pub const TRANSITION_TOL_SHARE: f64 = 0.9;
-/// Samples of a transition checked against the tolerance.
+/// Samples of a transition checked against the tolerance: 128, dense enough on a smooth
+/// quintic for the 10 % that [`TRANSITION_TOL_SHARE`] leaves to cover the path between.
 pub const DEVIATION_SAMPLES: usize = 128;
-/// Shortest piece of a segment a transition may leave, mm.
+/// Shortest piece of a segment a transition or blend may leave, mm: 1 µm, a thousand
+/// times the motion core's coast-through length (`kerf_motion::COAST_BELOW_MM`), so a
+/// remnant is still a section the profile generator plans.
 pub const MIN_REMNANT_MM: f64 = 1e-3;
 
 /// Why a move cannot be planned.

@@ -14,6 +14,10 @@ use crate::{
     PlannedSegment, smooth,
 };
 
+/// Two segments continue each other in tangent when every axis' `d/ds` differs by at most
+/// this: 1e-6 (1 µm per m) is rounding noise of the tangents, not a corner.
+const TANGENT_MATCH: f64 = 1e-6;
+
 /// The move currently waiting for its successor (its end may still be blended).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Pending {
@@ -275,23 +279,17 @@ impl Planner {
                 smooth::Piece::Line(p, q) => Curve::line(p, q),
             };
             let mut seg = PlannedSegment {
-                curve,
-                abc_start_deg: e.abc_start,
-                abc_end_deg: e.abc_end,
                 abc_poly: e.abc_poly,
-                length_mm: curve.length(),
-                line: e.line,
-                move_index: e.move_index,
                 move_count: e.move_count,
-                feed_mm_s: e.feed,
-                v_max_mm_s: 0.0,
-                accel_mm_s2: 0.0,
-                jerk_mm_s3: 0.0,
-                v_boost_mm_s: 0.0,
-                accel_boost_mm_s2: 0.0,
-                jerk_boost_mm_s3: 0.0,
-                end_cap_mm_s: 0.0,
                 blend: true,
+                ..PlannedSegment::with_zero_limits(
+                    curve,
+                    curve.length(),
+                    (e.abc_start, e.abc_end),
+                    e.line,
+                    e.move_index,
+                    e.feed,
+                )
             };
             if seg.length_mm < MIN_SEGMENT_MM {
                 continue;
@@ -413,25 +411,14 @@ impl Planner {
         } else {
             Curve::line(curve.start(), curve.start())
         };
-        let mut seg = PlannedSegment {
+        let mut seg = PlannedSegment::with_zero_limits(
             curve,
-            abc_start_deg: p.abc_start,
-            abc_end_deg: p.abc_end,
-            abc_poly: None,
-            length_mm: length,
-            line: p.mv.line,
-            move_index: p.move_index,
-            move_count: 1,
-            feed_mm_s: feed_of(&p.mv),
-            v_max_mm_s: 0.0,
-            accel_mm_s2: 0.0,
-            jerk_mm_s3: 0.0,
-            v_boost_mm_s: 0.0,
-            accel_boost_mm_s2: 0.0,
-            jerk_boost_mm_s3: 0.0,
-            end_cap_mm_s: 0.0,
-            blend: false,
-        };
+            length,
+            (p.abc_start, p.abc_end),
+            p.mv.line,
+            p.move_index,
+            feed_of(&p.mv),
+        );
         // A programmed arc is designed for the path that runs on without a corner up to
         // its end, at most [`DESIGN_RUN_MM`]: known geometry only, so that the choice
         // does not depend on the limits.
@@ -497,7 +484,7 @@ impl Planner {
         }
         let (ta, _) = last.derivatives_at(last.length_mm);
         let (tb, _) = seg.derivatives_at(0.0);
-        let tangent = (0..6).all(|i| (ta[i] - tb[i]).abs() <= 1e-6);
+        let tangent = (0..6).all(|i| (ta[i] - tb[i]).abs() <= TANGENT_MATCH);
         if tangent { self.chain_mm } else { 0.0 }
     }
 

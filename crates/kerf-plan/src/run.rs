@@ -6,6 +6,10 @@ use kerf_geom::{CornerMode, Curve, Path, Vec3};
 use crate::planner::{Pending, feed_of};
 use crate::{MIN_SEGMENT_MM, MachineLimits, smooth};
 
+/// Shortest line that may join a run, mm: below 1 nm a line's direction is rounding
+/// noise, and the turn tests of a run need it.
+const MIN_RUN_LINE_MM: f64 = 1e-6;
+
 /// A run of lines that may be smoothed (see [`smooth`]).
 #[derive(Debug)]
 pub(crate) struct RunState {
@@ -96,7 +100,7 @@ impl RunState {
 pub(crate) fn smoothable(p: &Pending) -> bool {
     !p.mv.rapid
         && matches!(p.mv.path, Path::Line(_))
-        && (1e-6..=smooth::MAX_SEGMENT_MM).contains(&line_len(p))
+        && (MIN_RUN_LINE_MM..=smooth::MAX_SEGMENT_MM).contains(&line_len(p))
 }
 
 /// Rate of A, B, C along the XYZ length of a line, degrees per mm.

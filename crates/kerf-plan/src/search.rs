@@ -44,7 +44,14 @@ pub(crate) fn golden_min(
     if c1 <= c2 { (x1, c1) } else { (x2, c2) }
 }
 
-/// Largest `x` in `[0, hi]` with `ok(x)` (assumes `ok` is monotone), to 1e-6 relative.
+/// Halvings at most in [`bisect_max`]: `2⁻⁶⁰` of even a huge bracket (it starts from `hi`,
+/// possibly near `f64::MAX`) is below the relative resolution asked for.
+const BISECT_MAX_STEPS: usize = 60;
+/// Relative resolution of [`bisect_max`]: 1e-6, far finer than any limit it computes needs.
+const BISECT_MAX_REL: f64 = 1e-6;
+
+/// Largest `x` in `[0, hi]` with `ok(x)` (assumes `ok` is monotone), to [`BISECT_MAX_REL`]
+/// relative.
 pub(crate) fn bisect_max(ok: impl Fn(f64) -> bool, hi: f64) -> f64 {
     if ok(hi) {
         return hi;
@@ -52,14 +59,14 @@ pub(crate) fn bisect_max(ok: impl Fn(f64) -> bool, hi: f64) -> f64 {
     // Find a finite bracket first when `hi` is huge.
     let mut lo = 0.0;
     let mut up = hi;
-    for _ in 0..60 {
+    for _ in 0..BISECT_MAX_STEPS {
         let mid = 0.5 * (lo + up);
         if ok(mid) {
             lo = mid;
         } else {
             up = mid;
         }
-        if up - lo <= 1e-6 * up {
+        if up - lo <= BISECT_MAX_REL * up {
             break;
         }
     }

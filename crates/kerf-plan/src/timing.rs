@@ -3,6 +3,10 @@
 
 use crate::search::bisect;
 
+/// Halvings when a rough time's speed is found by bisection: `2⁻⁵⁰ ≈ 1e-15` of the
+/// bracket, the resolution of an f64.
+const SPEED_BISECTION_STEPS: usize = 50;
+
 /// Time of a jerk-limited change of speed by `dv` with acceleration `a` and jerk `j`, s.
 pub(crate) fn change_time_s(dv: f64, a: f64, j: f64) -> f64 {
     if dv <= a * a / j {
@@ -19,7 +23,7 @@ pub(crate) fn reach_speed(length: f64, v_max: f64, a: f64, j: f64) -> f64 {
     if !(length > 0.0 && v_max > 0.0 && a > 0.0 && j > 0.0) || ramp_mm(v_max) <= length {
         return v_max;
     }
-    bisect(0.0, v_max, 50, |v| ramp_mm(v) <= length)
+    bisect(0.0, v_max, SPEED_BISECTION_STEPS, |v| ramp_mm(v) <= length)
 }
 
 /// Rough time over a segment of `length` entered and left at `v_in`, speeding up on the
@@ -29,7 +33,9 @@ pub(crate) fn transit_time_s(length: f64, v_in: f64, v_top: f64, a: f64, j: f64)
     // Distance to speed up from `v_in` to `p` and back.
     let there_and_back = |p: f64| (v_in + p) * change_time_s(p - v_in, a, j);
     let peak = if there_and_back(v_top) > length {
-        bisect(v_in, v_top, 50, |p| there_and_back(p) <= length)
+        bisect(v_in, v_top, SPEED_BISECTION_STEPS, |p| {
+            there_and_back(p) <= length
+        })
     } else {
         v_top
     };

@@ -10,14 +10,37 @@ use crate::{
     DEVIATION_SAMPLES, MIN_REMNANT_MM, MIN_SEGMENT_MM, PlannedSegment, TRANSITION_TOL_SHARE,
 };
 
-/// Factor by which the transition length shrinks per try.
+/// Factor by which the transition length shrinks per try: 15 % steps find a length
+/// within 15 % of the largest that fits, in few tries.
 const TRANSITION_SHRINK: f64 = 0.85;
-/// Tries before a joint is left without a transition.
+/// Tries before a joint is left without a transition: `0.85⁴⁸ ≈ 4e-4`, so the search spans
+/// more than three decades below its start.
 const TRANSITION_TRIES: usize = 48;
-/// Largest share of a neighbouring segment a transition may take.
+/// Largest share of a neighbouring segment a transition may take: 45 %, so a piece between
+/// two transitions keeps a tenth of its length (no slivers between fast transitions).
 pub const TRANSITION_SHARE_OF_MOVE: f64 = 0.45;
-/// Longest time a transition slower than a quarter of the neighbours' speed may take, s.
+/// Longest time a transition slower than a quarter of the neighbours' speed may take, s:
+/// 20 ms, beyond which crawling round a sharp kink is slower than stopping at it.
 const MAX_CRAWL_S: f64 = 0.02;
+/// Below this share of the neighbours' speed a transition counts as a crawl (see
+/// [`MAX_CRAWL_S`]): a quarter of the speed is where crawling starts to lose to a stop.
+const CRAWL_SPEED_RATIO: f64 = 0.25;
+/// A joint already passable at this share of its neighbours' speed gets no transition:
+/// at most 10 % would be gained, not worth trimming two programmed moves.
+const FAST_JOINT_RATIO: f64 = 0.9;
+/// A transition is kept only if it raises the joint speed by this factor: gains under
+/// 5 % do not pay for the extra segment (and section boundary) it adds.
+const MIN_TRANSITION_GAIN: f64 = 1.05;
+/// First try of the transition reach against a curvature step, × `sqrt(tol/Δκ)`: about
+/// five times the estimate `sqrt(6·tol/Δκ)`, so the shrinking tries start above the
+/// largest reach that fits.
+const CURVATURE_START_FACTOR: f64 = 12.0;
+/// First try of the transition reach against a kink, × `tol/Δt`: four times the estimate
+/// `4·tol/Δt`, for the same reason.
+const KINK_START_FACTOR: f64 = 16.0;
+/// Shortest transition reach tried, mm: 1 nm, the motion core's coast-through length
+/// (`kerf_motion::COAST_BELOW_MM`), below which a transition could not be profiled.
+const MIN_TRANSITION_MM: f64 = 1e-6;
 
 impl Planner {
     /// A curvature-continuous transition for the joint from `prev` to `seg`, if the joint
@@ -55,7 +78,7 @@ impl Planner {
             .min(prev.feed_mm_s)
             .min(seg.feed_mm_s);
         let old = junction_cap(prev, seg, &self.limits);
-        if old >= 0.9 * v_ref {
+        if old >= FAST_JOINT_RATIO * v_ref {
             return None;
         }
         let ea = prev.curve.eval(la);
@@ -75,13 +98,13 @@ impl Planner {
         // Start above the estimates (a curvature ramp of Δκ over 2d sits about
         // Δκ(2d)²/24 off the path; a kink of Δt cuts its corner by about dΔt/4) and shrink.
         if dk > 0.0 {
-            d = d.min(12.0 * (tol / dk).sqrt());
+            d = d.min(CURVATURE_START_FACTOR * (tol / dk).sqrt());
         }
         if dt > 0.0 {
-            d = d.min(16.0 * tol / dt);
+            d = d.min(KINK_START_FACTOR * tol / dt);
         }
         for _ in 0..TRANSITION_TRIES {
-            if d < 1e-6 {
+            if d < MIN_TRANSITION_MM {
                 return None;
             }
             let da = d.min(room_a);
@@ -115,23 +138,15 @@ impl Planner {
             };
             let curve = Curve::Transition(tr);
             let mut t = PlannedSegment {
-                curve,
-                abc_start_deg: prev.abc_end_deg,
-                abc_end_deg: prev.abc_end_deg,
-                abc_poly: None,
-                length_mm: curve.length(),
-                line: seg.line,
-                move_index: prev.move_index,
-                move_count: 1,
-                feed_mm_s: prev.feed_mm_s.min(seg.feed_mm_s),
-                v_max_mm_s: 0.0,
-                accel_mm_s2: 0.0,
-                jerk_mm_s3: 0.0,
-                v_boost_mm_s: 0.0,
-                accel_boost_mm_s2: 0.0,
-                jerk_boost_mm_s3: 0.0,
-                end_cap_mm_s: 0.0,
                 blend: true,
+                ..PlannedSegment::with_zero_limits(
+                    curve,
+                    curve.length(),
+                    (prev.abc_end_deg, prev.abc_end_deg),
+                    seg.line,
+                    prev.move_index,
+                    prev.feed_mm_s.min(seg.feed_mm_s),
+                )
             };
             self.set_limits(&mut t, false);
             let mut p = *prev;
@@ -147,8 +162,8 @@ impl Planner {
             // beats the plain joint. A crawl through a long transition (a sharp kink with a
             // small tolerance) costs more time than stopping at the kink: both need the
             // same slow-down, so only the time spent on the transition counts.
-            let quick = new >= 0.25 * v_ref || t.length_mm <= MAX_CRAWL_S * new;
-            return (new > 1.05 * old && quick).then_some((p, t, s));
+            let quick = new >= CRAWL_SPEED_RATIO * v_ref || t.length_mm <= MAX_CRAWL_S * new;
+            return (new > MIN_TRANSITION_GAIN * old && quick).then_some((p, t, s));
         }
         None
     }
