@@ -1,9 +1,12 @@
 //! Segment and junction limits and corner blending for Kerf.
 //!
-//! [`Planner`] turns the front end's [`Move`]s, in program order, into [`PlannedSegment`]s
-//! for the motion core. It runs off the real-time path and may allocate (it does not, per
-//! move, beyond its output). Its job is everything about a segment that does not depend on
-//! time: geometry, corner blends, and the kinematic limits along and between segments.
+//! [`Planner`] turns the front end's [`Move`](kerf_geom::Move)s, in program order, into
+//! [`PlannedSegment`]s for the motion core. It runs off the real-time path and may
+//! allocate (it does not, per move, beyond its output). Its job is everything about a
+//! segment that does not depend on time: geometry, corner blends, and the kinematic limits
+//! along and between segments. The code is split by concern: `planner` (streaming),
+//! `run` and `smooth` (dense polylines), `blend` (corners), `transition` (joints with
+//! arcs), `budget` (limits along a segment), `junction` (caps between segments).
 //!
 //! Design decisions:
 //! - **Corner blends between two lines are circular arcs** (isolated corners: G2 blends
