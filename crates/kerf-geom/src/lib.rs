@@ -2,6 +2,8 @@
 //!
 //! This crate owns the canonical description of a programmed move ([`Move`]) and the
 //! geometry of the paths it follows ([`Path`]: straight lines, circular arcs and helices).
+//! It also owns the types that cross from the planner to the motion core: the planned
+//! segment ([`PlannedSegment`]) and the machine's limits ([`MachineLimits`]).
 //! It knows nothing of G-code dialects, planning or time: the G-code front end produces
 //! [`Move`]s, the planner and the motion core consume them.
 //!
@@ -119,6 +121,10 @@ impl Arc {
 }
 
 mod curve;
+mod limits;
+mod segment;
 mod transition;
 pub use curve::{Curve, CurvePoint, Helix, line_distance};
+pub use limits::{AXIS_NAMES, AxisLimits, MachineLimits};
+pub use segment::{PlannedSegment, poly5, rotary_derivatives};
 pub use transition::{TABLE_POINTS, Transition};

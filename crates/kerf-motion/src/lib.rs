@@ -1,6 +1,7 @@
 //! Kerf's real-time motion core: segment queue, lookahead and jerk-limited interpolation.
 //!
-//! [`MotionCore`] holds a fixed-capacity queue of [`PlannedSegment`]s (from `kerf-plan`)
+//! [`MotionCore`] holds a fixed-capacity queue of [`PlannedSegment`]s (from `kerf-plan`,
+//! the type lives in `kerf-geom`: this crate depends on `kerf-geom` and `rsruckig` only)
 //! and produces one [`Setpoint`] per [`MotionCore::step`]. Everything is allocated in
 //! [`MotionCore::new`]; `push` and `step` never allocate, lock or do I/O.
 //!
@@ -86,7 +87,7 @@
 #![deny(missing_docs)]
 
 use kerf_geom::Vec3;
-pub use kerf_plan::{AxisLimits, MachineLimits, PlannedSegment};
+pub use kerf_geom::{AxisLimits, MachineLimits, PlannedSegment};
 use rsruckig::prelude::*;
 
 pub mod monitor;
@@ -286,7 +287,6 @@ impl Section {
 
 /// The real-time motion core. See the crate documentation.
 pub struct MotionCore {
-    limits: MachineLimits,
     period_s: f64,
     segs: Vec<PlannedSegment>,
     /// Offset of each segment's start within its section (parallel to `segs`).
@@ -433,28 +433,19 @@ pub fn reach_back(v_end: f64, d: f64, accel: f64, jerk: f64) -> f64 {
 }
 
 impl MotionCore {
-    /// A core for `limits` holding up to `capacity` segments. All memory is allocated here.
-    pub fn new(limits: MachineLimits, capacity: usize) -> Self {
+    /// A core interpolating at `period_s` (seconds per [`MotionCore::step`]) holding up to
+    /// `capacity` segments. All memory is allocated here. The core needs no machine limits:
+    /// every limit it keeps to is carried by the segments ([`PlannedSegment`]).
+    pub fn new(period_s: f64, capacity: usize) -> Self {
         let capacity = capacity.max(2);
-        let dummy = PlannedSegment {
-            curve: kerf_geom::Curve::line(Vec3::zeros(), Vec3::zeros()),
-            abc_start_deg: [0.0; 3],
-            abc_end_deg: [0.0; 3],
-            abc_poly: None,
-            length: 0.0,
-            line: 0,
-            move_index: 0,
-            move_count: 1,
-            feed: 0.0,
-            v_max: 0.0,
-            accel: 0.0,
-            jerk: 0.0,
-            v_boost: 0.0,
-            accel_boost: 0.0,
-            jerk_boost: 0.0,
-            end_cap: 0.0,
-            blend: false,
-        };
+        let dummy = PlannedSegment::with_zero_limits(
+            kerf_geom::Curve::line(Vec3::zeros(), Vec3::zeros()),
+            0.0,
+            ([0.0; 3], [0.0; 3]),
+            0,
+            0,
+            0.0,
+        );
         let dummy_sec = Section {
             first: 0,
             count: 0,
@@ -489,8 +480,7 @@ impl MotionCore {
         let mut scratch = Trajectory::new(None);
         scratch.reserve_sections(1);
         MotionCore {
-            limits,
-            period_s: limits.period_s,
+            period_s,
             segs: vec![dummy; capacity],
             seg_offset: vec![0.0; capacity],
             seg_head: 0,
@@ -499,7 +489,7 @@ impl MotionCore {
             sec_head: 0,
             sec_count: 0,
             running: false,
-            otg: Ruckig::new(None, limits.period_s),
+            otg: Ruckig::new(None, period_s),
             input,
             traj,
             scratch,
@@ -532,9 +522,9 @@ impl MotionCore {
         }
     }
 
-    /// The machine this core was built for.
-    pub fn limits(&self) -> &MachineLimits {
-        &self.limits
+    /// The interpolation period, s.
+    pub fn period_s(&self) -> f64 {
+        self.period_s
     }
 
     /// Capacity of the segment queue.
@@ -629,13 +619,13 @@ impl MotionCore {
         if self.seg_count as usize >= self.segs.len() {
             return Err(PushError::Full);
         }
-        let valid = seg.length.is_finite()
-            && seg.length > 0.0
-            && seg.v_max > 0.0
-            && seg.accel > 0.0
-            && seg.jerk > 0.0
-            && seg.feed > 0.0
-            && seg.end_cap >= 0.0;
+        let valid = seg.length_mm.is_finite()
+            && seg.length_mm > 0.0
+            && seg.v_max_mm_s > 0.0
+            && seg.accel_mm_s2 > 0.0
+            && seg.jerk_mm_s3 > 0.0
+            && seg.feed_mm_s > 0.0
+            && seg.end_cap_mm_s >= 0.0;
         if !valid {
             return Err(PushError::Invalid);
         }
@@ -644,7 +634,7 @@ impl MotionCore {
         let mut before = self.last.position;
         if self.seg_count > 0 {
             let prev = *self.seg(self.seg_head + self.seg_count - 1);
-            prev.position_at(prev.length, &mut before);
+            prev.position_at(prev.length_mm, &mut before);
         }
         if (0..6).any(|i| (start[i] - before[i]).abs() > CONTINUITY_MM) {
             return Err(PushError::Discontinuous);
@@ -654,23 +644,25 @@ impl MotionCore {
         self.segs[slot] = *seg;
         self.seg_count += 1;
 
-        let seg_v = seg.v_max;
-        let seg_feed = seg.feed;
+        let seg_v = seg.v_max_mm_s;
+        let seg_feed = seg.feed_mm_s;
         // The boost level (override above 100 %); a segment without one (older producers,
         // straight segments) has the base limits there too.
-        let (seg_vb, seg_ab, seg_jb) =
-            if seg.v_boost > seg_v && seg.accel_boost > 0.0 && seg.jerk_boost > 0.0 {
-                (
-                    seg.v_boost,
-                    seg.accel_boost.min(seg.accel),
-                    seg.jerk_boost.min(seg.jerk),
-                )
-            } else {
-                (seg_v, seg.accel, seg.jerk)
-            };
+        let (seg_vb, seg_ab, seg_jb) = if seg.v_boost_mm_s > seg_v
+            && seg.accel_boost_mm_s2 > 0.0
+            && seg.jerk_boost_mm_s3 > 0.0
+        {
+            (
+                seg.v_boost_mm_s,
+                seg.accel_boost_mm_s2.min(seg.accel_mm_s2),
+                seg.jerk_boost_mm_s3.min(seg.jerk_mm_s3),
+            )
+        } else {
+            (seg_v, seg.accel_mm_s2, seg.jerk_mm_s3)
+        };
         // The cap at the junction before this segment is the previous segment's end cap.
         let prev_cap = if abs > self.seg_head {
-            self.seg(abs - 1).end_cap
+            self.seg(abs - 1).end_cap_mm_s
         } else {
             0.0
         };
@@ -683,8 +675,8 @@ impl MotionCore {
                 // a slow one (a slow feed, a tight transition) would crawl through it.
                 && seg_v.min(seg_feed) * MERGE_RATIO_SPEED * MERGE_RATIO_SPEED
                     <= t.c_v.min(t.c_feed)
-                && seg.accel >= t.c_accel
-                && seg.jerk >= t.c_jerk
+                && seg.accel_mm_s2 >= t.c_accel
+                && seg.jerk_mm_s3 >= t.c_jerk
                 && prev_cap >= t.c_v.min(t.c_feed * MAX_OVERRIDE)
                 && seg_vb >= t.c_v_boost
                 && seg_ab >= t.c_accel_boost
@@ -694,12 +686,12 @@ impl MotionCore {
         if can_merge {
             let t = self.sec_mut(tail - 1);
             let offset = t.length;
-            t.length += seg.length;
+            t.length += seg.length_mm;
             t.count += 1;
             t.v_machine = t.v_machine.min(seg_v).min(prev_cap);
             t.feed = t.feed.min(seg_feed);
-            t.accel = t.accel.min(seg.accel);
-            t.jerk = t.jerk.min(seg.jerk);
+            t.accel = t.accel.min(seg.accel_mm_s2);
+            t.jerk = t.jerk.min(seg.jerk_mm_s3);
             t.v_boost = t.v_boost.min(seg_vb).min(prev_cap);
             t.accel_boost = t.accel_boost.min(seg_ab);
             t.jerk_boost = t.jerk_boost.min(seg_jb);
@@ -714,15 +706,15 @@ impl MotionCore {
             let sec = Section {
                 first: abs,
                 count: 1,
-                length: seg.length,
+                length: seg.length_mm,
                 v_machine: seg_v,
                 feed: seg_feed,
-                accel: seg.accel,
-                jerk: seg.jerk,
+                accel: seg.accel_mm_s2,
+                jerk: seg.jerk_mm_s3,
                 c_v: MERGE_RATIO_SPEED * seg_v,
                 c_feed: MERGE_RATIO_SPEED * seg_feed,
-                c_accel: MERGE_RATIO * seg.accel,
-                c_jerk: MERGE_RATIO_JERK * seg.jerk,
+                c_accel: MERGE_RATIO * seg.accel_mm_s2,
+                c_jerk: MERGE_RATIO_JERK * seg.jerk_mm_s3,
                 v_boost: seg_vb,
                 accel_boost: seg_ab,
                 jerk_boost: seg_jb,
@@ -1074,7 +1066,7 @@ impl MotionCore {
         }
         while self.cursor < last_seg {
             let slot = (self.cursor % self.segs.len() as u64) as usize;
-            let end = self.seg_offset[slot] + self.segs[slot].length;
+            let end = self.seg_offset[slot] + self.segs[slot].length_mm;
             if self.s_local < end {
                 break;
             }
@@ -1108,7 +1100,7 @@ impl MotionCore {
         let abs = self.seg_head.wrapping_sub(1);
         let slot = (abs % self.segs.len() as u64) as usize;
         let seg = self.segs[slot];
-        seg.position_at(seg.length, &mut self.last.position);
+        seg.position_at(seg.length_mm, &mut self.last.position);
         self.last.line = seg.line;
         self.last.move_index = seg.move_index;
         self.last.move_count = seg.move_count;
@@ -1607,16 +1599,16 @@ mod tests {
     #[test]
     fn scaled_solver_calls_plan_every_feasible_section() {
         let axis = AxisLimits {
-            velocity: 100.0,
-            acceleration: 1000.0,
-            jerk: 1e4,
+            velocity_units_s: 100.0,
+            acceleration_units_s2: 1000.0,
+            jerk_units_s3: 1e4,
         };
         let limits = MachineLimits {
             axes: [Some(axis), Some(axis), Some(axis), None, None, None],
             period_s: 0.001,
             tolerance_mm: 0.01,
         };
-        let mut core = MotionCore::new(limits, 4);
+        let mut core = MotionCore::new(limits.period_s, 4);
         let mut log_uniform = crate::profile::tests::log_uniform_source(0x9e37_79b9_7f4a_7c15);
         let (mut tried, mut failed) = (0, 0);
         while tried < 20_000 {
@@ -1657,9 +1649,9 @@ mod tests {
             (5000.0, 1e6, 1e9, 0.0000625),
         ] {
             let axis = AxisLimits {
-                velocity: v,
-                acceleration: a,
-                jerk: j,
+                velocity_units_s: v,
+                acceleration_units_s2: a,
+                jerk_units_s3: j,
             };
             let limits = MachineLimits {
                 axes: [Some(axis), Some(axis), Some(axis), None, None, None],
@@ -1690,7 +1682,7 @@ mod tests {
                 planner.push(m, &mut segs).unwrap();
             }
             planner.finish(&mut segs);
-            let mut core = MotionCore::new(limits, 64);
+            let mut core = MotionCore::new(limits.period_s, 64);
             core.fail_solver = true;
             // At rest at the origin before the first cycle.
             let mut rows: Vec<[f64; 6]> = vec![[0.0; 6]; 3];

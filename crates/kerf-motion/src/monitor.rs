@@ -6,7 +6,7 @@
 //! daemon's output stage can run it in the real-time cycle; `kerf sim` runs it on every
 //! row.
 
-use kerf_plan::MachineLimits;
+use kerf_geom::MachineLimits;
 
 /// Allowed excess over a limit before [`LimitMonitor`] reports a fault: 1 %, the margin
 /// the invariants are stated with (finite differences at the period see a jerk-limited
@@ -72,7 +72,7 @@ impl std::fmt::Display for LimitViolation {
             f,
             "setpoint {}: {} {} {:.0} % of the limit ({})",
             self.sample,
-            kerf_plan::AXIS_NAMES[self.axis],
+            kerf_geom::AXIS_NAMES[self.axis],
             self.quantity.name(),
             self.ratio() * 100.0,
             self.limit
@@ -136,7 +136,7 @@ impl LimitMonitor {
         let t = limits.period_s;
         let mut axes = [None; 6];
         for (i, a) in limits.axes.iter().enumerate() {
-            axes[i] = a.map(|a| [a.velocity, a.acceleration, a.jerk]);
+            axes[i] = a.map(|a| [a.velocity_units_s, a.acceleration_units_s2, a.jerk_units_s3]);
         }
         let mut noise = [0.0; 3];
         for (k, n) in noise.iter_mut().enumerate() {

@@ -107,7 +107,7 @@ fn sweep_between(a: &kerf_geom::Arc) -> f64 {
 /// aborts, and returns the allocations counted inside `push`/`step`/the events.
 fn allocations_while_running(limits: MachineLimits, cycles: u64) -> u64 {
     let program = closed_program(limits);
-    let mut core = MotionCore::new(limits, 256);
+    let mut core = MotionCore::new(limits.period_s, 256);
     let mut sp = Setpoint::default();
     let mut next = 0usize;
     let mut moving = 0u64;

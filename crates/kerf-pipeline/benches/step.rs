@@ -19,9 +19,9 @@ use kerf_plan::Planner;
 
 fn mill() -> MachineLimits {
     let l = AxisLimits {
-        velocity: 200.0,
-        acceleration: 2000.0,
-        jerk: 50000.0,
+        velocity_units_s: 200.0,
+        acceleration_units_s2: 2000.0,
+        jerk_units_s3: 50000.0,
     };
     MachineLimits {
         axes: [Some(l), Some(l), Some(l), None, None, None],
@@ -93,7 +93,7 @@ struct Feeder {
 impl Feeder {
     fn new() -> Self {
         let mut f = Feeder {
-            core: MotionCore::new(mill(), 1000),
+            core: MotionCore::new(mill().period_s, 1000),
             program: program(),
             next: 0,
         };
@@ -186,7 +186,7 @@ fn percentiles() {
     planner.finish(&mut out);
     let plan_s = t0.elapsed().as_secs_f64();
     let t0 = Instant::now();
-    let mut core = MotionCore::new(mill(), 4096);
+    let mut core = MotionCore::new(mill().period_s, 4096);
     for seg in &out {
         core.push(seg).unwrap();
     }

@@ -151,9 +151,9 @@ impl Summary {
         let l = limits.axes[i]?;
         let p = self.peaks[i];
         Some([
-            p.velocity / l.velocity,
-            p.acceleration / l.acceleration,
-            p.jerk / l.jerk,
+            p.velocity / l.velocity_units_s,
+            p.acceleration / l.acceleration_units_s2,
+            p.jerk / l.jerk_units_s3,
         ])
     }
 }
@@ -257,7 +257,7 @@ pub struct Interpolator {
 impl Interpolator {
     /// An interpolator around `core` (its queue capacity is the lookahead window).
     pub fn new(core: MotionCore) -> Self {
-        let period_s = core.limits().period_s;
+        let period_s = core.period_s();
         Interpolator {
             core,
             period_s,
@@ -560,7 +560,7 @@ struct Runner<'a, F: Sink> {
 
 impl<'a, F: Sink> Runner<'a, F> {
     fn new(limits: &MachineLimits, options: &'a RunOptions, sink: F) -> Self {
-        let mut core = MotionCore::new(*limits, options.capacity);
+        let mut core = MotionCore::new(limits.period_s, options.capacity);
         core.set_feed_override(options.feed_override);
         let mut runner = Runner {
             interp: Interpolator::new(core),
@@ -1060,9 +1060,9 @@ mod tests {
 
     fn machine(period_s: f64, v: f64, a: f64, j: f64) -> MachineLimits {
         let axis = Some(AxisLimits {
-            velocity: v,
-            acceleration: a,
-            jerk: j,
+            velocity_units_s: v,
+            acceleration_units_s2: a,
+            jerk_units_s3: j,
         });
         MachineLimits {
             axes: [axis, axis, axis, None, None, None],

@@ -272,7 +272,7 @@ fn status_follows_hold_resume_and_abort() {
     let b = Vec3::new(100.0, 0.0, 0.0);
     planner.push(&line(1, a, b, 6000.0), &mut segs).unwrap();
     planner.finish(&mut segs);
-    let mut core = MotionCore::new(limits, 16);
+    let mut core = MotionCore::new(limits.period_s, 16);
     // A segment that does not start where the machine is would make it jump.
     let mut away = segs[0];
     away.curve = kerf_geom::Curve::line(Vec3::new(1.0, 0.0, 0.0), b);
@@ -462,9 +462,9 @@ fn dense_four_axis_circle_runs_at_the_feed() {
     // the feed: 62.8 mm at 50 mm/s is 1.26 s plus the start and stop.
     let mut limits = mill(200.0, 2000.0, 50000.0, 0.01);
     limits.axes[3] = Some(kerf_motion::AxisLimits {
-        velocity: 3600.0,
-        acceleration: 36000.0,
-        jerk: 900_000.0,
+        velocity_units_s: 3600.0,
+        acceleration_units_s2: 36000.0,
+        jerk_units_s3: 900_000.0,
     });
     let mut moves = polygon_circle(10.0, 1000, 3000.0);
     for (k, m) in moves.iter_mut().enumerate() {

@@ -16,15 +16,15 @@ fn random_machine(rng: &mut Rng) -> MachineLimits {
     m.period_s = [0.00025, 0.0005, 0.001, 0.001, 0.002][rng.pick(5)];
     for ax in m.axes.iter_mut().take(3) {
         *ax = Some(AxisLimits {
-            velocity: rng.log(20.0, 500.0),
-            acceleration: rng.log(100.0, 5000.0),
-            jerk: rng.log(1000.0, 200_000.0),
+            velocity_units_s: rng.log(20.0, 500.0),
+            acceleration_units_s2: rng.log(100.0, 5000.0),
+            jerk_units_s3: rng.log(1000.0, 200_000.0),
         });
     }
     m.axes[3] = Some(AxisLimits {
-        velocity: rng.log(30.0, 1000.0),
-        acceleration: rng.log(300.0, 10_000.0),
-        jerk: rng.log(3000.0, 500_000.0),
+        velocity_units_s: rng.log(30.0, 1000.0),
+        acceleration_units_s2: rng.log(300.0, 10_000.0),
+        jerk_units_s3: rng.log(3000.0, 500_000.0),
     });
     m
 }
@@ -170,13 +170,13 @@ fn raised(m: &MachineLimits, r: Raise) -> MachineLimits {
         }
         let hit = |q: usize| r.quantity.is_none_or(|k| k == q);
         if hit(0) {
-            l.velocity *= r.factor;
+            l.velocity_units_s *= r.factor;
         }
         if hit(1) {
-            l.acceleration *= r.factor;
+            l.acceleration_units_s2 *= r.factor;
         }
         if hit(2) {
-            l.jerk *= r.factor;
+            l.jerk_units_s3 *= r.factor;
         }
     }
     out

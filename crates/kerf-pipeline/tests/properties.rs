@@ -11,15 +11,15 @@ fn random_limits(rng: &mut Rng) -> MachineLimits {
     let mut m = mill(100.0, 1000.0, 10000.0, rng.log(0.002, 0.1));
     m.period_s = [0.00025, 0.0005, 0.001, 0.001, 0.002, 0.004][rng.pick(6)];
     m.axes[3] = Some(kerf_motion::AxisLimits {
-        velocity: rng.log(30.0, 1000.0),
-        acceleration: rng.log(300.0, 10000.0),
-        jerk: rng.log(3000.0, 500_000.0),
+        velocity_units_s: rng.log(30.0, 1000.0),
+        acceleration_units_s2: rng.log(300.0, 10000.0),
+        jerk_units_s3: rng.log(3000.0, 500_000.0),
     });
     for ax in m.axes.iter_mut().take(3) {
         *ax = Some(kerf_motion::AxisLimits {
-            velocity: rng.log(30.0, 500.0),
-            acceleration: rng.log(300.0, 5000.0),
-            jerk: rng.log(3000.0, 200_000.0),
+            velocity_units_s: rng.log(30.0, 500.0),
+            acceleration_units_s2: rng.log(300.0, 5000.0),
+            jerk_units_s3: rng.log(3000.0, 200_000.0),
         });
     }
     m
@@ -512,7 +512,7 @@ fn debug_dump(rows: &[(f64, Setpoint)], limits: &MachineLimits, opts: &RunOption
         for i in 0..3 {
             let p = |m: usize| rows[m].1.position[i];
             let j = ((p(k) - 3.0 * p(k - 1) + 3.0 * p(k - 2) - p(k - 3)) / (t * t * t)).abs()
-                / limits.axes[i].unwrap().jerk;
+                / limits.axes[i].unwrap().jerk_units_s3;
             if j > worst.0 {
                 worst = (j, k, i);
             }
@@ -825,9 +825,9 @@ fn sweep_limits(rng: &mut Rng) -> MachineLimits {
     m.period_s = rng.log(62.5e-6, 0.01);
     for ax in m.axes.iter_mut() {
         *ax = Some(kerf_motion::AxisLimits {
-            velocity: rng.log(10.0, 5000.0),
-            acceleration: rng.log(100.0, 1e6),
-            jerk: rng.log(1e3, 1e9),
+            velocity_units_s: rng.log(10.0, 5000.0),
+            acceleration_units_s2: rng.log(100.0, 1e6),
+            jerk_units_s3: rng.log(1e3, 1e9),
         });
     }
     m
@@ -839,9 +839,9 @@ fn fast_machine(jerk: f64, period_s: f64) -> MachineLimits {
     let mut m = mill(1000.0, 100_000.0, jerk, 0.01);
     m.period_s = period_s;
     let rot = kerf_motion::AxisLimits {
-        velocity: 1000.0,
-        acceleration: 100_000.0,
-        jerk,
+        velocity_units_s: 1000.0,
+        acceleration_units_s2: 100_000.0,
+        jerk_units_s3: jerk,
     };
     m.axes[3] = Some(rot);
     m.axes[4] = Some(rot);
@@ -908,9 +908,9 @@ fn check_all_axes(name: &str, rows: &[(f64, Setpoint)], limits: &MachineLimits) 
             let a = (p(3) - 2.0 * p(2) + p(1)).abs() / (t * t);
             let j = (p(3) - 3.0 * p(2) + 3.0 * p(1) - p(0)).abs() / (t * t * t);
             let ratios = [
-                v / (l.velocity * 1.01 + noise / t),
-                a / (l.acceleration * 1.01 + 2.0 * noise / (t * t)),
-                j / (l.jerk * 1.01 + 4.0 * noise / (t * t * t)),
+                v / (l.velocity_units_s * 1.01 + noise / t),
+                a / (l.acceleration_units_s2 * 1.01 + 2.0 * noise / (t * t)),
+                j / (l.jerk_units_s3 * 1.01 + 4.0 * noise / (t * t * t)),
             ];
             assert!(
                 ratios.iter().all(|&r| r <= 1.0),
@@ -1096,8 +1096,8 @@ fn hold_stops_within_the_stopping_time_and_resume_finishes() {
                 .fold(f64::INFINITY, f64::min)
         };
         let (a_path, j_path) = (
-            PATH_SHARE * lowest(|l| l.acceleration),
-            PATH_SHARE * lowest(|l| l.jerk),
+            PATH_SHARE * lowest(|l| l.acceleration_units_s2),
+            PATH_SHARE * lowest(|l| l.jerk_units_s3),
         );
         let v_peak = v0 + a0 * a0 / (2.0 * j_path);
         let bound = a0 / j_path + stop_time_s(v_peak, a_path, j_path) + 3.0 * t;

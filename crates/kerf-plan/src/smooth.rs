@@ -59,7 +59,8 @@
 //! A piece replaces several programmed moves: its [`PlannedSegment`](crate::PlannedSegment)
 //! names the first one (`line`, `move_index`) and how many it covers (`move_count`).
 
-use crate::{DESIGN_RUN_MM, TRANSITION_TOL_SHARE, poly5};
+use crate::{DESIGN_RUN_MM, TRANSITION_TOL_SHARE};
+use kerf_geom::poly5;
 use kerf_geom::{Transition, Vec3};
 
 /// Longest line that may join a run, mm.
@@ -746,14 +747,14 @@ mod tests {
 
     fn mill() -> MachineLimits {
         let l = AxisLimits {
-            velocity: 200.0,
-            acceleration: 2000.0,
-            jerk: 50000.0,
+            velocity_units_s: 200.0,
+            acceleration_units_s2: 2000.0,
+            jerk_units_s3: 50000.0,
         };
         let a = AxisLimits {
-            velocity: 3600.0,
-            acceleration: 36000.0,
-            jerk: 900_000.0,
+            velocity_units_s: 3600.0,
+            acceleration_units_s2: 36000.0,
+            jerk_units_s3: 900_000.0,
         };
         MachineLimits {
             axes: [Some(l), Some(l), Some(l), Some(a), None, None],
@@ -829,28 +830,32 @@ mod tests {
                 assert_eq!(s.curve.end(), end);
                 // Curvature-continuous joints cost no speed.
                 if k + 1 < segs.len() {
-                    let a = s.curve.eval(s.length);
+                    let a = s.curve.eval(s.length_mm);
                     let b = segs[k + 1].curve.eval(0.0);
                     assert!((a.tangent - b.tangent).norm() < 1e-12);
                     assert!((a.curvature - b.curvature).norm() < 1e-12);
-                    assert!(s.end_cap >= 0.999 * s.v_max.min(segs[k + 1].v_max));
+                    assert!(s.end_cap_mm_s >= 0.999 * s.v_max_mm_s.min(segs[k + 1].v_max_mm_s));
                 }
                 // Within the tolerance of the polyline, checked densely here.
                 for i in 0..=400 {
-                    let q = s.curve.point_at(s.length * i as f64 / 400.0);
+                    let q = s.curve.point_at(s.length_mm * i as f64 / 400.0);
                     let d = polyline_distance(&q, &pts);
                     assert!(d <= 0.01, "{decimals}: piece {k} off by {d}");
                 }
                 // Rounding noise is averaged out: the curvature is the circle's.
                 for i in 0..=20 {
-                    let kappa = s.curve.eval(s.length * i as f64 / 20.0).curvature.norm();
+                    let kappa = s.curve.eval(s.length_mm * i as f64 / 20.0).curvature.norm();
                     assert!(
                         (kappa - 0.1).abs() < 0.02,
                         "{decimals}: piece {k} κ {kappa}"
                     );
                 }
                 // So the feed is reachable everywhere.
-                assert!(s.v_max >= 99.9, "{decimals}: piece {k} v_max {}", s.v_max);
+                assert!(
+                    s.v_max_mm_s >= 99.9,
+                    "{decimals}: piece {k} v_max {}",
+                    s.v_max_mm_s
+                );
             }
         }
     }
@@ -866,7 +871,7 @@ mod tests {
         let corner = Vec3::new(5.0, 0.0, 0.0);
         let at_corner: Vec<_> = segs.iter().filter(|s| s.curve.end() == corner).collect();
         assert_eq!(at_corner.len(), 1, "the corner is a run end");
-        assert!(at_corner[0].end_cap < 1.0, "and a kink");
+        assert!(at_corner[0].end_cap_mm_s < 1.0, "and a kink");
         // An 18-gon of radius 2.9 mm: 20° turns whose chords sag 0.044 mm; smoothing would
         // leave the tolerance, so the corners are left to corner blending: every segment
         // stands for one move, and the sides are kept as lines.
@@ -903,20 +908,20 @@ mod tests {
         assert!(matches!(segs[segs.len() - 1].curve, Curve::Line { .. }));
         let step_cap = (crate::JUNCTION_SHARE * 50000.0 * 0.001 / 0.1f64).sqrt();
         for (k, s) in segs[..segs.len() - 1].iter().enumerate() {
-            let a = s.curve.eval(s.length);
+            let a = s.curve.eval(s.length_mm);
             let b = segs[k + 1].curve.eval(0.0);
             assert!((a.tangent - b.tangent).norm() < 1e-12);
             assert!((a.curvature - b.curvature).norm() < 1e-12);
             assert!(
-                s.end_cap > 5.0 * step_cap,
+                s.end_cap_mm_s > 5.0 * step_cap,
                 "cap {} at {:?}",
-                s.end_cap,
+                s.end_cap_mm_s,
                 s.curve.end()
             );
         }
         for s in &segs {
             for i in 0..=200 {
-                let q = s.curve.point_at(s.length * i as f64 / 200.0);
+                let q = s.curve.point_at(s.length_mm * i as f64 / 200.0);
                 assert!(polyline_distance(&q, &pts) <= 0.01);
             }
         }
@@ -969,16 +974,16 @@ mod tests {
                 .iter()
                 .map(|m| m.feed_mm_min.unwrap() / 60.0)
                 .fold(f64::INFINITY, f64::min);
-            assert_eq!(s.feed, lowest, "piece {k}");
+            assert_eq!(s.feed_mm_s, lowest, "piece {k}");
             if k + 1 < segs.len() {
-                let a = s.curve.eval(s.length);
+                let a = s.curve.eval(s.length_mm);
                 let b = segs[k + 1].curve.eval(0.0);
                 assert!((a.tangent - b.tangent).norm() < 1e-12, "joint {k}");
                 assert!((a.curvature - b.curvature).norm() < 1e-12, "joint {k}");
-                assert!(s.end_cap >= 0.999 * s.v_max.min(segs[k + 1].v_max));
+                assert!(s.end_cap_mm_s >= 0.999 * s.v_max_mm_s.min(segs[k + 1].v_max_mm_s));
             }
             for i in 0..=100 {
-                let q = s.curve.point_at(s.length * i as f64 / 100.0);
+                let q = s.curve.point_at(s.length_mm * i as f64 / 100.0);
                 assert!(polyline_distance(&q, &pts) <= 0.01, "piece {k}");
             }
         }
@@ -1022,10 +1027,10 @@ mod tests {
             assert_eq!(s.abc_start_deg[0], a_at(first));
             assert_eq!(s.abc_end_deg[0], a_at(last));
             let mut out = [0.0; 6];
-            s.position_at(s.length, &mut out);
+            s.position_at(s.length_mm, &mut out);
             assert_eq!(out[3], a_at(last));
             if k + 1 < segs.len() {
-                let (ta, ka) = s.derivatives_at(s.length);
+                let (ta, ka) = s.derivatives_at(s.length_mm);
                 let (tb, kb) = segs[k + 1].derivatives_at(0.0);
                 assert!(
                     (ta[3] - tb[3]).abs() < 1e-9,
@@ -1039,12 +1044,12 @@ mod tests {
                     ka[3],
                     kb[3]
                 );
-                assert!(s.end_cap >= 0.999 * s.v_max.min(segs[k + 1].v_max));
+                assert!(s.end_cap_mm_s >= 0.999 * s.v_max_mm_s.min(segs[k + 1].v_max_mm_s));
             }
             // A against the programmed interpolation at the nearest point of the lines the
             // piece replaces (the circle closes on itself: not the others).
             for i in 0..=200 {
-                s.position_at(s.length * i as f64 / 200.0, &mut out);
+                s.position_at(s.length_mm * i as f64 / 200.0, &mut out);
                 let q = Vec3::new(out[0], out[1], out[2]);
                 let (_, j, t) = (first..last)
                     .map(|j| {

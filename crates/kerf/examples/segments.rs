@@ -46,7 +46,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let written = writeln!(
             stdout,
             "{kind:8} line {:5} index {:5} moves {:4} len {:8.4} v {:7.2} a {:8.1} j {:9.1} cap {:7.2}",
-            s.line, s.move_index, s.move_count, s.length, s.v_max, s.accel, s.jerk, s.end_cap
+            s.line,
+            s.move_index,
+            s.move_count,
+            s.length_mm,
+            s.v_max_mm_s,
+            s.accel_mm_s2,
+            s.jerk_mm_s3,
+            s.end_cap_mm_s
         );
         if written.is_err() {
             // The reader went away (`| head`).

@@ -130,7 +130,7 @@ pub enum SimError {
     /// A setpoint broke a limit: the run stopped there (the CSV ends with it).
     #[error(
         "setpoint at t = {t_s} s (line {line}): {axis} {quantity} {percent:.0} % of the limit ({key} = {limit})",
-        axis = kerf_plan::AXIS_NAMES[violation.axis],
+        axis = kerf_geom::AXIS_NAMES[violation.axis],
         quantity = violation.quantity.name(),
         percent = violation.ratio() * 100.0,
         key = limit_key(violation),
@@ -438,16 +438,16 @@ pub fn machine_limits(config: &Config) -> MachineLimits {
     let mut axes = [None; 6];
     for (i, l) in config.axes.linear().iter().enumerate() {
         axes[i] = Some(AxisLimits {
-            velocity: l.velocity_mm_s,
-            acceleration: l.acceleration_mm_s2,
-            jerk: l.jerk_mm_s3,
+            velocity_units_s: l.velocity_mm_s,
+            acceleration_units_s2: l.acceleration_mm_s2,
+            jerk_units_s3: l.jerk_mm_s3,
         });
     }
     for (i, r) in config.axes.rotary().iter().enumerate() {
         axes[3 + i] = r.map(|r| AxisLimits {
-            velocity: r.velocity_deg_s,
-            acceleration: r.acceleration_deg_s2,
-            jerk: r.jerk_deg_s3,
+            velocity_units_s: r.velocity_deg_s,
+            acceleration_units_s2: r.acceleration_deg_s2,
+            jerk_units_s3: r.jerk_deg_s3,
         });
     }
     MachineLimits {
@@ -542,7 +542,7 @@ where
         // The monitor's peaks: a run that passed never shows more than 101 %.
         if let Some(f) = monitor.peak_ratios(i) {
             axes.push(AxisReport {
-                axis: kerf_plan::AXIS_NAMES[i],
+                axis: kerf_geom::AXIS_NAMES[i],
                 velocity: f[0],
                 acceleration: f[1],
                 jerk: f[2],
@@ -745,11 +745,11 @@ impl PlotRecorder {
             let h = |k: usize| self.hist[k][i];
             if self.seen >= 3 {
                 let a = (h(0) - 2.0 * h(1) + h(2)) / (dt * dt);
-                acc = acc.max(a.abs() / l.acceleration);
+                acc = acc.max(a.abs() / l.acceleration_units_s2);
             }
             if self.seen >= 4 {
                 let j = (h(0) - 3.0 * h(1) + 3.0 * h(2) - h(3)) / (dt * dt * dt);
-                jerk = jerk.max(j.abs() / l.jerk);
+                jerk = jerk.max(j.abs() / l.jerk_units_s3);
             }
         }
         self.points.push(PlotPoint {

@@ -15,8 +15,8 @@
 
 use std::f64::consts::TAU;
 
+use kerf_geom::PlannedSegment;
 use kerf_geom::{Arc, Curve, Move, Path, Vec3};
-use kerf_plan::PlannedSegment;
 
 use crate::config::Axes;
 
@@ -600,18 +600,18 @@ mod tests {
             abc_start_deg: abc.0,
             abc_end_deg: abc.1,
             abc_poly: None,
-            length: curve.length(),
+            length_mm: curve.length(),
             line: 12,
             move_index: 0,
             move_count: 1,
-            feed: 50.0,
-            v_max: 50.0,
-            accel: 1000.0,
-            jerk: 10000.0,
-            v_boost: 50.0,
-            accel_boost: 1000.0,
-            jerk_boost: 10000.0,
-            end_cap: 0.0,
+            feed_mm_s: 50.0,
+            v_max_mm_s: 50.0,
+            accel_mm_s2: 1000.0,
+            jerk_mm_s3: 10000.0,
+            v_boost_mm_s: 50.0,
+            accel_boost_mm_s2: 1000.0,
+            jerk_boost_mm_s3: 10000.0,
+            end_cap_mm_s: 0.0,
             blend: true,
         }
     }
@@ -646,7 +646,7 @@ mod tests {
             let mut out = [0.0; 6];
             let mut max_x = f64::NEG_INFINITY;
             for k in 0..=20_000 {
-                seg.position_at(seg.length * k as f64 / 20_000.0, &mut out);
+                seg.position_at(seg.length_mm * k as f64 / 20_000.0, &mut out);
                 max_x = max_x.max(out[0]);
             }
             let mut a = axes(-2000.0, 2000.0);

@@ -7,9 +7,9 @@ use kerf_motion::{AxisLimits, MachineLimits};
 /// A mill with the same limits on X, Y, Z.
 pub fn mill(v: f64, a: f64, j: f64, tol: f64) -> MachineLimits {
     let l = AxisLimits {
-        velocity: v,
-        acceleration: a,
-        jerk: j,
+        velocity_units_s: v,
+        acceleration_units_s2: a,
+        jerk_units_s3: j,
     };
     MachineLimits {
         axes: [Some(l), Some(l), Some(l), None, None, None],

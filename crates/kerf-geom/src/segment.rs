@@ -1,0 +1,234 @@
+//! [`PlannedSegment`]: the unit of work the planner hands to the motion core.
+
+use crate::{Curve, Transition};
+
+/// One segment ready for the motion core: geometry plus its limits along the path.
+///
+/// The path parameter `s` runs over `[0, length_mm]`; it is the XYZ arc length in mm, or,
+/// for a move of rotary axes only, the length of the rotary motion in degrees. Every
+/// limit below is in path units, so the `mm` in the names of its fields reads `deg` on
+/// such a rotary-only segment (`feed_mm_s` is then deg/s, and so on).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlannedSegment {
+    /// XYZ geometry.
+    pub curve: Curve,
+    /// A, B, C at the start, degrees (they move linearly with `s`, unless `abc_poly`).
+    pub abc_start_deg: [f64; 3],
+    /// A, B, C at the end, degrees.
+    pub abc_end_deg: [f64; 3],
+    /// On a smoothed piece with rotary motion: A, B, C as quintics in the parameter `u`
+    /// of the piece's [`Transition`] curve (power basis, degrees), curvature-continuous
+    /// with the neighbouring pieces. `None`: linear in `s`.
+    pub abc_poly: Option<[[f64; 6]; 3]>,
+    /// Length of the path parameter, mm (deg for rotary-only moves).
+    pub length_mm: f64,
+    /// Source line.
+    pub line: u32,
+    /// Index of the source move in program order (0-based), for path-deviation checks.
+    pub move_index: u64,
+    /// Number of programmed moves the segment stands for, from `move_index` on: 1, or more
+    /// for a smoothed piece of a dense polyline.
+    pub move_count: u32,
+    /// Programmed feed, mm/s (path units/s); infinite for rapids.
+    pub feed_mm_s: f64,
+    /// Machine speed limit on this segment (axes and curvature; on curved segments also the
+    /// programmed feed), mm/s. `accel_mm_s2` and `jerk_mm_s3` are valid for speeds up to
+    /// this.
+    pub v_max_mm_s: f64,
+    /// Path acceleration limit, mm/s².
+    pub accel_mm_s2: f64,
+    /// Path jerk limit, mm/s³.
+    pub jerk_mm_s3: f64,
+    /// Speed limit while the feed override is above 100 %, mm/s (at least `v_max_mm_s`):
+    /// curved segments are also designed for the highest override where that is faster.
+    /// `accel_boost_mm_s2` and `jerk_boost_mm_s3` are valid for every speed up to it.
+    pub v_boost_mm_s: f64,
+    /// Path acceleration limit valid up to `v_boost_mm_s` (at most `accel_mm_s2`), mm/s².
+    pub accel_boost_mm_s2: f64,
+    /// Path jerk limit valid up to `v_boost_mm_s` (at most `jerk_mm_s3`), mm/s³.
+    pub jerk_boost_mm_s3: f64,
+    /// Speed cap at the junction with the next segment, mm/s (0 = stop): the geometric
+    /// cap, at most the neighbours' `v_boost_mm_s` (their `v_max_mm_s` bounds it at 100 %).
+    pub end_cap_mm_s: f64,
+    /// `true` if the segment is a corner blend (not a programmed move).
+    pub blend: bool,
+}
+
+impl PlannedSegment {
+    /// A segment of one programmed move (not a blend) on `curve`, its path parameter
+    /// running over `[0, length_mm]` (mm, or deg for rotary-only moves), A, B, C moving
+    /// linearly from `abc_deg.0` to `abc_deg.1`, at programmed feed `feed_mm_s`; every
+    /// limit (`v_max_mm_s` to `end_cap_mm_s`) is 0 until the planner sets it.
+    pub fn with_zero_limits(
+        curve: Curve,
+        length_mm: f64,
+        abc_deg: ([f64; 3], [f64; 3]),
+        line: u32,
+        move_index: u64,
+        feed_mm_s: f64,
+    ) -> Self {
+        PlannedSegment {
+            curve,
+            abc_start_deg: abc_deg.0,
+            abc_end_deg: abc_deg.1,
+            abc_poly: None,
+            length_mm,
+            line,
+            move_index,
+            move_count: 1,
+            feed_mm_s,
+            v_max_mm_s: 0.0,
+            accel_mm_s2: 0.0,
+            jerk_mm_s3: 0.0,
+            v_boost_mm_s: 0.0,
+            accel_boost_mm_s2: 0.0,
+            jerk_boost_mm_s3: 0.0,
+            end_cap_mm_s: 0.0,
+            blend: false,
+        }
+    }
+
+    /// Positions of all six axes at path parameter `s`.
+    #[inline]
+    pub fn position_at(&self, s: f64, out: &mut [f64; 6]) {
+        if let (Some(c), Curve::Transition(t)) = (&self.abc_poly, &self.curve) {
+            if s >= self.length_mm {
+                let e = t.end;
+                out[..3].copy_from_slice(&[e.x, e.y, e.z]);
+                out[3..6].copy_from_slice(&self.abc_end_deg);
+            } else if s <= 0.0 {
+                let p = t.start;
+                out[..3].copy_from_slice(&[p.x, p.y, p.z]);
+                out[3..6].copy_from_slice(&self.abc_start_deg);
+            } else {
+                let u = t.param_at(s);
+                let p = t.poly(u);
+                out[..3].copy_from_slice(&[p.x, p.y, p.z]);
+                for i in 0..3 {
+                    out[3 + i] = poly5(&c[i], u);
+                }
+            }
+            return;
+        }
+        let p = if self.curve.length() > 0.0 {
+            self.curve.point_at(s)
+        } else {
+            self.curve.start()
+        };
+        out[0] = p.x;
+        out[1] = p.y;
+        out[2] = p.z;
+        if s >= self.length_mm {
+            out[3..6].copy_from_slice(&self.abc_end_deg);
+        } else {
+            let u = if self.length_mm > 0.0 {
+                (s / self.length_mm).max(0.0)
+            } else {
+                1.0
+            };
+            for i in 0..3 {
+                out[3 + i] =
+                    self.abc_start_deg[i] + (self.abc_end_deg[i] - self.abc_start_deg[i]) * u;
+            }
+        }
+    }
+
+    /// Derivatives with respect to `s` of all six axes at `s`: (tangent, curvature).
+    pub fn derivatives_at(&self, s: f64) -> ([f64; 6], [f64; 6]) {
+        let mut t = [0.0; 6];
+        let mut k = [0.0; 6];
+        if self.curve.length() > 0.0 {
+            let e = self.curve.eval(s);
+            for i in 0..3 {
+                t[i] = e.tangent[i];
+                k[i] = e.curvature[i];
+            }
+        }
+        if let (Some(c), Curve::Transition(tr)) = (&self.abc_poly, &self.curve) {
+            let u = tr.param_at(s);
+            let (rt, rk) = rotary_derivatives(tr, c, u);
+            t[3..6].copy_from_slice(&rt);
+            k[3..6].copy_from_slice(&rk);
+        } else if self.length_mm > 0.0 {
+            for i in 0..3 {
+                t[3 + i] = (self.abc_end_deg[i] - self.abc_start_deg[i]) / self.length_mm;
+            }
+        }
+        (t, k)
+    }
+}
+
+/// `Σ c[k] uᵏ`: a quintic in power basis, as in [`PlannedSegment::abc_poly`].
+#[inline]
+pub fn poly5(c: &[f64; 6], u: f64) -> f64 {
+    ((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]
+}
+
+/// First and second derivative of `Σ c[k] uᵏ`.
+#[inline]
+fn poly5_d(c: &[f64; 6], u: f64) -> (f64, f64) {
+    let d1 = (((5.0 * c[5] * u + 4.0 * c[4]) * u + 3.0 * c[3]) * u + 2.0 * c[2]) * u + c[1];
+    let d2 = ((20.0 * c[5] * u + 12.0 * c[4]) * u + 6.0 * c[3]) * u + 2.0 * c[2];
+    (d1, d2)
+}
+
+/// Derivatives of rotary quintics `c` (in the parameter `u` of `tr`) with respect to the
+/// XYZ arc length at `u`: `dA/ds = A'/|p'|`, `d²A/ds² = (A'' - A' (p'·p'')/|p'|²)/|p'|²`.
+pub fn rotary_derivatives(tr: &Transition, c: &[[f64; 6]; 3], u: f64) -> ([f64; 3], [f64; 3]) {
+    let q = tr.d1(u);
+    let r = tr.d2(u);
+    let sq = q.norm_squared();
+    let speed = sq.sqrt();
+    let along = q.dot(&r) / sq;
+    let mut t = [0.0; 3];
+    let mut k = [0.0; 3];
+    for i in 0..3 {
+        let (d1, d2) = poly5_d(&c[i], u);
+        t[i] = d1 / speed;
+        k[i] = (d2 - d1 * along) / sq;
+    }
+    (t, k)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Vec3;
+
+    #[test]
+    fn zero_limit_segment_moves_rotary_axes_linearly_along_the_line() {
+        // A 3-4-5 line in XY with A going from 10° to 40°.
+        let curve = Curve::line(Vec3::new(1.0, 1.0, 0.0), Vec3::new(4.0, 5.0, 0.0));
+        let seg = PlannedSegment::with_zero_limits(
+            curve,
+            5.0,
+            ([10.0, 0.0, 0.0], [40.0, 0.0, 0.0]),
+            7,
+            3,
+            25.0,
+        );
+        let limits = [
+            seg.v_max_mm_s,
+            seg.accel_mm_s2,
+            seg.jerk_mm_s3,
+            seg.v_boost_mm_s,
+            seg.accel_boost_mm_s2,
+            seg.jerk_boost_mm_s3,
+            seg.end_cap_mm_s,
+        ];
+        assert_eq!(limits, [0.0; 7]);
+        assert!(!seg.blend && seg.move_count == 1 && seg.abc_poly.is_none());
+        let mut p = [0.0; 6];
+        seg.position_at(2.5, &mut p);
+        let expect = [2.5, 3.0, 0.0, 25.0, 0.0, 0.0];
+        for i in 0..6 {
+            assert!((p[i] - expect[i]).abs() < 1e-12, "axis {i}: {p:?}");
+        }
+        // dA/ds = 30° over 5 mm.
+        let (t, _) = seg.derivatives_at(1.0);
+        assert!(
+            (t[3] - 6.0).abs() < 1e-12 && (t[0] - 0.6).abs() < 1e-12,
+            "{t:?}"
+        );
+    }
+}

@@ -1,0 +1,706 @@
+//! Limit budgets: the path limits `(v, a, j)` of a segment such that every axis stays
+//! within [`PROFILE_SHARE`] of its limits, and the design speed of curved segments.
+
+use kerf_geom::{Curve, Transition, Vec3, rotary_derivatives};
+
+use crate::search::{bisect, bisect_max, golden_min};
+use crate::timing::change_time_s;
+use crate::{MachineLimits, PROFILE_SHARE, PlannedSegment};
+
+/// Share of the acceleration (and jerk) budget that centripetal terms may take on curves:
+/// 75 % bounds the speed limit from curvature, leaving at least a quarter for the
+/// tangential ramps at that speed.
+const CENTRIPETAL_SHARE: f64 = 0.75;
+
+/// Samples of a transition for its curvature bounds: 128 like [`crate::DEVIATION_SAMPLES`];
+/// what rises between samples is covered by [`LIMIT_SAFETY`] and [`CURVATURE_SAFETY`].
+const LIMIT_SAMPLES: usize = 128;
+/// Samples for the curvature bounds of a smoothed piece that covers several moves: such
+/// pieces are gentle (their curvature follows a fitted window, not a corner), so half of
+/// [`LIMIT_SAMPLES`] suffices and halves the cost on dense CAM code.
+const PIECE_LIMIT_SAMPLES: usize = 64;
+/// Safety factor on the sampled curvature bounds of a transition: 10 % covers the
+/// finite-difference error of the curvature's derivative and its rise between samples.
+pub const LIMIT_SAFETY: f64 = 1.1;
+/// Safety factor on the sampled unit-tangent components of a transition: the tangent turns
+/// little between samples, so 0.1 % covers its rise there.
+const TANGENT_SAFETY: f64 = 1.001;
+/// Safety factor on the sampled curvature of a transition. The curvature itself is
+/// sampled directly (its derivative by finite differences, hence the larger
+/// [`LIMIT_SAFETY`]); between samples of a smooth quintic it cannot rise by more than a
+/// fraction of a per cent.
+pub const CURVATURE_SAFETY: f64 = 1.02;
+
+/// Per-axis geometric weights of a segment: the largest |component| over the segment of
+/// the unit tangent split into in-plane and axial parts, and the curvature terms.
+struct Weights {
+    /// Max |tangent_i| over the segment.
+    tangent: [f64; 6],
+    /// In-plane weight `sqrt(1 - axis_i²)` (0 on lines and rotary axes).
+    plane: [f64; 6],
+    /// Axial tangent component `|axis_i| · rise/length` on helices.
+    axial: [f64; 6],
+    /// In-plane speed factor `r |sweep| / length`.
+    q: f64,
+    /// Curvature, 1/mm.
+    kappa: f64,
+    /// Sweep per unit length, rad/mm.
+    sigma: f64,
+}
+
+fn weights(seg: &PlannedSegment) -> Weights {
+    let mut w = Weights {
+        tangent: [0.0; 6],
+        plane: [0.0; 6],
+        axial: [0.0; 6],
+        q: 0.0,
+        kappa: 0.0,
+        sigma: 0.0,
+    };
+    match &seg.curve {
+        Curve::Line { dir, .. } => {
+            if seg.curve.length() > 0.0 {
+                for i in 0..3 {
+                    w.tangent[i] = dir[i].abs();
+                }
+            }
+        }
+        Curve::Helix(h) => {
+            let q = h.radius_mm * h.sweep_rad.abs() / h.length_mm;
+            let c = h.rise_mm.abs() / h.length_mm;
+            w.q = q;
+            w.sigma = h.sweep_rad.abs() / h.length_mm;
+            w.kappa = h.curvature();
+            for i in 0..3 {
+                let ax = h.axis[i].abs().min(1.0);
+                w.plane[i] = (1.0 - ax * ax).max(0.0).sqrt();
+                w.axial[i] = ax * c;
+                w.tangent[i] = w.plane[i] * q + w.axial[i];
+            }
+        }
+        Curve::Transition(_) => unreachable!("transitions have their own limits"),
+    }
+    for i in 0..3 {
+        w.tangent[3 + i] = (seg.abc_end_deg[i] - seg.abc_start_deg[i]).abs() / seg.length_mm;
+    }
+    w
+}
+
+/// Path limits `(v_max, a_max, j_max)` of a segment such that every axis stays within
+/// [`PROFILE_SHARE`] of its limits for any speed up to `v_max` (curved segments: up to the
+/// programmed feed), any tangential acceleration up to `a_max` and jerk up to `j_max`.
+///
+/// `feed_scale` (at least 1) is the feed override the curved segments are designed for:
+/// their `v_max` is at most the programmed feed times it.
+///
+/// `run_mm` is the distance a curved segment's design speed is chosen for (at least its
+/// length is used): how far the path runs on without a corner, see [`DESIGN_RUN_MM`].
+pub fn segment_limits(
+    seg: &PlannedSegment,
+    limits: &MachineLimits,
+    feed_scale: f64,
+    run_mm: f64,
+) -> (f64, f64, f64) {
+    if let Curve::Transition(t) = &seg.curve {
+        // Smoothed pieces keep the programmed feed as their design speed: boosted, their
+        // limits vary with the direction from piece to piece, and every difference splits
+        // the motion core's sections (a return to a = 0), which costs more than it gains.
+        let (samples, feed_scale) = if seg.move_count > 1 {
+            (PIECE_LIMIT_SAMPLES, 1.0)
+        } else {
+            (LIMIT_SAMPLES, feed_scale)
+        };
+        return transition_limits(seg, t, limits, samples, feed_scale, run_mm);
+    }
+    let w = weights(seg);
+    let share = PROFILE_SHARE;
+    let mut v = f64::INFINITY;
+    let mut a_line = f64::INFINITY;
+    let mut j_line = f64::INFINITY;
+    let mut v2 = f64::INFINITY;
+    let mut v3 = f64::INFINITY;
+    for i in 0..6 {
+        let Some(l) = limits.axes[i] else { continue };
+        if w.tangent[i] > 0.0 {
+            v = v.min(share * l.velocity_units_s / w.tangent[i]);
+        }
+        if w.plane[i] > 0.0 && w.kappa > 0.0 {
+            // Bounds on v² and v³; the roots are taken once, after the loop.
+            v2 = v2
+                .min(CENTRIPETAL_SHARE * share * l.acceleration_units_s2 / (w.plane[i] * w.kappa));
+            v3 = v3.min(
+                CENTRIPETAL_SHARE * share * l.jerk_units_s3
+                    / (w.plane[i] * w.q * w.sigma * w.sigma),
+            );
+        }
+        // Straight components (lines, helix axial parts, rotary axes).
+        let straight = if w.plane[i] > 0.0 {
+            w.axial[i]
+        } else {
+            w.tangent[i]
+        };
+        if straight > 0.0 && w.plane[i] == 0.0 {
+            a_line = a_line.min(share * l.acceleration_units_s2 / straight);
+            j_line = j_line.min(share * l.jerk_units_s3 / straight);
+        }
+    }
+    if v2.is_finite() {
+        v = v.min(v2.sqrt());
+    }
+    if v3.is_finite() {
+        v = v.min(v3.cbrt());
+    }
+    if w.kappa == 0.0 {
+        return (v, a_line, j_line);
+    }
+    // Curved: the acceleration and jerk depend on the speed; the design speed (up to the
+    // feed) is the one with the least rough time (cruise plus one ramp).
+    let search = |v_start: f64| {
+        design_speed_search(run_mm.max(seg.length_mm), v_start, |vd| {
+            curved_budget(&w, limits, vd, a_line, j_line)
+        })
+    };
+    boosted(v, seg.feed_mm_s, feed_scale, search)
+}
+
+/// The design for the programmed feed (at most the machine speed `v`), or for the feed
+/// times `feed_scale` if that allows a speed at least 10 % higher: a design speed above
+/// the feed leaves less tangential budget (slower ramps), which a few per cent more speed
+/// does not pay for (the dense circle at 150 %: 102 mm/s instead of 100, but 0.96 s
+/// instead of 0.78 s).
+fn boosted(
+    v: f64,
+    feed: f64,
+    feed_scale: f64,
+    search: impl Fn(f64) -> (f64, f64, f64),
+) -> (f64, f64, f64) {
+    let base = search(v.min(feed));
+    if feed_scale > 1.0 && v > feed {
+        let boost = search(v.min(feed * feed_scale));
+        if boost.0 >= 1.1 * base.0 {
+            return boost;
+        }
+    }
+    base
+}
+
+/// Distance a curved segment's design speed is chosen for at the least, mm: the segment
+/// may be one of a long chain (a dense circle, a helix in turns), so its own length says
+/// little about how long the speed is held.
+pub const DESIGN_RUN_MM: f64 = 30.0;
+/// Ratio of the design-speed candidates below the top speed: 20 % steps are fine enough
+/// for the golden-section refinement between neighbours to find the minimum.
+const DESIGN_GRID_RATIO: f64 = 0.8;
+/// Candidates of that grid: down to `0.8²⁴ ≈ 0.5 %` of the top speed, below which a
+/// design speed is a crawl.
+const DESIGN_GRID_POINTS: usize = 25;
+/// The design grid stops once this many points past the best one...
+const DESIGN_STOP_AFTER: usize = 3;
+/// ...are this much slower than it: 50 % past the best, the unimodal measure will not
+/// come back.
+const DESIGN_STOP_RATIO: f64 = 1.5;
+/// Lowest design speed tried when no grid point has a budget, × the top speed: 1e-12 is
+/// where the curvature terms (`v²`, `v³`) have vanished for any finite limits.
+const DESIGN_FLOOR_RATIO: f64 = 1e-12;
+/// Probe just below the top of a grid (design speed or acceleration): 1 % below, to see
+/// whether the measure rises there (then the top is best and no refinement is needed).
+const TOP_PROBE_RATIO: f64 = 0.99;
+/// Golden-section narrowings of the design speed between grid neighbours: `0.618¹⁰ ≈ 1 %`
+/// of the bracket, finer than the rough time it minimises.
+const DESIGN_GOLDEN_STEPS: usize = 10;
+/// Acceleration and jerk of a segment whose top speed is 0 or not finite (no speed to
+/// design for), path units/s² and /s³: tiny and positive, never 0 or infinite.
+const DEGENERATE_BUDGET: f64 = 1e-3;
+
+/// The design speed `vd` (at most `v_top`) and its tangential budget `budget(vd)` that
+/// give the least rough time over `max(length, DESIGN_RUN_MM)` from rest to rest: the
+/// cruise at `vd` plus one jerk-limited ramp to it ([`change_time_s`]). On a curve a
+/// higher design speed leaves less of the axis limits to the tangential motion (the
+/// centripetal terms take them), so the fastest cruise is not the quickest segment.
+///
+/// The choice is a minimum of one measure over every speed up to `v_top`, and a larger
+/// limit on any axis only raises `v_top` and every speed's budget: the measure it finds
+/// never grows with a limit. (A rule such as "the highest speed whose budget is a fifth
+/// of the axis limits" is not: a larger limit moves the threshold and can push the
+/// design speed up into a poorer budget or down to a crawl.)
+fn design_speed_search(
+    length: f64,
+    v_top: f64,
+    budget: impl Fn(f64) -> Option<(f64, f64)>,
+) -> (f64, f64, f64) {
+    let run_mm = length;
+    let eval = |vd: f64| -> Option<(f64, f64, f64)> {
+        let (a, j) = budget(vd)?;
+        Some((run_mm / vd + change_time_s(vd, a, j), a, j))
+    };
+    if !(v_top > 0.0 && v_top.is_finite()) {
+        return (v_top.max(0.0), DEGENERATE_BUDGET, DEGENERATE_BUDGET);
+    }
+    // Coarse grid down from the top, stopping once the measure has risen well past its
+    // best (it is unimodal in practice: the cruise term falls with vd, the ramp grows);
+    // then golden-section search in log vd between the best point's neighbours.
+    let grid = |k: usize| v_top * DESIGN_GRID_RATIO.powi(k as i32);
+    let mut best: Option<(usize, (f64, f64, f64))> = None;
+    for k in 0..DESIGN_GRID_POINTS {
+        let e = eval(grid(k));
+        if let Some(e) = e {
+            if best.is_none_or(|b| e.0 < b.1.0) {
+                best = Some((k, e));
+            } else if best
+                .is_some_and(|b| k >= b.0 + DESIGN_STOP_AFTER && e.0 > DESIGN_STOP_RATIO * b.1.0)
+            {
+                break;
+            }
+        }
+    }
+    // No budget at any of those speeds (the curvature terms used all of it): go on
+    // lowering, as they vanish with the speed (v² and v³) and leave the whole tangential
+    // budget at a low enough one. A floor of made-up limits would crawl: a 0.07 mm G2
+    // blend took 18 s, and a hold on it 6.5 s.
+    let mut k_low = DESIGN_GRID_POINTS;
+    while best.is_none() && grid(k_low) > v_top * DESIGN_FLOOR_RATIO {
+        if let Some(e) = eval(grid(k_low)) {
+            best = Some((k_low, e));
+        }
+        k_low += 1;
+    }
+    let Some((k, mut found)) = best else {
+        // Unreachable for finite limits (see above): the lowest speed tried, and a budget
+        // as small, keep the segment slow but finite.
+        let v = grid(k_low);
+        return (v, v, v);
+    };
+    // The usual case: the top speed is best and the measure rises just below it.
+    if k == 0 && eval(TOP_PROBE_RATIO * v_top).is_none_or(|e| e.0 >= found.0) {
+        return (v_top, found.1, found.2);
+    }
+    let mut vd = grid(k);
+    let (lo, hi) = (grid(k + 1).ln(), grid(k.saturating_sub(1)).min(v_top).ln());
+    let measure = |x: f64| eval(x.exp()).map_or(f64::INFINITY, |e| e.0);
+    let (x, _) = golden_min(lo, hi, DESIGN_GOLDEN_STEPS, measure);
+    if let Some(e) = eval(x.exp()).filter(|e| e.0 < found.0) {
+        vd = x.exp();
+        found = e;
+    }
+    (vd, found.1, found.2)
+}
+
+/// Sampled bounds of a transition (with [`LIMIT_SAFETY`] on the curvature terms).
+struct TransitionBounds {
+    /// Per axis X..C: largest `|t_i|` (unit tangent; for rotary axes `dA/ds`).
+    tangent: [f64; 6],
+    /// Per axis: largest `|K_i|` (curvature vector; for rotary axes `d²A/ds²`).
+    curvature: [f64; 6],
+    /// Per axis: largest `|K'_i|` (derivative of the curvature vector along the path).
+    curvature_rate: [f64; 6],
+    /// Largest curvature `κ`, 1/mm.
+    kappa: f64,
+    /// Largest `|K' + κ² t| = sqrt(κ'² + (κτ)²)` (the part of `K'` off the tangent), 1/mm².
+    kappa_rate: f64,
+    /// Per axis: the largest share of a vector in the curve's plane that the axis sees,
+    /// `sqrt(1 - N_i²)` for a planar curve with normal `N`, 1 otherwise.
+    plane: [f64; 3],
+}
+
+/// Bounds of a transition, sampled densely along it.
+fn transition_bounds(
+    t: &Transition,
+    abc: Option<&[[f64; 6]; 3]>,
+    samples: usize,
+) -> TransitionBounds {
+    let mut b = TransitionBounds {
+        tangent: [0.0; 6],
+        curvature: [0.0; 6],
+        curvature_rate: [0.0; 6],
+        kappa: 0.0,
+        kappa_rate: 0.0,
+        plane: [1.0; 3],
+    };
+    let n = samples;
+    // Frames on a grid in u; dK/ds by central differences on the grid (one-sided at the
+    // ends), so each sample costs one evaluation.
+    // Six-axis frames: XYZ unit tangent and curvature vector, and the rotary axes'
+    // derivatives with respect to the XYZ arc length.
+    let frame = |i: usize| {
+        let u = i as f64 / n as f64;
+        let (tan, k) = t.frame_at_param(u);
+        let mut t6 = [tan[0], tan[1], tan[2], 0.0, 0.0, 0.0];
+        let mut k6 = [k[0], k[1], k[2], 0.0, 0.0, 0.0];
+        if let Some(c) = abc {
+            let (rt, rk) = rotary_derivatives(t, c, u);
+            t6[3..6].copy_from_slice(&rt);
+            k6[3..6].copy_from_slice(&rk);
+        }
+        (tan, k, t6, k6)
+    };
+    let (mut prev, mut cur) = (frame(0), frame(0));
+    for i in 0..=n {
+        let next = if i < n { frame(i + 1) } else { cur };
+        let (tan, k, t6, k6) = cur;
+        let (ia, ib) = (i.saturating_sub(1), (i + 1).min(n));
+        let du = (ib - ia) as f64 / n as f64;
+        let ka = if i == 0 { cur.3 } else { prev.3 };
+        let kb = if i == n { cur.3 } else { next.3 };
+        let ds = du * t.speed(i as f64 / n as f64);
+        let dk6: [f64; 6] = std::array::from_fn(|ax| (kb[ax] - ka[ax]) / ds);
+        let dk = Vec3::new(dk6[0], dk6[1], dk6[2]);
+        for ax in 0..6 {
+            b.tangent[ax] = b.tangent[ax].max(t6[ax].abs());
+            b.curvature[ax] = b.curvature[ax].max(k6[ax].abs());
+            b.curvature_rate[ax] = b.curvature_rate[ax].max(dk6[ax].abs());
+        }
+        let kappa = k.norm();
+        b.kappa = b.kappa.max(kappa);
+        b.kappa_rate = b.kappa_rate.max((dk + tan * (kappa * kappa)).norm());
+        prev = cur;
+        cur = next;
+    }
+    for ax in 0..6 {
+        b.tangent[ax] *= TANGENT_SAFETY;
+        if ax < 3 {
+            b.tangent[ax] = b.tangent[ax].min(1.0);
+        }
+        // Rotary derivatives are sampled like the curvature's derivative: the larger
+        // factor.
+        b.curvature[ax] *= if ax < 3 {
+            CURVATURE_SAFETY
+        } else {
+            LIMIT_SAFETY
+        };
+        b.curvature_rate[ax] *= LIMIT_SAFETY;
+    }
+    b.kappa *= CURVATURE_SAFETY;
+    b.kappa_rate *= LIMIT_SAFETY;
+    if let Some(normal) = plane_normal(&t.coef) {
+        for ax in 0..3 {
+            b.plane[ax] = (1.0 - normal[ax] * normal[ax]).max(0.0).sqrt();
+        }
+    }
+    b
+}
+
+/// A curve counts as straight when its coefficients' largest cross product is below this,
+/// relative to their squared size: rounding noise, no plane to speak of.
+const STRAIGHT_REL: f64 = 1e-9;
+/// A curve counts as planar when every coefficient leaves the plane by at most this,
+/// relative to their size: a few ulps of rounding.
+const PLANAR_REL: f64 = 1e-12;
+
+/// The unit normal of the plane a polynomial curve lies in, if it is planar (and not
+/// straight).
+fn plane_normal(coef: &[Vec3; 6]) -> Option<Vec3> {
+    let scale = coef[1..].iter().map(|c| c.norm()).fold(0.0, f64::max);
+    if scale.is_nan() || scale <= 0.0 {
+        return None;
+    }
+    let mut best = Vec3::zeros();
+    for i in 1..6 {
+        for j in i + 1..6 {
+            let c = coef[i].cross(&coef[j]);
+            if c.norm() > best.norm() {
+                best = c;
+            }
+        }
+    }
+    if best.norm() <= STRAIGHT_REL * scale * scale {
+        return None;
+    }
+    let normal = best.normalize();
+    coef[1..]
+        .iter()
+        .all(|c| c.dot(&normal).abs() <= PLANAR_REL * scale)
+        .then_some(normal)
+}
+
+/// Path limits of a G2 transition. With arc-length parametrisation each axis sees
+/// `x_i'' = t_i a + K_i v²` and `x_i''' = t_i j + 3 K_i v a + K'_i v³`. Two bounds hold for
+/// every axis and either may be used: the per-axis one, `|t_i| a + |K_i| v²` and
+/// `|t_i| j + 3 |K_i| v a + |K'_i| v³` with the sampled maxima; and the Frenet one,
+/// `w_i sqrt(a² + (κv²)²)` and `w_i sqrt((j + κ²v³)² + (3κva + |K' + κ²t| v³)²)` (the
+/// tangent and normal parts of the vectors are orthogonal; `w_i` is the axis' share of the
+/// curve's plane), which is much tighter where the curve turns. They are kept within
+/// [`PROFILE_SHARE`] of the limits for every speed up to the design speed, which is chosen
+/// like on arcs.
+fn transition_limits(
+    seg: &PlannedSegment,
+    t: &Transition,
+    limits: &MachineLimits,
+    samples: usize,
+    feed_scale: f64,
+    run_mm: f64,
+) -> (f64, f64, f64) {
+    let b = transition_bounds(t, seg.abc_poly.as_ref(), samples);
+    let (tm, km, kp) = (b.tangent, b.curvature, b.curvature_rate);
+    let share = PROFILE_SHARE;
+    let mut v = f64::INFINITY;
+    for i in 0..6 {
+        let Some(l) = limits.axes[i] else { continue };
+        if tm[i] > 0.0 {
+            v = v.min(share * l.velocity_units_s / tm[i]);
+        }
+        if km[i] > 0.0 {
+            v = v.min((CENTRIPETAL_SHARE * share * l.acceleration_units_s2 / km[i]).sqrt());
+        }
+        if kp[i] > 0.0 {
+            v = v.min((CENTRIPETAL_SHARE * share * l.jerk_units_s3 / kp[i]).cbrt());
+        }
+    }
+    // Largest tangential acceleration at speed vd, by either bound.
+    let accel_at = |vd: f64| -> Option<f64> {
+        let mut per_axis = f64::INFINITY;
+        let mut frenet = f64::INFINITY;
+        for i in 0..6 {
+            let Some(l) = limits.axes[i] else { continue };
+            let own = axis_rate(share * l.acceleration_units_s2 - km[i] * vd * vd, tm[i]);
+            per_axis = per_axis.min(own);
+            if i >= 3 {
+                // Rotary axes have only the per-axis bound, under either choice.
+                frenet = frenet.min(own);
+            } else if b.plane[i] > 0.0 {
+                let c = share * l.acceleration_units_s2 / b.plane[i];
+                let n = b.kappa * vd * vd;
+                frenet = frenet.min((c * c - n * n).max(0.0).sqrt());
+            }
+        }
+        let a = per_axis.max(frenet);
+        (a > 0.0 && a.is_finite()).then_some(a)
+    };
+    let jerk_at = |vd: f64, a: f64| -> f64 {
+        let mut per_axis = f64::INFINITY;
+        let mut frenet = f64::INFINITY;
+        for i in 0..6 {
+            let Some(l) = limits.axes[i] else { continue };
+            let room = share * l.jerk_units_s3 - 3.0 * km[i] * vd * a - kp[i] * vd * vd * vd;
+            let own = axis_rate(room, tm[i]);
+            per_axis = per_axis.min(own);
+            if i >= 3 {
+                frenet = frenet.min(own);
+            } else if b.plane[i] > 0.0 {
+                let c = share * l.jerk_units_s3 / b.plane[i];
+                let n = 3.0 * b.kappa * vd * a + b.kappa_rate * vd * vd * vd;
+                let tangential = (c * c - n * n).max(0.0).sqrt() - b.kappa * b.kappa * vd.powi(3);
+                frenet = frenet.min(tangential.max(0.0));
+            }
+        }
+        per_axis.max(frenet)
+    };
+    let budget = |vd: f64| -> Option<(f64, f64)> {
+        let a_hi = accel_at(vd)?;
+        quickest_budget(vd, a_hi, |a| jerk_at(vd, a))
+    };
+    let run_mm = if seg.move_count > 1 {
+        seg.length_mm.max(run_mm)
+    } else {
+        seg.length_mm
+    };
+    let search = |v_start: f64| design_speed_search(run_mm, v_start, budget);
+    boosted(v, seg.feed_mm_s, feed_scale, search)
+}
+
+/// The largest tangential rate (acceleration or jerk) an axis allows when `room` of its
+/// limit is left after the curvature terms and it sees `weight` of the tangential rate:
+/// none if nothing is left, any if it does not see it.
+fn axis_rate(room: f64, weight: f64) -> f64 {
+    if room <= 0.0 {
+        0.0
+    } else if weight > 0.0 {
+        room / weight
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The best `(a, j)` on a curved segment at design speed `vd`, if there is a useful one.
+fn curved_budget(
+    w: &Weights,
+    limits: &MachineLimits,
+    vd: f64,
+    a_line: f64,
+    j_line: f64,
+) -> Option<(f64, f64)> {
+    let share = PROFILE_SHARE;
+    if (0..6).all(|i| w.plane[i] == 0.0 || w.axial[i] == 0.0) {
+        return curved_budget_closed(w, limits, vd, a_line, j_line);
+    }
+    let fits_acc = |a: f64| -> bool {
+        (0..6).all(|i| match limits.axes[i] {
+            None => true,
+            Some(l) => {
+                let inplane = w.plane[i] * ((w.kappa * vd * vd).powi(2) + (w.q * a).powi(2)).sqrt();
+                let straight = if w.plane[i] > 0.0 {
+                    w.axial[i]
+                } else {
+                    w.tangent[i]
+                };
+                inplane + straight * a <= share * l.acceleration_units_s2
+            }
+        })
+    };
+    let fits_jerk = |a: f64, j: f64| -> bool {
+        (0..6).all(|i| match limits.axes[i] {
+            None => true,
+            Some(l) => {
+                let tang = w.q * (j + w.sigma * w.sigma * vd * vd * vd);
+                let norm = 3.0 * w.kappa * vd * a;
+                let inplane = w.plane[i] * (tang * tang + norm * norm).sqrt();
+                let straight = if w.plane[i] > 0.0 {
+                    w.axial[i]
+                } else {
+                    w.tangent[i]
+                };
+                inplane + straight * j <= share * l.jerk_units_s3
+            }
+        })
+    };
+    // The smallest axis limits bound the searches from above.
+    let (mut a_cap, mut j_cap) = (a_line, j_line);
+    for l in limits.axes.iter().flatten() {
+        a_cap = a_cap.min(l.acceleration_units_s2 / w.q.max(MIN_IN_PLANE_FACTOR));
+        j_cap = j_cap.min(l.jerk_units_s3 / w.q.max(MIN_IN_PLANE_FACTOR));
+    }
+    let a_hi = bisect_max(fits_acc, a_cap);
+    if a_hi <= 0.0 {
+        return None;
+    }
+    quickest_budget(vd, a_hi, |a| bisect_max(|j| fits_jerk(a, j), j_cap))
+}
+
+/// [`curved_budget`] in closed form, for segments where no axis sees both an in-plane and
+/// an axial component (every arc in G17/G18/G19 and every blend): per axis the in-plane
+/// constraints `w·sqrt((κv²)² + (qa)²) ≤ A` and `w·sqrt((q(j + σ²v³))² + (3κva)²) ≤ J`
+/// solve directly for `a` and `j`.
+fn curved_budget_closed(
+    w: &Weights,
+    limits: &MachineLimits,
+    vd: f64,
+    a_line: f64,
+    j_line: f64,
+) -> Option<(f64, f64)> {
+    let share = PROFILE_SHARE;
+    let centripetal = w.kappa * vd * vd;
+    let mut a_hi = a_line;
+    for i in 0..6 {
+        let (Some(l), true) = (limits.axes[i], w.plane[i] > 0.0) else {
+            continue;
+        };
+        let b = share * l.acceleration_units_s2 / w.plane[i];
+        let room = b * b - centripetal * centripetal;
+        if room <= 0.0 {
+            return None;
+        }
+        a_hi = a_hi.min(room.sqrt() / w.q);
+    }
+    if !(a_hi > 0.0 && a_hi.is_finite()) {
+        return None;
+    }
+    let jerk_for = |a: f64| -> f64 {
+        let mut j = j_line;
+        let normal = 3.0 * w.kappa * vd * a;
+        for i in 0..6 {
+            let (Some(l), true) = (limits.axes[i], w.plane[i] > 0.0) else {
+                continue;
+            };
+            let c = share * l.jerk_units_s3 / w.plane[i];
+            let room = c * c - normal * normal;
+            if room <= 0.0 {
+                return 0.0;
+            }
+            j = j.min(room.sqrt() / w.q - w.sigma * w.sigma * vd * vd * vd);
+        }
+        j
+    };
+    quickest_budget(vd, a_hi, jerk_for)
+}
+
+/// Grid ratio of [`quickest_budget`]'s coarse search over the acceleration: halving
+/// spans many decades in few points; golden-section search refines between them.
+const BUDGET_GRID_RATIO: f64 = 0.5;
+/// Points of that grid: it spans `a_hi` down to `a_hi·0.5²⁰ ≈ 1e-6·a_hi`, below which an
+/// acceleration gives no usable ramp.
+const BUDGET_GRID_POINTS: usize = 21;
+/// The acceleration grid stops this many points past the best (the time falls and then
+/// rises with the acceleration, so two rising points end the search).
+const BUDGET_STOP_AFTER: usize = 2;
+/// Golden-section narrowings of the acceleration between grid neighbours:
+/// `0.618¹⁴ ≈ 0.1 %` of a bracket twice as wide (in log) as the design speed's.
+const BUDGET_GOLDEN_STEPS: usize = 14;
+/// Halvings finding the acceleration a ramp by `vd` peaks at: `2⁻⁶⁰` of the bracket, past
+/// the resolution of an f64.
+const PEAK_BISECTION_STEPS: usize = 60;
+/// Floor of the in-plane speed factor `q` when dividing by it (a helix that is nearly a
+/// straight line along its axis): keeps the quotient finite.
+const MIN_IN_PLANE_FACTOR: f64 = 1e-9;
+
+/// The tangential budget `(a, j)` on a curve at design speed `vd` that makes the
+/// quickest jerk-limited change of speed by `vd` ([`change_time_s`]), for accelerations
+/// up to `a_hi` and the jerk `jerk_for(a)` the axes leave at each (it falls as `a` grows:
+/// the normal jerk `3κva` takes its share). `None` if no acceleration leaves any jerk.
+///
+/// The acceleration is chosen for the time it gives, never as a share of `a_hi`: on a
+/// machine with a large acceleration and a small jerk any fixed share of `a_hi` can leave
+/// no jerk at all (a circle of 10 mm at 10 mm/s with jerk 1,000 mm/s³ and 200,000 mm/s²:
+/// 5 % of the acceleration makes `3κva` alone 30 times the jerk), and the design speed
+/// then fell to a crawl. And it is never more than a change of speed by `vd` can use:
+/// such a ramp peaks at `sqrt(vd·j)`. A larger limit on any axis only widens the choice
+/// (more `a_hi`, more jerk at every `a`), so the time this budget gives never grows.
+fn quickest_budget(vd: f64, a_hi: f64, jerk_for: impl Fn(f64) -> f64) -> Option<(f64, f64)> {
+    if !(vd > 0.0 && a_hi > 0.0) || vd.is_infinite() {
+        return None;
+    }
+    // The jerk left is largest at a = 0, and a ramp by `vd` never reaches more than
+    // `sqrt(vd·j)`: nothing above `sqrt(vd·j(0))` is worth trying.
+    let j0 = jerk_for(0.0);
+    if j0.is_nan() || j0 <= 0.0 {
+        return None;
+    }
+    let a_hi = a_hi.min((vd * j0).sqrt()).min(f64::MAX.sqrt());
+    let cost = |a: f64| -> f64 {
+        let j = jerk_for(a);
+        if j > 0.0 && j.is_finite() {
+            change_time_s(vd, a, j)
+        } else {
+            f64::INFINITY
+        }
+    };
+    // Coarse: a geometric grid down from `a_hi`, until the time has risen for two points
+    // past the best (it falls and then rises with a); then golden-section search (in
+    // log a) around the best grid point.
+    let mut best = (f64::INFINITY, 0usize);
+    let grid = |k: usize| a_hi * BUDGET_GRID_RATIO.powi(k as i32);
+    for k in 0..BUDGET_GRID_POINTS {
+        let c = cost(grid(k));
+        if c < best.0 {
+            best = (c, k);
+        } else if best.0.is_finite() && k >= best.1 + BUDGET_STOP_AFTER {
+            break;
+        }
+    }
+    if !best.0.is_finite() {
+        return None;
+    }
+    let k = best.1;
+    if k == 0 && cost(TOP_PROBE_RATIO * a_hi) >= best.0 {
+        let j = jerk_for(a_hi);
+        return Some((a_hi, j));
+    }
+    let (lo, hi) = (
+        grid((k + 1).min(BUDGET_GRID_POINTS - 1)).ln(),
+        grid(k.saturating_sub(1)).ln(),
+    );
+    let (x, c) = golden_min(lo, hi, BUDGET_GOLDEN_STEPS, |x| cost(x.exp()));
+    let mut a = grid(k);
+    if c < best.0 {
+        a = x.exp();
+    }
+    let j = jerk_for(a);
+    // Never more acceleration than a ramp by `vd` reaches (`a = sqrt(vd·j(a))`, found by
+    // bisection): less leaves the same ramp time and more jerk room.
+    if a * a > vd * j {
+        let lo = bisect(0.0, a, PEAK_BISECTION_STEPS, |x| x * x <= vd * jerk_for(x));
+        let j_lo = jerk_for(lo);
+        if lo > 0.0 && j_lo >= j {
+            return Some((lo, j_lo));
+        }
+    }
+    Some((a, j))
+}

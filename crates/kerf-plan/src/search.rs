@@ -1,0 +1,74 @@
+//! One-dimensional numeric searches (bisection, golden section).
+
+/// Bisection between `good`, where `ok` holds, and `bad`, where it does not (`ok` changes
+/// once between them): the value nearest `bad` known to satisfy `ok`, after `steps`
+/// halvings.
+pub(crate) fn bisect(mut good: f64, mut bad: f64, steps: usize, ok: impl Fn(f64) -> bool) -> f64 {
+    for _ in 0..steps {
+        let mid = 0.5 * (good + bad);
+        if ok(mid) {
+            good = mid;
+        } else {
+            bad = mid;
+        }
+    }
+    good
+}
+
+/// Golden-section search for the minimum of `cost` on `[lo, hi]` (`steps` narrowings):
+/// the better of the last two points, and its cost.
+pub(crate) fn golden_min(
+    mut lo: f64,
+    mut hi: f64,
+    steps: usize,
+    cost: impl Fn(f64) -> f64,
+) -> (f64, f64) {
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut c1, mut c2) = (cost(x1), cost(x2));
+    for _ in 0..steps {
+        if c1 <= c2 {
+            hi = x2;
+            x2 = x1;
+            c2 = c1;
+            x1 = hi - g * (hi - lo);
+            c1 = cost(x1);
+        } else {
+            lo = x1;
+            x1 = x2;
+            c1 = c2;
+            x2 = lo + g * (hi - lo);
+            c2 = cost(x2);
+        }
+    }
+    if c1 <= c2 { (x1, c1) } else { (x2, c2) }
+}
+
+/// Halvings at most in [`bisect_max`]: `2⁻⁶⁰` of even a huge bracket (it starts from `hi`,
+/// possibly near `f64::MAX`) is below the relative resolution asked for.
+const BISECT_MAX_STEPS: usize = 60;
+/// Relative resolution of [`bisect_max`]: 1e-6, far finer than any limit it computes needs.
+const BISECT_MAX_REL: f64 = 1e-6;
+
+/// Largest `x` in `[0, hi]` with `ok(x)` (assumes `ok` is monotone), to [`BISECT_MAX_REL`]
+/// relative.
+pub(crate) fn bisect_max(ok: impl Fn(f64) -> bool, hi: f64) -> f64 {
+    if ok(hi) {
+        return hi;
+    }
+    // Find a finite bracket first when `hi` is huge.
+    let mut lo = 0.0;
+    let mut up = hi;
+    for _ in 0..BISECT_MAX_STEPS {
+        let mid = 0.5 * (lo + up);
+        if ok(mid) {
+            lo = mid;
+        } else {
+            up = mid;
+        }
+        if up - lo <= BISECT_MAX_REL * up {
+            break;
+        }
+    }
+    lo
+}

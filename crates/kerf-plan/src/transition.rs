@@ -1,0 +1,170 @@
+//! G2 transitions at joints with programmed arcs: the neighbours are trimmed and a
+//! quintic matching position, tangent and curvature at both ends is inserted where that
+//! runs the joint faster within the tolerance.
+
+use kerf_geom::{Curve, Transition};
+
+use crate::junction::junction_cap;
+use crate::planner::Planner;
+use crate::{
+    DEVIATION_SAMPLES, MIN_REMNANT_MM, MIN_SEGMENT_MM, PlannedSegment, TRANSITION_TOL_SHARE,
+};
+
+/// Factor by which the transition length shrinks per try: 15 % steps find a length
+/// within 15 % of the largest that fits, in few tries.
+const TRANSITION_SHRINK: f64 = 0.85;
+/// Tries before a joint is left without a transition: `0.85⁴⁸ ≈ 4e-4`, so the search spans
+/// more than three decades below its start.
+const TRANSITION_TRIES: usize = 48;
+/// Largest share of a neighbouring segment a transition may take: 45 %, so a piece between
+/// two transitions keeps a tenth of its length (no slivers between fast transitions).
+pub const TRANSITION_SHARE_OF_MOVE: f64 = 0.45;
+/// Longest time a transition slower than a quarter of the neighbours' speed may take, s:
+/// 20 ms, beyond which crawling round a sharp kink is slower than stopping at it.
+const MAX_CRAWL_S: f64 = 0.02;
+/// Below this share of the neighbours' speed a transition counts as a crawl (see
+/// [`MAX_CRAWL_S`]): a quarter of the speed is where crawling starts to lose to a stop.
+const CRAWL_SPEED_RATIO: f64 = 0.25;
+/// A joint already passable at this share of its neighbours' speed gets no transition:
+/// at most 10 % would be gained, not worth trimming two programmed moves.
+const FAST_JOINT_RATIO: f64 = 0.9;
+/// A transition is kept only if it raises the joint speed by this factor: gains under
+/// 5 % do not pay for the extra segment (and section boundary) it adds.
+const MIN_TRANSITION_GAIN: f64 = 1.05;
+/// First try of the transition reach against a curvature step, × `sqrt(tol/Δκ)`: about
+/// five times the estimate `sqrt(6·tol/Δκ)`, so the shrinking tries start above the
+/// largest reach that fits.
+const CURVATURE_START_FACTOR: f64 = 12.0;
+/// First try of the transition reach against a kink, × `tol/Δt`: four times the estimate
+/// `4·tol/Δt`, for the same reason.
+const KINK_START_FACTOR: f64 = 16.0;
+/// Shortest transition reach tried, mm: 1 nm, the motion core's coast-through length
+/// (`kerf_motion::COAST_BELOW_MM`), below which a transition could not be profiled.
+const MIN_TRANSITION_MM: f64 = 1e-6;
+
+impl Planner {
+    /// A curvature-continuous transition for the joint from `prev` to `seg`, if the joint
+    /// involves a programmed arc, has a curvature jump or kink that caps the speed, and a
+    /// transition within `tol` of the programmed path runs faster: `(prev trimmed at its
+    /// end, transition, seg trimmed at its start)`.
+    pub(crate) fn transition(
+        &self,
+        prev: &PlannedSegment,
+        seg: &PlannedSegment,
+        tol: f64,
+        origin: Option<&Curve>,
+    ) -> Option<(PlannedSegment, PlannedSegment, PlannedSegment)> {
+        let (Some(o_prev), Some(o_seg)) = (self.last_origin.as_ref(), origin) else {
+            return None;
+        };
+        if !(tol > 0.0 && tol.is_finite()) || prev.blend || seg.blend {
+            return None;
+        }
+        let is_arc = |s: &PlannedSegment| matches!(s.curve, Curve::Helix(_));
+        if !(is_arc(prev) || is_arc(seg)) {
+            return None;
+        }
+        let still = |s: &PlannedSegment| s.abc_start_deg == s.abc_end_deg;
+        if !still(prev) || !still(seg) || seg.move_index > prev.move_index + 1 {
+            return None;
+        }
+        let (la, lb) = (prev.curve.length(), seg.curve.length());
+        if la < MIN_SEGMENT_MM || lb < MIN_SEGMENT_MM {
+            return None;
+        }
+        let v_ref = prev
+            .v_max_mm_s
+            .min(seg.v_max_mm_s)
+            .min(prev.feed_mm_s)
+            .min(seg.feed_mm_s);
+        let old = junction_cap(prev, seg, &self.limits);
+        if old >= FAST_JOINT_RATIO * v_ref {
+            return None;
+        }
+        let ea = prev.curve.eval(la);
+        let eb = seg.curve.eval(0.0);
+        let dk = (eb.curvature - ea.curvature).norm();
+        let dt = (eb.tangent - ea.tangent).norm();
+        // Room: at most [`TRANSITION_SHARE_OF_MOVE`] of each neighbour as it came, so that a
+        // piece between two transitions keeps a tenth of its length (and at least
+        // [`MIN_REMNANT_MM`]): a sliver of a segment between two fast transitions would be a
+        // section the profile generator can fail on.
+        let room_a = (TRANSITION_SHARE_OF_MOVE * self.last_full_length).min(la - MIN_REMNANT_MM);
+        let room_b = (TRANSITION_SHARE_OF_MOVE * lb).min(lb - MIN_REMNANT_MM);
+        if room_a <= 0.0 || room_b <= 0.0 {
+            return None;
+        }
+        let mut d = room_a.min(room_b);
+        // Start above the estimates (a curvature ramp of Δκ over 2d sits about
+        // Δκ(2d)²/24 off the path; a kink of Δt cuts its corner by about dΔt/4) and shrink.
+        if dk > 0.0 {
+            d = d.min(CURVATURE_START_FACTOR * (tol / dk).sqrt());
+        }
+        if dt > 0.0 {
+            d = d.min(KINK_START_FACTOR * tol / dt);
+        }
+        for _ in 0..TRANSITION_TRIES {
+            if d < MIN_TRANSITION_MM {
+                return None;
+            }
+            let da = d.min(room_a);
+            let db = d.min(room_b);
+            d *= TRANSITION_SHRINK;
+            let ca = prev.curve.trimmed(0.0, la - da);
+            let cb = seg.curve.trimmed(db, lb);
+            let a = ca.eval(ca.length());
+            let b = cb.eval(0.0);
+            let lambda = (b.point - a.point).norm();
+            let Some(tr) = Transition::hermite(
+                a.point,
+                a.tangent,
+                a.curvature,
+                b.point,
+                b.tangent,
+                b.curvature,
+                lambda,
+            ) else {
+                continue;
+            };
+            let within = (0..=DEVIATION_SAMPLES).all(|i| {
+                let p = tr.poly(i as f64 / DEVIATION_SAMPLES as f64);
+                o_prev.distance_to(&p).min(o_seg.distance_to(&p)) <= TRANSITION_TOL_SHARE * tol
+            });
+            if !within {
+                continue;
+            }
+            let Some(tr) = tr.with_arc_length() else {
+                continue;
+            };
+            let curve = Curve::Transition(tr);
+            let mut t = PlannedSegment {
+                blend: true,
+                ..PlannedSegment::with_zero_limits(
+                    curve,
+                    curve.length(),
+                    (prev.abc_end_deg, prev.abc_end_deg),
+                    seg.line,
+                    prev.move_index,
+                    prev.feed_mm_s.min(seg.feed_mm_s),
+                )
+            };
+            self.set_limits(&mut t, false);
+            let mut p = *prev;
+            p.curve = ca;
+            p.length_mm = ca.length();
+            let mut s = *seg;
+            s.curve = cb;
+            s.length_mm = cb.length();
+            let new = junction_cap(&p, &t, &self.limits)
+                .min(t.v_max_mm_s)
+                .min(junction_cap(&t, &s, &self.limits));
+            // The largest transition within the tolerance is the fastest; take it if it
+            // beats the plain joint. A crawl through a long transition (a sharp kink with a
+            // small tolerance) costs more time than stopping at the kink: both need the
+            // same slow-down, so only the time spent on the transition counts.
+            let quick = new >= CRAWL_SPEED_RATIO * v_ref || t.length_mm <= MAX_CRAWL_S * new;
+            return (new > MIN_TRANSITION_GAIN * old && quick).then_some((p, t, s));
+        }
+        None
+    }
+}
