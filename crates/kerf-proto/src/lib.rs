@@ -28,6 +28,9 @@ mod control;
 mod moves;
 mod stream;
 
+#[cfg(test)]
+mod doc_layout;
+
 pub use control::{
     Command, REASON_BAD_VALUE, REASON_NOT_ALLOWED, REASON_NOT_IMPLEMENTED, REASON_OK,
     REASON_UNKNOWN_KIND, REASON_WRONG_VERSION, REQUEST_ABORT, REQUEST_HOLD, REQUEST_OVERRIDE,
@@ -49,6 +52,15 @@ pub use stream::{CONTINUITY_TOL, StreamCheck, StreamError};
 /// of any field is a new version (and new iceoryx2 type names); receivers refuse messages
 /// of another version.
 pub const PROTOCOL_VERSION: u32 = 1;
+
+// The sizes in docs/PROTOCOL.md; a layout change must fail the build, not only the tests.
+const _: () = {
+    assert!(size_of::<MoveMsg>() == 256);
+    assert!(size_of::<SetpointMsg>() == 152);
+    assert!(size_of::<Request>() == 24);
+    assert!(size_of::<StatusMsg>() == 280);
+    assert!(size_of::<Response>() == 400);
+};
 
 /// The number of axes in positions and velocities: X, Y, Z (mm), A, B, C (degrees).
 pub const AXES: usize = 6;
