@@ -81,14 +81,50 @@ fn constants() -> BTreeMap<&'static str, u32> {
         ($($c:ident),* $(,)?) => { BTreeMap::from([$((stringify!($c), $c)),*]) };
     }
     consts!(
-        PROTOCOL_VERSION, KIND_BEGIN, KIND_LINE, KIND_ARC, KIND_EVENT, KIND_END, FLAG_RAPID,
-        FLAG_ABC, FLAG_EVENT_VALUE, CORNER_EXACT_STOP, CORNER_BLEND_DEFAULT,
-        CORNER_BLEND_TOLERANCE, EVENT_M0, EVENT_M1, EVENT_M2, EVENT_M30, EVENT_M3, EVENT_M4,
-        EVENT_M5, EVENT_M6, EVENT_M7, EVENT_M8, EVENT_M9, EVENT_S, EVENT_T, EVENT_G4,
-        STATE_IDLE, STATE_RUNNING, STATE_HOLDING, STATE_STARVED, STATE_FAULT, STATE_STOPPING,
-        REQUEST_STATUS, REQUEST_HOLD, REQUEST_RESUME, REQUEST_ABORT, REQUEST_OVERRIDE,
-        REQUEST_RESET, REASON_OK, REASON_WRONG_VERSION, REASON_UNKNOWN_KIND, REASON_BAD_VALUE,
-        REASON_NOT_ALLOWED, REASON_NOT_IMPLEMENTED,
+        PROTOCOL_VERSION,
+        KIND_BEGIN,
+        KIND_LINE,
+        KIND_ARC,
+        KIND_EVENT,
+        KIND_END,
+        FLAG_RAPID,
+        FLAG_ABC,
+        FLAG_EVENT_VALUE,
+        CORNER_EXACT_STOP,
+        CORNER_BLEND_DEFAULT,
+        CORNER_BLEND_TOLERANCE,
+        EVENT_M0,
+        EVENT_M1,
+        EVENT_M2,
+        EVENT_M30,
+        EVENT_M3,
+        EVENT_M4,
+        EVENT_M5,
+        EVENT_M6,
+        EVENT_M7,
+        EVENT_M8,
+        EVENT_M9,
+        EVENT_S,
+        EVENT_T,
+        EVENT_G4,
+        STATE_IDLE,
+        STATE_RUNNING,
+        STATE_HOLDING,
+        STATE_STARVED,
+        STATE_FAULT,
+        STATE_STOPPING,
+        REQUEST_STATUS,
+        REQUEST_HOLD,
+        REQUEST_RESUME,
+        REQUEST_ABORT,
+        REQUEST_OVERRIDE,
+        REQUEST_RESET,
+        REASON_OK,
+        REASON_WRONG_VERSION,
+        REASON_UNKNOWN_KIND,
+        REASON_BAD_VALUE,
+        REASON_NOT_ALLOWED,
+        REASON_NOT_IMPLEMENTED,
     )
 }
 
@@ -113,7 +149,10 @@ fn type_size(ty: &str, msgs: &[Message]) -> usize {
 
 fn cells(row: &str) -> Vec<String> {
     let inner = row.trim().trim_start_matches('|').trim_end_matches('|');
-    inner.split('|').map(|c| c.trim().trim_matches('`').to_string()).collect()
+    inner
+        .split('|')
+        .map(|c| c.trim().trim_matches('`').to_string())
+        .collect()
 }
 
 #[test]
@@ -137,7 +176,11 @@ fn protocol_md_matches_the_code() {
                 .unwrap_or_else(|| panic!("documented message {name} is not in the code"));
             let words: Vec<String> = cells(&rest.replace(',', "|").replace('`', ""));
             assert_eq!(words[0], format!("{} bytes", msg.size), "{name}: size");
-            assert_eq!(words[1], format!("align {}", msg.align), "{name}: alignment");
+            assert_eq!(
+                words[1],
+                format!("align {}", msg.align),
+                "{name}: alignment"
+            );
             assert_eq!(
                 words[2],
                 format!("type name {}", msg.type_name),
@@ -160,19 +203,24 @@ fn protocol_md_matches_the_code() {
                 };
                 let offset: usize = offset.parse().expect("offset");
                 let size: usize = size.parse().expect("size");
-                let &(_, code_offset, code_size) = msg
-                    .fields
-                    .iter()
-                    .find(|f| f.0 == field)
-                    .unwrap_or_else(|| panic!("{name}.{field} is documented but not in the code"));
+                let &(_, code_offset, code_size) =
+                    msg.fields.iter().find(|f| f.0 == field).unwrap_or_else(|| {
+                        panic!("{name}.{field} is documented but not in the code")
+                    });
                 assert_eq!(offset, code_offset, "{name}.{field}: offset");
                 assert_eq!(size, code_size, "{name}.{field}: size");
                 assert_eq!(type_size(ty, &msgs), size, "{name}.{field}: type {ty}");
-                assert_eq!(offset, next_offset, "{name}.{field}: gap or overlap before it");
+                assert_eq!(
+                    offset, next_offset,
+                    "{name}.{field}: gap or overlap before it"
+                );
                 next_offset = offset + size;
             }
             // Every byte is a documented field: no padding, nothing undocumented.
-            assert_eq!(next_offset, msg.size, "{name}: the table does not cover every byte");
+            assert_eq!(
+                next_offset, msg.size,
+                "{name}: the table does not cover every byte"
+            );
             assert_eq!(rows.len(), msg.fields.len(), "{name}: field count");
             seen_msgs.push(msg.name);
         } else if line.starts_with("| constant") {

@@ -506,14 +506,17 @@ fn check_arc(a: &Arc) -> Result<(), Reject> {
     if r_start.is_nan() || r_start < ARC_MIN_RADIUS_MM {
         return Err(Reject::ZeroRadius);
     }
-    if along.abs() > ARC_CENTER_PLANE_REL_TOL * r_start {
+    let plane_ok = along.abs() <= ARC_CENTER_PLANE_REL_TOL * r_start;
+    if !plane_ok {
         return Err(Reject::CenterOffPlane);
     }
     let w = a.end - a.center;
     let w = w - axis * w.dot(&axis);
     let r_end = w.norm();
-    // `!(x <= tol)` also refuses NaN from overflowing intermediate values.
-    if !((r_end - r_start).abs() <= ARC_RADIUS_REL_TOL * r_start.max(r_end)) {
+    // Written as "within the tolerance" so that NaN (from overflowing intermediate values
+    // on huge coordinates) is refused too.
+    let radius_ok = (r_end - r_start).abs() <= ARC_RADIUS_REL_TOL * r_start.max(r_end);
+    if !radius_ok {
         return Err(Reject::RadiusMismatch);
     }
     if a.sweep_rad == 0.0 {
@@ -525,7 +528,8 @@ fn check_arc(a: &Arc) -> Result<(), Reject> {
     let turn = std::f64::consts::TAU;
     let diff = a.sweep_rad - actual;
     let off = diff - turn * (diff / turn).round();
-    if !(off.abs() <= ARC_SWEEP_TOL_RAD) {
+    let sweep_ok = off.abs() <= ARC_SWEEP_TOL_RAD;
+    if !sweep_ok {
         return Err(Reject::SweepMismatch);
     }
     Ok(())

@@ -24,11 +24,17 @@ fn unique(which: &str) -> ServiceName {
 #[test]
 fn a_program_goes_through_publish_subscribe() {
     let program = "G21 G90 F600\nG1 X10\nG3 X0 Y10 I-10 J0 Z-1\nM3 S1000\nM30\n";
-    let items: Vec<Item> = Interpreter::new(program.as_bytes(), Dialect::LinuxCnc, Settings::default())
-        .collect::<Result<_, _>>()
-        .expect("valid program");
+    let items: Vec<Item> =
+        Interpreter::new(program.as_bytes(), Dialect::LinuxCnc, Settings::default())
+            .collect::<Result<_, _>>()
+            .expect("valid program");
     let mut sent = vec![MoveMsg::begin(11, [0.0; 6], items.len() as u64)];
-    sent.extend(items.iter().enumerate().map(|(i, it)| MoveMsg::from_item(11, i as u64 + 1, it)));
+    sent.extend(
+        items
+            .iter()
+            .enumerate()
+            .map(|(i, it)| MoveMsg::from_item(11, i as u64 + 1, it)),
+    );
     sent.push(MoveMsg::end(11, items.len() as u64));
 
     let node = NodeBuilder::new().create::<ipc::Service>().expect("node");
@@ -39,10 +45,19 @@ fn a_program_goes_through_publish_subscribe() {
         .history_size(0)
         .open_or_create()
         .expect("service");
-    let subscriber = service.subscriber_builder().buffer_size(16).create().expect("subscriber");
+    let subscriber = service
+        .subscriber_builder()
+        .buffer_size(16)
+        .create()
+        .expect("subscriber");
     let publisher = service.publisher_builder().create().expect("publisher");
     for m in &sent {
-        publisher.loan_uninit().expect("loan").write_payload(*m).send().expect("send");
+        publisher
+            .loan_uninit()
+            .expect("loan")
+            .write_payload(*m)
+            .send()
+            .expect("send");
     }
     let mut received = Vec::new();
     while let Some(sample) = subscriber.receive().expect("receive") {
@@ -52,7 +67,10 @@ fn a_program_goes_through_publish_subscribe() {
 
     // And the daemon side accepts it, decoding the same items.
     let mut check = StreamCheck::new();
-    let decoded: Vec<Resolved> = received.iter().map(|m| check.check(m).expect("valid")).collect();
+    let decoded: Vec<Resolved> = received
+        .iter()
+        .map(|m| check.check(m).expect("valid"))
+        .collect();
     for (item, r) in items.iter().zip(&decoded[1..]) {
         match (item, r) {
             (Item::Move(a), Resolved::Move(b)) => assert_eq!(a, b),

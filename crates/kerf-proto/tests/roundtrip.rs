@@ -48,8 +48,8 @@ fn round_trip(name: &str, text: &[u8], dialect: Dialect, program_id: u64) -> Vec
     for (i, item) in items.iter().enumerate() {
         let seq = i as u64 + 1;
         let msg = MoveMsg::from_item(program_id, seq, item);
-        let alone = Resolved::try_from(&msg)
-            .unwrap_or_else(|e| panic!("{name} item {seq} {item:?}: {e}"));
+        let alone =
+            Resolved::try_from(&msg).unwrap_or_else(|e| panic!("{name} item {seq} {item:?}: {e}"));
         let in_stream = check
             .check(&msg)
             .unwrap_or_else(|e| panic!("{name} item {seq} {item:?}: {e}"));
@@ -112,10 +112,14 @@ fn rotary_axes_tolerances_and_exact_stop_round_trip() {
     assert_eq!(
         corners,
         [
-            CornerMode::Blend { tolerance_mm: Some(0.05) },
+            CornerMode::Blend {
+                tolerance_mm: Some(0.05)
+            },
             CornerMode::ExactStop,
             CornerMode::Blend { tolerance_mm: None },
-            CornerMode::Blend { tolerance_mm: Some(0.0) },
+            CornerMode::Blend {
+                tolerance_mm: Some(0.0)
+            },
         ]
     );
     assert_eq!(abc_moves, 4);
