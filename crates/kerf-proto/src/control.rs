@@ -1,0 +1,498 @@
+//! The daemon's other messages: [`SetpointMsg`] every cycle, and [`Request`] /
+//! [`Response`] (with its [`StatusMsg`]) on the control service.
+
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::{AXES, PROTOCOL_VERSION, read_text, write_text};
+
+/// Daemon state: no program running, at rest.
+pub const STATE_IDLE: u32 = 0;
+/// Daemon state: executing a program.
+pub const STATE_RUNNING: u32 = 1;
+/// Daemon state: feed hold (decelerating or stopped on the path; RESUME continues).
+pub const STATE_HOLDING: u32 = 2;
+/// Daemon state: stopped or stopping at the end of the queued geometry because the planner
+/// did not deliver in time; continues when moves arrive.
+pub const STATE_STARVED: u32 = 3;
+/// Daemon state: a fault stopped the motion; see the status' `fault` and `fault_text`.
+pub const STATE_FAULT: u32 = 4;
+/// Daemon state: aborting (decelerating to rest, then the queue is dropped).
+pub const STATE_STOPPING: u32 = 5;
+
+/// The daemon's state, decoded from a `state` field with [`TryFrom<u32>`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum State {
+    /// [`STATE_IDLE`].
+    Idle,
+    /// [`STATE_RUNNING`].
+    Running,
+    /// [`STATE_HOLDING`].
+    Holding,
+    /// [`STATE_STARVED`].
+    Starved,
+    /// [`STATE_FAULT`].
+    Fault,
+    /// [`STATE_STOPPING`].
+    Stopping,
+}
+
+/// A `state` value that is none of the `STATE_*` constants.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown daemon state {0}")]
+pub struct UnknownState(pub u32);
+
+impl State {
+    /// The `STATE_*` value.
+    pub fn as_u32(self) -> u32 {
+        match self {
+            State::Idle => STATE_IDLE,
+            State::Running => STATE_RUNNING,
+            State::Holding => STATE_HOLDING,
+            State::Starved => STATE_STARVED,
+            State::Fault => STATE_FAULT,
+            State::Stopping => STATE_STOPPING,
+        }
+    }
+
+    /// Lowercase name: "idle", "running", ...
+    pub fn as_str(self) -> &'static str {
+        match self {
+            State::Idle => "idle",
+            State::Running => "running",
+            State::Holding => "holding",
+            State::Starved => "starved",
+            State::Fault => "fault",
+            State::Stopping => "stopping",
+        }
+    }
+}
+
+impl TryFrom<u32> for State {
+    type Error = UnknownState;
+
+    fn try_from(v: u32) -> Result<State, UnknownState> {
+        Ok(match v {
+            STATE_IDLE => State::Idle,
+            STATE_RUNNING => State::Running,
+            STATE_HOLDING => State::Holding,
+            STATE_STARVED => State::Starved,
+            STATE_FAULT => State::Fault,
+            STATE_STOPPING => State::Stopping,
+            other => return Err(UnknownState(other)),
+        })
+    }
+}
+
+/// One real-time cycle's output, published on the setpoints service every cycle.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[type_name("kerf.SetpointMsg.v1")]
+pub struct SetpointMsg {
+    /// [`PROTOCOL_VERSION`].
+    pub version: u32,
+    /// `STATE_*` at the end of the cycle.
+    pub state: u32,
+    /// Cycle number since the daemon started (0 = first cycle); consecutive unless
+    /// messages were lost.
+    pub seq: u64,
+    /// CLOCK_MONOTONIC time of the cycle's deadline, ns.
+    pub time_ns: u64,
+    /// The program started last (0 = none since the daemon started).
+    pub program_id: u64,
+    /// Cycles since that program's first cycle (0 on the cycle that starts it). It keeps
+    /// counting while idle after the program, so `(program_id, program_cycle)` is a time
+    /// base for recordings; 0 while `program_id` is 0.
+    pub program_cycle: u64,
+    /// Commanded position X, Y, Z mm, A, B, C degrees.
+    pub position_mm_deg: [f64; AXES],
+    /// Commanded velocity X, Y, Z mm/s, A, B, C deg/s.
+    pub velocity_mm_deg_s: [f64; AXES],
+    /// Feed along the path, mm/s (after override).
+    pub feed_mm_s: f64,
+    /// Source line of the move being executed (0 = none).
+    pub line: u32,
+    /// Bit i set: axis i (X, Y, Z, A, B, C) is configured; other entries are 0.
+    pub axes_mask: u32,
+}
+
+impl SetpointMsg {
+    /// All fields zero except `version`.
+    pub fn new() -> SetpointMsg {
+        SetpointMsg {
+            version: PROTOCOL_VERSION,
+            state: STATE_IDLE,
+            seq: 0,
+            time_ns: 0,
+            program_id: 0,
+            program_cycle: 0,
+            position_mm_deg: [0.0; AXES],
+            velocity_mm_deg_s: [0.0; AXES],
+            feed_mm_s: 0.0,
+            line: 0,
+            axes_mask: 0,
+        }
+    }
+
+    /// The decoded state.
+    pub fn state(&self) -> Result<State, UnknownState> {
+        State::try_from(self.state)
+    }
+}
+
+impl Default for SetpointMsg {
+    fn default() -> Self {
+        SetpointMsg::new()
+    }
+}
+
+/// Request kind: reply with the status only.
+pub const REQUEST_STATUS: u32 = 1;
+/// Request kind: feed hold.
+pub const REQUEST_HOLD: u32 = 2;
+/// Request kind: resume after a feed hold.
+pub const REQUEST_RESUME: u32 = 3;
+/// Request kind: abort the program (stop smoothly, drop the queue).
+pub const REQUEST_ABORT: u32 = 4;
+/// Request kind: set the feed override to `value` percent (0..=200).
+pub const REQUEST_OVERRIDE: u32 = 5;
+/// Request kind: clear a fault (reserved: refused with [`REASON_NOT_IMPLEMENTED`] for now).
+pub const REQUEST_RESET: u32 = 6;
+
+/// A request from a client to the daemon on the control service.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[type_name("kerf.Request.v1")]
+pub struct Request {
+    /// [`PROTOCOL_VERSION`].
+    pub version: u32,
+    /// `REQUEST_*`.
+    pub kind: u32,
+    /// Chosen by the client, echoed in the response.
+    pub id: u64,
+    /// [`REQUEST_OVERRIDE`]: percent, 0..=200; 0 for every other kind.
+    pub value: f64,
+}
+
+/// A validated request.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Command {
+    /// [`REQUEST_STATUS`].
+    Status,
+    /// [`REQUEST_HOLD`].
+    Hold,
+    /// [`REQUEST_RESUME`].
+    Resume,
+    /// [`REQUEST_ABORT`].
+    Abort,
+    /// [`REQUEST_OVERRIDE`].
+    Override {
+        /// Feed override, percent (0..=200).
+        percent: f64,
+    },
+    /// [`REQUEST_RESET`].
+    Reset,
+}
+
+/// Why a [`Request`] was refused; [`RequestReject::reason`] is the response's code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RequestReject {
+    /// Another protocol version.
+    #[error("protocol version {0}, expected {PROTOCOL_VERSION}")]
+    WrongVersion(u32),
+    /// Unknown request kind.
+    #[error("unknown request kind {0}")]
+    UnknownKind(u32),
+    /// The value is out of range, not finite, or not zero for a kind without one.
+    #[error("request value out of range")]
+    BadValue,
+}
+
+impl RequestReject {
+    /// The `REASON_*` code for a response.
+    pub fn reason(self) -> u32 {
+        match self {
+            RequestReject::WrongVersion(_) => REASON_WRONG_VERSION,
+            RequestReject::UnknownKind(_) => REASON_UNKNOWN_KIND,
+            RequestReject::BadValue => REASON_BAD_VALUE,
+        }
+    }
+}
+
+impl Request {
+    /// A request of this protocol version.
+    pub fn new(kind: u32, id: u64, value: f64) -> Request {
+        Request {
+            version: PROTOCOL_VERSION,
+            kind,
+            id,
+            value,
+        }
+    }
+
+    /// The request for `command`.
+    pub fn from_command(command: Command, id: u64) -> Request {
+        let (kind, value) = match command {
+            Command::Status => (REQUEST_STATUS, 0.0),
+            Command::Hold => (REQUEST_HOLD, 0.0),
+            Command::Resume => (REQUEST_RESUME, 0.0),
+            Command::Abort => (REQUEST_ABORT, 0.0),
+            Command::Override { percent } => (REQUEST_OVERRIDE, percent),
+            Command::Reset => (REQUEST_RESET, 0.0),
+        };
+        Request::new(kind, id, value)
+    }
+
+    /// Validates the request.
+    pub fn command(&self) -> Result<Command, RequestReject> {
+        if self.version != PROTOCOL_VERSION {
+            return Err(RequestReject::WrongVersion(self.version));
+        }
+        let command = match self.kind {
+            REQUEST_STATUS => Command::Status,
+            REQUEST_HOLD => Command::Hold,
+            REQUEST_RESUME => Command::Resume,
+            REQUEST_ABORT => Command::Abort,
+            REQUEST_RESET => Command::Reset,
+            REQUEST_OVERRIDE => {
+                if !(0.0..=200.0).contains(&self.value) {
+                    return Err(RequestReject::BadValue);
+                }
+                return Ok(Command::Override {
+                    percent: self.value,
+                });
+            }
+            other => return Err(RequestReject::UnknownKind(other)),
+        };
+        if self.value.to_bits() != 0 {
+            return Err(RequestReject::BadValue);
+        }
+        Ok(command)
+    }
+}
+
+/// Response reason: accepted.
+pub const REASON_OK: u32 = 0;
+/// Response reason: the request has another protocol version.
+pub const REASON_WRONG_VERSION: u32 = 1;
+/// Response reason: unknown request kind.
+pub const REASON_UNKNOWN_KIND: u32 = 2;
+/// Response reason: value out of range.
+pub const REASON_BAD_VALUE: u32 = 3;
+/// Response reason: not possible in the current state (e.g. RESUME while not holding).
+pub const REASON_NOT_ALLOWED: u32 = 4;
+/// Response reason: the request kind is reserved and not implemented yet.
+pub const REASON_NOT_IMPLEMENTED: u32 = 5;
+
+/// The daemon's status, embedded in every [`Response`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[type_name("kerf.StatusMsg.v1")]
+pub struct StatusMsg {
+    /// `STATE_*`.
+    pub state: u32,
+    /// Source line of the move being executed (0 = none).
+    pub line: u32,
+    /// Commanded position X, Y, Z mm, A, B, C degrees.
+    pub position_mm_deg: [f64; AXES],
+    /// Feed override, percent.
+    pub override_pct: f64,
+    /// Moves queued in the daemon (received, not yet finished).
+    pub queued_moves: u64,
+    /// Motion time of the queued moves at the current feed, s (an estimate).
+    pub queued_s: f64,
+    /// Real-time cycles run since the daemon started.
+    pub cycles: u64,
+    /// Cycles that missed their deadline since the daemon started.
+    pub overruns: u64,
+    /// 1 when the real-time thread runs with real-time scheduling, else 0.
+    pub rt: u32,
+    /// 1 when the current program was received to its END, fully executed and the machine
+    /// is at rest, else 0.
+    pub program_done: u32,
+    /// The current (last started) program, 0 = none.
+    pub program_id: u64,
+    /// Items (moves and events) of the current program accepted by the daemon; the
+    /// client's flow-control acknowledgement.
+    pub moves_received: u64,
+    /// Items the client may have sent but not yet acknowledged (`moves_received`): the
+    /// flow-control window, items.
+    pub window_items: u64,
+    /// Move messages rejected since the daemon started.
+    pub rejected: u64,
+    /// Fault code, 0 = none.
+    pub fault: u32,
+    /// Bit i set: axis i (X, Y, Z, A, B, C) is configured.
+    pub axes_mask: u32,
+    /// Fault description, UTF-8, NUL-padded (see [`StatusMsg::fault_text`]).
+    pub fault_text: [u8; 128],
+    /// Real-time cycle period, ns.
+    pub period_ns: u64,
+}
+
+impl StatusMsg {
+    /// All fields zero.
+    pub fn zeroed() -> StatusMsg {
+        StatusMsg {
+            state: STATE_IDLE,
+            line: 0,
+            position_mm_deg: [0.0; AXES],
+            override_pct: 0.0,
+            queued_moves: 0,
+            queued_s: 0.0,
+            cycles: 0,
+            overruns: 0,
+            rt: 0,
+            program_done: 0,
+            program_id: 0,
+            moves_received: 0,
+            window_items: 0,
+            rejected: 0,
+            fault: 0,
+            axes_mask: 0,
+            fault_text: [0; 128],
+            period_ns: 0,
+        }
+    }
+
+    /// The decoded state.
+    pub fn state(&self) -> Result<State, UnknownState> {
+        State::try_from(self.state)
+    }
+
+    /// Sets `fault_text`, truncated at a character boundary to 128 bytes.
+    pub fn set_fault_text(&mut self, text: &str) {
+        write_text(&mut self.fault_text, text);
+    }
+
+    /// `fault_text` up to its first NUL (its valid UTF-8 prefix).
+    pub fn fault_text(&self) -> &str {
+        read_text(&self.fault_text)
+    }
+}
+
+impl Default for StatusMsg {
+    fn default() -> Self {
+        StatusMsg::zeroed()
+    }
+}
+
+/// The daemon's answer to a [`Request`]: whether it was accepted, why not, and the status
+/// after handling it.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[type_name("kerf.Response.v1")]
+pub struct Response {
+    /// [`PROTOCOL_VERSION`].
+    pub version: u32,
+    /// 1 accepted, 0 refused.
+    pub accepted: u32,
+    /// The request's `id`.
+    pub request_id: u64,
+    /// `REASON_*`.
+    pub reason: u32,
+    /// Must be zero.
+    pub reserved: u32,
+    /// Human-readable message, UTF-8, NUL-padded (see [`Response::message`]).
+    pub message: [u8; 96],
+    /// The status after the request was handled.
+    pub status: StatusMsg,
+}
+
+impl Response {
+    /// An accepted (`reason` [`REASON_OK`]) or refused response to request `request_id`,
+    /// with `message` truncated at a character boundary to 96 bytes.
+    pub fn new(request_id: u64, reason: u32, message: &str, status: StatusMsg) -> Response {
+        let mut r = Response {
+            version: PROTOCOL_VERSION,
+            accepted: u32::from(reason == REASON_OK),
+            request_id,
+            reason,
+            reserved: 0,
+            message: [0; 96],
+            status,
+        };
+        r.set_message(message);
+        r
+    }
+
+    /// Sets `message`, truncated at a character boundary to 96 bytes.
+    pub fn set_message(&mut self, text: &str) {
+        write_text(&mut self.message, text);
+    }
+
+    /// `message` up to its first NUL (its valid UTF-8 prefix).
+    pub fn message(&self) -> &str {
+        read_text(&self.message)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn states_round_trip_and_unknown_is_refused() {
+        let all = [
+            State::Idle,
+            State::Running,
+            State::Holding,
+            State::Starved,
+            State::Fault,
+            State::Stopping,
+        ];
+        for s in all {
+            assert_eq!(State::try_from(s.as_u32()), Ok(s));
+        }
+        assert_eq!(State::try_from(6), Err(UnknownState(6)));
+        assert_eq!(State::try_from(u32::MAX), Err(UnknownState(u32::MAX)));
+    }
+
+    #[test]
+    fn requests_validate() {
+        for (c, kind) in [
+            (Command::Status, REQUEST_STATUS),
+            (Command::Hold, REQUEST_HOLD),
+            (Command::Resume, REQUEST_RESUME),
+            (Command::Abort, REQUEST_ABORT),
+            (Command::Override { percent: 150.0 }, REQUEST_OVERRIDE),
+            (Command::Reset, REQUEST_RESET),
+        ] {
+            let r = Request::from_command(c, 7);
+            assert_eq!(r.kind, kind);
+            assert_eq!(r.command(), Ok(c));
+        }
+        let ovr = |v| Request::new(REQUEST_OVERRIDE, 1, v).command();
+        assert_eq!(ovr(0.0), Ok(Command::Override { percent: 0.0 }));
+        assert_eq!(ovr(200.0), Ok(Command::Override { percent: 200.0 }));
+        assert_eq!(ovr(200.5), Err(RequestReject::BadValue));
+        assert_eq!(ovr(-1.0), Err(RequestReject::BadValue));
+        assert_eq!(ovr(f64::NAN), Err(RequestReject::BadValue));
+        assert_eq!(
+            Request::new(REQUEST_HOLD, 1, 3.0).command(),
+            Err(RequestReject::BadValue)
+        );
+        assert_eq!(
+            Request::new(0, 1, 0.0).command(),
+            Err(RequestReject::UnknownKind(0))
+        );
+        let mut old = Request::new(REQUEST_STATUS, 1, 0.0);
+        old.version = 2;
+        assert_eq!(old.command(), Err(RequestReject::WrongVersion(2)));
+        assert_eq!(RequestReject::BadValue.reason(), REASON_BAD_VALUE);
+    }
+
+    #[test]
+    fn response_text_fields() {
+        let mut st = StatusMsg::zeroed();
+        let long = "é".repeat(100); // 200 bytes
+        st.set_fault_text(&long);
+        assert_eq!(st.fault_text(), "é".repeat(64));
+        let r = Response::new(9, REASON_NOT_ALLOWED, "not holding", st);
+        assert_eq!(r.accepted, 0);
+        assert_eq!(r.message(), "not holding");
+        assert_eq!(r.status.fault_text().len(), 128);
+        let ok = Response::new(9, REASON_OK, "", st);
+        assert_eq!(ok.accepted, 1);
+        assert_eq!(ok.message(), "");
+    }
+}

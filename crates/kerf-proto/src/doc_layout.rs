@@ -1,0 +1,245 @@
+//! Checks `docs/PROTOCOL.md` against the code: every message table (offset, size, type,
+//! field), every message heading (size, alignment, type name) and the constants table.
+
+use core::mem::{align_of, offset_of, size_of};
+use std::collections::BTreeMap;
+
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::*;
+
+fn size_of_field<T, F>(_: fn(&T) -> &F) -> usize {
+    size_of::<F>()
+}
+
+/// (field, offset, size) of every field of a struct, in declaration order.
+macro_rules! fields {
+    ($t:ty; $($f:ident),* $(,)?) => {
+        vec![$((stringify!($f), offset_of!($t, $f), size_of_field(|m: &$t| &m.$f))),*]
+    };
+}
+
+struct Message {
+    name: &'static str,
+    size: usize,
+    align: usize,
+    type_name: &'static str,
+    fields: Vec<(&'static str, usize, usize)>,
+}
+
+fn messages() -> Vec<Message> {
+    // SAFETY: `type_name` is only unsafe to implement; calling it reads a constant.
+    let tn = |f: unsafe fn() -> &'static str| unsafe { f() };
+    vec![
+        Message {
+            name: "MoveMsg",
+            size: size_of::<MoveMsg>(),
+            align: align_of::<MoveMsg>(),
+            type_name: tn(<MoveMsg as ZeroCopySend>::type_name),
+            fields: fields!(MoveMsg; version, kind, program_id, seq, line, flags, corner,
+                event_code, feed_mm_min, tolerance_mm, start_mm, end_mm, center_mm, axis,
+                sweep_rad, abc_start_deg, abc_end_deg, event_value, count, reserved),
+        },
+        Message {
+            name: "SetpointMsg",
+            size: size_of::<SetpointMsg>(),
+            align: align_of::<SetpointMsg>(),
+            type_name: tn(<SetpointMsg as ZeroCopySend>::type_name),
+            fields: fields!(SetpointMsg; version, state, seq, time_ns, program_id,
+                program_cycle, position_mm_deg, velocity_mm_deg_s, feed_mm_s, line, axes_mask),
+        },
+        Message {
+            name: "Request",
+            size: size_of::<Request>(),
+            align: align_of::<Request>(),
+            type_name: tn(<Request as ZeroCopySend>::type_name),
+            fields: fields!(Request; version, kind, id, value),
+        },
+        Message {
+            name: "StatusMsg",
+            size: size_of::<StatusMsg>(),
+            align: align_of::<StatusMsg>(),
+            type_name: tn(<StatusMsg as ZeroCopySend>::type_name),
+            fields: fields!(StatusMsg; state, line, position_mm_deg, override_pct,
+                queued_moves, queued_s, cycles, overruns, rt, program_done, program_id,
+                moves_received, window_items, rejected, fault, axes_mask, fault_text,
+                period_ns),
+        },
+        Message {
+            name: "Response",
+            size: size_of::<Response>(),
+            align: align_of::<Response>(),
+            type_name: tn(<Response as ZeroCopySend>::type_name),
+            fields: fields!(Response; version, accepted, request_id, reason, reserved,
+                message, status),
+        },
+    ]
+}
+
+fn constants() -> BTreeMap<&'static str, u32> {
+    macro_rules! consts {
+        ($($c:ident),* $(,)?) => { BTreeMap::from([$((stringify!($c), $c)),*]) };
+    }
+    consts!(
+        PROTOCOL_VERSION,
+        KIND_BEGIN,
+        KIND_LINE,
+        KIND_ARC,
+        KIND_EVENT,
+        KIND_END,
+        FLAG_RAPID,
+        FLAG_ABC,
+        FLAG_EVENT_VALUE,
+        CORNER_EXACT_STOP,
+        CORNER_BLEND_DEFAULT,
+        CORNER_BLEND_TOLERANCE,
+        EVENT_M0,
+        EVENT_M1,
+        EVENT_M2,
+        EVENT_M30,
+        EVENT_M3,
+        EVENT_M4,
+        EVENT_M5,
+        EVENT_M6,
+        EVENT_M7,
+        EVENT_M8,
+        EVENT_M9,
+        EVENT_S,
+        EVENT_T,
+        EVENT_G4,
+        STATE_IDLE,
+        STATE_RUNNING,
+        STATE_HOLDING,
+        STATE_STARVED,
+        STATE_FAULT,
+        STATE_STOPPING,
+        REQUEST_STATUS,
+        REQUEST_HOLD,
+        REQUEST_RESUME,
+        REQUEST_ABORT,
+        REQUEST_OVERRIDE,
+        REQUEST_RESET,
+        REASON_OK,
+        REASON_WRONG_VERSION,
+        REASON_UNKNOWN_KIND,
+        REASON_BAD_VALUE,
+        REASON_NOT_ALLOWED,
+        REASON_NOT_IMPLEMENTED,
+    )
+}
+
+/// The size of a documented type: `u8`, `u32`, `u64`, `f64`, `T[n]`, or a message name.
+fn type_size(ty: &str, msgs: &[Message]) -> usize {
+    if let Some((base, n)) = ty.strip_suffix(']').and_then(|t| t.split_once('[')) {
+        let n: usize = n.parse().unwrap_or_else(|_| panic!("array length in {ty}"));
+        return n * type_size(base, msgs);
+    }
+    match ty {
+        "u8" => 1,
+        "u32" => 4,
+        "u64" | "f64" => 8,
+        other => {
+            msgs.iter()
+                .find(|m| m.name == other)
+                .unwrap_or_else(|| panic!("unknown type {other}"))
+                .size
+        }
+    }
+}
+
+fn cells(row: &str) -> Vec<String> {
+    let inner = row.trim().trim_start_matches('|').trim_end_matches('|');
+    inner
+        .split('|')
+        .map(|c| c.trim().trim_matches('`').to_string())
+        .collect()
+}
+
+#[test]
+fn protocol_md_matches_the_code() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/PROTOCOL.md");
+    let doc = std::fs::read_to_string(path).expect("docs/PROTOCOL.md");
+    let msgs = messages();
+    let mut seen_msgs = Vec::new();
+    let mut seen_consts = BTreeMap::new();
+    let lines: Vec<&str> = doc.lines().collect();
+    let mut i = 0;
+    while i < lines.len() {
+        let line = lines[i];
+        i += 1;
+        if let Some(heading) = line.strip_prefix("### ") {
+            // "### Name: N bytes, align A, type name `T`"
+            let (name, rest) = heading.split_once(':').expect("message heading");
+            let msg = msgs
+                .iter()
+                .find(|m| m.name == name.trim())
+                .unwrap_or_else(|| panic!("documented message {name} is not in the code"));
+            let words: Vec<String> = cells(&rest.replace(',', "|").replace('`', ""));
+            assert_eq!(words[0], format!("{} bytes", msg.size), "{name}: size");
+            assert_eq!(
+                words[1],
+                format!("align {}", msg.align),
+                "{name}: alignment"
+            );
+            assert_eq!(
+                words[2],
+                format!("type name {}", msg.type_name),
+                "{name}: type name"
+            );
+            // Skip to the table, then read its rows.
+            while i < lines.len() && !lines[i].starts_with("| offset") {
+                i += 1;
+            }
+            i += 2;
+            let mut rows = Vec::new();
+            while i < lines.len() && lines[i].starts_with('|') {
+                rows.push(cells(lines[i]));
+                i += 1;
+            }
+            let mut next_offset = 0;
+            for row in &rows {
+                let [offset, size, ty, field, _meaning] = &row[..] else {
+                    panic!("{name}: row {row:?} has not 5 cells");
+                };
+                let offset: usize = offset.parse().expect("offset");
+                let size: usize = size.parse().expect("size");
+                let &(_, code_offset, code_size) =
+                    msg.fields.iter().find(|f| f.0 == field).unwrap_or_else(|| {
+                        panic!("{name}.{field} is documented but not in the code")
+                    });
+                assert_eq!(offset, code_offset, "{name}.{field}: offset");
+                assert_eq!(size, code_size, "{name}.{field}: size");
+                assert_eq!(type_size(ty, &msgs), size, "{name}.{field}: type {ty}");
+                assert_eq!(
+                    offset, next_offset,
+                    "{name}.{field}: gap or overlap before it"
+                );
+                next_offset = offset + size;
+            }
+            // Every byte is a documented field: no padding, nothing undocumented.
+            assert_eq!(
+                next_offset, msg.size,
+                "{name}: the table does not cover every byte"
+            );
+            assert_eq!(rows.len(), msg.fields.len(), "{name}: field count");
+            seen_msgs.push(msg.name);
+        } else if line.starts_with("| constant") {
+            i += 1;
+            while i < lines.len() && lines[i].starts_with('|') {
+                let row = cells(lines[i]);
+                let value: u32 = row[1].parse().expect("constant value");
+                seen_consts.insert(row[0].clone(), value);
+                i += 1;
+            }
+        }
+    }
+    let mut all: Vec<&str> = msgs.iter().map(|m| m.name).collect();
+    all.sort();
+    seen_msgs.sort();
+    assert_eq!(seen_msgs, all, "every message is documented");
+    let code: BTreeMap<String, u32> = constants()
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect();
+    assert_eq!(seen_consts, code, "the constants table");
+}

@@ -1,0 +1,212 @@
+//! Kerf's shared-memory protocol: the messages that cross iceoryx2 between the planner
+//! process (`kerf run`), clients and the real-time daemon (`kerfd`), their validation,
+//! and the service names.
+//!
+//! `docs/PROTOCOL.md` is the byte-for-byte specification; a unit test parses its tables
+//! and checks them against the types here, so the two cannot drift.
+//!
+//! Design decisions:
+//! - **Plain old data only.** Every shared-memory type is `#[repr(C)]`, made of `u8`,
+//!   `u32`, `u64`, `f64` and fixed arrays of them, with every padding byte spelled out as a
+//!   reserved field. No Rust `enum`, `bool`, `Option` or reference crosses the shared
+//!   memory: any bit pattern a (possibly broken or hostile) writer leaves there is a valid
+//!   value of the type, so reading it is never undefined behaviour. Meaning is given by
+//!   `u32` constants ([`KIND_LINE`], [`FLAG_RAPID`], ...), decoded by validating
+//!   conversions into Rust types ([`Resolved`], [`State`], [`Command`]).
+//! - **One message per item.** A program is a stream of [`MoveMsg`]s: a BEGIN, one message
+//!   per line, arc/helix or event, and an END. Each message is self-contained and
+//!   [`TryFrom<&MoveMsg> for Resolved`](Resolved) checks it alone; [`StreamCheck`] adds the
+//!   rules between messages (order, sequence numbers, continuity, counts).
+//! - **Stable type names.** iceoryx2 matches publishers and subscribers by type name, size
+//!   and alignment; the names are versioned (`kerf.MoveMsg.v1`), so a layout change is a
+//!   new name and a new [`PROTOCOL_VERSION`], never a silent misreading.
+//! - **Validation never panics** on any bytes and names the first reason it refuses
+//!   ([`Reject`]); it allocates nothing, so the daemon may run it anywhere.
+#![deny(missing_docs)]
+
+mod control;
+mod moves;
+mod stream;
+
+#[cfg(test)]
+mod doc_layout;
+
+pub use control::{
+    Command, REASON_BAD_VALUE, REASON_NOT_ALLOWED, REASON_NOT_IMPLEMENTED, REASON_OK,
+    REASON_UNKNOWN_KIND, REASON_WRONG_VERSION, REQUEST_ABORT, REQUEST_HOLD, REQUEST_OVERRIDE,
+    REQUEST_RESET, REQUEST_RESUME, REQUEST_STATUS, Request, RequestReject, Response, STATE_FAULT,
+    STATE_HOLDING, STATE_IDLE, STATE_RUNNING, STATE_STARVED, STATE_STOPPING, SetpointMsg, State,
+    StatusMsg, UnknownState,
+};
+pub use moves::{
+    ARC_CENTER_PLANE_REL_TOL, ARC_MIN_RADIUS_MM, ARC_RADIUS_REL_TOL, ARC_SWEEP_TOL_RAD,
+    AXIS_UNIT_TOL, CORNER_BLEND_DEFAULT, CORNER_BLEND_TOLERANCE, CORNER_EXACT_STOP, EVENT_G4,
+    EVENT_M0, EVENT_M1, EVENT_M2, EVENT_M3, EVENT_M4, EVENT_M5, EVENT_M6, EVENT_M7, EVENT_M8,
+    EVENT_M9, EVENT_M30, EVENT_S, EVENT_T, FLAG_ABC, FLAG_EVENT_VALUE, FLAG_RAPID, Field, KIND_ARC,
+    KIND_BEGIN, KIND_END, KIND_EVENT, KIND_LINE, MoveMsg, Reject, Resolved, event_code_from_u32,
+    event_code_to_u32,
+};
+pub use stream::{CONTINUITY_TOL, StreamCheck, StreamError};
+
+/// The protocol version carried by every message. A change to any layout or to the meaning
+/// of any field is a new version (and new iceoryx2 type names); receivers refuse messages
+/// of another version.
+pub const PROTOCOL_VERSION: u32 = 1;
+
+// The sizes in docs/PROTOCOL.md; a layout change must fail the build, not only the tests.
+const _: () = {
+    assert!(size_of::<MoveMsg>() == 256);
+    assert!(size_of::<SetpointMsg>() == 152);
+    assert!(size_of::<Request>() == 24);
+    assert!(size_of::<StatusMsg>() == 280);
+    assert!(size_of::<Response>() == 400);
+};
+
+/// The number of axes in positions and velocities: X, Y, Z (mm), A, B, C (degrees).
+pub const AXES: usize = 6;
+
+/// Service carrying [`MoveMsg`]s from the planner to the daemon (publish/subscribe).
+pub const SERVICE_MOVES: &str = "moves";
+/// Service carrying one [`SetpointMsg`] per real-time cycle from the daemon (publish/subscribe).
+pub const SERVICE_SETPOINTS: &str = "setpoints";
+/// Service for [`Request`] / [`Response`] between clients and the daemon (request/response).
+pub const SERVICE_CONTROL: &str = "control";
+
+/// The longest machine name accepted by [`service_name`], bytes.
+pub const MAX_MACHINE_NAME: usize = 64;
+
+/// Why [`service_name`] refused its arguments.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ServiceNameError {
+    /// The machine name is empty.
+    #[error("machine name is empty")]
+    EmptyMachine,
+    /// The machine name is longer than [`MAX_MACHINE_NAME`] bytes.
+    #[error("machine name is {len} bytes long; at most {MAX_MACHINE_NAME} are allowed")]
+    MachineTooLong {
+        /// Its length, bytes.
+        len: usize,
+    },
+    /// The machine name holds a character other than ASCII letters, digits, '-' and '_'.
+    #[error(
+        "machine name has the character {found:?} at byte {at}; only ASCII letters, digits, '-' and '_' are allowed"
+    )]
+    BadCharacter {
+        /// The offending character.
+        found: char,
+        /// Its byte offset.
+        at: usize,
+    },
+    /// `which` is not one of "moves", "setpoints", "control".
+    #[error("unknown service (expected \"moves\", \"setpoints\" or \"control\")")]
+    UnknownService,
+}
+
+/// Checks a machine name: 1 to [`MAX_MACHINE_NAME`] ASCII letters, digits, '-' or '_'.
+pub fn validate_machine_name(machine: &str) -> Result<(), ServiceNameError> {
+    if machine.is_empty() {
+        return Err(ServiceNameError::EmptyMachine);
+    }
+    if let Some((at, found)) = machine
+        .char_indices()
+        .find(|&(_, c)| !(c.is_ascii_alphanumeric() || c == '-' || c == '_'))
+    {
+        return Err(ServiceNameError::BadCharacter { found, at });
+    }
+    if machine.len() > MAX_MACHINE_NAME {
+        return Err(ServiceNameError::MachineTooLong { len: machine.len() });
+    }
+    Ok(())
+}
+
+/// The iceoryx2 service name `kerf/<machine>/<which>`, with `which` one of
+/// [`SERVICE_MOVES`], [`SERVICE_SETPOINTS`], [`SERVICE_CONTROL`].
+///
+/// ```
+/// assert_eq!(kerf_proto::service_name("mill-1", "moves").unwrap(), "kerf/mill-1/moves");
+/// assert!(kerf_proto::service_name("mill 1", "moves").is_err());
+/// ```
+pub fn service_name(machine: &str, which: &str) -> Result<String, ServiceNameError> {
+    validate_machine_name(machine)?;
+    if ![SERVICE_MOVES, SERVICE_SETPOINTS, SERVICE_CONTROL].contains(&which) {
+        return Err(ServiceNameError::UnknownService);
+    }
+    Ok(format!("kerf/{machine}/{which}"))
+}
+
+/// Writes `text` into a fixed, NUL-padded UTF-8 field: as many whole characters as fit,
+/// the rest of the field zero. Returns the number of bytes written (less than
+/// `text.len()` when it was truncated).
+pub fn write_text(field: &mut [u8], text: &str) -> usize {
+    let mut n = text.len().min(field.len());
+    while !text.is_char_boundary(n) {
+        n -= 1;
+    }
+    field[..n].copy_from_slice(&text.as_bytes()[..n]);
+    field[n..].fill(0);
+    n
+}
+
+/// Reads a fixed, NUL-padded UTF-8 field: the bytes before the first NUL (or all of them),
+/// cut at the first invalid UTF-8 sequence if a writer broke the rule. Never fails.
+pub fn read_text(field: &[u8]) -> &str {
+    let end = field.iter().position(|&b| b == 0).unwrap_or(field.len());
+    let bytes = &field[..end];
+    match std::str::from_utf8(bytes) {
+        Ok(s) => s,
+        Err(e) => std::str::from_utf8(&bytes[..e.valid_up_to()]).unwrap_or_default(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn service_names() {
+        assert_eq!(
+            service_name("mill_2-A", "setpoints").unwrap(),
+            "kerf/mill_2-A/setpoints"
+        );
+        assert_eq!(service_name("m", "control").unwrap(), "kerf/m/control");
+        assert_eq!(
+            service_name("", "moves"),
+            Err(ServiceNameError::EmptyMachine)
+        );
+        assert_eq!(
+            service_name("a/b", "moves"),
+            Err(ServiceNameError::BadCharacter { found: '/', at: 1 })
+        );
+        assert_eq!(
+            service_name("mühle", "moves"),
+            Err(ServiceNameError::BadCharacter { found: 'ü', at: 1 })
+        );
+        assert_eq!(
+            service_name(&"x".repeat(65), "moves"),
+            Err(ServiceNameError::MachineTooLong { len: 65 })
+        );
+        assert!(service_name(&"x".repeat(64), "moves").is_ok());
+        assert_eq!(
+            service_name("m", "status"),
+            Err(ServiceNameError::UnknownService)
+        );
+    }
+
+    #[test]
+    fn text_fields_truncate_at_char_boundaries() {
+        let mut f = [0xffu8; 5];
+        assert_eq!(write_text(&mut f, "ab"), 2);
+        assert_eq!(f, [b'a', b'b', 0, 0, 0]);
+        assert_eq!(read_text(&f), "ab");
+        // "é" is two bytes: "abcé" is 5 bytes and fits exactly, without a NUL.
+        assert_eq!(write_text(&mut f, "abcé"), 5);
+        assert_eq!(read_text(&f), "abcé");
+        // "abcdé" is 6 bytes: the é does not fit whole and is dropped.
+        assert_eq!(write_text(&mut f, "abcdé"), 4);
+        assert_eq!(f, [b'a', b'b', b'c', b'd', 0]);
+        // Invalid UTF-8 written by someone else: the valid prefix.
+        let g = [b'o', b'k', 0xc3, b'x', 0];
+        assert_eq!(read_text(&g), "ok");
+        assert_eq!(read_text(&[]), "");
+    }
+}
