@@ -176,11 +176,12 @@ impl State {
             Dialect::Rockwell => Some(Motion::Linear),
             Dialect::Sinumerik | Dialect::Fagor => Some(Motion::Rapid),
         };
+        let start = settings.start_mm_deg;
         let mut s = State {
             dialect,
             settings,
-            pos: Vec3::zeros(),
-            abc: [0.0; 3],
+            pos: Vec3::new(start[0], start[1], start[2]),
+            abc: [start[3], start[4], start[5]],
             abc_used: false,
             inch: false,
             feed_inch: false,

@@ -320,6 +320,9 @@ pub struct Settings {
     /// Relative arc end-point tolerance (fraction of the start radius) for
     /// Sinumerik/Heidenhain/Fagor (default 0.001).
     pub arc_tolerance_rel: f64,
+    /// Where the machine is when the program starts: X, Y, Z machine mm, A, B, C degrees
+    /// (the origin by default; `kerf run` gives the daemon's position).
+    pub start_mm_deg: [f64; 6],
 }
 
 impl Default for Settings {
@@ -329,6 +332,7 @@ impl Default for Settings {
             tools: Vec::new(),
             arc_tolerance_mm: 0.02828,
             arc_tolerance_rel: 0.001,
+            start_mm_deg: [0.0; 6],
         }
     }
 }

@@ -396,16 +396,8 @@ struct Measure<'a> {
     hist: [[f64; 6]; 4],
     hist_len: usize,
     summary: Summary,
-    /// The programmed moves not yet passed, for the deviation check (compact: no
-    /// transition variant). Moves the setpoints have left behind are dropped, so this
-    /// holds about the moves of the queued segments, whatever the program's length.
-    curves: VecDeque<Programmed>,
-    /// Source line of every move in `curves`.
-    lines: VecDeque<u32>,
-    /// Program index of `curves[0]`.
-    base: usize,
-    /// The move nearest to the last setpoint.
-    cursor: usize,
+    /// The programmed moves, for the deviation check and the line being passed.
+    tracker: Tracker,
     /// Checks every setpoint, when the run has one.
     monitor: Option<&'a mut LimitMonitor>,
     /// The first setpoint that broke a limit: the run stops there.
@@ -442,26 +434,113 @@ impl Measure<'_> {
                     .max(((h(0) - 3.0 * h(1) + 3.0 * h(2) - h(3)) / (t * t * t)).abs());
             }
         }
-        if !self.curves.is_empty() {
-            let p = Vec3::new(sp.position[0], sp.position[1], sp.position[2]);
-            let (d, k) = self.nearest_move(&p, sp.move_index, sp.move_count);
+        if let Some(d) = self.tracker.track(sp) {
             self.summary.max_deviation_mm = self.summary.max_deviation_mm.max(d);
-            if sp.move_count > 1 {
-                // A smoothed piece stands for several moves: report the one being passed.
-                sp.line = self.lines[k - self.base];
-                sp.move_index = k as u64;
-                sp.move_count = 1;
-            }
-            // The setpoints advance through the moves in program order: the moves well
-            // behind this one are never looked at again.
-            let keep_from = (sp.move_index as usize).saturating_sub(1 + MOVES_KEPT_BEHIND);
-            while self.base < keep_from && self.curves.len() > 1 {
-                self.curves.pop_front();
-                self.lines.pop_front();
-                self.base += 1;
-            }
         }
         self.summary.last = *sp;
+    }
+
+    /// Records a programmed move for the deviation check.
+    fn add_move(&mut self, mv: &Move, aborted: bool) {
+        if let Some((s, e)) = mv.abc_deg {
+            if s != e {
+                self.summary.rotary_used = true;
+            }
+        }
+        if aborted && !self.tracker.is_empty() {
+            // Nothing more is run after an abort: the deviation check needs no more moves.
+            return;
+        }
+        self.tracker.add(mv);
+    }
+
+    fn check(&mut self, sp: &Setpoint) {
+        if let Some(m) = self.monitor.as_mut() {
+            if let Err(v) = m.check(&sp.position) {
+                self.fault.get_or_insert(v);
+            }
+        }
+    }
+}
+
+/// The programmed moves around the setpoints, allocation-free once its capacity is
+/// reserved: finds the move a setpoint is passing (on a smoothed piece, which stands for
+/// many moves, the nearest of them) and its distance from the programmed path. `kerf sim`
+/// and the daemon both run it on every setpoint, so that the `line` of their setpoints
+/// agrees on smoothed curves too.
+#[derive(Default)]
+pub struct Tracker {
+    /// The programmed moves not yet passed (compact: no transition variant). Moves the
+    /// setpoints have left behind are dropped, so this holds about the moves of the
+    /// queued segments, whatever the program's length.
+    curves: VecDeque<Programmed>,
+    /// Source line of every move in `curves`.
+    lines: VecDeque<u32>,
+    /// Program index of `curves[0]`.
+    base: usize,
+    /// The move nearest to the last setpoint.
+    cursor: usize,
+}
+
+impl Tracker {
+    /// A tracker that holds `moves` moves without allocating.
+    pub fn with_capacity(moves: usize) -> Tracker {
+        Tracker {
+            curves: VecDeque::with_capacity(moves),
+            lines: VecDeque::with_capacity(moves),
+            base: 0,
+            cursor: 0,
+        }
+    }
+
+    /// `true` while it holds no move.
+    pub fn is_empty(&self) -> bool {
+        self.curves.is_empty()
+    }
+
+    /// `true` when one more move would make it allocate.
+    pub fn is_full(&self) -> bool {
+        self.curves.len() >= self.curves.capacity() || self.lines.len() >= self.lines.capacity()
+    }
+
+    /// Forgets every move (a new program; the capacity stays).
+    pub fn clear(&mut self) {
+        self.curves.clear();
+        self.lines.clear();
+        self.base = 0;
+        self.cursor = 0;
+    }
+
+    /// Appends the next programmed move (program order).
+    pub fn add(&mut self, mv: &Move) {
+        self.curves.push_back(Programmed::new(&mv.path));
+        self.lines.push_back(mv.line);
+    }
+
+    /// For a setpoint on a smoothed piece, sets its line and move to the programmed move
+    /// nearest to it; returns the setpoint's distance from the programmed moves (`None`
+    /// while no move is known). Drops the moves the setpoints have left behind.
+    pub fn track(&mut self, sp: &mut Setpoint) -> Option<f64> {
+        if self.curves.is_empty() {
+            return None;
+        }
+        let p = Vec3::new(sp.position[0], sp.position[1], sp.position[2]);
+        let (d, k) = self.nearest_move(&p, sp.move_index, sp.move_count);
+        if sp.move_count > 1 {
+            // A smoothed piece stands for several moves: report the one being passed.
+            sp.line = self.lines[k - self.base];
+            sp.move_index = k as u64;
+            sp.move_count = 1;
+        }
+        // The setpoints advance through the moves in program order: the moves well
+        // behind this one are never looked at again.
+        let keep_from = (sp.move_index as usize).saturating_sub(1 + MOVES_KEPT_BEHIND);
+        while self.base < keep_from && self.curves.len() > 1 {
+            self.curves.pop_front();
+            self.lines.pop_front();
+            self.base += 1;
+        }
+        Some(d)
     }
 
     /// Distance from `p` to the moves `move_index - 1 ..= move_index + count` (the segment's
@@ -505,28 +584,6 @@ impl Measure<'_> {
         (best.min(local.0), local.1)
     }
 
-    /// Records a programmed move for the deviation check.
-    fn add_move(&mut self, mv: &Move, aborted: bool) {
-        if let Some((s, e)) = mv.abc_deg {
-            if s != e {
-                self.summary.rotary_used = true;
-            }
-        }
-        if aborted && !self.curves.is_empty() {
-            // Nothing more is run after an abort: the deviation check needs no more moves.
-            return;
-        }
-        self.curves.push_back(Programmed::new(&mv.path));
-        self.lines.push_back(mv.line);
-    }
-
-    fn check(&mut self, sp: &Setpoint) {
-        if let Some(m) = self.monitor.as_mut() {
-            if let Err(v) = m.check(&sp.position) {
-                self.fault.get_or_insert(v);
-            }
-        }
-    }
 }
 
 /// Where an offline run takes its planned items from: planned items in order, and the
@@ -569,10 +626,7 @@ impl<'a, F: Sink> Runner<'a, F> {
                 hist: [[0.0; 6]; 4],
                 hist_len: 0,
                 summary: Summary::default(),
-                curves: VecDeque::new(),
-                lines: VecDeque::new(),
-                base: 0,
-                cursor: 0,
+                tracker: Tracker::default(),
                 monitor: None,
                 fault: None,
             },
@@ -668,19 +722,20 @@ impl<'a, F: Sink> Runner<'a, F> {
     }
 }
 
-/// A programmed move's path as the deviation check needs it, compact (56 bytes; arcs,
-/// rarer in dense code, boxed): a run holds the moves of every queued segment, which for
-/// dense code smoothed into pieces can be hundreds of thousands.
+/// A programmed move's path as the deviation check needs it (no transition variant, and a
+/// line without its derived direction and length). Not boxed: the daemon's tracker must
+/// not allocate.
+#[allow(clippy::large_enum_variant)]
 enum Programmed {
     /// Start and end; the direction and length are derived as in [`Curve::line`].
     Line(Vec3, Vec3),
-    Helix(Box<Helix>),
+    Helix(Helix),
 }
 
 impl Programmed {
     fn new(path: &Path) -> Programmed {
         match Curve::from_path(path) {
-            Curve::Helix(h) => Programmed::Helix(Box::new(h)),
+            Curve::Helix(h) => Programmed::Helix(h),
             Curve::Line { start, end, .. } => Programmed::Line(start, end),
             Curve::Transition(_) => unreachable!("a programmed path is a line or an arc"),
         }

@@ -75,6 +75,56 @@ pub const ARC_TOLERANCE_REL_RANGE: RangeInclusive<f64> = 1e-9..=0.1;
 /// (degrees for rotary travel): one kilometre, larger than any machine bed.
 pub const MAX_COORDINATE_MM: f64 = 1e6;
 
+/// The machine name when the file gives none.
+pub const DEFAULT_MACHINE: &str = "default";
+
+/// Default real-time priority of the daemon's cycle thread (SCHED_FIFO, 1 to 99): above
+/// the kernel's threaded interrupt handlers (50) and below the watchdog threads (99).
+pub const DEFAULT_PRIORITY: u8 = 80;
+
+/// Default capacity of the motion core's queue, segments: the lookahead window. `kerf sim`
+/// uses the same number, so that the daemon's setpoints equal the simulator's.
+pub const DEFAULT_QUEUE_SEGMENTS: u32 = 4096;
+
+/// Accepted queue capacities, segments: below 16 the lookahead cannot reach full speed on
+/// short moves; above 65,536 the core's memory (about 1 KiB per segment) serves nothing.
+pub const QUEUE_SEGMENTS_RANGE: RangeInclusive<u32> = 16..=65_536;
+
+/// Default number of resolved moves a planner process may have sent that the daemon has
+/// not yet taken (the flow-control window of `kerf run`).
+pub const DEFAULT_MOVE_WINDOW: u32 = 4096;
+
+/// Accepted move windows.
+pub const MOVE_WINDOW_RANGE: RangeInclusive<u32> = 16..=65_536;
+
+/// The periods the daemon runs, microseconds: 125 µs (8 kHz) to 10 ms. `kerf sim`
+/// accepts a wider range ([`MIN_PERIOD_US`] to [`MAX_PERIOD_US`]) for studies.
+pub const DAEMON_PERIOD_RANGE_US: RangeInclusive<u32> = 125..=10_000;
+
+/// The daemon's own settings (`[daemon]`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct DaemonConfig {
+    /// SCHED_FIFO priority of the cycle thread, 1 to 99.
+    pub priority: u8,
+    /// CPU the cycle thread is pinned to, if any.
+    pub cpu: Option<u32>,
+    /// Motion core queue capacity, segments (the lookahead window).
+    pub queue_segments: u32,
+    /// Resolved moves in flight from a planner process (flow-control window).
+    pub move_window: u32,
+}
+
+impl Default for DaemonConfig {
+    fn default() -> Self {
+        DaemonConfig {
+            priority: DEFAULT_PRIORITY,
+            cpu: None,
+            queue_segments: DEFAULT_QUEUE_SEGMENTS,
+            move_window: DEFAULT_MOVE_WINDOW,
+        }
+    }
+}
+
 /// Limits of a linear axis (X, Y, Z).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LinearAxis {
@@ -148,6 +198,11 @@ pub struct ToolEntry {
 /// A validated machine configuration.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Config {
+    /// The machine's name: every iceoryx2 service of its daemon is named under
+    /// `kerf/<machine>/` (ASCII letters, digits, `-`, `_`; 1 to 64 characters).
+    pub machine: String,
+    /// The daemon's settings.
+    pub daemon: DaemonConfig,
     /// The machine control's dialect, if the file names one.
     pub dialect: Option<Dialect>,
     /// Interpolation period, microseconds ([`MIN_PERIOD_US`] to [`MAX_PERIOD_US`]).
@@ -206,12 +261,30 @@ fn position_prefix(position: &Option<TextPosition>) -> String {
     }
 }
 
+/// Where every command looks for the machine configuration when `--config` is not given.
+pub const SYSTEM_CONFIG: &str = "/etc/kerf/kerf.toml";
+
+/// The configuration every command uses: `path` when given, else [`SYSTEM_CONFIG`] when
+/// that file exists, else the built-in example. Returns it with the name of where it came
+/// from.
+pub fn load_default(path: Option<&Path>) -> Result<(Config, String), ConfigError> {
+    match path {
+        Some(p) => Ok((Config::load(p)?, p.display().to_string())),
+        None if Path::new(SYSTEM_CONFIG).exists() => {
+            Ok((Config::load(Path::new(SYSTEM_CONFIG))?, SYSTEM_CONFIG.to_string()))
+        }
+        None => Ok((Config::builtin(), BUILTIN_ORIGIN.to_string())),
+    }
+}
+
 impl Config {
     /// The bundled example configuration (`config/kerf.toml`).
     pub fn builtin() -> Config {
         // The bundled file is checked by a unit test, so failing here would be a build
         // defect; falling back to the same numbers keeps the binary from ever panicking.
         Config::from_toml_str(BUILTIN_TOML, BUILTIN_ORIGIN).unwrap_or_else(|_| Config {
+            machine: DEFAULT_MACHINE.to_string(),
+            daemon: DaemonConfig::default(),
             dialect: None,
             period_us: DEFAULT_PERIOD_US,
             tolerance_mm: DEFAULT_TOLERANCE_MM,
@@ -266,6 +339,7 @@ impl Config {
                 .collect(),
             arc_tolerance_mm: self.arc_tolerance_mm,
             arc_tolerance_rel: self.arc_tolerance_rel,
+            start_mm_deg: [0.0; 6],
         }
     }
 }
@@ -313,6 +387,9 @@ fn position_of(text: &str, offset: usize) -> TextPosition {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawConfig {
+    machine: Option<Spanned<String>>,
+    #[serde(default)]
+    daemon: RawDaemon,
     dialect: Option<Spanned<String>>,
     period_us: Option<Spanned<i64>>,
     tolerance_mm: Option<Spanned<f64>>,
@@ -375,6 +452,24 @@ struct RawWorkOffsets {
     g59_1: Option<Spanned<Vec<f64>>>,
     g59_2: Option<Spanned<Vec<f64>>>,
     g59_3: Option<Spanned<Vec<f64>>>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawDaemon {
+    priority: Option<Spanned<i64>>,
+    cpu: Option<Spanned<i64>>,
+    queue_segments: Option<Spanned<i64>>,
+    move_window: Option<Spanned<i64>>,
+}
+
+/// `true` for a machine name that can be part of a service name: ASCII letters, digits,
+/// `-` and `_`, 1 to 64 characters.
+pub fn valid_machine_name(name: &str) -> bool {
+    (1..=64).contains(&name.len())
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
 }
 
 #[derive(Deserialize)]
@@ -535,7 +630,79 @@ impl Checker<'_> {
         }
     }
 
+    /// A whole number within `range`.
+    fn integer(
+        &self,
+        key: &str,
+        what: &str,
+        range: RangeInclusive<u32>,
+        value: &Spanned<i64>,
+    ) -> Result<u32, ConfigError> {
+        match u32::try_from(*value.get_ref()) {
+            Ok(v) if range.contains(&v) => Ok(v),
+            _ => Err(self.error(
+                value.span(),
+                format!(
+                    "`{key}` must be {what} from {} to {}, found {}",
+                    range.start(),
+                    range.end(),
+                    value.get_ref()
+                ),
+            )),
+        }
+    }
+
+    fn daemon(&self, raw: &RawDaemon) -> Result<DaemonConfig, ConfigError> {
+        let d = DaemonConfig::default();
+        let priority = match &raw.priority {
+            None => d.priority,
+            Some(p) => self.integer("daemon.priority", "a SCHED_FIFO priority", 1..=99, p)? as u8,
+        };
+        let cpu = match &raw.cpu {
+            None => None,
+            Some(c) => Some(self.integer("daemon.cpu", "a CPU number", 0..=4095, c)?),
+        };
+        let queue_segments = match &raw.queue_segments {
+            None => d.queue_segments,
+            Some(q) => self.integer(
+                "daemon.queue_segments",
+                "a number of segments",
+                QUEUE_SEGMENTS_RANGE,
+                q,
+            )?,
+        };
+        let move_window = match &raw.move_window {
+            None => d.move_window,
+            Some(w) => self.integer(
+                "daemon.move_window",
+                "a number of moves",
+                MOVE_WINDOW_RANGE,
+                w,
+            )?,
+        };
+        Ok(DaemonConfig {
+            priority,
+            cpu,
+            queue_segments,
+            move_window,
+        })
+    }
+
     fn config(&self, raw: RawConfig) -> Result<Config, ConfigError> {
+        let machine = match &raw.machine {
+            None => DEFAULT_MACHINE.to_string(),
+            Some(m) if valid_machine_name(m.get_ref()) => m.get_ref().clone(),
+            Some(m) => {
+                return Err(self.error(
+                    m.span(),
+                    format!(
+                        "`machine` must be 1 to 64 ASCII letters, digits, `-` or `_` (it names the daemon's services), found `{}`",
+                        m.get_ref()
+                    ),
+                ));
+            }
+        };
+        let daemon = self.daemon(&raw.daemon)?;
         let dialect = match &raw.dialect {
             None => None,
             Some(name) => Some(Dialect::from_name(name.get_ref()).ok_or_else(|| {
@@ -646,6 +813,8 @@ impl Checker<'_> {
         }
 
         Ok(Config {
+            machine,
+            daemon,
             dialect,
             period_us,
             tolerance_mm,

@@ -653,11 +653,7 @@ where
     let (summary, written) = std::thread::scope(|scope| {
         let writer = scope.spawn(move || -> io::Result<()> {
             let mut w = BufWriter::new(out);
-            if rotary {
-                writeln!(w, "t,x,y,z,a,b,c,line,feed_mm_s")?;
-            } else {
-                writeln!(w, "t,x,y,z,line,feed_mm_s")?;
-            }
+            writeln!(w, "{}", csv_header(rotary))?;
             for chunk in rx {
                 for (t, sp) in &chunk {
                     write_row(&mut w, *t, sp, rotary)?;
@@ -893,7 +889,18 @@ impl PlotRecorder {
 /// Writes one CSV row. Floats use the shortest round-trip form of the `zmij` crate (as
 /// `kerf plan` does), which is several times faster than `Display` and matters here: at a
 /// 1 ms period the rows are most of a simulation's work.
-fn write_row<W: Write>(w: &mut W, t: f64, sp: &Setpoint, rotary: bool) -> io::Result<()> {
+/// The header line of the setpoint CSV (`kerf sim`, `kerf run --record`, `kerf record`).
+pub fn csv_header(rotary: bool) -> &'static str {
+    if rotary {
+        "t,x,y,z,a,b,c,line,feed_mm_s"
+    } else {
+        "t,x,y,z,line,feed_mm_s"
+    }
+}
+
+/// One row of the setpoint CSV: `t`, the positions (A, B, C with `rotary`), the line and
+/// the path feed, each number in its shortest exact form.
+pub fn write_row<W: Write>(w: &mut W, t: f64, sp: &Setpoint, rotary: bool) -> io::Result<()> {
     let mut floats = zmij::Buffer::new();
     let mut ints = itoa::Buffer::new();
     let p = &sp.position;

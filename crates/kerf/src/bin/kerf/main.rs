@@ -19,6 +19,8 @@ use kerf::{Config, PlanError, choose_dialect};
 use kerf_gcode::{Dialect, Interpreter, Item};
 use kerf_pipeline::Input;
 
+mod machine;
+
 /// Read buffer for program files: large enough that a 1 GB program costs few system calls,
 /// small enough to keep the resident set tiny.
 const READ_BUFFER_BYTES: usize = 256 * 1024;
@@ -41,19 +43,35 @@ enum Command {
     /// Run a program through the planner and motion core in virtual time and write the
     /// setpoints of every period as CSV.
     Sim(SimArgs),
+    /// Check a program, then stream it to the machine's daemon and wait until it has
+    /// finished moving.
+    Run(machine::RunArgs),
+    /// Print the daemon's status.
+    Status(machine::StatusArgs),
+    /// Feed hold: a jerk-limited stop on the path.
+    Hold(machine::MachineArgs),
+    /// Resume after a hold.
+    Resume(machine::MachineArgs),
+    /// Stop on the path and drop the rest of the program.
+    Abort(machine::MachineArgs),
+    /// Set the feed override, 0 to 200 percent.
+    Override(machine::OverrideArgs),
+    /// Write the daemon's setpoint stream to CSV.
+    Record(machine::RecordArgs),
 }
 
 /// The program and how to read it: shared by every subcommand.
 #[derive(Args)]
-struct ProgramArgs {
+pub struct ProgramArgs {
     /// The program's dialect: linuxcnc (alias tormach), rockwell, sinumerik, heidenhain or
     /// fagor. Without it: the file extension where unambiguous, then the config's
     /// `dialect`, then linuxcnc.
     #[arg(long, value_name = "D", value_parser = parse_dialect)]
     dialect: Option<Dialect>,
-    /// Machine configuration (TOML). Without it the bundled config/kerf.toml is used.
+    /// Machine configuration (TOML). Without it: /etc/kerf/kerf.toml if present, else the
+    /// bundled config/kerf.toml.
     #[arg(long, value_name = "FILE")]
-    config: Option<PathBuf>,
+    pub config: Option<PathBuf>,
     /// The G-code program; `-` reads standard input.
     #[arg(value_name = "PROGRAM")]
     program: PathBuf,
@@ -122,9 +140,12 @@ fn parse_dialect(name: &str) -> Result<Dialect, String> {
 }
 
 /// How a command ended when it did not succeed.
-enum Failure {
+pub enum Failure {
     /// Print this line on standard error and exit with status 2.
     Error(String),
+    /// Print this line on standard error and exit with this status (1: no daemon answers,
+    /// or it stopped).
+    Exit(u8, String),
     /// The reader of standard output went away: stop quietly.
     BrokenPipe,
 }
@@ -144,6 +165,18 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Plan(args) => run_plan(&args),
         Command::Sim(args) => run_sim(&args),
+        Command::Run(args) => machine::run(&args),
+        Command::Status(args) => machine::status(&args),
+        Command::Hold(args) => machine::command(&args, kerf_proto::Command::Hold),
+        Command::Resume(args) => machine::command(&args, kerf_proto::Command::Resume),
+        Command::Abort(args) => machine::command(&args, kerf_proto::Command::Abort),
+        Command::Override(args) => machine::command(
+            &args.machine,
+            kerf_proto::Command::Override {
+                percent: args.percent,
+            },
+        ),
+        Command::Record(args) => machine::record(&args),
     };
     match result {
         Ok(()) | Err(Failure::BrokenPipe) => ExitCode::SUCCESS,
@@ -152,14 +185,17 @@ fn main() -> ExitCode {
             let _ = writeln!(io::stderr().lock(), "{message}");
             ExitCode::from(2)
         }
+        Err(Failure::Exit(code, message)) => {
+            let _ = writeln!(io::stderr().lock(), "{message}");
+            ExitCode::from(code)
+        }
     }
 }
 
-fn load_config(path: Option<&Path>) -> Result<Config, Failure> {
-    match path {
-        Some(path) => Config::load(path).map_err(|e| Failure::Error(e.to_string())),
-        None => Ok(Config::builtin()),
-    }
+pub fn load_config(path: Option<&Path>) -> Result<Config, Failure> {
+    kerf::config::load_default(path)
+        .map(|(config, _)| config)
+        .map_err(|e| Failure::Error(e.to_string()))
 }
 
 /// An opened program: its reader, the name errors use, and its dialect.
@@ -218,52 +254,15 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     let name = &source.name;
     let options = SimOptions {
         feed_override: args.override_pct / 100.0,
+        // The daemon's lookahead window: the same setpoints as `kerfd` on this machine.
+        queue_capacity: config.daemon.queue_segments as usize,
         ..SimOptions::default()
     };
 
     // Pass 1: the whole program is resolved, planned and checked against the travel
     // limits (the programmed moves and the planned path) before the first setpoint: a
     // program that would leave the machine's travel never starts.
-    let mut prepass = Prepass::new(&config, &options);
-    let refused = |e: PrepassError| match e.line() {
-        Some(line) => Failure::Error(format!("{name}:{line}:1: error: {e}")),
-        None => Failure::Error(format!("{name}: error: {e}")),
-    };
-    let started = Instant::now();
-    let mut spinner: Option<ProgressBar> = None;
-    let mut moves = 0u64;
-    for item in Interpreter::new(source.reader()?, source.dialect, config.settings()) {
-        match item {
-            Ok(Item::Move(m)) => {
-                prepass.push(&m).map_err(refused)?;
-                moves += 1;
-                // A long program takes a while to check: say so on a terminal.
-                if moves % 16384 == 0 && started.elapsed() > PROGRESS_AFTER {
-                    let bar = spinner.get_or_insert_with(|| {
-                        // Cleared when dropped, also when the check fails.
-                        let bar = ProgressBar::new_spinner().with_finish(ProgressFinish::AndClear);
-                        if let Ok(style) = ProgressStyle::with_template(
-                            "checking the program {spinner} {pos} moves, {elapsed}",
-                        ) {
-                            bar.set_style(style);
-                        }
-                        bar
-                    });
-                    bar.set_position(moves);
-                }
-            }
-            Ok(Item::Event(e)) => match kerf::sim::input_of_event(&e) {
-                Some(Input::Dwell(seconds)) => prepass.stop(Some(seconds)).map_err(refused)?,
-                Some(_) => prepass.stop(None).map_err(refused)?,
-                None => {}
-            },
-            Err(diagnostic) => return Err(Failure::Error(format!("{name}:{diagnostic}"))),
-        }
-    }
-    let checked = prepass.finish().map_err(refused)?;
-    if let Some(bar) = spinner {
-        bar.finish_and_clear();
-    }
+    let (checked, _) = check_program(&source, &config, config.settings(), &options)?;
     let scan = checked.scan;
 
     let create = |path: &Path| {
@@ -345,19 +344,77 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     Ok(())
 }
 
+/// Pass 1 of `kerf sim` and `kerf run`: the whole program is resolved with `settings`,
+/// planned and checked against the travel limits (the programmed moves and the planned
+/// path). Returns what the check kept and the last source line with a move or event.
+pub fn check_program(
+    source: &SimSource,
+    config: &Config,
+    settings: kerf_gcode::Settings,
+    options: &SimOptions,
+) -> Result<(kerf::sim::Checked, u32), Failure> {
+    let name = &source.name;
+    let mut prepass = Prepass::new(config, options);
+    let refused = |e: PrepassError| match e.line() {
+        Some(line) => Failure::Error(format!("{name}:{line}:1: error: {e}")),
+        None => Failure::Error(format!("{name}: error: {e}")),
+    };
+    let started = Instant::now();
+    let mut spinner: Option<ProgressBar> = None;
+    let mut moves = 0u64;
+    let mut last_line = 0;
+    for item in Interpreter::new(source.reader()?, source.dialect, settings) {
+        match item {
+            Ok(Item::Move(m)) => {
+                last_line = m.line;
+                prepass.push(&m).map_err(refused)?;
+                moves += 1;
+                // A long program takes a while to check: say so on a terminal.
+                if moves % 16384 == 0 && started.elapsed() > PROGRESS_AFTER {
+                    let bar = spinner.get_or_insert_with(|| {
+                        // Cleared when dropped, also when the check fails.
+                        let bar = ProgressBar::new_spinner().with_finish(ProgressFinish::AndClear);
+                        if let Ok(style) = ProgressStyle::with_template(
+                            "checking the program {spinner} {pos} moves, {elapsed}",
+                        ) {
+                            bar.set_style(style);
+                        }
+                        bar
+                    });
+                    bar.set_position(moves);
+                }
+            }
+            Ok(Item::Event(e)) => {
+                last_line = e.line;
+                match kerf::sim::input_of_event(&e) {
+                    Some(Input::Dwell(seconds)) => prepass.stop(Some(seconds)).map_err(refused)?,
+                    Some(_) => prepass.stop(None).map_err(refused)?,
+                    None => {}
+                }
+            }
+            Err(diagnostic) => return Err(Failure::Error(format!("{name}:{diagnostic}"))),
+        }
+    }
+    let checked = prepass.finish().map_err(refused)?;
+    if let Some(bar) = spinner {
+        bar.finish_and_clear();
+    }
+    Ok((checked, last_line))
+}
+
 /// The program of `kerf sim`, which may be read twice (a checking pass, then the run): a
 /// file is opened again; standard input, pipes and devices are first copied to a temporary
 /// file (removed when this is dropped), so that memory does not grow with the program.
-struct SimSource {
+pub struct SimSource {
     path: PathBuf,
-    name: String,
-    dialect: Dialect,
+    pub name: String,
+    pub dialect: Dialect,
     /// The spooled standard input, removed on drop.
     spool: Option<PathBuf>,
 }
 
 impl SimSource {
-    fn open(args: &ProgramArgs, config: &Config) -> Result<SimSource, Failure> {
+    pub fn open(args: &ProgramArgs, config: &Config) -> Result<SimSource, Failure> {
         if args.program.as_os_str() == OsStr::new("-") {
             let name = "<stdin>".to_string();
             let path = spool(&name, &mut io::stdin().lock())?;
@@ -394,7 +451,7 @@ impl SimSource {
     }
 
     /// A reader from the start of the program.
-    fn reader(&self) -> Result<Box<dyn BufRead + Send>, Failure> {
+    pub fn reader(&self) -> Result<Box<dyn BufRead + Send>, Failure> {
         let file = File::open(&self.path).map_err(|e| {
             Failure::Error(format!("{}: error: cannot read program: {e}", self.name))
         })?;

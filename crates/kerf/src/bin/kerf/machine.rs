@@ -1,0 +1,468 @@
+//! The commands that talk to a machine's daemon: `kerf run`, `status`, `hold`, `resume`,
+//! `abort`, `override` and `record`.
+
+use std::fs::File;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use kerf::client::{Client, ClientError, MoveSender, SetpointReader};
+use kerf::sim::{SimOptions, csv_header, write_row};
+use kerf_gcode::{Interpreter, Item};
+use kerf_motion::Setpoint;
+use kerf_proto::{Command, MoveMsg, SetpointMsg, StatusMsg};
+
+use crate::{Failure, ProgramArgs, SimSource, check_program, load_config};
+
+/// How often `kerf run` asks for the status while it waits.
+const STATUS_EVERY: Duration = Duration::from_millis(10);
+
+/// Messages sent between two looks at the setpoint stream while streaming.
+const DRAIN_EVERY: u64 = 256;
+
+#[derive(Args)]
+pub struct RunArgs {
+    #[command(flatten)]
+    pub program: ProgramArgs,
+    /// Start the daemon's loop in this process (on its own threads, over the same
+    /// services) instead of using a running `kerfd`.
+    #[arg(long)]
+    pub embedded: bool,
+    /// Write every cycle's setpoint of the program to this CSV (the columns of `kerf sim`).
+    #[arg(long, value_name = "FILE.csv")]
+    pub record: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct MachineArgs {
+    /// Machine configuration (TOML): names the machine whose daemon is asked. Without it:
+    /// /etc/kerf/kerf.toml if present, else the built-in example machine.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct StatusArgs {
+    #[command(flatten)]
+    pub machine: MachineArgs,
+    /// One JSON object instead of a line for a person.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args)]
+pub struct OverrideArgs {
+    #[command(flatten)]
+    pub machine: MachineArgs,
+    /// Feed override in percent, 0 to 200 (0 stops on the path until raised again).
+    #[arg(value_name = "PCT", value_parser = parse_live_override, allow_negative_numbers = true)]
+    pub percent: f64,
+}
+
+#[derive(Args)]
+pub struct RecordArgs {
+    #[command(flatten)]
+    pub machine: MachineArgs,
+    /// Where to write the CSV (`t,x,y,z`, `a,b,c` when the machine has rotary axes,
+    /// `line,feed_mm_s`; `t` in s from the first recorded cycle).
+    #[arg(long, value_name = "FILE.csv")]
+    pub out: PathBuf,
+    /// Stop after this many cycles (else at SIGINT or SIGTERM).
+    #[arg(long, value_name = "N")]
+    pub cycles: Option<u64>,
+}
+
+fn parse_live_override(text: &str) -> Result<f64, String> {
+    match text.trim_end_matches('%').parse::<f64>() {
+        Ok(pct) if (0.0..=200.0).contains(&pct) => Ok(pct),
+        _ => Err(format!(
+            "`{text}` is not a feed override: it must be 0 to 200 percent"
+        )),
+    }
+}
+
+fn client_failure(e: ClientError) -> Failure {
+    match e {
+        ClientError::NoDaemon { .. } | ClientError::Gone { .. } => {
+            Failure::Exit(1, format!("kerf: error: {e}"))
+        }
+        _ => Failure::Error(format!("kerf: error: {e}")),
+    }
+}
+
+fn connect(args: &MachineArgs) -> Result<(Client, kerf::Config), Failure> {
+    let config = load_config(args.config.as_deref())?;
+    let client = Client::connect(&config.machine).map_err(client_failure)?;
+    Ok((client, config))
+}
+
+/// `kerf status`.
+pub fn status(args: &StatusArgs) -> Result<(), Failure> {
+    let (mut client, config) = connect(&args.machine)?;
+    let s = client.status().map_err(client_failure)?;
+    let line = if args.json {
+        kerf::client::status_json(&config.machine, &s)
+    } else {
+        kerf::client::status_line(&config.machine, &s)
+    };
+    writeln!(io::stdout().lock(), "{line}")?;
+    Ok(())
+}
+
+/// `kerf hold`, `resume`, `abort`, `override`.
+pub fn command(args: &MachineArgs, command: Command) -> Result<(), Failure> {
+    let (mut client, _) = connect(args)?;
+    client.command(command).map_err(|e| match e {
+        ClientError::Refused(m) => Failure::Error(format!("kerf: error: refused: {m}")),
+        e => client_failure(e),
+    })?;
+    Ok(())
+}
+
+/// Stops a command at SIGINT or SIGTERM (the first; a second one ends the process as
+/// usual).
+fn stop_flag() -> Result<Arc<AtomicBool>, Failure> {
+    let signals = kerf_rt::Signals::install()
+        .map_err(|e| Failure::Error(format!("kerf: error: cannot handle signals: {e}")))?;
+    let flag = Arc::new(AtomicBool::new(false));
+    let f = flag.clone();
+    std::thread::spawn(move || {
+        loop {
+            if signals.stop_requested().is_some() {
+                f.store(true, Ordering::Release);
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    });
+    Ok(flag)
+}
+
+/// `kerf record`.
+pub fn record(args: &RecordArgs) -> Result<(), Failure> {
+    let (mut client, config) = connect(&args.machine)?;
+    let status = client.status().map_err(client_failure)?;
+    let stop = stop_flag()?;
+    let rotary = status.axes_mask & 0b111_000 != 0;
+    let mut reader = SetpointReader::open(client.node(), &config.machine).map_err(client_failure)?;
+    let file = File::create(&args.out).map_err(|e| {
+        Failure::Error(format!("{}: error: cannot create: {e}", args.out.display()))
+    })?;
+    let mut out = BufWriter::new(file);
+    let write_error = |e: io::Error| Failure::Error(format!("{}: error: {e}", args.out.display()));
+    writeln!(out, "{}", csv_header(rotary)).map_err(write_error)?;
+    let period_s = status.period_ns as f64 * 1e-9;
+    let mut first: Option<u64> = None;
+    let mut written = 0u64;
+    let limit = args.cycles.unwrap_or(u64::MAX);
+    let mut io_error = None;
+    while written < limit && !stop.load(Ordering::Acquire) {
+        let result = reader.drain(true, |m| {
+            if written >= limit {
+                return Ok(());
+            }
+            let base = *first.get_or_insert(m.seq);
+            let t = kerf_pipeline::cycle_time_s(m.seq - base, period_s);
+            if let Err(e) = write_row(&mut out, t, &setpoint_of(m), rotary) {
+                io_error.get_or_insert(e);
+            }
+            written += 1;
+            Ok(())
+        });
+        if let Some(e) = io_error.take() {
+            return Err(write_error(e));
+        }
+        if let Err(e) = result {
+            out.flush().map_err(write_error)?;
+            return Err(client_failure(e));
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    out.flush().map_err(write_error)?;
+    Ok(())
+}
+
+fn setpoint_of(m: &SetpointMsg) -> Setpoint {
+    Setpoint {
+        position: m.position_mm_deg,
+        line: m.line,
+        move_index: 0,
+        move_count: 1,
+        feed_mm_s: m.feed_mm_s,
+    }
+}
+
+/// The program's rows of the setpoint stream as `kerf sim` writes them: the row at t = 0
+/// at the start position, then one per cycle of the program.
+struct Recording {
+    out: BufWriter<File>,
+    path: PathBuf,
+    rotary: bool,
+    period_s: f64,
+}
+
+impl Recording {
+    fn create(path: &Path, rotary: bool, period_s: f64, start: [f64; 6]) -> Result<Self, Failure> {
+        let file = File::create(path)
+            .map_err(|e| Failure::Error(format!("{}: error: cannot create: {e}", path.display())))?;
+        let mut r = Recording {
+            out: BufWriter::new(file),
+            path: path.to_path_buf(),
+            rotary,
+            period_s,
+        };
+        let first = Setpoint {
+            position: start,
+            ..Setpoint::default()
+        };
+        writeln!(r.out, "{}", csv_header(rotary)).map_err(|e| r.error(e))?;
+        write_row(&mut r.out, 0.0, &first, rotary).map_err(|e| r.error(e))?;
+        Ok(r)
+    }
+
+    fn error(&self, e: io::Error) -> Failure {
+        Failure::Error(format!("{}: error: {e}", self.path.display()))
+    }
+
+    fn row(&mut self, m: &SetpointMsg) -> Result<(), Failure> {
+        let t = kerf_pipeline::cycle_time_s(m.program_cycle, self.period_s);
+        write_row(&mut self.out, t, &setpoint_of(m), self.rotary).map_err(|e| self.error(e))
+    }
+
+    fn finish(mut self) -> Result<(), Failure> {
+        self.out.flush().map_err(|e| self.error(e))
+    }
+}
+
+/// What `kerf run` watches on the setpoint stream.
+struct Watch {
+    program_id: u64,
+    recording: Option<Recording>,
+    /// Highest program cycle seen.
+    cycle: u64,
+    line: u32,
+    feed_mm_s: f64,
+    last_seq: u64,
+}
+
+impl Watch {
+    fn take(&mut self, reader: &mut SetpointReader) -> Result<(), Failure> {
+        let mut failure = None;
+        let result = reader.drain(true, |m| {
+            self.last_seq = m.seq;
+            if m.program_id == self.program_id && m.program_cycle > self.cycle {
+                self.cycle = m.program_cycle;
+                self.line = m.line;
+                self.feed_mm_s = m.feed_mm_s;
+                if let Some(r) = self.recording.as_mut() {
+                    if let Err(e) = r.row(m) {
+                        failure.get_or_insert(e);
+                    }
+                }
+            }
+            Ok(())
+        });
+        if let Some(f) = failure {
+            return Err(f);
+        }
+        result.map(|_| ()).map_err(client_failure)
+    }
+}
+
+/// A program id no other run on this PC picks: the process id and the time.
+fn program_id() -> u64 {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64);
+    ((std::process::id() as u64) << 40 ^ nanos) | 1
+}
+
+/// `kerf run`.
+pub fn run(args: &RunArgs) -> Result<(), Failure> {
+    let config = load_config(args.program.config.as_deref())?;
+    let source = SimSource::open(&args.program, &config)?;
+    let name = source.name.clone();
+    let _embedded = if args.embedded {
+        Some(kerf::daemon::start(&config, false).map_err(|e| match e {
+            kerf::daemon::StartError::AlreadyRunning(_) => {
+                Failure::Exit(1, format!("kerf: error: {e}"))
+            }
+            e => Failure::Error(format!("kerf: error: {e}")),
+        })?)
+    } else {
+        None
+    };
+    let mut client = Client::connect(&config.machine).map_err(client_failure)?;
+    let status = client.status().map_err(client_failure)?;
+    if status.program_id != 0 && status.program_done == 0 {
+        return Err(Failure::Error(format!(
+            "kerf: error: machine `{}` is busy with another program (`kerf status`; `kerf abort` ends it)",
+            config.machine
+        )));
+    }
+    let start = status.position_mm_deg;
+    let mut settings = config.settings();
+    settings.start_mm_deg = start;
+    let options = SimOptions {
+        queue_capacity: config.daemon.queue_segments as usize,
+        ..SimOptions::default()
+    };
+    // Pass 1: the whole program, checked before any motion.
+    let (checked, last_line) = check_program(&source, &config, settings.clone(), &options)?;
+    let scan = checked.scan;
+    drop(checked.kept);
+
+    let period_s = status.period_ns as f64 * 1e-9;
+    let rotary = status.axes_mask & 0b111_000 != 0 && scan.rotary_used;
+    let recording = match &args.record {
+        Some(path) => Some(Recording::create(path, rotary, period_s, start)?),
+        None => None,
+    };
+    let machine = config.machine.clone();
+    let mut reader = SetpointReader::open(client.node(), &machine).map_err(client_failure)?;
+    let mut sender = MoveSender::open(client.node(), &machine).map_err(client_failure)?;
+    let id = program_id();
+    let mut watch = Watch {
+        program_id: id,
+        recording,
+        cycle: 0,
+        line: 0,
+        feed_mm_s: 0.0,
+        last_seq: 0,
+    };
+    let bar = progress_bar(last_line);
+    let window = status.window_items.max(1);
+    let mut acked = 0u64;
+    let mut last_status = Instant::now();
+
+    // Pass 2: stream the program.
+    let stop = stop_flag()?;
+    sender
+        .send(MoveMsg::begin(id, start, 0))
+        .map_err(client_failure)?;
+    let mut seq = 0u64;
+    for item in Interpreter::new(source.reader()?, source.dialect, settings) {
+        let item = match item {
+            Ok(item) => item,
+            // Pass 1 read it without an error: the file changed in between.
+            Err(d) => {
+                let _ = client.command(Command::Abort);
+                return Err(Failure::Error(format!(
+                    "{name}:{d} (the file changed after it was checked; the motion was aborted)"
+                )));
+            }
+        };
+        seq += 1;
+        let msg = MoveMsg::from_item(id, seq, &item);
+        // Flow control: never more than the daemon's window unacknowledged.
+        while sender.sent - acked >= window {
+            let s = client.status().map_err(client_failure)?;
+            check_program_state(&s, id, &name, &machine)?;
+            if s.program_id == id {
+                acked = s.moves_received;
+            }
+            watch.take(&mut reader)?;
+            if sender.sent - acked >= window {
+                std::thread::sleep(Duration::from_micros(500));
+            }
+        }
+        sender.send(msg).map_err(client_failure)?;
+        if sender.sent % DRAIN_EVERY == 0 {
+            watch.take(&mut reader)?;
+            update_bar(&bar, &watch, last_line, None);
+        }
+        if stop.load(Ordering::Acquire) {
+            let _ = client.command(Command::Abort);
+            return Err(Failure::Error(format!(
+                "{name}: error: interrupted; the motion was aborted on the path"
+            )));
+        }
+        if let Item::Move(_) = item {}
+        if last_status.elapsed() > STATUS_EVERY * 10 {
+            last_status = Instant::now();
+            let s = client.status().map_err(client_failure)?;
+            check_program_state(&s, id, &name, &machine)?;
+        }
+    }
+    sender
+        .send(MoveMsg::end(id, seq))
+        .map_err(client_failure)?;
+
+    // Wait for the motion to finish.
+    loop {
+        watch.take(&mut reader)?;
+        let s = client.status().map_err(client_failure)?;
+        update_bar(&bar, &watch, last_line, Some(&s));
+        if stop.load(Ordering::Acquire) {
+            let _ = client.command(Command::Abort);
+            return Err(Failure::Error(format!(
+                "{name}: error: interrupted; the motion was aborted on the path"
+            )));
+        }
+        if s.program_id == id && s.program_done != 0 {
+            // Every setpoint up to the one that finished the program.
+            while watch.last_seq < s.cycles {
+                std::thread::sleep(Duration::from_millis(1));
+                watch.take(&mut reader)?;
+            }
+            bar.finish_and_clear();
+            if s.fault != 0 {
+                return Err(Failure::Error(format!(
+                    "{name}: error: the daemon stopped the program: {}",
+                    s.fault_text()
+                )));
+            }
+            if let Some(r) = watch.recording.take() {
+                r.finish()?;
+            }
+            // Exit 0 means the program ran to its end point.
+            scan.check_end(&s.position_mm_deg)
+                .map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
+            return Ok(());
+        }
+        check_program_state(&s, id, &name, &machine)?;
+        std::thread::sleep(STATUS_EVERY);
+    }
+}
+
+/// A program that another client replaced or a refusal ended is reported at once.
+fn check_program_state(s: &StatusMsg, id: u64, name: &str, machine: &str) -> Result<(), Failure> {
+    if s.program_id != id && s.program_id != 0 && s.program_done == 0 {
+        return Err(Failure::Error(format!(
+            "{name}: error: machine `{machine}` started another program"
+        )));
+    }
+    if s.program_id == id && s.fault != 0 && s.program_done != 0 {
+        return Err(Failure::Error(format!(
+            "{name}: error: the daemon stopped the program: {}",
+            s.fault_text()
+        )));
+    }
+    Ok(())
+}
+
+fn progress_bar(last_line: u32) -> ProgressBar {
+    // Hidden when standard error is not a terminal.
+    let bar = ProgressBar::new(u64::from(last_line.max(1)));
+    if let Ok(style) = ProgressStyle::with_template(
+        "{bar:30} {percent:>3}% line {pos}/{len} {msg} {elapsed}",
+    ) {
+        bar.set_style(style);
+    }
+    bar
+}
+
+fn update_bar(bar: &ProgressBar, watch: &Watch, last_line: u32, s: Option<&StatusMsg>) {
+    bar.set_position(u64::from(watch.line.min(last_line)));
+    match s {
+        Some(s) => bar.set_message(format!(
+            "feed {:.1} mm/s, queued {:.1} s",
+            watch.feed_mm_s, s.queued_s
+        )),
+        None => bar.set_message(format!("feed {:.1} mm/s", watch.feed_mm_s)),
+    }
+}

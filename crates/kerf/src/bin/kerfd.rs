@@ -1,0 +1,99 @@
+//! `kerfd`: the real-time interpolator daemon of one machine, in the foreground.
+//!
+//! It reads the machine configuration (`--config FILE`, else `/etc/kerf/kerf.toml` when it
+//! exists, else the built-in example), creates the machine's iceoryx2 services
+//! (`kerf/<machine>/…`), runs the cycle at the configured period, and tells systemd when
+//! it is ready (`Type=notify`) and that it is alive (the watchdog is fed only while the
+//! cycle advances). SIGTERM and SIGINT bring the motion to a jerk-limited stop on the
+//! path, then it exits 0.
+//!
+//! Logs go to standard error, one line per event; under systemd, journald stores them.
+//! Exit codes: 0 after a requested stop, 1 when it cannot start or a thread failed.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use anyhow::Context;
+use clap::Parser;
+
+/// How often the main thread looks at signals and feeds the watchdog.
+const SUPERVISE_EVERY: Duration = Duration::from_millis(20);
+
+#[derive(Parser)]
+#[command(name = "kerfd", version, about = "Kerf real-time interpolator daemon")]
+struct Args {
+    /// Machine configuration (TOML). Without it: /etc/kerf/kerf.toml if present, else the
+    /// built-in example machine.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    // journald adds the time; a terminal gets it from us.
+    let under_journal = std::env::var_os("JOURNAL_STREAM").is_some();
+    let builder = tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .with_ansi(!under_journal);
+    if under_journal {
+        builder.without_time().init();
+    } else {
+        builder.init();
+    }
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            tracing::error!("{e:#}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+fn run(args: &Args) -> anyhow::Result<()> {
+    let (config, origin) = kerf::config::load_default(args.config.as_deref())
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let signals = kerf_rt::Signals::install().context("cannot install signal handlers")?;
+    let daemon = kerf::daemon::start(&config, true).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let rt = daemon.rt();
+    if rt.rt {
+        tracing::info!("real-time scheduling and locked memory in effect");
+    } else {
+        // Once, then the status says `rt: false`.
+        tracing::warn!(
+            "running without real-time guarantees: {}",
+            rt.messages.join("; ")
+        );
+    }
+    tracing::info!(
+        "machine `{}` ready ({origin}, period {} µs, services kerf/{}/…)",
+        daemon.machine(),
+        config.period_us,
+        daemon.machine()
+    );
+    let _ = kerf_rt::notify_ready();
+    let mut watchdog = kerf_rt::Watchdog::new();
+    let mut stopping = false;
+    loop {
+        std::thread::sleep(SUPERVISE_EVERY);
+        let _ = watchdog.feed(daemon.cycles());
+        if !stopping {
+            if let Some(signal) = signals.stop_requested() {
+                tracing::info!("signal {signal}: stopping on the path");
+                let _ = kerf_rt::notify_stopping();
+                daemon.shutdown();
+                stopping = true;
+            }
+        }
+        if daemon.finished() {
+            break;
+        }
+    }
+    daemon.join().map_err(|e| anyhow::anyhow!("{e}"))?;
+    if !stopping {
+        anyhow::bail!("the daemon stopped without being asked to");
+    }
+    tracing::info!("stopped");
+    Ok(())
+}

@@ -1,0 +1,364 @@
+//! The client side of the daemon's services: requests on the control service, the status
+//! in the shapes `kerf status` prints, and a setpoint reader that checks the sequence.
+
+use std::fmt::Write as _;
+use std::time::{Duration, Instant};
+
+use iceoryx2::prelude::*;
+use kerf_proto::{
+    Command, MoveMsg, REASON_OK, Request, Response, SetpointMsg, State, StatusMsg,
+};
+
+use crate::ipc;
+
+/// How long a request may go unanswered before the daemon counts as absent.
+pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// How long the setpoint stream may stall before the daemon counts as gone: a hundred
+/// cycles at the longest period the daemon runs would be a second; the stream never
+/// pauses, so 100 ms is many cycles at any period up to 10 ms.
+pub const STREAM_TIMEOUT: Duration = Duration::from_millis(100);
+
+/// Why talking to the daemon failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ClientError {
+    /// No daemon answers for the machine.
+    #[error(
+        "no kerfd answers for machine `{machine}`; start one with `kerfd --config FILE` (or `systemctl start kerfd`), or run the program with `kerf run --embedded`"
+    )]
+    NoDaemon {
+        /// The machine name from the configuration.
+        machine: String,
+    },
+    /// The daemon refused the request.
+    #[error("{0}")]
+    Refused(String),
+    /// The daemon stopped while we were talking to it.
+    #[error("kerfd for machine `{machine}` stopped: {detail}")]
+    Gone {
+        /// The machine name.
+        machine: String,
+        /// What was noticed.
+        detail: String,
+    },
+    /// Shared memory could not be used.
+    #[error("{0}")]
+    Ipc(String),
+}
+
+/// A connection to one machine's daemon.
+pub struct Client {
+    machine: String,
+    node: Node<ipc::Ipc>,
+    _control: ipc::ControlService,
+    client: iceoryx2::port::client::Client<ipc::Ipc, Request, (), Response, ()>,
+    next_id: u64,
+}
+
+impl Client {
+    /// Connects to the daemon of `machine` and checks that it answers.
+    pub fn connect(machine: &str) -> Result<Client, ClientError> {
+        let node = ipc::node(&format!("kerf-{}", std::process::id())).map_err(ClientError::Ipc)?;
+        let no_daemon = || ClientError::NoDaemon {
+            machine: machine.to_string(),
+        };
+        let control = ipc::open_control(&node, machine).map_err(|_| no_daemon())?;
+        let client = control
+            .client_builder()
+            .create()
+            .map_err(|e| ClientError::Ipc(format!("cannot create a control client: {e:?}")))?;
+        let mut c = Client {
+            machine: machine.to_string(),
+            node,
+            _control: control,
+            client,
+            next_id: 1,
+        };
+        c.status()?;
+        Ok(c)
+    }
+
+    /// The machine this client talks to.
+    pub fn machine(&self) -> &str {
+        &self.machine
+    }
+
+    /// The node, for opening further ports.
+    pub fn node(&self) -> &Node<ipc::Ipc> {
+        &self.node
+    }
+
+    /// Sends `command` and waits for the answer (at most [`REQUEST_TIMEOUT`]). A refusal
+    /// is returned as the response; only a missing answer is an error.
+    pub fn request(&mut self, command: Command) -> Result<Response, ClientError> {
+        let id = self.next_id;
+        self.next_id += 1;
+        let pending = self
+            .client
+            .send_copy(Request::from_command(command, id))
+            .map_err(|_| ClientError::NoDaemon {
+                machine: self.machine.clone(),
+            })?;
+        let deadline = Instant::now() + REQUEST_TIMEOUT;
+        loop {
+            match pending.receive() {
+                Ok(Some(response)) if response.request_id == id => return Ok(*response),
+                Ok(Some(_)) => {}
+                Ok(None) => {}
+                Err(_) => {
+                    return Err(ClientError::NoDaemon {
+                        machine: self.machine.clone(),
+                    });
+                }
+            }
+            if Instant::now() > deadline {
+                return Err(ClientError::NoDaemon {
+                    machine: self.machine.clone(),
+                });
+            }
+            std::thread::sleep(Duration::from_micros(200));
+        }
+    }
+
+    /// The daemon's status.
+    pub fn status(&mut self) -> Result<StatusMsg, ClientError> {
+        Ok(self.request(Command::Status)?.status)
+    }
+
+    /// Sends a command; a refusal is an error with the daemon's words.
+    pub fn command(&mut self, command: Command) -> Result<StatusMsg, ClientError> {
+        let r = self.request(command)?;
+        if r.reason == REASON_OK {
+            Ok(r.status)
+        } else {
+            Err(ClientError::Refused(r.message().to_string()))
+        }
+    }
+}
+
+/// The name of a status state in `kerf status`.
+pub fn state_name(s: &StatusMsg) -> &'static str {
+    match s.state() {
+        Ok(State::Idle) => "idle",
+        Ok(State::Running) => "running",
+        Ok(State::Holding) => "holding",
+        Ok(State::Starved) => "starved",
+        Ok(State::Fault) => "fault",
+        Ok(State::Stopping) => "stopping",
+        Err(_) => "unknown",
+    }
+}
+
+const AXIS_KEYS: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
+
+/// `kerf status --json`: one JSON object.
+pub fn status_json(machine: &str, s: &StatusMsg) -> String {
+    let mut out = String::new();
+    let num = |v: f64| {
+        if v.is_finite() {
+            let mut b = zmij::Buffer::new();
+            b.format(v).to_string()
+        } else {
+            "null".to_string()
+        }
+    };
+    let _ = write!(
+        out,
+        "{{\"machine\":{},\"state\":\"{}\",\"line\":{},\"position\":{{",
+        json_string(machine),
+        state_name(s),
+        s.line
+    );
+    let mut first = true;
+    for (i, key) in AXIS_KEYS.iter().enumerate() {
+        if s.axes_mask & (1 << i) == 0 {
+            continue;
+        }
+        if !first {
+            out.push(',');
+        }
+        first = false;
+        let _ = write!(out, "\"{key}\":{}", num(s.position_mm_deg[i]));
+    }
+    let fault = if s.fault != 0 {
+        json_string(s.fault_text())
+    } else {
+        "null".to_string()
+    };
+    let _ = write!(
+        out,
+        "}},\"override_pct\":{},\"queued_moves\":{},\"queued_s\":{},\"cycles\":{},\"overruns\":{},\"rt\":{},\"fault\":{},\"program_id\":{},\"program_done\":{},\"moves_received\":{},\"rejected\":{},\"period_us\":{}}}",
+        num(s.override_pct),
+        s.queued_moves,
+        num(s.queued_s),
+        s.cycles,
+        s.overruns,
+        s.rt != 0,
+        fault,
+        s.program_id,
+        s.program_done != 0,
+        s.moves_received,
+        s.rejected,
+        num(s.period_ns as f64 / 1000.0)
+    );
+    out
+}
+
+/// `kerf status`: one line for a person.
+pub fn status_line(machine: &str, s: &StatusMsg) -> String {
+    let mut out = format!("{machine}: {}", state_name(s));
+    if s.line != 0 {
+        let _ = write!(out, " at line {}", s.line);
+    }
+    out.push_str(",");
+    for (i, key) in AXIS_KEYS.iter().enumerate() {
+        if s.axes_mask & (1 << i) != 0 {
+            let _ = write!(
+                out,
+                " {} {:.3}",
+                key.to_ascii_uppercase(),
+                s.position_mm_deg[i]
+            );
+        }
+    }
+    let _ = write!(
+        out,
+        ", override {} %, {} queued ({:.1} s), {} cycles, {} overruns, rt: {}",
+        s.override_pct,
+        s.queued_moves,
+        s.queued_s,
+        s.cycles,
+        s.overruns,
+        if s.rt != 0 { "yes" } else { "no" }
+    );
+    if s.fault != 0 {
+        let _ = write!(out, ", fault: {}", s.fault_text());
+    }
+    out
+}
+
+fn json_string(s: &str) -> String {
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            c if (c as u32) < 0x20 => {
+                let _ = write!(out, "\\u{:04x}", c as u32);
+            }
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+/// A reader of the setpoint stream that notices lost cycles and a stalled stream.
+pub struct SetpointReader {
+    machine: String,
+    _service: ipc::SetpointsService,
+    subscriber: iceoryx2::port::subscriber::Subscriber<ipc::Ipc, SetpointMsg, ()>,
+    last_seq: Option<u64>,
+    last_seen: Instant,
+}
+
+impl SetpointReader {
+    /// Subscribes to the setpoints of `machine`.
+    pub fn open(node: &Node<ipc::Ipc>, machine: &str) -> Result<SetpointReader, ClientError> {
+        let service = ipc::open_setpoints(node, machine).map_err(|_| ClientError::NoDaemon {
+            machine: machine.to_string(),
+        })?;
+        let subscriber = ipc::setpoint_subscriber(&service).map_err(ClientError::Ipc)?;
+        Ok(SetpointReader {
+            machine: machine.to_string(),
+            _service: service,
+            subscriber,
+            last_seq: None,
+            last_seen: Instant::now(),
+        })
+    }
+
+    /// Takes every setpoint that has arrived, in order, calling `f` for each; an error if
+    /// a cycle is missing between two of them (the reader fell behind) or, with
+    /// `expect_stream`, if nothing arrived for [`STREAM_TIMEOUT`].
+    pub fn drain(
+        &mut self,
+        expect_stream: bool,
+        mut f: impl FnMut(&SetpointMsg) -> Result<(), ClientError>,
+    ) -> Result<usize, ClientError> {
+        let mut n = 0;
+        loop {
+            let msg = match self.subscriber.receive() {
+                Ok(Some(sample)) => *sample,
+                Ok(None) => break,
+                Err(e) => return Err(ClientError::Ipc(format!("receiving setpoints: {e:?}"))),
+            };
+            if let Some(last) = self.last_seq {
+                if msg.seq != last + 1 {
+                    return Err(ClientError::Gone {
+                        machine: self.machine.clone(),
+                        detail: format!(
+                            "setpoints {} to {} were lost (the reader fell behind)",
+                            last + 1,
+                            msg.seq.saturating_sub(1)
+                        ),
+                    });
+                }
+            }
+            self.last_seq = Some(msg.seq);
+            n += 1;
+            f(&msg)?;
+        }
+        let now = Instant::now();
+        if n > 0 {
+            self.last_seen = now;
+        } else if expect_stream && now.duration_since(self.last_seen) > STREAM_TIMEOUT {
+            return Err(ClientError::Gone {
+                machine: self.machine.clone(),
+                detail: format!(
+                    "no setpoint for {} ms",
+                    now.duration_since(self.last_seen).as_millis()
+                ),
+            });
+        }
+        Ok(n)
+    }
+
+    /// Restarts the stall timer (after a pause in reading that was not the daemon's).
+    pub fn touch(&mut self) {
+        self.last_seen = Instant::now();
+    }
+}
+
+/// A publisher of one program's resolved moves.
+pub struct MoveSender {
+    _service: ipc::MovesService,
+    publisher: iceoryx2::port::publisher::Publisher<ipc::Ipc, MoveMsg, ()>,
+    /// Messages sent.
+    pub sent: u64,
+}
+
+impl MoveSender {
+    /// Opens the moves service of `machine`.
+    pub fn open(node: &Node<ipc::Ipc>, machine: &str) -> Result<MoveSender, ClientError> {
+        let service = ipc::open_moves(node, machine).map_err(|_| ClientError::NoDaemon {
+            machine: machine.to_string(),
+        })?;
+        let publisher = ipc::move_publisher(&service).map_err(ClientError::Ipc)?;
+        Ok(MoveSender {
+            _service: service,
+            publisher,
+            sent: 0,
+        })
+    }
+
+    /// Sends one message (the caller keeps within the flow-control window).
+    pub fn send(&mut self, msg: MoveMsg) -> Result<(), ClientError> {
+        self.publisher
+            .send_copy(msg)
+            .map_err(|e| ClientError::Ipc(format!("sending a move: {e:?}")))?;
+        self.sent += 1;
+        Ok(())
+    }
+}

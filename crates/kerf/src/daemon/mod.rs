@@ -1,0 +1,655 @@
+//! The interpolator daemon's threads, for `kerfd` and `kerf run --embedded`.
+//!
+//! ```text
+//!  kerf/<m>/moves ──► planning thread ──ring──► real-time thread ──► kerf/<m>/setpoints
+//!                     (checks, kerf-plan)        (Cycle: kerf-pipeline's
+//!                                                 Interpolator, one period)
+//!  kerf/<m>/control ◄─► control thread ──ring──►  commands
+//!                          ▲  └───────────◄ring◄── status snapshots
+//! ```
+//!
+//! - The real-time thread builds everything before its first cycle (ports, rings, the
+//!   motion core, the estimate ring), locks memory and asks for SCHED_FIFO; then every
+//!   period it takes commands and planned items without blocking, steps, and publishes
+//!   one setpoint. It never allocates, locks or logs.
+//! - The planning thread converts and checks every message (`kerf_proto`), checks the
+//!   travel, plans with the same code as `kerf sim` (`kerf_pipeline::plan_input`) and
+//!   fills the ring; it waits when the ring is full, so backpressure reaches the planner
+//!   process through the flow-control window.
+//! - The control thread answers requests with the latest snapshot and turns commands into
+//!   items of the command ring.
+
+pub mod worker;
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use iceoryx2::prelude::*;
+use kerf_proto::{
+    Command as Request, MoveMsg, REASON_NOT_ALLOWED, REASON_NOT_IMPLEMENTED, REASON_OK,
+    Resolved, Response, SetpointMsg, State, StatusMsg, StreamCheck,
+};
+
+use crate::config::Config;
+use crate::ipc;
+use worker::{Command, Cycle, Incoming, Planning, PlanningCounters, RtItem, Snapshot};
+
+/// Planned items the ring from the planning thread to the cycle holds: a few seconds of
+/// dense code ahead of the motion queue.
+pub const PLANNED_RING: usize = 8192;
+
+/// Commands the ring to the cycle holds.
+const COMMAND_RING: usize = 64;
+
+/// Snapshots the ring from the cycle holds (the control thread drains it every poll).
+const STATUS_RING: usize = 256;
+
+/// How often the planning and control threads poll when there is nothing to do.
+const POLL: Duration = Duration::from_micros(200);
+
+/// How long a program may go without a message before the planning thread checks that
+/// its sender is still alive.
+const SENDER_CHECK_AFTER: Duration = Duration::from_millis(50);
+
+/// Stack bytes the cycle thread touches before its first cycle.
+const PREFAULT_STACK_BYTES: usize = 256 * 1024;
+
+/// What went wrong starting the daemon.
+#[derive(Debug, thiserror::Error)]
+pub enum StartError {
+    /// Another daemon serves this machine.
+    #[error(
+        "a kerfd is already running for machine `{0}` (its control service exists); stop it first, or give this machine another `machine` name"
+    )]
+    AlreadyRunning(String),
+    /// The configuration cannot be run by the daemon.
+    #[error("{0}")]
+    Config(String),
+    /// Shared memory or threads could not be set up.
+    #[error("{0}")]
+    Setup(String),
+}
+
+/// What the real-time setup achieved.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RtStatus {
+    /// SCHED_FIFO and mlockall both took effect.
+    pub rt: bool,
+    /// What was refused, for the log.
+    pub messages: Vec<String>,
+}
+
+/// A running daemon.
+pub struct Daemon {
+    machine: String,
+    stop: Arc<AtomicBool>,
+    shutdown: Arc<AtomicBool>,
+    cycles: Arc<AtomicU64>,
+    done: Arc<AtomicBool>,
+    threads: Vec<JoinHandle<Result<(), String>>>,
+    rt: RtStatus,
+}
+
+impl Daemon {
+    /// The machine served.
+    pub fn machine(&self) -> &str {
+        &self.machine
+    }
+
+    /// Cycles run so far (the watchdog feeds systemd only while this advances).
+    pub fn cycles(&self) -> u64 {
+        self.cycles.load(Ordering::Acquire)
+    }
+
+    /// What the real-time setup achieved.
+    pub fn rt(&self) -> &RtStatus {
+        &self.rt
+    }
+
+    /// Asks for a jerk-limited stop on the path, after which the daemon ends.
+    pub fn shutdown(&self) {
+        self.shutdown.store(true, Ordering::Release);
+    }
+
+    /// `true` once the daemon has stopped (after [`shutdown`](Self::shutdown), or a
+    /// thread failed).
+    pub fn finished(&self) -> bool {
+        self.done.load(Ordering::Acquire) || self.threads.iter().any(|t| t.is_finished())
+    }
+
+    /// Waits for every thread; the first error of any.
+    pub fn join(mut self) -> Result<(), String> {
+        self.stop_all()
+    }
+
+    fn stop_all(&mut self) -> Result<(), String> {
+        self.shutdown.store(true, Ordering::Release);
+        let mut result = Ok(());
+        // The cycle ends on its own after the stop; the other threads follow it.
+        for t in self.threads.drain(..) {
+            let r = t
+                .join()
+                .unwrap_or_else(|_| Err("a daemon thread panicked".to_string()));
+            if result.is_ok() {
+                result = r;
+            }
+            self.stop.store(true, Ordering::Release);
+        }
+        result
+    }
+}
+
+impl Drop for Daemon {
+    fn drop(&mut self) {
+        if !self.threads.is_empty() {
+            let _ = self.stop_all();
+        }
+    }
+}
+
+/// The period range the daemon runs, checked before anything starts.
+pub fn check_period(config: &Config) -> Result<(), StartError> {
+    let range = crate::config::DAEMON_PERIOD_RANGE_US;
+    if range.contains(&config.period_us) {
+        Ok(())
+    } else {
+        Err(StartError::Config(format!(
+            "`period_us` = {} is outside the daemon's range ({} to {} µs); `kerf sim` accepts it, the real-time cycle does not",
+            config.period_us,
+            range.start(),
+            range.end()
+        )))
+    }
+}
+
+/// Starts the daemon for the machine of `config`: creates the services (after cleaning
+/// the resources of dead processes), then the three threads. Returns once the cycle runs
+/// and every port is up.
+pub fn start(config: &Config, real_time: bool) -> Result<Daemon, StartError> {
+    check_period(config)?;
+    let cleaned = ipc::clean_dead_nodes();
+    if cleaned > 0 {
+        tracing::info!("removed the shared-memory resources of {cleaned} dead process(es)");
+    }
+    let machine = config.machine.clone();
+    let window = config.daemon.move_window as usize;
+
+    let stop = Arc::new(AtomicBool::new(false));
+    let shutdown = Arc::new(AtomicBool::new(false));
+    let cycles = Arc::new(AtomicU64::new(0));
+    let overruns = Arc::new(AtomicU64::new(0));
+    let done = Arc::new(AtomicBool::new(false));
+    let rt_ok = Arc::new(AtomicBool::new(false));
+    let counters = PlanningCounters::default();
+
+    let (items_tx, items_rx) = rtrb::RingBuffer::<RtItem>::new(PLANNED_RING);
+    let (commands_tx, commands_rx) = rtrb::RingBuffer::<Command>::new(COMMAND_RING);
+    let (status_tx, status_rx) = rtrb::RingBuffer::<Snapshot>::new(STATUS_RING);
+
+    // Each thread reports once its ports are up (or why they are not).
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<Option<RtStatus>, StartError>>();
+
+    let mut threads = Vec::new();
+
+    // The control thread first: its service tells whether another daemon runs.
+    {
+        let machine = machine.clone();
+        let ready = ready_tx.clone();
+        let stop = stop.clone();
+        let shutdown = shutdown.clone();
+        let done = done.clone();
+        let counters = counters.clone();
+        let overruns = overruns.clone();
+        let rt_ok = rt_ok.clone();
+        let config = config.clone();
+        threads.push(spawn("kerfd-control", move || {
+            control_thread(
+                &config, &machine, ready, stop, shutdown, done, counters, overruns, rt_ok,
+                commands_tx, status_rx,
+            )
+        })?);
+    }
+    wait_ready(&ready_rx)?;
+
+    {
+        let machine = machine.clone();
+        let ready = ready_tx.clone();
+        let stop = stop.clone();
+        let config = config.clone();
+        let counters = counters.clone();
+        threads.push(spawn("kerfd-planning", move || {
+            planning_thread(&config, &machine, window, ready, stop, counters, items_tx)
+        })?);
+    }
+    wait_ready(&ready_rx)?;
+
+    let rt_status;
+    {
+        let ready = ready_tx.clone();
+        let stop = stop.clone();
+        let cycles = cycles.clone();
+        let config = config.clone();
+        threads.push(spawn("kerfd-cycle", move || {
+            cycle_thread(
+                &config,
+                real_time,
+                ready,
+                stop,
+                cycles,
+                overruns,
+                rt_ok,
+                items_rx,
+                commands_rx,
+                status_tx,
+            )
+        })?);
+        rt_status = wait_ready(&ready_rx)?.unwrap_or_default();
+    }
+
+    Ok(Daemon {
+        machine,
+        stop,
+        shutdown,
+        cycles,
+        done,
+        threads,
+        rt: rt_status,
+    })
+}
+
+fn spawn(
+    name: &str,
+    f: impl FnOnce() -> Result<(), String> + Send + 'static,
+) -> Result<JoinHandle<Result<(), String>>, StartError> {
+    std::thread::Builder::new()
+        .name(name.to_string())
+        .spawn(f)
+        .map_err(|e| StartError::Setup(format!("cannot start the {name} thread: {e}")))
+}
+
+fn wait_ready(
+    rx: &std::sync::mpsc::Receiver<Result<Option<RtStatus>, StartError>>,
+) -> Result<Option<RtStatus>, StartError> {
+    match rx.recv_timeout(Duration::from_secs(10)) {
+        Ok(r) => r,
+        Err(_) => Err(StartError::Setup(
+            "a daemon thread did not start within 10 s".to_string(),
+        )),
+    }
+}
+
+type Ready = std::sync::mpsc::Sender<Result<Option<RtStatus>, StartError>>;
+
+#[allow(clippy::too_many_arguments)]
+fn control_thread(
+    config: &Config,
+    machine: &str,
+    ready: Ready,
+    stop: Arc<AtomicBool>,
+    shutdown: Arc<AtomicBool>,
+    done: Arc<AtomicBool>,
+    counters: PlanningCounters,
+    overruns: Arc<AtomicU64>,
+    rt_ok: Arc<AtomicBool>,
+    mut commands: rtrb::Producer<Command>,
+    mut status: rtrb::Consumer<Snapshot>,
+) -> Result<(), String> {
+    let setup = || -> Result<_, StartError> {
+        let node = ipc::node("kerfd-control").map_err(StartError::Setup)?;
+        let service = ipc::create_control(&node, machine)
+            .map_err(|_| StartError::AlreadyRunning(machine.to_string()))?;
+        let server = service
+            .server_builder()
+            .create()
+            .map_err(|e| StartError::Setup(format!("cannot serve control requests: {e:?}")))?;
+        Ok((node, service, server))
+    };
+    let (_node, _service, server) = match setup() {
+        Ok(ports) => {
+            let _ = ready.send(Ok(None));
+            ports
+        }
+        Err(e) => {
+            let message = e.to_string();
+            let _ = ready.send(Err(e));
+            return Err(message);
+        }
+    };
+
+    let period_ns = config.period_us as u64 * 1000;
+    let axes_mask = axes_mask(config);
+    let window = config.daemon.move_window as u64;
+    let mut latest = Snapshot {
+        cycles: 0,
+        state: State::Idle,
+        line: 0,
+        position: [0.0; 6],
+        feed_mm_s: 0.0,
+        override_pct: 100.0,
+        queued_segments: 0,
+        queued_s: 0.0,
+        program_id: 0,
+        program_done: false,
+        refusal: None,
+        program_cycle: 0,
+        shut_down: false,
+    };
+    let mut rt_flag = 0u32;
+    let mut hold_requested = false;
+    let mut shutdown_sent = false;
+    loop {
+        while let Ok(s) = status.pop() {
+            latest = s;
+        }
+        if latest.state != State::Holding && latest.program_done {
+            hold_requested = false;
+        }
+        while let Ok(Some(active)) = server.receive() {
+            let request = *active.payload();
+            let (reason, message) = match request.command() {
+                Err(e) => (e.reason(), e.to_string()),
+                Ok(Request::Status) => (REASON_OK, String::new()),
+                Ok(Request::Hold) => {
+                    if latest.state == State::Idle && latest.program_done {
+                        (
+                            REASON_NOT_ALLOWED,
+                            "nothing to hold: no program is running".to_string(),
+                        )
+                    } else {
+                        hold_requested = true;
+                        push_command(&mut commands, Command::Hold)
+                    }
+                }
+                Ok(Request::Resume) => {
+                    if hold_requested || latest.state == State::Holding {
+                        hold_requested = false;
+                        push_command(&mut commands, Command::Resume)
+                    } else {
+                        (REASON_NOT_ALLOWED, "not holding: nothing to resume".to_string())
+                    }
+                }
+                Ok(Request::Abort) => {
+                    hold_requested = false;
+                    push_command(&mut commands, Command::Abort)
+                }
+                Ok(Request::Override { percent }) => {
+                    push_command(&mut commands, Command::Override(percent))
+                }
+                Ok(Request::Reset) => (
+                    REASON_NOT_IMPLEMENTED,
+                    "reset: this daemon latches no faults (the drive layer will)".to_string(),
+                ),
+            };
+            let msg = status_msg(
+                &latest,
+                &counters,
+                rt_flag,
+                overruns.load(Ordering::Acquire),
+                window,
+                axes_mask,
+                period_ns,
+            );
+            let _ = active.send_copy(Response::new(request.id, reason, &message, msg));
+        }
+        if rt_flag == 0 && rt_ok.load(Ordering::Acquire) {
+            rt_flag = 1;
+        }
+        if shutdown.load(Ordering::Acquire) && !shutdown_sent {
+            shutdown_sent = commands.push(Command::Shutdown).is_ok();
+        }
+        if latest.shut_down || stop.load(Ordering::Acquire) {
+            done.store(true, Ordering::Release);
+            stop.store(true, Ordering::Release);
+            return Ok(());
+        }
+        std::thread::sleep(POLL);
+    }
+}
+
+fn push_command(commands: &mut rtrb::Producer<Command>, c: Command) -> (u32, String) {
+    match commands.push(c) {
+        Ok(()) => (REASON_OK, String::new()),
+        Err(_) => (
+            REASON_NOT_ALLOWED,
+            "the command queue is full; try again".to_string(),
+        ),
+    }
+}
+
+fn axes_mask(config: &Config) -> u32 {
+    let mut mask = 0b111;
+    for (i, r) in config.axes.rotary().iter().enumerate() {
+        if r.is_some() {
+            mask |= 1 << (3 + i);
+        }
+    }
+    mask
+}
+
+fn status_msg(
+    s: &Snapshot,
+    counters: &PlanningCounters,
+    rt: u32,
+    overruns: u64,
+    window: u64,
+    axes_mask: u32,
+    period_ns: u64,
+) -> StatusMsg {
+    let mut msg = StatusMsg::zeroed();
+    msg.state = match (s.state, s.refusal) {
+        (State::Idle, Some(_)) => State::Fault,
+        (state, _) => state,
+    }
+    .as_u32();
+    msg.line = s.line;
+    msg.position_mm_deg = s.position;
+    msg.override_pct = s.override_pct;
+    msg.queued_moves = s.queued_segments;
+    msg.queued_s = s.queued_s;
+    msg.cycles = s.cycles;
+    msg.overruns = overruns;
+    msg.rt = rt;
+    msg.program_done = u32::from(s.program_done);
+    msg.program_id = s.program_id;
+    msg.moves_received = counters.received.load(Ordering::Acquire);
+    msg.window_items = window;
+    msg.rejected = counters.refused.load(Ordering::Acquire);
+    if let Some(r) = s.refusal {
+        msg.fault = 1;
+        msg.set_fault_text(&r.to_string());
+    }
+    msg.axes_mask = axes_mask;
+    msg.period_ns = period_ns;
+    msg
+}
+
+fn planning_thread(
+    config: &Config,
+    machine: &str,
+    window: usize,
+    ready: Ready,
+    stop: Arc<AtomicBool>,
+    counters: PlanningCounters,
+    items: rtrb::Producer<RtItem>,
+) -> Result<(), String> {
+    let setup = || -> Result<_, String> {
+        let node = ipc::node("kerfd-planning")?;
+        let service = ipc::create_moves(&node, machine, window)?;
+        let subscriber = ipc::move_subscriber(&service, window)?;
+        Ok((node, service, subscriber))
+    };
+    let (_node, service, subscriber) = match setup() {
+        Ok(ports) => {
+            let _ = ready.send(Ok(None));
+            ports
+        }
+        Err(e) => {
+            let _ = ready.send(Err(StartError::Setup(e.clone())));
+            return Err(e);
+        }
+    };
+    let mut planning = Planning::new(config, items, stop.clone(), &counters);
+    let mut check = StreamCheck::new();
+    let mut last_message = Instant::now();
+    let mut last_sender_check = Instant::now();
+    loop {
+        if stop.load(Ordering::Acquire) {
+            return Ok(());
+        }
+        let mut got = false;
+        loop {
+            let msg: MoveMsg = match subscriber.receive() {
+                Ok(Some(sample)) => *sample,
+                Ok(None) => break,
+                Err(e) => return Err(format!("receiving moves: {e:?}")),
+            };
+            got = true;
+            let begin = msg.kind == kerf_proto::KIND_BEGIN;
+            if planning.dropping() && !begin {
+                // The rest of a refused program: taken (for the sender's flow control)
+                // and dropped.
+                counters.received.fetch_add(1, Ordering::AcqRel);
+                continue;
+            }
+            if begin {
+                check.reset();
+                counters.received.store(0, Ordering::Release);
+            }
+            counters.received.fetch_add(1, Ordering::AcqRel);
+            let incoming = match check.check(&msg) {
+                Ok(Resolved::Begin {
+                    program_id,
+                    start_mm_deg,
+                    ..
+                }) => Incoming::Begin {
+                    program_id,
+                    start: start_mm_deg,
+                },
+                Ok(Resolved::Move(m)) => Incoming::Move(m),
+                Ok(Resolved::Event(e)) => Incoming::Event(e),
+                Ok(Resolved::End { .. }) => Incoming::End,
+                Err(e) => {
+                    check.reset();
+                    Incoming::Rejected(e)
+                }
+            };
+            if !planning.handle(incoming) {
+                return Ok(());
+            }
+        }
+        let now = Instant::now();
+        if got {
+            last_message = now;
+            continue;
+        }
+        if planning.in_program()
+            && now.duration_since(last_message) > SENDER_CHECK_AFTER
+            && now.duration_since(last_sender_check) > SENDER_CHECK_AFTER
+        {
+            last_sender_check = now;
+            ipc::clean_dead_nodes();
+            if service.dynamic_config().number_of_publishers() == 0 {
+                check.reset();
+                if !planning.handle(Incoming::SenderGone) {
+                    return Ok(());
+                }
+            }
+        }
+        std::thread::sleep(POLL);
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn cycle_thread(
+    config: &Config,
+    real_time: bool,
+    ready: Ready,
+    stop: Arc<AtomicBool>,
+    cycles: Arc<AtomicU64>,
+    overruns: Arc<AtomicU64>,
+    rt_ok: Arc<AtomicBool>,
+    items: rtrb::Consumer<RtItem>,
+    commands: rtrb::Consumer<Command>,
+    status: rtrb::Producer<Snapshot>,
+) -> Result<(), String> {
+    let machine = config.machine.clone();
+    let setup = || -> Result<_, String> {
+        let node = ipc::node("kerfd-cycle")?;
+        let service = ipc::create_setpoints(&node, &machine)?;
+        let publisher = service
+            .publisher_builder()
+            .create()
+            .map_err(|e| format!("cannot publish setpoints: {e:?}"))?;
+        Ok((node, service, publisher))
+    };
+    let (_node, _service, publisher) = match setup() {
+        Ok(ports) => ports,
+        Err(e) => {
+            let _ = ready.send(Err(StartError::Setup(e.clone())));
+            return Err(e);
+        }
+    };
+    let mut cycle = Cycle::new(config, [0.0; 6], items, commands, status);
+    let rt = if real_time {
+        let report = kerf_rt::rt_setup(&kerf_rt::RtConfig {
+            priority: Some(config.daemon.priority),
+            cpu: config.daemon.cpu.map(|c| c as usize),
+            prefault_stack_bytes: PREFAULT_STACK_BYTES,
+        });
+        match report {
+            Ok(r) => {
+                let ok = r.mlocked && r.fifo;
+                rt_ok.store(ok, Ordering::Release);
+                RtStatus {
+                    rt: ok,
+                    messages: r.messages,
+                }
+            }
+            Err(e) => {
+                let _ = ready.send(Err(StartError::Config(e.to_string())));
+                return Err(e.to_string());
+            }
+        }
+    } else {
+        RtStatus {
+            rt: false,
+            messages: vec!["real-time scheduling not requested".to_string()],
+        }
+    };
+    let axes_mask = axes_mask(config);
+    let mut clock = match kerf_rt::PeriodicClock::new(config.period_us as u64 * 1000) {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = ready.send(Err(StartError::Config(e.to_string())));
+            return Err(e.to_string());
+        }
+    };
+    let _ = ready.send(Ok(Some(rt)));
+    let mut msg = SetpointMsg::new();
+    msg.axes_mask = axes_mask;
+    loop {
+        let tick = clock.wait_next();
+        if tick.missed > 0 {
+            overruns.fetch_add(tick.missed, Ordering::AcqRel);
+        }
+        let out = cycle.run();
+        msg.state = out.state;
+        msg.seq = out.seq;
+        msg.time_ns = tick.deadline_ns;
+        msg.program_id = out.program_id;
+        msg.program_cycle = out.program_cycle;
+        msg.position_mm_deg = out.setpoint.position;
+        msg.velocity_mm_deg_s = out.velocity;
+        msg.feed_mm_s = out.setpoint.feed_mm_s;
+        msg.line = out.setpoint.line;
+        // A slow or absent reader never blocks: safe overflow drops its oldest sample.
+        let _ = publisher.send_copy(msg);
+        cycles.store(out.seq, Ordering::Release);
+        if cycle.shut_down() || stop.load(Ordering::Acquire) {
+            stop.store(true, Ordering::Release);
+            return Ok(());
+        }
+    }
+}

@@ -1,0 +1,806 @@
+//! The daemon's two workers, free of any transport: the planning worker (received items →
+//! validated moves → [`Planner`] → a ring of planned items) and the real-time cycle
+//! ([`Cycle`]: commands and planned items in, one setpoint out per period).
+//!
+//! The iceoryx2 edges (`super::ipc`) only convert messages into [`Incoming`] items and
+//! setpoints into messages, so that everything here is tested without shared memory and
+//! the cycle is the same code whatever carries its input.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Duration;
+
+use kerf_geom::Move;
+use kerf_motion::{MotionCore, MotionState, Setpoint};
+use kerf_pipeline::{Event, Input, Interpolator, Planned, Poll, RunError, Tracker, plan_input};
+use kerf_plan::{MachineLimits, PlanError, PlannedSegment, Planner};
+use kerf_proto::{State, StreamError};
+
+use crate::config::{Axes, Config};
+use crate::travel::{PlannedTravelError, TravelError, check_move, check_segment};
+
+/// One item from a planner process, after the message was converted and checked against
+/// the stream rules.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Incoming {
+    /// A program starts at `start` (X, Y, Z mm, A, B, C deg).
+    Begin {
+        /// The program's id, chosen by the sender.
+        program_id: u64,
+        /// Where the program starts.
+        start: [f64; 6],
+    },
+    /// A resolved move.
+    Move(Move),
+    /// A non-motion event.
+    Event(kerf_gcode::Event),
+    /// The program was received to its end.
+    End,
+    /// A message was refused: it is never executed, and the running program stops at the
+    /// end of its last valid move.
+    Rejected(StreamError),
+    /// The sending process went away in the middle of a program.
+    SenderGone,
+}
+
+/// Why a program stopped before its end (all `Copy`: the reason crosses the real-time
+/// thread, which never formats text).
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum Refusal {
+    /// A message broke the protocol or the stream rules.
+    #[error("message refused: {0}")]
+    Message(StreamError),
+    /// A move leaves the configured travel.
+    #[error("line {}: {}", .0.line, .0)]
+    Travel(TravelError),
+    /// The planned path leaves the configured travel.
+    #[error("line {}: {}", .0.line, .0)]
+    PlannedTravel(PlannedTravelError),
+    /// A move cannot be planned on this machine.
+    #[error("{0}")]
+    Plan(PlanError),
+    /// The motion core refused a planned segment (a defect of the planner).
+    #[error("line {line}: the motion core refused the planned segment")]
+    Core {
+        /// Source line.
+        line: u32,
+    },
+    /// The planner process went away in the middle of the program.
+    #[error("the planner process went away in the middle of the program")]
+    SenderGone,
+    /// A new program began before the previous one was received to its end.
+    #[error("a new program began before this one was received to its end")]
+    Interrupted,
+    /// The program does not start where the machine is.
+    #[error("the program starts at {axis} {start}, but the machine is at {axis} {actual}")]
+    WrongStart {
+        /// The axis that differs.
+        axis: char,
+        /// Where the program starts on it.
+        start: f64,
+        /// Where the machine is.
+        actual: f64,
+    },
+}
+
+/// An item from the planning worker to the real-time cycle.
+// Nearly every item is a segment (as in `Planned`).
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug)]
+pub enum RtItem {
+    /// A program starts.
+    Begin {
+        /// Its id.
+        program_id: u64,
+        /// Where it starts.
+        start: [f64; 6],
+    },
+    /// A programmed move, sent just before the first segment planned after it was taken
+    /// (as `kerf sim` records it), for the line being passed on smoothed curves.
+    Move(Move),
+    /// A planned segment or dwell.
+    Planned(Planned),
+    /// The program ends here: received to its end (`None`), or stopped early.
+    End(Option<Refusal>),
+}
+
+/// A command for the real-time cycle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Command {
+    /// Feed hold: a jerk-limited stop on the path.
+    Hold,
+    /// Resume after a hold.
+    Resume,
+    /// Stop on the path and drop the rest of the program.
+    Abort,
+    /// Feed override, percent (0 to 200).
+    Override(f64),
+    /// Stop on the path, drop the program, then end the cycle (SIGTERM, SIGINT).
+    Shutdown,
+}
+
+/// What the cycle reports to the control thread after every period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Snapshot {
+    /// Cycles run since the daemon started.
+    pub cycles: u64,
+    /// What the machine is doing.
+    pub state: State,
+    /// Source line of the motion.
+    pub line: u32,
+    /// Setpoint position, X Y Z mm, A B C deg.
+    pub position: [f64; 6],
+    /// Path speed, mm/s.
+    pub feed_mm_s: f64,
+    /// Feed override, percent.
+    pub override_pct: f64,
+    /// Segments in the motion queue.
+    pub queued_segments: u64,
+    /// Motion time of the queued segments at their planned speed limits, s.
+    pub queued_s: f64,
+    /// The current (or last) program's id; 0 before the first.
+    pub program_id: u64,
+    /// `true` once the current program has finished moving and the machine is at rest.
+    pub program_done: bool,
+    /// Why the current program stopped early, if it did.
+    pub refusal: Option<Refusal>,
+    /// Cycles of the current program (its setpoints' program time is this × period).
+    pub program_cycle: u64,
+    /// `true` once the cycle has stopped for a shutdown.
+    pub shut_down: bool,
+}
+
+/// Periods to wait between polls while the ring to the cycle is full.
+const RING_FULL_WAIT: Duration = Duration::from_micros(200);
+
+/// The planning worker's side of the ring to the cycle; the worker stops when `stop` is
+/// set.
+pub struct Planning {
+    limits: MachineLimits,
+    axes: Axes,
+    out: rtrb::Producer<RtItem>,
+    stop: Arc<AtomicBool>,
+    /// Messages refused since the daemon started.
+    refused: Arc<AtomicU64>,
+    planner: Option<Planner>,
+    /// The current program was stopped early: its remaining items are dropped until the
+    /// next one begins.
+    failed: bool,
+    buf: Vec<PlannedSegment>,
+    /// Moves taken by the planner and not yet sent to the cycle.
+    taken: std::collections::VecDeque<Move>,
+}
+
+/// Counters the planning worker shares with the control thread.
+#[derive(Clone, Debug, Default)]
+pub struct PlanningCounters {
+    /// Items of the current program accepted.
+    pub received: Arc<AtomicU64>,
+    /// Messages refused since start.
+    pub refused: Arc<AtomicU64>,
+}
+
+impl Planning {
+    /// A worker for the machine of `config`, feeding `out`.
+    pub fn new(
+        config: &Config,
+        out: rtrb::Producer<RtItem>,
+        stop: Arc<AtomicBool>,
+        counters: &PlanningCounters,
+    ) -> Self {
+        Planning {
+            limits: crate::sim::machine_limits(config),
+            axes: config.axes,
+            out,
+            stop,
+            refused: counters.refused.clone(),
+            planner: None,
+            failed: false,
+            buf: Vec::new(),
+            taken: std::collections::VecDeque::new(),
+        }
+    }
+
+    /// `true` while a program is being received.
+    pub fn in_program(&self) -> bool {
+        self.planner.is_some()
+    }
+
+    /// `true` after the current program was stopped early: its remaining messages are
+    /// dropped until the next program begins.
+    pub fn dropping(&self) -> bool {
+        self.failed
+    }
+
+    /// Handles one incoming item. Returns `false` once the worker must stop.
+    pub fn handle(&mut self, item: Incoming) -> bool {
+        match item {
+            Incoming::Begin { program_id, start } => {
+                if self.planner.is_some() {
+                    self.fail(Refusal::Interrupted);
+                }
+                self.failed = false;
+                self.taken.clear();
+                self.planner = Some(Planner::new(self.limits));
+                self.send(RtItem::Begin { program_id, start })
+            }
+            Incoming::Move(m) => {
+                if self.failed || self.planner.is_none() {
+                    return true;
+                }
+                match self.plan(&Input::Move(m), Some(&m)) {
+                    Ok(()) => self.flush(),
+                    Err(r) => self.fail(r),
+                }
+            }
+            Incoming::Event(e) => {
+                if self.failed || self.planner.is_none() {
+                    return true;
+                }
+                let Some(input) = crate::sim::input_of_event(&e) else {
+                    return true;
+                };
+                match self.plan(&input, None) {
+                    Ok(()) => {
+                        if !self.flush() {
+                            return false;
+                        }
+                        match input {
+                            Input::Dwell(s) => self.send(RtItem::Planned(Planned::Dwell(s))),
+                            _ => true,
+                        }
+                    }
+                    Err(r) => self.fail(r),
+                }
+            }
+            Incoming::End => {
+                match self.planner.take() {
+                    Some(mut planner) if !self.failed => {
+                        planner.finish(&mut self.buf);
+                        self.planner = Some(planner);
+                        let ok = self.flush();
+                        self.planner = None;
+                        ok && self.send(RtItem::End(None))
+                    }
+                    _ => {
+                        self.planner = None;
+                        true
+                    }
+                }
+            }
+            Incoming::Rejected(reject) => {
+                self.refused.fetch_add(1, Ordering::AcqRel);
+                tracing::warn!("message refused: {reject}");
+                if self.planner.is_some() && !self.failed {
+                    self.fail(Refusal::Message(reject))
+                } else {
+                    true
+                }
+            }
+            Incoming::SenderGone => {
+                if self.planner.is_some() && !self.failed {
+                    tracing::warn!("the planner process went away in the middle of a program");
+                    let ok = self.fail(Refusal::SenderGone);
+                    self.planner = None;
+                    ok
+                } else {
+                    self.planner = None;
+                    true
+                }
+            }
+        }
+    }
+
+    /// Validates and plans one input into `buf`.
+    fn plan(&mut self, input: &Input, m: Option<&Move>) -> Result<(), Refusal> {
+        if let Some(m) = m {
+            check_move(m, &self.axes).map_err(Refusal::Travel)?;
+        }
+        let Some(planner) = self.planner.as_mut() else {
+            return Ok(());
+        };
+        plan_input(planner, input, &mut self.buf).map_err(Refusal::Plan)?;
+        if let Some(m) = m {
+            self.taken.push_back(*m);
+        }
+        for seg in &self.buf {
+            check_segment(seg, &self.axes).map_err(Refusal::PlannedTravel)?;
+        }
+        Ok(())
+    }
+
+    /// Sends the planned segments in `buf`, each after the moves taken before it was
+    /// planned.
+    fn flush(&mut self) -> bool {
+        let mut buf = std::mem::take(&mut self.buf);
+        let mut ok = true;
+        if !buf.is_empty() {
+            while let Some(m) = self.taken.pop_front() {
+                if !self.send(RtItem::Move(m)) {
+                    self.buf = buf;
+                    return false;
+                }
+            }
+        }
+        for seg in buf.drain(..) {
+            // The count of moves known is only used by the offline deviation check.
+            if !self.send(RtItem::Planned(Planned::Segment(seg, 0))) {
+                ok = false;
+                break;
+            }
+        }
+        self.buf = buf;
+        ok
+    }
+
+    /// Stops the current program at the end of its last valid move: the segments planned
+    /// from the valid moves are sent (the planner holds back the end of the path for
+    /// blending), then the end with the reason.
+    fn fail(&mut self, reason: Refusal) -> bool {
+        tracing::warn!("program stopped: {reason}");
+        self.buf.clear();
+        if let Some(planner) = self.planner.as_mut() {
+            planner.finish(&mut self.buf);
+        }
+        // A segment planned from the valid moves that leaves the travel is dropped with
+        // everything after it.
+        if let Some(bad) = self
+            .buf
+            .iter()
+            .position(|seg| check_segment(seg, &self.axes).is_err())
+        {
+            self.buf.truncate(bad);
+        }
+        self.failed = true;
+        self.flush() && self.send(RtItem::End(Some(reason)))
+    }
+
+    /// Sends one item, waiting while the ring is full. Returns `false` if told to stop.
+    fn send(&mut self, mut item: RtItem) -> bool {
+        loop {
+            match self.out.push(item) {
+                Ok(()) => return true,
+                Err(rtrb::PushError::Full(back)) => {
+                    if self.stop.load(Ordering::Acquire) {
+                        return false;
+                    }
+                    item = back;
+                    std::thread::sleep(RING_FULL_WAIT);
+                }
+            }
+        }
+    }
+}
+
+/// A program the cycle is running.
+#[derive(Clone, Copy, Debug)]
+struct ProgramRun {
+    id: u64,
+    cycle: u64,
+    refusal: Option<Refusal>,
+    /// Set when the program must not move at all (it starts elsewhere).
+    dropped: bool,
+}
+
+/// The setpoint of one cycle as the daemon publishes it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CycleOutput {
+    /// Cycle number since the daemon started (1 for the first).
+    pub seq: u64,
+    /// The setpoint.
+    pub setpoint: Setpoint,
+    /// Per-axis velocity, by the backward difference of the positions, per s.
+    pub velocity: [f64; 6],
+    /// The program this setpoint belongs to (0: none).
+    pub program_id: u64,
+    /// Cycles of that program so far (its program time is this × period); 0 while the
+    /// program waits for its lookahead window.
+    pub program_cycle: u64,
+    /// What the machine is doing.
+    pub state: u32,
+}
+
+/// Commands taken per cycle at most (the rest wait for the next cycle).
+const COMMANDS_PER_CYCLE: usize = 8;
+
+/// Programmed moves the cycle's tracker holds without allocating: far more than the
+/// moves of a full queue of smoothed pieces (a smoothing window drops its oldest moves
+/// beyond 4,096).
+pub const TRACKED_MOVES: usize = 65_536;
+
+/// The real-time cycle: commands and planned items in, one setpoint out per period;
+/// allocation-free once built.
+pub struct Cycle {
+    interp: Interpolator,
+    tracker: Tracker,
+    period_s: f64,
+    items: rtrb::Consumer<RtItem>,
+    commands: rtrb::Consumer<Command>,
+    status: rtrb::Producer<Snapshot>,
+    program: Option<ProgramRun>,
+    last_program: (u64, Option<Refusal>, bool),
+    cycles: u64,
+    position: [f64; 6],
+    setpoint: Setpoint,
+    starved: bool,
+    shutting_down: bool,
+    shut_down: bool,
+    /// Estimated motion time of each queued segment, in push order (a ring the size of
+    /// the queue), and their sum.
+    est_s: Vec<f64>,
+    est_head: usize,
+    est_len: usize,
+    est_sum_s: f64,
+}
+
+impl Cycle {
+    /// A cycle for the machine of `config`, at rest at `position`.
+    pub fn new(
+        config: &Config,
+        position: [f64; 6],
+        items: rtrb::Consumer<RtItem>,
+        commands: rtrb::Consumer<Command>,
+        status: rtrb::Producer<Snapshot>,
+    ) -> Self {
+        let limits = crate::sim::machine_limits(config);
+        let capacity = config.daemon.queue_segments as usize;
+        let mut core = MotionCore::new(limits.period_s, capacity);
+        core.set_position(position);
+        Cycle {
+            interp: Interpolator::new(core),
+            tracker: Tracker::with_capacity(TRACKED_MOVES),
+            period_s: limits.period_s,
+            items,
+            commands,
+            status,
+            program: None,
+            last_program: (0, None, false),
+            cycles: 0,
+            position,
+            setpoint: Setpoint {
+                position,
+                ..Setpoint::default()
+            },
+            starved: false,
+            shutting_down: false,
+            shut_down: false,
+            est_s: vec![0.0; capacity],
+            est_head: 0,
+            est_len: 0,
+            est_sum_s: 0.0,
+        }
+    }
+
+    /// `true` once a shutdown has brought the machine to rest.
+    pub fn shut_down(&self) -> bool {
+        self.shut_down
+    }
+
+    /// Runs one period: takes commands and planned items without blocking, steps the
+    /// motion, and returns the setpoint. Never allocates, locks or blocks.
+    pub fn run(&mut self) -> CycleOutput {
+        self.cycles += 1;
+        let mut commands = [None; COMMANDS_PER_CYCLE];
+        for slot in commands.iter_mut() {
+            match self.commands.pop() {
+                Ok(c) => *slot = Some(c),
+                Err(_) => break,
+            }
+        }
+        if self.program.is_none() {
+            self.begin_next();
+        }
+        let previous = self.setpoint.position;
+        // Feeding comes before the commands, as in `kerf sim`, where an event applies
+        // after the cycle's feeding and before its step.
+        let started = match self.program {
+            Some(p) if !p.dropped => self.feed(),
+            _ => false,
+        };
+        for c in commands.iter().flatten() {
+            self.apply(*c);
+        }
+        let mut program_id = self.last_program.0;
+        let mut program_cycle = 0;
+        if started {
+            let mut sp = Setpoint::default();
+            self.interp.step(&mut sp);
+            self.tracker.track(&mut sp);
+            self.setpoint = sp;
+            self.consumed();
+            if let Some(p) = self.program.as_mut() {
+                p.cycle += 1;
+                program_id = p.id;
+                program_cycle = p.cycle;
+            }
+            if self.interp.finished() {
+                self.end_program();
+            }
+        } else {
+            // At rest (idle, or a program waiting for its lookahead window).
+            self.setpoint.feed_mm_s = 0.0;
+            if let Some(p) = self.program {
+                program_id = p.id;
+                if p.dropped && self.drain_dropped() {
+                    self.end_program();
+                }
+            }
+        }
+        let position = self.setpoint.position;
+        let mut velocity = [0.0; 6];
+        for (v, (p, q)) in velocity.iter_mut().zip(position.iter().zip(previous.iter())) {
+            *v = (p - q) / self.period_s;
+        }
+        self.position = position;
+        if self.shutting_down && self.program.is_none() && self.interp.core().is_idle() {
+            self.shut_down = true;
+        }
+        let state = self.state();
+        self.report(state);
+        CycleOutput {
+            seq: self.cycles,
+            setpoint: self.setpoint,
+            velocity,
+            program_id,
+            program_cycle,
+            state: state.as_u32(),
+        }
+    }
+
+    fn apply(&mut self, c: Command) {
+        match c {
+            Command::Hold => self.interp.apply(Event::Hold),
+            Command::Resume => self.interp.apply(Event::Resume),
+            Command::Override(pct) => {
+                if pct == 0.0 {
+                    // A control at 0 % stands still on the path (the core holds).
+                    self.interp.apply(Event::Override(0.0));
+                } else {
+                    self.interp.apply(Event::Override(pct / 100.0));
+                }
+            }
+            Command::Abort => self.interp.apply(Event::Abort),
+            Command::Shutdown => {
+                self.shutting_down = true;
+                self.interp.apply(Event::Abort);
+            }
+        }
+    }
+
+    /// Starts the next program if its beginning is in the ring.
+    fn begin_next(&mut self) {
+        let Ok(RtItem::Begin { program_id, start }) = self.items.peek().copied() else {
+            // Anything but a beginning while no program runs is the rest of an aborted
+            // or refused program: dropped.
+            while let Ok(item) = self.items.peek() {
+                if matches!(item, RtItem::Begin { .. }) {
+                    break;
+                }
+                let _ = self.items.pop();
+            }
+            return;
+        };
+        let _ = self.items.pop();
+        self.interp.next_program();
+        self.tracker.clear();
+        let mut run = ProgramRun {
+            id: program_id,
+            cycle: 0,
+            refusal: None,
+            dropped: self.shutting_down,
+        };
+        for (i, (&s, &p)) in start.iter().zip(self.position.iter()).enumerate() {
+            if (s - p).abs() > 1e-6 {
+                run.refusal = Some(Refusal::WrongStart {
+                    axis: kerf_plan::AXIS_NAMES[i],
+                    start: s,
+                    actual: p,
+                });
+                run.dropped = true;
+                break;
+            }
+        }
+        self.setpoint.line = 0;
+        self.program = Some(run);
+    }
+
+    /// Drops the items of a program that must not move; `true` once its end was taken.
+    fn drain_dropped(&mut self) -> bool {
+        loop {
+            match self.items.peek() {
+                Ok(RtItem::Begin { .. }) => return true,
+                Ok(RtItem::End(_)) => {
+                    let _ = self.items.pop();
+                    return true;
+                }
+                Ok(RtItem::Planned(_) | RtItem::Move(_)) => {
+                    let _ = self.items.pop();
+                }
+                Err(_) => return false,
+            }
+        }
+    }
+
+    /// Feeds the interpolator from the ring; returns whether the motion may step.
+    fn feed(&mut self) -> bool {
+        let items = &mut self.items;
+        let tracker = &mut self.tracker;
+        let aborted = self.interp.aborted();
+        let est = EstRing {
+            est_s: &mut self.est_s,
+            head: &mut self.est_head,
+            len: &mut self.est_len,
+            sum: &mut self.est_sum_s,
+        };
+        let mut est = est;
+        let mut refusal = None;
+        let mut pending = false;
+        let result = self.interp.feed(|| loop {
+            // Programmed moves go to the tracker until the next planned item.
+            match items.peek() {
+                Ok(RtItem::Move(_)) if tracker.is_full() => return Poll::Pending,
+                Ok(RtItem::Move(m)) => {
+                    // After an abort the moves are not needed (as in `kerf sim`).
+                    if !(aborted && !tracker.is_empty()) {
+                        tracker.add(m);
+                    }
+                    let _ = items.pop();
+                    continue;
+                }
+                _ => {}
+            }
+            break match items.peek() {
+            Ok(RtItem::Move(_)) => Poll::Pending,
+            Ok(RtItem::Planned(_)) => match items.pop() {
+                Ok(RtItem::Planned(p)) => {
+                    if let Planned::Segment(seg, _) = &p {
+                        est.push(segment_time_s(seg));
+                    }
+                    Poll::Ready(p)
+                }
+                _ => Poll::Pending,
+            },
+            Ok(RtItem::End(r)) => {
+                refusal = *r;
+                let _ = items.pop();
+                Poll::End
+            }
+            // The next program's beginning: this one ended without its end (cannot
+            // happen: the planning worker always ends a program before the next).
+            Ok(RtItem::Begin { .. }) => Poll::End,
+            Err(_) => {
+                pending = true;
+                Poll::Pending
+            }
+        };
+        });
+        if let Some(r) = refusal {
+            if let Some(p) = self.program.as_mut() {
+                p.refusal = Some(r);
+            }
+        }
+        match result {
+            Ok(started) => {
+                self.starved = pending && started && !self.interp.source_ended();
+                started
+            }
+            Err(RunError::Rejected { line }) => {
+                if let Some(p) = self.program.as_mut() {
+                    p.refusal.get_or_insert(Refusal::Core { line });
+                }
+                self.interp.apply(Event::Abort);
+                true
+            }
+            Err(_) => true,
+        }
+    }
+
+    /// Forgets the estimated times of the segments the core has finished.
+    fn consumed(&mut self) {
+        let queued = self.interp.core().queued();
+        let mut est = EstRing {
+            est_s: &mut self.est_s,
+            head: &mut self.est_head,
+            len: &mut self.est_len,
+            sum: &mut self.est_sum_s,
+        };
+        while *est.len > queued {
+            est.pop();
+        }
+    }
+
+    fn end_program(&mut self) {
+        if let Some(p) = self.program.take() {
+            self.last_program = (p.id, p.refusal, true);
+        }
+        self.starved = false;
+        let mut est = EstRing {
+            est_s: &mut self.est_s,
+            head: &mut self.est_head,
+            len: &mut self.est_len,
+            sum: &mut self.est_sum_s,
+        };
+        while *est.len > 0 {
+            est.pop();
+        }
+        *est.sum = 0.0;
+    }
+
+    fn state(&self) -> State {
+        let core = self.interp.core().status();
+        match core.state {
+            MotionState::Held => State::Holding,
+            MotionState::Stopping if self.interp.core().is_held() => State::Holding,
+            _ if self.program.is_some() && self.starved => State::Starved,
+            _ if self.program.is_some() => State::Running,
+            MotionState::Idle => State::Idle,
+            _ => State::Running,
+        }
+    }
+
+    fn report(&mut self, state: State) {
+        let core = self.interp.core().status();
+        let (program_id, refusal, done) = match self.program {
+            Some(p) => (p.id, p.refusal, false),
+            None => self.last_program,
+        };
+        let snapshot = Snapshot {
+            cycles: self.cycles,
+            state,
+            line: self.setpoint.line,
+            position: self.setpoint.position,
+            feed_mm_s: self.setpoint.feed_mm_s,
+            override_pct: core.feed_override * 100.0,
+            queued_segments: core.queued as u64,
+            queued_s: self.est_sum_s.max(0.0),
+            program_id,
+            program_done: done,
+            refusal,
+            program_cycle: self.program.map_or(0, |p| p.cycle),
+            shut_down: self.shut_down,
+        };
+        // A full ring means the control thread is behind: it gets the next one.
+        let _ = self.status.push(snapshot);
+    }
+}
+
+/// The estimated motion time of a segment at its planned speed limit, s.
+fn segment_time_s(seg: &PlannedSegment) -> f64 {
+    let v = seg.v_max_mm_s.min(seg.feed_mm_s);
+    if v > 0.0 && v.is_finite() {
+        seg.length_mm / v
+    } else {
+        0.0
+    }
+}
+
+/// The ring of estimated segment times, borrowed from the cycle's fields.
+struct EstRing<'a> {
+    est_s: &'a mut Vec<f64>,
+    head: &'a mut usize,
+    len: &'a mut usize,
+    sum: &'a mut f64,
+}
+
+impl EstRing<'_> {
+    fn push(&mut self, t: f64) {
+        let cap = self.est_s.len();
+        if cap == 0 || *self.len >= cap {
+            return;
+        }
+        let i = (*self.head + *self.len) % cap;
+        self.est_s[i] = t;
+        *self.len += 1;
+        *self.sum += t;
+    }
+
+    fn pop(&mut self) {
+        let cap = self.est_s.len();
+        if *self.len == 0 || cap == 0 {
+            return;
+        }
+        *self.sum -= self.est_s[*self.head];
+        *self.head = (*self.head + 1) % cap;
+        *self.len -= 1;
+    }
+}

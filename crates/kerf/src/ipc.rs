@@ -1,0 +1,210 @@
+//! The iceoryx2 services of one machine, opened the same way by the daemon and by every
+//! client command: `kerf/<machine>/moves` (resolved moves, planner process → daemon),
+//! `kerf/<machine>/setpoints` (one message per cycle, daemon → recorders and drives) and
+//! `kerf/<machine>/control` (request/response: status, hold, resume, abort, override).
+//!
+//! Design decisions:
+//! - The daemon creates the services (after removing what dead processes left behind) and
+//!   is their only server and setpoint publisher; clients only open them. A client that
+//!   cannot open a service has no daemon to talk to, and says so.
+//! - Moves are never dropped: the subscriber's buffer holds the whole flow-control window
+//!   plus a margin, and a publisher whose buffer is full waits instead of discarding.
+//! - Setpoints are never waited for: a slow reader loses the oldest samples (safe
+//!   overflow), sees the gap in the sequence numbers and reports it; the cycle never
+//!   blocks.
+//! - iceoryx2 installs no signal handlers of its own (the daemon and the commands handle
+//!   SIGINT and SIGTERM themselves).
+
+use std::time::Duration;
+
+use iceoryx2::port::backpressure_strategy::BackpressureStrategy;
+use iceoryx2::prelude::*;
+use kerf_proto::{MoveMsg, Request, Response, SetpointMsg};
+
+/// The iceoryx2 service type Kerf uses: inter-process, shared memory.
+pub type Ipc = ipc::Service;
+
+/// Samples a setpoint subscriber buffers: 16 s of cycles at 1 kHz. A reader that falls
+/// further behind loses samples and reports the gap.
+pub const SETPOINT_BUFFER: usize = 16_384;
+
+/// Setpoint subscribers at once (recorders, `kerf run`, drive bridges).
+pub const MAX_SETPOINT_SUBSCRIBERS: usize = 8;
+
+/// Planner processes that may hold the moves service open at once (one streams; the
+/// others are refused by the daemon's stream check until it ends).
+pub const MAX_MOVE_PUBLISHERS: usize = 4;
+
+/// Extra slots in the moves subscriber's buffer beyond the window (the BEGIN and END
+/// messages and a margin).
+pub const MOVE_BUFFER_MARGIN: usize = 64;
+
+/// Clients of the control service at once.
+pub const MAX_CONTROL_CLIENTS: usize = 16;
+
+/// A node with iceoryx2's own signal handling off. iceoryx2's own log says only errors
+/// (unless `IOX2_LOG_LEVEL` says otherwise): its notice that no iceoryx2 configuration
+/// file exists is expected here, where the defaults are used on purpose.
+pub fn node(name: &str) -> Result<Node<ipc::Service>, String> {
+    set_log_level_from_env_or(LogLevel::Error);
+    let node_name = NodeName::new(name).map_err(|e| format!("node name `{name}`: {e:?}"))?;
+    NodeBuilder::new()
+        .name(&node_name)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|e| format!("cannot create an iceoryx2 node: {e:?}"))
+}
+
+/// Removes the shared-memory resources of dead processes (a daemon or client killed with
+/// SIGKILL), so that a restarted daemon needs no manual clean-up. Returns how many dead
+/// nodes were cleaned.
+pub fn clean_dead_nodes() -> usize {
+    let mut dead = Vec::new();
+    let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
+        if let NodeState::Dead(view) = state {
+            dead.push(view);
+        }
+        CallbackProgression::Continue
+    });
+    let mut cleaned = 0;
+    for view in dead {
+        if view
+            .blocking_remove_stale_resources(Duration::from_millis(500))
+            .is_ok()
+        {
+            cleaned += 1;
+        }
+    }
+    cleaned
+}
+
+fn service_name(machine: &str, which: &str) -> Result<ServiceName, String> {
+    let name = kerf_proto::service_name(machine, which).map_err(|e| e.to_string())?;
+    ServiceName::new(&name).map_err(|e| format!("service name `{name}`: {e:?}"))
+}
+
+/// The moves service type.
+pub type MovesService = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
+    ipc::Service,
+    MoveMsg,
+    (),
+>;
+/// The setpoints service type.
+pub type SetpointsService = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
+    ipc::Service,
+    SetpointMsg,
+    (),
+>;
+/// The control service type.
+pub type ControlService = iceoryx2::service::port_factory::request_response::PortFactory<
+    ipc::Service,
+    Request,
+    (),
+    Response,
+    (),
+>;
+
+/// Creates the moves service (daemon): the subscriber's buffer holds `window` items plus
+/// a margin; no history; never overflows.
+pub fn create_moves(
+    node: &Node<ipc::Service>,
+    machine: &str,
+    window: usize,
+) -> Result<MovesService, String> {
+    node.service_builder(&service_name(machine, kerf_proto::SERVICE_MOVES)?)
+        .publish_subscribe::<MoveMsg>()
+        .max_publishers(MAX_MOVE_PUBLISHERS)
+        .max_subscribers(1)
+        .subscriber_max_buffer_size(window + MOVE_BUFFER_MARGIN)
+        .history_size(0)
+        .enable_safe_overflow(false)
+        .create()
+        .map_err(|e| format!("cannot create the moves service: {e:?}"))
+}
+
+/// Opens the moves service (planner process).
+pub fn open_moves(node: &Node<ipc::Service>, machine: &str) -> Result<MovesService, String> {
+    node.service_builder(&service_name(machine, kerf_proto::SERVICE_MOVES)?)
+        .publish_subscribe::<MoveMsg>()
+        .open()
+        .map_err(|e| format!("{e:?}"))
+}
+
+/// A publisher of moves that waits while the daemon's buffer is full (never drops).
+pub fn move_publisher(
+    service: &MovesService,
+) -> Result<iceoryx2::port::publisher::Publisher<ipc::Service, MoveMsg, ()>, String> {
+    service
+        .publisher_builder()
+        .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
+        .create()
+        .map_err(|e| format!("cannot publish moves: {e:?}"))
+}
+
+/// The daemon's subscriber of moves.
+pub fn move_subscriber(
+    service: &MovesService,
+    window: usize,
+) -> Result<iceoryx2::port::subscriber::Subscriber<ipc::Service, MoveMsg, ()>, String> {
+    service
+        .subscriber_builder()
+        .buffer_size(window + MOVE_BUFFER_MARGIN)
+        .create()
+        .map_err(|e| format!("cannot subscribe to moves: {e:?}"))
+}
+
+/// Creates the setpoints service (daemon).
+pub fn create_setpoints(
+    node: &Node<ipc::Service>,
+    machine: &str,
+) -> Result<SetpointsService, String> {
+    node.service_builder(&service_name(machine, kerf_proto::SERVICE_SETPOINTS)?)
+        .publish_subscribe::<SetpointMsg>()
+        .max_publishers(1)
+        .max_subscribers(MAX_SETPOINT_SUBSCRIBERS)
+        .subscriber_max_buffer_size(SETPOINT_BUFFER)
+        .history_size(0)
+        .enable_safe_overflow(true)
+        .create()
+        .map_err(|e| format!("cannot create the setpoints service: {e:?}"))
+}
+
+/// Opens the setpoints service (recorders).
+pub fn open_setpoints(
+    node: &Node<ipc::Service>,
+    machine: &str,
+) -> Result<SetpointsService, String> {
+    node.service_builder(&service_name(machine, kerf_proto::SERVICE_SETPOINTS)?)
+        .publish_subscribe::<SetpointMsg>()
+        .open()
+        .map_err(|e| format!("{e:?}"))
+}
+
+/// A subscriber of setpoints with the largest buffer.
+pub fn setpoint_subscriber(
+    service: &SetpointsService,
+) -> Result<iceoryx2::port::subscriber::Subscriber<ipc::Service, SetpointMsg, ()>, String> {
+    service
+        .subscriber_builder()
+        .buffer_size(SETPOINT_BUFFER)
+        .create()
+        .map_err(|e| format!("cannot subscribe to setpoints: {e:?}"))
+}
+
+/// Creates the control service (daemon).
+pub fn create_control(node: &Node<ipc::Service>, machine: &str) -> Result<ControlService, String> {
+    node.service_builder(&service_name(machine, kerf_proto::SERVICE_CONTROL)?)
+        .request_response::<Request, Response>()
+        .max_servers(1)
+        .max_clients(MAX_CONTROL_CLIENTS)
+        .create()
+        .map_err(|e| format!("cannot create the control service: {e:?}"))
+}
+
+/// Opens the control service (clients).
+pub fn open_control(node: &Node<ipc::Service>, machine: &str) -> Result<ControlService, String> {
+    node.service_builder(&service_name(machine, kerf_proto::SERVICE_CONTROL)?)
+        .request_response::<Request, Response>()
+        .open()
+        .map_err(|e| format!("{e:?}"))
+}
