@@ -378,7 +378,7 @@ pub(crate) fn code10(v: f64) -> Option<u16> {
 
 /// The G code as written, for messages.
 pub(crate) fn g_name(code10: u16) -> String {
-    if code10 % 10 == 0 {
+    if code10.is_multiple_of(10) {
         format!("G{}", code10 / 10)
     } else {
         format!("G{}.{}", code10 / 10, code10 % 10)

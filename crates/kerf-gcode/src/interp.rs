@@ -460,16 +460,16 @@ impl State {
             if let G::ArcDistance { absolute } = g {
                 self.arc_absolute = absolute;
             }
-            if let G::Plane(p) = g {
-                if p != self.plane {
-                    self.plane = p;
-                    // A plane change forgets the Sinumerik polar values and the Fagor polar
-                    // origin, as their manuals say.
-                    self.rp_mm = None;
-                    self.ap_deg = None;
-                    self.polar_origin = None;
-                    self.polar_last = None;
-                }
+            if let G::Plane(p) = g
+                && p != self.plane
+            {
+                self.plane = p;
+                // A plane change forgets the Sinumerik polar values and the Fagor polar
+                // origin, as their manuals say.
+                self.rp_mm = None;
+                self.ap_deg = None;
+                self.polar_origin = None;
+                self.polar_last = None;
             }
             if let G::Corner { exact } = g {
                 self.corner = if exact {
@@ -733,21 +733,20 @@ impl State {
             Dialect::Heidenhain => ("G04", &[KF]),
             Dialect::Fagor => ("G04", &[KK]),
         };
-        if d != Dialect::LinuxCnc {
-            if let Some(k) = MOTION_WORDS
+        if d != Dialect::LinuxCnc
+            && let Some(k) = MOTION_WORDS
                 .iter()
                 .copied()
                 .filter(|k| !words.contains(k))
                 .find(|&k| blk.has(k))
-            {
-                return fail(
-                    blk.col(k),
-                    format!(
-                        "{g} must be programmed in a separate block ({} word with {g})",
-                        key_name(k)
-                    ),
-                );
-            }
+        {
+            return fail(
+                blk.col(k),
+                format!(
+                    "{g} must be programmed in a separate block ({} word with {g})",
+                    key_name(k)
+                ),
+            );
         }
         let mut given = words.iter().copied().filter(|&k| blk.has(k));
         let Some(word) = given.next() else {

@@ -187,31 +187,28 @@ impl Lexer {
                     // Fast path for the overwhelmingly common `X-12.345` word: a letter
                     // directly followed by a plain number and then a separator.
                     let letter = c.to_ascii_uppercase();
-                    if letter != b'O' {
-                        if let Some((value, j)) = fast_number(line, i + 1) {
-                            let plain_end = match line.get(j) {
-                                None | Some(b'(' | b';' | b'*' | b'\r') => true,
-                                // LinuxCNC ignores spaces, so `X1 0` is X10: let the
-                                // general path look further.
-                                Some(b' ' | b'\t') => {
-                                    self.dialect != Dialect::LinuxCnc
-                                        || !matches!(
-                                            next_non_space(line, j),
-                                            Some(b'0'..=b'9' | b'.')
-                                        )
-                                }
-                                Some(c) => c.is_ascii_alphabetic(),
-                            };
-                            if plain_end {
-                                words.push(Word {
-                                    key: key(letter),
-                                    value,
-                                    col: col_of(i),
-                                    form: Form::Plain,
-                                });
-                                i = j;
-                                continue;
+                    if letter != b'O'
+                        && let Some((value, j)) = fast_number(line, i + 1)
+                    {
+                        let plain_end = match line.get(j) {
+                            None | Some(b'(' | b';' | b'*' | b'\r') => true,
+                            // LinuxCNC ignores spaces, so `X1 0` is X10: let the
+                            // general path look further.
+                            Some(b' ' | b'\t') => {
+                                self.dialect != Dialect::LinuxCnc
+                                    || !matches!(next_non_space(line, j), Some(b'0'..=b'9' | b'.'))
                             }
+                            Some(c) => c.is_ascii_alphabetic(),
+                        };
+                        if plain_end {
+                            words.push(Word {
+                                key: key(letter),
+                                value,
+                                col: col_of(i),
+                                form: Form::Plain,
+                            });
+                            i = j;
+                            continue;
                         }
                     }
                     if self.dialect == Dialect::Sinumerik {
@@ -379,10 +376,10 @@ impl Lexer {
             }
             return err(start, "assignments are not supported yet");
         }
-        if let Some(&b) = line.get(j) {
-            if matches!(b, b'+' | b'-' | b'*' | b'/' | b'(' | b'<' | b'>') {
-                return err(j, "arithmetic expressions are not supported yet");
-            }
+        if let Some(&b) = line.get(j)
+            && matches!(b, b'+' | b'-' | b'*' | b'/' | b'(' | b'<' | b'>')
+        {
+            return err(j, "arithmetic expressions are not supported yet");
         }
         *i = j;
         words.push(Word {
@@ -587,13 +584,13 @@ fn parse_number_general(line: &[u8], i: &mut usize, inner_spaces: bool) -> Resul
             None => err(start, "number too long"),
         }
     };
-    if let Some(&c) = line.get(j) {
-        if c == b'+' || c == b'-' {
-            push(c, &mut n)?;
-            j += 1;
-            if inner_spaces {
-                skip_spaces(line, &mut j);
-            }
+    if let Some(&c) = line.get(j)
+        && (c == b'+' || c == b'-')
+    {
+        push(c, &mut n)?;
+        j += 1;
+        if inner_spaces {
+            skip_spaces(line, &mut j);
         }
     }
     while let Some(&c) = line.get(j) {

@@ -34,7 +34,7 @@ fn circle(n: usize) -> Vec<Move> {
     let r = 10.0;
     let center = Vec3::new(r, 0.0, 0.0);
     let pt = |k: usize| {
-        if k % n == 0 {
+        if k.is_multiple_of(n) {
             return Vec3::zeros();
         }
         let th = std::f64::consts::PI + std::f64::consts::TAU * k as f64 / n as f64;

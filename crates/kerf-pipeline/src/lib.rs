@@ -442,10 +442,10 @@ impl Measure<'_> {
 
     /// Records a programmed move for the deviation check.
     fn add_move(&mut self, mv: &Move, aborted: bool) {
-        if let Some((s, e)) = mv.abc_deg {
-            if s != e {
-                self.summary.rotary_used = true;
-            }
+        if let Some((s, e)) = mv.abc_deg
+            && s != e
+        {
+            self.summary.rotary_used = true;
         }
         if aborted && !self.tracker.is_empty() {
             // Nothing more is run after an abort: the deviation check needs no more moves.
@@ -455,10 +455,10 @@ impl Measure<'_> {
     }
 
     fn check(&mut self, sp: &Setpoint) {
-        if let Some(m) = self.monitor.as_mut() {
-            if let Err(v) = m.check(&sp.position) {
-                self.fault.get_or_insert(v);
-            }
+        if let Some(m) = self.monitor.as_mut()
+            && let Err(v) = m.check(&sp.position)
+        {
+            self.fault.get_or_insert(v);
         }
     }
 }
@@ -583,7 +583,6 @@ impl Tracker {
         self.cursor = local.1;
         (best.min(local.0), local.1)
     }
-
 }
 
 /// Where an offline run takes its planned items from: planned items in order, and the

@@ -210,11 +210,11 @@ impl Planner {
             // Rounding: confirm against the programmed lines, shrinking slightly if needed.
             let mut found = None;
             for _ in 0..G2_CONFIRM_TRIES {
-                if let Some(t) = c.curve(d, rho) {
-                    if c.deviation(&t) <= limit_mm {
-                        found = Some(t);
-                        break;
-                    }
+                if let Some(t) = c.curve(d, rho)
+                    && c.deviation(&t) <= limit_mm
+                {
+                    found = Some(t);
+                    break;
                 }
                 d *= G2_CONFIRM_SHRINK;
             }

@@ -312,10 +312,11 @@ impl Run {
     /// The knot at vertex `idx`: the run's end knots are fixed by the neighbours where they
     /// match, otherwise fitted.
     fn knot_at(&self, idx: u64, finish: bool, end_frame: Option<EndFrame>) -> Knot {
-        if finish && idx == self.last_idx() {
-            if let Some(f) = end_frame {
-                return self.frame_knot(idx, &f);
-            }
+        if finish
+            && idx == self.last_idx()
+            && let Some(f) = end_frame
+        {
+            return self.frame_knot(idx, &f);
         }
         self.fit_knot(idx)
     }

@@ -5,9 +5,7 @@ use std::fmt::Write as _;
 use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
-use kerf_proto::{
-    Command, MoveMsg, REASON_OK, Request, Response, SetpointMsg, State, StatusMsg,
-};
+use kerf_proto::{Command, MoveMsg, REASON_OK, Request, Response, SetpointMsg, State, StatusMsg};
 
 use crate::ipc;
 
@@ -210,7 +208,7 @@ pub fn status_line(machine: &str, s: &StatusMsg) -> String {
     if s.line != 0 {
         let _ = write!(out, " at line {}", s.line);
     }
-    out.push_str(",");
+    out.push(',');
     for (i, key) in AXIS_KEYS.iter().enumerate() {
         if s.axes_mask & (1 << i) != 0 {
             let _ = write!(
@@ -294,17 +292,17 @@ impl SetpointReader {
                 Ok(None) => break,
                 Err(e) => return Err(ClientError::Ipc(format!("receiving setpoints: {e:?}"))),
             };
-            if let Some(last) = self.last_seq {
-                if msg.seq != last + 1 {
-                    return Err(ClientError::Gone {
-                        machine: self.machine.clone(),
-                        detail: format!(
-                            "setpoints {} to {} were lost (the reader fell behind)",
-                            last + 1,
-                            msg.seq.saturating_sub(1)
-                        ),
-                    });
-                }
+            if let Some(last) = self.last_seq
+                && msg.seq != last + 1
+            {
+                return Err(ClientError::Gone {
+                    machine: self.machine.clone(),
+                    detail: format!(
+                        "setpoints {} to {} were lost (the reader fell behind)",
+                        last + 1,
+                        msg.seq.saturating_sub(1)
+                    ),
+                });
             }
             self.last_seq = Some(msg.seq);
             n += 1;

@@ -270,9 +270,10 @@ pub const SYSTEM_CONFIG: &str = "/etc/kerf/kerf.toml";
 pub fn load_default(path: Option<&Path>) -> Result<(Config, String), ConfigError> {
     match path {
         Some(p) => Ok((Config::load(p)?, p.display().to_string())),
-        None if Path::new(SYSTEM_CONFIG).exists() => {
-            Ok((Config::load(Path::new(SYSTEM_CONFIG))?, SYSTEM_CONFIG.to_string()))
-        }
+        None if Path::new(SYSTEM_CONFIG).exists() => Ok((
+            Config::load(Path::new(SYSTEM_CONFIG))?,
+            SYSTEM_CONFIG.to_string(),
+        )),
         None => Ok((Config::builtin(), BUILTIN_ORIGIN.to_string())),
     }
 }

@@ -84,17 +84,11 @@ fn service_name(machine: &str, which: &str) -> Result<ServiceName, String> {
 }
 
 /// The moves service type.
-pub type MovesService = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
-    ipc::Service,
-    MoveMsg,
-    (),
->;
+pub type MovesService =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, MoveMsg, ()>;
 /// The setpoints service type.
-pub type SetpointsService = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
-    ipc::Service,
-    SetpointMsg,
-    (),
->;
+pub type SetpointsService =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, SetpointMsg, ()>;
 /// The control service type.
 pub type ControlService = iceoryx2::service::port_factory::request_response::PortFactory<
     ipc::Service,

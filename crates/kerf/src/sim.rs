@@ -329,10 +329,10 @@ impl Prepass {
     /// Checks the next move and the segments planned so far.
     pub fn push(&mut self, m: &Move) -> Result<(), PrepassError> {
         travel::check_move(m, &self.axes)?;
-        if let Some((s, e)) = m.abc_deg {
-            if s != e {
-                self.scan.rotary_used = true;
-            }
+        if let Some((s, e)) = m.abc_deg
+            && s != e
+        {
+            self.scan.rotary_used = true;
         }
         self.scan.estimated_s += estimated_seconds(m, self.rapid_mm_s);
         self.scan.moves += 1;

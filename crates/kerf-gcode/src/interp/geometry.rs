@@ -724,19 +724,19 @@ impl State {
         }
 
         // Out-of-plane centre words.
-        if d != Dialect::Heidenhain {
-            if let Some(k) = blk.first_of(&[IJK[w]]) {
-                let message = if d == Dialect::LinuxCnc {
-                    format!(
-                        "{} word given for arc in {} plane",
-                        key_name(k),
-                        plane.name()
-                    )
-                } else {
-                    format!("{} word in {} plane", key_name(k), plane.name())
-                };
-                return fail(blk.col(k), message);
-            }
+        if d != Dialect::Heidenhain
+            && let Some(k) = blk.first_of(&[IJK[w]])
+        {
+            let message = if d == Dialect::LinuxCnc {
+                format!(
+                    "{} word given for arc in {} plane",
+                    key_name(k),
+                    plane.name()
+                )
+            } else {
+                format!("{} word in {} plane", key_name(k), plane.name())
+            };
+            return fail(blk.col(k), message);
         }
         let has_centre = blk.has(IJK[u]) || blk.has(IJK[v]);
 
@@ -868,22 +868,24 @@ impl State {
         }
 
         // Fagor G91 Q360 (a multiple of 360° incremental about the polar origin): whole circles.
-        if d == Dialect::Fagor && polar && !has_centre {
-            if let (Some(q), false) = (blk.get(KQ), self.word_absolute(blk, KQ)) {
-                let turns = (q / 360.0).round();
-                if q != 0.0 && (q - turns * 360.0).abs() < 1e-9 {
-                    let sweep = turns.abs() * TAU * if ccw { 1.0 } else { -1.0 };
-                    let arc = arc::make_arc(start, *end, centre, plane, sweep);
-                    let r = arc::len2(start[u] - centre.0, start[v] - centre.1);
-                    if r < arc::SAME_POINT_MM {
-                        return fail(motion_col, "zero-radius arc");
-                    }
-                    let mut a = arc;
-                    a.end[u] = start[u];
-                    a.end[v] = start[v];
-                    *end = a.end;
-                    return Ok(Some(a));
+        if d == Dialect::Fagor
+            && polar
+            && !has_centre
+            && let (Some(q), false) = (blk.get(KQ), self.word_absolute(blk, KQ))
+        {
+            let turns = (q / 360.0).round();
+            if q != 0.0 && (q - turns * 360.0).abs() < 1e-9 {
+                let sweep = turns.abs() * TAU * if ccw { 1.0 } else { -1.0 };
+                let arc = arc::make_arc(start, *end, centre, plane, sweep);
+                let r = arc::len2(start[u] - centre.0, start[v] - centre.1);
+                if r < arc::SAME_POINT_MM {
+                    return fail(motion_col, "zero-radius arc");
                 }
+                let mut a = arc;
+                a.end[u] = start[u];
+                a.end[v] = start[v];
+                *end = a.end;
+                return Ok(Some(a));
             }
         }
 

@@ -59,7 +59,7 @@ pub fn polygon_circle(r: f64, n: usize, feed: f64) -> Vec<Move> {
     let center = Vec3::new(r, 0.0, 0.0);
     let pt = |k: usize| {
         let th = std::f64::consts::PI + std::f64::consts::TAU * (k % n) as f64 / n as f64;
-        if k % n == 0 {
+        if k.is_multiple_of(n) {
             Vec3::zeros()
         } else {
             center + Vec3::new(r * th.cos(), r * th.sin(), 0.0)

@@ -52,8 +52,8 @@ fn main() -> ExitCode {
 }
 
 fn run(args: &Args) -> anyhow::Result<()> {
-    let (config, origin) = kerf::config::load_default(args.config.as_deref())
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (config, origin) =
+        kerf::config::load_default(args.config.as_deref()).map_err(|e| anyhow::anyhow!("{e}"))?;
     let signals = kerf_rt::Signals::install().context("cannot install signal handlers")?;
     let daemon = kerf::daemon::start(&config, true).map_err(|e| anyhow::anyhow!("{e}"))?;
     let rt = daemon.rt();
@@ -78,13 +78,11 @@ fn run(args: &Args) -> anyhow::Result<()> {
     loop {
         std::thread::sleep(SUPERVISE_EVERY);
         let _ = watchdog.feed(daemon.cycles());
-        if !stopping {
-            if let Some(signal) = signals.stop_requested() {
-                tracing::info!("signal {signal}: stopping on the path");
-                let _ = kerf_rt::notify_stopping();
-                daemon.shutdown();
-                stopping = true;
-            }
+        if !stopping && let Some(signal) = signals.stop_requested() {
+            tracing::info!("signal {signal}: stopping on the path");
+            let _ = kerf_rt::notify_stopping();
+            daemon.shutdown();
+            stopping = true;
         }
         if daemon.finished() {
             break;

@@ -28,8 +28,8 @@ use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
 use kerf_proto::{
-    Command as Request, MoveMsg, REASON_NOT_ALLOWED, REASON_NOT_IMPLEMENTED, REASON_OK,
-    Resolved, Response, SetpointMsg, State, StatusMsg, StreamCheck,
+    Command as Request, MoveMsg, REASON_NOT_ALLOWED, REASON_NOT_IMPLEMENTED, REASON_OK, Resolved,
+    Response, SetpointMsg, State, StatusMsg, StreamCheck,
 };
 
 use crate::config::Config;
@@ -206,8 +206,17 @@ pub fn start(config: &Config, real_time: bool) -> Result<Daemon, StartError> {
         let config = config.clone();
         threads.push(spawn("kerfd-control", move || {
             control_thread(
-                &config, &machine, ready, stop, shutdown, done, counters, overruns, rt_ok,
-                commands_tx, status_rx,
+                &config,
+                &machine,
+                ready,
+                stop,
+                shutdown,
+                done,
+                counters,
+                overruns,
+                rt_ok,
+                commands_tx,
+                status_rx,
             )
         })?);
     }
@@ -367,7 +376,10 @@ fn control_thread(
                         hold_requested = false;
                         push_command(&mut commands, Command::Resume)
                     } else {
-                        (REASON_NOT_ALLOWED, "not holding: nothing to resume".to_string())
+                        (
+                            REASON_NOT_ALLOWED,
+                            "not holding: nothing to resume".to_string(),
+                        )
                     }
                 }
                 Ok(Request::Abort) => {

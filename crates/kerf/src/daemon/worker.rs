@@ -253,21 +253,19 @@ impl Planning {
                     Err(r) => self.fail(r),
                 }
             }
-            Incoming::End => {
-                match self.planner.take() {
-                    Some(mut planner) if !self.failed => {
-                        planner.finish(&mut self.buf);
-                        self.planner = Some(planner);
-                        let ok = self.flush();
-                        self.planner = None;
-                        ok && self.send(RtItem::End(None))
-                    }
-                    _ => {
-                        self.planner = None;
-                        true
-                    }
+            Incoming::End => match self.planner.take() {
+                Some(mut planner) if !self.failed => {
+                    planner.finish(&mut self.buf);
+                    self.planner = Some(planner);
+                    let ok = self.flush();
+                    self.planner = None;
+                    ok && self.send(RtItem::End(None))
                 }
-            }
+                _ => {
+                    self.planner = None;
+                    true
+                }
+            },
             Incoming::Rejected(reject) => {
                 self.refused.fetch_add(1, Ordering::AcqRel);
                 tracing::warn!("message refused: {reject}");
@@ -528,7 +526,10 @@ impl Cycle {
         }
         let position = self.setpoint.position;
         let mut velocity = [0.0; 6];
-        for (v, (p, q)) in velocity.iter_mut().zip(position.iter().zip(previous.iter())) {
+        for (v, (p, q)) in velocity
+            .iter_mut()
+            .zip(position.iter().zip(previous.iter()))
+        {
             *v = (p - q) / self.period_s;
         }
         self.position = position;
@@ -635,49 +636,51 @@ impl Cycle {
         let mut est = est;
         let mut refusal = None;
         let mut pending = false;
-        let result = self.interp.feed(|| loop {
-            // Programmed moves go to the tracker until the next planned item.
-            match items.peek() {
-                Ok(RtItem::Move(_)) if tracker.is_full() => return Poll::Pending,
-                Ok(RtItem::Move(m)) => {
-                    // After an abort the moves are not needed (as in `kerf sim`).
-                    if !(aborted && !tracker.is_empty()) {
-                        tracker.add(m);
+        let result = self.interp.feed(|| {
+            loop {
+                // Programmed moves go to the tracker until the next planned item.
+                match items.peek() {
+                    Ok(RtItem::Move(_)) if tracker.is_full() => return Poll::Pending,
+                    Ok(RtItem::Move(m)) => {
+                        // After an abort the moves are not needed (as in `kerf sim`).
+                        if !aborted || tracker.is_empty() {
+                            tracker.add(m);
+                        }
+                        let _ = items.pop();
+                        continue;
                     }
-                    let _ = items.pop();
-                    continue;
+                    _ => {}
                 }
-                _ => {}
-            }
-            break match items.peek() {
-            Ok(RtItem::Move(_)) => Poll::Pending,
-            Ok(RtItem::Planned(_)) => match items.pop() {
-                Ok(RtItem::Planned(p)) => {
-                    if let Planned::Segment(seg, _) = &p {
-                        est.push(segment_time_s(seg));
+                break match items.peek() {
+                    Ok(RtItem::Move(_)) => Poll::Pending,
+                    Ok(RtItem::Planned(_)) => match items.pop() {
+                        Ok(RtItem::Planned(p)) => {
+                            if let Planned::Segment(seg, _) = &p {
+                                est.push(segment_time_s(seg));
+                            }
+                            Poll::Ready(p)
+                        }
+                        _ => Poll::Pending,
+                    },
+                    Ok(RtItem::End(r)) => {
+                        refusal = *r;
+                        let _ = items.pop();
+                        Poll::End
                     }
-                    Poll::Ready(p)
-                }
-                _ => Poll::Pending,
-            },
-            Ok(RtItem::End(r)) => {
-                refusal = *r;
-                let _ = items.pop();
-                Poll::End
+                    // The next program's beginning: this one ended without its end (cannot
+                    // happen: the planning worker always ends a program before the next).
+                    Ok(RtItem::Begin { .. }) => Poll::End,
+                    Err(_) => {
+                        pending = true;
+                        Poll::Pending
+                    }
+                };
             }
-            // The next program's beginning: this one ended without its end (cannot
-            // happen: the planning worker always ends a program before the next).
-            Ok(RtItem::Begin { .. }) => Poll::End,
-            Err(_) => {
-                pending = true;
-                Poll::Pending
-            }
-        };
         });
-        if let Some(r) = refusal {
-            if let Some(p) = self.program.as_mut() {
-                p.refusal = Some(r);
-            }
+        if let Some(r) = refusal
+            && let Some(p) = self.program.as_mut()
+        {
+            p.refusal = Some(r);
         }
         match result {
             Ok(started) => {

@@ -148,7 +148,8 @@ pub fn record(args: &RecordArgs) -> Result<(), Failure> {
     let status = client.status().map_err(client_failure)?;
     let stop = stop_flag()?;
     let rotary = status.axes_mask & 0b111_000 != 0;
-    let mut reader = SetpointReader::open(client.node(), &config.machine).map_err(client_failure)?;
+    let mut reader =
+        SetpointReader::open(client.node(), &config.machine).map_err(client_failure)?;
     let file = File::create(&args.out).map_err(|e| {
         Failure::Error(format!("{}: error: cannot create: {e}", args.out.display()))
     })?;
@@ -207,8 +208,9 @@ struct Recording {
 
 impl Recording {
     fn create(path: &Path, rotary: bool, period_s: f64, start: [f64; 6]) -> Result<Self, Failure> {
-        let file = File::create(path)
-            .map_err(|e| Failure::Error(format!("{}: error: cannot create: {e}", path.display())))?;
+        let file = File::create(path).map_err(|e| {
+            Failure::Error(format!("{}: error: cannot create: {e}", path.display()))
+        })?;
         let mut r = Recording {
             out: BufWriter::new(file),
             path: path.to_path_buf(),
@@ -258,10 +260,10 @@ impl Watch {
                 self.cycle = m.program_cycle;
                 self.line = m.line;
                 self.feed_mm_s = m.feed_mm_s;
-                if let Some(r) = self.recording.as_mut() {
-                    if let Err(e) = r.row(m) {
-                        failure.get_or_insert(e);
-                    }
+                if let Some(r) = self.recording.as_mut()
+                    && let Err(e) = r.row(m)
+                {
+                    failure.get_or_insert(e);
                 }
             }
             Ok(())
@@ -388,9 +390,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             check_program_state(&s, id, &name, &machine)?;
         }
     }
-    sender
-        .send(MoveMsg::end(id, seq))
-        .map_err(client_failure)?;
+    sender.send(MoveMsg::end(id, seq)).map_err(client_failure)?;
 
     // Wait for the motion to finish.
     loop {
@@ -448,9 +448,9 @@ fn check_program_state(s: &StatusMsg, id: u64, name: &str, machine: &str) -> Res
 fn progress_bar(last_line: u32) -> ProgressBar {
     // Hidden when standard error is not a terminal.
     let bar = ProgressBar::new(u64::from(last_line.max(1)));
-    if let Ok(style) = ProgressStyle::with_template(
-        "{bar:30} {percent:>3}% line {pos}/{len} {msg} {elapsed}",
-    ) {
+    if let Ok(style) =
+        ProgressStyle::with_template("{bar:30} {percent:>3}% line {pos}/{len} {msg} {elapsed}")
+    {
         bar.set_style(style);
     }
     bar

@@ -370,7 +370,7 @@ pub fn check_program(
                 prepass.push(&m).map_err(refused)?;
                 moves += 1;
                 // A long program takes a while to check: say so on a terminal.
-                if moves % 16384 == 0 && started.elapsed() > PROGRESS_AFTER {
+                if moves.is_multiple_of(16384) && started.elapsed() > PROGRESS_AFTER {
                     let bar = spinner.get_or_insert_with(|| {
                         // Cleared when dropped, also when the check fails.
                         let bar = ProgressBar::new_spinner().with_finish(ProgressFinish::AndClear);
