@@ -327,7 +327,22 @@ pub struct StatusMsg {
     pub fault_text: [u8; 128],
     /// Real-time cycle period, ns.
     pub period_ns: u64,
+    /// How program `program_id` ended: `PROGRAM_END_*` (`PROGRAM_END_NONE` while it runs).
+    pub program_end: u32,
+    /// Zero.
+    pub reserved: u32,
 }
+
+/// `StatusMsg::program_end`: the program still runs, or there is none.
+pub const PROGRAM_END_NONE: u32 = 0;
+/// `StatusMsg::program_end`: the program ran to its end and the machine is at rest.
+pub const PROGRAM_END_FINISHED: u32 = 1;
+/// `StatusMsg::program_end`: the program was aborted (`kerf abort`, a shutdown); the
+/// machine stopped on the path.
+pub const PROGRAM_END_ABORTED: u32 = 2;
+/// `StatusMsg::program_end`: the daemon refused a message or move of the program and
+/// stopped it at the end of its last valid move; `fault_text` says why.
+pub const PROGRAM_END_REFUSED: u32 = 3;
 
 impl StatusMsg {
     /// All fields zero.
@@ -351,6 +366,8 @@ impl StatusMsg {
             axes_mask: 0,
             fault_text: [0; 128],
             period_ns: 0,
+            program_end: PROGRAM_END_NONE,
+            reserved: 0,
         }
     }
 

@@ -63,7 +63,7 @@ fn messages() -> Vec<Message> {
             fields: fields!(StatusMsg; state, line, position_mm_deg, override_pct,
                 queued_moves, queued_s, cycles, overruns, rt, program_done, program_id,
                 moves_received, window_items, rejected, fault, axes_mask, fault_text,
-                period_ns),
+                period_ns, program_end, reserved),
         },
         Message {
             name: "Response",
@@ -125,6 +125,10 @@ fn constants() -> BTreeMap<&'static str, u32> {
         REASON_BAD_VALUE,
         REASON_NOT_ALLOWED,
         REASON_NOT_IMPLEMENTED,
+        PROGRAM_END_NONE,
+        PROGRAM_END_FINISHED,
+        PROGRAM_END_ABORTED,
+        PROGRAM_END_REFUSED,
     )
 }
 

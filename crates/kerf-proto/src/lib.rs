@@ -32,11 +32,12 @@ mod stream;
 mod doc_layout;
 
 pub use control::{
-    Command, REASON_BAD_VALUE, REASON_NOT_ALLOWED, REASON_NOT_IMPLEMENTED, REASON_OK,
-    REASON_UNKNOWN_KIND, REASON_WRONG_VERSION, REQUEST_ABORT, REQUEST_HOLD, REQUEST_OVERRIDE,
-    REQUEST_RESET, REQUEST_RESUME, REQUEST_STATUS, Request, RequestReject, Response, STATE_FAULT,
-    STATE_HOLDING, STATE_IDLE, STATE_RUNNING, STATE_STARVED, STATE_STOPPING, SetpointMsg, State,
-    StatusMsg, UnknownState,
+    Command, PROGRAM_END_ABORTED, PROGRAM_END_FINISHED, PROGRAM_END_NONE, PROGRAM_END_REFUSED,
+    REASON_BAD_VALUE, REASON_NOT_ALLOWED, REASON_NOT_IMPLEMENTED, REASON_OK, REASON_UNKNOWN_KIND,
+    REASON_WRONG_VERSION, REQUEST_ABORT, REQUEST_HOLD, REQUEST_OVERRIDE, REQUEST_RESET,
+    REQUEST_RESUME, REQUEST_STATUS, Request, RequestReject, Response, STATE_FAULT, STATE_HOLDING,
+    STATE_IDLE, STATE_RUNNING, STATE_STARVED, STATE_STOPPING, SetpointMsg, State, StatusMsg,
+    UnknownState,
 };
 pub use moves::{
     ARC_CENTER_PLANE_REL_TOL, ARC_MIN_RADIUS_MM, ARC_RADIUS_REL_TOL, ARC_SWEEP_TOL_RAD,
@@ -58,8 +59,8 @@ const _: () = {
     assert!(size_of::<MoveMsg>() == 256);
     assert!(size_of::<SetpointMsg>() == 152);
     assert!(size_of::<Request>() == 24);
-    assert!(size_of::<StatusMsg>() == 280);
-    assert!(size_of::<Response>() == 400);
+    assert!(size_of::<StatusMsg>() == 288);
+    assert!(size_of::<Response>() == 408);
 };
 
 /// The number of axes in positions and velocities: X, Y, Z (mm), A, B, C (degrees).

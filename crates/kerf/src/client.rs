@@ -89,6 +89,15 @@ impl Client {
     /// Sends `command` and waits for the answer (at most [`REQUEST_TIMEOUT`]). A refusal
     /// is returned as the response; only a missing answer is an error.
     pub fn request(&mut self, command: Command) -> Result<Response, ClientError> {
+        self.request_within(command, REQUEST_TIMEOUT)
+    }
+
+    /// [`request`](Self::request) waiting at most `timeout`.
+    pub fn request_within(
+        &mut self,
+        command: Command,
+        timeout: Duration,
+    ) -> Result<Response, ClientError> {
         let id = self.next_id;
         self.next_id += 1;
         let pending = self
@@ -97,7 +106,7 @@ impl Client {
             .map_err(|_| ClientError::NoDaemon {
                 machine: self.machine.clone(),
             })?;
-        let deadline = Instant::now() + REQUEST_TIMEOUT;
+        let deadline = Instant::now() + timeout;
         loop {
             match pending.receive() {
                 Ok(Some(response)) if response.request_id == id => return Ok(*response),
@@ -185,7 +194,7 @@ pub fn status_json(machine: &str, s: &StatusMsg) -> String {
     };
     let _ = write!(
         out,
-        "}},\"override_pct\":{},\"queued_moves\":{},\"queued_s\":{},\"cycles\":{},\"overruns\":{},\"rt\":{},\"fault\":{},\"program_id\":{},\"program_done\":{},\"moves_received\":{},\"rejected\":{},\"period_us\":{}}}",
+        "}},\"override_pct\":{},\"queued_moves\":{},\"queued_s\":{},\"cycles\":{},\"overruns\":{},\"rt\":{},\"fault\":{},\"program_id\":{},\"program_done\":{},\"program_end\":\"{}\",\"moves_received\":{},\"rejected\":{},\"period_us\":{}}}",
         num(s.override_pct),
         s.queued_moves,
         num(s.queued_s),
@@ -195,6 +204,13 @@ pub fn status_json(machine: &str, s: &StatusMsg) -> String {
         fault,
         s.program_id,
         s.program_done != 0,
+        match s.program_end {
+            kerf_proto::PROGRAM_END_FINISHED => "finished",
+            kerf_proto::PROGRAM_END_ABORTED => "aborted",
+            kerf_proto::PROGRAM_END_REFUSED => "refused",
+            _ if s.program_id == 0 => "none",
+            _ => "running",
+        },
         s.moves_received,
         s.rejected,
         num(s.period_ns as f64 / 1000.0)

@@ -59,6 +59,7 @@ pub fn node(name: &str) -> Result<Node<ipc::Service>, String> {
 /// SIGKILL), so that a restarted daemon needs no manual clean-up. Returns how many dead
 /// nodes were cleaned.
 pub fn clean_dead_nodes() -> usize {
+    set_log_level_from_env_or(LogLevel::Error);
     let mut dead = Vec::new();
     let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
         if let NodeState::Dead(view) = state {

@@ -341,6 +341,7 @@ fn control_thread(
         queued_s: 0.0,
         program_id: 0,
         program_done: false,
+        aborted: false,
         refusal: None,
         program_cycle: 0,
         shut_down: false,
@@ -353,6 +354,7 @@ fn control_thread(
             latest = s;
         }
         if latest.state != State::Holding && latest.program_done {
+            // The program is over: a hold asked for during it is void.
             hold_requested = false;
         }
         while let Ok(Some(active)) = server.receive() {
@@ -451,6 +453,7 @@ fn status_msg(
 ) -> StatusMsg {
     let mut msg = StatusMsg::zeroed();
     msg.state = match (s.state, s.refusal) {
+        // The refused program's fault is shown until the next program begins.
         (State::Idle, Some(_)) => State::Fault,
         (state, _) => state,
     }
@@ -463,7 +466,13 @@ fn status_msg(
     msg.cycles = s.cycles;
     msg.overruns = overruns;
     msg.rt = rt;
-    msg.program_done = u32::from(s.program_done);
+    msg.program_done = u32::from(s.program_done && !s.aborted && s.refusal.is_none());
+    msg.program_end = match (s.program_done, s.aborted, s.refusal) {
+        (false, ..) => kerf_proto::PROGRAM_END_NONE,
+        (true, true, _) => kerf_proto::PROGRAM_END_ABORTED,
+        (true, false, Some(_)) => kerf_proto::PROGRAM_END_REFUSED,
+        (true, false, None) => kerf_proto::PROGRAM_END_FINISHED,
+    };
     msg.program_id = s.program_id;
     msg.moves_received = counters.received.load(Ordering::Acquire);
     msg.window_items = window;

@@ -142,6 +142,8 @@ pub struct Snapshot {
     pub program_id: u64,
     /// `true` once the current program has finished moving and the machine is at rest.
     pub program_done: bool,
+    /// `true` if the current program was aborted.
+    pub aborted: bool,
     /// Why the current program stopped early, if it did.
     pub refusal: Option<Refusal>,
     /// Cycles of the current program (its setpoints' program time is this × period).
@@ -374,6 +376,7 @@ impl Planning {
 #[derive(Clone, Copy, Debug)]
 struct ProgramRun {
     id: u64,
+    aborted: bool,
     cycle: u64,
     refusal: Option<Refusal>,
     /// Set when the program must not move at all (it starts elsewhere).
@@ -416,6 +419,7 @@ pub struct Cycle {
     commands: rtrb::Consumer<Command>,
     status: rtrb::Producer<Snapshot>,
     program: Option<ProgramRun>,
+    /// The last program's id, why it stopped early, and whether it was aborted.
     last_program: (u64, Option<Refusal>, bool),
     cycles: u64,
     position: [f64; 6],
@@ -560,8 +564,16 @@ impl Cycle {
                     self.interp.apply(Event::Override(pct / 100.0));
                 }
             }
-            Command::Abort => self.interp.apply(Event::Abort),
+            Command::Abort => {
+                if let Some(p) = self.program.as_mut() {
+                    p.aborted = true;
+                }
+                self.interp.apply(Event::Abort)
+            }
             Command::Shutdown => {
+                if let Some(p) = self.program.as_mut() {
+                    p.aborted = true;
+                }
                 self.shutting_down = true;
                 self.interp.apply(Event::Abort);
             }
@@ -586,6 +598,7 @@ impl Cycle {
         self.tracker.clear();
         let mut run = ProgramRun {
             id: program_id,
+            aborted: false,
             cycle: 0,
             refusal: None,
             dropped: self.shutting_down,
@@ -714,7 +727,7 @@ impl Cycle {
 
     fn end_program(&mut self) {
         if let Some(p) = self.program.take() {
-            self.last_program = (p.id, p.refusal, true);
+            self.last_program = (p.id, p.refusal, p.aborted);
         }
         self.starved = false;
         let mut est = EstRing {
@@ -743,9 +756,14 @@ impl Cycle {
 
     fn report(&mut self, state: State) {
         let core = self.interp.core().status();
-        let (program_id, refusal, done) = match self.program {
-            Some(p) => (p.id, p.refusal, false),
-            None => self.last_program,
+        let (program_id, refusal, aborted, done) = match self.program {
+            Some(p) => (p.id, p.refusal, p.aborted, false),
+            None => (
+                self.last_program.0,
+                self.last_program.1,
+                self.last_program.2,
+                self.last_program.0 != 0,
+            ),
         };
         let snapshot = Snapshot {
             cycles: self.cycles,
@@ -758,6 +776,7 @@ impl Cycle {
             queued_s: self.est_sum_s.max(0.0),
             program_id,
             program_done: done,
+            aborted,
             refusal,
             program_cycle: self.program.map_or(0, |p| p.cycle),
             shut_down: self.shut_down,

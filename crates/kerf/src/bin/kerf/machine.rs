@@ -12,14 +12,21 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use kerf::client::{Client, ClientError, MoveSender, SetpointReader};
 use kerf::sim::{SimOptions, csv_header, write_row};
-use kerf_gcode::{Interpreter, Item};
+use kerf_gcode::Interpreter;
 use kerf_motion::Setpoint;
-use kerf_proto::{Command, MoveMsg, SetpointMsg, StatusMsg};
+use kerf_proto::{
+    Command, MoveMsg, PROGRAM_END_ABORTED, PROGRAM_END_NONE, PROGRAM_END_REFUSED, SetpointMsg,
+    StatusMsg,
+};
 
 use crate::{Failure, ProgramArgs, SimSource, check_program, load_config};
 
 /// How often `kerf run` asks for the status while it waits.
 const STATUS_EVERY: Duration = Duration::from_millis(10);
+
+/// How long `kerf run` waits for one status answer before it looks at the setpoint
+/// stream to tell a slow daemon from a dead one.
+const LIVE_REQUEST_TIMEOUT: Duration = Duration::from_millis(50);
 
 /// Messages sent between two looks at the setpoint stream while streaming.
 const DRAIN_EVERY: u64 = 256;
@@ -275,6 +282,23 @@ impl Watch {
     }
 }
 
+/// The status while a program runs: a request that goes unanswered for
+/// [`LIVE_REQUEST_TIMEOUT`] is retried as long as the setpoint stream shows the daemon
+/// alive; a stalled stream ([`kerf::client::STREAM_TIMEOUT`]) ends the run.
+fn live_status(
+    client: &mut Client,
+    watch: &mut Watch,
+    reader: &mut SetpointReader,
+) -> Result<StatusMsg, Failure> {
+    loop {
+        match client.request_within(Command::Status, LIVE_REQUEST_TIMEOUT) {
+            Ok(r) => return Ok(r.status),
+            Err(ClientError::NoDaemon { .. }) => watch.take(reader)?,
+            Err(e) => return Err(client_failure(e)),
+        }
+    }
+}
+
 /// A program id no other run on this PC picks: the process id and the time.
 fn program_id() -> u64 {
     let nanos = std::time::SystemTime::now()
@@ -300,7 +324,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     };
     let mut client = Client::connect(&config.machine).map_err(client_failure)?;
     let status = client.status().map_err(client_failure)?;
-    if status.program_id != 0 && status.program_done == 0 {
+    if status.program_id != 0 && status.program_end == PROGRAM_END_NONE {
         return Err(Failure::Error(format!(
             "kerf: error: machine `{}` is busy with another program (`kerf status`; `kerf abort` ends it)",
             config.machine
@@ -362,7 +386,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         let msg = MoveMsg::from_item(id, seq, &item);
         // Flow control: never more than the daemon's window unacknowledged.
         while sender.sent - acked >= window {
-            let s = client.status().map_err(client_failure)?;
+            let s = live_status(&mut client, &mut watch, &mut reader)?;
             check_program_state(&s, id, &name, &machine)?;
             if s.program_id == id {
                 acked = s.moves_received;
@@ -383,10 +407,9 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
                 "{name}: error: interrupted; the motion was aborted on the path"
             )));
         }
-        if let Item::Move(_) = item {}
         if last_status.elapsed() > STATUS_EVERY * 10 {
             last_status = Instant::now();
-            let s = client.status().map_err(client_failure)?;
+            let s = live_status(&mut client, &mut watch, &mut reader)?;
             check_program_state(&s, id, &name, &machine)?;
         }
     }
@@ -395,7 +418,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     // Wait for the motion to finish.
     loop {
         watch.take(&mut reader)?;
-        let s = client.status().map_err(client_failure)?;
+        let s = live_status(&mut client, &mut watch, &mut reader)?;
         update_bar(&bar, &watch, last_line, Some(&s));
         if stop.load(Ordering::Acquire) {
             let _ = client.command(Command::Abort);
@@ -403,19 +426,14 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
                 "{name}: error: interrupted; the motion was aborted on the path"
             )));
         }
-        if s.program_id == id && s.program_done != 0 {
+        if s.program_id == id && s.program_end != PROGRAM_END_NONE {
             // Every setpoint up to the one that finished the program.
             while watch.last_seq < s.cycles {
                 std::thread::sleep(Duration::from_millis(1));
                 watch.take(&mut reader)?;
             }
             bar.finish_and_clear();
-            if s.fault != 0 {
-                return Err(Failure::Error(format!(
-                    "{name}: error: the daemon stopped the program: {}",
-                    s.fault_text()
-                )));
-            }
+            check_program_state(&s, id, &name, &machine)?;
             if let Some(r) = watch.recording.take() {
                 r.finish()?;
             }
@@ -429,18 +447,30 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     }
 }
 
-/// A program that another client replaced or a refusal ended is reported at once.
+/// A program that ended early (aborted, or refused by the daemon) or that another
+/// client's program replaced is reported at once.
 fn check_program_state(s: &StatusMsg, id: u64, name: &str, machine: &str) -> Result<(), Failure> {
-    if s.program_id != id && s.program_id != 0 && s.program_done == 0 {
+    if s.program_id != id && s.program_id != 0 && s.program_end == PROGRAM_END_NONE {
         return Err(Failure::Error(format!(
             "{name}: error: machine `{machine}` started another program"
         )));
     }
-    if s.program_id == id && s.fault != 0 && s.program_done != 0 {
-        return Err(Failure::Error(format!(
-            "{name}: error: the daemon stopped the program: {}",
-            s.fault_text()
-        )));
+    if s.program_id == id {
+        match s.program_end {
+            PROGRAM_END_ABORTED => {
+                return Err(Failure::Error(format!(
+                    "{name}: error: the program was aborted (kerf abort, or the daemon stopped); the machine stopped on the path at line {}",
+                    s.line
+                )));
+            }
+            PROGRAM_END_REFUSED => {
+                return Err(Failure::Error(format!(
+                    "{name}: error: the daemon refused the program and stopped it at the end of the last valid move: {}",
+                    s.fault_text()
+                )));
+            }
+            _ => {}
+        }
     }
     Ok(())
 }
