@@ -1284,4 +1284,56 @@ max_mm = 10.0
         assert_eq!(position_of("é=1", 2), TextPosition { line: 1, col: 2 });
         assert_eq!(position_of("x", 99), TextPosition { line: 1, col: 2 });
     }
+
+    #[test]
+    fn machine_name_and_daemon_table_default_and_are_checked() {
+        let c = Config::from_toml_str(MINIMAL, "m.toml").unwrap();
+        assert_eq!(c.machine, "default");
+        assert_eq!(
+            c.daemon,
+            DaemonConfig {
+                priority: 80,
+                cpu: None,
+                queue_segments: 4096,
+                move_window: 4096,
+            }
+        );
+        let c = Config::from_toml_str(
+            &format!(
+                "machine = \"mill-2_a\"\n{MINIMAL}[daemon]\npriority = 90\ncpu = 3\nqueue_segments = 16\nmove_window = 65536\n"
+            ),
+            "m.toml",
+        )
+        .unwrap();
+        assert_eq!(c.machine, "mill-2_a");
+        assert_eq!(
+            c.daemon,
+            DaemonConfig {
+                priority: 90,
+                cpu: Some(3),
+                queue_segments: 16,
+                move_window: 65536,
+            }
+        );
+        for bad in ["", "a/b", "mill 2", "é", &"x".repeat(65)] {
+            let e = err(&format!("machine = \"{bad}\"\n{MINIMAL}"));
+            assert!(
+                e.starts_with("m.toml:1:11: error: `machine` must be"),
+                "{bad}: {e}"
+            );
+        }
+        for (key, value) in [
+            ("priority", "0"),
+            ("priority", "100"),
+            ("cpu", "-1"),
+            ("queue_segments", "15"),
+            ("queue_segments", "65537"),
+            ("move_window", "8"),
+        ] {
+            let e = err(&format!("{MINIMAL}[daemon]\n{key} = {value}\n"));
+            assert!(e.contains(key), "{key} = {value}: {e}");
+        }
+        let e = err(&format!("{MINIMAL}[daemon]\nperiod_us = 250\n"));
+        assert!(e.contains("period_us"), "{e}");
+    }
 }
