@@ -34,7 +34,7 @@ use kerf_proto::{
 
 use crate::config::Config;
 use crate::ipc;
-use worker::{Command, Cycle, Incoming, Planning, PlanningCounters, RtItem, Snapshot};
+use worker::{Command, Cycle, Incoming, Planning, PlanningCounters, Refusal, RtItem, Snapshot};
 
 /// Planned items the ring from the planning thread to the cycle holds: a few seconds of
 /// dense code ahead of the motion queue.
@@ -452,7 +452,11 @@ fn status_msg(
     period_ns: u64,
 ) -> StatusMsg {
     let mut msg = StatusMsg::zeroed();
-    msg.state = match (s.state, s.refusal) {
+    // A planner process that went away abandoned its program: the machine stops at the
+    // end of the last complete move and is idle, not in fault (the log says why).
+    let abandoned = s.refusal == Some(Refusal::SenderGone);
+    let refusal = s.refusal.filter(|_| !abandoned);
+    msg.state = match (s.state, refusal) {
         // The refused program's fault is shown until the next program begins.
         (State::Idle, Some(_)) => State::Fault,
         (state, _) => state,
@@ -467,7 +471,7 @@ fn status_msg(
     msg.overruns = overruns;
     msg.rt = rt;
     msg.program_done = u32::from(s.program_done && !s.aborted && s.refusal.is_none());
-    msg.program_end = match (s.program_done, s.aborted, s.refusal) {
+    msg.program_end = match (s.program_done, s.aborted || abandoned, refusal) {
         (false, ..) => kerf_proto::PROGRAM_END_NONE,
         (true, true, _) => kerf_proto::PROGRAM_END_ABORTED,
         (true, false, Some(_)) => kerf_proto::PROGRAM_END_REFUSED,
@@ -477,7 +481,7 @@ fn status_msg(
     msg.moves_received = counters.received.load(Ordering::Acquire);
     msg.window_items = window;
     msg.rejected = counters.refused.load(Ordering::Acquire);
-    if let Some(r) = s.refusal {
+    if let Some(r) = refusal {
         msg.fault = 1;
         msg.set_fault_text(&r.to_string());
     }
