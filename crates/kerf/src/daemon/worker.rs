@@ -218,7 +218,7 @@ impl Planning {
     pub fn handle(&mut self, item: Incoming) -> bool {
         match item {
             Incoming::Begin { program_id, start } => {
-                if self.planner.is_some() {
+                if self.planner.is_some() && !self.failed {
                     self.fail(Refusal::Interrupted);
                 }
                 self.failed = false;
