@@ -301,7 +301,8 @@ fn wait_ready(
     }
 }
 
-type Ready = std::sync::mpsc::Sender<Result<Option<RtStatus>, StartError>>;
+/// Where a daemon thread reports that its ports are up.
+pub type Ready = std::sync::mpsc::Sender<Result<Option<RtStatus>, StartError>>;
 
 #[allow(clippy::too_many_arguments)]
 fn control_thread(
@@ -498,7 +499,8 @@ fn status_msg(
     msg
 }
 
-fn planning_thread(
+/// The planning thread's loop (public for the throughput bench in `benches/`).
+pub fn planning_thread(
     config: &Config,
     machine: &str,
     window: usize,
