@@ -37,6 +37,7 @@ fn main() -> ExitCode {
         Some("timing") => timing(&args[1..]),
         Some("throughput") => throughput(&args[1..]),
         Some("hold") => hold(&args[1..]),
+        Some("send-copy") => send_copy(&args[1..]),
         _ => Err(
             "usage: kerfd_bench timing|throughput|hold [options] (see the source's header)"
                 .to_string(),
@@ -94,6 +95,25 @@ fn dense_raster(moves: usize, start: [f64; 6]) -> String {
             row += 1;
             text += &format!("G1 Y{:.3}\n", y0 + row as f64 * 0.1);
         }
+    }
+    text
+}
+
+/// A dense contour: `moves` chords of 0.1 mm along a slowly widening spiral of radius
+/// 20 mm and more, from the origin, at F3000 with G64 P0.01 (smoothed into curves).
+fn dense_spiral(moves: usize) -> String {
+    let mut text = String::with_capacity(moves * 24 + 64);
+    text.push_str("G21 G90 G17 G94 G64 P0.01 F3000\n");
+    let mut theta = 0.0f64;
+    for _ in 0..moves {
+        let r = 20.0 + 0.02 * theta;
+        theta += 0.1 / r;
+        let r = 20.0 + 0.02 * theta;
+        text += &format!(
+            "G1 X{:.4} Y{:.4}\n",
+            r * theta.cos() - 20.0,
+            r * theta.sin()
+        );
     }
     text
 }
@@ -160,9 +180,9 @@ fn timing(args: &[String]) -> Result<(), String> {
     let rt = daemon.rt().clone();
     let mut client = Client::connect(&config.machine).map_err(|e| e.to_string())?;
     let mut sender = MoveSender::open(client.node(), &config.machine).map_err(|e| e.to_string())?;
-    // About 500 chords per second of motion at 50 mm/s.
+    // 500 chords per second of motion at 50 mm/s.
     let moves = (seconds * 500.0) as usize;
-    let msgs = messages(&config, 7, [0.0; 6], &dense_raster(moves, [0.0; 6]))?;
+    let msgs = messages(&config, 7, [0.0; 6], &dense_spiral(moves))?;
     let t0 = Instant::now();
     stream(&mut client, &mut sender, &msgs)?;
     let end = wait_end(&mut client, 7)?;
@@ -229,11 +249,12 @@ fn throughput(args: &[String]) -> Result<(), String> {
     let window = config.daemon.move_window as usize;
     let text = match program.as_str() {
         "noisy" => dense_raster(moves, [0.0; 6]),
+        "spiral" => dense_spiral(moves),
         "straight" => straight_raster(moves),
         "cam" => {
             String::from_utf8(kerf_benches::program(moves as u64)).map_err(|e| e.to_string())?
         }
-        _ => return Err("--program noisy|straight|cam".to_string()),
+        _ => return Err("--program noisy|spiral|straight|cam".to_string()),
     };
     let msgs = messages(&config, 9, [0.0; 6], &text)?;
     let n = msgs.len() as u64;
@@ -374,6 +395,34 @@ fn transport_only(config: &Config, msgs: &[MoveMsg]) -> Result<(), String> {
     Ok(())
 }
 
+/// What iceoryx2's `send_copy` of one setpoint costs when called inline (as the cycle
+/// did before publishing moved to a helper thread), with one subscriber.
+fn send_copy(args: &[String]) -> Result<(), String> {
+    let n: u64 = opt(args, "--samples", 100_000)?;
+    let config = bench_config(1000);
+    let node = kerf::ipc::node("kerfd-bench-pub")?;
+    let service = kerf::ipc::create_setpoints(&node, &config.machine)?;
+    let publisher = service
+        .publisher_builder()
+        .create()
+        .map_err(|e| format!("{e:?}"))?;
+    let subscriber = kerf::ipc::setpoint_subscriber(&service)?;
+    let mut h = Histogram::new();
+    let mut msg = kerf_proto::SetpointMsg::new();
+    for seq in 1..=n {
+        msg.seq = seq;
+        let t = kerf_rt::now_ns();
+        let _ = publisher.send_copy(msg);
+        h.record(kerf_rt::now_ns() - t);
+        while let Ok(Some(_)) = subscriber.receive() {}
+    }
+    println!(
+        "inline send_copy of a SetpointMsg, {n} samples: {}",
+        h.percentiles()
+    );
+    Ok(())
+}
+
 fn hold(args: &[String]) -> Result<(), String> {
     let period_us: u32 = opt(args, "--period-us", 1000)?;
     let repeats: usize = opt(args, "--repeats", 20)?;
@@ -406,8 +455,8 @@ fn hold(args: &[String]) -> Result<(), String> {
         &messages(&config, id, start, &text)?,
     )?;
 
-    let mut delays = Histogram::new();
-    let mut rtts = Histogram::new();
+    let mut delay_us = Vec::new();
+    let mut rtt_us = Vec::new();
     let mut excess_cycles = Vec::new();
     println!(
         "period {} µs; per hold: delay to the first decelerating setpoint, request round trip",
@@ -433,7 +482,8 @@ fn hold(args: &[String]) -> Result<(), String> {
         client.command(Command::Hold).map_err(|e| e.to_string())?;
         let acked_ns = kerf_rt::now_ns();
         // The first setpoint stamped after the request whose feed is below the one before.
-        let mut previous = f64::NAN;
+        // The feed of the last setpoint before the request: the steady one.
+        let mut previous = 50.0;
         let mut first: Option<u64> = None;
         let mut stopped = 0;
         while stopped < 20 {
@@ -454,8 +504,8 @@ fn hold(args: &[String]) -> Result<(), String> {
         let first = first.ok_or("no decelerating setpoint")?;
         let delay = first - sent_ns;
         let rtt = acked_ns - sent_ns;
-        delays.record(delay);
-        rtts.record(rtt);
+        delay_us.push(us(delay));
+        rtt_us.push(us(rtt));
         let excess = (delay as f64 - rtt as f64) / period_ns as f64;
         excess_cycles.push(excess);
         println!(
@@ -471,8 +521,27 @@ fn hold(args: &[String]) -> Result<(), String> {
         .iter()
         .copied()
         .fold(f64::NEG_INFINITY, f64::max);
-    println!("delay: {}", delays.percentiles());
-    println!("round trip: {}", rtts.percentiles());
+    let exact = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        format!(
+            "min {:.1}, median {:.1}, max {:.1}",
+            v[0],
+            v[n / 2],
+            v[n - 1]
+        )
+    };
+    println!(
+        "delay µs: {}; in cycles: {}",
+        exact(delay_us.clone()),
+        exact(
+            delay_us
+                .iter()
+                .map(|d| d * 1000.0 / period_ns as f64)
+                .collect()
+        )
+    );
+    println!("round trip µs: {}", exact(rtt_us));
     println!("largest (delay - round trip): {worst:.2} cycles");
     let _ = client.command(Command::Abort);
     wait_end(&mut client, id)?;
