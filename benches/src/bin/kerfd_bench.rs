@@ -19,6 +19,8 @@
 //!     resumes. Prints the delay from the request (CLOCK_MONOTONIC, compared with the
 //!     setpoints' time stamps) and the request round trip. With `--config FILE` it talks
 //!     to a running `kerfd` of that machine instead of starting one.
+//! kerfd_bench send-copy [--samples N]
+//!     The cost of iceoryx2's `send_copy` of one setpoint called inline.
 //! ```
 
 use std::process::ExitCode;
@@ -39,7 +41,7 @@ fn main() -> ExitCode {
         Some("hold") => hold(&args[1..]),
         Some("send-copy") => send_copy(&args[1..]),
         _ => Err(
-            "usage: kerfd_bench timing|throughput|hold [options] (see the source's header)"
+            "usage: kerfd_bench timing|throughput|hold|send-copy [options] (see the source's header)"
                 .to_string(),
         ),
     };
@@ -85,8 +87,12 @@ fn dense_raster(moves: usize, start: [f64; 6]) -> String {
     let mut k = 0usize;
     for i in 0..moves {
         let along = (k + 1) as f64 * 0.1;
-        let x = if row % 2 == 0 { along } else { 100.0 - along };
-        let noise = if i % 2 == 0 { 0.01 } else { -0.01 };
+        let x = if row.is_multiple_of(2) {
+            along
+        } else {
+            100.0 - along
+        };
+        let noise = if i.is_multiple_of(2) { 0.01 } else { -0.01 };
         let y = row as f64 * 0.1 + noise;
         text += &format!("G1 X{:.3} Y{:.3}\n", x0 + x, y0 + y);
         k += 1;
@@ -236,7 +242,11 @@ fn straight_raster(moves: usize) -> String {
     for i in 0..moves {
         let (row, k) = (i / 1000, i % 1000);
         let along = (k + 1) as f64 * 0.1;
-        let x = if row % 2 == 0 { along } else { 100.0 - along };
+        let x = if row.is_multiple_of(2) {
+            along
+        } else {
+            100.0 - along
+        };
         text += &format!("G1 X{x:.3} Y{:.3}\n", row as f64 * 0.1);
     }
     text
