@@ -19,10 +19,12 @@
 //! - The control thread answers requests with the latest snapshot and turns commands into
 //!   items of the command ring.
 
+pub mod publish;
+pub mod timing;
 pub mod worker;
 
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -90,6 +92,7 @@ pub struct Daemon {
     done: Arc<AtomicBool>,
     threads: Vec<JoinHandle<Result<(), String>>>,
     rt: RtStatus,
+    timing: Arc<Mutex<Option<timing::TimingSummary>>>,
 }
 
 impl Daemon {
@@ -106,6 +109,11 @@ impl Daemon {
     /// What the real-time setup achieved.
     pub fn rt(&self) -> &RtStatus {
         &self.rt
+    }
+
+    /// The cycle's wake-up latency and compute time, once the cycle has ended.
+    pub fn timing(&self) -> Option<timing::TimingSummary> {
+        self.timing.lock().ok().and_then(|t| *t)
     }
 
     /// Asks for a jerk-limited stop on the path, after which the daemon ends.
@@ -182,6 +190,7 @@ pub fn start(config: &Config, real_time: bool) -> Result<Daemon, StartError> {
     let overruns = Arc::new(AtomicU64::new(0));
     let done = Arc::new(AtomicBool::new(false));
     let rt_ok = Arc::new(AtomicBool::new(false));
+    let timing = Arc::new(Mutex::new(None));
     let counters = PlanningCounters::default();
 
     let (items_tx, items_rx) = rtrb::RingBuffer::<RtItem>::new(PLANNED_RING);
@@ -240,10 +249,12 @@ pub fn start(config: &Config, real_time: bool) -> Result<Daemon, StartError> {
         let stop = stop.clone();
         let cycles = cycles.clone();
         let config = config.clone();
+        let timing = timing.clone();
         threads.push(spawn("kerfd-cycle", move || {
             cycle_thread(
                 &config,
                 real_time,
+                timing,
                 ready,
                 stop,
                 cycles,
@@ -265,6 +276,7 @@ pub fn start(config: &Config, real_time: bool) -> Result<Daemon, StartError> {
         done,
         threads,
         rt: rt_status,
+        timing,
     })
 }
 
@@ -289,7 +301,8 @@ fn wait_ready(
     }
 }
 
-type Ready = std::sync::mpsc::Sender<Result<Option<RtStatus>, StartError>>;
+/// Where a daemon thread reports that its ports are up.
+pub type Ready = std::sync::mpsc::Sender<Result<Option<RtStatus>, StartError>>;
 
 #[allow(clippy::too_many_arguments)]
 fn control_thread(
@@ -490,7 +503,8 @@ fn status_msg(
     msg
 }
 
-fn planning_thread(
+/// The planning thread's loop (public for the throughput bench in `benches/`).
+pub fn planning_thread(
     config: &Config,
     machine: &str,
     window: usize,
@@ -590,6 +604,7 @@ fn planning_thread(
 fn cycle_thread(
     config: &Config,
     real_time: bool,
+    timing_out: Arc<Mutex<Option<timing::TimingSummary>>>,
     ready: Ready,
     stop: Arc<AtomicBool>,
     cycles: Arc<AtomicU64>,
@@ -599,18 +614,14 @@ fn cycle_thread(
     commands: rtrb::Consumer<Command>,
     status: rtrb::Producer<Snapshot>,
 ) -> Result<(), String> {
-    let machine = config.machine.clone();
-    let setup = || -> Result<_, String> {
-        let node = ipc::node("kerfd-cycle")?;
-        let service = ipc::create_setpoints(&node, &machine)?;
-        let publisher = service
-            .publisher_builder()
-            .create()
-            .map_err(|e| format!("cannot publish setpoints: {e:?}"))?;
-        Ok((node, service, publisher))
-    };
-    let (_node, _service, publisher) = match setup() {
-        Ok(ports) => ports,
+    // iceoryx2 allocates on publish: a helper thread publishes (see `publish`).
+    let helper_rt = real_time.then(|| kerf_rt::RtConfig {
+        priority: Some(config.daemon.priority.saturating_sub(1).max(1)),
+        cpu: config.daemon.cpu.map(|c| c as usize),
+        prefault_stack_bytes: PREFAULT_STACK_BYTES,
+    });
+    let (mut publisher, helper) = match publish::spawn(&config.machine, helper_rt) {
+        Ok(p) => p,
         Err(e) => {
             let _ = ready.send(Err(StartError::Setup(e.clone())));
             return Err(e);
@@ -654,6 +665,7 @@ fn cycle_thread(
     let _ = ready.send(Ok(Some(rt)));
     let mut msg = SetpointMsg::new();
     msg.axes_mask = axes_mask;
+    let mut timing = timing::CycleTiming::new();
     loop {
         let tick = clock.wait_next();
         if tick.missed > 0 {
@@ -669,10 +681,22 @@ fn cycle_thread(
         msg.velocity_mm_deg_s = out.velocity;
         msg.feed_mm_s = out.setpoint.feed_mm_s;
         msg.line = out.setpoint.line;
-        // A slow or absent reader never blocks: safe overflow drops its oldest sample.
-        let _ = publisher.send_copy(msg);
+        publisher.push(msg);
+        let woke_ns = tick.deadline_ns + tick.latency_ns;
+        timing.record(tick.latency_ns, kerf_rt::now_ns().saturating_sub(woke_ns));
         cycles.store(out.seq, Ordering::Release);
         if cycle.shut_down() || stop.load(Ordering::Acquire) {
+            let mut summary = timing.summary();
+            if let Some(h) = helper.finish() {
+                summary.publish = h.percentiles();
+            }
+            tracing::info!(
+                "cycle timing: {summary}; {} setpoints dropped",
+                publisher.dropped()
+            );
+            if let Ok(mut t) = timing_out.lock() {
+                *t = Some(summary);
+            }
             stop.store(true, Ordering::Release);
             return Ok(());
         }

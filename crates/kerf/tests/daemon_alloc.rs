@@ -1,0 +1,351 @@
+//! The real-time cycle allocates nothing: a counting global allocator counts every
+//! allocation made on the cycle's thread while it runs `Cycle::run()` and publishes the
+//! setpoint over iceoryx2 the way the daemon does (iceoryx2's `send_copy` allocates, so
+//! the cycle hands the setpoint to the publisher thread of `kerf::daemon::publish`
+//! through a preallocated ring), for every cycle of whole programs: the example
+//! part (with a hold and resume and two override changes), a dense polyline (aborted in
+//! the middle) and a third program after the abort, with a setpoint reader connecting in
+//! the middle of a program (as `kerf record` does).
+//!
+//! Only the cycle's thread counts (a thread-local flag), so the planning worker, which
+//! allocates freely on its own thread, does not disturb the count.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc;
+
+use kerf::Config;
+use kerf::daemon::worker::{Command, Cycle, Incoming, Planning, PlanningCounters, Snapshot};
+use kerf_proto::{MoveMsg, Resolved, SetpointMsg, State, StreamCheck};
+
+/// Counts allocations (and reallocations) on threads whose flag is set.
+struct Counting;
+
+/// Allocations counted during `Cycle::run()`.
+static IN_RUN: AtomicU64 = AtomicU64::new(0);
+/// Allocations counted during the publish (`SetpointOut::push`).
+static IN_SEND: AtomicU64 = AtomicU64::new(0);
+/// Deallocations counted in either.
+static FREES: AtomicU64 = AtomicU64::new(0);
+
+/// What the current thread is doing: 0 nothing counted, 1 the cycle, 2 the publish.
+const PHASE_NONE: u8 = 0;
+const PHASE_RUN: u8 = 1;
+const PHASE_SEND: u8 = 2;
+
+thread_local! {
+    // A const-initialised `Cell` of a plain integer: reading it never allocates.
+    static PHASE: Cell<u8> = const { Cell::new(PHASE_NONE) };
+}
+
+fn count_alloc() {
+    match PHASE.try_with(|p| p.get()).unwrap_or(PHASE_NONE) {
+        PHASE_RUN => {
+            IN_RUN.fetch_add(1, Ordering::Relaxed);
+        }
+        PHASE_SEND => {
+            IN_SEND.fetch_add(1, Ordering::Relaxed);
+        }
+        _ => {}
+    }
+}
+
+// SAFETY: every call is forwarded to the system allocator unchanged; the counting only
+// touches atomics and a const thread-local.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count_alloc();
+        // SAFETY: forwarded with the caller's layout.
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        count_alloc();
+        // SAFETY: forwarded with the caller's layout.
+        unsafe { System.alloc_zeroed(layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count_alloc();
+        // SAFETY: forwarded with the caller's pointer, layout and size.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        if PHASE.try_with(|p| p.get()).unwrap_or(PHASE_NONE) != PHASE_NONE {
+            FREES.fetch_add(1, Ordering::Relaxed);
+        }
+        // SAFETY: forwarded with the caller's pointer and layout.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Counting = Counting;
+
+/// The example part shipped with Kerf.
+fn part_program() -> String {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../config/examples/part.ngc"
+    );
+    std::fs::read_to_string(path).expect("config/examples/part.ngc is readable")
+}
+
+/// A dense CAM-style polyline: `n` chords of 0.1 to 0.2 mm along a spiral, from where the
+/// machine is (`start`), at F3000 with a 0.01 mm tolerance (blended and smoothed).
+fn dense_program(n: usize, start: [f64; 6]) -> String {
+    let mut text = String::from("G21 G90 G17 G94 G64 P0.01 F3000\n");
+    let (x0, y0) = (start[0], start[1]);
+    for k in 1..=n {
+        let a = k as f64 * 0.02;
+        let r = 2.0 + 0.01 * k as f64 * 0.3;
+        let x = x0 + r * a.cos() - 2.0;
+        let y = y0 + r * a.sin();
+        text += &format!("G1 X{x:.4} Y{y:.4}\n");
+    }
+    text
+}
+
+/// Feeds one program to the planning worker the way the daemon's planning thread does:
+/// every item as a message through the stream check.
+fn feed(planning: &mut Planning, config: &Config, id: u64, start: [f64; 6], text: &str) {
+    let mut check = StreamCheck::new();
+    let mut settings = config.settings();
+    settings.start_mm_deg = start;
+    let mut handle = |msg: MoveMsg| {
+        let incoming = match check.check(&msg).expect("a valid message") {
+            Resolved::Begin {
+                program_id,
+                start_mm_deg,
+                ..
+            } => Incoming::Begin {
+                program_id,
+                start: start_mm_deg,
+            },
+            Resolved::Move(m) => Incoming::Move(m),
+            Resolved::Event(e) => Incoming::Event(e),
+            Resolved::End { .. } => Incoming::End,
+        };
+        assert!(planning.handle(incoming), "the planning worker stopped");
+    };
+    handle(MoveMsg::begin(id, start, 0));
+    let mut seq = 0;
+    for item in
+        kerf_gcode::Interpreter::new(text.as_bytes(), kerf_gcode::Dialect::LinuxCnc, settings)
+    {
+        let item = item.expect("the program is valid");
+        seq += 1;
+        handle(MoveMsg::from_item(id, seq, &item));
+    }
+    handle(MoveMsg::end(id, seq));
+}
+
+/// What the test does to the cycle while a program runs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Script {
+    /// Hold at program cycle 3000, resume after 300 cycles of holding; override 150 % at
+    /// cycle 8000, 60 % at 12000.
+    HoldResumeOverride,
+    /// Abort at program cycle 3000.
+    Abort,
+    /// Nothing: run to the end; a setpoint reader connects at program cycle 1000.
+    Plain,
+}
+
+#[test]
+fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
+    let mut config = Config::builtin();
+    config.machine = format!("alloc_{}", std::process::id());
+    let (items_tx, items_rx) = rtrb::RingBuffer::new(kerf::daemon::PLANNED_RING);
+    let (mut commands_tx, commands_rx) = rtrb::RingBuffer::<Command>::new(64);
+    let (status_tx, mut status_rx) = rtrb::RingBuffer::<Snapshot>::new(256);
+    let stop = Arc::new(AtomicBool::new(false));
+
+    // The planning worker on its own thread; the test tells it where each program
+    // starts (the machine position when the previous one ended).
+    let (start_tx, start_rx) = mpsc::channel::<(u64, [f64; 6], String)>();
+    let planning_thread = {
+        let config = config.clone();
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            let counters = PlanningCounters::default();
+            let mut planning = Planning::new(&config, items_tx, stop, &counters);
+            while let Ok((id, start, text)) = start_rx.recv() {
+                feed(&mut planning, &config, id, start, &text);
+            }
+        })
+    };
+
+    let (mut publisher, helper) =
+        kerf::daemon::publish::spawn(&config.machine, None).expect("publisher thread");
+    let node = kerf::ipc::node(&format!("alloc-test-{}", std::process::id())).expect("node");
+    let service = kerf::ipc::open_setpoints(&node, &config.machine).expect("service");
+    let early_reader = kerf::ipc::setpoint_subscriber(&service).expect("subscriber");
+    let mut late_reader = None;
+
+    let mut cycle = Cycle::new(&config, [0.0; 6], items_rx, commands_rx, status_tx);
+    let mut msg = SetpointMsg::new();
+    let mut cycles = 0u64;
+    let mut received = 0u64;
+    let mut last_seq = 0u64;
+    let mut position = [0.0; 6];
+    let mut max_override_seen = 0.0f64;
+    let mut held_cycles = 0u64;
+
+    let programs = [
+        (1u64, Script::HoldResumeOverride),
+        (2, Script::Abort),
+        (3, Script::Plain),
+    ];
+    for (id, script) in programs {
+        let text = match script {
+            Script::HoldResumeOverride => part_program(),
+            Script::Abort => dense_program(6000, position),
+            Script::Plain => dense_program(3000, position),
+        };
+        start_tx
+            .send((id, position, text))
+            .expect("planning thread");
+        let mut done: Option<Snapshot> = None;
+        let mut holding_for = 0u64;
+        let mut sent_hold = false;
+        let mut sent_resume = false;
+        let mut overrides = 0;
+        let mut last_program_cycle = 0u64;
+        let mut guard = 0u64;
+        while done.is_none() {
+            guard += 1;
+            assert!(guard < 2_000_000, "program {id} did not finish");
+            PHASE.with(|p| p.set(PHASE_RUN));
+            let out = cycle.run();
+            PHASE.with(|p| p.set(PHASE_NONE));
+            msg.state = out.state;
+            msg.seq = out.seq;
+            msg.time_ns = out.seq * 1_000_000;
+            msg.program_id = out.program_id;
+            msg.program_cycle = out.program_cycle;
+            msg.position_mm_deg = out.setpoint.position;
+            msg.velocity_mm_deg_s = out.velocity;
+            msg.feed_mm_s = out.setpoint.feed_mm_s;
+            msg.line = out.setpoint.line;
+            PHASE.with(|p| p.set(PHASE_SEND));
+            assert!(publisher.push(msg), "the ring to the publisher has room");
+            PHASE.with(|p| p.set(PHASE_NONE));
+            cycles += 1;
+
+            // Outside the counted part: the test's own bookkeeping. The cycle runs
+            // unclocked here, so it waits for each setpoint to arrive before the next.
+            let mut spins = 0u64;
+            while last_seq < out.seq {
+                match early_reader.receive() {
+                    Ok(Some(sample)) => {
+                        assert_eq!(sample.seq, last_seq + 1, "the reader missed a setpoint");
+                        last_seq = sample.seq;
+                        received += 1;
+                    }
+                    _ => {
+                        spins += 1;
+                        assert!(spins < 50_000_000, "setpoint {} never arrived", out.seq);
+                        std::thread::yield_now();
+                    }
+                }
+            }
+            if let Some(r) = late_reader.as_ref() {
+                let r: &iceoryx2::port::subscriber::Subscriber<_, SetpointMsg, ()> = r;
+                while let Ok(Some(_)) = r.receive() {}
+            }
+            while let Ok(s) = status_rx.pop() {
+                max_override_seen = max_override_seen.max(s.override_pct);
+                if s.state == State::Holding {
+                    holding_for += 1;
+                    held_cycles += 1;
+                }
+                if s.program_id == id && s.program_done {
+                    done = Some(s);
+                }
+            }
+            if out.program_id == id {
+                last_program_cycle = out.program_cycle;
+            }
+            match script {
+                Script::HoldResumeOverride => {
+                    if !sent_hold && last_program_cycle >= 3000 {
+                        commands_tx.push(Command::Hold).expect("command ring");
+                        sent_hold = true;
+                    }
+                    if sent_hold && !sent_resume && holding_for >= 300 {
+                        commands_tx.push(Command::Resume).expect("command ring");
+                        sent_resume = true;
+                    }
+                    if overrides == 0 && last_program_cycle >= 8000 {
+                        commands_tx
+                            .push(Command::Override(150.0))
+                            .expect("command ring");
+                        overrides = 1;
+                    }
+                    if overrides == 1 && last_program_cycle >= 12000 {
+                        commands_tx
+                            .push(Command::Override(60.0))
+                            .expect("command ring");
+                        overrides = 2;
+                    }
+                }
+                Script::Abort => {
+                    if !sent_hold && last_program_cycle >= 3000 {
+                        commands_tx.push(Command::Abort).expect("command ring");
+                        sent_hold = true;
+                    }
+                }
+                Script::Plain => {
+                    if late_reader.is_none() && last_program_cycle >= 1000 {
+                        late_reader =
+                            Some(kerf::ipc::setpoint_subscriber(&service).expect("subscriber"));
+                    }
+                }
+            }
+        }
+        let end = done.expect("finished");
+        position = end.position;
+        match script {
+            Script::HoldResumeOverride => {
+                assert!(sent_resume && overrides == 2, "the script ran");
+                assert!(!end.aborted && end.refusal.is_none());
+            }
+            Script::Abort => assert!(end.aborted, "program 2 was aborted"),
+            Script::Plain => {
+                assert!(!end.aborted && end.refusal.is_none());
+                assert!(late_reader.is_some());
+            }
+        }
+        // The program moved and finished at rest.
+        assert!(
+            last_program_cycle > 3000,
+            "program {id} ran {last_program_cycle} cycles"
+        );
+    }
+    drop(start_tx);
+    stop.store(true, Ordering::Release);
+    planning_thread.join().expect("planning thread");
+
+    assert!(held_cycles >= 300, "the hold took effect");
+    assert!(max_override_seen >= 149.0, "the override took effect");
+    assert_eq!(received, cycles, "every setpoint was delivered");
+    assert_eq!(publisher.dropped(), 0);
+    let added = helper.finish().expect("the publisher thread ends");
+    assert_eq!(
+        added.count(),
+        cycles,
+        "the publisher thread published every setpoint"
+    );
+    let in_run = IN_RUN.load(Ordering::Relaxed);
+    let in_send = IN_SEND.load(Ordering::Relaxed);
+    let frees = FREES.load(Ordering::Relaxed);
+    assert_eq!(
+        (in_run, in_send, frees),
+        (0, 0, 0),
+        "allocations in Cycle::run, allocations in send_copy, frees, over {cycles} cycles"
+    );
+}
