@@ -363,7 +363,10 @@ fn control_thread(
                 Err(e) => (e.reason(), e.to_string()),
                 Ok(Request::Status) => (REASON_OK, String::new()),
                 Ok(Request::Hold) => {
-                    if latest.state == State::Idle && latest.program_done {
+                    // No program yet (id 0) or the last one is over: nothing to hold.
+                    if latest.state == State::Idle
+                        && (latest.program_done || latest.program_id == 0)
+                    {
                         (
                             REASON_NOT_ALLOWED,
                             "nothing to hold: no program is running".to_string(),
