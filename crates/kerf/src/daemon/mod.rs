@@ -34,7 +34,7 @@ use kerf_proto::{
 
 use crate::config::Config;
 use crate::ipc;
-use worker::{Command, Cycle, Incoming, Planning, PlanningCounters, RtItem, Snapshot};
+use worker::{Command, Cycle, Incoming, Planning, PlanningCounters, Refusal, RtItem, Snapshot};
 
 /// Planned items the ring from the planning thread to the cycle holds: a few seconds of
 /// dense code ahead of the motion queue.
@@ -456,6 +456,9 @@ fn status_msg(
 ) -> StatusMsg {
     let mut msg = StatusMsg::zeroed();
     msg.state = match (s.state, s.refusal) {
+        // A planner process that went away is no fault of the machine: it comes to rest
+        // and reports idle (the reason stays in `fault` and `program_end`).
+        (State::Idle, Some(Refusal::SenderGone)) => State::Idle,
         // The refused program's fault is shown until the next program begins.
         (State::Idle, Some(_)) => State::Fault,
         (state, _) => state,
