@@ -248,7 +248,13 @@ impl Env {
             &format!("record-{name}"),
             &self.dir,
             KERF,
-            &["record", "--config", self.config_arg(), "--out", out.to_str().unwrap()],
+            &[
+                "record",
+                "--config",
+                self.config_arg(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
         );
         let deadline = Instant::now() + PATIENCE;
         while read_text(&out).lines().count() < 2 {
@@ -473,7 +479,10 @@ fn assert_record_matches_sim(recorded: &[Row], sim: &[Row], what: &str) {
     let r0 = first_moving(recorded);
     let s0 = first_moving(sim);
     for r in &recorded[..r0] {
-        assert_eq!(r.position, sim[0].position, "{what}: rest before the program");
+        assert_eq!(
+            r.position, sim[0].position,
+            "{what}: rest before the program"
+        );
     }
     let n = sim.len() - s0;
     assert!(
@@ -556,11 +565,18 @@ M2
 /// four-decimal coordinates, `G64 P0.01`, F3000; ends at the origin.
 fn cam_program(passes: usize, steps: usize, step_mm: f64, feed_mm_min: f64) -> String {
     let z = |x: f64, y: f64| 0.4 * (x / 4.0).sin() * (y / 3.0 + 0.5).cos();
-    let mut p = format!("G21 G90 G17 G64 P0.01\nG1 X0 Y0 Z{:.4} F{feed_mm_min}\n", z(0.0, 0.0));
+    let mut p = format!(
+        "G21 G90 G17 G64 P0.01\nG1 X0 Y0 Z{:.4} F{feed_mm_min}\n",
+        z(0.0, 0.0)
+    );
     for pass in 0..passes {
         let y = pass as f64 * 1.5;
         if pass > 0 {
-            let x = if pass % 2 == 1 { steps as f64 * step_mm } else { 0.0 };
+            let x = if pass % 2 == 1 {
+                steps as f64 * step_mm
+            } else {
+                0.0
+            };
             p.push_str(&format!("G1 X{x:.4} Y{y:.4} Z{:.4}\n", z(x, y)));
         }
         for k in 1..=steps {
@@ -664,7 +680,9 @@ fn hold_resume_override_and_abort_mid_program() {
     assert_eq!(program_end(&s), "running", "{s}");
     env.wait_cycles(200);
     assert!(env.kerf("override", &["150"]).status.success());
-    let s = env.wait_status("override 150", |s| s["override_pct"].as_f64() == Some(150.0));
+    let s = env.wait_status("override 150", |s| {
+        s["override_pct"].as_f64() == Some(150.0)
+    });
     assert_eq!(program_end(&s), "running", "{s}");
     let status = run.wait(1);
     assert!(status.success(), "{}", run.stderr());
@@ -804,14 +822,22 @@ fn daemon_killed_then_restarted_without_clean_up() {
     let status = run.wait(1);
     assert!(!status.success(), "kerf run exited 0 after the daemon died");
     let err = run.stderr();
-    assert!(err.contains("stopped") && err.contains(&env.machine), "{err}");
+    assert!(
+        err.contains("stopped") && err.contains(&env.machine),
+        "{err}"
+    );
     // The recorder sees the stream stall (not a gap) and stops.
     let status = record.wait(1);
     assert!(!status.success());
     assert!(!record.stderr().contains("lost"), "{}", record.stderr());
     let rows = read_csv(&recorded);
     check_limits(&env, &rows, "record before the kill");
-    check_path(&env, &rows, &env.moves(&cam, [0.0; 6]), "record before the kill");
+    check_path(
+        &env,
+        &rows,
+        &env.moves(&cam, [0.0; 6]),
+        "record before the kill",
+    );
 
     // A new daemon with the same configuration, no clean-up in between.
     let _daemon = env.start_daemon("kerfd-again");
@@ -903,7 +929,10 @@ fn malformed_and_non_finite_moves_are_refused() {
     env.wait_cycles(300);
     stop_record(record);
     let text = read_text(&recorded);
-    assert!(!text.to_ascii_lowercase().contains("nan"), "NaN in the recording");
+    assert!(
+        !text.to_ascii_lowercase().contains("nan"),
+        "NaN in the recording"
+    );
     check_stream(&env, &recorded, &moves, "record");
 }
 
@@ -938,7 +967,10 @@ fn programs_back_to_back() {
     moves.extend(env.moves(away, [0.0; 6]));
     let s = env.status();
     let here = position(&s);
-    assert!((here[0] - 20.0).abs() < 1e-9 && (here[1] - 5.0).abs() < 1e-9, "{s}");
+    assert!(
+        (here[0] - 20.0).abs() < 1e-9 && (here[1] - 5.0).abs() < 1e-9,
+        "{s}"
+    );
     let lines_csv = env.path("lines-run.csv");
     let lines = env.write("lines.ngc", LINES);
     env.run_ok("lines", &lines, Some(&lines_csv));
@@ -976,7 +1008,12 @@ fn embedded_run_equals_kerf_sim() {
     assert!(status.success(), "{}", run.stderr());
     let sim = env.sim(&program, "sim.csv");
     assert!(fs::read(&sim).unwrap() == fs::read(&run_csv).unwrap());
-    check_stream(&env, &run_csv, &env.moves(PART, [0.0; 6]), "--embedded --record");
+    check_stream(
+        &env,
+        &run_csv,
+        &env.moves(PART, [0.0; 6]),
+        "--embedded --record",
+    );
     // The daemon lived in that process only.
     assert_eq!(env.kerf("status", &[]).status.code(), Some(1));
 }
@@ -994,7 +1031,10 @@ fn sigterm_stops_on_the_path_then_exits_0() {
     let status = daemon.wait(1);
     assert!(status.success(), "kerfd: {status}: {}", daemon.stderr());
     let status = run.wait(1);
-    assert!(!status.success(), "kerf run exited 0 though the daemon stopped");
+    assert!(
+        !status.success(),
+        "kerf run exited 0 though the daemon stopped"
+    );
     // The recorder sees the stream end (no gap) and stops.
     let _ = record.wait(1);
     assert!(!record.stderr().contains("lost"), "{}", record.stderr());
@@ -1003,8 +1043,12 @@ fn sigterm_stops_on_the_path_then_exits_0() {
     let last = rows.last().unwrap();
     assert!(last.position != [0.0; 6], "{last:?}");
     let before = &rows[rows.len() - 2];
-    let speed_mm_s = (last.position[0] - before.position[0]).abs() / (env.config.period_us as f64 * 1e-6);
-    assert!(speed_mm_s < 0.5, "still moving at {speed_mm_s} mm/s: {last:?}");
+    let speed_mm_s =
+        (last.position[0] - before.position[0]).abs() / (env.config.period_us as f64 * 1e-6);
+    assert!(
+        speed_mm_s < 0.5,
+        "still moving at {speed_mm_s} mm/s: {last:?}"
+    );
 }
 
 #[test]
@@ -1039,6 +1083,9 @@ fn status_without_and_with_a_daemon() {
     let o = env.kerf("status", &[]);
     assert!(o.status.success());
     let line = String::from_utf8_lossy(&o.stdout);
-    assert!(line.starts_with(&format!("{}: idle", env.machine)), "{line}");
+    assert!(
+        line.starts_with(&format!("{}: idle", env.machine)),
+        "{line}"
+    );
     drop(daemon);
 }
