@@ -742,7 +742,12 @@ fn hold_resume_override_and_abort_mid_program() {
         .fold(0.0, f64::max);
     assert!(max_feed > 50.0 * 1.01, "max feed {max_feed} mm/s");
     assert!(max_feed <= 75.0 * 1.01, "max feed {max_feed} mm/s");
-    check_limits(&env, &lines_rows, "lines --record");
+    check_stream(
+        &env,
+        &lines_csv,
+        &env.moves(LINES, [0.0; 6]),
+        "lines --record",
+    );
 }
 
 #[test]
@@ -890,10 +895,10 @@ fn malformed_and_non_finite_moves_are_refused() {
     let (record, recorded) = env.start_record("record.csv");
     let mut moves = Vec::new();
     let base = (std::process::id() as u64) << 20;
-    let cases: [(&str, Box<dyn FnOnce(&mut kerf_proto::MoveMsg)>); 3] = [
-        ("non-finite end", Box::new(|m| m.end_mm[1] = f64::NAN)),
-        ("wrong version", Box::new(|m| m.version = 999)),
-        ("unknown kind", Box::new(|m| m.kind = 77)),
+    let cases: [(&str, fn(&mut kerf_proto::MoveMsg)); 3] = [
+        ("non-finite end", |m| m.end_mm[1] = f64::NAN),
+        ("wrong version", |m| m.version = 999),
+        ("unknown kind", |m| m.kind = 77),
     ];
     for (n, (what, bad)) in cases.into_iter().enumerate() {
         let before = env.status();
@@ -952,12 +957,13 @@ fn programs_back_to_back() {
     env.run_ok("pocket", &pocket, Some(&pocket_csv));
     moves.extend(env.moves(PART, [0.0; 6]));
     moves.extend(env.moves(POCKET, [0.0; 6]));
-    for (program, csv) in [(&part, &part_csv), (&pocket, &pocket_csv)] {
+    for (program, text, csv) in [(&part, PART, &part_csv), (&pocket, POCKET, &pocket_csv)] {
         let sim = env.sim(program, "sim.csv");
         assert!(
             fs::read(&sim).unwrap() == fs::read(csv).unwrap(),
             "{program:?}: kerf run --record differs from kerf sim"
         );
+        check_stream(&env, csv, &env.moves(text, [0.0; 6]), "--record");
     }
 
     // The first ends elsewhere: the second starts there.
@@ -1060,6 +1066,11 @@ fn status_without_and_with_a_daemon() {
     assert!(err.contains(&env.machine), "{err}");
     let o = env.kerf("status", &["--json"]);
     assert_eq!(o.status.code(), Some(1));
+    let program = env.write("part.ngc", PART);
+    let o = env.kerf("run", &[program.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains(&env.machine) && err.contains("kerfd"), "{err}");
 
     let daemon = env.start_daemon("kerfd");
     let s = env.status();
@@ -1070,7 +1081,9 @@ fn status_without_and_with_a_daemon() {
     assert_eq!(s["override_pct"].as_f64(), Some(100.0));
     assert_eq!(s["queued_moves"].as_u64(), Some(0));
     assert_eq!(s["queued_s"].as_f64(), Some(0.0));
-    assert!(cycles(&s) > 0);
+    // The cycle runs (the first answer may come before its first period).
+    let first = cycles(&s);
+    env.wait_status("cycles", |s| cycles(s) > first);
     assert!(s["overruns"].as_u64().is_some());
     assert!(s["rt"].is_boolean());
     assert!(s["fault"].is_null());
