@@ -859,6 +859,9 @@ fn daemon_killed_then_restarted_without_clean_up() {
     check_stream(&env, &recorded, &env.moves(PART, [0.0; 6]), "record again");
 }
 
+/// Turns a valid move message into a bad one.
+type Spoil = fn(&mut kerf_proto::MoveMsg);
+
 /// A program published straight into the moves service: BEGIN at the machine's position,
 /// one valid line, then `bad` (a message made from a second line), then END.
 fn inject(env: &Env, program_id: u64, bad: impl FnOnce(&mut kerf_proto::MoveMsg)) -> [f64; 3] {
@@ -895,7 +898,7 @@ fn malformed_and_non_finite_moves_are_refused() {
     let (record, recorded) = env.start_record("record.csv");
     let mut moves = Vec::new();
     let base = (std::process::id() as u64) << 20;
-    let cases: [(&str, fn(&mut kerf_proto::MoveMsg)); 3] = [
+    let cases: [(&str, Spoil); 3] = [
         ("non-finite end", |m| m.end_mm[1] = f64::NAN),
         ("wrong version", |m| m.version = 999),
         ("unknown kind", |m| m.kind = 77),
