@@ -898,10 +898,13 @@ fn malformed_and_non_finite_moves_are_refused() {
     let (record, recorded) = env.start_record("record.csv");
     let mut moves = Vec::new();
     let base = (std::process::id() as u64) << 20;
-    let cases: [(&str, Spoil); 3] = [
+    let cases: [(&str, Spoil); 6] = [
         ("non-finite end", |m| m.end_mm[1] = f64::NAN),
         ("wrong version", |m| m.version = 999),
         ("unknown kind", |m| m.kind = 77),
+        ("outside the travel", |m| m.end_mm[0] = 5000.0),
+        ("zero feed", |m| m.feed_mm_min = 0.0),
+        ("sequence gap", |m| m.seq = 5),
     ];
     for (n, (what, bad)) in cases.into_iter().enumerate() {
         let before = env.status();
