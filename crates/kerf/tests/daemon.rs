@@ -661,6 +661,11 @@ fn hold_resume_override_and_abort_mid_program() {
         rest
     });
     assert_eq!(program_end(&held), "running", "{held}");
+    // A second planner process is turned away while the program holds.
+    let o = env.kerf("run", &[env.write("other.ngc", LINES).to_str().unwrap()]);
+    assert!(!o.status.success(), "a second kerf run was accepted");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("busy"), "{err}");
     let o = env.kerf("resume", &[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let status = run.wait(1);
@@ -679,6 +684,16 @@ fn hold_resume_override_and_abort_mid_program() {
     let s = env.wait_status("override 50", |s| s["override_pct"].as_f64() == Some(50.0));
     assert_eq!(program_end(&s), "running", "{s}");
     env.wait_cycles(200);
+    // 0 % stands still on the path until raised again.
+    assert!(env.kerf("override", &["0"]).status.success());
+    let mut before: Option<Value> = None;
+    env.wait_status("rest at 0 %", |s| {
+        let rest = before
+            .as_ref()
+            .is_some_and(|b| position(b) == position(s) && cycles(s) >= cycles(b) + 10);
+        before = Some(s.clone());
+        rest
+    });
     assert!(env.kerf("override", &["150"]).status.success());
     let s = env.wait_status("override 150", |s| {
         s["override_pct"].as_f64() == Some(150.0)
@@ -845,7 +860,7 @@ fn daemon_killed_then_restarted_without_clean_up() {
     );
 
     // A new daemon with the same configuration, no clean-up in between.
-    let _daemon = env.start_daemon("kerfd-again");
+    let mut daemon = env.start_daemon("kerfd-again");
     let s = env.status();
     assert_eq!(state(&s), "idle", "{s}");
     let (record, recorded) = env.start_record("record-again.csv");
@@ -857,6 +872,10 @@ fn daemon_killed_then_restarted_without_clean_up() {
     let sim = env.sim(&part, "part-sim.csv");
     assert!(fs::read(&sim).unwrap() == fs::read(&run_csv).unwrap());
     check_stream(&env, &recorded, &env.moves(PART, [0.0; 6]), "record again");
+    // SIGINT at rest: exit 0.
+    daemon.signal("INT");
+    let status = daemon.wait(1);
+    assert!(status.success(), "kerfd: {status}: {}", daemon.stderr());
 }
 
 /// Turns a valid move message into a bad one.
