@@ -349,15 +349,20 @@ fn control_thread(
     let mut rt_flag = 0u32;
     let mut hold_requested = false;
     let mut shutdown_sent = false;
+    // Requests wait until the cycle has run once: by then every port (moves, setpoints)
+    // is up, so a client that got an answer can open them all (`kerfd` is ready when
+    // `kerf status` answers).
+    let mut cycle_runs = false;
     loop {
         while let Ok(s) = status.pop() {
             latest = s;
+            cycle_runs = true;
         }
         if latest.state != State::Holding && latest.program_done {
             // The program is over: a hold asked for during it is void.
             hold_requested = false;
         }
-        while let Ok(Some(active)) = server.receive() {
+        while cycle_runs && let Ok(Some(active)) = server.receive() {
             let request = *active.payload();
             let (reason, message) = match request.command() {
                 Err(e) => (e.reason(), e.to_string()),
