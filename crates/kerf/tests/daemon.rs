@@ -320,6 +320,11 @@ impl Env {
 
 impl Drop for Env {
     fn drop(&mut self) {
+        // `KERF_TEST_KEEP=1` keeps a failed test's files (logs, recordings) to look at.
+        if std::thread::panicking() && std::env::var_os("KERF_TEST_KEEP").is_some() {
+            eprintln!("kept {}", self.dir.display());
+            return;
+        }
         let _ = fs::remove_dir_all(&self.dir);
     }
 }
@@ -1106,8 +1111,10 @@ fn status_without_and_with_a_daemon() {
     assert_eq!(s["override_pct"].as_f64(), Some(100.0));
     assert_eq!(s["queued_moves"].as_u64(), Some(0));
     assert_eq!(s["queued_s"].as_f64(), Some(0.0));
-    // The cycle runs (the first answer may come before its first period).
+    // The daemon answers once its cycle runs (every port is up by then), and it keeps
+    // running.
     let first = cycles(&s);
+    assert!(first > 0, "{s}");
     env.wait_status("cycles", |s| cycles(s) > first);
     assert!(s["overruns"].as_u64().is_some());
     assert!(s["rt"].is_boolean());
