@@ -1079,8 +1079,11 @@ fn sigterm_stops_on_the_path_then_exits_0() {
     let last = rows.last().unwrap();
     assert!(last.position != [0.0; 6], "{last:?}");
     let before = &rows[rows.len() - 2];
-    let speed_mm_s =
-        (last.position[0] - before.position[0]).abs() / (env.config.period_us as f64 * 1e-6);
+    let step_mm = (0..3)
+        .map(|i| (last.position[i] - before.position[i]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let speed_mm_s = step_mm / (env.config.period_us as f64 * 1e-6);
     assert!(
         speed_mm_s < 0.5,
         "still moving at {speed_mm_s} mm/s: {last:?}"
@@ -1102,7 +1105,7 @@ fn status_without_and_with_a_daemon() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains(&env.machine) && err.contains("kerfd"), "{err}");
 
-    let daemon = env.start_daemon("kerfd");
+    let _daemon = env.start_daemon("kerfd");
     let s = env.status();
     assert_eq!(s["machine"].as_str(), Some(env.machine.as_str()));
     assert_eq!(state(&s), "idle");
@@ -1132,5 +1135,4 @@ fn status_without_and_with_a_daemon() {
         line.starts_with(&format!("{}: idle", env.machine)),
         "{line}"
     );
-    drop(daemon);
 }
