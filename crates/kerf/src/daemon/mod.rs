@@ -362,21 +362,29 @@ fn control_thread(
     let mut rt_flag = 0u32;
     let mut hold_requested = false;
     let mut shutdown_sent = false;
+    // Requests wait until the cycle has run once: by then every port (moves, setpoints)
+    // is up, so a client that got an answer can open them all (`kerfd` is ready when
+    // `kerf status` answers).
+    let mut cycle_runs = false;
     loop {
         while let Ok(s) = status.pop() {
             latest = s;
+            cycle_runs = true;
         }
         if latest.state != State::Holding && latest.program_done {
             // The program is over: a hold asked for during it is void.
             hold_requested = false;
         }
-        while let Ok(Some(active)) = server.receive() {
+        while cycle_runs && let Ok(Some(active)) = server.receive() {
             let request = *active.payload();
             let (reason, message) = match request.command() {
                 Err(e) => (e.reason(), e.to_string()),
                 Ok(Request::Status) => (REASON_OK, String::new()),
                 Ok(Request::Hold) => {
-                    if latest.state == State::Idle && latest.program_done {
+                    // No program yet (id 0) or the last one is over: nothing to hold.
+                    if latest.state == State::Idle
+                        && (latest.program_done || latest.program_id == 0)
+                    {
                         (
                             REASON_NOT_ALLOWED,
                             "nothing to hold: no program is running".to_string(),
@@ -465,11 +473,10 @@ fn status_msg(
     period_ns: u64,
 ) -> StatusMsg {
     let mut msg = StatusMsg::zeroed();
-    // A planner process that went away abandoned its program: the machine stops at the
-    // end of the last complete move and is idle, not in fault (the log says why).
-    let abandoned = s.refusal == Some(Refusal::SenderGone);
-    let refusal = s.refusal.filter(|_| !abandoned);
-    msg.state = match (s.state, refusal) {
+    msg.state = match (s.state, s.refusal) {
+        // A planner process that went away is no fault of the machine: it comes to rest
+        // and reports idle (the reason stays in `fault` and `program_end`).
+        (State::Idle, Some(Refusal::SenderGone)) => State::Idle,
         // The refused program's fault is shown until the next program begins.
         (State::Idle, Some(_)) => State::Fault,
         (state, _) => state,
@@ -484,7 +491,7 @@ fn status_msg(
     msg.overruns = overruns;
     msg.rt = rt;
     msg.program_done = u32::from(s.program_done && !s.aborted && s.refusal.is_none());
-    msg.program_end = match (s.program_done, s.aborted || abandoned, refusal) {
+    msg.program_end = match (s.program_done, s.aborted, s.refusal) {
         (false, ..) => kerf_proto::PROGRAM_END_NONE,
         (true, true, _) => kerf_proto::PROGRAM_END_ABORTED,
         (true, false, Some(_)) => kerf_proto::PROGRAM_END_REFUSED,
@@ -494,7 +501,7 @@ fn status_msg(
     msg.moves_received = counters.received.load(Ordering::Acquire);
     msg.window_items = window;
     msg.rejected = counters.refused.load(Ordering::Acquire);
-    if let Some(r) = refusal {
+    if let Some(r) = s.refusal {
         msg.fault = 1;
         msg.set_fault_text(&r.to_string());
     }

@@ -232,7 +232,7 @@ impl Planning {
                 }
                 match self.plan(&Input::Move(m), Some(&m)) {
                     Ok(()) => self.flush(),
-                    Err(r) => self.fail(r),
+                    Err(r) => self.refuse(r),
                 }
             }
             Incoming::Event(e) => {
@@ -252,7 +252,7 @@ impl Planning {
                             _ => true,
                         }
                     }
-                    Err(r) => self.fail(r),
+                    Err(r) => self.refuse(r),
                 }
             }
             Incoming::End => match self.planner.take() {
@@ -289,6 +289,14 @@ impl Planning {
                 }
             }
         }
+    }
+
+    /// A received move or event failed the daemon's own checks (travel, planning): the
+    /// message is refused and counted like one the stream check refused, and the program
+    /// stops at the end of its last valid move.
+    fn refuse(&mut self, reason: Refusal) -> bool {
+        self.refused.fetch_add(1, Ordering::AcqRel);
+        self.fail(reason)
     }
 
     /// Validates and plans one input into `buf`.
