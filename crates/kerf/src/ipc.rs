@@ -79,6 +79,39 @@ pub fn clean_dead_nodes() -> usize {
     cleaned
 }
 
+/// Removes the static files of services whose creation never finished: a process killed
+/// in the moment between creating a service's file and writing it leaves an empty file
+/// that no dead node refers to, and the service could never be created again. Only
+/// empty files older than [`UNFINISHED_AFTER`] are taken (a creation in progress writes
+/// its file within microseconds). Returns how many were removed.
+pub fn remove_unfinished_services() -> usize {
+    let dir = Config::global_config().global.service_dir();
+    let Ok(dir) = std::str::from_utf8(dir.as_bytes()).map(std::path::PathBuf::from) else {
+        return 0;
+    };
+    let Ok(entries) = std::fs::read_dir(&dir) else {
+        return 0;
+    };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let Ok(meta) = entry.metadata() else {
+            continue;
+        };
+        let old = meta
+            .modified()
+            .ok()
+            .and_then(|m| m.elapsed().ok())
+            .is_some_and(|age| age > UNFINISHED_AFTER);
+        if meta.is_file() && meta.len() == 0 && old && std::fs::remove_file(entry.path()).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
+
+/// How old an empty service file must be to count as abandoned.
+pub const UNFINISHED_AFTER: Duration = Duration::from_millis(100);
+
 fn service_name(machine: &str, which: &str) -> Result<ServiceName, String> {
     let name = kerf_proto::service_name(machine, which).map_err(|e| e.to_string())?;
     ServiceName::new(&name).map_err(|e| format!("service name `{name}`: {e:?}"))
@@ -106,15 +139,21 @@ pub fn create_moves(
     machine: &str,
     window: usize,
 ) -> Result<MovesService, String> {
-    node.service_builder(&service_name(machine, kerf_proto::SERVICE_MOVES)?)
-        .publish_subscribe::<MoveMsg>()
-        .max_publishers(MAX_MOVE_PUBLISHERS)
-        .max_subscribers(1)
-        .subscriber_max_buffer_size(window + MOVE_BUFFER_MARGIN)
-        .history_size(0)
-        .enable_safe_overflow(false)
-        .create()
-        .map_err(|e| format!("cannot create the moves service: {e:?}"))
+    let builder = || -> Result<_, String> {
+        Ok(node
+            .service_builder(&service_name(machine, kerf_proto::SERVICE_MOVES)?)
+            .publish_subscribe::<MoveMsg>()
+            .max_publishers(MAX_MOVE_PUBLISHERS)
+            .max_subscribers(1)
+            .subscriber_max_buffer_size(window + MOVE_BUFFER_MARGIN)
+            .history_size(0)
+            .enable_safe_overflow(false))
+    };
+    repaired(machine, kerf_proto::SERVICE_MOVES, || {
+        builder()?
+            .open_or_create()
+            .map_err(|e| format!("cannot create the moves service: {e:?}"))
+    })
 }
 
 /// Opens the moves service (planner process).
@@ -153,15 +192,17 @@ pub fn create_setpoints(
     node: &Node<ipc::Service>,
     machine: &str,
 ) -> Result<SetpointsService, String> {
-    node.service_builder(&service_name(machine, kerf_proto::SERVICE_SETPOINTS)?)
-        .publish_subscribe::<SetpointMsg>()
-        .max_publishers(1)
-        .max_subscribers(MAX_SETPOINT_SUBSCRIBERS)
-        .subscriber_max_buffer_size(SETPOINT_BUFFER)
-        .history_size(0)
-        .enable_safe_overflow(true)
-        .create()
-        .map_err(|e| format!("cannot create the setpoints service: {e:?}"))
+    repaired(machine, kerf_proto::SERVICE_SETPOINTS, || {
+        node.service_builder(&service_name(machine, kerf_proto::SERVICE_SETPOINTS)?)
+            .publish_subscribe::<SetpointMsg>()
+            .max_publishers(1)
+            .max_subscribers(MAX_SETPOINT_SUBSCRIBERS)
+            .subscriber_max_buffer_size(SETPOINT_BUFFER)
+            .history_size(0)
+            .enable_safe_overflow(true)
+            .open_or_create()
+            .map_err(|e| format!("cannot create the setpoints service: {e:?}"))
+    })
 }
 
 /// Opens the setpoints service (recorders).
@@ -188,12 +229,83 @@ pub fn setpoint_subscriber(
 
 /// Creates the control service (daemon).
 pub fn create_control(node: &Node<ipc::Service>, machine: &str) -> Result<ControlService, String> {
-    node.service_builder(&service_name(machine, kerf_proto::SERVICE_CONTROL)?)
-        .request_response::<Request, Response>()
-        .max_servers(1)
-        .max_clients(MAX_CONTROL_CLIENTS)
-        .create()
-        .map_err(|e| format!("cannot create the control service: {e:?}"))
+    repaired(machine, kerf_proto::SERVICE_CONTROL, || {
+        node.service_builder(&service_name(machine, kerf_proto::SERVICE_CONTROL)?)
+            .request_response::<Request, Response>()
+            .max_servers(1)
+            .max_clients(MAX_CONTROL_CLIENTS)
+            .open_or_create()
+            .map_err(|e| format!("cannot create the control service: {e:?}"))
+    })
+}
+
+/// Runs `build` (an open-or-create of one of the machine's services); if it fails, the
+/// service's files are taken for the remains of a process killed while it created the
+/// service (iceoryx2 then neither opens nor creates it, and no dead node refers to it):
+/// they are removed and `build` runs once more. The daemon calls this only after the
+/// control service showed that no other daemon serves the machine (or for the control
+/// service itself, whose single server slot tells a live daemon apart).
+fn repaired<T>(
+    machine: &str,
+    which: &str,
+    build: impl Fn() -> Result<T, String>,
+) -> Result<T, String> {
+    match build() {
+        Ok(t) => Ok(t),
+        Err(e) => {
+            if remove_broken_service(machine, which) {
+                tracing::warn!(
+                    "removed the unusable remains of service kerf/{machine}/{which} ({e})"
+                );
+                build()
+            } else {
+                Err(e)
+            }
+        }
+    }
+}
+
+/// Removes the static file (and the shared memory) of the service `kerf/<machine>/<which>`.
+fn remove_broken_service(machine: &str, which: &str) -> bool {
+    let Ok(name) = kerf_proto::service_name(machine, which) else {
+        return false;
+    };
+    let dir = Config::global_config().global.service_dir();
+    let Ok(dir) = std::str::from_utf8(dir.as_bytes()).map(std::path::PathBuf::from) else {
+        return false;
+    };
+    let wanted = format!("service_name = \"{name}\"");
+    let mut removed = false;
+    for entry in std::fs::read_dir(&dir).into_iter().flatten().flatten() {
+        let Ok(text) = std::fs::read_to_string(entry.path()) else {
+            continue;
+        };
+        if !text.lines().any(|l| l.trim() == wanted) {
+            continue;
+        }
+        let hash = text.lines().find_map(|l| {
+            l.trim()
+                .strip_prefix("service_hash = \"")
+                .and_then(|h| h.strip_suffix('"'))
+                .map(str::to_string)
+        });
+        if std::fs::remove_file(entry.path()).is_ok() {
+            removed = true;
+        }
+        // The service's shared memory is named after its hash.
+        if let Some(hash) = hash.filter(|h| h.bytes().all(|b| b.is_ascii_hexdigit())) {
+            for shm in std::fs::read_dir("/dev/shm")
+                .into_iter()
+                .flatten()
+                .flatten()
+            {
+                if shm.file_name().to_string_lossy().contains(&hash) {
+                    let _ = std::fs::remove_file(shm.path());
+                }
+            }
+        }
+    }
+    removed
 }
 
 /// Opens the control service (clients).

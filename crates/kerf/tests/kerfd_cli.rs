@@ -171,3 +171,67 @@ fn no_daemon_is_exit_1_naming_the_machine_for_every_command() {
         );
     }
 }
+
+#[test]
+fn a_daemon_killed_while_it_starts_leaves_nothing_that_stops_the_next() {
+    let config = TempConfig::new("startkill", |t| t);
+    // SIGKILL at staggered moments of the start-up: some before, some while, some after
+    // the services are created.
+    for i in 0..24u64 {
+        let mut child = kerfd(&config)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(2 + 4 * i));
+        let _ = child.kill();
+        let _ = child.wait();
+    }
+    // Files a killed creator left count as abandoned after 100 ms.
+    std::thread::sleep(kerf::ipc::UNFINISHED_AFTER * 2);
+    let log = config.dir.join("kerfd.log");
+    let mut daemon = Guard(
+        kerfd(&config)
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(&log).unwrap())
+            .spawn()
+            .unwrap(),
+    );
+    let start = Instant::now();
+    while !kerf(&["status"], &config).status.success() {
+        let exited = daemon.0.try_wait().unwrap();
+        assert!(
+            exited.is_none() && start.elapsed() < Duration::from_secs(30),
+            "kerfd did not start ({exited:?}): {}\n{}",
+            std::fs::read_to_string(&log).unwrap_or_default(),
+            listing()
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let program = config.dir.join("short.ngc");
+    std::fs::write(&program, "G21 G90\nG1 X2 Y1 F3000\nG0 X0 Y0\nM2\n").unwrap();
+    let out = kerf(&["run", program.to_str().unwrap()], &config);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// iceoryx2's files, for a failure message.
+fn listing() -> String {
+    let mut out = String::new();
+    for dir in ["/tmp/iceoryx2/services", "/tmp/iceoryx2/nodes", "/dev/shm"] {
+        let mut stack = vec![PathBuf::from(dir)];
+        while let Some(d) = stack.pop() {
+            for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
+                let m = e.metadata().unwrap();
+                if m.is_dir() {
+                    stack.push(e.path());
+                }
+                out.push_str(&format!("{} {}\n", e.path().display(), m.len()));
+            }
+        }
+    }
+    out
+}

@@ -181,6 +181,10 @@ pub fn start(config: &Config, real_time: bool) -> Result<Daemon, StartError> {
     if cleaned > 0 {
         tracing::info!("removed the shared-memory resources of {cleaned} dead process(es)");
     }
+    let unfinished = ipc::remove_unfinished_services();
+    if unfinished > 0 {
+        tracing::info!("removed {unfinished} service file(s) a killed process left unfinished");
+    }
     let machine = config.machine.clone();
     let window = config.daemon.move_window as usize;
 
@@ -320,12 +324,13 @@ fn control_thread(
 ) -> Result<(), String> {
     let setup = || -> Result<_, StartError> {
         let node = ipc::node("kerfd-control").map_err(StartError::Setup)?;
-        let service = ipc::create_control(&node, machine)
-            .map_err(|_| StartError::AlreadyRunning(machine.to_string()))?;
+        let service = ipc::create_control(&node, machine).map_err(StartError::Setup)?;
+        // The control service has one server slot: taken means a live daemon serves the
+        // machine (a dead one's was removed with its node).
         let server = service
             .server_builder()
             .create()
-            .map_err(|e| StartError::Setup(format!("cannot serve control requests: {e:?}")))?;
+            .map_err(|_| StartError::AlreadyRunning(machine.to_string()))?;
         Ok((node, service, server))
     };
     let (_node, _service, server) = match setup() {
