@@ -562,6 +562,9 @@ impl Cycle {
 
     fn apply(&mut self, c: Command) {
         match c {
+            // A hold that arrives after its program ended holds nothing: it must not
+            // stop the next program before its first move.
+            Command::Hold if self.program.is_none() => {}
             Command::Hold => self.interp.apply(Event::Hold),
             Command::Resume => self.interp.apply(Event::Resume),
             Command::Override(pct) => {
