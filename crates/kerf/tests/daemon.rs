@@ -4,8 +4,8 @@
 //! Every test writes its own machine configuration (a copy of `config/kerf.toml` with a
 //! machine name unique to the test and this process) into its own directory, so the
 //! iceoryx2 services (`kerf/<machine>/…`) of tests running in parallel never meet. Child
-//! processes live in [`Proc`] guards that kill (SIGKILL) and reap them on drop; the
-//! directories are removed on drop.
+//! processes live in [`Proc`] guards that stop them (SIGTERM, then SIGKILL) and reap them
+//! on drop; the directories are removed on drop.
 //!
 //! No assertion is about wall-clock time: status is polled with generous time-outs only so
 //! that a broken daemon fails the test instead of hanging it. What is asserted is measured
@@ -41,7 +41,7 @@ const PATH_ROUNDING_MM: f64 = 1e-6;
 // Processes and scratch directories
 // ---------------------------------------------------------------------------------------
 
-/// A child process that is killed (SIGKILL) and reaped when dropped.
+/// A child process that is stopped (SIGTERM, then SIGKILL) and reaped when dropped.
 struct Proc {
     name: String,
     child: Option<Child>,
@@ -110,8 +110,22 @@ impl Proc {
 }
 
 impl Drop for Proc {
+    /// SIGTERM first, so that a daemon or client removes its shared memory as it exits;
+    /// SIGKILL if it has not exited within a few seconds.
     fn drop(&mut self) {
         if let Some(mut child) = self.child.take() {
+            if let Ok(None) = child.try_wait() {
+                let _ = Command::new("kill")
+                    .args(["-TERM", &child.id().to_string()])
+                    .status();
+                let start = Instant::now();
+                while start.elapsed() < Duration::from_secs(5) {
+                    if let Ok(Some(_)) = child.try_wait() {
+                        return;
+                    }
+                    std::thread::sleep(Duration::from_millis(10));
+                }
+            }
             let _ = child.kill();
             let _ = child.wait();
         }
