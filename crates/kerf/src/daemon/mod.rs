@@ -1,17 +1,18 @@
 //! The interpolator daemon's threads, for `kerfd` and `kerf run --embedded`.
 //!
 //! ```text
-//!  kerf/<m>/moves ──► planning thread ──ring──► real-time thread ──► kerf/<m>/setpoints
-//!                     (checks, kerf-plan)        (Cycle: kerf-pipeline's
-//!                                                 Interpolator, one period)
+//!  kerf/<m>/moves ──► planning thread ──ring──► real-time thread ──ring──► publishing
+//!                     (checks, kerf-plan)        (Cycle: kerf-pipeline's      helper ──►
+//!                                                 Interpolator, one period)   kerf/<m>/setpoints
 //!  kerf/<m>/control ◄─► control thread ──ring──►  commands
 //!                          ▲  └───────────◄ring◄── status snapshots
 //! ```
 //!
-//! - The real-time thread builds everything before its first cycle (ports, rings, the
-//!   motion core, the estimate ring), locks memory and asks for SCHED_FIFO; then every
-//!   period it takes commands and planned items without blocking, steps, and publishes
-//!   one setpoint. It never allocates, locks or logs.
+//! - The real-time thread builds everything before its first cycle (rings, the motion
+//!   core, the tracker, the estimate ring), locks memory and asks for SCHED_FIFO; then
+//!   every period it takes commands and planned items without blocking, steps, and hands
+//!   one setpoint to the publishing helper (`publish`: iceoryx2 allocates on every
+//!   publish, so the cycle never calls it). It never allocates, locks or logs.
 //! - The planning thread converts and checks every message (`kerf_proto`), checks the
 //!   travel, plans with the same code as `kerf sim` (`kerf_pipeline::plan_input`) and
 //!   fills the ring; it waits when the ring is full, so backpressure reaches the planner
