@@ -15,8 +15,10 @@ use kerf_geom::TABLE_POINTS;
 /// scalars).
 pub(crate) const KEY_WORDS: usize = 24;
 
-/// Slots of the table: 512 of about 250 bytes, 128 KiB per planner.
-const SLOTS: usize = 512;
+/// Slots of a table: 2,048 of at most 500 bytes (a key and an arc-length table), at most
+/// 1 MiB per table. The CAM pattern of 1 mm lines and arcs over a 100 mm field needs
+/// about a thousand entries in flight: 512 slots missed 5 % there, 2,048 slots 0.4 %.
+const SLOTS: usize = 2048;
 
 /// Tag of the arc-length keys (the limits' keys use 1 and 2, see
 /// [`crate::budget::limits_key`]).
