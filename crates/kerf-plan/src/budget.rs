@@ -3,6 +3,7 @@
 
 use kerf_geom::{Curve, Transition, Vec3, rotary_derivatives};
 
+use crate::memo::{KEY_WORDS, Key, Limits};
 use crate::search::{bisect, bisect_max, golden_min};
 use crate::timing::change_time_s;
 use crate::{MachineLimits, PROFILE_SHARE, PlannedSegment};
@@ -101,16 +102,28 @@ pub fn segment_limits(
     feed_scale: f64,
     run_mm: f64,
 ) -> (f64, f64, f64) {
+    segment_limits_pair(seg, limits, feed_scale, None, run_mm).0
+}
+
+/// [`segment_limits`] at `feed_scale` and, if given, at `boost_scale` too: the same as two
+/// calls, sharing the work both need (a transition's bounds, the design for the feed).
+pub(crate) fn segment_limits_pair(
+    seg: &PlannedSegment,
+    limits: &MachineLimits,
+    feed_scale: f64,
+    boost_scale: Option<f64>,
+    run_mm: f64,
+) -> Limits {
     if let Curve::Transition(t) = &seg.curve {
         // Smoothed pieces keep the programmed feed as their design speed: boosted, their
         // limits vary with the direction from piece to piece, and every difference splits
         // the motion core's sections (a return to a = 0), which costs more than it gains.
-        let (samples, feed_scale) = if seg.move_count > 1 {
-            (PIECE_LIMIT_SAMPLES, 1.0)
+        let (samples, feed_scale, boost_scale) = if seg.move_count > 1 {
+            (PIECE_LIMIT_SAMPLES, 1.0, boost_scale.map(|_| 1.0))
         } else {
-            (LIMIT_SAMPLES, feed_scale)
+            (LIMIT_SAMPLES, feed_scale, boost_scale)
         };
-        return transition_limits(seg, t, limits, samples, feed_scale, run_mm);
+        return transition_limits(seg, t, limits, samples, feed_scale, boost_scale, run_mm);
     }
     let w = weights(seg);
     let share = PROFILE_SHARE;
@@ -151,7 +164,10 @@ pub fn segment_limits(
         v = v.min(v3.cbrt());
     }
     if w.kappa == 0.0 {
-        return (v, a_line, j_line);
+        return (
+            (v, a_line, j_line),
+            boost_scale.map(|_| (v, a_line, j_line)),
+        );
     }
     // Curved: the acceleration and jerk depend on the speed; the design speed (up to the
     // feed) is the one with the least rough time (cruise plus one ramp).
@@ -160,28 +176,98 @@ pub fn segment_limits(
             curved_budget(&w, limits, vd, a_line, j_line)
         })
     };
-    boosted(v, seg.feed_mm_s, feed_scale, search)
+    boosted(v, seg.feed_mm_s, feed_scale, boost_scale, search)
 }
 
 /// The design for the programmed feed (at most the machine speed `v`), or for the feed
 /// times `feed_scale` if that allows a speed at least 10 % higher: a design speed above
 /// the feed leaves less tangential budget (slower ramps), which a few per cent more speed
 /// does not pay for (the dense circle at 150 %: 102 mm/s instead of 100, but 0.96 s
-/// instead of 0.78 s).
+/// instead of 0.78 s). The same for `boost_scale` if given (the design for the feed is
+/// searched once for both).
 fn boosted(
     v: f64,
     feed: f64,
     feed_scale: f64,
+    boost_scale: Option<f64>,
     search: impl Fn(f64) -> (f64, f64, f64),
-) -> (f64, f64, f64) {
+) -> Limits {
     let base = search(v.min(feed));
-    if feed_scale > 1.0 && v > feed {
-        let boost = search(v.min(feed * feed_scale));
-        if boost.0 >= 1.1 * base.0 {
-            return boost;
+    let pick = |scale: f64| {
+        if scale > 1.0 && v > feed {
+            let boost = search(v.min(feed * scale));
+            if boost.0 >= 1.1 * base.0 {
+                return boost;
+            }
+        }
+        base
+    };
+    (pick(feed_scale), boost_scale.map(pick))
+}
+
+/// Tags of [`limits_key`]'s first word.
+const KEY_HELIX: u64 = 1;
+const KEY_TRANSITION: u64 = 2;
+
+/// The memo key of [`segment_limits_pair`] for `seg` (with the planner's fixed machine
+/// limits): the exact bits of every input the computation reads. `None` for segments not
+/// worth memoising (lines: their limits are a few divisions) or whose inputs do not fit a
+/// key (transitions with rotary axes).
+pub(crate) fn limits_key(
+    seg: &PlannedSegment,
+    feed_scale: f64,
+    boost_scale: Option<f64>,
+    run_mm: f64,
+) -> Option<Key> {
+    let mut key = [0u64; KEY_WORDS];
+    let mut n = 0;
+    let mut push = |x: f64| {
+        key[n] = x.to_bits();
+        n += 1;
+    };
+    // What every kind reads besides its shape.
+    let common = |push: &mut dyn FnMut(f64)| {
+        push(seg.length_mm);
+        push(seg.feed_mm_s);
+        push(run_mm);
+        push(feed_scale);
+        push(boost_scale.map_or(0.0, |_| 1.0));
+        push(boost_scale.unwrap_or(0.0));
+    };
+    match &seg.curve {
+        Curve::Line { .. } => return None,
+        Curve::Helix(h) => {
+            // What [`weights`] reads (`curvature` is radius and sweep per length).
+            push(f64::from_bits(KEY_HELIX));
+            push(h.radius_mm);
+            push(h.sweep_rad);
+            push(h.rise_mm);
+            push(h.length_mm);
+            for i in 0..3 {
+                push(h.axis[i]);
+            }
+            for i in 0..3 {
+                push(seg.abc_end_deg[i] - seg.abc_start_deg[i]);
+            }
+            common(&mut push);
+        }
+        Curve::Transition(t) => {
+            if seg.abc_poly.is_some() {
+                return None;
+            }
+            // [`transition_bounds`] reads the coefficients of degree 1 and up (the
+            // derivatives, the plane); the rest only whether it is a smoothed piece.
+            push(f64::from_bits(KEY_TRANSITION));
+            for c in &t.coef[1..] {
+                for i in 0..3 {
+                    push(c[i]);
+                }
+            }
+            push(if seg.move_count > 1 { 1.0 } else { 0.0 });
+            common(&mut push);
         }
     }
-    base
+    Some(key)
 }
 
 /// Distance a curved segment's design speed is chosen for at the least, mm: the segment
@@ -427,8 +513,9 @@ fn transition_limits(
     limits: &MachineLimits,
     samples: usize,
     feed_scale: f64,
+    boost_scale: Option<f64>,
     run_mm: f64,
-) -> (f64, f64, f64) {
+) -> Limits {
     let b = transition_bounds(t, seg.abc_poly.as_ref(), samples);
     let (tm, km, kp) = (b.tangent, b.curvature, b.curvature_rate);
     let share = PROFILE_SHARE;
@@ -494,7 +581,7 @@ fn transition_limits(
         seg.length_mm
     };
     let search = |v_start: f64| design_speed_search(run_mm, v_start, budget);
-    boosted(v, seg.feed_mm_s, feed_scale, search)
+    boosted(v, seg.feed_mm_s, feed_scale, boost_scale, search)
 }
 
 /// The largest tangential rate (acceleration or jerk) an axis allows when `room` of its

@@ -128,6 +128,7 @@ pub use kerf_geom::{AXIS_NAMES, AxisLimits, MachineLimits, PlannedSegment};
 mod blend;
 mod budget;
 mod junction;
+mod memo;
 mod planner;
 mod run;
 mod search;

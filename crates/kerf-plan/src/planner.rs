@@ -6,8 +6,9 @@
 
 use kerf_geom::{CornerMode, Curve, Move, Path, Vec3};
 
-use crate::budget::segment_limits;
+use crate::budget::{limits_key, segment_limits_pair};
 use crate::junction::junction_cap;
+use crate::memo::{ArcMemo, LimitsMemo};
 use crate::run::{RunState, joining_frame, line_dir, line_len, next_start_frame, turn_fits};
 use crate::{
     AXIS_NAMES, DESIGN_RUN_MM, MAX_DESIGN_OVERRIDE, MIN_SEGMENT_MM, MachineLimits, PlanError,
@@ -60,6 +61,11 @@ pub struct Planner {
     /// The run the next programmed arc or smoothed piece is designed for (see
     /// [`segment_limits`]), mm; 0 for every other segment.
     pub(crate) run_mm: f64,
+    /// Limits of recent curved segments by their exact inputs (bounded; see
+    /// [`crate::memo`]).
+    pub(crate) memo: std::cell::RefCell<LimitsMemo>,
+    /// Arc-length tables of recent transitions by their coefficients (bounded).
+    pub(crate) arc_memo: std::cell::RefCell<ArcMemo>,
 }
 
 /// The tolerance of the corner where a move in mode `arriving` meets one in mode
@@ -100,6 +106,8 @@ impl Planner {
             design_override: 1.0,
             chain_mm: 0.0,
             run_mm: 0.0,
+            memo: std::cell::RefCell::new(LimitsMemo::new()),
+            arc_memo: std::cell::RefCell::new(ArcMemo::new()),
         }
     }
 
@@ -490,15 +498,6 @@ impl Planner {
 
     /// Sets `v_max_mm_s`, `accel_mm_s2` and `jerk_mm_s3` of `seg` from the axis limits.
     pub(crate) fn set_limits(&self, seg: &mut PlannedSegment, _rapid: bool) {
-        let (v, a, j) = segment_limits(seg, &self.limits, self.design_override, self.run_mm);
-        seg.v_max_mm_s = v;
-        seg.accel_mm_s2 = a;
-        seg.jerk_mm_s3 = j;
-        (
-            seg.v_boost_mm_s,
-            seg.accel_boost_mm_s2,
-            seg.jerk_boost_mm_s3,
-        ) = (v, a, j);
         // Curved segments (not smoothed pieces, which keep the programmed feed) also get a
         // design for the highest override, which the motion core uses while the override
         // is above 100 %. Straight segments are limited by the axes alone.
@@ -507,13 +506,38 @@ impl Planner {
             Curve::Helix(_) => true,
             Curve::Transition(_) => seg.move_count <= 1,
         };
-        if curved && seg.feed_mm_s.is_finite() && self.design_override < MAX_DESIGN_OVERRIDE {
-            let (vb, ab, jb) = segment_limits(seg, &self.limits, MAX_DESIGN_OVERRIDE, self.run_mm);
-            if vb > v {
-                seg.v_boost_mm_s = vb;
-                seg.accel_boost_mm_s2 = ab.min(a);
-                seg.jerk_boost_mm_s3 = jb.min(j);
+        let boost_scale =
+            (curved && seg.feed_mm_s.is_finite() && self.design_override < MAX_DESIGN_OVERRIDE)
+                .then_some(MAX_DESIGN_OVERRIDE);
+        let key = limits_key(seg, self.design_override, boost_scale, self.run_mm);
+        let memo = key.as_ref().and_then(|k| self.memo.borrow().get(k));
+        let ((v, a, j), boost) = memo.unwrap_or_else(|| {
+            let found = segment_limits_pair(
+                seg,
+                &self.limits,
+                self.design_override,
+                boost_scale,
+                self.run_mm,
+            );
+            if let Some(k) = key {
+                self.memo.borrow_mut().put(k, found);
             }
+            found
+        });
+        seg.v_max_mm_s = v;
+        seg.accel_mm_s2 = a;
+        seg.jerk_mm_s3 = j;
+        (
+            seg.v_boost_mm_s,
+            seg.accel_boost_mm_s2,
+            seg.jerk_boost_mm_s3,
+        ) = (v, a, j);
+        if let Some((vb, ab, jb)) = boost
+            && vb > v
+        {
+            seg.v_boost_mm_s = vb;
+            seg.accel_boost_mm_s2 = ab.min(a);
+            seg.jerk_boost_mm_s3 = jb.min(j);
         }
     }
 }

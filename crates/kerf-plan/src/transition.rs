@@ -5,6 +5,7 @@
 use kerf_geom::{Curve, Transition};
 
 use crate::junction::junction_cap;
+use crate::memo::{KEY_ARC_LENGTH, KEY_WORDS};
 use crate::planner::Planner;
 use crate::{
     DEVIATION_SAMPLES, MIN_REMNANT_MM, MIN_SEGMENT_MM, PlannedSegment, TRANSITION_TOL_SHARE,
@@ -43,6 +44,30 @@ const KINK_START_FACTOR: f64 = 16.0;
 const MIN_TRANSITION_MM: f64 = 1e-6;
 
 impl Planner {
+    /// `tr` with its arc-length table (`Transition::with_arc_length`), from the memo when
+    /// a transition with the same coefficients of degree 1 and up (all the table depends
+    /// on) had one made.
+    fn with_arc_length(&self, tr: Transition) -> Option<Transition> {
+        let mut key = [0u64; KEY_WORDS];
+        key[0] = KEY_ARC_LENGTH;
+        for (k, c) in tr.coef[1..].iter().enumerate() {
+            for i in 0..3 {
+                key[1 + 3 * k + i] = c[i].to_bits();
+            }
+        }
+        let found = self.arc_memo.borrow().get(&key);
+        let arc = found.unwrap_or_else(|| {
+            let arc = tr.with_arc_length().map(|t| (t.length_mm, t.table));
+            self.arc_memo.borrow_mut().put(key, arc);
+            arc
+        });
+        arc.map(|(length_mm, table)| Transition {
+            length_mm,
+            table,
+            ..tr
+        })
+    }
+
     /// A curvature-continuous transition for the joint from `prev` to `seg`, if the joint
     /// involves a programmed arc, has a curvature jump or kink that caps the speed, and a
     /// transition within `tol` of the programmed path runs faster: `(prev trimmed at its
@@ -126,14 +151,25 @@ impl Planner {
             ) else {
                 continue;
             };
-            let within = (0..=DEVIATION_SAMPLES).all(|i| {
+            // Every sample within the tolerance of either programmed path: the samples in
+            // bit-reversed order (the middle first, where a transition that does not fit
+            // leaves the path), the nearer path first; the same answer as checking them
+            // all in order, sooner.
+            let within = (0..=DEVIATION_SAMPLES).all(|n| {
+                let i = deviation_sample(n);
                 let p = tr.poly(i as f64 / DEVIATION_SAMPLES as f64);
-                o_prev.distance_to(&p).min(o_seg.distance_to(&p)) <= TRANSITION_TOL_SHARE * tol
+                let limit = TRANSITION_TOL_SHARE * tol;
+                let (near, far) = if 2 * i <= DEVIATION_SAMPLES {
+                    (o_prev, o_seg)
+                } else {
+                    (o_seg, o_prev)
+                };
+                near.distance_to(&p) <= limit || far.distance_to(&p) <= limit
             });
             if !within {
                 continue;
             }
-            let Some(tr) = tr.with_arc_length() else {
+            let Some(tr) = self.with_arc_length(tr) else {
                 continue;
             };
             let curve = Curve::Transition(tr);
@@ -166,5 +202,34 @@ impl Planner {
             return (new > MIN_TRANSITION_GAIN * old && quick).then_some((p, t, s));
         }
         None
+    }
+}
+
+/// The `n`-th deviation sample to check (`0..=DEVIATION_SAMPLES`): the index `n` with its
+/// bits reversed, so that the checks go from coarse to fine (every sample exactly once,
+/// the last one last).
+fn deviation_sample(n: usize) -> usize {
+    const BITS: u32 = DEVIATION_SAMPLES.trailing_zeros();
+    if n >= DEVIATION_SAMPLES {
+        return n;
+    }
+    n.reverse_bits() >> (usize::BITS - BITS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn deviation_samples_are_each_checked_once() {
+        assert!(DEVIATION_SAMPLES.is_power_of_two());
+        let mut seen = [false; DEVIATION_SAMPLES + 1];
+        for n in 0..=DEVIATION_SAMPLES {
+            let i = deviation_sample(n);
+            assert!(!seen[i], "sample {i} twice");
+            seen[i] = true;
+        }
+        assert!(seen.iter().all(|&s| s));
+        assert_eq!(deviation_sample(1), DEVIATION_SAMPLES / 2);
     }
 }
