@@ -222,15 +222,7 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
             PHASE.with(|p| p.set(PHASE_RUN));
             let out = cycle.run();
             PHASE.with(|p| p.set(PHASE_NONE));
-            msg.state = out.state;
-            msg.seq = out.seq;
-            msg.time_ns = out.seq * 1_000_000;
-            msg.program_id = out.program_id;
-            msg.program_cycle = out.program_cycle;
-            msg.position_mm_deg = out.setpoint.position;
-            msg.velocity_mm_deg_s = out.velocity;
-            msg.feed_mm_s = out.setpoint.feed_mm_s;
-            msg.line = out.setpoint.line;
+            out.fill(&mut msg, out.seq * 1_000_000);
             PHASE.with(|p| p.set(PHASE_SEND));
             assert!(publisher.push(msg), "the ring to the publisher has room");
             PHASE.with(|p| p.set(PHASE_NONE));

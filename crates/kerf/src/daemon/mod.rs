@@ -685,15 +685,7 @@ fn cycle_thread(
             overruns.fetch_add(tick.missed, Ordering::AcqRel);
         }
         let out = cycle.run();
-        msg.state = out.state;
-        msg.seq = out.seq;
-        msg.time_ns = tick.deadline_ns;
-        msg.program_id = out.program_id;
-        msg.program_cycle = out.program_cycle;
-        msg.position_mm_deg = out.setpoint.position;
-        msg.velocity_mm_deg_s = out.velocity;
-        msg.feed_mm_s = out.setpoint.feed_mm_s;
-        msg.line = out.setpoint.line;
+        out.fill(&mut msg, tick.deadline_ns);
         publisher.push(msg);
         let woke_ns = tick.deadline_ns + tick.latency_ns;
         timing.record(tick.latency_ns, kerf_rt::now_ns().saturating_sub(woke_ns));

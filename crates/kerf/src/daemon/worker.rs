@@ -14,7 +14,7 @@ use kerf_geom::Move;
 use kerf_motion::{MotionCore, MotionState, Setpoint};
 use kerf_pipeline::{Event, Input, Interpolator, Planned, Poll, RunError, Tracker, plan_input};
 use kerf_plan::{MachineLimits, PlanError, PlannedSegment, Planner};
-use kerf_proto::{State, StreamError};
+use kerf_proto::{SetpointMsg, State, StreamError};
 
 use crate::config::{Axes, Config};
 use crate::travel::{PlannedTravelError, TravelError, check_move, check_segment};
@@ -409,6 +409,22 @@ pub struct CycleOutput {
     pub state: u32,
 }
 
+impl CycleOutput {
+    /// Writes this cycle into the published message (`time_ns`: the cycle's deadline on
+    /// CLOCK_MONOTONIC); the message's other fields (version, axes) stay.
+    pub fn fill(&self, msg: &mut SetpointMsg, time_ns: u64) {
+        msg.state = self.state;
+        msg.seq = self.seq;
+        msg.time_ns = time_ns;
+        msg.program_id = self.program_id;
+        msg.program_cycle = self.program_cycle;
+        msg.position_mm_deg = self.setpoint.position;
+        msg.velocity_mm_deg_s = self.velocity;
+        msg.feed_mm_s = self.setpoint.feed_mm_s;
+        msg.line = self.setpoint.line;
+    }
+}
+
 /// Commands taken per cycle at most (the rest wait for the next cycle).
 const COMMANDS_PER_CYCLE: usize = 8;
 
@@ -430,17 +446,13 @@ pub struct Cycle {
     /// The last program's id, why it stopped early, and whether it was aborted.
     last_program: (u64, Option<Refusal>, bool),
     cycles: u64,
-    position: [f64; 6],
+    /// The last setpoint (the machine's position between programs).
     setpoint: Setpoint,
     starved: bool,
     shutting_down: bool,
     shut_down: bool,
-    /// Estimated motion time of each queued segment, in push order (a ring the size of
-    /// the queue), and their sum.
-    est_s: Vec<f64>,
-    est_head: usize,
-    est_len: usize,
-    est_sum_s: f64,
+    /// Estimated motion time of the queued segments.
+    queued: QueuedTime,
 }
 
 impl Cycle {
@@ -466,7 +478,6 @@ impl Cycle {
             program: None,
             last_program: (0, None, false),
             cycles: 0,
-            position,
             setpoint: Setpoint {
                 position,
                 ..Setpoint::default()
@@ -474,10 +485,7 @@ impl Cycle {
             starved: false,
             shutting_down: false,
             shut_down: false,
-            est_s: vec![0.0; capacity],
-            est_head: 0,
-            est_len: 0,
-            est_sum_s: 0.0,
+            queued: QueuedTime::with_capacity(capacity),
         }
     }
 
@@ -517,7 +525,8 @@ impl Cycle {
             self.interp.step(&mut sp);
             self.tracker.track(&mut sp);
             self.setpoint = sp;
-            self.consumed();
+            // Forget the estimated times of the segments the core has finished.
+            self.queued.keep_last(self.interp.core().queued());
             if let Some(p) = self.program.as_mut() {
                 p.cycle += 1;
                 program_id = p.id;
@@ -544,7 +553,6 @@ impl Cycle {
         {
             *v = (p - q) / self.period_s;
         }
-        self.position = position;
         if self.shutting_down && self.program.is_none() && self.interp.core().is_idle() {
             self.shut_down = true;
         }
@@ -614,7 +622,7 @@ impl Cycle {
             refusal: None,
             dropped: self.shutting_down,
         };
-        for (i, (&s, &p)) in start.iter().zip(self.position.iter()).enumerate() {
+        for (i, (&s, &p)) in start.iter().zip(self.setpoint.position.iter()).enumerate() {
             if (s - p).abs() > 1e-6 {
                 run.refusal = Some(Refusal::WrongStart {
                     axis: kerf_plan::AXIS_NAMES[i],
@@ -650,55 +658,42 @@ impl Cycle {
     fn feed(&mut self) -> bool {
         let items = &mut self.items;
         let tracker = &mut self.tracker;
+        let queued = &mut self.queued;
         let aborted = self.interp.aborted();
-        let est = EstRing {
-            est_s: &mut self.est_s,
-            head: &mut self.est_head,
-            len: &mut self.est_len,
-            sum: &mut self.est_sum_s,
-        };
-        let mut est = est;
         let mut refusal = None;
         let mut pending = false;
         let result = self.interp.feed(|| {
             loop {
-                // Programmed moves go to the tracker until the next planned item.
-                match items.peek() {
-                    Ok(RtItem::Move(_)) if tracker.is_full() => return Poll::Pending,
-                    Ok(RtItem::Move(m)) => {
-                        // After an abort the moves are not needed (as in `kerf sim`).
-                        if !aborted || tracker.is_empty() {
-                            tracker.add(m);
-                        }
-                        let _ = items.pop();
-                        continue;
-                    }
-                    _ => {}
-                }
-                break match items.peek() {
-                    Ok(RtItem::Move(_)) => Poll::Pending,
-                    Ok(RtItem::Planned(_)) => match items.pop() {
-                        Ok(RtItem::Planned(p)) => {
-                            if let Planned::Segment(seg, _) = &p {
-                                est.push(segment_time_s(seg));
-                            }
-                            Poll::Ready(p)
-                        }
-                        _ => Poll::Pending,
-                    },
-                    Ok(RtItem::End(r)) => {
-                        refusal = *r;
-                        let _ = items.pop();
-                        Poll::End
-                    }
+                let Ok(item) = items.peek() else {
+                    pending = true;
+                    return Poll::Pending;
+                };
+                match *item {
                     // The next program's beginning: this one ended without its end (cannot
                     // happen: the planning worker always ends a program before the next).
-                    Ok(RtItem::Begin { .. }) => Poll::End,
-                    Err(_) => {
-                        pending = true;
-                        Poll::Pending
+                    RtItem::Begin { .. } => return Poll::End,
+                    RtItem::Move(_) if tracker.is_full() => return Poll::Pending,
+                    // Programmed moves go to the tracker until the next planned item;
+                    // after an abort they are not needed (as in `kerf sim`).
+                    RtItem::Move(m) => {
+                        if !aborted || tracker.is_empty() {
+                            tracker.add(&m);
+                        }
                     }
-                };
+                    RtItem::Planned(p) => {
+                        if let Planned::Segment(seg, _) = &p {
+                            queued.push(segment_time_s(seg));
+                        }
+                        let _ = items.pop();
+                        return Poll::Ready(p);
+                    }
+                    RtItem::End(r) => {
+                        refusal = r;
+                        let _ = items.pop();
+                        return Poll::End;
+                    }
+                }
+                let _ = items.pop();
             }
         });
         if let Some(r) = refusal
@@ -722,35 +717,12 @@ impl Cycle {
         }
     }
 
-    /// Forgets the estimated times of the segments the core has finished.
-    fn consumed(&mut self) {
-        let queued = self.interp.core().queued();
-        let mut est = EstRing {
-            est_s: &mut self.est_s,
-            head: &mut self.est_head,
-            len: &mut self.est_len,
-            sum: &mut self.est_sum_s,
-        };
-        while *est.len > queued {
-            est.pop();
-        }
-    }
-
     fn end_program(&mut self) {
         if let Some(p) = self.program.take() {
             self.last_program = (p.id, p.refusal, p.aborted);
         }
         self.starved = false;
-        let mut est = EstRing {
-            est_s: &mut self.est_s,
-            head: &mut self.est_head,
-            len: &mut self.est_len,
-            sum: &mut self.est_sum_s,
-        };
-        while *est.len > 0 {
-            est.pop();
-        }
-        *est.sum = 0.0;
+        self.queued.keep_last(0);
     }
 
     fn state(&self) -> State {
@@ -784,7 +756,7 @@ impl Cycle {
             feed_mm_s: self.setpoint.feed_mm_s,
             override_pct: core.feed_override * 100.0,
             queued_segments: core.queued as u64,
-            queued_s: self.est_sum_s.max(0.0),
+            queued_s: self.queued.sum_s.max(0.0),
             program_id,
             program_done: done,
             aborted,
@@ -807,33 +779,38 @@ fn segment_time_s(seg: &PlannedSegment) -> f64 {
     }
 }
 
-/// The ring of estimated segment times, borrowed from the cycle's fields.
-struct EstRing<'a> {
-    est_s: &'a mut Vec<f64>,
-    head: &'a mut usize,
-    len: &'a mut usize,
-    sum: &'a mut f64,
+/// The estimated motion times of the segments in the motion queue, in push order, and
+/// their sum: preallocated for the whole queue, so that it never allocates.
+struct QueuedTime {
+    times_s: std::collections::VecDeque<f64>,
+    sum_s: f64,
 }
 
-impl EstRing<'_> {
-    fn push(&mut self, t: f64) {
-        let cap = self.est_s.len();
-        if cap == 0 || *self.len >= cap {
-            return;
+impl QueuedTime {
+    fn with_capacity(segments: usize) -> Self {
+        QueuedTime {
+            times_s: std::collections::VecDeque::with_capacity(segments),
+            sum_s: 0.0,
         }
-        let i = (*self.head + *self.len) % cap;
-        self.est_s[i] = t;
-        *self.len += 1;
-        *self.sum += t;
     }
 
-    fn pop(&mut self) {
-        let cap = self.est_s.len();
-        if *self.len == 0 || cap == 0 {
-            return;
+    /// Adds a pushed segment's time (never beyond the reserved capacity).
+    fn push(&mut self, t_s: f64) {
+        if self.times_s.len() < self.times_s.capacity() {
+            self.times_s.push_back(t_s);
+            self.sum_s += t_s;
         }
-        *self.sum -= self.est_s[*self.head];
-        *self.head = (*self.head + 1) % cap;
-        *self.len -= 1;
+    }
+
+    /// Forgets all but the `n` segments pushed last (the core has finished the others).
+    fn keep_last(&mut self, n: usize) {
+        while self.times_s.len() > n {
+            if let Some(t) = self.times_s.pop_front() {
+                self.sum_s -= t;
+            }
+        }
+        if self.times_s.is_empty() {
+            self.sum_s = 0.0;
+        }
     }
 }
