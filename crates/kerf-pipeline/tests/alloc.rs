@@ -1,4 +1,4 @@
-//! `push()` and `step()` never allocate: a counting global allocator, armed around
+//! The motion core's `push()` and `step()` never allocate: a counting global allocator, armed around
 //! millions of cycles of a long program with dense arcs, sharp corners, feed override
 //! changes, hold/resume, zero override and an abort, on a mill and on fast machines.
 
