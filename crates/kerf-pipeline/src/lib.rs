@@ -772,14 +772,60 @@ impl Programmed {
     }
 }
 
+/// The planning step of the offline runs: each input is planned, and every planned
+/// segment carries the number of moves taken so far (the moves the deviation check then
+/// knows), a dwell follows the segments before it.
+struct PlanStep {
+    planner: Planner,
+    buf: Vec<PlannedSegment>,
+    known: usize,
+}
+
+impl PlanStep {
+    fn new(limits: &MachineLimits, design_override: f64) -> Self {
+        let mut planner = Planner::new(*limits);
+        planner.set_design_override(design_override);
+        PlanStep {
+            planner,
+            buf: Vec::new(),
+            known: 0,
+        }
+    }
+
+    /// Plans `input`: a move also goes to `taken`, the planned items to `out`.
+    fn input(
+        &mut self,
+        input: &Input,
+        taken: &mut impl Extend<Move>,
+        out: &mut impl Extend<Planned>,
+    ) -> Result<(), PlanError> {
+        plan_input(&mut self.planner, input, &mut self.buf)?;
+        if let Input::Move(mv) = input {
+            taken.extend([*mv]);
+            self.known += 1;
+        }
+        let known = self.known;
+        out.extend(self.buf.drain(..).map(|s| Planned::Segment(s, known)));
+        if let Input::Dwell(seconds) = input {
+            out.extend([Planned::Dwell(*seconds)]);
+        }
+        Ok(())
+    }
+
+    /// The end of the program: the rest of the path, ending at rest.
+    fn finish(&mut self, out: &mut impl Extend<Planned>) {
+        self.planner.finish(&mut self.buf);
+        let known = self.known;
+        out.extend(self.buf.drain(..).map(|s| Planned::Segment(s, known)));
+    }
+}
+
 /// The source of [`run`]: plans each input when the run asks for the next item.
 struct Inline<I> {
     inputs: I,
-    planner: Planner,
-    buf: Vec<PlannedSegment>,
+    step: PlanStep,
     ready: VecDeque<Planned>,
     taken: VecDeque<Move>,
-    known: usize,
     error: Option<PlanError>,
 }
 
@@ -793,28 +839,15 @@ impl<I: Iterator<Item = Input>> Source for Inline<I> {
                 return Poll::End;
             }
             let Some(input) = self.inputs.next() else {
-                self.planner.finish(&mut self.buf);
-                let known = self.known;
-                self.ready
-                    .extend(self.buf.drain(..).map(|s| Planned::Segment(s, known)));
+                self.step.finish(&mut self.ready);
                 return match self.ready.pop_front() {
                     Some(p) => Poll::Ready(p),
                     None => Poll::End,
                 };
             };
-            if let Err(e) = plan_input(&mut self.planner, &input, &mut self.buf) {
+            if let Err(e) = self.step.input(&input, &mut self.taken, &mut self.ready) {
                 self.error = Some(e);
                 return Poll::End;
-            }
-            if let Input::Move(mv) = input {
-                self.taken.push_back(mv);
-                self.known += 1;
-            }
-            let known = self.known;
-            self.ready
-                .extend(self.buf.drain(..).map(|s| Planned::Segment(s, known)));
-            if let Input::Dwell(seconds) = input {
-                self.ready.push_back(Planned::Dwell(seconds));
             }
         }
     }
@@ -842,15 +875,11 @@ where
     F: FnMut(f64, &Setpoint),
 {
     let runner = Runner::new(limits, options, sink);
-    let mut planner = Planner::new(*limits);
-    planner.set_design_override(options.feed_override);
     let mut source = Inline {
         inputs: moves.into_iter().map(Into::into),
-        planner,
-        buf: Vec::new(),
+        step: PlanStep::new(limits, options.feed_override),
         ready: VecDeque::new(),
         taken: VecDeque::new(),
-        known: 0,
         error: None,
     };
     runner.run(&mut source)
@@ -957,25 +986,13 @@ where
     let design_override = options.feed_override;
     std::thread::scope(|scope| {
         scope.spawn(move || {
-            let mut planner = Planner::new(*limits);
-            planner.set_design_override(design_override);
-            let mut buf = Vec::new();
+            let mut step = PlanStep::new(limits, design_override);
             let mut taken = Vec::new();
             let mut batch = Vec::with_capacity(BATCH);
-            let mut known = 0;
             for input in moves {
-                let input: Input = input.into();
-                if let Err(e) = plan_input(&mut planner, &input, &mut buf) {
+                if let Err(e) = step.input(&input.into(), &mut taken, &mut batch) {
                     let _ = tx.send(Err(e));
                     return;
-                }
-                if let Input::Move(mv) = input {
-                    taken.push(mv);
-                    known += 1;
-                }
-                batch.extend(buf.drain(..).map(|s| Planned::Segment(s, known)));
-                if let Input::Dwell(seconds) = input {
-                    batch.push(Planned::Dwell(seconds));
                 }
                 if batch.len() >= BATCH || taken.len() >= MOVES_PER_BATCH {
                     let full = (
@@ -987,8 +1004,7 @@ where
                     }
                 }
             }
-            planner.finish(&mut buf);
-            batch.extend(buf.drain(..).map(|s| Planned::Segment(s, known)));
+            step.finish(&mut batch);
             let _ = tx.send(Ok((taken, batch)));
         });
         let mut runner = Runner::new(limits, options, sink);
