@@ -1107,17 +1107,28 @@ fn sigterm_stops_on_the_path_then_exits_0() {
 #[test]
 fn status_without_and_with_a_daemon() {
     let env = Env::new("st", &[]);
-    let o = env.kerf("status", &[]);
-    assert_eq!(o.status.code(), Some(1));
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains(&env.machine), "{err}");
-    let o = env.kerf("status", &["--json"]);
-    assert_eq!(o.status.code(), Some(1));
+    // Every command that talks to a daemon: exit 1, naming the machine and how to start
+    // a daemon.
     let program = env.write("part.ngc", PART);
-    let o = env.kerf("run", &[program.to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(1));
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains(&env.machine) && err.contains("kerfd"), "{err}");
+    let program = program.to_str().unwrap();
+    for (subcommand, args) in [
+        ("status", &[][..]),
+        ("status", &["--json"]),
+        ("hold", &[]),
+        ("resume", &[]),
+        ("abort", &[]),
+        ("override", &["50"]),
+        ("run", &[program]),
+        ("record", &["--out", "/dev/null", "--cycles", "1"]),
+    ] {
+        let o = env.kerf(subcommand, args);
+        assert_eq!(o.status.code(), Some(1), "{subcommand} {args:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            err.contains(&env.machine) && err.contains("kerfd"),
+            "{subcommand} {args:?}: {err}"
+        );
+    }
 
     let _daemon = env.start_daemon("kerfd");
     let s = env.status();
@@ -1149,4 +1160,83 @@ fn status_without_and_with_a_daemon() {
         line.starts_with(&format!("{}: idle", env.machine)),
         "{line}"
     );
+}
+
+#[test]
+fn a_period_outside_the_daemons_range_is_refused_before_anything_starts() {
+    for period in ["50", "100", "20000"] {
+        let env = Env::new(
+            &format!("period{period}"),
+            &[("period_us = 1000", &format!("period_us = {period}"))],
+        );
+        let out = Command::new(KERFD)
+            .args(["--config", env.config_arg()])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "period {period}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("period_us") && err.contains("125 to 10000"),
+            "period {period}: {err}"
+        );
+        // Nothing was created: no daemon answers for the machine.
+        assert_eq!(env.kerf("status", &[]).status.code(), Some(1));
+    }
+}
+
+#[test]
+fn a_configuration_that_does_not_load_is_named() {
+    let out = Command::new(KERFD)
+        .args(["--config", "/nonexistent/kerf.toml"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("/nonexistent/kerf.toml"), "{err}");
+}
+
+#[test]
+fn a_second_daemon_or_an_embedded_run_for_the_same_machine_is_refused() {
+    let env = Env::new("twice", &[]);
+    let _first = env.start_daemon("kerfd");
+    let out = Command::new(KERFD)
+        .args(["--config", env.config_arg()])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("already running") && err.contains(&env.machine),
+        "{err}"
+    );
+    let program = env.write("part.ngc", PART);
+    let out = env.kerf("run", &["--embedded", program.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("already running"), "{err}");
+    // The first one still serves.
+    assert!(env.kerf("status", &[]).status.success());
+}
+
+#[test]
+fn a_daemon_killed_while_it_starts_leaves_nothing_that_stops_the_next() {
+    let env = Env::new("startkill", &[]);
+    // SIGKILL at staggered moments of the start-up: some before, some while, some after
+    // the services are created.
+    for i in 0..24u64 {
+        let mut d = Proc::spawn(
+            "kerfd-killed",
+            &env.dir,
+            KERFD,
+            &["--config", env.config_arg()],
+        );
+        std::thread::sleep(Duration::from_millis(2 + 4 * i));
+        d.signal("KILL");
+        d.wait(1);
+    }
+    // Files a killed creator left count as abandoned after 100 ms.
+    std::thread::sleep(kerf::ipc::UNFINISHED_AFTER * 2);
+    let _daemon = env.start_daemon("kerfd");
+    let program = env.write("short.ngc", "G21 G90\nG1 X2 Y1 F3000\nG0 X0 Y0\nM2\n");
+    env.run_ok("run", &program, None);
 }
