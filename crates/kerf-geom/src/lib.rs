@@ -122,6 +122,7 @@ impl Arc {
 
 mod curve;
 mod limits;
+pub mod ramp;
 mod segment;
 mod transition;
 pub use curve::{Curve, CurvePoint, Helix, line_distance};

@@ -87,6 +87,7 @@
 #![deny(missing_docs)]
 
 use kerf_geom::Vec3;
+use kerf_geom::ramp::{bisect, change_time_s};
 pub use kerf_geom::{AxisLimits, MachineLimits, PlannedSegment};
 use rsruckig::prelude::*;
 
@@ -361,13 +362,7 @@ impl std::fmt::Debug for MotionCore {
 /// Distance to change speed from `v0` to `v1` with `a = 0` at both ends along the
 /// symmetric jerk-limited profile (exact: the speed curve is point-symmetric).
 pub fn change_distance(v0: f64, v1: f64, accel: f64, jerk: f64) -> f64 {
-    let dv = (v1 - v0).abs();
-    let t = if dv * jerk <= accel * accel {
-        2.0 * (dv / jerk).sqrt()
-    } else {
-        dv / accel + accel / jerk
-    };
-    0.5 * (v0 + v1) * t
+    0.5 * (v0 + v1) * change_time_s((v1 - v0).abs(), accel, jerk)
 }
 
 /// Highest speed reachable from `v0` (or from which `v0` is reachable) within distance
@@ -407,21 +402,6 @@ pub fn reach(v0: f64, d: f64, accel: f64, jerk: f64) -> f64 {
     let disc = (b * b - 4.0 * c).max(0.0);
     let dv = -2.0 * c / (b + disc.sqrt());
     v0 + dv.max(0.0)
-}
-
-/// Bisection between a value `good` where `ok` holds and one, `bad`, where it does not:
-/// after `steps` halvings, the value closest to `bad` known to satisfy `ok` (`good` itself
-/// if no midpoint does). `ok` must change only once between the two.
-pub(crate) fn bisect(mut good: f64, mut bad: f64, steps: usize, ok: impl Fn(f64) -> bool) -> f64 {
-    for _ in 0..steps {
-        let mid = 0.5 * (good + bad);
-        if ok(mid) {
-            good = mid;
-        } else {
-            bad = mid;
-        }
-    }
-    good
 }
 
 /// Highest speed at the start of a distance `d` from which the speed at its end can be

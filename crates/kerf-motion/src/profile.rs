@@ -9,7 +9,8 @@
 //! end speeds and the cruise speed. It is built in closed form (plus a bisection on the
 //! cruise speed) without allocation, so it is safe to build inside `step()`.
 
-use crate::{bisect, change_distance};
+use crate::change_distance;
+use kerf_geom::ramp::bisect;
 
 /// Most phases of a profile: up (3), cruise (1), down (3).
 const MAX_PHASES: usize = 7;

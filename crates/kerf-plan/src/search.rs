@@ -1,19 +1,7 @@
-//! One-dimensional numeric searches (bisection, golden section).
+//! One-dimensional numeric searches (golden section here; the bisection is
+//! `kerf_geom::ramp::bisect`, shared with the motion core).
 
-/// Bisection between `good`, where `ok` holds, and `bad`, where it does not (`ok` changes
-/// once between them): the value nearest `bad` known to satisfy `ok`, after `steps`
-/// halvings.
-pub(crate) fn bisect(mut good: f64, mut bad: f64, steps: usize, ok: impl Fn(f64) -> bool) -> f64 {
-    for _ in 0..steps {
-        let mid = 0.5 * (good + bad);
-        if ok(mid) {
-            good = mid;
-        } else {
-            bad = mid;
-        }
-    }
-    good
-}
+pub(crate) use kerf_geom::ramp::bisect;
 
 /// Golden-section search for the minimum of `cost` on `[lo, hi]` (`steps` narrowings):
 /// the better of the last two points, and its cost.

@@ -7,14 +7,7 @@ use crate::search::bisect;
 /// bracket, the resolution of an f64.
 const SPEED_BISECTION_STEPS: usize = 50;
 
-/// Time of a jerk-limited change of speed by `dv` with acceleration `a` and jerk `j`, s.
-pub(crate) fn change_time_s(dv: f64, a: f64, j: f64) -> f64 {
-    if dv <= a * a / j {
-        2.0 * (dv / j).sqrt()
-    } else {
-        dv / a + a / j
-    }
-}
+pub(crate) use kerf_geom::ramp::change_time_s;
 
 /// The highest speed (at most `v_max`) that a jerk-limited ramp from rest with
 /// acceleration `a` and jerk `j` reaches within `length`, by bisection.
