@@ -223,7 +223,7 @@ pub fn only_events(items: &[Item]) -> Vec<Event> {
     items
         .iter()
         .filter_map(|i| match i {
-            Item::Event(e) => Some(*e),
+            Item::Event(e) => Some(e.clone()),
             Item::Move(_) => None,
         })
         .collect()

@@ -8,6 +8,7 @@ use crate::lex::{Form, K_AP, K_AT, K_CARET, K_CR, K_RP, K_TURN, N_KEYS, Word};
 use crate::{Dialect, Event, EventCode, Item, Settings, Tool};
 
 mod geometry;
+pub(crate) mod params;
 
 const MM_PER_INCH: f64 = 25.4;
 
@@ -143,6 +144,10 @@ pub(crate) struct State {
     header_seen: bool,
     /// The program has ended (M2/M30 or a Heidenhain end line).
     pub(crate) done: bool,
+    /// LinuxCNC numbered parameters (read and written by the expression language and by
+    /// the codes whose data lives in parameters).
+    #[allow(dead_code)]
+    pub(crate) params: params::Params,
 }
 
 /// Output of a block, in execution order.
@@ -153,11 +158,8 @@ pub(crate) struct Out<'a> {
 
 impl Out<'_> {
     fn event(&mut self, code: EventCode, value: Option<f64>) {
-        self.items.push(Item::Event(Event {
-            line: self.line,
-            code,
-            value,
-        }));
+        self.items
+            .push(Item::Event(Event::new(self.line, code, value)));
     }
 }
 
@@ -209,6 +211,7 @@ impl State {
             last_ccw: None,
             header_seen: false,
             done: false,
+            params: params::Params::new(),
         };
         s.update_origin();
         s

@@ -323,6 +323,18 @@ pub struct Settings {
     /// Where the machine is when the program starts: X, Y, Z machine mm, A, B, C degrees
     /// (the origin by default; `kerf run` gives the daemon's position).
     pub start_mm_deg: [f64; 6],
+    /// LinuxCNC: directories searched, in order, for the file `NAME.ngc` of a subroutine
+    /// `o<NAME> call` that the program does not define (`[gcode] subroutine_path`).
+    pub subroutine_path: Vec<std::path::PathBuf>,
+    /// LinuxCNC: the most iterations of one `while`/`do`/`repeat` loop, and the deepest
+    /// subroutine nesting times this, before the program is refused as endless
+    /// (`[gcode] max_loop_iterations`).
+    pub max_loop_iterations: u64,
+    /// LinuxCNC: the G28 and G30 stored positions at program start (parameters
+    /// #5161–#5166 and #5181–#5186), machine mm and degrees.
+    pub g28_home_mm_deg: [f64; 6],
+    /// See [`Settings::g28_home_mm_deg`].
+    pub g30_home_mm_deg: [f64; 6],
 }
 
 impl Default for Settings {
@@ -333,6 +345,10 @@ impl Default for Settings {
             arc_tolerance_mm: 0.02828,
             arc_tolerance_rel: 0.001,
             start_mm_deg: [0.0; 6],
+            subroutine_path: Vec::new(),
+            max_loop_iterations: 1_000_000,
+            g28_home_mm_deg: [0.0; 6],
+            g30_home_mm_deg: [0.0; 6],
         }
     }
 }
@@ -369,6 +385,17 @@ pub enum EventCode {
     /// Dwell: the motion comes to an exact stop and waits; the value is the time in
     /// seconds (zero for a dwell without a time word).
     G4,
+    /// Pallet change pause (LinuxCNC M60): a program pause like M0.
+    M60,
+    /// A user-defined M code M100–M199 (LinuxCNC), by its number less 100: `value` is its
+    /// P word, `q` its Q word.
+    User(u8),
+    /// An operator message (`(MSG, text)`): `text` holds it.
+    Msg,
+    /// A debug message (`(DEBUG, text)`, parameters substituted): `text` holds it.
+    Debug,
+    /// A print message (`(PRINT, text)`, parameters substituted): `text` holds it.
+    Print,
 }
 
 impl EventCode {
@@ -389,23 +416,52 @@ impl EventCode {
             EventCode::S => "S",
             EventCode::T => "T",
             EventCode::G4 => "G4",
+            EventCode::M60 => "M60",
+            EventCode::User(n) => {
+                let i = 4 * usize::from(n.min(99));
+                &USER_M_NAMES[i..i + 4]
+            }
+            EventCode::Msg => "MSG",
+            EventCode::Debug => "DEBUG",
+            EventCode::Print => "PRINT",
         }
     }
 }
 
+/// "M100M101…M199": the names of the user M codes, four bytes each.
+const USER_M_NAMES: &str = "M100M101M102M103M104M105M106M107M108M109M110M111M112M113M114M115M116M117M118M119M120M121M122M123M124M125M126M127M128M129M130M131M132M133M134M135M136M137M138M139M140M141M142M143M144M145M146M147M148M149M150M151M152M153M154M155M156M157M158M159M160M161M162M163M164M165M166M167M168M169M170M171M172M173M174M175M176M177M178M179M180M181M182M183M184M185M186M187M188M189M190M191M192M193M194M195M196M197M198M199";
+
 /// A non-motion event, in program order among the moves.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Event {
     /// 1-based source line.
     pub line: u32,
     /// What happens.
     pub code: EventCode,
-    /// S: rpm; T: tool number; G4: dwell seconds; M codes: `None`.
+    /// S: rpm; T: tool number; G4: dwell seconds; user M codes: the P word; other M
+    /// codes: `None`.
     pub value: Option<f64>,
+    /// User M codes: the Q word; otherwise `None`.
+    pub q: Option<f64>,
+    /// Messages (MSG, DEBUG, PRINT): the text; otherwise `None`.
+    pub text: Option<std::sync::Arc<str>>,
+}
+
+impl Event {
+    /// An event with a value and no Q word or text.
+    pub fn new(line: u32, code: EventCode, value: Option<f64>) -> Event {
+        Event {
+            line,
+            code,
+            value,
+            q: None,
+            text: None,
+        }
+    }
 }
 
 /// One output item of the interpreter.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Item {
     /// A resolved move.
     Move(Move),
@@ -583,7 +639,7 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
         loop {
             if let Some(item) = self.pending.get(self.next_pending) {
                 self.next_pending += 1;
-                return Some(Ok(*item));
+                return Some(Ok(item.clone()));
             }
             self.pending.clear();
             self.next_pending = 0;

@@ -90,7 +90,7 @@ fn heidenhain_seed_polar_example() {
     assert!((a.sweep_rad - PI).abs() < 1e-12);
     assert_eq!(m[5].feed_mm_min, Some(250.0));
     // M3 comes before the motion of its block.
-    assert!(matches!(items[0], Item::Event(e) if e.code == EventCode::M3 && e.line == 3));
+    assert!(matches!(&items[0], Item::Event(e) if e.code == EventCode::M3 && e.line == 3));
     assert!(matches!(items[1], Item::Move(m) if m.line == 3));
 }
 
@@ -299,8 +299,8 @@ fn events_in_execution_order_and_end_of_program() {
         })
         .collect();
     assert_eq!(codes, ["S", "T", "M6", "M3", "M8", "move", "M0", "M30"]);
-    assert!(matches!(items[0], Item::Event(e) if e.value == Some(1200.0)));
-    assert!(matches!(items[1], Item::Event(e) if e.value == Some(3.0)));
+    assert!(matches!(&items[0], Item::Event(e) if e.value == Some(1200.0)));
+    assert!(matches!(&items[1], Item::Event(e) if e.value == Some(3.0)));
 }
 
 #[test]

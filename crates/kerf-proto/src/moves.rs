@@ -61,6 +61,18 @@ pub const EVENT_S: u32 = 12;
 pub const EVENT_T: u32 = 13;
 /// Event code G4 (dwell, value seconds).
 pub const EVENT_G4: u32 = 14;
+/// Pallet change pause (LinuxCNC M60): a program pause like M0.
+pub const EVENT_M60: u32 = 15;
+/// Operator message (`(MSG, ...)`); the text stays with the planner process.
+pub const EVENT_MSG: u32 = 16;
+/// Debug message (`(DEBUG, ...)`); the text stays with the planner process.
+pub const EVENT_DEBUG: u32 = 17;
+/// Print message (`(PRINT, ...)`); the text stays with the planner process.
+pub const EVENT_PRINT: u32 = 18;
+/// User M code M100 (LinuxCNC); M100 + n is `EVENT_USER_M100 + n`; value: its P word.
+pub const EVENT_USER_M100: u32 = 100;
+/// User M code M199, the last one.
+pub const EVENT_USER_M199: u32 = 199;
 
 /// Allowed deviation of `|axis|` from 1 (absolute).
 pub const AXIS_UNIT_TOL: f64 = 1e-9;
@@ -262,7 +274,7 @@ pub enum Reject {
 }
 
 /// A validated [`MoveMsg`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Resolved {
     /// Start of program `program_id`.
     Begin {
@@ -303,6 +315,11 @@ pub fn event_code_to_u32(code: EventCode) -> u32 {
         EventCode::S => EVENT_S,
         EventCode::T => EVENT_T,
         EventCode::G4 => EVENT_G4,
+        EventCode::M60 => EVENT_M60,
+        EventCode::Msg => EVENT_MSG,
+        EventCode::Debug => EVENT_DEBUG,
+        EventCode::Print => EVENT_PRINT,
+        EventCode::User(n) => EVENT_USER_M100 + u32::from(n.min(99)),
     }
 }
 
@@ -323,6 +340,11 @@ pub fn event_code_from_u32(code: u32) -> Option<EventCode> {
         EVENT_S => EventCode::S,
         EVENT_T => EventCode::T,
         EVENT_G4 => EventCode::G4,
+        EVENT_M60 => EventCode::M60,
+        EVENT_MSG => EventCode::Msg,
+        EVENT_DEBUG => EventCode::Debug,
+        EVENT_PRINT => EventCode::Print,
+        c @ EVENT_USER_M100..=EVENT_USER_M199 => EventCode::User((c - EVENT_USER_M100) as u8),
         _ => return None,
     })
 }
@@ -630,19 +652,21 @@ impl TryFrom<&MoveMsg> for Resolved {
                 let code = event_code_from_u32(m.event_code)
                     .ok_or(Reject::UnknownEventCode(m.event_code))?;
                 let needs_value = matches!(code, EventCode::S | EventCode::T | EventCode::G4);
+                let may_have_value = needs_value || matches!(code, EventCode::User(_));
                 match (needs_value, has_value) {
                     (true, false) => return Err(Reject::EventValueMissing(code)),
+                    (false, true) if may_have_value => {}
                     (false, true) => return Err(Reject::EventValueUnexpected(code)),
                     _ => {}
                 }
                 if code == EventCode::G4 && m.event_value < 0.0 {
                     return Err(Reject::NegativeDwell);
                 }
-                Ok(Resolved::Event(Event {
-                    line: m.line,
+                Ok(Resolved::Event(Event::new(
+                    m.line,
                     code,
-                    value: has_value.then_some(m.event_value),
-                }))
+                    has_value.then_some(m.event_value),
+                )))
             }
             _ => {
                 // A line or an arc.

@@ -60,7 +60,7 @@ fn check(m: &MoveMsg) {
                     e
                 }
                 Resolved::Move(mv) => MoveMsg::from_move(m.program_id, m.seq, &mv),
-                Resolved::Event(ev) => MoveMsg::from_event(m.program_id, m.seq, &ev),
+                Resolved::Event(ref ev) => MoveMsg::from_event(m.program_id, m.seq, ev),
             };
             assert_eq!(to_bytes(&again), to_bytes(m), "{m:?} decoded as {r:?}");
         }

@@ -50,15 +50,7 @@ fn arc() -> MoveMsg {
 }
 
 fn event(code: EventCode, value: Option<f64>) -> MoveMsg {
-    MoveMsg::from_event(
-        5,
-        3,
-        &Event {
-            line: 9,
-            code,
-            value,
-        },
-    )
+    MoveMsg::from_event(5, 3, &Event::new(9, code, value))
 }
 
 fn reason(m: &MoveMsg) -> Reject {
@@ -317,8 +309,8 @@ fn events() {
         Reject::UnknownEventCode(0)
     );
     assert_eq!(
-        mutated(|| event(EventCode::M3, None), |m| m.event_code = 15),
-        Reject::UnknownEventCode(15)
+        mutated(|| event(EventCode::M3, None), |m| m.event_code = 19),
+        Reject::UnknownEventCode(19)
     );
     assert_eq!(
         mutated(

@@ -19,11 +19,7 @@ fn line_move(from: [f64; 3], to: [f64; 3]) -> Move {
 }
 
 fn ev() -> Event {
-    Event {
-        line: 2,
-        code: EventCode::M8,
-        value: None,
-    }
+    Event::new(2, EventCode::M8, None)
 }
 
 /// BEGIN at (1, 2, 3), then (1,2,3)→(4,2,3), M8, (4,2,3)→(4,5,3).

@@ -340,7 +340,7 @@ impl Config {
                 .collect(),
             arc_tolerance_mm: self.arc_tolerance_mm,
             arc_tolerance_rel: self.arc_tolerance_rel,
-            start_mm_deg: [0.0; 6],
+            ..Settings::default()
         }
     }
 }

@@ -448,20 +448,12 @@ mod tests {
 
     #[test]
     fn events_carry_their_value() {
-        let m3 = Event {
-            line: 3,
-            code: EventCode::M3,
-            value: None,
-        };
+        let m3 = Event::new(3, EventCode::M3, None);
         assert_eq!(
             text(&Item::Event(m3)),
             "{\"type\":\"event\",\"line\":3,\"code\":\"M3\",\"value\":null}\n"
         );
-        let s = Event {
-            line: 4,
-            code: EventCode::S,
-            value: Some(12000.0),
-        };
+        let s = Event::new(4, EventCode::S, Some(12000.0));
         assert_eq!(
             text(&Item::Event(s)),
             "{\"type\":\"event\",\"line\":4,\"code\":\"S\",\"value\":12000.0}\n"
@@ -594,11 +586,7 @@ mod tests {
         if let Path::Line(l) = &mut c.path {
             l.start = Vec3::new(0.0, 1.0 / 3.0, 0.1);
         }
-        let event = Item::Event(Event {
-            line: 8,
-            code: EventCode::M5,
-            value: None,
-        });
+        let event = Item::Event(Event::new(8, EventCode::M5, None));
         let items = [
             Item::Move(a),
             event,

@@ -231,13 +231,17 @@ impl Scan {
 /// stop and a rest; a program stop (M0, M1), an end (M2, M30), a tool change (M6), a
 /// spindle (M3, M4, M5, S) or coolant (M7, M8, M9) change is an exact stop, because the
 /// control waits for the motion to finish before it acts on it (as LinuxCNC does); a tool
-/// selection (T) does not stop the motion. The simulation does not wait at a program stop
-/// (it stands for an operator who presses cycle start at once) and runs M1 like M0.
+/// selection (T) does not stop the motion. A pallet-change pause (M60) is a program stop,
+/// and a user M code (M100–M199) runs its program after the motion before it, as LinuxCNC
+/// does; messages (MSG, DEBUG, PRINT) are shown and do not stop the motion. The
+/// simulation does not wait at a program stop (it stands for an operator who presses
+/// cycle start at once) and runs M1 like M0.
 pub fn input_of_event(e: &kerf_gcode::Event) -> Option<Input> {
     use kerf_gcode::EventCode as C;
     match e.code {
         C::G4 => Some(Input::Dwell(e.value.unwrap_or(0.0))),
-        C::T => None,
+        C::T | C::Msg | C::Debug | C::Print => None,
+        C::M60 | C::User(_) => Some(Input::Stop),
         C::M0
         | C::M1
         | C::M2

@@ -21,7 +21,7 @@ use crate::travel::{PlannedTravelError, TravelError, check_move, check_segment};
 
 /// One item from a planner process, after the message was converted and checked against
 /// the stream rules.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Incoming {
     /// A program starts at `start` (X, Y, Z mm, A, B, C deg).
     Begin {
