@@ -363,7 +363,17 @@ pub fn move_difference(k: &kerf_gcode::Move, c: &CanonMove) -> Option<String> {
         if ka.axis.dot(&ca.axis) < 1.0 - 1e-9 {
             return Some("plane".into());
         }
-        let spiral = (ca.start_radius_mm - ca.end_radius_mm).abs();
+        // LinuxCNC spirals when its start and end radii differ; Kerf moves the centre onto
+        // the chord's perpendicular bisector, the point nearest LinuxCNC's centre: that
+        // distance is |r_start² − r_end²| / (2 · chord).
+        let (rs, re) = (ca.start_radius_mm, ca.end_radius_mm);
+        let d = c.end_mm - c.start_mm;
+        let chord = (d - ca.axis * d.dot(&ca.axis)).norm();
+        let spiral = if chord <= tol {
+            (rs - re).abs()
+        } else {
+            (rs - re).abs().max((rs * rs - re * re).abs() / (2.0 * chord))
+        };
         if !close_v(&ka.center, &ca.center_mm, tol + spiral) {
             return Some("arc centre".into());
         }
