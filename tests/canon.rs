@@ -518,10 +518,9 @@ impl State {
             }
             "START_SPINDLE_CLOCKWISE" => self.event(line, EventCode::M3, None, None),
             "START_SPINDLE_COUNTERCLOCKWISE" => self.event(line, EventCode::M4, None, None),
-            "STOP_SPINDLE_TURNING" => {
-                if !self.changing_tool {
-                    self.event(line, EventCode::M5, None, None);
-                }
+            // The spindle stop of a tool change belongs to M6.
+            "STOP_SPINDLE_TURNING" if !self.changing_tool => {
+                self.event(line, EventCode::M5, None, None);
             }
             "MIST_ON" => self.event(line, EventCode::M7, None, None),
             "FLOOD_ON" => self.event(line, EventCode::M8, None, None),
@@ -529,10 +528,9 @@ impl State {
                 self.event(line, EventCode::M9, None, None);
                 self.mist_off_just_before = true;
             }
-            "FLOOD_OFF" => {
-                if !was_mist_off {
-                    self.event(line, EventCode::M9, None, None);
-                }
+            // M9 prints MIST_OFF then FLOOD_OFF: one event.
+            "FLOOD_OFF" if !was_mist_off => {
+                self.event(line, EventCode::M9, None, None);
             }
             "SELECT_TOOL" => {
                 let t = numbers(args, line, 1)?[0];

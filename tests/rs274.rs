@@ -372,7 +372,9 @@ pub fn move_difference(k: &kerf_gcode::Move, c: &CanonMove) -> Option<String> {
         let spiral = if chord <= tol {
             (rs - re).abs()
         } else {
-            (rs - re).abs().max((rs * rs - re * re).abs() / (2.0 * chord))
+            (rs - re)
+                .abs()
+                .max((rs * rs - re * re).abs() / (2.0 * chord))
         };
         if !close_v(&ka.center, &ca.center_mm, tol + spiral) {
             return Some("arc centre".into());

@@ -63,8 +63,17 @@ fn check_goldens(rs274_dir: &Path, dir: &Path) -> Result<bool, String> {
     let mut ok = true;
     println!("== goldens under {}: {} programs", dir.display(), all.len());
     for g in &all {
-        let name = g.ngc.strip_prefix(dir).unwrap_or(&g.ngc).display().to_string();
-        let out = run_rs274(rs274_dir, &abs(&g.ngc), g.tbl.as_deref().map(abs).as_deref())?;
+        let name = g
+            .ngc
+            .strip_prefix(dir)
+            .unwrap_or(&g.ngc)
+            .display()
+            .to_string();
+        let out = run_rs274(
+            rs274_dir,
+            &abs(&g.ngc),
+            g.tbl.as_deref().map(abs).as_deref(),
+        )?;
         let committed = std::fs::read_to_string(&g.canon).unwrap_or_default();
         let mut drift = Vec::new();
         if committed != out.stdout {
@@ -78,7 +87,10 @@ fn check_goldens(rs274_dir: &Path, dir: &Path) -> Result<bool, String> {
         let verdict = check_golden(g)?;
         let result = if !drift.is_empty() {
             ok = false;
-            format!("DRIFT: {} (regenerate with tests/rs274/golden.sh)", drift.join("; "))
+            format!(
+                "DRIFT: {} (regenerate with tests/rs274/golden.sh)",
+                drift.join("; ")
+            )
         } else if verdict.golden_ok() {
             describe(&verdict)
         } else {
@@ -233,5 +245,9 @@ fn main() -> ExitCode {
             }
         }
     }
-    if ok { ExitCode::SUCCESS } else { ExitCode::FAILURE }
+    if ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    }
 }
