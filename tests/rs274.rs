@@ -16,7 +16,8 @@
 //! Goldens live in `tests/data/ngc/<area>/NAME.ngc` with `NAME.canon` (rs274's standard
 //! output from `tests/rs274/canon.sh`), `NAME.err` when rs274 refused the program
 //! (`exit N` and its standard error, written by `tests/rs274/golden.sh`) and `NAME.tbl`, a
-//! tool table in mm, when the program needs tools.
+//! tool table in mm, when the program needs tools, and `NAME.var`, the persistent parameters
+//! at program start (coordinate systems, G28/G30 positions) in mm and degrees.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -105,6 +106,34 @@ pub fn parse_tool_table(text: &str) -> Result<Vec<Tool>, String> {
     Ok(tools)
 }
 
+/// Applies a LinuxCNC parameter file (`NUMBER VALUE` lines, mm and degrees; the `NAME.var`
+/// of a golden) to Kerf's settings: the coordinate systems' X Y Z (#5221 + 20 k) and the
+/// G28/G30 positions (#5161–#5166, #5181–#5186). Any other non-zero parameter has no Kerf
+/// setting and is an error; #5220 (the coordinate system in use) must be 1.
+pub fn apply_var_file(text: &str, settings: &mut Settings) -> Result<(), String> {
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        let (Some(n), Some(v)) = (words.next(), words.next()) else {
+            continue;
+        };
+        let bad = |e: &dyn std::fmt::Display| format!("parameter file line {}: {e}", i + 1);
+        let n: u32 = n.parse().map_err(|e| bad(&e))?;
+        let v: f64 = v.parse().map_err(|e| bad(&e))?;
+        match n {
+            5161..=5166 => settings.g28_home_mm_deg[(n - 5161) as usize] = v,
+            5181..=5186 => settings.g30_home_mm_deg[(n - 5181) as usize] = v,
+            5221..=5389 if (n - 5221) % 20 <= 2 => {
+                settings.work_offsets_mm[((n - 5221) / 20) as usize][((n - 5221) % 20) as usize] =
+                    v;
+            }
+            5220 if v == 1.0 => {}
+            _ if v == 0.0 => {}
+            _ => return Err(bad(&format!("#{n} = {v} has no Kerf setting"))),
+        }
+    }
+    Ok(())
+}
+
 /// What Kerf made of a program.
 #[derive(Debug)]
 pub struct KerfRun {
@@ -122,6 +151,11 @@ pub fn run_kerf(src: &[u8], tools: Vec<Tool>, dir: Option<&Path>) -> KerfRun {
         subroutine_path: dir.map(|d| vec![d.to_path_buf()]).unwrap_or_default(),
         ..Settings::default()
     };
+    run_kerf_with(src, settings)
+}
+
+/// Runs `src` through Kerf's LinuxCNC dialect with `settings`.
+pub fn run_kerf_with(src: &[u8], settings: Settings) -> KerfRun {
     let mut items = Vec::new();
     let mut error = None;
     for next in Interpreter::new(src, Dialect::LinuxCnc, settings) {
@@ -530,6 +564,8 @@ pub struct Golden {
     pub err: Option<PathBuf>,
     /// The tool table (mm).
     pub tbl: Option<PathBuf>,
+    /// The persistent parameters at program start (mm, degrees).
+    pub var: Option<PathBuf>,
 }
 
 /// Whether a program is a subroutine file (LinuxCNC's rule: a file `NAME.ngc` whose first
@@ -599,11 +635,13 @@ pub fn goldens(dir: &Path) -> Result<Vec<Golden>, String> {
         }
         let err = Some(ngc.with_extension("err")).filter(|p| p.exists());
         let tbl = Some(ngc.with_extension("tbl")).filter(|p| p.exists());
+        let var = Some(ngc.with_extension("var")).filter(|p| p.exists());
         out.push(Golden {
             ngc,
             canon,
             err,
             tbl,
+            var,
         });
     }
     if missing.is_empty() {
@@ -616,11 +654,24 @@ pub fn goldens(dir: &Path) -> Result<Vec<Golden>, String> {
     }
 }
 
-/// Runs one golden through Kerf and compares it with its committed canon output.
-pub fn check_golden(g: &Golden) -> Result<Verdict, String> {
+/// A golden read from disk, with the settings Kerf runs it with.
+#[derive(Clone, Debug)]
+pub struct LoadedGolden {
+    /// The program.
+    pub src: Vec<u8>,
+    /// rs274's standard output.
+    pub canon: String,
+    /// rs274's refusal.
+    pub refusal: Option<Refusal>,
+    /// The tool table, the parameters and the program's directory as the subroutine path.
+    pub settings: Settings,
+}
+
+/// Reads a golden's files.
+pub fn load_golden(g: &Golden) -> Result<LoadedGolden, String> {
     let read = |p: &Path| std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()));
     let src = std::fs::read(&g.ngc).map_err(|e| format!("{}: {e}", g.ngc.display()))?;
-    let canon_text = read(&g.canon)?;
+    let canon = read(&g.canon)?;
     let refusal = match &g.err {
         Some(p) => Some(
             Refusal::from_err_file(&read(p)?)
@@ -632,6 +683,29 @@ pub fn check_golden(g: &Golden) -> Result<Verdict, String> {
         Some(p) => parse_tool_table(&read(p)?)?,
         None => Vec::new(),
     };
-    let kerf = run_kerf(&src, tools, g.ngc.parent());
-    Ok(compare(&src, &kerf, &canon_text, refusal.as_ref()))
+    let mut settings = Settings {
+        tools,
+        subroutine_path: g
+            .ngc
+            .parent()
+            .map(|d| vec![d.to_path_buf()])
+            .unwrap_or_default(),
+        ..Settings::default()
+    };
+    if let Some(p) = &g.var {
+        apply_var_file(&read(p)?, &mut settings).map_err(|e| format!("{}: {e}", p.display()))?;
+    }
+    Ok(LoadedGolden {
+        src,
+        canon,
+        refusal,
+        settings,
+    })
+}
+
+/// Runs one golden through Kerf and compares it with its committed canon output.
+pub fn check_golden(g: &Golden) -> Result<Verdict, String> {
+    let l = load_golden(g)?;
+    let kerf = run_kerf_with(&l.src, l.settings);
+    Ok(compare(&l.src, &kerf, &l.canon, l.refusal.as_ref()))
 }

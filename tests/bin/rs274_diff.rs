@@ -33,11 +33,20 @@ fn canon_sh() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("rs274/canon.sh")
 }
 
-fn run_rs274(rs274_dir: &Path, program: &Path, tbl_mm: Option<&Path>) -> Result<Rs274Out, String> {
+fn run_rs274(
+    rs274_dir: &Path,
+    program: &Path,
+    tbl_mm: Option<&Path>,
+    var_mm: Option<&Path>,
+) -> Result<Rs274Out, String> {
     let mut cmd = Command::new("bash");
     cmd.arg(canon_sh()).arg(program);
-    if let Some(t) = tbl_mm {
-        cmd.arg(t);
+    match tbl_mm {
+        Some(t) => cmd.arg(t),
+        None => cmd.arg("-"),
+    };
+    if let Some(v) = var_mm {
+        cmd.arg(v);
     }
     cmd.env("KERF_RS274_DIR", rs274_dir);
     let out = cmd
@@ -73,6 +82,7 @@ fn check_goldens(rs274_dir: &Path, dir: &Path) -> Result<bool, String> {
             rs274_dir,
             &abs(&g.ngc),
             g.tbl.as_deref().map(abs).as_deref(),
+            g.var.as_deref().map(abs).as_deref(),
         )?;
         let committed = std::fs::read_to_string(&g.canon).unwrap_or_default();
         let mut drift = Vec::new();
@@ -159,7 +169,7 @@ fn ncfiles(rs274_dir: &Path, dir: &Path, tool_table: &Path) -> Result<bool, Stri
     for ngc in &files {
         let name = ngc.strip_prefix(dir).unwrap_or(ngc).display().to_string();
         let program = abs(ngc);
-        let out = run_rs274(rs274_dir, &program, Some(&tbl_mm))?;
+        let out = run_rs274(rs274_dir, &program, Some(&tbl_mm), None)?;
         let src = std::fs::read(&program).map_err(|e| format!("{}: {e}", program.display()))?;
         let kerf = run_kerf(&src, tools.clone(), program.parent());
         let refusal = (out.exit != 0).then(|| Refusal::from_stderr(out.exit, &out.stderr));

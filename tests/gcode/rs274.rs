@@ -46,21 +46,16 @@ fn every_golden_program_resolves_as_rs274_does() {
 /// rs274's output, or turning one of its arcs the other way, is a mismatch.
 #[test]
 fn a_changed_canon_move_is_a_mismatch() {
-    use kerf_tests::rs274::{compare, parse_tool_table, run_kerf};
+    use kerf_tests::rs274::{compare, load_golden, run_kerf_with};
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/ngc/basic");
     let mut mutants = 0;
     for g in goldens(&dir).unwrap_or_else(|e| panic!("{e}")) {
         if g.err.is_some() {
             continue;
         }
-        let src = std::fs::read(&g.ngc).expect("program");
-        let canon = std::fs::read_to_string(&g.canon).expect("canon");
-        let tools = g
-            .tbl
-            .as_ref()
-            .map(|p| parse_tool_table(&std::fs::read_to_string(p).expect("tbl")).expect("table"))
-            .unwrap_or_default();
-        let kerf = run_kerf(&src, tools, None);
+        let l = load_golden(&g).unwrap_or_else(|e| panic!("{e}"));
+        let (src, canon) = (l.src, l.canon);
+        let kerf = run_kerf_with(&src, l.settings);
         assert!(matches!(
             compare(&src, &kerf, &canon, None),
             Verdict::Same { .. }

@@ -2,7 +2,7 @@
 # Writes the golden files of LinuxCNC programs from LinuxCNC's standalone interpreter:
 #   tests/rs274/golden.sh tests/data/ngc/AREA/NAME.ngc [...]
 # For each NAME.ngc: NAME.canon = rs274's standard output (tests/rs274/canon.sh, with
-# NAME.tbl as the tool table when it exists); when rs274 refuses the program, NAME.err =
+# NAME.tbl as the tool table and NAME.var as the parameters when they exist); when rs274 refuses the program, NAME.err =
 # `exit N` and rs274's standard error (otherwise a stale NAME.err is removed). Never edit
 # these files by hand. rs274 comes from tests/rs274/fetch.sh ($KERF_RS274_DIR).
 set -uo pipefail
@@ -10,11 +10,12 @@ here="$(cd "$(dirname "$0")" && pwd)"
 status=0
 for program in "$@"; do
     base="${program%.ngc}"
-    tbl=()
-    [ -f "$base.tbl" ] && tbl=("$(cd "$(dirname "$base.tbl")" && pwd)/$(basename "$base.tbl")")
+    extra=(-)
+    [ -f "$base.tbl" ] && extra=("$(cd "$(dirname "$base.tbl")" && pwd)/$(basename "$base.tbl")")
+    [ -f "$base.var" ] && extra+=("$(cd "$(dirname "$base.var")" && pwd)/$(basename "$base.var")")
     abs="$(cd "$(dirname "$program")" && pwd)/$(basename "$program")"
     errtmp="$(mktemp)"
-    bash "$here/canon.sh" "$abs" "${tbl[@]}" > "$base.canon" 2> "$errtmp"
+    bash "$here/canon.sh" "$abs" "${extra[@]}" > "$base.canon" 2> "$errtmp"
     code=$?
     if [ "$code" -eq 3 ]; then
         cat "$errtmp" >&2
