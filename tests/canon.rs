@@ -21,8 +21,9 @@
 //!   second = X, axis = Y; YZ plane (G19) first = Y, second = Z, axis = X. So (first,
 //!   second, axis) is right-handed in every plane. `rotation` > 0 turns counter-clockwise
 //!   about the axis (G3), < 0 clockwise (G2); |rotation| is the number of times the arc
-//!   passes its end angle: 1 = less than one turn (a whole turn when end = start), each
-//!   more adds a full turn (G2/G3 `P`).
+//!   passes its end angle: 1 = less than one turn (a whole turn when the end angle is the
+//!   start angle, also for a spiral whose end radius differs), each more adds a full turn
+//!   (G2/G3 `P`).
 //! - `SET_FEED_RATE(f)`: units per minute in the units active when printed, or units per
 //!   spindle revolution after `SET_FEED_MODE(spindle, 1)` (G95; resolved here with the last
 //!   `SET_SPINDLE_SPEED`, as Kerf resolves it from S). Inverse time (G93) never reaches the
@@ -417,8 +418,10 @@ impl State {
         let tau = std::f64::consts::TAU;
         let mut d = if turns > 0.0 { a1 - a0 } else { a0 - a1 };
         d = d.rem_euclid(tau);
-        let chord = (rs - n * rs.dot(&n) - (re - n * re.dot(&n))).norm();
-        if chord <= tol_len {
+        // LinuxCNC makes a whole turn of an arc whose end angle is its start angle (also
+        // when the radii differ: a spiral). Within the print precision that is an angle
+        // whose arc length is below the position tolerance.
+        if d * r_start.max(r_end) <= tol_len {
             d = tau;
         }
         let sweep = (d + (turns.abs() - 1.0) * tau) * turns.signum();

@@ -156,3 +156,70 @@ fn canon_conventions_by_hand() {
     assert!((feed.end_mm - v(24.4, 3.0, 0.0)).norm() < 1e-9, "{feed:?}");
     assert!((feed.feed_mm_min.expect("feed") - 100.0).abs() < 1e-9);
 }
+
+/// rs274's refusal as it prints it (`executing`, the message, the block's text), the
+/// `NAME.err` round trip, and the classification of Kerf's errors.
+#[test]
+fn refusals_and_scope() {
+    use kerf_tests::rs274::{Refusal, out_of_scope};
+    let stderr = "executing\nCannot do g1 with zero feed rate\n  g1 x5 (no feed)\n";
+    let r = Refusal::from_stderr(1, stderr);
+    assert_eq!(r.message, "Cannot do g1 with zero feed rate");
+    assert_eq!(r.block, "  g1 x5 (no feed)");
+    assert_eq!(
+        Refusal::from_err_file(&Refusal::err_file(1, stderr)),
+        Some(r)
+    );
+    assert_eq!(Refusal::from_err_file("no status\n"), None);
+    assert_eq!(
+        out_of_scope("G38.2 is not supported: probing needs a probe input"),
+        Some("probing")
+    );
+    assert_eq!(
+        out_of_scope("G33 not supported: needs spindle synchronisation"),
+        Some("spindle-synchronised motion")
+    );
+    assert_eq!(
+        out_of_scope("U, V and W axes are not supported"),
+        Some("U/V/W axes")
+    );
+    // In scope: unfinished work and other refusals are failures, not scope.
+    assert_eq!(out_of_scope("G8 is not supported yet"), None);
+    assert_eq!(
+        out_of_scope("O-words (subroutines and loops) are not supported yet"),
+        None
+    );
+    assert_eq!(
+        out_of_scope("inverse time feed (G93) is not supported"),
+        None
+    );
+    assert_eq!(out_of_scope("Cannot do G1 with zero feed rate"), None);
+}
+
+/// The golden's side files: a LinuxCNC tool table in mm and a parameter file.
+#[test]
+fn tool_table_and_parameter_file() {
+    use kerf_tests::rs274::{apply_var_file, parse_tool_table};
+    let tools = parse_tool_table("T1 P1 Z25.4 D6 ;first\n\nT12 P3 D3.175 Z-1.5\n").expect("table");
+    assert_eq!(tools.len(), 2);
+    assert_eq!(
+        (tools[0].number, tools[0].length_mm, tools[0].radius_mm),
+        (1, 25.4, 3.0)
+    );
+    assert_eq!(
+        (tools[1].number, tools[1].length_mm, tools[1].radius_mm),
+        (12, -1.5, 1.5875)
+    );
+    assert!(parse_tool_table("T1 Zx\n").is_err());
+    let mut s = kerf_tests::Settings::default();
+    apply_var_file(
+        "5161 1\n5166 90\n5220 1\n5241 -3\n5383 7.5\n5400 0\n",
+        &mut s,
+    )
+    .expect("var");
+    assert_eq!(s.g28_home_mm_deg, [1.0, 0.0, 0.0, 0.0, 0.0, 90.0]);
+    assert_eq!(s.work_offsets_mm[1], [-3.0, 0.0, 0.0]);
+    assert_eq!(s.work_offsets_mm[8], [0.0, 0.0, 7.5]);
+    // A G54 rotation has no Kerf setting: the test must not silently drop it.
+    assert!(apply_var_file("5230 30\n", &mut s).is_err());
+}
