@@ -37,6 +37,9 @@
 //!   LinuxCNC prints as part of the end, after the end's `SET_G5X_OFFSET`, belong to it),
 //!   `MESSAGE` = MSG or DEBUG, a line that is not a canonical call = PRINT.
 //!   `CHANGE_TOOL_NUMBER` (M61) moves nothing and makes no event.
+//! - `SET_MOTION_CONTROL_MODE(CANON_EXACT_STOP)` (G61.1), `(CANON_EXACT_PATH)` (G61),
+//!   `(CANON_CONTINUOUS, tolerance)` (G64 [P], tolerance in the units active when printed,
+//!   0 without P); continuous without tolerance at start.
 //! - Calls that move the machine in a way Kerf does not model (probing, rigid tapping,
 //!   spindle-synchronised motion, NURBS) become [`CanonItem::Other`]: they never match.
 //! - Every value is printed with 4 decimals: each converted coordinate carries the sum of
@@ -59,6 +62,23 @@ pub enum MoveKind {
     Feed,
     /// `ARC_FEED`.
     Arc,
+}
+
+/// How a move joins the next (`SET_MOTION_CONTROL_MODE`, modal; LinuxCNC starts in
+/// continuous mode without a tolerance).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CanonCorner {
+    /// `CANON_EXACT_STOP` (G61.1).
+    ExactStop,
+    /// `CANON_EXACT_PATH` (G61).
+    ExactPath,
+    /// `CANON_CONTINUOUS` (G64) with its path tolerance in mm (0: none given).
+    Continuous {
+        /// Path tolerance, mm.
+        tolerance_mm: f64,
+        /// How far the printed tolerance may be from the exact one, mm (6 decimals).
+        tol_mm: f64,
+    },
 }
 
 /// The circle of an `ARC_FEED`, in machine mm.
@@ -101,6 +121,8 @@ pub struct CanonMove {
     /// How far each coordinate of the end point and the centre may be from the exact
     /// value, mm (degrees for A, B, C).
     pub tol_mm: f64,
+    /// The corner mode in force.
+    pub corner: CanonCorner,
 }
 
 /// A non-motion event.
@@ -209,6 +231,7 @@ struct State {
     spindle_rpm: f64,
     pos_mm: Vec3,
     abc_deg: [f64; 3],
+    corner: CanonCorner,
     items: Vec<CanonItem>,
     /// Index into `items` at the last `SET_G5X_OFFSET` (program end resets start there).
     last_g5x_item: usize,
@@ -264,6 +287,10 @@ impl State {
             spindle_rpm: 0.0,
             pos_mm: Vec3::zeros(),
             abc_deg: [0.0; 3],
+            corner: CanonCorner::Continuous {
+                tolerance_mm: 0.0,
+                tol_mm: 0.0,
+            },
             items: Vec::new(),
             last_g5x_item: 0,
             pallet: false,
@@ -373,6 +400,7 @@ impl State {
             feed_mm_min: feed,
             feed_tol_mm_min: feed_tol,
             tol_mm: tol_len,
+            corner: self.corner,
         }));
         Ok(())
     }
@@ -447,6 +475,7 @@ impl State {
             feed_mm_min: Some(feed),
             feed_tol_mm_min: feed_tol,
             tol_mm: tol_len,
+            corner: self.corner,
         }));
         Ok(())
     }
@@ -502,6 +531,23 @@ impl State {
             "SET_FEED_RATE" => {
                 self.feed = numbers(args, line, 1)?[0];
                 self.feed_unit_mm = self.unit_mm;
+            }
+            "SET_MOTION_CONTROL_MODE" => {
+                let (mode, tol) = args.split_once(',').unwrap_or((args, ""));
+                self.corner = match mode.trim() {
+                    "CANON_EXACT_STOP" => CanonCorner::ExactStop,
+                    "CANON_EXACT_PATH" => CanonCorner::ExactPath,
+                    "CANON_CONTINUOUS" => CanonCorner::Continuous {
+                        tolerance_mm: numbers(tol, line, 1)?[0] * self.unit_mm,
+                        tol_mm: 0.5e-6 * self.unit_mm,
+                    },
+                    other => {
+                        return Err(CanonError {
+                            line,
+                            message: format!("motion control mode {other} is not modelled"),
+                        });
+                    }
+                };
             }
             "SET_FEED_MODE" => {
                 let v = numbers(args, line, 2)?;

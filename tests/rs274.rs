@@ -3,7 +3,8 @@
 //! move and event by event.
 //!
 //! What is compared, in program order: the number of moves, their kind (rapid, feed line,
-//! arc), end points, arc centres, planes, sweeps (so turns), A/B/C, feeds, and the events
+//! arc), end points, arc centres, planes, sweeps (so turns), A/B/C, feeds, corner modes
+//! (G61/G61.1 exact stop, G64 with its P tolerance), and the events
 //! (S, T, M6, M3/M4/M5, M7/M8/M9, G4 with its time, M0/M1/M60, M2/M30, messages and
 //! prints). Lengths agree within the tolerance each canon item carries (1e-6 plus half a
 //! unit of the last printed digit of every number it comes from, in the units it was
@@ -23,10 +24,10 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use kerf_gcode::{
-    Diagnostic, Dialect, EventCode, Interpreter, Item, Path as KPath, Settings, Tool,
+    CornerMode, Diagnostic, Dialect, EventCode, Interpreter, Item, Path as KPath, Settings, Tool,
 };
 
-use crate::canon::{self, CanonItem, CanonMove, MoveKind};
+use crate::canon::{self, CanonCorner, CanonItem, CanonMove, MoveKind};
 
 /// The most items one program may yield before the harness calls it endless.
 pub const MAX_ITEMS: usize = 2_000_000;
@@ -418,6 +419,21 @@ pub fn move_difference(k: &kerf_gcode::Move, c: &CanonMove) -> Option<String> {
         if !close(ka.sweep_rad, ca.sweep_rad, sweep_tol) {
             return Some("sweep (direction or turns)".into());
         }
+    }
+    let corner_ok = match (k.corner, c.corner) {
+        // Kerf has one exact-stop mode for G61 and G61.1.
+        (CornerMode::ExactStop, CanonCorner::ExactStop | CanonCorner::ExactPath) => true,
+        (
+            CornerMode::Blend { tolerance_mm },
+            CanonCorner::Continuous {
+                tolerance_mm: t,
+                tol_mm,
+            },
+        ) => close(tolerance_mm.unwrap_or(0.0), t, tol_mm + canon::BASE_TOL),
+        _ => false,
+    };
+    if !corner_ok {
+        return Some("corner mode (G61/G61.1/G64)".into());
     }
     match (k.feed_mm_min, c.feed_mm_min) {
         (None, None) => {}
