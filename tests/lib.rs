@@ -10,6 +10,9 @@
 //! expression evaluated in `f64`.
 #![deny(missing_docs)]
 
+pub mod canon;
+pub mod rs274;
+
 use std::fmt::Write as _;
 use std::path::{Path as FsPath, PathBuf};
 

@@ -15,5 +15,6 @@ mod grammar;
 mod heidenhain;
 mod linuxcnc;
 mod rockwell;
+mod rs274;
 mod sinumerik;
 mod syntax;

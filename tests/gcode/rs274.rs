@@ -1,0 +1,225 @@
+//! Issue 9: every golden program in `tests/data/ngc/**/NAME.ngc` runs through Kerf and is
+//! compared with `NAME.canon`, the canonical calls LinuxCNC's own interpreter rs274 printed
+//! for it (`tests/rs274/golden.sh`; `NAME.err` when rs274 refused it, `NAME.tbl` for its
+//! tools). The programs are found by walking the directory. What is compared and with what
+//! tolerance: `tests/rs274.rs` and `docs/linuxcnc/harness.md`.
+
+use kerf_tests::rs274::{Verdict, check_golden, goldens};
+use kerf_tests::v;
+
+#[test]
+fn every_golden_program_resolves_as_rs274_does() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/ngc");
+    let all = goldens(&dir).unwrap_or_else(|e| panic!("{e}"));
+    assert!(!all.is_empty(), "no golden programs in {}", dir.display());
+    let mut failures = Vec::new();
+    for g in &all {
+        let name = g
+            .ngc
+            .strip_prefix(&dir)
+            .unwrap_or(&g.ngc)
+            .display()
+            .to_string();
+        match check_golden(g) {
+            Ok(v) if v.golden_ok() => {}
+            Ok(Verdict::Mismatch(why)) => failures.push(format!("{name}: mismatch: {why}")),
+            Ok(Verdict::KerfRefuses { diag }) => {
+                failures.push(format!("{name}: rs274 accepts it, Kerf refuses: {diag}"))
+            }
+            Ok(Verdict::Rs274Refuses { rs274, kerf }) => {
+                failures.push(format!("{name}: rs274 refuses it ({rs274}), Kerf {kerf}"))
+            }
+            Ok(other) => failures.push(format!("{name}: {other:?}")),
+            Err(e) => failures.push(format!("{name}: {e}")),
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} of {} golden programs differ from rs274:\n\n{}",
+        failures.len(),
+        all.len(),
+        failures.join("\n\n")
+    );
+}
+
+/// The comparison bites: moving the end of any one move of an accepted golden by 0.01 in
+/// rs274's output, or turning one of its arcs the other way, is a mismatch.
+#[test]
+fn a_changed_canon_move_is_a_mismatch() {
+    use kerf_tests::rs274::{compare, load_golden, run_kerf_with};
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/ngc/basic");
+    let mut mutants = 0;
+    for g in goldens(&dir).unwrap_or_else(|e| panic!("{e}")) {
+        if g.err.is_some() {
+            continue;
+        }
+        let l = load_golden(&g).unwrap_or_else(|e| panic!("{e}"));
+        let (src, canon) = (l.src, l.canon);
+        let kerf = run_kerf_with(&src, l.settings);
+        assert!(matches!(
+            compare(&src, &kerf, &canon, None),
+            Verdict::Same { .. }
+        ));
+        let lines: Vec<&str> = canon.lines().collect();
+        for (i, l) in lines.iter().enumerate() {
+            let Some(open) = l.find("STRAIGHT_FEED(").or_else(|| l.find("ARC_FEED(")) else {
+                continue;
+            };
+            let args_at = l[open..].find('(').expect("call") + open + 1;
+            let comma = l[args_at..].find(',').expect("args") + args_at;
+            let first: f64 = l[args_at..comma].trim().parse().expect("number");
+            let mut variants = vec![format!(
+                "{}{:.4}{}",
+                &l[..args_at],
+                first + 0.01,
+                &l[comma..]
+            )];
+            if l.contains("ARC_FEED(") {
+                let fields: Vec<&str> = l[args_at..].split(", ").collect();
+                let rot: i32 = fields[4].trim().parse().expect("rotation");
+                let flipped = fields
+                    .iter()
+                    .enumerate()
+                    .map(|(k, f)| {
+                        if k == 4 {
+                            (-rot).to_string()
+                        } else {
+                            f.to_string()
+                        }
+                    })
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                variants.push(format!("{}{}", &l[..args_at], flipped));
+            }
+            for variant in variants {
+                let mut changed = lines.clone();
+                changed[i] = &variant;
+                let text = changed.join("\n");
+                let v = compare(&src, &kerf, &text, None);
+                assert!(
+                    matches!(v, Verdict::Mismatch(_)),
+                    "{}: canon line {} changed to {variant} still compares as {v:?}",
+                    g.ngc.display(),
+                    i + 1
+                );
+                mutants += 1;
+            }
+        }
+    }
+    assert!(mutants > 50, "only {mutants} mutants");
+}
+
+/// The canon conventions, with positions worked out by hand: a G18 arc is printed
+/// (Z, X) with Y as its axis; offsets printed under G20 are inches and stay valid after
+/// G21; G92 applies before the XY rotation, G5x after it; G95 feeds are per revolution.
+#[test]
+fn canon_conventions_by_hand() {
+    use kerf_tests::canon::{CanonItem, parse};
+    use std::f64::consts::PI;
+    let text = "\
+    1 N..... USE_LENGTH_UNITS(CANON_UNITS_MM)
+    2 N..... SET_FEED_RATE(100.0000)
+    3 N..... SELECT_PLANE(CANON_PLANE_XZ)
+    4 N..... ARC_FEED(0.0000, 10.0000, 0.0000, 5.0000, -1, 0.0000, 0.0000, 0.0000, 0.0000)
+    5 N..... USE_LENGTH_UNITS(CANON_UNITS_INCHES)
+    6 N..... SET_G5X_OFFSET(1, 1.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000)
+    7 N..... USE_LENGTH_UNITS(CANON_UNITS_MM)
+    8 N..... SET_XY_ROTATION(90.0000)
+    9 N..... SET_G92_OFFSET(2.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000)
+   10 N..... STRAIGHT_TRAVERSE(1.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000)
+   11 N..... SET_FEED_MODE(0, 1)
+   12 N..... SET_FEED_RATE(0.1000)
+   13 N..... SET_SPINDLE_SPEED(0, 1000.0000)
+   14 N..... STRAIGHT_FEED(1.0000, 1.0000, 0.0000, 0.0000, 0.0000, 0.0000)
+";
+    let items = parse(text).expect("canon");
+    let CanonItem::Move(arc) = &items[0] else {
+        panic!("{items:?}")
+    };
+    let a = arc.arc.expect("an arc");
+    assert!((arc.end_mm - v(10.0, 0.0, 0.0)).norm() < 1e-9);
+    assert!((a.center_mm - v(5.0, 0.0, 0.0)).norm() < 1e-9);
+    assert!((a.axis - v(0.0, 1.0, 0.0)).norm() < 1e-9);
+    assert!((a.sweep_rad + PI).abs() < 1e-9);
+    // X = 1 + 2 (G92) = 3, turned 90° to (0, 3), plus the G5x 25.4 along X.
+    let CanonItem::Move(rapid) = &items[1] else {
+        panic!("{items:?}")
+    };
+    assert!(
+        (rapid.end_mm - v(25.4, 3.0, 0.0)).norm() < 1e-9,
+        "{rapid:?}"
+    );
+    assert_eq!(rapid.feed_mm_min, None);
+    let CanonItem::Move(feed) = &items[3] else {
+        panic!("{items:?}")
+    };
+    assert!((feed.end_mm - v(24.4, 3.0, 0.0)).norm() < 1e-9, "{feed:?}");
+    assert!((feed.feed_mm_min.expect("feed") - 100.0).abs() < 1e-9);
+}
+
+/// rs274's refusal as it prints it (`executing`, the message, the block's text), the
+/// `NAME.err` round trip, and the classification of Kerf's errors.
+#[test]
+fn refusals_and_scope() {
+    use kerf_tests::rs274::{Refusal, out_of_scope};
+    let stderr = "executing\nCannot do g1 with zero feed rate\n  g1 x5 (no feed)\n";
+    let r = Refusal::from_stderr(1, stderr);
+    assert_eq!(r.message, "Cannot do g1 with zero feed rate");
+    assert_eq!(r.block, "  g1 x5 (no feed)");
+    assert_eq!(
+        Refusal::from_err_file(&Refusal::err_file(1, stderr)),
+        Some(r)
+    );
+    assert_eq!(Refusal::from_err_file("no status\n"), None);
+    assert_eq!(
+        out_of_scope("G38.2 is not supported: probing needs a probe input"),
+        Some("probing")
+    );
+    assert_eq!(
+        out_of_scope("G33 not supported: needs spindle synchronisation"),
+        Some("spindle-synchronised motion")
+    );
+    assert_eq!(
+        out_of_scope("U, V and W axes are not supported"),
+        Some("U/V/W axes")
+    );
+    // In scope: unfinished work and other refusals are failures, not scope.
+    assert_eq!(out_of_scope("G8 is not supported yet"), None);
+    assert_eq!(
+        out_of_scope("O-words (subroutines and loops) are not supported yet"),
+        None
+    );
+    assert_eq!(
+        out_of_scope("inverse time feed (G93) is not supported"),
+        None
+    );
+    assert_eq!(out_of_scope("Cannot do G1 with zero feed rate"), None);
+}
+
+/// The golden's side files: a LinuxCNC tool table in mm and a parameter file.
+#[test]
+fn tool_table_and_parameter_file() {
+    use kerf_tests::rs274::{apply_var_file, parse_tool_table};
+    let tools = parse_tool_table("T1 P1 Z25.4 D6 ;first\n\nT12 P3 D3.175 Z-1.5\n").expect("table");
+    assert_eq!(tools.len(), 2);
+    assert_eq!(
+        (tools[0].number, tools[0].length_mm, tools[0].radius_mm),
+        (1, 25.4, 3.0)
+    );
+    assert_eq!(
+        (tools[1].number, tools[1].length_mm, tools[1].radius_mm),
+        (12, -1.5, 1.5875)
+    );
+    assert!(parse_tool_table("T1 Zx\n").is_err());
+    let mut s = kerf_tests::Settings::default();
+    apply_var_file(
+        "5161 1\n5166 90\n5220 1\n5241 -3\n5383 7.5\n5400 0\n",
+        &mut s,
+    )
+    .expect("var");
+    assert_eq!(s.g28_home_mm_deg, [1.0, 0.0, 0.0, 0.0, 0.0, 90.0]);
+    assert_eq!(s.work_offsets_mm[1], [-3.0, 0.0, 0.0]);
+    assert_eq!(s.work_offsets_mm[8], [0.0, 0.0, 7.5]);
+    // A G54 rotation has no Kerf setting: the test must not silently drop it.
+    assert!(apply_var_file("5230 30\n", &mut s).is_err());
+}
