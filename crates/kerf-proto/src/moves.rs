@@ -430,9 +430,14 @@ impl MoveMsg {
         m.feed_mm_min = mv.feed_mm_min.unwrap_or(0.0);
         match mv.corner {
             CornerMode::ExactStop => m.corner = CORNER_EXACT_STOP,
-            CornerMode::Blend { tolerance_mm: None } => m.corner = CORNER_BLEND_DEFAULT,
+            // The naive-CAM tolerance (LinuxCNC G64 Q) is not carried on the wire: the
+            // planner does not use it (see kerf_geom::CornerMode).
+            CornerMode::Blend {
+                tolerance_mm: None, ..
+            } => m.corner = CORNER_BLEND_DEFAULT,
             CornerMode::Blend {
                 tolerance_mm: Some(t),
+                ..
             } => {
                 m.corner = CORNER_BLEND_TOLERANCE;
                 m.tolerance_mm = t;
@@ -684,13 +689,17 @@ impl TryFrom<&MoveMsg> for Resolved {
                 }
                 let corner = match m.corner {
                     CORNER_EXACT_STOP => CornerMode::ExactStop,
-                    CORNER_BLEND_DEFAULT => CornerMode::Blend { tolerance_mm: None },
+                    CORNER_BLEND_DEFAULT => CornerMode::Blend {
+                        tolerance_mm: None,
+                        naive_cam_mm: None,
+                    },
                     CORNER_BLEND_TOLERANCE => {
                         if m.tolerance_mm < 0.0 {
                             return Err(Reject::NegativeTolerance);
                         }
                         CornerMode::Blend {
                             tolerance_mm: Some(m.tolerance_mm),
+                            naive_cam_mm: None,
                         }
                     }
                     other => return Err(Reject::UnknownCorner(other)),

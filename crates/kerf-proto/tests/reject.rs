@@ -22,6 +22,7 @@ fn line() -> MoveMsg {
             abc_deg: None,
             corner: CornerMode::Blend {
                 tolerance_mm: Some(0.01),
+                naive_cam_mm: None,
             },
         },
     )

@@ -4,7 +4,7 @@
 use std::path::{Path as FsPath, PathBuf};
 
 use kerf_gcode::{Dialect, Interpreter, Item, Settings};
-use kerf_geom::{CornerMode, Path};
+use kerf_geom::{CornerMode, Move, Path};
 use kerf_proto::{MoveMsg, Resolved, StreamCheck};
 
 fn workspace() -> PathBuf {
@@ -55,7 +55,9 @@ fn round_trip(name: &str, text: &[u8], dialect: Dialect, program_id: u64) -> Vec
             .unwrap_or_else(|e| panic!("{name} item {seq} {item:?}: {e}"));
         assert_eq!(alone, in_stream);
         match (item, alone) {
-            (Item::Move(a), Resolved::Move(b)) => assert_eq!(*a, b, "{name} item {seq}"),
+            (Item::Move(a), Resolved::Move(b)) => {
+                assert_eq!(without_naive_cam(*a), b, "{name} item {seq}")
+            }
             (Item::Event(a), Resolved::Event(b)) => assert_eq!(*a, b, "{name} item {seq}"),
             (a, b) => panic!("{name} item {seq}: {a:?} decoded as {b:?}"),
         }
@@ -64,6 +66,15 @@ fn round_trip(name: &str, text: &[u8], dialect: Dialect, program_id: u64) -> Vec
     assert!(matches!(check.check(&end), Ok(Resolved::End { .. })));
     assert_eq!(check.program_id(), None);
     items
+}
+
+/// The move as the wire carries it: the naive-CAM tolerance (LinuxCNC G64 Q) is not in
+/// MoveMsg (PROTOCOL.md), since the planner does not use it yet.
+fn without_naive_cam(mut m: Move) -> Move {
+    if let CornerMode::Blend { naive_cam_mm, .. } = &mut m.corner {
+        *naive_cam_mm = None;
+    }
+    m
 }
 
 #[test]
@@ -112,13 +123,19 @@ fn rotary_axes_tolerances_and_exact_stop_round_trip() {
     assert_eq!(
         corners,
         [
+            // LinuxCNC: the naive-CAM tolerance is P when Q is absent.
             CornerMode::Blend {
-                tolerance_mm: Some(0.05)
+                tolerance_mm: Some(0.05),
+                naive_cam_mm: Some(0.05)
             },
             CornerMode::ExactStop,
-            CornerMode::Blend { tolerance_mm: None },
             CornerMode::Blend {
-                tolerance_mm: Some(0.0)
+                tolerance_mm: None,
+                naive_cam_mm: None
+            },
+            CornerMode::Blend {
+                tolerance_mm: Some(0.0),
+                naive_cam_mm: Some(0.0)
             },
         ]
     );
