@@ -453,7 +453,7 @@ fn linuxcnc_words_no_code_uses_are_errors() {
 #[test]
 fn other_dialects_refuse_words_they_would_drop() {
     let zero = settings_with_tool(1, 0.0, 0.0);
-    let long = settings_with_tool(1, 50.0, 0.0);
+    let radius = settings_with_tool(1, 0.0, 2.0);
     let cases: Vec<(Dialect, Settings, &str, u32, u32, &str)> = vec![
         // Rockwell: P is the G04 dwell only, Q no code uses, D only with G41/G42, H with G49.
         (
@@ -489,7 +489,7 @@ fn other_dialects_refuse_words_they_would_drop() {
             "H word",
         ),
         // Sinumerik: H auxiliary functions go to the machine's logic; D selects the
-        // tool's offsets (here a 50 mm length Kerf would not apply).
+        // tool's offsets (here a 2 mm radius Kerf would not apply).
         (
             Dialect::Sinumerik,
             Settings::default(),
@@ -500,7 +500,7 @@ fn other_dialects_refuse_words_they_would_drop() {
         ),
         (
             Dialect::Sinumerik,
-            long.clone(),
+            radius.clone(),
             "T1 D1\n",
             1,
             4,
@@ -509,7 +509,7 @@ fn other_dialects_refuse_words_they_would_drop() {
         // Fagor: the same D rule; G30 takes I/J only.
         (
             Dialect::Fagor,
-            long,
+            radius,
             "T1 D1\n",
             1,
             4,
@@ -557,6 +557,33 @@ fn other_dialects_refuse_words_they_would_drop() {
             "{d:?} {src:?}: got {e}, want {line}:{col} {msg:?}"
         );
     }
+    // Sinumerik, Heidenhain and Fagor apply the called tool's length: Kerf does not, so a
+    // call of a tool with a length is refused (a zero length is fine).
+    for (d, src, col) in [
+        (Dialect::Sinumerik, "G1 X1 F100\nT1\n", 1),
+        (Dialect::Fagor, "G1 X1 F100\nT1 M6\n", 1),
+    ] {
+        let e = error_with(d, settings_with_tool(1, 50.0, 0.0), src);
+        assert!(
+            e.line == 2 && e.col == col && e.message.contains("tool length compensation"),
+            "{d:?}: {e}"
+        );
+    }
+    let e = error(
+        Dialect::Heidenhain,
+        "%A G71 *\nG99 T1 L+10 R+0 *\nT1 G17 *\n",
+    );
+    assert!(
+        e.line == 3 && e.message.contains("tool length compensation"),
+        "{e}"
+    );
+    assert!(
+        run(
+            Dialect::Heidenhain,
+            "%A G71 *\nG99 T1 L+0 R+0 *\nT1 G17 *\n"
+        )
+        .is_ok()
+    );
     // D0, or D1 with a tool without offsets, changes nothing and is accepted.
     assert!(run_with(Dialect::Sinumerik, zero.clone(), "T1 D1\nD0\n").is_ok());
     assert!(run_with(Dialect::Fagor, zero, "T1 D1\n").is_ok());

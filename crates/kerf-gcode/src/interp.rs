@@ -566,6 +566,20 @@ impl State {
                     // T with automatic change) makes the tool current.
                     self.tool_loaded = Some(n);
                 }
+                if matches!(d, Dialect::Sinumerik | Dialect::Heidenhain | Dialect::Fagor)
+                    && let Some(tool) = self.tool(Some(n)).filter(|t| t.length_mm != 0.0)
+                {
+                    // These controls apply the called tool's length (Sinumerik with D1
+                    // active after the change); Kerf does not, so it refuses the call
+                    // rather than cut at the wrong depth.
+                    return fail(
+                        blk.col(KT),
+                        format!(
+                            "tool length compensation is not supported (tool {} has a non-zero length)",
+                            tool.number
+                        ),
+                    );
+                }
                 out.event(EventCode::T, Some(f64::from(n)));
             }
         }

@@ -64,7 +64,10 @@
 //!   need but Kerf cannot act on is an error naming it, never dropped: words no code of
 //!   the block uses, tool offset words Kerf does not apply (D, H), axis words of a block
 //!   whose axes belong to a non-motion code together with a motion code, and the extra
-//!   words of Heidenhain G99/G30 and Fagor G30 blocks (each dialect below).
+//!   words of Heidenhain G99/G30 and Fagor G30 blocks (each dialect below). Sinumerik,
+//!   Heidenhain and Fagor apply the length of a called tool; Kerf does not, so a T word
+//!   calling a tool with a non-zero length in the tool table is the error "tool length
+//!   compensation is not supported (tool N has a non-zero length)".
 //! - A dwell is the event `G4` with its time in seconds, after the block's spindle and
 //!   coolant events and before its motion (LinuxCNC's order of execution); the motion
 //!   before it comes to an exact stop and waits. A G4 without a time word (accepted
