@@ -41,7 +41,9 @@
 //! Code map: `lex` (bytes to words, per-dialect syntax), `codes` (word keys, G/M code
 //! tables and modal groups of each dialect), `interp` (modal state, block execution,
 //! events), `interp::geometry` (end points, poles, polar coordinates, arcs of one motion
-//! block), `arc` (exact arc construction and the end-point tolerance rules).
+//! block), `interp::modal` (LinuxCNC feed modes, G64 P Q, M70–M73 and their subroutine
+//! hooks, user M codes, spindle and coolant state), `arc` (exact arc construction and the
+//! end-point tolerance rules).
 //!
 //! # Common rules (all dialects)
 //!
