@@ -640,3 +640,15 @@ fn block_delete_and_unsupported_modal_codes() {
     let d = error(D, "G96 S100\n");
     assert_diag(&d, 1, 1, &["G96", "not supported"]);
 }
+
+#[test]
+fn m6_runs_before_g43_in_one_block() {
+    // rs274 (T1 length 10): `T1 M6 G43 G1 X1 Z0` is CHANGE_TOOL(1), then
+    // USE_TOOL_LENGTH_OFFSET(0 0 10), then STRAIGHT_FEED(1, 0, 0): the new tool's length.
+    let ms = moves_with(
+        D,
+        settings_with_tool(1, 10.0, 3.0),
+        "G21 F100\nT1 M6 G43 G1 X1 Z0\n",
+    );
+    assert_feed_line(&ms[0], v(0.0, 0.0, 0.0), v(1.0, 0.0, 10.0), 100.0);
+}
