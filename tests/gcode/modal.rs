@@ -636,6 +636,12 @@ fn block_delete_and_unsupported_modal_codes() {
     // rs274: "Bad character '/' used" in the middle of a line.
     let d = error(D, "G1 X2 /Y3 F10\n");
     assert_eq!((d.line, d.col), (1, 7), "{d}");
+    // rs274: spaces may come first, a comment or an N word may not ("Bad character '/'").
+    assert_eq!(moves(D, " /G1 X5 F10\n").len(), 0);
+    for (src, col) in [("(c) /G1 X1 F1\n", 5), ("N10 /G1 X1 F1\n", 5)] {
+        let d = error(D, src);
+        assert_eq!((d.line, d.col), (1, col), "{src:?}: {d}");
+    }
     // Constant surface speed is refused.
     let d = error(D, "G96 S100\n");
     assert_diag(&d, 1, 1, &["G96", "not supported"]);

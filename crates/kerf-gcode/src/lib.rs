@@ -88,7 +88,9 @@
 //!   block"), so an axis, centre or polar word there is an error, never dropped.
 //! - Block delete `/` at the start of a block skips the block (it is not even checked):
 //!   Kerf's block delete switch is on. (rs274 run without `-b`, as `tests/rs274/canon.sh`
-//!   runs it, has the switch off and runs such blocks.)
+//!   runs it, has the switch off and runs such blocks.) In LinuxCNC the `/` must be the
+//!   first character of the line, spaces aside: after a comment, an N word or any word it
+//!   is an error, as in rs274 ("Bad character '/' used").
 //! - Cutter compensation G41/G42 is accepted only while the active tool's radius is zero
 //!   (tool table in [`Settings`]; the tool is the last T, or the LinuxCNC D word); with a
 //!   non-zero radius it is the error "cutter compensation not supported", never a
