@@ -316,6 +316,14 @@ fn m72_restores_spindle_and_coolant_as_rs274_does() {
     assert_eq!(ev("M8\nM70\nM9\nM7\nM72\n"), ["M8"]);
     assert_eq!(ev("M7\nM8\nM70\nM9\nM72\n"), ["M7", "M8"]);
     assert_eq!(ev("M3 S100\nM70\nM4\nM5\nM72\n"), ["M3"]);
+    // No S before M70 is speed 0 (rs274: SET_SPINDLE_SPEED(0) at the M72).
+    let restored: Vec<(String, Option<f64>)> =
+        only_events(&items_of("G21\nM70\nS300\nG4 P0\nM72\n"))
+            .into_iter()
+            .filter(|e| e.line == 5)
+            .map(|e| (e.code.as_str().to_string(), e.value))
+            .collect();
+    assert_eq!(restored, [("S".to_string(), Some(0.0))]);
 }
 
 fn items_of(src: &str) -> Vec<Item> {

@@ -341,10 +341,10 @@ impl State {
             self.feed_mm_min = s.feed_mm_min;
             self.feed_mm_rev = s.feed_mm_rev;
         }
-        if s.spindle_rpm != self.spindle_rpm
-            && let Some(rpm) = s.spindle_rpm
-        {
-            out.event(EventCode::S, Some(rpm));
+        // No S programmed is LinuxCNC's speed 0.
+        let saved_rpm = s.spindle_rpm.unwrap_or(0.0);
+        if saved_rpm != self.spindle_rpm.unwrap_or(0.0) {
+            out.event(EventCode::S, Some(saved_rpm));
         }
         self.spindle_rpm = s.spindle_rpm;
         if s.spindle != self.spindle {
