@@ -592,6 +592,9 @@ impl State {
             EventCode::M8,
             EventCode::M9,
         ] {
+            if blk.nm == 0 {
+                break;
+            }
             if ev == EventCode::M7
                 && let Some((op, col)) = state_op
             {
@@ -844,36 +847,34 @@ impl State {
             // G700/G710 make F follow the geometry unit.
             self.feed_inch = feed_too && inch;
         }
-        // Heidenhain may repeat G90/G91 in a block; the slot holds the last one, which
-        // stays modal.
-        for (g, _) in slots.iter().flatten().copied() {
-            if let G::Distance { absolute } = g {
-                self.absolute = absolute;
-            }
-            if let G::ArcDistance { absolute } = g {
-                self.arc_absolute = absolute;
-            }
-            if let G::Plane(p) = g
-                && p != self.plane
-            {
-                self.set_plane(p);
-            }
-            if let G::Corner { exact } = g {
-                self.corner = if exact {
-                    CornerMode::ExactStop
-                } else if d == Dialect::LinuxCnc {
-                    self.g64_corner(blk)?
-                } else {
-                    CornerMode::Blend {
-                        tolerance_mm: None,
-                        naive_cam_mm: None,
-                    }
-                };
-            }
-            if let G::CoordSystem(cs) = g {
-                self.coord_system = cs;
-                self.update_origin();
-            }
+        // Each group's slot is read directly (a plain move has none of them). Heidenhain
+        // may repeat G90/G91 in a block; the slot holds the last one, which stays modal.
+        if let Some((G::Plane(p), _)) = slots[2]
+            && p != self.plane
+        {
+            self.set_plane(p);
+        }
+        if let Some((G::Distance { absolute }, _)) = slots[GROUP_DISTANCE] {
+            self.absolute = absolute;
+        }
+        if let Some((G::ArcDistance { absolute }, _)) = slots[5] {
+            self.arc_absolute = absolute;
+        }
+        if let Some((G::CoordSystem(cs), _)) = slots[8] {
+            self.coord_system = cs;
+            self.update_origin();
+        }
+        if let Some((G::Corner { exact }, _)) = slots[9] {
+            self.corner = if exact {
+                CornerMode::ExactStop
+            } else if d == Dialect::LinuxCnc {
+                self.g64_corner(blk)?
+            } else {
+                CornerMode::Blend {
+                    tolerance_mm: None,
+                    naive_cam_mm: None,
+                }
+            };
         }
         Ok(())
     }
@@ -884,6 +885,7 @@ impl State {
     /// apply: D0 (no offsets) is accepted, and D1 and up only while the active tool has a
     /// zero length and radius. Sinumerik H words are auxiliary functions for the machine's
     /// logic, which Kerf does not have: an error.
+    #[inline]
     fn check_tool_offset_words(
         &self,
         blk: &Block,

@@ -4,6 +4,7 @@ use std::f64::consts::TAU;
 
 use kerf_geom::{CornerMode, Line, Move, Path, Vec3};
 
+use super::modal::MoveFeed;
 use super::{Block, ExecError, MM_PER_INCH, Out, State, fail};
 use crate::arc::{self, ArcError, Tolerance};
 use crate::codes::*;
@@ -345,7 +346,11 @@ impl State {
         if !finite_path || !abc_end.iter().all(|x| x.is_finite()) {
             return fail(blk.first_col, "coordinate out of range");
         }
-        let feed = feed.map(|f| self.feed_rate_mm_min(f, &path, self.abc, abc_end));
+        let feed = match feed {
+            Some(MoveFeed::MmMin(f)) => Some(f),
+            Some(f) => Some(self.feed_rate_mm_min(f, &path, self.abc, abc_end)),
+            None => None,
+        };
         out.items.push(Item::Move(Move {
             line: out.line,
             rapid,

@@ -79,7 +79,7 @@ pub(crate) struct ModalFrame {
 
 /// How a feed move's feed is given.
 #[derive(Clone, Copy, Debug)]
-pub(super) enum MoveFeed {
+pub(crate) enum MoveFeed {
     /// A rate, mm/min.
     MmMin(f64),
     /// G93: the inverse of the move's time, 1/min.
@@ -130,6 +130,7 @@ impl State {
     }
 
     /// The feed of a feed move of this block, or LinuxCNC's error.
+    #[inline]
     pub(super) fn move_feed(
         &self,
         blk: &Block,
@@ -175,6 +176,7 @@ impl State {
     /// Inverse time: the move's length times F, where the length is the XYZ path length,
     /// or the rotary axes' distance in degrees for a rotary-only move, as LinuxCNC
     /// measures it; at least 0.1 program units per minute, as in LinuxCNC.
+    #[inline]
     pub(super) fn feed_rate_mm_min(
         &self,
         feed: MoveFeed,
