@@ -112,6 +112,16 @@ fn m70_saves_the_state_after_f_and_before_the_g_codes_of_its_block() {
     let ms = moves(D, "G21 G90 F100\nM70 G20 G91 F7\nG1 X1\nM72\nG1 X20\n");
     assert_feed_line(&ms[0], v(0.0, 0.0, 0.0), v(25.4, 0.0, 0.0), 7.0);
     assert_feed_line(&ms[1], v(25.4, 0.0, 0.0), v(20.0, 0.0, 0.0), 7.0);
+    // F and S run before M72: the restored values win (rs274: SET_FEED_RATE(50),
+    // SET_SPINDLE_SPEED(500), then SET_FEED_RATE(100), SET_SPINDLE_SPEED(1000)).
+    let items = items_of("G21 F100 S1000\nM70\nF50 S500 M72\nG1 X1\n");
+    let line3: Vec<Option<f64>> = only_events(&items)
+        .into_iter()
+        .filter(|e| e.line == 3)
+        .map(|e| e.value)
+        .collect();
+    assert_eq!(line3, [Some(500.0), Some(1000.0)]);
+    assert_eq!(only_moves(&items)[0].feed_mm_min, Some(100.0));
     // M72 before the block's G codes: `M72 G91` ends incremental.
     let ms = moves(D, "G21 G90 F100\nM70\nM72 G91 G1 X1\nX1\n");
     assert_feed_line(&ms[0], v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), 100.0);
