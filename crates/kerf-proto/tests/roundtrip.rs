@@ -4,7 +4,7 @@
 use std::path::{Path as FsPath, PathBuf};
 
 use kerf_gcode::{Dialect, Interpreter, Item, Settings};
-use kerf_geom::{CornerMode, Move, Path};
+use kerf_geom::{CornerMode, Path};
 use kerf_proto::{MoveMsg, Resolved, StreamCheck};
 
 fn workspace() -> PathBuf {
@@ -55,9 +55,7 @@ fn round_trip(name: &str, text: &[u8], dialect: Dialect, program_id: u64) -> Vec
             .unwrap_or_else(|e| panic!("{name} item {seq} {item:?}: {e}"));
         assert_eq!(alone, in_stream);
         match (item, alone) {
-            (Item::Move(a), Resolved::Move(b)) => {
-                assert_eq!(without_naive_cam(*a), b, "{name} item {seq}")
-            }
+            (Item::Move(a), Resolved::Move(b)) => assert_eq!(*a, b, "{name} item {seq}"),
             (Item::Event(a), Resolved::Event(b)) => assert_eq!(*a, b, "{name} item {seq}"),
             (a, b) => panic!("{name} item {seq}: {a:?} decoded as {b:?}"),
         }
@@ -66,15 +64,6 @@ fn round_trip(name: &str, text: &[u8], dialect: Dialect, program_id: u64) -> Vec
     assert!(matches!(check.check(&end), Ok(Resolved::End { .. })));
     assert_eq!(check.program_id(), None);
     items
-}
-
-/// The move as the wire carries it: the naive-CAM tolerance (LinuxCNC G64 Q) is not in
-/// MoveMsg (PROTOCOL.md), since the planner does not use it yet.
-fn without_naive_cam(mut m: Move) -> Move {
-    if let CornerMode::Blend { naive_cam_mm, .. } = &mut m.corner {
-        *naive_cam_mm = None;
-    }
-    m
 }
 
 #[test]
