@@ -14,6 +14,7 @@ mod fuzz;
 mod grammar;
 mod heidenhain;
 mod linuxcnc;
+mod modal;
 mod rockwell;
 mod rs274;
 mod sinumerik;

@@ -295,16 +295,31 @@ fn corner_modes_g61_g64_and_one_block_g09() {
         D,
         "G01 X1 F100 ;\nG09 X2 ;\nX3 ;\nG61 X4 ;\nX5 ;\nG64 X6 ;\n",
     );
-    assert_eq!(ms[0].corner, CornerMode::Blend { tolerance_mm: None });
+    assert_eq!(
+        ms[0].corner,
+        CornerMode::Blend {
+            tolerance_mm: None,
+            naive_cam_mm: None
+        }
+    );
     assert_eq!(ms[1].corner, CornerMode::ExactStop);
     assert_eq!(
         ms[2].corner,
-        CornerMode::Blend { tolerance_mm: None },
+        CornerMode::Blend {
+            tolerance_mm: None,
+            naive_cam_mm: None
+        },
         "G09 is one block"
     );
     assert_eq!(ms[3].corner, CornerMode::ExactStop);
     assert_eq!(ms[4].corner, CornerMode::ExactStop, "G61 is modal");
-    assert_eq!(ms[5].corner, CornerMode::Blend { tolerance_mm: None });
+    assert_eq!(
+        ms[5].corner,
+        CornerMode::Blend {
+            tolerance_mm: None,
+            naive_cam_mm: None
+        }
+    );
 }
 
 #[test]

@@ -67,13 +67,24 @@ pub(crate) enum G {
     NoMotion,
     Dwell,
     Plane(Plane),
-    Units { inch: bool, feed_too: bool },
-    Distance { absolute: bool },
-    ArcDistance { absolute: bool },
+    Units {
+        inch: bool,
+        feed_too: bool,
+    },
+    Distance {
+        absolute: bool,
+    },
+    ArcDistance {
+        absolute: bool,
+    },
     Comp(Comp),
-    ToolLength { on: bool },
+    ToolLength {
+        on: bool,
+    },
     CoordSystem(Option<usize>),
-    Corner { exact: bool },
+    Corner {
+        exact: bool,
+    },
     ExactStopOnce,
     G92Set,
     G92Reset,
@@ -81,6 +92,8 @@ pub(crate) enum G {
     G92Restore,
     MachineCoords,
     FeedPerMinute,
+    /// LinuxCNC G93/G94/G95.
+    FeedMode(crate::interp::FeedMode),
     Pole(PoleRef),
     PoleFromLast,
     PolarOrigin,
@@ -127,7 +140,7 @@ pub(crate) fn group(g: G) -> usize {
         G::CoordSystem(_) => 8,
         G::Corner { .. } => 9,
         G::ExactStopOnce => 10,
-        G::FeedPerMinute => 11,
+        G::FeedPerMinute | G::FeedMode(_) => 11,
         G::AbsCentreOnce => 12,
         G::Dwell
         | G::G92Set
@@ -193,9 +206,9 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
             921 => G92Reset,
             922 => G92Suspend,
             923 => G92Restore,
-            930 => Unsupported("inverse time feed (G93) is not supported"),
-            940 => FeedPerMinute,
-            950 => Unsupported("feed per revolution (G95) is not supported"),
+            930 => FeedMode(crate::interp::FeedMode::InverseTime),
+            940 => FeedMode(crate::interp::FeedMode::PerMinute),
+            950 => FeedMode(crate::interp::FeedMode::PerRev),
             970 | 980 | 990 => NoOp,
             50
             | 51

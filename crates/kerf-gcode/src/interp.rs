@@ -8,7 +8,11 @@ use crate::lex::{Form, K_AP, K_AT, K_CARET, K_CR, K_RP, K_TURN, N_KEYS, Word};
 use crate::{Dialect, Event, EventCode, Item, Settings, Tool};
 
 mod geometry;
+mod modal;
 pub(crate) mod params;
+
+pub(crate) use modal::FeedMode;
+use modal::{ModalFrame, Spindle, StateOp};
 
 const MM_PER_INCH: f64 = 25.4;
 
@@ -117,8 +121,21 @@ pub(crate) struct State {
     comp: Comp,
     tool_selected: Option<u32>,
     tool_loaded: Option<u32>,
-    /// The last programmed spindle speed, rpm (Sinumerik `G4 S` dwells in revolutions).
+    /// The last programmed spindle speed, rpm (Sinumerik `G4 S` dwells in revolutions;
+    /// LinuxCNC G95 feeds per revolution of it).
     spindle_rpm: Option<f64>,
+    /// LinuxCNC feed mode G93/G94/G95.
+    feed_mode: FeedMode,
+    /// LinuxCNC G95: the feed per spindle revolution, mm.
+    feed_mm_rev: Option<f64>,
+    /// The spindle (M3/M4/M5) and coolant (M7, M8; M9 both off) as programmed.
+    spindle: Spindle,
+    mist: bool,
+    flood: bool,
+    /// LinuxCNC M70–M73: the saved modal state of each call level (the program first).
+    modal_frames: Vec<ModalFrame>,
+    /// G43 is in force (G49 not).
+    tool_length_on: bool,
     tool_length_mm: f64,
     coord_system: Option<usize>,
     g92_mm: [f64; 3],
@@ -192,10 +209,20 @@ impl State {
             plane: Plane::Xy,
             motion,
             feed_mm_min: None,
-            corner: CornerMode::Blend { tolerance_mm: None },
+            corner: CornerMode::Blend {
+                tolerance_mm: None,
+                naive_cam_mm: None,
+            },
             comp: Comp::Off,
             tool_selected: None,
             spindle_rpm: None,
+            feed_mode: FeedMode::PerMinute,
+            feed_mm_rev: None,
+            spindle: Spindle::Off,
+            mist: false,
+            flood: false,
+            modal_frames: Vec::new(),
+            tool_length_on: false,
             tool_loaded: None,
             tool_length_mm: 0.0,
             coord_system,
@@ -408,6 +435,16 @@ impl State {
         }
         if matches!(slots[0], Some((G::BlankForm, _))) {
             // Heidenhain G30/G31 describe the blank for the control's graphics: no motion.
+            // Anything else in the block would be dropped: an error instead.
+            if let Some(&(_, col)) = blk.ms[..blk.nm].first() {
+                return fail(col, "a blank form block (G30/G31) holds no M codes");
+            }
+            if let Some(k) = blk.first_of(&[KF, KS, KT]) {
+                return fail(
+                    blk.col(k),
+                    format!("a blank form block (G30/G31) holds no {} word", key_name(k)),
+                );
+            }
             return Ok(());
         }
         let slot = |grp: usize| slots[grp];
@@ -416,16 +453,39 @@ impl State {
         let mut m_pre: [Option<EventCode>; 8] = [None; 8];
         let mut m_post: [Option<EventCode>; 8] = [None; 8];
         let mut m_groups = 0u8;
+        let mut state_op: Option<(StateOp, u32)> = None;
+        let mut user_m: Option<u8> = None;
         for (i, &(code, col)) in blk.ms[..blk.nm].iter().enumerate() {
-            let Some(ev) = m_event(code) else {
-                return fail(col, format!("unknown M code M{code}"));
+            let ev = match (m_event(code), self.linuxcnc_m(code)) {
+                (Some(ev), _) | (None, Some(Ok(ev))) => ev,
+                (None, Some(Err(op))) => {
+                    // LinuxCNC keeps M70–M73 in the spindle group (M3 M70 is refused).
+                    if m_groups & 4 != 0 {
+                        return fail(col, "two M codes used from same modal group");
+                    }
+                    m_groups |= 4;
+                    state_op = Some((op, col));
+                    continue;
+                }
+                (None, None) => return fail(col, format!("unknown M code M{code}")),
             };
+            if let EventCode::User(n) = ev {
+                if user_m.is_some() {
+                    return fail(col, "two M codes used from same modal group");
+                }
+                user_m = Some(n);
+                continue;
+            }
             // Modal groups of M codes (stop, tool change, spindle, coolant): at most one
             // of each per block, except that mist (M7) and flood (M8) may be turned on together.
             let grp = match ev {
-                EventCode::M0 | EventCode::M1 | EventCode::M2 | EventCode::M30 => 1,
+                EventCode::M0 | EventCode::M1 | EventCode::M2 | EventCode::M30 | EventCode::M60 => {
+                    1
+                }
                 EventCode::M6 => 2,
                 EventCode::M3 | EventCode::M4 | EventCode::M5 => 4,
+                // LinuxCNC (rs274) refuses M7 and M8 in one block: one coolant group.
+                EventCode::M7 | EventCode::M8 if d == Dialect::LinuxCnc => 8 | 16,
                 EventCode::M7 => 8,
                 EventCode::M8 => 16,
                 _ => 8 | 16,
@@ -435,7 +495,9 @@ impl State {
             }
             m_groups |= grp;
             let after = match ev {
-                EventCode::M0 | EventCode::M1 | EventCode::M2 | EventCode::M30 => true,
+                EventCode::M0 | EventCode::M1 | EventCode::M2 | EventCode::M30 | EventCode::M60 => {
+                    true
+                }
                 // TNC: M5 and M9 take effect at the end of the block, M3/M4/M8 at its start.
                 EventCode::M5 | EventCode::M9 => d == Dialect::Heidenhain,
                 _ => false,
@@ -447,54 +509,12 @@ impl State {
             }
         }
 
-        // Units first: every value in the block is read in the new unit.
-        if let Some((G::Units { inch, feed_too }, _)) = slot(3) {
-            self.inch = inch;
-            // Sinumerik G70/G71 leave F in the basic unit of the control (mm); only
-            // G700/G710 make F follow the geometry unit.
-            self.feed_inch = feed_too && inch;
-        }
-        // Heidenhain may repeat G90/G91 in a block; the slot holds the last one, which
-        // stays modal.
-        for (g, _) in slots.iter().flatten().copied() {
-            if let G::Distance { absolute } = g {
-                self.absolute = absolute;
-            }
-            if let G::ArcDistance { absolute } = g {
-                self.arc_absolute = absolute;
-            }
-            if let G::Plane(p) = g
-                && p != self.plane
-            {
-                self.plane = p;
-                // A plane change forgets the Sinumerik polar values and the Fagor polar
-                // origin, as their manuals say.
-                self.rp_mm = None;
-                self.ap_deg = None;
-                self.polar_origin = None;
-                self.polar_last = None;
-            }
-            if let G::Corner { exact } = g {
-                self.corner = if exact {
-                    CornerMode::ExactStop
-                } else if d == Dialect::LinuxCnc {
-                    CornerMode::Blend {
-                        tolerance_mm: match blk.get(KP) {
-                            Some(p) if p < 0.0 => {
-                                return fail(blk.col(KP), "negative P word with G64");
-                            }
-                            Some(p) => Some(p * self.scale()),
-                            None => None,
-                        },
-                    }
-                } else {
-                    CornerMode::Blend { tolerance_mm: None }
-                };
-            }
-            if let G::CoordSystem(cs) = g {
-                self.coord_system = cs;
-                self.update_origin();
-            }
+        // LinuxCNC sets the modes after F, S, T, the M codes and the dwell (its order of
+        // execution: `G20 F40` is 40 mm/min); the other controls read every value of the
+        // block in its new unit.
+        let linuxcnc = d == Dialect::LinuxCnc;
+        if !linuxcnc {
+            self.apply_modes(&slots, blk)?;
         }
 
         // Dwell: the time word is checked here, before F and S are read, because on
@@ -507,13 +527,23 @@ impl State {
         };
         let dwell_word = dwell_checked.and_then(|(word, _)| word);
 
-        // Feed.
+        // Feed mode (LinuxCNC), then feed.
+        if let Some((G::FeedMode(m), _)) = slot(11) {
+            self.set_feed_mode(m);
+        }
         if let Some(f) = blk.get(KF).filter(|_| dwell_word != Some(KF)) {
             if f < 0.0 {
+                if linuxcnc {
+                    return fail(blk.col(KF), "Negative F word used");
+                }
                 return fail(blk.col(KF), "negative F word");
             }
-            let s = if self.feed_inch { MM_PER_INCH } else { 1.0 };
-            self.feed_mm_min = Some(f * s);
+            if linuxcnc {
+                self.set_feed_word(f);
+            } else {
+                let s = if self.feed_inch { MM_PER_INCH } else { 1.0 };
+                self.feed_mm_min = Some(f * s);
+            }
         }
 
         // Spindle, tool and coolant events run before the motion of the block.
@@ -536,6 +566,20 @@ impl State {
                     // T with automatic change) makes the tool current.
                     self.tool_loaded = Some(n);
                 }
+                if matches!(d, Dialect::Sinumerik | Dialect::Heidenhain | Dialect::Fagor)
+                    && let Some(tool) = self.tool(Some(n)).filter(|t| t.length_mm != 0.0)
+                {
+                    // These controls apply the called tool's length (Sinumerik with D1
+                    // active after the change); Kerf does not, so it refuses the call
+                    // rather than cut at the wrong depth.
+                    return fail(
+                        blk.col(KT),
+                        format!(
+                            "tool length compensation is not supported (tool {} has a non-zero length)",
+                            tool.number
+                        ),
+                    );
+                }
                 out.event(EventCode::T, Some(f64::from(n)));
             }
         }
@@ -548,12 +592,30 @@ impl State {
             EventCode::M8,
             EventCode::M9,
         ] {
+            if blk.nm == 0 {
+                break;
+            }
+            if ev == EventCode::M7
+                && let Some((op, col)) = state_op
+            {
+                // LinuxCNC M70–M73 run after the spindle and before the coolant.
+                self.state_op(op, col, out)?;
+            }
             if blk.nm > 0 && m_pre.contains(&Some(ev)) {
                 if ev == EventCode::M6 {
                     self.tool_loaded = self.tool_selected;
+                    if d == Dialect::LinuxCnc {
+                        // LinuxCNC stops the spindle for the change (rs274:
+                        // STOP_SPINDLE_TURNING before CHANGE_TOOL).
+                        self.spindle = Spindle::Off;
+                    }
                 }
+                self.note_machine_event(ev);
                 out.event(ev, None);
             }
+        }
+        if let Some(n) = user_m {
+            self.user_m_event(n, blk, out);
         }
 
         // The dwell runs after the spindle and coolant events and before the motion (the
@@ -561,9 +623,18 @@ impl State {
         if let Some((_, seconds)) = dwell_checked {
             out.event(EventCode::G4, Some(seconds));
         }
+        if linuxcnc {
+            self.apply_modes(&slots, blk)?;
+        }
 
         // Heidenhain G99: tool definition (T number, L length, R radius).
         if d == Dialect::Heidenhain && slot(0).is_some_and(|(g, _)| g == G::ToolDef) {
+            if let Some(k) = blk.first_of(&[KX, KY, KZ, KA, KB, KC, KI, KJ, KK, KH]) {
+                return fail(
+                    blk.col(k),
+                    format!("{} word in a tool definition (G99)", key_name(k)),
+                );
+            }
             let Some(t) = blk.get(KT).and_then(tool_number) else {
                 return fail(blk.first_col, "G99 needs a tool number T");
             };
@@ -585,8 +656,14 @@ impl State {
                     format!("more than {MAX_TOOLS} tools defined"),
                 );
             }
-            return Ok(());
+            return self.finish_block(blk, &m_post, out);
         }
+        if d == Dialect::Heidenhain && blk.has(KL) {
+            return fail(blk.col(KL), "L word with no G99 to use it");
+        }
+
+        // Tool offset words that Kerf does not apply: refused where they would act.
+        self.check_tool_offset_words(blk, slot(6))?;
 
         // Cutter radius compensation.
         if let Some((G::Comp(c), _)) = slot(6) {
@@ -594,7 +671,7 @@ impl State {
         }
         if self.comp != Comp::Off {
             let number = match (d, blk.get(KD)) {
-                (Dialect::LinuxCnc, Some(dv)) => tool_number(dv),
+                (Dialect::LinuxCnc | Dialect::Rockwell, Some(dv)) => tool_number(dv),
                 _ => self.tool_loaded.or(self.tool_selected),
             };
             if self.tool(number).is_some_and(|t| t.radius_mm != 0.0) {
@@ -608,6 +685,10 @@ impl State {
 
         // Tool length offset.
         if let Some((G::ToolLength { on }, _)) = slot(7) {
+            if !on && matches!(d, Dialect::LinuxCnc | Dialect::Rockwell) && blk.has(KH) {
+                return fail(blk.col(KH), "H word with no G43 to use it");
+            }
+            self.tool_length_on = on;
             self.tool_length_mm = if on {
                 let number = match blk.get(KH) {
                     Some(h) => Some(tool_number(h).ok_or_else(|| ExecError {
@@ -666,6 +747,12 @@ impl State {
             self.polar_last = None;
         }
         if let Some((_, col)) = slot(0).filter(|&(g, _)| g == G::PolarOrigin) {
+            if let Some(k) = blk.first_of(&[KX, KY, KZ, KA, KB, KC, KR, KQ]) {
+                return fail(
+                    blk.col(k),
+                    format!("{} word with G30 (polar origin)", key_name(k)),
+                );
+            }
             self.set_fagor_origin(blk, col)?;
             return self.finish_block(blk, &m_post, out);
         }
@@ -688,10 +775,11 @@ impl State {
         if d == Dialect::LinuxCnc && blk.present & (1 << KP | 1 << KQ) != 0 {
             // LinuxCNC refuses words that no G code of the block uses.
             let arc = matches!(self.motion, Some(Motion::Arc(_)));
-            if blk.has(KP) && !(dwell || g64 || arc) {
+            let user = user_m.is_some();
+            if blk.has(KP) && !(dwell || g64 || arc || user) {
                 return fail(blk.col(KP), "P word with no G code that uses it");
             }
-            if blk.has(KQ) && !g64 {
+            if blk.has(KQ) && !(g64 || user) {
                 return fail(blk.col(KQ), "Q word with no G code that uses it");
             }
         }
@@ -704,6 +792,32 @@ impl State {
         // A dwell block holds no motion words (checked above), except in LinuxCNC, whose
         // motion then runs after the dwell.
         let motion_after_dwell = d == Dialect::LinuxCnc && blk.any(&LINUXCNC_MOTION_WORDS);
+        if consumed_axes {
+            // The axis words belong to the G92 or pole code: a motion code of the block
+            // would have none, and the centre words no arc.
+            if let Some((G::Motion(_), col)) = motion_g {
+                return fail(col, "Cannot use two G codes that both use axis values");
+            }
+            if let Some(k) = blk
+                .first_of(&ABC)
+                .filter(|_| slot(0).is_some_and(|(g, _)| g == G::G92Set))
+            {
+                return fail(
+                    blk.col(k),
+                    format!("G92 on the rotary axis {} is not supported", key_name(k)),
+                );
+            }
+            self.check_unused(blk, false)?;
+        }
+        if d == Dialect::Rockwell {
+            // P is the dwell time, Q and R belong to cycles (not supported) and arcs.
+            if blk.has(KP) && !dwell {
+                return fail(blk.col(KP), "P word with no G code that uses it");
+            }
+            if blk.has(KQ) {
+                return fail(blk.col(KQ), "Q word with no G code that uses it");
+            }
+        }
         if !consumed_axes && (!dwell || motion_after_dwell) {
             let motion_col = motion_g.map_or(blk.first_col, |(_, c)| c);
             self.motion(
@@ -716,6 +830,107 @@ impl State {
             )?;
         }
         self.finish_block(blk, &m_post, out)
+    }
+
+    /// Units, then the modal G codes of distance, arc distance, plane, path control and
+    /// coordinate system of a block.
+    fn apply_modes(
+        &mut self,
+        slots: &[Option<(G, u32)>; N_GROUPS],
+        blk: &Block,
+    ) -> Result<(), ExecError> {
+        let d = self.dialect;
+        // Units first: every value in the block is read in the new unit.
+        if let Some((G::Units { inch, feed_too }, _)) = slots[3] {
+            self.inch = inch;
+            // Sinumerik G70/G71 leave F in the basic unit of the control (mm); only
+            // G700/G710 make F follow the geometry unit.
+            self.feed_inch = feed_too && inch;
+        }
+        // Each group's slot is read directly (a plain move has none of them). Heidenhain
+        // may repeat G90/G91 in a block; the slot holds the last one, which stays modal.
+        if let Some((G::Plane(p), _)) = slots[2]
+            && p != self.plane
+        {
+            self.set_plane(p);
+        }
+        if let Some((G::Distance { absolute }, _)) = slots[GROUP_DISTANCE] {
+            self.absolute = absolute;
+        }
+        if let Some((G::ArcDistance { absolute }, _)) = slots[5] {
+            self.arc_absolute = absolute;
+        }
+        if let Some((G::CoordSystem(cs), _)) = slots[8] {
+            self.coord_system = cs;
+            self.update_origin();
+        }
+        if let Some((G::Corner { exact }, _)) = slots[9] {
+            self.corner = if exact {
+                CornerMode::ExactStop
+            } else if d == Dialect::LinuxCnc {
+                self.g64_corner(blk)?
+            } else {
+                CornerMode::Blend {
+                    tolerance_mm: None,
+                    naive_cam_mm: None,
+                }
+            };
+        }
+        Ok(())
+    }
+
+    /// D words: LinuxCNC and Rockwell take D (the tool whose radius compensation uses)
+    /// only with G41/G42 in the block ("D word with no G41 or G42 to use it"); Sinumerik
+    /// and Fagor D select the tool's offsets (length and radius), which Kerf does not
+    /// apply: D0 (no offsets) is accepted, and D1 and up only while the active tool has a
+    /// zero length and radius. Sinumerik H words are auxiliary functions for the machine's
+    /// logic, which Kerf does not have: an error.
+    #[inline]
+    fn check_tool_offset_words(
+        &self,
+        blk: &Block,
+        comp: Option<(G, u32)>,
+    ) -> Result<(), ExecError> {
+        let d = self.dialect;
+        if d == Dialect::Sinumerik && blk.has(KH) {
+            return fail(blk.col(KH), "H auxiliary functions are not supported");
+        }
+        let Some(dv) = blk.get(KD) else {
+            return Ok(());
+        };
+        match d {
+            Dialect::LinuxCnc | Dialect::Rockwell => {
+                if !matches!(comp, Some((G::Comp(Comp::Left | Comp::Right), _))) {
+                    return fail(blk.col(KD), "D word with no G41 or G42 to use it");
+                }
+            }
+            Dialect::Sinumerik | Dialect::Fagor => {
+                if dv != 0.0
+                    && let Some(t) = self.tool(self.tool_loaded.or(self.tool_selected))
+                    && (t.length_mm != 0.0 || t.radius_mm != 0.0)
+                {
+                    return fail(
+                        blk.col(KD),
+                        format!(
+                            "tool offsets (D) are not supported (tool {} has a non-zero length or radius)",
+                            t.number
+                        ),
+                    );
+                }
+            }
+            Dialect::Heidenhain => {}
+        }
+        Ok(())
+    }
+
+    /// A plane change; it forgets the Sinumerik polar values and the Fagor polar origin,
+    /// as their manuals say.
+    fn set_plane(&mut self, p: Plane) {
+        self.plane = p;
+        self.rp_mm = None;
+        self.ap_deg = None;
+        self.polar_origin = None;
+        self.polar_last = None;
     }
 
     /// Checks the dwell word of a G4 block (`col` is the G4) and returns its key, if given,
@@ -814,6 +1029,7 @@ impl State {
             EventCode::M9,
             EventCode::M0,
             EventCode::M1,
+            EventCode::M60,
             EventCode::M2,
             EventCode::M30,
         ] {

@@ -132,7 +132,13 @@ impl Lexer {
                     *pos = i + 1;
                     return Ok(Some(flags));
                 }
-                b'/' if words.is_empty() && !flags.deleted => {
+                // LinuxCNC: only as the first character of the line, spaces aside (rs274:
+                // "Bad character '/' used" after a comment or a word).
+                b'/' if words.is_empty()
+                    && !flags.deleted
+                    && (self.dialect != Dialect::LinuxCnc
+                        || line[..i].iter().all(|b| b.is_ascii_whitespace())) =>
+                {
                     // Block delete: the whole block is skipped, so its words are not even
                     // checked (a deleted block may hold anything the control would ignore).
                     flags.deleted = true;

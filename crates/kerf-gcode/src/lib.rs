@@ -41,7 +41,9 @@
 //! Code map: `lex` (bytes to words, per-dialect syntax), `codes` (word keys, G/M code
 //! tables and modal groups of each dialect), `interp` (modal state, block execution,
 //! events), `interp::geometry` (end points, poles, polar coordinates, arcs of one motion
-//! block), `arc` (exact arc construction and the end-point tolerance rules).
+//! block), `interp::modal` (LinuxCNC feed modes, G64 P Q, M70–M73 and their subroutine
+//! hooks, user M codes, spindle and coolant state), `arc` (exact arc construction and the
+//! end-point tolerance rules).
 //!
 //! # Common rules (all dialects)
 //!
@@ -55,9 +57,19 @@
 //!   no F ever programmed, or F0, is an error. Rapids carry `feed_mm_min: None`.
 //! - Events run in the control's order inside a block: S, T, M6, M3/M4/M5, M7/M8/M9
 //!   before the motion, M0/M1/M2/M30 after it (Heidenhain: M5 and M9 also after the
-//!   motion, as on the TNC). After M2/M30 the rest of the program is not read. Other M
-//!   codes are an "unknown M code" error. An `S` event carries the rpm, a `T` event the
-//!   tool number.
+//!   motion, as on the TNC; LinuxCNC: its own order, below). After M2/M30 the rest of the
+//!   program is not read. Other M codes are an "unknown M code" error. An `S` event
+//!   carries the rpm, a `T` event the tool number. M0, M1 (optional stop) and LinuxCNC M60
+//!   (pallet change) are program pauses; Kerf does not skip M1 (its optional-stop switch
+//!   is on).
+//! - **A block is executed completely or refused.** A word or code that the block would
+//!   need but Kerf cannot act on is an error naming it, never dropped: words no code of
+//!   the block uses, tool offset words Kerf does not apply (D, H), axis words of a block
+//!   whose axes belong to a non-motion code together with a motion code, and the extra
+//!   words of Heidenhain G99/G30 and Fagor G30 blocks (each dialect below). Sinumerik,
+//!   Heidenhain and Fagor apply the length of a called tool; Kerf does not, so a T word
+//!   calling a tool with a non-zero length in the tool table is the error "tool length
+//!   compensation is not supported (tool N has a non-zero length)".
 //! - A dwell is the event `G4` with its time in seconds, after the block's spindle and
 //!   coolant events and before its motion (LinuxCNC's order of execution); the motion
 //!   before it comes to an exact stop and waits. A G4 without a time word (accepted
@@ -74,7 +86,11 @@
 //!   LinuxCNC runs a motion of the same block after the dwell (`G4 P1 G1 X10`); the other
 //!   controls want the dwell in a block of its own ("G4 must be programmed in a separate
 //!   block"), so an axis, centre or polar word there is an error, never dropped.
-//! - Block delete `/` at the start of a block skips the block (it is not even checked).
+//! - Block delete `/` at the start of a block skips the block (it is not even checked):
+//!   Kerf's block delete switch is on. (rs274 run without `-b`, as `tests/rs274/canon.sh`
+//!   runs it, has the switch off and runs such blocks.) In LinuxCNC the `/` must be the
+//!   first character of the line, spaces aside: after a comment, an N word or any word it
+//!   is an error, as in rs274 ("Bad character '/' used").
 //! - Cutter compensation G41/G42 is accepted only while the active tool's radius is zero
 //!   (tool table in [`Settings`]; the tool is the last T, or the LinuxCNC D word); with a
 //!   non-zero radius it is the error "cutter compensation not supported", never a
@@ -98,17 +114,58 @@
 //! - Not supported yet, each a clear error naming the construct: parameters and
 //!   expressions (LinuxCNC `#`, `[..]`, O-words; Sinumerik R parameters, `=` expressions
 //!   and other keywords; Fagor `P` parameters, `#` and `$` instructions), canned cycles,
-//!   inverse-time (G93) and per-revolution (G95) feed, U/V/W axes.
+//!   per-revolution (G95) feed outside LinuxCNC, U/V/W axes.
 //!
 //! # LinuxCNC / Tormach (`linuxcnc`, alias `tormach`)
 //!
 //! - `( )` and `;` comments; spaces are allowed anywhere, even inside numbers (`X 1 0.5`
 //!   is X10.5). A `%` line opens the program and the next `%` line ends it.
 //! - G20/G21 (default mm), G90/G91, G90.1/G91.1 (I J K absolute / incremental, default
-//!   incremental), G17/G18/G19, G61/G61.1 exact stop, G64 blend (`G64 P` = tolerance,
-//!   converted from inches under G20), G80 cancels the motion mode, G94, G97/G98/G99
+//!   incremental; under G90.1 both centre words of the plane are required: "J word missing
+//!   in absolute center arc"), G17/G18/G19, G80 cancels the motion mode, G97/G98/G99
 //!   accepted. There is no motion mode at start: axis words before G0/G1/G2/G3 are the
 //!   error "cannot use axis values without a G code that uses them".
+//! - **Order of execution** (the manual's list): feed mode G93/G94/G95, F, S, T, M6,
+//!   M3/M4/M5, M70–M73, M7/M8/M9, M100–M199, G4, then plane, units, cutter compensation,
+//!   G43/G49, G54–G59.3, G61/G64, G90/G91, G92, the motion, and M0/M1/M2/M30/M60. So F is
+//!   read in the unit in force before the block's G20/G21 (`G20 G1 X1 F40` is 40 mm/min,
+//!   `G21 G1 X1 F2` under G20 is 2 in/min), and M70 saves the state before the block's G
+//!   codes. M7 and M8 in one block is an error, as in rs274.
+//! - **Path control**: G61 and G61.1 are exact stop (LinuxCNC's G61 is exact path, which
+//!   need not stop where the path is tangent; Kerf stops at every join). G64 blends:
+//!   `P` the path tolerance, `Q` the naive-CAM tolerance (`P` when Q is absent, as in
+//!   LinuxCNC), both in program units, carried in [`CornerMode::Blend`]; the planner uses
+//!   P and does not use Q yet. G64 without P blends within the configured default
+//!   tolerance (LinuxCNC: as fast as possible). A negative P or Q is an error.
+//! - **Feed modes**: G93, G94 and G95 each set the feed rate to zero, as in LinuxCNC: a
+//!   feed move needs a new F. G94: F in units per minute. G93 (inverse time): every feed
+//!   move needs its own F ("F word missing with inverse time G1 move" / "... arc move"),
+//!   the move takes 1/F minutes: `feed_mm_min` = length × F, where the length is the XYZ
+//!   path length (helices included), or for a rotary-only move the A/B/C distance in
+//!   degrees (then degrees/min); at least 0.1 program units per minute (LinuxCNC's
+//!   floor, which also makes `F0` move). G95 (per revolution): `feed_mm_min` = F (mm, or
+//!   inches at the time F was read, per revolution) × the last programmed S. Kerf has no
+//!   spindle feedback: it assumes the spindle turns at the commanded speed, whether M3/M4
+//!   or M5 is in force; with no S or S0 it is the error "Cannot feed with zero spindle
+//!   speed in feed per rev mode".
+//! - **Modal state M70–M73**: M70 saves, M72 restores ("Cannot restore context from
+//!   invalid stack frame - missing M70/M73?" with nothing saved), M71 invalidates, at the
+//!   current call level (the program, or one subroutine call). M73 saves, and the end of
+//!   the subroutine (endsub or return) restores; in the main program it saves like M70
+//!   and the program's end restores nothing. Saved: units, plane, cutter compensation,
+//!   distance and arc distance modes, feed mode and feed, coordinate system, G43/G49,
+//!   G61/G64 with P and Q, S, the spindle (M3/M4/M5) and coolant (M7/M8); not the motion
+//!   mode. A restore sets the units first, then the rest, as rs274 does, and emits S,
+//!   M3/M4/M5 for what changes; coolant as rs274 restores it (saved off: M9 when anything
+//!   is on; saved on: M7/M8 for what is off; nothing is turned off otherwise); G43 is
+//!   applied anew with the tool in the spindle; a restore that changes the feed mode
+//!   leaves the feed at zero (rs274 does). M70–M73 belong to the spindle group (`M3 M70`
+//!   is refused, as in rs274); M6 stops the spindle.
+//! - **User M codes** M100–M199: an [`EventCode::User`] event with `value` = P and `q` =
+//!   Q, after the coolant and before the dwell; one per block. LinuxCNC runs the program
+//!   file `M1nn` and refuses the code when there is none ("Unknown m code used"); Kerf
+//!   runs no user programs and hands the code on as an event (`kerf sim` stops the
+//!   motion at it).
 //! - Work offsets G54–G59.3; G92 (program coordinates of the current point), G92.1
 //!   (clear), G92.2 (suspend), G92.3 (restore); G53 (machine coordinates, with G0/G1 and
 //!   G90 only). G43 applies the Z length of tool H (or of the tool loaded by M6 when H is
@@ -132,8 +189,11 @@
 //!   origin"). Mixing them with X/Y is an error.
 //! - Feed errors use LinuxCNC's words: "Cannot do G1 with zero feed rate", "Cannot make arc
 //!   with zero feed rate". F is kept physically across G20/G21 changes.
-//! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc,
-//!   P without G2/G3/G4/G64, Q without G64, H without G43. U, V, W and E are not supported.
+//! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc
+//!   (also with G92), P without G2/G3/G4/G64 or a user M code, Q without G64 or a user M
+//!   code, H without G43 (also with G49), D without G41/G42 in the block. A motion code
+//!   with G92 and axis words is "Cannot use two G codes that both use axis values"; G92
+//!   with A/B/C is not supported (an error). U, V, W and E are not supported.
 //!
 //! # Rockwell 9/Series mill (`rockwell`, Fanuc style)
 //!
@@ -143,6 +203,9 @@
 //!   G61 exact stop mode, G64 cutting mode, G09 exact stop for one block, G54–G59,
 //!   G43 H (the length of tool H from the tool table) / G49. The
 //!   motion mode at start is G01 (Fanuc power-up default).
+//! - Words no code of the block uses are errors: P outside a G04 dwell, Q (cycles are not
+//!   supported), H without G43 (also with G49), D without G41/G42 in the block (D names
+//!   the tool whose radius the compensation check uses).
 //! - Arcs: I J K always incremental from the start point; R± radius; when R and I/J/K are
 //!   both given, R wins. R with the end point equal to the start is a 0° arc: no motion and
 //!   no error. I J K with the end omitted or equal to the start is a full circle. No turns
@@ -167,8 +230,10 @@
 //!   G2/G3 circles about the pole (checked with the arc tolerance). RP and AP are modal and
 //!   forgotten when the pole or the plane changes; a polar move that lacks one of them
 //!   then is an error.
-//! - G60 exact stop, G64 continuous path, G9 exact stop for one block. D (tool edge) and H
-//!   (auxiliary function) words are accepted and have no effect on the path.
+//! - G60 exact stop, G64 continuous path, G9 exact stop for one block. D (tool edge) selects
+//!   the tool's offsets, which Kerf does not apply: D0 is accepted, D1 and up only while
+//!   the active tool has zero length and radius in the tool table (else an error). H
+//!   (auxiliary function) words are an error: Kerf has no machine logic to hand them to.
 //!
 //! # Heidenhain TNC ISO (`heidenhain`)
 //!
@@ -198,7 +263,9 @@
 //!   itself (H+720 is two turns) and its sign must match the direction. An axis word along
 //!   the normal makes a helix.
 //! - G41/G42 with a zero tool radius keep the programmed path. An R word in a G00/G01
-//!   block is an error (R belongs to G02/G03, G10/G11 and G99).
+//!   block is an error (R belongs to G02/G03, G10/G11 and G99), and so is an L word
+//!   outside G99. A G99 block holds no axis, centre or H words; its M codes run. A G30/G31
+//!   blank form block holds no M codes and no F, S or T words.
 //!
 //! # Fagor 8070 (`fagor`)
 //!
@@ -218,7 +285,9 @@
 //!   `G90 Q360` is the point at 360°.
 //! - The polar origin is part zero until `G30 I.. J..` (K in G18/G19) sets it at those
 //!   absolute part coordinates; `G30` alone makes the current point the polar origin. A
-//!   plane change resets it to part zero.
+//!   plane change resets it to part zero. Axis, R and Q words in a G30 block are errors.
+//! - D (tool offset) as in Sinumerik: D0 accepted, D1 and up only while the active tool
+//!   has zero length and radius.
 #![deny(missing_docs)]
 
 mod arc;

@@ -74,6 +74,10 @@ pub enum CornerMode {
     Blend {
         /// Maximum distance from the programmed path, mm.
         tolerance_mm: Option<f64>,
+        /// LinuxCNC's naive-CAM tolerance (`G64 Q`, or `P` when Q is absent), mm: within
+        /// it LinuxCNC merges short collinear segments. Carried for the planner (also on
+        /// the wire, `MoveMsg::naive_cam_mm`), which does not use it yet; `None` = off.
+        naive_cam_mm: Option<f64>,
     },
 }
 

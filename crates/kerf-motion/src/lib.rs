@@ -1569,7 +1569,10 @@ mod tests {
             path,
             feed_mm_min: Some(feed_mm_min),
             abc_deg: None,
-            corner: CornerMode::Blend { tolerance_mm: None },
+            corner: CornerMode::Blend {
+                tolerance_mm: None,
+                naive_cam_mm: None,
+            },
         }
     }
 

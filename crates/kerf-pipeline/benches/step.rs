@@ -50,7 +50,10 @@ fn circle(n: usize) -> Vec<Move> {
             }),
             feed_mm_min: Some(6000.0),
             abc_deg: None,
-            corner: CornerMode::Blend { tolerance_mm: None },
+            corner: CornerMode::Blend {
+                tolerance_mm: None,
+                naive_cam_mm: None,
+            },
         })
         .collect()
 }
@@ -71,7 +74,10 @@ fn program() -> Vec<PlannedSegment> {
             path: Path::Line(Line { start: p, end: q }),
             feed_mm_min: Some(3000.0),
             abc_deg: None,
-            corner: CornerMode::Blend { tolerance_mm: None },
+            corner: CornerMode::Blend {
+                tolerance_mm: None,
+                naive_cam_mm: None,
+            },
         });
         p = q;
     }

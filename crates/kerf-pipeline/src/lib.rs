@@ -45,6 +45,8 @@ pub enum Event {
 /// come to an exact stop (a program stop, tool change, spindle or coolant change: the
 /// control waits for the motion there), or a dwell (an exact stop, then the machine rests
 /// for the time).
+// Moves are nearly every item: boxing the large variant would allocate once per move.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Input {
     /// A programmed move.
@@ -1091,7 +1093,10 @@ mod tests {
             path: Path::Line(kerf_geom::Line { start: a, end: b }),
             feed_mm_min: Some(1200.0),
             abc_deg: None,
-            corner: kerf_geom::CornerMode::Blend { tolerance_mm: None },
+            corner: kerf_geom::CornerMode::Blend {
+                tolerance_mm: None,
+                naive_cam_mm: None,
+            },
         };
         let corner = Vec3::new(10.0, 0.0, 0.0);
         let inputs = [

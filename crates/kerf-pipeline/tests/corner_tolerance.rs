@@ -11,6 +11,7 @@ use kerf_pipeline::{RunOptions, run};
 fn with_tol(mut m: Move, tol_mm: f64) -> Move {
     m.corner = CornerMode::Blend {
         tolerance_mm: Some(tol_mm),
+        naive_cam_mm: None,
     };
     m
 }

@@ -131,9 +131,13 @@ fn random_program(rng: &mut Rng, n: usize) -> (Vec<Move>, f64) {
                     max_tol = max_tol.max(t);
                     CornerMode::Blend {
                         tolerance_mm: Some(t),
+                        naive_cam_mm: None,
                     }
                 }
-                _ => CornerMode::Blend { tolerance_mm: None },
+                _ => CornerMode::Blend {
+                    tolerance_mm: None,
+                    naive_cam_mm: None,
+                },
             };
             p = m.path.end();
             if m.path.start() == m.path.end() {

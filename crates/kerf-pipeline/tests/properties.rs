@@ -136,9 +136,13 @@ fn random_program(rng: &mut Rng, n: usize) -> (Vec<Move>, f64) {
                     max_tol = max_tol.max(t);
                     CornerMode::Blend {
                         tolerance_mm: Some(t),
+                        naive_cam_mm: None,
                     }
                 }
-                _ => CornerMode::Blend { tolerance_mm: None },
+                _ => CornerMode::Blend {
+                    tolerance_mm: None,
+                    naive_cam_mm: None,
+                },
             };
             p = m.path.end();
             if m.abc_deg.is_some() && m.path.start() == m.path.end() {
@@ -470,7 +474,10 @@ fn rounded_polylines(rng: &mut Rng, n: usize) -> (Vec<Move>, f64) {
         } else {
             None
         };
-        let corner = CornerMode::Blend { tolerance_mm: tol };
+        let corner = CornerMode::Blend {
+            tolerance_mm: tol,
+            naive_cam_mm: None,
+        };
         let mut q = p;
         for i in 0..=k {
             let a = ang0 + step * i as f64;
@@ -609,9 +616,13 @@ fn tangent_chain(rng: &mut Rng, n: usize) -> (Vec<Move>, f64) {
                 max_tol = max_tol.max(t);
                 CornerMode::Blend {
                     tolerance_mm: Some(t),
+                    naive_cam_mm: None,
                 }
             }
-            _ => CornerMode::Blend { tolerance_mm: None },
+            _ => CornerMode::Blend {
+                tolerance_mm: None,
+                naive_cam_mm: None,
+            },
         };
         p = m.path.end();
         dir = match m.path {

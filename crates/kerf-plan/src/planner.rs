@@ -79,12 +79,12 @@ pub(crate) fn corner_tolerance(
     leaving: CornerMode,
     default_mm: f64,
 ) -> Option<f64> {
-    let CornerMode::Blend { tolerance_mm } = arriving else {
+    let CornerMode::Blend { tolerance_mm, .. } = arriving else {
         return None;
     };
     let tol = tolerance_mm.unwrap_or(default_mm);
     Some(match leaving {
-        CornerMode::Blend { tolerance_mm } => tol.min(tolerance_mm.unwrap_or(default_mm)),
+        CornerMode::Blend { tolerance_mm, .. } => tol.min(tolerance_mm.unwrap_or(default_mm)),
         CornerMode::ExactStop => tol,
     })
 }
@@ -179,10 +179,16 @@ impl Planner {
                     &prev,
                     prev.start,
                     cut,
-                    CornerMode::Blend { tolerance_mm: None },
+                    CornerMode::Blend {
+                        tolerance_mm: None,
+                        naive_cam_mm: None,
+                    },
                     out,
                 );
-                let mode = CornerMode::Blend { tolerance_mm: None };
+                let mode = CornerMode::Blend {
+                    tolerance_mm: None,
+                    naive_cam_mm: None,
+                };
                 self.emit(blend, mode, mode, None, out);
                 let u2 = (next.mv.path.end() - next.start).normalize();
                 next.start += u2 * d;
@@ -312,11 +318,17 @@ impl Planner {
             self.run_mm = 0.0;
             let corner = match last_corner {
                 Some(c) if i + 1 == n => c,
-                _ => CornerMode::Blend { tolerance_mm: None },
+                _ => CornerMode::Blend {
+                    tolerance_mm: None,
+                    naive_cam_mm: None,
+                },
             };
             self.emit(
                 seg,
-                CornerMode::Blend { tolerance_mm: None },
+                CornerMode::Blend {
+                    tolerance_mm: None,
+                    naive_cam_mm: None,
+                },
                 corner,
                 None,
                 out,

@@ -29,7 +29,7 @@ pub(crate) struct RunState {
 impl RunState {
     /// The tolerance of the run `p` would start, if it may start one.
     pub(crate) fn starts(p: &Pending, limits: &MachineLimits) -> Option<f64> {
-        let CornerMode::Blend { tolerance_mm } = p.mv.corner else {
+        let CornerMode::Blend { tolerance_mm, .. } = p.mv.corner else {
             return None;
         };
         let tol = tolerance_mm.unwrap_or(limits.tolerance_mm);
@@ -37,7 +37,7 @@ impl RunState {
     }
 
     pub(crate) fn new(p: Pending, tol: f64, start_frame: Option<smooth::EndFrame>) -> RunState {
-        let CornerMode::Blend { tolerance_mm } = p.mv.corner else {
+        let CornerMode::Blend { tolerance_mm, .. } = p.mv.corner else {
             unreachable!("checked by RunState::starts")
         };
         let mut run = smooth::Run::new(p.mv.path.start(), p.abc_start, start_frame, tol);
@@ -62,11 +62,11 @@ impl RunState {
     /// ends (a move under another tolerance starts a run of its own, so a coarse run
     /// never smooths a fine move).
     pub(crate) fn joins(&self, p: &Pending) -> bool {
-        let mode = CornerMode::Blend {
-            tolerance_mm: self.tol_mm,
-        };
-        if self.last.mv.corner != mode
-            || p.mv.corner != mode
+        // The naive-CAM tolerance (LinuxCNC G64 Q) is carried but not used by the planner:
+        // only the blend tolerance decides.
+        let in_run = |c: CornerMode| matches!(c, CornerMode::Blend { tolerance_mm, .. } if tolerance_mm == self.tol_mm);
+        if !in_run(self.last.mv.corner)
+            || !in_run(p.mv.corner)
             || !smoothable(p)
             || p.abc_start != self.run.end_abc()
             || (p.mv.path.start() - self.run.end()).norm() > MIN_SEGMENT_MM
@@ -151,7 +151,7 @@ pub(crate) fn next_start_frame(p: &Pending) -> Option<smooth::EndFrame> {
 /// The frame at the end of `prev` if a run starting with the line `next` may continue it
 /// smoothly.
 pub(crate) fn joining_frame(prev: &Pending, next: &Pending, tol: f64) -> Option<smooth::EndFrame> {
-    let CornerMode::Blend { tolerance_mm } = prev.mv.corner else {
+    let CornerMode::Blend { tolerance_mm, .. } = prev.mv.corner else {
         return None;
     };
     // The corner takes the smaller tolerance of its two moves.

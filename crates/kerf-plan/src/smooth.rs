@@ -777,7 +777,10 @@ mod tests {
                 }),
                 feed_mm_min: Some(feed),
                 abc_deg: None,
-                corner: CornerMode::Blend { tolerance_mm: None },
+                corner: CornerMode::Blend {
+                    tolerance_mm: None,
+                    naive_cam_mm: None,
+                },
             })
             .collect()
     }
@@ -965,6 +968,7 @@ mod tests {
             let tol = if (k / 300) % 2 == 0 { 0.01 } else { 0.02 };
             m.corner = CornerMode::Blend {
                 tolerance_mm: Some(tol),
+                naive_cam_mm: None,
             };
         }
         let segs = plan(&moves);

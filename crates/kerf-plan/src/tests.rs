@@ -24,7 +24,10 @@ fn mv(path: Path, feed: f64) -> Move {
         path,
         feed_mm_min: Some(feed),
         abc_deg: None,
-        corner: CornerMode::Blend { tolerance_mm: None },
+        corner: CornerMode::Blend {
+            tolerance_mm: None,
+            naive_cam_mm: None,
+        },
     }
 }
 

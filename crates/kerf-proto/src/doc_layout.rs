@@ -38,7 +38,8 @@ fn messages() -> Vec<Message> {
             type_name: tn(<MoveMsg as ZeroCopySend>::type_name),
             fields: fields!(MoveMsg; version, kind, program_id, seq, line, flags, corner,
                 event_code, feed_mm_min, tolerance_mm, start_mm, end_mm, center_mm, axis,
-                sweep_rad, abc_start_deg, abc_end_deg, event_value, count, reserved),
+                sweep_rad, abc_start_deg, abc_end_deg, event_value, count, naive_cam_mm,
+                reserved),
         },
         Message {
             name: "SetpointMsg",
@@ -90,6 +91,7 @@ fn constants() -> BTreeMap<&'static str, u32> {
         FLAG_RAPID,
         FLAG_ABC,
         FLAG_EVENT_VALUE,
+        FLAG_NAIVE_CAM,
         CORNER_EXACT_STOP,
         CORNER_BLEND_DEFAULT,
         CORNER_BLEND_TOLERANCE,

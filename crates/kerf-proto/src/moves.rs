@@ -25,6 +25,9 @@ pub const FLAG_RAPID: u32 = 1 << 0;
 pub const FLAG_ABC: u32 = 1 << 1;
 /// Flag (events): `event_value` holds the event's value; without it it must be zero.
 pub const FLAG_EVENT_VALUE: u32 = 1 << 2;
+/// Flag (blending lines and arcs): `naive_cam_mm` holds LinuxCNC's naive-CAM tolerance
+/// (G64 Q); without it it must be zero. Not allowed with [`CORNER_EXACT_STOP`].
+pub const FLAG_NAIVE_CAM: u32 = 1 << 3;
 
 /// Corner mode: exact stop at the end of the move.
 pub const CORNER_EXACT_STOP: u32 = 1;
@@ -141,8 +144,10 @@ pub struct MoveMsg {
     pub event_value: f64,
     /// BEGIN: number of items that will follow (0 = unknown). END: number of items sent.
     pub count: u64,
+    /// Blending moves with [`FLAG_NAIVE_CAM`]: LinuxCNC's naive-CAM tolerance, mm (>= 0).
+    pub naive_cam_mm: f64,
     /// Must be zero.
-    pub reserved: [u64; 4],
+    pub reserved: [u64; 3],
 }
 
 /// A field of [`MoveMsg`], as named by a [`Reject`].
@@ -164,6 +169,7 @@ pub enum Field {
     AbcEndDeg,
     EventValue,
     Count,
+    NaiveCamMm,
     Reserved,
 }
 
@@ -186,6 +192,7 @@ impl Field {
             Field::AbcEndDeg => "abc_end_deg",
             Field::EventValue => "event_value",
             Field::Count => "count",
+            Field::NaiveCamMm => "naive_cam_mm",
             Field::Reserved => "reserved",
         }
     }
@@ -235,7 +242,7 @@ pub enum Reject {
     /// `corner` is none of the `CORNER_*` constants.
     #[error("unknown corner mode {0}")]
     UnknownCorner(u32),
-    /// The blend tolerance is negative.
+    /// The blend tolerance (or the naive-CAM tolerance) is negative.
     #[error("negative blend tolerance")]
     NegativeTolerance,
     /// A feed move has a feed of zero or less.
@@ -386,7 +393,8 @@ impl MoveMsg {
             abc_end_deg: [0.0; 3],
             event_value: 0.0,
             count: 0,
-            reserved: [0; 4],
+            naive_cam_mm: 0.0,
+            reserved: [0; 3],
         }
     }
 
@@ -430,12 +438,21 @@ impl MoveMsg {
         m.feed_mm_min = mv.feed_mm_min.unwrap_or(0.0);
         match mv.corner {
             CornerMode::ExactStop => m.corner = CORNER_EXACT_STOP,
-            CornerMode::Blend { tolerance_mm: None } => m.corner = CORNER_BLEND_DEFAULT,
             CornerMode::Blend {
-                tolerance_mm: Some(t),
+                tolerance_mm,
+                naive_cam_mm,
             } => {
-                m.corner = CORNER_BLEND_TOLERANCE;
-                m.tolerance_mm = t;
+                match tolerance_mm {
+                    None => m.corner = CORNER_BLEND_DEFAULT,
+                    Some(t) => {
+                        m.corner = CORNER_BLEND_TOLERANCE;
+                        m.tolerance_mm = t;
+                    }
+                }
+                if let Some(q) = naive_cam_mm {
+                    m.flags |= FLAG_NAIVE_CAM;
+                    m.naive_cam_mm = q;
+                }
             }
         }
         match &mv.path {
@@ -568,7 +585,8 @@ impl TryFrom<&MoveMsg> for Resolved {
         let is_move = m.kind == KIND_LINE || m.kind == KIND_ARC;
         let allowed_flags = match m.kind {
             KIND_BEGIN | KIND_END => 0,
-            KIND_LINE | KIND_ARC => FLAG_RAPID | FLAG_ABC,
+            KIND_LINE | KIND_ARC if m.corner == CORNER_EXACT_STOP => FLAG_RAPID | FLAG_ABC,
+            KIND_LINE | KIND_ARC => FLAG_RAPID | FLAG_ABC | FLAG_NAIVE_CAM,
             KIND_EVENT => FLAG_EVENT_VALUE,
             other => return Err(Reject::UnknownKind(other)),
         };
@@ -581,6 +599,7 @@ impl TryFrom<&MoveMsg> for Resolved {
         let rapid = m.flags & FLAG_RAPID != 0;
         let abc = m.flags & FLAG_ABC != 0;
         let has_value = m.flags & FLAG_EVENT_VALUE != 0;
+        let naive_cam = m.flags & FLAG_NAIVE_CAM != 0;
 
         // Fields the kind does not use must be zero.
         m.reserved
@@ -624,6 +643,9 @@ impl TryFrom<&MoveMsg> for Resolved {
         }
         if !begin_end {
             zero_u(m.count, F::Count)?;
+        }
+        if !naive_cam {
+            zero_f(m.naive_cam_mm, F::NaiveCamMm)?;
         }
 
         match m.kind {
@@ -679,18 +701,31 @@ impl TryFrom<&MoveMsg> for Resolved {
                 finite_f(m.sweep_rad, F::SweepRad)?;
                 finite_a(&m.abc_start_deg, F::AbcStartDeg)?;
                 finite_a(&m.abc_end_deg, F::AbcEndDeg)?;
+                finite_f(m.naive_cam_mm, F::NaiveCamMm)?;
                 if m.line == 0 {
                     return Err(Reject::LineZero);
                 }
+                let naive_cam_mm = if naive_cam {
+                    if m.naive_cam_mm < 0.0 {
+                        return Err(Reject::NegativeTolerance);
+                    }
+                    Some(m.naive_cam_mm)
+                } else {
+                    None
+                };
                 let corner = match m.corner {
                     CORNER_EXACT_STOP => CornerMode::ExactStop,
-                    CORNER_BLEND_DEFAULT => CornerMode::Blend { tolerance_mm: None },
+                    CORNER_BLEND_DEFAULT => CornerMode::Blend {
+                        tolerance_mm: None,
+                        naive_cam_mm,
+                    },
                     CORNER_BLEND_TOLERANCE => {
                         if m.tolerance_mm < 0.0 {
                             return Err(Reject::NegativeTolerance);
                         }
                         CornerMode::Blend {
                             tolerance_mm: Some(m.tolerance_mm),
+                            naive_cam_mm,
                         }
                     }
                     other => return Err(Reject::UnknownCorner(other)),

@@ -22,6 +22,7 @@ fn line() -> MoveMsg {
             abc_deg: None,
             corner: CornerMode::Blend {
                 tolerance_mm: Some(0.01),
+                naive_cam_mm: None,
             },
         },
     )
@@ -119,7 +120,23 @@ fn envelope() {
 #[test]
 fn reserved_and_unused_fields_must_be_zero() {
     let nz = |field| Reject::NonzeroReserved { field };
-    assert_eq!(mutated(line, |m| m.reserved[3] = 1), nz(Field::Reserved));
+    assert_eq!(mutated(line, |m| m.reserved[2] = 1), nz(Field::Reserved));
+    // The naive-CAM tolerance only with FLAG_NAIVE_CAM, which an exact stop may not have.
+    assert_eq!(
+        mutated(line, |m| m.naive_cam_mm = 0.1),
+        nz(Field::NaiveCamMm)
+    );
+    assert_eq!(
+        mutated(arc, |m| m.flags |= FLAG_NAIVE_CAM),
+        Reject::UnknownFlags(FLAG_NAIVE_CAM)
+    );
+    assert_eq!(
+        mutated(line, |m| {
+            m.flags |= FLAG_NAIVE_CAM;
+            m.naive_cam_mm = -0.1;
+        }),
+        Reject::NegativeTolerance
+    );
     assert_eq!(
         mutated(arc, |m| m.reserved[0] = u64::MAX),
         nz(Field::Reserved)

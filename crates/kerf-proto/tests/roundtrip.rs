@@ -112,13 +112,19 @@ fn rotary_axes_tolerances_and_exact_stop_round_trip() {
     assert_eq!(
         corners,
         [
+            // LinuxCNC: the naive-CAM tolerance is P when Q is absent.
             CornerMode::Blend {
-                tolerance_mm: Some(0.05)
+                tolerance_mm: Some(0.05),
+                naive_cam_mm: Some(0.05)
             },
             CornerMode::ExactStop,
-            CornerMode::Blend { tolerance_mm: None },
             CornerMode::Blend {
-                tolerance_mm: Some(0.0)
+                tolerance_mm: None,
+                naive_cam_mm: None
+            },
+            CornerMode::Blend {
+                tolerance_mm: Some(0.0),
+                naive_cam_mm: Some(0.0)
             },
         ]
     );

@@ -14,7 +14,10 @@ fn line_move(from: [f64; 3], to: [f64; 3]) -> Move {
         }),
         feed_mm_min: Some(1000.0),
         abc_deg: None,
-        corner: CornerMode::Blend { tolerance_mm: None },
+        corner: CornerMode::Blend {
+            tolerance_mm: None,
+            naive_cam_mm: None,
+        },
     }
 }
 

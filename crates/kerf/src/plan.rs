@@ -8,13 +8,20 @@
 //! {"type":"arc","line":N,"start":[x,y,z],"end":[x,y,z],"center":[x,y,z],"axis":[ax,ay,az],"sweep_rad":S,"feed_mm_min":F}
 //! {"type":"event","line":N,"code":"M3","value":null}
 //! {"type":"event","line":N,"code":"S","value":12000.0}
+//! {"type":"event","line":N,"code":"M101","value":3.0,"q":-4.5}
+//! {"type":"event","line":N,"code":"MSG","value":null,"text":"change the clamp"}
 //! ```
 //!
 //! - Lengths are mm in absolute machine coordinates; `line` is the 1-based source line.
 //! - A move on a machine with rotary axes in use adds `"abc_start":[a,b,c],"abc_end":[a,b,c]`
 //!   (degrees) after `feed_mm_min`.
-//! - Events: `code` is one of `M0 M1 M2 M30 M3 M4 M5 M6 M8 M9 S T`; `value` is the spindle
-//!   speed in rpm for `S`, the tool number for `T`, and `null` for M codes.
+//! - Events: `code` is one of `M0 M1 M2 M30 M60 M3 M4 M5 M6 M7 M8 M9 S T G4`, a user M
+//!   code `M100`…`M199`, or `MSG`, `DEBUG`, `PRINT`; `value` is the spindle speed in rpm
+//!   for `S`, the tool number for `T`, the dwell in seconds for `G4`, the P word (or
+//!   `null`) for a user M code, and `null` otherwise. M0, M1 (optional stop) and M60
+//!   (pallet change) are program pauses. A user M code with a Q word adds `"q":Q`; a
+//!   message adds `"text":"..."` (a JSON string: `"`, `\` and control characters
+//!   escaped). Events without them have neither key.
 //! - Numbers are written in the shortest form that parses back to the same `f64`
 //!   (Schubfach via the `zmij` crate, the algorithm `serde_json` uses), e.g. `1.0`, `0.1`,
 //!   `-2.5e-7`, `1e+16`. Integers (`line`) are plain decimal.
@@ -354,7 +361,39 @@ impl JsonWriter<'_> {
         self.raw(e.code.as_str());
         self.raw("\",\"value\":");
         self.opt_float(e.value);
+        if let Some(q) = e.q {
+            self.raw(",\"q\":");
+            self.float(q);
+        }
+        if let Some(text) = &e.text {
+            self.raw(",\"text\":");
+            self.string(text);
+        }
         self.raw("}\n");
+    }
+
+    /// A JSON string (RFC 8259 section 7): quote, backslash and control characters
+    /// escaped, everything else (valid UTF-8) as it is.
+    fn string(&mut self, s: &str) {
+        self.raw("\"");
+        for c in s.chars() {
+            match c {
+                '"' => self.raw("\\\""),
+                '\\' => self.raw("\\\\"),
+                '\n' => self.raw("\\n"),
+                '\r' => self.raw("\\r"),
+                '\t' => self.raw("\\t"),
+                c if (c as u32) < 0x20 => {
+                    let code = format!("\\u{:04x}", c as u32);
+                    self.raw(&code);
+                }
+                c => {
+                    let mut buf = [0u8; 4];
+                    self.raw(c.encode_utf8(&mut buf));
+                }
+            }
+        }
+        self.raw("\"");
     }
 }
 
@@ -438,7 +477,10 @@ mod tests {
             }),
             feed_mm_min: Some(1200.0),
             abc_deg: Some(([0.0, 0.0, 90.0], [0.0, 0.0, 180.0])),
-            corner: CornerMode::Blend { tolerance_mm: None },
+            corner: CornerMode::Blend {
+                tolerance_mm: None,
+                naive_cam_mm: None,
+            },
         };
         assert_eq!(
             text(&Item::Move(m)),
@@ -457,6 +499,27 @@ mod tests {
         assert_eq!(
             text(&Item::Event(s)),
             "{\"type\":\"event\",\"line\":4,\"code\":\"S\",\"value\":12000.0}\n"
+        );
+    }
+
+    #[test]
+    fn user_m_codes_and_messages_carry_q_and_text() {
+        let mut user = Event::new(5, EventCode::User(1), Some(3.0));
+        user.q = Some(-4.5);
+        assert_eq!(
+            text(&Item::Event(user)),
+            "{\"type\":\"event\",\"line\":5,\"code\":\"M101\",\"value\":3.0,\"q\":-4.5}\n"
+        );
+        let mut msg = Event::new(6, EventCode::Msg, None);
+        msg.text = Some("say \"hi\" \\ tab\t\u{1}é".into());
+        assert_eq!(
+            text(&Item::Event(msg)),
+            "{\"type\":\"event\",\"line\":6,\"code\":\"MSG\",\"value\":null,\"text\":\"say \\\"hi\\\" \\\\ tab\\t\\u0001é\"}\n"
+        );
+        let m60 = Event::new(7, EventCode::M60, None);
+        assert_eq!(
+            text(&Item::Event(m60)),
+            "{\"type\":\"event\",\"line\":7,\"code\":\"M60\",\"value\":null}\n"
         );
     }
 

@@ -935,7 +935,10 @@ mod tests {
             path: Path::Line(Line { start: a, end: b }),
             feed_mm_min: Some(3000.0),
             abc_deg: None,
-            corner: CornerMode::Blend { tolerance_mm: None },
+            corner: CornerMode::Blend {
+                tolerance_mm: None,
+                naive_cam_mm: None,
+            },
         };
         // A half circle back towards the start, tangent to the line.
         let arc = Move {
@@ -950,7 +953,10 @@ mod tests {
             }),
             feed_mm_min: Some(3000.0),
             abc_deg: None,
-            corner: CornerMode::Blend { tolerance_mm: None },
+            corner: CornerMode::Blend {
+                tolerance_mm: None,
+                naive_cam_mm: None,
+            },
         };
         vec![line, arc]
     }

@@ -437,7 +437,9 @@ fn path_tolerance(env: &Env, moves: &[Move]) -> f64 {
         .iter()
         .map(|m| match m.corner {
             CornerMode::ExactStop => 0.0,
-            CornerMode::Blend { tolerance_mm } => tolerance_mm.unwrap_or(env.config.tolerance_mm),
+            CornerMode::Blend { tolerance_mm, .. } => {
+                tolerance_mm.unwrap_or(env.config.tolerance_mm)
+            }
         })
         .fold(0.0, f64::max)
 }

@@ -4,6 +4,7 @@ use std::f64::consts::TAU;
 
 use kerf_geom::{CornerMode, Line, Move, Path, Vec3};
 
+use super::modal::MoveFeed;
 use super::{Block, ExecError, MM_PER_INCH, Out, State, fail};
 use crate::arc::{self, ArcError, Tolerance};
 use crate::codes::*;
@@ -241,17 +242,7 @@ impl State {
         let feed = if rapid {
             None
         } else {
-            match self.feed_mm_min {
-                Some(f) if f > 0.0 => Some(f),
-                _ => {
-                    let message = match (d, is_arc) {
-                        (Dialect::LinuxCnc, false) => "Cannot do G1 with zero feed rate",
-                        (Dialect::LinuxCnc, true) => "Cannot make arc with zero feed rate",
-                        _ => "no feed rate programmed (F)",
-                    };
-                    return fail(motion_col, message);
-                }
-            }
+            Some(self.move_feed(blk, is_arc, motion_col)?)
         };
 
         let start = self.pos;
@@ -355,6 +346,11 @@ impl State {
         if !finite_path || !abc_end.iter().all(|x| x.is_finite()) {
             return fail(blk.first_col, "coordinate out of range");
         }
+        let feed = match feed {
+            Some(MoveFeed::MmMin(f)) => Some(f),
+            Some(f) => Some(self.feed_rate_mm_min(f, &path, self.abc, abc_end)),
+            None => None,
+        };
         out.items.push(Item::Move(Move {
             line: out.line,
             rapid,
@@ -825,9 +821,11 @@ impl State {
                         c[slot] = if absolute && blk.has(k) {
                             val + self.origin[i]
                         } else if absolute {
-                            // LinuxCNC G90.1 with an omitted centre word: that coordinate
-                            // of the centre is program zero.
-                            self.origin[i]
+                            // LinuxCNC G90.1 needs both centre words of the plane.
+                            return fail(
+                                motion_col,
+                                format!("{} word missing in absolute center arc", key_name(k)),
+                            );
                         } else {
                             start[i] + val
                         };

@@ -19,7 +19,10 @@ pub fn mill(v: f64, a: f64, j: f64, tol: f64) -> MachineLimits {
 }
 
 pub fn blend() -> CornerMode {
-    CornerMode::Blend { tolerance_mm: None }
+    CornerMode::Blend {
+        tolerance_mm: None,
+        naive_cam_mm: None,
+    }
 }
 
 pub fn line(line_no: u32, a: Vec3, b: Vec3, feed_mm_min: f64) -> Move {
