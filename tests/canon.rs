@@ -39,7 +39,9 @@
 //!   `CHANGE_TOOL_NUMBER` (M61) moves nothing and makes no event.
 //! - `SET_MOTION_CONTROL_MODE(CANON_EXACT_STOP)` (G61.1), `(CANON_EXACT_PATH)` (G61),
 //!   `(CANON_CONTINUOUS, tolerance)` (G64 [P], tolerance in the units active when printed,
-//!   0 without P); continuous without tolerance at start.
+//!   0 without P); continuous without tolerance at start. `SET_NAIVECAM_TOLERANCE(q)`
+//!   (printed by G64 after the mode, 4 decimals) is the naive-CAM tolerance of the
+//!   continuous mode in force.
 //! - Calls that move the machine in a way Kerf does not model (probing, rigid tapping,
 //!   spindle-synchronised motion, NURBS) become [`CanonItem::Other`]: they never match.
 //! - Every value is printed with 4 decimals: each converted coordinate carries the sum of
@@ -78,6 +80,11 @@ pub enum CanonCorner {
         tolerance_mm: f64,
         /// How far the printed tolerance may be from the exact one, mm (6 decimals).
         tol_mm: f64,
+        /// The naive-CAM tolerance (`SET_NAIVECAM_TOLERANCE`, printed after the mode by
+        /// G64), mm; 0 when none was given.
+        naive_cam_mm: f64,
+        /// How far the printed naive-CAM tolerance may be from the exact one, mm.
+        naive_tol_mm: f64,
     },
 }
 
@@ -290,6 +297,8 @@ impl State {
             corner: CanonCorner::Continuous {
                 tolerance_mm: 0.0,
                 tol_mm: 0.0,
+                naive_cam_mm: 0.0,
+                naive_tol_mm: 0.0,
             },
             items: Vec::new(),
             last_g5x_item: 0,
@@ -540,6 +549,8 @@ impl State {
                     "CANON_CONTINUOUS" => CanonCorner::Continuous {
                         tolerance_mm: numbers(tol, line, 1)?[0] * self.unit_mm,
                         tol_mm: 0.5e-6 * self.unit_mm,
+                        naive_cam_mm: 0.0,
+                        naive_tol_mm: 0.0,
                     },
                     other => {
                         return Err(CanonError {
@@ -548,6 +559,18 @@ impl State {
                         });
                     }
                 };
+            }
+            "SET_NAIVECAM_TOLERANCE" => {
+                let t = numbers(args, line, 1)?[0] * self.unit_mm;
+                if let CanonCorner::Continuous {
+                    naive_cam_mm,
+                    naive_tol_mm,
+                    ..
+                } = &mut self.corner
+                {
+                    *naive_cam_mm = t;
+                    *naive_tol_mm = 0.5e-4 * self.unit_mm;
+                }
             }
             "SET_FEED_MODE" => {
                 let v = numbers(args, line, 2)?;

@@ -424,12 +424,20 @@ pub fn move_difference(k: &kerf_gcode::Move, c: &CanonMove) -> Option<String> {
         // Kerf has one exact-stop mode for G61 and G61.1.
         (CornerMode::ExactStop, CanonCorner::ExactStop | CanonCorner::ExactPath) => true,
         (
-            CornerMode::Blend { tolerance_mm },
+            CornerMode::Blend {
+                tolerance_mm,
+                naive_cam_mm,
+            },
             CanonCorner::Continuous {
                 tolerance_mm: t,
                 tol_mm,
+                naive_cam_mm: q,
+                naive_tol_mm,
             },
-        ) => close(tolerance_mm.unwrap_or(0.0), t, tol_mm + canon::BASE_TOL),
+        ) => {
+            close(tolerance_mm.unwrap_or(0.0), t, tol_mm + canon::BASE_TOL)
+                && close(naive_cam_mm.unwrap_or(0.0), q, naive_tol_mm + canon::BASE_TOL)
+        }
         _ => false,
     };
     if !corner_ok {
