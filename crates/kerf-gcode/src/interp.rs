@@ -7,6 +7,7 @@ use crate::codes::*;
 use crate::lex::{Form, K_AP, K_AT, K_CARET, K_CR, K_RP, K_TURN, N_KEYS, Word};
 use crate::{Dialect, Event, EventCode, Item, Settings, Tool};
 
+pub(crate) mod cycles;
 mod geometry;
 pub(crate) mod params;
 
@@ -148,6 +149,10 @@ pub(crate) struct State {
     /// the codes whose data lives in parameters).
     #[allow(dead_code)]
     pub(crate) params: params::Params,
+    /// LinuxCNC canned cycles: sticky words, initial level, spindle direction.
+    cycles: cycles::CycleState,
+    /// LinuxCNC G99 (retract to R) rather than G98 (to the initial level, the default).
+    retract_r: bool,
 }
 
 /// Output of a block, in execution order.
@@ -212,6 +217,8 @@ impl State {
             header_seen: false,
             done: false,
             params: params::Params::new(),
+            cycles: cycles::CycleState::new(),
+            retract_r: false,
         };
         s.update_origin();
         s
@@ -491,6 +498,9 @@ impl State {
                     CornerMode::Blend { tolerance_mm: None }
                 };
             }
+            if let G::Retract { r_plane } = g {
+                self.retract_r = r_plane;
+            }
             if let G::CoordSystem(cs) = g {
                 self.coord_system = cs;
                 self.update_origin();
@@ -552,6 +562,7 @@ impl State {
                 if ev == EventCode::M6 {
                     self.tool_loaded = self.tool_selected;
                 }
+                self.cycles.note_spindle(ev);
                 out.event(ev, None);
             }
         }
@@ -675,6 +686,9 @@ impl State {
 
         // Motion.
         let motion_g = slot(1);
+        if d == Dialect::LinuxCnc {
+            self.cycle_motion_code(blk, motion_g)?;
+        }
         match motion_g {
             Some((G::Motion(m), _)) => self.motion = Some(m),
             Some((G::NoMotion, _)) => self.motion = None,
@@ -688,12 +702,15 @@ impl State {
         if d == Dialect::LinuxCnc && blk.present & (1 << KP | 1 << KQ) != 0 {
             // LinuxCNC refuses words that no G code of the block uses.
             let arc = matches!(self.motion, Some(Motion::Arc(_)));
-            if blk.has(KP) && !(dwell || g64 || arc) {
+            if blk.has(KP) && !(dwell || g64 || arc || self.cycle_uses_p()) {
                 return fail(blk.col(KP), "P word with no G code that uses it");
             }
-            if blk.has(KQ) && !g64 {
+            if blk.has(KQ) && !(g64 || self.cycle_uses_q()) {
                 return fail(blk.col(KQ), "Q word with no G code that uses it");
             }
+        }
+        if d == Dialect::LinuxCnc {
+            self.check_l_word(blk)?;
         }
         if d == Dialect::Heidenhain
             && blk.has(KR)
@@ -704,7 +721,10 @@ impl State {
         // A dwell block holds no motion words (checked above), except in LinuxCNC, whose
         // motion then runs after the dwell.
         let motion_after_dwell = d == Dialect::LinuxCnc && blk.any(&LINUXCNC_MOTION_WORDS);
-        if !consumed_axes && (!dwell || motion_after_dwell) {
+        if let (Some(Motion::Cycle(kind)), false) = (self.motion, consumed_axes) {
+            let explicit = motion_g.map(|(_, c)| c);
+            self.cycle(blk, out, kind, explicit)?;
+        } else if !consumed_axes && (!dwell || motion_after_dwell) {
             let motion_col = motion_g.map_or(blk.first_col, |(_, c)| c);
             self.motion(
                 blk,

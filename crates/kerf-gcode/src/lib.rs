@@ -387,6 +387,10 @@ pub enum EventCode {
     G4,
     /// Pallet change pause (LinuxCNC M60): a program pause like M0.
     M60,
+    /// Spindle orientation (LinuxCNC ORIENT_SPINDLE, as G87 back boring stops the spindle
+    /// in a fixed orientation before moving the tool sideways): `value` is the angle,
+    /// degrees.
+    M19,
     /// A user-defined M code M100–M199 (LinuxCNC), by its number less 100: `value` is its
     /// P word, `q` its Q word.
     User(u8),
@@ -417,6 +421,7 @@ impl EventCode {
             EventCode::T => "T",
             EventCode::G4 => "G4",
             EventCode::M60 => "M60",
+            EventCode::M19 => "M19",
             EventCode::User(n) => {
                 let i = 4 * usize::from(n.min(99));
                 &USER_M_NAMES[i..i + 4]

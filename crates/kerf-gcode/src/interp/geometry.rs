@@ -313,6 +313,10 @@ impl State {
                 }
                 Path::Line(Line { start, end })
             }
+            Motion::Cycle(_) => {
+                // Canned cycles are resolved by `State::cycle`, never here.
+                return fail(motion_col, "canned cycle outside its resolution");
+            }
             Motion::Arc(dir) | Motion::PolarArc(dir) => {
                 let ccw = match dir.or(self.last_ccw) {
                     Some(c) => c,
