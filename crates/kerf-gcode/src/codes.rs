@@ -205,7 +205,7 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
             610 | 611 => Corner { exact: true },
             640 => Corner { exact: false },
             800 => NoMotion,
-            730 | 810..=830 | 850..=890 if code10 % 10 == 0 => {
+            730 | 810..=830 | 850..=890 if code10.is_multiple_of(10) => {
                 match crate::interp::cycles::CycleKind::from_code10(code10) {
                     Some(k) => Motion(self::Motion::Cycle(k)),
                     None => return None,

@@ -151,7 +151,8 @@ pub(crate) struct State {
     pub(crate) params: params::Params,
     /// LinuxCNC canned cycles: sticky words, initial level, spindle direction.
     cycles: cycles::CycleState,
-    /// LinuxCNC G99 (retract to R) rather than G98 (to the initial level, the default).
+    /// LinuxCNC G99 (canned cycles retract to R, the default of rs274) rather than G98
+    /// (to the initial level).
     retract_r: bool,
 }
 
@@ -218,7 +219,7 @@ impl State {
             done: false,
             params: params::Params::new(),
             cycles: cycles::CycleState::new(),
-            retract_r: false,
+            retract_r: true,
         };
         s.update_origin();
         s

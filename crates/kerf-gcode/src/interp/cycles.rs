@@ -162,7 +162,7 @@ impl CycleState {
 /// which keeps the programmed value.
 fn snap(x: f64) -> f64 {
     let r = (x * 1e6).round() / 1e6;
-    if (x - r).abs() <= 1e-9 * x.abs().max(1.0) {
+    if (x - r).abs() <= 1e-12 * x.abs().max(1.0) {
         r
     } else {
         x
