@@ -456,7 +456,7 @@ fn cycle_moves_are_exact_stops_and_start_where_the_last_ended() {
 #[test]
 fn errors_in_linuxcnc_words() {
     let pre = "G21 G0 Z5\nS100 M3 F100\n";
-    let cases: [(&str, u32, &str); 20] = [
+    let cases: [(&str, u32, &str); 21] = [
         ("G81 X1 Z2 R1", 1, "R less than z in cycle in xy plane"),
         ("G81 X1 Z-1", 1, "R clearance plane unspecified in cycle"),
         (
@@ -481,6 +481,7 @@ fn errors_in_linuxcnc_words() {
         ("G81 X1 Z-1 R1 Q1", 15, "Q word with no G code that uses it"),
         ("G81 X1 Z-1 R1 I1", 15, "I word with no G2, G3"),
         ("G82 X1 Z-1 R1 P-0.5", 15, "Negative P word used"),
+        ("G53 G81 X1 Z-1 R1", 1, "must use G0 or G1 with G53"),
     ];
     for (block, col, msg) in cases {
         let d = error(D, &format!("{pre}{block}\n"));

@@ -724,6 +724,9 @@ impl State {
         let motion_after_dwell = d == Dialect::LinuxCnc && blk.any(&LINUXCNC_MOTION_WORDS);
         if let (Some(Motion::Cycle(kind)), false) = (self.motion, consumed_axes) {
             let explicit = motion_g.map(|(_, c)| c);
+            if let Some((_, col)) = machine {
+                return fail(col, "must use G0 or G1 with G53");
+            }
             self.cycle(blk, out, kind, explicit)?;
         } else if !consumed_axes && (!dwell || motion_after_dwell) {
             let motion_col = motion_g.map_or(blk.first_col, |(_, c)| c);

@@ -97,7 +97,8 @@
 //!   centre lies in the plane of the start point.
 //! - Not supported yet, each a clear error naming the construct: parameters and
 //!   expressions (LinuxCNC `#`, `[..]`, O-words; Sinumerik R parameters, `=` expressions
-//!   and other keywords; Fagor `P` parameters, `#` and `$` instructions), canned cycles,
+//!   and other keywords; Fagor `P` parameters, `#` and `$` instructions), canned cycles
+//!   (outside LinuxCNC, which has them: see its section),
 //!   inverse-time (G93) and per-revolution (G95) feed, U/V/W axes.
 //!
 //! # LinuxCNC / Tormach (`linuxcnc`, alias `tormach`)
@@ -106,7 +107,7 @@
 //!   is X10.5). A `%` line opens the program and the next `%` line ends it.
 //! - G20/G21 (default mm), G90/G91, G90.1/G91.1 (I J K absolute / incremental, default
 //!   incremental), G17/G18/G19, G61/G61.1 exact stop, G64 blend (`G64 P` = tolerance,
-//!   converted from inches under G20), G80 cancels the motion mode, G94, G97/G98/G99
+//!   converted from inches under G20), G80 cancels the motion mode, G94, G97
 //!   accepted. There is no motion mode at start: axis words before G0/G1/G2/G3 are the
 //!   error "cannot use axis values without a G code that uses them".
 //! - Work offsets G54–G59.3; G92 (program coordinates of the current point), G92.1
@@ -132,8 +133,28 @@
 //!   origin"). Mixing them with X/Y is an error.
 //! - Feed errors use LinuxCNC's words: "Cannot do G1 with zero feed rate", "Cannot make arc
 //!   with zero feed rate". F is kept physically across G20/G21 changes.
-//! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc,
-//!   P without G2/G3/G4/G64, Q without G64, H without G43. U, V, W and E are not supported.
+//! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc
+//!   (or G87), P without G2/G3/G4/G64 or a dwelling cycle, Q without G64, G73 or G83, H
+//!   without G43, L without a canned cycle. U, V, W and E are not supported.
+//! - Canned cycles G73, G81, G82, G83, G85, G86, G87, G88, G89 (`interp::cycles`) give the
+//!   moves rs274 (LinuxCNC 2.9) gives, in G17, G18 and G19 (the drilling axis is the plane's
+//!   normal: Z, Y, X), with G98 (back to the initial level) or G99 (to R; rs274's default),
+//!   L repeats and G91 (R from the initial level, the bottom from R, the hole position added
+//!   before each repeat). R, the bottom, P, Q and G87's I J K are kept for the following
+//!   blocks of the same cycle; a block with axis words continues the cycle, one without
+//!   them does nothing; G0–G3 and G80 end the series (G80 with axis words is "Cannot use
+//!   axis values with g80"). Cycle moves are exact stops. Dwells (the P of G82, G86, G88,
+//!   G89) are `G4` events; G86 and G88 stop the spindle (`M5`) and restart it (`M3`/`M4`,
+//!   the direction it had), G88 stops the program (`M0`) for a manual retract, which Kerf
+//!   then makes as a rapid to the clearance level (rs274 leaves that gap: Kerf's moves are
+//!   continuous); G87 orients the spindle (`M19` events). G73/G83 back off 0.010 in
+//!   (0.254 mm). Errors are rs274's ("R less than z in cycle in xy plane", "Q word missing
+//!   with g83", "Negative or zero q value used", "Cannot use canned cycles with cutter
+//!   compensation on", "Cannot do zero repeats of cycle", ...). Kerf refuses a negative P
+//!   (rs274 dwells a negative time), polar words in a cycle (rs274 has them), and a block
+//!   of more than 100,000 moves and events (its L repeats and pecks). G33, G33.1, G74, G76
+//!   and G84 are "... is not supported: needs spindle synchronisation". Table:
+//!   `docs/linuxcnc/cycles.md`.
 //!
 //! # Rockwell 9/Series mill (`rockwell`, Fanuc style)
 //!
