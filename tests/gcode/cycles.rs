@@ -168,9 +168,20 @@ fn a_cycle_continues_over_blocks_with_sticky_r_and_z() {
             "R(0,2,1)",
         ])
     );
-    // A block without axis words does nothing in cycle mode.
-    let its = items(D, "G21 G0 Z10\nF100\nG81 X1 Z-2 R1\nF200\nR3\n");
+    // A block without axis words does nothing in cycle mode; the cycle words in it have
+    // no use then (rs274's errors).
+    let its = items(D, "G21 G0 Z10\nF100\nG81 X1 Z-2 R1\nF200\n");
     assert_eq!(only_moves(&its).last().map(|m| m.line), Some(3));
+    let pre = "G21 G0 Z10\nS100 M3 F100\nG82 X1 Z-2 R1 P1\n";
+    for (word, msg) in [
+        ("R3", "R word with no g code that uses it"),
+        ("L2", "L word with no G10"),
+        ("P1", "P word with no G2 G3 G4"),
+        ("I1", "I word with no G2"),
+    ] {
+        let d = error(D, &format!("{pre}{word}\n"));
+        assert_diag(&d, 4, 1, &[msg]);
+    }
 }
 
 #[test]
@@ -477,8 +488,8 @@ fn errors_in_linuxcnc_words() {
         ("G81 R1 L2", 1, "All axes missing with motion code"),
         ("G80 X1", 1, "Cannot use axis values with g80"),
         ("G0 X1 L2", 7, "L word with no G10"),
-        ("G81 X1 Z-1 R1 P1", 15, "P word with no G code that uses it"),
-        ("G81 X1 Z-1 R1 Q1", 15, "Q word with no G code that uses it"),
+        ("G81 X1 Z-1 R1 P1", 15, "P word with no G2 G3 G4"),
+        ("G81 X1 Z-1 R1 Q1", 15, "Q word with no G5, G10, G64, G73"),
         ("G81 X1 Z-1 R1 I1", 15, "I word with no G2, G3"),
         ("G82 X1 Z-1 R1 P-0.5", 15, "Negative P word used"),
         ("G53 G81 X1 Z-1 R1", 1, "must use G0 or G1 with G53"),

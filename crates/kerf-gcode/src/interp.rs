@@ -700,18 +700,22 @@ impl State {
         let abs_centre_once = slot(12).is_some();
         let dwell = dwell_col.is_some();
         let g64 = matches!(slot(9), Some((G::Corner { exact: false }, _)));
-        if d == Dialect::LinuxCnc && blk.present & (1 << KP | 1 << KQ) != 0 {
+        if d == Dialect::LinuxCnc {
+            let explicit_cycle = matches!(motion_g, Some((G::Motion(Motion::Cycle(_)), _)));
+            self.check_l_word(blk, explicit_cycle)?;
+        }
+        if d == Dialect::LinuxCnc
+            && blk.present & (1 << KP | 1 << KQ) != 0
+            && !self.axes_without_motion(blk)
+        {
             // LinuxCNC refuses words that no G code of the block uses.
             let arc = matches!(self.motion, Some(Motion::Arc(_)));
             if blk.has(KP) && !(dwell || g64 || arc || self.cycle_uses_p()) {
-                return fail(blk.col(KP), "P word with no G code that uses it");
+                return fail(blk.col(KP), cycles::unused_word_message(KP));
             }
             if blk.has(KQ) && !(g64 || self.cycle_uses_q()) {
-                return fail(blk.col(KQ), "Q word with no G code that uses it");
+                return fail(blk.col(KQ), cycles::unused_word_message(KQ));
             }
-        }
-        if d == Dialect::LinuxCnc {
-            self.check_l_word(blk)?;
         }
         if d == Dialect::Heidenhain
             && blk.has(KR)

@@ -42,6 +42,25 @@ pub(crate) const MAX_CYCLE_ITEMS: usize = 100_000;
 /// The longest dwell accepted, seconds (as for G4).
 const MAX_DWELL_S: f64 = 1e6;
 
+/// rs274's message for a word no G code of the block uses (I, J, K, L, P, Q, R).
+pub(crate) fn unused_word_message(k: u8) -> &'static str {
+    match k {
+        KI => "I word with no G2, G3, G5, G5.1, G10, G33.1, G76, or G87 to use it",
+        KJ => "J word with no G2, G3, G5, G5.1, G10, G76 or G87 to use it",
+        KK => "K word with no G2, G3, G33, G33.1, G76, or G87 to use it",
+        KL => {
+            "L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 or NURBS code"
+        }
+        KP => {
+            "P word with no G2 G3 G4 G10 G64 G5 G5.2 G76 G82 G86 G88 G89 or M50 M51 M52 M53 M62 M63 M64 M65 M66 M98 or user M code to use it"
+        }
+        KQ => {
+            "Q word with no G5, G10, G64, G73, G76, G83, M19, M66, M67, M68 or user M code that uses it"
+        }
+        _ => "R word with no g code that uses it",
+    }
+}
+
 /// A canned cycle (LinuxCNC motion modes G73, G81–G83, G85–G89).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum CycleKind {
@@ -235,6 +254,13 @@ impl State {
         Ok(())
     }
 
+    /// LinuxCNC: axis words without a motion mode, an error rs274 reports before the words
+    /// no G code uses.
+    pub(super) fn axes_without_motion(&self, blk: &Block) -> bool {
+        self.motion.is_none()
+            && (blk.any(&XYZ) || blk.any(&ABC) || blk.has(K_AT) || blk.has(K_CARET))
+    }
+
     /// Whether the active motion mode is a cycle that uses P (G82, G86, G88, G89).
     pub(super) fn cycle_uses_p(&self) -> bool {
         matches!(self.motion, Some(Motion::Cycle(k)) if k.uses_p())
@@ -245,13 +271,14 @@ impl State {
         matches!(self.motion, Some(Motion::Cycle(k)) if k.uses_q())
     }
 
-    /// LinuxCNC: an L word needs a canned cycle (or G10, which is not supported yet).
-    pub(super) fn check_l_word(&self, blk: &Block) -> Result<(), ExecError> {
-        if blk.has(KL) && !matches!(self.motion, Some(Motion::Cycle(_))) {
-            return fail(
-                blk.col(KL),
-                "L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 or NURBS code",
-            );
+    /// LinuxCNC: an L word needs a canned cycle that moves (or G10, which is not supported
+    /// yet). Axis words without a motion mode are reported first, as rs274 does.
+    /// `explicit_cycle`: the block names a cycle (then a missing axis word is the error).
+    pub(super) fn check_l_word(&self, blk: &Block, explicit_cycle: bool) -> Result<(), ExecError> {
+        let cycle = matches!(self.motion, Some(Motion::Cycle(_)));
+        let used = cycle && (explicit_cycle || blk.any(&XYZ));
+        if blk.has(KL) && !used && !self.axes_without_motion(blk) {
+            return fail(blk.col(KL), unused_word_message(KL));
         }
         Ok(())
     }
@@ -280,12 +307,7 @@ impl State {
         if kind != CycleKind::G87
             && let Some(k) = blk.first_of(&IJK)
         {
-            let message = match k {
-                KI => "I word with no G2, G3, G5, G5.1, G10, G33.1, G76, or G87 to use it",
-                KJ => "J word with no G2, G3, G5, G5.1, G10, G76 or G87 to use it",
-                _ => "K word with no G2, G3, G33, G33.1, G76, or G87 to use it",
-            };
-            return fail(blk.col(k), message);
+            return fail(blk.col(k), unused_word_message(k));
         }
         if let Some(k) = blk.first_of(&[K_AT, K_CARET]) {
             return fail(
@@ -309,9 +331,12 @@ impl State {
         };
         if !blk.any(&XYZ) {
             // A block in cycle mode without axis words does nothing, unless it names the
-            // cycle: then it is rs274's error.
+            // cycle: then it is rs274's error. Its cycle words then have no use: errors.
             if let Some(col) = explicit {
                 return fail(col, "All axes missing with motion code");
+            }
+            if let Some(k) = blk.first_of(&[KL, KP, KQ, KR, KI, KJ, KK]) {
+                return fail(blk.col(k), unused_word_message(k));
             }
             return Ok(());
         }

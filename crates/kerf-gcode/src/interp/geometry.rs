@@ -385,6 +385,9 @@ impl State {
                 _ => &[KI, KJ, KK, KR],
             };
             if let Some(k) = blk.first_of(centre_words) {
+                if self.dialect == Dialect::LinuxCnc {
+                    return fail(blk.col(k), super::cycles::unused_word_message(k));
+                }
                 return fail(
                     blk.col(k),
                     format!("{} word with no G2 or G3 to use it", key_name(k)),
