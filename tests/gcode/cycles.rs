@@ -454,6 +454,49 @@ fn the_initial_level_survives_a_cycle_change_and_g80_forgets_it() {
 }
 
 #[test]
+fn polar_words_place_the_hole_in_g17() {
+    // rs274: from (3, 4, 3), G81 @5 ^30 drills at (4.3301, 2.5); under G91, `@1` adds 1 to
+    // the radius of (3, 4) before each repeat: (3.6, 4.8), (4.2, 5.6).
+    let src = "G21 G0 X3 Y4 Z3\nF100\nG99 G81 @5 ^30 Z-1 R1\n";
+    assert_eq!(
+        trace_from(src, 3),
+        strs(&[
+            "R(4.3301,2.5,3)",
+            "R(4.3301,2.5,1)",
+            "F(4.3301,2.5,-1)@100",
+            "R(4.3301,2.5,1)"
+        ])
+    );
+    let src = "G21 G0 X3 Y4 Z3\nF100\nG99 G91 G81 @1 Z-1 R1 L2\n";
+    assert_eq!(
+        trace_from(src, 3),
+        strs(&[
+            "R(3,4,4)",
+            "R(3.6,4.8,4)",
+            "F(3.6,4.8,3)@100",
+            "R(3.6,4.8,4)",
+            "R(4.2,5.6,4)",
+            "F(4.2,5.6,3)@100",
+            "R(4.2,5.6,4)",
+        ])
+    );
+    let d = error(D, "G21 G0 Z3\nF100\nG91 G81 ^10 Z-1 R1\n");
+    assert_diag(
+        &d,
+        3,
+        9,
+        &["Incremental motion with polar coordinates is indeterminate when at the origin"],
+    );
+    let d = error(D, "G21 G0 Z3\nF100\nG81 @5 X1 Z-1 R1\n");
+    assert_diag(
+        &d,
+        3,
+        8,
+        &["Cannot specify both polar coordinate and X word"],
+    );
+}
+
+#[test]
 fn cycle_moves_are_exact_stops_and_start_where_the_last_ended() {
     let src =
         "G21 G64 G0 Z10\nS1000 M3 F100\nG98 G83 X1 Y1 Z-9 R1 Q2 L2\nG91 G73 X2 Z-5 R-8 Q1.5 L3\n";

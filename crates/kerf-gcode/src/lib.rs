@@ -151,8 +151,8 @@
 //!   (0.254 mm). Errors are rs274's ("R less than z in cycle in xy plane", "Q word missing
 //!   with g83", "Negative or zero q value used", "Cannot use canned cycles with cutter
 //!   compensation on", "Cannot do zero repeats of cycle", ...). Kerf refuses a negative P
-//!   (rs274 dwells a negative time), polar words in a cycle (rs274 has them), and a block
-//!   of more than 100,000 moves and events (its L repeats and pecks). G33, G33.1, G74, G76
+//!   (rs274 dwells a negative time), polar words in a G18/G19 cycle (G17 has them, as in
+//!   rs274), and a block of more than 100,000 moves and events (its L repeats and pecks). G33, G33.1, G74, G76
 //!   and G84 are "... is not supported: needs spindle synchronisation". Table:
 //!   `docs/linuxcnc/cycles.md`.
 //!

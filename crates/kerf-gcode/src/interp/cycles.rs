@@ -309,11 +309,23 @@ impl State {
         {
             return fail(blk.col(k), unused_word_message(k));
         }
+        let polar = blk.has(K_AT) || blk.has(K_CARET);
         if let Some(k) = blk.first_of(&[K_AT, K_CARET]) {
-            return fail(
-                blk.col(k),
-                "polar coordinates (@ ^) in a canned cycle are not supported",
-            );
+            if let Some(xy) = blk.first_of(&[KX, KY]) {
+                return fail(
+                    blk.col(xy),
+                    format!(
+                        "Cannot specify both polar coordinate and {} word",
+                        key_name(xy)
+                    ),
+                );
+            }
+            if self.plane != crate::arc::Plane::Xy {
+                return fail(
+                    blk.col(k),
+                    "polar coordinates (@ ^) in a canned cycle are only supported in the XY plane (G17)",
+                );
+            }
         }
         let l = match blk.get(KL) {
             None => 1u32,
@@ -329,7 +341,7 @@ impl State {
             }
             Some(l) => l as u32,
         };
-        if !blk.any(&XYZ) {
+        if !blk.any(&XYZ) && !polar {
             // A block in cycle mode without axis words does nothing, unless it names the
             // cycle: then it is rs274's error. Its cycle words then have no use: errors.
             if let Some(col) = explicit {
@@ -399,14 +411,30 @@ impl State {
         let initial_level = self.cycles.initial_level.unwrap_or(current_w);
         let mut old_w = initial_level;
         let (mut a, mut b, a_inc, b_inc, r, bottom);
+        let (mut radius_inc, mut theta_inc) = (0.0, 0.0);
         if self.absolute {
             r = r_word;
             bottom = bottom_word;
             a = blk.get(XYZ[u]).unwrap_or(cur_prog[u]);
             b = blk.get(XYZ[v]).unwrap_or(cur_prog[v]);
+            if polar {
+                // G17 only (checked above): about the program's XY zero; a missing word
+                // keeps the current point's radius or angle.
+                let radius = blk.get(K_AT).unwrap_or(cur_prog[0].hypot(cur_prog[1]));
+                let theta = match blk.get(K_CARET) {
+                    Some(t) => t.to_radians(),
+                    None => cur_prog[1].atan2(cur_prog[0]),
+                };
+                a = radius * theta.cos();
+                b = radius * theta.sin();
+            }
             a_inc = 0.0;
             b_inc = 0.0;
         } else {
+            if polar {
+                radius_inc = blk.get(K_AT).unwrap_or(0.0);
+                theta_inc = blk.get(K_CARET).unwrap_or(0.0).to_radians();
+            }
             r = r_word + old_w;
             bottom = r + bottom_word;
             a = cur_prog[u];
@@ -504,6 +532,22 @@ impl State {
         for repeat in 0..l {
             a += a_inc;
             b += b_inc;
+            for (d_radius, d_theta) in [(radius_inc, 0.0), (0.0, theta_inc)] {
+                if d_radius == 0.0 && d_theta == 0.0 {
+                    continue;
+                }
+                if a == 0.0 && b == 0.0 {
+                    return fail(
+                        blk.first_of(&[K_AT, K_CARET])
+                            .map_or(first_col, |k| blk.col(k)),
+                        "Incremental motion with polar coordinates is indeterminate when at the origin",
+                    );
+                }
+                let theta = b.atan2(a) + d_theta;
+                let radius = b.hypot(a) + d_radius;
+                a = radius * theta.cos();
+                b = radius * theta.sin();
+            }
             if repeat == 0 && current_w > r {
                 self.cycle_line(out, first_col, frame.machine(a, b, current_w), None, exact)?;
                 self.cycle_line(out, first_col, frame.machine(a, b, r), None, exact)?;
