@@ -389,6 +389,7 @@ impl State {
             return Ok(());
         }
         let d = self.dialect;
+        self.cycles.block_plane = self.plane;
 
         // Classify G codes and check modal groups. Each group holds at most one code per
         // block, so the block's codes are kept in one slot per group.

@@ -142,8 +142,9 @@
 //!   L repeats and G91 (R from the initial level, the bottom from R, the hole position added
 //!   before each repeat). R, the bottom, P, Q and G87's I J K are kept for the following
 //!   blocks of the same cycle; a block with axis words continues the cycle, one without
-//!   them does nothing; G0–G3 and G80 end the series (G80 with axis words is "Cannot use
-//!   axis values with g80"). Cycle moves are exact stops. Dwells (the P of G82, G86, G88,
+//!   them does nothing (its R, L, P, Q, I, J, K are then unused words); G0–G3 and G80 end
+//!   the series (G80 with axis words is "Cannot use axis values with g80"). Polar words
+//!   place the hole in G17, as in rs274. Cycle moves are exact stops. Dwells (the P of G82, G86, G88,
 //!   G89) are `G4` events; G86 and G88 stop the spindle (`M5`) and restart it (`M3`/`M4`,
 //!   the direction it had), G88 stops the program (`M0`) for a manual retract, which Kerf
 //!   then makes as a rapid to the clearance level (rs274 leaves that gap: Kerf's moves are
@@ -151,10 +152,9 @@
 //!   (0.254 mm). Errors are rs274's ("R less than z in cycle in xy plane", "Q word missing
 //!   with g83", "Negative or zero q value used", "Cannot use canned cycles with cutter
 //!   compensation on", "Cannot do zero repeats of cycle", ...). Kerf refuses a negative P
-//!   (rs274 dwells a negative time), polar words in a G18/G19 cycle (G17 has them, as in
-//!   rs274), and a block of more than 100,000 moves and events (its L repeats and pecks). G33, G33.1, G74, G76
-//!   and G84 are "... is not supported: needs spindle synchronisation". Table:
-//!   `docs/linuxcnc/cycles.md`.
+//!   (rs274 dwells a negative time) and a block of more than 100,000 moves and events
+//!   (its L repeats and pecks). G33, G33.1, G74, G76 and G84 are "... is not supported:
+//!   needs spindle synchronisation". Table: `docs/linuxcnc/cycles.md`.
 //!
 //! # Rockwell 9/Series mill (`rockwell`, Fanuc style)
 //!

@@ -148,6 +148,9 @@ pub(crate) struct CycleState {
     ijk: [f64; 3],
     /// The spindle direction (M3, M4, M5).
     pub(crate) spindle: Spindle,
+    /// The plane before the current block's plane code (rs274 checks polar words in a cycle
+    /// against it).
+    pub(crate) block_plane: crate::arc::Plane,
 }
 
 impl CycleState {
@@ -161,6 +164,7 @@ impl CycleState {
             q: 0.0,
             ijk: [0.0; 3],
             spindle: Spindle::Stopped,
+            block_plane: crate::arc::Plane::Xy,
         }
     }
 
@@ -276,7 +280,8 @@ impl State {
     /// `explicit_cycle`: the block names a cycle (then a missing axis word is the error).
     pub(super) fn check_l_word(&self, blk: &Block, explicit_cycle: bool) -> Result<(), ExecError> {
         let cycle = matches!(self.motion, Some(Motion::Cycle(_)));
-        let used = cycle && (explicit_cycle || blk.any(&XYZ));
+        let axes = blk.any(&XYZ) || blk.has(K_AT) || blk.has(K_CARET);
+        let used = cycle && (explicit_cycle || axes);
         if blk.has(KL) && !used && !self.axes_without_motion(blk) {
             return fail(blk.col(KL), unused_word_message(KL));
         }
@@ -320,10 +325,11 @@ impl State {
                     ),
                 );
             }
-            if self.plane != crate::arc::Plane::Xy {
+            // rs274 checks the plane before the block's own plane code takes effect.
+            if self.plane != crate::arc::Plane::Xy || self.cycles.block_plane != self.plane {
                 return fail(
                     blk.col(k),
-                    "polar coordinates (@ ^) in a canned cycle are only supported in the XY plane (G17)",
+                    "Cannot use polar coordinate except in G17 plane",
                 );
             }
         }
