@@ -41,7 +41,8 @@
 //! Code map: `lex` (bytes to words, per-dialect syntax), `codes` (word keys, G/M code
 //! tables and modal groups of each dialect), `interp` (modal state, block execution,
 //! events), `interp::geometry` (end points, poles, polar coordinates, arcs of one motion
-//! block), `arc` (exact arc construction and the end-point tolerance rules).
+//! block), `interp::cycles` (LinuxCNC canned cycles), `arc` (exact arc construction and
+//! the end-point tolerance rules).
 //!
 //! # Common rules (all dialects)
 //!
