@@ -647,13 +647,17 @@ impl State {
                 return Ok(false);
             }
             "MESSAGE" => self.event(line, EventCode::Msg, None, Some(quoted(args))),
+            "ORIENT_SPINDLE" => {
+                // `ORIENT_SPINDLE(spindle, angle, mode)` (M19, and G87's orientations).
+                let v = numbers(args, line, 3)?;
+                self.event(line, EventCode::M19, Some(v[1]), None);
+            }
             "STRAIGHT_PROBE"
             | "RIGID_TAP"
             | "NURBS_FEED"
             | "START_SPEED_FEED_SYNCH"
             | "START_SPEED_FEED_SYNC"
             | "SPINDLE_RETRACT_TRAVERSE"
-            | "ORIENT_SPINDLE"
             | "USER_DEFINED_FUNCTION"
             | "SET_SPINDLE_MODE_CSS" => {
                 self.items.push(CanonItem::Other {

@@ -63,10 +63,16 @@ pub struct Outcome {
 }
 
 /// Upper bound on the number of items a program of `len` bytes may yield. Every item needs at
-/// least one word of two bytes, so a larger count means the interpreter is looping.
+/// least one word of two bytes, except the moves and events of a LinuxCNC canned cycle: one
+/// block of three bytes or more (`X1` and a line end, in cycle mode) may give up to
+/// [`MAX_CYCLE_ITEMS`] of them. A larger count means the interpreter is looping.
 pub fn item_bound(len: usize) -> usize {
-    2 * len + 16
+    2 * len + 16 + MAX_CYCLE_ITEMS * len.div_ceil(3)
 }
+
+/// The most items one LinuxCNC canned-cycle block may give (L repeats and pecks together);
+/// more is the interpreter's error.
+pub const MAX_CYCLE_ITEMS: usize = 100_000;
 
 /// Runs `src` in `dialect` with `settings` and collects every item up to and including the
 /// first error.

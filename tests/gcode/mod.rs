@@ -8,6 +8,7 @@
 
 mod api;
 mod cross_dialect;
+mod cycles;
 mod errors;
 mod fagor;
 mod fuzz;

@@ -419,7 +419,14 @@ fn user_m_codes_are_events_with_p_and_q() {
     // P and Q belong to the user code (rs274: "P word with no G2 ... or user M code to
     // use it"): a Q without one is still an error.
     let d = error(D, "G1 X1 F1 Q2\n");
-    assert_diag(&d, 1, 10, &["Q word with no G code that uses it"]);
+    assert_diag(
+        &d,
+        1,
+        10,
+        &[
+            "Q word with no G5, G10, G64, G73, G76, G83, M19, M66, M67, M68 or user M code that uses it",
+        ],
+    );
     // One user code per block (rs274: M100 M101 is "Two m codes used from same modal
     // group"); M200 is unknown.
     let d = error(D, "M100 M101\n");
@@ -445,7 +452,7 @@ fn linuxcnc_words_no_code_uses_are_errors() {
             "Cannot use two G codes that both use axis values",
         ),
         // rs274: "R word with no g code that uses it".
-        ("G92 X0 R5\n", 8, "R word with no G2 or G3 to use it"),
+        ("G92 X0 R5\n", 8, "R word with no g code that uses it"),
         // rs274: "H word with no G43 or G76 to use it".
         ("G49 H1\n", 5, "H word with no G43 to use it"),
         // rs274: "D word with no G41, G41.1, G42, G42.1 ... to use it".

@@ -58,6 +58,8 @@ pub(crate) enum Motion {
     },
     /// Heidenhain G12/G13/G15 polar circles; `None` = G15.
     PolarArc(Option<bool>),
+    /// LinuxCNC canned cycles G73, G81–G83, G85–G89 (`interp::cycles`).
+    Cycle(crate::interp::cycles::CycleKind),
 }
 
 /// What a G code does in a dialect.
@@ -94,6 +96,10 @@ pub(crate) enum G {
     FeedPerMinute,
     /// LinuxCNC G93/G94/G95.
     FeedMode(crate::interp::FeedMode),
+    /// LinuxCNC G98 (`r_plane: false`, back to the initial level) / G99 (to R).
+    Retract {
+        r_plane: bool,
+    },
     Pole(PoleRef),
     PoleFromLast,
     PolarOrigin,
@@ -123,7 +129,7 @@ pub(crate) enum PoleRef {
     LastPole,
 }
 
-pub(crate) const N_GROUPS: usize = 13;
+pub(crate) const N_GROUPS: usize = 14;
 pub(crate) const GROUP_DISTANCE: usize = 4;
 
 /// The modal group of a G action, for the "same modal group" check. Group 0 holds the
@@ -142,6 +148,7 @@ pub(crate) fn group(g: G) -> usize {
         G::ExactStopOnce => 10,
         G::FeedPerMinute | G::FeedMode(_) => 11,
         G::AbsCentreOnce => 12,
+        G::Retract { .. } => 13,
         G::Dwell
         | G::G92Set
         | G::G92Reset
@@ -200,6 +207,17 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
             610 | 611 => Corner { exact: true },
             640 => Corner { exact: false },
             800 => NoMotion,
+            730 | 810..=830 | 850..=890 if code10.is_multiple_of(10) => {
+                match crate::interp::cycles::CycleKind::from_code10(code10) {
+                    Some(k) => Motion(self::Motion::Cycle(k)),
+                    None => return None,
+                }
+            }
+            330 => Unsupported("G33 is not supported: needs spindle synchronisation"),
+            331 => Unsupported("G33.1 is not supported: needs spindle synchronisation"),
+            740 => Unsupported("G74 is not supported: needs spindle synchronisation"),
+            760 => Unsupported("G76 is not supported: needs spindle synchronisation"),
+            840 => Unsupported("G84 is not supported: needs spindle synchronisation"),
             901 => ArcDistance { absolute: true },
             911 => ArcDistance { absolute: false },
             920 => G92Set,
@@ -209,7 +227,9 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
             930 => FeedMode(crate::interp::FeedMode::InverseTime),
             940 => FeedMode(crate::interp::FeedMode::PerMinute),
             950 => FeedMode(crate::interp::FeedMode::PerRev),
-            970 | 980 | 990 => NoOp,
+            970 => NoOp,
+            980 => Retract { r_plane: false },
+            990 => Retract { r_plane: true },
             50
             | 51
             | 52
@@ -220,18 +240,12 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
             | 281
             | 300
             | 301
-            | 330
-            | 331
             | 382..=385
             | 411
             | 421
             | 431
             | 432
             | 520
-            | 730
-            | 740
-            | 760
-            | 810..=890
             | 960 => Unsupported("this G code is not supported yet"),
             _ => return None,
         },
@@ -366,7 +380,7 @@ pub(crate) const fn allowed_keys(d: Dialect) -> u32 {
     }
     match d {
         Dialect::LinuxCnc => mask(&[
-            KA, KB, KC, KD, KF, KH, KI, KJ, KK, KP, KQ, KR, KS, KT, KX, KY, KZ, K_AT, K_CARET,
+            KA, KB, KC, KD, KF, KH, KI, KJ, KK, KL, KP, KQ, KR, KS, KT, KX, KY, KZ, K_AT, K_CARET,
         ]),
         Dialect::Rockwell => mask(&[
             KA, KB, KC, KD, KF, KH, KI, KJ, KK, KP, KQ, KR, KS, KT, KX, KY, KZ,

@@ -7,6 +7,7 @@ use crate::codes::*;
 use crate::lex::{Form, K_AP, K_AT, K_CARET, K_CR, K_RP, K_TURN, N_KEYS, Word};
 use crate::{Dialect, Event, EventCode, Item, Settings, Tool};
 
+pub(crate) mod cycles;
 mod geometry;
 mod modal;
 pub(crate) mod params;
@@ -165,6 +166,11 @@ pub(crate) struct State {
     /// the codes whose data lives in parameters).
     #[allow(dead_code)]
     pub(crate) params: params::Params,
+    /// LinuxCNC canned cycles: sticky words, initial level, spindle direction.
+    cycles: cycles::CycleState,
+    /// LinuxCNC G99 (canned cycles retract to R, the default of rs274) rather than G98
+    /// (to the initial level).
+    retract_r: bool,
 }
 
 /// Output of a block, in execution order.
@@ -239,6 +245,8 @@ impl State {
             header_seen: false,
             done: false,
             params: params::Params::new(),
+            cycles: cycles::CycleState::new(),
+            retract_r: true,
         };
         s.update_origin();
         s
@@ -408,6 +416,7 @@ impl State {
             return Ok(());
         }
         let d = self.dialect;
+        self.cycles.block_plane = self.plane;
 
         // Classify G codes and check modal groups. Each group holds at most one code per
         // block, so the block's codes are kept in one slot per group.
@@ -611,6 +620,7 @@ impl State {
                     }
                 }
                 self.note_machine_event(ev);
+                self.cycles.note_spindle(ev);
                 out.event(ev, None);
             }
         }
@@ -762,6 +772,9 @@ impl State {
 
         // Motion.
         let motion_g = slot(1);
+        if d == Dialect::LinuxCnc {
+            self.cycle_motion_code(blk, motion_g)?;
+        }
         match motion_g {
             Some((G::Motion(m), _)) => self.motion = Some(m),
             Some((G::NoMotion, _)) => self.motion = None,
@@ -772,15 +785,22 @@ impl State {
         let abs_centre_once = slot(12).is_some();
         let dwell = dwell_col.is_some();
         let g64 = matches!(slot(9), Some((G::Corner { exact: false }, _)));
-        if d == Dialect::LinuxCnc && blk.present & (1 << KP | 1 << KQ) != 0 {
+        if d == Dialect::LinuxCnc {
+            let explicit_cycle = matches!(motion_g, Some((G::Motion(Motion::Cycle(_)), _)));
+            self.check_l_word(blk, explicit_cycle)?;
+        }
+        if d == Dialect::LinuxCnc
+            && blk.present & (1 << KP | 1 << KQ) != 0
+            && !self.axes_without_motion(blk)
+        {
             // LinuxCNC refuses words that no G code of the block uses.
             let arc = matches!(self.motion, Some(Motion::Arc(_)));
             let user = user_m.is_some();
-            if blk.has(KP) && !(dwell || g64 || arc || user) {
-                return fail(blk.col(KP), "P word with no G code that uses it");
+            if blk.has(KP) && !(dwell || g64 || arc || user || self.cycle_uses_p()) {
+                return fail(blk.col(KP), cycles::unused_word_message(KP));
             }
-            if blk.has(KQ) && !(g64 || user) {
-                return fail(blk.col(KQ), "Q word with no G code that uses it");
+            if blk.has(KQ) && !(g64 || user || self.cycle_uses_q()) {
+                return fail(blk.col(KQ), cycles::unused_word_message(KQ));
             }
         }
         if d == Dialect::Heidenhain
@@ -818,7 +838,13 @@ impl State {
                 return fail(blk.col(KQ), "Q word with no G code that uses it");
             }
         }
-        if !consumed_axes && (!dwell || motion_after_dwell) {
+        if let (Some(Motion::Cycle(kind)), false) = (self.motion, consumed_axes) {
+            let explicit = motion_g.map(|(_, c)| c);
+            if let Some((_, col)) = machine {
+                return fail(col, "must use G0 or G1 with G53");
+            }
+            self.cycle(blk, out, kind, explicit)?;
+        } else if !consumed_axes && (!dwell || motion_after_dwell) {
             let motion_col = motion_g.map_or(blk.first_col, |(_, c)| c);
             self.motion(
                 blk,
@@ -863,6 +889,9 @@ impl State {
         if let Some((G::CoordSystem(cs), _)) = slots[8] {
             self.coord_system = cs;
             self.update_origin();
+        }
+        if let Some((G::Retract { r_plane }, _)) = slots[13] {
+            self.retract_r = r_plane;
         }
         if let Some((G::Corner { exact }, _)) = slots[9] {
             self.corner = if exact {

@@ -42,8 +42,8 @@
 //! tables and modal groups of each dialect), `interp` (modal state, block execution,
 //! events), `interp::geometry` (end points, poles, polar coordinates, arcs of one motion
 //! block), `interp::modal` (LinuxCNC feed modes, G64 P Q, M70–M73 and their subroutine
-//! hooks, user M codes, spindle and coolant state), `arc` (exact arc construction and the
-//! end-point tolerance rules).
+//! hooks, user M codes, spindle and coolant state), `interp::cycles` (LinuxCNC canned
+//! cycles), `arc` (exact arc construction and the end-point tolerance rules).
 //!
 //! # Common rules (all dialects)
 //!
@@ -113,7 +113,8 @@
 //!   centre lies in the plane of the start point.
 //! - Not supported yet, each a clear error naming the construct: parameters and
 //!   expressions (LinuxCNC `#`, `[..]`, O-words; Sinumerik R parameters, `=` expressions
-//!   and other keywords; Fagor `P` parameters, `#` and `$` instructions), canned cycles,
+//!   and other keywords; Fagor `P` parameters, `#` and `$` instructions), canned cycles
+//!   (outside LinuxCNC, which has them: see its section), inverse-time (G93) and
 //!   per-revolution (G95) feed outside LinuxCNC, U/V/W axes.
 //!
 //! # LinuxCNC / Tormach (`linuxcnc`, alias `tormach`)
@@ -190,10 +191,30 @@
 //! - Feed errors use LinuxCNC's words: "Cannot do G1 with zero feed rate", "Cannot make arc
 //!   with zero feed rate". F is kept physically across G20/G21 changes.
 //! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc
-//!   (also with G92), P without G2/G3/G4/G64 or a user M code, Q without G64 or a user M
-//!   code, H without G43 (also with G49), D without G41/G42 in the block. A motion code
-//!   with G92 and axis words is "Cannot use two G codes that both use axis values"; G92
-//!   with A/B/C is not supported (an error). U, V, W and E are not supported.
+//!   (also with G92, or G87), P without G2/G3/G4/G64, a dwelling cycle or a user M code, Q
+//!   without G64, G73, G83 or a user M code, H without G43 (also with G49), D without
+//!   G41/G42 in the block, L without a canned cycle. A motion code with G92 and axis words
+//!   is "Cannot use two G codes that both use axis values"; G92 with A/B/C is not
+//!   supported (an error). U, V, W and E are not supported.
+//! - Canned cycles G73, G81, G82, G83, G85, G86, G87, G88, G89 (`interp::cycles`) give the
+//!   moves rs274 (LinuxCNC 2.9) gives, in G17, G18 and G19 (the drilling axis is the plane's
+//!   normal: Z, Y, X), with G98 (back to the initial level) or G99 (to R; rs274's default),
+//!   L repeats and G91 (R from the initial level, the bottom from R, the hole position added
+//!   before each repeat). R, the bottom, P, Q and G87's I J K are kept for the following
+//!   blocks of the same cycle; a block with axis words continues the cycle, one without
+//!   them does nothing (its R, L, P, Q, I, J, K are then unused words); G0–G3 and G80 end
+//!   the series (G80 with axis words is "Cannot use axis values with g80"). Polar words
+//!   place the hole in G17, as in rs274. Cycle moves are exact stops. Dwells (the P of G82, G86, G88,
+//!   G89) are `G4` events; G86 and G88 stop the spindle (`M5`) and restart it (`M3`/`M4`,
+//!   the direction it had), G88 stops the program (`M0`) for a manual retract, which Kerf
+//!   then makes as a rapid to the clearance level (rs274 leaves that gap: Kerf's moves are
+//!   continuous); G87 orients the spindle (`M19` events). G73/G83 back off 0.010 in
+//!   (0.254 mm). Errors are rs274's ("R less than z in cycle in xy plane", "Q word missing
+//!   with g83", "Negative or zero q value used", "Cannot use canned cycles with cutter
+//!   compensation on", "Cannot do zero repeats of cycle", ...). Kerf refuses a negative P
+//!   (rs274 dwells a negative time) and a block of more than 100,000 moves and events
+//!   (its L repeats and pecks). G33, G33.1, G74, G76 and G84 are "... is not supported:
+//!   needs spindle synchronisation". Table: `docs/linuxcnc/cycles.md`.
 //!
 //! # Rockwell 9/Series mill (`rockwell`, Fanuc style)
 //!
@@ -456,6 +477,10 @@ pub enum EventCode {
     G4,
     /// Pallet change pause (LinuxCNC M60): a program pause like M0.
     M60,
+    /// Spindle orientation (LinuxCNC ORIENT_SPINDLE, as G87 back boring stops the spindle
+    /// in a fixed orientation before moving the tool sideways): `value` is the angle,
+    /// degrees.
+    M19,
     /// A user-defined M code M100–M199 (LinuxCNC), by its number less 100: `value` is its
     /// P word, `q` its Q word.
     User(u8),
@@ -486,6 +511,7 @@ impl EventCode {
             EventCode::T => "T",
             EventCode::G4 => "G4",
             EventCode::M60 => "M60",
+            EventCode::M19 => "M19",
             EventCode::User(n) => {
                 let i = 4 * usize::from(n.min(99));
                 &USER_M_NAMES[i..i + 4]

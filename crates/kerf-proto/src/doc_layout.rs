@@ -113,6 +113,7 @@ fn constants() -> BTreeMap<&'static str, u32> {
         EVENT_MSG,
         EVENT_DEBUG,
         EVENT_PRINT,
+        EVENT_M19,
         EVENT_USER_M100,
         EVENT_USER_M199,
         STATE_IDLE,

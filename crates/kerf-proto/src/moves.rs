@@ -72,6 +72,9 @@ pub const EVENT_MSG: u32 = 16;
 pub const EVENT_DEBUG: u32 = 17;
 /// Print message (`(PRINT, ...)`); the text stays with the planner process.
 pub const EVENT_PRINT: u32 = 18;
+/// Spindle orientation (LinuxCNC ORIENT_SPINDLE of G87 back boring); value: the angle,
+/// degrees.
+pub const EVENT_M19: u32 = 19;
 /// User M code M100 (LinuxCNC); M100 + n is `EVENT_USER_M100 + n`; value: its P word.
 pub const EVENT_USER_M100: u32 = 100;
 /// User M code M199, the last one.
@@ -323,6 +326,7 @@ pub fn event_code_to_u32(code: EventCode) -> u32 {
         EventCode::T => EVENT_T,
         EventCode::G4 => EVENT_G4,
         EventCode::M60 => EVENT_M60,
+        EventCode::M19 => EVENT_M19,
         EventCode::Msg => EVENT_MSG,
         EventCode::Debug => EVENT_DEBUG,
         EventCode::Print => EVENT_PRINT,
@@ -348,6 +352,7 @@ pub fn event_code_from_u32(code: u32) -> Option<EventCode> {
         EVENT_T => EventCode::T,
         EVENT_G4 => EventCode::G4,
         EVENT_M60 => EventCode::M60,
+        EVENT_M19 => EventCode::M19,
         EVENT_MSG => EventCode::Msg,
         EVENT_DEBUG => EventCode::Debug,
         EVENT_PRINT => EventCode::Print,

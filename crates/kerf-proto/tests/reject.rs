@@ -326,8 +326,8 @@ fn events() {
         Reject::UnknownEventCode(0)
     );
     assert_eq!(
-        mutated(|| event(EventCode::M3, None), |m| m.event_code = 19),
-        Reject::UnknownEventCode(19)
+        mutated(|| event(EventCode::M3, None), |m| m.event_code = 99),
+        Reject::UnknownEventCode(99)
     );
     assert_eq!(
         mutated(

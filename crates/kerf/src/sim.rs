@@ -253,6 +253,7 @@ pub fn input_of_event(e: &kerf_gcode::Event) -> Option<Input> {
         | C::M7
         | C::M8
         | C::M9
+        | C::M19
         | C::S => Some(Input::Stop),
     }
 }

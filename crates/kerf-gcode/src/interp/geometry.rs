@@ -304,6 +304,10 @@ impl State {
                 }
                 Path::Line(Line { start, end })
             }
+            Motion::Cycle(_) => {
+                // Canned cycles are resolved by `State::cycle`, never here.
+                return fail(motion_col, "canned cycle outside its resolution");
+            }
             Motion::Arc(dir) | Motion::PolarArc(dir) => {
                 let ccw = match dir.or(self.last_ccw) {
                     Some(c) => c,
@@ -377,6 +381,9 @@ impl State {
                 _ => &[KI, KJ, KK, KR],
             };
             if let Some(k) = blk.first_of(centre_words) {
+                if self.dialect == Dialect::LinuxCnc {
+                    return fail(blk.col(k), super::cycles::unused_word_message(k));
+                }
                 return fail(
                     blk.col(k),
                     format!("{} word with no G2 or G3 to use it", key_name(k)),

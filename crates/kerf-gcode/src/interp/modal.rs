@@ -67,6 +67,8 @@ pub(crate) struct Snapshot {
     spindle: Spindle,
     mist: bool,
     flood: bool,
+    /// G98 (`false`) / G99 (`true`).
+    retract_r: bool,
 }
 
 /// The saved modal state of one call level (the program, or one subroutine call).
@@ -257,6 +259,7 @@ impl State {
             spindle: self.spindle,
             mist: self.mist,
             flood: self.flood,
+            retract_r: self.retract_r,
         }
     }
 
@@ -375,6 +378,7 @@ impl State {
         self.corner = s.corner;
         self.absolute = s.absolute;
         self.arc_absolute = s.arc_absolute;
+        self.retract_r = s.retract_r;
         // Coolant as rs274 restores it: when neither was on, whatever is on goes off (M9);
         // otherwise what was on comes on again, and what was off but is on now stays on.
         if !s.mist && !s.flood {
