@@ -71,7 +71,7 @@ pub(crate) enum G {
     Distance { absolute: bool },
     ArcDistance { absolute: bool },
     Comp(Comp),
-    ToolLength { on: bool },
+    ToolLength(crate::interp::ToolLength),
     CoordSystem(Option<usize>),
     Corner { exact: bool },
     ExactStopOnce,
@@ -80,6 +80,14 @@ pub(crate) enum G {
     G92Suspend,
     G92Restore,
     MachineCoords,
+    /// LinuxCNC G10 (L1/L2/L10/L11/L20).
+    SetData,
+    /// G28 (`false`) / G30 (`true`).
+    Home(bool),
+    /// G28.1 (`false`) / G30.1 (`true`).
+    HomeSet(bool),
+    /// LinuxCNC G52.
+    LocalOffset,
     FeedPerMinute,
     Pole(PoleRef),
     PoleFromLast,
@@ -135,6 +143,10 @@ pub(crate) fn group(g: G) -> usize {
         | G::G92Suspend
         | G::G92Restore
         | G::MachineCoords
+        | G::SetData
+        | G::Home(_)
+        | G::HomeSet(_)
+        | G::LocalOffset
         | G::Pole(_)
         | G::PoleFromLast
         | G::PolarOrigin
@@ -149,6 +161,7 @@ pub(crate) fn group(g: G) -> usize {
 /// for a code the dialect does not know.
 pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
     use G::*;
+    use crate::interp::ToolLength as TL;
     let m = |x| Some(Motion(x));
     let common = match code10 {
         0 => m(self::Motion::Rapid),
@@ -179,8 +192,16 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
                 inch: false,
                 feed_too: true,
             },
-            430 => ToolLength { on: true },
-            490 => ToolLength { on: false },
+            100 => SetData,
+            280 => Home(false),
+            281 => HomeSet(false),
+            300 => Home(true),
+            301 => HomeSet(true),
+            430 => ToolLength(TL::Apply),
+            431 => ToolLength(TL::Dynamic),
+            432 => ToolLength(TL::Add),
+            490 => ToolLength(TL::Cancel),
+            520 => LocalOffset,
             530 => MachineCoords,
             540 | 550 | 560 | 570 | 580 | 590 => CoordSystem(Some(usize::from(code10 / 10 - 54))),
             591..=593 => CoordSystem(Some(usize::from(code10 - 591 + 6))),
@@ -202,19 +223,11 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
             | 52
             | 70
             | 80
-            | 100
-            | 280
-            | 281
-            | 300
-            | 301
             | 330
             | 331
             | 382..=385
             | 411
             | 421
-            | 431
-            | 432
-            | 520
             | 730
             | 740
             | 760
@@ -233,8 +246,8 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
                 inch: false,
                 feed_too: true,
             },
-            430 => ToolLength { on: true },
-            490 => ToolLength { on: false },
+            430 => ToolLength(TL::Apply),
+            490 => ToolLength(TL::Cancel),
             540 | 550 | 560 | 570 | 580 | 590 => CoordSystem(Some(usize::from(code10 / 10 - 54))),
             610 => Corner { exact: true },
             640 => Corner { exact: false },
@@ -353,7 +366,7 @@ pub(crate) const fn allowed_keys(d: Dialect) -> u32 {
     }
     match d {
         Dialect::LinuxCnc => mask(&[
-            KA, KB, KC, KD, KF, KH, KI, KJ, KK, KP, KQ, KR, KS, KT, KX, KY, KZ, K_AT, K_CARET,
+            KA, KB, KC, KD, KF, KH, KI, KJ, KK, KL, KP, KQ, KR, KS, KT, KX, KY, KZ, K_AT, K_CARET,
         ]),
         Dialect::Rockwell => mask(&[
             KA, KB, KC, KD, KF, KH, KI, KJ, KK, KP, KQ, KR, KS, KT, KX, KY, KZ,

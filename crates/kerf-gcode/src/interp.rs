@@ -8,7 +8,10 @@ use crate::lex::{Form, K_AP, K_AT, K_CARET, K_CR, K_RP, K_TURN, N_KEYS, Word};
 use crate::{Dialect, Event, EventCode, Item, Settings, Tool};
 
 mod geometry;
+mod offsets;
 pub(crate) mod params;
+
+pub(crate) use offsets::ToolLength;
 
 const MM_PER_INCH: f64 = 25.4;
 
@@ -119,12 +122,20 @@ pub(crate) struct State {
     tool_loaded: Option<u32>,
     /// The last programmed spindle speed, rpm (Sinumerik `G4 S` dwells in revolutions).
     spindle_rpm: Option<f64>,
-    tool_length_mm: f64,
+    /// The tool offsets in effect (G43 family): X, Y, Z mm, A, B, C degrees (LinuxCNC
+    /// applies every axis of the entry; the other controls Z only).
+    tool_offset: [f64; 6],
+    /// The active coordinate system (0 = G54), `None` for none (Sinumerik G500).
     coord_system: Option<usize>,
-    g92_mm: [f64; 3],
-    g92_saved_mm: [f64; 3],
-    /// Program zero in machine coordinates (work offset + G92 + tool length).
+    /// Program zero in frame coordinates (work offset + G52/G92 + tool offset), cached
+    /// from the parameters by `update_origin`.
     origin: Vec3,
+    /// Program zero of A, B, C, degrees (work offset + G52/G92 + tool offset).
+    origin_abc: [f64; 3],
+    /// LinuxCNC: the XY rotation of the active coordinate system, degrees (G10 L2 R).
+    rotation_deg: f64,
+    /// The centre of that rotation, machine X and Y (work offset + tool offset).
+    rotation_center: [f64; 2],
     /// Sinumerik pole, machine coordinates (`None` = workpiece zero).
     pole: Option<Vec3>,
     /// Sinumerik stored RP (mm) and AP (degrees).
@@ -145,8 +156,7 @@ pub(crate) struct State {
     /// The program has ended (M2/M30 or a Heidenhain end line).
     pub(crate) done: bool,
     /// LinuxCNC numbered parameters (read and written by the expression language and by
-    /// the codes whose data lives in parameters).
-    #[allow(dead_code)]
+    /// the codes whose data lives in parameters: work offsets, G92, G28/G30, tools).
     pub(crate) params: params::Params,
 }
 
@@ -197,11 +207,12 @@ impl State {
             tool_selected: None,
             spindle_rpm: None,
             tool_loaded: None,
-            tool_length_mm: 0.0,
+            tool_offset: [0.0; 6],
             coord_system,
-            g92_mm: [0.0; 3],
-            g92_saved_mm: [0.0; 3],
             origin: Vec3::zeros(),
+            origin_abc: [0.0; 3],
+            rotation_deg: 0.0,
+            rotation_center: [0.0; 2],
             pole: None,
             rp_mm: None,
             ap_deg: None,
@@ -213,34 +224,9 @@ impl State {
             done: false,
             params: params::Params::new(),
         };
+        s.init_params();
         s.update_origin();
         s
-    }
-
-    /// Recomputes program zero after a work offset, G92 or tool length change. Polar values
-    /// are relative to the polar reference: when it moves in its plane, the programmed
-    /// polar values of the current point no longer describe it and are forgotten (the next
-    /// polar word measures the point about the new reference).
-    fn update_origin(&mut self) {
-        let before = self.polar_reference();
-        let work = match self.coord_system {
-            Some(i) => self
-                .settings
-                .work_offsets_mm
-                .get(i)
-                .copied()
-                .unwrap_or([0.0; 3]),
-            None => [0.0; 3],
-        };
-        for (i, w) in work.iter().enumerate() {
-            self.origin[i] = w + self.g92_mm[i];
-        }
-        self.origin[2] += self.tool_length_mm;
-        let after = self.polar_reference();
-        let (u, v) = self.polar_axes();
-        if before[u] != after[u] || before[v] != after[v] {
-            self.polar_last = None;
-        }
     }
 
     fn scale(&self) -> f64 {
@@ -416,7 +402,17 @@ impl State {
         let mut m_pre: [Option<EventCode>; 8] = [None; 8];
         let mut m_post: [Option<EventCode>; 8] = [None; 8];
         let mut m_groups = 0u8;
+        let mut m61: Option<u32> = None;
         for (i, &(code, col)) in blk.ms[..blk.nm].iter().enumerate() {
+            if d == Dialect::LinuxCnc && code == 61 {
+                // M61 Q: set the tool number (tool change group), no event.
+                if m_groups & 2 != 0 {
+                    return fail(col, "two M codes used from same modal group");
+                }
+                m_groups |= 2;
+                m61 = Some(col);
+                continue;
+            }
             let Some(ev) = m_event(code) else {
                 return fail(col, format!("unknown M code M{code}"));
             };
@@ -493,6 +489,9 @@ impl State {
             }
             if let G::CoordSystem(cs) = g {
                 self.coord_system = cs;
+                if let Some(i) = cs {
+                    self.params.set(params::COORD_SYSTEM, i as f64 + 1.0);
+                }
                 self.update_origin();
             }
         }
@@ -530,6 +529,7 @@ impl State {
                 message: "tool number must be a non-negative integer".into(),
             })?;
             if d != Dialect::Heidenhain || slot(0).is_none_or(|(g, _)| g != G::ToolDef) {
+                self.check_tool_exists(n, blk.col(KT))?;
                 self.tool_selected = Some(n);
                 if d != Dialect::LinuxCnc {
                     // On the other controls the T word (Heidenhain tool call, Sinumerik
@@ -550,10 +550,18 @@ impl State {
         ] {
             if blk.nm > 0 && m_pre.contains(&Some(ev)) {
                 if ev == EventCode::M6 {
-                    self.tool_loaded = self.tool_selected;
+                    if d == Dialect::LinuxCnc {
+                        self.load_tool(self.tool_selected, true);
+                    } else {
+                        self.tool_loaded = self.tool_selected;
+                    }
                 }
                 out.event(ev, None);
             }
+        }
+
+        if let Some(col) = m61 {
+            self.exec_m61(blk, col)?;
         }
 
         // The dwell runs after the spindle and coolant events and before the motion (the
@@ -571,6 +579,7 @@ impl State {
                 number: t,
                 length_mm: blk.get(KL).unwrap_or(0.0) * self.scale(),
                 radius_mm: blk.get(KR).unwrap_or(0.0) * self.scale(),
+                ..Tool::default()
             };
             // Redefinition replaces the entry and the table is capped, so that memory stays
             // bounded whatever the program does.
@@ -606,56 +615,64 @@ impl State {
             }
         }
 
+        // LinuxCNC: one G code of the block may use the axis words.
+        let axis_g0 = slot(0).filter(|&(g, _)| {
+            matches!(
+                g,
+                G::G92Set | G::LocalOffset | G::SetData | G::Home(_)
+            )
+        });
+        let motion_in_block = matches!(slot(1), Some((G::Motion(_), _)));
+        if d == Dialect::LinuxCnc
+            && motion_in_block
+            && let Some((_, col)) = axis_g0
+        {
+            return fail(col, "Cannot use two g codes that both use axis values");
+        }
+        if d == Dialect::LinuxCnc && blk.has(KL) && slot(0).is_none_or(|(g, _)| g != G::SetData) {
+            return fail(
+                blk.col(KL),
+                "L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 or NURBS code",
+            );
+        }
+
         // Tool length offset.
-        if let Some((G::ToolLength { on }, _)) = slot(7) {
-            self.tool_length_mm = if on {
-                let number = match blk.get(KH) {
-                    Some(h) => Some(tool_number(h).ok_or_else(|| ExecError {
-                        col: blk.col(KH),
-                        message: "H word must be a non-negative integer".into(),
-                    })?),
-                    None => self.tool_loaded,
-                };
-                self.tool(number).map_or(0.0, |t| t.length_mm)
-            } else {
-                0.0
-            };
-            self.update_origin();
+        let mut consumed_axes = false;
+        if let Some((G::ToolLength(kind), col)) = slot(7) {
+            consumed_axes = self.exec_tool_length(blk, kind, col, motion_in_block)?;
         } else if blk.has(KH) && matches!(d, Dialect::LinuxCnc | Dialect::Rockwell) {
             return fail(blk.col(KH), "H word with no G43 to use it");
         }
 
-        // G92 family.
-        let mut consumed_axes = false;
-        if let Some((g, col)) = slot(0)
-            .filter(|&(g, _)| matches!(g, G::G92Set | G::G92Reset | G::G92Suspend | G::G92Restore))
-        {
+        // G52/G92 family, G10, G28/G30 and their stored positions (LinuxCNC order of
+        // execution: after the tool length offset and the coordinate system selection,
+        // before the motion).
+        if let Some((g, col)) = slot(0) {
             match g {
-                G::G92Set => {
-                    if !blk.any(&XYZ) {
-                        return fail(col, "all axes missing with G92");
-                    }
-                    for (i, &k) in XYZ.iter().enumerate() {
-                        if let Some(v) = blk.get(k) {
-                            let work = self.origin[i] - self.g92_mm[i];
-                            self.g92_mm[i] = self.pos[i] - work - v * self.scale();
-                        }
-                    }
+                G::G92Set | G::G92Reset | G::G92Suspend | G::G92Restore | G::LocalOffset => {
+                    self.exec_g92(blk, g, col)?;
                     consumed_axes = true;
                 }
-                G::G92Reset => {
-                    self.g92_mm = [0.0; 3];
-                    self.g92_saved_mm = [0.0; 3];
+                G::SetData => {
+                    self.exec_g10(blk, col)?;
+                    consumed_axes = true;
                 }
-                G::G92Suspend => {
-                    self.g92_saved_mm = self.g92_mm;
-                    self.g92_mm = [0.0; 3];
+                G::HomeSet(g30) => {
+                    if let Some(k) = blk.first_of(&[KX, KY, KZ, KA, KB, KC]) {
+                        return fail(
+                            blk.col(k),
+                            "Cannot use axis values without a g code that uses them",
+                        );
+                    }
+                    self.store_home(g30);
                 }
-                _ => self.g92_mm = self.g92_saved_mm,
+                G::Home(g30) => {
+                    self.exec_home(blk, g30, col, out)?;
+                    consumed_axes = true;
+                }
+                _ => {}
             }
-            self.update_origin();
         }
-
         // Poles and polar origins.
         if let Some((G::Pole(r), col)) = slot(0) {
             self.set_sinumerik_pole(blk, r, col)?;
@@ -688,10 +705,11 @@ impl State {
         if d == Dialect::LinuxCnc && blk.present & (1 << KP | 1 << KQ) != 0 {
             // LinuxCNC refuses words that no G code of the block uses.
             let arc = matches!(self.motion, Some(Motion::Arc(_)));
-            if blk.has(KP) && !(dwell || g64 || arc) {
+            let g10 = slot(0).is_some_and(|(g, _)| g == G::SetData);
+            if blk.has(KP) && !(dwell || g64 || arc || g10) {
                 return fail(blk.col(KP), "P word with no G code that uses it");
             }
-            if blk.has(KQ) && !g64 {
+            if blk.has(KQ) && !(g64 || g10 || m61.is_some()) {
                 return fail(blk.col(KQ), "Q word with no G code that uses it");
             }
         }
@@ -821,6 +839,11 @@ impl State {
                 out.event(ev, None);
                 if matches!(ev, EventCode::M2 | EventCode::M30) {
                     self.done = true;
+                    if self.dialect == Dialect::LinuxCnc {
+                        // LinuxCNC's program end selects G54 again (#5220 = 1).
+                        self.coord_system = Some(0);
+                        self.params.set(params::COORD_SYSTEM, 1.0);
+                    }
                 }
             }
         }

@@ -298,14 +298,38 @@ impl Dialect {
 }
 
 /// One entry of the tool table.
-#[derive(Clone, Debug)]
+///
+/// LinuxCNC applies every offset of the entry with G43 (X, Y, Z, A, B, C); the other
+/// controls use the length only.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Tool {
     /// Tool number (T word).
     pub number: u32,
-    /// Tool length offset, mm (applied along Z by LinuxCNC G43).
+    /// Tool length offset, mm: the Z offset of the entry.
     pub length_mm: f64,
     /// Tool radius, mm (cutter compensation is refused when it is non-zero).
     pub radius_mm: f64,
+    /// X and Y offsets of the entry, mm (LinuxCNC applies them with G43; lathes mostly).
+    pub offset_xy_mm: [f64; 2],
+    /// A, B and C offsets of the entry, degrees (LinuxCNC applies them with G43).
+    pub offset_abc_deg: [f64; 3],
+    /// The pocket the tool sits in (LinuxCNC tool table `P`; informational).
+    pub pocket: u32,
+    /// Lathe front angle, degrees (LinuxCNC `I`, parameter #5411).
+    pub front_angle_deg: f64,
+    /// Lathe back angle, degrees (LinuxCNC `J`, parameter #5412).
+    pub back_angle_deg: f64,
+    /// Lathe tool orientation 0–9 (LinuxCNC `Q`, parameter #5413).
+    pub orientation: u8,
+}
+
+impl Tool {
+    /// The offsets of the entry as LinuxCNC applies them: X, Y, Z mm, A, B, C degrees.
+    pub fn offsets_mm_deg(&self) -> [f64; 6] {
+        let [x, y] = self.offset_xy_mm;
+        let [a, b, c] = self.offset_abc_deg;
+        [x, y, self.length_mm, a, b, c]
+    }
 }
 
 /// Machine settings the interpreter needs.
@@ -335,6 +359,11 @@ pub struct Settings {
     pub g28_home_mm_deg: [f64; 6],
     /// See [`Settings::g28_home_mm_deg`].
     pub g30_home_mm_deg: [f64; 6],
+    /// LinuxCNC: numbered parameters restored at program start, after the values above
+    /// (the persistent parameters #5161–#5390 of a parameter file, as LinuxCNC restores
+    /// its `.var` file). Values in mm and degrees, Kerf's machine units. A number outside
+    /// #1–#5602 is ignored.
+    pub parameters: Vec<(u32, f64)>,
 }
 
 impl Default for Settings {
@@ -349,6 +378,7 @@ impl Default for Settings {
             max_loop_iterations: 1_000_000,
             g28_home_mm_deg: [0.0; 6],
             g30_home_mm_deg: [0.0; 6],
+            parameters: Vec::new(),
         }
     }
 }
@@ -524,6 +554,19 @@ impl<R: std::io::BufRead> Interpreter<R> {
             percent_seen: false,
             blocks_seen: false,
         }
+    }
+
+    /// LinuxCNC's persistent numbered parameters #5161–#5390 as they are now (after a
+    /// program that ended normally: its end values), in mm and degrees: the G28 and G30
+    /// positions, the G92 offset and its flag, the active coordinate system and the
+    /// G54–G59.3 offsets and rotations. `kerf run` writes them to the parameter file.
+    pub fn persistent_parameters(&self) -> Vec<(u32, f64)> {
+        self.state.params.persistent()
+    }
+
+    /// True when the program ended with M2 or M30 (or a Heidenhain end line).
+    pub fn ended(&self) -> bool {
+        self.state.done
     }
 
     fn diag(&self, col: u32, message: impl Into<String>) -> Diagnostic {

@@ -336,6 +336,7 @@ impl Config {
                     number: t.number,
                     length_mm: t.length_mm,
                     radius_mm: t.radius_mm,
+                    ..Tool::default()
                 })
                 .collect(),
             arc_tolerance_mm: self.arc_tolerance_mm,

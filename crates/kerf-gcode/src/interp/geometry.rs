@@ -44,7 +44,7 @@ impl State {
         for (i, &k) in ABC.iter().enumerate() {
             if let Some(v) = blk.get(k) {
                 abc[i] = if self.word_absolute(blk, k) {
-                    v
+                    v + self.origin_abc[i]
                 } else {
                     self.abc[i] + v
                 };
@@ -255,23 +255,37 @@ impl State {
         };
 
         let start = self.pos;
-        let abc_end = self.abc_target(blk);
+        let mut abc_end = self.abc_target(blk);
+        if machine.is_some() {
+            for (i, &k) in ABC.iter().enumerate() {
+                if let Some(v) = blk.get(k) {
+                    abc_end[i] = v;
+                }
+            }
+        }
         let mut end = start;
         let mut new_polar: Option<(f64, f64)> = None;
 
         // End point.
         if let Some(col) = machine {
             if !self.absolute {
-                return fail(col, "cannot use G53 incremental");
+                return fail(col, "Cannot use g53 incremental");
             }
             if !matches!(motion, Motion::Rapid | Motion::Linear) {
-                return fail(col, "must use G0 or G1 with G53");
+                return fail(col, "Must use g0 or g1 with g53");
             }
+            if self.comp != super::Comp::Off {
+                return fail(col, "Cannot use g53 with cutter radius comp");
+            }
+            // Machine coordinates: the named axes go there, the others stay where they
+            // are on the machine (under a rotated system too).
+            let mut m = self.to_machine(start);
             for (i, &k) in XYZ.iter().enumerate() {
                 if let Some(val) = blk.get(k) {
-                    end[i] = val * self.scale();
+                    m[i] = val * self.scale();
                 }
             }
+            end = self.from_machine(m);
         } else if has_polar && !matches!(motion, Motion::PolarArc(_)) {
             let (r, a_deg) = self.polar_end(blk, motion)?;
             let pole = self.polar_reference();
@@ -358,7 +372,7 @@ impl State {
         out.items.push(Item::Move(Move {
             line: out.line,
             rapid,
-            path,
+            path: self.path_to_machine(path),
             feed_mm_min: feed,
             abc_deg: abc,
             corner,
