@@ -14,6 +14,7 @@ mod fuzz;
 mod grammar;
 mod heidenhain;
 mod linuxcnc;
+mod offsets;
 mod rockwell;
 mod sinumerik;
 mod syntax;
