@@ -47,7 +47,10 @@ fn tool(number: u32, xyz: [f64; 3], radius_mm: f64) -> Tool {
 fn g10_l2_sets_the_offset_of_the_named_system_in_its_parameters() {
     // Manual: "G10 L2 P1 X3.5 Y17.2": the origin of G54 becomes X=3.5 Y=17.2, other
     // coordinates unchanged; #5221.. hold it. Under G20 the values are inches.
-    let ms = moves(D, "G10 L2 P1 X3.5 Y17.2\nG0 X0 Y0 Z1\nG10 L2 P2 Z2\nG55 G0 Z0\n");
+    let ms = moves(
+        D,
+        "G10 L2 P1 X3.5 Y17.2\nG0 X0 Y0 Z1\nG10 L2 P2 Z2\nG55 G0 Z0\n",
+    );
     assert_rapid(&ms[0], o(), v(3.5, 17.2, 1.0));
     // Only Z is named: X and Y stay where they are on the machine.
     assert_rapid(&ms[1], v(3.5, 17.2, 1.0), v(3.5, 17.2, 2.0));
@@ -95,7 +98,10 @@ fn g92_family_follows_linuxcnc_parameters() {
     let p = params_after(Settings::default(), "G0 X4\nG92 X7\n");
     assert_eq!((param(&p, 5210), param(&p, 5211)), (1.0, -3.0));
     // G92.2 turns the offset off and keeps #5211; G92.3 applies it again; G92.1 zeroes it.
-    let ms = moves(D, "G0 X4\nG92 X7\nG92.2\nG0 X0\nG92.3\nG0 X7\nG92.1\nG92.3\nG0 X1\n");
+    let ms = moves(
+        D,
+        "G0 X4\nG92 X7\nG92.2\nG0 X0\nG92.3\nG0 X7\nG92.1\nG92.3\nG0 X1\n",
+    );
     assert_rapid(&ms[1], v(4.0, 0.0, 0.0), v(0.0, 0.0, 0.0));
     assert_rapid(&ms[2], v(0.0, 0.0, 0.0), v(4.0, 0.0, 0.0));
     assert_rapid(&ms[3], v(4.0, 0.0, 0.0), v(1.0, 0.0, 0.0));
@@ -132,14 +138,23 @@ fn g28_and_g30_go_through_the_intermediate_point_then_the_named_axes_home() {
     assert_rapid(&ms[1], v(1.0, 2.0, 3.0), v(1.0, 2.0, 20.0));
     // G28.1 / G30.1 store the current absolute position (machine coordinates).
     let p = params_after(s, "G10 L2 P1 X5\nG0 X1 Y2 Z3\nG28.1\nG0 X0\nG30.1\n");
-    assert_eq!([param(&p, 5161), param(&p, 5162), param(&p, 5163)], [6.0, 2.0, 3.0]);
-    assert_eq!([param(&p, 5181), param(&p, 5182), param(&p, 5183)], [5.0, 2.0, 3.0]);
+    assert_eq!(
+        [param(&p, 5161), param(&p, 5162), param(&p, 5163)],
+        [6.0, 2.0, 3.0]
+    );
+    assert_eq!(
+        [param(&p, 5181), param(&p, 5182), param(&p, 5183)],
+        [5.0, 2.0, 3.0]
+    );
 }
 
 #[test]
 fn tool_offsets_apply_every_axis_of_the_entry() {
     let s = Settings {
-        tools: vec![tool(1, [0.0, 0.0, 10.0], 3.0), tool(2, [1.0, 2.0, 20.0], 5.0)],
+        tools: vec![
+            tool(1, [0.0, 0.0, 10.0], 3.0),
+            tool(2, [1.0, 2.0, 20.0], 5.0),
+        ],
         ..Settings::default()
     };
     // rs274: T2 M6 G43 gives USE_TOOL_LENGTH_OFFSET(1 2 20); program (0, 0, 0) is machine
@@ -188,7 +203,11 @@ fn g53_moves_in_machine_coordinates() {
         work_offsets_mm: [[10.0, 20.0, 30.0]; 9],
         ..Settings::default()
     };
-    let ms = moves_with(D, s, "G0 X1 Y1 Z1\nG92 X0\nG53 G0 X0 Y0 Z0\nG53 G1 X2 F100\n");
+    let ms = moves_with(
+        D,
+        s,
+        "G0 X1 Y1 Z1\nG92 X0\nG53 G0 X0 Y0 Z0\nG53 G1 X2 F100\n",
+    );
     assert_rapid(&ms[1], v(11.0, 21.0, 31.0), o());
     assert_feed_line(&ms[2], o(), v(2.0, 0.0, 0.0), 100.0);
     // Under a rotated system the unnamed axes stay where they are on the machine (rs274:
@@ -226,7 +245,10 @@ fn parameters_restored_at_start_and_program_end_values() {
         ..Settings::default()
     };
     let p = params_after(s, "");
-    assert_eq!([param(&p, 5381), param(&p, 5382), param(&p, 5383)], [1.0, 2.0, 3.0]);
+    assert_eq!(
+        [param(&p, 5381), param(&p, 5382), param(&p, 5383)],
+        [1.0, 2.0, 3.0]
+    );
     assert_eq!(param(&p, 5186), 9.0);
     assert_eq!(p.len(), 9 + 9 + 11 + 9 * 10);
 }
@@ -239,22 +261,77 @@ fn offset_errors_in_linuxcncs_words() {
     };
     // (program, line, column, rs274's message)
     let cases: [(&str, u32, u32, &str); 16] = [
-        ("G10 P1 X1\n", 1, 1, "Line with G10 does not have L0, L1, L10, L11, L2, or L20"),
-        ("G10 L3 P1 X1\n", 1, 5, "Line with G10 does not have L0, L1, L10, L11, L2, or L20"),
-        ("G10 L2 X1\n", 1, 1, "P value out of range (0-9) with G10 L2"),
-        ("G10 L2 P10 X1\n", 1, 8, "P value out of range (0-9) with G10 L2"),
+        (
+            "G10 P1 X1\n",
+            1,
+            1,
+            "Line with G10 does not have L0, L1, L10, L11, L2, or L20",
+        ),
+        (
+            "G10 L3 P1 X1\n",
+            1,
+            5,
+            "Line with G10 does not have L0, L1, L10, L11, L2, or L20",
+        ),
+        (
+            "G10 L2 X1\n",
+            1,
+            1,
+            "P value out of range (0-9) with G10 L2",
+        ),
+        (
+            "G10 L2 P10 X1\n",
+            1,
+            8,
+            "P value out of range (0-9) with G10 L2",
+        ),
         ("G10 L1 P0 Z1\n", 1, 8, "P value out of range with G10 L1"),
-        ("G10 L1 P9 Z1\n", 1, 8, "Requested tool 9 not found in the tool table"),
+        (
+            "G10 L1 P9 Z1\n",
+            1,
+            8,
+            "Requested tool 9 not found in the tool table",
+        ),
         ("G10 L20 P1 R3 X1\n", 1, 12, "R not allowed in G10 L20"),
         ("G91 G53 G0 X1\n", 1, 5, "Cannot use g53 incremental"),
         ("G2 G53 X1 I1 F100\n", 1, 4, "Must use g0 or g1 with g53"),
-        ("G28 G0 X1\n", 1, 1, "Cannot use two g codes that both use axis values"),
-        ("G41\nG28\n", 2, 1, "Cannot use g28 or g30 with cutter radius comp"),
+        (
+            "G28 G0 X1\n",
+            1,
+            1,
+            "Cannot use two g codes that both use axis values",
+        ),
+        (
+            "G41\nG28\n",
+            2,
+            1,
+            "Cannot use g28 or g30 with cutter radius comp",
+        ),
         ("G92\n", 1, 1, "All axes missing with g52 or g92"),
-        ("G43.2\n", 1, 1, "G43.2: No axes specified and H word missing"),
-        ("G43.2 H1 Z1\n", 1, 10, "G43.2: Can not have both H and axis words"),
-        ("M61\n", 1, 1, "Need non-negative Q-word to specify tool number with M61"),
-        ("G0 L2 X1\n", 1, 4, "L word with no G10, cutter compensation, canned cycle"),
+        (
+            "G43.2\n",
+            1,
+            1,
+            "G43.2: No axes specified and H word missing",
+        ),
+        (
+            "G43.2 H1 Z1\n",
+            1,
+            10,
+            "G43.2: Can not have both H and axis words",
+        ),
+        (
+            "M61\n",
+            1,
+            1,
+            "Need non-negative Q-word to specify tool number with M61",
+        ),
+        (
+            "G0 L2 X1\n",
+            1,
+            4,
+            "L word with no G10, cutter compensation, canned cycle",
+        ),
     ];
     for (src, line, col, message) in cases {
         let d = error_with(D, s(), src);

@@ -67,13 +67,22 @@ pub(crate) enum G {
     NoMotion,
     Dwell,
     Plane(Plane),
-    Units { inch: bool, feed_too: bool },
-    Distance { absolute: bool },
-    ArcDistance { absolute: bool },
+    Units {
+        inch: bool,
+        feed_too: bool,
+    },
+    Distance {
+        absolute: bool,
+    },
+    ArcDistance {
+        absolute: bool,
+    },
     Comp(Comp),
     ToolLength(crate::interp::ToolLength),
     CoordSystem(Option<usize>),
-    Corner { exact: bool },
+    Corner {
+        exact: bool,
+    },
     ExactStopOnce,
     G92Set,
     G92Reset,
@@ -160,8 +169,8 @@ pub(crate) fn group(g: G) -> usize {
 /// What G code `code10` (the number times ten: G59.1 is 591) does in dialect `d`; `None`
 /// for a code the dialect does not know.
 pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
-    use G::*;
     use crate::interp::ToolLength as TL;
+    use G::*;
     let m = |x| Some(Motion(x));
     let common = match code10 {
         0 => m(self::Motion::Rapid),

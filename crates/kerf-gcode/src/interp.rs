@@ -616,12 +616,8 @@ impl State {
         }
 
         // LinuxCNC: one G code of the block may use the axis words.
-        let axis_g0 = slot(0).filter(|&(g, _)| {
-            matches!(
-                g,
-                G::G92Set | G::LocalOffset | G::SetData | G::Home(_)
-            )
-        });
+        let axis_g0 = slot(0)
+            .filter(|&(g, _)| matches!(g, G::G92Set | G::LocalOffset | G::SetData | G::Home(_)));
         let motion_in_block = matches!(slot(1), Some((G::Motion(_), _)));
         if d == Dialect::LinuxCnc
             && motion_in_block

@@ -904,7 +904,10 @@ impl Checker<'_> {
         };
         let g28_home_mm_deg = self.home("gcode.g28_home_mm_deg", &g.g28_home_mm_deg)?;
         let g30_home_mm_deg = self.home("gcode.g30_home_mm_deg", &g.g30_home_mm_deg)?;
-        let parameter_file = g.parameter_file.as_ref().map(|f| self.dir.join(f.get_ref()));
+        let parameter_file = g
+            .parameter_file
+            .as_ref()
+            .map(|f| self.dir.join(f.get_ref()));
 
         Ok(Config {
             machine,
@@ -1467,7 +1470,8 @@ max_mm = 10.0
     #[test]
     fn gcode_files_and_limits_are_read_relative_to_the_config_file() {
         let dir = temp_dir("gcode");
-        std::fs::write(dir.join("tool.tbl"), "T3 P3 X0.5 Z42.5 D6 ;drill\nT4 Z-1\n").expect("write");
+        std::fs::write(dir.join("tool.tbl"), "T3 P3 X0.5 Z42.5 D6 ;drill\nT4 Z-1\n")
+            .expect("write");
         std::fs::write(dir.join("kerf.var"), "5161\t10\n5220\t2\n5241\t-3.5\n").expect("write");
         let text = format!(
             "{MINIMAL}[gcode]\ntool_table = \"tool.tbl\"\nsubroutine_path = [\"subs\", \"/opt/ngc\"]\n\
@@ -1484,7 +1488,10 @@ max_mm = 10.0
         assert_eq!(c.tools[1].offsets_mm_deg(), [0.5, 0.0, 42.5, 0.0, 0.0, 0.0]);
         assert_eq!(c.tools[1].radius_mm, 3.0);
         assert_eq!(c.tools[1].pocket, 3);
-        assert_eq!(c.subroutine_path, [dir.join("subs"), PathBuf::from("/opt/ngc")]);
+        assert_eq!(
+            c.subroutine_path,
+            [dir.join("subs"), PathBuf::from("/opt/ngc")]
+        );
         assert_eq!(c.max_loop_iterations, 5000);
         assert_eq!(c.g28_home_mm_deg, [1.0, 2.0, 3.0, 0.0, 0.0, 0.0]);
         assert_eq!(c.g30_home_mm_deg, [4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
@@ -1515,7 +1522,10 @@ max_mm = 10.0
         let load = |extra: &str| {
             let path = dir.join("kerf.toml");
             std::fs::write(&path, format!("{MINIMAL}{extra}")).expect("write");
-            Config::load(&path).map(|_| ()).expect_err(extra).to_string()
+            Config::load(&path)
+                .map(|_| ())
+                .expect_err(extra)
+                .to_string()
         };
         let e = load("[gcode]\ntool_table = \"bad.tbl\"\n");
         assert_eq!(
@@ -1528,7 +1538,10 @@ max_mm = 10.0
         let e = load("[gcode]\ntool_table = \"missing.tbl\"\n");
         assert!(e.contains("cannot read `gcode.tool_table`"), "{e}");
         let e = load("[gcode]\ntool_table = \"dup.tbl\"\n[[tools]]\nnumber = 1\n");
-        assert!(e.contains("tool 1 is both in `tools` and in `gcode.tool_table`"), "{e}");
+        assert!(
+            e.contains("tool 1 is both in `tools` and in `gcode.tool_table`"),
+            "{e}"
+        );
         for (extra, key) in [
             ("max_loop_iterations = 0", "gcode.max_loop_iterations"),
             ("g28_home_mm_deg = [1, 2]", "gcode.g28_home_mm_deg"),

@@ -155,7 +155,10 @@ pub fn parse_tool_table(text: &str, origin: &str) -> Result<Vec<Tool>, ConfigErr
                             origin,
                             line_no,
                             col,
-                            format!("the diameter D must be from 0 to {} mm, found {value}", 2.0 * MAX_COORDINATE_MM),
+                            format!(
+                                "the diameter D must be from 0 to {} mm, found {value}",
+                                2.0 * MAX_COORDINATE_MM
+                            ),
                         ));
                     }
                     tool.radius_mm = value / 2.0;
@@ -292,24 +295,53 @@ mod tests {
         assert_eq!((t.number, t.pocket), (2, 17));
         assert_eq!(t.offsets_mm_deg(), [1.0, -2.0, 3.0, 4.0, 5.0, 6.0]);
         assert_eq!(t.radius_mm, 5.0);
-        assert_eq!((t.front_angle_deg, t.back_angle_deg, t.orientation), (95.0, 155.0, 9));
+        assert_eq!(
+            (t.front_angle_deg, t.back_angle_deg, t.orientation),
+            (95.0, 155.0, 9)
+        );
     }
 
     #[test]
     fn tool_table_errors_name_the_place() {
         let cases = [
-            ("T1 Z1\nT1 Z2\n", "tool.tbl:2:1: error: tool 1 is listed twice"),
-            ("T1 Zx\n", "tool.tbl:1:4: error: `Zx` is not a letter followed by a number"),
-            ("P3 Z1\n", "tool.tbl:1:1: error: tool table line without a tool number T"),
-            ("T1 K2\n", "tool.tbl:1:4: error: unknown word K in a tool table"),
-            ("T1 U2\n", "tool.tbl:1:4: error: U, V and W offsets are not supported"),
-            ("T-1\n", "tool.tbl:1:1: error: the tool number T must be a whole number"),
-            ("T1 Q10\n", "tool.tbl:1:4: error: the orientation Q must be a whole number from 0 to 9"),
-            ("T1 D-1\n", "tool.tbl:1:4: error: the diameter D must be from 0"),
+            (
+                "T1 Z1\nT1 Z2\n",
+                "tool.tbl:2:1: error: tool 1 is listed twice",
+            ),
+            (
+                "T1 Zx\n",
+                "tool.tbl:1:4: error: `Zx` is not a letter followed by a number",
+            ),
+            (
+                "P3 Z1\n",
+                "tool.tbl:1:1: error: tool table line without a tool number T",
+            ),
+            (
+                "T1 K2\n",
+                "tool.tbl:1:4: error: unknown word K in a tool table",
+            ),
+            (
+                "T1 U2\n",
+                "tool.tbl:1:4: error: U, V and W offsets are not supported",
+            ),
+            (
+                "T-1\n",
+                "tool.tbl:1:1: error: the tool number T must be a whole number",
+            ),
+            (
+                "T1 Q10\n",
+                "tool.tbl:1:4: error: the orientation Q must be a whole number from 0 to 9",
+            ),
+            (
+                "T1 D-1\n",
+                "tool.tbl:1:4: error: the diameter D must be from 0",
+            ),
             ("T1 #\n", "tool.tbl:1:4: error: expected a word"),
         ];
         for (text, want) in cases {
-            let e = parse_tool_table(text, "tool.tbl").expect_err(text).to_string();
+            let e = parse_tool_table(text, "tool.tbl")
+                .expect_err(text)
+                .to_string();
             assert!(e.starts_with(want), "{text:?}: {e}");
         }
     }
@@ -320,9 +352,15 @@ mod tests {
             .expect("valid");
         assert_eq!(p, [(5161, 1.5), (5162, -2.0)]);
         let e = parse_parameter_file("5162 0\n5161 0\n", "p.var").expect_err("order");
-        assert_eq!(e.to_string(), "p.var:2:1: error: Parameter file out of order");
+        assert_eq!(
+            e.to_string(),
+            "p.var:2:1: error: Parameter file out of order"
+        );
         let e = parse_parameter_file("6000 0\n", "p.var").expect_err("range");
-        assert!(e.to_string().starts_with("p.var:1:1: error: parameter number 6000"));
+        assert!(
+            e.to_string()
+                .starts_with("p.var:1:1: error: parameter number 6000")
+        );
     }
 
     #[test]
@@ -330,12 +368,18 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("kerf-var-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("temp dir");
         let path = dir.join("kerf.var");
-        assert_eq!(load_parameter_file(&path, "kerf.var").expect("missing = empty"), []);
+        assert_eq!(
+            load_parameter_file(&path, "kerf.var").expect("missing = empty"),
+            []
+        );
         let params = [(5161, 12.5), (5220, 2.0), (5221, -0.25)];
         write_parameter_file(&path, &params).expect("write");
         let text = std::fs::read_to_string(&path).expect("read");
         assert_eq!(text, "5161\t12.500000\n5220\t2.000000\n5221\t-0.250000\n");
-        assert_eq!(load_parameter_file(&path, "kerf.var").expect("read back"), params);
+        assert_eq!(
+            load_parameter_file(&path, "kerf.var").expect("read back"),
+            params
+        );
         std::fs::remove_dir_all(&dir).expect("clean up");
     }
 }

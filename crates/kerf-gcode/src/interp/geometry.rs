@@ -279,13 +279,13 @@ impl State {
             }
             // Machine coordinates: the named axes go there, the others stay where they
             // are on the machine (under a rotated system too).
-            let mut m = self.to_machine(start);
+            let mut m = self.frame_to_machine(start);
             for (i, &k) in XYZ.iter().enumerate() {
                 if let Some(val) = blk.get(k) {
                     m[i] = val * self.scale();
                 }
             }
-            end = self.from_machine(m);
+            end = self.machine_to_frame(m);
         } else if has_polar && !matches!(motion, Motion::PolarArc(_)) {
             let (r, a_deg) = self.polar_end(blk, motion)?;
             let pole = self.polar_reference();

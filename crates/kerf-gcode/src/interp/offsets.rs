@@ -20,8 +20,7 @@
 use kerf_geom::{Path, Vec3};
 
 use super::params::{
-    COORD_SYSTEM, G28_HOME, G30_HOME, G92_ENABLED, G92_OFFSET, TOOL_NUMBER, TOOL_OFFSET,
-    coord_base,
+    COORD_SYSTEM, G28_HOME, G30_HOME, G92_ENABLED, G92_OFFSET, TOOL_NUMBER, TOOL_OFFSET, coord_base,
 };
 use super::{Block, ExecError, Out, State, fail};
 use crate::codes::*;
@@ -110,7 +109,7 @@ impl State {
     /// polar word measures the point about the new reference).
     pub(super) fn update_origin(&mut self) {
         let before = self.polar_reference();
-        let machine = self.to_machine(self.pos);
+        let machine = self.frame_to_machine(self.pos);
         let (work, rotation) = match self.coord_system {
             Some(i) => self.work_offset(i),
             None => ([0.0; 6], 0.0),
@@ -127,7 +126,7 @@ impl State {
             0.0
         };
         self.rotation_center = [work[0] + tool[0], work[1] + tool[1]];
-        self.pos = self.from_machine(machine);
+        self.pos = self.machine_to_frame(machine);
         let after = self.polar_reference();
         let (u, v) = self.polar_axes();
         if before[u] != after[u] || before[v] != after[v] {
@@ -143,7 +142,7 @@ impl State {
     }
 
     /// Machine coordinates of a frame point.
-    pub(super) fn to_machine(&self, f: Vec3) -> Vec3 {
+    pub(super) fn frame_to_machine(&self, f: Vec3) -> Vec3 {
         if self.rotation_deg == 0.0 {
             f
         } else {
@@ -152,7 +151,7 @@ impl State {
     }
 
     /// Frame coordinates of a machine point.
-    pub(super) fn from_machine(&self, m: Vec3) -> Vec3 {
+    pub(super) fn machine_to_frame(&self, m: Vec3) -> Vec3 {
         if self.rotation_deg == 0.0 {
             m
         } else {
@@ -169,14 +168,14 @@ impl State {
         }
         match path {
             Path::Line(mut l) => {
-                l.start = self.to_machine(l.start);
-                l.end = self.to_machine(l.end);
+                l.start = self.frame_to_machine(l.start);
+                l.end = self.frame_to_machine(l.end);
                 Path::Line(l)
             }
             Path::Arc(mut a) => {
-                a.start = self.to_machine(a.start);
-                a.end = self.to_machine(a.end);
-                a.center = self.to_machine(a.center);
+                a.start = self.frame_to_machine(a.start);
+                a.end = self.frame_to_machine(a.end);
+                a.center = self.frame_to_machine(a.center);
                 let (s, c) = self.rotation_deg.to_radians().sin_cos();
                 let (x, y) = (a.axis[0], a.axis[1]);
                 a.axis = Vec3::new(c * x - s * y, s * x + c * y, a.axis[2]);
@@ -248,7 +247,9 @@ impl State {
 
     /// G10 L1/L10/L11 (tool table) and G10 L2/L20 (coordinate systems).
     pub(super) fn exec_g10(&mut self, blk: &Block, col: u32) -> Result<(), ExecError> {
-        let l = blk.get(KL).filter(|l| [1.0, 2.0, 10.0, 11.0, 20.0].contains(l));
+        let l = blk
+            .get(KL)
+            .filter(|l| [1.0, 2.0, 10.0, 11.0, 20.0].contains(l));
         let Some(l) = l else {
             return fail(
                 blk.get(KL).map_or(col, |_| blk.col(KL)),
@@ -296,7 +297,7 @@ impl State {
             // The offset that makes the current point read the given coordinates in that
             // system (with the G92 and tool offsets in effect, the system's own rotation),
             // the other coordinates of the point staying what they read there.
-            let machine = self.to_machine(self.pos);
+            let machine = self.frame_to_machine(self.pos);
             let g92 = self.g92_offset();
             let tool = self.tool_offset;
             let (s, c) = rot.to_radians().sin_cos();
@@ -381,13 +382,19 @@ impl State {
         };
         let mut tool = self.settings.tools[index].clone();
         let mut offs = tool.offsets_mm_deg();
-        let machine = self.to_machine(self.pos);
+        let machine = self.frame_to_machine(self.pos);
         let current = [
-            machine[0], machine[1], machine[2], self.abc[0], self.abc[1], self.abc[2],
+            machine[0],
+            machine[1],
+            machine[2],
+            self.abc[0],
+            self.abc[1],
+            self.abc[2],
         ];
         let (work, g92) = match l {
             10 => (
-                self.coord_system.map_or([0.0; 6], |i| self.work_offset(i).0),
+                self.coord_system
+                    .map_or([0.0; 6], |i| self.work_offset(i).0),
                 self.g92_offset(),
             ),
             11 => (self.work_offset(8).0, [0.0; 6]),
@@ -417,7 +424,10 @@ impl State {
         }
         if let Some(q) = blk.get(KQ) {
             if q.fract() != 0.0 || !(0.0..=9.0).contains(&q) {
-                return fail(blk.col(KQ), "Q word with G10 L1 must be an orientation 0 to 9");
+                return fail(
+                    blk.col(KQ),
+                    "Q word with G10 L1 must be an orientation 0 to 9",
+                );
             }
             tool.orientation = q as u8;
         }
@@ -431,7 +441,7 @@ impl State {
     /// G28.1 / G30.1: the current machine position into #5161… / #5181….
     pub(super) fn store_home(&mut self, g30: bool) {
         let base = if g30 { G30_HOME } else { G28_HOME };
-        let m = self.to_machine(self.pos);
+        let m = self.frame_to_machine(self.pos);
         for i in 0..3 {
             self.params.set(base + i, m[i]);
             self.params.set(base + 3 + i, self.abc[i]);
@@ -460,7 +470,7 @@ impl State {
             home_m[i] = self.params.at(base + i);
             home_abc[i] = self.params.at(base + 3 + i);
         }
-        let home_f = self.from_machine(home_m);
+        let home_f = self.machine_to_frame(home_m);
         let all = !blk.any(&AXES);
         // The intermediate point.
         let mut mid = self.pos;
@@ -490,8 +500,7 @@ impl State {
 
     /// T (LinuxCNC: the tool must be in the table; T0 is "no tool").
     pub(super) fn check_tool_exists(&self, number: u32, col: u32) -> Result<(), ExecError> {
-        if self.dialect != Dialect::LinuxCnc || number == 0 || self.tool(Some(number)).is_some()
-        {
+        if self.dialect != Dialect::LinuxCnc || number == 0 || self.tool(Some(number)).is_some() {
             return Ok(());
         }
         fail(
@@ -522,10 +531,16 @@ impl State {
         let q = blk.get(KQ).filter(|&q| q >= 0.0);
         let Some(q) = q else {
             let c = if blk.has(KQ) { blk.col(KQ) } else { col };
-            return fail(c, "Need non-negative Q-word to specify tool number with M61");
+            return fail(
+                c,
+                "Need non-negative Q-word to specify tool number with M61",
+            );
         };
         let Some(n) = super::tool_number(q.round()) else {
-            return fail(blk.col(KQ), "Need non-negative Q-word to specify tool number with M61");
+            return fail(
+                blk.col(KQ),
+                "Need non-negative Q-word to specify tool number with M61",
+            );
         };
         self.check_tool_exists(n, blk.col(KQ))?;
         self.load_tool(Some(n), false);
@@ -551,10 +566,7 @@ impl State {
             match s.tool(Some(n)) {
                 Some(t) if lcnc => Ok(t.offsets_mm_deg()),
                 Some(t) => Ok([0.0, 0.0, t.length_mm, 0.0, 0.0, 0.0]),
-                None if lcnc => fail(
-                    c,
-                    format!("Requested tool {n} not found in the tool table"),
-                ),
+                None if lcnc => fail(c, format!("Requested tool {n} not found in the tool table")),
                 None => Ok([0.0; 6]),
             }
         };

@@ -446,11 +446,11 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             if let Some(path) = &config.parameter_file {
                 kerf::tooltable::write_parameter_file(path, &interpreter.persistent_parameters())
                     .map_err(|e| {
-                        Failure::Error(format!(
-                            "{}: error: cannot write the parameter file: {e}",
-                            path.display()
-                        ))
-                    })?;
+                    Failure::Error(format!(
+                        "{}: error: cannot write the parameter file: {e}",
+                        path.display()
+                    ))
+                })?;
             }
             return Ok(());
         }
