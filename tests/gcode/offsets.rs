@@ -294,7 +294,7 @@ fn offset_errors_in_linuxcncs_words() {
         ),
         ("G10 L20 P1 R3 X1\n", 1, 12, "R not allowed in G10 L20"),
         ("G91 G53 G0 X1\n", 1, 5, "Cannot use g53 incremental"),
-        ("G2 G53 X1 I1 F100\n", 1, 4, "Must use g0 or g1 with g53"),
+        ("G2 G53 X1 I1\n", 1, 4, "Must use g0 or g1 with g53"),
         (
             "G28 G0 X1\n",
             1,

@@ -232,6 +232,19 @@ impl State {
         }
         self.check_unused(blk, is_arc)?;
 
+        // G53's conditions come first, as rs274 checks them.
+        if let Some(col) = machine {
+            if !self.absolute {
+                return fail(col, "Cannot use g53 incremental");
+            }
+            if !matches!(motion, Motion::Rapid | Motion::Linear) {
+                return fail(col, "Must use g0 or g1 with g53");
+            }
+            if self.comp != super::Comp::Off {
+                return fail(col, "Cannot use g53 with cutter radius comp");
+            }
+        }
+
         // Feed.
         let rapid = match motion {
             Motion::Rapid => true,
@@ -267,16 +280,7 @@ impl State {
         let mut new_polar: Option<(f64, f64)> = None;
 
         // End point.
-        if let Some(col) = machine {
-            if !self.absolute {
-                return fail(col, "Cannot use g53 incremental");
-            }
-            if !matches!(motion, Motion::Rapid | Motion::Linear) {
-                return fail(col, "Must use g0 or g1 with g53");
-            }
-            if self.comp != super::Comp::Off {
-                return fail(col, "Cannot use g53 with cutter radius comp");
-            }
+        if machine.is_some() {
             // Machine coordinates: the named axes go there, the others stay where they
             // are on the machine (under a rotated system too).
             let mut m = self.frame_to_machine(start);
