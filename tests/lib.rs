@@ -577,6 +577,7 @@ pub fn settings_with_tool(number: u32, length_mm: f64, radius_mm: f64) -> Settin
             number,
             length_mm,
             radius_mm,
+            ..Tool::default()
         }],
         ..Settings::default()
     }

@@ -76,14 +76,14 @@ impl Refusal {
     }
 }
 
-/// Reads a LinuxCNC tool table (`T1 P1 Z25.4 D6 ;comment`), lengths in mm: Z is the tool
-/// length, D the diameter.
+/// Reads a LinuxCNC tool table (`T1 P1 X.. Y.. Z25.4 A.. B.. C.. D6 I.. J.. Q.. ;comment`),
+/// lengths in mm and angles in degrees: Z is the tool length, D the diameter.
 pub fn parse_tool_table(text: &str) -> Result<Vec<Tool>, String> {
     let mut tools = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let line = line.split(';').next().unwrap_or("");
         let mut number = None;
-        let (mut length_mm, mut radius_mm) = (0.0, 0.0);
+        let mut tool = Tool::default();
         for word in line.split_whitespace() {
             let (letter, value) = word.split_at(1);
             let value: f64 = value
@@ -91,26 +91,31 @@ pub fn parse_tool_table(text: &str) -> Result<Vec<Tool>, String> {
                 .map_err(|e| format!("tool table line {}: bad word {word}: {e}", i + 1))?;
             match letter.to_ascii_uppercase().as_str() {
                 "T" => number = Some(value as u32),
-                "Z" => length_mm = value,
-                "D" => radius_mm = value / 2.0,
+                "P" => tool.pocket = value as u32,
+                "X" => tool.offset_xy_mm[0] = value,
+                "Y" => tool.offset_xy_mm[1] = value,
+                "Z" => tool.length_mm = value,
+                "A" => tool.offset_abc_deg[0] = value,
+                "B" => tool.offset_abc_deg[1] = value,
+                "C" => tool.offset_abc_deg[2] = value,
+                "D" => tool.radius_mm = value / 2.0,
+                "I" => tool.front_angle_deg = value,
+                "J" => tool.back_angle_deg = value,
+                "Q" => tool.orientation = value as u8,
                 _ => {}
             }
         }
         if let Some(number) = number {
-            tools.push(Tool {
-                number,
-                length_mm,
-                radius_mm,
-            });
+            tool.number = number;
+            tools.push(tool);
         }
     }
     Ok(tools)
 }
 
 /// Applies a LinuxCNC parameter file (`NUMBER VALUE` lines, mm and degrees; the `NAME.var`
-/// of a golden) to Kerf's settings: the coordinate systems' X Y Z (#5221 + 20 k) and the
-/// G28/G30 positions (#5161–#5166, #5181–#5186). Any other non-zero parameter has no Kerf
-/// setting and is an error; #5220 (the coordinate system in use) must be 1.
+/// of a golden) to Kerf's settings: every parameter is restored at program start
+/// ([`Settings::parameters`]), as LinuxCNC restores its `.var` file.
 pub fn apply_var_file(text: &str, settings: &mut Settings) -> Result<(), String> {
     for (i, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
@@ -120,17 +125,7 @@ pub fn apply_var_file(text: &str, settings: &mut Settings) -> Result<(), String>
         let bad = |e: &dyn std::fmt::Display| format!("parameter file line {}: {e}", i + 1);
         let n: u32 = n.parse().map_err(|e| bad(&e))?;
         let v: f64 = v.parse().map_err(|e| bad(&e))?;
-        match n {
-            5161..=5166 => settings.g28_home_mm_deg[(n - 5161) as usize] = v,
-            5181..=5186 => settings.g30_home_mm_deg[(n - 5181) as usize] = v,
-            5221..=5389 if (n - 5221) % 20 <= 2 => {
-                settings.work_offsets_mm[((n - 5221) / 20) as usize][((n - 5221) % 20) as usize] =
-                    v;
-            }
-            5220 if v == 1.0 => {}
-            _ if v == 0.0 => {}
-            _ => return Err(bad(&format!("#{n} = {v} has no Kerf setting"))),
-        }
+        settings.parameters.push((n, v));
     }
     Ok(())
 }

@@ -556,6 +556,7 @@ fn errors_in_linuxcnc_words() {
             number: 1,
             length_mm: 0.0,
             radius_mm: 0.0,
+            ..Tool::default()
         }],
         ..Settings::default()
     };

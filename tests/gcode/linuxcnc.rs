@@ -497,10 +497,17 @@ fn g43_without_h_uses_the_loaded_tool() {
 }
 
 #[test]
-fn tool_missing_from_the_table_has_zero_length() {
-    let s = settings_with_tool(1, 25.0, 0.0);
-    let ms = moves_with(D, s, "G43 H7\nG0 Z10\n");
-    assert_rapid(&ms[0], o(), v(0.0, 0.0, 10.0));
+fn tool_missing_from_the_table_is_an_error() {
+    // rs274: "Requested tool 7 not found in the tool table", for G43 H, T and M61 Q alike.
+    for (src, col) in [("G43 H7\nG0 Z10\n", 5), ("T7 M6\n", 1), ("M61 Q7\n", 5)] {
+        let s = settings_with_tool(1, 25.0, 0.0);
+        assert_diag(
+            &error_with(D, s, src),
+            1,
+            col,
+            &["requested tool 7 not found in the tool table"],
+        );
+    }
 }
 
 #[test]
@@ -556,8 +563,9 @@ fn moves_without_rotary_words_keep_the_rotary_position() {
 fn events_in_linuxcnc_order_of_execution() {
     // LinuxCNC "Order of Execution": S, T, M6, M3/M4/M5, M7/M8/M9 come before the motion of
     // their block; M0/M1/M2/M30 after it.
-    let its = items(
+    let its = run_with(
         D,
+        settings_with_tool(2, 0.0, 0.0),
         "M3 S1000\n\
          T2 M6\n\
          M8\n\
@@ -567,7 +575,8 @@ fn events_in_linuxcnc_order_of_execution() {
          M5\n\
          M1\n\
          M30\n",
-    );
+    )
+    .expect("a valid program");
     let got: Vec<(u32, String, Option<f64>)> = its
         .iter()
         .map(|i| match i {
@@ -981,7 +990,11 @@ fn dwell_with_a_motion_in_the_same_block_keeps_the_motion() {
         ]
     );
     // The modal G1 takes the axis words of a G4 block too; an H word (G43) does not move.
-    let ms = moves(D, "G1 X1 F100\nG4 P1 X5\nG43 H1 G4 P1\n");
+    let ms = moves_with(
+        D,
+        settings_with_tool(1, 0.0, 0.0),
+        "G1 X1 F100\nG4 P1 X5\nG43 H1 G4 P1\n",
+    );
     assert_eq!(ms.len(), 2, "{ms:#?}");
     assert_feed_line(&ms[1], v(1.0, 0.0, 0.0), v(5.0, 0.0, 0.0), 100.0);
     // Without a motion mode, axis words with G4 are LinuxCNC's error.

@@ -16,6 +16,7 @@ mod grammar;
 mod heidenhain;
 mod linuxcnc;
 mod modal;
+mod offsets;
 mod rockwell;
 mod rs274;
 mod sinumerik;

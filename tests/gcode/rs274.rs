@@ -217,9 +217,35 @@ fn tool_table_and_parameter_file() {
         &mut s,
     )
     .expect("var");
-    assert_eq!(s.g28_home_mm_deg, [1.0, 0.0, 0.0, 0.0, 0.0, 90.0]);
-    assert_eq!(s.work_offsets_mm[1], [-3.0, 0.0, 0.0]);
-    assert_eq!(s.work_offsets_mm[8], [0.0, 0.0, 7.5]);
-    // A G54 rotation has no Kerf setting: the test must not silently drop it.
-    assert!(apply_var_file("5230 30\n", &mut s).is_err());
+    assert_eq!(
+        s.parameters,
+        [
+            (5161, 1.0),
+            (5166, 90.0),
+            (5220, 1.0),
+            (5241, -3.0),
+            (5383, 7.5),
+            (5400, 0.0)
+        ]
+    );
+    // The restored parameters act as LinuxCNC's do: G55's X offset is #5241, G59.3's Z
+    // #5383, the G28 position #5161–#5166 (machine coordinates).
+    let run = kerf_tests::rs274::run_kerf_with(b"G55 G0 X0 Y0\nG59.3 G0 Z0\nG28\nM2\n", s);
+    assert!(run.error.is_none(), "{:?}", run.error);
+    let ends: Vec<([f64; 3], Option<f64>)> = run
+        .items
+        .iter()
+        .filter_map(|i| match i {
+            kerf_tests::Item::Move(m) => {
+                let e = m.path.end();
+                Some(([e.x, e.y, e.z], m.abc_deg.map(|(_, end)| end[2])))
+            }
+            _ => None,
+        })
+        .collect();
+    assert_eq!(ends[0].0, [-3.0, 0.0, 0.0]);
+    // Only Z is named: X and Y stay where they are on the machine.
+    assert_eq!(ends[1].0, [-3.0, 0.0, 7.5]);
+    assert_eq!(ends.last().map(|e| e.0), Some([1.0, 0.0, 0.0]));
+    assert_eq!(ends.last().and_then(|e| e.1), Some(90.0));
 }

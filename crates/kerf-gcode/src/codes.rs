@@ -80,9 +80,7 @@ pub(crate) enum G {
         absolute: bool,
     },
     Comp(Comp),
-    ToolLength {
-        on: bool,
-    },
+    ToolLength(crate::interp::ToolLength),
     CoordSystem(Option<usize>),
     Corner {
         exact: bool,
@@ -93,6 +91,14 @@ pub(crate) enum G {
     G92Suspend,
     G92Restore,
     MachineCoords,
+    /// LinuxCNC G10 (L1/L2/L10/L11/L20).
+    SetData,
+    /// G28 (`false`) / G30 (`true`).
+    Home(bool),
+    /// G28.1 (`false`) / G30.1 (`true`).
+    HomeSet(bool),
+    /// LinuxCNC G52.
+    LocalOffset,
     FeedPerMinute,
     /// LinuxCNC G93/G94/G95.
     FeedMode(crate::interp::FeedMode),
@@ -155,6 +161,10 @@ pub(crate) fn group(g: G) -> usize {
         | G::G92Suspend
         | G::G92Restore
         | G::MachineCoords
+        | G::SetData
+        | G::Home(_)
+        | G::HomeSet(_)
+        | G::LocalOffset
         | G::Pole(_)
         | G::PoleFromLast
         | G::PolarOrigin
@@ -168,6 +178,7 @@ pub(crate) fn group(g: G) -> usize {
 /// What G code `code10` (the number times ten: G59.1 is 591) does in dialect `d`; `None`
 /// for a code the dialect does not know.
 pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
+    use crate::interp::ToolLength as TL;
     use G::*;
     let m = |x| Some(Motion(x));
     let common = match code10 {
@@ -199,8 +210,16 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
                 inch: false,
                 feed_too: true,
             },
-            430 => ToolLength { on: true },
-            490 => ToolLength { on: false },
+            100 => SetData,
+            280 => Home(false),
+            281 => HomeSet(false),
+            300 => Home(true),
+            301 => HomeSet(true),
+            430 => ToolLength(TL::Apply),
+            431 => ToolLength(TL::Dynamic),
+            432 => ToolLength(TL::Add),
+            490 => ToolLength(TL::Cancel),
+            520 => LocalOffset,
             530 => MachineCoords,
             540 | 550 | 560 | 570 | 580 | 590 => CoordSystem(Some(usize::from(code10 / 10 - 54))),
             591..=593 => CoordSystem(Some(usize::from(code10 - 591 + 6))),
@@ -230,23 +249,9 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
             970 => NoOp,
             980 => Retract { r_plane: false },
             990 => Retract { r_plane: true },
-            50
-            | 51
-            | 52
-            | 70
-            | 80
-            | 100
-            | 280
-            | 281
-            | 300
-            | 301
-            | 382..=385
-            | 411
-            | 421
-            | 431
-            | 432
-            | 520
-            | 960 => Unsupported("this G code is not supported yet"),
+            50 | 51 | 52 | 70 | 80 | 382..=385 | 411 | 421 | 960 => {
+                Unsupported("this G code is not supported yet")
+            }
             _ => return None,
         },
         Dialect::Rockwell => match code10 {
@@ -260,8 +265,8 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
                 inch: false,
                 feed_too: true,
             },
-            430 => ToolLength { on: true },
-            490 => ToolLength { on: false },
+            430 => ToolLength(TL::Apply),
+            490 => ToolLength(TL::Cancel),
             540 | 550 | 560 | 570 | 580 | 590 => CoordSystem(Some(usize::from(code10 / 10 - 54))),
             610 => Corner { exact: true },
             640 => Corner { exact: false },

@@ -10,10 +10,12 @@ use crate::{Dialect, Event, EventCode, Item, Settings, Tool};
 pub(crate) mod cycles;
 mod geometry;
 mod modal;
+mod offsets;
 pub(crate) mod params;
 
 pub(crate) use modal::FeedMode;
 use modal::{ModalFrame, Spindle, StateOp};
+pub(crate) use offsets::ToolLength;
 
 const MM_PER_INCH: f64 = 25.4;
 
@@ -137,12 +139,20 @@ pub(crate) struct State {
     modal_frames: Vec<ModalFrame>,
     /// G43 is in force (G49 not).
     tool_length_on: bool,
-    tool_length_mm: f64,
+    /// The tool offsets in effect (G43 family): X, Y, Z mm, A, B, C degrees (LinuxCNC
+    /// applies every axis of the entry; the other controls Z only).
+    tool_offset: [f64; 6],
+    /// The active coordinate system (0 = G54), `None` for none (Sinumerik G500).
     coord_system: Option<usize>,
-    g92_mm: [f64; 3],
-    g92_saved_mm: [f64; 3],
-    /// Program zero in machine coordinates (work offset + G92 + tool length).
+    /// Program zero in frame coordinates (work offset + G52/G92 + tool offset), cached
+    /// from the parameters by `update_origin`.
     origin: Vec3,
+    /// Program zero of A, B, C, degrees (work offset + G52/G92 + tool offset).
+    origin_abc: [f64; 3],
+    /// LinuxCNC: the XY rotation of the active coordinate system, degrees (G10 L2 R).
+    rotation_deg: f64,
+    /// The centre of that rotation, machine X and Y (work offset + tool offset).
+    rotation_center: [f64; 2],
     /// Sinumerik pole, machine coordinates (`None` = workpiece zero).
     pole: Option<Vec3>,
     /// Sinumerik stored RP (mm) and AP (degrees).
@@ -163,8 +173,7 @@ pub(crate) struct State {
     /// The program has ended (M2/M30 or a Heidenhain end line).
     pub(crate) done: bool,
     /// LinuxCNC numbered parameters (read and written by the expression language and by
-    /// the codes whose data lives in parameters).
-    #[allow(dead_code)]
+    /// the codes whose data lives in parameters: work offsets, G92, G28/G30, tools).
     pub(crate) params: params::Params,
     /// LinuxCNC canned cycles: sticky words, initial level, spindle direction.
     cycles: cycles::CycleState,
@@ -230,11 +239,12 @@ impl State {
             modal_frames: Vec::new(),
             tool_length_on: false,
             tool_loaded: None,
-            tool_length_mm: 0.0,
+            tool_offset: [0.0; 6],
             coord_system,
-            g92_mm: [0.0; 3],
-            g92_saved_mm: [0.0; 3],
             origin: Vec3::zeros(),
+            origin_abc: [0.0; 3],
+            rotation_deg: 0.0,
+            rotation_center: [0.0; 2],
             pole: None,
             rp_mm: None,
             ap_deg: None,
@@ -248,34 +258,9 @@ impl State {
             cycles: cycles::CycleState::new(),
             retract_r: true,
         };
+        s.init_params();
         s.update_origin();
         s
-    }
-
-    /// Recomputes program zero after a work offset, G92 or tool length change. Polar values
-    /// are relative to the polar reference: when it moves in its plane, the programmed
-    /// polar values of the current point no longer describe it and are forgotten (the next
-    /// polar word measures the point about the new reference).
-    fn update_origin(&mut self) {
-        let before = self.polar_reference();
-        let work = match self.coord_system {
-            Some(i) => self
-                .settings
-                .work_offsets_mm
-                .get(i)
-                .copied()
-                .unwrap_or([0.0; 3]),
-            None => [0.0; 3],
-        };
-        for (i, w) in work.iter().enumerate() {
-            self.origin[i] = w + self.g92_mm[i];
-        }
-        self.origin[2] += self.tool_length_mm;
-        let after = self.polar_reference();
-        let (u, v) = self.polar_axes();
-        if before[u] != after[u] || before[v] != after[v] {
-            self.polar_last = None;
-        }
     }
 
     fn scale(&self) -> f64 {
@@ -464,7 +449,17 @@ impl State {
         let mut m_groups = 0u8;
         let mut state_op: Option<(StateOp, u32)> = None;
         let mut user_m: Option<u8> = None;
+        let mut m61: Option<u32> = None;
         for (i, &(code, col)) in blk.ms[..blk.nm].iter().enumerate() {
+            if d == Dialect::LinuxCnc && code == 61 {
+                // M61 Q: set the tool number (tool change group), no event.
+                if m_groups & 2 != 0 {
+                    return fail(col, "two M codes used from same modal group");
+                }
+                m_groups |= 2;
+                m61 = Some(col);
+                continue;
+            }
             let ev = match (m_event(code), self.linuxcnc_m(code)) {
                 (Some(ev), _) | (None, Some(Ok(ev))) => ev,
                 (None, Some(Err(op))) => {
@@ -569,6 +564,7 @@ impl State {
                 message: "tool number must be a non-negative integer".into(),
             })?;
             if d != Dialect::Heidenhain || slot(0).is_none_or(|(g, _)| g != G::ToolDef) {
+                self.check_tool_exists(n, blk.col(KT))?;
                 self.tool_selected = Some(n);
                 if d != Dialect::LinuxCnc {
                     // On the other controls the T word (Heidenhain tool call, Sinumerik
@@ -612,11 +608,13 @@ impl State {
             }
             if blk.nm > 0 && m_pre.contains(&Some(ev)) {
                 if ev == EventCode::M6 {
-                    self.tool_loaded = self.tool_selected;
                     if d == Dialect::LinuxCnc {
+                        self.load_tool(self.tool_selected, true);
                         // LinuxCNC stops the spindle for the change (rs274:
                         // STOP_SPINDLE_TURNING before CHANGE_TOOL).
                         self.spindle = Spindle::Off;
+                    } else {
+                        self.tool_loaded = self.tool_selected;
                     }
                 }
                 self.note_machine_event(ev);
@@ -626,6 +624,10 @@ impl State {
         }
         if let Some(n) = user_m {
             self.user_m_event(n, blk, out);
+        }
+
+        if let Some(col) = m61 {
+            self.exec_m61(blk, col)?;
         }
 
         // The dwell runs after the spindle and coolant events and before the motion (the
@@ -652,6 +654,7 @@ impl State {
                 number: t,
                 length_mm: blk.get(KL).unwrap_or(0.0) * self.scale(),
                 radius_mm: blk.get(KR).unwrap_or(0.0) * self.scale(),
+                ..Tool::default()
             };
             // Redefinition replaces the entry and the table is capped, so that memory stays
             // bounded whatever the program does.
@@ -693,60 +696,61 @@ impl State {
             }
         }
 
+        // LinuxCNC: one G code of the block may use the axis words.
+        let axis_g0 = slot(0)
+            .filter(|&(g, _)| matches!(g, G::G92Set | G::LocalOffset | G::SetData | G::Home(_)));
+        let motion_in_block = matches!(slot(1), Some((G::Motion(_), _)));
+        if d == Dialect::LinuxCnc
+            && motion_in_block
+            && let Some((_, col)) = axis_g0
+        {
+            return fail(col, "Cannot use two g codes that both use axis values");
+        }
+
         // Tool length offset.
-        if let Some((G::ToolLength { on }, _)) = slot(7) {
-            if !on && matches!(d, Dialect::LinuxCnc | Dialect::Rockwell) && blk.has(KH) {
+        let mut consumed_axes = false;
+        if let Some((G::ToolLength(kind), col)) = slot(7) {
+            if kind == ToolLength::Cancel
+                && matches!(d, Dialect::LinuxCnc | Dialect::Rockwell)
+                && blk.has(KH)
+            {
                 return fail(blk.col(KH), "H word with no G43 to use it");
             }
-            self.tool_length_on = on;
-            self.tool_length_mm = if on {
-                let number = match blk.get(KH) {
-                    Some(h) => Some(tool_number(h).ok_or_else(|| ExecError {
-                        col: blk.col(KH),
-                        message: "H word must be a non-negative integer".into(),
-                    })?),
-                    None => self.tool_loaded,
-                };
-                self.tool(number).map_or(0.0, |t| t.length_mm)
-            } else {
-                0.0
-            };
-            self.update_origin();
+            consumed_axes = self.exec_tool_length(blk, kind, col, motion_in_block)?;
+            self.tool_length_on = kind != ToolLength::Cancel;
         } else if blk.has(KH) && matches!(d, Dialect::LinuxCnc | Dialect::Rockwell) {
             return fail(blk.col(KH), "H word with no G43 to use it");
         }
 
-        // G92 family.
-        let mut consumed_axes = false;
-        if let Some((g, col)) = slot(0)
-            .filter(|&(g, _)| matches!(g, G::G92Set | G::G92Reset | G::G92Suspend | G::G92Restore))
-        {
+        // G52/G92 family, G10, G28/G30 and their stored positions (LinuxCNC order of
+        // execution: after the tool length offset and the coordinate system selection,
+        // before the motion).
+        if let Some((g, col)) = slot(0) {
             match g {
-                G::G92Set => {
-                    if !blk.any(&XYZ) {
-                        return fail(col, "all axes missing with G92");
-                    }
-                    for (i, &k) in XYZ.iter().enumerate() {
-                        if let Some(v) = blk.get(k) {
-                            let work = self.origin[i] - self.g92_mm[i];
-                            self.g92_mm[i] = self.pos[i] - work - v * self.scale();
-                        }
-                    }
+                G::G92Set | G::G92Reset | G::G92Suspend | G::G92Restore | G::LocalOffset => {
+                    self.exec_g92(blk, g, col)?;
                     consumed_axes = true;
                 }
-                G::G92Reset => {
-                    self.g92_mm = [0.0; 3];
-                    self.g92_saved_mm = [0.0; 3];
+                G::SetData => {
+                    self.exec_g10(blk, col)?;
+                    consumed_axes = true;
                 }
-                G::G92Suspend => {
-                    self.g92_saved_mm = self.g92_mm;
-                    self.g92_mm = [0.0; 3];
+                G::HomeSet(g30) => {
+                    if let Some(k) = blk.first_of(&[KX, KY, KZ, KA, KB, KC]) {
+                        return fail(
+                            blk.col(k),
+                            "Cannot use axis values without a g code that uses them",
+                        );
+                    }
+                    self.store_home(g30);
                 }
-                _ => self.g92_mm = self.g92_saved_mm,
+                G::Home(g30) => {
+                    self.exec_home(blk, g30, col, out)?;
+                    consumed_axes = true;
+                }
+                _ => {}
             }
-            self.update_origin();
         }
-
         // Poles and polar origins.
         if let Some((G::Pole(r), col)) = slot(0) {
             self.set_sinumerik_pole(blk, r, col)?;
@@ -787,7 +791,10 @@ impl State {
         let g64 = matches!(slot(9), Some((G::Corner { exact: false }, _)));
         if d == Dialect::LinuxCnc {
             let explicit_cycle = matches!(motion_g, Some((G::Motion(Motion::Cycle(_)), _)));
-            self.check_l_word(blk, explicit_cycle)?;
+            let g10 = slot(0).is_some_and(|(g, _)| g == G::SetData);
+            if !g10 {
+                self.check_l_word(blk, explicit_cycle)?;
+            }
         }
         if d == Dialect::LinuxCnc
             && blk.present & (1 << KP | 1 << KQ) != 0
@@ -796,10 +803,11 @@ impl State {
             // LinuxCNC refuses words that no G code of the block uses.
             let arc = matches!(self.motion, Some(Motion::Arc(_)));
             let user = user_m.is_some();
-            if blk.has(KP) && !(dwell || g64 || arc || user || self.cycle_uses_p()) {
+            let g10 = slot(0).is_some_and(|(g, _)| g == G::SetData);
+            if blk.has(KP) && !(dwell || g64 || arc || user || g10 || self.cycle_uses_p()) {
                 return fail(blk.col(KP), cycles::unused_word_message(KP));
             }
-            if blk.has(KQ) && !(g64 || user || self.cycle_uses_q()) {
+            if blk.has(KQ) && !(g64 || user || g10 || m61.is_some() || self.cycle_uses_q()) {
                 return fail(blk.col(KQ), cycles::unused_word_message(KQ));
             }
         }
@@ -812,21 +820,20 @@ impl State {
         // A dwell block holds no motion words (checked above), except in LinuxCNC, whose
         // motion then runs after the dwell.
         let motion_after_dwell = d == Dialect::LinuxCnc && blk.any(&LINUXCNC_MOTION_WORDS);
-        if consumed_axes {
-            // The axis words belong to the G92 or pole code: a motion code of the block
-            // would have none, and the centre words no arc.
-            if let Some((G::Motion(_), col)) = motion_g {
-                return fail(col, "Cannot use two G codes that both use axis values");
-            }
-            if let Some(k) = blk
-                .first_of(&ABC)
-                .filter(|_| slot(0).is_some_and(|(g, _)| g == G::G92Set))
-            {
-                return fail(
-                    blk.col(k),
-                    format!("G92 on the rotary axis {} is not supported", key_name(k)),
-                );
-            }
+        // The axis words belong to the G52/G92 or G28/G30 code (a motion code with them
+        // was refused above): the centre words have no arc to use them.
+        let axis_code = slot(0).is_some_and(|(g, _)| {
+            matches!(
+                g,
+                G::G92Set
+                    | G::G92Reset
+                    | G::G92Suspend
+                    | G::G92Restore
+                    | G::LocalOffset
+                    | G::Home(_)
+            )
+        });
+        if consumed_axes && axis_code {
             self.check_unused(blk, false)?;
         }
         if d == Dialect::Rockwell {
@@ -888,6 +895,9 @@ impl State {
         }
         if let Some((G::CoordSystem(cs), _)) = slots[8] {
             self.coord_system = cs;
+            if let Some(i) = cs {
+                self.params.set(params::COORD_SYSTEM, i as f64 + 1.0);
+            }
             self.update_origin();
         }
         if let Some((G::Retract { r_plane }, _)) = slots[13] {
@@ -1066,6 +1076,11 @@ impl State {
                 out.event(ev, None);
                 if matches!(ev, EventCode::M2 | EventCode::M30) {
                     self.done = true;
+                    if self.dialect == Dialect::LinuxCnc {
+                        // LinuxCNC's program end selects G54 again (#5220 = 1).
+                        self.coord_system = Some(0);
+                        self.params.set(params::COORD_SYSTEM, 1.0);
+                    }
                 }
             }
         }

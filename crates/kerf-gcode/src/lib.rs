@@ -97,7 +97,9 @@
 //!   silently wrong path. G40 cancels it.
 //! - Work offsets: one table, [`Settings::work_offsets_mm`], serves LinuxCNC
 //!   G54–G59.3, Rockwell and Fagor G54–G59 (G54 active by default) and Sinumerik G54–G57
-//!   (G500, no offset, by default). Heidenhain has none.
+//!   (G500, no offset, by default). Heidenhain has none. It initialises LinuxCNC's
+//!   numbered parameters #5221… (the interpreter reads the offsets from there, in every
+//!   dialect), which the program can change (LinuxCNC G10 L2/L20).
 //! - Arc end points: a centre-format arc whose end radius differs from its start radius
 //!   within the tolerance is made exact by moving the centre onto the perpendicular
 //!   bisector of the chord, to the point closest to the programmed centre (LinuxCNC would
@@ -167,11 +169,43 @@
 //!   file `M1nn` and refuses the code when there is none ("Unknown m code used"); Kerf
 //!   runs no user programs and hands the code on as an event (`kerf sim` stops the
 //!   motion at it).
-//! - Work offsets G54–G59.3; G92 (program coordinates of the current point), G92.1
-//!   (clear), G92.2 (suspend), G92.3 (restore); G53 (machine coordinates, with G0/G1 and
-//!   G90 only). G43 applies the Z length of tool H (or of the tool loaded by M6 when H is
-//!   absent) and G49 cancels it; a tool missing from the table has length 0. T selects a
-//!   tool, M6 loads it.
+//! - Offsets live in LinuxCNC's numbered parameters, in mm (Kerf's machine unit) and
+//!   degrees whatever G20/G21 says: G54–G59.3 in #5221–#5390 (X Y Z A B C at +0..+5, the
+//!   XY rotation R at +9, 20 apart; initialised from [`Settings::work_offsets_mm`]), the
+//!   active system in #5220, the shared G52/G92 offset in #5211–#5219 with #5210 = 1
+//!   while it applies, the G28/G30 positions in #5161–#5166/#5181–#5186 (from
+//!   [`Settings::g28_home_mm_deg`]/[`Settings::g30_home_mm_deg`]), the tool offsets in
+//!   effect in #5401–#5409, the tool in the spindle #5400 and its diameter #5410.
+//!   [`Settings::parameters`] restores a parameter file at start (a restored #5220 selects
+//!   the system); [`Interpreter::persistent_parameters`] gives the end values.
+//!   machine = G5x + R(program + G52/G92) + tool offset, R the active system's rotation.
+//! - G54–G59.3 select a system; M2/M30 select G54 again. G10 L2 P0–P9 (0 = active) sets a
+//!   system's offsets and its rotation R (degrees CCW about its origin: every later line
+//!   and arc, in any plane, is rotated rigidly, as LinuxCNC's canon does); G10 L20 sets the
+//!   offsets that make the current point read the given coordinates (R refused). G92
+//!   makes the current point read the given coordinates (axes not named keep the offset in
+//!   effect); G52 sets the offset itself; G92.1 clears it and its parameters; G92.2 turns
+//!   it off keeping the parameters; G92.3 turns the parameters on. G91 does not affect
+//!   them. A code that uses axis words (G10, G28, G30, G52, G92) with G0–G3 in the same
+//!   block is "Cannot use two g codes that both use axis values".
+//! - G53 (with G0 or G1, G90, no cutter compensation): the named axes go to the given
+//!   machine coordinates, the others stay where they are on the machine.
+//! - G28/G30: with axis words a rapid to the point they give (program coordinates, G90 or
+//!   G91), then a rapid of those axes only to the stored position (machine coordinates;
+//!   under a rotation the named axes take the stored point's program coordinates, as rs274
+//!   computes); without axis words a rapid of every axis to it. A rapid that moves nothing
+//!   is not emitted (rs274 prints one). G28.1/G30.1 store the current machine position.
+//!   Refused under cutter compensation.
+//! - Tools ([`Settings::tools`], [`Tool`]): T selects (a tool missing from the table is
+//!   "Requested tool N not found in the tool table"; T0 is no tool), M6 loads, M61 Q sets
+//!   the tool number without a change (as rs274 does, G43 without H keeps using the entry
+//!   of the last M6). G43 H (or the M6 tool; H0 = the tool in the spindle) applies every
+//!   offset of the entry (X Y Z A B C), G43.1 replaces the offsets of the axes it names
+//!   (its axis words move nothing unless G0–G3 is in the block), G43.2 H adds an entry's
+//!   offsets (axis words refused, as LinuxCNC 2.9's rs274 does), G49 cancels. An offset
+//!   moves nothing by itself. G10 L1 P sets an entry (axis words, R radius, I J Q lathe
+//!   data), L10 from the current point with the offsets in effect, L11 as if in G59.3
+//!   without G52/G92; they do not re-apply it (G43 does).
 //! - Arcs: centre format with I J K (a word for the axis normal to the plane is the error
 //!   "K word given for arc in XY plane" and its G18/G19 twins) or radius format R (R < 0 =
 //!   more than 180°); both is "mixed radius and centre format"; neither is "R, I, J, and K
@@ -183,7 +217,7 @@
 //!   zero, G0/G1 only; a missing one keeps the current point's value, measured about the
 //!   current zero (as LinuxCNC computes it from the current position: after G92, G92.1,
 //!   G92.2, G92.3 or a G5x moved the zero, the point's distance and angle about the new
-//!   one; G43/G49 move Z only and leave them). Under G91 both are added to the current
+//!   one; a tool offset along Z only leaves them). Under G91 both are added to the current
 //!   point's polar coordinates measured the same way. At program zero the point has no
 //!   angle: `@` alone, and either word under G91, are LinuxCNC's errors ("Must specify
 //!   angle in polar coordinate if at the origin", "... is indeterminate when at the
@@ -191,9 +225,9 @@
 //! - Feed errors use LinuxCNC's words: "Cannot do G1 with zero feed rate", "Cannot make arc
 //!   with zero feed rate". F is kept physically across G20/G21 changes.
 //! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc
-//!   (also with G92, or G87), P without G2/G3/G4/G64, a dwelling cycle or a user M code, Q
-//!   without G64, G73, G83 or a user M code, H without G43 (also with G49), D without
-//!   G41/G42 in the block, L without a canned cycle. A motion code with G92 and axis words
+//!   (also with G92, or G87), P without G2/G3/G4/G10/G64, a dwelling cycle or a user M code,
+//!   Q without G10/G64/M61, G73, G83 or a user M code, H without G43 (also with G49), D without
+//!   G41/G42 in the block, L without G10 or a canned cycle. A motion code with G92 and axis words
 //!   is "Cannot use two G codes that both use axis values"; G92 with A/B/C is not
 //!   supported (an error). U, V, W and E are not supported.
 //! - Canned cycles G73, G81, G82, G83, G85, G86, G87, G88, G89 (`interp::cycles`) give the
@@ -388,14 +422,38 @@ impl Dialect {
 }
 
 /// One entry of the tool table.
-#[derive(Clone, Debug)]
+///
+/// LinuxCNC applies every offset of the entry with G43 (X, Y, Z, A, B, C); the other
+/// controls use the length only.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Tool {
     /// Tool number (T word).
     pub number: u32,
-    /// Tool length offset, mm (applied along Z by LinuxCNC G43).
+    /// Tool length offset, mm: the Z offset of the entry.
     pub length_mm: f64,
     /// Tool radius, mm (cutter compensation is refused when it is non-zero).
     pub radius_mm: f64,
+    /// X and Y offsets of the entry, mm (LinuxCNC applies them with G43; lathes mostly).
+    pub offset_xy_mm: [f64; 2],
+    /// A, B and C offsets of the entry, degrees (LinuxCNC applies them with G43).
+    pub offset_abc_deg: [f64; 3],
+    /// The pocket the tool sits in (LinuxCNC tool table `P`; informational).
+    pub pocket: u32,
+    /// Lathe front angle, degrees (LinuxCNC `I`, parameter #5411).
+    pub front_angle_deg: f64,
+    /// Lathe back angle, degrees (LinuxCNC `J`, parameter #5412).
+    pub back_angle_deg: f64,
+    /// Lathe tool orientation 0–9 (LinuxCNC `Q`, parameter #5413).
+    pub orientation: u8,
+}
+
+impl Tool {
+    /// The offsets of the entry as LinuxCNC applies them: X, Y, Z mm, A, B, C degrees.
+    pub fn offsets_mm_deg(&self) -> [f64; 6] {
+        let [x, y] = self.offset_xy_mm;
+        let [a, b, c] = self.offset_abc_deg;
+        [x, y, self.length_mm, a, b, c]
+    }
 }
 
 /// Machine settings the interpreter needs.
@@ -425,6 +483,11 @@ pub struct Settings {
     pub g28_home_mm_deg: [f64; 6],
     /// See [`Settings::g28_home_mm_deg`].
     pub g30_home_mm_deg: [f64; 6],
+    /// LinuxCNC: numbered parameters restored at program start, after the values above
+    /// (the persistent parameters #5161–#5390 of a parameter file, as LinuxCNC restores
+    /// its `.var` file). Values in mm and degrees, Kerf's machine units. A number outside
+    /// #1–#5602 is ignored.
+    pub parameters: Vec<(u32, f64)>,
 }
 
 impl Default for Settings {
@@ -439,6 +502,7 @@ impl Default for Settings {
             max_loop_iterations: 1_000_000,
             g28_home_mm_deg: [0.0; 6],
             g30_home_mm_deg: [0.0; 6],
+            parameters: Vec::new(),
         }
     }
 }
@@ -619,6 +683,19 @@ impl<R: std::io::BufRead> Interpreter<R> {
             percent_seen: false,
             blocks_seen: false,
         }
+    }
+
+    /// LinuxCNC's persistent numbered parameters #5161–#5390 as they are now (after a
+    /// program that ended normally: its end values), in mm and degrees: the G28 and G30
+    /// positions, the G92 offset and its flag, the active coordinate system and the
+    /// G54–G59.3 offsets and rotations. `kerf run` writes them to the parameter file.
+    pub fn persistent_parameters(&self) -> Vec<(u32, f64)> {
+        self.state.params.persistent()
+    }
+
+    /// True when the program ended with M2 or M30 (or a Heidenhain end line).
+    pub fn ended(&self) -> bool {
+        self.state.done
     }
 
     fn diag(&self, col: u32, message: impl Into<String>) -> Diagnostic {

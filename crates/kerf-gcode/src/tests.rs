@@ -291,10 +291,18 @@ fn rockwell_radius_rules() {
 
 #[test]
 fn events_in_execution_order_and_end_of_program() {
-    let items = run(
+    // LinuxCNC refuses a tool that is not in the tool table.
+    let mut settings = Settings::default();
+    settings.tools.push(Tool {
+        number: 3,
+        ..Tool::default()
+    });
+    let items = run_with(
         Dialect::LinuxCnc,
         "G1 X1 F100 M0 M8 T3 M6 S1200 M3\nM30\nG1 X5\n",
-    );
+        settings,
+    )
+    .expect("a valid program");
     let codes: Vec<&str> = items
         .iter()
         .map(|i| match i {
@@ -315,11 +323,13 @@ fn offsets_tools_and_cutter_compensation() {
         number: 2,
         length_mm: 30.0,
         radius_mm: 0.0,
+        ..Tool::default()
     });
     s.tools.push(Tool {
         number: 3,
         length_mm: 0.0,
         radius_mm: 5.0,
+        ..Tool::default()
     });
     let items = run_with(
         Dialect::LinuxCnc,

@@ -25,10 +25,17 @@ fn to_bytes(m: &MoveMsg) -> [u8; SIZE] {
 /// rotary axes and events, plus BEGIN and END.
 fn seeds() -> Vec<MoveMsg> {
     let program = "G21 G90 F600\nG64 P0.02\nG0 X5 Y0\nG1 X10 A30\nG3 X0 Y10 I-10 J0 Z-1\nG2 X10 Y0 R10\nG4 P1\nM3 S1000\nT2 M6\nM30\n";
-    let items: Vec<Item> =
-        Interpreter::new(program.as_bytes(), Dialect::LinuxCnc, Settings::default())
-            .collect::<Result<_, _>>()
-            .expect("valid program");
+    // LinuxCNC refuses a tool missing from the tool table.
+    let settings = Settings {
+        tools: vec![kerf_gcode::Tool {
+            number: 2,
+            ..kerf_gcode::Tool::default()
+        }],
+        ..Settings::default()
+    };
+    let items: Vec<Item> = Interpreter::new(program.as_bytes(), Dialect::LinuxCnc, settings)
+        .collect::<Result<_, _>>()
+        .expect("valid program");
     let mut v = vec![MoveMsg::begin(1, [0.0; 6], items.len() as u64)];
     v.extend(
         items

@@ -39,7 +39,18 @@ fn programs() -> Vec<PathBuf> {
 
 /// Runs the items of `text` through encode → StreamCheck → decode; returns the items.
 fn round_trip(name: &str, text: &[u8], dialect: Dialect, program_id: u64) -> Vec<Item> {
-    let items: Vec<Item> = Interpreter::new(text, dialect, Settings::default())
+    // The sample programs call tools 1 to 20; LinuxCNC refuses a tool missing from the
+    // tool table.
+    let settings = Settings {
+        tools: (1..=20)
+            .map(|number| kerf_gcode::Tool {
+                number,
+                ..kerf_gcode::Tool::default()
+            })
+            .collect(),
+        ..Settings::default()
+    };
+    let items: Vec<Item> = Interpreter::new(text, dialect, settings)
         .map_while(Result::ok)
         .collect();
     let mut check = StreamCheck::new();

@@ -14,7 +14,7 @@
 
 use std::io;
 use std::ops::{Range, RangeInclusive};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use kerf_gcode::{Dialect, Settings, Tool};
 use serde::Deserialize;
@@ -184,16 +184,13 @@ impl Axes {
     }
 }
 
-/// One entry of the tool table.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ToolEntry {
-    /// Tool number (T word).
-    pub number: u32,
-    /// Tool length offset, mm.
-    pub length_mm: f64,
-    /// Tool radius, mm.
-    pub radius_mm: f64,
-}
+/// One entry of the tool table: the interpreter's [`Tool`] (offsets per axis, radius,
+/// pocket, lathe data).
+pub type ToolEntry = Tool;
+
+/// The accepted `gcode.max_loop_iterations`: at least 1, at most 1e12 (a loop that runs
+/// longer is not a program but a hang).
+pub const MAX_LOOP_ITERATIONS_RANGE: RangeInclusive<u64> = 1..=1_000_000_000_000;
 
 /// A validated machine configuration.
 #[derive(Clone, Debug, PartialEq)]
@@ -217,8 +214,23 @@ pub struct Config {
     pub arc_tolerance_rel: f64,
     /// Work offsets G54, G55, G56, G57, G58, G59, G59.1, G59.2, G59.3, mm.
     pub work_offsets_mm: [[f64; 3]; 9],
-    /// The tool table.
+    /// The tool table: the `[[tools]]` entries, then those of `gcode.tool_table`.
     pub tools: Vec<ToolEntry>,
+    /// `gcode.tool_table`: the LinuxCNC tool table file it was read from, if any
+    /// (relative paths resolved against the configuration file's directory).
+    pub tool_table: Option<PathBuf>,
+    /// `gcode.subroutine_path`: directories searched for LinuxCNC subroutine files.
+    pub subroutine_path: Vec<PathBuf>,
+    /// `gcode.max_loop_iterations`: the bound on one LinuxCNC loop.
+    pub max_loop_iterations: u64,
+    /// `gcode.g28_home_mm_deg`: the G28 position at start, machine X Y Z mm, A B C deg.
+    pub g28_home_mm_deg: [f64; 6],
+    /// `gcode.g30_home_mm_deg`: the G30 position at start.
+    pub g30_home_mm_deg: [f64; 6],
+    /// `gcode.parameter_file`: LinuxCNC's persistent numbered parameters, read at program
+    /// start ([`Config::program_settings`]) and written by `kerf run` after a program that
+    /// ended normally.
+    pub parameter_file: Option<PathBuf>,
 }
 
 /// A 1-based place in a text file.
@@ -301,6 +313,12 @@ impl Config {
             arc_tolerance_rel: Settings::default().arc_tolerance_rel,
             work_offsets_mm: [[0.0; 3]; 9],
             tools: Vec::new(),
+            tool_table: None,
+            subroutine_path: Vec::new(),
+            max_loop_iterations: Settings::default().max_loop_iterations,
+            g28_home_mm_deg: [0.0; 6],
+            g30_home_mm_deg: [0.0; 6],
+            parameter_file: None,
         })
     }
 
@@ -311,35 +329,49 @@ impl Config {
             origin: origin.clone(),
             source,
         })?;
-        Config::from_toml_str(&text, &origin)
+        let dir = path.parent().unwrap_or(Path::new(""));
+        Config::from_toml_str_in(&text, &origin, dir)
     }
 
-    /// Parses and validates TOML text; `origin` names the text in error messages.
+    /// Parses and validates TOML text; `origin` names the text in error messages. The
+    /// files it names (`gcode.tool_table`, ...) are relative to the current directory.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Config, ConfigError> {
+        Config::from_toml_str_in(text, origin, Path::new(""))
+    }
+
+    /// Parses and validates TOML text whose relative file names are relative to `dir`.
+    pub fn from_toml_str_in(text: &str, origin: &str, dir: &Path) -> Result<Config, ConfigError> {
         let raw: RawConfig = toml::from_str(text).map_err(|e| ConfigError::Invalid {
             origin: origin.to_string(),
             position: e.span().map(|s| position_of(text, s.start)),
             message: e.message().trim_end().to_string(),
         })?;
-        let check = Checker { text, origin };
+        let check = Checker { text, origin, dir };
         check.config(raw)
+    }
+
+    /// The settings of a program run: [`Config::settings`] with the parameters of
+    /// `gcode.parameter_file` restored (a missing file restores nothing).
+    pub fn program_settings(&self) -> Result<Settings, ConfigError> {
+        let mut settings = self.settings();
+        if let Some(path) = &self.parameter_file {
+            settings.parameters =
+                crate::tooltable::load_parameter_file(path, &path.display().to_string())?;
+        }
+        Ok(settings)
     }
 
     /// The settings the G-code interpreter needs from this configuration.
     pub fn settings(&self) -> Settings {
         Settings {
             work_offsets_mm: self.work_offsets_mm,
-            tools: self
-                .tools
-                .iter()
-                .map(|t| Tool {
-                    number: t.number,
-                    length_mm: t.length_mm,
-                    radius_mm: t.radius_mm,
-                })
-                .collect(),
+            tools: self.tools.clone(),
             arc_tolerance_mm: self.arc_tolerance_mm,
             arc_tolerance_rel: self.arc_tolerance_rel,
+            subroutine_path: self.subroutine_path.clone(),
+            max_loop_iterations: self.max_loop_iterations,
+            g28_home_mm_deg: self.g28_home_mm_deg,
+            g30_home_mm_deg: self.g30_home_mm_deg,
             ..Settings::default()
         }
     }
@@ -439,6 +471,12 @@ struct RawRotaryAxis {
 struct RawGcode {
     arc_tolerance_mm: Option<Spanned<f64>>,
     arc_tolerance_rel: Option<Spanned<f64>>,
+    tool_table: Option<Spanned<String>>,
+    subroutine_path: Option<Spanned<Vec<String>>>,
+    max_loop_iterations: Option<Spanned<i64>>,
+    g28_home_mm_deg: Option<Spanned<Vec<f64>>>,
+    g30_home_mm_deg: Option<Spanned<Vec<f64>>>,
+    parameter_file: Option<Spanned<String>>,
 }
 
 #[derive(Default, Deserialize)]
@@ -487,6 +525,8 @@ struct RawTool {
 struct Checker<'a> {
     text: &'a str,
     origin: &'a str,
+    /// The directory relative file names are resolved against.
+    dir: &'a Path,
 }
 
 impl Checker<'_> {
@@ -810,8 +850,64 @@ impl Checker<'_> {
                 number,
                 length_mm,
                 radius_mm,
+                ..ToolEntry::default()
             });
         }
+
+        let g = &raw.gcode;
+        let tool_table = g.tool_table.as_ref().map(|f| self.dir.join(f.get_ref()));
+        if let (Some(path), Some(f)) = (&tool_table, &g.tool_table) {
+            let table = crate::tooltable::load_tool_table(path, &path.display().to_string())
+                .map_err(|e| match e {
+                    ConfigError::Io { source, .. } => self.error(
+                        f.span(),
+                        format!(
+                            "cannot read `gcode.tool_table` {}: {source}",
+                            path.display()
+                        ),
+                    ),
+                    e => e,
+                })?;
+            for t in table {
+                if tools.iter().any(|e| e.number == t.number) {
+                    return Err(self.error(
+                        f.span(),
+                        format!(
+                            "tool {} is both in `tools` and in `gcode.tool_table`",
+                            t.number
+                        ),
+                    ));
+                }
+                tools.push(t);
+            }
+        }
+        let subroutine_path = match &g.subroutine_path {
+            None => Vec::new(),
+            Some(list) => list.get_ref().iter().map(|d| self.dir.join(d)).collect(),
+        };
+        let max_loop_iterations = match &g.max_loop_iterations {
+            None => defaults.max_loop_iterations,
+            Some(n) => match u64::try_from(*n.get_ref()) {
+                Ok(v) if MAX_LOOP_ITERATIONS_RANGE.contains(&v) => v,
+                _ => {
+                    return Err(self.error(
+                        n.span(),
+                        format!(
+                            "`gcode.max_loop_iterations` must be from {} to {}, found {}",
+                            MAX_LOOP_ITERATIONS_RANGE.start(),
+                            MAX_LOOP_ITERATIONS_RANGE.end(),
+                            n.get_ref()
+                        ),
+                    ));
+                }
+            },
+        };
+        let g28_home_mm_deg = self.home("gcode.g28_home_mm_deg", &g.g28_home_mm_deg)?;
+        let g30_home_mm_deg = self.home("gcode.g30_home_mm_deg", &g.g30_home_mm_deg)?;
+        let parameter_file = g
+            .parameter_file
+            .as_ref()
+            .map(|f| self.dir.join(f.get_ref()));
 
         Ok(Config {
             machine,
@@ -824,7 +920,34 @@ impl Checker<'_> {
             arc_tolerance_rel,
             work_offsets_mm,
             tools,
+            tool_table,
+            subroutine_path,
+            max_loop_iterations,
+            g28_home_mm_deg,
+            g30_home_mm_deg,
+            parameter_file,
         })
+    }
+
+    /// A stored position: `[x, y, z]` (mm) or `[x, y, z, a, b, c]` (mm, degrees).
+    fn home(&self, key: &str, raw: &Option<Spanned<Vec<f64>>>) -> Result<[f64; 6], ConfigError> {
+        let Some(raw) = raw else {
+            return Ok([0.0; 6]);
+        };
+        let v = raw.get_ref();
+        if matches!(v.len(), 3 | 6) && v.iter().all(|x| x.abs() <= MAX_COORDINATE_MM) {
+            let mut out = [0.0; 6];
+            out[..v.len()].copy_from_slice(v);
+            return Ok(out);
+        }
+        Err(self.error(
+            raw.span(),
+            format!(
+                "`{key}` must be [x, y, z] or [x, y, z, a, b, c] (mm, degrees) between {} and {}",
+                number(-MAX_COORDINATE_MM),
+                number(MAX_COORDINATE_MM)
+            ),
+        ))
     }
 }
 
@@ -1335,5 +1458,99 @@ max_mm = 10.0
         }
         let e = err(&format!("{MINIMAL}[daemon]\nperiod_us = 250\n"));
         assert!(e.contains("period_us"), "{e}");
+    }
+
+    /// A fresh directory for one test's files.
+    fn temp_dir(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("kerf-config-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        dir
+    }
+
+    #[test]
+    fn gcode_files_and_limits_are_read_relative_to_the_config_file() {
+        let dir = temp_dir("gcode");
+        std::fs::write(dir.join("tool.tbl"), "T3 P3 X0.5 Z42.5 D6 ;drill\nT4 Z-1\n")
+            .expect("write");
+        std::fs::write(dir.join("kerf.var"), "5161\t10\n5220\t2\n5241\t-3.5\n").expect("write");
+        let text = format!(
+            "{MINIMAL}[gcode]\ntool_table = \"tool.tbl\"\nsubroutine_path = [\"subs\", \"/opt/ngc\"]\n\
+             max_loop_iterations = 5000\ng28_home_mm_deg = [1, 2, 3]\n\
+             g30_home_mm_deg = [4, 5, 6, 7, 8, 9]\nparameter_file = \"kerf.var\"\n\
+             [[tools]]\nnumber = 1\nlength_mm = 2.0\n"
+        );
+        let path = dir.join("kerf.toml");
+        std::fs::write(&path, text).expect("write");
+        let c = Config::load(&path).expect("valid config");
+        assert_eq!(c.tool_table, Some(dir.join("tool.tbl")));
+        let numbers: Vec<u32> = c.tools.iter().map(|t| t.number).collect();
+        assert_eq!(numbers, [1, 3, 4]);
+        assert_eq!(c.tools[1].offsets_mm_deg(), [0.5, 0.0, 42.5, 0.0, 0.0, 0.0]);
+        assert_eq!(c.tools[1].radius_mm, 3.0);
+        assert_eq!(c.tools[1].pocket, 3);
+        assert_eq!(
+            c.subroutine_path,
+            [dir.join("subs"), PathBuf::from("/opt/ngc")]
+        );
+        assert_eq!(c.max_loop_iterations, 5000);
+        assert_eq!(c.g28_home_mm_deg, [1.0, 2.0, 3.0, 0.0, 0.0, 0.0]);
+        assert_eq!(c.g30_home_mm_deg, [4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+        let s = c.program_settings().expect("parameter file");
+        assert_eq!(s.parameters, [(5161, 10.0), (5220, 2.0), (5241, -3.5)]);
+        assert_eq!(s.max_loop_iterations, 5000);
+        assert_eq!(s.subroutine_path, c.subroutine_path);
+        assert_eq!(s.g30_home_mm_deg, c.g30_home_mm_deg);
+        assert_eq!(s.tools.len(), 3);
+        // The restored parameters take effect: #5220 = 2 starts the program in G55, whose
+        // X offset #5241 is -3.5 mm.
+        let items: Vec<kerf_gcode::Item> =
+            kerf_gcode::Interpreter::new(&b"G0 X1\n"[..], Dialect::LinuxCnc, s)
+                .collect::<Result<_, _>>()
+                .expect("valid program");
+        let kerf_gcode::Item::Move(m) = &items[0] else {
+            panic!("a move")
+        };
+        assert_eq!(m.path.end(), kerf_gcode::Vec3::new(-2.5, 0.0, 0.0));
+        std::fs::remove_dir_all(&dir).expect("clean up");
+    }
+
+    #[test]
+    fn gcode_file_and_limit_errors() {
+        let dir = temp_dir("gcode-errors");
+        std::fs::write(dir.join("bad.tbl"), "T1 Z1\nT2 Zq\n").expect("write");
+        std::fs::write(dir.join("dup.tbl"), "T1 Z1\n").expect("write");
+        let load = |extra: &str| {
+            let path = dir.join("kerf.toml");
+            std::fs::write(&path, format!("{MINIMAL}{extra}")).expect("write");
+            Config::load(&path)
+                .map(|_| ())
+                .expect_err(extra)
+                .to_string()
+        };
+        let e = load("[gcode]\ntool_table = \"bad.tbl\"\n");
+        assert_eq!(
+            e,
+            format!(
+                "{}:2:4: error: `Zq` is not a letter followed by a number",
+                dir.join("bad.tbl").display()
+            )
+        );
+        let e = load("[gcode]\ntool_table = \"missing.tbl\"\n");
+        assert!(e.contains("cannot read `gcode.tool_table`"), "{e}");
+        let e = load("[gcode]\ntool_table = \"dup.tbl\"\n[[tools]]\nnumber = 1\n");
+        assert!(
+            e.contains("tool 1 is both in `tools` and in `gcode.tool_table`"),
+            "{e}"
+        );
+        for (extra, key) in [
+            ("max_loop_iterations = 0", "gcode.max_loop_iterations"),
+            ("g28_home_mm_deg = [1, 2]", "gcode.g28_home_mm_deg"),
+            ("g30_home_mm_deg = [1, 2, 3, 4]", "gcode.g30_home_mm_deg"),
+            ("g28_home = [1, 2, 3]", "unknown field `g28_home`"),
+        ] {
+            let e = err(&format!("{MINIMAL}[gcode]\n{extra}\n"));
+            assert!(e.contains(key), "{extra}: {e}");
+        }
+        std::fs::remove_dir_all(&dir).expect("clean up");
     }
 }

@@ -22,6 +22,7 @@ pub mod daemon;
 pub mod ipc;
 pub mod plan;
 pub mod sim;
+pub mod tooltable;
 pub mod travel;
 
 pub use config::{Config, ConfigError};

@@ -1242,3 +1242,42 @@ fn a_daemon_killed_while_it_starts_leaves_nothing_that_stops_the_next() {
     let program = env.write("short.ngc", "G21 G90\nG1 X2 Y1 F3000\nG0 X0 Y0\nM2\n");
     env.run_ok("run", &program, None);
 }
+
+#[test]
+fn run_keeps_linuxcnc_persistent_parameters_in_the_parameter_file() {
+    // `[gcode] parameter_file`: read at program start, written by `kerf run` after a
+    // program that ended normally (LinuxCNC's .var file). `kerf sim` never writes it.
+    let env = Env::new(
+        "var",
+        &[(
+            "# parameter_file = \"kerf.var\"",
+            "parameter_file = \"kerf.var\"",
+        )],
+    );
+    let var = env.path("kerf.var");
+    let _daemon = env.start_daemon("kerfd");
+    let first = env.write(
+        "store.ngc",
+        "G21 G90\nG10 L2 P2 X3\nG0 X1 Y2\nG28.1\nG0 X0 Y0\nM2\n",
+    );
+    let sim_csv = env.path("store.csv");
+    let o = env.kerf(
+        "sim",
+        &[first.to_str().unwrap(), "--out", sim_csv.to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!var.exists(), "kerf sim wrote the parameter file");
+    env.run_ok("run", &first, None);
+    let text = read_text(&var);
+    assert!(
+        text.starts_with("5161\t1.000000\n5162\t2.000000\n5163\t0.000000\n"),
+        "{text}"
+    );
+    assert!(text.contains("\n5220\t1.000000\n"), "{text}");
+    assert!(text.contains("\n5241\t3.000000\n"), "{text}");
+    // The next program starts with the stored G28 position and the G55 offset.
+    let second = env.write("home.ngc", "G21 G90\nG28\nG55 G0 Y0\nM2\n");
+    env.run_ok("run2", &second, None);
+    let p = position(&env.status());
+    assert!((p[0] - 1.0).abs() < 1e-6 && p[1].abs() < 1e-6, "{p:?}");
+}

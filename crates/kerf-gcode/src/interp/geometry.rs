@@ -45,7 +45,7 @@ impl State {
         for (i, &k) in ABC.iter().enumerate() {
             if let Some(v) = blk.get(k) {
                 abc[i] = if self.word_absolute(blk, k) {
-                    v
+                    v + self.origin_abc[i]
                 } else {
                     self.abc[i] + v
                 };
@@ -233,6 +233,19 @@ impl State {
         }
         self.check_unused(blk, is_arc)?;
 
+        // G53's conditions come first, as rs274 checks them.
+        if let Some(col) = machine {
+            if !self.absolute {
+                return fail(col, "Cannot use g53 incremental");
+            }
+            if !matches!(motion, Motion::Rapid | Motion::Linear) {
+                return fail(col, "Must use g0 or g1 with g53");
+            }
+            if self.comp != super::Comp::Off {
+                return fail(col, "Cannot use g53 with cutter radius comp");
+            }
+        }
+
         // Feed.
         let rapid = match motion {
             Motion::Rapid => true,
@@ -246,23 +259,28 @@ impl State {
         };
 
         let start = self.pos;
-        let abc_end = self.abc_target(blk);
+        let mut abc_end = self.abc_target(blk);
+        if machine.is_some() {
+            for (i, &k) in ABC.iter().enumerate() {
+                if let Some(v) = blk.get(k) {
+                    abc_end[i] = v;
+                }
+            }
+        }
         let mut end = start;
         let mut new_polar: Option<(f64, f64)> = None;
 
         // End point.
-        if let Some(col) = machine {
-            if !self.absolute {
-                return fail(col, "cannot use G53 incremental");
-            }
-            if !matches!(motion, Motion::Rapid | Motion::Linear) {
-                return fail(col, "must use G0 or G1 with G53");
-            }
+        if machine.is_some() {
+            // Machine coordinates: the named axes go there, the others stay where they
+            // are on the machine (under a rotated system too).
+            let mut m = self.frame_to_machine(start);
             for (i, &k) in XYZ.iter().enumerate() {
                 if let Some(val) = blk.get(k) {
-                    end[i] = val * self.scale();
+                    m[i] = val * self.scale();
                 }
             }
+            end = self.machine_to_frame(m);
         } else if has_polar && !matches!(motion, Motion::PolarArc(_)) {
             let (r, a_deg) = self.polar_end(blk, motion)?;
             let pole = self.polar_reference();
@@ -358,7 +376,7 @@ impl State {
         out.items.push(Item::Move(Move {
             line: out.line,
             rapid,
-            path,
+            path: self.path_to_machine(path),
             feed_mm_min: feed,
             abc_deg: abc,
             corner,

@@ -369,12 +369,13 @@ impl State {
         self.comp = s.comp;
         self.coord_system = s.coord_system;
         self.tool_length_on = s.tool_length_on;
-        self.tool_length_mm = if s.tool_length_on {
-            self.tool(self.tool_loaded).map_or(0.0, |t| t.length_mm)
+        let offsets = if s.tool_length_on {
+            self.tool(self.tool_loaded)
+                .map_or([0.0; 6], |t| t.offsets_mm_deg())
         } else {
-            0.0
+            [0.0; 6]
         };
-        self.update_origin();
+        self.set_tool_offsets(offsets);
         self.corner = s.corner;
         self.absolute = s.absolute;
         self.arc_absolute = s.arc_absolute;

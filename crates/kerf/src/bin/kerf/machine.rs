@@ -331,7 +331,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         )));
     }
     let start = status.position_mm_deg;
-    let mut settings = config.settings();
+    let mut settings = crate::program_settings(&config)?;
     settings.start_mm_deg = start;
     let options = SimOptions {
         queue_capacity: config.daemon.queue_segments as usize,
@@ -371,7 +371,8 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         .send(MoveMsg::begin(id, start, 0))
         .map_err(client_failure)?;
     let mut seq = 0u64;
-    for item in Interpreter::new(source.reader()?, source.dialect, settings) {
+    let mut interpreter = Interpreter::new(source.reader()?, source.dialect, settings);
+    for item in interpreter.by_ref() {
         let item = match item {
             Ok(item) => item,
             // Pass 1 read it without an error: the file changed in between.
@@ -440,6 +441,17 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             // Exit 0 means the program ran to its end point.
             scan.check_end(&s.position_mm_deg)
                 .map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
+            // The program ended normally: its persistent parameters (G28/G30 positions,
+            // work offsets, G92) are kept for the next one, as LinuxCNC keeps its .var file.
+            if let Some(path) = &config.parameter_file {
+                kerf::tooltable::write_parameter_file(path, &interpreter.persistent_parameters())
+                    .map_err(|e| {
+                    Failure::Error(format!(
+                        "{}: error: cannot write the parameter file: {e}",
+                        path.display()
+                    ))
+                })?;
+            }
             return Ok(());
         }
         check_program_state(&s, id, &name, &machine)?;

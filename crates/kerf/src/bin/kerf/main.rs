@@ -198,6 +198,15 @@ pub fn load_config(path: Option<&Path>) -> Result<Config, Failure> {
         .map_err(|e| Failure::Error(e.to_string()))
 }
 
+/// The interpreter settings of a program run: the configuration's, with the numbered
+/// parameters of `gcode.parameter_file` restored. Every command reads the file; only
+/// `kerf run` writes it (after a program that ended normally).
+pub fn program_settings(config: &Config) -> Result<kerf_gcode::Settings, Failure> {
+    config
+        .program_settings()
+        .map_err(|e| Failure::Error(e.to_string()))
+}
+
 /// An opened program: its reader, the name errors use, and its dialect.
 struct Program {
     reader: Box<dyn BufRead + Send>,
@@ -237,7 +246,8 @@ fn run_plan(args: &PlanArgs) -> Result<(), Failure> {
     let config = load_config(args.program.config.as_deref())?;
     let program = open_program(&args.program, &config)?;
     let stdout = io::stdout().lock();
-    match kerf::plan(program.reader, stdout, program.dialect, config.settings()) {
+    let settings = program_settings(&config)?;
+    match kerf::plan(program.reader, stdout, program.dialect, settings) {
         Ok(_) => Ok(()),
         Err(PlanError::Output(e)) => Err(e.into()),
         // These carry their own `LINE:COL: error: ...`.
@@ -262,7 +272,8 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     // Pass 1: the whole program is resolved, planned and checked against the travel
     // limits (the programmed moves and the planned path) before the first setpoint: a
     // program that would leave the machine's travel never starts.
-    let (checked, _) = check_program(&source, &config, config.settings(), &options)?;
+    let settings = program_settings(&config)?;
+    let (checked, _) = check_program(&source, &config, settings.clone(), &options)?;
     let scan = checked.scan;
 
     let create = |path: &Path| {
@@ -292,7 +303,7 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
         Some(kept) => kerf::sim::simulate_kept(kept, &scan, &config, &options, &mut out, plot_out),
         None => {
             seen = 0;
-            let moves = Interpreter::new(source.reader()?, source.dialect, config.settings())
+            let moves = Interpreter::new(source.reader()?, source.dialect, settings)
                 .map_while(|item| match item {
                     Ok(Item::Move(m)) => {
                         seen += 1;
