@@ -13,6 +13,7 @@ mod fagor;
 mod fuzz;
 mod grammar;
 mod heidenhain;
+mod language;
 mod linuxcnc;
 mod rockwell;
 mod sinumerik;

@@ -9,6 +9,7 @@ use crate::{Dialect, Event, EventCode, Item, Settings, Tool};
 
 mod geometry;
 pub(crate) mod params;
+mod query;
 
 const MM_PER_INCH: f64 = 25.4;
 
@@ -148,6 +149,20 @@ pub(crate) struct State {
     /// the codes whose data lives in parameters).
     #[allow(dead_code)]
     pub(crate) params: params::Params,
+    /// LinuxCNC feed mode as its G code times ten (930, 940, 950), read by
+    /// `#<_inverse_time>` …; constant G94 until the modal helper's G93/G95 set it.
+    pub(crate) feed_mode_g: u16,
+    /// LinuxCNC canned-cycle retract mode G98 (`true`, `#<_retract_old_z>`) or G99;
+    /// constant until the canned-cycle helper sets it.
+    pub(crate) retract_old_z: bool,
+    /// Spindle direction for `#<_spindle_on>`/`#<_spindle_cw>`: 1 (M3), -1 (M4), 0 (M5);
+    /// constant off until the modal helper tracks M3/M4/M5.
+    pub(crate) spindle_dir: i8,
+    /// Mist (M7) and flood (M8) coolant for `#<_mist>`/`#<_flood>`; constant off until
+    /// the modal helper tracks M7/M8/M9.
+    pub(crate) mist: bool,
+    /// See [`State::mist`].
+    pub(crate) flood: bool,
 }
 
 /// Output of a block, in execution order.
@@ -212,6 +227,11 @@ impl State {
             header_seen: false,
             done: false,
             params: params::Params::new(),
+            feed_mode_g: 940,
+            retract_old_z: false,
+            spindle_dir: 0,
+            mist: false,
+            flood: false,
         };
         s.update_origin();
         s

@@ -225,6 +225,7 @@ mod arc;
 mod codes;
 mod interp;
 mod lex;
+mod ngc;
 
 pub use kerf_geom::{Arc, CornerMode, Line, Move, Path, Vec3};
 
@@ -470,6 +471,10 @@ pub enum Item {
 }
 
 /// An error at a place in the source: the CLI prints `FILE:LINE:COL: error: MESSAGE`.
+///
+/// An error inside a LinuxCNC subroutine file names that file in [`Diagnostic::file`] and
+/// the calls that led there in [`Diagnostic::called_from`]; [`Diagnostic::render`] writes
+/// the whole report.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("{line}:{col}: error: {message}")]
 pub struct Diagnostic {
@@ -479,6 +484,31 @@ pub struct Diagnostic {
     pub col: u32,
     /// What is wrong, in the words of the control's manual.
     pub message: String,
+    /// The file the line belongs to when it is not the program itself (a LinuxCNC
+    /// subroutine file); `None` for the program.
+    pub file: Option<std::sync::Arc<str>>,
+    /// The subroutine calls that led to the error, innermost first: the file (`None` for
+    /// the program) and line of each `call`.
+    pub called_from: Vec<(Option<std::sync::Arc<str>>, u32)>,
+}
+
+impl Diagnostic {
+    /// `PROGRAM:LINE:COL: error: MESSAGE`, where the error's file replaces `program` when
+    /// it lies in a subroutine file, followed by one `FILE:LINE: note: called from here`
+    /// line per call that led to it.
+    pub fn render(&self, program: &str) -> String {
+        use std::fmt::Write;
+        let file = self.file.as_deref().unwrap_or(program);
+        let mut s = format!("{file}:{}:{}: error: {}", self.line, self.col, self.message);
+        for (f, line) in &self.called_from {
+            let _ = write!(
+                s,
+                "\n{}:{line}: note: called from here",
+                f.as_deref().unwrap_or(program)
+            );
+        }
+        s
+    }
 }
 
 /// The longest source line accepted, in bytes. Longer lines are an error, which keeps the
@@ -494,6 +524,9 @@ pub struct Interpreter<R: std::io::BufRead> {
     reader: R,
     line: Vec<u8>,
     line_no: u32,
+    /// Lines read from the reader (`line_no` is the line being run, which may come from
+    /// a subroutine or loop kept in memory).
+    reader_line: u32,
     lexer: lex::Lexer,
     words: Vec<lex::Word>,
     block: interp::Block,
@@ -504,15 +537,34 @@ pub struct Interpreter<R: std::io::BufRead> {
     finished: bool,
     percent_seen: bool,
     blocks_seen: bool,
+    /// The LinuxCNC language layer (parameters, expressions, O-words, messages).
+    ngc: ngc::Ngc,
 }
 
 impl<R: std::io::BufRead> Interpreter<R> {
     /// An interpreter for `dialect` reading from `reader`.
     pub fn new(reader: R, dialect: Dialect, settings: Settings) -> Self {
+        Self::with_program_dir(reader, dialect, settings, None)
+    }
+
+    /// Like [`Interpreter::new`] for a program read from a file in `dir`: LinuxCNC looks
+    /// for subroutine files `NAME.ngc` there first, then on [`Settings::subroutine_path`].
+    pub fn with_program_dir(
+        reader: R,
+        dialect: Dialect,
+        settings: Settings,
+        dir: Option<&std::path::Path>,
+    ) -> Self {
+        let mut search: Vec<std::path::PathBuf> =
+            dir.map(|d| d.to_path_buf()).into_iter().collect();
+        search.extend(settings.subroutine_path.iter().cloned());
+        let ngc = ngc::Ngc::new(search, settings.max_loop_iterations);
         Interpreter {
+            ngc,
             reader,
             line: Vec::with_capacity(256),
             line_no: 0,
+            reader_line: 0,
             lexer: lex::Lexer::new(dialect),
             words: Vec::with_capacity(32),
             block: interp::Block::new(),
@@ -531,6 +583,8 @@ impl<R: std::io::BufRead> Interpreter<R> {
             line: self.line_no,
             col,
             message: message.into(),
+            file: self.ngc.current_file(),
+            called_from: self.ngc.call_chain(),
         }
     }
 
@@ -548,7 +602,8 @@ impl<R: std::io::BufRead> Interpreter<R> {
                 Ok(n) => break n,
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
                 Err(e) => {
-                    self.line_no = self.line_no.saturating_add(1);
+                    self.reader_line = self.reader_line.saturating_add(1);
+                    self.line_no = self.reader_line;
                     return Err(self.diag(1, format!("read error: {e}")));
                 }
             }
@@ -556,7 +611,8 @@ impl<R: std::io::BufRead> Interpreter<R> {
         if n == 0 {
             return Ok(false);
         }
-        self.line_no = self.line_no.saturating_add(1);
+        self.reader_line = self.reader_line.saturating_add(1);
+        self.line_no = self.reader_line;
         if self.line.last() == Some(&b'\n') {
             self.line.pop();
         } else if self.line.len() > MAX_LINE_BYTES {
@@ -585,6 +641,12 @@ impl<R: std::io::BufRead> Interpreter<R> {
             }
         }
         let dialect = self.state.dialect();
+        if dialect == Dialect::LinuxCnc
+            && (self.ngc.busy() || ngc::needs_language(&self.line))
+            && self.process_ngc_line()?
+        {
+            return Ok(());
+        }
         let mut pos = 0;
         loop {
             let start = self.pending.len();
@@ -632,6 +694,49 @@ impl<R: std::io::BufRead> Interpreter<R> {
     }
 }
 
+impl<R: std::io::BufRead> Interpreter<R> {
+    /// A LinuxCNC line through the language layer. `Ok(false)`: the plain path handles it.
+    fn process_ngc_line(&mut self) -> Result<bool, Diagnostic> {
+        let action = self
+            .ngc
+            .line(&self.line, self.line_no, &mut self.state, &mut self.words)
+            .map_err(|e| self.diag(e.col, e.message))?;
+        match action {
+            ngc::Action::Nothing => return Ok(true),
+            ngc::Action::Plain => return Ok(false),
+            ngc::Action::Block => {}
+        }
+        self.blocks_seen = true;
+        let start = self.pending.len();
+        let result = self
+            .state
+            .build_block(&self.words, &mut self.block)
+            .map_err(|e| (e.col, e.message))
+            .and_then(|()| {
+                self.ngc
+                    .commit(&mut self.state, &mut self.pending, self.line_no)
+                    .map_err(|e| (e.col, e.message))
+            })
+            .and_then(|()| {
+                let mut out = interp::Out {
+                    items: &mut self.pending,
+                    line: self.line_no,
+                };
+                self.state
+                    .exec(&self.block, false, &mut out)
+                    .map_err(|e| (e.col, e.message))
+            });
+        if let Err((col, message)) = result {
+            self.pending.truncate(start);
+            return Err(self.diag(col, message));
+        }
+        if self.state.done {
+            self.finished = true;
+        }
+        Ok(true)
+    }
+}
+
 impl<R: std::io::BufRead> Iterator for Interpreter<R> {
     type Item = Result<Item, Diagnostic>;
 
@@ -650,10 +755,26 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
             if self.finished {
                 return None;
             }
-            match self.read_line() {
+            let from_memory = if self.state.dialect() == Dialect::LinuxCnc {
+                self.ngc.next_line(&mut self.line)
+            } else {
+                None
+            };
+            let got = match from_memory {
+                Some(n) => {
+                    self.line_no = n;
+                    Ok(true)
+                }
+                None => self.read_line(),
+            };
+            match got {
                 Ok(true) => {}
                 Ok(false) => {
                     self.finished = true;
+                    if let Some((line, m)) = self.ngc.unfinished() {
+                        self.line_no = line;
+                        return Some(Err(self.diag(1, m)));
+                    }
                     return None;
                 }
                 Err(e) => {
