@@ -331,7 +331,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         )));
     }
     let start = status.position_mm_deg;
-    let mut settings = config.settings();
+    let mut settings = crate::settings_for(config.settings(), &args.program.program);
     settings.start_mm_deg = start;
     let options = SimOptions {
         queue_capacity: config.daemon.queue_segments as usize,

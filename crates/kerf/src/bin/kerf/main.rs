@@ -203,6 +203,24 @@ struct Program {
     reader: Box<dyn BufRead + Send>,
     name: String,
     dialect: Dialect,
+    /// The program's directory: LinuxCNC subroutine files are looked for there first.
+    dir: Option<PathBuf>,
+}
+
+/// `settings` with the program's directory first on the LinuxCNC subroutine search path,
+/// where LinuxCNC's interpreter finds `NAME.ngc` files next to the program.
+pub(crate) fn settings_for(
+    mut settings: kerf_gcode::Settings,
+    program: &std::path::Path,
+) -> kerf_gcode::Settings {
+    if program.as_os_str() != OsStr::new("-") {
+        let dir = program
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(std::path::Path::new("."));
+        settings.subroutine_path.insert(0, dir.to_path_buf());
+    }
+    settings
 }
 
 fn open_program(args: &ProgramArgs, config: &Config) -> Result<Program, Failure> {
@@ -213,6 +231,7 @@ fn open_program(args: &ProgramArgs, config: &Config) -> Result<Program, Failure>
             reader: Box::new(reader),
             name: "<stdin>".to_string(),
             dialect: choose_dialect(args.dialect, None, config.dialect),
+            dir: None,
         });
     }
     let name = args.program.display().to_string();
@@ -230,6 +249,7 @@ fn open_program(args: &ProgramArgs, config: &Config) -> Result<Program, Failure>
         reader: Box::new(reader),
         name,
         dialect,
+        dir: Some(args.program.clone()),
     })
 }
 
@@ -237,11 +257,17 @@ fn run_plan(args: &PlanArgs) -> Result<(), Failure> {
     let config = load_config(args.program.config.as_deref())?;
     let program = open_program(&args.program, &config)?;
     let stdout = io::stdout().lock();
-    match kerf::plan(program.reader, stdout, program.dialect, config.settings()) {
+    let settings = match &program.dir {
+        Some(path) => settings_for(config.settings(), path),
+        None => config.settings(),
+    };
+    match kerf::plan(program.reader, stdout, program.dialect, settings) {
         Ok(_) => Ok(()),
         Err(PlanError::Output(e)) => Err(e.into()),
+        // A LinuxCNC subroutine error names its file and the calls that led there.
+        Err(PlanError::Program(d)) => Err(Failure::Error(d.render(&program.name))),
         // These carry their own `LINE:COL: error: ...`.
-        Err(e @ (PlanError::Program(_) | PlanError::NonFinite { .. })) => {
+        Err(e @ PlanError::NonFinite { .. }) => {
             Err(Failure::Error(format!("{}:{e}", program.name)))
         }
         Err(e) => Err(Failure::Error(format!("{}: error: {e}", program.name))),
@@ -262,7 +288,8 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     // Pass 1: the whole program is resolved, planned and checked against the travel
     // limits (the programmed moves and the planned path) before the first setpoint: a
     // program that would leave the machine's travel never starts.
-    let (checked, _) = check_program(&source, &config, config.settings(), &options)?;
+    let settings = settings_for(config.settings(), &args.program.program);
+    let (checked, _) = check_program(&source, &config, settings.clone(), &options)?;
     let scan = checked.scan;
 
     let create = |path: &Path| {
@@ -292,7 +319,7 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
         Some(kept) => kerf::sim::simulate_kept(kept, &scan, &config, &options, &mut out, plot_out),
         None => {
             seen = 0;
-            let moves = Interpreter::new(source.reader()?, source.dialect, config.settings())
+            let moves = Interpreter::new(source.reader()?, source.dialect, settings)
                 .map_while(|item| match item {
                     Ok(Item::Move(m)) => {
                         seen += 1;
@@ -392,7 +419,7 @@ pub fn check_program(
                     None => {}
                 }
             }
-            Err(diagnostic) => return Err(Failure::Error(format!("{name}:{diagnostic}"))),
+            Err(diagnostic) => return Err(Failure::Error(diagnostic.render(name))),
         }
     }
     let checked = prepass.finish().map_err(refused)?;
