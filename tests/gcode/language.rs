@@ -293,3 +293,96 @@ fn log_comments_are_refused() {
     let d = error(L, "(LOGOPEN,out.txt)\n");
     assert_diag(&d, 1, 1, &["LOGOPEN"]);
 }
+
+/// The end points of the motion calls of an rs274 canon file, in mm, without the
+/// zero-length lines that rs274 prints and Kerf does not emit (positions are program
+/// coordinates; the lang programs set no offsets, so they are machine coordinates too).
+fn canon_ends(canon: &str) -> Vec<[f64; 3]> {
+    let mut scale = 1.0;
+    let mut out: Vec<[f64; 3]> = Vec::new();
+    for line in canon.lines() {
+        if line.contains("USE_LENGTH_UNITS(CANON_UNITS_INCHES)") {
+            scale = INCH_MM;
+        } else if line.contains("USE_LENGTH_UNITS(CANON_UNITS_MM)") {
+            scale = 1.0;
+        }
+        for call in ["STRAIGHT_FEED(", "STRAIGHT_TRAVERSE(", "ARC_FEED("] {
+            let Some(i) = line.find(call) else { continue };
+            let args: Vec<f64> = line[i + call.len()..]
+                .trim_end_matches(')')
+                .split(',')
+                .map(|a| a.trim().parse().unwrap())
+                .collect();
+            let end = if call == "ARC_FEED(" {
+                [args[0] * scale, args[1] * scale, args[5] * scale]
+            } else {
+                [args[0] * scale, args[1] * scale, args[2] * scale]
+            };
+            let prev = out.last().copied().unwrap_or([0.0; 3]);
+            if call != "ARC_FEED(" && (0..3).all(|k| (end[k] - prev[k]).abs() < 1e-9) {
+                continue;
+            }
+            out.push(end);
+        }
+    }
+    out
+}
+
+#[test]
+fn golden_programs_match_rs274() {
+    // Every tests/data/ngc/lang program moves to rs274's end points (printed with four
+    // decimals, so within 0.0001 program units), with the same number of moves.
+    let dir = data_dir().join("ngc/lang");
+    let mut files = files_with_ext(&dir, "ngc");
+    files.extend(files_with_ext(&dir.join("subfiles"), "ngc"));
+    assert!(files.len() >= 9, "{files:?}");
+    for path in files {
+        let canon = std::fs::read_to_string(path.with_extension("canon")).unwrap();
+        let src = std::fs::read(&path).unwrap();
+        let settings = Settings {
+            subroutine_path: vec![path.parent().unwrap().to_path_buf()],
+            ..Settings::default()
+        };
+        let got: Vec<[f64; 3]> = run_bytes(L, settings, &src)
+            .items
+            .iter()
+            .filter_map(|i| match i {
+                Item::Move(m) => Some(match m.path {
+                    Path::Line(l) => [l.end[0], l.end[1], l.end[2]],
+                    Path::Arc(a) => [a.end[0], a.end[1], a.end[2]],
+                }),
+                Item::Event(_) => None,
+            })
+            .collect();
+        // MSG and DEBUG are rs274's MESSAGE calls, with the same text.
+        let messages: Vec<String> = canon
+            .lines()
+            .filter_map(|l| {
+                l.split_once("MESSAGE(\"")
+                    .map(|(_, t)| t.trim_end_matches("\")").to_string())
+            })
+            .collect();
+        let texts: Vec<String> = run_bytes(L, Settings::default(), &src)
+            .items
+            .into_iter()
+            .filter_map(|i| match i {
+                Item::Event(e) if matches!(e.code, EventCode::Msg | EventCode::Debug) => {
+                    e.text.map(|t| t.to_string())
+                }
+                _ => None,
+            })
+            .collect();
+        assert_eq!(texts, messages, "{}", path.display());
+        let want = canon_ends(&canon);
+        assert_eq!(got.len(), want.len(), "{}", path.display());
+        for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+            for k in 0..3 {
+                assert!(
+                    (g[k] - w[k]).abs() <= 0.0001 * INCH_MM,
+                    "{} move {i}: got {g:?}, rs274 {w:?}",
+                    path.display()
+                );
+            }
+        }
+    }
+}
