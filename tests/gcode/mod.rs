@@ -11,6 +11,7 @@ mod cross_dialect;
 mod errors;
 mod fagor;
 mod fuzz;
+mod fuzz_language;
 mod grammar;
 mod heidenhain;
 mod language;
