@@ -343,8 +343,12 @@ fn golden_programs_match_rs274() {
             subroutine_path: vec![path.parent().unwrap().to_path_buf()],
             ..Settings::default()
         };
-        let got: Vec<[f64; 3]> = run_bytes(L, settings, &src)
-            .items
+        // Loops yield more items than the program has bytes: collect without the
+        // item bound of `run_bytes` (the loops are bounded by max_loop_iterations).
+        let all: Vec<Item> = Interpreter::new(&src[..], L, settings)
+            .collect::<Result<_, _>>()
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let got: Vec<[f64; 3]> = all
             .iter()
             .filter_map(|i| match i {
                 Item::Move(m) => Some(match m.path {
@@ -362,9 +366,9 @@ fn golden_programs_match_rs274() {
                     .map(|(_, t)| t.trim_end_matches("\")").to_string())
             })
             .collect();
-        let texts: Vec<String> = run_bytes(L, Settings::default(), &src)
-            .items
-            .into_iter()
+        let texts: Vec<String> = all
+            .iter()
+            .cloned()
             .filter_map(|i| match i {
                 Item::Event(e) if matches!(e.code, EventCode::Msg | EventCode::Debug) => {
                     e.text.map(|t| t.to_string())

@@ -96,7 +96,7 @@
 //! - Helices: an axis word along the plane normal moves linearly with the angle; the
 //!   centre lies in the plane of the start point.
 //! - Not supported yet, each a clear error naming the construct: parameters and
-//!   expressions (LinuxCNC `#`, `[..]`, O-words; Sinumerik R parameters, `=` expressions
+//!   expressions outside LinuxCNC (Sinumerik R parameters, `=` expressions
 //!   and other keywords; Fagor `P` parameters, `#` and `$` instructions), canned cycles,
 //!   inverse-time (G93) and per-revolution (G95) feed, U/V/W axes.
 //!
@@ -134,6 +134,51 @@
 //!   with zero feed rate". F is kept physically across G20/G21 changes.
 //! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc,
 //!   P without G2/G3/G4/G64, Q without G64, H without G43. U, V, W and E are not supported.
+//!
+//! ## The LinuxCNC language (`ngc` module)
+//!
+//! A line holding `#`, `[`, an O-word or a message comment goes through the language
+//! layer; other lines keep the plain fast path. Checked against LinuxCNC's `rs274`
+//! (`tests/data/ngc/lang`, docs/linuxcnc/language.md).
+//!
+//! - The line is read as LinuxCNC reads it: spaces and tabs removed and letters folded
+//!   outside comments, so `#<Depth Of Cut>` is `#<depthofcut>`. Every value of a line is
+//!   read before any of its assignments takes effect (`#1=5 G1 X#1` moves to the old #1),
+//!   and the assignments take effect in order (`#3=1 #3=2` leaves 2), before the block runs.
+//! - Numbered parameters #1–#5601 (reading or setting another one: "Parameter number out of
+//!   range"; a fraction: "Non integer value for integer"); unset ones read 0. `##n` and
+//!   `#[expr]` are indirect. #5420–#5425 (#5426–#5428 read 0: no U V W) are the current
+//!   position in program coordinates and units, #5400 the tool in the spindle.
+//! - Named parameters: `#<name>` is local to the subroutine call level (reading one never
+//!   set: "Named parameter #<name> not defined"), `#<_name>` global. The predefined ones
+//!   (`#<_x>`, `#<_abs_x>`, `#<_metric>`, `#<_motion_mode>`, `#<_value>`, … the manual's
+//!   list) are read-only ("Cannot assign to read-only parameter").
+//! - Expressions `[..]` anywhere a number stands, G and M numbers included. Precedence,
+//!   highest first: `**`; `* / MOD`; `+ -`; `EQ NE GT GE LT LE`; `AND OR XOR`, all left to
+//!   right. EQ/NE compare within 0.0001. `MOD` is non-negative. Unary `-`/`+` bind tighter
+//!   than `**` (`-2**0.5` is an error, as in rs274). Functions ABS ACOS ASIN COS EXP FIX
+//!   FUP ROUND LN SIN SQRT TAN (degrees), `ATAN[y]/[x]`, `EXISTS[#<name>]`; their errors
+//!   use rs274's words ("Attempt to divide by zero", "Negative argument to sqrt", …).
+//!   Brackets and parameter references nest at most 64 deep.
+//! - Comments: `(MSG,text)` is a [`EventCode::Msg`] event with the text after the comma as
+//!   written; `(DEBUG,text)` and `(PRINT,text)` are [`EventCode::Debug`] and
+//!   [`EventCode::Print`] events with each `#n`, `##n`, `#<name>` replaced by its value with
+//!   six decimals (`######` when it cannot be read), as rs274 prints them. The keyword may
+//!   follow spaces and is case-insensitive. `LOGOPEN`, `LOGAPPEND`, `LOG`, `LOGCLOSE` are
+//!   refused (Kerf writes no files).
+//! - O-words, numbered (`o100`) or named (`o<name>`): `sub`/`endsub [v]`/`return [v]`,
+//!   `call [a1] [a2] …` (arguments in #1…#30, which are restored after the call; named
+//!   locals are fresh per call; `#<_value>` and `#<_value_returned>` after it), `if`/
+//!   `elseif`/`else`/`endif`, `while`/`endwhile`, `do`/`while`, `repeat [n]`/`endrepeat`,
+//!   `break`, `continue`. A sub must be defined before its call; otherwise `NAME.ngc` is
+//!   looked for in the program's directory ([`Interpreter::with_program_dir`]) and on
+//!   [`Settings::subroutine_path`]. Subroutines nest ten deep ("Too many subroutine
+//!   levels"); a loop that runs [`Settings::max_loop_iterations`] times is an error.
+//! - Memory: the text of a sub, or of a top-level structure up to its end line, is kept
+//!   while it runs (at most 1,000,000 lines each); loops run from that text and never
+//!   unroll. Items of a subroutine carry the line numbers of the text they come from (of
+//!   the subroutine file for a file's sub); an error there names the file
+//!   ([`Diagnostic::file`]) and the calling lines ([`Diagnostic::called_from`]).
 //!
 //! # Rockwell 9/Series mill (`rockwell`, Fanuc style)
 //!
