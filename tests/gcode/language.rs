@@ -341,6 +341,7 @@ fn golden_programs_match_rs274() {
         let src = std::fs::read(&path).unwrap();
         let settings = Settings {
             subroutine_path: vec![path.parent().unwrap().to_path_buf()],
+            program_file: Some(path.clone()),
             ..Settings::default()
         };
         // Loops yield more items than the program has bytes: collect without the
@@ -389,4 +390,37 @@ fn golden_programs_match_rs274() {
             }
         }
     }
+}
+
+#[test]
+fn a_sub_defined_after_m2_is_found_in_the_program_file() {
+    // rs274 seeks forward for a sub it has not seen: TRAVERSE to X2, then Y1, then the end.
+    // Reaching the definition of such a sub before M2 is its error "found in illegal
+    // location" (rs274: "sub: o|100| found in illegal location").
+    let dir = std::env::temp_dir().join(format!("kerf-lang-fw-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let after_m2 = dir.join("after_m2.ngc");
+    let src = "o100 call [2]\nG0 Y1\nM2\no100 sub\nG0 X#1\no100 endsub\n";
+    std::fs::write(&after_m2, src).unwrap();
+    let settings = Settings {
+        program_file: Some(after_m2.clone()),
+        ..Settings::default()
+    };
+    let ms = moves_with(L, settings, src);
+    let ends: Vec<Vec3> = ms.iter().map(|m| as_line(m).end).collect();
+    assert_eq!(ends, vec![v(2.0, 0.0, 0.0), v(2.0, 1.0, 0.0)]);
+
+    let before_m2 = dir.join("before_m2.ngc");
+    let src = "o100 call [2]\nG0 Y1\no100 sub\nG0 X#1\no100 endsub\nM2\n";
+    std::fs::write(&before_m2, src).unwrap();
+    let settings = Settings {
+        program_file: Some(before_m2.clone()),
+        ..Settings::default()
+    };
+    let d = error_with(L, settings, src);
+    assert_diag(&d, 3, 1, &["o100 found in illegal location"]);
+    // Without the file (standard input) the sub cannot be found.
+    let d = error(L, "o100 call [2]\nM2\no100 sub\no100 endsub\n");
+    assert_diag(&d, 1, 1, &["o100 called but not defined"]);
+    std::fs::remove_dir_all(&dir).unwrap();
 }

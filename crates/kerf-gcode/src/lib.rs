@@ -170,9 +170,10 @@
 //!   `call [a1] [a2] …` (arguments in #1…#30, which are restored after the call; named
 //!   locals are fresh per call; `#<_value>` and `#<_value_returned>` after it), `if`/
 //!   `elseif`/`else`/`endif`, `while`/`endwhile`, `do`/`while`, `repeat [n]`/`endrepeat`,
-//!   `break`, `continue`. A sub must be defined before its call; otherwise `NAME.ngc` is
-//!   looked for in the program's directory ([`Interpreter::with_program_dir`]) and on
-//!   [`Settings::subroutine_path`]. Subroutines nest ten deep ("Too many subroutine
+//!   `break`, `continue`. A sub not defined before its call is looked for further down
+//!   the program's file ([`Settings::program_file`], as LinuxCNC seeks forward; reaching
+//!   its definition later is LinuxCNC's "found in illegal location"), then as `NAME.ngc`
+//!   in the program's directory and on [`Settings::subroutine_path`]. Subroutines nest ten deep ("Too many subroutine
 //!   levels"); a loop that runs [`Settings::max_loop_iterations`] times is an error.
 //! - Memory: the text of a sub, or of a top-level structure up to its end line, is kept
 //!   while it runs (at most 1,000,000 lines each); loops run from that text and never
@@ -372,6 +373,11 @@ pub struct Settings {
     /// LinuxCNC: directories searched, in order, for the file `NAME.ngc` of a subroutine
     /// `o<NAME> call` that the program does not define (`[gcode] subroutine_path`).
     pub subroutine_path: Vec<std::path::PathBuf>,
+    /// LinuxCNC: the program's own file, when it is read from one. A `call` of a sub that
+    /// is defined later in the program (after M2, say) finds it there, as LinuxCNC does by
+    /// seeking forward; the program's directory is searched for `NAME.ngc` files before
+    /// [`Settings::subroutine_path`]. `None` (standard input): such a call is an error.
+    pub program_file: Option<std::path::PathBuf>,
     /// LinuxCNC: the most iterations of one `while`/`do`/`repeat` loop, and the deepest
     /// subroutine nesting times this, before the program is refused as endless
     /// (`[gcode] max_loop_iterations`).
@@ -392,6 +398,7 @@ impl Default for Settings {
             arc_tolerance_rel: 0.001,
             start_mm_deg: [0.0; 6],
             subroutine_path: Vec::new(),
+            program_file: None,
             max_loop_iterations: 1_000_000,
             g28_home_mm_deg: [0.0; 6],
             g30_home_mm_deg: [0.0; 6],
@@ -600,10 +607,21 @@ impl<R: std::io::BufRead> Interpreter<R> {
         settings: Settings,
         dir: Option<&std::path::Path>,
     ) -> Self {
-        let mut search: Vec<std::path::PathBuf> =
-            dir.map(|d| d.to_path_buf()).into_iter().collect();
+        let program_dir = settings.program_file.as_deref().map(|f| match f.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => std::path::PathBuf::from("."),
+        });
+        let mut search: Vec<std::path::PathBuf> = dir
+            .map(|d| d.to_path_buf())
+            .into_iter()
+            .chain(program_dir)
+            .collect();
         search.extend(settings.subroutine_path.iter().cloned());
-        let ngc = ngc::Ngc::new(search, settings.max_loop_iterations);
+        let ngc = ngc::Ngc::new(
+            search,
+            settings.max_loop_iterations,
+            settings.program_file.clone(),
+        );
         Interpreter {
             ngc,
             reader,

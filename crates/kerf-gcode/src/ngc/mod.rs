@@ -209,10 +209,19 @@ pub(crate) struct Ngc {
     /// Directories searched for `NAME.ngc` (the program's own directory first).
     search_path: Vec<std::path::PathBuf>,
     max_loop_iterations: u64,
+    /// The program's file, searched for subs called before their definition.
+    program_file: Option<std::path::PathBuf>,
+    /// Subs found later in the program's file by a call before their definition:
+    /// reaching their definition afterwards is LinuxCNC's "found in illegal location".
+    forward: std::collections::HashSet<Arc<str>>,
 }
 
 impl Ngc {
-    pub(crate) fn new(search_path: Vec<std::path::PathBuf>, max_loop_iterations: u64) -> Self {
+    pub(crate) fn new(
+        search_path: Vec<std::path::PathBuf>,
+        max_loop_iterations: u64,
+        program_file: Option<std::path::PathBuf>,
+    ) -> Self {
         Ngc {
             norm: Vec::new(),
             cols: Vec::new(),
@@ -229,6 +238,8 @@ impl Ngc {
             messages: Vec::new(),
             search_path,
             max_loop_iterations,
+            program_file,
+            forward: std::collections::HashSet::new(),
         }
     }
 
@@ -921,6 +932,12 @@ impl Ngc {
         if !self.from_frame {
             // The main program, read from the reader.
             return match kw {
+                Kw::Sub if self.forward.contains(label) => fail(
+                    ocol,
+                    format!(
+                        "sub: {name} found in illegal location (it was called before this definition)"
+                    ),
+                ),
                 Kw::Sub | Kw::If | Kw::While | Kw::Do | Kw::Repeat => {
                     self.capture = Some(Capture {
                         label: label.clone(),
@@ -1289,16 +1306,19 @@ impl Ngc {
         let body = match self.subs.get(label) {
             Some(b) => b.clone(),
             None => {
-                let b = self
-                    .load_file(label)
-                    .map_err(|message| Fail { col: ocol, message })?;
+                let b = match self.find_forward(label) {
+                    Ok(Some(b)) => Ok(Some(b)),
+                    Ok(None) => self.load_file(label),
+                    Err(e) => Err(e),
+                }
+                .map_err(|message| Fail { col: ocol, message })?;
                 match b {
                     Some(b) => b,
                     None => {
                         return fail(
                             ocol,
                             format!(
-                                "{name} called but not defined: no sub before the call and no file {}.ngc on the subroutine path",
+                                "{name} called but not defined: no sub in the program and no file {}.ngc on the subroutine path",
                                 label
                             ),
                         );
@@ -1328,6 +1348,23 @@ impl Ngc {
         Ok(())
     }
 
+    /// A sub called before its definition: its `sub` … `endsub` later in the program's
+    /// file (read again, line by line), as LinuxCNC seeks forward for it.
+    fn find_forward(&mut self, label: &Arc<str>) -> Result<Option<Arc<Body>>, String> {
+        let Some(path) = self.program_file.clone() else {
+            return Ok(None);
+        };
+        let Ok(file) = std::fs::File::open(&path) else {
+            return Ok(None);
+        };
+        let found = read_sub(std::io::BufReader::new(file), label, None)?;
+        if let Some(b) = &found {
+            self.forward.insert(label.clone());
+            self.subs.insert(label.clone(), b.clone());
+        }
+        Ok(found)
+    }
+
     /// Finds `NAME.ngc` on the search path and keeps its `o<NAME> sub` … `endsub`.
     fn load_file(&mut self, label: &Arc<str>) -> Result<Option<Arc<Body>>, String> {
         if label.starts_with(|c: char| c.is_ascii_digit()) {
@@ -1343,36 +1380,63 @@ impl Ngc {
             return Ok(None);
         };
         let shown: Arc<str> = Arc::from(path.display().to_string());
-        let data = std::fs::read(&path).map_err(|e| format!("{shown}: cannot read: {e}"))?;
-        let mut lines = Vec::new();
-        let mut inside = false;
-        for (i, raw) in data.split(|&b| b == b'\n').enumerate() {
-            let raw = raw.strip_suffix(b"\r").unwrap_or(raw);
-            let src = make_src(raw, u32::try_from(i + 1).unwrap_or(u32::MAX));
-            let head = src.head.clone();
-            if !inside && matches!(&head, Some((l, Kw::Sub)) if l == label) {
-                inside = true;
+        let file = std::fs::File::open(&path).map_err(|e| format!("{shown}: cannot read: {e}"))?;
+        match read_sub(std::io::BufReader::new(file), label, Some(shown.clone()))? {
+            Some(body) => {
+                self.subs.insert(label.clone(), body.clone());
+                Ok(Some(body))
             }
-            if inside {
-                if lines.len() >= MAX_BODY_LINES {
-                    return Err(format!(
-                        "{shown}: subroutine longer than {MAX_BODY_LINES} lines"
-                    ));
-                }
-                lines.push(src);
-                if matches!(&head, Some((l, Kw::EndSub)) if l == label) {
-                    let body = Arc::new(Body {
-                        lines,
-                        file: Some(shown),
-                    });
-                    self.subs.insert(label.clone(), body.clone());
-                    return Ok(Some(body));
-                }
+            None => Err(format!(
+                "{shown}: no {} sub ... endsub in the file",
+                label_name(label)
+            )),
+        }
+    }
+}
+
+/// The lines of `o<label> sub` … `endsub` in `reader`, or `None` when it has none. Only the
+/// sub's own lines are kept.
+fn read_sub<R: std::io::BufRead>(
+    mut reader: R,
+    label: &Arc<str>,
+    file: Option<Arc<str>>,
+) -> Result<Option<Arc<Body>>, String> {
+    use std::io::{BufRead, Read};
+    let shown = file.as_deref().unwrap_or("the program").to_string();
+    let mut lines = Vec::new();
+    let mut inside = false;
+    let mut raw = Vec::new();
+    let mut i = 0usize;
+    loop {
+        raw.clear();
+        let n = (&mut reader)
+            .take(crate::MAX_LINE_BYTES as u64 + 1)
+            .read_until(b'\n', &mut raw)
+            .map_err(|e| format!("{shown}: cannot read: {e}"))?;
+        if n == 0 {
+            return Ok(None);
+        }
+        i += 1;
+        let text = raw.strip_suffix(b"\n").unwrap_or(&raw);
+        let text = text.strip_suffix(b"\r").unwrap_or(text);
+        if !inside && !text.iter().any(|&b| b == b'o' || b == b'O') {
+            continue;
+        }
+        let src = make_src(text, u32::try_from(i).unwrap_or(u32::MAX));
+        let head = src.head.clone();
+        if !inside && matches!(&head, Some((l, Kw::Sub)) if l == label) {
+            inside = true;
+        }
+        if inside {
+            if lines.len() >= MAX_BODY_LINES {
+                return Err(format!(
+                    "{shown}: subroutine longer than {MAX_BODY_LINES} lines"
+                ));
+            }
+            lines.push(src);
+            if matches!(&head, Some((l, Kw::EndSub)) if l == label) {
+                return Ok(Some(Arc::new(Body { lines, file })));
             }
         }
-        Err(format!(
-            "{shown}: no {} sub ... endsub in the file",
-            label_name(label)
-        ))
     }
 }

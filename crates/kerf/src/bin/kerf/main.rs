@@ -219,6 +219,10 @@ pub(crate) fn settings_for(
             .filter(|d| !d.as_os_str().is_empty())
             .unwrap_or(std::path::Path::new("."));
         settings.subroutine_path.insert(0, dir.to_path_buf());
+        if program.is_file() {
+            // Read again for subs called before their definition (never a pipe).
+            settings.program_file = Some(program.to_path_buf());
+        }
     }
     settings
 }
