@@ -252,6 +252,25 @@ fn errors_in_linuxcnc_words() {
 }
 
 #[test]
+fn words_after_an_o_word_are_an_error() {
+    // rs274: "Unexpected character after O-word" (an O-word line runs nothing else).
+    for (src, col) in [
+        ("o1 if [1] G0 X5\no1 endif\n", 11),
+        ("o1 repeat [2]\no1 endrepeat X1\n", 14),
+        ("o1 sub\no1 endsub\no1 call [1] [2] G1\n", 17),
+    ] {
+        let d = error(L, src);
+        assert_eq!(d.message, "Unexpected character after O-word", "{src}");
+        assert_eq!(d.col, col, "{src}");
+    }
+    // Comments may follow.
+    assert_ends(
+        "o1 if [1] (yes)\nG0 X5\no1 endif (done)\n",
+        &[[5.0, 0.0, 0.0]],
+    );
+}
+
+#[test]
 fn nothing_after_a_failing_block() {
     let out = run_bytes(L, Settings::default(), b"F1\nG1 X1\nG1 X[1/0]\nG1 X3\n");
     assert_eq!(out.items.len(), 1);

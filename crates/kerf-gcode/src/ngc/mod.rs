@@ -413,6 +413,48 @@ fn o_head(norm: &[u8], cols: &[u32]) -> Result<Option<(Arc<str>, Kw, usize)>, Fa
     )
 }
 
+/// Checks what follows an O-word's keyword: its bracketed values (none for most keywords,
+/// one for `if`/`elseif`/`while`/`repeat`/`return`/`endsub`, any number for `call`), then
+/// only comments. Anything else is LinuxCNC's "Unexpected character after O-word": an
+/// O-word line runs nothing else, so nothing may be silently dropped.
+fn check_o_tail(norm: &[u8], cols: &[u32], after: usize, kw: Kw) -> Result<(), Fail> {
+    let max_groups = match kw {
+        Kw::Call => usize::MAX,
+        Kw::If | Kw::ElseIf | Kw::While | Kw::Repeat | Kw::Return | Kw::EndSub => 1,
+        _ => 0,
+    };
+    let mut i = after;
+    let mut groups = 0;
+    while groups < max_groups && norm.get(i) == Some(&b'[') {
+        let mut depth = 0usize;
+        while let Some(&c) = norm.get(i) {
+            i += 1;
+            match c {
+                b'[' => depth += 1,
+                b']' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        groups += 1;
+    }
+    while let Some(&c) = norm.get(i) {
+        if c != b'(' {
+            let col = cols.get(i).copied().unwrap_or(1);
+            return fail(col, "Unexpected character after O-word");
+        }
+        match norm[i..].iter().position(|&b| b == b')') {
+            Some(off) => i += off + 1,
+            None => break,
+        }
+    }
+    Ok(())
+}
+
 fn make_src(text: &[u8], line: u32) -> SrcLine {
     let mut norm = Vec::new();
     let mut cols = Vec::new();
@@ -929,6 +971,7 @@ impl Ngc {
         cols: &[u32],
     ) -> Result<(), Fail> {
         let name = label_name(label);
+        check_o_tail(norm, cols, after, kw)?;
         if !self.from_frame {
             // The main program, read from the reader.
             return match kw {
