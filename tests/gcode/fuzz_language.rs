@@ -14,7 +14,7 @@ const CASES: u32 = 1500;
 /// Loops stop after this many iterations in these runs.
 const LOOP_LIMIT: u64 = 8;
 /// No input of at most 400 tokens may yield more items than this (loops nest at most a few
-/// deep with `LOOP_LIMIT` iterations, subroutines ten deep).
+/// deep with `LOOP_LIMIT` iterations, subroutines nine deep).
 const ITEM_CAP: usize = 2_000_000;
 
 const TOKENS: &[&str] = &[

@@ -443,3 +443,27 @@ fn a_sub_defined_after_m2_is_found_in_the_program_file() {
     assert_diag(&d, 1, 1, &["o100 called but not defined"]);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn nine_nested_calls_at_most() {
+    // rs274 prints "level 1.000000" … "level 9.000000", then "Too many subroutine levels"
+    // at the call on line 3.
+    let out = run_bytes(
+        L,
+        Settings::default(),
+        b"o<r> sub\n(debug,level #<_call_level>)\no<r> call\no<r> endsub\no<r> call\nM2\n",
+    );
+    let levels: Vec<String> = out
+        .items
+        .iter()
+        .filter_map(|i| match i {
+            Item::Event(e) => e.text.as_deref().map(str::to_string),
+            Item::Move(_) => None,
+        })
+        .collect();
+    let want: Vec<String> = (1..=9).map(|n| format!("level {n}.000000")).collect();
+    assert_eq!(levels, want);
+    let d = out.error.expect("an error");
+    assert_diag(&d, 3, 1, &["Too many subroutine levels"]);
+    assert_eq!(d.called_from.len(), 9);
+}

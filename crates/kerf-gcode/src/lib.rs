@@ -173,7 +173,7 @@
 //!   `break`, `continue`. A sub not defined before its call is looked for further down
 //!   the program's file ([`Settings::program_file`], as LinuxCNC seeks forward; reaching
 //!   its definition later is LinuxCNC's "found in illegal location"), then as `NAME.ngc`
-//!   in the program's directory and on [`Settings::subroutine_path`]. Subroutines nest ten deep ("Too many subroutine
+//!   in the program's directory and on [`Settings::subroutine_path`]. Subroutines nest nine deep ("Too many subroutine
 //!   levels"); a loop that runs [`Settings::max_loop_iterations`] times is an error.
 //! - Memory: the text of a sub, or of a top-level structure up to its end line, is kept
 //!   while it runs (at most 1,000,000 lines each); loops run from that text and never

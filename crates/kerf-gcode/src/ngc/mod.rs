@@ -21,8 +21,9 @@ use crate::{Event, EventCode, Item};
 
 pub(crate) mod expr;
 
-/// LinuxCNC's deepest subroutine nesting ("Too many subroutine levels").
-pub(crate) const MAX_CALL_LEVELS: usize = 10;
+/// LinuxCNC's deepest subroutine nesting: a call from level 9 is "Too many subroutine
+/// levels" (rs274 runs nine nested calls, `#<_call_level>` 1 to 9).
+pub(crate) const MAX_CALL_LEVELS: usize = 9;
 
 /// The most lines one collected body (a subroutine or a top-level loop) may hold: beyond
 /// it the program is refused, which keeps memory bounded on any input.
