@@ -467,3 +467,34 @@ fn nine_nested_calls_at_most() {
     assert_diag(&d, 3, 1, &["Too many subroutine levels"]);
     assert_eq!(d.called_from.len(), 9);
 }
+
+#[test]
+fn rs274_corner_cases() {
+    // rs274: `#<a>=1 #<a>=[#<a>+1]` reads #<a> (never set) as 0 because the line assigns
+    // it; X#<a> then reads the old value too: a zero-length move at X0 is all rs274 prints,
+    // so the next move starts from X0 and #<a> ends at 1.
+    assert_ends(
+        "#<a>=1 #<a>=[#<a>+1] G1 X#<a> F1\nG1 X[#<a>+2]\nM2\n",
+        &[[3.0, 0.0, 0.0]],
+    );
+    // rs274: `repeat [2.7]` runs 3 times, `repeat [2.4]` twice.
+    assert_ends(
+        "o1 repeat [2.7]\nG91 G0 X1\no1 endrepeat\no2 repeat [2.4]\nG91 G0 Y1\no2 endrepeat\nM2\n",
+        &[
+            [1.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [3.0, 0.0, 0.0],
+            [3.0, 1.0, 0.0],
+            [3.0, 2.0, 0.0],
+        ],
+    );
+    // rs274: "Parameter is readonly" for #5400-#5428, not for #5399 or #5429.
+    for n in [5400, 5401, 5410, 5420, 5428] {
+        let d = error(L, &format!("#{n}=1\n"));
+        assert_diag(&d, 1, 1, &["Parameter is readonly"]);
+    }
+    assert_ends(
+        "#5399=1 #5429=2\nG0 X#5399 Y#5429\nM2\n",
+        &[[1.0, 2.0, 0.0]],
+    );
+}

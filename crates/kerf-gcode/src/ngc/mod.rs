@@ -486,6 +486,9 @@ struct Ctx<'a> {
     ngc: &'a Ngc,
     state: &'a State,
     line: u32,
+    /// Named parameters assigned earlier on the line: rs274 reads one of them that was
+    /// never set as 0 instead of refusing it (`#<a>=1 #<a>=[#<a>+1]` sets 1).
+    assigned: std::cell::RefCell<Vec<String>>,
 }
 
 impl Ctx<'_> {
@@ -572,10 +575,11 @@ impl expr::Params for Ctx<'_> {
         } else {
             self.ngc.locals.last().and_then(|m| m.get(name).copied())
         };
-        found.map_or_else(
-            || fail(col, format!("Named parameter #<{name}> not defined")),
-            Ok,
-        )
+        match found {
+            Some(v) => Ok(v),
+            None if self.assigned.borrow().iter().any(|n| n == name) => Ok(0.0),
+            None => fail(col, format!("Named parameter #<{name}> not defined")),
+        }
     }
 
     fn exists(&self, name: &str) -> bool {
@@ -610,6 +614,7 @@ impl Ngc {
             ngc: self,
             state,
             line,
+            assigned: std::cell::RefCell::new(Vec::new()),
         }
     }
 
@@ -755,10 +760,17 @@ impl Ngc {
                                 format!("Cannot assign to read-only parameter #<{name}>"),
                             );
                         }
+                        ctx.assigned.borrow_mut().push(name.clone());
                         Target::Named(name)
                     } else {
                         let n = r.real_value(&ctx)?;
-                        Target::Numbered(param_index(n, col)?)
+                        let i = param_index(n, col)?;
+                        if (params::TOOL_NUMBER..params::CURRENT_POSITION + 9).contains(&i) {
+                            // #5400-#5428 (tool data, current position) are set by the
+                            // interpreter only.
+                            return fail(col, "Parameter is readonly");
+                        }
+                        Target::Numbered(i)
                     };
                     if r.peek() != Some(b'=') {
                         return fail(r.col(), "Equal sign missing in parameter setting");
@@ -1112,8 +1124,10 @@ impl Ngc {
             }
             Kw::Repeat => {
                 let n = self.o_cond(state, line_no, norm, cols, after, ocol, kw)?;
+                // rs274 rounds the count to the nearest whole number (2.7 runs 3 times).
+                let n = n.round();
                 if n >= 1.0 {
-                    self.enter_loop(label, LoopKind::Repeat, here, n.floor())?;
+                    self.enter_loop(label, LoopKind::Repeat, here, n)?;
                 } else {
                     let end =
                         find(here + 1, &[Kw::EndRepeat]).ok_or_else(|| missing("endrepeat"))?;
