@@ -498,3 +498,24 @@ fn rs274_corner_cases() {
         &[[1.0, 2.0, 0.0]],
     );
 }
+
+#[test]
+fn rs274_calls_and_definitions() {
+    // rs274: a parameter without an argument reads 0 in the sub (`o1 call [1]` with
+    // #2=7 before: the move is to X0 Y1), and #2 is restored after the call.
+    assert_ends(
+        "#2=7\no1 sub\nG0 X#2 Y#1\no1 endsub\no1 call [1]\nG0 X#2\nM2\n",
+        &[[0.0, 1.0, 0.0], [7.0, 1.0, 0.0]],
+    );
+    // rs274: "Nested subroutine definition".
+    let d = error(
+        L,
+        "o1 sub\no2 sub\nG0 X2\no2 endsub\no1 endsub\no1 call\no2 call\nM2\n",
+    );
+    assert_diag(&d, 2, 1, &["Nested subroutine definition"]);
+    // rs274: EXISTS[#1] is 1.
+    assert_ends(
+        "G0 X[EXISTS[#<_a>]] Y[EXISTS[#1]]\nM2\n",
+        &[[1.0, 1.0, 0.0]],
+    );
+}

@@ -167,7 +167,7 @@
 //!   follow spaces and is case-insensitive. `LOGOPEN`, `LOGAPPEND`, `LOG`, `LOGCLOSE` are
 //!   refused (Kerf writes no files).
 //! - O-words, numbered (`o100`) or named (`o<name>`): `sub`/`endsub [v]`/`return [v]`,
-//!   `call [a1] [a2] …` (arguments in #1…#30, which are restored after the call; named
+//!   `call [a1] [a2] …` (arguments in #1…#30, 0 in the rest as rs274 does, all restored after the call; named
 //!   locals are fresh per call; `#<_value>` and `#<_value_returned>` after it), `if`/
 //!   `elseif`/`else`/`endif`, `while`/`endwhile`, `do`/`while`, `repeat [n]`/`endrepeat`,
 //!   `break`, `continue`. A sub not defined before its call is looked for further down

@@ -251,16 +251,26 @@ impl<'a> Reader<'a> {
         }
         if name == b"exists" {
             self.pos += 1;
-            if !self.starts_with(b"#<") {
+            if self.peek() != Some(b'#') {
                 return fail(self.col(), "Named parameter expected after EXISTS");
             }
-            self.pos += 1;
-            let n = self.name()?;
+            let exists = if self.starts_with(b"#<") {
+                self.pos += 1;
+                let n = self.name()?;
+                p.exists(&n)
+            } else {
+                // A numbered parameter exists when its number is in range (rs274 reads
+                // EXISTS[#1] as 1).
+                let col = self.col();
+                self.pos += 1;
+                let n = self.real_value(p)?;
+                p.numbered(n, col).is_ok()
+            };
             if self.peek() != Some(b']') {
                 return fail(self.col(), "Unknown operation");
             }
             self.pos += 1;
-            return Ok(if p.exists(&n) { 1.0 } else { 0.0 });
+            return Ok(if exists { 1.0 } else { 0.0 });
         }
         let f: fn(f64) -> Result<f64, &'static str> = match name {
             b"abs" => |x| Ok(x.abs()),

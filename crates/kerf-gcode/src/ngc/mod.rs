@@ -651,6 +651,9 @@ impl Ngc {
             && let Some(cap) = self.capture.as_mut()
         {
             let src = make_src(text, line_no);
+            if cap.kind == Kw::Sub && matches!(&src.head, Some((l, Kw::Sub)) if *l != cap.label) {
+                return fail(1, "Nested subroutine definition");
+            }
             let end =
                 matches!(&src.head, Some((l, k)) if *l == cap.label && *k == end_of(cap.kind));
             if cap.lines.len() >= MAX_BODY_LINES {
@@ -1029,6 +1032,9 @@ impl Ngc {
         };
         match kw {
             Kw::Sub => {
+                if self.frames.iter().any(|f| f.call.is_some()) {
+                    return fail(ocol, "Nested subroutine definition");
+                }
                 let end = find(here + 1, &[Kw::EndSub]).ok_or_else(|| missing("endsub"))?;
                 let lines = body.lines[here..=end]
                     .iter()
@@ -1388,7 +1394,9 @@ impl Ngc {
         for (k, s) in saved.iter_mut().enumerate() {
             *s = state.params.get(k + 1).unwrap_or(0.0);
         }
-        for (k, v) in args.iter().take(n).enumerate() {
+        // rs274 sets #1..#30 to the arguments and the ones without an argument to 0 (the
+        // manual says they keep the caller's values; rs274 reads 0).
+        for (k, v) in args.iter().enumerate() {
             state.params.set(k + 1, *v);
         }
         self.value_returned = false;
