@@ -378,7 +378,8 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             Err(d) => {
                 let _ = client.command(Command::Abort);
                 return Err(Failure::Error(format!(
-                    "{name}:{d} (the file changed after it was checked; the motion was aborted)"
+                    "{} (the file changed after it was checked; the motion was aborted)",
+                    d.render(&name)
                 )));
             }
         };
