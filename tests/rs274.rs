@@ -139,15 +139,25 @@ pub struct KerfRun {
     pub error: Option<Diagnostic>,
 }
 
-/// Runs `src` through Kerf's LinuxCNC dialect with `tools`, subroutine files searched in
-/// `dir` (where rs274 finds them too).
-pub fn run_kerf(src: &[u8], tools: Vec<Tool>, dir: Option<&Path>) -> KerfRun {
-    let settings = Settings {
+/// Runs the program `src`, read from the file `program`, through Kerf's LinuxCNC dialect
+/// with `tools`, subroutine files searched in the program's directory (where rs274 finds
+/// them too), as `kerf sim` runs it.
+pub fn run_kerf(src: &[u8], tools: Vec<Tool>, program: &Path) -> KerfRun {
+    run_kerf_with(src, program_settings(tools, program))
+}
+
+/// The settings `kerf sim` gives the program file `program`: `tools`, its directory on
+/// the subroutine path, and the file itself for subroutines defined after their call.
+pub fn program_settings(tools: Vec<Tool>, program: &Path) -> Settings {
+    Settings {
         tools,
-        subroutine_path: dir.map(|d| vec![d.to_path_buf()]).unwrap_or_default(),
+        subroutine_path: program
+            .parent()
+            .map(|d| vec![d.to_path_buf()])
+            .unwrap_or_default(),
+        program_file: Some(program.to_path_buf()),
         ..Settings::default()
-    };
-    run_kerf_with(src, settings)
+    }
 }
 
 /// Runs `src` through Kerf's LinuxCNC dialect with `settings`.
@@ -163,6 +173,8 @@ pub fn run_kerf_with(src: &[u8], settings: Settings) -> KerfRun {
                         line: 0,
                         col: 0,
                         message: format!("harness: more than {MAX_ITEMS} items, stopped"),
+                        file: None,
+                        called_from: Vec::new(),
                     });
                     break;
                 }
@@ -732,15 +744,7 @@ pub fn load_golden(g: &Golden) -> Result<LoadedGolden, String> {
         Some(p) => parse_tool_table(&read(p)?)?,
         None => Vec::new(),
     };
-    let mut settings = Settings {
-        tools,
-        subroutine_path: g
-            .ngc
-            .parent()
-            .map(|d| vec![d.to_path_buf()])
-            .unwrap_or_default(),
-        ..Settings::default()
-    };
+    let mut settings = program_settings(tools, &g.ngc);
     if let Some(p) = &g.var {
         apply_var_file(&read(p)?, &mut settings).map_err(|e| format!("{}: {e}", p.display()))?;
     }

@@ -171,7 +171,7 @@ fn ncfiles(rs274_dir: &Path, dir: &Path, tool_table: &Path) -> Result<bool, Stri
         let program = abs(ngc);
         let out = run_rs274(rs274_dir, &program, Some(&tbl_mm), None)?;
         let src = std::fs::read(&program).map_err(|e| format!("{}: {e}", program.display()))?;
-        let kerf = run_kerf(&src, tools.clone(), program.parent());
+        let kerf = run_kerf(&src, tools.clone(), &program);
         let refusal = (out.exit != 0).then(|| Refusal::from_stderr(out.exit, &out.stderr));
         let verdict = compare(&src, &kerf, &out.stdout, refusal.as_ref());
         let (result, detail) = match &verdict {

@@ -754,19 +754,18 @@ fn feed_move_without_feed_is_an_error() {
 }
 
 #[test]
-fn parameters_expressions_and_o_words_are_not_supported() {
-    let cases = [
-        ("#1 = 5\n", 1, 1),
-        ("G1 X#1 F100\n", 1, 5),
-        ("#<depth> = 2\n", 1, 1),
-        ("G1 X[1+2] F100\n", 1, 5),
-        ("o100 sub\n", 1, 1),
-        ("O100 call\n", 1, 1),
-    ];
-    for (src, line, col) in cases {
-        let d = error(D, src);
-        assert_diag(&d, line, col, &["not supported"]);
-    }
+fn parameters_expressions_and_o_words_are_read() {
+    // The language itself is tested in `language.rs`; here only that each construct that
+    // used to be refused now runs: #1 = 5, X[#1+2] = 7, the sub moves to Y#1 = 3.
+    let ms = moves(
+        D,
+        "#1 = 5\nG1 X#1 F100\n#<depth> = 2\nG1 X[#1+#<depth>]\no100 sub\nG1 Y#1\no100 endsub\nO100 call [3]\n",
+    );
+    let ends: Vec<Vec3> = ms.iter().map(|m| as_line(m).end).collect();
+    assert_eq!(
+        ends,
+        vec![v(5.0, 0.0, 0.0), v(7.0, 0.0, 0.0), v(7.0, 3.0, 0.0)]
+    );
 }
 
 #[test]

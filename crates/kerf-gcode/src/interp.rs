@@ -12,6 +12,7 @@ mod geometry;
 mod modal;
 mod offsets;
 pub(crate) mod params;
+mod query;
 
 pub(crate) use modal::FeedMode;
 use modal::{ModalFrame, Spindle, StateOp};

@@ -114,10 +114,10 @@
 //! - Helices: an axis word along the plane normal moves linearly with the angle; the
 //!   centre lies in the plane of the start point.
 //! - Not supported yet, each a clear error naming the construct: parameters and
-//!   expressions (LinuxCNC `#`, `[..]`, O-words; Sinumerik R parameters, `=` expressions
-//!   and other keywords; Fagor `P` parameters, `#` and `$` instructions), canned cycles
-//!   (outside LinuxCNC, which has them: see its section), inverse-time (G93) and
-//!   per-revolution (G95) feed outside LinuxCNC, U/V/W axes.
+//!   expressions outside LinuxCNC (Sinumerik R parameters, `=` expressions and other
+//!   keywords; Fagor `P` parameters, `#` and `$` instructions), canned cycles (outside
+//!   LinuxCNC, which has them: see its section), inverse-time (G93) and per-revolution
+//!   (G95) feed outside LinuxCNC, U/V/W axes.
 //!
 //! # LinuxCNC / Tormach (`linuxcnc`, alias `tormach`)
 //!
@@ -227,9 +227,9 @@
 //! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc
 //!   (also with G92, or G87), P without G2/G3/G4/G10/G64, a dwelling cycle or a user M code,
 //!   Q without G10/G64/M61, G73, G83 or a user M code, H without G43 (also with G49), D without
-//!   G41/G42 in the block, L without G10 or a canned cycle. A motion code with G92 and axis words
-//!   is "Cannot use two G codes that both use axis values"; G92 with A/B/C is not
-//!   supported (an error). U, V, W and E are not supported.
+//!   G41/G42 in the block, L without G10 or a canned cycle. A motion code with a code that
+//!   takes the axis words (G10, G28, G30, G52, G92) is "Cannot use two g codes that both
+//!   use axis values". U, V, W and E are not supported.
 //! - Canned cycles G73, G81, G82, G83, G85, G86, G87, G88, G89 (`interp::cycles`) give the
 //!   moves rs274 (LinuxCNC 2.9) gives, in G17, G18 and G19 (the drilling axis is the plane's
 //!   normal: Z, Y, X), with G98 (back to the initial level) or G99 (to R; rs274's default),
@@ -249,6 +249,52 @@
 //!   (rs274 dwells a negative time) and a block of more than 100,000 moves and events
 //!   (its L repeats and pecks). G33, G33.1, G74, G76 and G84 are "... is not supported:
 //!   needs spindle synchronisation". Table: `docs/linuxcnc/cycles.md`.
+//!
+//! ## The LinuxCNC language (`ngc` module)
+//!
+//! A line holding `#`, `[`, an O-word or a message comment goes through the language
+//! layer; other lines keep the plain fast path. Checked against LinuxCNC's `rs274`
+//! (`tests/data/ngc/lang`, docs/linuxcnc/language.md).
+//!
+//! - The line is read as LinuxCNC reads it: spaces and tabs removed and letters folded
+//!   outside comments, so `#<Depth Of Cut>` is `#<depthofcut>`. Every value of a line is
+//!   read before any of its assignments takes effect (`#1=5 G1 X#1` moves to the old #1),
+//!   and the assignments take effect in order (`#3=1 #3=2` leaves 2), before the block runs.
+//! - Numbered parameters #1–#5601 (reading or setting another one: "Parameter number out of
+//!   range"; a fraction: "Non integer value for integer"); unset ones read 0. `##n` and
+//!   `#[expr]` are indirect. #5420–#5425 (#5426–#5428 read 0: no U V W) are the current
+//!   position in program coordinates and units, #5400 the tool in the spindle.
+//! - Named parameters: `#<name>` is local to the subroutine call level (reading one never
+//!   set: "Named parameter #<name> not defined"), `#<_name>` global. The predefined ones
+//!   (`#<_x>`, `#<_abs_x>`, `#<_metric>`, `#<_motion_mode>`, `#<_value>`, … the manual's
+//!   list) are read-only ("Cannot assign to read-only parameter").
+//! - Expressions `[..]` anywhere a number stands, G and M numbers included. Precedence,
+//!   highest first: `**`; `* / MOD`; `+ -`; `EQ NE GT GE LT LE`; `AND OR XOR`, all left to
+//!   right. EQ/NE compare within 0.0001. `MOD` is non-negative. Unary `-`/`+` bind tighter
+//!   than `**` (`-2**0.5` is an error, as in rs274). Functions ABS ACOS ASIN COS EXP FIX
+//!   FUP ROUND LN SIN SQRT TAN (degrees), `ATAN[y]/[x]`, `EXISTS[#<name>]`; their errors
+//!   use rs274's words ("Attempt to divide by zero", "Negative argument to sqrt", …).
+//!   Brackets and parameter references nest at most 64 deep.
+//! - Comments: `(MSG,text)` is a [`EventCode::Msg`] event with the text after the comma as
+//!   written; `(DEBUG,text)` and `(PRINT,text)` are [`EventCode::Debug`] and
+//!   [`EventCode::Print`] events with each `#n`, `##n`, `#<name>` replaced by its value with
+//!   six decimals (`######` when it cannot be read), as rs274 prints them. The keyword may
+//!   follow spaces and is case-insensitive. `LOGOPEN`, `LOGAPPEND`, `LOG`, `LOGCLOSE` are
+//!   refused (Kerf writes no files).
+//! - O-words, numbered (`o100`) or named (`o<name>`): `sub`/`endsub [v]`/`return [v]`,
+//!   `call [a1] [a2] …` (arguments in #1…#30, 0 in the rest as rs274 does, all restored after the call; named
+//!   locals are fresh per call; `#<_value>` and `#<_value_returned>` after it), `if`/
+//!   `elseif`/`else`/`endif`, `while`/`endwhile`, `do`/`while`, `repeat [n]`/`endrepeat`,
+//!   `break`, `continue`. A sub not defined before its call is looked for further down
+//!   the program's file ([`Settings::program_file`], as LinuxCNC seeks forward; reaching
+//!   its definition later is LinuxCNC's "found in illegal location"), then as `NAME.ngc`
+//!   in the program's directory and on [`Settings::subroutine_path`]. Subroutines nest nine deep ("Too many subroutine
+//!   levels"); a loop that runs [`Settings::max_loop_iterations`] times is an error.
+//! - Memory: the text of a sub, or of a top-level structure up to its end line, is kept
+//!   while it runs (at most 1,000,000 lines each); loops run from that text and never
+//!   unroll. Items of a subroutine carry the line numbers of the text they come from (of
+//!   the subroutine file for a file's sub); an error there names the file
+//!   ([`Diagnostic::file`]) and the calling lines ([`Diagnostic::called_from`]).
 //!
 //! # Rockwell 9/Series mill (`rockwell`, Fanuc style)
 //!
@@ -349,6 +395,7 @@ mod arc;
 mod codes;
 mod interp;
 mod lex;
+mod ngc;
 
 pub use kerf_geom::{Arc, CornerMode, Line, Move, Path, Vec3};
 
@@ -474,6 +521,11 @@ pub struct Settings {
     /// LinuxCNC: directories searched, in order, for the file `NAME.ngc` of a subroutine
     /// `o<NAME> call` that the program does not define (`[gcode] subroutine_path`).
     pub subroutine_path: Vec<std::path::PathBuf>,
+    /// LinuxCNC: the program's own file, when it is read from one. A `call` of a sub that
+    /// is defined later in the program (after M2, say) finds it there, as LinuxCNC does by
+    /// seeking forward; the program's directory is searched for `NAME.ngc` files before
+    /// [`Settings::subroutine_path`]. `None` (standard input): such a call is an error.
+    pub program_file: Option<std::path::PathBuf>,
     /// LinuxCNC: the most iterations of one `while`/`do`/`repeat` loop, and the deepest
     /// subroutine nesting times this, before the program is refused as endless
     /// (`[gcode] max_loop_iterations`).
@@ -499,6 +551,7 @@ impl Default for Settings {
             arc_tolerance_rel: 0.001,
             start_mm_deg: [0.0; 6],
             subroutine_path: Vec::new(),
+            program_file: None,
             max_loop_iterations: 1_000_000,
             g28_home_mm_deg: [0.0; 6],
             g30_home_mm_deg: [0.0; 6],
@@ -629,6 +682,10 @@ pub enum Item {
 }
 
 /// An error at a place in the source: the CLI prints `FILE:LINE:COL: error: MESSAGE`.
+///
+/// An error inside a LinuxCNC subroutine file names that file in [`Diagnostic::file`] and
+/// the calls that led there in [`Diagnostic::called_from`]; [`Diagnostic::render`] writes
+/// the whole report.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("{line}:{col}: error: {message}")]
 pub struct Diagnostic {
@@ -638,6 +695,31 @@ pub struct Diagnostic {
     pub col: u32,
     /// What is wrong, in the words of the control's manual.
     pub message: String,
+    /// The file the line belongs to when it is not the program itself (a LinuxCNC
+    /// subroutine file); `None` for the program.
+    pub file: Option<std::sync::Arc<str>>,
+    /// The subroutine calls that led to the error, innermost first: the file (`None` for
+    /// the program) and line of each `call`.
+    pub called_from: Vec<(Option<std::sync::Arc<str>>, u32)>,
+}
+
+impl Diagnostic {
+    /// `PROGRAM:LINE:COL: error: MESSAGE`, where the error's file replaces `program` when
+    /// it lies in a subroutine file, followed by one `FILE:LINE: note: called from here`
+    /// line per call that led to it.
+    pub fn render(&self, program: &str) -> String {
+        use std::fmt::Write;
+        let file = self.file.as_deref().unwrap_or(program);
+        let mut s = format!("{file}:{}:{}: error: {}", self.line, self.col, self.message);
+        for (f, line) in &self.called_from {
+            let _ = write!(
+                s,
+                "\n{}:{line}: note: called from here",
+                f.as_deref().unwrap_or(program)
+            );
+        }
+        s
+    }
 }
 
 /// The longest source line accepted, in bytes. Longer lines are an error, which keeps the
@@ -653,6 +735,9 @@ pub struct Interpreter<R: std::io::BufRead> {
     reader: R,
     line: Vec<u8>,
     line_no: u32,
+    /// Lines read from the reader (`line_no` is the line being run, which may come from
+    /// a subroutine or loop kept in memory).
+    reader_line: u32,
     lexer: lex::Lexer,
     words: Vec<lex::Word>,
     block: interp::Block,
@@ -663,15 +748,45 @@ pub struct Interpreter<R: std::io::BufRead> {
     finished: bool,
     percent_seen: bool,
     blocks_seen: bool,
+    /// The LinuxCNC language layer (parameters, expressions, O-words, messages).
+    ngc: ngc::Ngc,
 }
 
 impl<R: std::io::BufRead> Interpreter<R> {
     /// An interpreter for `dialect` reading from `reader`.
     pub fn new(reader: R, dialect: Dialect, settings: Settings) -> Self {
+        Self::with_program_dir(reader, dialect, settings, None)
+    }
+
+    /// Like [`Interpreter::new`] for a program read from a file in `dir`: LinuxCNC looks
+    /// for subroutine files `NAME.ngc` there first, then on [`Settings::subroutine_path`].
+    pub fn with_program_dir(
+        reader: R,
+        dialect: Dialect,
+        settings: Settings,
+        dir: Option<&std::path::Path>,
+    ) -> Self {
+        let program_dir = settings.program_file.as_deref().map(|f| match f.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => std::path::PathBuf::from("."),
+        });
+        let mut search: Vec<std::path::PathBuf> = dir
+            .map(|d| d.to_path_buf())
+            .into_iter()
+            .chain(program_dir)
+            .collect();
+        search.extend(settings.subroutine_path.iter().cloned());
+        let ngc = ngc::Ngc::new(
+            search,
+            settings.max_loop_iterations,
+            settings.program_file.clone(),
+        );
         Interpreter {
+            ngc,
             reader,
             line: Vec::with_capacity(256),
             line_no: 0,
+            reader_line: 0,
             lexer: lex::Lexer::new(dialect),
             words: Vec::with_capacity(32),
             block: interp::Block::new(),
@@ -703,6 +818,8 @@ impl<R: std::io::BufRead> Interpreter<R> {
             line: self.line_no,
             col,
             message: message.into(),
+            file: self.ngc.current_file(),
+            called_from: self.ngc.call_chain(),
         }
     }
 
@@ -720,7 +837,8 @@ impl<R: std::io::BufRead> Interpreter<R> {
                 Ok(n) => break n,
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
                 Err(e) => {
-                    self.line_no = self.line_no.saturating_add(1);
+                    self.reader_line = self.reader_line.saturating_add(1);
+                    self.line_no = self.reader_line;
                     return Err(self.diag(1, format!("read error: {e}")));
                 }
             }
@@ -728,7 +846,8 @@ impl<R: std::io::BufRead> Interpreter<R> {
         if n == 0 {
             return Ok(false);
         }
-        self.line_no = self.line_no.saturating_add(1);
+        self.reader_line = self.reader_line.saturating_add(1);
+        self.line_no = self.reader_line;
         if self.line.last() == Some(&b'\n') {
             self.line.pop();
         } else if self.line.len() > MAX_LINE_BYTES {
@@ -757,6 +876,12 @@ impl<R: std::io::BufRead> Interpreter<R> {
             }
         }
         let dialect = self.state.dialect();
+        if dialect == Dialect::LinuxCnc
+            && (self.ngc.busy() || ngc::needs_language(&self.line))
+            && self.process_ngc_line()?
+        {
+            return Ok(());
+        }
         let mut pos = 0;
         loop {
             let start = self.pending.len();
@@ -804,6 +929,49 @@ impl<R: std::io::BufRead> Interpreter<R> {
     }
 }
 
+impl<R: std::io::BufRead> Interpreter<R> {
+    /// A LinuxCNC line through the language layer. `Ok(false)`: the plain path handles it.
+    fn process_ngc_line(&mut self) -> Result<bool, Diagnostic> {
+        let action = self
+            .ngc
+            .line(&self.line, self.line_no, &mut self.state, &mut self.words)
+            .map_err(|e| self.diag(e.col, e.message))?;
+        match action {
+            ngc::Action::Nothing => return Ok(true),
+            ngc::Action::Plain => return Ok(false),
+            ngc::Action::Block => {}
+        }
+        self.blocks_seen = true;
+        let start = self.pending.len();
+        let result = self
+            .state
+            .build_block(&self.words, &mut self.block)
+            .map_err(|e| (e.col, e.message))
+            .and_then(|()| {
+                self.ngc
+                    .commit(&mut self.state, &mut self.pending, self.line_no)
+                    .map_err(|e| (e.col, e.message))
+            })
+            .and_then(|()| {
+                let mut out = interp::Out {
+                    items: &mut self.pending,
+                    line: self.line_no,
+                };
+                self.state
+                    .exec(&self.block, false, &mut out)
+                    .map_err(|e| (e.col, e.message))
+            });
+        if let Err((col, message)) = result {
+            self.pending.truncate(start);
+            return Err(self.diag(col, message));
+        }
+        if self.state.done {
+            self.finished = true;
+        }
+        Ok(true)
+    }
+}
+
 impl<R: std::io::BufRead> Iterator for Interpreter<R> {
     type Item = Result<Item, Diagnostic>;
 
@@ -822,10 +990,26 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
             if self.finished {
                 return None;
             }
-            match self.read_line() {
+            let from_memory = if self.state.dialect() == Dialect::LinuxCnc {
+                self.ngc.next_line(&mut self.line)
+            } else {
+                None
+            };
+            let got = match from_memory {
+                Some(n) => {
+                    self.line_no = n;
+                    Ok(true)
+                }
+                None => self.read_line(),
+            };
+            match got {
                 Ok(true) => {}
                 Ok(false) => {
                     self.finished = true;
+                    if let Some((line, m)) = self.ngc.unfinished() {
+                        self.line_no = line;
+                        return Some(Err(self.diag(1, m)));
+                    }
                     return None;
                 }
                 Err(e) => {

@@ -230,12 +230,12 @@ fn linuxcnc_errors_name_the_word() {
         ("G1 X1 F10 X2", 11, "word X repeated"),
         ("G1 G0 X1", 4, "two G codes used from same modal group"),
         ("G12 X1", 1, "unknown G code G12"),
-        ("G1 X#1 F1", 5, "parameters (#) are not supported yet"),
         (
             "G95 G1 X1 F1",
             5,
             "Cannot feed with zero spindle speed in feed per rev mode",
         ),
+        ("G1 X#<a> F1", 5, "Named parameter #<a> not defined"),
         (
             "G2 X10 R5 F10\nG2 X10 R5",
             8,

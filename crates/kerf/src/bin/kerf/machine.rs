@@ -331,7 +331,8 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         )));
     }
     let start = status.position_mm_deg;
-    let mut settings = crate::program_settings(&config)?;
+    let mut settings =
+        crate::settings_for(crate::program_settings(&config)?, &args.program.program);
     settings.start_mm_deg = start;
     let options = SimOptions {
         queue_capacity: config.daemon.queue_segments as usize,
@@ -379,7 +380,8 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             Err(d) => {
                 let _ = client.command(Command::Abort);
                 return Err(Failure::Error(format!(
-                    "{name}:{d} (the file changed after it was checked; the motion was aborted)"
+                    "{} (the file changed after it was checked; the motion was aborted)",
+                    d.render(&name)
                 )));
             }
         };

@@ -212,6 +212,29 @@ struct Program {
     reader: Box<dyn BufRead + Send>,
     name: String,
     dialect: Dialect,
+    /// The program's file (`None` for standard input): LinuxCNC subroutine files are
+    /// looked for in its directory first.
+    path: Option<PathBuf>,
+}
+
+/// `settings` with the program's directory first on the LinuxCNC subroutine search path,
+/// where LinuxCNC's interpreter finds `NAME.ngc` files next to the program.
+pub(crate) fn settings_for(
+    mut settings: kerf_gcode::Settings,
+    program: &std::path::Path,
+) -> kerf_gcode::Settings {
+    if program.as_os_str() != OsStr::new("-") {
+        let dir = program
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(std::path::Path::new("."));
+        settings.subroutine_path.insert(0, dir.to_path_buf());
+        if program.is_file() {
+            // Read again for subs called before their definition (never a pipe).
+            settings.program_file = Some(program.to_path_buf());
+        }
+    }
+    settings
 }
 
 fn open_program(args: &ProgramArgs, config: &Config) -> Result<Program, Failure> {
@@ -222,6 +245,7 @@ fn open_program(args: &ProgramArgs, config: &Config) -> Result<Program, Failure>
             reader: Box::new(reader),
             name: "<stdin>".to_string(),
             dialect: choose_dialect(args.dialect, None, config.dialect),
+            path: None,
         });
     }
     let name = args.program.display().to_string();
@@ -239,6 +263,7 @@ fn open_program(args: &ProgramArgs, config: &Config) -> Result<Program, Failure>
         reader: Box::new(reader),
         name,
         dialect,
+        path: Some(args.program.clone()),
     })
 }
 
@@ -247,11 +272,17 @@ fn run_plan(args: &PlanArgs) -> Result<(), Failure> {
     let program = open_program(&args.program, &config)?;
     let stdout = io::stdout().lock();
     let settings = program_settings(&config)?;
+    let settings = match &program.path {
+        Some(path) => settings_for(settings, path),
+        None => settings,
+    };
     match kerf::plan(program.reader, stdout, program.dialect, settings) {
         Ok(_) => Ok(()),
         Err(PlanError::Output(e)) => Err(e.into()),
+        // A LinuxCNC subroutine error names its file and the calls that led there.
+        Err(PlanError::Program(d)) => Err(Failure::Error(d.render(&program.name))),
         // These carry their own `LINE:COL: error: ...`.
-        Err(e @ (PlanError::Program(_) | PlanError::NonFinite { .. })) => {
+        Err(e @ PlanError::NonFinite { .. }) => {
             Err(Failure::Error(format!("{}:{e}", program.name)))
         }
         Err(e) => Err(Failure::Error(format!("{}: error: {e}", program.name))),
@@ -272,7 +303,7 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     // Pass 1: the whole program is resolved, planned and checked against the travel
     // limits (the programmed moves and the planned path) before the first setpoint: a
     // program that would leave the machine's travel never starts.
-    let settings = program_settings(&config)?;
+    let settings = settings_for(program_settings(&config)?, &args.program.program);
     let (checked, _) = check_program(&source, &config, settings.clone(), &options)?;
     let scan = checked.scan;
 
@@ -403,7 +434,7 @@ pub fn check_program(
                     None => {}
                 }
             }
-            Err(diagnostic) => return Err(Failure::Error(format!("{name}:{diagnostic}"))),
+            Err(diagnostic) => return Err(Failure::Error(diagnostic.render(name))),
         }
     }
     let checked = prepass.finish().map_err(refused)?;
