@@ -67,13 +67,26 @@ pub(crate) enum G {
     NoMotion,
     Dwell,
     Plane(Plane),
-    Units { inch: bool, feed_too: bool },
-    Distance { absolute: bool },
-    ArcDistance { absolute: bool },
+    Units {
+        inch: bool,
+        feed_too: bool,
+    },
+    Distance {
+        absolute: bool,
+    },
+    ArcDistance {
+        absolute: bool,
+    },
     Comp(Comp),
-    ToolLength { on: bool },
+    /// LinuxCNC G41.1/G42.1: compensation with the diameter in the D word.
+    CompDiameter(Comp),
+    ToolLength {
+        on: bool,
+    },
     CoordSystem(Option<usize>),
-    Corner { exact: bool },
+    Corner {
+        exact: bool,
+    },
     ExactStopOnce,
     G92Set,
     G92Reset,
@@ -122,7 +135,7 @@ pub(crate) fn group(g: G) -> usize {
         G::Units { .. } => 3,
         G::Distance { .. } => GROUP_DISTANCE,
         G::ArcDistance { .. } => 5,
-        G::Comp(_) => 6,
+        G::Comp(_) | G::CompDiameter(_) => 6,
         G::ToolLength { .. } => 7,
         G::CoordSystem(_) => 8,
         G::Corner { .. } => 9,
@@ -193,6 +206,8 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
             921 => G92Reset,
             922 => G92Suspend,
             923 => G92Restore,
+            411 => CompDiameter(self::Comp::Left),
+            421 => CompDiameter(self::Comp::Right),
             930 => Unsupported("inverse time feed (G93) is not supported"),
             940 => FeedPerMinute,
             950 => Unsupported("feed per revolution (G95) is not supported"),
@@ -210,8 +225,6 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
             | 330
             | 331
             | 382..=385
-            | 411
-            | 421
             | 431
             | 432
             | 520

@@ -7,6 +7,7 @@ use crate::codes::*;
 use crate::lex::{Form, K_AP, K_AT, K_CARET, K_CR, K_RP, K_TURN, N_KEYS, Word};
 use crate::{Dialect, Event, EventCode, Item, Settings, Tool};
 
+mod comp;
 mod geometry;
 pub(crate) mod params;
 
@@ -148,6 +149,8 @@ pub(crate) struct State {
     /// the codes whose data lives in parameters).
     #[allow(dead_code)]
     pub(crate) params: params::Params,
+    /// LinuxCNC cutter radius compensation (side, radius, programmed point, held moves).
+    crc: comp::Crc,
 }
 
 /// Output of a block, in execution order.
@@ -212,6 +215,7 @@ impl State {
             header_seen: false,
             done: false,
             params: params::Params::new(),
+            crc: comp::Crc::new(),
         };
         s.update_origin();
         s
@@ -381,6 +385,7 @@ impl State {
             return Ok(());
         }
         let d = self.dialect;
+        self.comp_begin_block(out);
 
         // Classify G codes and check modal groups. Each group holds at most one code per
         // block, so the block's codes are kept in one slot per group.
@@ -466,6 +471,12 @@ impl State {
             if let G::Plane(p) = g
                 && p != self.plane
             {
+                if let Some((_, col)) = slot(2) {
+                    self.comp_refuse(
+                        col,
+                        "Cannot change planes with cutter radius compensation on",
+                    )?;
+                }
                 self.plane = p;
                 // A plane change forgets the Sinumerik polar values and the Fagor polar
                 // origin, as their manuals say.
@@ -492,6 +503,12 @@ impl State {
                 };
             }
             if let G::CoordSystem(cs) = g {
+                if let Some((_, col)) = slot(8) {
+                    self.comp_refuse(
+                        col,
+                        "Cannot change coordinate systems with cutter radius compensation on",
+                    )?;
+                }
                 self.coord_system = cs;
                 self.update_origin();
             }
@@ -550,6 +567,10 @@ impl State {
         ] {
             if blk.nm > 0 && m_pre.contains(&Some(ev)) {
                 if ev == EventCode::M6 {
+                    self.comp_refuse(
+                        blk.first_col,
+                        "Cannot change tools with cutter radius compensation on",
+                    )?;
                     self.tool_loaded = self.tool_selected;
                 }
                 out.event(ev, None);
@@ -589,25 +610,32 @@ impl State {
         }
 
         // Cutter radius compensation.
-        if let Some((G::Comp(c), _)) = slot(6) {
-            self.comp = c;
-        }
-        if self.comp != Comp::Off {
-            let number = match (d, blk.get(KD)) {
-                (Dialect::LinuxCnc, Some(dv)) => tool_number(dv),
-                _ => self.tool_loaded.or(self.tool_selected),
-            };
-            if self.tool(number).is_some_and(|t| t.radius_mm != 0.0) {
-                let col = slot(6).map_or(blk.first_col, |(_, c)| c);
-                return fail(
-                    col,
-                    "cutter compensation not supported (the active tool has a non-zero radius)",
-                );
+        if d == Dialect::LinuxCnc {
+            self.linuxcnc_comp(blk, slot(6), out)?;
+        } else {
+            if let Some((G::Comp(c) | G::CompDiameter(c), _)) = slot(6) {
+                self.comp = c;
+            }
+            if self.comp != Comp::Off {
+                let number = self.tool_loaded.or(self.tool_selected);
+                if self.tool(number).is_some_and(|t| t.radius_mm != 0.0) {
+                    let col = slot(6).map_or(blk.first_col, |(_, c)| c);
+                    return fail(
+                        col,
+                        "cutter compensation not supported (the active tool has a non-zero radius)",
+                    );
+                }
             }
         }
 
         // Tool length offset.
-        if let Some((G::ToolLength { on }, _)) = slot(7) {
+        if let Some((G::ToolLength { on }, col)) = slot(7) {
+            if d == Dialect::LinuxCnc {
+                self.comp_refuse(
+                    col,
+                    "Cannot change tool offset with cutter radius compensation on",
+                )?;
+            }
             self.tool_length_mm = if on {
                 let number = match blk.get(KH) {
                     Some(h) => Some(tool_number(h).ok_or_else(|| ExecError {
@@ -630,6 +658,9 @@ impl State {
         if let Some((g, col)) = slot(0)
             .filter(|&(g, _)| matches!(g, G::G92Set | G::G92Reset | G::G92Suspend | G::G92Restore))
         {
+            if d == Dialect::LinuxCnc {
+                self.comp_refuse(col, "Cannot change axis offsets with cutter radius comp")?;
+            }
             match g {
                 G::G92Set => {
                     if !blk.any(&XYZ) {
@@ -715,7 +746,8 @@ impl State {
                 abs_centre_once,
             )?;
         }
-        self.finish_block(blk, &m_post, out)
+        self.finish_block(blk, &m_post, out)?;
+        self.comp_end_block(out)
     }
 
     /// Checks the dwell word of a G4 block (`col` is the G4) and returns its key, if given,
@@ -809,6 +841,7 @@ impl State {
         if blk.nm == 0 {
             return Ok(());
         }
+        self.comp_before_stops(m_post, out);
         for ev in [
             EventCode::M5,
             EventCode::M9,

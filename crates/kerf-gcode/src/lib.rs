@@ -601,6 +601,8 @@ impl<R: std::io::BufRead> Interpreter<R> {
                 // file is ignored, as on the control.
                 if self.percent_seen || self.blocks_seen {
                     self.finished = true;
+                    // LinuxCNC does not run a move held back by cutter compensation
+                    // when the program ends at `%`; neither does Kerf.
                     return Ok(());
                 }
                 self.percent_seen = true;
@@ -653,8 +655,10 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
             match self.read_line() {
                 Ok(true) => {}
                 Ok(false) => {
+                    // Moves held back by cutter compensation run at the end of the program.
                     self.finished = true;
-                    return None;
+                    self.state.comp_finish(&mut self.pending);
+                    continue;
                 }
                 Err(e) => {
                     self.finished = true;

@@ -169,8 +169,35 @@ impl State {
         ExecError { col, message }
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// One motion block. While LinuxCNC cutter compensation is active, the block's end point
+    /// is resolved from the programmed point (as LinuxCNC does) and `comp` makes the moves.
     pub(super) fn motion(
+        &mut self,
+        blk: &Block,
+        out: &mut Out<'_>,
+        motion_col: u32,
+        machine: Option<u32>,
+        exact_once: bool,
+        abs_centre_once: bool,
+    ) -> Result<(), ExecError> {
+        if self.dialect != Dialect::LinuxCnc || !self.comp_active() {
+            return self.motion_inner(blk, out, motion_col, machine, exact_once, abs_centre_once);
+        }
+        let actual = self.pos;
+        if let Some(p) = self.comp_reference() {
+            self.pos = p;
+        }
+        self.crc.actual = Some(actual);
+        let r = self.motion_inner(blk, out, motion_col, machine, exact_once, abs_centre_once);
+        if self.crc.actual.take().is_some() {
+            // No move was made: the position stays the compensated one.
+            self.pos = actual;
+        }
+        r
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn motion_inner(
         &mut self,
         blk: &Block,
         out: &mut Out<'_>,
@@ -231,6 +258,9 @@ impl State {
             return self.check_unused(blk, false);
         }
         self.check_unused(blk, is_arc)?;
+        if d == Dialect::LinuxCnc {
+            self.comp_check_arc(is_arc, motion_col)?;
+        }
 
         // Feed.
         let rapid = match motion {
@@ -261,6 +291,9 @@ impl State {
 
         // End point.
         if let Some(col) = machine {
+            if d == Dialect::LinuxCnc {
+                self.comp_refuse(col, "Cannot use g53 with cutter radius comp")?;
+            }
             if !self.absolute {
                 return fail(col, "cannot use G53 incremental");
             }
@@ -355,14 +388,22 @@ impl State {
         if !finite_path || !abc_end.iter().all(|x| x.is_finite()) {
             return fail(blk.first_col, "coordinate out of range");
         }
-        out.items.push(Item::Move(Move {
+        let mv = Move {
             line: out.line,
             rapid,
             path,
             feed_mm_min: feed,
             abc_deg: abc,
             corner,
-        }));
+        };
+        if let Some(actual) = self.crc.actual.take() {
+            self.pos = actual;
+            self.comp_move(mv, motion_col, out)?;
+            self.abc = abc_end;
+            self.polar_last = None;
+            return Ok(());
+        }
+        out.items.push(Item::Move(mv));
         self.pos = path.end();
         self.abc = abc_end;
         if !matches!(motion, Motion::PolarArc(_)) {
