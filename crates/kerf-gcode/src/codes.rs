@@ -366,7 +366,7 @@ pub(crate) const fn allowed_keys(d: Dialect) -> u32 {
     }
     match d {
         Dialect::LinuxCnc => mask(&[
-            KA, KB, KC, KD, KF, KH, KI, KJ, KK, KP, KQ, KR, KS, KT, KX, KY, KZ, K_AT, K_CARET,
+            KA, KB, KC, KD, KF, KH, KI, KJ, KK, KL, KP, KQ, KR, KS, KT, KX, KY, KZ, K_AT, K_CARET,
         ]),
         Dialect::Rockwell => mask(&[
             KA, KB, KC, KD, KF, KH, KI, KJ, KK, KP, KQ, KR, KS, KT, KX, KY, KZ,

@@ -784,6 +784,17 @@ impl State {
         let (g, col) = match slot {
             Some((g @ (G::Comp(_) | G::CompDiameter(_)), col)) => (g, col),
             _ => {
+                // L belongs to G10, the canned cycles (repeats) and G41.1/G42.1 here; those
+                // codes check it themselves.
+                let l_user = blk.gs[..blk.ng]
+                    .iter()
+                    .any(|&(code, _)| code == 100 || code == 730 || (810..=890).contains(&code));
+                if blk.has(KL) && !l_user {
+                    return fail(
+                        blk.col(KL),
+                        "L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 or NURBS code",
+                    );
+                }
                 if blk.has(KD) {
                     return fail(
                         blk.col(KD),
@@ -795,6 +806,12 @@ impl State {
         };
         match g {
             G::Comp(Comp::Off) => {
+                if blk.has(KL) {
+                    return fail(
+                        blk.col(KL),
+                        "L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 or NURBS code",
+                    );
+                }
                 if blk.has(KD) {
                     return fail(
                         blk.col(KD),
@@ -804,6 +821,7 @@ impl State {
                 self.comp_set(Comp::Off, 0.0, col, out)
             }
             G::Comp(side) => {
+                // LinuxCNC accepts (and ignores) an L word with G41/G42.
                 let name = if side == Comp::Left { "G41" } else { "G42" };
                 let number = match blk.get(KD) {
                     Some(dv) => {
