@@ -228,7 +228,7 @@ fn g18_compensates_in_the_zx_plane() {
     let ends: Vec<Vec3> = ms.iter().map(|m| m.path.end()).collect();
     let want = [
         v(0.0, 0.0, 10.0),
-        v(8.5858, 0.0, -1.4142),
+        v(8.5858, 0.0, -std::f64::consts::SQRT_2), // rs274: (8.5858, 0, -1.4142)
         v(10.0, 0.0, -2.0),
         v(18.1678, 0.0, -2.0),
         v(28.0, 0.0, -11.8322),
