@@ -70,6 +70,11 @@ pub(crate) struct Crc {
     pub(super) actual: Option<Vec3>,
     /// The column errors of the current move point at.
     col: u32,
+    /// After G40: the programmed point, which LinuxCNC takes as the current point until
+    /// the next move (that move still starts where the tool is).
+    pub(super) exit_ref: Option<Vec3>,
+    /// During the move after G40: where the tool is (the move's start).
+    pub(super) exit_actual: Option<Vec3>,
 }
 
 impl Crc {
@@ -86,6 +91,8 @@ impl Crc {
             arc_not_allowed: false,
             actual: None,
             col: 1,
+            exit_ref: None,
+            exit_actual: None,
         }
     }
 
@@ -183,6 +190,19 @@ impl State {
     fn hold(&mut self, out: &mut Out<'_>, held: Held) -> Result<(), ExecError> {
         self.hold_block_output(out)?;
         if let Item::Move(m) = &held.item {
+            let finite = |p: &Vec3| p.iter().all(|x| x.is_finite());
+            let ok = match &m.path {
+                Path::Line(l) => finite(&l.start) && finite(&l.end),
+                Path::Arc(a) => {
+                    finite(&a.start)
+                        && finite(&a.end)
+                        && finite(&a.center)
+                        && a.sweep_rad.is_finite()
+                }
+            };
+            if !ok {
+                return fail(self.crc.col, "coordinate out of range");
+            }
             self.crc.tip = m.path.end();
         }
         self.crc.held.push(held);
@@ -203,6 +223,7 @@ impl State {
         let plane = self.plane;
         let endpoint = self.crc.endpoint;
         let col = self.crc.col;
+        let inch = self.inch;
         let mut first_move = true;
         for h in self.crc.held.iter_mut() {
             let Item::Move(m) = &mut h.item else {
@@ -249,7 +270,9 @@ impl State {
                     }
                     if let Some(e) = endpoint {
                         let l2 = find_turn(e, c, h.turn, p);
-                        if h.sweep_rad != 0.0 && l2.abs() > h.sweep_rad.abs() + 0.001 {
+                        // LinuxCNC's slack, radians, depends on the program's unit.
+                        let slack_rad = if inch { 0.001 } else { 0.0254 };
+                        if h.sweep_rad != 0.0 && l2.abs() > h.sweep_rad.abs() + slack_rad {
                             return fail(
                                 col,
                                 "Arc move in concave corner cannot be reached by the tool without gouging",
@@ -286,12 +309,21 @@ impl State {
         out: &mut Out<'_>,
     ) -> Result<(), ExecError> {
         if side == Comp::Off {
-            if self.crc.on() {
+            if self.comp_active() && !self.crc.first {
+                // LinuxCNC releases the held moves with their ends where they are (which
+                // still checks them for reversal), then takes the programmed point as the
+                // current point: the next move's missing and incremental words refer to it.
+                let (u, v, _) = self.uv_axes();
+                self.crc.col = col;
+                self.move_endpoint_and_flush((self.pos[u], self.pos[v]), out)?;
                 self.comp_flush(out);
+                self.crc.exit_ref = Some(self.crc.programmed);
                 self.crc.arc_not_allowed = true;
             }
+            self.comp_flush(out);
             self.crc.side = None;
             self.crc.radius_mm = 0.0;
+            self.crc.first = true;
             return Ok(());
         }
         if self.crc.on() {

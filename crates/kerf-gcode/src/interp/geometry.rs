@@ -180,7 +180,22 @@ impl State {
         exact_once: bool,
         abs_centre_once: bool,
     ) -> Result<(), ExecError> {
-        if self.dialect != Dialect::LinuxCnc || !self.comp_active() {
+        if self.dialect != Dialect::LinuxCnc {
+            return self.motion_inner(blk, out, motion_col, machine, exact_once, abs_centre_once);
+        }
+        if let Some(reference) = self.crc.exit_ref {
+            // The move after G40: its words refer to the programmed point (LinuxCNC's
+            // current point after G40); it starts where the tool is.
+            let actual = self.pos;
+            self.pos = reference;
+            self.crc.exit_actual = Some(actual);
+            let r = self.motion_inner(blk, out, motion_col, machine, exact_once, abs_centre_once);
+            if self.crc.exit_actual.take().is_some() {
+                self.pos = actual;
+            }
+            return r;
+        }
+        if !self.comp_active() {
             return self.motion_inner(blk, out, motion_col, machine, exact_once, abs_centre_once);
         }
         let actual = self.pos;
@@ -338,6 +353,7 @@ impl State {
 
         let path = match motion {
             Motion::Rapid | Motion::Linear | Motion::PolarLine { .. } => {
+                let start = self.crc.exit_actual.unwrap_or(start);
                 if (end - start).norm() < arc::SAME_POINT_MM && abc_end == self.abc {
                     // A zero-length line moves nothing; it is not emitted. (A polar end point
                     // a whole turn round can differ from the start by a rounding error.)
@@ -402,6 +418,9 @@ impl State {
             self.abc = abc_end;
             self.polar_last = None;
             return Ok(());
+        }
+        if self.crc.exit_actual.take().is_some() {
+            self.crc.exit_ref = None;
         }
         out.items.push(Item::Move(mv));
         self.pos = path.end();
