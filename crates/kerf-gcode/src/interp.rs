@@ -841,7 +841,7 @@ impl State {
         if blk.nm == 0 {
             return Ok(());
         }
-        self.comp_before_stops(m_post, out);
+        self.comp_before_stops(m_post, blk.first_col, out)?;
         for ev in [
             EventCode::M5,
             EventCode::M9,

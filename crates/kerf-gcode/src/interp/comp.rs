@@ -75,6 +75,10 @@ pub(crate) struct Crc {
     pub(super) exit_ref: Option<Vec3>,
     /// During the move after G40: where the tool is (the move's start).
     pub(super) exit_actual: Option<Vec3>,
+    /// The first move of the last released group, when it was an arc. LinuxCNC reads the
+    /// front of its (then empty) queue at some corners; the stale entry it finds there is
+    /// this one, and it decides which error checks apply.
+    stale_front: Option<FrontArc>,
 }
 
 impl Crc {
@@ -93,6 +97,7 @@ impl Crc {
             col: 1,
             exit_ref: None,
             exit_actual: None,
+            stale_front: None,
         }
     }
 
@@ -176,6 +181,7 @@ impl State {
         if self.crc.held.is_empty() {
             return;
         }
+        self.crc.stale_front = self.held_front_arc();
         let mark = self.crc.mark.min(out.items.len());
         out.items
             .splice(mark..mark, self.crc.held.drain(..).map(|h| h.item));
@@ -448,7 +454,9 @@ impl State {
                         let front_arc = self.front_arc();
                         let concave = !(-SMALL_RAD..=PI + SMALL_RAD).contains(&beta)
                             || (beta > PI - SMALL_RAD
-                                && front_arc.is_some_and(|(_, _, t)| (t > 0) != left));
+                                && self
+                                    .held_front_arc()
+                                    .is_some_and(|(_, _, t)| (t > 0) != left));
                         if !concave && beta > SMALL_RAD {
                             self.move_endpoint_and_flush(c, out)?;
                             let corner_end = self.point(mid, cur[w]);
@@ -763,8 +771,18 @@ impl State {
         q
     }
 
-    /// The first held move when it is an arc: centre, end and turn direction.
+    /// LinuxCNC's queue front when it is an arc: the first held move, or with nothing
+    /// held the first move of the last released group.
     fn front_arc(&self) -> Option<FrontArc> {
+        if self.crc.held.is_empty() {
+            self.crc.stale_front
+        } else {
+            self.held_front_arc()
+        }
+    }
+
+    /// The first held move when it is an arc: centre, end and turn direction.
+    fn held_front_arc(&self) -> Option<FrontArc> {
         let (u, v, _) = self.uv_axes();
         match self.crc.held.first() {
             Some(Held {
@@ -907,23 +925,32 @@ impl State {
         }
     }
 
-    /// M0, M1, M60, M2 and M30 release the held moves first.
+    /// M0, M1, M60, M2 and M30 release the held moves first, through LinuxCNC's end-point
+    /// check (their ends stay where they are); M2 and M30 turn compensation off.
     pub(super) fn comp_before_stops(
         &mut self,
         m_post: &[Option<crate::EventCode>; 8],
+        col: u32,
         out: &mut Out<'_>,
-    ) {
+    ) -> Result<(), ExecError> {
         use crate::EventCode as E;
         let stop = m_post
             .iter()
             .flatten()
             .any(|e| matches!(e, E::M0 | E::M1 | E::M2 | E::M30 | E::M60));
         if stop {
+            if self.comp_active() && !self.crc.first {
+                let (u, v, _) = self.uv_axes();
+                self.crc.col = col;
+                self.move_endpoint_and_flush((self.pos[u], self.pos[v]), out)?;
+            }
             self.comp_flush(out);
         }
         if m_post.iter().flatten().any(|e| matches!(e, E::M2 | E::M30)) {
             self.crc.side = None;
             self.crc.radius_mm = 0.0;
+            self.crc.first = true;
         }
+        Ok(())
     }
 }
