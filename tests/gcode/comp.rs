@@ -15,6 +15,10 @@ use kerf_tests::*;
 const D: Dialect = Dialect::LinuxCnc;
 /// rs274 prints four decimals.
 const PRINTED: f64 = 5.1e-5;
+/// Arc centres: where LinuxCNC's compensated arc starts off its circle (a corner within its
+/// 0.05 rad tolerance) it spirals; Kerf moves the centre onto the chord's bisector, by less
+/// than the radius difference (r·(1 − cos 0.05) < 0.0013·r).
+const CENTRE_MM: f64 = 2e-3;
 
 /// The tools of tests/data/ngc/comp/*.tbl: T1 Ø10, T2 Ø4, T3 Ø25.4 (mm).
 fn tools() -> Settings {
@@ -61,8 +65,8 @@ fn check_moves(what: &str, ms: &[Move], want: &[Want]) {
             Arc(x, y, cx, cy, ccw, z) => {
                 let a = as_arc(m);
                 assert_point(&what, a.end, v(x, y, z), PRINTED);
-                assert_close(&format!("{what} centre x"), a.center[0], cx, PRINTED);
-                assert_close(&format!("{what} centre y"), a.center[1], cy, PRINTED);
+                assert_close(&format!("{what} centre x"), a.center[0], cx, CENTRE_MM);
+                assert_close(&format!("{what} centre y"), a.center[1], cy, CENTRE_MM);
                 assert_eq!(a.sweep_rad > 0.0, ccw, "{what}: direction");
                 check_arc_geometry(&a, 1e-9);
             }
@@ -304,6 +308,61 @@ fn end_of_file_without_m2_runs_the_held_move() {
     let without = moves_with(D, tools(), "G21 F100\nT1 M6\nG41 G1 X20 Y0\nX40 Y10\n");
     assert_same_moves("end of file", &without, &with_m2, TOL);
     assert_eq!(without.len(), 2);
+}
+
+#[test]
+fn after_g40_words_refer_to_the_programmed_point_and_the_move_starts_at_the_tool() {
+    let ms = moves_with(D, tools(), &program("exit_reference"));
+    check_moves(
+        "exit_reference",
+        &ms,
+        &[
+            Rapid(-20.0, 0.0, 0.0),
+            Feed(0.0, 5.0, 0.0),
+            Feed(30.0, 5.0, 0.0),
+            // `G1 X50` after G40: Y is the programmed 0, not the compensated 5.
+            Feed(50.0, 0.0, 0.0),
+            Feed(55.0, 5.0, 0.0),
+            Feed(45.9010, 25.0, 0.0),
+            Feed(20.0, 25.0, 0.0),
+            // `G40 Y50`: X is the programmed 20.
+            Feed(20.0, 50.0, 0.0),
+        ],
+    );
+    // The exit move starts where the compensated move ended.
+    assert_point("exit start", ms[3].path.start(), v(30.0, 5.0, 0.0), PRINTED);
+}
+
+#[test]
+fn program_end_checks_the_held_arc_and_an_empty_queue_keeps_its_last_front() {
+    let out = run_bytes(D, tools(), program("err_stop_gouge").as_bytes());
+    let diag = out.error.expect("err_stop_gouge accepted");
+    assert_diag_line(
+        &diag,
+        8,
+        &["Arc move in concave corner cannot be reached by the tool without gouging"],
+    );
+    check_moves(
+        "err_stop_gouge",
+        &only_moves(&out.items),
+        &[Rapid(-30.0, -30.0, 0.0), Feed(-4.2627, -1.4343, 0.0)],
+    );
+    // After M1 nothing is held; at the next inside corner LinuxCNC computes the corner from
+    // the stale front of its queue, moves nothing, and starts the arc where the tool is, off
+    // its circle: rs274 prints ARC_FEED(-24.4662, -2.9572, -6.1252, -24.8497, 1, ...) from
+    // (6.4906, 4.9420), a spiral from radius 32.35 to 28.56. Kerf refuses that block.
+    let out = run_bytes(D, tools(), program("stale_front").as_bytes());
+    let diag = out.error.expect("stale_front accepted");
+    assert_diag_line(&diag, 9, &["spiral", "not support"]);
+    check_moves(
+        "stale_front",
+        &only_moves(&out.items),
+        &[
+            Rapid(-30.0, -30.0, 0.0),
+            Feed(-std::f64::consts::SQRT_2, std::f64::consts::SQRT_2, 0.0),
+            Arc(6.4906, 4.9420, 7.0189, -6.8622, false, 0.0),
+        ],
+    );
 }
 
 /// Programs rs274 refuses: its message, the line, and the moves it printed before.

@@ -30,6 +30,10 @@ use crate::{Item, codes::Comp};
 const SMALL_RAD: f64 = 0.05;
 /// LinuxCNC's equality tolerance (TOLERANCE_EQUAL).
 const TOLERANCE_EQUAL: f64 = 0.0001;
+/// The largest relative difference between the start and end radii of a compensated arc:
+/// LinuxCNC starts an arc off its circle by up to r·(1 − cos 0.05) = 0.00125·r at a corner
+/// within its tolerance. Beyond that it would cut a spiral.
+const SPIRAL_REL: f64 = 0.0015;
 /// The most items held back behind a compensated move (events of blocks without motion):
 /// a bound on memory whatever the program does.
 const MAX_HELD: usize = 100_000;
@@ -135,6 +139,41 @@ fn find_turn(s: (f64, f64), c: (f64, f64), turn: i32, e: (f64, f64)) -> f64 {
     }
 }
 
+/// A held item as it is released. LinuxCNC's compensated arcs keep the programmed centre
+/// even where the start point is not exactly on their circle (a corner within its 0.05 rad
+/// tolerance, an end point moved within 0.01 mm); it then spirals. Kerf's arcs are exact:
+/// the centre moves onto the perpendicular bisector of the chord, to the point closest to
+/// LinuxCNC's centre (by less than the radius difference), as for programmed arcs.
+fn released(h: Held, plane: Plane) -> Item {
+    let Item::Move(mut m) = h.item else {
+        return h.item;
+    };
+    let Path::Arc(a) = m.path else {
+        return Item::Move(m);
+    };
+    let (u, v, _) = plane.axes();
+    let s = (a.start[u], a.start[v]);
+    let e = (a.end[u], a.end[v]);
+    let c = (a.center[u], a.center[v]);
+    let d = (e.0 - s.0, e.1 - s.1);
+    let len = arc::len2(d.0, d.1);
+    if len < arc::SAME_POINT_MM {
+        return Item::Move(m);
+    }
+    let n = (-d.1 / len, d.0 / len);
+    let mid = ((s.0 + e.0) / 2.0, (s.1 + e.1) / 2.0);
+    let k = (c.0 - mid.0) * n.0 + (c.1 - mid.1) * n.1;
+    let exact = (mid.0 + k * n.0, mid.1 + k * n.1);
+    let turn = if h.turn == 0 {
+        if a.sweep_rad >= 0.0 { 1 } else { -1 }
+    } else {
+        h.turn
+    };
+    let sweep = find_turn(s, exact, turn, e);
+    m.path = Path::Arc(arc::make_arc(a.start, a.end, exact, plane, sweep));
+    Item::Move(m)
+}
+
 impl State {
     fn uv_axes(&self) -> (usize, usize, usize) {
         self.plane.axes()
@@ -183,14 +222,18 @@ impl State {
         }
         self.crc.stale_front = self.held_front_arc();
         let mark = self.crc.mark.min(out.items.len());
-        out.items
-            .splice(mark..mark, self.crc.held.drain(..).map(|h| h.item));
+        let plane = self.plane;
+        out.items.splice(
+            mark..mark,
+            self.crc.held.drain(..).map(|h| released(h, plane)),
+        );
         self.crc.mark = out.items.len();
     }
 
     /// End of the program without M2/M30: the held moves run.
     pub(crate) fn comp_finish(&mut self, items: &mut Vec<Item>) {
-        items.extend(self.crc.held.drain(..).map(|h| h.item));
+        let plane = self.plane;
+        items.extend(self.crc.held.drain(..).map(|h| released(h, plane)));
     }
 
     fn hold(&mut self, out: &mut Out<'_>, held: Held) -> Result<(), ExecError> {
@@ -208,6 +251,22 @@ impl State {
             };
             if !ok {
                 return fail(self.crc.col, "coordinate out of range");
+            }
+            if let Path::Arc(a) = &m.path
+                && held.turn != 0
+            {
+                let (u, v, _) = self.uv_axes();
+                let r_start = arc::len2(a.start[u] - a.center[u], a.start[v] - a.center[v]);
+                let r_end = arc::len2(a.end[u] - a.center[u], a.end[v] - a.center[v]);
+                if (r_start - r_end).abs() > SPIRAL_REL * r_end + 1e-6 {
+                    return fail(
+                        self.crc.col,
+                        format!(
+                            "cutter compensation: this arc starts {:.4} mm off its circle (after M0, M1 or M60 released the held moves at an inside corner); LinuxCNC cuts a spiral here, which Kerf does not support",
+                            (r_start - r_end).abs()
+                        ),
+                    );
+                }
             }
             self.crc.tip = m.path.end();
         }
