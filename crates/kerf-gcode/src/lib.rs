@@ -75,10 +75,10 @@
 //!   controls want the dwell in a block of its own ("G4 must be programmed in a separate
 //!   block"), so an axis, centre or polar word there is an error, never dropped.
 //! - Block delete `/` at the start of a block skips the block (it is not even checked).
-//! - Cutter compensation G41/G42 is accepted only while the active tool's radius is zero
-//!   (tool table in [`Settings`]; the tool is the last T, or the LinuxCNC D word); with a
-//!   non-zero radius it is the error "cutter compensation not supported", never a
-//!   silently wrong path. G40 cancels it.
+//! - Cutter compensation G41/G42: LinuxCNC compensates (its section below). The other
+//!   dialects accept it only while the active tool's radius is zero (tool table in
+//!   [`Settings`]; the tool is the last T); with a non-zero radius it is the error "cutter
+//!   compensation not supported", never a silently wrong path. G40 cancels it.
 //! - Work offsets: one table, [`Settings::work_offsets_mm`], serves LinuxCNC
 //!   G54–G59.3, Rockwell and Fagor G54–G59 (G54 active by default) and Sinumerik G54–G57
 //!   (G500, no offset, by default). Heidenhain has none.
@@ -133,7 +133,29 @@
 //! - Feed errors use LinuxCNC's words: "Cannot do G1 with zero feed rate", "Cannot make arc
 //!   with zero feed rate". F is kept physically across G20/G21 changes.
 //! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc,
-//!   P without G2/G3/G4/G64, Q without G64, H without G43. U, V, W and E are not supported.
+//!   P without G2/G3/G4/G64, Q without G64, H without G43, D without G41/G42/G41.1/G42.1,
+//!   L without G10, a canned cycle or G41.1/G42.1. U, V, W and E are not supported.
+//! - Cutter radius compensation as LinuxCNC's interpreter computes it (`interp::comp`,
+//!   docs/linuxcnc/comp.md): G41/G42 take the radius of tool D from the tool table, or of
+//!   the tool loaded by M6 without D (none loaded: radius 0, no effect); G41.1/G42.1 take the
+//!   diameter D in program units (L, the lathe orientation, only 0 or 9, in G18); a negative
+//!   radius swaps the side. Compensation works in G17 and G18 (else "Cutter radius
+//!   compensation allowed only in XY, XZ planes"). The first move after G41/G42 ends one
+//!   radius from its programmed end, on the normal of its direction (an arc: on the arc's
+//!   normal, its centre moved so that it still starts at the tool); later moves end on the
+//!   normal of the programmed path at their end; an outside corner gets an arc about the
+//!   programmed corner (a straight traverse for G0) and an inside one shortens the previous
+//!   move to the intersection, with LinuxCNC's 0.05 rad corner tolerance. The last move is
+//!   held until the next one shows its corner; spindle, coolant and dwell events of
+//!   the blocks in between stay behind it, as LinuxCNC queues them. G40, M0, M1, M60, M2 and
+//!   M30 release it (checked for gouging as LinuxCNC checks it), as does the end of the file;
+//!   a closing `%` drops it, as LinuxCNC does. After G40 the programmed point is the
+//!   current point for the next move's words (that move starts at the tool, and may not be
+//!   an arc). While compensation is on, its errors are LinuxCNC's: G41/G42 again, a plane,
+//!   coordinate system, G92, G43/G49 or tool change, G53, gouging at inside corners, a tool
+//!   radius not less than an arc's with the tool inside it. Compensated arcs are exact
+//!   (LinuxCNC's may start up to 0.05 rad off their circle; Kerf moves the centre onto the
+//!   chord's bisector), and an arc LinuxCNC would turn into a spiral is refused.
 //!
 //! # Rockwell 9/Series mill (`rockwell`, Fanuc style)
 //!
@@ -304,7 +326,8 @@ pub struct Tool {
     pub number: u32,
     /// Tool length offset, mm (applied along Z by LinuxCNC G43).
     pub length_mm: f64,
-    /// Tool radius, mm (cutter compensation is refused when it is non-zero).
+    /// Tool radius, mm (LinuxCNC cutter compensation; the other dialects refuse G41/G42
+    /// when it is non-zero).
     pub radius_mm: f64,
 }
 

@@ -934,13 +934,17 @@ impl State {
                 let name = if side == Comp::Left { "G41" } else { "G42" };
                 let number = match blk.get(KD) {
                     Some(dv) => {
-                        if dv.fract() != 0.0 || dv < 0.0 {
+                        // LinuxCNC takes the D word as the whole number `(int)(D + 0.5)`
+                        // when D lies within 0.0001 of it (so a negative D is "not a whole
+                        // number").
+                        let rounded = (dv + 0.5).trunc();
+                        if (rounded - dv).abs() >= 0.0001 {
                             return fail(
                                 blk.col(KD),
                                 format!("{name} requires D word to be a whole number"),
                             );
                         }
-                        let n = super::tool_number(dv);
+                        let n = super::tool_number(rounded);
                         match n.filter(|&n| n != 0) {
                             Some(n) => {
                                 if self.tool(Some(n)).is_none() {
