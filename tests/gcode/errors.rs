@@ -166,16 +166,11 @@ fn diagnostic_displays_line_col_error_message() {
 
 #[test]
 fn cutter_compensation_error_stops_before_the_block() {
-    // A non-zero tool radius with G41/G42 is an error in every dialect, at the G41/G42 word,
-    // saying "cutter compensation"; the block's move is not yielded.
+    // A non-zero tool radius with G41/G42 is an error in every dialect but LinuxCNC (which
+    // compensates: tests/gcode/comp.rs), at the G41/G42 word, saying "cutter
+    // compensation"; the block's move is not yielded.
     let s = settings_with_tool(4, 0.0, 1.5);
     let cases = [
-        (
-            Dialect::LinuxCnc,
-            "T4 M6\nG1 X1 F100\nG41 G1 X10\nG1 X20\n",
-            3,
-            1,
-        ),
         (
             Dialect::Rockwell,
             "T4 M06 ;\nG01 X1 F100 ;\nG41 D4 G01 X10 ;\n",

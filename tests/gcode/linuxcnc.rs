@@ -621,19 +621,10 @@ fn cutter_compensation_with_zero_radius_leaves_the_path_unchanged() {
     let with = moves_with(
         D,
         s.clone(),
-        "T1 M6\nG41 D1\nG1 X10 Y5 F100\nG42\nG1 X0\nG40\nG1 Y0\n",
+        "T1 M6\nG41 D1\nG1 X10 Y5 F100\nG40\nG42\nG1 X0\nG40\nG1 Y0\n",
     );
     let without = moves_with(D, s, "T1 M6\nG1 X10 Y5 F100\nG1 X0\nG1 Y0\n");
     assert_same_moves("G41/G42 with radius 0", &with, &without, TOL);
-}
-
-#[test]
-fn cutter_compensation_with_a_tool_radius_is_refused() {
-    let s = settings_with_tool(2, 0.0, 3.0);
-    let d = error_with(D, s.clone(), "G1 X1 F100\nG41 D2 G1 X10\n");
-    assert_diag(&d, 2, 1, &["cutter compensation", "not supported"]);
-    let d = error_with(D, s, "T2 M6\nG1 X1 F100\nG42 X10\n");
-    assert_diag(&d, 3, 1, &["cutter compensation", "not supported"]);
 }
 
 /// Runs a centre-format arc from (0,0) about `center` to `end` (all in the XY plane).

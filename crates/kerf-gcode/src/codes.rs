@@ -80,6 +80,8 @@ pub(crate) enum G {
         absolute: bool,
     },
     Comp(Comp),
+    /// LinuxCNC G41.1/G42.1: compensation with the diameter in the D word.
+    CompDiameter(Comp),
     ToolLength(crate::interp::ToolLength),
     CoordSystem(Option<usize>),
     Corner {
@@ -147,7 +149,7 @@ pub(crate) fn group(g: G) -> usize {
         G::Units { .. } => 3,
         G::Distance { .. } => GROUP_DISTANCE,
         G::ArcDistance { .. } => 5,
-        G::Comp(_) => 6,
+        G::Comp(_) | G::CompDiameter(_) => 6,
         G::ToolLength { .. } => 7,
         G::CoordSystem(_) => 8,
         G::Corner { .. } => 9,
@@ -243,13 +245,15 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
             921 => G92Reset,
             922 => G92Suspend,
             923 => G92Restore,
+            411 => CompDiameter(self::Comp::Left),
+            421 => CompDiameter(self::Comp::Right),
             930 => FeedMode(crate::interp::FeedMode::InverseTime),
             940 => FeedMode(crate::interp::FeedMode::PerMinute),
             950 => FeedMode(crate::interp::FeedMode::PerRev),
             970 => NoOp,
             980 => Retract { r_plane: false },
             990 => Retract { r_plane: true },
-            50 | 51 | 52 | 70 | 80 | 382..=385 | 411 | 421 | 960 => {
+            50 | 51 | 52 | 70 | 80 | 382..=385 | 960 => {
                 Unsupported("this G code is not supported yet")
             }
             _ => return None,

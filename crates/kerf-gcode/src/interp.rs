@@ -7,6 +7,7 @@ use crate::codes::*;
 use crate::lex::{Form, K_AP, K_AT, K_CARET, K_CR, K_RP, K_TURN, N_KEYS, Word};
 use crate::{Dialect, Event, EventCode, Item, Settings, Tool};
 
+mod comp;
 pub(crate) mod cycles;
 mod geometry;
 mod modal;
@@ -181,6 +182,8 @@ pub(crate) struct State {
     /// LinuxCNC G99 (canned cycles retract to R, the default of rs274) rather than G98
     /// (to the initial level).
     retract_r: bool,
+    /// LinuxCNC cutter radius compensation (side, radius, programmed point, held moves).
+    crc: comp::Crc,
 }
 
 /// Output of a block, in execution order.
@@ -258,6 +261,7 @@ impl State {
             params: params::Params::new(),
             cycles: cycles::CycleState::new(),
             retract_r: true,
+            crc: comp::Crc::new(),
         };
         s.init_params();
         s.update_origin();
@@ -403,6 +407,7 @@ impl State {
         }
         let d = self.dialect;
         self.cycles.block_plane = self.plane;
+        self.comp_begin_block(out);
 
         // Classify G codes and check modal groups. Each group holds at most one code per
         // block, so the block's codes are kept in one slot per group.
@@ -610,6 +615,10 @@ impl State {
             if blk.nm > 0 && m_pre.contains(&Some(ev)) {
                 if ev == EventCode::M6 {
                     if d == Dialect::LinuxCnc {
+                        self.comp_refuse(
+                            blk.first_col,
+                            "Cannot change tools with cutter radius compensation on",
+                        )?;
                         self.load_tool(self.tool_selected, true);
                         // LinuxCNC stops the spindle for the change (rs274:
                         // STOP_SPINDLE_TURNING before CHANGE_TOOL).
@@ -680,20 +689,24 @@ impl State {
         self.check_tool_offset_words(blk, slot(6))?;
 
         // Cutter radius compensation.
-        if let Some((G::Comp(c), _)) = slot(6) {
-            self.comp = c;
-        }
-        if self.comp != Comp::Off {
-            let number = match (d, blk.get(KD)) {
-                (Dialect::LinuxCnc | Dialect::Rockwell, Some(dv)) => tool_number(dv),
-                _ => self.tool_loaded.or(self.tool_selected),
-            };
-            if self.tool(number).is_some_and(|t| t.radius_mm != 0.0) {
-                let col = slot(6).map_or(blk.first_col, |(_, c)| c);
-                return fail(
-                    col,
-                    "cutter compensation not supported (the active tool has a non-zero radius)",
-                );
+        if d == Dialect::LinuxCnc {
+            self.linuxcnc_comp(blk, slot(6), out)?;
+        } else {
+            if let Some((G::Comp(c) | G::CompDiameter(c), _)) = slot(6) {
+                self.comp = c;
+            }
+            if self.comp != Comp::Off {
+                let number = match (d, blk.get(KD)) {
+                    (Dialect::Rockwell, Some(dv)) => tool_number(dv),
+                    _ => self.tool_loaded.or(self.tool_selected),
+                };
+                if self.tool(number).is_some_and(|t| t.radius_mm != 0.0) {
+                    let col = slot(6).map_or(blk.first_col, |(_, c)| c);
+                    return fail(
+                        col,
+                        "cutter compensation not supported (the active tool has a non-zero radius)",
+                    );
+                }
             }
         }
 
@@ -717,6 +730,12 @@ impl State {
             {
                 return fail(blk.col(KH), "H word with no G43 to use it");
             }
+            if d == Dialect::LinuxCnc {
+                self.comp_refuse(
+                    col,
+                    "Cannot change tool offset with cutter radius compensation on",
+                )?;
+            }
             consumed_axes = self.exec_tool_length(blk, kind, col, motion_in_block)?;
             self.tool_length_on = kind != ToolLength::Cancel;
         } else if blk.has(KH) && matches!(d, Dialect::LinuxCnc | Dialect::Rockwell) {
@@ -727,6 +746,14 @@ impl State {
         // execution: after the tool length offset and the coordinate system selection,
         // before the motion).
         if let Some((g, col)) = slot(0) {
+            if d == Dialect::LinuxCnc
+                && matches!(
+                    g,
+                    G::G92Set | G::G92Reset | G::G92Suspend | G::G92Restore | G::LocalOffset
+                )
+            {
+                self.comp_refuse(col, "Cannot change axis offsets with cutter radius comp")?;
+            }
             match g {
                 G::G92Set | G::G92Reset | G::G92Suspend | G::G92Restore | G::LocalOffset => {
                     self.exec_g92(blk, g, col)?;
@@ -792,8 +819,10 @@ impl State {
         let g64 = matches!(slot(9), Some((G::Corner { exact: false }, _)));
         if d == Dialect::LinuxCnc {
             let explicit_cycle = matches!(motion_g, Some((G::Motion(Motion::Cycle(_)), _)));
+            // G10 and G41.1/G42.1 take L too, and check it themselves.
             let g10 = slot(0).is_some_and(|(g, _)| g == G::SetData);
-            if !g10 {
+            let g41_1 = matches!(slot(6), Some((G::CompDiameter(_), _)));
+            if !g10 && !g41_1 {
                 self.check_l_word(blk, explicit_cycle)?;
             }
         }
@@ -863,7 +892,8 @@ impl State {
                 abs_centre_once,
             )?;
         }
-        self.finish_block(blk, &m_post, out)
+        self.finish_block(blk, &m_post, out)?;
+        self.comp_end_block(out)
     }
 
     /// Units, then the modal G codes of distance, arc distance, plane, path control and
@@ -883,9 +913,13 @@ impl State {
         }
         // Each group's slot is read directly (a plain move has none of them). Heidenhain
         // may repeat G90/G91 in a block; the slot holds the last one, which stays modal.
-        if let Some((G::Plane(p), _)) = slots[2]
+        if let Some((G::Plane(p), col)) = slots[2]
             && p != self.plane
         {
+            self.comp_refuse(
+                col,
+                "Cannot change planes with cutter radius compensation on",
+            )?;
             self.set_plane(p);
         }
         if let Some((G::Distance { absolute }, _)) = slots[GROUP_DISTANCE] {
@@ -894,7 +928,11 @@ impl State {
         if let Some((G::ArcDistance { absolute }, _)) = slots[5] {
             self.arc_absolute = absolute;
         }
-        if let Some((G::CoordSystem(cs), _)) = slots[8] {
+        if let Some((G::CoordSystem(cs), col)) = slots[8] {
+            self.comp_refuse(
+                col,
+                "Cannot change coordinate systems with cutter radius compensation on",
+            )?;
             self.coord_system = cs;
             if let Some(i) = cs {
                 self.params.set(params::COORD_SYSTEM, i as f64 + 1.0);
@@ -940,7 +978,10 @@ impl State {
         };
         match d {
             Dialect::LinuxCnc | Dialect::Rockwell => {
-                if !matches!(comp, Some((G::Comp(Comp::Left | Comp::Right), _))) {
+                if !matches!(
+                    comp,
+                    Some((G::Comp(Comp::Left | Comp::Right) | G::CompDiameter(_), _))
+                ) {
                     return fail(blk.col(KD), "D word with no G41 or G42 to use it");
                 }
             }
@@ -1064,6 +1105,7 @@ impl State {
         if blk.nm == 0 {
             return Ok(());
         }
+        self.comp_before_stops(m_post, blk.first_col, out)?;
         for ev in [
             EventCode::M5,
             EventCode::M9,

@@ -91,10 +91,11 @@
 //!   runs it, has the switch off and runs such blocks.) In LinuxCNC the `/` must be the
 //!   first character of the line, spaces aside: after a comment, an N word or any word it
 //!   is an error, as in rs274 ("Bad character '/' used").
-//! - Cutter compensation G41/G42 is accepted only while the active tool's radius is zero
-//!   (tool table in [`Settings`]; the tool is the last T, or the LinuxCNC D word); with a
-//!   non-zero radius it is the error "cutter compensation not supported", never a
-//!   silently wrong path. G40 cancels it.
+//! - Cutter compensation G41/G42: LinuxCNC compensates (its section below). The other
+//!   dialects accept it only while the active tool's radius is zero (tool table in
+//!   [`Settings`]; the tool is the last T, or the Rockwell D word); with a non-zero radius
+//!   it is the error "cutter compensation not supported", never a silently wrong path. G40
+//!   cancels it.
 //! - Work offsets: one table, [`Settings::work_offsets_mm`], serves LinuxCNC
 //!   G54–G59.3, Rockwell and Fagor G54–G59 (G54 active by default) and Sinumerik G54–G57
 //!   (G500, no offset, by default). Heidenhain has none. It initialises LinuxCNC's
@@ -227,7 +228,7 @@
 //! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc
 //!   (also with G92, or G87), P without G2/G3/G4/G10/G64, a dwelling cycle or a user M code,
 //!   Q without G10/G64/M61, G73, G83 or a user M code, H without G43 (also with G49), D without
-//!   G41/G42 in the block, L without G10 or a canned cycle. A motion code with a code that
+//!   G41/G42/G41.1/G42.1 in the block, L without G10, a canned cycle or G41.1/G42.1. A motion code with a code that
 //!   takes the axis words (G10, G28, G30, G52, G92) is "Cannot use two g codes that both
 //!   use axis values". U, V, W and E are not supported.
 //! - Canned cycles G73, G81, G82, G83, G85, G86, G87, G88, G89 (`interp::cycles`) give the
@@ -249,6 +250,27 @@
 //!   (rs274 dwells a negative time) and a block of more than 100,000 moves and events
 //!   (its L repeats and pecks). G33, G33.1, G74, G76 and G84 are "... is not supported:
 //!   needs spindle synchronisation". Table: `docs/linuxcnc/cycles.md`.
+//! - Cutter radius compensation as LinuxCNC's interpreter computes it (`interp::comp`,
+//!   docs/linuxcnc/comp.md): G41/G42 take the radius of tool D from the tool table, or of
+//!   the tool loaded by M6 without D (none loaded: radius 0, no effect); G41.1/G42.1 take the
+//!   diameter D in program units (L, the lathe orientation, only 0 or 9, in G18); a negative
+//!   radius swaps the side. Compensation works in G17 and G18 (else "Cutter radius
+//!   compensation allowed only in XY, XZ planes"). The first move after G41/G42 ends one
+//!   radius from its programmed end, on the normal of its direction (an arc: on the arc's
+//!   normal, its centre moved so that it still starts at the tool); later moves end on the
+//!   normal of the programmed path at their end; an outside corner gets an arc about the
+//!   programmed corner (a straight traverse for G0) and an inside one shortens the previous
+//!   move to the intersection, with LinuxCNC's 0.05 rad corner tolerance. The last move is
+//!   held until the next one shows its corner; spindle, coolant and dwell events of
+//!   the blocks in between stay behind it, as LinuxCNC queues them. G40, M0, M1, M60, M2 and
+//!   M30 release it (checked for gouging as LinuxCNC checks it), as does the end of the file;
+//!   a closing `%` drops it, as LinuxCNC does. After G40 the programmed point is the
+//!   current point for the next move's words (that move starts at the tool, and may not be
+//!   an arc). While compensation is on, its errors are LinuxCNC's: G41/G42 again, a plane,
+//!   coordinate system, G92, G43/G49 or tool change, G53, gouging at inside corners, a tool
+//!   radius not less than an arc's with the tool inside it. Compensated arcs are exact
+//!   (LinuxCNC's may start up to 0.05 rad off their circle; Kerf moves the centre onto the
+//!   chord's bisector), and an arc LinuxCNC would turn into a spiral is refused.
 //!
 //! ## The LinuxCNC language (`ngc` module)
 //!
@@ -478,7 +500,8 @@ pub struct Tool {
     pub number: u32,
     /// Tool length offset, mm: the Z offset of the entry.
     pub length_mm: f64,
-    /// Tool radius, mm (cutter compensation is refused when it is non-zero).
+    /// Tool radius, mm (LinuxCNC cutter compensation; the other dialects refuse G41/G42
+    /// when it is non-zero).
     pub radius_mm: f64,
     /// X and Y offsets of the entry, mm (LinuxCNC applies them with G43; lathes mostly).
     pub offset_xy_mm: [f64; 2],
@@ -898,6 +921,8 @@ impl<R: std::io::BufRead> Interpreter<R> {
                 // file is ignored, as on the control.
                 if self.percent_seen || self.blocks_seen {
                     self.finished = true;
+                    // LinuxCNC does not run a move held back by cutter compensation
+                    // when the program ends at `%`; neither does Kerf.
                     return Ok(());
                 }
                 self.percent_seen = true;
@@ -1010,7 +1035,9 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
                         self.line_no = line;
                         return Some(Err(self.diag(1, m)));
                     }
-                    return None;
+                    // Moves held back by cutter compensation run at the end of the file.
+                    self.state.comp_finish(&mut self.pending);
+                    continue;
                 }
                 Err(e) => {
                     self.finished = true;

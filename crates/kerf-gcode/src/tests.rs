@@ -351,8 +351,9 @@ fn offsets_tools_and_cutter_compensation() {
     line_to(&m[1], v(101.0, 51.0, 30.0));
     line_to(&m[2], v(102.0, 51.0, 30.0));
     line_to(&m[3], v(0.0, 0.0, 30.0));
-    // A non-zero tool radius under G41/G42 is refused; a zero one keeps the path.
-    let e = run_with(Dialect::LinuxCnc, "T3 M6\nG41 G1 X1 F1\n", s.clone()).unwrap_err();
+    // A non-zero tool radius under G41/G42 is refused outside LinuxCNC (which
+    // compensates: tests/gcode/comp.rs); a zero one keeps the path.
+    let e = run_with(Dialect::Rockwell, "T3 M6\nG41 G1 X1 F1\n", s.clone()).unwrap_err();
     assert_eq!((e.line, e.col), (2, 1));
     assert!(e.message.starts_with("cutter compensation not supported"));
     assert!(run_with(Dialect::LinuxCnc, "T2 M6\nG41 G1 X1 F1\n", s).is_ok());

@@ -170,8 +170,50 @@ impl State {
         ExecError { col, message }
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// One motion block. While LinuxCNC cutter compensation is active, the block's end point
+    /// is resolved from the programmed point (as LinuxCNC does) and `comp` makes the moves.
     pub(super) fn motion(
+        &mut self,
+        blk: &Block,
+        out: &mut Out<'_>,
+        motion_col: u32,
+        machine: Option<u32>,
+        exact_once: bool,
+        abs_centre_once: bool,
+    ) -> Result<(), ExecError> {
+        if self.dialect != Dialect::LinuxCnc {
+            return self.motion_inner(blk, out, motion_col, machine, exact_once, abs_centre_once);
+        }
+        if let Some(reference) = self.crc.exit_ref {
+            // The move after G40: its words refer to the programmed point (LinuxCNC's
+            // current point after G40); it starts where the tool is.
+            let actual = self.pos;
+            self.pos = reference;
+            self.crc.exit_actual = Some(actual);
+            let r = self.motion_inner(blk, out, motion_col, machine, exact_once, abs_centre_once);
+            if self.crc.exit_actual.take().is_some() {
+                self.pos = actual;
+            }
+            return r;
+        }
+        if !self.comp_active() {
+            return self.motion_inner(blk, out, motion_col, machine, exact_once, abs_centre_once);
+        }
+        let actual = self.pos;
+        if let Some(p) = self.comp_reference() {
+            self.pos = p;
+        }
+        self.crc.actual = Some(actual);
+        let r = self.motion_inner(blk, out, motion_col, machine, exact_once, abs_centre_once);
+        if self.crc.actual.take().is_some() {
+            // No move was made: the position stays the compensated one.
+            self.pos = actual;
+        }
+        r
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn motion_inner(
         &mut self,
         blk: &Block,
         out: &mut Out<'_>,
@@ -232,6 +274,9 @@ impl State {
             return self.check_unused(blk, false);
         }
         self.check_unused(blk, is_arc)?;
+        if d == Dialect::LinuxCnc {
+            self.comp_check_arc(is_arc, motion_col)?;
+        }
 
         // G53's conditions come first, as rs274 checks them.
         if let Some(col) = machine {
@@ -241,9 +286,7 @@ impl State {
             if !matches!(motion, Motion::Rapid | Motion::Linear) {
                 return fail(col, "Must use g0 or g1 with g53");
             }
-            if self.comp != super::Comp::Off {
-                return fail(col, "Cannot use g53 with cutter radius comp");
-            }
+            self.comp_refuse(col, "Cannot use g53 with cutter radius comp")?;
         }
 
         // Feed.
@@ -314,6 +357,7 @@ impl State {
 
         let path = match motion {
             Motion::Rapid | Motion::Linear | Motion::PolarLine { .. } => {
+                let start = self.crc.exit_actual.unwrap_or(start);
                 if (end - start).norm() < arc::SAME_POINT_MM && abc_end == self.abc {
                     // A zero-length line moves nothing; it is not emitted. (A polar end point
                     // a whole turn round can differ from the start by a rounding error.)
@@ -373,14 +417,33 @@ impl State {
             Some(f) => Some(self.feed_rate_mm_min(f, &path, self.abc, abc_end)),
             None => None,
         };
-        out.items.push(Item::Move(Move {
+        let mv = Move {
             line: out.line,
             rapid,
             path: self.path_to_machine(path),
             feed_mm_min: feed,
             abc_deg: abc,
             corner,
-        }));
+        };
+        if self.crc.actual.is_some() && self.rotation_deg != 0.0 {
+            // Compensation works in the frame of the program; with a rotated coordinate
+            // system the frame and the machine differ, which comp does not model.
+            return fail(
+                motion_col,
+                "cutter compensation in a rotated coordinate system (G10 L2 R) is not supported",
+            );
+        }
+        if let Some(actual) = self.crc.actual.take() {
+            self.pos = actual;
+            self.comp_move(mv, motion_col, out)?;
+            self.abc = abc_end;
+            self.polar_last = None;
+            return Ok(());
+        }
+        if self.crc.exit_actual.take().is_some() {
+            self.crc.exit_ref = None;
+        }
+        out.items.push(Item::Move(mv));
         self.pos = path.end();
         self.abc = abc_end;
         if !matches!(motion, Motion::PolarArc(_)) {
