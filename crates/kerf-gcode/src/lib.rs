@@ -160,8 +160,8 @@
 //!   (`State::modal_enter_call`/`modal_leave_call` are not called), so M73 in a
 //!   subroutine saves like M70 and its end restores nothing (docs/LINUXCNC.md). Saved:
 //!   units, plane, cutter compensation, distance and arc distance modes, feed mode and
-//!   feed, coordinate system, G43/G49, G61/G64 with P and Q, S, the spindle (M3/M4/M5) and coolant (M7/M8); not the motion
-//!   mode. A restore sets the units first, then the rest, as rs274 does, and emits S,
+//!   feed, coordinate system, G43/G49, G61/G64 with P and Q, S, the spindle (M3/M4/M5)
+//!   and coolant (M7/M8); not the motion mode. A restore sets the units first, then the rest, as rs274 does, and emits S,
 //!   M3/M4/M5 for what changes; coolant as rs274 restores it (saved off: M9 when anything
 //!   is on; saved on: M7/M8 for what is off; nothing is turned off otherwise); G43 is
 //!   applied anew with the tool in the spindle; a restore that changes the feed mode
