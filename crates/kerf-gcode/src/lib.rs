@@ -152,19 +152,21 @@
 //!   spindle feedback: it assumes the spindle turns at the commanded speed, whether M3/M4
 //!   or M5 is in force; with no S or S0 it is the error "Cannot feed with zero spindle
 //!   speed in feed per rev mode".
-//! - **Modal state M70–M73**: M70 saves, M72 restores ("Cannot restore context from
-//!   invalid stack frame - missing M70/M73?" with nothing saved), M71 invalidates, at the
-//!   current call level (the program, or one subroutine call). M73 saves, and the end of
-//!   the subroutine (endsub or return) restores; in the main program it saves like M70
-//!   and the program's end restores nothing. Saved: units, plane, cutter compensation,
-//!   distance and arc distance modes, feed mode and feed, coordinate system, G43/G49,
-//!   G61/G64 with P and Q, S, the spindle (M3/M4/M5) and coolant (M7/M8); not the motion
-//!   mode. A restore sets the units first, then the rest, as rs274 does, and emits S,
-//!   M3/M4/M5 for what changes; coolant as rs274 restores it (saved off: M9 when anything
-//!   is on; saved on: M7/M8 for what is off; nothing is turned off otherwise); G43 is
-//!   applied anew with the tool in the spindle; a restore that changes the feed mode
-//!   leaves the feed at zero (rs274 does). M70–M73 belong to the spindle group (`M3 M70`
-//!   is refused, as in rs274); M6 stops the spindle.
+//! - **Modal state M70–M73**: M70 saves, M72 restores ("Cannot restore context from invalid stack
+//!   frame - missing M70/M73?" with nothing saved), M71 invalidates, at the current call level.
+//!   M73 saves, and in LinuxCNC the end of the subroutine (endsub or return) restores; in the
+//!   main program it saves like M70 and the program's end restores nothing. Not yet in Kerf:
+//!   O-word calls do not open a call level of their own
+//!   (`State::modal_enter_call`/`modal_leave_call` are not called), so M73 in a subroutine saves
+//!   like M70 and its end restores nothing (docs/LINUXCNC.md). Saved: units, plane, cutter
+//!   compensation, distance and arc distance modes, feed mode and feed, coordinate system,
+//!   G43/G49, G61/G64 with P and Q, S, the spindle (M3/M4/M5) and coolant (M7/M8); not the motion
+//!   mode. A restore sets the units first, then the rest, as rs274 does, and emits S, M3/M4/M5
+//!   for what changes; coolant as rs274 restores it (saved off: M9 when anything is on; saved on:
+//!   M7/M8 for what is off; nothing is turned off otherwise); G43 is applied anew with the tool
+//!   in the spindle; a restore that changes the feed mode leaves the feed at zero (rs274 does).
+//!   M70–M73 belong to the spindle group (`M3 M70` is refused, as in rs274); M6 stops the
+//!   spindle.
 //! - **User M codes** M100–M199: an [`EventCode::User`] event with `value` = P and `q` =
 //!   Q, after the coolant and before the dwell; one per block. LinuxCNC runs the program
 //!   file `M1nn` and refuses the code when there is none ("Unknown m code used"); Kerf
