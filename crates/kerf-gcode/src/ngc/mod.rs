@@ -401,6 +401,29 @@ fn o_head(norm: &[u8], cols: &[u32]) -> Result<Option<(Arc<str>, Kw, usize)>, Fa
             }
             String::from_utf8_lossy(trimmed).into_owned()
         }
+        Some(b'[') => {
+            // A computed label (`o[#1] call`): kept as written and evaluated when the line
+            // runs (`computed_label`).
+            let start = i;
+            let mut depth = 0usize;
+            while let Some(&c) = norm.get(i) {
+                i += 1;
+                match c {
+                    b'[' => depth += 1,
+                    b']' => {
+                        depth -= 1;
+                        if depth == 0 {
+                            break;
+                        }
+                    }
+                    _ => {}
+                }
+            }
+            if depth != 0 {
+                return fail(col, "Unclosed expression");
+            }
+            String::from_utf8_lossy(&norm[start..i]).into_owned()
+        }
         _ => return fail(col, "Bad O-word label"),
     };
     for (text, kw) in KEYWORDS {
@@ -693,11 +716,23 @@ impl Ngc {
         }
         if let Some((label, kw, after)) = o_head(norm, cols)? {
             let col = cols.iter().copied().find(|_| true).unwrap_or(1);
-            let ocol = norm
-                .iter()
-                .position(|&b| b == b'o')
-                .and_then(|i| cols.get(i).copied())
-                .unwrap_or(col);
+            let o_at = norm.iter().position(|&b| b == b'o');
+            let ocol = o_at.and_then(|i| cols.get(i).copied()).unwrap_or(col);
+            let label = if label.starts_with('[') {
+                // `o[expr] call`: the value of the expression is the sub's number.
+                if kw != Kw::Call {
+                    return fail(ocol, "Bad O-word label");
+                }
+                let ctx = self.ctx(state, line_no);
+                let mut r = expr::Reader::new(norm, cols, o_at.map_or(0, |i| i + 1));
+                let v = r.real_value(&ctx)?;
+                if v < 0.0 || v.fract() != 0.0 || v > 1e18 {
+                    return fail(ocol, "Bad O-word label");
+                }
+                Arc::from(format!("{}", v as u64))
+            } else {
+                label
+            };
             self.o_word(text, line_no, state, &label, kw, after, ocol, norm, cols)?;
             return Ok(Action::Nothing);
         }
