@@ -418,9 +418,6 @@ impl State {
                 message: format!("unknown G code {}", g_name(code)),
             })?;
             if let G::Unsupported(msg) = g {
-                if msg == "this G code is not supported yet" {
-                    return fail(col, format!("{} is not supported yet", g_name(code)));
-                }
                 return fail(col, msg);
             }
             if g == G::NoOp {
