@@ -961,6 +961,7 @@ impl<R: std::io::BufRead> Interpreter<R> {
             .ngc
             .line(&self.line, self.line_no, &mut self.state, &mut self.words)
             .map_err(|e| self.diag(e.col, e.message))?;
+        self.ngc.take_restored(&mut self.pending);
         match action {
             ngc::Action::Nothing => return Ok(true),
             ngc::Action::Plain => return Ok(false),

@@ -215,6 +215,9 @@ pub(crate) struct Ngc {
     /// Subs found later in the program's file by a call before their definition:
     /// reaching their definition afterwards is LinuxCNC's "found in illegal location".
     forward: std::collections::HashSet<Arc<str>>,
+    /// The events of the modal state M73 restores at an `endsub`/`return` (taken by
+    /// `take_restored` after the line).
+    restored: Vec<Item>,
 }
 
 impl Ngc {
@@ -241,7 +244,14 @@ impl Ngc {
             max_loop_iterations,
             program_file,
             forward: std::collections::HashSet::new(),
+            restored: Vec::new(),
         }
+    }
+
+    /// Moves the events of an M73 restore made by the last line (at its `endsub` or
+    /// `return`) to `items`.
+    pub(crate) fn take_restored(&mut self, items: &mut Vec<Item>) {
+        items.append(&mut self.restored);
     }
 
     /// True while lines must come here whatever they hold: a structure is being collected.
@@ -1066,6 +1076,8 @@ impl Ngc {
                             for (k, v) in c.saved.iter().enumerate() {
                                 state.params.set(k + 1, *v);
                             }
+                            // M73 in the sub: the caller's modal state comes back.
+                            state.modal_leave_call(&mut self.restored, line_no);
                         }
                         Ok(())
                     }
@@ -1411,6 +1423,7 @@ impl Ngc {
             }),
             loops: Vec::new(),
         });
+        state.modal_enter_call();
         Ok(())
     }
 
