@@ -177,6 +177,8 @@ enum MsgKind {
     Msg,
     Debug,
     Print,
+    /// `LOGOPEN`, `LOGAPPEND`, `LOG` (substituted) or `LOGCLOSE`: the event text's prefix.
+    Log(&'static str),
 }
 
 /// What the caller does with a line after [`Ngc::line`].
@@ -752,15 +754,14 @@ impl Ngc {
                         messages.push((MsgKind::Debug, text(6)));
                     } else if starts(b"print,") {
                         messages.push((MsgKind::Print, text(6)));
-                    } else if starts(b"logopen,")
-                        || starts(b"logappend,")
-                        || starts(b"logclose")
-                        || starts(b"log,")
-                    {
-                        return fail(
-                            col,
-                            "LOGOPEN, LOGAPPEND, LOG and LOGCLOSE are not supported (Kerf writes no files)",
-                        );
+                    } else if starts(b"logopen,") {
+                        messages.push((MsgKind::Log("LOGOPEN"), text(8)));
+                    } else if starts(b"logappend,") {
+                        messages.push((MsgKind::Log("LOGAPPEND"), text(10)));
+                    } else if starts(b"log,") {
+                        messages.push((MsgKind::Log("LOG"), text(4)));
+                    } else if body.eq_ignore_ascii_case(b"logclose") {
+                        messages.push((MsgKind::Log("LOGCLOSE"), String::new()));
                     }
                 }
                 b'#' => {
@@ -871,6 +872,13 @@ impl Ngc {
                 MsgKind::Msg => (EventCode::Msg, text),
                 MsgKind::Debug => (EventCode::Debug, self.substitute(state, &text, line_no)),
                 MsgKind::Print => (EventCode::Print, self.substitute(state, &text, line_no)),
+                // Kerf writes no file: the log calls are events for the control to act on.
+                MsgKind::Log("LOGCLOSE") => (EventCode::Log, "LOGCLOSE".to_string()),
+                MsgKind::Log("LOG") => (
+                    EventCode::Log,
+                    format!("LOG,{}", self.substitute(state, &text, line_no)),
+                ),
+                MsgKind::Log(call) => (EventCode::Log, format!("{call},{text}")),
             };
             let mut e = Event::new(line_no, code, None);
             e.text = Some(Arc::from(text));
