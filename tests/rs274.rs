@@ -579,8 +579,20 @@ pub fn compare(src: &[u8], kerf: &KerfRun, canon_text: &str, refusal: Option<&Re
         Ok(c) => c,
         Err(e) => return Verdict::Mismatch(format!("the canon output cannot be read: {e}")),
     };
-    let diag_text =
-        |d: &Diagnostic| format!("{d} [line {}: {}]", d.line, diag_source_line(src, d).trim());
+    // A diagnostic in a subroutine file names the file.
+    let diag_text = |d: &Diagnostic| {
+        let file = d.file.as_deref().map_or(String::new(), |f| {
+            let name = Path::new(f)
+                .file_name()
+                .map_or_else(|| f.to_string(), |n| n.to_string_lossy().into_owned());
+            format!("{name}:")
+        });
+        format!(
+            "{file}{d} [line {}: {}]",
+            d.line,
+            diag_source_line(src, d).trim()
+        )
+    };
     match (refusal, &kerf.error) {
         (Some(r), Some(d)) => {
             let rs274 = format!("{} [block: {}]", r.message, r.block.trim());

@@ -300,3 +300,25 @@ fn out_of_scope_g_codes_are_refused_by_name() {
         assert_eq!(items.items.len(), 1, "{code}: {:?}", items.items);
     }
 }
+
+/// An out-of-scope refusal inside a subroutine file (golden `lang/probe_sub`, LinuxCNC's
+/// x-trim.ngc calling touchoff.ngc): Kerf's moves before it are rs274's first moves, rs274's
+/// probing and what follows it are not compared, and the verdict shows the line of the
+/// subroutine file, not the program's line of the same number.
+#[test]
+fn an_out_of_scope_refusal_in_a_subroutine_file() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/ngc/lang");
+    let g = goldens(&dir)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .into_iter()
+        .find(|g| g.ngc.ends_with("probe_sub.ngc"))
+        .expect("golden lang/probe_sub");
+    match check_golden(&g).unwrap_or_else(|e| panic!("{e}")) {
+        Verdict::OutOfScope { construct, diag } => {
+            assert_eq!(construct, "probing");
+            assert!(diag.contains("probe_sub_touch.ngc:3:"), "{diag}");
+            assert!(diag.contains("[line 3: G38.2 Z-1]"), "{diag}");
+        }
+        other => panic!("{other:?}"),
+    }
+}
