@@ -301,18 +301,18 @@ fn out_of_scope_g_codes_are_refused_by_name() {
     }
 }
 
-/// An out-of-scope refusal inside a subroutine file (golden `lang/probe_sub`, LinuxCNC's
+/// An out-of-scope refusal inside a subroutine file (golden `scope/probe_sub`, LinuxCNC's
 /// x-trim.ngc calling touchoff.ngc): Kerf's moves before it are rs274's first moves, rs274's
 /// probing and what follows it are not compared, and the verdict shows the line of the
 /// subroutine file, not the program's line of the same number.
 #[test]
 fn an_out_of_scope_refusal_in_a_subroutine_file() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/ngc/lang");
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/ngc/scope");
     let g = goldens(&dir)
         .unwrap_or_else(|e| panic!("{e}"))
         .into_iter()
         .find(|g| g.ngc.ends_with("probe_sub.ngc"))
-        .expect("golden lang/probe_sub");
+        .expect("golden scope/probe_sub");
     match check_golden(&g).unwrap_or_else(|e| panic!("{e}")) {
         Verdict::OutOfScope { construct, diag } => {
             assert_eq!(construct, "probing");
