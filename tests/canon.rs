@@ -35,7 +35,9 @@
 //!   `PROGRAM_STOP` = M0, `OPTIONAL_PROGRAM_STOP` = M1, `PALLET_SHUTTLE` + `PROGRAM_STOP` =
 //!   M60, `PROGRAM_END` = M2 (after `PALLET_SHUTTLE`: M30; the spindle and coolant stops
 //!   LinuxCNC prints as part of the end, after the end's `SET_G5X_OFFSET`, belong to it),
-//!   `MESSAGE` = MSG or DEBUG, a line that is not a canonical call = PRINT.
+//!   `MESSAGE` = MSG or DEBUG, a line that is not a canonical call = PRINT, `LOGOPEN("f")`,
+//!   `LOGAPPEND("f")`, `LOG("t")`, `LOGCLOSE()` = LOG with the text `LOGOPEN,f`,
+//!   `LOGAPPEND,f`, `LOG,t`, `LOGCLOSE`.
 //!   `CHANGE_TOOL_NUMBER` (M61) moves nothing and makes no event.
 //! - `SET_MOTION_CONTROL_MODE(CANON_EXACT_STOP)` (G61.1), `(CANON_EXACT_PATH)` (G61),
 //!   `(CANON_CONTINUOUS, tolerance)` (G64 [P], tolerance in the units active when printed,
@@ -647,6 +649,12 @@ impl State {
                 return Ok(false);
             }
             "MESSAGE" => self.event(line, EventCode::Msg, None, Some(quoted(args))),
+            // The log calls: Kerf's LOG events hold the call as text.
+            "LOGOPEN" | "LOGAPPEND" | "LOG" => {
+                let text = format!("{name},{}", quoted(args));
+                self.event(line, EventCode::Log, None, Some(text));
+            }
+            "LOGCLOSE" => self.event(line, EventCode::Log, None, Some("LOGCLOSE".into())),
             "ORIENT_SPINDLE" => {
                 // `ORIENT_SPINDLE(spindle, angle, mode)` (M19, and G87's orientations).
                 let v = numbers(args, line, 3)?;

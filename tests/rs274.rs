@@ -277,6 +277,18 @@ fn source_line(src: &[u8], line: u32) -> String {
         .to_string()
 }
 
+/// The source line a diagnostic names: in its subroutine file when it has one (read from
+/// disk; the program's own source otherwise).
+fn diag_source_line(src: &[u8], d: &Diagnostic) -> String {
+    match &d.file {
+        Some(f) => match std::fs::read(&**f) {
+            Ok(sub) => source_line(&sub, d.line),
+            Err(_) => String::new(),
+        },
+        None => source_line(src, d.line),
+    }
+}
+
 fn fmt_v(p: &kerf_gcode::Vec3) -> String {
     format!("({:.6}, {:.6}, {:.6})", p.x, p.y, p.z)
 }
@@ -484,15 +496,28 @@ fn event_difference(k: &kerf_gcode::Event, c: &canon::CanonEvent) -> Option<Stri
     None
 }
 
+/// What may follow in the canon after Kerf's last item.
+#[derive(Clone, Copy, PartialEq)]
+enum Rest {
+    /// Nothing: both ran the whole program.
+    Nothing,
+    /// Events only: rs274's reset calls after its own refusal.
+    Events,
+    /// Anything: Kerf refused an out-of-scope block, which rs274 executes (probing,
+    /// splines, lathe cycles, threading) before going on with the rest of the program.
+    /// Kerf executes no block partly, so its items are those of the blocks before.
+    Anything,
+}
+
 /// Compares Kerf's items with the canon's, item by item. `Ok((moves, events))` when every
-/// item of `kerf` matches the first items of `canon` and (unless `prefix`) there are no
-/// more canon items; `Err` names the first difference, both sides.
+/// item of `kerf` matches the first items of `canon` and the canon items after them are
+/// what `rest` allows; `Err` names the first difference, both sides.
 fn compare_items(
     kerf: &[Item],
     canon_items: &[CanonItem],
     src: &[u8],
     canon_text: &str,
-    prefix: bool,
+    rest: Rest,
 ) -> Result<(usize, usize), String> {
     let (mut moves, mut events) = (0, 0);
     for (i, k) in kerf.iter().enumerate() {
@@ -526,7 +551,12 @@ fn compare_items(
         let only_events = canon_items[kerf.len()..]
             .iter()
             .all(|c| matches!(c, CanonItem::Event(_)));
-        if !prefix || !only_events {
+        let allowed = match rest {
+            Rest::Nothing => false,
+            Rest::Events => only_events,
+            Rest::Anything => true,
+        };
+        if !allowed {
             return Err(format!(
                 "item {}: rs274 has more items than Kerf\n  kerf:  (nothing more)\n  rs274: {}",
                 kerf.len() + 1,
@@ -549,20 +579,32 @@ pub fn compare(src: &[u8], kerf: &KerfRun, canon_text: &str, refusal: Option<&Re
         Ok(c) => c,
         Err(e) => return Verdict::Mismatch(format!("the canon output cannot be read: {e}")),
     };
-    let diag_text =
-        |d: &Diagnostic| format!("{d} [line {}: {}]", d.line, source_line(src, d.line).trim());
+    // A diagnostic in a subroutine file names the file.
+    let diag_text = |d: &Diagnostic| {
+        let file = d.file.as_deref().map_or(String::new(), |f| {
+            let name = Path::new(f)
+                .file_name()
+                .map_or_else(|| f.to_string(), |n| n.to_string_lossy().into_owned());
+            format!("{name}:")
+        });
+        format!(
+            "{file}{d} [line {}: {}]",
+            d.line,
+            diag_source_line(src, d).trim()
+        )
+    };
     match (refusal, &kerf.error) {
         (Some(r), Some(d)) => {
             let rs274 = format!("{} [block: {}]", r.message, r.block.trim());
             let text = String::from_utf8_lossy(src);
             let found = text.lines().any(|l| l.trim() == r.block.trim());
-            if found && source_line(src, d.line).trim() != r.block.trim() {
+            if found && diag_source_line(src, d).trim() != r.block.trim() {
                 return Verdict::Rs274Refuses {
                     rs274,
                     kerf: format!("refuses another line: {}", diag_text(d)),
                 };
             }
-            match compare_items(&kerf.items, &canon_items, src, canon_text, true) {
+            match compare_items(&kerf.items, &canon_items, src, canon_text, Rest::Events) {
                 Ok(_) => Verdict::BothRefuse {
                     line: d.line,
                     message: r.message.clone(),
@@ -578,7 +620,7 @@ pub fn compare(src: &[u8], kerf: &KerfRun, canon_text: &str, refusal: Option<&Re
             let Some(construct) = out_of_scope(&d.message) else {
                 return Verdict::KerfRefuses { diag: diag_text(d) };
             };
-            match compare_items(&kerf.items, &canon_items, src, canon_text, true) {
+            match compare_items(&kerf.items, &canon_items, src, canon_text, Rest::Anything) {
                 Ok(_) => Verdict::OutOfScope {
                     construct,
                     diag: diag_text(d),
@@ -586,10 +628,12 @@ pub fn compare(src: &[u8], kerf: &KerfRun, canon_text: &str, refusal: Option<&Re
                 Err(e) => Verdict::Mismatch(format!("before the out-of-scope refusal: {e}")),
             }
         }
-        (None, None) => match compare_items(&kerf.items, &canon_items, src, canon_text, false) {
-            Ok((moves, events)) => Verdict::Same { moves, events },
-            Err(e) => Verdict::Mismatch(e),
-        },
+        (None, None) => {
+            match compare_items(&kerf.items, &canon_items, src, canon_text, Rest::Nothing) {
+                Ok((moves, events)) => Verdict::Same { moves, events },
+                Err(e) => Verdict::Mismatch(e),
+            }
+        }
     }
 }
 

@@ -307,10 +307,35 @@ fn subroutine_files_on_the_search_path() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// LinuxCNC's log calls are LOG events holding the call; the texts are those of rs274's
+/// calls for the same comments (`LOGOPEN("out#1.txt")`, `LOG("v=5.000000")`,
+/// `LOGAPPEND(" b.txt ")`, `LOGCLOSE()`; `(LOGCLOSE,x)` and `(logclose )` are comments).
 #[test]
-fn log_comments_are_refused() {
-    let d = error(L, "(LOGOPEN,out.txt)\n");
-    assert_diag(&d, 1, 1, &["LOGOPEN"]);
+fn log_comments_are_events() {
+    let items = run(
+        L,
+        "#1=5\n(LOGOPEN,out#1.txt)\n(LOG,v=#1)\n( LOGCLOSE)\n(logappend, b.txt )\n(LOGCLOSE,x)\n(logclose )\n(LogClose)\nM2\n",
+    )
+    .unwrap();
+    let logs: Vec<(u32, String)> = items
+        .iter()
+        .filter_map(|i| match i {
+            Item::Event(e) if e.code == EventCode::Log => {
+                Some((e.line, e.text.as_deref().unwrap_or("").to_string()))
+            }
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        logs,
+        vec![
+            (2, "LOGOPEN,out#1.txt".to_string()),
+            (3, "LOG,v=5.000000".to_string()),
+            (4, "LOGCLOSE".to_string()),
+            (5, "LOGAPPEND, b.txt ".to_string()),
+            (8, "LOGCLOSE".to_string()),
+        ]
+    );
 }
 
 /// The end points of the motion calls of an rs274 canon file, in mm, without the

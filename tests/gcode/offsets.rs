@@ -342,3 +342,37 @@ fn offset_errors_in_linuxcncs_words() {
     let r = run_with(D, s(), "G0 X1\nG28 G0 X5\nG0 X9\n");
     assert!(r.is_err());
 }
+
+/// `T1 M6 G43 H1` in one block moves as `T1 M6` then `G43 H1` (golden
+/// `offsets/g43_after_m6`, where rs274 agrees): G43 moves nothing, so the next move without
+/// Z keeps the machine Z. This is LinuxCNC's behaviour (after a tool change it reads its
+/// position back as the machine position less the offsets now in force, the new tool length
+/// included); the standalone rs274 differs for the one-block form only, as its canon stub
+/// reads back the last printed program point (LinuxCNC's skeleton.ngc and mmount.ngc: the
+/// harness reports them as mismatches, see docs/linuxcnc/harness.md).
+#[test]
+fn g43_in_the_tool_change_block_moves_as_in_the_next_block() {
+    let s = Settings {
+        tools: vec![Tool {
+            number: 1,
+            length_mm: 12.9794,
+            ..Tool::default()
+        }],
+        ..Settings::default()
+    };
+    let one = moves_with(
+        D,
+        s.clone(),
+        "G20\nG53 G0 Z0\nT1 M6 G43 H1\nG0 X1 Y1\nG0 Z0.25\n",
+    );
+    let two = moves_with(D, s, "G20\nG53 G0 Z0\nT1 M6\nG43 H1\nG0 X1 Y1\nG0 Z0.25\n");
+    // (G53 G0 Z0 from the origin moves nothing.)
+    assert_eq!(one.len(), 2);
+    assert_eq!(one.len(), two.len());
+    for (a, b) in one.iter().zip(&two) {
+        assert_eq!(a.path.end(), b.path.end());
+    }
+    // The XY move keeps the machine Z; Z0.25 then lands the tool tip 0.25" above zero.
+    assert_rapid(&one[0], v(0.0, 0.0, 0.0), v(25.4, 25.4, 0.0));
+    assert_rapid(&one[1], v(25.4, 25.4, 0.0), v(25.4, 25.4, 6.35 + 12.9794));
+}

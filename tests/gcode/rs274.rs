@@ -249,3 +249,76 @@ fn tool_table_and_parameter_file() {
     assert_eq!(ends.last().map(|e| e.0), Some([1.0, 0.0, 0.0]));
     assert_eq!(ends.last().and_then(|e| e.1), Some(90.0));
 }
+
+/// Every G code LinuxCNC 2.9 knows (rs274 does not answer "Unknown g code used" for any of
+/// these) that lies outside issue 9's scope is refused on its own line with "not
+/// supported" (no "yet") naming the code, and the harness classifies the refusal as the
+/// construct the issue lists; nothing of the block or after it is emitted.
+#[test]
+fn out_of_scope_g_codes_are_refused_by_name() {
+    use kerf_gcode::{Dialect, Settings};
+    use kerf_tests::rs274::out_of_scope;
+    let cases: &[(&str, &str)] = &[
+        ("G5", "splines"),
+        ("G5.1", "splines"),
+        ("G5.2", "splines"),
+        ("G5.3", "splines"),
+        ("G7", "lathe codes"),
+        ("G8", "lathe codes"),
+        ("G17.1", "U/V/W axes"),
+        ("G18.1", "U/V/W axes"),
+        ("G19.1", "U/V/W axes"),
+        ("G33", "spindle-synchronised motion"),
+        ("G33.1", "spindle-synchronised motion"),
+        ("G38.2", "probing"),
+        ("G38.3", "probing"),
+        ("G38.4", "probing"),
+        ("G38.5", "probing"),
+        ("G70", "lathe codes"),
+        ("G71", "lathe codes"),
+        ("G71.1", "lathe codes"),
+        ("G71.2", "lathe codes"),
+        ("G72", "lathe codes"),
+        ("G72.1", "lathe codes"),
+        ("G72.2", "lathe codes"),
+        ("G74", "spindle-synchronised motion"),
+        ("G76", "spindle-synchronised motion"),
+        ("G84", "spindle-synchronised motion"),
+        ("G96", "lathe codes"),
+    ];
+    for &(code, construct) in cases {
+        let src = format!("G21 G90\nG0 X1 Y1 Z1\n{code} X2 Z0.5 S100\nG0 X5\nM2\n");
+        let items = kerf_tests::run_bytes(Dialect::LinuxCnc, Settings::default(), src.as_bytes());
+        let d = items.error.unwrap_or_else(|| panic!("{code} accepted"));
+        assert_eq!(d.line, 3, "{code}: {d}");
+        assert!(
+            d.message.starts_with(&format!("{code} is not supported")),
+            "{code}: {d}"
+        );
+        assert_eq!(out_of_scope(&d.message), Some(construct), "{code}: {d}");
+        // Only the rapid of line 2 before the refusal.
+        assert_eq!(items.items.len(), 1, "{code}: {:?}", items.items);
+    }
+}
+
+/// An out-of-scope refusal inside a subroutine file (golden `scope/probe_sub`, LinuxCNC's
+/// x-trim.ngc calling touchoff.ngc): Kerf's moves before it are rs274's first moves, rs274's
+/// probing and what follows it are not compared, and the verdict shows the line of the
+/// subroutine file, not the program's line of the same number.
+#[test]
+fn an_out_of_scope_refusal_in_a_subroutine_file() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/ngc/scope");
+    let g = goldens(&dir)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .into_iter()
+        .find(|g| g.ngc.ends_with("probe_sub.ngc"))
+        .expect("golden scope/probe_sub");
+    match check_golden(&g).unwrap_or_else(|e| panic!("{e}")) {
+        Verdict::OutOfScope { construct, diag } => {
+            assert_eq!(construct, "probing");
+            assert!(diag.contains("probe_sub_touch.ngc:3:"), "{diag}");
+            assert!(diag.contains("[line 3: G38.2 Z-1]"), "{diag}");
+        }
+        other => panic!("{other:?}"),
+    }
+}

@@ -253,9 +253,28 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
             970 => NoOp,
             980 => Retract { r_plane: false },
             990 => Retract { r_plane: true },
-            50 | 51 | 52 | 70 | 80 | 382..=385 | 960 => {
-                Unsupported("this G code is not supported yet")
-            }
+            // Out of scope (issue 9): each refusal names its code and the construct.
+            50 => Unsupported("G5 is not supported: splines"),
+            51 => Unsupported("G5.1 is not supported: splines"),
+            52 => Unsupported("G5.2 is not supported: splines (NURBS)"),
+            53 => Unsupported("G5.3 is not supported: splines (NURBS)"),
+            70 => Unsupported("G7 is not supported: diameter mode is a lathe code"),
+            80 => Unsupported("G8 is not supported: radius mode is a lathe code"),
+            171 => Unsupported("G17.1 is not supported: U/V/W planes (U/V/W axes)"),
+            181 => Unsupported("G18.1 is not supported: U/V/W planes (U/V/W axes)"),
+            191 => Unsupported("G19.1 is not supported: U/V/W planes (U/V/W axes)"),
+            382 => Unsupported("G38.2 is not supported: probing"),
+            383 => Unsupported("G38.3 is not supported: probing"),
+            384 => Unsupported("G38.4 is not supported: probing"),
+            385 => Unsupported("G38.5 is not supported: probing"),
+            700 => Unsupported("G70 is not supported: lathe finishing cycle"),
+            710 => Unsupported("G71 is not supported: lathe roughing cycle"),
+            711 => Unsupported("G71.1 is not supported: lathe roughing cycle"),
+            712 => Unsupported("G71.2 is not supported: lathe roughing cycle"),
+            720 => Unsupported("G72 is not supported: lathe roughing cycle"),
+            721 => Unsupported("G72.1 is not supported: lathe roughing cycle"),
+            722 => Unsupported("G72.2 is not supported: lathe roughing cycle"),
+            960 => Unsupported("G96 is not supported: constant surface speed is a lathe code"),
             _ => return None,
         },
         Dialect::Rockwell => match code10 {

@@ -418,9 +418,6 @@ impl State {
                 message: format!("unknown G code {}", g_name(code)),
             })?;
             if let G::Unsupported(msg) = g {
-                if msg == "this G code is not supported yet" {
-                    return fail(col, format!("{} is not supported yet", g_name(code)));
-                }
                 return fail(col, msg);
             }
             if g == G::NoOp {
@@ -620,6 +617,10 @@ impl State {
                             "Cannot change tools with cutter radius compensation on",
                         )?;
                         self.load_tool(self.tool_selected, true);
+                        // After a tool change LinuxCNC reads its current point back from
+                        // where the tool is: after G40, the last compensated end, not the
+                        // programmed point (LinuxCNC's useful-subroutines.ngc).
+                        self.crc.exit_ref = None;
                         // LinuxCNC stops the spindle for the change (rs274:
                         // STOP_SPINDLE_TURNING before CHANGE_TOOL).
                         self.spindle = Spindle::Off;

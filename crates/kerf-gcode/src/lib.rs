@@ -303,8 +303,11 @@
 //!   written; `(DEBUG,text)` and `(PRINT,text)` are [`EventCode::Debug`] and
 //!   [`EventCode::Print`] events with each `#n`, `##n`, `#<name>` replaced by its value with
 //!   six decimals (`######` when it cannot be read), as rs274 prints them. The keyword may
-//!   follow spaces and is case-insensitive. `LOGOPEN`, `LOGAPPEND`, `LOG`, `LOGCLOSE` are
-//!   refused (Kerf writes no files).
+//!   follow spaces and is case-insensitive. `(LOGOPEN,file)`, `(LOGAPPEND,file)`,
+//!   `(LOG,text)` and `(LOGCLOSE)` are [`EventCode::Log`] events whose text is the call:
+//!   `LOGOPEN,file` and `LOGAPPEND,file` with the name as written, `LOG,text` substituted
+//!   as DEBUG is, `LOGCLOSE` (only the exact comment `(LOGCLOSE)`, as rs274 reads it).
+//!   Kerf opens and writes no file: it hands the calls on as events.
 //! - O-words, numbered (`o100`) or named (`o<name>`): `sub`/`endsub [v]`/`return [v]`,
 //!   `call [a1] [a2] …` (arguments in #1…#30, 0 in the rest as rs274 does, all restored after the call; named
 //!   locals are fresh per call; `#<_value>` and `#<_value_returned>` after it), `if`/
@@ -632,6 +635,10 @@ pub enum EventCode {
     Debug,
     /// A print message (`(PRINT, text)`, parameters substituted): `text` holds it.
     Print,
+    /// A LinuxCNC log call: `text` holds `LOGOPEN,FILE` or `LOGAPPEND,FILE` (the file name
+    /// as written), `LOG,TEXT` (parameters substituted as in DEBUG) or `LOGCLOSE`. Kerf
+    /// opens and writes no file; the control receiving the events may.
+    Log,
 }
 
 impl EventCode {
@@ -661,6 +668,7 @@ impl EventCode {
             EventCode::Msg => "MSG",
             EventCode::Debug => "DEBUG",
             EventCode::Print => "PRINT",
+            EventCode::Log => "LOG",
         }
     }
 }
@@ -963,6 +971,7 @@ impl<R: std::io::BufRead> Interpreter<R> {
             .ngc
             .line(&self.line, self.line_no, &mut self.state, &mut self.words)
             .map_err(|e| self.diag(e.col, e.message))?;
+        self.ngc.take_restored(&mut self.pending);
         match action {
             ngc::Action::Nothing => return Ok(true),
             ngc::Action::Plain => return Ok(false),

@@ -114,6 +114,7 @@ fn constants() -> BTreeMap<&'static str, u32> {
         EVENT_DEBUG,
         EVENT_PRINT,
         EVENT_M19,
+        EVENT_LOG,
         EVENT_USER_M100,
         EVENT_USER_M199,
         STATE_IDLE,

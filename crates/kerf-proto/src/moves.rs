@@ -75,6 +75,9 @@ pub const EVENT_PRINT: u32 = 18;
 /// Spindle orientation (LinuxCNC ORIENT_SPINDLE of G87 back boring); value: the angle,
 /// degrees.
 pub const EVENT_M19: u32 = 19;
+/// LinuxCNC log call (`LOGOPEN`, `LOGAPPEND`, `LOG`, `LOGCLOSE`); the text (the call) stays
+/// with the planner process.
+pub const EVENT_LOG: u32 = 20;
 /// User M code M100 (LinuxCNC); M100 + n is `EVENT_USER_M100 + n`; value: its P word.
 pub const EVENT_USER_M100: u32 = 100;
 /// User M code M199, the last one.
@@ -330,6 +333,7 @@ pub fn event_code_to_u32(code: EventCode) -> u32 {
         EventCode::Msg => EVENT_MSG,
         EventCode::Debug => EVENT_DEBUG,
         EventCode::Print => EVENT_PRINT,
+        EventCode::Log => EVENT_LOG,
         EventCode::User(n) => EVENT_USER_M100 + u32::from(n.min(99)),
     }
 }
@@ -356,6 +360,7 @@ pub fn event_code_from_u32(code: u32) -> Option<EventCode> {
         EVENT_MSG => EventCode::Msg,
         EVENT_DEBUG => EventCode::Debug,
         EVENT_PRINT => EventCode::Print,
+        EVENT_LOG => EventCode::Log,
         c @ EVENT_USER_M100..=EVENT_USER_M199 => EventCode::User((c - EVENT_USER_M100) as u8),
         _ => return None,
     })

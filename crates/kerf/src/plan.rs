@@ -16,7 +16,9 @@
 //! - A move on a machine with rotary axes in use adds `"abc_start":[a,b,c],"abc_end":[a,b,c]`
 //!   (degrees) after `feed_mm_min`.
 //! - Events: `code` is one of `M0 M1 M2 M30 M60 M3 M4 M5 M6 M7 M8 M9 S T G4`, a user M
-//!   code `M100`…`M199`, or `MSG`, `DEBUG`, `PRINT`; `value` is the spindle speed in rpm
+//!   code `M100`…`M199`, or `MSG`, `DEBUG`, `PRINT`, `LOG` (LinuxCNC's log calls, the call
+//!   in `text`: `LOGOPEN,file`, `LOGAPPEND,file`, `LOG,text`, `LOGCLOSE`; Kerf writes no
+//!   file); `value` is the spindle speed in rpm
 //!   for `S`, the tool number for `T`, the dwell in seconds for `G4`, the P word (or
 //!   `null`) for a user M code, and `null` otherwise. M0, M1 (optional stop) and M60
 //!   (pallet change) are program pauses. A user M code with a Q word adds `"q":Q`; a
@@ -515,6 +517,12 @@ mod tests {
         assert_eq!(
             text(&Item::Event(msg)),
             "{\"type\":\"event\",\"line\":6,\"code\":\"MSG\",\"value\":null,\"text\":\"say \\\"hi\\\" \\\\ tab\\t\\u0001é\"}\n"
+        );
+        let mut log = Event::new(8, EventCode::Log, None);
+        log.text = Some("LOG,X1.000000".into());
+        assert_eq!(
+            text(&Item::Event(log)),
+            "{\"type\":\"event\",\"line\":8,\"code\":\"LOG\",\"value\":null,\"text\":\"LOG,X1.000000\"}\n"
         );
         let m60 = Event::new(7, EventCode::M60, None);
         assert_eq!(

@@ -233,14 +233,15 @@ impl Scan {
 /// control waits for the motion to finish before it acts on it (as LinuxCNC does); a tool
 /// selection (T) does not stop the motion. A pallet-change pause (M60) is a program stop,
 /// and a user M code (M100–M199) runs its program after the motion before it, as LinuxCNC
-/// does; messages (MSG, DEBUG, PRINT) are shown and do not stop the motion. The
+/// does; messages (MSG, DEBUG, PRINT) are shown and LinuxCNC's log calls (LOG) passed on,
+/// and neither stops the motion. The
 /// simulation does not wait at a program stop (it stands for an operator who presses
 /// cycle start at once) and runs M1 like M0.
 pub fn input_of_event(e: &kerf_gcode::Event) -> Option<Input> {
     use kerf_gcode::EventCode as C;
     match e.code {
         C::G4 => Some(Input::Dwell(e.value.unwrap_or(0.0))),
-        C::T | C::Msg | C::Debug | C::Print => None,
+        C::T | C::Msg | C::Debug | C::Print | C::Log => None,
         C::M60 | C::User(_) => Some(Input::Stop),
         C::M0
         | C::M1
@@ -926,6 +927,22 @@ pub fn write_row<W: Write>(w: &mut W, t: f64, sp: &Setpoint, rotary: bool) -> io
 mod tests {
     use super::*;
     use kerf_geom::{Arc, CornerMode, Line, Path, Vec3};
+
+    #[test]
+    fn messages_and_log_calls_do_not_stop_the_motion() {
+        for code in [
+            kerf_gcode::EventCode::Msg,
+            kerf_gcode::EventCode::Debug,
+            kerf_gcode::EventCode::Print,
+            kerf_gcode::EventCode::Log,
+        ] {
+            let mut e = kerf_gcode::Event::new(3, code, None);
+            e.text = Some("LOGOPEN,results.txt".into());
+            assert_eq!(input_of_event(&e), None, "{code:?}");
+        }
+        let m0 = kerf_gcode::Event::new(4, kerf_gcode::EventCode::M0, None);
+        assert_eq!(input_of_event(&m0), Some(Input::Stop));
+    }
 
     fn program() -> Vec<Move> {
         let a = Vec3::zeros();

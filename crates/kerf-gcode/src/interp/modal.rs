@@ -309,7 +309,6 @@ impl State {
 
     /// A subroutine call begins: a new call level, with nothing saved (for the
     /// subroutines of the language helper: call it at `o<..> call`).
-    #[allow(dead_code)]
     pub(crate) fn modal_enter_call(&mut self) {
         self.modal_frame();
         self.modal_frames.push(ModalFrame::default());
@@ -318,7 +317,6 @@ impl State {
     /// A subroutine call ends (`endsub` or `return`): when M73 ran in it and M71 did not
     /// invalidate it, the caller's state saved by M73 is restored, with its spindle and
     /// coolant events in `items`; the call level goes away. Call it at `endsub`/`return`.
-    #[allow(dead_code)]
     pub(crate) fn modal_leave_call(&mut self, items: &mut Vec<Item>, line: u32) {
         if self.modal_frames.len() < 2 {
             return;

@@ -177,6 +177,8 @@ enum MsgKind {
     Msg,
     Debug,
     Print,
+    /// `LOGOPEN`, `LOGAPPEND`, `LOG` (substituted) or `LOGCLOSE`: the event text's prefix.
+    Log(&'static str),
 }
 
 /// What the caller does with a line after [`Ngc::line`].
@@ -215,6 +217,9 @@ pub(crate) struct Ngc {
     /// Subs found later in the program's file by a call before their definition:
     /// reaching their definition afterwards is LinuxCNC's "found in illegal location".
     forward: std::collections::HashSet<Arc<str>>,
+    /// The events of the modal state M73 restores at an `endsub`/`return` (taken by
+    /// `take_restored` after the line).
+    restored: Vec<Item>,
 }
 
 impl Ngc {
@@ -241,7 +246,14 @@ impl Ngc {
             max_loop_iterations,
             program_file,
             forward: std::collections::HashSet::new(),
+            restored: Vec::new(),
         }
+    }
+
+    /// Moves the events of an M73 restore made by the last line (at its `endsub` or
+    /// `return`) to `items`.
+    pub(crate) fn take_restored(&mut self, items: &mut Vec<Item>) {
+        items.append(&mut self.restored);
     }
 
     /// True while lines must come here whatever they hold: a structure is being collected.
@@ -777,15 +789,14 @@ impl Ngc {
                         messages.push((MsgKind::Debug, text(6)));
                     } else if starts(b"print,") {
                         messages.push((MsgKind::Print, text(6)));
-                    } else if starts(b"logopen,")
-                        || starts(b"logappend,")
-                        || starts(b"logclose")
-                        || starts(b"log,")
-                    {
-                        return fail(
-                            col,
-                            "LOGOPEN, LOGAPPEND, LOG and LOGCLOSE are not supported (Kerf writes no files)",
-                        );
+                    } else if starts(b"logopen,") {
+                        messages.push((MsgKind::Log("LOGOPEN"), text(8)));
+                    } else if starts(b"logappend,") {
+                        messages.push((MsgKind::Log("LOGAPPEND"), text(10)));
+                    } else if starts(b"log,") {
+                        messages.push((MsgKind::Log("LOG"), text(4)));
+                    } else if body.eq_ignore_ascii_case(b"logclose") {
+                        messages.push((MsgKind::Log("LOGCLOSE"), String::new()));
                     }
                 }
                 b'#' => {
@@ -896,6 +907,13 @@ impl Ngc {
                 MsgKind::Msg => (EventCode::Msg, text),
                 MsgKind::Debug => (EventCode::Debug, self.substitute(state, &text, line_no)),
                 MsgKind::Print => (EventCode::Print, self.substitute(state, &text, line_no)),
+                // Kerf writes no file: the log calls are events for the control to act on.
+                MsgKind::Log("LOGCLOSE") => (EventCode::Log, "LOGCLOSE".to_string()),
+                MsgKind::Log("LOG") => (
+                    EventCode::Log,
+                    format!("LOG,{}", self.substitute(state, &text, line_no)),
+                ),
+                MsgKind::Log(call) => (EventCode::Log, format!("{call},{text}")),
             };
             let mut e = Event::new(line_no, code, None);
             e.text = Some(Arc::from(text));
@@ -1101,6 +1119,8 @@ impl Ngc {
                             for (k, v) in c.saved.iter().enumerate() {
                                 state.params.set(k + 1, *v);
                             }
+                            // M73 in the sub: the caller's modal state comes back.
+                            state.modal_leave_call(&mut self.restored, line_no);
                         }
                         Ok(())
                     }
@@ -1446,6 +1466,7 @@ impl Ngc {
             }),
             loops: Vec::new(),
         });
+        state.modal_enter_call();
         Ok(())
     }
 
