@@ -180,8 +180,12 @@ fn tool_offsets_apply_every_axis_of_the_entry() {
         s.clone(),
         "G0 Z30\nT1 M6 G43\nG10 L10 P1 Z1.5\nG43\nG0 Z1.5\nG0 Z0\n",
     );
-    assert_eq!(ms.len(), 2, "Z1.5 is where the tool is: no motion");
-    assert_rapid(&ms[1], v(0.0, 0.0, 30.0), v(0.0, 0.0, 28.5));
+    // rs274 reads the point back after `T1 M6 G43` as program Z 30 (the new offset not
+    // counted), so L10 makes the offset 38.5 and Z1.5 is machine 40: it prints
+    // STRAIGHT_TRAVERSE(0, 0, 1.5) and (0, 0, 0), machine 40 and 38.5.
+    assert_eq!(ms.len(), 3);
+    assert_rapid(&ms[1], v(0.0, 0.0, 30.0), v(0.0, 0.0, 40.0));
+    assert_rapid(&ms[2], v(0.0, 0.0, 40.0), v(0.0, 0.0, 38.5));
     // G10 L11 measures against G59.3 without G92 (rs274: with G59.3 Z0 and the tool at
     // machine Z 9, L11 P1 Z2 sets Z 7); G10 L1 sets the value itself.
     let ms = moves_with(
@@ -351,7 +355,7 @@ fn offset_errors_in_linuxcncs_words() {
 /// reads back the last printed program point (LinuxCNC's skeleton.ngc and mmount.ngc: the
 /// harness reports them as mismatches, see docs/linuxcnc/harness.md).
 #[test]
-fn g43_in_the_tool_change_block_moves_as_in_the_next_block() {
+fn after_m6_the_point_is_read_back_as_rs274_reads_it() {
     let s = Settings {
         tools: vec![Tool {
             number: 1,
@@ -360,6 +364,11 @@ fn g43_in_the_tool_change_block_moves_as_in_the_next_block() {
         }],
         ..Settings::default()
     };
+    // rs274 (tool 1 = 0.511 in): `T1 M6 G43 H1` then `G0 X1 Y1` prints
+    // STRAIGHT_TRAVERSE(1, 1, 0): after the tool change it reads its point back from the
+    // last point it printed, program Z 0, in which the new offset is not counted, so the
+    // machine rises by the tool length. With G43 in the next block the point is read back
+    // first, and G43 then changes the program Z (-0.511): the machine Z stays.
     let one = moves_with(
         D,
         s.clone(),
@@ -368,11 +377,14 @@ fn g43_in_the_tool_change_block_moves_as_in_the_next_block() {
     let two = moves_with(D, s, "G20\nG53 G0 Z0\nT1 M6\nG43 H1\nG0 X1 Y1\nG0 Z0.25\n");
     // (G53 G0 Z0 from the origin moves nothing.)
     assert_eq!(one.len(), 2);
-    assert_eq!(one.len(), two.len());
-    for (a, b) in one.iter().zip(&two) {
-        assert_eq!(a.path.end(), b.path.end());
-    }
-    // The XY move keeps the machine Z; Z0.25 then lands the tool tip 0.25" above zero.
-    assert_rapid(&one[0], v(0.0, 0.0, 0.0), v(25.4, 25.4, 0.0));
-    assert_rapid(&one[1], v(25.4, 25.4, 0.0), v(25.4, 25.4, 6.35 + 12.9794));
+    assert_eq!(two.len(), 2);
+    assert_rapid(&one[0], v(0.0, 0.0, 0.0), v(25.4, 25.4, 12.9794));
+    assert_rapid(&two[0], v(0.0, 0.0, 0.0), v(25.4, 25.4, 0.0));
+    // Z0.25 lands the tool tip 0.25" above zero either way.
+    assert_rapid(
+        &one[1],
+        v(25.4, 25.4, 12.9794),
+        v(25.4, 25.4, 6.35 + 12.9794),
+    );
+    assert_rapid(&two[1], v(25.4, 25.4, 0.0), v(25.4, 25.4, 6.35 + 12.9794));
 }

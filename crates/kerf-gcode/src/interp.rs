@@ -144,6 +144,16 @@ pub(crate) struct State {
     /// The tool offsets in effect (G43 family): X, Y, Z mm, A, B, C degrees (LinuxCNC
     /// applies every axis of the entry; the other controls Z only).
     tool_offset: [f64; 6],
+    /// LinuxCNC: the tool offsets in effect when the last move was made. rs274 reads its
+    /// position back after a tool change from the last point it printed, which follows the
+    /// moves and the work offsets but not the tool offsets changed since.
+    tool_offset_at_move: [f64; 6],
+    /// LinuxCNC: an M6 ran in the block being executed.
+    m6_in_block: bool,
+    /// LinuxCNC: after a tool change whose read-back moved the current point (see
+    /// `tool_offset_at_move`), where the machine really is (XYZ, ABC): the next move
+    /// starts there.
+    readback_from: Option<(Vec3, [f64; 3])>,
     /// The active coordinate system (0 = G54), `None` for none (Sinumerik G500).
     coord_system: Option<usize>,
     /// Program zero in frame coordinates (work offset + G52/G92 + tool offset), cached
@@ -244,6 +254,9 @@ impl State {
             tool_length_on: false,
             tool_loaded: None,
             tool_offset: [0.0; 6],
+            tool_offset_at_move: [0.0; 6],
+            m6_in_block: false,
+            readback_from: None,
             coord_system,
             origin: Vec3::zeros(),
             origin_abc: [0.0; 3],
@@ -378,7 +391,67 @@ impl State {
     }
 
     /// Resolves one block into `out`. On error, the caller discards what this block pushed.
+    ///
+    /// LinuxCNC: after a block with M6, the current point is read back as rs274 reads it:
+    /// the program point of the last move, in which tool offset changes made since that
+    /// move (`T1 M6 G43 H1`, or a G43 before the M6) are not yet counted. So the axes the
+    /// next move does not name go to that program point with the new offsets, as rs274
+    /// prints it (the machine moves by the offset change), and the move starts where the
+    /// machine is. (A real LinuxCNC reads back the machine position instead; the issue
+    /// makes rs274 the reference.) An arc cannot start at two points: an arc as that next
+    /// move, with the point changed, is an error.
     pub(crate) fn exec(
+        &mut self,
+        blk: &Block,
+        percent: bool,
+        out: &mut Out<'_>,
+    ) -> Result<(), ExecError> {
+        let start = out.items.len();
+        self.m6_in_block = false;
+        let readback = self.readback_from;
+        self.exec_block(blk, percent, out)?;
+        let mut moved = false;
+        if let Some(i) = (start..out.items.len()).find(|&i| matches!(out.items[i], Item::Move(_))) {
+            moved = true;
+            if let (Some((pos, abc)), Item::Move(m)) = (readback, &mut out.items[i]) {
+                match &mut m.path {
+                    kerf_geom::Path::Line(l) => l.start = pos,
+                    kerf_geom::Path::Arc(a) if (a.start - pos).norm() <= 1e-9 => {}
+                    kerf_geom::Path::Arc(_) => {
+                        return fail(
+                            blk.first_col,
+                            "an arc right after a tool change that changed the tool offset is not supported (LinuxCNC reads the position back there; program a straight move first)",
+                        );
+                    }
+                }
+                if let Some((s, _)) = &mut m.abc_deg {
+                    *s = abc;
+                }
+            }
+        }
+        if moved {
+            self.readback_from = None;
+            self.tool_offset_at_move = self.tool_offset;
+        }
+        if self.m6_in_block && !moved {
+            let delta: [f64; 6] =
+                std::array::from_fn(|i| self.tool_offset[i] - self.tool_offset_at_move[i]);
+            if delta.iter().any(|&d| d != 0.0) {
+                if self.readback_from.is_none() {
+                    self.readback_from = Some((self.pos, self.abc));
+                }
+                for i in 0..3 {
+                    self.pos[i] += delta[i];
+                    self.abc[i] += delta[i + 3];
+                }
+                // Seen from the machine, the offsets are now in effect from this point.
+                self.tool_offset_at_move = self.tool_offset;
+            }
+        }
+        Ok(())
+    }
+
+    fn exec_block(
         &mut self,
         blk: &Block,
         percent: bool,
@@ -617,6 +690,7 @@ impl State {
                             "Cannot change tools with cutter radius compensation on",
                         )?;
                         self.load_tool(self.tool_selected, true);
+                        self.m6_in_block = true;
                         // After a tool change LinuxCNC reads its current point back from
                         // where the tool is: after G40, the last compensated end, not the
                         // programmed point (LinuxCNC's useful-subroutines.ngc).

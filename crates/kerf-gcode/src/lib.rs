@@ -209,6 +209,12 @@
 //!   moves nothing by itself. G10 L1 P sets an entry (axis words, R radius, I J Q lathe
 //!   data), L10 from the current point with the offsets in effect, L11 as if in G59.3
 //!   without G52/G92; they do not re-apply it (G43 does).
+//! - After a block with M6 the current point is read back as rs274 reads it: the program
+//!   point of the last move, in which tool offsets changed since that move are not
+//!   counted. `T1 M6 G43 H1` then `G0 X1` moves Z by the tool length (rs274 prints the old
+//!   program Z); G43 in a later block does not. The next move starts where the machine
+//!   is; an arc as that move, when the point changed, is an error. (A real LinuxCNC reads
+//!   back the machine position; rs274 is the reference of this dialect.)
 //! - Arcs: centre format with I J K (a word for the axis normal to the plane is the error
 //!   "K word given for arc in XY plane" and its G18/G19 twins) or radius format R (R < 0 =
 //!   more than 180°); both is "mixed radius and centre format"; neither is "R, I, J, and K

@@ -357,8 +357,13 @@ impl State {
 
         let path = match motion {
             Motion::Rapid | Motion::Linear | Motion::PolarLine { .. } => {
-                let start = self.crc.exit_actual.unwrap_or(start);
-                if (end - start).norm() < arc::SAME_POINT_MM && abc_end == self.abc {
+                // After a tool change's read-back the move starts where the machine is.
+                let (start, abc_start) = match (self.crc.exit_actual, self.readback_from) {
+                    (Some(p), _) => (p, self.abc),
+                    (None, Some((p, abc))) => (p, abc),
+                    (None, None) => (start, self.abc),
+                };
+                if (end - start).norm() < arc::SAME_POINT_MM && abc_end == abc_start {
                     // A zero-length line moves nothing; it is not emitted. (A polar end point
                     // a whole turn round can differ from the start by a rounding error.)
                     self.polar_last = new_polar;
