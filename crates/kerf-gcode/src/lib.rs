@@ -919,6 +919,10 @@ impl<R: std::io::BufRead> Interpreter<R> {
             if flags.percent && matches!(dialect, Dialect::LinuxCnc | Dialect::Rockwell) {
                 // A `%` line opens the program; the next one ends it and the rest of the
                 // file is ignored, as on the control.
+                if dialect == Dialect::LinuxCnc && !self.percent_seen && self.blocks_seen {
+                    // rs274: a `%` closes only a program that a `%` opened.
+                    return Err(self.diag(1, "Bad character '%' used"));
+                }
                 if self.percent_seen || self.blocks_seen {
                     self.finished = true;
                     // LinuxCNC does not run a move held back by cutter compensation
@@ -1033,6 +1037,18 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
                     self.finished = true;
                     if let Some((line, m)) = self.ngc.unfinished() {
                         self.line_no = line;
+                        return Some(Err(self.diag(1, m)));
+                    }
+                    if self.state.dialect() == Dialect::LinuxCnc {
+                        // rs274 refuses a program that ends without M2/M30 or its closing
+                        // `%`, at the last line of the file; the moves before it have run,
+                        // a move held back by cutter compensation has not.
+                        self.line_no = self.reader_line.max(1);
+                        let m = if self.percent_seen {
+                            "File ended with no percent sign"
+                        } else {
+                            "File ended with no percent sign or program end"
+                        };
                         return Some(Err(self.diag(1, m)));
                     }
                     // Moves held back by cutter compensation run at the end of the file.
