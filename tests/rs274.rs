@@ -540,7 +540,7 @@ fn compare_items(
 /// Compares one program: its source, Kerf's run of it, rs274's canon output and, when
 /// rs274 refused it, the refusal.
 pub fn compare(src: &[u8], kerf: &KerfRun, canon_text: &str, refusal: Option<&Refusal>) -> Verdict {
-    let kept = without_g88_retracts(&kerf.items);
+    let kept = overrides_as_rs274_prints_them(&without_g88_retracts(&kerf.items));
     let kerf = &KerfRun {
         items: kept,
         error: kerf.error.clone(),
@@ -591,6 +591,24 @@ pub fn compare(src: &[u8], kerf: &KerfRun, canon_text: &str, refusal: Option<&Re
             Err(e) => Verdict::Mismatch(e),
         },
     }
+}
+
+/// Kerf's items with M48 (M49) as rs274 prints it: the feed override enabled (disabled),
+/// then the spindle override, the events M50 and M51 would give.
+fn overrides_as_rs274_prints_them(items: &[Item]) -> Vec<Item> {
+    let mut out = Vec::with_capacity(items.len());
+    for item in items {
+        match item {
+            Item::Event(e) if matches!(e.code, EventCode::M48 | EventCode::M49) => {
+                let on = if e.code == EventCode::M48 { 1.0 } else { 0.0 };
+                for code in [EventCode::M50, EventCode::M51] {
+                    out.push(Item::Event(kerf_gcode::Event::new(e.line, code, Some(on))));
+                }
+            }
+            _ => out.push(item.clone()),
+        }
+    }
+    out
 }
 
 /// Kerf's items without the one documented difference of the canned cycles: after G88's

@@ -253,6 +253,9 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
             970 => NoOp,
             980 => Retract { r_plane: false },
             990 => Retract { r_plane: true },
+            171 => Unsupported("G17.1 is not supported: U, V and W axes are not supported"),
+            181 => Unsupported("G18.1 is not supported: U, V and W axes are not supported"),
+            191 => Unsupported("G19.1 is not supported: U, V and W axes are not supported"),
             50 | 51 | 52 | 70 | 80 | 382..=385 | 960 => {
                 Unsupported("this G code is not supported yet")
             }

@@ -184,6 +184,8 @@ pub(crate) struct State {
     retract_r: bool,
     /// LinuxCNC cutter radius compensation (side, radius, programmed point, held moves).
     crc: comp::Crc,
+    /// LinuxCNC: the block being run holds M19, whose R word is its angle.
+    m19_in_block: bool,
 }
 
 /// Output of a block, in execution order.
@@ -262,6 +264,7 @@ impl State {
             cycles: cycles::CycleState::new(),
             retract_r: true,
             crc: comp::Crc::new(),
+            m19_in_block: false,
         };
         s.init_params();
         s.update_origin();
@@ -428,6 +431,19 @@ impl State {
             }
             let grp = group(g);
             let heidenhain_distance = d == Dialect::Heidenhain && grp == GROUP_DISTANCE;
+            // rs274 takes G80 beside a motion code of group 1 (`G80 G0 X5`): the motion.
+            let g80_with_motion = d == Dialect::LinuxCnc
+                && grp == 1
+                && matches!(
+                    (slots[1], g),
+                    (Some((G::NoMotion, _)), G::Motion(_)) | (Some((G::Motion(_), _)), G::NoMotion)
+                );
+            if g80_with_motion {
+                if g != G::NoMotion {
+                    slots[1] = Some((g, col));
+                }
+                continue;
+            }
             if slots[grp].is_some() && !heidenhain_distance {
                 return fail(col, "two G codes used from same modal group");
             }
@@ -466,6 +482,9 @@ impl State {
                 m61 = Some(col);
                 continue;
             }
+            if let Some(msg) = self.linuxcnc_m_refusal(code) {
+                return fail(col, msg);
+            }
             let ev = match (m_event(code), self.linuxcnc_m(code)) {
                 (Some(ev), _) | (None, Some(Ok(ev))) => ev,
                 (None, Some(Err(op))) => {
@@ -493,7 +512,14 @@ impl State {
                     1
                 }
                 EventCode::M6 => 2,
-                EventCode::M3 | EventCode::M4 | EventCode::M5 => 4,
+                EventCode::M3 | EventCode::M4 | EventCode::M5 | EventCode::M19 => 4,
+                // LinuxCNC modal group 9: the override controls.
+                EventCode::M48
+                | EventCode::M49
+                | EventCode::M50
+                | EventCode::M51
+                | EventCode::M52
+                | EventCode::M53 => 32,
                 // LinuxCNC (rs274) refuses M7 and M8 in one block: one coolant group.
                 EventCode::M7 | EventCode::M8 if d == Dialect::LinuxCnc => 8 | 16,
                 EventCode::M7 => 8,
@@ -518,6 +544,20 @@ impl State {
                 m_pre[i] = Some(ev);
             }
         }
+
+        let orient = m_pre.contains(&Some(EventCode::M19));
+        if orient {
+            State::check_m19(blk)?;
+        }
+        let override_p = [
+            EventCode::M50,
+            EventCode::M51,
+            EventCode::M52,
+            EventCode::M53,
+        ]
+        .iter()
+        .any(|&ev| m_pre.contains(&Some(ev)));
+        self.m19_in_block = orient;
 
         // LinuxCNC sets the modes after F, S, T, the M codes and the dwell (its order of
         // execution: `G20 F40` is 40 mm/min); the other controls read every value of the
@@ -599,6 +639,7 @@ impl State {
             EventCode::M3,
             EventCode::M4,
             EventCode::M5,
+            EventCode::M19,
             EventCode::M7,
             EventCode::M8,
             EventCode::M9,
@@ -627,9 +668,26 @@ impl State {
                         self.tool_loaded = self.tool_selected;
                     }
                 }
+                if ev == EventCode::M19 {
+                    self.orient_event(blk, out);
+                    continue;
+                }
                 self.note_machine_event(ev);
                 self.cycles.note_spindle(ev);
                 out.event(ev, None);
+            }
+        }
+        // LinuxCNC M48–M53 after the coolant, before the user M codes.
+        for ev in [
+            EventCode::M48,
+            EventCode::M49,
+            EventCode::M50,
+            EventCode::M51,
+            EventCode::M52,
+            EventCode::M53,
+        ] {
+            if blk.nm > 0 && m_pre.contains(&Some(ev)) {
+                self.override_event(ev, blk, out);
             }
         }
         if let Some(n) = user_m {
@@ -834,10 +892,21 @@ impl State {
             let arc = matches!(self.motion, Some(Motion::Arc(_)));
             let user = user_m.is_some();
             let g10 = slot(0).is_some_and(|(g, _)| g == G::SetData);
-            if blk.has(KP) && !(dwell || g64 || arc || user || g10 || self.cycle_uses_p()) {
+            if blk.has(KP)
+                && !(dwell
+                    || g64
+                    || arc
+                    || user
+                    || g10
+                    || orient
+                    || override_p
+                    || self.cycle_uses_p())
+            {
                 return fail(blk.col(KP), cycles::unused_word_message(KP));
             }
-            if blk.has(KQ) && !(g64 || user || g10 || m61.is_some() || self.cycle_uses_q()) {
+            if blk.has(KQ)
+                && !(g64 || user || g10 || orient || m61.is_some() || self.cycle_uses_q())
+            {
                 return fail(blk.col(KQ), cycles::unused_word_message(KQ));
             }
         }

@@ -617,10 +617,25 @@ pub enum EventCode {
     G4,
     /// Pallet change pause (LinuxCNC M60): a program pause like M0.
     M60,
-    /// Spindle orientation (LinuxCNC ORIENT_SPINDLE, as G87 back boring stops the spindle
-    /// in a fixed orientation before moving the tool sideways): `value` is the angle,
-    /// degrees.
+    /// Spindle orientation (LinuxCNC M19, and ORIENT_SPINDLE of G87 back boring, which
+    /// stops the spindle in a fixed orientation before moving the tool sideways): `value`
+    /// is the angle R, degrees (0 to 360, 0 without R); for M19 `p` is its P word, the
+    /// direction (LinuxCNC's `spindle.N.orient-mode`: 0 the shorter way, 1 clockwise, 2
+    /// counter-clockwise; 0 without P) and `q` its Q word, the time to wait for the
+    /// orientation, seconds (`None` without Q).
     M19,
+    /// Enable the feed and spindle overrides (LinuxCNC M48).
+    M48,
+    /// Disable the feed and spindle overrides (LinuxCNC M49).
+    M49,
+    /// The feed override enabled (`value` 1) or disabled (0) (LinuxCNC M50, `M50 P0`).
+    M50,
+    /// The spindle speed override enabled (1) or disabled (0) (LinuxCNC M51).
+    M51,
+    /// Adaptive feed control enabled (1) or disabled (0) (LinuxCNC M52).
+    M52,
+    /// The feed stop (hold) control enabled (1) or disabled (0) (LinuxCNC M53).
+    M53,
     /// A user-defined M code M100–M199 (LinuxCNC), by its number less 100: `value` is its
     /// P word, `q` its Q word.
     User(u8),
@@ -652,6 +667,12 @@ impl EventCode {
             EventCode::G4 => "G4",
             EventCode::M60 => "M60",
             EventCode::M19 => "M19",
+            EventCode::M48 => "M48",
+            EventCode::M49 => "M49",
+            EventCode::M50 => "M50",
+            EventCode::M51 => "M51",
+            EventCode::M52 => "M52",
+            EventCode::M53 => "M53",
             EventCode::User(n) => {
                 let i = 4 * usize::from(n.min(99));
                 &USER_M_NAMES[i..i + 4]
@@ -676,8 +697,11 @@ pub struct Event {
     /// S: rpm; T: tool number; G4: dwell seconds; user M codes: the P word; other M
     /// codes: `None`.
     pub value: Option<f64>,
-    /// User M codes: the Q word; otherwise `None`.
+    /// User M codes and M19: the Q word; otherwise `None`.
     pub q: Option<f64>,
+    /// M19: the P word (the direction mode); otherwise `None` (a user M code's P word is
+    /// its `value`).
+    pub p: Option<f64>,
     /// Messages (MSG, DEBUG, PRINT): the text; otherwise `None`.
     pub text: Option<std::sync::Arc<str>>,
 }
@@ -690,6 +714,7 @@ impl Event {
             code,
             value,
             q: None,
+            p: None,
             text: None,
         }
     }

@@ -459,6 +459,8 @@ impl State {
                 Dialect::Heidenhain => &[],
                 Dialect::Sinumerik => &[KI, KJ, KK, K_CR, K_TURN],
                 Dialect::Fagor => &[KI, KJ, KK],
+                // LinuxCNC M19 takes R (its angle).
+                Dialect::LinuxCnc if self.m19_in_block => &[KI, KJ, KK],
                 _ => &[KI, KJ, KK, KR],
             };
             if let Some(k) = blk.first_of(centre_words) {
