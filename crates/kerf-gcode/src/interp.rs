@@ -206,6 +206,11 @@ impl State {
         self.dialect
     }
 
+    /// The block delete switch ([`Settings::block_delete`]).
+    pub(crate) fn block_delete(&self) -> bool {
+        self.settings.block_delete
+    }
+
     pub(crate) fn new(dialect: Dialect, settings: Settings) -> Self {
         let coord_system = match dialect {
             Dialect::LinuxCnc | Dialect::Rockwell | Dialect::Fagor => Some(0),
@@ -291,6 +296,13 @@ impl State {
         // the block), which exec() would otherwise replace before reading them.
         let mut local: Option<bool> = None;
         let modal = if self.absolute { Form::Abs } else { Form::Inc };
+        // The I/O codes Kerf refuses take words it does not know (M67 E0): the code is
+        // named first.
+        for w in words.iter().filter(|w| w.key == crate::lex::key(b'M')) {
+            if let Some(msg) = code10(w.value).and_then(|c| self.linuxcnc_m_refusal(c / 10)) {
+                return fail(w.col, msg);
+            }
+        }
         for w in words {
             let letter = if w.key < 26 { b'A' + w.key } else { 0 };
             match letter {

@@ -86,9 +86,11 @@
 //!   LinuxCNC runs a motion of the same block after the dwell (`G4 P1 G1 X10`); the other
 //!   controls want the dwell in a block of its own ("G4 must be programmed in a separate
 //!   block"), so an axis, centre or polar word there is an error, never dropped.
-//! - Block delete `/` at the start of a block skips the block (it is not even checked):
-//!   Kerf's block delete switch is on. (rs274 run without `-b`, as `tests/rs274/canon.sh`
-//!   runs it, has the switch off and runs such blocks.) In LinuxCNC the `/` must be the
+//! - Block delete `/` at the start of a block: with the block delete switch on
+//!   ([`Settings::block_delete`]) the block is skipped (it is not even checked); off, the
+//!   default, the `/` is ignored and the block runs. Off is how LinuxCNC starts (rs274's
+//!   `-b` turns it on; AXIS has a toggle) and how the other controls' panels leave it
+//!   until the operator asks for skipping. In LinuxCNC the `/` must be the
 //!   first character of the line, spaces aside: after a comment, an N word or any word it
 //!   is an error, as in rs274 ("Bad character '/' used").
 //! - Cutter compensation G41/G42: LinuxCNC compensates (its section below). The other
@@ -563,6 +565,10 @@ pub struct Settings {
     /// its `.var` file). Values in mm and degrees, Kerf's machine units. A number outside
     /// #1–#5602 is ignored.
     pub parameters: Vec<(u32, f64)>,
+    /// The block delete switch (`[gcode] block_delete`): on, a block that starts with `/`
+    /// is skipped; off (the default), the `/` is ignored and the block runs, as LinuxCNC
+    /// runs it with its switch off, which is how rs274 and LinuxCNC start.
+    pub block_delete: bool,
 }
 
 impl Default for Settings {
@@ -579,6 +585,7 @@ impl Default for Settings {
             g28_home_mm_deg: [0.0; 6],
             g30_home_mm_deg: [0.0; 6],
             parameters: Vec::new(),
+            block_delete: false,
         }
     }
 }
@@ -835,7 +842,7 @@ impl<R: std::io::BufRead> Interpreter<R> {
             line: Vec::with_capacity(256),
             line_no: 0,
             reader_line: 0,
-            lexer: lex::Lexer::new(dialect),
+            lexer: lex::Lexer::new(dialect).with_block_delete(settings.block_delete),
             words: Vec::with_capacity(32),
             block: interp::Block::new(),
             state: interp::State::new(dialect, settings),

@@ -608,8 +608,19 @@ fn syntax_of_each_dialect() {
         "%_N_A_MPF\n:10 G1 X=5 F100 ; note\nN20 Y-.5\n",
     );
     line_to(&m[1], v(5.0, -0.5, 0.0));
-    // Block delete in a Rockwell line skips only its block.
-    let m = moves(Dialect::Rockwell, "G01 F100 X1 ; /X2 ; X3 ;\n");
+    // Block delete (switch on) in a Rockwell line skips only its block.
+    let on = Settings {
+        block_delete: true,
+        ..Settings::default()
+    };
+    let m: Vec<Move> = run_with(Dialect::Rockwell, "G01 F100 X1 ; /X2 ; X3 ;\n", on)
+        .expect("valid")
+        .into_iter()
+        .filter_map(|i| match i {
+            Item::Move(m) => Some(m),
+            Item::Event(_) => None,
+        })
+        .collect();
     assert_eq!(m.len(), 2);
     line_to(&m[1], v(3.0, 0.0, 0.0));
     // Invalid bytes are errors at their column, never panics.

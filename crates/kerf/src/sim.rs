@@ -1005,7 +1005,7 @@ mod tests {
             let a = k as f64 * 0.01;
             text += &format!("G1 X{:.3} Y{:.3}\n", 20.0 * a.sin(), 20.0 * (1.0 - a.cos()));
         }
-        text += "G1 X0 Y30\nG4 P0.25\nG3 X-10 Y20 I0 J-10\nM5\nG1 X-10 Y0 Z-2\nG0 X0 Y0 Z0\n";
+        text += "G1 X0 Y30\nG4 P0.25\nG3 X-10 Y20 I0 J-10\nM5\nG1 X-10 Y0 Z-2\nG0 X0 Y0 Z0\nM2\n";
         kerf_gcode::Interpreter::new(
             text.as_bytes(),
             kerf_gcode::Dialect::LinuxCnc,
