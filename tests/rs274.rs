@@ -143,7 +143,9 @@ pub struct KerfRun {
 /// with `tools`, subroutine files searched in the program's directory (where rs274 finds
 /// them too), as `kerf sim` runs it.
 pub fn run_kerf(src: &[u8], tools: Vec<Tool>, program: &Path) -> KerfRun {
-    run_kerf_with(src, program_settings(tools, program))
+    let mut settings = program_settings(tools, program);
+    settings.block_delete = asks_block_delete(src);
+    run_kerf_with(src, settings)
 }
 
 /// The settings `kerf sim` gives the program file `program`: `tools`, its directory on
@@ -158,6 +160,18 @@ pub fn program_settings(tools: Vec<Tool>, program: &Path) -> Settings {
         program_file: Some(program.to_path_buf()),
         ..Settings::default()
     }
+}
+
+/// The marker of a golden program that runs with the block delete switch on: its first
+/// line is this comment (`tests/rs274/canon.sh` then runs rs274 with `-b`).
+pub const BLOCK_DELETE_MARK: &str = "(kerf: block_delete on)";
+
+/// Whether the program's first line asks for the block delete switch on.
+pub fn asks_block_delete(src: &[u8]) -> bool {
+    let first = src.split(|&b| b == b'\n').next().unwrap_or(&[]);
+    String::from_utf8_lossy(first)
+        .to_ascii_lowercase()
+        .contains(BLOCK_DELETE_MARK)
 }
 
 /// Runs `src` through Kerf's LinuxCNC dialect with `settings`.
@@ -763,6 +777,7 @@ pub fn load_golden(g: &Golden) -> Result<LoadedGolden, String> {
         None => Vec::new(),
     };
     let mut settings = program_settings(tools, &g.ngc);
+    settings.block_delete = asks_block_delete(&src);
     if let Some(p) = &g.var {
         apply_var_file(&read(p)?, &mut settings).map_err(|e| format!("{}: {e}", p.display()))?;
     }
