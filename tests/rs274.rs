@@ -554,7 +554,9 @@ fn compare_items(
 /// Compares one program: its source, Kerf's run of it, rs274's canon output and, when
 /// rs274 refused it, the refusal.
 pub fn compare(src: &[u8], kerf: &KerfRun, canon_text: &str, refusal: Option<&Refusal>) -> Verdict {
-    let kept = overrides_as_rs274_prints_them(&without_g88_retracts(&kerf.items));
+    let kept = whole_turns_as_spirals(&overrides_as_rs274_prints_them(&without_g88_retracts(
+        &kerf.items,
+    )));
     let kerf = &KerfRun {
         items: kept,
         error: kerf.error.clone(),
@@ -605,6 +607,31 @@ pub fn compare(src: &[u8], kerf: &KerfRun, canon_text: &str, refusal: Option<&Re
             Err(e) => Verdict::Mismatch(e),
         },
     }
+}
+
+/// Kerf's items with each whole turn that LinuxCNC spirals as one arc: where the end of a
+/// centre-format arc lies on the ray from its centre through its start, LinuxCNC turns a
+/// whole circle spiralling to the end radius (one ARC_FEED); Kerf turns the whole circle at
+/// the start radius, then moves along the radius to the end (an arc, then a line of the
+/// same block no longer than 1 mm, starting where the arc ends). The pair is compared as
+/// the arc with the line's end, which the spiral tolerance of [`move_difference`] covers.
+fn whole_turns_as_spirals(items: &[Item]) -> Vec<Item> {
+    let mut out: Vec<Item> = Vec::with_capacity(items.len());
+    for item in items {
+        if let (Item::Move(l), Some(Item::Move(a))) = (item, out.last_mut())
+            && let (KPath::Line(line), KPath::Arc(arc)) = (&l.path, &mut a.path)
+            && l.line == a.line
+            && !l.rapid
+            && arc.sweep_rad.abs() >= std::f64::consts::TAU - 1e-9
+            && (line.start - arc.end).norm() < 1e-9
+            && (line.end - line.start).norm() <= 1.0
+        {
+            arc.end = line.end;
+            continue;
+        }
+        out.push(item.clone());
+    }
+    out
 }
 
 /// Kerf's items with M48 (M49) as rs274 prints it: the feed override enabled (disabled),

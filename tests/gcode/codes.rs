@@ -162,3 +162,52 @@ fn the_end_of_file_rules() {
     let out = run_bytes(Dialect::Rockwell, Default::default(), b"G00 X1 ;\n");
     assert!(out.error.is_none());
 }
+
+#[track_caller]
+fn near(got: kerf_gcode::Vec3, want: kerf_gcode::Vec3) {
+    assert_point("point", got, want, 1e-12);
+}
+
+#[test]
+fn an_end_on_the_start_ray_turns_a_whole_circle_then_reaches_the_end() {
+    use kerf_gcode::Path;
+    // LinuxCNC: the end angle equals the start angle about the programmed centre, so its
+    // planner turns a whole circle, spiralling from radius 5 to 5.001. Kerf: the whole
+    // circle at radius 5 about (5, 0), then the 0.001 mm radial line.
+    let ms = moves(D, "G21 G17 F100\nG0 X10\nG2 X10.001 Y0 I-5 J0\n");
+    assert_eq!(ms.len(), 3, "{ms:#?}");
+    let Path::Arc(a) = &ms[1].path else {
+        panic!("an arc: {:?}", ms[1])
+    };
+    near(a.center, v(5.0, 0.0, 0.0));
+    near(a.start, v(10.0, 0.0, 0.0));
+    near(a.end, v(10.0, 0.0, 0.0));
+    assert!(
+        (a.sweep_rad + std::f64::consts::TAU).abs() < 1e-12,
+        "{}",
+        a.sweep_rad
+    );
+    let Path::Line(l) = &ms[2].path else {
+        panic!("a line: {:?}", ms[2])
+    };
+    near(l.start, v(10.0, 0.0, 0.0));
+    near(l.end, v(10.001, 0.0, 0.0));
+    assert_eq!((ms[2].line, ms[2].feed_mm_min), (3, Some(100.0)));
+    // A helix keeps its climb on the turn; P adds turns.
+    let ms = moves(D, "G21 G17 F100\nG0 X10\nG3 X9.999 Z2 I-5 J0 P2\n");
+    let Path::Arc(a) = &ms[1].path else {
+        panic!("an arc")
+    };
+    near(a.end, v(10.0, 0.0, 2.0));
+    assert!((a.sweep_rad - 2.0 * std::f64::consts::TAU).abs() < 1e-12);
+    near(ms[2].path.end(), v(9.999, 0.0, 2.0));
+    // Other dialects keep their rule (the centre onto the chord's bisector: one arc).
+    let ms = moves(
+        Dialect::Sinumerik,
+        "G17 G1 X10 F100\nG2 X10.001 Y0 I=AC(5) J=AC(0)\n",
+    );
+    assert_eq!(ms.len(), 2);
+    // Refused where the split would be wrong: inverse time and cutter compensation.
+    let e = error(D, "G21 G17 G0 X10\nG93 G2 X10.001 Y0 I-5 J0 F1\n");
+    assert_diag(&e, 2, 19, &["inverse time (G93)"]);
+}

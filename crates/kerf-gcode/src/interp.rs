@@ -186,6 +186,9 @@ pub(crate) struct State {
     crc: comp::Crc,
     /// LinuxCNC: the block being run holds M19, whose R word is its angle.
     m19_in_block: bool,
+    /// LinuxCNC: the end of an arc whose end lies on the ray from its centre through its
+    /// start, reached by a radial line after the whole turn (`geometry::arc_path`).
+    arc_tail: Option<Vec3>,
 }
 
 /// Output of a block, in execution order.
@@ -270,6 +273,7 @@ impl State {
             retract_r: true,
             crc: comp::Crc::new(),
             m19_in_block: false,
+            arc_tail: None,
         };
         s.init_params();
         s.update_origin();

@@ -111,7 +111,13 @@
 //!   |r_end − r_start| > max(`arc_tolerance_mm`, r_start × `arc_tolerance_rel`) (the
 //!   Sinumerik MD21000/MD21010 rule; defaults 0.02828 mm and 0.001). A radius-format arc
 //!   whose |R| is short of half the chord by at most the slack (LinuxCNC 0.00127 mm,
-//!   others `arc_tolerance_mm`) is taken as a semicircle.
+//!   others `arc_tolerance_mm`) is taken as a semicircle. LinuxCNC: when the end lies on
+//!   the ray from the programmed centre through the start (its angle about the centre is
+//!   the start's, within 0.0001 mm beside the ray) at another radius, LinuxCNC turns a whole
+//!   circle spiralling to the end radius; Kerf turns the whole circle (and its P turns) at
+//!   the start radius about the programmed centre, then feeds along the radius to the end
+//!   (a line as long as the radii differ, within the arc tolerance), in the same block. With
+//!   cutter compensation or in G93 that is an error.
 //! - A full circle is a centre-format arc whose end equals its start (end words omitted or
 //!   repeated): `|sweep_rad| = 2π`, plus 2π per extra turn. Radius format cannot make one.
 //! - Helices: an axis word along the plane normal moves linearly with the angle; the
@@ -125,11 +131,17 @@
 //! # LinuxCNC / Tormach (`linuxcnc`, alias `tormach`)
 //!
 //! - `( )` and `;` comments; spaces are allowed anywhere, even inside numbers (`X 1 0.5`
-//!   is X10.5). A `%` line opens the program and the next `%` line ends it.
+//!   is X10.5). A `%` line opens the program and the next `%` line ends it. A program
+//!   ends with M2/M30 or its closing `%`: at the end of the file without them it is
+//!   rs274's error "File ended with no percent sign or program end" ("File ended with no
+//!   percent sign" after an opening `%`) at the last line, after the moves before it (not
+//!   a move cutter compensation holds back); a `%` without an opening one is "Bad
+//!   character '%' used". Subroutine files are read for their subs and need no end.
 //! - G20/G21 (default mm), G90/G91, G90.1/G91.1 (I J K absolute / incremental, default
 //!   incremental; under G90.1 both centre words of the plane are required: "J word missing
-//!   in absolute center arc"), G17/G18/G19, G80 cancels the motion mode, G97/G98/G99
-//!   accepted. There is no motion mode at start: axis words before G0/G1/G2/G3 are the
+//!   in absolute center arc"), G17/G18/G19, G80 cancels the motion mode (with a motion
+//!   code in the same block, `G80 G0 X5`, the motion runs, as in rs274), G97/G98/G99
+//!   accepted. G17.1/G18.1/G19.1 (UVW planes) are "not supported". There is no motion mode at start: axis words before G0/G1/G2/G3 are the
 //!   error "cannot use axis values without a G code that uses them".
 //! - **Order of execution** (the manual's list): feed mode G93/G94/G95, F, S, T, M6,
 //!   M3/M4/M5, M70–M73, M7/M8/M9, M100–M199, G4, then plane, units, cutter compensation,
@@ -167,6 +179,23 @@
 //!   applied anew with the tool in the spindle; a restore that changes the feed mode
 //!   leaves the feed at zero (rs274 does). M70–M73 belong to the spindle group (`M3 M70`
 //!   is refused, as in rs274); M6 stops the spindle.
+//! - **M19** orients the spindle: an [`EventCode::M19`] event with `value` = R (degrees,
+//!   0–360, default 0), `p` = P (direction 0, 1, 2; default 0) and `q` = Q (the wait,
+//!   seconds), checked as rs274 checks them; M19 is in the spindle group (M3/M4/M5).
+//!   (rs274's canon prints no ORIENT_SPINDLE for an M19 that repeats the last angle and
+//!   direction; Kerf hands every M19 on.)
+//! - **Overrides** M48/M49 (feed and spindle override enable/disable) and M50/M51/M52/M53
+//!   (feed override, spindle override, adaptive feed, feed stop; `value` 1, or 0 for `P0`)
+//!   are events ([`EventCode::M48`]…) in their own modal group, after the coolant and
+//!   before the user M codes; `kerf sim` does not stop at them.
+//! - **Refused**: M62–M65 (digital outputs), M66 (wait on an input), M67/M68 (analog
+//!   outputs): Kerf has no I/O, "M62 is not supported: Kerf has no digital outputs" (the
+//!   code is named before its E word); M98/M99 (Fanuc-style subprograms of LinuxCNC 2.9):
+//!   "not supported, use o-word subroutines".
+//! - **G10 L0** reloads the tool table: Kerf's is the configured one with the program's
+//!   G10 L1/L10/L11 changes, so nothing changes; its other words are not read (rs274
+//!   neither). With a tool loaded it is rs274's error "G10 L0 not allowed with loaded
+//!   tool <N>".
 //! - **User M codes** M100–M199: an [`EventCode::User`] event with `value` = P and `q` =
 //!   Q, after the coolant and before the dwell; one per block. LinuxCNC runs the program
 //!   file `M1nn` and refuses the code when there is none ("Unknown m code used"); Kerf
