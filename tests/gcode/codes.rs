@@ -98,6 +98,22 @@ fn m19_words_are_checked_as_rs274_checks_them() {
 }
 
 #[test]
+fn m19_stops_the_spindle() {
+    // rs274 (same program): ORIENT_SPINDLE, then "Spindle not turning in g86" (it prints
+    // the cycle's first moves before the check; Kerf refuses the whole block).
+    let e = error(D, "G21 F100\nM3 S100\nM19 R30\nG86 X1 Y1 Z-1 R1 P1\n");
+    assert_diag_line(&e, 4, &["Spindle not turning in G86"]);
+    assert!(error_free(
+        D,
+        "G21 F100\nM3 S100\nM19 R30\nM3\nG86 X1 Y1 Z-1 R1 P1\n"
+    ));
+}
+
+fn error_free(d: Dialect, src: &str) -> bool {
+    run(d, src).is_ok()
+}
+
+#[test]
 fn override_controls_are_events_with_their_state() {
     let ev = events("G21\nM48\nM49\nM50\nM50 P0\nM51 P0\nM51 P2\nM52 P1\nM52 P0\nM53\nM53 P0\n");
     let got: Vec<(EventCode, Option<f64>)> = ev.iter().map(|e| (e.code, e.value)).collect();

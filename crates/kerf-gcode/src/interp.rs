@@ -685,6 +685,9 @@ impl State {
                     }
                 }
                 if ev == EventCode::M19 {
+                    // The spindle stops to orient (rs274: "Spindle not turning" after it).
+                    self.note_machine_event(EventCode::M5);
+                    self.cycles.note_spindle(EventCode::M5);
                     self.orient_event(blk, out);
                     continue;
                 }

@@ -194,8 +194,8 @@
 //!   "not supported, use o-word subroutines".
 //! - **G10 L0** reloads the tool table: Kerf's is the configured one with the program's
 //!   G10 L1/L10/L11 changes, so nothing changes; its other words are not read (rs274
-//!   neither). With a tool loaded it is rs274's error "G10 L0 not allowed with loaded
-//!   tool <N>".
+//!   neither). With a tool loaded it is rs274's error `G10 L0 not allowed with loaded
+//!   tool <N>`.
 //! - **User M codes** M100–M199: an [`EventCode::User`] event with `value` = P and `q` =
 //!   Q, after the coolant and before the dwell; one per block. LinuxCNC runs the program
 //!   file `M1nn` and refuses the code when there is none ("Unknown m code used"); Kerf
