@@ -28,8 +28,10 @@ struct Walker {
 /// Writes a LinuxCNC program of exactly `blocks` blocks (lines) to `out`, or stops early
 /// once `max_bytes` bytes have been written. Returns the number of blocks and bytes written.
 ///
-/// Every block except the header and the row changes is a move: half G1 lines, half
-/// quarter-circle arcs of radius 1 mm.
+/// Every block except the header, the row changes and the closing `M2` is a move: half G1
+/// lines, half quarter-circle arcs of radius 1 mm. The last block is `M2` (a LinuxCNC
+/// program ends with M2/M30); when `max_bytes` stops the program, the `M2` follows as one
+/// block more.
 pub fn write_program<W: Write>(out: &mut W, blocks: u64, max_bytes: u64) -> io::Result<(u64, u64)> {
     let mut w = Walker {
         x: 0,
@@ -44,12 +46,19 @@ pub fn write_program<W: Write>(out: &mut W, blocks: u64, max_bytes: u64) -> io::
         line.clear();
         if written_blocks == 0 {
             line.push_str("G21 G90 G17 G94 F1500\n");
+        } else if written_blocks + 1 == blocks {
+            line.push_str("M2\n");
         } else {
             phase = w.next_block(&mut line, phase);
         }
         out.write_all(line.as_bytes())?;
         written_blocks += 1;
         written_bytes += line.len() as u64;
+    }
+    if written_blocks < blocks {
+        out.write_all(b"M2\n")?;
+        written_blocks += 1;
+        written_bytes += 3;
     }
     Ok((written_blocks, written_bytes))
 }
@@ -141,7 +150,7 @@ mod tests {
         assert_eq!(text.lines().count(), 200_000);
         let (mut x, mut y) = (0.0f64, 0.0f64);
         let (mut arcs, mut lines) = (0u64, 0u64);
-        for block in text.lines().skip(1) {
+        for block in text.lines().skip(1).filter(|&b| b != "M2") {
             let word = |letter: char| {
                 block
                     .split(' ')

@@ -205,8 +205,9 @@ pub fn split_line(line: &str) -> Option<(&str, &str)> {
     if name.is_empty()
         || !name
             .bytes()
-            .all(|b| b.is_ascii_uppercase() || b == b'_' || b.is_ascii_digit())
+            .all(|b| b.is_ascii_uppercase() || b == b'_' || b.is_ascii_digit() || b == b'.')
     {
+        // (`SPINDLE.0.WAIT_ORIENT_COMPLETE(Q)` names the spindle.)
         return None;
     }
     Some((n, call))
@@ -660,6 +661,17 @@ impl State {
                 let v = numbers(args, line, 3)?;
                 self.event(line, EventCode::M19, Some(v[1]), None);
             }
+            // M48 prints ENABLE_FEED_OVERRIDE then ENABLE_SPEED_OVERRIDE (M49 the DISABLE
+            // pair), as M50 then M51 would: each call is its own event, and the harness
+            // compares Kerf's M48/M49 as that pair (`rs274::compare`).
+            "ENABLE_FEED_OVERRIDE" => self.event(line, EventCode::M50, Some(1.0), None),
+            "DISABLE_FEED_OVERRIDE" => self.event(line, EventCode::M50, Some(0.0), None),
+            "ENABLE_SPEED_OVERRIDE" => self.event(line, EventCode::M51, Some(1.0), None),
+            "DISABLE_SPEED_OVERRIDE" => self.event(line, EventCode::M51, Some(0.0), None),
+            "ENABLE_ADAPTIVE_FEED" => self.event(line, EventCode::M52, Some(1.0), None),
+            "DISABLE_ADAPTIVE_FEED" => self.event(line, EventCode::M52, Some(0.0), None),
+            "ENABLE_FEED_HOLD" => self.event(line, EventCode::M53, Some(1.0), None),
+            "DISABLE_FEED_HOLD" => self.event(line, EventCode::M53, Some(0.0), None),
             "STRAIGHT_PROBE"
             | "RIGID_TAP"
             | "NURBS_FEED"

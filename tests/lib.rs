@@ -128,9 +128,39 @@ pub fn run(dialect: Dialect, src: &str) -> Result<Vec<Item>, Diagnostic> {
     run_with(dialect, Settings::default(), src)
 }
 
-/// Runs a program with the given settings; `Err` carries the first diagnostic.
+/// A LinuxCNC program must end with M2/M30 (or its closing `%`): rs274 refuses a file that
+/// ends without ("File ended with no percent sign or program end"), and so does Kerf. The
+/// programs of the tests are mostly fragments, so [`run_with`] and the helpers built on it
+/// end a LinuxCNC program with an `M2` line of its own (after the program's own end it is
+/// never read) and leave the `M2` event of that line out of the items. [`run_bytes`] runs
+/// the program exactly as given.
+pub fn with_program_end(dialect: Dialect, src: &str) -> std::borrow::Cow<'_, str> {
+    if dialect != Dialect::LinuxCnc {
+        return std::borrow::Cow::Borrowed(src);
+    }
+    let sep = if src.is_empty() || src.ends_with('\n') {
+        ""
+    } else {
+        "\n"
+    };
+    std::borrow::Cow::Owned(format!("{src}{sep}M2\n"))
+}
+
+/// Runs a program with the given settings; `Err` carries the first diagnostic. A LinuxCNC
+/// program is ended with M2 ([`with_program_end`]).
 pub fn run_with(dialect: Dialect, settings: Settings, src: &str) -> Result<Vec<Item>, Diagnostic> {
-    let out = run_bytes(dialect, settings, src.as_bytes());
+    let ended = with_program_end(dialect, src);
+    let mut out = run_bytes(dialect, settings, ended.as_bytes());
+    if ended.len() != src.len() {
+        // The M2 event of the added line is not the program's.
+        let added_line = u32::try_from(ended.lines().count()).unwrap_or(u32::MAX);
+        if let Some(Item::Event(e)) = out.items.last()
+            && e.code == kerf_gcode::EventCode::M2
+            && e.line == added_line
+        {
+            out.items.pop();
+        }
+    }
     match out.error {
         Some(e) => Err(e),
         None => Ok(out.items),

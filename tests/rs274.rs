@@ -143,7 +143,9 @@ pub struct KerfRun {
 /// with `tools`, subroutine files searched in the program's directory (where rs274 finds
 /// them too), as `kerf sim` runs it.
 pub fn run_kerf(src: &[u8], tools: Vec<Tool>, program: &Path) -> KerfRun {
-    run_kerf_with(src, program_settings(tools, program))
+    let mut settings = program_settings(tools, program);
+    settings.block_delete = asks_block_delete(src);
+    run_kerf_with(src, settings)
 }
 
 /// The settings `kerf sim` gives the program file `program`: `tools`, its directory on
@@ -158,6 +160,18 @@ pub fn program_settings(tools: Vec<Tool>, program: &Path) -> Settings {
         program_file: Some(program.to_path_buf()),
         ..Settings::default()
     }
+}
+
+/// The marker of a golden program that runs with the block delete switch on: its first
+/// line is this comment (`tests/rs274/canon.sh` then runs rs274 with `-b`).
+pub const BLOCK_DELETE_MARK: &str = "(kerf: block_delete on)";
+
+/// Whether the program's first line asks for the block delete switch on.
+pub fn asks_block_delete(src: &[u8]) -> bool {
+    let first = src.split(|&b| b == b'\n').next().unwrap_or(&[]);
+    String::from_utf8_lossy(first)
+        .to_ascii_lowercase()
+        .contains(BLOCK_DELETE_MARK)
 }
 
 /// Runs `src` through Kerf's LinuxCNC dialect with `settings`.
@@ -570,7 +584,9 @@ fn compare_items(
 /// Compares one program: its source, Kerf's run of it, rs274's canon output and, when
 /// rs274 refused it, the refusal.
 pub fn compare(src: &[u8], kerf: &KerfRun, canon_text: &str, refusal: Option<&Refusal>) -> Verdict {
-    let kept = without_g88_retracts(&kerf.items);
+    let kept = whole_turns_as_spirals(&overrides_as_rs274_prints_them(&without_g88_retracts(
+        &kerf.items,
+    )));
     let kerf = &KerfRun {
         items: kept,
         error: kerf.error.clone(),
@@ -635,6 +651,49 @@ pub fn compare(src: &[u8], kerf: &KerfRun, canon_text: &str, refusal: Option<&Re
             }
         }
     }
+}
+
+/// Kerf's items with each whole turn that LinuxCNC spirals as one arc: where the end of a
+/// centre-format arc lies on the ray from its centre through its start, LinuxCNC turns a
+/// whole circle spiralling to the end radius (one ARC_FEED); Kerf turns the whole circle at
+/// the start radius, then moves along the radius to the end (an arc, then a line of the
+/// same block no longer than 1 mm, starting where the arc ends). The pair is compared as
+/// the arc with the line's end, which the spiral tolerance of [`move_difference`] covers.
+fn whole_turns_as_spirals(items: &[Item]) -> Vec<Item> {
+    let mut out: Vec<Item> = Vec::with_capacity(items.len());
+    for item in items {
+        if let (Item::Move(l), Some(Item::Move(a))) = (item, out.last_mut())
+            && let (KPath::Line(line), KPath::Arc(arc)) = (&l.path, &mut a.path)
+            && l.line == a.line
+            && !l.rapid
+            && arc.sweep_rad.abs() >= std::f64::consts::TAU - 1e-9
+            && (line.start - arc.end).norm() < 1e-9
+            && (line.end - line.start).norm() <= 1.0
+        {
+            arc.end = line.end;
+            continue;
+        }
+        out.push(item.clone());
+    }
+    out
+}
+
+/// Kerf's items with M48 (M49) as rs274 prints it: the feed override enabled (disabled),
+/// then the spindle override, the events M50 and M51 would give.
+fn overrides_as_rs274_prints_them(items: &[Item]) -> Vec<Item> {
+    let mut out = Vec::with_capacity(items.len());
+    for item in items {
+        match item {
+            Item::Event(e) if matches!(e.code, EventCode::M48 | EventCode::M49) => {
+                let on = if e.code == EventCode::M48 { 1.0 } else { 0.0 };
+                for code in [EventCode::M50, EventCode::M51] {
+                    out.push(Item::Event(kerf_gcode::Event::new(e.line, code, Some(on))));
+                }
+            }
+            _ => out.push(item.clone()),
+        }
+    }
+    out
 }
 
 /// Kerf's items without the one documented difference of the canned cycles: after G88's
@@ -789,6 +848,7 @@ pub fn load_golden(g: &Golden) -> Result<LoadedGolden, String> {
         None => Vec::new(),
     };
     let mut settings = program_settings(tools, &g.ngc);
+    settings.block_delete = asks_block_delete(&src);
     if let Some(p) = &g.var {
         apply_var_file(&read(p)?, &mut settings).map_err(|e| format!("{}: {e}", p.display()))?;
     }

@@ -302,13 +302,23 @@ fn a_held_move_is_dropped_at_a_closing_percent_as_in_linuxcnc() {
 }
 
 #[test]
-fn end_of_file_without_m2_runs_the_held_move() {
+fn end_of_file_without_m2_is_refused_and_the_held_move_does_not_run() {
     // rs274 refuses a file without M2 or `%` ("File ended with no percent sign or program
-    // end"); Kerf accepts it and runs the held move, where M2 would have put it.
+    // end", at its last line) after the moves it has run; the move that compensation
+    // holds back is not among them.
     let with_m2 = moves_with(D, tools(), "G21 F100\nT1 M6\nG41 G1 X20 Y0\nX40 Y10\nM2\n");
-    let without = moves_with(D, tools(), "G21 F100\nT1 M6\nG41 G1 X20 Y0\nX40 Y10\n");
-    assert_same_moves("end of file", &without, &with_m2, TOL);
-    assert_eq!(without.len(), 2);
+    let src = "G21 F100\nT1 M6\nG41 G1 X20 Y0\nX40 Y10\n";
+    let out = run_bytes(D, tools(), src.as_bytes());
+    let e = out.error.expect("refused");
+    assert_diag(
+        &e,
+        4,
+        1,
+        &["File ended with no percent sign or program end"],
+    );
+    let before = only_moves(&out.items);
+    assert_eq!(before.len(), 1);
+    assert_same_moves("before the end of file", &before, &with_m2[..1], TOL);
 }
 
 #[test]

@@ -697,7 +697,7 @@ fn random_valid_cycle_blocks_stay_between_the_bottom_and_the_clearance_level() {
                 block += &format!(" {}{val}", ijk[i]);
             }
         }
-        let src = format!("G21 G90 G17 G0 X{sx} Y{sy} Z{sz}\nS1000 M3 F200\n{pg}\n{block}\n");
+        let src = format!("G21 G90 G17 G0 X{sx} Y{sy} Z{sz}\nS1000 M3 F200\n{pg}\n{block}\nM2\n");
         let out = run_bytes(D, Settings::default(), src.as_bytes());
         if let Some(e) = &out.error {
             return Err(TestCaseError::fail(format!("rejected: {e}\n{src}")));

@@ -278,7 +278,7 @@ fn negative_dwell_is_refused_in_every_dialect_at_the_time_word() {
 fn absurdly_long_dwell_is_refused() {
     // Up to 1e6 s (11.6 days) is accepted; beyond that the value is a mistake.
     for (d, ok, bad, col) in [
-        (Dialect::LinuxCnc, "G4 P1000000\n", "G4 P1000001\n", 4),
+        (Dialect::LinuxCnc, "G4 P1000000\nM2\n", "G4 P1000001\n", 4),
         (
             Dialect::Rockwell,
             "G04 X1000000 ;\n",

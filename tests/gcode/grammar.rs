@@ -76,6 +76,10 @@ enum Expect {
         centre: Option<[f64; 3]>,
         sweep_rad: Option<f64>,
         sweep_tol: f64,
+        /// LinuxCNC, an end on the ray from the centre through the start (a perturbed
+        /// full circle): the arc is the whole turn at the start radius, ending above the
+        /// start, and a feed line on the same line goes on to this end.
+        tail: Option<[f64; 3]>,
     },
     /// The line must be rejected (an end point grossly off the circle, a radius too small).
     Error,
@@ -301,6 +305,7 @@ impl Gen {
                 centre: exact.map(|(centre, _)| centre),
                 sweep_rad: exact.map(|(_, sweep)| sweep),
                 sweep_tol: 1e-2,
+                tail: None,
             }
         };
         self.push(words, expect, polar);
@@ -673,6 +678,27 @@ impl Gen {
         }
         let sweep = (sweep_abs + f64::from(extra_turns) * TAU) * if ccw { 1.0 } else { -1.0 };
         let exact = perturb == 0.0;
+        // (A perturbation below the printed precision leaves the end on the start: a plain
+        // full circle.)
+        let moved = end[u] != self.pos[u] || end[v] != self.pos[v];
+        if self.d == Dialect::LinuxCnc && full && !exact && !rejected && moved {
+            // LinuxCNC turns a whole circle when the end lies on the ray from the centre
+            // through the start; Kerf: the turn at the start radius, then the radial line.
+            let mut turn_end = self.pos;
+            turn_end[w] = end[w];
+            let expect = Expect::Arc {
+                end: turn_end,
+                ccw,
+                centre: Some(centre),
+                sweep_rad: Some(sweep),
+                sweep_tol: 1e-9,
+                tail: Some(end),
+            };
+            self.push(words, expect, false);
+            self.pos = end;
+            self.last_ccw = Some(ccw);
+            return;
+        }
         self.push_arc(
             words,
             rejected,
@@ -1580,6 +1606,28 @@ fn check_expectations(d: Dialect, prog: &Program, text: &str, out: &Outcome) {
                 ))
             );
         }
+        if let Expect::Arc { tail: Some(t), .. } = exp
+            && moves_on[l] == 2
+        {
+            let Path::Line(line) = m.path else {
+                panic!(
+                    "{}",
+                    ctx(format!(
+                        "line {l}: expected the radial line after the whole turn, got {}",
+                        describe_move(m)
+                    ))
+                );
+            };
+            assert!(
+                close3(line.end, t, 1e-9) && !m.rapid,
+                "{}",
+                ctx(format!(
+                    "line {l}: expected the radial line to {t:?}, got {}",
+                    describe_move(m)
+                ))
+            );
+            continue;
+        }
         match (exp, m.path) {
             (Expect::Any, _) => {}
             (Expect::Line { end, rapid }, Path::Line(line)) => {
@@ -1600,6 +1648,7 @@ fn check_expectations(d: Dialect, prog: &Program, text: &str, out: &Outcome) {
                     centre,
                     sweep_rad,
                     sweep_tol,
+                    ..
                 },
                 Path::Arc(a),
             ) => {
@@ -1694,9 +1743,14 @@ fn check_expectations(d: Dialect, prog: &Program, text: &str, out: &Outcome) {
     );
     for (i, l) in prog.lines.iter().enumerate().take(last - 1) {
         if matches!(l.expect, Expect::Line { .. } | Expect::Arc { .. }) {
+            let n = if matches!(l.expect, Expect::Arc { tail: Some(_), .. }) {
+                2
+            } else {
+                1
+            };
             assert_eq!(
                 moves_on[i + 1],
-                1,
+                n,
                 "{}",
                 ctx(format!("line {} must yield exactly one move", i + 1))
             );

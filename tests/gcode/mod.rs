@@ -7,6 +7,7 @@
 //! radii, exact end points) over exact numbers.
 
 mod api;
+mod codes;
 mod comp;
 mod cross_dialect;
 mod cycles;

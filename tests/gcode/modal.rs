@@ -653,15 +653,19 @@ fn g90_1_and_g91_1_arc_centres() {
 
 #[test]
 fn block_delete_and_unsupported_modal_codes() {
-    // Manual 11.4.2.1: `/` first on a line deletes the block (Kerf's switch is on).
-    let ms = moves(D, "G1 X1 F10\n/G1 X5\nG1 X2\n");
+    // Manual 11.4.2.1: `/` first on a line deletes the block when the switch is on.
+    let on = kerf_gcode::Settings {
+        block_delete: true,
+        ..Default::default()
+    };
+    let ms = moves_with(D, on.clone(), "G1 X1 F10\n/G1 X5\nG1 X2\n");
     assert_eq!(ms.len(), 2);
     assert_feed_line(&ms[1], v(1.0, 0.0, 0.0), v(2.0, 0.0, 0.0), 10.0);
     // rs274: "Bad character '/' used" in the middle of a line.
     let d = error(D, "G1 X2 /Y3 F10\n");
     assert_eq!((d.line, d.col), (1, 7), "{d}");
     // rs274: spaces may come first, a comment or an N word may not ("Bad character '/'").
-    assert_eq!(moves(D, " /G1 X5 F10\n").len(), 0);
+    assert_eq!(moves_with(D, on, " /G1 X5 F10\n").len(), 0);
     for (src, col) in [("(c) /G1 X1 F1\n", 5), ("N10 /G1 X1 F1\n", 5)] {
         let d = error(D, src);
         assert_eq!((d.line, d.col), (1, col), "{src:?}: {d}");

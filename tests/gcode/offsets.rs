@@ -14,8 +14,11 @@ fn o() -> kerf_gcode::Vec3 {
     v(0.0, 0.0, 0.0)
 }
 
-/// The persistent parameters after running `src` to its end.
+/// The persistent parameters after running `src` to its end. The program is put between
+/// `%` lines (a LinuxCNC program ends with M2/M30 or its closing `%`; M2 would select G54
+/// again, the closing `%` changes nothing).
 fn params_after(settings: Settings, src: &str) -> Vec<(u32, f64)> {
+    let src = format!("%\n{src}\n%\n");
     let mut it = Interpreter::new(src.as_bytes(), D, settings);
     for item in it.by_ref() {
         if let Err(e) = item {

@@ -27,9 +27,10 @@ fn empty_and_comment_only_programs_yield_nothing() {
 fn linuxcnc_percent_comments_block_delete_spaces_and_case() {
     // LinuxCNC G-code reference: a file may be delimited by `%` lines (anything after the
     // second `%` is ignored); `( )` and `;` comments; `/` block delete (guess: the block
-    // delete switch is on, so the block is skipped); spaces anywhere; case-insensitive.
-    let ms = moves(
+    // delete switch is on here, so the block is skipped); spaces anywhere; case-insensitive.
+    let ms = moves_with(
         Dialect::LinuxCnc,
+        block_delete_on(),
         "%\n\
          (header comment)\n\
          N10 g21 g90 g17 (inline) g1 x1 y2 f100\n\
@@ -53,8 +54,9 @@ fn linuxcnc_percent_comments_block_delete_spaces_and_case() {
 
 #[test]
 fn rockwell_block_delete_and_lower_case() {
-    let ms = moves(
+    let ms = moves_with(
         Dialect::Rockwell,
+        block_delete_on(),
         "%\nn10 g01 x1 f100 ;\n/N20 G01 X100 ;\nN30 G01 Y2 ;\n",
     );
     assert_eq!(ms.len(), 2, "{ms:#?}");
@@ -63,8 +65,9 @@ fn rockwell_block_delete_and_lower_case() {
 
 #[test]
 fn sinumerik_block_delete_comments_and_lower_case() {
-    let ms = moves(
+    let ms = moves_with(
         Dialect::Sinumerik,
+        block_delete_on(),
         "n10 g1 x1 f100 ; comment with X99\n/N20 G1 X100\nN30 G1 Y2\n",
     );
     assert_eq!(ms.len(), 2, "{ms:#?}");
@@ -75,8 +78,9 @@ fn sinumerik_block_delete_comments_and_lower_case() {
 #[test]
 fn heidenhain_block_delete() {
     // Guess: TNC ISO hides `/` blocks like the other controls when block skip is active.
-    let ms = moves(
+    let ms = moves_with(
         Dialect::Heidenhain,
+        block_delete_on(),
         "%B G71 *\nN10 G01 X+1 F100 *\n/N20 G01 X+100 *\nN30 G01 Y+2 *\nN40 %B G71 *\n",
     );
     assert_eq!(ms.len(), 2, "{ms:#?}");
@@ -85,8 +89,9 @@ fn heidenhain_block_delete() {
 
 #[test]
 fn fagor_block_delete_and_lower_case() {
-    let ms = moves(
+    let ms = moves_with(
         Dialect::Fagor,
+        block_delete_on(),
         "n10 g01 x1 f100 ; comment\n/N20 G01 X100\nN30 G01 Y2\n",
     );
     assert_eq!(ms.len(), 2, "{ms:#?}");
@@ -159,4 +164,50 @@ fn word_order_inside_a_block_does_not_matter() {
     let a = moves(Dialect::LinuxCnc, "X1 Y2 F100 G1\nJ0 I-1 X0 Y1 G3\n");
     let b = moves(Dialect::LinuxCnc, "G1 X1 Y2 F100\nG3 X0 Y1 I-1 J0\n");
     assert_same_moves("word order", &a, &b, 0.0);
+}
+
+/// Settings with the block delete switch on (it is off by default).
+fn block_delete_on() -> kerf_gcode::Settings {
+    kerf_gcode::Settings {
+        block_delete: true,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn block_delete_off_by_default_runs_the_block_in_every_dialect() {
+    for (d, src, n) in [
+        (Dialect::LinuxCnc, "G1 X1 F100\n/G1 X100\nG1 Y2\n", 3),
+        (
+            Dialect::Rockwell,
+            "N10 G01 X1 F100 ;\n/N20 G01 X100 ;\nN30 G01 Y2 ;\n",
+            3,
+        ),
+        (
+            Dialect::Sinumerik,
+            "N10 G1 X1 F100\n/N20 G1 X100\nN30 G1 Y2\n",
+            3,
+        ),
+        (
+            Dialect::Fagor,
+            "N10 G01 X1 F100\n/N20 G01 X100\nN30 G01 Y2\n",
+            3,
+        ),
+    ] {
+        let off = moves(d, src);
+        assert_eq!(off.len(), n, "{}", d.name());
+        assert_feed_line(&off[1], v(1.0, 0.0, 0.0), v(100.0, 0.0, 0.0), 100.0);
+        let on = moves_with(d, block_delete_on(), src);
+        assert_eq!(on.len(), n - 1, "{}", d.name());
+        assert_feed_line(&on[1], v(1.0, 0.0, 0.0), v(1.0, 2.0, 0.0), 100.0);
+    }
+    // LinuxCNC: a deleted line of the language layer (a parameter set) runs too when off.
+    let ms = moves(Dialect::LinuxCnc, "#1=5\n/#1=7\nG1 X#1 F100\n");
+    assert_feed_line(&ms[0], o(), v(7.0, 0.0, 0.0), 100.0);
+    let ms = moves_with(
+        Dialect::LinuxCnc,
+        block_delete_on(),
+        "#1=5\n/#1=7\nG1 X#1 F100\n",
+    );
+    assert_feed_line(&ms[0], o(), v(5.0, 0.0, 0.0), 100.0);
 }

@@ -51,8 +51,14 @@ if [ $# -ge 3 ]; then
     }' "$3" > "$tmp/params.var"
     params=(-v "$tmp/params.var")
 fi
+# A program whose first line is the comment `(kerf: block_delete on)` runs with the block
+# delete switch on (rs274 -b; Kerf's harness sets Settings::block_delete for it).
+flags=()
+if head -n 1 "$program" | grep -qi '(kerf: block_delete on)'; then
+    flags=(-b)
+fi
 # rs274 reads the program's directory for subroutine files; run it from there.
 cd "$(dirname "$program")"
 export LD_LIBRARY_PATH="$dir/root/usr/lib:$dir/root/usr/lib/x86_64-linux-gnu"
 # Not exec: the trap removes the temporary files (rs274 rewrites the parameter file).
-timeout 60 "$dir/root/usr/bin/rs274" -g -t "$tmp/tool.tbl" "${params[@]}" "$(basename "$program")" </dev/null
+timeout 60 "$dir/root/usr/bin/rs274" -g "${flags[@]}" -t "$tmp/tool.tbl" "${params[@]}" "$(basename "$program")" </dev/null

@@ -102,6 +102,8 @@ fn dense_raster(moves: usize, start: [f64; 6]) -> String {
             text += &format!("G1 Y{:.3}\n", y0 + row as f64 * 0.1);
         }
     }
+    // A LinuxCNC program ends with M2.
+    text.push_str("M2\n");
     text
 }
 
@@ -121,6 +123,8 @@ fn dense_spiral(moves: usize) -> String {
             r * theta.sin()
         );
     }
+    // A LinuxCNC program ends with M2.
+    text.push_str("M2\n");
     text
 }
 
@@ -249,6 +253,8 @@ fn straight_raster(moves: usize) -> String {
         };
         text += &format!("G1 X{x:.3} Y{:.3}\n", row as f64 * 0.1);
     }
+    // A LinuxCNC program ends with M2.
+    text.push_str("M2\n");
     text
 }
 
@@ -458,7 +464,7 @@ fn hold(args: &[String]) -> Result<(), String> {
         SetpointReader::open(client.node(), &config.machine).map_err(|e| e.to_string())?;
     let mut sender = MoveSender::open(client.node(), &config.machine).map_err(|e| e.to_string())?;
     let id = 11;
-    let text = format!("G21 G90 G94 F3000\nG1 X{:.3}\n", start[0] + 900.0);
+    let text = format!("G21 G90 G94 F3000\nG1 X{:.3}\nM2\n", start[0] + 900.0);
     stream(
         &mut client,
         &mut sender,

@@ -115,6 +115,36 @@ pub(crate) fn same_in_plane(start: &Vec3, end: &Vec3, plane: Plane) -> bool {
     len2(eu - su, ev - sv) < SAME_POINT_MM
 }
 
+/// How far the end of a LinuxCNC arc may lie beside the ray from the centre through the
+/// start, mm, for its end angle to count as the start angle: the 0.0001 of the 4 decimals
+/// rs274 prints (within it, which side the end falls on is a rounding of the program's
+/// numbers, not an intent to turn a hair's breadth instead of a whole circle).
+pub(crate) const SAME_ANGLE_LATERAL_MM: f64 = 1e-4;
+
+/// LinuxCNC's whole-turn rule: the end of a centre-format arc whose radius differs from
+/// the start's lies on the ray from the programmed centre through the start (its angle
+/// about the centre is the start's, within [`SAME_ANGLE_LATERAL_MM`]). LinuxCNC then turns
+/// a whole circle, spiralling from the start radius to the end radius.
+pub(crate) fn end_on_start_ray(
+    start: &Vec3,
+    end: &Vec3,
+    center_uv: (f64, f64),
+    plane: Plane,
+) -> bool {
+    let (su, sv) = uv(start, plane);
+    let (eu, ev) = uv(end, plane);
+    let (cu, cv) = center_uv;
+    let (ru, rv) = (su - cu, sv - cv);
+    let (du, dv) = (eu - cu, ev - cv);
+    let (r1, r2) = (len2(ru, rv), len2(du, dv));
+    if r1 <= SAME_POINT_MM || r1 == r2 || same_in_plane(start, end, plane) {
+        return false;
+    }
+    // The end's distance from the ray's line, and that it lies on the start's side.
+    let lateral = (ru * dv - rv * du).abs() / r1;
+    lateral <= SAME_ANGLE_LATERAL_MM && ru * du + rv * dv > 0.0
+}
+
 /// The sweep from angle `a1` to angle `a2` in the given direction, in (0, 2π] or
 /// [−2π, 0); equal angles (`full`) give a whole circle.
 fn base_sweep(a1: f64, a2: f64, ccw: bool, full: bool) -> f64 {

@@ -194,6 +194,11 @@ pub(crate) struct State {
     retract_r: bool,
     /// LinuxCNC cutter radius compensation (side, radius, programmed point, held moves).
     crc: comp::Crc,
+    /// LinuxCNC: the block being run holds M19, whose R word is its angle.
+    m19_in_block: bool,
+    /// LinuxCNC: the end of an arc whose end lies on the ray from its centre through its
+    /// start, reached by a radial line after the whole turn (`geometry::arc_path`).
+    arc_tail: Option<Vec3>,
 }
 
 /// Output of a block, in execution order.
@@ -212,6 +217,11 @@ impl Out<'_> {
 impl State {
     pub(crate) fn dialect(&self) -> Dialect {
         self.dialect
+    }
+
+    /// The block delete switch ([`Settings::block_delete`]).
+    pub(crate) fn block_delete(&self) -> bool {
+        self.settings.block_delete
     }
 
     pub(crate) fn new(dialect: Dialect, settings: Settings) -> Self {
@@ -275,6 +285,8 @@ impl State {
             cycles: cycles::CycleState::new(),
             retract_r: true,
             crc: comp::Crc::new(),
+            m19_in_block: false,
+            arc_tail: None,
         };
         s.init_params();
         s.update_origin();
@@ -301,6 +313,13 @@ impl State {
         // the block), which exec() would otherwise replace before reading them.
         let mut local: Option<bool> = None;
         let modal = if self.absolute { Form::Abs } else { Form::Inc };
+        // The I/O codes Kerf refuses take words it does not know (M67 E0): the code is
+        // named first.
+        for w in words.iter().filter(|w| w.key == crate::lex::key(b'M')) {
+            if let Some(msg) = code10(w.value).and_then(|c| self.linuxcnc_m_refusal(c / 10)) {
+                return fail(w.col, msg);
+            }
+        }
         for w in words {
             let letter = if w.key < 26 { b'A' + w.key } else { 0 };
             match letter {
@@ -498,6 +517,19 @@ impl State {
             }
             let grp = group(g);
             let heidenhain_distance = d == Dialect::Heidenhain && grp == GROUP_DISTANCE;
+            // rs274 takes G80 beside a motion code of group 1 (`G80 G0 X5`): the motion.
+            let g80_with_motion = d == Dialect::LinuxCnc
+                && grp == 1
+                && matches!(
+                    (slots[1], g),
+                    (Some((G::NoMotion, _)), G::Motion(_)) | (Some((G::Motion(_), _)), G::NoMotion)
+                );
+            if g80_with_motion {
+                if g != G::NoMotion {
+                    slots[1] = Some((g, col));
+                }
+                continue;
+            }
             if slots[grp].is_some() && !heidenhain_distance {
                 return fail(col, "two G codes used from same modal group");
             }
@@ -536,6 +568,9 @@ impl State {
                 m61 = Some(col);
                 continue;
             }
+            if let Some(msg) = self.linuxcnc_m_refusal(code) {
+                return fail(col, msg);
+            }
             let ev = match (m_event(code), self.linuxcnc_m(code)) {
                 (Some(ev), _) | (None, Some(Ok(ev))) => ev,
                 (None, Some(Err(op))) => {
@@ -563,7 +598,14 @@ impl State {
                     1
                 }
                 EventCode::M6 => 2,
-                EventCode::M3 | EventCode::M4 | EventCode::M5 => 4,
+                EventCode::M3 | EventCode::M4 | EventCode::M5 | EventCode::M19 => 4,
+                // LinuxCNC modal group 9: the override controls.
+                EventCode::M48
+                | EventCode::M49
+                | EventCode::M50
+                | EventCode::M51
+                | EventCode::M52
+                | EventCode::M53 => 32,
                 // LinuxCNC (rs274) refuses M7 and M8 in one block: one coolant group.
                 EventCode::M7 | EventCode::M8 if d == Dialect::LinuxCnc => 8 | 16,
                 EventCode::M7 => 8,
@@ -588,6 +630,20 @@ impl State {
                 m_pre[i] = Some(ev);
             }
         }
+
+        let orient = m_pre.contains(&Some(EventCode::M19));
+        if orient {
+            State::check_m19(blk)?;
+        }
+        let override_p = [
+            EventCode::M50,
+            EventCode::M51,
+            EventCode::M52,
+            EventCode::M53,
+        ]
+        .iter()
+        .any(|&ev| m_pre.contains(&Some(ev)));
+        self.m19_in_block = orient;
 
         // LinuxCNC sets the modes after F, S, T, the M codes and the dwell (its order of
         // execution: `G20 F40` is 40 mm/min); the other controls read every value of the
@@ -669,6 +725,7 @@ impl State {
             EventCode::M3,
             EventCode::M4,
             EventCode::M5,
+            EventCode::M19,
             EventCode::M7,
             EventCode::M8,
             EventCode::M9,
@@ -702,9 +759,29 @@ impl State {
                         self.tool_loaded = self.tool_selected;
                     }
                 }
+                if ev == EventCode::M19 {
+                    // The spindle stops to orient (rs274: "Spindle not turning" after it).
+                    self.note_machine_event(EventCode::M5);
+                    self.cycles.note_spindle(EventCode::M5);
+                    self.orient_event(blk, out);
+                    continue;
+                }
                 self.note_machine_event(ev);
                 self.cycles.note_spindle(ev);
                 out.event(ev, None);
+            }
+        }
+        // LinuxCNC M48–M53 after the coolant, before the user M codes.
+        for ev in [
+            EventCode::M48,
+            EventCode::M49,
+            EventCode::M50,
+            EventCode::M51,
+            EventCode::M52,
+            EventCode::M53,
+        ] {
+            if blk.nm > 0 && m_pre.contains(&Some(ev)) {
+                self.override_event(ev, blk, out);
             }
         }
         if let Some(n) = user_m {
@@ -909,10 +986,21 @@ impl State {
             let arc = matches!(self.motion, Some(Motion::Arc(_)));
             let user = user_m.is_some();
             let g10 = slot(0).is_some_and(|(g, _)| g == G::SetData);
-            if blk.has(KP) && !(dwell || g64 || arc || user || g10 || self.cycle_uses_p()) {
+            if blk.has(KP)
+                && !(dwell
+                    || g64
+                    || arc
+                    || user
+                    || g10
+                    || orient
+                    || override_p
+                    || self.cycle_uses_p())
+            {
                 return fail(blk.col(KP), cycles::unused_word_message(KP));
             }
-            if blk.has(KQ) && !(g64 || user || g10 || m61.is_some() || self.cycle_uses_q()) {
+            if blk.has(KQ)
+                && !(g64 || user || g10 || orient || m61.is_some() || self.cycle_uses_q())
+            {
                 return fail(blk.col(KQ), cycles::unused_word_message(KQ));
             }
         }

@@ -73,11 +73,25 @@ pub(crate) fn col_of(pos: usize) -> u32 {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Lexer {
     dialect: Dialect,
+    /// The block delete switch: on, a block starting with `/` is skipped; off, the `/` is
+    /// ignored and the block runs.
+    block_delete: bool,
 }
 
 impl Lexer {
     pub(crate) fn new(dialect: Dialect) -> Self {
-        Lexer { dialect }
+        Lexer {
+            dialect,
+            block_delete: true,
+        }
+    }
+
+    /// The lexer with the block delete switch `on` or off.
+    pub(crate) fn with_block_delete(self, on: bool) -> Self {
+        Lexer {
+            block_delete: on,
+            ..self
+        }
     }
 
     fn paren_comments(self) -> bool {
@@ -139,6 +153,11 @@ impl Lexer {
                     && (self.dialect != Dialect::LinuxCnc
                         || line[..i].iter().all(|b| b.is_ascii_whitespace())) =>
                 {
+                    if !self.block_delete {
+                        // The switch is off: the block runs as if the `/` were not there.
+                        i += 1;
+                        continue;
+                    }
                     // Block delete: the whole block is skipped, so its words are not even
                     // checked (a deleted block may hold anything the control would ignore).
                     flags.deleted = true;
@@ -773,5 +792,19 @@ mod tests {
     fn block_delete_skips_words() {
         let blocks = lex_all(Dialect::LinuxCnc, "/G1 X#5").unwrap();
         assert_eq!(blocks, vec![vec![]]);
+    }
+
+    #[test]
+    fn block_delete_off_runs_the_block() {
+        let lx = Lexer::new(Dialect::LinuxCnc).with_block_delete(false);
+        let mut words = Vec::new();
+        let mut pos = 0;
+        let flags = lx.next_block(b" /G1 X5", &mut pos, &mut words).unwrap();
+        assert!(!flags.expect("a block").deleted);
+        let got: Vec<(u8, f64, u32)> = words.iter().map(|w| (w.key, w.value, w.col)).collect();
+        assert_eq!(got, vec![(key(b'G'), 1.0, 3), (key(b'X'), 5.0, 6)]);
+        // The `/` is still only allowed first on a LinuxCNC line.
+        let mut pos = 0;
+        assert!(lx.next_block(b"G1 /X5", &mut pos, &mut words).is_err());
     }
 }

@@ -86,9 +86,11 @@
 //!   LinuxCNC runs a motion of the same block after the dwell (`G4 P1 G1 X10`); the other
 //!   controls want the dwell in a block of its own ("G4 must be programmed in a separate
 //!   block"), so an axis, centre or polar word there is an error, never dropped.
-//! - Block delete `/` at the start of a block skips the block (it is not even checked):
-//!   Kerf's block delete switch is on. (rs274 run without `-b`, as `tests/rs274/canon.sh`
-//!   runs it, has the switch off and runs such blocks.) In LinuxCNC the `/` must be the
+//! - Block delete `/` at the start of a block: with the block delete switch on
+//!   ([`Settings::block_delete`]) the block is skipped (it is not even checked); off, the
+//!   default, the `/` is ignored and the block runs. Off is how LinuxCNC starts (rs274's
+//!   `-b` turns it on; AXIS has a toggle) and how the other controls' panels leave it
+//!   until the operator asks for skipping. In LinuxCNC the `/` must be the
 //!   first character of the line, spaces aside: after a comment, an N word or any word it
 //!   is an error, as in rs274 ("Bad character '/' used").
 //! - Cutter compensation G41/G42: LinuxCNC compensates (its section below). The other
@@ -109,7 +111,13 @@
 //!   |r_end − r_start| > max(`arc_tolerance_mm`, r_start × `arc_tolerance_rel`) (the
 //!   Sinumerik MD21000/MD21010 rule; defaults 0.02828 mm and 0.001). A radius-format arc
 //!   whose |R| is short of half the chord by at most the slack (LinuxCNC 0.00127 mm,
-//!   others `arc_tolerance_mm`) is taken as a semicircle.
+//!   others `arc_tolerance_mm`) is taken as a semicircle. LinuxCNC: when the end lies on
+//!   the ray from the programmed centre through the start (its angle about the centre is
+//!   the start's, within 0.0001 mm beside the ray) at another radius, LinuxCNC turns a whole
+//!   circle spiralling to the end radius; Kerf turns the whole circle (and its P turns) at
+//!   the start radius about the programmed centre, then feeds along the radius to the end
+//!   (a line as long as the radii differ, within the arc tolerance), in the same block. With
+//!   cutter compensation or in G93 that is an error.
 //! - A full circle is a centre-format arc whose end equals its start (end words omitted or
 //!   repeated): `|sweep_rad| = 2π`, plus 2π per extra turn. Radius format cannot make one.
 //! - Helices: an axis word along the plane normal moves linearly with the angle; the
@@ -123,11 +131,17 @@
 //! # LinuxCNC / Tormach (`linuxcnc`, alias `tormach`)
 //!
 //! - `( )` and `;` comments; spaces are allowed anywhere, even inside numbers (`X 1 0.5`
-//!   is X10.5). A `%` line opens the program and the next `%` line ends it.
+//!   is X10.5). A `%` line opens the program and the next `%` line ends it. A program
+//!   ends with M2/M30 or its closing `%`: at the end of the file without them it is
+//!   rs274's error "File ended with no percent sign or program end" ("File ended with no
+//!   percent sign" after an opening `%`) at the last line, after the moves before it (not
+//!   a move cutter compensation holds back); a `%` without an opening one is "Bad
+//!   character '%' used". Subroutine files are read for their subs and need no end.
 //! - G20/G21 (default mm), G90/G91, G90.1/G91.1 (I J K absolute / incremental, default
 //!   incremental; under G90.1 both centre words of the plane are required: "J word missing
-//!   in absolute center arc"), G17/G18/G19, G80 cancels the motion mode, G97/G98/G99
-//!   accepted. There is no motion mode at start: axis words before G0/G1/G2/G3 are the
+//!   in absolute center arc"), G17/G18/G19, G80 cancels the motion mode (with a motion
+//!   code in the same block, `G80 G0 X5`, the motion runs, as in rs274), G97/G98/G99
+//!   accepted. G17.1/G18.1/G19.1 (UVW planes) are "not supported". There is no motion mode at start: axis words before G0/G1/G2/G3 are the
 //!   error "cannot use axis values without a G code that uses them".
 //! - **Order of execution** (the manual's list): feed mode G93/G94/G95, F, S, T, M6,
 //!   M3/M4/M5, M70–M73, M7/M8/M9, M100–M199, G4, then plane, units, cutter compensation,
@@ -152,21 +166,36 @@
 //!   spindle feedback: it assumes the spindle turns at the commanded speed, whether M3/M4
 //!   or M5 is in force; with no S or S0 it is the error "Cannot feed with zero spindle
 //!   speed in feed per rev mode".
-//! - **Modal state M70–M73**: M70 saves, M72 restores ("Cannot restore context from invalid stack
-//!   frame - missing M70/M73?" with nothing saved), M71 invalidates, at the current call level.
-//!   M73 saves, and in LinuxCNC the end of the subroutine (endsub or return) restores; in the
-//!   main program it saves like M70 and the program's end restores nothing. Not yet in Kerf:
-//!   O-word calls do not open a call level of their own
-//!   (`State::modal_enter_call`/`modal_leave_call` are not called), so M73 in a subroutine saves
-//!   like M70 and its end restores nothing (docs/LINUXCNC.md). Saved: units, plane, cutter
-//!   compensation, distance and arc distance modes, feed mode and feed, coordinate system,
-//!   G43/G49, G61/G64 with P and Q, S, the spindle (M3/M4/M5) and coolant (M7/M8); not the motion
-//!   mode. A restore sets the units first, then the rest, as rs274 does, and emits S, M3/M4/M5
-//!   for what changes; coolant as rs274 restores it (saved off: M9 when anything is on; saved on:
-//!   M7/M8 for what is off; nothing is turned off otherwise); G43 is applied anew with the tool
-//!   in the spindle; a restore that changes the feed mode leaves the feed at zero (rs274 does).
-//!   M70–M73 belong to the spindle group (`M3 M70` is refused, as in rs274); M6 stops the
-//!   spindle.
+//! - **Modal state M70–M73**: M70 saves, M72 restores ("Cannot restore context from
+//!   invalid stack frame - missing M70/M73?" with nothing saved), M71 invalidates, at the
+//!   current call level (the program, or one subroutine call). M73 saves, and the end of
+//!   the subroutine (endsub or return) restores; in the main program it saves like M70
+//!   and the program's end restores nothing. Saved: units, plane, cutter compensation,
+//!   distance and arc distance modes, feed mode and feed, coordinate system, G43/G49,
+//!   G61/G64 with P and Q, S, the spindle (M3/M4/M5) and coolant (M7/M8); not the motion
+//!   mode. A restore sets the units first, then the rest, as rs274 does, and emits S,
+//!   M3/M4/M5 for what changes; coolant as rs274 restores it (saved off: M9 when anything
+//!   is on; saved on: M7/M8 for what is off; nothing is turned off otherwise); G43 is
+//!   applied anew with the tool in the spindle; a restore that changes the feed mode
+//!   leaves the feed at zero (rs274 does). M70–M73 belong to the spindle group (`M3 M70`
+//!   is refused, as in rs274); M6 stops the spindle.
+//! - **M19** orients the spindle: an [`EventCode::M19`] event with `value` = R (degrees,
+//!   0–360, default 0), `p` = P (direction 0, 1, 2; default 0) and `q` = Q (the wait,
+//!   seconds), checked as rs274 checks them; M19 is in the spindle group (M3/M4/M5).
+//!   (rs274's canon prints no ORIENT_SPINDLE for an M19 that repeats the last angle and
+//!   direction; Kerf hands every M19 on.)
+//! - **Overrides** M48/M49 (feed and spindle override enable/disable) and M50/M51/M52/M53
+//!   (feed override, spindle override, adaptive feed, feed stop; `value` 1, or 0 for `P0`)
+//!   are events ([`EventCode::M48`]…) in their own modal group, after the coolant and
+//!   before the user M codes; `kerf sim` does not stop at them.
+//! - **Refused**: M62–M65 (digital outputs), M66 (wait on an input), M67/M68 (analog
+//!   outputs): Kerf has no I/O, "M62 is not supported: Kerf has no digital outputs" (the
+//!   code is named before its E word); M98/M99 (Fanuc-style subprograms of LinuxCNC 2.9):
+//!   "not supported, use o-word subroutines".
+//! - **G10 L0** reloads the tool table: Kerf's is the configured one with the program's
+//!   G10 L1/L10/L11 changes, so nothing changes; its other words are not read (rs274
+//!   neither). With a tool loaded it is rs274's error `G10 L0 not allowed with loaded
+//!   tool <N>`.
 //! - **User M codes** M100–M199: an [`EventCode::User`] event with `value` = P and `q` =
 //!   Q, after the coolant and before the dwell; one per block. LinuxCNC runs the program
 //!   file `M1nn` and refuses the code when there is none ("Unknown m code used"); Kerf
@@ -574,6 +603,10 @@ pub struct Settings {
     /// its `.var` file). Values in mm and degrees, Kerf's machine units. A number outside
     /// #1–#5602 is ignored.
     pub parameters: Vec<(u32, f64)>,
+    /// The block delete switch (`[gcode] block_delete`): on, a block that starts with `/`
+    /// is skipped; off (the default), the `/` is ignored and the block runs, as LinuxCNC
+    /// runs it with its switch off, which is how rs274 and LinuxCNC start.
+    pub block_delete: bool,
 }
 
 impl Default for Settings {
@@ -590,6 +623,7 @@ impl Default for Settings {
             g28_home_mm_deg: [0.0; 6],
             g30_home_mm_deg: [0.0; 6],
             parameters: Vec::new(),
+            block_delete: false,
         }
     }
 }
@@ -628,10 +662,25 @@ pub enum EventCode {
     G4,
     /// Pallet change pause (LinuxCNC M60): a program pause like M0.
     M60,
-    /// Spindle orientation (LinuxCNC ORIENT_SPINDLE, as G87 back boring stops the spindle
-    /// in a fixed orientation before moving the tool sideways): `value` is the angle,
-    /// degrees.
+    /// Spindle orientation (LinuxCNC M19, and ORIENT_SPINDLE of G87 back boring, which
+    /// stops the spindle in a fixed orientation before moving the tool sideways): `value`
+    /// is the angle R, degrees (0 to 360, 0 without R); for M19 `p` is its P word, the
+    /// direction (LinuxCNC's `spindle.N.orient-mode`: 0 the shorter way, 1 clockwise, 2
+    /// counter-clockwise; 0 without P) and `q` its Q word, the time to wait for the
+    /// orientation, seconds (`None` without Q).
     M19,
+    /// Enable the feed and spindle overrides (LinuxCNC M48).
+    M48,
+    /// Disable the feed and spindle overrides (LinuxCNC M49).
+    M49,
+    /// The feed override enabled (`value` 1) or disabled (0) (LinuxCNC M50, `M50 P0`).
+    M50,
+    /// The spindle speed override enabled (1) or disabled (0) (LinuxCNC M51).
+    M51,
+    /// Adaptive feed control enabled (1) or disabled (0) (LinuxCNC M52).
+    M52,
+    /// The feed stop (hold) control enabled (1) or disabled (0) (LinuxCNC M53).
+    M53,
     /// A user-defined M code M100–M199 (LinuxCNC), by its number less 100: `value` is its
     /// P word, `q` its Q word.
     User(u8),
@@ -667,6 +716,12 @@ impl EventCode {
             EventCode::G4 => "G4",
             EventCode::M60 => "M60",
             EventCode::M19 => "M19",
+            EventCode::M48 => "M48",
+            EventCode::M49 => "M49",
+            EventCode::M50 => "M50",
+            EventCode::M51 => "M51",
+            EventCode::M52 => "M52",
+            EventCode::M53 => "M53",
             EventCode::User(n) => {
                 let i = 4 * usize::from(n.min(99));
                 &USER_M_NAMES[i..i + 4]
@@ -692,8 +747,11 @@ pub struct Event {
     /// S: rpm; T: tool number; G4: dwell seconds; user M codes: the P word; other M
     /// codes: `None`.
     pub value: Option<f64>,
-    /// User M codes: the Q word; otherwise `None`.
+    /// User M codes and M19: the Q word; otherwise `None`.
     pub q: Option<f64>,
+    /// M19: the P word (the direction mode); otherwise `None` (a user M code's P word is
+    /// its `value`).
+    pub p: Option<f64>,
     /// Messages (MSG, DEBUG, PRINT): the text; otherwise `None`.
     pub text: Option<std::sync::Arc<str>>,
 }
@@ -706,6 +764,7 @@ impl Event {
             code,
             value,
             q: None,
+            p: None,
             text: None,
         }
     }
@@ -826,7 +885,7 @@ impl<R: std::io::BufRead> Interpreter<R> {
             line: Vec::with_capacity(256),
             line_no: 0,
             reader_line: 0,
-            lexer: lex::Lexer::new(dialect),
+            lexer: lex::Lexer::new(dialect).with_block_delete(settings.block_delete),
             words: Vec::with_capacity(32),
             block: interp::Block::new(),
             state: interp::State::new(dialect, settings),
@@ -935,6 +994,10 @@ impl<R: std::io::BufRead> Interpreter<R> {
             if flags.percent && matches!(dialect, Dialect::LinuxCnc | Dialect::Rockwell) {
                 // A `%` line opens the program; the next one ends it and the rest of the
                 // file is ignored, as on the control.
+                if dialect == Dialect::LinuxCnc && !self.percent_seen && self.blocks_seen {
+                    // rs274: a `%` closes only a program that a `%` opened.
+                    return Err(self.diag(1, "Bad character '%' used"));
+                }
                 if self.percent_seen || self.blocks_seen {
                     self.finished = true;
                     // LinuxCNC does not run a move held back by cutter compensation
@@ -1050,6 +1113,18 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
                     self.finished = true;
                     if let Some((line, m)) = self.ngc.unfinished() {
                         self.line_no = line;
+                        return Some(Err(self.diag(1, m)));
+                    }
+                    if self.state.dialect() == Dialect::LinuxCnc {
+                        // rs274 refuses a program that ends without M2/M30 or its closing
+                        // `%`, at the last line of the file; the moves before it have run,
+                        // a move held back by cutter compensation has not.
+                        self.line_no = self.reader_line.max(1);
+                        let m = if self.percent_seen {
+                            "File ended with no percent sign"
+                        } else {
+                            "File ended with no percent sign or program end"
+                        };
                         return Some(Err(self.diag(1, m)));
                     }
                     // Moves held back by cutter compensation run at the end of the file.

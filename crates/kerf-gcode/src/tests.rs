@@ -4,7 +4,27 @@ use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 use crate::{Diagnostic, Dialect, EventCode, Interpreter, Item, Move, Path, Settings, Tool, Vec3};
 
+/// Runs `src`; a LinuxCNC program, which must end with M2/M30 or its closing `%`, is given
+/// an `M2` line at its end (after the program's own end it is never read).
 fn run_with(d: Dialect, src: &str, settings: Settings) -> Result<Vec<Item>, Diagnostic> {
+    if d == Dialect::LinuxCnc {
+        let sep = if src.is_empty() || src.ends_with('\n') {
+            ""
+        } else {
+            "\n"
+        };
+        let ended = format!("{src}{sep}M2\n");
+        let added_line = u32::try_from(ended.lines().count()).unwrap_or(u32::MAX);
+        let mut items: Vec<Item> =
+            Interpreter::new(ended.as_bytes(), d, settings).collect::<Result<_, _>>()?;
+        if let Some(Item::Event(e)) = items.last()
+            && e.code == EventCode::M2
+            && e.line == added_line
+        {
+            items.pop();
+        }
+        return Ok(items);
+    }
     Interpreter::new(src.as_bytes(), d, settings).collect()
 }
 
@@ -588,8 +608,19 @@ fn syntax_of_each_dialect() {
         "%_N_A_MPF\n:10 G1 X=5 F100 ; note\nN20 Y-.5\n",
     );
     line_to(&m[1], v(5.0, -0.5, 0.0));
-    // Block delete in a Rockwell line skips only its block.
-    let m = moves(Dialect::Rockwell, "G01 F100 X1 ; /X2 ; X3 ;\n");
+    // Block delete (switch on) in a Rockwell line skips only its block.
+    let on = Settings {
+        block_delete: true,
+        ..Settings::default()
+    };
+    let m: Vec<Move> = run_with(Dialect::Rockwell, "G01 F100 X1 ; /X2 ; X3 ;\n", on)
+        .expect("valid")
+        .into_iter()
+        .filter_map(|i| match i {
+            Item::Move(m) => Some(m),
+            Item::Event(_) => None,
+        })
+        .collect();
     assert_eq!(m.len(), 2);
     line_to(&m[1], v(3.0, 0.0, 0.0));
     // Invalid bytes are errors at their column, never panics.

@@ -72,12 +72,24 @@ pub const EVENT_MSG: u32 = 16;
 pub const EVENT_DEBUG: u32 = 17;
 /// Print message (`(PRINT, ...)`); the text stays with the planner process.
 pub const EVENT_PRINT: u32 = 18;
-/// Spindle orientation (LinuxCNC ORIENT_SPINDLE of G87 back boring); value: the angle,
-/// degrees.
+/// Spindle orientation (LinuxCNC M19, and ORIENT_SPINDLE of G87 back boring); value: the
+/// angle, degrees.
 pub const EVENT_M19: u32 = 19;
+/// Feed and spindle overrides enabled (LinuxCNC M48).
+pub const EVENT_M48: u32 = 20;
+/// Feed and spindle overrides disabled (LinuxCNC M49).
+pub const EVENT_M49: u32 = 21;
+/// Feed override control (LinuxCNC M50); value 1 enabled, 0 disabled.
+pub const EVENT_M50: u32 = 22;
+/// Spindle speed override control (LinuxCNC M51); value 1 enabled, 0 disabled.
+pub const EVENT_M51: u32 = 23;
+/// Adaptive feed control (LinuxCNC M52); value 1 enabled, 0 disabled.
+pub const EVENT_M52: u32 = 24;
+/// Feed stop control (LinuxCNC M53); value 1 enabled, 0 disabled.
+pub const EVENT_M53: u32 = 25;
 /// LinuxCNC log call (`LOGOPEN`, `LOGAPPEND`, `LOG`, `LOGCLOSE`); the text (the call) stays
 /// with the planner process.
-pub const EVENT_LOG: u32 = 20;
+pub const EVENT_LOG: u32 = 26;
 /// User M code M100 (LinuxCNC); M100 + n is `EVENT_USER_M100 + n`; value: its P word.
 pub const EVENT_USER_M100: u32 = 100;
 /// User M code M199, the last one.
@@ -330,6 +342,12 @@ pub fn event_code_to_u32(code: EventCode) -> u32 {
         EventCode::G4 => EVENT_G4,
         EventCode::M60 => EVENT_M60,
         EventCode::M19 => EVENT_M19,
+        EventCode::M48 => EVENT_M48,
+        EventCode::M49 => EVENT_M49,
+        EventCode::M50 => EVENT_M50,
+        EventCode::M51 => EVENT_M51,
+        EventCode::M52 => EVENT_M52,
+        EventCode::M53 => EVENT_M53,
         EventCode::Msg => EVENT_MSG,
         EventCode::Debug => EVENT_DEBUG,
         EventCode::Print => EVENT_PRINT,
@@ -357,6 +375,12 @@ pub fn event_code_from_u32(code: u32) -> Option<EventCode> {
         EVENT_G4 => EventCode::G4,
         EVENT_M60 => EventCode::M60,
         EVENT_M19 => EventCode::M19,
+        EVENT_M48 => EventCode::M48,
+        EVENT_M49 => EventCode::M49,
+        EVENT_M50 => EventCode::M50,
+        EVENT_M51 => EventCode::M51,
+        EVENT_M52 => EventCode::M52,
+        EVENT_M53 => EventCode::M53,
         EVENT_MSG => EventCode::Msg,
         EVENT_DEBUG => EventCode::Debug,
         EVENT_PRINT => EventCode::Print,
@@ -683,8 +707,18 @@ impl TryFrom<&MoveMsg> for Resolved {
                 }
                 let code = event_code_from_u32(m.event_code)
                     .ok_or(Reject::UnknownEventCode(m.event_code))?;
-                let needs_value = matches!(code, EventCode::S | EventCode::T | EventCode::G4);
-                let may_have_value = needs_value || matches!(code, EventCode::User(_));
+                let needs_value = matches!(
+                    code,
+                    EventCode::S
+                        | EventCode::T
+                        | EventCode::G4
+                        | EventCode::M50
+                        | EventCode::M51
+                        | EventCode::M52
+                        | EventCode::M53
+                );
+                let may_have_value =
+                    needs_value || matches!(code, EventCode::User(_) | EventCode::M19);
                 match (needs_value, has_value) {
                     (true, false) => return Err(Reject::EventValueMissing(code)),
                     (false, true) if may_have_value => {}

@@ -223,6 +223,9 @@ pub struct Config {
     pub subroutine_path: Vec<PathBuf>,
     /// `gcode.max_loop_iterations`: the bound on one LinuxCNC loop.
     pub max_loop_iterations: u64,
+    /// `gcode.block_delete`: the block delete switch (off by default, as LinuxCNC starts:
+    /// a block starting with `/` runs; on, it is skipped).
+    pub block_delete: bool,
     /// `gcode.g28_home_mm_deg`: the G28 position at start, machine X Y Z mm, A B C deg.
     pub g28_home_mm_deg: [f64; 6],
     /// `gcode.g30_home_mm_deg`: the G30 position at start.
@@ -316,6 +319,7 @@ impl Config {
             tool_table: None,
             subroutine_path: Vec::new(),
             max_loop_iterations: Settings::default().max_loop_iterations,
+            block_delete: Settings::default().block_delete,
             g28_home_mm_deg: [0.0; 6],
             g30_home_mm_deg: [0.0; 6],
             parameter_file: None,
@@ -370,6 +374,7 @@ impl Config {
             arc_tolerance_rel: self.arc_tolerance_rel,
             subroutine_path: self.subroutine_path.clone(),
             max_loop_iterations: self.max_loop_iterations,
+            block_delete: self.block_delete,
             g28_home_mm_deg: self.g28_home_mm_deg,
             g30_home_mm_deg: self.g30_home_mm_deg,
             ..Settings::default()
@@ -474,6 +479,7 @@ struct RawGcode {
     tool_table: Option<Spanned<String>>,
     subroutine_path: Option<Spanned<Vec<String>>>,
     max_loop_iterations: Option<Spanned<i64>>,
+    block_delete: Option<bool>,
     g28_home_mm_deg: Option<Spanned<Vec<f64>>>,
     g30_home_mm_deg: Option<Spanned<Vec<f64>>>,
     parameter_file: Option<Spanned<String>>,
@@ -902,6 +908,7 @@ impl Checker<'_> {
                 }
             },
         };
+        let block_delete = g.block_delete.unwrap_or(defaults.block_delete);
         let g28_home_mm_deg = self.home("gcode.g28_home_mm_deg", &g.g28_home_mm_deg)?;
         let g30_home_mm_deg = self.home("gcode.g30_home_mm_deg", &g.g30_home_mm_deg)?;
         let parameter_file = g
@@ -923,6 +930,7 @@ impl Checker<'_> {
             tool_table,
             subroutine_path,
             max_loop_iterations,
+            block_delete,
             g28_home_mm_deg,
             g30_home_mm_deg,
             parameter_file,
@@ -1475,7 +1483,7 @@ max_mm = 10.0
         std::fs::write(dir.join("kerf.var"), "5161\t10\n5220\t2\n5241\t-3.5\n").expect("write");
         let text = format!(
             "{MINIMAL}[gcode]\ntool_table = \"tool.tbl\"\nsubroutine_path = [\"subs\", \"/opt/ngc\"]\n\
-             max_loop_iterations = 5000\ng28_home_mm_deg = [1, 2, 3]\n\
+             max_loop_iterations = 5000\nblock_delete = true\ng28_home_mm_deg = [1, 2, 3]\n\
              g30_home_mm_deg = [4, 5, 6, 7, 8, 9]\nparameter_file = \"kerf.var\"\n\
              [[tools]]\nnumber = 1\nlength_mm = 2.0\n"
         );
@@ -1498,13 +1506,15 @@ max_mm = 10.0
         let s = c.program_settings().expect("parameter file");
         assert_eq!(s.parameters, [(5161, 10.0), (5220, 2.0), (5241, -3.5)]);
         assert_eq!(s.max_loop_iterations, 5000);
+        assert!(c.block_delete && s.block_delete);
+        assert!(!Config::builtin().settings().block_delete, "off by default");
         assert_eq!(s.subroutine_path, c.subroutine_path);
         assert_eq!(s.g30_home_mm_deg, c.g30_home_mm_deg);
         assert_eq!(s.tools.len(), 3);
         // The restored parameters take effect: #5220 = 2 starts the program in G55, whose
         // X offset #5241 is -3.5 mm.
         let items: Vec<kerf_gcode::Item> =
-            kerf_gcode::Interpreter::new(&b"G0 X1\n"[..], Dialect::LinuxCnc, s)
+            kerf_gcode::Interpreter::new(&b"G0 X1\nM2\n"[..], Dialect::LinuxCnc, s)
                 .collect::<Result<_, _>>()
                 .expect("valid program");
         let kerf_gcode::Item::Move(m) = &items[0] else {

@@ -233,15 +233,18 @@ impl Scan {
 /// control waits for the motion to finish before it acts on it (as LinuxCNC does); a tool
 /// selection (T) does not stop the motion. A pallet-change pause (M60) is a program stop,
 /// and a user M code (M100–M199) runs its program after the motion before it, as LinuxCNC
-/// does; messages (MSG, DEBUG, PRINT) are shown and LinuxCNC's log calls (LOG) passed on,
-/// and neither stops the motion. The
+/// does; messages (MSG, DEBUG, PRINT), LinuxCNC's log calls (LOG, passed on) and the
+/// override controls (M48–M53) do not stop the motion. The
 /// simulation does not wait at a program stop (it stands for an operator who presses
 /// cycle start at once) and runs M1 like M0.
 pub fn input_of_event(e: &kerf_gcode::Event) -> Option<Input> {
     use kerf_gcode::EventCode as C;
     match e.code {
         C::G4 => Some(Input::Dwell(e.value.unwrap_or(0.0))),
+        // The override controls (M48–M53) change what the operator's overrides do from
+        // this point of the path on: LinuxCNC queues them with the motion, no stop.
         C::T | C::Msg | C::Debug | C::Print | C::Log => None,
+        C::M48 | C::M49 | C::M50 | C::M51 | C::M52 | C::M53 => None,
         C::M60 | C::User(_) => Some(Input::Stop),
         C::M0
         | C::M1
@@ -1018,7 +1021,7 @@ mod tests {
             let a = k as f64 * 0.01;
             text += &format!("G1 X{:.3} Y{:.3}\n", 20.0 * a.sin(), 20.0 * (1.0 - a.cos()));
         }
-        text += "G1 X0 Y30\nG4 P0.25\nG3 X-10 Y20 I0 J-10\nM5\nG1 X-10 Y0 Z-2\nG0 X0 Y0 Z0\n";
+        text += "G1 X0 Y30\nG4 P0.25\nG3 X-10 Y20 I0 J-10\nM5\nG1 X-10 Y0 Z-2\nG0 X0 Y0 Z0\nM2\n";
         kerf_gcode::Interpreter::new(
             text.as_bytes(),
             kerf_gcode::Dialect::LinuxCnc,

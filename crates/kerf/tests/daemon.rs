@@ -906,7 +906,7 @@ type Spoil = fn(&mut kerf_proto::MoveMsg);
 /// one valid line, then `bad` (a message made from a second line), then END.
 fn inject(env: &Env, program_id: u64, bad: impl FnOnce(&mut kerf_proto::MoveMsg)) -> [f64; 3] {
     let start = position(&env.status());
-    let text = "G21 G90 G64 P0.01\nG1 X12 Y3 F3000\nG1 X20 Y10\n";
+    let text = "G21 G90 G64 P0.01\nG1 X12 Y3 F3000\nG1 X20 Y10\nM2\n";
     let moves = env.moves(text, start);
     assert_eq!(moves.len(), 2);
     let node = kerf::ipc::node(&format!("test-{}-{program_id}", std::process::id())).unwrap();
@@ -949,7 +949,7 @@ fn malformed_and_non_finite_moves_are_refused() {
     for (n, (what, bad)) in cases.into_iter().enumerate() {
         let before = env.status();
         let start = position(&before);
-        moves.extend(env.moves("G21 G90 G64 P0.01\nG1 X12 Y3 F3000\n", start));
+        moves.extend(env.moves("G21 G90 G64 P0.01\nG1 X12 Y3 F3000\nM2\n", start));
         let id = base + n as u64 + 1;
         let valid_end = inject(&env, id, bad);
         let s = env.wait_status("rest", |s| state(s) != "running");

@@ -106,6 +106,7 @@ fn dense_program(n: usize, start: [f64; 6]) -> String {
         let y = y0 + r * a.sin();
         text += &format!("G1 X{x:.4} Y{y:.4}\n");
     }
+    text += "M2\n";
     text
 }
 

@@ -450,6 +450,22 @@ impl State {
         }
         out.items.push(Item::Move(mv));
         self.pos = path.end();
+        if let Some(tail) = self.arc_tail.take() {
+            // The radial line after LinuxCNC's whole turn (`arc_path`).
+            let line = Path::Line(Line {
+                start: path.end(),
+                end: tail,
+            });
+            out.items.push(Item::Move(Move {
+                line: out.line,
+                rapid,
+                path: self.path_to_machine(line),
+                feed_mm_min: feed,
+                abc_deg: abc.map(|_| (abc_end, abc_end)),
+                corner,
+            }));
+            self.pos = tail;
+        }
         self.abc = abc_end;
         if !matches!(motion, Motion::PolarArc(_)) {
             self.polar_last = new_polar;
@@ -464,6 +480,8 @@ impl State {
                 Dialect::Heidenhain => &[],
                 Dialect::Sinumerik => &[KI, KJ, KK, K_CR, K_TURN],
                 Dialect::Fagor => &[KI, KJ, KK],
+                // LinuxCNC M19 takes R (its angle).
+                Dialect::LinuxCnc if self.m19_in_block => &[KI, KJ, KK],
                 _ => &[KI, KJ, KK, KR],
             };
             if let Some(k) = blk.first_of(centre_words) {
@@ -985,8 +1003,33 @@ impl State {
         } else {
             motion_col
         };
-        arc::arc_from_center(start, *end, centre, plane, ccw, extra_turns, tol)
-            .map(Some)
-            .map_err(|e| self.arc_error(e, col))
+        let arc = arc::arc_from_center(start, *end, centre, plane, ccw, extra_turns, tol)
+            .map_err(|e| self.arc_error(e, col))?;
+        if d == Dialect::LinuxCnc && arc::end_on_start_ray(&start, end, centre, plane) {
+            // LinuxCNC turns a whole circle about the programmed centre, spiralling to the
+            // end radius. Kerf's arcs are exact circles: the whole turn at the start radius
+            // (the helix reaching the end's height), then the radial line to the end, which
+            // is as long as the radii differ (within the arc tolerance checked above).
+            if self.crc.actual.is_some() {
+                return fail(
+                    col,
+                    "an arc whose end lies on the ray from its centre through its start (a whole turn that changes radius) is not supported with cutter compensation",
+                );
+            }
+            if self.feed_mode == super::FeedMode::InverseTime {
+                return fail(
+                    col,
+                    "an arc whose end lies on the ray from its centre through its start (a whole turn that changes radius) is not supported in inverse time (G93)",
+                );
+            }
+            let mut turn_end = start;
+            turn_end[w] = end[w];
+            let whole = arc::arc_from_center(start, turn_end, centre, plane, ccw, extra_turns, tol)
+                .map_err(|e| self.arc_error(e, col))?;
+            self.arc_tail = Some(*end);
+            *end = whole.end;
+            return Ok(Some(whole));
+        }
+        Ok(Some(arc))
     }
 }

@@ -12,7 +12,7 @@ use kerf_geom::{CornerMode, Path};
 
 use super::{Block, ExecError, MM_PER_INCH, Out, State, fail};
 use crate::arc::Plane;
-use crate::codes::{Comp, KF, KP, KQ};
+use crate::codes::{Comp, KF, KP, KQ, KR};
 use crate::{Dialect, Event, EventCode, Item};
 
 /// The feed rate mode (LinuxCNC modal group 5).
@@ -100,6 +100,13 @@ impl State {
             return None;
         }
         Some(match code {
+            19 => Ok(EventCode::M19),
+            48 => Ok(EventCode::M48),
+            49 => Ok(EventCode::M49),
+            50 => Ok(EventCode::M50),
+            51 => Ok(EventCode::M51),
+            52 => Ok(EventCode::M52),
+            53 => Ok(EventCode::M53),
             60 => Ok(EventCode::M60),
             70 => Err(StateOp::Save),
             71 => Err(StateOp::Invalidate),
@@ -108,6 +115,82 @@ impl State {
             100..=199 => Ok(EventCode::User((code - 100) as u8)),
             _ => return None,
         })
+    }
+
+    /// The LinuxCNC M codes that Kerf refuses, with the reason: it has no digital or
+    /// analog I/O (M62–M68), and it does not take Fanuc-style subprograms (M98/M99).
+    pub(super) fn linuxcnc_m_refusal(&self, code: u16) -> Option<&'static str> {
+        if self.dialect != Dialect::LinuxCnc {
+            return None;
+        }
+        Some(match code {
+            62 => "M62 is not supported: Kerf has no digital outputs",
+            63 => "M63 is not supported: Kerf has no digital outputs",
+            64 => "M64 is not supported: Kerf has no digital outputs",
+            65 => "M65 is not supported: Kerf has no digital outputs",
+            66 => "M66 is not supported: Kerf has no inputs to wait on",
+            67 => "M67 is not supported: Kerf has no analog outputs",
+            68 => "M68 is not supported: Kerf has no analog outputs",
+            98 => {
+                "M98 is not supported: Fanuc-style subprograms (M98/M99) are not supported, use o-word subroutines (o<name> call)"
+            }
+            99 => {
+                "M99 is not supported: Fanuc-style subprograms (M98/M99) are not supported, use o-word subroutines (o<name> call)"
+            }
+            _ => return None,
+        })
+    }
+
+    /// Checks the words of LinuxCNC M19 as rs274 does: R from 0 to 360 degrees, Q above
+    /// zero, P 0, 1 or 2.
+    pub(super) fn check_m19(blk: &Block) -> Result<(), ExecError> {
+        if let Some(r) = blk.get(KR)
+            && !(0.0..=360.0).contains(&r)
+        {
+            return Err(ExecError {
+                col: blk.col(KR),
+                message: "R value must be within 0..360 with M19".into(),
+            });
+        }
+        if let Some(q) = blk.get(KQ)
+            && q <= 0.0
+        {
+            return Err(ExecError {
+                col: blk.col(KQ),
+                message: "Q word with M19 requires a value > 0".into(),
+            });
+        }
+        if let Some(p) = blk.get(KP)
+            && !(p == 0.0 || p == 1.0 || p == 2.0)
+        {
+            return Err(ExecError {
+                col: blk.col(KP),
+                message: "P value must be 0,1,or 2 with M19".into(),
+            });
+        }
+        Ok(())
+    }
+
+    /// LinuxCNC M19: the orientation event (angle R, direction P, wait Q).
+    pub(super) fn orient_event(&self, blk: &Block, out: &mut Out<'_>) {
+        out.items.push(Item::Event(Event {
+            line: out.line,
+            code: EventCode::M19,
+            value: Some(blk.get(KR).unwrap_or(0.0)),
+            q: blk.get(KQ),
+            p: Some(blk.get(KP).unwrap_or(0.0)),
+            text: None,
+        }));
+    }
+
+    /// LinuxCNC M48–M53: M48/M49 without a value, M50–M53 with 1 (enabled: no P word or
+    /// a non-zero one) or 0 (`P0`: disabled), as rs274 reads them.
+    pub(super) fn override_event(&self, ev: EventCode, blk: &Block, out: &mut Out<'_>) {
+        let value = match ev {
+            EventCode::M48 | EventCode::M49 => None,
+            _ => Some(if blk.get(KP) == Some(0.0) { 0.0 } else { 1.0 }),
+        };
+        out.event(ev, value);
     }
 
     /// G93/G94/G95 (LinuxCNC): the mode changes and the feed rate becomes zero, as in
@@ -407,6 +490,7 @@ impl State {
             code: EventCode::User(n),
             value: blk.get(KP),
             q: blk.get(KQ),
+            p: None,
             text: None,
         }));
     }

@@ -247,6 +247,16 @@ impl State {
 
     /// G10 L1/L10/L11 (tool table) and G10 L2/L20 (coordinate systems).
     pub(super) fn exec_g10(&mut self, blk: &Block, col: u32) -> Result<(), ExecError> {
+        if blk.get(KL) == Some(0.0) {
+            if let Some(n) = self.tool_loaded.filter(|&n| n != 0) {
+                return fail(col, format!("G10 L0 not allowed with loaded tool <{n}>"));
+            }
+            // G10 L0 reloads the tool table (rs274: RELOAD_TOOLDATA, the block's other
+            // words unread). Kerf's table is the configured one with the program's G10 L1,
+            // L10 and L11 changes, which LinuxCNC writes to its file and so reloads: nothing
+            // changes.
+            return Ok(());
+        }
         let l = blk
             .get(KL)
             .filter(|l| [1.0, 2.0, 10.0, 11.0, 20.0].contains(l));

@@ -720,6 +720,11 @@ impl Ngc {
             return Ok(Action::Nothing);
         }
         normalize(text, norm, cols)?;
+        if norm.first() == Some(&b'/') && !state.block_delete() {
+            // Block delete switch off: the block runs as if the `/` were not there.
+            norm.remove(0);
+            cols.remove(0);
+        }
         match norm.first() {
             None => return Ok(Action::Nothing),
             Some(b'/') => return Ok(Action::Nothing),
