@@ -415,23 +415,11 @@ fn o_head(norm: &[u8], cols: &[u32]) -> Result<Option<(Arc<str>, Kw, usize)>, Fa
         }
         Some(b'[') => {
             // A computed label (`o[#1] call`): kept as written and evaluated when the line
-            // runs (`computed_label`).
+            // runs (in `Ngc::line`).
             let start = i;
-            let mut depth = 0usize;
-            while let Some(&c) = norm.get(i) {
-                i += 1;
-                match c {
-                    b'[' => depth += 1,
-                    b']' => {
-                        depth -= 1;
-                        if depth == 0 {
-                            break;
-                        }
-                    }
-                    _ => {}
-                }
-            }
-            if depth != 0 {
+            let closed;
+            (i, closed) = skip_brackets(norm, i);
+            if !closed {
                 return fail(col, "Unclosed expression");
             }
             String::from_utf8_lossy(&norm[start..i]).into_owned()
@@ -449,6 +437,26 @@ fn o_head(norm: &[u8], cols: &[u32]) -> Result<Option<(Arc<str>, Kw, usize)>, Fa
     )
 }
 
+/// From the `[` at `i`, the index after its matching `]`, and whether it was found (the
+/// end of the line otherwise).
+fn skip_brackets(norm: &[u8], mut i: usize) -> (usize, bool) {
+    let mut depth = 0usize;
+    while let Some(&c) = norm.get(i) {
+        i += 1;
+        match c {
+            b'[' => depth += 1,
+            b']' => {
+                depth = depth.saturating_sub(1);
+                if depth == 0 {
+                    return (i, true);
+                }
+            }
+            _ => {}
+        }
+    }
+    (i, false)
+}
+
 /// Checks what follows an O-word's keyword: its bracketed values (none for most keywords,
 /// one for `if`/`elseif`/`while`/`repeat`/`return`/`endsub`, any number for `call`), then
 /// only comments. Anything else is LinuxCNC's "Unexpected character after O-word": an
@@ -462,20 +470,7 @@ fn check_o_tail(norm: &[u8], cols: &[u32], after: usize, kw: Kw) -> Result<(), F
     let mut i = after;
     let mut groups = 0;
     while groups < max_groups && norm.get(i) == Some(&b'[') {
-        let mut depth = 0usize;
-        while let Some(&c) = norm.get(i) {
-            i += 1;
-            match c {
-                b'[' => depth += 1,
-                b']' => {
-                    depth -= 1;
-                    if depth == 0 {
-                        break;
-                    }
-                }
-                _ => {}
-            }
-        }
+        i = skip_brackets(norm, i).0;
         groups += 1;
     }
     while let Some(&c) = norm.get(i) {
