@@ -1,0 +1,21 @@
+//! Drive side of Kerf: what stands between the interpolator's setpoints and the motors.
+//!
+//! - [`cia402`]: the CiA 402 drive profile (controlword 0x6040, statusword 0x6041, the
+//!   power state machine, cyclic synchronous position mode 8) and the [`cia402::Drive`]
+//!   interface a fieldbus drive or the simulated one implements.
+//! - [`sim`]: the simulated servo drive: the whole state machine and a servo model, so
+//!   that following error, overshoot and drive faults behave as a real drive's.
+//! - [`safety`]: the checks of the real-time cycle above every drive (plausibility, soft
+//!   limits, following error, stream supervision), latched faults, the quick stop.
+//! - [`recorder`]: the black-box ring of the last seconds of cycles and its CSV export.
+//!
+//! Everything called in the real-time cycle is allocation-free.
+#![deny(missing_docs)]
+
+pub mod cia402;
+pub mod recorder;
+pub mod safety;
+pub mod sim;
+
+/// The most axes a machine has: X, Y, Z, A, B, C.
+pub const MAX_AXES: usize = 6;
