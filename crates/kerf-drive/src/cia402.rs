@@ -338,6 +338,12 @@ pub enum EnablerStatus {
         /// The state the drive did not leave.
         state: State,
     },
+    /// The drive left Operation enabled on its own (not into a fault) after the enable
+    /// request was done; the enabler does not enable it again until a new request.
+    Dropped {
+        /// The state the drive went to.
+        state: State,
+    },
     /// The drive is in Fault or Fault reaction active (a fault reset is needed).
     Fault {
         /// The drive's error code (0x603F).
@@ -366,7 +372,9 @@ pub struct EnablerOutput {
 /// the error code read from the drive, then write the returned controlword (and the
 /// held target while there is one). A transition that does not happen within the
 /// timeout (in cycles) stops the sequence with [`EnablerStatus::Timeout`]; a new
-/// [`Enabler::request`] starts it again. A fault is never reset on its own.
+/// [`Enabler::request`] starts it again. A drive that leaves Operation enabled on its
+/// own is reported as [`EnablerStatus::Dropped`] and not enabled again until a new
+/// request. A fault is never reset on its own.
 #[derive(Debug, Clone)]
 pub struct Enabler {
     timeout_cycles: u32,
@@ -374,6 +382,8 @@ pub struct Enabler {
     last_state: Option<State>,
     cycles_in_state: u32,
     timed_out: Option<State>,
+    dropped: Option<State>,
+    reached: bool,
     fault_reset_low_sent: bool,
     last_controlword: u16,
 }
@@ -388,6 +398,8 @@ impl Enabler {
             last_state: None,
             cycles_in_state: 0,
             timed_out: None,
+            dropped: None,
+            reached: false,
             fault_reset_low_sent: false,
             last_controlword: cw::DISABLE_VOLTAGE,
         }
@@ -401,12 +413,15 @@ impl Enabler {
         u32::try_from(cycles).unwrap_or(u32::MAX)
     }
 
-    /// Sets the request; a different request restarts the timeout.
+    /// Sets the request; a different request, or any request after a timeout or a
+    /// drop-out, starts the sequence again.
     pub fn request(&mut self, request: Request) {
-        if request != self.request || self.timed_out.is_some() {
+        if request != self.request || self.timed_out.is_some() || self.dropped.is_some() {
             self.request = request;
             self.cycles_in_state = 0;
             self.timed_out = None;
+            self.dropped = None;
+            self.reached = false;
             self.fault_reset_low_sent = false;
         }
     }
@@ -453,6 +468,23 @@ impl Enabler {
         } else {
             hold
         };
+        if self.request == Request::Enable
+            && self.reached
+            && self.dropped.is_none()
+            && !matches!(
+                state,
+                State::OperationEnabled | State::Fault | State::FaultReactionActive
+            )
+        {
+            self.dropped = Some(state);
+        }
+        if let Some(left_in) = self.dropped {
+            return EnablerOutput {
+                controlword: cw::DISABLE_VOLTAGE,
+                hold_target_counts,
+                status: EnablerStatus::Dropped { state: left_in },
+            };
+        }
         if let Some(stuck) = self.timed_out {
             return EnablerOutput {
                 controlword: self.safe_controlword(),
@@ -462,6 +494,9 @@ impl Enabler {
         }
         let (controlword, done) = self.step_for(state);
         let status = if done {
+            if self.request == Request::Enable {
+                self.reached = true;
+            }
             EnablerStatus::Done(state)
         } else if matches!(state, State::Fault | State::FaultReactionActive)
             && self.request != Request::FaultReset

@@ -332,3 +332,35 @@ fn quick_stop_request_ends_in_switch_on_disabled() {
         Some(&EnablerStatus::Done(State::SwitchOnDisabled))
     );
 }
+
+#[test]
+fn a_drive_that_drops_out_is_not_enabled_again_without_a_new_request() {
+    let mut drive = sim_at(500.0);
+    let mut enabler = Enabler::new(10);
+    enabler.request(Request::Enable);
+    let seen = run(&mut drive, &mut enabler, 5, 500);
+    assert_eq!(
+        seen.last(),
+        Some(&EnablerStatus::Done(State::OperationEnabled))
+    );
+    // Something else shuts the drive down (transition 8).
+    drive.write(0x0006, 500);
+    assert_eq!(drive.state(), State::ReadyToSwitchOn);
+    let seen = run(&mut drive, &mut enabler, 10, 500);
+    for status in &seen {
+        assert_eq!(
+            *status,
+            EnablerStatus::Dropped {
+                state: State::ReadyToSwitchOn
+            }
+        );
+    }
+    assert_ne!(drive.state(), State::OperationEnabled);
+    // A new request enables it again.
+    enabler.request(Request::Enable);
+    let seen = run(&mut drive, &mut enabler, 4, 500);
+    assert_eq!(
+        seen.last(),
+        Some(&EnablerStatus::Done(State::OperationEnabled))
+    );
+}
