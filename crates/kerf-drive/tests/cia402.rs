@@ -364,3 +364,60 @@ fn a_drive_that_drops_out_is_not_enabled_again_without_a_new_request() {
         Some(&EnablerStatus::Done(State::OperationEnabled))
     );
 }
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn request_strategy() -> impl Strategy<Value = Option<Request>> {
+        prop_oneof![
+            6 => Just(None),
+            1 => Just(Some(Request::Enable)),
+            1 => Just(Some(Request::Disable)),
+            1 => Just(Some(Request::QuickStop)),
+            1 => Just(Some(Request::FaultReset)),
+        ]
+    }
+
+    proptest! {
+        /// Whatever the requests and faults, the drive enters Operation enabled only in a
+        /// cycle whose target is the actual position read in that cycle (no jump), and
+        /// leaves Fault only after a fault reset request.
+        #[test]
+        fn enabling_never_jumps_and_faults_need_a_reset(
+            initial_counts in -1.0e6f64..1.0e6,
+            timeout_cycles in 1u32..20,
+            steps in prop::collection::vec(
+                (request_strategy(), prop::bool::weighted(0.03), -5000i32..5000),
+                1..200,
+            ),
+        ) {
+            let mut drive = sim_at(initial_counts);
+            let mut enabler = Enabler::new(timeout_cycles);
+            let mut reset_requested = false;
+            for (request, fault, offset) in steps {
+                if let Some(request) = request {
+                    enabler.request(request);
+                    reset_requested |= request == Request::FaultReset;
+                }
+                if fault {
+                    drive.inject_fault(0x1234);
+                }
+                let before = drive.state();
+                let actual = drive.position_actual_counts();
+                let out = enabler.cycle(drive.statusword(), actual, drive.error_code());
+                // The master's setpoint, once enabled: near the actual position.
+                let target = out.hold_target_counts.unwrap_or(actual.saturating_add(offset / 100));
+                drive.write(out.controlword, target);
+                let after = drive.state();
+                if after == State::OperationEnabled && before != State::OperationEnabled {
+                    prop_assert_eq!(target, actual);
+                }
+                if before == State::Fault && after != State::Fault {
+                    prop_assert!(reset_requested);
+                    prop_assert_eq!(enabler.current_request(), Request::FaultReset);
+                }
+            }
+        }
+    }
+}
