@@ -552,17 +552,20 @@ impl Safety {
     /// Latches `f` and plans the quick stop of every axis from the commanded state.
     fn latch(&mut self, f: Fault) {
         let t = self.config.period_s;
+        // A held command is at rest: the velocity step of the hold is not carried into
+        // the stop as an acceleration (the stop would back up).
+        let held = self.state == State::Holding;
         self.fault = Some(f);
         self.stop_elapsed_s = 0.0;
         for (i, ax) in self.config.axes.iter().enumerate() {
             let x0 = self.out[0][i];
             self.stops[i] = match ax {
-                Some(ax) => {
+                Some(ax) if !held => {
                     let v0 = (self.out[0][i] - self.out[1][i]) / t;
                     let a0 = (self.out[0][i] - 2.0 * self.out[1][i] + self.out[2][i]) / (t * t);
                     StopProfile::new(x0, v0, a0, &ax.limits)
                 }
-                None => StopProfile::at_rest(x0),
+                _ => StopProfile::at_rest(x0),
             };
         }
     }

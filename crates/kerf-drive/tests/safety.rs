@@ -207,6 +207,27 @@ fn a_stall_holds_for_n_minus_one_cycles_then_stops() {
     assert_eq!(v.state, State::Stopped);
 }
 
+#[test]
+fn a_stall_in_motion_stops_where_the_position_is_held() {
+    // 50 mm/s on the mill, then the stream stops: the command is held at the last
+    // setpoint, and the quick stop after the second missed cycle (stall_cycles 2)
+    // starts from that rest (it does not move on, nor back up).
+    let mut cfg = config(mill());
+    cfg.stall_cycles = 2;
+    let mut r = Rig::new(cfg);
+    let stream = ramp_stream(500.0, 50.0, 20, [1.0, -1.0, 0.0, 0.0, 0.0, 0.0]);
+    for sp in &stream {
+        r.step(Some(*sp));
+    }
+    let last = stream[stream.len() - 1];
+    for _ in 0..50 {
+        let v = r.step(None);
+        assert_eq!(v.command, last);
+    }
+    assert_eq!(r.s.fault().map(|f| f.check), Some(Check::StreamStall));
+    assert_eq!(r.s.state(), State::Stopped);
+}
+
 /// A stream from rest at constant acceleration `a` up to `v`, then `cruise` cycles at
 /// `v`, per axis with a factor; returns the setpoints.
 fn ramp_stream(a: f64, v: f64, cruise: usize, factors: [f64; MAX_AXES]) -> Vec<[f64; MAX_AXES]> {
