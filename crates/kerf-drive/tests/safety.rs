@@ -489,3 +489,67 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn bad_configurations_are_refused() {
+    use kerf_drive::safety::ConfigError;
+    let ok = config(mill());
+    assert!(Safety::new(ok, [0.0; MAX_AXES]).is_ok());
+    let mut c = ok;
+    c.period_s = 0.0;
+    assert_eq!(
+        Safety::new(c, [0.0; MAX_AXES]).err(),
+        Some(ConfigError::Period(0.0))
+    );
+    let mut c = ok;
+    c.stall_cycles = 0;
+    assert_eq!(
+        Safety::new(c, [0.0; MAX_AXES]).err(),
+        Some(ConfigError::StallCycles)
+    );
+    let mut c = ok;
+    c.margin = -0.01;
+    assert!(matches!(
+        Safety::new(c, [0.0; MAX_AXES]),
+        Err(ConfigError::Margin(_))
+    ));
+    let mut ax = mill();
+    ax.min_limit = 600.0;
+    let mut c = ok;
+    c.axes[1] = Some(ax);
+    assert!(matches!(
+        Safety::new(c, [0.0; MAX_AXES]),
+        Err(ConfigError::Axis { axis: 'Y', .. })
+    ));
+    let mut ax = mill();
+    ax.limits.jerk_units_s3 = 0.0;
+    let mut c = ok;
+    c.axes[2] = Some(ax);
+    assert!(matches!(
+        Safety::new(c, [0.0; MAX_AXES]),
+        Err(ConfigError::Axis { axis: 'Z', .. })
+    ));
+    assert_eq!(
+        Safety::new(ok, on(0, f64::NAN)).err(),
+        Some(ConfigError::StartPosition('X'))
+    );
+}
+
+#[test]
+fn a_fault_names_check_axis_value_limit_and_line() {
+    let mut s = Safety::new(config(mill()), on(0, 500.0)).expect("config");
+    let f = s
+        .check(&CycleInput {
+            setpoint: Some(on(0, 500.0005)),
+            actual: on(0, 500.0),
+            drive_fault: [false; MAX_AXES],
+            line: 42,
+        })
+        .tripped
+        .expect("trips");
+    // 500.0005 is 0.0005 mm in 1 ms: 0.5 mm/s, 500 mm/s², within limits; beyond travel.
+    assert_eq!(f.check, Check::SoftLimit);
+    let text = f.to_string();
+    assert!(text.starts_with("soft_limit on axis X: 500.000"), "{text}");
+    assert!(text.contains("against limit 500 (line 42"), "{text}");
+}
