@@ -1,1 +1,619 @@
-//! See the crate documentation.
+//! The safety checks of the real-time cycle, above every drive.
+//!
+//! A [`Safety`] is built once from a [`SafetyConfig`] (per-axis limits, soft limits and
+//! following-error limits); the cycle then calls [`Safety::check`] with the new setpoint,
+//! the drives' actual positions and fault bits, and the program line, and sends the
+//! [`Verdict`]'s command to the drives. Nothing here allocates after construction.
+//!
+//! The checks (formulas and defaults in `docs/DRIVES.md`, "Safety checks"):
+//! - plausibility of each new setpoint against the previous one of the stream:
+//!   |Δx|/T ≤ v_max·(1 + margin) and |Δ²x|/T² ≤ a_max·(1 + margin);
+//! - soft limits: `min_limit` ≤ x ≤ `max_limit`;
+//! - following error as LinuxCNC defines it: |commanded − actual| ≤
+//!   max(`min_ferror`, `ferror`·|v|/v_max);
+//! - stream supervision: a missed cycle holds the last position, `stall_cycles`
+//!   consecutive missed cycles trip; a drive reporting a fault trips.
+//!
+//! Any trip latches a [`Fault`] and starts a jerk-limited quick stop of every axis from
+//! its current commanded position, velocity and acceleration ([`StopProfile`]); the
+//! offending setpoint never reaches a drive. Only [`Safety::reset`] clears the fault, and
+//! only once its cause is gone.
+
+use crate::MAX_AXES;
+use kerf_geom::{AXIS_NAMES, AxisLimits};
+
+/// Default allowed excess of a setpoint's velocity or acceleration over the axis limit:
+/// 5 % (the motion core keeps its own stream within 1 %).
+pub const DEFAULT_MARGIN: f64 = 0.05;
+
+/// Default number of consecutive missed cycles that trips the stream supervision.
+pub const DEFAULT_STALL_CYCLES: u32 = 3;
+
+/// Safety configuration of one axis. Lengths are mm for X, Y, Z and degrees for A, B, C.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AxisSafety {
+    /// Velocity, acceleration and jerk limits; the quick stop stays within them.
+    pub limits: AxisLimits,
+    /// Soft limit, lower end of travel, mm or deg (LinuxCNC's `MIN_LIMIT`).
+    pub min_limit: f64,
+    /// Soft limit, upper end of travel, mm or deg (LinuxCNC's `MAX_LIMIT`).
+    pub max_limit: f64,
+    /// Following-error limit at the axis's maximum velocity, mm or deg (LinuxCNC's
+    /// `FERROR`); scaled by |v|/v_max.
+    pub ferror: f64,
+    /// Following-error limit at rest and at low speed, mm or deg (LinuxCNC's
+    /// `MIN_FERROR`).
+    pub min_ferror: f64,
+}
+
+impl AxisSafety {
+    /// The following-error limit at commanded velocity `velocity` (units/s):
+    /// max(`min_ferror`, `ferror`·|v|/v_max).
+    pub fn ferror_limit(&self, velocity: f64) -> f64 {
+        self.min_ferror
+            .max(self.ferror * velocity.abs() / self.limits.velocity_units_s)
+    }
+}
+
+/// Configuration of a [`Safety`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SafetyConfig {
+    /// Per-axis configuration in the order X, Y, Z, A, B, C; `None` for an axis the
+    /// machine does not have (its command is passed through unchecked).
+    pub axes: [Option<AxisSafety>; MAX_AXES],
+    /// Cycle period, s.
+    pub period_s: f64,
+    /// Allowed relative excess of velocity and acceleration over the axis limits
+    /// (default [`DEFAULT_MARGIN`]).
+    pub margin: f64,
+    /// Consecutive missed cycles that trip (default [`DEFAULT_STALL_CYCLES`]); fewer are
+    /// held.
+    pub stall_cycles: u32,
+}
+
+impl SafetyConfig {
+    /// A configuration with the default margin and stall count.
+    pub fn new(axes: [Option<AxisSafety>; MAX_AXES], period_s: f64) -> Self {
+        Self {
+            axes,
+            period_s,
+            margin: DEFAULT_MARGIN,
+            stall_cycles: DEFAULT_STALL_CYCLES,
+        }
+    }
+}
+
+/// A configuration [`Safety::new`] refuses.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    /// The period is not a positive finite number.
+    #[error("safety: the cycle period must be positive, got {0} s")]
+    Period(f64),
+    /// The margin is negative or not finite.
+    #[error("safety: the margin must be zero or positive, got {0}")]
+    Margin(f64),
+    /// `stall_cycles` is zero.
+    #[error("safety: stall_cycles must be at least 1")]
+    StallCycles,
+    /// A limit of an axis is not positive and finite, or the soft limits are reversed.
+    #[error("safety: axis {axis}: {what}")]
+    Axis {
+        /// Axis name.
+        axis: char,
+        /// What is wrong.
+        what: &'static str,
+    },
+    /// A start position is not finite.
+    #[error("safety: axis {0}: the start position is not finite")]
+    StartPosition(char),
+}
+
+/// Which check tripped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Check {
+    /// Setpoint step over the period above the velocity limit (or a non-finite setpoint).
+    Velocity,
+    /// Second difference of the setpoints over T² above the acceleration limit.
+    Acceleration,
+    /// Setpoint outside the soft limits.
+    SoftLimit,
+    /// Following error above its limit.
+    FollowingError,
+    /// Too many consecutive missed cycles.
+    StreamStall,
+    /// A drive reported a fault.
+    DriveFault,
+}
+
+impl Check {
+    /// A short name: `velocity`, `acceleration`, `soft_limit`, `following_error`,
+    /// `stream_stall`, `drive_fault`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Check::Velocity => "velocity",
+            Check::Acceleration => "acceleration",
+            Check::SoftLimit => "soft_limit",
+            Check::FollowingError => "following_error",
+            Check::StreamStall => "stream_stall",
+            Check::DriveFault => "drive_fault",
+        }
+    }
+}
+
+/// A latched fault: what tripped, where, by how much, and at which program line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fault {
+    /// The check that tripped.
+    pub check: Check,
+    /// Axis index (0–5 = X–C); `None` for the stream stall.
+    pub axis: Option<usize>,
+    /// The measured value: |velocity| units/s, |acceleration| units/s², the position
+    /// (soft limit), |following error| units, consecutive missed cycles, or 1 for a
+    /// drive fault. Infinite for a non-finite setpoint or actual position.
+    pub value: f64,
+    /// The limit it was checked against, same unit (with the margin included); the
+    /// soft limit crossed; `stall_cycles`; 0 for a drive fault.
+    pub limit: f64,
+    /// Program line given with the cycle that tripped.
+    pub line: u32,
+    /// Cycle count (from 0 at construction) of the cycle that tripped.
+    pub cycle: u64,
+}
+
+impl std::fmt::Display for Fault {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let axis = self.axis.map_or('-', |a| AXIS_NAMES[a]);
+        write!(
+            f,
+            "{} on axis {}: {} against limit {} (line {}, cycle {})",
+            self.check.name(),
+            axis,
+            self.value,
+            self.limit,
+            self.line,
+            self.cycle
+        )
+    }
+}
+
+/// Why [`Safety::reset`] refused: the cause of a fault persists.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum ResetRefused {
+    /// The quick stop has not come to rest yet.
+    #[error("reset refused: axis {} is still stopping", AXIS_NAMES[*.0])]
+    Moving(usize),
+    /// A drive still reports a fault.
+    #[error("reset refused: the drive of axis {} still reports a fault", AXIS_NAMES[*.0])]
+    DriveFault(usize),
+    /// An axis's actual position is outside its soft limits.
+    #[error("reset refused: axis {} is at {value}, outside its soft limits", AXIS_NAMES[*axis])]
+    SoftLimit {
+        /// Axis index.
+        axis: usize,
+        /// Actual position.
+        value: f64,
+    },
+    /// An axis's following error at rest is above `min_ferror`.
+    #[error("reset refused: axis {} following error {value} above {limit}", AXIS_NAMES[*axis])]
+    FollowingError {
+        /// Axis index.
+        axis: usize,
+        /// |commanded − actual|.
+        value: f64,
+        /// `min_ferror`.
+        limit: f64,
+    },
+    /// The last cycle had no new setpoint: the stream is still missing.
+    #[error("reset refused: the setpoint stream is still missing")]
+    StreamMissing,
+}
+
+/// What the cycle gives [`Safety::check`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CycleInput {
+    /// The motion core's new setpoint per axis, or `None` for a missed cycle.
+    pub setpoint: Option<[f64; MAX_AXES]>,
+    /// The drives' actual positions, read this cycle (units as the axis).
+    pub actual: [f64; MAX_AXES],
+    /// Whether each drive reports a fault.
+    pub drive_fault: [bool; MAX_AXES],
+    /// Program line of the setpoint (for the fault report).
+    pub line: u32,
+}
+
+/// What the safety layer is doing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum State {
+    /// Setpoints pass through to the drives.
+    Running,
+    /// A missed cycle: the last position is held.
+    Holding,
+    /// A fault is latched and the quick stop is ramping.
+    QuickStop,
+    /// A fault is latched and every axis is at rest.
+    Stopped,
+}
+
+impl State {
+    /// `running`, `holding`, `quick_stop` or `stopped`.
+    pub fn name(self) -> &'static str {
+        match self {
+            State::Running => "running",
+            State::Holding => "holding",
+            State::QuickStop => "quick_stop",
+            State::Stopped => "stopped",
+        }
+    }
+}
+
+/// The answer of one [`Safety::check`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Verdict {
+    /// State after this cycle.
+    pub state: State,
+    /// Position to send to each drive this cycle.
+    pub command: [f64; MAX_AXES],
+    /// The fault that tripped in this very cycle, if any (it is also latched).
+    pub tripped: Option<Fault>,
+}
+
+/// A jerk-limited stop of one axis: from position `x0`, velocity `v0` and acceleration
+/// `a0` to rest with |a| ≤ a_max and |j| ≤ j_max, in at most three phases of constant
+/// jerk (ramp the acceleration to the braking peak, hold it, ramp it back to 0).
+///
+/// The profile is continuous in time; [`StopProfile::position`] samples it. The
+/// velocity overshoots |v0| only when `a0` accelerates (by a0²/(2 j_max)), which no
+/// jerk-limited stop can avoid.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StopProfile {
+    x0: f64,
+    v0: f64,
+    a0: f64,
+    /// Phase durations, s.
+    durations_s: [f64; 3],
+    /// Phase jerks, units/s³.
+    jerks: [f64; 3],
+}
+
+impl StopProfile {
+    /// The stop from (`x0`, `v0`, `a0`) within `limits`; `a0` is clamped to ±a_max.
+    pub fn new(x0: f64, v0: f64, a0: f64, limits: &AxisLimits) -> Self {
+        let j = limits.jerk_units_s3;
+        let a_max = limits.acceleration_units_s2;
+        let a0 = a0.clamp(-a_max, a_max);
+        // Velocity reached if the acceleration is ramped to 0 at once.
+        let v_after = v0 + a0 * a0.abs() / (2.0 * j);
+        // Work in the direction where v_after ≥ 0, braking with a negative acceleration.
+        let s = if v_after < 0.0 { -1.0 } else { 1.0 };
+        let (v, a) = (s * v0, s * a0);
+        // Peak braking acceleration without a constant phase: v + (a² − 2 ap²)/(2j) = 0.
+        let mut peak = (j * v + 0.5 * a * a).max(0.0).sqrt();
+        let mut hold_s = 0.0;
+        if peak > a_max {
+            peak = a_max;
+            hold_s = ((v + (a * a - 2.0 * a_max * a_max) / (2.0 * j)) / a_max).max(0.0);
+        }
+        let ramp_down_s = ((a + peak) / j).max(0.0);
+        let ramp_up_s = peak / j;
+        Self {
+            x0,
+            v0,
+            a0,
+            durations_s: [ramp_down_s, hold_s, ramp_up_s],
+            jerks: [-s * j, 0.0, s * j],
+        }
+    }
+
+    /// At rest from the start: holds `x0`.
+    pub fn at_rest(x0: f64) -> Self {
+        Self {
+            x0,
+            v0: 0.0,
+            a0: 0.0,
+            durations_s: [0.0; 3],
+            jerks: [0.0; 3],
+        }
+    }
+
+    /// Time to rest, s.
+    pub fn duration_s(&self) -> f64 {
+        self.durations_s.iter().sum()
+    }
+
+    /// Position, velocity and acceleration `t_s` seconds after the start (held at rest
+    /// after [`StopProfile::duration_s`]).
+    pub fn state(&self, t_s: f64) -> (f64, f64, f64) {
+        let (mut x, mut v, mut a) = (self.x0, self.v0, self.a0);
+        let mut left = t_s.max(0.0);
+        for (d, j) in self.durations_s.iter().zip(self.jerks.iter()) {
+            let dt = left.min(*d);
+            x += v * dt + a * dt * dt / 2.0 + j * dt * dt * dt / 6.0;
+            v += a * dt + j * dt * dt / 2.0;
+            a += j * dt;
+            left -= dt;
+        }
+        if left > 0.0 {
+            // At rest: v and a are 0 up to rounding.
+            return (x, 0.0, 0.0);
+        }
+        (x, v, a)
+    }
+
+    /// Position `t_s` seconds after the start.
+    pub fn position(&self, t_s: f64) -> f64 {
+        self.state(t_s).0
+    }
+}
+
+/// The safety layer of the real-time cycle. See the module documentation.
+#[derive(Clone, Debug)]
+pub struct Safety {
+    config: SafetyConfig,
+    /// Commands sent in the last three cycles (newest first).
+    out: [[f64; MAX_AXES]; 3],
+    /// Last two setpoints received from the stream (newest first).
+    stream: [[f64; MAX_AXES]; 2],
+    missed: u32,
+    fault: Option<Fault>,
+    stops: [StopProfile; MAX_AXES],
+    stop_elapsed_s: f64,
+    cycle: u64,
+    last: Option<CycleInput>,
+    state: State,
+}
+
+impl Safety {
+    /// A safety layer at rest at `position` (the drives' actual positions when enabled).
+    pub fn new(config: SafetyConfig, position: [f64; MAX_AXES]) -> Result<Self, ConfigError> {
+        let pos_finite = |v: f64| v.is_finite() && v > 0.0;
+        if !pos_finite(config.period_s) {
+            return Err(ConfigError::Period(config.period_s));
+        }
+        if !(config.margin.is_finite() && config.margin >= 0.0) {
+            return Err(ConfigError::Margin(config.margin));
+        }
+        if config.stall_cycles == 0 {
+            return Err(ConfigError::StallCycles);
+        }
+        for (i, ax) in config.axes.iter().enumerate() {
+            let axis = AXIS_NAMES[i];
+            if !position[i].is_finite() {
+                return Err(ConfigError::StartPosition(axis));
+            }
+            let Some(ax) = ax else { continue };
+            let l = &ax.limits;
+            if !(pos_finite(l.velocity_units_s)
+                && pos_finite(l.acceleration_units_s2)
+                && pos_finite(l.jerk_units_s3))
+            {
+                return Err(ConfigError::Axis {
+                    axis,
+                    what: "velocity, acceleration and jerk limits must be positive",
+                });
+            }
+            if !(ax.min_limit.is_finite() && ax.max_limit.is_finite())
+                || ax.min_limit > ax.max_limit
+            {
+                return Err(ConfigError::Axis {
+                    axis,
+                    what: "min_limit must be at most max_limit",
+                });
+            }
+            let non_negative = |v: f64| v.is_finite() && v >= 0.0;
+            if !(non_negative(ax.ferror) && non_negative(ax.min_ferror)) {
+                return Err(ConfigError::Axis {
+                    axis,
+                    what: "ferror and min_ferror must be zero or positive",
+                });
+            }
+        }
+        Ok(Self {
+            config,
+            out: [position; 3],
+            stream: [position; 2],
+            missed: 0,
+            fault: None,
+            stops: position.map(StopProfile::at_rest),
+            stop_elapsed_s: 0.0,
+            cycle: 0,
+            last: None,
+            state: State::Running,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SafetyConfig {
+        &self.config
+    }
+
+    /// The latched fault, if any.
+    pub fn fault(&self) -> Option<&Fault> {
+        self.fault.as_ref()
+    }
+
+    /// The current state.
+    pub fn state(&self) -> State {
+        self.state
+    }
+
+    /// The command sent in the last cycle.
+    pub fn command(&self) -> [f64; MAX_AXES] {
+        self.out[0]
+    }
+
+    /// One cycle: check `input`, and say what to send to the drives. Allocation-free.
+    ///
+    /// The following error is the actual position against the command of the previous
+    /// cycle (the one the drive has been tracking), with v that command's velocity.
+    pub fn check(&mut self, input: &CycleInput) -> Verdict {
+        let mut tripped = None;
+        if self.fault.is_none() {
+            tripped = self.supervise(input);
+            if let Some(f) = tripped {
+                self.latch(f);
+            }
+        }
+        let command = if self.fault.is_some() {
+            self.stop_elapsed_s += self.config.period_s;
+            let mut cmd = self.out[0];
+            let mut moving = false;
+            for (i, c) in cmd.iter_mut().enumerate() {
+                if self.config.axes[i].is_some() {
+                    *c = self.stops[i].position(self.stop_elapsed_s);
+                    moving |= self.stop_elapsed_s < self.stops[i].duration_s();
+                }
+            }
+            self.state = if moving {
+                State::QuickStop
+            } else {
+                State::Stopped
+            };
+            cmd
+        } else if let Some(sp) = input.setpoint {
+            self.state = State::Running;
+            sp
+        } else {
+            self.state = State::Holding;
+            self.out[0]
+        };
+        self.out = [command, self.out[0], self.out[1]];
+        self.last = Some(*input);
+        self.cycle += 1;
+        Verdict {
+            state: self.state,
+            command,
+            tripped,
+        }
+    }
+
+    /// Runs every check on `input`; the first violation found (lowest axis first).
+    fn supervise(&mut self, input: &CycleInput) -> Option<Fault> {
+        let t = self.config.period_s;
+        let m = 1.0 + self.config.margin;
+        let cycle = self.cycle;
+        let fault = |check, axis, value, limit| Fault {
+            check,
+            axis,
+            value,
+            limit,
+            line: input.line,
+            cycle,
+        };
+        for (i, ax) in self.config.axes.iter().enumerate() {
+            let Some(ax) = ax else { continue };
+            if input.drive_fault[i] {
+                return Some(fault(Check::DriveFault, Some(i), 1.0, 0.0));
+            }
+            // Following error against the previous command.
+            let v_cmd = (self.out[0][i] - self.out[1][i]) / t;
+            let limit = ax.ferror_limit(v_cmd);
+            let err = (self.out[0][i] - input.actual[i]).abs();
+            let err = if err.is_finite() { err } else { f64::INFINITY };
+            if err > limit {
+                return Some(fault(Check::FollowingError, Some(i), err, limit));
+            }
+        }
+        let Some(sp) = input.setpoint else {
+            self.missed += 1;
+            if self.missed >= self.config.stall_cycles {
+                let n = f64::from(self.config.stall_cycles);
+                return Some(fault(Check::StreamStall, None, f64::from(self.missed), n));
+            }
+            return None;
+        };
+        for (i, ax) in self.config.axes.iter().enumerate() {
+            let Some(ax) = ax else { continue };
+            let x = sp[i];
+            let v_limit = ax.limits.velocity_units_s * m;
+            if !x.is_finite() {
+                return Some(fault(Check::Velocity, Some(i), f64::INFINITY, v_limit));
+            }
+            let v = ((x - self.stream[0][i]) / t).abs();
+            if v > v_limit {
+                return Some(fault(Check::Velocity, Some(i), v, v_limit));
+            }
+            let a = ((x - 2.0 * self.stream[0][i] + self.stream[1][i]) / (t * t)).abs();
+            let a_limit = ax.limits.acceleration_units_s2 * m;
+            if a > a_limit {
+                return Some(fault(Check::Acceleration, Some(i), a, a_limit));
+            }
+            if x < ax.min_limit {
+                return Some(fault(Check::SoftLimit, Some(i), x, ax.min_limit));
+            }
+            if x > ax.max_limit {
+                return Some(fault(Check::SoftLimit, Some(i), x, ax.max_limit));
+            }
+        }
+        self.missed = 0;
+        self.stream = [sp, self.stream[0]];
+        None
+    }
+
+    /// Latches `f` and plans the quick stop of every axis from the commanded state.
+    fn latch(&mut self, f: Fault) {
+        let t = self.config.period_s;
+        // A held command is at rest: the velocity step of the hold is not carried into
+        // the stop as an acceleration (the stop would back up).
+        let held = self.state == State::Holding;
+        self.fault = Some(f);
+        self.stop_elapsed_s = 0.0;
+        for (i, ax) in self.config.axes.iter().enumerate() {
+            let x0 = self.out[0][i];
+            self.stops[i] = match ax {
+                Some(ax) if !held => {
+                    let v0 = (self.out[0][i] - self.out[1][i]) / t;
+                    let a0 = (self.out[0][i] - 2.0 * self.out[1][i] + self.out[2][i]) / (t * t);
+                    StopProfile::new(x0, v0, a0, &ax.limits)
+                }
+                _ => StopProfile::at_rest(x0),
+            };
+        }
+    }
+
+    /// Clears the latched fault if its cause is gone: every axis at rest, no drive
+    /// fault, every actual position within the soft limits, every following error at
+    /// rest within `min_ferror`, and a setpoint in the last cycle. Refused with the
+    /// reason otherwise. The stream then continues from the held position at rest.
+    pub fn reset(&mut self) -> Result<(), ResetRefused> {
+        if self.fault.is_none() {
+            return Ok(());
+        }
+        for (i, ax) in self.config.axes.iter().enumerate() {
+            if ax.is_some() && self.stop_elapsed_s < self.stops[i].duration_s() {
+                return Err(ResetRefused::Moving(i));
+            }
+        }
+        let Some(last) = self.last else {
+            return Err(ResetRefused::StreamMissing);
+        };
+        for (i, ax) in self.config.axes.iter().enumerate() {
+            let Some(ax) = ax else { continue };
+            if last.drive_fault[i] {
+                return Err(ResetRefused::DriveFault(i));
+            }
+            let x = last.actual[i];
+            if !(x >= ax.min_limit && x <= ax.max_limit) {
+                return Err(ResetRefused::SoftLimit { axis: i, value: x });
+            }
+            // The actual position was read against the command of the cycle before.
+            let err = (self.out[1][i] - x).abs();
+            if err.is_nan() || err > ax.min_ferror {
+                return Err(ResetRefused::FollowingError {
+                    axis: i,
+                    value: err,
+                    limit: ax.min_ferror,
+                });
+            }
+        }
+        if last.setpoint.is_none() {
+            return Err(ResetRefused::StreamMissing);
+        }
+        let held = self.out[0];
+        self.out = [held; 3];
+        self.stream = [held; 2];
+        self.missed = 0;
+        self.fault = None;
+        self.state = State::Running;
+        Ok(())
+    }
+}
