@@ -16,7 +16,12 @@ use std::io;
 use std::ops::{Range, RangeInclusive};
 use std::path::{Path, PathBuf};
 
+use kerf_drive::MAX_AXES;
+use kerf_drive::cia402::{Enabler, Scale};
+use kerf_drive::safety::{AxisSafety, SafetyConfig};
+use kerf_drive::sim::SimConfig;
 use kerf_gcode::{Dialect, Settings, Tool};
+use kerf_geom::AxisLimits;
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -100,6 +105,147 @@ pub const MOVE_WINDOW_RANGE: RangeInclusive<u32> = 16..=65_536;
 /// The periods the daemon runs, microseconds: 125 µs (8 kHz) to 10 ms. `kerf sim`
 /// accepts a wider range ([`MIN_PERIOD_US`] to [`MAX_PERIOD_US`]) for studies.
 pub const DAEMON_PERIOD_RANGE_US: RangeInclusive<u32> = 125..=10_000;
+
+// The drive side (`[axes.*.drive]`, the following-error keys of `[axes.*]`, `[safety]`).
+// Read and validated here; the daemon does not use them yet (docs/DRIVES.md).
+
+/// Default drive scale when `counts_per_mm` / `counts_per_deg` is not given: 1000 counts
+/// per mm (1 µm) or per degree.
+pub const DEFAULT_COUNTS_PER_UNIT: f64 = 1000.0;
+
+/// Accepted drive scales, counts per mm (per degree for rotary axes).
+pub const COUNTS_PER_UNIT_RANGE: RangeInclusive<f64> = 1e-3..=1e9;
+
+/// Accepted sim drive position loop bandwidths, Hz (the model stays stable with the
+/// default 20 substeps per 1 ms period up to the top of this range).
+pub const BANDWIDTH_RANGE_HZ: RangeInclusive<f64> = 0.1..=1000.0;
+
+/// Accepted sim drive damping ratios.
+pub const DAMPING_RANGE: RangeInclusive<f64> = 0.01..=10.0;
+
+/// Accepted sim drive velocity feed-forward gains.
+pub const VELOCITY_FEED_FORWARD_RANGE: RangeInclusive<f64> = 0.0..=1.0;
+
+/// Accepted sim drive integration substeps per period.
+pub const SUBSTEPS_RANGE: RangeInclusive<u32> = 1..=1000;
+
+/// Accepted sim drive accelerations (overcurrent threshold, quick-stop deceleration),
+/// counts/s².
+pub const DRIVE_ACCELERATION_RANGE_COUNTS_S2: RangeInclusive<f64> = 1.0..=1e15;
+
+/// Accepted sim drive following-error windows, counts.
+pub const FOLLOWING_ERROR_WINDOW_RANGE_COUNTS: RangeInclusive<u32> = 1..=1_000_000_000;
+
+/// Default timeout of each transition of the enable sequence, ms.
+pub const DEFAULT_ENABLE_TIMEOUT_MS: u32 = 1000;
+
+/// Accepted enable timeouts, ms.
+pub const ENABLE_TIMEOUT_RANGE_MS: RangeInclusive<u32> = 1..=60_000;
+
+/// Default following-error limit at maximum velocity (LinuxCNC `FERROR`), mm or deg.
+pub const DEFAULT_FERROR_MM: f64 = 1.0;
+
+/// Default following-error limit at rest (LinuxCNC `MIN_FERROR`), mm or deg.
+pub const DEFAULT_MIN_FERROR_MM: f64 = 0.1;
+
+/// Accepted following-error limits, mm or deg.
+pub const FERROR_RANGE_MM: RangeInclusive<f64> = 1e-6..=1000.0;
+
+/// Accepted plausibility margins (`safety.margin`), a fraction of the limits.
+pub const MARGIN_RANGE: RangeInclusive<f64> = 0.0..=1.0;
+
+/// Accepted `safety.stall_cycles`.
+pub const STALL_CYCLES_RANGE: RangeInclusive<u32> = 1..=10_000;
+
+/// Accepted black-box recorder lengths (`safety.recorder_seconds`), s: at most a minute
+/// (at 125 µs that is 480,000 cycles, about 100 MB).
+pub const RECORDER_SECONDS_RANGE: RangeInclusive<f64> = 0.1..=60.0;
+
+/// The kind of drive behind an axis (`[axes.*.drive] kind`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DriveKind {
+    /// The simulated CiA 402 servo drive (`kerf_drive::sim`), `"sim"`.
+    Sim,
+}
+
+/// The drive side of one axis: `[axes.*.drive]` and the following-error keys of
+/// `[axes.*]`. Lengths are mm for X, Y, Z and degrees for A, B, C.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AxisDrive {
+    /// `kind`.
+    pub kind: DriveKind,
+    /// `counts_per_mm` (`counts_per_deg`) and `direction`.
+    pub scale: Scale,
+    /// `bandwidth_hz`: sim drive position loop natural frequency, Hz.
+    pub bandwidth_hz: f64,
+    /// `damping`: sim drive damping ratio.
+    pub damping: f64,
+    /// `velocity_feed_forward`: sim drive feed-forward gain, 0 to 1.
+    pub velocity_feed_forward: f64,
+    /// `substeps`: sim drive integration steps per period.
+    pub substeps: u32,
+    /// `overcurrent_accel_counts_s2`: sim drive overcurrent threshold, counts/s².
+    pub overcurrent_accel_counts_s2: f64,
+    /// `quick_stop_decel_counts_s2`: sim drive quick-stop deceleration, counts/s².
+    pub quick_stop_decel_counts_s2: f64,
+    /// `following_error_window_counts`: sim drive statusword bit 13 window, counts.
+    pub following_error_window_counts: u32,
+    /// `enable_timeout_ms`: timeout of each transition of the enable sequence, ms.
+    pub enable_timeout_ms: u32,
+    /// `ferror_mm` (`ferror_deg`) of `[axes.*]`: following-error limit at v_max.
+    pub ferror_mm_deg: f64,
+    /// `min_ferror_mm` (`min_ferror_deg`) of `[axes.*]`: following-error limit at rest.
+    pub min_ferror_mm_deg: f64,
+}
+
+impl AxisDrive {
+    /// The defaults of an axis without `[axes.*.drive]` (those of [`SimConfig`]).
+    fn with_scale(scale: Scale) -> AxisDrive {
+        let sim = SimConfig::default();
+        AxisDrive {
+            kind: DriveKind::Sim,
+            scale,
+            bandwidth_hz: sim.bandwidth_hz,
+            damping: sim.damping,
+            velocity_feed_forward: sim.velocity_feed_forward,
+            substeps: sim.substeps,
+            overcurrent_accel_counts_s2: sim.overcurrent_accel_counts_s2,
+            quick_stop_decel_counts_s2: sim.quick_stop_decel_counts_s2,
+            following_error_window_counts: sim.following_error_window_counts,
+            enable_timeout_ms: DEFAULT_ENABLE_TIMEOUT_MS,
+            ferror_mm_deg: DEFAULT_FERROR_MM,
+            min_ferror_mm_deg: DEFAULT_MIN_FERROR_MM,
+        }
+    }
+}
+
+/// The drive side of the machine: one [`AxisDrive`] per axis the machine has, and
+/// `[safety]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveSide {
+    /// X, Y, Z, A, B, C; `None` for an axis the machine does not have.
+    pub axes: [Option<AxisDrive>; MAX_AXES],
+    /// `safety.margin`: allowed relative excess over the velocity and acceleration limits.
+    pub margin: f64,
+    /// `safety.stall_cycles`: consecutive missed cycles that trip.
+    pub stall_cycles: u32,
+    /// `safety.recorder_seconds`: length of the black-box recorder, s.
+    pub recorder_seconds: f64,
+}
+
+/// What one axis's drive is built from ([`Config::drive_configs`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveSetup {
+    /// The kind of drive.
+    pub kind: DriveKind,
+    /// Counts per mm or degree, and direction.
+    pub scale: Scale,
+    /// The simulated drive's parameters (for [`DriveKind::Sim`]), at the machine's period,
+    /// initial position 0.
+    pub sim: SimConfig,
+    /// Timeout of each enable transition, cycles (`enable_timeout_ms` rounded up).
+    pub enable_timeout_cycles: u32,
+}
 
 /// The daemon's own settings (`[daemon]`).
 #[derive(Clone, Debug, PartialEq)]
@@ -234,6 +380,9 @@ pub struct Config {
     /// start ([`Config::program_settings`]) and written by `kerf run` after a program that
     /// ended normally.
     pub parameter_file: Option<PathBuf>,
+    /// The drive side: `[axes.*.drive]`, `ferror_*`/`min_ferror_*`, `[safety]` (not used by
+    /// the daemon yet).
+    pub drive: DriveSide,
 }
 
 /// A 1-based place in a text file.
@@ -323,6 +472,17 @@ impl Config {
             g28_home_mm_deg: [0.0; 6],
             g30_home_mm_deg: [0.0; 6],
             parameter_file: None,
+            drive: DriveSide {
+                axes: {
+                    let axis = Scale::new(DEFAULT_COUNTS_PER_UNIT, 1)
+                        .ok()
+                        .map(AxisDrive::with_scale);
+                    [axis, axis, axis, None, None, None]
+                },
+                margin: kerf_drive::safety::DEFAULT_MARGIN,
+                stall_cycles: kerf_drive::safety::DEFAULT_STALL_CYCLES,
+                recorder_seconds: kerf_drive::recorder::DEFAULT_SECONDS,
+            },
         })
     }
 
@@ -363,6 +523,97 @@ impl Config {
                 crate::tooltable::load_parameter_file(path, &path.display().to_string())?;
         }
         Ok(settings)
+    }
+
+    /// The cycle period, s.
+    pub fn period_s(&self) -> f64 {
+        f64::from(self.period_us) * 1e-6
+    }
+
+    /// The configuration of the safety layer: per axis the limits of `[axes.*]`, the soft
+    /// limits `min_mm`/`max_mm` (`min_deg`/`max_deg`), `ferror_*` and `min_ferror_*`; the
+    /// period; `safety.margin` and `safety.stall_cycles`.
+    pub fn safety_config(&self) -> SafetyConfig {
+        let mut axes = [None; MAX_AXES];
+        let linear = self.axes.linear().map(|l| {
+            Some((
+                AxisLimits {
+                    velocity_units_s: l.velocity_mm_s,
+                    acceleration_units_s2: l.acceleration_mm_s2,
+                    jerk_units_s3: l.jerk_mm_s3,
+                },
+                l.min_mm,
+                l.max_mm,
+            ))
+        });
+        let rotary = self.axes.rotary().map(|r| {
+            r.map(|r| {
+                (
+                    AxisLimits {
+                        velocity_units_s: r.velocity_deg_s,
+                        acceleration_units_s2: r.acceleration_deg_s2,
+                        jerk_units_s3: r.jerk_deg_s3,
+                    },
+                    r.min_deg,
+                    r.max_deg,
+                )
+            })
+        });
+        for (i, axis) in linear.iter().chain(rotary.iter()).enumerate() {
+            if let (Some((limits, min, max)), Some(drive)) = (axis, &self.drive.axes[i]) {
+                axes[i] = Some(AxisSafety {
+                    limits: *limits,
+                    min_limit: *min,
+                    max_limit: *max,
+                    ferror: drive.ferror_mm_deg,
+                    min_ferror: drive.min_ferror_mm_deg,
+                });
+            }
+        }
+        SafetyConfig {
+            axes,
+            period_s: self.period_s(),
+            margin: self.drive.margin,
+            stall_cycles: self.drive.stall_cycles,
+        }
+    }
+
+    /// What each axis's drive is built from, X to C (`None` where the machine has no axis).
+    pub fn drive_configs(&self) -> [Option<DriveSetup>; MAX_AXES] {
+        let period_ns = u64::from(self.period_us) * 1000;
+        self.drive.axes.map(|axis| {
+            axis.map(|d| DriveSetup {
+                kind: d.kind,
+                scale: d.scale,
+                sim: SimConfig {
+                    period_ns,
+                    bandwidth_hz: d.bandwidth_hz,
+                    damping: d.damping,
+                    velocity_feed_forward: d.velocity_feed_forward,
+                    substeps: d.substeps,
+                    overcurrent_accel_counts_s2: d.overcurrent_accel_counts_s2,
+                    quick_stop_decel_counts_s2: d.quick_stop_decel_counts_s2,
+                    following_error_window_counts: d.following_error_window_counts,
+                    initial_position_counts: 0.0,
+                },
+                enable_timeout_cycles: Enabler::timeout_cycles_for(
+                    u64::from(d.enable_timeout_ms) * 1_000_000,
+                    period_ns,
+                ),
+            })
+        })
+    }
+
+    /// The axes the black-box recorder writes (those the machine has), X to C.
+    pub fn recorder_axes(&self) -> [bool; MAX_AXES] {
+        self.drive.axes.map(|a| a.is_some())
+    }
+
+    /// The black-box recorder's capacity, cycles: `safety.recorder_seconds` over the
+    /// period, rounded to the nearest (at least 1).
+    pub fn recorder_capacity(&self) -> usize {
+        // Both factors are range-checked: at most 60 s / 50 µs = 1.2 million cycles.
+        ((self.drive.recorder_seconds / self.period_s()).round() as usize).max(1)
     }
 
     /// The settings the G-code interpreter needs from this configuration.
@@ -438,6 +689,8 @@ struct RawConfig {
     work_offsets: RawWorkOffsets,
     #[serde(default)]
     tools: Vec<RawTool>,
+    #[serde(default)]
+    safety: RawSafety,
 }
 
 #[derive(Deserialize)]
@@ -459,6 +712,9 @@ struct RawLinearAxis {
     jerk_mm_s3: Spanned<f64>,
     min_mm: Spanned<f64>,
     max_mm: Spanned<f64>,
+    ferror_mm: Option<Spanned<f64>>,
+    min_ferror_mm: Option<Spanned<f64>>,
+    drive: Option<RawDrive>,
 }
 
 #[derive(Deserialize)]
@@ -469,6 +725,34 @@ struct RawRotaryAxis {
     jerk_deg_s3: Spanned<f64>,
     min_deg: Spanned<f64>,
     max_deg: Spanned<f64>,
+    ferror_deg: Option<Spanned<f64>>,
+    min_ferror_deg: Option<Spanned<f64>>,
+    drive: Option<RawDrive>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawDrive {
+    kind: Option<Spanned<String>>,
+    counts_per_mm: Option<Spanned<f64>>,
+    counts_per_deg: Option<Spanned<f64>>,
+    direction: Option<Spanned<i64>>,
+    bandwidth_hz: Option<Spanned<f64>>,
+    damping: Option<Spanned<f64>>,
+    velocity_feed_forward: Option<Spanned<f64>>,
+    substeps: Option<Spanned<i64>>,
+    overcurrent_accel_counts_s2: Option<Spanned<f64>>,
+    quick_stop_decel_counts_s2: Option<Spanned<f64>>,
+    following_error_window_counts: Option<Spanned<i64>>,
+    enable_timeout_ms: Option<Spanned<i64>>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawSafety {
+    margin: Option<Spanned<f64>>,
+    stall_cycles: Option<Spanned<i64>>,
+    recorder_seconds: Option<Spanned<f64>>,
 }
 
 #[derive(Default, Deserialize)]
@@ -699,6 +983,284 @@ impl Checker<'_> {
         }
     }
 
+    /// An optional number within `range`, or `default`.
+    fn within_or(
+        &self,
+        key: &str,
+        unit: &str,
+        range: RangeInclusive<f64>,
+        value: &Option<Spanned<f64>>,
+        default: f64,
+    ) -> Result<f64, ConfigError> {
+        match value {
+            None => Ok(default),
+            Some(v) => self.within(key, unit, range, v),
+        }
+    }
+
+    /// An optional whole number within `range`, or `default`.
+    fn integer_or(
+        &self,
+        key: &str,
+        what: &str,
+        range: RangeInclusive<u32>,
+        value: &Option<Spanned<i64>>,
+        default: u32,
+    ) -> Result<u32, ConfigError> {
+        match value {
+            None => Ok(default),
+            Some(v) => self.integer(key, what, range, v),
+        }
+    }
+
+    /// The drive side of axis `name`: `[axes.NAME.drive]` and the following-error keys
+    /// (`ferror`, `min_ferror`, spanned), in `unit` (`mm` or `deg`); `travel` is the axis's
+    /// travel range, which must fit in the drive's 32-bit counts.
+    fn axis_drive(
+        &self,
+        name: &str,
+        unit: &str,
+        raw: &Option<RawDrive>,
+        ferror: (&Option<Spanned<f64>>, &Option<Spanned<f64>>),
+        travel: (f64, f64),
+    ) -> Result<AxisDrive, ConfigError> {
+        let empty = RawDrive::default();
+        let raw = raw.as_ref().unwrap_or(&empty);
+        let key = |k: &str| format!("axes.{name}.drive.{k}");
+        let kind = match &raw.kind {
+            None => DriveKind::Sim,
+            Some(k) if k.get_ref() == "sim" => DriveKind::Sim,
+            Some(k) => {
+                return Err(self.error(
+                    k.span(),
+                    format!(
+                        "`{}` must be \"sim\" (the only drive kind so far), found `{}`",
+                        key("kind"),
+                        k.get_ref()
+                    ),
+                ));
+            }
+        };
+        // The scale key carries the axis's unit; the other one is a mistake worth naming.
+        let (scale_key, wrong) = if unit == "mm" {
+            ("counts_per_mm", &raw.counts_per_deg)
+        } else {
+            ("counts_per_deg", &raw.counts_per_mm)
+        };
+        if let Some(w) = wrong {
+            return Err(self.error(
+                w.span(),
+                format!(
+                    "axis {name} is measured in {unit}: its scale is `{}`",
+                    key(scale_key)
+                ),
+            ));
+        }
+        let scale_raw = if unit == "mm" {
+            &raw.counts_per_mm
+        } else {
+            &raw.counts_per_deg
+        };
+        let counts_per_unit = self.within_or(
+            &key(scale_key),
+            &format!("counts/{unit}"),
+            COUNTS_PER_UNIT_RANGE,
+            scale_raw,
+            DEFAULT_COUNTS_PER_UNIT,
+        )?;
+        let reach = travel.0.abs().max(travel.1.abs()) * counts_per_unit;
+        if reach > f64::from(i32::MAX) {
+            let message = format!(
+                "`{}` = {} puts the travel limit {} {unit} at {} counts, beyond the drive's 32-bit position ({})",
+                key(scale_key),
+                number(counts_per_unit),
+                number(travel.0.abs().max(travel.1.abs())),
+                number(reach),
+                i32::MAX
+            );
+            return Err(match scale_raw {
+                Some(v) => self.error(v.span(), message),
+                None => ConfigError::Invalid {
+                    origin: self.origin.to_string(),
+                    position: None,
+                    message,
+                },
+            });
+        }
+        let direction = match &raw.direction {
+            None => 1,
+            Some(d) if matches!(*d.get_ref(), 1 | -1) => *d.get_ref() as i32,
+            Some(d) => {
+                return Err(self.error(
+                    d.span(),
+                    format!(
+                        "`{}` must be +1 or -1, found {}",
+                        key("direction"),
+                        d.get_ref()
+                    ),
+                ));
+            }
+        };
+        let scale = Scale::new(counts_per_unit, direction).map_err(|e| ConfigError::Invalid {
+            origin: self.origin.to_string(),
+            position: scale_raw
+                .as_ref()
+                .map(|v| position_of(self.text, v.span().start)),
+            message: format!("`{}`: {e}", key(scale_key)),
+        })?;
+        let mut d = AxisDrive::with_scale(scale);
+        d.kind = kind;
+        d.bandwidth_hz = self.within_or(
+            &key("bandwidth_hz"),
+            "Hz",
+            BANDWIDTH_RANGE_HZ,
+            &raw.bandwidth_hz,
+            d.bandwidth_hz,
+        )?;
+        d.damping = self.within_or(
+            &key("damping"),
+            "(damping ratio)",
+            DAMPING_RANGE,
+            &raw.damping,
+            d.damping,
+        )?;
+        d.velocity_feed_forward = self.within_or(
+            &key("velocity_feed_forward"),
+            "(gain)",
+            VELOCITY_FEED_FORWARD_RANGE,
+            &raw.velocity_feed_forward,
+            d.velocity_feed_forward,
+        )?;
+        d.substeps = self.integer_or(
+            &key("substeps"),
+            "a number of steps per period",
+            SUBSTEPS_RANGE,
+            &raw.substeps,
+            d.substeps,
+        )?;
+        d.overcurrent_accel_counts_s2 = self.within_or(
+            &key("overcurrent_accel_counts_s2"),
+            "counts/s²",
+            DRIVE_ACCELERATION_RANGE_COUNTS_S2,
+            &raw.overcurrent_accel_counts_s2,
+            d.overcurrent_accel_counts_s2,
+        )?;
+        d.quick_stop_decel_counts_s2 = self.within_or(
+            &key("quick_stop_decel_counts_s2"),
+            "counts/s²",
+            DRIVE_ACCELERATION_RANGE_COUNTS_S2,
+            &raw.quick_stop_decel_counts_s2,
+            d.quick_stop_decel_counts_s2,
+        )?;
+        d.following_error_window_counts = self.integer_or(
+            &key("following_error_window_counts"),
+            "a number of counts",
+            FOLLOWING_ERROR_WINDOW_RANGE_COUNTS,
+            &raw.following_error_window_counts,
+            d.following_error_window_counts,
+        )?;
+        d.enable_timeout_ms = self.integer_or(
+            &key("enable_timeout_ms"),
+            "a time in ms",
+            ENABLE_TIMEOUT_RANGE_MS,
+            &raw.enable_timeout_ms,
+            d.enable_timeout_ms,
+        )?;
+        let ferror_key = format!("axes.{name}.ferror_{unit}");
+        let min_ferror_key = format!("axes.{name}.min_ferror_{unit}");
+        d.ferror_mm_deg = self.within_or(
+            &ferror_key,
+            unit,
+            FERROR_RANGE_MM,
+            ferror.0,
+            DEFAULT_FERROR_MM,
+        )?;
+        d.min_ferror_mm_deg = self.within_or(
+            &min_ferror_key,
+            unit,
+            FERROR_RANGE_MM,
+            ferror.1,
+            DEFAULT_MIN_FERROR_MM,
+        )?;
+        if d.min_ferror_mm_deg > d.ferror_mm_deg {
+            let message = format!(
+                "`{min_ferror_key}` ({}) must be at most `{ferror_key}` ({})",
+                number(d.min_ferror_mm_deg),
+                number(d.ferror_mm_deg)
+            );
+            let span = ferror.1.as_ref().or(ferror.0.as_ref()).map(|v| v.span());
+            return Err(match span {
+                Some(span) => self.error(span, message),
+                None => ConfigError::Invalid {
+                    origin: self.origin.to_string(),
+                    position: None,
+                    message,
+                },
+            });
+        }
+        Ok(d)
+    }
+
+    /// The drive side: every axis's drive and `[safety]`.
+    fn drive_side(&self, raw: &RawConfig, axes: &Axes) -> Result<DriveSide, ConfigError> {
+        let mut out = [None; MAX_AXES];
+        let linear = [
+            ("x", &raw.axes.x, axes.x),
+            ("y", &raw.axes.y, axes.y),
+            ("z", &raw.axes.z, axes.z),
+        ];
+        for (i, (name, r, a)) in linear.into_iter().enumerate() {
+            out[i] = Some(self.axis_drive(
+                name,
+                "mm",
+                &r.drive,
+                (&r.ferror_mm, &r.min_ferror_mm),
+                (a.min_mm, a.max_mm),
+            )?);
+        }
+        let rotary = [
+            ("a", &raw.axes.a, axes.a),
+            ("b", &raw.axes.b, axes.b),
+            ("c", &raw.axes.c, axes.c),
+        ];
+        for (i, (name, r, a)) in rotary.into_iter().enumerate() {
+            if let (Some(r), Some(a)) = (r, a) {
+                out[3 + i] = Some(self.axis_drive(
+                    name,
+                    "deg",
+                    &r.drive,
+                    (&r.ferror_deg, &r.min_ferror_deg),
+                    (a.min_deg, a.max_deg),
+                )?);
+            }
+        }
+        let s = &raw.safety;
+        Ok(DriveSide {
+            axes: out,
+            margin: self.within_or(
+                "safety.margin",
+                "(fraction of the limits)",
+                MARGIN_RANGE,
+                &s.margin,
+                kerf_drive::safety::DEFAULT_MARGIN,
+            )?,
+            stall_cycles: self.integer_or(
+                "safety.stall_cycles",
+                "a number of cycles",
+                STALL_CYCLES_RANGE,
+                &s.stall_cycles,
+                kerf_drive::safety::DEFAULT_STALL_CYCLES,
+            )?,
+            recorder_seconds: self.within_or(
+                "safety.recorder_seconds",
+                "s",
+                RECORDER_SECONDS_RANGE,
+                &s.recorder_seconds,
+                kerf_drive::recorder::DEFAULT_SECONDS,
+            )?,
+        })
+    }
+
     fn daemon(&self, raw: &RawDaemon) -> Result<DaemonConfig, ConfigError> {
         let d = DaemonConfig::default();
         let priority = match &raw.priority {
@@ -794,6 +1356,7 @@ impl Checker<'_> {
             b: self.rotary("b", &raw.axes.b)?,
             c: self.rotary("c", &raw.axes.c)?,
         };
+        let drive = self.drive_side(&raw, &axes)?;
 
         let defaults = Settings::default();
         let arc_tolerance_mm = match &raw.gcode.arc_tolerance_mm {
@@ -934,6 +1497,7 @@ impl Checker<'_> {
             g28_home_mm_deg,
             g30_home_mm_deg,
             parameter_file,
+            drive,
         })
     }
 
@@ -1097,10 +1661,18 @@ max_mm = 10.0
         assert!(e.starts_with("m.toml:1:"), "{e}");
     }
 
+    /// Every key of `[axes.x.drive]`, at its default.
+    const DRIVE_X: &str = "[axes.x.drive]\nkind = \"sim\"\ncounts_per_mm = 1000.0\ndirection = 1\nbandwidth_hz = 50.0\ndamping = 1.0\nvelocity_feed_forward = 1.0\nsubsteps = 20\novercurrent_accel_counts_s2 = 1e9\nquick_stop_decel_counts_s2 = 1e6\nfollowing_error_window_counts = 1000\nenable_timeout_ms = 1000\n";
+
     /// MINIMAL with every optional table, so that any key can be set by [`with_key`].
     fn full() -> String {
+        let minimal = MINIMAL.replacen(
+            "max_mm = 10.0\n",
+            "max_mm = 10.0\nferror_mm = 1.0\nmin_ferror_mm = 0.1\n",
+            1,
+        );
         format!(
-            "{MINIMAL}[axes.c]\nvelocity_deg_s = 360.0\nacceleration_deg_s2 = 3600.0\njerk_deg_s3 = 90000.0\nmin_deg = -720.0\nmax_deg = 720.0\n[gcode]\narc_tolerance_mm = 0.02828\narc_tolerance_rel = 0.001\n[work_offsets]\ng54 = [0.0, 0.0, 0.0]\n[[tools]]\nnumber = 1\nlength_mm = 0.0\nradius_mm = 0.0\n"
+            "{minimal}{DRIVE_X}[axes.c]\nvelocity_deg_s = 360.0\nacceleration_deg_s2 = 3600.0\njerk_deg_s3 = 90000.0\nmin_deg = -720.0\nmax_deg = 720.0\nferror_deg = 1.0\nmin_ferror_deg = 0.1\n[axes.c.drive]\ncounts_per_deg = 1000.0\n[safety]\nmargin = 0.05\nstall_cycles = 3\nrecorder_seconds = 10.0\n[gcode]\narc_tolerance_mm = 0.02828\narc_tolerance_rel = 0.001\n[work_offsets]\ng54 = [0.0, 0.0, 0.0]\n[[tools]]\nnumber = 1\nlength_mm = 0.0\nradius_mm = 0.0\n"
         )
     }
 
@@ -1236,6 +1808,97 @@ max_mm = 10.0
                 &["0", "1e6"],
                 &["-0.001", "1000000.01", "inf"],
                 "between 0 and 1000000 mm",
+            ),
+            (
+                "axes.x.drive",
+                "counts_per_mm",
+                &["1e-3", "1e8"],
+                &["9.9e-4", "0", "-1000", "1.1e9", "nan"],
+                "between 0.001 and 1e9 counts/mm",
+            ),
+            (
+                "axes.c.drive",
+                "counts_per_deg",
+                &["1e-3", "1e6"],
+                &["9.9e-4", "1.1e9", "inf"],
+                "between 0.001 and 1e9 counts/deg",
+            ),
+            (
+                "axes.x.drive",
+                "bandwidth_hz",
+                &["0.1", "1000"],
+                &["0.09", "1000.1", "nan"],
+                "between 0.1 and 1000 Hz",
+            ),
+            (
+                "axes.x.drive",
+                "damping",
+                &["0.01", "10"],
+                &["0.0099", "10.1", "-1"],
+                "between 0.01 and 10 (damping ratio)",
+            ),
+            (
+                "axes.x.drive",
+                "velocity_feed_forward",
+                &["0", "1"],
+                &["-0.01", "1.01", "nan"],
+                "between 0 and 1 (gain)",
+            ),
+            (
+                "axes.x.drive",
+                "overcurrent_accel_counts_s2",
+                &["1", "1e15"],
+                &["0.99", "1.1e15", "inf"],
+                "between 1 and 1e15 counts/s²",
+            ),
+            (
+                "axes.x.drive",
+                "quick_stop_decel_counts_s2",
+                &["1", "1e15"],
+                &["0.99", "1.1e15", "-5"],
+                "between 1 and 1e15 counts/s²",
+            ),
+            (
+                "axes.x",
+                "ferror_mm",
+                &["0.1", "1000"],
+                &["9.9e-7", "1000.1", "nan"],
+                "between 1e-6 and 1000 mm",
+            ),
+            (
+                "axes.x",
+                "min_ferror_mm",
+                &["1e-6", "1"],
+                &["0", "9.9e-7", "1000.1"],
+                "between 1e-6 and 1000 mm",
+            ),
+            (
+                "axes.c",
+                "ferror_deg",
+                &["0.1", "1000"],
+                &["9.9e-7", "1000.1"],
+                "between 1e-6 and 1000 deg",
+            ),
+            (
+                "axes.c",
+                "min_ferror_deg",
+                &["1e-6", "1"],
+                &["0", "1000.1"],
+                "between 1e-6 and 1000 deg",
+            ),
+            (
+                "safety",
+                "margin",
+                &["0", "1"],
+                &["-0.01", "1.01", "nan"],
+                "between 0 and 1 (fraction of the limits)",
+            ),
+            (
+                "safety",
+                "recorder_seconds",
+                &["0.1", "60"],
+                &["0.09", "60.1", "inf"],
+                "between 0.1 and 60 s",
             ),
         ];
         for &(table, key, good, bad, range) in cases {
@@ -1562,5 +2225,280 @@ max_mm = 10.0
             assert!(e.contains(key), "{extra}: {e}");
         }
         std::fs::remove_dir_all(&dir).expect("clean up");
+    }
+
+    /// The whole-number keys of the drive side: both ends accepted, just outside refused
+    /// with the key, what it counts and the range.
+    #[test]
+    fn drive_integers_are_range_checked() {
+        type Case<'a> = (&'a str, &'a str, &'a [&'a str], &'a [&'a str], &'a str);
+        let cases: &[Case] = &[
+            (
+                "axes.x.drive",
+                "substeps",
+                &["1", "1000"],
+                &["0", "1001", "-1"],
+                "a number of steps per period from 1 to 1000",
+            ),
+            (
+                "axes.x.drive",
+                "following_error_window_counts",
+                &["1", "1000000000"],
+                &["0", "1000000001"],
+                "a number of counts from 1 to 1000000000",
+            ),
+            (
+                "axes.x.drive",
+                "enable_timeout_ms",
+                &["1", "60000"],
+                &["0", "60001"],
+                "a time in ms from 1 to 60000",
+            ),
+            (
+                "safety",
+                "stall_cycles",
+                &["1", "10000"],
+                &["0", "10001", "-3"],
+                "a number of cycles from 1 to 10000",
+            ),
+        ];
+        for &(table, key, good, bad, range) in cases {
+            for value in good {
+                let (text, _) = with_key(table, key, value);
+                if let Err(e) = Config::from_toml_str(&text, "m.toml") {
+                    panic!("{key} = {value} must be accepted: {e}");
+                }
+            }
+            for value in bad {
+                let (text, place) = with_key(table, key, value);
+                assert_eq!(
+                    err(&text),
+                    format!("{place}`{table}.{key}` must be {range}, found {value}")
+                );
+            }
+        }
+        for (value, direction) in [("1", 1), ("+1", 1), ("-1", -1)] {
+            let (text, _) = with_key("axes.x.drive", "direction", value);
+            let c = Config::from_toml_str(&text, "m.toml").unwrap();
+            assert_eq!(c.drive_configs()[0].unwrap().scale.direction(), direction);
+        }
+        for value in ["0", "2", "-2"] {
+            let (text, place) = with_key("axes.x.drive", "direction", value);
+            assert_eq!(
+                err(&text),
+                format!("{place}`axes.x.drive.direction` must be +1 or -1, found {value}")
+            );
+        }
+    }
+
+    #[test]
+    fn drive_side_defaults() {
+        let c = Config::from_toml_str(MINIMAL, "m.toml").unwrap();
+        let d = c.drive.axes[0].unwrap();
+        assert_eq!(d.kind, DriveKind::Sim);
+        assert_eq!(
+            (d.scale.counts_per_unit(), d.scale.direction()),
+            (1000.0, 1)
+        );
+        assert_eq!(
+            (d.bandwidth_hz, d.damping, d.velocity_feed_forward),
+            (50.0, 1.0, 1.0)
+        );
+        assert_eq!(d.substeps, 20);
+        assert_eq!(
+            (d.overcurrent_accel_counts_s2, d.quick_stop_decel_counts_s2),
+            (1e9, 1e6)
+        );
+        assert_eq!(d.following_error_window_counts, 1000);
+        assert_eq!(d.enable_timeout_ms, 1000);
+        assert_eq!((d.ferror_mm_deg, d.min_ferror_mm_deg), (1.0, 0.1));
+        assert_eq!(c.drive.axes[1], Some(d));
+        assert_eq!(c.drive.axes[2], Some(d));
+        assert_eq!(&c.drive.axes[3..], &[None, None, None]);
+        assert_eq!(
+            (
+                c.drive.margin,
+                c.drive.stall_cycles,
+                c.drive.recorder_seconds
+            ),
+            (0.05, 3, 10.0)
+        );
+        // The sim drive's defaults are those of the simulated drive itself.
+        let setups = c.drive_configs();
+        let x = setups[0].unwrap();
+        assert_eq!(x.sim, SimConfig::default());
+        assert_eq!(x.enable_timeout_cycles, 1000);
+        assert!(setups[3..].iter().all(Option::is_none));
+        assert_eq!(c.recorder_capacity(), 10_000);
+        assert_eq!(c.recorder_axes(), [true, true, true, false, false, false]);
+        // The keys of `full` are the defaults too.
+        assert_eq!(
+            Config::from_toml_str(&full(), "m.toml").unwrap().drive.axes[0],
+            Some(d)
+        );
+        // The bundled example has the same drive side.
+        assert_eq!(
+            Config::builtin().drive.axes[0].map(|a| a.bandwidth_hz),
+            Some(50.0)
+        );
+    }
+
+    #[test]
+    fn built_drive_and_safety_configs_carry_the_files_values() {
+        let text = format!(
+            "period_us = 2000\n{}[axes.x.drive]\nkind = \"sim\"\ncounts_per_mm = 800.0\ndirection = -1\nbandwidth_hz = 20.0\ndamping = 0.7\nvelocity_feed_forward = 0.5\nsubsteps = 40\novercurrent_accel_counts_s2 = 5e8\nquick_stop_decel_counts_s2 = 2e5\nfollowing_error_window_counts = 77\nenable_timeout_ms = 3\n[axes.b]\nvelocity_deg_s = 90.0\nacceleration_deg_s2 = 900.0\njerk_deg_s3 = 9000.0\nmin_deg = -30.0\nmax_deg = 120.0\nferror_deg = 2.0\nmin_ferror_deg = 0.5\n[axes.b.drive]\ncounts_per_deg = 3600.0\n[safety]\nmargin = 0.1\nstall_cycles = 7\nrecorder_seconds = 2.5\n",
+            MINIMAL.replacen(
+                "max_mm = 10.0\n",
+                "max_mm = 10.0\nferror_mm = 0.4\nmin_ferror_mm = 0.02\n",
+                1
+            )
+        );
+        let c = Config::from_toml_str(&text, "m.toml").unwrap();
+        let setups = c.drive_configs();
+        let x = setups[0].unwrap();
+        assert_eq!(x.kind, DriveKind::Sim);
+        assert_eq!(
+            (x.scale.counts_per_unit(), x.scale.direction()),
+            (800.0, -1)
+        );
+        assert_eq!(
+            x.sim,
+            SimConfig {
+                period_ns: 2_000_000,
+                bandwidth_hz: 20.0,
+                damping: 0.7,
+                velocity_feed_forward: 0.5,
+                substeps: 40,
+                overcurrent_accel_counts_s2: 5e8,
+                quick_stop_decel_counts_s2: 2e5,
+                following_error_window_counts: 77,
+                initial_position_counts: 0.0,
+            }
+        );
+        // 3 ms at 2 ms per cycle: rounded up to 2 cycles.
+        assert_eq!(x.enable_timeout_cycles, 2);
+        let b = setups[4].unwrap();
+        assert_eq!(
+            (b.scale.counts_per_unit(), b.scale.direction()),
+            (3600.0, 1)
+        );
+        assert_eq!(b.sim.bandwidth_hz, 50.0);
+        assert!(setups[3].is_none() && setups[5].is_none());
+        // The scale converts as the file says: -1 direction, 800 counts/mm.
+        assert_eq!(x.scale.to_counts(1.5), Ok(-1200));
+
+        let s = c.safety_config();
+        assert_eq!(s.period_s, 0.002);
+        assert_eq!((s.margin, s.stall_cycles), (0.1, 7));
+        assert_eq!(
+            s.axes[0],
+            Some(AxisSafety {
+                limits: AxisLimits {
+                    velocity_units_s: 100.0,
+                    acceleration_units_s2: 1000.0,
+                    jerk_units_s3: 10000.0,
+                },
+                min_limit: -10.0,
+                max_limit: 10.0,
+                ferror: 0.4,
+                min_ferror: 0.02,
+            })
+        );
+        assert_eq!(
+            s.axes[1].map(|a| (a.ferror, a.min_ferror)),
+            Some((1.0, 0.1))
+        );
+        assert_eq!(
+            s.axes[4],
+            Some(AxisSafety {
+                limits: AxisLimits {
+                    velocity_units_s: 90.0,
+                    acceleration_units_s2: 900.0,
+                    jerk_units_s3: 9000.0,
+                },
+                min_limit: -30.0,
+                max_limit: 120.0,
+                ferror: 2.0,
+                min_ferror: 0.5,
+            })
+        );
+        assert!(s.axes[3].is_none() && s.axes[5].is_none());
+        // LinuxCNC's rule on the configured values: 0.4 mm at 100 mm/s, 0.02 at rest.
+        assert_eq!(s.axes[0].unwrap().ferror_limit(100.0), 0.4);
+        assert_eq!(s.axes[0].unwrap().ferror_limit(0.0), 0.02);
+        assert!(kerf_drive::safety::Safety::new(s, [0.0; MAX_AXES]).is_ok());
+
+        // 2.5 s at 2 ms: 1250 cycles, as the recorder itself sizes it.
+        assert_eq!(c.recorder_capacity(), 1250);
+        assert_eq!(c.recorder_axes(), [true, true, true, false, true, false]);
+        let recorder =
+            kerf_drive::recorder::Recorder::new(2.5, c.period_s(), c.recorder_axes()).unwrap();
+        assert_eq!(recorder.capacity(), c.recorder_capacity());
+    }
+
+    #[test]
+    fn drive_side_mistakes_are_named() {
+        let (text, place) = with_key("axes.x.drive", "kind", "\"ethercat\"");
+        assert_eq!(
+            err(&text),
+            format!(
+                "{place}`axes.x.drive.kind` must be \"sim\" (the only drive kind so far), found `ethercat`"
+            )
+        );
+        // Unknown keys, in each new table.
+        for (extra, key) in [
+            ("[axes.x.drive]\nbandwidth = 10.0\n", "bandwidth"),
+            ("[axes.y.drive]\ninertia = 1.0\n", "inertia"),
+            ("[safety]\nmargin_percent = 5\n", "margin_percent"),
+            ("[safety]\nferror_mm = 1.0\n", "ferror_mm"),
+        ] {
+            let e = err(&format!("{MINIMAL}{extra}"));
+            assert!(
+                e.contains(&format!("unknown field `{key}`")),
+                "{extra}: {e}"
+            );
+        }
+        let e = err(&MINIMAL.replacen("max_mm = 10.0\n", "max_mm = 10.0\nferror = 1.0\n", 1));
+        assert!(e.contains("unknown field `ferror`"), "{e}");
+        // The scale key of the other kind of axis.
+        let e = err(&format!(
+            "{MINIMAL}[axes.z.drive]\ncounts_per_deg = 100.0\n"
+        ));
+        assert!(
+            e.contains("axis z is measured in mm: its scale is `axes.z.drive.counts_per_mm`"),
+            "{e}"
+        );
+        let c_axis = "[axes.c]\nvelocity_deg_s = 360.0\nacceleration_deg_s2 = 3600.0\njerk_deg_s3 = 90000.0\nmin_deg = -720.0\nmax_deg = 720.0\n";
+        let e = err(&format!(
+            "{MINIMAL}{c_axis}[axes.c.drive]\ncounts_per_mm = 100.0\n"
+        ));
+        assert!(
+            e.contains("its scale is `axes.c.drive.counts_per_deg`"),
+            "{e}"
+        );
+        let e = err(&format!("{MINIMAL}{c_axis}ferror_mm = 1.0\n"));
+        assert!(e.contains("unknown field `ferror_mm`"), "{e}");
+        // A travel that does not fit in 32-bit counts: ±10 mm at 3e8 counts/mm.
+        let e = err(&format!("{MINIMAL}[axes.x.drive]\ncounts_per_mm = 3e8\n"));
+        assert!(e.starts_with("m.toml:21:17: error: `axes.x.drive.counts_per_mm` = 3e8 puts the travel limit 10 mm at 3e9 counts"), "{e}");
+        assert!(
+            e.contains("3e9 counts, beyond the drive's 32-bit position (2147483647)"),
+            "{e}"
+        );
+        // min_ferror above ferror.
+        let e = err(&MINIMAL.replacen(
+            "max_mm = 10.0\n",
+            "max_mm = 10.0\nferror_mm = 0.5\nmin_ferror_mm = 0.6\n",
+            1,
+        ));
+        assert!(
+            e.contains("`axes.x.min_ferror_mm` (0.6) must be at most `axes.x.ferror_mm` (0.5)"),
+            "{e}"
+        );
+        let e = err(&MINIMAL.replacen("max_mm = 10.0\n", "max_mm = 10.0\nferror_mm = 0.05\n", 1));
+        assert!(
+            e.contains("`axes.x.min_ferror_mm` (0.1) must be at most `axes.x.ferror_mm` (0.05)"),
+            "{e}"
+        );
     }
 }
