@@ -176,20 +176,11 @@ pub struct AxisDrive {
     pub kind: DriveKind,
     /// `counts_per_mm` (`counts_per_deg`) and `direction`.
     pub scale: Scale,
-    /// `bandwidth_hz`: sim drive position loop natural frequency, Hz.
-    pub bandwidth_hz: f64,
-    /// `damping`: sim drive damping ratio.
-    pub damping: f64,
-    /// `velocity_feed_forward`: sim drive feed-forward gain, 0 to 1.
-    pub velocity_feed_forward: f64,
-    /// `substeps`: sim drive integration steps per period.
-    pub substeps: u32,
-    /// `overcurrent_accel_counts_s2`: sim drive overcurrent threshold, counts/s².
-    pub overcurrent_accel_counts_s2: f64,
-    /// `quick_stop_decel_counts_s2`: sim drive quick-stop deceleration, counts/s².
-    pub quick_stop_decel_counts_s2: f64,
-    /// `following_error_window_counts`: sim drive statusword bit 13 window, counts.
-    pub following_error_window_counts: u32,
+    /// The sim drive's tuning: `bandwidth_hz`, `damping`, `velocity_feed_forward`,
+    /// `substeps`, `overcurrent_accel_counts_s2`, `quick_stop_decel_counts_s2`,
+    /// `following_error_window_counts`. Its period and start position are not keys:
+    /// [`Config::drive_configs`] sets them.
+    pub sim: SimConfig,
     /// `enable_timeout_ms`: timeout of each transition of the enable sequence, ms.
     pub enable_timeout_ms: u32,
     /// `ferror_mm` (`ferror_deg`) of `[axes.*]`: following-error limit at v_max.
@@ -201,17 +192,10 @@ pub struct AxisDrive {
 impl AxisDrive {
     /// The defaults of an axis without `[axes.*.drive]` (those of [`SimConfig`]).
     fn with_scale(scale: Scale) -> AxisDrive {
-        let sim = SimConfig::default();
         AxisDrive {
             kind: DriveKind::Sim,
             scale,
-            bandwidth_hz: sim.bandwidth_hz,
-            damping: sim.damping,
-            velocity_feed_forward: sim.velocity_feed_forward,
-            substeps: sim.substeps,
-            overcurrent_accel_counts_s2: sim.overcurrent_accel_counts_s2,
-            quick_stop_decel_counts_s2: sim.quick_stop_decel_counts_s2,
-            following_error_window_counts: sim.following_error_window_counts,
+            sim: SimConfig::default(),
             enable_timeout_ms: DEFAULT_ENABLE_TIMEOUT_MS,
             ferror_mm_deg: DEFAULT_FERROR_MM,
             min_ferror_mm_deg: DEFAULT_MIN_FERROR_MM,
@@ -587,14 +571,8 @@ impl Config {
                 scale: d.scale,
                 sim: SimConfig {
                     period_ns,
-                    bandwidth_hz: d.bandwidth_hz,
-                    damping: d.damping,
-                    velocity_feed_forward: d.velocity_feed_forward,
-                    substeps: d.substeps,
-                    overcurrent_accel_counts_s2: d.overcurrent_accel_counts_s2,
-                    quick_stop_decel_counts_s2: d.quick_stop_decel_counts_s2,
-                    following_error_window_counts: d.following_error_window_counts,
                     initial_position_counts: 0.0,
+                    ..d.sim
                 },
                 enable_timeout_cycles: Enabler::timeout_cycles_for(
                     u64::from(d.enable_timeout_ms) * 1_000_000,
@@ -1110,54 +1088,54 @@ impl Checker<'_> {
         })?;
         let mut d = AxisDrive::with_scale(scale);
         d.kind = kind;
-        d.bandwidth_hz = self.within_or(
+        d.sim.bandwidth_hz = self.within_or(
             &key("bandwidth_hz"),
             "Hz",
             BANDWIDTH_RANGE_HZ,
             &raw.bandwidth_hz,
-            d.bandwidth_hz,
+            d.sim.bandwidth_hz,
         )?;
-        d.damping = self.within_or(
+        d.sim.damping = self.within_or(
             &key("damping"),
             "(damping ratio)",
             DAMPING_RANGE,
             &raw.damping,
-            d.damping,
+            d.sim.damping,
         )?;
-        d.velocity_feed_forward = self.within_or(
+        d.sim.velocity_feed_forward = self.within_or(
             &key("velocity_feed_forward"),
             "(gain)",
             VELOCITY_FEED_FORWARD_RANGE,
             &raw.velocity_feed_forward,
-            d.velocity_feed_forward,
+            d.sim.velocity_feed_forward,
         )?;
-        d.substeps = self.integer_or(
+        d.sim.substeps = self.integer_or(
             &key("substeps"),
             "a number of steps per period",
             SUBSTEPS_RANGE,
             &raw.substeps,
-            d.substeps,
+            d.sim.substeps,
         )?;
-        d.overcurrent_accel_counts_s2 = self.within_or(
+        d.sim.overcurrent_accel_counts_s2 = self.within_or(
             &key("overcurrent_accel_counts_s2"),
             "counts/s²",
             DRIVE_ACCELERATION_RANGE_COUNTS_S2,
             &raw.overcurrent_accel_counts_s2,
-            d.overcurrent_accel_counts_s2,
+            d.sim.overcurrent_accel_counts_s2,
         )?;
-        d.quick_stop_decel_counts_s2 = self.within_or(
+        d.sim.quick_stop_decel_counts_s2 = self.within_or(
             &key("quick_stop_decel_counts_s2"),
             "counts/s²",
             DRIVE_ACCELERATION_RANGE_COUNTS_S2,
             &raw.quick_stop_decel_counts_s2,
-            d.quick_stop_decel_counts_s2,
+            d.sim.quick_stop_decel_counts_s2,
         )?;
-        d.following_error_window_counts = self.integer_or(
+        d.sim.following_error_window_counts = self.integer_or(
             &key("following_error_window_counts"),
             "a number of counts",
             FOLLOWING_ERROR_WINDOW_RANGE_COUNTS,
             &raw.following_error_window_counts,
-            d.following_error_window_counts,
+            d.sim.following_error_window_counts,
         )?;
         d.enable_timeout_ms = self.integer_or(
             &key("enable_timeout_ms"),
@@ -2301,15 +2279,22 @@ max_mm = 10.0
             (1000.0, 1)
         );
         assert_eq!(
-            (d.bandwidth_hz, d.damping, d.velocity_feed_forward),
+            (
+                d.sim.bandwidth_hz,
+                d.sim.damping,
+                d.sim.velocity_feed_forward
+            ),
             (50.0, 1.0, 1.0)
         );
-        assert_eq!(d.substeps, 20);
+        assert_eq!(d.sim.substeps, 20);
         assert_eq!(
-            (d.overcurrent_accel_counts_s2, d.quick_stop_decel_counts_s2),
+            (
+                d.sim.overcurrent_accel_counts_s2,
+                d.sim.quick_stop_decel_counts_s2
+            ),
             (1e9, 1e6)
         );
-        assert_eq!(d.following_error_window_counts, 1000);
+        assert_eq!(d.sim.following_error_window_counts, 1000);
         assert_eq!(d.enable_timeout_ms, 1000);
         assert_eq!((d.ferror_mm_deg, d.min_ferror_mm_deg), (1.0, 0.1));
         assert_eq!(c.drive.axes[1], Some(d));
@@ -2338,7 +2323,7 @@ max_mm = 10.0
         );
         // The bundled example has the same drive side.
         assert_eq!(
-            Config::builtin().drive.axes[0].map(|a| a.bandwidth_hz),
+            Config::builtin().drive.axes[0].map(|a| a.sim.bandwidth_hz),
             Some(50.0)
         );
     }
