@@ -1656,6 +1656,14 @@ max_mm = 10.0
 
     /// [`full`] with `key = value` in `table` (`""`: the top level), and the 1-based line
     /// and column where the value starts.
+    /// The full example with `key = value` in `table` is a valid configuration.
+    fn assert_accepted(table: &str, key: &str, value: &str) {
+        let (text, _) = with_key(table, key, value);
+        if let Err(e) = Config::from_toml_str(&text, "m.toml") {
+            panic!("{key} = {value} must be accepted: {e}");
+        }
+    }
+
     fn with_key(table: &str, key: &str, value: &str) -> (String, String) {
         let text = full();
         let (text, at) = if table.is_empty() {
@@ -1881,10 +1889,7 @@ max_mm = 10.0
         ];
         for &(table, key, good, bad, range) in cases {
             for value in good {
-                let (text, _) = with_key(table, key, value);
-                if let Err(e) = Config::from_toml_str(&text, "m.toml") {
-                    panic!("{key} = {value} must be accepted: {e}");
-                }
+                assert_accepted(table, key, value);
             }
             for value in bad {
                 let (text, place) = with_key(table, key, value);
@@ -2242,10 +2247,7 @@ max_mm = 10.0
         ];
         for &(table, key, good, bad, range) in cases {
             for value in good {
-                let (text, _) = with_key(table, key, value);
-                if let Err(e) = Config::from_toml_str(&text, "m.toml") {
-                    panic!("{key} = {value} must be accepted: {e}");
-                }
+                assert_accepted(table, key, value);
             }
             for value in bad {
                 let (text, place) = with_key(table, key, value);
