@@ -8,6 +8,8 @@
 //! - [`safety`]: the checks of the real-time cycle above every drive (plausibility, soft
 //!   limits, following error, stream supervision), latched faults, the quick stop.
 //! - [`recorder`]: the black-box ring of the last seconds of cycles and its CSV export.
+//! - [`stage`]: all of it in one call per cycle: read the drives, enable them, check,
+//!   write the targets, record; resets and black-box dumps.
 //!
 //! Everything called in the real-time cycle is allocation-free.
 #![deny(missing_docs)]
@@ -16,6 +18,7 @@ pub mod cia402;
 pub mod recorder;
 pub mod safety;
 pub mod sim;
+pub mod stage;
 
 /// The most axes a machine has: X, Y, Z, A, B, C.
 pub const MAX_AXES: usize = 6;

@@ -128,6 +128,23 @@ impl Recorder {
         self.len = 0;
     }
 
+    /// The ring index of the oldest record held (for [`Recorder::copy_into`]).
+    pub fn oldest_index(&self) -> usize {
+        let cap = self.ring.len();
+        (self.next + cap - self.len) % cap
+    }
+
+    /// Appends to `into` the `n` records at ring indices `from`, `from + 1`, … (modulo the
+    /// capacity): a chunk of a copy of this ring started at [`Recorder::oldest_index`].
+    /// Copies only; allocation-free (the real-time cycle copies the black box a chunk per
+    /// cycle while it keeps recording).
+    pub fn copy_into(&self, from: usize, n: usize, into: &mut Recorder) {
+        let cap = self.ring.len();
+        for k in 0..n {
+            into.record(&self.ring[(from + k) % cap]);
+        }
+    }
+
     /// The records held, oldest first.
     pub fn iter(&self) -> impl Iterator<Item = &CycleRecord> {
         let cap = self.ring.len();

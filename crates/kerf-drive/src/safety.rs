@@ -123,6 +123,12 @@ pub enum Check {
     StreamStall,
     /// A drive reported a fault.
     DriveFault,
+    /// A drive did not reach Operation enabled within its enable timeout (at start or at
+    /// a reset); reported by the drive stage ([`crate::stage`]).
+    EnableTimeout,
+    /// A drive left Operation enabled on its own (not into a fault); reported by the
+    /// drive stage.
+    DriveDisabled,
 }
 
 impl Check {
@@ -136,6 +142,35 @@ impl Check {
             Check::FollowingError => "following_error",
             Check::StreamStall => "stream_stall",
             Check::DriveFault => "drive_fault",
+            Check::EnableTimeout => "enable_timeout",
+            Check::DriveDisabled => "drive_disabled",
+        }
+    }
+
+    /// Every check, in the order of their codes.
+    pub const ALL: [Check; 8] = [
+        Check::Velocity,
+        Check::Acceleration,
+        Check::SoftLimit,
+        Check::FollowingError,
+        Check::StreamStall,
+        Check::DriveFault,
+        Check::EnableTimeout,
+        Check::DriveDisabled,
+    ];
+
+    /// The check's number on the wire (1 to 8, in the order of [`Check::ALL`]; 0 means
+    /// none).
+    pub fn code(self) -> u32 {
+        match self {
+            Check::Velocity => 1,
+            Check::Acceleration => 2,
+            Check::SoftLimit => 3,
+            Check::FollowingError => 4,
+            Check::StreamStall => 5,
+            Check::DriveFault => 6,
+            Check::EnableTimeout => 7,
+            Check::DriveDisabled => 8,
         }
     }
 }
@@ -206,6 +241,9 @@ pub enum ResetRefused {
     /// The last cycle had no new setpoint: the stream is still missing.
     #[error("reset refused: the setpoint stream is still missing")]
     StreamMissing,
+    /// A drive did not reach Operation enabled again within its enable timeout.
+    #[error("reset refused: the drive of axis {} did not enable", AXIS_NAMES[*.0])]
+    NotEnabled(usize),
 }
 
 /// What the cycle gives [`Safety::check`].
@@ -568,6 +606,55 @@ impl Safety {
                 _ => StopProfile::at_rest(x0),
             };
         }
+    }
+
+    /// Latches a fault found outside the checks of [`Safety::check`] (by the drive stage:
+    /// an enable timeout, a drive that disabled itself) and starts the quick stop, as a
+    /// trip of a check would. Does nothing while a fault is latched (the first stays).
+    /// Returns the fault latched now, if any.
+    pub fn trip(
+        &mut self,
+        check: Check,
+        axis: Option<usize>,
+        value: f64,
+        limit: f64,
+        line: u32,
+    ) -> Option<Fault> {
+        if self.fault.is_some() {
+            return None;
+        }
+        let f = Fault {
+            check,
+            axis,
+            value,
+            limit,
+            line,
+            cycle: self.cycle,
+        };
+        self.latch(f);
+        self.state = State::QuickStop;
+        Some(f)
+    }
+
+    /// Takes `position` as the commanded position of `axis`, at rest: for a drive enabled
+    /// again at a reset, whose motor stopped on its own (brake or its own quick stop)
+    /// away from the last command. Only while a fault is latched and every axis is at
+    /// rest; returns whether it was done.
+    pub fn rebase(&mut self, axis: usize, position: f64) -> bool {
+        if self.fault.is_none() || self.state != State::Stopped || axis >= MAX_AXES {
+            return false;
+        }
+        if !position.is_finite() {
+            return false;
+        }
+        for out in self.out.iter_mut() {
+            out[axis] = position;
+        }
+        for s in self.stream.iter_mut() {
+            s[axis] = position;
+        }
+        self.stops[axis] = StopProfile::at_rest(position);
+        true
     }
 
     /// Clears the latched fault if its cause is gone: every axis at rest, no drive

@@ -576,6 +576,17 @@ impl MotionCore {
         }
     }
 
+    /// Drops the queue and every motion state at once and rests at `position`: for the
+    /// drive side's quick stop, after which the drives stand where its jerk-limited ramp
+    /// brought them, not where this core's path stop would have. Never allocates.
+    pub fn reset_to(&mut self, position: [f64; 6]) {
+        self.clear();
+        self.last = Setpoint {
+            position,
+            ..Setpoint::default()
+        };
+    }
+
     fn seg(&self, abs: u64) -> &PlannedSegment {
         &self.segs[(abs % self.segs.len() as u64) as usize]
     }

@@ -86,7 +86,7 @@ impl TryFrom<u32> for State {
 /// One real-time cycle's output, published on the setpoints service every cycle.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.SetpointMsg.v1")]
+#[type_name("kerf.SetpointMsg.v2")]
 pub struct SetpointMsg {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
@@ -155,13 +155,22 @@ pub const REQUEST_RESUME: u32 = 3;
 pub const REQUEST_ABORT: u32 = 4;
 /// Request kind: set the feed override to `value` percent (0..=200).
 pub const REQUEST_OVERRIDE: u32 = 5;
-/// Request kind: clear a fault (reserved: refused with [`REASON_NOT_IMPLEMENTED`] for now).
+/// Request kind: clear the latched fault of the drive side once its cause is gone; the
+/// response comes once the reset has ended (refused with the reason while the cause
+/// persists).
 pub const REQUEST_RESET: u32 = 6;
+/// Request kind: write the black-box recorder to a file; the response's message is the
+/// file's absolute path.
+pub const REQUEST_DUMP: u32 = 7;
+/// Request kind, for tests only: inject a fault below the motion core (`value`: the
+/// injection code, a whole number; see `docs/DRIVES.md`). A daemon started without
+/// `--test-faults` refuses it with [`REASON_NOT_ALLOWED`].
+pub const REQUEST_INJECT: u32 = 8;
 
 /// A request from a client to the daemon on the control service.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.Request.v1")]
+#[type_name("kerf.Request.v2")]
 pub struct Request {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
@@ -191,6 +200,13 @@ pub enum Command {
     },
     /// [`REQUEST_RESET`].
     Reset,
+    /// [`REQUEST_DUMP`].
+    Dump,
+    /// [`REQUEST_INJECT`] (tests only).
+    Inject {
+        /// The injection code.
+        code: u32,
+    },
 }
 
 /// Why a [`Request`] was refused; [`RequestReject::reason`] is the response's code.
@@ -238,6 +254,8 @@ impl Request {
             Command::Abort => (REQUEST_ABORT, 0.0),
             Command::Override { percent } => (REQUEST_OVERRIDE, percent),
             Command::Reset => (REQUEST_RESET, 0.0),
+            Command::Dump => (REQUEST_DUMP, 0.0),
+            Command::Inject { code } => (REQUEST_INJECT, f64::from(code)),
         };
         Request::new(kind, id, value)
     }
@@ -253,6 +271,15 @@ impl Request {
             REQUEST_RESUME => Command::Resume,
             REQUEST_ABORT => Command::Abort,
             REQUEST_RESET => Command::Reset,
+            REQUEST_DUMP => Command::Dump,
+            REQUEST_INJECT => {
+                let v = self.value;
+                if !(v >= 0.0 && v <= f64::from(u32::MAX) && v.fract() == 0.0) {
+                    return Err(RequestReject::BadValue);
+                }
+                // A whole number within the range: the cast is exact.
+                return Ok(Command::Inject { code: v as u32 });
+            }
             REQUEST_OVERRIDE => {
                 if !(0.0..=200.0).contains(&self.value) {
                     return Err(RequestReject::BadValue);
@@ -286,7 +313,7 @@ pub const REASON_NOT_IMPLEMENTED: u32 = 5;
 /// The daemon's status, embedded in every [`Response`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.StatusMsg.v1")]
+#[type_name("kerf.StatusMsg.v2")]
 pub struct StatusMsg {
     /// `STATE_*`.
     pub state: u32,
@@ -329,9 +356,62 @@ pub struct StatusMsg {
     pub period_ns: u64,
     /// How program `program_id` ended: `PROGRAM_END_*` (`PROGRAM_END_NONE` while it runs).
     pub program_end: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// What the drive side does: `DRIVES_*`.
+    pub drives: u32,
+    /// The safety check that tripped the latched fault: `SAFETY_*` (`SAFETY_NONE` when no
+    /// fault is latched).
+    pub safety_check: u32,
+    /// The axis of the latched fault, 0–5 = X–C, or [`SAFETY_AXIS_NONE`].
+    pub safety_axis: u32,
+    /// The value that tripped (its unit is the check's: see `docs/DRIVES.md`).
+    pub safety_value: f64,
+    /// The limit it was checked against, same unit.
+    pub safety_limit: f64,
+    /// The program line of the cycle that tripped (0 = none).
+    pub safety_line: u32,
+    /// The error code (0x603F) the faulted drive reports, 0 = none.
+    pub drive_error_code: u32,
+    /// The cycle of the trip, counted from the drives' enabling.
+    pub safety_cycle: u64,
+    /// The black-box file written at the latched fault, UTF-8, NUL-padded (empty until
+    /// written; see [`StatusMsg::fault_dump`]).
+    pub fault_dump: [u8; 160],
 }
+
+/// `StatusMsg::drives`: the drives are being enabled; no motion yet.
+pub const DRIVES_ENABLING: u32 = 1;
+/// `StatusMsg::drives`: every drive enabled, setpoints pass the safety checks.
+pub const DRIVES_RUNNING: u32 = 2;
+/// `StatusMsg::drives`: a missed cycle; the last position is held.
+pub const DRIVES_HOLDING: u32 = 3;
+/// `StatusMsg::drives`: a fault is latched and the quick stop ramps every axis to rest.
+pub const DRIVES_QUICK_STOP: u32 = 4;
+/// `StatusMsg::drives`: a fault is latched and every axis is at rest; `kerf reset`.
+pub const DRIVES_STOPPED: u32 = 5;
+/// `StatusMsg::drives`: a reset is in progress.
+pub const DRIVES_RESETTING: u32 = 6;
+
+/// `StatusMsg::safety_check`: no fault latched.
+pub const SAFETY_NONE: u32 = 0;
+/// `StatusMsg::safety_check`: a setpoint's step over the period above the velocity limit.
+pub const SAFETY_VELOCITY: u32 = 1;
+/// `StatusMsg::safety_check`: the setpoints' second difference above the acceleration
+/// limit.
+pub const SAFETY_ACCELERATION: u32 = 2;
+/// `StatusMsg::safety_check`: a setpoint outside the soft limits.
+pub const SAFETY_SOFT_LIMIT: u32 = 3;
+/// `StatusMsg::safety_check`: following error above its limit.
+pub const SAFETY_FOLLOWING_ERROR: u32 = 4;
+/// `StatusMsg::safety_check`: too many consecutive missed cycles.
+pub const SAFETY_STREAM_STALL: u32 = 5;
+/// `StatusMsg::safety_check`: a drive reported a fault.
+pub const SAFETY_DRIVE_FAULT: u32 = 6;
+/// `StatusMsg::safety_check`: a drive did not enable within its timeout.
+pub const SAFETY_ENABLE_TIMEOUT: u32 = 7;
+/// `StatusMsg::safety_check`: a drive left Operation enabled on its own.
+pub const SAFETY_DRIVE_DISABLED: u32 = 8;
+/// `StatusMsg::safety_axis` of a fault that is not an axis's (a stream stall).
+pub const SAFETY_AXIS_NONE: u32 = 255;
 
 /// `StatusMsg::program_end`: the program still runs, or there is none.
 pub const PROGRAM_END_NONE: u32 = 0;
@@ -367,7 +447,15 @@ impl StatusMsg {
             fault_text: [0; 128],
             period_ns: 0,
             program_end: PROGRAM_END_NONE,
-            reserved: 0,
+            drives: 0,
+            safety_check: SAFETY_NONE,
+            safety_axis: SAFETY_AXIS_NONE,
+            safety_value: 0.0,
+            safety_limit: 0.0,
+            safety_line: 0,
+            drive_error_code: 0,
+            safety_cycle: 0,
+            fault_dump: [0; 160],
         }
     }
 
@@ -385,6 +473,16 @@ impl StatusMsg {
     pub fn fault_text(&self) -> &str {
         read_text(&self.fault_text)
     }
+
+    /// Sets `fault_dump`, truncated at a character boundary to 160 bytes.
+    pub fn set_fault_dump(&mut self, path: &str) {
+        write_text(&mut self.fault_dump, path);
+    }
+
+    /// `fault_dump` up to its first NUL (its valid UTF-8 prefix).
+    pub fn fault_dump(&self) -> &str {
+        read_text(&self.fault_dump)
+    }
 }
 
 impl Default for StatusMsg {
@@ -397,7 +495,7 @@ impl Default for StatusMsg {
 /// after handling it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.Response.v1")]
+#[type_name("kerf.Response.v2")]
 pub struct Response {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
@@ -410,14 +508,14 @@ pub struct Response {
     /// Must be zero.
     pub reserved: u32,
     /// Human-readable message, UTF-8, NUL-padded (see [`Response::message`]).
-    pub message: [u8; 96],
+    pub message: [u8; 224],
     /// The status after the request was handled.
     pub status: StatusMsg,
 }
 
 impl Response {
     /// An accepted (`reason` [`REASON_OK`]) or refused response to request `request_id`,
-    /// with `message` truncated at a character boundary to 96 bytes.
+    /// with `message` truncated at a character boundary to 224 bytes.
     pub fn new(request_id: u64, reason: u32, message: &str, status: StatusMsg) -> Response {
         let mut r = Response {
             version: PROTOCOL_VERSION,
@@ -425,14 +523,14 @@ impl Response {
             request_id,
             reason,
             reserved: 0,
-            message: [0; 96],
+            message: [0; 224],
             status,
         };
         r.set_message(message);
         r
     }
 
-    /// Sets `message`, truncated at a character boundary to 96 bytes.
+    /// Sets `message`, truncated at a character boundary to 224 bytes.
     pub fn set_message(&mut self, text: &str) {
         write_text(&mut self.message, text);
     }
@@ -473,6 +571,8 @@ mod tests {
             (Command::Abort, REQUEST_ABORT),
             (Command::Override { percent: 150.0 }, REQUEST_OVERRIDE),
             (Command::Reset, REQUEST_RESET),
+            (Command::Dump, REQUEST_DUMP),
+            (Command::Inject { code: 17 }, REQUEST_INJECT),
         ] {
             let r = Request::from_command(c, 7);
             assert_eq!(r.kind, kind);
@@ -492,9 +592,19 @@ mod tests {
             Request::new(0, 1, 0.0).command(),
             Err(RequestReject::UnknownKind(0))
         );
+        let inject = |v| Request::new(REQUEST_INJECT, 1, v).command();
+        assert_eq!(inject(0.0), Ok(Command::Inject { code: 0 }));
+        assert_eq!(inject(1.5), Err(RequestReject::BadValue));
+        assert_eq!(inject(-1.0), Err(RequestReject::BadValue));
+        assert_eq!(inject(f64::NAN), Err(RequestReject::BadValue));
+        assert_eq!(inject(4294967296.0), Err(RequestReject::BadValue));
+        assert_eq!(
+            Request::new(REQUEST_DUMP, 1, 1.0).command(),
+            Err(RequestReject::BadValue)
+        );
         let mut old = Request::new(REQUEST_STATUS, 1, 0.0);
-        old.version = 2;
-        assert_eq!(old.command(), Err(RequestReject::WrongVersion(2)));
+        old.version = 1;
+        assert_eq!(old.command(), Err(RequestReject::WrongVersion(1)));
         assert_eq!(RequestReject::BadValue.reason(), REASON_BAD_VALUE);
     }
 

@@ -32,10 +32,14 @@ mod stream;
 mod doc_layout;
 
 pub use control::{
-    Command, PROGRAM_END_ABORTED, PROGRAM_END_FINISHED, PROGRAM_END_NONE, PROGRAM_END_REFUSED,
-    REASON_BAD_VALUE, REASON_NOT_ALLOWED, REASON_NOT_IMPLEMENTED, REASON_OK, REASON_UNKNOWN_KIND,
-    REASON_WRONG_VERSION, REQUEST_ABORT, REQUEST_HOLD, REQUEST_OVERRIDE, REQUEST_RESET,
-    REQUEST_RESUME, REQUEST_STATUS, Request, RequestReject, Response, STATE_FAULT, STATE_HOLDING,
+    Command, DRIVES_ENABLING, DRIVES_HOLDING, DRIVES_QUICK_STOP, DRIVES_RESETTING, DRIVES_RUNNING,
+    DRIVES_STOPPED, PROGRAM_END_ABORTED, PROGRAM_END_FINISHED, PROGRAM_END_NONE,
+    PROGRAM_END_REFUSED, REASON_BAD_VALUE, REASON_NOT_ALLOWED, REASON_NOT_IMPLEMENTED, REASON_OK,
+    REASON_UNKNOWN_KIND, REASON_WRONG_VERSION, REQUEST_ABORT, REQUEST_DUMP, REQUEST_HOLD,
+    REQUEST_INJECT, REQUEST_OVERRIDE, REQUEST_RESET, REQUEST_RESUME, REQUEST_STATUS, Request,
+    RequestReject, Response, SAFETY_ACCELERATION, SAFETY_AXIS_NONE, SAFETY_DRIVE_DISABLED,
+    SAFETY_DRIVE_FAULT, SAFETY_ENABLE_TIMEOUT, SAFETY_FOLLOWING_ERROR, SAFETY_NONE,
+    SAFETY_SOFT_LIMIT, SAFETY_STREAM_STALL, SAFETY_VELOCITY, STATE_FAULT, STATE_HOLDING,
     STATE_IDLE, STATE_RUNNING, STATE_STARVED, STATE_STOPPING, SetpointMsg, State, StatusMsg,
     UnknownState,
 };
@@ -54,15 +58,15 @@ pub use stream::{CONTINUITY_TOL, StreamCheck, StreamError};
 /// The protocol version carried by every message. A change to any layout or to the meaning
 /// of any field is a new version (and new iceoryx2 type names); receivers refuse messages
 /// of another version.
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;
 
 // The sizes in docs/PROTOCOL.md; a layout change must fail the build, not only the tests.
 const _: () = {
     assert!(size_of::<MoveMsg>() == 256);
     assert!(size_of::<SetpointMsg>() == 152);
     assert!(size_of::<Request>() == 24);
-    assert!(size_of::<StatusMsg>() == 288);
-    assert!(size_of::<Response>() == 408);
+    assert!(size_of::<StatusMsg>() == 488);
+    assert!(size_of::<Response>() == 736);
 };
 
 /// The number of axes in positions and velocities: X, Y, Z (mm), A, B, C (degrees).

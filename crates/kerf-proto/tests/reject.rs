@@ -88,8 +88,8 @@ fn valid_messages_decode() {
 #[test]
 fn envelope() {
     assert_eq!(
-        mutated(line, |m| m.version = 2),
-        Reject::WrongVersion { found: 2 }
+        mutated(line, |m| m.version = 1),
+        Reject::WrongVersion { found: 1 }
     );
     assert_eq!(
         mutated(line, |m| m.version = 0),
@@ -373,7 +373,7 @@ fn reasons_read_as_plain_words() {
     );
     assert_eq!(
         Reject::WrongVersion { found: 3 }.to_string(),
-        "protocol version 3, expected 1"
+        "protocol version 3, expected 2"
     );
     assert_eq!(
         Reject::EventValueMissing(EventCode::T).to_string(),

@@ -158,6 +158,70 @@ pub fn state_name(s: &StatusMsg) -> &'static str {
 
 const AXIS_KEYS: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
 
+/// The drive side's state by name: `enabling`, `running`, `holding`, `quick_stop`,
+/// `stopped`, `resetting` (`none` for a status without one).
+pub fn drives_name(s: &StatusMsg) -> &'static str {
+    match s.drives {
+        kerf_proto::DRIVES_ENABLING => "enabling",
+        kerf_proto::DRIVES_RUNNING => "running",
+        kerf_proto::DRIVES_HOLDING => "holding",
+        kerf_proto::DRIVES_QUICK_STOP => "quick_stop",
+        kerf_proto::DRIVES_STOPPED => "stopped",
+        kerf_proto::DRIVES_RESETTING => "resetting",
+        _ => "none",
+    }
+}
+
+/// The name of a safety check code (`SAFETY_*`), as `kerf_drive::safety::Check::name`.
+pub fn check_name(code: u32) -> Option<&'static str> {
+    kerf_drive::safety::Check::ALL
+        .iter()
+        .find(|c| c.code() == code)
+        .map(|c| c.name())
+}
+
+/// The latched fault of the drive side in words, with units: the check, the axis, the
+/// value against its limit, the program line and the cycle; `None` when none is latched.
+pub fn safety_text(s: &StatusMsg) -> Option<String> {
+    let name = check_name(s.safety_check)?;
+    let axis = AXIS_KEYS
+        .get(s.safety_axis as usize)
+        .map(|a| a.to_ascii_uppercase());
+    let unit = if s.safety_axis >= 3 { "deg" } else { "mm" };
+    let on = axis
+        .as_ref()
+        .map_or(String::new(), |a| format!(" on axis {a}"));
+    let (value, limit) = (s.safety_value, s.safety_limit);
+    let what = match s.safety_check {
+        kerf_proto::SAFETY_VELOCITY => {
+            format!("setpoint step {value:.1} {unit}/s against the limit {limit:.1} {unit}/s")
+        }
+        kerf_proto::SAFETY_ACCELERATION => {
+            format!("{value:.1} {unit}/s² against the limit {limit:.1} {unit}/s²")
+        }
+        kerf_proto::SAFETY_SOFT_LIMIT => {
+            format!("setpoint {value:.4} {unit} beyond the soft limit {limit:.4} {unit}")
+        }
+        kerf_proto::SAFETY_FOLLOWING_ERROR => {
+            format!("{value:.4} {unit} against the limit {limit:.4} {unit}")
+        }
+        kerf_proto::SAFETY_STREAM_STALL => {
+            format!("{value} consecutive cycles without a setpoint (limit {limit})")
+        }
+        kerf_proto::SAFETY_DRIVE_FAULT => {
+            format!("the drive reports error 0x{:04X}", s.drive_error_code)
+        }
+        kerf_proto::SAFETY_ENABLE_TIMEOUT => {
+            format!("the drive did not enable within {limit} cycles")
+        }
+        _ => "the drive left Operation enabled on its own".to_string(),
+    };
+    Some(format!(
+        "{name}{on}: {what} (line {}, cycle {})",
+        s.safety_line, s.safety_cycle
+    ))
+}
+
 /// `kerf status --json`: one JSON object.
 pub fn status_json(machine: &str, s: &StatusMsg) -> String {
     let mut out = String::new();
@@ -215,6 +279,32 @@ pub fn status_json(machine: &str, s: &StatusMsg) -> String {
         s.rejected,
         num(s.period_ns as f64 / 1000.0)
     );
+    // The drive side, before the closing brace.
+    out.pop();
+    let _ = write!(out, ",\"drives\":\"{}\",\"safety\":", drives_name(s));
+    match check_name(s.safety_check) {
+        None => out.push_str("null"),
+        Some(name) => {
+            let axis = match AXIS_KEYS.get(s.safety_axis as usize) {
+                Some(a) => format!("\"{a}\""),
+                None => "null".to_string(),
+            };
+            let dump = match s.fault_dump() {
+                "" => "null".to_string(),
+                p => json_string(p),
+            };
+            let _ = write!(
+                out,
+                "{{\"check\":\"{name}\",\"axis\":{axis},\"value\":{},\"limit\":{},\"line\":{},\"cycle\":{},\"drive_error_code\":{},\"dump\":{dump}}}",
+                num(s.safety_value),
+                num(s.safety_limit),
+                s.safety_line,
+                s.safety_cycle,
+                s.drive_error_code
+            );
+        }
+    }
+    out.push('}');
     out
 }
 
@@ -245,8 +335,12 @@ pub fn status_line(machine: &str, s: &StatusMsg) -> String {
         s.overruns,
         if s.rt != 0 { "yes" } else { "no" }
     );
+    let _ = write!(out, ", drives: {}", drives_name(s));
     if s.fault != 0 {
         let _ = write!(out, ", fault: {}", s.fault_text());
+    }
+    if !s.fault_dump().is_empty() {
+        let _ = write!(out, ", black box: {}", s.fault_dump());
     }
     out
 }

@@ -168,6 +168,17 @@ pub enum DriveKind {
     Sim,
 }
 
+impl DriveKind {
+    /// Whether the drive runs on its own clock, so that a cycle the daemon misses is a
+    /// cycle the drive got no setpoint in. The simulated drive has no clock of its own:
+    /// it advances one period per exchange.
+    pub fn keeps_time(self) -> bool {
+        match self {
+            DriveKind::Sim => false,
+        }
+    }
+}
+
 /// The drive side of one axis: `[axes.*.drive]` and the following-error keys of
 /// `[axes.*]`. Lengths are mm for X, Y, Z and degrees for A, B, C.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -351,6 +362,9 @@ pub struct Config {
     pub tool_table: Option<PathBuf>,
     /// `gcode.subroutine_path`: directories searched for LinuxCNC subroutine files.
     pub subroutine_path: Vec<PathBuf>,
+    /// `safety.dump_dir`: where the daemon writes black-box files (relative to the
+    /// configuration file's directory); `None`: see [`Config::dump_dir`].
+    pub dump_dir: Option<PathBuf>,
     /// `gcode.max_loop_iterations`: the bound on one LinuxCNC loop.
     pub max_loop_iterations: u64,
     /// `gcode.block_delete`: the block delete switch (off by default, as LinuxCNC starts:
@@ -451,6 +465,7 @@ impl Config {
             tools: Vec::new(),
             tool_table: None,
             subroutine_path: Vec::new(),
+            dump_dir: None,
             max_loop_iterations: Settings::default().max_loop_iterations,
             block_delete: Settings::default().block_delete,
             g28_home_mm_deg: [0.0; 6],
@@ -585,6 +600,23 @@ impl Config {
     /// The axes the black-box recorder writes (those the machine has), X to C.
     pub fn recorder_axes(&self) -> [bool; MAX_AXES] {
         self.drive.axes.map(|a| a.is_some())
+    }
+
+    /// Where the daemon writes black-box files: `safety.dump_dir` when set; else the
+    /// directory systemd gives the service (`$STATE_DIRECTORY`, `/var/lib/kerf` with the
+    /// shipped unit); else the system's temporary directory.
+    pub fn dump_dir(&self) -> PathBuf {
+        if let Some(d) = &self.dump_dir {
+            return d.clone();
+        }
+        match std::env::var_os("STATE_DIRECTORY") {
+            // systemd may list several, separated by colons: the first is ours.
+            Some(dirs) if !dirs.is_empty() => {
+                let dirs = dirs.to_string_lossy().into_owned();
+                PathBuf::from(dirs.split(':').next().unwrap_or(&dirs))
+            }
+            _ => std::env::temp_dir(),
+        }
     }
 
     /// The black-box recorder's capacity, cycles: `safety.recorder_seconds` over the
@@ -731,6 +763,7 @@ struct RawSafety {
     margin: Option<Spanned<f64>>,
     stall_cycles: Option<Spanned<i64>>,
     recorder_seconds: Option<Spanned<f64>>,
+    dump_dir: Option<Spanned<String>>,
 }
 
 #[derive(Default, Deserialize)]
@@ -1335,6 +1368,16 @@ impl Checker<'_> {
             c: self.rotary("c", &raw.axes.c)?,
         };
         let drive = self.drive_side(&raw, &axes)?;
+        let dump_dir = match &raw.safety.dump_dir {
+            None => None,
+            Some(d) if d.get_ref().is_empty() => {
+                return Err(self.error(
+                    d.span(),
+                    "`safety.dump_dir` must name a directory, found an empty string".to_string(),
+                ));
+            }
+            Some(d) => Some(self.dir.join(d.get_ref())),
+        };
 
         let defaults = Settings::default();
         let arc_tolerance_mm = match &raw.gcode.arc_tolerance_mm {
@@ -1470,6 +1513,7 @@ impl Checker<'_> {
             tools,
             tool_table,
             subroutine_path,
+            dump_dir,
             max_loop_iterations,
             block_delete,
             g28_home_mm_deg,

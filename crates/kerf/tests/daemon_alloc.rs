@@ -4,8 +4,12 @@
 //! the cycle hands the setpoint to the publisher thread of `kerf::daemon::publish`
 //! through a preallocated ring), for every cycle of whole programs: the example
 //! part (with a hold and resume and two override changes), a dense polyline (aborted in
-//! the middle) and a third program after the abort, with a setpoint reader connecting in
-//! the middle of a program (as `kerf record` does).
+//! the middle), a dense polyline stopped by a drive fault injected in the middle (the
+//! safety layer's quick stop, the black box copied out for the fault and on request, a
+//! reset refused while the fault's cause persists, one accepted once it is gone, an
+//! injected stall of the setpoint stream and its reset), and a last program after all
+//! that, with a setpoint reader connecting in the middle of a program (as `kerf record`
+//! does). The drive stage (simulated drives, safety layer, black box) runs in every cycle.
 //!
 //! Only the cycle's thread counts (a thread-local flag), so the planning worker, which
 //! allocates freely on its own thread, does not disturb the count.
@@ -17,7 +21,12 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc;
 
 use kerf::Config;
-use kerf::daemon::worker::{Command, Cycle, Incoming, Planning, PlanningCounters, Snapshot};
+use kerf::daemon::worker::{
+    Command, Cycle, DumpWriterRings, Incoming, Injection, Planning, PlanningCounters, Refusal,
+    Snapshot,
+};
+use kerf_drive::safety::{Check, ResetRefused};
+use kerf_drive::stage::DumpReason;
 use kerf_proto::{MoveMsg, Resolved, SetpointMsg, State, StreamCheck};
 
 /// Counts allocations (and reallocations) on threads whose flag is set.
@@ -154,6 +163,54 @@ enum Script {
     Abort,
     /// Nothing: run to the end; a setpoint reader connects at program cycle 1000.
     Plain,
+    /// A lasting fault of the Y drive at program cycle 2000.
+    DriveFault,
+}
+
+/// One counted cycle: `Cycle::run()` and the publish, then (not counted) the wait for the
+/// setpoint at the reader.
+fn counted_cycle(
+    cycle: &mut Cycle,
+    publisher: &mut kerf::daemon::publish::SetpointOut,
+    msg: &mut SetpointMsg,
+    reader: &iceoryx2::port::subscriber::Subscriber<kerf::ipc::Ipc, SetpointMsg, ()>,
+    last_seq: &mut u64,
+    received: &mut u64,
+) -> kerf::daemon::worker::CycleOutput {
+    PHASE.with(|p| p.set(PHASE_RUN));
+    let out = cycle.run();
+    PHASE.with(|p| p.set(PHASE_NONE));
+    out.fill(msg, out.seq * 1_000_000);
+    PHASE.with(|p| p.set(PHASE_SEND));
+    assert!(publisher.push(*msg), "the ring to the publisher has room");
+    PHASE.with(|p| p.set(PHASE_NONE));
+    // The cycle runs unclocked here, so it waits for each setpoint to arrive.
+    let mut spins = 0u64;
+    while *last_seq < out.seq {
+        match reader.receive() {
+            Ok(Some(sample)) => {
+                assert_eq!(sample.seq, *last_seq + 1, "the reader missed a setpoint");
+                *last_seq = sample.seq;
+                *received += 1;
+            }
+            _ => {
+                spins += 1;
+                assert!(spins < 50_000_000, "setpoint {} never arrived", out.seq);
+                std::thread::yield_now();
+            }
+        }
+    }
+    out
+}
+
+/// Takes the dumps out of the ring (their reasons) and gives their rings back, as the
+/// control thread does.
+fn take_dumps(rings: &mut DumpWriterRings, reasons: &mut Vec<DumpReason>, rows: &mut Vec<usize>) {
+    while let Ok(d) = rings.dumps.pop() {
+        reasons.push(d.reason);
+        rows.push(d.recorder.len());
+        rings.spares.push(d.recorder).expect("room for the ring");
+    }
 }
 
 #[test]
@@ -187,7 +244,16 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
     let early_reader = kerf::ipc::setpoint_subscriber(&service).expect("subscriber");
     let mut late_reader = None;
 
-    let mut cycle = Cycle::new(&config, [0.0; 6], items_rx, commands_rx, status_tx);
+    let (dump_rings, mut dump_writer) = kerf::daemon::worker::dump_rings();
+    let mut cycle = Cycle::new(
+        &config,
+        [0.0; 6],
+        items_rx,
+        commands_rx,
+        status_tx,
+        dump_rings,
+    )
+    .expect("the built-in machine's cycle");
     let mut msg = SetpointMsg::new();
     let mut cycles = 0u64;
     let mut received = 0u64;
@@ -199,12 +265,15 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
     let programs = [
         (1u64, Script::HoldResumeOverride),
         (2, Script::Abort),
-        (3, Script::Plain),
+        (3, Script::DriveFault),
+        (4, Script::Plain),
     ];
+    let mut dump_reasons = Vec::new();
+    let mut dump_rows = Vec::new();
     for (id, script) in programs {
         let text = match script {
             Script::HoldResumeOverride => part_program(),
-            Script::Abort => dense_program(6000, position),
+            Script::Abort | Script::DriveFault => dense_program(6000, position),
             Script::Plain => dense_program(3000, position),
         };
         start_tx
@@ -220,32 +289,15 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
         while done.is_none() {
             guard += 1;
             assert!(guard < 2_000_000, "program {id} did not finish");
-            PHASE.with(|p| p.set(PHASE_RUN));
-            let out = cycle.run();
-            PHASE.with(|p| p.set(PHASE_NONE));
-            out.fill(&mut msg, out.seq * 1_000_000);
-            PHASE.with(|p| p.set(PHASE_SEND));
-            assert!(publisher.push(msg), "the ring to the publisher has room");
-            PHASE.with(|p| p.set(PHASE_NONE));
+            let out = counted_cycle(
+                &mut cycle,
+                &mut publisher,
+                &mut msg,
+                &early_reader,
+                &mut last_seq,
+                &mut received,
+            );
             cycles += 1;
-
-            // Outside the counted part: the test's own bookkeeping. The cycle runs
-            // unclocked here, so it waits for each setpoint to arrive before the next.
-            let mut spins = 0u64;
-            while last_seq < out.seq {
-                match early_reader.receive() {
-                    Ok(Some(sample)) => {
-                        assert_eq!(sample.seq, last_seq + 1, "the reader missed a setpoint");
-                        last_seq = sample.seq;
-                        received += 1;
-                    }
-                    _ => {
-                        spins += 1;
-                        assert!(spins < 50_000_000, "setpoint {} never arrived", out.seq);
-                        std::thread::yield_now();
-                    }
-                }
-            }
             if let Some(r) = late_reader.as_ref() {
                 let r: &iceoryx2::port::subscriber::Subscriber<_, SetpointMsg, ()> = r;
                 while let Ok(Some(_)) = r.receive() {}
@@ -292,6 +344,14 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
                         sent_hold = true;
                     }
                 }
+                Script::DriveFault => {
+                    if !sent_hold && last_program_cycle >= 2000 {
+                        commands_tx
+                            .push(Command::Inject(Injection::DriveFault(1)))
+                            .expect("command ring");
+                        sent_hold = true;
+                    }
+                }
                 Script::Plain => {
                     if late_reader.is_none() && last_program_cycle >= 1000 {
                         late_reader =
@@ -308,14 +368,116 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
                 assert!(!end.aborted && end.refusal.is_none());
             }
             Script::Abort => assert!(end.aborted, "program 2 was aborted"),
+            Script::DriveFault => {
+                match end.refusal {
+                    Some(Refusal::Safety(f)) => {
+                        assert_eq!((f.check, f.axis), (Check::DriveFault, Some(1)));
+                    }
+                    other => panic!("program 3 ended with {other:?}"),
+                }
+                // After the quick stop: a dump, a reset refused while the drive's fault
+                // persists, the cause removed, a reset accepted, an injected stall of the
+                // stream at rest (it trips), a reset refused while it lasts and one
+                // accepted after it.
+                let script: [(u64, Command); 7] = [
+                    (0, Command::Dump(7)),
+                    (1, Command::Reset(8)),
+                    (2, Command::Inject(Injection::ClearDriveFault(1))),
+                    (3, Command::Reset(9)),
+                    (4, Command::Inject(Injection::Stall(10))),
+                    (5, Command::Reset(10)),
+                    (6, Command::Reset(11)),
+                ];
+                let mut since_stall_reset = 0;
+                let mut next = 0;
+                let mut outcomes = Vec::new();
+                let mut latest = end;
+                let mut guard = 0;
+                while next < script.len() || latest.reset.map(|r| r.0) != Some(11) {
+                    guard += 1;
+                    assert!(
+                        guard < 100_000,
+                        "the reset script did not finish: {outcomes:?}"
+                    );
+                    counted_cycle(
+                        &mut cycle,
+                        &mut publisher,
+                        &mut msg,
+                        &early_reader,
+                        &mut last_seq,
+                        &mut received,
+                    );
+                    cycles += 1;
+                    take_dumps(&mut dump_writer, &mut dump_reasons, &mut dump_rows);
+                    while let Ok(s) = status_rx.pop() {
+                        if s.reset != latest.reset
+                            && let Some(r) = s.reset
+                        {
+                            outcomes.push(r);
+                        }
+                        latest = s;
+                    }
+                    // Each step waits for the previous one's effect.
+                    let ready = match next {
+                        0 => latest.drives.state == kerf_drive::safety::State::Stopped,
+                        1 => !dump_reasons.is_empty(),
+                        2 => latest.reset.map(|r| r.0) == Some(8),
+                        3 => true,
+                        4 => latest.reset.map(|r| r.0) == Some(9),
+                        5 => latest.drives.fault.is_some(),
+                        6 => {
+                            since_stall_reset += 1;
+                            latest.reset.map(|r| r.0) == Some(10) && since_stall_reset > 20
+                        }
+                        _ => false,
+                    };
+                    if next < script.len() && ready {
+                        commands_tx.push(script[next].1).expect("command ring");
+                        next += 1;
+                    }
+                }
+                assert_eq!(
+                    outcomes,
+                    vec![
+                        (8, Err(ResetRefused::DriveFault(1))),
+                        (9, Ok(())),
+                        (10, Err(ResetRefused::StreamMissing)),
+                        (11, Ok(()))
+                    ]
+                );
+                // Wait for the dump asked for, then the next program starts where the
+                // quick stop left the machine.
+                while dump_reasons.len() < 2 {
+                    counted_cycle(
+                        &mut cycle,
+                        &mut publisher,
+                        &mut msg,
+                        &early_reader,
+                        &mut last_seq,
+                        &mut received,
+                    );
+                    cycles += 1;
+                    take_dumps(&mut dump_writer, &mut dump_reasons, &mut dump_rows);
+                    while let Ok(s) = status_rx.pop() {
+                        latest = s;
+                    }
+                }
+                assert!(latest.drives.fault.is_none(), "the reset cleared the fault");
+                position = latest.position;
+            }
             Script::Plain => {
                 assert!(!end.aborted && end.refusal.is_none());
                 assert!(late_reader.is_some());
             }
         }
         // The program moved and finished at rest.
+        let least = if matches!(script, Script::DriveFault) {
+            2000
+        } else {
+            3000
+        };
         assert!(
-            last_program_cycle > 3000,
+            last_program_cycle >= least,
             "program {id} ran {last_program_cycle} cycles"
         );
     }
@@ -324,6 +486,14 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
     planning_thread.join().expect("planning thread");
 
     assert!(held_cycles >= 300, "the hold took effect");
+    // The fault's dump (taken once the quick stop was at rest), the one asked for, and
+    // the stall's; each a full ring of the default 10 s.
+    assert!(matches!(dump_reasons[0], DumpReason::Fault(f) if f.check == Check::DriveFault));
+    assert!(dump_reasons.contains(&DumpReason::Request(7)));
+    assert!(
+        dump_rows.iter().all(|&n| n == config.recorder_capacity()),
+        "{dump_rows:?}"
+    );
     assert!(max_override_seen >= 149.0, "the override took effect");
     assert_eq!(received, cycles, "every setpoint was delivered");
     assert_eq!(publisher.dropped(), 0);

@@ -27,6 +27,9 @@ struct Args {
     /// built-in example machine.
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
+    /// Tests only: accept the fault injections of the control service (REQUEST_INJECT).
+    #[arg(long, hide = true)]
+    test_faults: bool,
 }
 
 fn main() -> ExitCode {
@@ -55,7 +58,11 @@ fn run(args: &Args) -> anyhow::Result<()> {
     let (config, origin) =
         kerf::config::load_default(args.config.as_deref()).map_err(|e| anyhow::anyhow!("{e}"))?;
     let signals = kerf_rt::Signals::install().context("cannot install signal handlers")?;
-    let daemon = kerf::daemon::start(&config, true).map_err(|e| anyhow::anyhow!("{e}"))?;
+    if args.test_faults {
+        tracing::warn!("--test-faults: the control service accepts injected faults (tests only)");
+    }
+    let daemon = kerf::daemon::start_with(&config, true, args.test_faults)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     let rt = daemon.rt();
     if rt.rt {
         tracing::info!("real-time scheduling and locked memory in effect");

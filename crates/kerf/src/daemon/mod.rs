@@ -31,8 +31,8 @@ use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
 use kerf_proto::{
-    Command as Request, MoveMsg, REASON_NOT_ALLOWED, REASON_NOT_IMPLEMENTED, REASON_OK, Resolved,
-    Response, SetpointMsg, State, StatusMsg, StreamCheck,
+    Command as Request, MoveMsg, REASON_NOT_ALLOWED, REASON_OK, Resolved, Response, SetpointMsg,
+    State, StatusMsg, StreamCheck,
 };
 
 use crate::config::Config;
@@ -177,6 +177,17 @@ pub fn check_period(config: &Config) -> Result<(), StartError> {
 /// the resources of dead processes), then the three threads. Returns once the cycle runs
 /// and every port is up.
 pub fn start(config: &Config, real_time: bool) -> Result<Daemon, StartError> {
+    start_with(config, real_time, false)
+}
+
+/// [`start`], with `test_faults`: the control service accepts `REQUEST_INJECT`, the
+/// faults injected below the motion core for the tests of the safety layer (`kerfd
+/// --test-faults`; never on a machine).
+pub fn start_with(
+    config: &Config,
+    real_time: bool,
+    test_faults: bool,
+) -> Result<Daemon, StartError> {
     check_period(config)?;
     let cleaned = ipc::clean_dead_nodes();
     if cleaned > 0 {
@@ -201,6 +212,8 @@ pub fn start(config: &Config, real_time: bool) -> Result<Daemon, StartError> {
     let (items_tx, items_rx) = rtrb::RingBuffer::<RtItem>::new(PLANNED_RING);
     let (commands_tx, commands_rx) = rtrb::RingBuffer::<Command>::new(COMMAND_RING);
     let (status_tx, status_rx) = rtrb::RingBuffer::<Snapshot>::new(STATUS_RING);
+    let (dump_rings, dump_writer) = worker::dump_rings();
+    let cycle_parts = (items_rx, commands_rx, status_tx, dump_rings);
 
     // Each thread reports once its ports are up (or why they are not).
     let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<Option<RtStatus>, StartError>>();
@@ -229,8 +242,10 @@ pub fn start(config: &Config, real_time: bool) -> Result<Daemon, StartError> {
                 counters,
                 overruns,
                 rt_ok,
+                test_faults,
                 commands_tx,
                 status_rx,
+                dump_writer,
             )
         })?);
     }
@@ -265,9 +280,7 @@ pub fn start(config: &Config, real_time: bool) -> Result<Daemon, StartError> {
                 cycles,
                 overruns,
                 rt_ok,
-                items_rx,
-                commands_rx,
-                status_tx,
+                cycle_parts,
             )
         })?);
         rt_status = wait_ready(&ready_rx)?.unwrap_or_default();
@@ -306,6 +319,15 @@ fn wait_ready(
     }
 }
 
+/// What the cycle thread is built from: the ring of planned items, the commands, the
+/// status snapshots and the dump rings.
+type CycleParts = (
+    rtrb::Consumer<RtItem>,
+    rtrb::Consumer<Command>,
+    rtrb::Producer<Snapshot>,
+    worker::DumpRings,
+);
+
 /// Where a daemon thread reports that its ports are up.
 pub type Ready = std::sync::mpsc::Sender<Result<Option<RtStatus>, StartError>>;
 
@@ -320,8 +342,10 @@ fn control_thread(
     counters: PlanningCounters,
     overruns: Arc<AtomicU64>,
     rt_ok: Arc<AtomicBool>,
+    test_faults: bool,
     mut commands: rtrb::Producer<Command>,
     mut status: rtrb::Consumer<Snapshot>,
+    mut dumps: worker::DumpWriterRings,
 ) -> Result<(), String> {
     let setup = || -> Result<_, StartError> {
         let node = ipc::node("kerfd-control").map_err(StartError::Setup)?;
@@ -349,6 +373,9 @@ fn control_thread(
     let period_ns = config.period_us as u64 * 1000;
     let axes_mask = axes_mask(config);
     let window = config.daemon.move_window as u64;
+    let mut writer = DumpWriter::new(config);
+    let reset_patience = reset_patience(config);
+    let dump_patience = dump_patience(config);
     let mut latest = Snapshot {
         cycles: 0,
         state: State::Idle,
@@ -364,10 +391,18 @@ fn control_thread(
         refusal: None,
         program_cycle: 0,
         shut_down: false,
+        drives: worker::DriveReport {
+            phase: kerf_drive::stage::Phase::Enabling,
+            state: kerf_drive::safety::State::Running,
+            fault: None,
+            error_code: 0,
+        },
+        reset: None,
     };
     let mut rt_flag = 0u32;
     let mut hold_requested = false;
     let mut shutdown_sent = false;
+    let mut next_tag = 1u64;
     // Requests wait until the cycle has run once: by then every port (moves, setpoints)
     // is up, so a client that got an answer can open them all (`kerfd` is ready when
     // `kerf status` answers).
@@ -377,6 +412,7 @@ fn control_thread(
             latest = s;
             cycle_runs = true;
         }
+        writer.take(&mut dumps, None);
         if latest.state != State::Holding && latest.program_done {
             // The program is over: a hold asked for during it is void.
             hold_requested = false;
@@ -418,12 +454,43 @@ fn control_thread(
                 Ok(Request::Override { percent }) => {
                     push_command(&mut commands, Command::Override(percent))
                 }
-                Ok(Request::Reset) => (
-                    REASON_NOT_IMPLEMENTED,
-                    "reset: this daemon latches no faults (the drive layer will)".to_string(),
-                ),
+                Ok(Request::Reset) => {
+                    let tag = next_tag;
+                    next_tag += 1;
+                    match push_command(&mut commands, Command::Reset(tag)) {
+                        (REASON_OK, _) => {
+                            wait_reset(&mut status, &mut latest, &mut writer, &mut dumps, tag, reset_patience)
+                        }
+                        refused => refused,
+                    }
+                }
+                Ok(Request::Dump) => {
+                    let tag = next_tag;
+                    next_tag += 1;
+                    match push_command(&mut commands, Command::Dump(tag)) {
+                        (REASON_OK, _) => {
+                            let waited = wait_dump(&mut status, &mut latest, &mut writer, &mut dumps, tag, dump_patience);
+                            match waited {
+                                Ok(path) => (REASON_OK, path.display().to_string()),
+                                Err(e) => (REASON_NOT_ALLOWED, e),
+                            }
+                        }
+                        refused => refused,
+                    }
+                }
+                Ok(Request::Inject { code }) => match worker::Injection::from_code(code) {
+                    _ if !test_faults => (
+                        REASON_NOT_ALLOWED,
+                        "fault injection is for tests only: this kerfd was not started with --test-faults".to_string(),
+                    ),
+                    Some(i) => push_command(&mut commands, Command::Inject(i)),
+                    None => (
+                        kerf_proto::REASON_BAD_VALUE,
+                        format!("unknown injection code {code}"),
+                    ),
+                },
             };
-            let msg = status_msg(
+            let mut msg = status_msg(
                 &latest,
                 &counters,
                 rt_flag,
@@ -432,6 +499,11 @@ fn control_thread(
                 axes_mask,
                 period_ns,
             );
+            if latest.drives.fault.is_some()
+                && let Some(path) = writer.fault_path()
+            {
+                msg.set_fault_dump(&path.display().to_string());
+            }
             let _ = active.send_copy(Response::new(request.id, reason, &message, msg));
         }
         if rt_flag == 0 && rt_ok.load(Ordering::Acquire) {
@@ -446,6 +518,177 @@ fn control_thread(
             return Ok(());
         }
         std::thread::sleep(POLL);
+    }
+}
+
+/// How long a reset may take: a fault reset and then the enable sequence (four
+/// transitions), each within the drives' enable timeout, and a second more.
+pub fn reset_patience(config: &Config) -> Duration {
+    let period = Duration::from_micros(u64::from(config.period_us));
+    let max_enable_cycles = config
+        .drive_configs()
+        .iter()
+        .flatten()
+        .map(|d| d.enable_timeout_cycles)
+        .max()
+        .unwrap_or(1);
+    period.saturating_mul(max_enable_cycles.saturating_mul(5).saturating_add(16))
+        + Duration::from_secs(1)
+}
+
+/// How long a black-box dump may take: the copy, a chunk per cycle, the writing, and a
+/// second more.
+pub fn dump_patience(config: &Config) -> Duration {
+    let period = Duration::from_micros(u64::from(config.period_us));
+    let cycles = config.recorder_capacity() / kerf_drive::stage::DUMP_CHUNK + 16;
+    period.saturating_mul(u32::try_from(cycles).unwrap_or(u32::MAX)) + Duration::from_secs(2)
+}
+
+/// Waits for the outcome of reset `tag` (the status snapshots carry it).
+fn wait_reset(
+    status: &mut rtrb::Consumer<Snapshot>,
+    latest: &mut Snapshot,
+    writer: &mut DumpWriter,
+    dumps: &mut worker::DumpWriterRings,
+    tag: u64,
+    patience: Duration,
+) -> (u32, String) {
+    let deadline = Instant::now() + patience;
+    loop {
+        while let Ok(s) = status.pop() {
+            *latest = s;
+        }
+        writer.take(dumps, None);
+        match latest.reset {
+            Some((t, Ok(()))) if t == tag => return (REASON_OK, String::new()),
+            Some((t, Err(e))) if t == tag => return (REASON_NOT_ALLOWED, e.to_string()),
+            _ => {}
+        }
+        if Instant::now() > deadline {
+            return (
+                REASON_NOT_ALLOWED,
+                "reset: no outcome from the real-time cycle in time".to_string(),
+            );
+        }
+        std::thread::sleep(POLL);
+    }
+}
+
+/// Waits for dump `tag` and writes it; its file.
+fn wait_dump(
+    status: &mut rtrb::Consumer<Snapshot>,
+    latest: &mut Snapshot,
+    writer: &mut DumpWriter,
+    dumps: &mut worker::DumpWriterRings,
+    tag: u64,
+    patience: Duration,
+) -> Result<std::path::PathBuf, String> {
+    let deadline = Instant::now() + patience;
+    loop {
+        while let Ok(s) = status.pop() {
+            *latest = s;
+        }
+        if let Some(result) = writer.take(dumps, Some(tag)) {
+            return result;
+        }
+        if Instant::now() > deadline {
+            return Err(
+                "dump: the black box did not come out of the real-time cycle in time".to_string(),
+            );
+        }
+        std::thread::sleep(POLL);
+    }
+}
+
+/// Writes the black-box dumps that come out of the cycle into the dump directory.
+struct DumpWriter {
+    machine: String,
+    dir: std::path::PathBuf,
+    /// The file written for the last fault.
+    fault: Option<std::path::PathBuf>,
+    written: u64,
+}
+
+impl DumpWriter {
+    fn new(config: &Config) -> Self {
+        DumpWriter {
+            machine: config.machine.clone(),
+            dir: config.dump_dir(),
+            fault: None,
+            written: 0,
+        }
+    }
+
+    fn fault_path(&self) -> Option<&std::path::Path> {
+        self.fault.as_deref()
+    }
+
+    /// Writes every dump waiting in the ring, gives the rings back; the outcome of dump
+    /// `tag` if it was among them.
+    fn take(
+        &mut self,
+        rings: &mut worker::DumpWriterRings,
+        tag: Option<u64>,
+    ) -> Option<Result<std::path::PathBuf, String>> {
+        let mut outcome = None;
+        while let Ok(dump) = rings.dumps.pop() {
+            let kind = match dump.reason {
+                kerf_drive::stage::DumpReason::Fault(_) => "fault",
+                kerf_drive::stage::DumpReason::Request(_) => "dump",
+            };
+            let written = self.write(kind, &dump.recorder);
+            match (&written, dump.reason) {
+                (Ok(path), kerf_drive::stage::DumpReason::Fault(f)) => {
+                    tracing::error!("safety fault: {f}; black box written to {}", path.display());
+                    self.fault = Some(path.clone());
+                }
+                (Err(e), kerf_drive::stage::DumpReason::Fault(f)) => {
+                    tracing::error!("safety fault: {f}; the black box could not be written: {e}");
+                }
+                (Ok(path), _) => tracing::info!("black box written to {}", path.display()),
+                (Err(e), _) => tracing::warn!("{e}"),
+            }
+            if let kerf_drive::stage::DumpReason::Request(t) = dump.reason
+                && Some(t) == tag
+            {
+                outcome = Some(written);
+            }
+            // The ring goes back to the cycle (the ring to it has room for both).
+            let _ = rings.spares.push(dump.recorder);
+        }
+        outcome
+    }
+
+    /// Writes `recorder` as CSV to a new file, through a temporary file renamed at the end.
+    fn write(
+        &mut self,
+        kind: &str,
+        recorder: &kerf_drive::recorder::Recorder,
+    ) -> Result<std::path::PathBuf, String> {
+        self.written += 1;
+        let stamp = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs());
+        let name = format!(
+            "kerf-{}-{kind}-{stamp}-{}-{}.csv",
+            self.machine,
+            std::process::id(),
+            self.written
+        );
+        let path = self.dir.join(&name);
+        let tmp = self.dir.join(format!(".{name}.tmp"));
+        let fail =
+            |e: std::io::Error| format!("cannot write the black box to {}: {e}", path.display());
+        std::fs::create_dir_all(&self.dir).map_err(fail)?;
+        let file = std::fs::File::create(&tmp).map_err(fail)?;
+        let result = recorder
+            .dump(std::io::BufWriter::new(file))
+            .and_then(|()| std::fs::rename(&tmp, &path));
+        if let Err(e) = result {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(fail(e));
+        }
+        Ok(std::fs::canonicalize(&path).unwrap_or(path))
     }
 }
 
@@ -513,6 +756,27 @@ fn status_msg(
     }
     msg.axes_mask = axes_mask;
     msg.period_ns = period_ns;
+    let d = &s.drives;
+    msg.drives = match (d.phase, d.state) {
+        (kerf_drive::stage::Phase::Enabling, _) => kerf_proto::DRIVES_ENABLING,
+        (kerf_drive::stage::Phase::Resetting, _) => kerf_proto::DRIVES_RESETTING,
+        (_, kerf_drive::safety::State::Running) => kerf_proto::DRIVES_RUNNING,
+        (_, kerf_drive::safety::State::Holding) => kerf_proto::DRIVES_HOLDING,
+        (_, kerf_drive::safety::State::QuickStop) => kerf_proto::DRIVES_QUICK_STOP,
+        (_, kerf_drive::safety::State::Stopped) => kerf_proto::DRIVES_STOPPED,
+    };
+    if let Some(f) = d.fault {
+        msg.state = State::Fault.as_u32();
+        msg.safety_check = f.check.code();
+        msg.safety_axis = f.axis.map_or(kerf_proto::SAFETY_AXIS_NONE, |a| a as u32);
+        msg.safety_value = f.value;
+        msg.safety_limit = f.limit;
+        msg.safety_line = f.line;
+        msg.safety_cycle = f.cycle;
+        msg.drive_error_code = u32::from(d.error_code);
+        msg.fault = 2;
+        msg.set_fault_text(&crate::client::safety_text(&msg).unwrap_or_default());
+    }
     msg
 }
 
@@ -623,10 +887,9 @@ fn cycle_thread(
     cycles: Arc<AtomicU64>,
     overruns: Arc<AtomicU64>,
     rt_ok: Arc<AtomicBool>,
-    items: rtrb::Consumer<RtItem>,
-    commands: rtrb::Consumer<Command>,
-    status: rtrb::Producer<Snapshot>,
+    parts: CycleParts,
 ) -> Result<(), String> {
+    let (items, commands, status, dump_rings) = parts;
     // iceoryx2 allocates on publish: a helper thread publishes (see `publish`).
     let helper_rt = real_time.then(|| kerf_rt::RtConfig {
         priority: Some(config.daemon.priority.saturating_sub(1).max(1)),
@@ -640,7 +903,13 @@ fn cycle_thread(
             return Err(e);
         }
     };
-    let mut cycle = Cycle::new(config, [0.0; 6], items, commands, status);
+    let mut cycle = match Cycle::new(config, [0.0; 6], items, commands, status, dump_rings) {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = ready.send(Err(StartError::Config(e.clone())));
+            return Err(e);
+        }
+    };
     let rt = if real_time {
         let report = kerf_rt::rt_setup(&kerf_rt::RtConfig {
             priority: Some(config.daemon.priority),
@@ -683,6 +952,8 @@ fn cycle_thread(
         let tick = clock.wait_next();
         if tick.missed > 0 {
             overruns.fetch_add(tick.missed, Ordering::AcqRel);
+            // The drives got no setpoint in the periods missed: they held.
+            cycle.missed(tick.missed);
         }
         let out = cycle.run();
         out.fill(&mut msg, tick.deadline_ns);

@@ -10,6 +10,10 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 
+use kerf_drive::recorder::Recorder;
+use kerf_drive::safety::{Fault, ResetRefused, State as SafetyState};
+use kerf_drive::sim::SimDrive;
+use kerf_drive::stage::{AxisDrive, DriveStage, Dump, Phase, StageInput};
 use kerf_geom::Move;
 use kerf_motion::{MotionCore, MotionState, Setpoint};
 use kerf_pipeline::{Event, Input, Interpolator, Planned, Poll, RunError, Tracker, plan_input};
@@ -71,6 +75,13 @@ pub enum Refusal {
     /// A new program began before the previous one was received to its end.
     #[error("a new program began before this one was received to its end")]
     Interrupted,
+    /// The drive side's safety layer tripped during the program: the axes were brought
+    /// to rest by the quick stop and the rest of the program was dropped.
+    #[error("stopped by the safety layer: {0}")]
+    Safety(Fault),
+    /// The program began while a fault was latched: nothing of it moved.
+    #[error("not started: a fault is latched ({0}); clear it with `kerf reset`")]
+    Faulted(Fault),
     /// The program does not start where the machine is.
     #[error("the program starts at {axis} {start}, but the machine is at {axis} {actual}")]
     WrongStart {
@@ -117,6 +128,76 @@ pub enum Command {
     Override(f64),
     /// Stop on the path, drop the program, then end the cycle (SIGTERM, SIGINT).
     Shutdown,
+    /// Clear the drive side's latched fault once its cause is gone; the outcome comes in
+    /// [`Snapshot::reset`] with this tag.
+    Reset(u64),
+    /// Dump the black box; the dump comes out of the dump ring with this tag.
+    Dump(u64),
+    /// Tests only: a fault injected below the motion core.
+    Inject(Injection),
+}
+
+/// A fault injected below the motion core, for tests of the safety layer (`kerfd
+/// --test-faults`; refused otherwise).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Injection {
+    /// The simulated drive of the axis gets a lasting fault cause (error code 0x4310,
+    /// drive over temperature) until [`Injection::ClearDriveFault`].
+    DriveFault(usize),
+    /// The fault cause of the axis's simulated drive goes away.
+    ClearDriveFault(usize),
+    /// The next setpoint of the axis is moved by this many mm (deg) on its way to the
+    /// drive.
+    Step(usize, f64),
+    /// The next this many cycles give the drive side no setpoint.
+    Stall(u32),
+}
+
+/// The error code a lasting injected drive fault reports: 0x4310, excess temperature of
+/// the drive.
+pub const INJECTED_DRIVE_FAULT: u16 = 0x4310;
+
+impl Injection {
+    /// The size of the step [`Injection::from_code`] makes, mm (deg).
+    pub const STEP_MM: f64 = 1.0;
+
+    /// Decodes a `REQUEST_INJECT` value, `kind · 16 + n`: kind 1 a lasting drive fault on
+    /// axis n (0–5 = X–C), 2 its cause removed, 3 a step of [`Injection::STEP_MM`] on axis
+    /// n, 4 a stall of n × 10 cycles (n 0–15).
+    pub fn from_code(code: u32) -> Option<Injection> {
+        let (kind, arg) = (code / 16, (code % 16) as usize);
+        match kind {
+            1 if arg < 6 => Some(Injection::DriveFault(arg)),
+            2 if arg < 6 => Some(Injection::ClearDriveFault(arg)),
+            3 if arg < 6 => Some(Injection::Step(arg, Injection::STEP_MM)),
+            4 => Some(Injection::Stall(arg as u32 * 10)),
+            _ => None,
+        }
+    }
+
+    /// The code of this injection for `REQUEST_INJECT` (`None` for what no code makes).
+    pub fn code(self) -> Option<u32> {
+        match self {
+            Injection::DriveFault(a) if a < 6 => Some(16 + a as u32),
+            Injection::ClearDriveFault(a) if a < 6 => Some(32 + a as u32),
+            Injection::Step(a, mm) if a < 6 && mm == Injection::STEP_MM => Some(48 + a as u32),
+            Injection::Stall(n) if n % 10 == 0 && n / 10 < 16 => Some(64 + n / 10),
+            _ => None,
+        }
+    }
+}
+
+/// What the drive side reports after each cycle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveReport {
+    /// The drive stage's phase.
+    pub phase: Phase,
+    /// The safety layer's state.
+    pub state: SafetyState,
+    /// The latched fault, if any.
+    pub fault: Option<Fault>,
+    /// The error code (0x603F) of the faulted drive, 0 when none.
+    pub error_code: u16,
 }
 
 /// What the cycle reports to the control thread after every period.
@@ -150,6 +231,10 @@ pub struct Snapshot {
     pub program_cycle: u64,
     /// `true` once the cycle has stopped for a shutdown.
     pub shut_down: bool,
+    /// The drive side.
+    pub drives: DriveReport,
+    /// The last reset's tag and outcome.
+    pub reset: Option<(u64, Result<(), ResetRefused>)>,
 }
 
 /// Periods to wait between polls while the ring to the cycle is full.
@@ -433,8 +518,74 @@ const COMMANDS_PER_CYCLE: usize = 8;
 /// beyond 4,096).
 pub const TRACKED_MOVES: usize = 65_536;
 
+/// The ends of the rings that carry black-box dumps out of the cycle and their rings back.
+pub struct DumpRings {
+    /// Finished dumps, to the thread that writes them.
+    pub dumps: rtrb::Producer<Dump>,
+    /// Rings written and given back.
+    pub spares: rtrb::Consumer<Box<Recorder>>,
+}
+
+/// The other ends of [`DumpRings`], for the thread that writes the dumps.
+pub struct DumpWriterRings {
+    /// Finished dumps.
+    pub dumps: rtrb::Consumer<Dump>,
+    /// Where written rings go back.
+    pub spares: rtrb::Producer<Box<Recorder>>,
+}
+
+/// The two rings between the cycle and the dump writer (a dump is two boxes at most:
+/// one being written, one waiting).
+pub fn dump_rings() -> (DumpRings, DumpWriterRings) {
+    let (dumps_tx, dumps_rx) = rtrb::RingBuffer::new(2);
+    let (spares_tx, spares_rx) = rtrb::RingBuffer::new(2);
+    (
+        DumpRings {
+            dumps: dumps_tx,
+            spares: spares_rx,
+        },
+        DumpWriterRings {
+            dumps: dumps_rx,
+            spares: spares_tx,
+        },
+    )
+}
+
+/// The drive stage of `config`'s machine: a simulated drive per axis whose motor stands
+/// at `position` at power-up, the safety layer and the black box.
+pub fn drive_stage(config: &Config, position: [f64; 6]) -> Result<DriveStage<SimDrive>, String> {
+    let setups = config.drive_configs();
+    let mut axes: [Option<AxisDrive<SimDrive>>; 6] = [None, None, None, None, None, None];
+    for (i, (slot, setup)) in axes.iter_mut().zip(setups.iter()).enumerate() {
+        let Some(setup) = setup else { continue };
+        let name = kerf_plan::AXIS_NAMES[i];
+        let counts = setup
+            .scale
+            .to_counts(position[i])
+            .map_err(|e| format!("axis {name}: the start position: {e}"))?;
+        let sim = kerf_drive::sim::SimConfig {
+            initial_position_counts: f64::from(counts),
+            ..setup.sim
+        };
+        *slot = Some(AxisDrive {
+            drive: SimDrive::new(sim),
+            scale: setup.scale,
+            enable_timeout_cycles: setup.enable_timeout_cycles,
+        });
+    }
+    DriveStage::new(axes, config.safety_config(), config.recorder_capacity())
+        .map_err(|e| e.to_string())
+}
+
 /// The real-time cycle: commands and planned items in, one setpoint out per period;
 /// allocation-free once built.
+///
+/// After the motion core's step, the drive stage (`kerf_drive::stage`) checks the setpoint
+/// and sends it to the drives; what the cycle publishes is what the drives were sent.
+/// Programs wait until every drive is enabled, and start from the drives' actual
+/// positions; a trip of the safety layer drops the running program, the drives ramp to
+/// rest on the quick stop and the motion core rests where they stopped; programs are
+/// refused until `kerf reset` clears the fault.
 pub struct Cycle {
     interp: Interpolator,
     tracker: Tracker,
@@ -446,29 +597,50 @@ pub struct Cycle {
     /// The last program's id, why it stopped early, and whether it was aborted.
     last_program: (u64, Option<Refusal>, bool),
     cycles: u64,
-    /// The last setpoint (the machine's position between programs).
+    /// The last setpoint of the motion core (the machine's position between programs).
     setpoint: Setpoint,
+    /// The position sent to the drives in the last cycle.
+    sent: [f64; 6],
     starved: bool,
     shutting_down: bool,
     shut_down: bool,
     /// Estimated motion time of the queued segments.
     queued: QueuedTime,
+    stage: DriveStage<SimDrive>,
+    dump_rings: DumpRings,
+    /// A finished dump the dump ring had no room for.
+    dump_waiting: Option<Dump>,
+    /// The reset asked for (its tag) and the last reset's outcome.
+    reset_tag: Option<u64>,
+    last_reset: Option<(u64, Result<(), ResetRefused>)>,
+    /// Injected faults still to apply.
+    stall_left: u32,
+    step: Option<(usize, f64)>,
+    /// Cycles since a shutdown asked the drives to power off.
+    disable_wait: u32,
+    /// Whether any drive keeps its own time (see [`Cycle::missed`]).
+    drives_keep_time: bool,
 }
 
 impl Cycle {
-    /// A cycle for the machine of `config`, at rest at `position`.
+    /// A cycle for the machine of `config`; the simulated drives' motors stand at
+    /// `position` at power-up, and the motion core starts where the drives report once
+    /// they are enabled.
     pub fn new(
         config: &Config,
         position: [f64; 6],
         items: rtrb::Consumer<RtItem>,
         commands: rtrb::Consumer<Command>,
         status: rtrb::Producer<Snapshot>,
-    ) -> Self {
+        dump_rings: DumpRings,
+    ) -> Result<Self, String> {
         let limits = crate::sim::machine_limits(config);
         let capacity = config.daemon.queue_segments as usize;
+        let stage = drive_stage(config, position)?;
+        let start = stage.command();
         let mut core = MotionCore::new(limits.period_s, capacity);
-        core.set_position(position);
-        Cycle {
+        core.set_position(start);
+        Ok(Cycle {
             interp: Interpolator::new(core),
             tracker: Tracker::with_capacity(TRACKED_MOVES),
             period_s: limits.period_s,
@@ -479,13 +651,48 @@ impl Cycle {
             last_program: (0, None, false),
             cycles: 0,
             setpoint: Setpoint {
-                position,
+                position: start,
                 ..Setpoint::default()
             },
+            sent: start,
             starved: false,
             shutting_down: false,
             shut_down: false,
             queued: QueuedTime::with_capacity(capacity),
+            stage,
+            dump_rings,
+            dump_waiting: None,
+            reset_tag: None,
+            last_reset: None,
+            stall_left: 0,
+            step: None,
+            disable_wait: 0,
+            drives_keep_time: config
+                .drive_configs()
+                .iter()
+                .flatten()
+                .any(|d| d.kind.keeps_time()),
+        })
+    }
+
+    /// The drive stage (for tests: its black box and drives).
+    pub fn stage(&self) -> &DriveStage<SimDrive> {
+        &self.stage
+    }
+
+    /// Periods the cycle did not run (its deadline was missed). A drive that keeps its own
+    /// time (a fieldbus drive) got no setpoint in each: the drive side runs a cycle
+    /// without one (the drives hold; the safety layer counts them, at most
+    /// `stall_cycles + 1`, enough to trip). The simulated drives have no clock of their
+    /// own: their time is the cycle's, and a late cycle delays them with it, so nothing
+    /// was missed. Allocation-free.
+    pub fn missed(&mut self, periods: u64) {
+        if !self.drives_keep_time {
+            return;
+        }
+        let n = periods.min(u64::from(self.stage.safety().config().stall_cycles) + 1);
+        for _ in 0..n {
+            self.drive_cycle(None);
         }
     }
 
@@ -508,7 +715,7 @@ impl Cycle {
         if self.program.is_none() {
             self.begin_next();
         }
-        let previous = self.setpoint.position;
+        let previous = self.sent;
         // Feeding comes before the commands, as in `kerf sim`, where an event applies
         // after the cycle's feeding and before its step.
         let started = match self.program {
@@ -545,7 +752,20 @@ impl Cycle {
                 }
             }
         }
-        let position = self.setpoint.position;
+        // The drive side: the setpoint (unless an injected stall withholds it, or an
+        // injected step moves it) goes through the safety layer to the drives.
+        let setpoint = if self.stall_left > 0 {
+            self.stall_left -= 1;
+            None
+        } else {
+            let mut p = self.setpoint.position;
+            if let Some((axis, mm)) = self.step.take() {
+                p[axis] += mm;
+            }
+            Some(p)
+        };
+        self.drive_cycle(setpoint);
+        let position = self.sent;
         let mut velocity = [0.0; 6];
         for (v, (p, q)) in velocity
             .iter_mut()
@@ -554,17 +774,79 @@ impl Cycle {
             *v = (p - q) / self.period_s;
         }
         if self.shutting_down && self.program.is_none() && self.interp.core().is_idle() {
-            self.shut_down = true;
+            // At rest: the drives are powered off (the brakes hold), then the cycle ends.
+            if self.disable_wait == 0 {
+                self.stage.request_disable();
+            }
+            self.disable_wait += 1;
+            self.shut_down = self.stage.disabled() || self.disable_wait > DISABLE_WAIT_CYCLES;
         }
         let state = self.state();
         self.report(state);
+        let mut sp = self.setpoint;
+        sp.position = position;
         CycleOutput {
             seq: self.cycles,
-            setpoint: self.setpoint,
+            setpoint: sp,
             velocity,
             program_id,
             program_cycle,
             state: state.as_u32(),
+        }
+    }
+
+    /// One cycle of the drive side with `setpoint` (`None`: a missed cycle).
+    fn drive_cycle(&mut self, setpoint: Option<[f64; 6]>) {
+        let out = self.stage.cycle(&StageInput {
+            setpoint,
+            line: self.setpoint.line,
+            time_s: self.cycles as f64 * self.period_s,
+        });
+        if let Some(p) = out.enabled_at {
+            self.rest_at(p);
+        }
+        if let Some(f) = out.tripped {
+            self.safety_stop(f);
+        }
+        if self.stage.fault().is_some() {
+            // The drives follow the quick stop; the motion core rests where they are.
+            self.rest_at(out.command);
+        }
+        if let Some(r) = out.reset
+            && let Some(tag) = self.reset_tag.take()
+        {
+            self.last_reset = Some((tag, r));
+        }
+        self.sent = out.command;
+        while let Ok(ring) = self.dump_rings.spares.pop() {
+            self.stage.return_spare(ring);
+        }
+        if self.dump_waiting.is_none() {
+            self.dump_waiting = self.stage.take_dump();
+        }
+        if let Some(d) = self.dump_waiting.take()
+            && let Err(rtrb::PushError::Full(d)) = self.dump_rings.dumps.push(d)
+        {
+            self.dump_waiting = Some(d);
+        }
+    }
+
+    /// The motion core drops everything and rests at `position`.
+    fn rest_at(&mut self, position: [f64; 6]) {
+        self.interp.core_mut().reset_to(position);
+        self.setpoint.position = position;
+        self.setpoint.feed_mm_s = 0.0;
+    }
+
+    /// The safety layer tripped: the program is dropped (its rest is refused), the
+    /// motion core forgets its queue.
+    fn safety_stop(&mut self, fault: Fault) {
+        if let Some(p) = self.program.as_mut() {
+            p.refusal = Some(Refusal::Safety(fault));
+            self.interp.apply(Event::Abort);
+            self.interp.next_program();
+            self.tracker.clear();
+            self.end_program();
         }
     }
 
@@ -596,10 +878,38 @@ impl Cycle {
                 self.shutting_down = true;
                 self.interp.apply(Event::Abort);
             }
+            Command::Reset(tag) => {
+                self.reset_tag = Some(tag);
+                self.stage.request_reset();
+            }
+            Command::Dump(tag) => self.stage.request_dump(tag),
+            Command::Inject(i) => self.inject(i),
         }
     }
 
-    /// Starts the next program if its beginning is in the ring.
+    fn inject(&mut self, injection: Injection) {
+        match injection {
+            Injection::DriveFault(axis) => {
+                if let Some(d) = self.stage.drive_mut(axis) {
+                    d.set_fault_cause(Some(INJECTED_DRIVE_FAULT));
+                }
+            }
+            Injection::ClearDriveFault(axis) => {
+                if let Some(d) = self.stage.drive_mut(axis) {
+                    d.set_fault_cause(None);
+                }
+            }
+            Injection::Step(axis, mm) => {
+                if axis < 6 {
+                    self.step = Some((axis, mm));
+                }
+            }
+            Injection::Stall(n) => self.stall_left = n,
+        }
+    }
+
+    /// Starts the next program if its beginning is in the ring (it waits while the
+    /// drives are being enabled, and is refused while a fault is latched).
     fn begin_next(&mut self) {
         let Ok(RtItem::Begin { program_id, start }) = self.items.peek().copied() else {
             // Anything but a beginning while no program runs is the rest of an aborted
@@ -612,7 +922,21 @@ impl Cycle {
             }
             return;
         };
+        let fault = self.stage.fault().copied();
+        if fault.is_none() && !self.stage.ready() {
+            return;
+        }
         let _ = self.items.pop();
+        if let Some(f) = fault {
+            self.program = Some(ProgramRun {
+                id: program_id,
+                aborted: false,
+                cycle: 0,
+                refusal: Some(Refusal::Faulted(f)),
+                dropped: true,
+            });
+            return;
+        }
         self.interp.next_program();
         self.tracker.clear();
         let mut run = ProgramRun {
@@ -726,6 +1050,9 @@ impl Cycle {
     }
 
     fn state(&self) -> State {
+        if self.stage.fault().is_some() {
+            return State::Fault;
+        }
         let core = self.interp.core().status();
         match core.state {
             MotionState::Held => State::Holding,
@@ -763,11 +1090,34 @@ impl Cycle {
             refusal,
             program_cycle: self.program.map_or(0, |p| p.cycle),
             shut_down: self.shut_down,
+            drives: self.drive_report(),
+            reset: self.last_reset,
         };
         // A full ring means the control thread is behind: it gets the next one.
         let _ = self.status.push(snapshot);
     }
 }
+
+impl Cycle {
+    fn drive_report(&self) -> DriveReport {
+        let fault = self.stage.fault().copied();
+        let error_code = match fault {
+            Some(Fault {
+                axis: Some(axis), ..
+            }) => self.stage.error_codes()[axis],
+            _ => 0,
+        };
+        DriveReport {
+            phase: self.stage.phase(),
+            state: self.stage.safety().state(),
+            fault,
+            error_code,
+        }
+    }
+}
+
+/// Cycles a shutdown waits for the drives to power off before the cycle ends anyway.
+const DISABLE_WAIT_CYCLES: u32 = 1000;
 
 /// The estimated motion time of a segment at its planned speed limit, s.
 fn segment_time_s(seg: &PlannedSegment) -> f64 {

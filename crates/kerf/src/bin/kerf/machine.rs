@@ -83,6 +83,15 @@ pub struct RecordArgs {
     pub cycles: Option<u64>,
 }
 
+#[derive(Args)]
+pub struct DumpArgs {
+    #[command(flatten)]
+    pub machine: MachineArgs,
+    /// Where to write the CSV (the columns are in docs/DRIVES.md, "Black-box recorder").
+    #[arg(long, value_name = "FILE.csv")]
+    pub out: PathBuf,
+}
+
 fn parse_live_override(text: &str) -> Result<f64, String> {
     match text.trim_end_matches('%').parse::<f64>() {
         Ok(pct) if (0.0..=200.0).contains(&pct) => Ok(pct),
@@ -127,6 +136,48 @@ pub fn command(args: &MachineArgs, command: Command) -> Result<(), Failure> {
         ClientError::Refused(m) => Failure::Error(format!("kerf: error: refused: {m}")),
         e => client_failure(e),
     })?;
+    Ok(())
+}
+
+/// `kerf reset`: answered once the reset has ended.
+pub fn reset(args: &MachineArgs) -> Result<(), Failure> {
+    let (mut client, config) = connect(args)?;
+    let r = client
+        .request_within(Command::Reset, kerf::daemon::reset_patience(&config))
+        .map_err(client_failure)?;
+    if r.reason != kerf_proto::REASON_OK {
+        return Err(Failure::Error(format!("kerf: error: {}", r.message())));
+    }
+    Ok(())
+}
+
+/// `kerf dump`: the daemon writes its black box to a file in its dump directory; the file
+/// is copied to `--out`.
+pub fn dump(args: &DumpArgs) -> Result<(), Failure> {
+    let (mut client, config) = connect(&args.machine)?;
+    let r = client
+        .request_within(Command::Dump, kerf::daemon::dump_patience(&config))
+        .map_err(client_failure)?;
+    if r.reason != kerf_proto::REASON_OK {
+        return Err(Failure::Error(format!("kerf: error: {}", r.message())));
+    }
+    let written = PathBuf::from(r.message());
+    let out = &args.out;
+    let tmp = out.with_file_name(format!(
+        ".{}.{}.tmp",
+        out.file_name()
+            .map_or("dump".into(), |n| n.to_string_lossy()),
+        std::process::id()
+    ));
+    let copied = std::fs::copy(&written, &tmp).and_then(|_| std::fs::rename(&tmp, out));
+    if let Err(e) = copied {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(Failure::Error(format!(
+            "{}: error: cannot copy the black box the daemon wrote to {}: {e}",
+            out.display(),
+            written.display()
+        )));
+    }
     Ok(())
 }
 

@@ -58,6 +58,12 @@ enum Command {
     Override(machine::OverrideArgs),
     /// Write the daemon's setpoint stream to CSV.
     Record(machine::RecordArgs),
+    /// Clear the drive side's latched fault once its cause is gone (refused, with the
+    /// reason, while it persists).
+    Reset(machine::MachineArgs),
+    /// Write the daemon's black box (the last seconds of every cycle: commanded and actual
+    /// positions, following errors, drive words) to CSV.
+    Dump(machine::DumpArgs),
 }
 
 /// The program and how to read it: shared by every subcommand.
@@ -177,6 +183,8 @@ fn main() -> ExitCode {
             },
         ),
         Command::Record(args) => machine::record(&args),
+        Command::Reset(args) => machine::reset(&args),
+        Command::Dump(args) => machine::dump(&args),
     };
     match result {
         Ok(()) | Err(Failure::BrokenPipe) => ExitCode::SUCCESS,
