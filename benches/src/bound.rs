@@ -244,7 +244,7 @@ pub fn blended(pieces: &[Piece], tolerance_mm: f64) -> Vec<Piece> {
         let t1 = pieces[k].shape.tangent(1.0);
         let t2 = pieces[k + 1].shape.tangent(0.0);
         let theta = t1.dot(&t2).clamp(-1.0, 1.0).acos();
-        if theta < TANGENT_RAD || theta > std::f64::consts::PI - 1e-6 {
+        if !(TANGENT_RAD..=std::f64::consts::PI - 1e-6).contains(&theta) {
             continue;
         }
         let half = theta / 2.0;
@@ -305,10 +305,10 @@ impl Sample {
     /// The admissible range of s̈ at ṡ² = x, mm/s² (empty when lo > hi).
     fn accel_range(&self, x: f64, a: &[f64; 3]) -> (f64, f64) {
         let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
-        for i in 0..3 {
+        for (i, a_i) in a.iter().enumerate() {
             if self.t[i].abs() > TINY {
                 let c = -self.k[i] * x / self.t[i];
-                let w = a[i] / self.t[i].abs();
+                let w = a_i / self.t[i].abs();
                 lo = lo.max(c - w);
                 hi = hi.min(c + w);
             }
