@@ -1,0 +1,51 @@
+//! Prints the CAM benchmark table of issue 11 (docs/PERFORMANCE.md, "CAM code against the
+//! feed and the time-optimal bound"): every program of the generated corpus run through
+//! Kerf's planner and motion core on the small mill of `benches/cam-mill.toml`, against
+//! the time at the programmed feed and the acceleration-limited time-optimal lower bound.
+//!
+//! Usage: `cargo run --release -p kerf-benches --bin cam_table [NAME_PART]` (only the
+//! programs whose name contains NAME_PART), or `--write DIR` to write the programs as
+//! `.ngc` files into DIR (to run them with `kerf sim --config benches/cam-mill.toml`).
+
+use std::process::ExitCode;
+
+use anyhow::Context as _;
+use kerf_benches::{cam, measure};
+
+fn main() -> ExitCode {
+    match run() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("cam_table: error: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+fn run() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let corpus = cam::corpus();
+    if let [flag, dir] = &args[..]
+        && flag == "--write"
+    {
+        for p in &corpus {
+            let file = std::path::Path::new(dir).join(format!("{}.ngc", p.name.replace(' ', "_")));
+            std::fs::write(&file, &p.text)
+                .with_context(|| format!("writing {}", file.display()))?;
+            println!("{}", file.display());
+        }
+        return Ok(());
+    }
+    let filter = args.first().map(String::as_str).unwrap_or("");
+    let config = measure::machine()?;
+    let mut rows = Vec::new();
+    for p in corpus.iter().filter(|p| p.name.contains(filter)) {
+        rows.push(measure::measure(p, &config)?);
+    }
+    println!(
+        "Machine: benches/cam-mill.toml (X/Y 200 mm/s, 2000 mm/s², 50000 mm/s³; \
+         Z 100 mm/s, 1000 mm/s², 20000 mm/s³; period 1 ms; tolerance 0.01 mm)\n"
+    );
+    print!("{}", measure::table(&rows));
+    Ok(())
+}

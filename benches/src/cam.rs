@@ -1,0 +1,387 @@
+//! The CAM benchmark corpus (issue 11): generated LinuxCNC programs of the kinds CAM
+//! systems write, each with the exact geometry it was written from.
+//!
+//! Every program starts at the origin (where `kerf sim` starts the machine), uses only
+//! feed moves under `G64 P0.01`, and ends with `M2`. Its [`CamProgram::pieces`] are the
+//! exact path the program approximates: the same lines, arcs and helices where the printed
+//! coordinates are exact, and the smooth curve itself where the program is a dense
+//! polyline of rounded points (the rasters and the 3,600-line circle). The lower bound of
+//! the table is computed on that geometry (see [`crate::bound`]): rounding to 3 decimals
+//! moves a point by at most 0.0009 mm, a tenth of the tolerance, and a bound on the
+//! rounded vertices themselves would have to pass every rounding kink as a corner.
+//!
+//! Everything is computed from closed forms: the same program comes out on every run.
+
+use std::f64::consts::{PI, TAU};
+use std::fmt::Write as _;
+
+use kerf_geom::Vec3;
+
+use crate::bound::{Piece, Shape};
+
+/// A generated program and the geometry it was written from.
+#[derive(Clone, Debug)]
+pub struct CamProgram {
+    /// Short name for the table.
+    pub name: String,
+    /// The program text (LinuxCNC).
+    pub text: String,
+    /// The exact path, from the origin, with the programmed feed.
+    pub pieces: Vec<Piece>,
+}
+
+impl CamProgram {
+    /// Lines of the program text.
+    pub fn lines(&self) -> usize {
+        self.text.lines().count()
+    }
+}
+
+/// The whole corpus, in table order.
+pub fn corpus() -> Vec<CamProgram> {
+    let mut out = Vec::new();
+    for d in [3, 4, 6] {
+        out.push(raster("raster A", gentle_surface, d, 6, 20.0));
+    }
+    for d in [3, 4, 6] {
+        out.push(raster("raster B", curved_surface, d, 3, 40.0));
+    }
+    for d in [3, 4, 6] {
+        out.push(dense_circle(d, 3600));
+    }
+    out.push(pocket(4));
+    out.push(helix("helix r5 G2", 5.0, false, 3, 0.5, 3000.0));
+    out.push(helix("helix r1.5 G3", 1.5, true, 6, 0.3, 3000.0));
+    out.push(obround(2));
+    out.push(s_chain(8));
+    out
+}
+
+/// Prints `v` with `decimals` decimals, without a minus sign on a zero.
+fn num(v: f64, decimals: usize) -> String {
+    let s = format!("{v:.decimals$}");
+    if s.starts_with('-') && s[1..].bytes().all(|b| b == b'0' || b == b'.') {
+        s[1..].to_string()
+    } else {
+        s
+    }
+}
+
+/// The program's first block: millimetres, absolute, XY plane, feed per minute, blending
+/// within 0.01 mm, and the feed.
+fn header(feed_mm_min: f64) -> String {
+    format!("G21 G90 G17 G94 G64 P0.01 F{feed_mm_min}\n")
+}
+
+/// Distance between raster points along a row, mm.
+pub const RASTER_STEP_MM: f64 = 0.05;
+/// Distance between raster rows, mm.
+pub const RASTER_ROW_GAP_MM: f64 = 0.5;
+
+/// A gentle surface for raster A: `(z, ∂z/∂x, ∂²z/∂x²)` at `(x, y)`, mm. Zero at the
+/// origin; slopes along X up to about 0.55, curvature radii down to about 5 mm (at the
+/// feed, at most half of Z's acceleration).
+pub fn gentle_surface(x: f64, y: f64) -> (f64, f64, f64) {
+    let (s1, c1) = (x / 4.0).sin_cos();
+    let cy = (y / 6.0).cos();
+    let (s2, c2) = ((x + y) / 1.7).sin_cos();
+    (
+        1.5 * s1 * cy + 0.3 * s2,
+        1.5 / 4.0 * c1 * cy + 0.3 / 1.7 * c2,
+        -1.5 / 16.0 * s1 * cy - 0.3 / (1.7 * 1.7) * s2,
+    )
+}
+
+/// A more curved surface for raster B, zero at the origin: slopes along X up to about
+/// 0.85, curvature radii down to about 2.2 mm, where Z's acceleration limit holds the
+/// speed a little under the feed.
+pub fn curved_surface(x: f64, y: f64) -> (f64, f64, f64) {
+    let (s1, c1) = (x / 2.5).sin_cos();
+    let cy = (y / 4.0).cos();
+    let (s2, c2) = ((x + y) / 1.2).sin_cos();
+    (
+        1.5 * s1 * cy + 0.3 * s2,
+        1.5 / 2.5 * c1 * cy + 0.3 / 1.2 * c2,
+        -1.5 / 6.25 * s1 * cy - 0.3 / 1.44 * s2,
+    )
+}
+
+/// A 3D raster finishing pass named `name`: `rows` rows of `row_mm` along X, 0.5 mm
+/// apart, with a G1 point every 0.05 mm whose Z is `surface` (`(z, ∂z/∂x, ∂²z/∂x²)`, zero
+/// at the origin) written with `decimals` decimals, F3000, each row joined to the next by
+/// one move along Y (and Z).
+pub fn raster(
+    name: &str,
+    surface: fn(f64, f64) -> (f64, f64, f64),
+    decimals: usize,
+    rows: usize,
+    row_mm: f64,
+) -> CamProgram {
+    let feed_mm_min = 3000.0;
+    let feed_mm_s = feed_mm_min / 60.0;
+    let points = (row_mm / RASTER_STEP_MM).round() as usize;
+    let mut text = header(feed_mm_min);
+    let mut pieces = Vec::new();
+    let mut first = true;
+    let mut point = |text: &mut String, x: f64, y: f64| {
+        let z = surface(x, y).0;
+        let g = if first { "G1 " } else { "" };
+        first = false;
+        let _ = writeln!(
+            text,
+            "{g}X{} Y{} Z{}",
+            num(x, decimals),
+            num(y, decimals),
+            num(z, decimals)
+        );
+    };
+    for r in 0..rows {
+        let y = r as f64 * RASTER_ROW_GAP_MM;
+        let forward = r % 2 == 0;
+        let x_at = |i: usize| {
+            let k = if forward { i } else { points - i };
+            k as f64 * RASTER_STEP_MM
+        };
+        for i in 1..=points {
+            point(&mut text, x_at(i), y);
+        }
+        pieces.push(Piece {
+            shape: Shape::Row {
+                surface,
+                y,
+                x_from: x_at(0),
+                x_to: x_at(points),
+            },
+            feed_mm_s,
+        });
+        if r + 1 < rows {
+            let x = x_at(points);
+            let y_next = y + RASTER_ROW_GAP_MM;
+            point(&mut text, x, y_next);
+            pieces.push(Piece {
+                shape: Shape::Line {
+                    start: Vec3::new(x, y, surface(x, y).0),
+                    end: Vec3::new(x, y_next, surface(x, y_next).0),
+                },
+                feed_mm_s,
+            });
+        }
+    }
+    text.push_str("M2\n");
+    CamProgram {
+        name: format!("{name} {decimals} dec"),
+        text,
+        pieces,
+    }
+}
+
+/// The dense circle of docs/PERFORMANCE.md: radius 10 mm through the origin, centre
+/// (10, 0), clockwise, in `chords` G1 lines with `decimals` decimals, F6000.
+pub fn dense_circle(decimals: usize, chords: usize) -> CamProgram {
+    let feed_mm_min = 6000.0;
+    let r = 10.0;
+    let mut text = header(feed_mm_min);
+    for k in 1..=chords {
+        let phi = TAU * k as f64 / chords as f64;
+        let _ = writeln!(
+            text,
+            "G1 X{} Y{}",
+            num(r - r * phi.cos(), decimals),
+            num(r * phi.sin(), decimals)
+        );
+    }
+    text.push_str("M2\n");
+    let pieces = vec![Piece {
+        shape: Shape::Arc {
+            center: Vec3::new(r, 0.0, 0.0),
+            e1: Vec3::new(-1.0, 0.0, 0.0),
+            e2: Vec3::new(0.0, 1.0, 0.0),
+            radius_mm: r,
+            from_rad: 0.0,
+            to_rad: TAU,
+            axial_per_rad: Vec3::zeros(),
+        },
+        feed_mm_s: feed_mm_min / 60.0,
+    }];
+    CamProgram {
+        name: format!("circle {chords} {decimals} dec"),
+        text,
+        pieces,
+    }
+}
+
+/// A rectangular pocket: `loops` rectangles around the origin, half-sizes 2k × 1.5k mm,
+/// each started at its (+X, −Y) corner and joined to the next by a diagonal step; every
+/// corner sharp (90° inside a loop), F3000.
+pub fn pocket(loops: usize) -> CamProgram {
+    let feed_mm_min = 3000.0;
+    let mut text = header(feed_mm_min);
+    let mut pieces = Vec::new();
+    let mut at = Vec3::zeros();
+    for k in 1..=loops {
+        let (hx, hy) = (2.0 * k as f64, 1.5 * k as f64);
+        for (x, y) in [(hx, -hy), (hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy)] {
+            let p = Vec3::new(x, y, 0.0);
+            let _ = writeln!(text, "G1 X{} Y{}", num(x, 3), num(y, 3));
+            pieces.push(Piece {
+                shape: Shape::Line { start: at, end: p },
+                feed_mm_s: feed_mm_min / 60.0,
+            });
+            at = p;
+        }
+    }
+    text.push_str("M2\n");
+    CamProgram {
+        name: format!("pocket {loops} loops"),
+        text,
+        pieces,
+    }
+}
+
+/// An arc in a plane of constant Z (or a helix with `dz_per_rad`) from `start` about the
+/// centre `center` (same Z), counter-clockwise seen from +Z when `ccw`, over `sweep_rad`.
+fn arc_xy(start: Vec3, center: Vec3, ccw: bool, sweep_rad: f64, dz_per_rad: f64) -> Shape {
+    let radius_mm = (start - center).norm();
+    let e1 = (start - center) / radius_mm;
+    let z_cross_e1 = Vec3::new(-e1.y, e1.x, 0.0);
+    Shape::Arc {
+        center,
+        e1,
+        e2: if ccw { z_cross_e1 } else { -z_cross_e1 },
+        radius_mm,
+        from_rad: 0.0,
+        to_rad: sweep_rad,
+        axial_per_rad: Vec3::new(0.0, 0.0, dz_per_rad),
+    }
+}
+
+/// A helical ramp down from the origin: `turns` full turns of radius `radius_mm` about
+/// (radius, 0), `pitch_mm` down per turn, one `G2`/`G3` block per turn.
+pub fn helix(
+    name: &str,
+    radius_mm: f64,
+    ccw: bool,
+    turns: usize,
+    pitch_mm: f64,
+    feed_mm_min: f64,
+) -> CamProgram {
+    let mut text = header(feed_mm_min);
+    let g = if ccw { "G3" } else { "G2" };
+    for t in 1..=turns {
+        let z = -pitch_mm * t as f64;
+        let _ = writeln!(text, "{g} X0 Y0 Z{} I{radius_mm} J0", num(z, 3));
+    }
+    text.push_str("M2\n");
+    let pieces = vec![Piece {
+        shape: arc_xy(
+            Vec3::zeros(),
+            Vec3::new(radius_mm, 0.0, 0.0),
+            ccw,
+            TAU * turns as f64,
+            -pitch_mm / TAU,
+        ),
+        feed_mm_s: feed_mm_min / 60.0,
+    }];
+    CamProgram {
+        name: name.to_string(),
+        text,
+        pieces,
+    }
+}
+
+/// A tangent line-arc chain: `loops` times round a 24 × 12 mm rectangle with corners
+/// rounded by tangent quarter circles of 2 mm (G1, G3, G1, G3, ...), F6000, where the arcs
+/// (centripetal limit about 63 mm/s) are slower than the lines.
+pub fn obround(loops: usize) -> CamProgram {
+    let feed_mm_min = 6000.0;
+    let feed_mm_s = feed_mm_min / 60.0;
+    let mut text = header(feed_mm_min);
+    let mut pieces = Vec::new();
+    let v = |x: f64, y: f64| Vec3::new(x, y, 0.0);
+    // (line end, arc end, arc centre)
+    let sides = [
+        (v(20.0, 0.0), v(22.0, 2.0), v(20.0, 2.0)),
+        (v(22.0, 10.0), v(20.0, 12.0), v(20.0, 10.0)),
+        (v(0.0, 12.0), v(-2.0, 10.0), v(0.0, 10.0)),
+        (v(-2.0, 2.0), v(0.0, 0.0), v(0.0, 2.0)),
+    ];
+    let mut at = Vec3::zeros();
+    for _ in 0..loops {
+        for (line_end, arc_end, c) in sides {
+            let _ = writeln!(text, "G1 X{} Y{}", num(line_end.x, 3), num(line_end.y, 3));
+            pieces.push(Piece {
+                shape: Shape::Line {
+                    start: at,
+                    end: line_end,
+                },
+                feed_mm_s,
+            });
+            let (i, j) = (c.x - line_end.x, c.y - line_end.y);
+            let _ = writeln!(
+                text,
+                "G3 X{} Y{} I{} J{}",
+                num(arc_end.x, 3),
+                num(arc_end.y, 3),
+                num(i, 3),
+                num(j, 3)
+            );
+            pieces.push(Piece {
+                shape: arc_xy(line_end, c, true, PI / 2.0, 0.0),
+                feed_mm_s,
+            });
+            at = arc_end;
+        }
+    }
+    text.push_str("M2\n");
+    CamProgram {
+        name: format!("obround x{loops} F6000"),
+        text,
+        pieces,
+    }
+}
+
+/// A tangent S-chain: `arcs` half circles of radius 2 mm turning alternately left (G3) and
+/// right (G2), joined by 1 mm lines along Y, F3000: the curvature reverses at every join.
+pub fn s_chain(arcs: usize) -> CamProgram {
+    let feed_mm_min = 3000.0;
+    let feed_mm_s = feed_mm_min / 60.0;
+    let mut text = header(feed_mm_min);
+    let mut pieces = Vec::new();
+    let mut at = Vec3::zeros();
+    for k in 0..arcs {
+        let ccw = k % 2 == 0;
+        let c = at + Vec3::new(2.0, 0.0, 0.0);
+        let end = at + Vec3::new(4.0, 0.0, 0.0);
+        let _ = writeln!(
+            text,
+            "{} X{} Y{} I2 J0",
+            if ccw { "G3" } else { "G2" },
+            num(end.x, 3),
+            num(end.y, 3)
+        );
+        pieces.push(Piece {
+            shape: arc_xy(at, c, ccw, PI, 0.0),
+            feed_mm_s,
+        });
+        at = end;
+        if k + 1 < arcs {
+            // A left half circle ends heading +Y, a right one heading −Y.
+            let next = at + Vec3::new(0.0, if ccw { 1.0 } else { -1.0 }, 0.0);
+            let _ = writeln!(text, "G1 X{} Y{}", num(next.x, 3), num(next.y, 3));
+            pieces.push(Piece {
+                shape: Shape::Line {
+                    start: at,
+                    end: next,
+                },
+                feed_mm_s,
+            });
+            at = next;
+        }
+    }
+    text.push_str("M2\n");
+    CamProgram {
+        name: format!("s-chain {arcs} arcs"),
+        text,
+        pieces,
+    }
+}
