@@ -26,6 +26,11 @@ use kerf_geom::{AXIS_NAMES, AxisLimits};
 /// 5 % (the motion core keeps its own stream within 1 %).
 pub const DEFAULT_MARGIN: f64 = 0.05;
 
+/// Room for rounding in the soft-limit check of the stopping point, mm or deg: a motion
+/// that decelerates to rest exactly at a soft limit is not refused for the last bits of
+/// its floating-point stop.
+pub const SOFT_LIMIT_ROUNDING: f64 = 1e-6;
+
 /// Default number of consecutive missed cycles that trips the stream supervision.
 pub const DEFAULT_STALL_CYCLES: u32 = 3;
 
@@ -342,6 +347,23 @@ impl StopProfile {
         }
     }
 
+    /// The stop from the newest of three positions sampled at period `t_s` (`x0`, then
+    /// `x1` one period before and `x2` two before), continuing them smoothly: the
+    /// acceleration is their second difference, and the velocity at `x0` their last step
+    /// over the period plus half a period of that acceleration (the step's velocity is
+    /// that of the middle of the period). The samples of the stop then continue the
+    /// samples before with a third difference of at most the jerk limit.
+    pub fn from_samples(x0: f64, x1: f64, x2: f64, t_s: f64, limits: &AxisLimits) -> Self {
+        let a0 = (x0 - 2.0 * x1 + x2) / (t_s * t_s);
+        let v0 = (x0 - x1) / t_s + 0.5 * a0 * t_s;
+        Self::new(x0, v0, a0, limits)
+    }
+
+    /// Where the stop comes to rest.
+    pub fn end_position(&self) -> f64 {
+        self.position(self.duration_s())
+    }
+
     /// At rest from the start: holds `x0`.
     pub fn at_rest(x0: f64) -> Self {
         Self {
@@ -575,11 +597,17 @@ impl Safety {
             if a > a_limit {
                 return Some(fault(Check::Acceleration, Some(i), a, a_limit));
             }
-            if x < ax.min_limit {
-                return Some(fault(Check::SoftLimit, Some(i), x, ax.min_limit));
+            // Where a quick stop from this setpoint would bring the axis to rest: a
+            // setpoint is refused once that is beyond a soft limit, so that the quick stop
+            // from the last accepted one (the same stop) always ends within the limits.
+            let rest =
+                StopProfile::from_samples(x, self.stream[0][i], self.stream[1][i], t, &ax.limits)
+                    .end_position();
+            if x < ax.min_limit || rest < ax.min_limit - SOFT_LIMIT_ROUNDING {
+                return Some(fault(Check::SoftLimit, Some(i), rest.min(x), ax.min_limit));
             }
-            if x > ax.max_limit {
-                return Some(fault(Check::SoftLimit, Some(i), x, ax.max_limit));
+            if x > ax.max_limit || rest > ax.max_limit + SOFT_LIMIT_ROUNDING {
+                return Some(fault(Check::SoftLimit, Some(i), rest.max(x), ax.max_limit));
             }
         }
         self.missed = 0;
@@ -599,9 +627,7 @@ impl Safety {
             let x0 = self.out[0][i];
             self.stops[i] = match ax {
                 Some(ax) if !held => {
-                    let v0 = (self.out[0][i] - self.out[1][i]) / t;
-                    let a0 = (self.out[0][i] - 2.0 * self.out[1][i] + self.out[2][i]) / (t * t);
-                    StopProfile::new(x0, v0, a0, &ax.limits)
+                    StopProfile::from_samples(x0, self.out[1][i], self.out[2][i], t, &ax.limits)
                 }
                 _ => StopProfile::at_rest(x0),
             };

@@ -462,7 +462,6 @@ impl<D: Drive> DriveStage<D> {
             ax.drive.write(controlwords[i], target);
         }
 
-        self.copy_dump_chunk();
         let mut following_error = [0.0; MAX_AXES];
         for (e, (c, a)) in following_error
             .iter_mut()
@@ -480,6 +479,9 @@ impl<D: Drive> DriveStage<D> {
             statusword: statuswords,
             state: self.safety.state(),
         });
+        // After the record: a dump begun in this cycle holds it. The copy runs ahead of
+        // the ring's overwriting (a chunk of records per cycle against one record).
+        self.copy_dump_chunk();
         self.previous_command = sent;
         StageOutput {
             phase: self.phase,

@@ -121,6 +121,50 @@ fn acceleration_trips_exactly_at_its_limit() {
 }
 
 #[test]
+fn a_stop_that_would_end_beyond_the_travel_trips_before_the_setpoint_crosses() {
+    // X at 50 mm/s towards the limit at 500, steady (a = 0). Its jerk-limited stop
+    // (a_max 1000, j_max 50000): v ≥ a²/j = 20, so t = v/a + a/j = 0.07 s and the distance
+    // is v·t/2 = 1.75 mm. Setpoints stepping 0.05 mm per period trip once the next one
+    // is within 1.75 mm of the limit, while the setpoint itself is still inside. (The
+    // axis gets there from rest at 480 at 500 mm/s², in 2.5 mm.)
+    let mut s = Safety::new(config(mill()), on(0, 480.0)).expect("config");
+    let (mut x, mut v) = (480.0, 0.0);
+    let mut tripped = None;
+    let mut sent = vec![480.0];
+    for k in 0..600 {
+        v = f64::min(v + 0.5, 50.0);
+        x += v * T;
+        let v = s.check(&CycleInput {
+            setpoint: Some(on(0, x)),
+            actual: on(0, s.command()[0]),
+            drive_fault: [false; MAX_AXES],
+            line: k,
+        });
+        sent.push(v.command[0]);
+        if v.tripped.is_some() && tripped.is_none() {
+            tripped = v.tripped.map(|f| (f, x));
+        }
+    }
+    let (f, x_trip) = tripped.expect("trips");
+    assert_eq!(
+        (f.check, f.axis, f.limit),
+        (Check::SoftLimit, Some(0), 500.0)
+    );
+    assert!(x_trip < 500.0 && x_trip > 500.0 - 1.75 - 0.1, "{x_trip}");
+    assert!(
+        f.value > 500.0 && (f.value - x_trip - 1.75).abs() < 0.01,
+        "{f:?}"
+    );
+    // The quick stop from the last setpoint sent ends within the travel.
+    assert!(
+        sent.iter().all(|&p| p <= 500.0),
+        "{:?}",
+        &sent[sent.len() - 5..]
+    );
+    assert_eq!(s.state(), State::Stopped);
+}
+
+#[test]
 fn soft_limits_trip_just_beyond_the_travel() {
     // At rest on the limit; a step of 1e-6 mm is 1e-3 mm/s and 1 mm/s², far within the
     // mill's limits, so only the travel trips.
@@ -137,7 +181,13 @@ fn soft_limits_trip_just_beyond_the_travel() {
         let v = s.check(&input(beyond));
         let f = v.tripped.expect("trips");
         assert_eq!((f.check, f.axis), (Check::SoftLimit, Some(axis)));
-        assert_eq!((f.value, f.limit, f.line), (beyond, end, 3));
+        // The value is where the axis would come to rest from the setpoint: beyond it by
+        // the stopping distance of 1.5e-3 mm/s and 1 mm/s², well under 1e-6 mm.
+        assert_eq!((f.limit, f.line), (end, 3));
+        assert!(
+            (f.value - beyond).abs() < 1e-6 && (f.value - end).abs() >= 1e-6,
+            "{f:?}"
+        );
         // Never sent: the axis stays where it is, at rest.
         assert_eq!(v.command[axis], end);
         assert_eq!(v.state, State::Stopped);
@@ -550,6 +600,7 @@ fn a_fault_names_check_axis_value_limit_and_line() {
     // 500.0005 is 0.0005 mm in 1 ms: 0.5 mm/s, 500 mm/s², within limits; beyond travel.
     assert_eq!(f.check, Check::SoftLimit);
     let text = f.to_string();
-    assert!(text.starts_with("soft_limit on axis X: 500.000"), "{text}");
+    // The value is where a stop from 0.5 mm/s and 500 mm/s² comes to rest.
+    assert!(text.starts_with("soft_limit on axis X: 500.0"), "{text}");
     assert!(text.contains("against limit 500 (line 42"), "{text}");
 }

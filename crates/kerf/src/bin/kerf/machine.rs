@@ -381,6 +381,12 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             config.machine
         )));
     }
+    if let Some(fault) = kerf::client::safety_text(&status) {
+        return Err(Failure::Error(format!(
+            "kerf: error: machine `{}` is in fault: {fault}; `kerf reset` clears it once its cause is gone (`kerf status` says more)",
+            config.machine
+        )));
+    }
     let start = status.position_mm_deg;
     let mut settings =
         crate::settings_for(crate::program_settings(&config)?, &args.program.program);
@@ -526,6 +532,17 @@ fn check_program_state(s: &StatusMsg, id: u64, name: &str, machine: &str) -> Res
                 return Err(Failure::Error(format!(
                     "{name}: error: the program was aborted (kerf abort, or the daemon stopped); the machine stopped on the path at line {}",
                     s.line
+                )));
+            }
+            PROGRAM_END_REFUSED if s.safety_check != kerf_proto::SAFETY_NONE => {
+                let dump = match s.fault_dump() {
+                    "" => String::new(),
+                    path => format!("; black box: {path}"),
+                };
+                return Err(Failure::Error(format!(
+                    "{name}: error: the safety layer stopped the machine at line {}: {}; the axes came to rest on the quick stop and the rest of the program was dropped{dump}; `kerf reset` clears the fault once its cause is gone",
+                    s.safety_line,
+                    s.fault_text()
                 )));
             }
             PROGRAM_END_REFUSED => {
