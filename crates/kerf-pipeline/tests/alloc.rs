@@ -8,18 +8,27 @@ use kerf_geom::Vec3;
 use kerf_motion::{MachineLimits, MotionCore, PlannedSegment, Setpoint, StepResult};
 use kerf_plan::Planner;
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 struct Counting;
 
-static ARMED: AtomicBool = AtomicBool::new(false);
+thread_local! {
+    // Armed on the test's own thread only: the test harness's main thread may allocate
+    // meanwhile (its "running for over 60 seconds" note on a loaded machine), which is
+    // not the motion core's doing. A const-initialised `Cell` never allocates to read.
+    static ARMED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+fn armed() -> bool {
+    ARMED.try_with(|a| a.get()).unwrap_or(false)
+}
 static COUNT: AtomicU64 = AtomicU64::new(0);
 
 // SAFETY: every call is forwarded unchanged to the system allocator; the counter is only
 // an atomic increment.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if ARMED.load(Ordering::Relaxed) {
+        if armed() {
             COUNT.fetch_add(1, Ordering::Relaxed);
         }
         // SAFETY: same contract as the caller's.
@@ -30,7 +39,7 @@ unsafe impl GlobalAlloc for Counting {
         unsafe { System.dealloc(ptr, layout) }
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if ARMED.load(Ordering::Relaxed) {
+        if armed() {
             COUNT.fetch_add(1, Ordering::Relaxed);
         }
         // SAFETY: same contract as the caller's.
@@ -112,7 +121,7 @@ fn allocations_while_running(limits: MachineLimits, cycles: u64) -> u64 {
     let mut next = 0usize;
     let mut moving = 0u64;
     COUNT.store(0, Ordering::SeqCst);
-    ARMED.store(true, Ordering::SeqCst);
+    ARMED.with(|a| a.set(true));
     for cycle in 0..cycles {
         while core.free() > 0 {
             if core.push(&program[next % program.len()]).is_err() {
@@ -141,7 +150,7 @@ fn allocations_while_running(limits: MachineLimits, cycles: u64) -> u64 {
             break;
         }
     }
-    ARMED.store(false, Ordering::SeqCst);
+    ARMED.with(|a| a.set(false));
     assert!(core.is_idle(), "the abort should have stopped the core");
     assert!(
         moving > cycles / 2,
