@@ -204,7 +204,14 @@ impl Env {
 
     /// Starts `kerfd` and waits until `kerf status` answers.
     fn start_daemon(&self, name: &str) -> Proc {
-        let mut d = Proc::spawn(name, &self.dir, KERFD, &["--config", self.config_arg()]);
+        self.start_daemon_with(name, &[])
+    }
+
+    /// Starts `kerfd --config C EXTRA…` and waits until `kerf status` answers.
+    fn start_daemon_with(&self, name: &str, extra: &[&str]) -> Proc {
+        let mut args = vec!["--config", self.config_arg()];
+        args.extend_from_slice(extra);
+        let mut d = Proc::spawn(name, &self.dir, KERFD, &args);
         let deadline = Instant::now() + PATIENCE;
         loop {
             if let Some(status) = d.try_wait() {
@@ -1280,4 +1287,146 @@ fn run_keeps_linuxcnc_persistent_parameters_in_the_parameter_file() {
     env.run_ok("run2", &second, None);
     let p = position(&env.status());
     assert!((p[0] - 1.0).abs() < 1e-6 && p[1].abs() < 1e-6, "{p:?}");
+}
+
+/// Sends a fault injection through the control service (accepted by `kerfd --test-faults`
+/// only); the daemon's answer.
+fn inject_fault(env: &Env, injection: kerf::daemon::worker::Injection) -> kerf_proto::Response {
+    let mut client = kerf::client::Client::connect(&env.machine).expect("the daemon answers");
+    let code = injection.code().expect("a code for the injection");
+    client
+        .request(kerf_proto::Command::Inject { code })
+        .expect("an answer")
+}
+
+#[test]
+fn a_drive_fault_injected_mid_program_is_latched_reported_dumped_and_reset() {
+    use kerf::daemon::worker::Injection;
+    let env = Env::new(
+        "fault",
+        &[(
+            "[daemon]",
+            "[safety]\ndump_dir = \"blackbox\"\nrecorder_seconds = 2.0\n[daemon]",
+        )],
+    );
+    let _daemon = env.start_daemon_with("kerfd", &["--test-faults"]);
+    let program = env.write("cam.ngc", &cam_program(20, 200, 0.5, 3000.0));
+    let mut run = env.spawn_run("run", &program, None);
+    env.wait_status("the program to move", |s| {
+        state(s) == "running" && s["line"].as_u64().unwrap_or(0) > 20
+    });
+    let r = inject_fault(&env, Injection::DriveFault(1));
+    assert_eq!(r.reason, kerf_proto::REASON_OK, "{}", r.message());
+
+    // `kerf run` fails and says why.
+    let status = run.wait(2);
+    assert_eq!(status.code(), Some(2), "{}", run.stderr());
+    let err = run.stderr();
+    assert!(
+        err.contains("the safety layer stopped the machine")
+            && err.contains("drive_fault on axis Y: the drive reports error 0x4310"),
+        "{err}"
+    );
+
+    // Latched, reported with the check, axis, value, line and the black-box file.
+    let s = env.wait_status("the fault's black box", |s| s["safety"]["dump"].is_string());
+    assert_eq!(state(&s), "fault");
+    assert_eq!(s["drives"], "stopped");
+    let safety = &s["safety"];
+    assert_eq!(safety["check"], "drive_fault");
+    assert_eq!(safety["axis"], "y");
+    assert_eq!(safety["drive_error_code"], 0x4310);
+    assert!(safety["line"].as_u64().unwrap() > 20, "{s}");
+    let text = String::from_utf8(env.kerf("status", &[]).stdout).unwrap();
+    assert!(
+        text.contains("fault: drive_fault on axis Y") && text.contains("black box: "),
+        "{text}"
+    );
+    // The black box: 2 s of cycles, the motion before the trip and the stop to rest.
+    let dump = PathBuf::from(safety["dump"].as_str().unwrap());
+    assert!(
+        dump.starts_with(env.dir.join("blackbox").canonicalize().unwrap()),
+        "{dump:?}"
+    );
+    let csv = read_text(&dump);
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(
+        &header[..5],
+        &["sequence", "time_s", "state", "x_cmd_mm", "x_act_mm"]
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    // Consecutive cycles, the last 2 s of them (or all since the start, if fewer).
+    let seq: Vec<u64> = rows.iter().map(|r| r[0].parse().unwrap()).collect();
+    assert!(seq.windows(2).all(|w| w[1] == w[0] + 1));
+    assert!(
+        rows.len() == 2000 || (rows.len() < 2000 && seq[0] == 1),
+        "{}",
+        rows.len()
+    );
+    assert!(rows.iter().all(|r| r.len() == header.len()));
+    assert!(rows.iter().any(|r| r[2] == "running"));
+    assert_eq!(rows.last().unwrap()[2], "stopped");
+    let moving = rows
+        .windows(2)
+        .filter(|w| w[0][2] == "running" && w[0][3] != w[1][3])
+        .count();
+    assert!(moving > 10, "the X axis moved before the trip");
+
+    // Nothing runs while the fault is latched.
+    let refused = env.kerf("run", &[program.to_str().unwrap()]);
+    assert_eq!(refused.status.code(), Some(2));
+    let msg = String::from_utf8_lossy(&refused.stderr);
+    assert!(msg.contains("is in fault"), "{msg}");
+    // A reset is refused while the drive's fault persists …
+    let reset = env.kerf("reset", &[]);
+    assert_eq!(reset.status.code(), Some(2));
+    let msg = String::from_utf8_lossy(&reset.stderr);
+    assert!(
+        msg.contains("the drive of axis Y still reports a fault"),
+        "{msg}"
+    );
+    assert_eq!(env.status()["safety"]["check"], "drive_fault");
+    // … and accepted once it is gone.
+    let r = inject_fault(&env, Injection::ClearDriveFault(1));
+    assert_eq!(r.reason, kerf_proto::REASON_OK, "{}", r.message());
+    let reset = env.kerf("reset", &[]);
+    assert!(
+        reset.status.success(),
+        "{}",
+        String::from_utf8_lossy(&reset.stderr)
+    );
+    let s = env.status();
+    assert_eq!(
+        (state(&s), &s["safety"], &s["drives"]),
+        ("idle", &Value::Null, &Value::from("running"))
+    );
+
+    // `kerf dump` copies the black box to a file of the user's.
+    let out = env.path("box.csv");
+    let dumped = env.kerf("dump", &["--out", out.to_str().unwrap()]);
+    assert!(
+        dumped.status.success(),
+        "{}",
+        String::from_utf8_lossy(&dumped.stderr)
+    );
+    let csv = read_text(&out);
+    assert!(csv.starts_with("sequence,time_s,state,x_cmd_mm"), "{csv}");
+    assert!(csv.lines().count() > 100, "{}", csv.lines().count());
+
+    // And the machine runs programs again, from where the quick stop left it.
+    let short = env.write("short.ngc", "G21 G91 G1 X1 Y1 F600\nM2\n");
+    env.run_ok("after", &short, None);
+    assert_eq!(program_end(&env.status()), "finished");
+}
+
+#[test]
+fn fault_injection_is_refused_without_test_faults() {
+    let env = Env::new("noinj", &[]);
+    let _daemon = env.start_daemon("kerfd");
+    let r = inject_fault(&env, kerf::daemon::worker::Injection::DriveFault(0));
+    assert_eq!(r.reason, kerf_proto::REASON_NOT_ALLOWED);
+    assert!(r.message().contains("--test-faults"), "{}", r.message());
+    let s = env.status();
+    assert_eq!((state(&s), &s["safety"]), ("idle", &Value::Null));
 }

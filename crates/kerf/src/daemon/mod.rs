@@ -726,6 +726,10 @@ fn status_msg(
         // A planner process that went away is no fault of the machine: it comes to rest
         // and reports idle (the reason stays in `fault` and `program_end`).
         (State::Idle, Some(Refusal::SenderGone)) => State::Idle,
+        // A program the safety layer stopped (or refused while a fault was latched):
+        // the fault is the drive side's, shown while it is latched (below); once reset,
+        // the machine is idle.
+        (State::Idle, Some(Refusal::Safety(_) | Refusal::Faulted(_))) => State::Idle,
         // The refused program's fault is shown until the next program begins.
         (State::Idle, Some(_)) => State::Fault,
         (state, _) => state,
@@ -750,9 +754,13 @@ fn status_msg(
     msg.moves_received = counters.received.load(Ordering::Acquire);
     msg.window_items = window;
     msg.rejected = counters.refused.load(Ordering::Acquire);
-    if let Some(r) = s.refusal {
-        msg.fault = 1;
-        msg.set_fault_text(&r.to_string());
+    match s.refusal {
+        Some(Refusal::Safety(_) | Refusal::Faulted(_)) if s.drives.fault.is_none() => {}
+        Some(r) => {
+            msg.fault = 1;
+            msg.set_fault_text(&r.to_string());
+        }
+        None => {}
     }
     msg.axes_mask = axes_mask;
     msg.period_ns = period_ns;
