@@ -8,7 +8,8 @@
 //! - [`daemon`]: the interpolator daemon's threads (`kerfd`, `kerf run --embedded`).
 //! - [`ipc`]: the iceoryx2 services of a machine, opened alike by the daemon and clients.
 //! - [`client`]: requests, status and the setpoint stream for `kerf run`, `status`,
-//!   `hold`, `resume`, `abort`, `override` and `record`.
+//!   `hold`, `resume`, `abort`, `override`, `record`, `reset` and `dump`.
+//! - [`blackbox`]: the drive side's black-box files read and drawn (`kerf plot`).
 //!
 //! The binaries (`src/bin/kerf`, `src/bin/kerfd.rs`) only parse arguments, open files,
 //! print errors and pick exit codes; everything with behaviour worth testing lives here.
@@ -16,6 +17,7 @@
 //! turns each into one line, `FILE:LINE:COL: error: MESSAGE`, and a non-zero exit code.
 #![deny(missing_docs)]
 
+pub mod blackbox;
 pub mod client;
 pub mod config;
 pub mod daemon;

@@ -1289,6 +1289,18 @@ fn run_keeps_linuxcnc_persistent_parameters_in_the_parameter_file() {
     assert!((p[0] - 1.0).abs() < 1e-6 && p[1].abs() < 1e-6, "{p:?}");
 }
 
+/// `kerf plot INPUT --out SVG`, to completion.
+fn env_plot(input: &Path, svg: &Path) -> Output {
+    Command::new(KERF)
+        .arg("plot")
+        .arg(input)
+        .arg("--out")
+        .arg(svg)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap()
+}
+
 /// Sends a fault injection through the control service (accepted by `kerfd --test-faults`
 /// only); the daemon's answer.
 fn inject_fault(env: &Env, injection: kerf::daemon::worker::Injection) -> kerf_proto::Response {
@@ -1324,7 +1336,8 @@ fn a_drive_fault_injected_mid_program_is_latched_reported_dumped_and_reset() {
     let err = run.stderr();
     assert!(
         err.contains("the safety layer stopped the machine")
-            && err.contains("drive_fault on axis Y: the drive reports error 0x4310"),
+            && err.contains("drive_fault on axis Y: the drive reports error 0x4310")
+            && err.contains("black box: "),
         "{err}"
     );
 
@@ -1413,6 +1426,18 @@ fn a_drive_fault_injected_mid_program_is_latched_reported_dumped_and_reset() {
     let csv = read_text(&out);
     assert!(csv.starts_with("sequence,time_s,state,x_cmd_mm"), "{csv}");
     assert!(csv.lines().count() > 100, "{}", csv.lines().count());
+    // `kerf plot` draws the fault's black box: X, Y, Z, each commanded against actual
+    // and the following error, the stop shaded.
+    let svg = env.path("fault.svg");
+    let plotted = env_plot(&dump, &svg);
+    assert!(
+        plotted.status.success(),
+        "{}",
+        String::from_utf8_lossy(&plotted.stderr)
+    );
+    let svg = read_text(&svg);
+    assert_eq!(svg.matches(r#"class="envelope""#).count(), 9);
+    assert!(svg.contains("Y: following error") && svg.contains("#f6d0d0"));
 
     // And the machine runs programs again, from where the quick stop left it.
     let short = env.write("short.ngc", "G21 G91 G1 X1 Y1 F600\nM2\n");

@@ -447,7 +447,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         // Flow control: never more than the daemon's window unacknowledged.
         while sender.sent - acked >= window {
             let s = live_status(&mut client, &mut watch, &mut reader)?;
-            check_program_state(&s, id, &name, &machine)?;
+            check_program_state(&mut client, &s, id, &name, &machine)?;
             if s.program_id == id {
                 acked = s.moves_received;
             }
@@ -470,7 +470,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         if last_status.elapsed() > STATUS_EVERY * 10 {
             last_status = Instant::now();
             let s = live_status(&mut client, &mut watch, &mut reader)?;
-            check_program_state(&s, id, &name, &machine)?;
+            check_program_state(&mut client, &s, id, &name, &machine)?;
         }
     }
     sender.send(MoveMsg::end(id, seq)).map_err(client_failure)?;
@@ -493,7 +493,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
                 watch.take(&mut reader)?;
             }
             bar.finish_and_clear();
-            check_program_state(&s, id, &name, &machine)?;
+            check_program_state(&mut client, &s, id, &name, &machine)?;
             if let Some(r) = watch.recording.take() {
                 r.finish()?;
             }
@@ -513,14 +513,20 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             }
             return Ok(());
         }
-        check_program_state(&s, id, &name, &machine)?;
+        check_program_state(&mut client, &s, id, &name, &machine)?;
         std::thread::sleep(STATUS_EVERY);
     }
 }
 
 /// A program that ended early (aborted, or refused by the daemon) or that another
 /// client's program replaced is reported at once.
-fn check_program_state(s: &StatusMsg, id: u64, name: &str, machine: &str) -> Result<(), Failure> {
+fn check_program_state(
+    client: &mut Client,
+    s: &StatusMsg,
+    id: u64,
+    name: &str,
+    machine: &str,
+) -> Result<(), Failure> {
     if s.program_id != id && s.program_id != 0 && s.program_end == PROGRAM_END_NONE {
         return Err(Failure::Error(format!(
             "{name}: error: machine `{machine}` started another program"
@@ -535,6 +541,17 @@ fn check_program_state(s: &StatusMsg, id: u64, name: &str, machine: &str) -> Res
                 )));
             }
             PROGRAM_END_REFUSED if s.safety_check != kerf_proto::SAFETY_NONE => {
+                // The black box is written once the quick stop is at rest: wait for it
+                // (a few seconds at most) to name it.
+                let deadline = Instant::now() + Duration::from_secs(5);
+                let mut s = *s;
+                while s.fault_dump().is_empty() && Instant::now() < deadline {
+                    std::thread::sleep(STATUS_EVERY);
+                    match client.status() {
+                        Ok(now) if now.safety_check != kerf_proto::SAFETY_NONE => s = now,
+                        _ => break,
+                    }
+                }
                 let dump = match s.fault_dump() {
                     "" => String::new(),
                     path => format!("; black box: {path}"),

@@ -64,6 +64,19 @@ enum Command {
     /// Write the daemon's black box (the last seconds of every cycle: commanded and actual
     /// positions, following errors, drive words) to CSV.
     Dump(machine::DumpArgs),
+    /// Draw a black-box file (from `kerf dump`, or the one written at a fault) as SVG: per
+    /// axis the commanded against the actual position and the following error over time.
+    Plot(PlotArgs),
+}
+
+#[derive(Args)]
+struct PlotArgs {
+    /// The black-box CSV.
+    #[arg(value_name = "FILE.csv")]
+    input: PathBuf,
+    /// Where to write the SVG.
+    #[arg(long, value_name = "FILE.svg")]
+    out: PathBuf,
 }
 
 /// The program and how to read it: shared by every subcommand.
@@ -185,6 +198,7 @@ fn main() -> ExitCode {
         Command::Record(args) => machine::record(&args),
         Command::Reset(args) => machine::reset(&args),
         Command::Dump(args) => machine::dump(&args),
+        Command::Plot(args) => run_plot(&args),
     };
     match result {
         Ok(()) | Err(Failure::BrokenPipe) => ExitCode::SUCCESS,
@@ -273,6 +287,32 @@ fn open_program(args: &ProgramArgs, config: &Config) -> Result<Program, Failure>
         dialect,
         path: Some(args.program.clone()),
     })
+}
+
+fn run_plot(args: &PlotArgs) -> Result<(), Failure> {
+    let name = args.input.display().to_string();
+    let file =
+        File::open(&args.input).map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
+    let bb = kerf::blackbox::read(BufReader::new(file))
+        .map_err(|e| Failure::Error(format!("{name}:{}: error: {}", e.line, e.message)))?;
+    let out = &args.out;
+    let tmp = out.with_file_name(format!(
+        ".{}.{}.tmp",
+        out.file_name()
+            .map_or("plot".into(), |n| n.to_string_lossy()),
+        std::process::id()
+    ));
+    let fail = |e: io::Error| Failure::Error(format!("{}: error: {e}", out.display()));
+    let written = File::create(&tmp).and_then(|f| {
+        let mut w = BufWriter::new(f);
+        kerf::blackbox::write_svg(&bb, &mut w)?;
+        w.flush()
+    });
+    if let Err(e) = written.and_then(|()| std::fs::rename(&tmp, out)) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(fail(e));
+    }
+    Ok(())
 }
 
 fn run_plan(args: &PlanArgs) -> Result<(), Failure> {
