@@ -66,6 +66,33 @@ impl Default for SimConfig {
     }
 }
 
+impl SimConfig {
+    /// ωn·h·(ωn·h + 4ζ) for the integration step h = period / substeps: the servo model's
+    /// semi-implicit Euler step is stable below 4 (the eigenvalues of its step matrix,
+    /// whose determinant is 1 − 2ζωn·h and trace 2 − (ωn·h)² − 2ζωn·h, stay inside the
+    /// unit circle exactly then).
+    pub fn stability_index(&self) -> f64 {
+        let omega = 2.0 * core::f64::consts::PI * self.bandwidth_hz;
+        let h = self.period_ns as f64 * 1e-9 / f64::from(self.substeps.max(1));
+        omega * h * (omega * h + 4.0 * self.damping)
+    }
+
+    /// The fewest substeps that keep [`SimConfig::stability_index`] at most 2 (half the
+    /// stability bound, so that the model is also accurate).
+    pub fn min_substeps(&self) -> u32 {
+        let omega = 2.0 * core::f64::consts::PI * self.bandwidth_hz;
+        let period_s = self.period_ns as f64 * 1e-9;
+        // ωh(ωh + 4ζ) ≤ 2  ⇔  ωh ≤ −2ζ + √(4ζ² + 2).
+        let max_omega_h = -2.0 * self.damping + (4.0 * self.damping * self.damping + 2.0).sqrt();
+        let n = (omega * period_s / max_omega_h).ceil();
+        if n.is_finite() && n >= 1.0 {
+            n.min(f64::from(u32::MAX)) as u32
+        } else {
+            1
+        }
+    }
+}
+
 /// A simulated CiA 402 drive (see the module documentation).
 #[derive(Debug, Clone)]
 pub struct SimDrive {

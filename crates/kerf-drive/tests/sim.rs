@@ -283,3 +283,63 @@ proptest! {
         }
     }
 }
+
+/// The stability index says when the servo model's integration diverges: a step response
+/// (without feed-forward) settles with the index below 4 and grows without bound above
+/// it; `min_substeps` keeps it at most 2.
+#[test]
+fn the_stability_index_tells_a_diverging_model() {
+    use kerf_drive::cia402::{Drive, State as S};
+    let run = |cfg: SimConfig| -> f64 {
+        let mut d = SimDrive::new(cfg);
+        for c in [0u16, 0x06, 0x07, 0x0F] {
+            d.write(c, 0);
+        }
+        assert_eq!(d.state(), S::OperationEnabled);
+        for _ in 0..2000 {
+            d.write(0x0F, 1000);
+        }
+        // The error at the end, relative to the step; infinite when the model blew up
+        // (its acceleration became NaN, which the drive reports as a fault).
+        let end = (d.motor_position_counts() - 1000.0).abs() / 1000.0;
+        if d.state() == S::OperationEnabled && end.is_finite() {
+            end
+        } else {
+            f64::INFINITY
+        }
+    };
+    for (bandwidth_hz, damping, substeps) in [
+        (200.0, 1.0, 1),
+        (1000.0, 10.0, 20),
+        (50.0, 0.7, 1),
+        (400.0, 2.0, 3),
+    ] {
+        let cfg = SimConfig {
+            bandwidth_hz,
+            damping,
+            substeps,
+            velocity_feed_forward: 0.0,
+            overcurrent_accel_counts_s2: f64::INFINITY,
+            ..SimConfig::default()
+        };
+        let index = cfg.stability_index();
+        let end = run(cfg);
+        if index < 3.5 {
+            assert!(
+                end < 1e-3,
+                "{bandwidth_hz} Hz ζ {damping} ×{substeps}: index {index}, error {end}"
+            );
+        } else if index > 4.5 {
+            assert!(
+                end > 1.0,
+                "{bandwidth_hz} Hz ζ {damping} ×{substeps}: index {index}, error {end}"
+            );
+        }
+        let fixed = SimConfig {
+            substeps: cfg.min_substeps(),
+            ..cfg
+        };
+        assert!(fixed.stability_index() <= 2.0 + 1e-9);
+        assert!(run(fixed) < 1e-3, "{fixed:?}");
+    }
+}

@@ -116,8 +116,9 @@ pub const DEFAULT_COUNTS_PER_UNIT: f64 = 1000.0;
 /// Accepted drive scales, counts per mm (per degree for rotary axes).
 pub const COUNTS_PER_UNIT_RANGE: RangeInclusive<f64> = 1e-3..=1e9;
 
-/// Accepted sim drive position loop bandwidths, Hz (the model stays stable with the
-/// default 20 substeps per 1 ms period up to the top of this range).
+/// Accepted sim drive position loop bandwidths, Hz (with `damping` and the period, they
+/// set the fewest `substeps` that keep the model stable and accurate: see
+/// `SimConfig::min_substeps`; a configuration with fewer is refused).
 pub const BANDWIDTH_RANGE_HZ: RangeInclusive<f64> = 0.1..=1000.0;
 
 /// Accepted sim drive damping ratios.
@@ -617,6 +618,28 @@ impl Config {
             }
             _ => std::env::temp_dir(),
         }
+    }
+
+    /// Checks what only the daemon's drive side needs: each simulated drive's `substeps`
+    /// keep its model accurate and stable at this period
+    /// (`kerf_drive::sim::SimConfig::stability_index` at most 2). `kerf sim`, which runs
+    /// no drives, accepts a configuration this refuses.
+    pub fn check_drives(&self) -> Result<(), String> {
+        for (i, setup) in self.drive_configs().iter().enumerate() {
+            let Some(d) = setup else { continue };
+            if d.kind == DriveKind::Sim && d.sim.stability_index() > 2.0 {
+                return Err(format!(
+                    "`axes.{}.drive.substeps` = {} is too few for `bandwidth_hz` = {} and `damping` = {} at `period_us` = {}: the simulated drive's model would not be accurate or would diverge; use at least {}",
+                    kerf_geom::AXIS_NAMES[i].to_ascii_lowercase(),
+                    d.sim.substeps,
+                    number(d.sim.bandwidth_hz),
+                    number(d.sim.damping),
+                    self.period_us,
+                    d.sim.min_substeps()
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// The black-box recorder's capacity, cycles: `safety.recorder_seconds` over the
@@ -1367,7 +1390,29 @@ impl Checker<'_> {
             b: self.rotary("b", &raw.axes.b)?,
             c: self.rotary("c", &raw.axes.c)?,
         };
-        let drive = self.drive_side(&raw, &axes)?;
+        let mut drive = self.drive_side(&raw, &axes)?;
+        // The simulated drives' integration: without `substeps`, enough for their
+        // bandwidth and damping at this period (at least the default); a number given
+        // that is too small is refused where the drives run (`Config::check_drives`).
+        let given = |d: Option<&RawDrive>| d.is_some_and(|d| d.substeps.is_some());
+        let raw_substeps = [
+            given(raw.axes.x.drive.as_ref()),
+            given(raw.axes.y.drive.as_ref()),
+            given(raw.axes.z.drive.as_ref()),
+            given(raw.axes.a.as_ref().and_then(|a| a.drive.as_ref())),
+            given(raw.axes.b.as_ref().and_then(|a| a.drive.as_ref())),
+            given(raw.axes.c.as_ref().and_then(|a| a.drive.as_ref())),
+        ];
+        for (i, d) in drive.axes.iter_mut().enumerate() {
+            let Some(d) = d else { continue };
+            let sim = SimConfig {
+                period_ns: u64::from(period_us) * 1000,
+                ..d.sim
+            };
+            if !raw_substeps[i] {
+                d.sim.substeps = d.sim.substeps.max(sim.min_substeps());
+            }
+        }
         let dump_dir = match &raw.safety.dump_dir {
             None => None,
             Some(d) if d.get_ref().is_empty() => {
@@ -2465,6 +2510,58 @@ max_mm = 10.0
         let recorder =
             kerf_drive::recorder::Recorder::new(2.5, c.period_s(), c.recorder_axes()).unwrap();
         assert_eq!(recorder.capacity(), c.recorder_capacity());
+    }
+
+    #[test]
+    fn a_sim_drive_whose_model_would_diverge_is_refused_with_the_substeps_it_needs() {
+        // 1000 Hz, ζ 10 at 1 ms: ωh(ωh + 4ζ) ≤ 2 needs ωh ≤ −20 + √402 = 0.0499, so
+        // h ≤ 7.94 µs: 126 substeps. At 20 substeps the index is 12.7.
+        let load = |t: &str| Config::from_toml_str(t, "m.toml").expect("kerf sim accepts it");
+        let e = load(&format!(
+            "{MINIMAL}[axes.y.drive]\nbandwidth_hz = 1000.0\ndamping = 10.0\nsubsteps = 20\n"
+        ))
+        .check_drives()
+        .unwrap_err();
+        assert!(
+            e.contains("`axes.y.drive.substeps` = 20 is too few") && e.contains("use at least 126"),
+            "{e}"
+        );
+        let ok = format!(
+            "{MINIMAL}[axes.y.drive]\nbandwidth_hz = 1000.0\ndamping = 10.0\nsubsteps = 126\n"
+        );
+        assert_eq!(load(&ok).check_drives(), Ok(()));
+        // A longer period needs more.
+        let e = load(&format!(
+            "period_us = 4000\n{MINIMAL}[axes.x.drive]\nbandwidth_hz = 200.0\nsubsteps = 4\n"
+        ))
+        .check_drives()
+        .unwrap_err();
+        assert!(e.contains("`axes.x.drive.substeps` = 4 is too few"), "{e}");
+        // Without `substeps`, enough are taken: the 1000 Hz drive gets 126.
+        let c = load(&format!(
+            "{MINIMAL}[axes.y.drive]\nbandwidth_hz = 1000.0\ndamping = 10.0\n"
+        ));
+        assert_eq!(c.drive.axes[1].unwrap().sim.substeps, 126);
+        assert_eq!(c.check_drives(), Ok(()));
+    }
+
+    #[test]
+    fn the_dump_dir_is_relative_to_the_configuration() {
+        let c = Config::from_toml_str_in(
+            &format!("{MINIMAL}[safety]\ndump_dir = \"bb\"\n"),
+            "/etc/kerf/m.toml",
+            Path::new("/etc/kerf"),
+        )
+        .expect("valid");
+        assert_eq!(c.dump_dir(), PathBuf::from("/etc/kerf/bb"));
+        let c = Config::from_toml_str(
+            &format!("{MINIMAL}[safety]\ndump_dir = \"/var/x\"\n"),
+            "m.toml",
+        )
+        .expect("valid");
+        assert_eq!(c.dump_dir(), PathBuf::from("/var/x"));
+        let e = err(&format!("{MINIMAL}[safety]\ndump_dir = \"\"\n"));
+        assert!(e.contains("`safety.dump_dir` must name a directory"), "{e}");
     }
 
     #[test]
