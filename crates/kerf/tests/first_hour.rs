@@ -334,3 +334,61 @@ fn run_records_to_standard_output_and_notes_a_program_without_motion() {
     assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
     assert_eq!(stderr(&run), format!("note: no motion in {name}\n"));
 }
+
+#[test]
+fn configuration_type_errors_name_the_key_in_the_files_terms() {
+    let d = dir("config");
+    let program = d.join("ten.ngc");
+    std::fs::write(&program, TEN).unwrap();
+    let bundled = std::fs::read_to_string(root().join("config/kerf.toml")).unwrap();
+    let line_of = |needle: &str| bundled.lines().position(|l| l == needle).unwrap() + 1;
+    let cases = [
+        (
+            "period_us = 1000",
+            "period_us = 1.5",
+            format!(
+                "{}:13: error: `period_us` must be a whole number of microseconds, found 1.5",
+                line_of("period_us = 1000")
+            ),
+        ),
+        (
+            "[axes.z]",
+            "[axes.w]",
+            format!("{}:7: error: unknown key `axes.w`", line_of("[axes.z]")),
+        ),
+    ];
+    for (from, to, expected) in cases {
+        let config = d.join("kerf.toml");
+        std::fs::write(&config, bundled.replacen(from, to, 1)).unwrap();
+        let out = kerf(&[
+            "plan",
+            "--config",
+            config.to_str().unwrap(),
+            program.to_str().unwrap(),
+        ]);
+        assert_eq!(out.status.code(), Some(2));
+        let err = stderr(&out);
+        assert!(
+            err.starts_with(&format!("{}:{expected}", config.display())),
+            "{err}"
+        );
+    }
+    // Without the Z table at all.
+    let config = d.join("kerf.toml");
+    let cut = bundled.find("[axes.z]").unwrap();
+    let rest = &bundled[cut..];
+    let end = rest.find("\n\n").unwrap();
+    std::fs::write(&config, format!("{}{}", &bundled[..cut], &rest[end..])).unwrap();
+    let out = kerf(&[
+        "plan",
+        "--config",
+        config.to_str().unwrap(),
+        program.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains(": error: missing table [axes.z]"),
+        "{}",
+        stderr(&out)
+    );
+}
