@@ -93,14 +93,13 @@ impl Output {
             temporary,
             target,
         } = &mut self.sink
+            && let Some(file) = out.take()
         {
-            if let Some(file) = out.take() {
-                let file = file.into_inner().map_err(|e| e.into_error());
-                let synced = file.and_then(|f| f.sync_all());
-                if let Err(e) = synced.and_then(|()| std::fs::rename(&*temporary, &*target)) {
-                    let _ = std::fs::remove_file(&*temporary);
-                    return Err(Failure::Error(format!("{}: error: {e}", self.name)));
-                }
+            let file = file.into_inner().map_err(|e| e.into_error());
+            let synced = file.and_then(|f| f.sync_all());
+            if let Err(e) = synced.and_then(|()| std::fs::rename(&*temporary, &*target)) {
+                let _ = std::fs::remove_file(&*temporary);
+                return Err(Failure::Error(format!("{}: error: {e}", self.name)));
             }
         }
         Ok(())
