@@ -157,8 +157,8 @@ pub fn record(args: &RecordArgs) -> Result<(), Failure> {
     let rotary = status.axes_mask & 0b111_000 != 0;
     let mut reader =
         SetpointReader::open(client.node(), &config.machine).map_err(client_failure)?;
-    // Written beside `--out` and renamed there at the end (`-`: standard output).
-    let mut out = Output::create(&args.out)?;
+    // Written as it goes, so that it can be watched (`-`: standard output).
+    let mut out = Output::create_live(&args.out)?;
     let name = out.name.clone();
     let to_stdout = out.is_stdout();
     let write_error = |e: io::Error| {

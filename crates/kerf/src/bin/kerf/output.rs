@@ -1,10 +1,11 @@
 //! Output files that a failed command never destroys.
 //!
 //! Every file a command writes (the CSV and plot of `kerf sim`, the recording of `kerf run
-//! --record` and `kerf record --out`) is written to a temporary file beside its target and
+//! --record`) is written to a temporary file beside its target and
 //! renamed over the target only when the command succeeds ([`Output::commit`]). A command
 //! that fails drops the output instead: the temporary file is removed and an existing
-//! target is left as it was. The name `-` means standard output.
+//! target is left as it was. The name `-` means standard output. `kerf record --out`, a
+//! recorder that runs until stopped, writes its file as it goes ([`Output::create_live`]).
 
 use std::ffi::OsStr;
 use std::fs::File;
@@ -21,6 +22,8 @@ pub fn is_stdout(path: &Path) -> bool {
 /// Where an output goes while it is written.
 enum Sink {
     Stdout(BufWriter<io::Stdout>),
+    /// The target itself, written as it goes ([`Output::create_live`]).
+    Live(BufWriter<File>),
     /// The temporary file beside the target; `None` once committed.
     File {
         out: Option<BufWriter<File>>,
@@ -72,6 +75,23 @@ impl Output {
         })
     }
 
+    /// Starts the output `path` (`-`: standard output) by creating it at once and writing
+    /// it as rows come: for `kerf record`, which runs until it is stopped and whose file is
+    /// watched while it grows. It opens the file only once the daemon has answered, so a
+    /// record that cannot start leaves an existing file alone.
+    pub fn create_live(path: &Path) -> Result<Output, Failure> {
+        if is_stdout(path) {
+            return Output::create(path);
+        }
+        let name = path.display().to_string();
+        let file = File::create(path)
+            .map_err(|e| Failure::Error(format!("{name}: error: cannot create: {e}")))?;
+        Ok(Output {
+            sink: Sink::Live(BufWriter::new(file)),
+            name,
+        })
+    }
+
     /// `true` when the output is standard output.
     pub fn is_stdout(&self) -> bool {
         matches!(self.sink, Sink::Stdout(_))
@@ -110,6 +130,7 @@ impl Write for Output {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
         match &mut self.sink {
             Sink::Stdout(out) => out.write(buf),
+            Sink::Live(out) => out.write(buf),
             Sink::File { out: Some(out), .. } => out.write(buf),
             Sink::File { out: None, .. } => Err(io::Error::other("output already committed")),
         }
@@ -118,6 +139,7 @@ impl Write for Output {
     fn write_all(&mut self, buf: &[u8]) -> io::Result<()> {
         match &mut self.sink {
             Sink::Stdout(out) => out.write_all(buf),
+            Sink::Live(out) => out.write_all(buf),
             Sink::File { out: Some(out), .. } => out.write_all(buf),
             Sink::File { out: None, .. } => Err(io::Error::other("output already committed")),
         }
@@ -126,6 +148,7 @@ impl Write for Output {
     fn flush(&mut self) -> io::Result<()> {
         match &mut self.sink {
             Sink::Stdout(out) => out.flush(),
+            Sink::Live(out) => out.flush(),
             Sink::File { out: Some(out), .. } => out.flush(),
             Sink::File { out: None, .. } => Ok(()),
         }
