@@ -516,14 +516,18 @@ impl Dialect {
         }
     }
 
-    /// By extension where unambiguous: `.ngc` is LinuxCNC, `.mpf`/`.spf` Sinumerik, and
-    /// `.h`/`.i` Heidenhain only if `head` (the first bytes of the file) looks like TNC ISO.
-    /// Otherwise `None`: the caller falls back to the config, then LinuxCNC.
+    /// By extension where unambiguous, as each control's own tools name their programs:
+    /// `.ngc` is LinuxCNC, `.mpf`/`.spf` Sinumerik (main program, subprogram), `.pim`
+    /// Fagor (8060/8070 milling program), and `.h`/`.i` Heidenhain only if `head` (the
+    /// first bytes of the file) looks like TNC ISO. Extensions several controls use (`.nc`,
+    /// `.tap`, `.cnc`, ...) decide nothing. Otherwise `None`: the caller falls back to the
+    /// config, then LinuxCNC.
     pub fn from_path(path: &std::path::Path, head: &[u8]) -> Option<Dialect> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         match ext.as_str() {
             "ngc" => Some(Dialect::LinuxCnc),
             "mpf" | "spf" => Some(Dialect::Sinumerik),
+            "pim" => Some(Dialect::Fagor),
             "h" | "i" if looks_like_tnc_iso(head) => Some(Dialect::Heidenhain),
             _ => None,
         }

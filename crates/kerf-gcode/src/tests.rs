@@ -461,6 +461,12 @@ fn dialect_names_and_paths() {
         None
     );
     assert_eq!(Dialect::from_path(FsPath::new("a.nc"), b"G0 X1"), None);
+    // Fagor's milling programs, whatever their first bytes.
+    assert_eq!(
+        Dialect::from_path(FsPath::new("pocket.PIM"), b"G71 G90\n"),
+        Some(Dialect::Fagor)
+    );
+    assert_eq!(Dialect::from_path(FsPath::new("a.tap"), b"G0 X1"), None);
     assert_eq!(
         Dialect::from_path(FsPath::new("a.h"), b"/**\n * A C header.\n */\n"),
         None

@@ -508,7 +508,7 @@ impl Config {
         let raw: RawConfig = toml::from_str(text).map_err(|e| ConfigError::Invalid {
             origin: origin.to_string(),
             position: e.span().map(|s| position_of(text, s.start)),
-            message: e.message().trim_end().to_string(),
+            message: in_file_terms(text, &e),
         })?;
         let check = Checker { text, origin, dir };
         check.config(raw)
@@ -701,6 +701,249 @@ fn position_of(text: &str, offset: usize) -> TextPosition {
         line: u32::try_from(line).unwrap_or(u32::MAX),
         col: u32::try_from(col).unwrap_or(u32::MAX),
     }
+}
+
+// serde's messages in the file's terms. The raw layout below is read by serde, whose
+// messages speak Rust (`invalid type: floating point `1.5`, expected i64`, `missing field
+// `z``). Every such message is translated here, for every key alike: the key is found from
+// the error's place in the text, the expected value is said in words with the unit its key
+// name carries, and the value found is quoted as written in the file.
+
+/// `error`'s message in the file's terms.
+fn in_file_terms(text: &str, error: &toml::de::Error) -> String {
+    let message = error.message().trim_end();
+    let Some(span) = error.span() else {
+        return message.to_string();
+    };
+    let written = text
+        .get(span.clone())
+        .and_then(|v| v.lines().next())
+        .map(|v| v.trim())
+        .unwrap_or("");
+    let written = if written.chars().count() > 40 {
+        format!("{}...", written.chars().take(40).collect::<String>())
+    } else {
+        written.to_string()
+    };
+    if let Some(field) = between(message, "missing field `", "`") {
+        // The span is the table the key is missing from.
+        let key = join(&table_path_of(text, &span), field);
+        return if TABLES.contains(&generic(&key).as_str()) {
+            format!("missing table [{key}]")
+        } else {
+            format!("missing key `{key}`")
+        };
+    }
+    if let Some(field) = between(message, "unknown field `", "`") {
+        let key = key_path_at(text, span.start).unwrap_or_else(|| field.to_string());
+        let expected = message
+            .split_once(", expected ")
+            .map(|(_, keys)| format!(" (known here: {})", keys.trim_start_matches("one of ")))
+            .unwrap_or_default();
+        return format!("unknown key `{key}`{expected}");
+    }
+    let expected = message
+        .strip_prefix("invalid type: ")
+        .or_else(|| message.strip_prefix("invalid value: "))
+        .and_then(|m| m.split_once(", expected "))
+        .map(|(_, expected)| expected);
+    match (expected, key_path_at(text, span.start)) {
+        (Some(expected), Some(key)) => {
+            format!(
+                "`{key}` must be {}, found {written}",
+                expected_in_words(expected, &key)
+            )
+        }
+        (None, Some(key)) => format!("`{key}`: {message}"),
+        (_, None) => message.to_string(),
+    }
+}
+
+/// The keys whose values are tables, with `*` for the rotary or linear axis name.
+const TABLES: [&str; 9] = [
+    "axes",
+    "axes.x",
+    "axes.y",
+    "axes.z",
+    "axes.*.drive",
+    "daemon",
+    "gcode",
+    "work_offsets",
+    "safety",
+];
+
+/// `key` with an axis table's name replaced by `*` when it is below it (`axes.x.drive`
+/// becomes `axes.*.drive`).
+fn generic(key: &str) -> String {
+    let parts: Vec<&str> = key.split('.').collect();
+    if parts.len() > 2 && parts[0] == "axes" {
+        let mut parts = parts;
+        parts[1] = "*";
+        return parts.join(".");
+    }
+    key.to_string()
+}
+
+fn join(path: &str, key: &str) -> String {
+    if path.is_empty() {
+        key.to_string()
+    } else {
+        format!("{path}.{key}")
+    }
+}
+
+/// The text between `start` and the next `end` after it, when `text` starts with `start`.
+fn between<'t>(text: &'t str, start: &str, end: &str) -> Option<&'t str> {
+    let rest = text.strip_prefix(start)?;
+    rest.split_once(end).map(|(inside, _)| inside)
+}
+
+/// serde's expectation (`i64`, `f64`, `a string`, `a boolean`, `a sequence`, ...) in words,
+/// with the unit the key's name ends with.
+fn expected_in_words(expected: &str, key: &str) -> String {
+    let last = key.rsplit('.').next().unwrap_or(key);
+    let unit = unit_of(last);
+    let integer = matches!(
+        expected,
+        "i8" | "i16" | "i32" | "i64" | "i128" | "u8" | "u16" | "u32" | "u64" | "u128" | "usize"
+    ) || expected.contains("integer");
+    if integer {
+        return match unit {
+            Some(unit) => format!("a whole number of {unit}"),
+            None => "a whole number".to_string(),
+        };
+    }
+    if matches!(expected, "f32" | "f64") || expected.contains("float") {
+        return match unit {
+            Some(unit) => format!("a number in {unit}"),
+            None => "a number".to_string(),
+        };
+    }
+    if expected.contains("string") {
+        return "a string in double quotes".to_string();
+    }
+    if expected.contains("bool") {
+        return "true or false".to_string();
+    }
+    if expected.contains("sequence") {
+        return match unit {
+            Some(unit) => format!("an array of numbers in {unit}, such as [0.0, 0.0, 0.0]"),
+            None => "an array in brackets, such as [\"a\", \"b\"]".to_string(),
+        };
+    }
+    if expected.contains("struct") || expected.contains("map") {
+        return format!("a table ([{key}])");
+    }
+    expected.to_string()
+}
+
+/// The unit a key name ends with, in words (`period_us`: microseconds).
+fn unit_of(key: &str) -> Option<&'static str> {
+    const UNITS: [(&str, &str); 16] = [
+        ("_mm_s3", "mm/s³"),
+        ("_mm_s2", "mm/s²"),
+        ("_mm_s", "mm/s"),
+        ("_deg_s3", "degrees/s³"),
+        ("_deg_s2", "degrees/s²"),
+        ("_deg_s", "degrees/s"),
+        ("_counts_s2", "counts/s²"),
+        ("_mm_deg", "mm (degrees for A, B, C)"),
+        ("_counts", "counts"),
+        ("_cycles", "cycles"),
+        ("_seconds", "seconds"),
+        ("_us", "microseconds"),
+        ("_ms", "milliseconds"),
+        ("_hz", "Hz"),
+        ("_mm", "mm"),
+        ("_deg", "degrees"),
+    ];
+    UNITS
+        .iter()
+        .find(|(suffix, _)| key.ends_with(suffix))
+        .map(|(_, unit)| *unit)
+}
+
+/// The dotted key (`axes.x.velocity_mm_s`, `tools[1].number`) whose key or value holds the
+/// byte at `at`, the one with the shortest such span; `None` when the text does not parse.
+///
+/// A table opened by a header (`[axes.x]`) has the header as its span, not its keys, so
+/// every key of the file is looked at, not only those inside a span that holds `at`.
+fn key_path_at(text: &str, at: usize) -> Option<String> {
+    fn visit(
+        value: &toml::de::DeValue<'_>,
+        path: &str,
+        at: usize,
+        best: &mut Option<(usize, String)>,
+    ) {
+        fn consider(
+            span: std::ops::Range<usize>,
+            path: &str,
+            at: usize,
+            best: &mut Option<(usize, String)>,
+        ) {
+            if span.contains(&at) && best.as_ref().is_none_or(|(len, _)| span.len() < *len) {
+                *best = Some((span.len(), path.to_string()));
+            }
+        }
+        match value {
+            toml::de::DeValue::Table(table) => {
+                for (key, value) in table.iter() {
+                    let here = join(path, key.get_ref());
+                    consider(key.span(), &here, at, best);
+                    consider(value.span(), &here, at, best);
+                    visit(value.get_ref(), &here, at, best);
+                }
+            }
+            toml::de::DeValue::Array(items) => {
+                for (i, item) in items.iter().enumerate() {
+                    let here = format!("{path}[{i}]");
+                    consider(item.span(), &here, at, best);
+                    visit(item.get_ref(), &here, at, best);
+                }
+            }
+            _ => {}
+        }
+    }
+    let root = toml::de::DeTable::parse(text).ok()?;
+    let mut best = None;
+    visit(
+        &toml::de::DeValue::Table(root.into_inner()),
+        "",
+        at,
+        &mut best,
+    );
+    best.map(|(_, path)| path)
+}
+
+/// The dotted name of the table whose span is `span` (the top level: empty).
+fn table_path_of(text: &str, span: &std::ops::Range<usize>) -> String {
+    fn find(
+        value: &toml::de::DeValue<'_>,
+        span: &std::ops::Range<usize>,
+        path: &str,
+    ) -> Option<String> {
+        match value {
+            toml::de::DeValue::Table(table) => table.iter().find_map(|(key, value)| {
+                let here = join(path, key.get_ref());
+                if value.span() == *span && matches!(value.get_ref(), toml::de::DeValue::Table(_)) {
+                    return Some(here);
+                }
+                find(value.get_ref(), span, &here)
+            }),
+            toml::de::DeValue::Array(items) => items.iter().enumerate().find_map(|(i, item)| {
+                let here = format!("{path}[{i}]");
+                if item.span() == *span {
+                    return Some(here);
+                }
+                find(item.get_ref(), span, &here)
+            }),
+            _ => None,
+        }
+    }
+    toml::de::DeTable::parse(text)
+        .ok()
+        .and_then(|root| find(&toml::de::DeValue::Table(root.into_inner()), span, ""))
+        .unwrap_or_default()
 }
 
 // The raw file layout. Values that are range-checked are `Spanned` so that the error can
@@ -1674,14 +1917,181 @@ max_mm = 10.0
     fn unknown_axis_table_is_named() {
         let text = format!("{MINIMAL}[axes.u]\nvelocity_mm_s = 1.0\n");
         let e = err(&text);
-        assert!(e.contains("`u`"), "{e}");
+        assert!(e.contains("unknown key `axes.u`"), "{e}");
+    }
+
+    /// Every key of the file, each in its table (the values are valid).
+    const EVERY_KEY: &str = r#"machine = "m1"
+dialect = "fagor"
+period_us = 1000
+tolerance_mm = 0.01
+[axes.x]
+velocity_mm_s = 100.0
+acceleration_mm_s2 = 1000.0
+jerk_mm_s3 = 10000.0
+min_mm = -10.0
+max_mm = 10.0
+ferror_mm = 1.0
+min_ferror_mm = 0.1
+[axes.x.drive]
+kind = "sim"
+counts_per_mm = 1000.0
+direction = 1
+bandwidth_hz = 50.0
+damping = 1.0
+velocity_feed_forward = 1.0
+substeps = 20
+overcurrent_accel_counts_s2 = 1e9
+quick_stop_decel_counts_s2 = 1e6
+following_error_window_counts = 1000
+enable_timeout_ms = 100
+[axes.y]
+velocity_mm_s = 100.0
+acceleration_mm_s2 = 1000.0
+jerk_mm_s3 = 10000.0
+min_mm = -10.0
+max_mm = 10.0
+[axes.z]
+velocity_mm_s = 100.0
+acceleration_mm_s2 = 1000.0
+jerk_mm_s3 = 10000.0
+min_mm = -10.0
+max_mm = 10.0
+[axes.c]
+velocity_deg_s = 360.0
+acceleration_deg_s2 = 3600.0
+jerk_deg_s3 = 90000.0
+min_deg = -720.0
+max_deg = 720.0
+ferror_deg = 1.0
+min_ferror_deg = 0.1
+[axes.c.drive]
+counts_per_deg = 100.0
+[safety]
+margin = 0.05
+stall_cycles = 100
+recorder_seconds = 1.0
+[daemon]
+priority = 80
+cpu = 1
+queue_segments = 4096
+move_window = 1024
+[gcode]
+arc_tolerance_mm = 0.02
+arc_tolerance_rel = 0.001
+subroutine_path = ["subs"]
+max_loop_iterations = 1000
+block_delete = true
+g28_home_mm_deg = [0.0, 0.0, 0.0]
+g30_home_mm_deg = [0.0, 0.0, 0.0]
+[work_offsets]
+g54 = [0.0, 0.0, 0.0]
+g55 = [0.0, 0.0, 0.0]
+g56 = [0.0, 0.0, 0.0]
+g57 = [0.0, 0.0, 0.0]
+g58 = [0.0, 0.0, 0.0]
+g59 = [0.0, 0.0, 0.0]
+g59_1 = [0.0, 0.0, 0.0]
+g59_2 = [0.0, 0.0, 0.0]
+g59_3 = [0.0, 0.0, 0.0]
+[[tools]]
+number = 1
+length_mm = 0.0
+radius_mm = 0.0
+"#;
+
+    /// A value of every key replaced by one of a wrong type is refused naming the key, in
+    /// words and units, with the value as written, at the value's place; never in serde's
+    /// Rust terms.
+    #[test]
+    fn every_type_error_names_the_key_and_the_expected_value_in_the_files_terms() {
+        Config::from_toml_str(EVERY_KEY, "m.toml").expect("EVERY_KEY is valid");
+        let mut table = String::new();
+        let mut checked = 0;
+        for (i, line) in EVERY_KEY.lines().enumerate() {
+            if let Some(header) = line.strip_prefix("[[").and_then(|l| l.strip_suffix("]]")) {
+                table = format!("{header}[0].");
+                continue;
+            }
+            if let Some(header) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
+                table = format!("{header}.");
+                continue;
+            }
+            let Some((key, value)) = line.split_once(" = ") else {
+                continue;
+            };
+            let wrong = if value.starts_with('"') || value.starts_with('[') {
+                "1.5"
+            } else if value == "true" {
+                "1"
+            } else {
+                "\"1.5\""
+            };
+            let wrong_line = format!("{key} = {wrong}");
+            let text: Vec<&str> = EVERY_KEY
+                .lines()
+                .enumerate()
+                .map(|(j, l)| if j == i { wrong_line.as_str() } else { l })
+                .collect();
+            let text = text.join("\n");
+            let e = err(&text);
+            let place = format!("m.toml:{}:{}: error: ", i + 1, key.len() + 4);
+            let expected = format!("{place}`{table}{key}` must be ");
+            assert!(e.starts_with(&expected), "{key} = {wrong}: {e}");
+            assert!(
+                e.ends_with(&format!(", found {wrong}")),
+                "{key} = {wrong}: {e}"
+            );
+            for rust in [
+                "invalid type",
+                "expected",
+                "i64",
+                "f64",
+                "sequence",
+                "field",
+            ] {
+                assert!(!e.contains(rust), "{key} = {wrong}: {e}");
+            }
+            checked += 1;
+        }
+        // 4 top-level keys, 7 + 11 of X and its drive, 5 of Y, 5 of Z, 7 + 1 of C and its
+        // drive, 3 of [safety], 4 of [daemon], 7 of [gcode], 9 work offsets, 3 of a tool.
+        assert_eq!(checked, 66);
+        // The messages of some keys in full: the unit comes from the key's name.
+        let e = err(&EVERY_KEY.replacen("period_us = 1000", "period_us = 1.5", 1));
+        assert_eq!(
+            e,
+            "m.toml:3:13: error: `period_us` must be a whole number of microseconds, found 1.5"
+        );
+        let e = err(&EVERY_KEY.replacen("jerk_deg_s3 = 90000.0", "jerk_deg_s3 = \"fast\"", 1));
+        assert!(
+            e.ends_with("`axes.c.jerk_deg_s3` must be a number in degrees/s³, found \"fast\""),
+            "{e}"
+        );
+        let e = err(&EVERY_KEY.replacen("block_delete = true", "block_delete = 1", 1));
+        assert!(
+            e.ends_with("`gcode.block_delete` must be true or false, found 1"),
+            "{e}"
+        );
+        let e = err(&EVERY_KEY.replacen("machine = \"m1\"", "machine = m1", 1));
+        assert!(e.contains("error: "), "a syntax error stays one: {e}");
+    }
+
+    #[test]
+    fn missing_keys_and_tables_are_named_with_their_table() {
+        let e = err(&EVERY_KEY.replacen("max_mm = 10.0\nferror_mm", "ferror_mm", 1));
+        assert_eq!(e, "m.toml:5:1: error: missing key `axes.x.max_mm`");
+        let e = err("period_us = 1000\n");
+        assert_eq!(e, "m.toml:1:1: error: missing table [axes]");
+        let e = err(&format!("{MINIMAL}[[tools]]\nlength_mm = 1.0\n"));
+        assert!(e.ends_with("error: missing key `tools[0].number`"), "{e}");
     }
 
     #[test]
     fn missing_required_axis_is_reported() {
         let text = MINIMAL.split("[axes.z]").next().unwrap();
         let e = err(text);
-        assert!(e.contains("missing field `z`"), "{e}");
+        assert!(e.contains("error: missing table [axes.z]"), "{e}");
     }
 
     #[test]
@@ -2291,7 +2701,7 @@ max_mm = 10.0
             ("max_loop_iterations = 0", "gcode.max_loop_iterations"),
             ("g28_home_mm_deg = [1, 2]", "gcode.g28_home_mm_deg"),
             ("g30_home_mm_deg = [1, 2, 3, 4]", "gcode.g30_home_mm_deg"),
-            ("g28_home = [1, 2, 3]", "unknown field `g28_home`"),
+            ("g28_home = [1, 2, 3]", "unknown key `gcode.g28_home`"),
         ] {
             let e = err(&format!("{MINIMAL}[gcode]\n{extra}\n"));
             assert!(e.contains(key), "{extra}: {e}");
@@ -2575,19 +2985,19 @@ max_mm = 10.0
         );
         // Unknown keys, in each new table.
         for (extra, key) in [
-            ("[axes.x.drive]\nbandwidth = 10.0\n", "bandwidth"),
-            ("[axes.y.drive]\ninertia = 1.0\n", "inertia"),
-            ("[safety]\nmargin_percent = 5\n", "margin_percent"),
-            ("[safety]\nferror_mm = 1.0\n", "ferror_mm"),
+            (
+                "[axes.x.drive]\nbandwidth = 10.0\n",
+                "axes.x.drive.bandwidth",
+            ),
+            ("[axes.y.drive]\ninertia = 1.0\n", "axes.y.drive.inertia"),
+            ("[safety]\nmargin_percent = 5\n", "safety.margin_percent"),
+            ("[safety]\nferror_mm = 1.0\n", "safety.ferror_mm"),
         ] {
             let e = err(&format!("{MINIMAL}{extra}"));
-            assert!(
-                e.contains(&format!("unknown field `{key}`")),
-                "{extra}: {e}"
-            );
+            assert!(e.contains(&format!("unknown key `{key}`")), "{extra}: {e}");
         }
         let e = err(&MINIMAL.replacen("max_mm = 10.0\n", "max_mm = 10.0\nferror = 1.0\n", 1));
-        assert!(e.contains("unknown field `ferror`"), "{e}");
+        assert!(e.contains("unknown key `axes.x.ferror`"), "{e}");
         // The scale key of the other kind of axis.
         let e = err(&format!(
             "{MINIMAL}[axes.z.drive]\ncounts_per_deg = 100.0\n"
@@ -2605,7 +3015,7 @@ max_mm = 10.0
             "{e}"
         );
         let e = err(&format!("{MINIMAL}{c_axis}ferror_mm = 1.0\n"));
-        assert!(e.contains("unknown field `ferror_mm`"), "{e}");
+        assert!(e.contains("unknown key `axes.c.ferror_mm`"), "{e}");
         // A travel that does not fit in 32-bit counts: ±10 mm at 3e8 counts/mm.
         let e = err(&format!("{MINIMAL}[axes.x.drive]\ncounts_per_mm = 3e8\n"));
         assert!(e.starts_with("m.toml:21:17: error: `axes.x.drive.counts_per_mm` = 3e8 puts the travel limit 10 mm at 3e9 counts"), "{e}");

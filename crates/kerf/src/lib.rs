@@ -28,4 +28,7 @@ pub mod tooltable;
 pub mod travel;
 
 pub use config::{Config, ConfigError};
-pub use plan::{PlanError, choose_dialect, plan};
+pub use plan::{
+    DialectSource, PlanError, assumed_dialect_note, choose_dialect, choose_dialect_from, plan,
+    plan_counted,
+};

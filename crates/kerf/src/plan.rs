@@ -86,6 +86,25 @@ pub fn plan<R: BufRead + Send, W: Write>(
     dialect: Dialect,
     settings: Settings,
 ) -> Result<u64, PlanError> {
+    plan_counted(reader, writer, dialect, settings).map(|written| written.items)
+}
+
+/// What [`plan_counted`] wrote.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Written {
+    /// Items (moves and events).
+    pub items: u64,
+    /// Moves only: 0 for a program without motion.
+    pub moves: u64,
+}
+
+/// [`plan`], returning the number of items and of moves written.
+pub fn plan_counted<R: BufRead + Send, W: Write>(
+    reader: R,
+    writer: W,
+    dialect: Dialect,
+    settings: Settings,
+) -> Result<Written, PlanError> {
     let (to_writer, from_interpreter) = mpsc::sync_channel::<Batch>(QUEUE_BATCHES);
     std::thread::scope(|scope| {
         let interpreter = scope.spawn(move || {
@@ -126,7 +145,7 @@ pub fn plan_sequential<R: BufRead, W: Write>(
     dialect: Dialect,
     settings: Settings,
 ) -> Result<u64, PlanError> {
-    write_items(Interpreter::new(reader, dialect, settings), writer)
+    write_items(Interpreter::new(reader, dialect, settings), writer).map(|written| written.items)
 }
 
 /// Items handed from the interpreter thread to the writer in one go.
@@ -139,16 +158,17 @@ const BATCH_ITEMS: usize = 1024;
 const QUEUE_BATCHES: usize = 4;
 
 /// Writes items until the first error, then flushes; returns the number of items written.
-fn write_items<I, W>(items: I, mut writer: W) -> Result<u64, PlanError>
+fn write_items<I, W>(items: I, mut writer: W) -> Result<Written, PlanError>
 where
     I: IntoIterator<Item = Result<Item, Diagnostic>>,
     W: Write,
 {
     let mut buf: Vec<u8> = Vec::with_capacity(CHUNK_BYTES + 1024);
     let mut json = JsonLines::new();
-    let mut count: u64 = 0;
+    let mut count = Written::default();
     let mut failure: Option<PlanError> = None;
     for item in items {
+        let is_move = matches!(item, Ok(Item::Move(_)));
         let written = match item {
             Ok(item) => json.write(&mut buf, &item),
             Err(diagnostic) => Err(PlanError::Program(diagnostic)),
@@ -157,7 +177,8 @@ where
             failure = Some(e);
             break;
         }
-        count += 1;
+        count.items += 1;
+        count.moves += u64::from(is_move);
         if buf.len() >= CHUNK_BYTES {
             writer.write_all(&buf)?;
             buf.clear();
@@ -404,8 +425,9 @@ impl JsonWriter<'_> {
 /// The rule, most specific first:
 /// 1. `--dialect` on the command line;
 /// 2. the program file's extension where it names one control unambiguously (`.ngc`
-///    LinuxCNC, `.mpf`/`.spf` Sinumerik, `.h`/`.i` Heidenhain when the file is ISO), judged
-///    by [`Dialect::from_path`] from the path and the first bytes of the file;
+///    LinuxCNC, `.mpf`/`.spf` Sinumerik, `.pim` Fagor, `.h`/`.i` Heidenhain when the file
+///    is ISO), judged by [`Dialect::from_path`] from the path and the first bytes of the
+///    file;
 /// 3. the configuration's `dialect` (the machine's own control);
 /// 4. LinuxCNC.
 ///
@@ -418,10 +440,49 @@ pub fn choose_dialect(
     program: Option<(&std::path::Path, &[u8])>,
     config: Option<Dialect>,
 ) -> Dialect {
-    command_line
-        .or_else(|| program.and_then(|(path, head)| Dialect::from_path(path, head)))
-        .or(config)
-        .unwrap_or(Dialect::LinuxCnc)
+    choose_dialect_from(command_line, program, config).0
+}
+
+/// Which rule of [`choose_dialect`] chose a program's dialect.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DialectSource {
+    /// `--dialect` on the command line.
+    CommandLine,
+    /// The program file's extension.
+    Extension,
+    /// The configuration's `dialect`.
+    Config,
+    /// Nothing chose one: LinuxCNC, the default.
+    Default,
+}
+
+/// [`choose_dialect`], with the rule that chose: a program that fails in a dialect nobody
+/// chose gets a note saying which one was assumed and how to choose another
+/// ([`assumed_dialect_note`]).
+pub fn choose_dialect_from(
+    command_line: Option<Dialect>,
+    program: Option<(&std::path::Path, &[u8])>,
+    config: Option<Dialect>,
+) -> (Dialect, DialectSource) {
+    if let Some(d) = command_line {
+        (d, DialectSource::CommandLine)
+    } else if let Some(d) = program.and_then(|(path, head)| Dialect::from_path(path, head)) {
+        (d, DialectSource::Extension)
+    } else if let Some(d) = config {
+        (d, DialectSource::Config)
+    } else {
+        (Dialect::LinuxCnc, DialectSource::Default)
+    }
+}
+
+/// The line added under an error in a program whose dialect was assumed by default.
+pub fn assumed_dialect_note(dialect: Dialect) -> String {
+    let known: Vec<&str> = Dialect::ALL.iter().map(|d| d.name()).collect();
+    format!(
+        "note: read as {} (the default); choose another with --dialect D ({}) or `dialect` in the configuration",
+        dialect.name(),
+        known.join(", ")
+    )
 }
 
 #[cfg(test)]

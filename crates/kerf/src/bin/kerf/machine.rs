@@ -1,8 +1,7 @@
 //! The commands that talk to a machine's daemon: `kerf run`, `status`, `hold`, `resume`,
 //! `abort`, `override` and `record`.
 
-use std::fs::File;
-use std::io::{self, BufWriter, Write};
+use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -19,6 +18,7 @@ use kerf_proto::{
     StatusMsg,
 };
 
+use crate::output::Output;
 use crate::{Failure, ProgramArgs, SimSource, check_program, load_config};
 
 /// How often `kerf run` asks for the status while it waits.
@@ -66,7 +66,7 @@ pub struct OverrideArgs {
     #[command(flatten)]
     pub machine: MachineArgs,
     /// Feed override in percent, 0 to 200 (0 stops on the path until raised again).
-    #[arg(value_name = "PCT", value_parser = parse_live_override, allow_negative_numbers = true)]
+    #[arg(value_name = "PCT", value_parser = parse_live_override, allow_hyphen_values = true)]
     pub percent: f64,
 }
 
@@ -208,11 +208,17 @@ pub fn record(args: &RecordArgs) -> Result<(), Failure> {
     let rotary = status.axes_mask & 0b111_000 != 0;
     let mut reader =
         SetpointReader::open(client.node(), &config.machine).map_err(client_failure)?;
-    let file = File::create(&args.out).map_err(|e| {
-        Failure::Error(format!("{}: error: cannot create: {e}", args.out.display()))
-    })?;
-    let mut out = BufWriter::new(file);
-    let write_error = |e: io::Error| Failure::Error(format!("{}: error: {e}", args.out.display()));
+    // Written as it goes, so that it can be watched (`-`: standard output).
+    let mut out = Output::create_live(&args.out)?;
+    let name = out.name.clone();
+    let to_stdout = out.is_stdout();
+    let write_error = |e: io::Error| {
+        if to_stdout {
+            Failure::from(e)
+        } else {
+            Failure::Error(format!("{name}: error: {e}"))
+        }
+    };
     writeln!(out, "{}", csv_header(rotary)).map_err(write_error)?;
     let period_s = status.period_ns as f64 * 1e-9;
     let mut first: Option<u64> = None;
@@ -236,13 +242,13 @@ pub fn record(args: &RecordArgs) -> Result<(), Failure> {
             return Err(write_error(e));
         }
         if let Err(e) = result {
-            out.flush().map_err(write_error)?;
+            // What was recorded before the daemon went away is kept.
+            out.commit()?;
             return Err(client_failure(e));
         }
         std::thread::sleep(Duration::from_millis(1));
     }
-    out.flush().map_err(write_error)?;
-    Ok(())
+    out.commit()
 }
 
 fn setpoint_of(m: &SetpointMsg) -> Setpoint {
@@ -258,20 +264,16 @@ fn setpoint_of(m: &SetpointMsg) -> Setpoint {
 /// The program's rows of the setpoint stream as `kerf sim` writes them: the row at t = 0
 /// at the start position, then one per cycle of the program.
 struct Recording {
-    out: BufWriter<File>,
-    path: PathBuf,
+    out: Output,
     rotary: bool,
     period_s: f64,
 }
 
 impl Recording {
     fn create(path: &Path, rotary: bool, period_s: f64, start: [f64; 6]) -> Result<Self, Failure> {
-        let file = File::create(path).map_err(|e| {
-            Failure::Error(format!("{}: error: cannot create: {e}", path.display()))
-        })?;
+        // Written beside `path` and renamed there when the program has run to its end.
         let mut r = Recording {
-            out: BufWriter::new(file),
-            path: path.to_path_buf(),
+            out: Output::create(path)?,
             rotary,
             period_s,
         };
@@ -285,7 +287,7 @@ impl Recording {
     }
 
     fn error(&self, e: io::Error) -> Failure {
-        Failure::Error(format!("{}: error: {e}", self.path.display()))
+        self.out.error(e)
     }
 
     fn row(&mut self, m: &SetpointMsg) -> Result<(), Failure> {
@@ -293,8 +295,8 @@ impl Recording {
         write_row(&mut self.out, t, &setpoint_of(m), self.rotary).map_err(|e| self.error(e))
     }
 
-    fn finish(mut self) -> Result<(), Failure> {
-        self.out.flush().map_err(|e| self.error(e))
+    fn finish(self) -> Result<(), Failure> {
+        self.out.commit()
     }
 }
 
@@ -510,6 +512,9 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
                         path.display()
                     ))
                 })?;
+            }
+            if scan.moves == 0 {
+                writeln!(io::stderr().lock(), "note: no motion in {name}")?;
             }
             return Ok(());
         }

@@ -2,11 +2,13 @@
 //!
 //! Exit codes: 0 on success (and when the reader of our standard output goes away, as other
 //! Unix filters do), 2 on any error. Every error is one line on standard error in the form
-//! `FILE:LINE:COL: error: MESSAGE` or `FILE: error: MESSAGE`.
+//! `FILE:LINE:COL: error: MESSAGE` or `FILE: error: MESSAGE`, in a program sometimes
+//! followed by `note:` lines (the subroutine calls that led there; the dialect, when it was
+//! assumed by default).
 
 use std::ffi::OsStr;
 use std::fs::File;
-use std::io::{self, BufRead, BufReader, BufWriter, Write};
+use std::io::{self, BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -15,11 +17,14 @@ use std::time::{Duration, Instant};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressFinish, ProgressStyle};
 use kerf::sim::{Prepass, PrepassError, SimError, SimOptions};
-use kerf::{Config, PlanError, choose_dialect};
+use kerf::{Config, DialectSource, PlanError, assumed_dialect_note, choose_dialect_from};
 use kerf_gcode::{Dialect, Interpreter, Item};
 use kerf_pipeline::Input;
 
 mod machine;
+mod output;
+
+use output::Output;
 
 /// Read buffer for program files: large enough that a 1 GB program costs few system calls,
 /// small enough to keep the resident set tiny.
@@ -112,7 +117,7 @@ struct SimArgs {
         value_name = "PCT",
         default_value_t = 100.0,
         value_parser = parse_override,
-        allow_negative_numbers = true
+        allow_hyphen_values = true
     )]
     override_pct: f64,
     /// Where to write the CSV: `t,x,y,z` (then `a,b,c` when used), `line`, `feed_mm_s`.
@@ -215,9 +220,14 @@ fn main() -> ExitCode {
 }
 
 pub fn load_config(path: Option<&Path>) -> Result<Config, Failure> {
-    kerf::config::load_default(path)
-        .map(|(config, _)| config)
-        .map_err(|e| Failure::Error(e.to_string()))
+    let (mut config, origin) =
+        kerf::config::load_default(path).map_err(|e| Failure::Error(e.to_string()))?;
+    // The bundled example names LinuxCNC, the default anyway: nobody chose it for this
+    // machine, so a program that fails in it gets the note on how to choose another.
+    if origin == kerf::config::BUILTIN_ORIGIN && config.dialect == Some(Dialect::LinuxCnc) {
+        config.dialect = None;
+    }
+    Ok(config)
 }
 
 /// The interpreter settings of a program run: the configuration's, with the numbered
@@ -234,6 +244,8 @@ struct Program {
     reader: Box<dyn BufRead + Send>,
     name: String,
     dialect: Dialect,
+    /// The dialect was nobody's choice (see [`with_dialect_note`]).
+    assumed: bool,
     /// The program's file (`None` for standard input): LinuxCNC subroutine files are
     /// looked for in its directory first.
     path: Option<PathBuf>,
@@ -263,10 +275,12 @@ fn open_program(args: &ProgramArgs, config: &Config) -> Result<Program, Failure>
     if args.program.as_os_str() == OsStr::new("-") {
         // `Stdin` rather than its lock: the interpreter may run on its own thread.
         let reader = BufReader::with_capacity(READ_BUFFER_BYTES, io::stdin());
+        let (dialect, source) = choose_dialect_from(args.dialect, None, config.dialect);
         return Ok(Program {
             reader: Box::new(reader),
             name: "<stdin>".to_string(),
-            dialect: choose_dialect(args.dialect, None, config.dialect),
+            dialect,
+            assumed: source == DialectSource::Default,
             path: None,
         });
     }
@@ -277,14 +291,15 @@ fn open_program(args: &ProgramArgs, config: &Config) -> Result<Program, Failure>
     let mut reader = BufReader::with_capacity(READ_BUFFER_BYTES, file);
     // The first bytes tell an ISO Heidenhain `.h` file from a conversational one; peeking
     // at the buffer leaves them in place for the interpreter.
-    let dialect = {
+    let (dialect, source) = {
         let head = reader.fill_buf().map_err(cannot_read)?;
-        choose_dialect(args.dialect, Some((&args.program, head)), config.dialect)
+        choose_dialect_from(args.dialect, Some((&args.program, head)), config.dialect)
     };
     Ok(Program {
         reader: Box::new(reader),
         name,
         dialect,
+        assumed: source == DialectSource::Default,
         path: Some(args.program.clone()),
     })
 }
@@ -324,11 +339,20 @@ fn run_plan(args: &PlanArgs) -> Result<(), Failure> {
         Some(path) => settings_for(settings, path),
         None => settings,
     };
-    match kerf::plan(program.reader, stdout, program.dialect, settings) {
+    match kerf::plan_counted(program.reader, stdout, program.dialect, settings) {
+        Ok(written) if written.moves == 0 => {
+            // Standard output stays JSON lines only.
+            writeln!(io::stderr().lock(), "note: no motion in {}", program.name)?;
+            Ok(())
+        }
         Ok(_) => Ok(()),
         Err(PlanError::Output(e)) => Err(e.into()),
         // A LinuxCNC subroutine error names its file and the calls that led there.
-        Err(PlanError::Program(d)) => Err(Failure::Error(d.render(&program.name))),
+        Err(PlanError::Program(d)) => Err(Failure::Error(with_dialect_note(
+            d.render(&program.name),
+            program.dialect,
+            program.assumed,
+        ))),
         // These carry their own `LINE:COL: error: ...`.
         Err(e @ PlanError::NonFinite { .. }) => {
             Err(Failure::Error(format!("{}:{e}", program.name)))
@@ -355,19 +379,21 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     let (checked, _) = check_program(&source, &config, settings.clone(), &options)?;
     let scan = checked.scan;
 
-    let create = |path: &Path| {
-        File::create(path)
-            .map_err(|e| Failure::Error(format!("{}: error: cannot create: {e}", path.display())))
-    };
-    let file = create(&args.out)?;
+    if args.plot.as_deref().is_some_and(output::is_stdout) && output::is_stdout(&args.out) {
+        return Err(Failure::Error(
+            "kerf: error: --out - and --plot - cannot both write to standard output".to_string(),
+        ));
+    }
+    // Both are written beside their targets and renamed there only when the run succeeds.
+    let file = Output::create(&args.out)?;
     let mut plot = match &args.plot {
-        Some(path) => Some(BufWriter::new(create(path)?)),
+        Some(path) => Some(Output::create(path)?),
         None => None,
     };
     // An output error is in the CSV or in the plot; both names are given when there are two.
-    let outputs = match &args.plot {
-        Some(plot) => format!("{}, {}", args.out.display(), plot.display()),
-        None => args.out.display().to_string(),
+    let outputs = match &plot {
+        Some(plot) => format!("{}, {}", file.name, plot.name),
+        None => file.name.clone(),
     };
     let mut out = ProgressWriter::new(file, scan.estimated_rows(&config));
 
@@ -419,19 +445,47 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
             )));
         }
         Ok(summary) => summary,
+        Err(SimError::Io(e)) if e.kind() == io::ErrorKind::BrokenPipe => {
+            return Err(Failure::BrokenPipe);
+        }
         Err(SimError::Io(e)) => return Err(Failure::Error(format!("{outputs}: error: {e}"))),
+        // The CSV up to and including the setpoint that broke the limit is the diagnosis:
+        // it replaces the target (the plot does not).
+        Err(e @ SimError::Fault { .. }) => {
+            out.inner.commit()?;
+            return Err(Failure::Error(format!("{name}: error: {e}")));
+        }
         Err(e) => return Err(Failure::Error(format!("{name}: error: {e}"))),
     };
-    if let Some(mut plot) = plot {
-        plot.flush()
-            .map_err(|e| Failure::Error(format!("{outputs}: error: {e}")))?;
-    }
     // Exit 0 means the program ran to its end: the last setpoint is its end point.
     scan.check_end(&summary.raw.last.position)
         .map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
-    let mut stdout = io::stdout().lock();
-    writeln!(stdout, "{summary}")?;
+    let csv_to_stdout = out.inner.is_stdout();
+    out.inner.commit()?;
+    if let Some(plot) = plot {
+        plot.commit()?;
+    }
+    if scan.moves == 0 {
+        writeln!(io::stderr().lock(), "note: no motion in {name}")?;
+    }
+    // Standard output carries the CSV with `--out -`: the summary goes to standard error.
+    if csv_to_stdout {
+        writeln!(io::stderr().lock(), "{summary}")?;
+    } else {
+        writeln!(io::stdout().lock(), "{summary}")?;
+    }
     Ok(())
+}
+
+/// `error` (a program's error, `FILE:LINE:COL: error: ...` first) with a second line
+/// saying which dialect was assumed and how to choose another, when nobody chose it (not
+/// `--dialect`, not the file's extension, not the configuration's `dialect`).
+fn with_dialect_note(error: String, dialect: Dialect, assumed: bool) -> String {
+    if assumed {
+        format!("{error}\n{}", assumed_dialect_note(dialect))
+    } else {
+        error
+    }
 }
 
 /// Pass 1 of `kerf sim` and `kerf run`: the whole program is resolved with `settings`,
@@ -482,7 +536,13 @@ pub fn check_program(
                     None => {}
                 }
             }
-            Err(diagnostic) => return Err(Failure::Error(diagnostic.render(name))),
+            Err(diagnostic) => {
+                return Err(Failure::Error(with_dialect_note(
+                    diagnostic.render(name),
+                    source.dialect,
+                    source.assumed_dialect,
+                )));
+            }
         }
     }
     let checked = prepass.finish().map_err(refused)?;
@@ -499,6 +559,8 @@ pub struct SimSource {
     path: PathBuf,
     pub name: String,
     pub dialect: Dialect,
+    /// The dialect was nobody's choice (see [`with_dialect_note`]).
+    pub assumed_dialect: bool,
     /// The spooled standard input, removed on drop.
     spool: Option<PathBuf>,
 }
@@ -508,10 +570,12 @@ impl SimSource {
         if args.program.as_os_str() == OsStr::new("-") {
             let name = "<stdin>".to_string();
             let path = spool(&name, &mut io::stdin().lock())?;
+            let (dialect, source) = choose_dialect_from(args.dialect, None, config.dialect);
             return Ok(SimSource {
                 path: path.clone(),
                 name,
-                dialect: choose_dialect(args.dialect, None, config.dialect),
+                dialect,
+                assumed_dialect: source == DialectSource::Default,
                 spool: Some(path),
             });
         }
@@ -522,9 +586,9 @@ impl SimSource {
         let regular = file.metadata().map_err(cannot_read)?.is_file();
         let mut reader = BufReader::with_capacity(READ_BUFFER_BYTES, file);
         // The first bytes tell an ISO Heidenhain `.h` file from a conversational one.
-        let dialect = {
+        let (dialect, source) = {
             let head = reader.fill_buf().map_err(cannot_read)?;
-            choose_dialect(args.dialect, Some((&args.program, head)), config.dialect)
+            choose_dialect_from(args.dialect, Some((&args.program, head)), config.dialect)
         };
         // A pipe or device (`<(...)`, `/dev/stdin`) cannot be read twice: copy it first.
         let spooled = if regular {
@@ -536,6 +600,7 @@ impl SimSource {
             path: spooled.clone().unwrap_or_else(|| args.program.clone()),
             name,
             dialect,
+            assumed_dialect: source == DialectSource::Default,
             spool: spooled,
         })
     }
