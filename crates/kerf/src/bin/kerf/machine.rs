@@ -87,7 +87,8 @@ pub struct RecordArgs {
 pub struct DumpArgs {
     #[command(flatten)]
     pub machine: MachineArgs,
-    /// Where to write the CSV (the columns are in docs/DRIVES.md, "Black-box recorder").
+    /// Where to write the CSV (the columns are in docs/DRIVES.md, "Black-box recorder");
+    /// `-` writes it to standard output.
     #[arg(long, value_name = "FILE.csv")]
     pub out: PathBuf,
 }
@@ -162,23 +163,16 @@ pub fn dump(args: &DumpArgs) -> Result<(), Failure> {
         return Err(Failure::Error(format!("kerf: error: {}", r.message())));
     }
     let written = PathBuf::from(r.message());
-    let out = &args.out;
-    let tmp = out.with_file_name(format!(
-        ".{}.{}.tmp",
-        out.file_name()
-            .map_or("dump".into(), |n| n.to_string_lossy()),
-        std::process::id()
-    ));
-    let copied = std::fs::copy(&written, &tmp).and_then(|_| std::fs::rename(&tmp, out));
+    let mut out = Output::create(&args.out)?;
+    let copied = std::fs::File::open(&written).and_then(|mut f| io::copy(&mut f, &mut out));
     if let Err(e) = copied {
-        let _ = std::fs::remove_file(&tmp);
         return Err(Failure::Error(format!(
             "{}: error: cannot copy the black box the daemon wrote to {}: {e}",
-            out.display(),
+            out.name,
             written.display()
         )));
     }
-    Ok(())
+    out.commit()
 }
 
 /// Stops a command at SIGINT or SIGTERM (the first; a second one ends the process as

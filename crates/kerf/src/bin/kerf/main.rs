@@ -79,7 +79,7 @@ struct PlotArgs {
     /// The black-box CSV.
     #[arg(value_name = "FILE.csv")]
     input: PathBuf,
-    /// Where to write the SVG.
+    /// Where to write the SVG; `-` writes it to standard output.
     #[arg(long, value_name = "FILE.svg")]
     out: PathBuf,
 }
@@ -310,24 +310,9 @@ fn run_plot(args: &PlotArgs) -> Result<(), Failure> {
         File::open(&args.input).map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
     let bb = kerf::blackbox::read(BufReader::new(file))
         .map_err(|e| Failure::Error(format!("{name}:{}: error: {}", e.line, e.message)))?;
-    let out = &args.out;
-    let tmp = out.with_file_name(format!(
-        ".{}.{}.tmp",
-        out.file_name()
-            .map_or("plot".into(), |n| n.to_string_lossy()),
-        std::process::id()
-    ));
-    let fail = |e: io::Error| Failure::Error(format!("{}: error: {e}", out.display()));
-    let written = File::create(&tmp).and_then(|f| {
-        let mut w = BufWriter::new(f);
-        kerf::blackbox::write_svg(&bb, &mut w)?;
-        w.flush()
-    });
-    if let Err(e) = written.and_then(|()| std::fs::rename(&tmp, out)) {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(fail(e));
-    }
-    Ok(())
+    let mut out = output::Output::create(&args.out)?;
+    kerf::blackbox::write_svg(&bb, &mut out).map_err(|e| out.error(e))?;
+    out.commit()
 }
 
 fn run_plan(args: &PlanArgs) -> Result<(), Failure> {
