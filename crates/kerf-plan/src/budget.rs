@@ -575,11 +575,7 @@ fn transition_limits(
         let a_hi = accel_at(vd)?;
         quickest_budget(vd, a_hi, |a| jerk_at(vd, a))
     };
-    let run_mm = if seg.move_count > 1 {
-        seg.length_mm.max(run_mm)
-    } else {
-        seg.length_mm
-    };
+    let run_mm = seg.length_mm.max(run_mm);
     let search = |v_start: f64| design_speed_search(run_mm, v_start, budget);
     boosted(v, seg.feed_mm_s, feed_scale, boost_scale, search)
 }

@@ -510,6 +510,11 @@ impl Planner {
 
     /// Sets `v_max_mm_s`, `accel_mm_s2` and `jerk_mm_s3` of `seg` from the axis limits.
     pub(crate) fn set_limits(&self, seg: &mut PlannedSegment, _rapid: bool) {
+        self.set_limits_for_run(seg, self.run_mm);
+    }
+
+    /// [`Planner::set_limits`] with the design run `run_mm` (see [`segment_limits`]).
+    pub(crate) fn set_limits_for_run(&self, seg: &mut PlannedSegment, run_mm: f64) {
         // Curved segments (not smoothed pieces, which keep the programmed feed) also get a
         // design for the highest override, which the motion core uses while the override
         // is above 100 %. Straight segments are limited by the axes alone.
@@ -521,16 +526,11 @@ impl Planner {
         let boost_scale =
             (curved && seg.feed_mm_s.is_finite() && self.design_override < MAX_DESIGN_OVERRIDE)
                 .then_some(MAX_DESIGN_OVERRIDE);
-        let key = limits_key(seg, self.design_override, boost_scale, self.run_mm);
+        let key = limits_key(seg, self.design_override, boost_scale, run_mm);
         let memo = key.as_ref().and_then(|k| self.memo.borrow().get(k));
         let ((v, a, j), boost) = memo.unwrap_or_else(|| {
-            let found = segment_limits_pair(
-                seg,
-                &self.limits,
-                self.design_override,
-                boost_scale,
-                self.run_mm,
-            );
+            let found =
+                segment_limits_pair(seg, &self.limits, self.design_override, boost_scale, run_mm);
             if let Some(k) = key {
                 self.memo.borrow_mut().put(k, found);
             }
