@@ -53,6 +53,14 @@
 //!   direction and split the motion core's sections.
 //!   Only [`PROFILE_SHARE`] of each axis limit is used by the path profile; the rest is left
 //!   for the junctions.
+//! - **Ramp budgets at stops** (issue 11): a smoothed piece that starts or ends at a
+//!   junction capped below half its design speed gets the tangential budget of
+//!   `budget::ramp_budget` where that stops quicker: there the speed obeys
+//!   `v² ≤ cap² + 2a·distance` (the motion core keeps the path acceleration within `a` and
+//!   the junctions within their caps), so the curvature terms are checked at that lower
+//!   speed, sample by sample, instead of at the design speed. Where only the start is
+//!   slow, the raised budget splits a motion-core section mid-ramp, so it is used only
+//!   where a rough estimate says that pays.
 //! - **G2 transitions at joints with arcs.** A tangent line→arc, arc→line or arc→arc joint
 //!   is a curvature step, which at speed v is an acceleration step `v²Δκ`; left alone its
 //!   cap `sqrt(JUNCTION_SHARE·J·T/Δκ)` is low (≈3.5 mm/s for r = 5 mm, J = 50,000 mm/s³,
