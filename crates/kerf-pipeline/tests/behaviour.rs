@@ -484,3 +484,107 @@ fn dense_four_axis_circle_runs_at_the_feed() {
     assert_within_limits(&s, &limits, 4);
     assert_eq!(s.last.position[3], 360.0);
 }
+
+#[test]
+fn tangent_line_arc_joints_run_near_the_clothoid_speed() {
+    // A line into a tangent quarter arc of radius r and out along a tangent line, at
+    // F6000, tolerance ε = 0.01 mm, over a sweep of machines. A curvature-continuous
+    // transition raises the curvature from 0 to 1/r; a clothoid of length L does it at
+    // the rate 1/(rL), shifting the arc off the line by L²/(24r), so inside the tolerance
+    // L = sqrt(24 r ε). At speed v the normal jerk on it is v³/(rL), so it passes at
+    // most cbrt(J r L); the arc itself at most sqrt(A r) (centripetal acceleration) and
+    // cbrt(J r²) (the jerk v³/r² of uniform circular motion). The slowest speed between
+    // the joints must reach 80 % of the least of these and the feed (measured: 84–86 %);
+    // designed for their own length from rest, the transitions used to run at 57–65 % of
+    // it (obround corner, r = 2 mm on the mill: 24.4 mm/s of 41 mm/s).
+    let eps: f64 = 0.01;
+    let mut worst = f64::INFINITY;
+    for r in [1.0f64, 2.0, 5.0] {
+        for (a, j) in [(2000.0, 50000.0), (1000.0, 20000.0), (8000.0, 200000.0)] {
+            let limits = mill(200.0, a, j, eps);
+            let b = Vec3::new(20.0, 0.0, 0.0);
+            let c = Vec3::new(20.0 + r, r, 0.0);
+            let moves = vec![
+                line(1, Vec3::zeros(), b, 6000.0),
+                arc(
+                    2,
+                    b,
+                    Vec3::new(20.0, r, 0.0),
+                    std::f64::consts::FRAC_PI_2,
+                    0.0,
+                    6000.0,
+                ),
+                line(3, c, c + Vec3::new(0.0, 20.0, 0.0), 6000.0),
+            ];
+            let mut slowest = f64::INFINITY;
+            let s = run(moves, &limits, &RunOptions::default(), |_, sp| {
+                // Between the joints, widened by the transitions' reach (at most 45 %
+                // of the arc on either side of a joint).
+                if sp.position[0] >= 19.0 && sp.position[1] <= r + 1.0 {
+                    slowest = slowest.min(sp.feed_mm_s);
+                }
+            })
+            .unwrap();
+            assert_within_limits(&s, &limits, 3);
+            assert!(s.max_deviation_mm <= eps, "{}", s.max_deviation_mm);
+            assert_eq!(&s.last.position[..3], &[c.x, c.y + 20.0, 0.0]);
+            let l = (24.0 * r * eps).sqrt();
+            let reference = (j * r * l)
+                .cbrt()
+                .min((a * r).sqrt())
+                .min((j * r * r).cbrt())
+                .min(100.0);
+            eprintln!(
+                "r {r} a {a} j {j}: slowest {slowest:.2} mm/s, clothoid reference {reference:.2} mm/s ({:.0} %)",
+                100.0 * slowest / reference
+            );
+            worst = worst.min(slowest / reference);
+        }
+    }
+    assert!(worst >= 0.8, "{worst}");
+}
+
+#[test]
+fn dense_curves_stop_with_the_acceleration_left_at_low_speed() {
+    // A CAM row over a curved surface: 400 lines of 0.05 mm along X with Z = h·sin(x/w)
+    // (printed to 4 decimals), at F3000 from rest to rest, on mills whose Z has half the
+    // acceleration and 40 % of the jerk of X and Y. At the design speed the surface's
+    // curvature takes much of Z's limits (the centripetal K·v², the terms 3K·v·a and
+    // K'·v³), so the smoothed pieces' own tangential budget is small; near the stops
+    // the speed is low and nearly all of each limit is left for the ramps. Reference: the
+    // same length on a straight line with 95 % of X's limits (the profile's share), at
+    // the feed F with one jerk-limited ramp's time, L/F + change_time(F) (v/a + a/j or
+    // 2·sqrt(v/j)). The run must take at most 1.65 × that (measured 1.03–1.61 ×; with
+    // the design speed's budget for the ramps at the stops, 1.03–1.82 ×).
+    let mut worst: f64 = 0.0;
+    for (h, w) in [(1.5f64, 3.0f64), (0.8, 2.0)] {
+        for (a, j) in [(2000.0, 50000.0), (1000.0, 20000.0), (4000.0, 200000.0)] {
+            let mut limits = mill(200.0, a, j, 0.01);
+            limits.axes[2] = Some(kerf_motion::AxisLimits {
+                velocity_units_s: 100.0,
+                acceleration_units_s2: 0.5 * a,
+                jerk_units_s3: 0.4 * j,
+            });
+            let pt = |k: usize| {
+                let x = 0.05 * k as f64;
+                let z = (h * (x / w).sin() * 1e4).round() / 1e4;
+                Vec3::new(x, 0.0, z)
+            };
+            let moves: Vec<_> = (0..400)
+                .map(|k| line(k as u32 + 1, pt(k), pt(k + 1), 3000.0))
+                .collect();
+            let s = run(moves, &limits, &RunOptions::default(), |_, _| {}).unwrap();
+            assert_within_limits(&s, &limits, 3);
+            assert!(s.max_deviation_mm <= 0.01, "{}", s.max_deviation_mm);
+            let length: f64 = (0..400).map(|k| (pt(k + 1) - pt(k)).norm()).sum();
+            let line_s = length / 50.0 + kerf_geom::ramp::change_time_s(50.0, 0.95 * a, 0.95 * j);
+            eprintln!(
+                "h {h} w {w} a {a} j {j}: {:.3} s, line {line_s:.3} s ({:.2} ×)",
+                s.duration_s,
+                s.duration_s / line_s
+            );
+            worst = worst.max(s.duration_s / line_s);
+        }
+    }
+    assert!(worst <= 1.65, "{worst}");
+}

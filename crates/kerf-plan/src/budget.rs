@@ -575,11 +575,7 @@ fn transition_limits(
         let a_hi = accel_at(vd)?;
         quickest_budget(vd, a_hi, |a| jerk_at(vd, a))
     };
-    let run_mm = if seg.move_count > 1 {
-        seg.length_mm.max(run_mm)
-    } else {
-        seg.length_mm
-    };
+    let run_mm = seg.length_mm.max(run_mm);
     let search = |v_start: f64| design_speed_search(run_mm, v_start, budget);
     boosted(v, seg.feed_mm_s, feed_scale, boost_scale, search)
 }
@@ -790,4 +786,150 @@ fn quickest_budget(vd: f64, a_hi: f64, jerk_for: impl Fn(f64) -> f64) -> Option<
         }
     }
     Some((a, j))
+}
+
+/// Ratio of [`ramp_budget`]'s grid over the acceleration: 10 % steps (the time it
+/// minimises changes little between them).
+const RAMP_GRID_RATIO: f64 = 0.9;
+/// Points of that grid: down to `0.9⁴⁴ ≈ 1 %` of the line's acceleration, below which
+/// the segment's own design is better anyway.
+const RAMP_GRID_POINTS: usize = 45;
+
+/// The tangential budget `(a, j)` of a smoothed piece (a [`Transition`] without rotary
+/// motion, designed at `seg.v_max_mm_s`) that is entered at most at `cap_start` or left
+/// at most at `cap_end`, with the quickest stop from `v_max` by [`change_time_s`], if
+/// that is quicker than its own design: issue 11, ramps at the acceleration the limits
+/// leave at each speed.
+///
+/// Why a higher budget is safe there: the motion core keeps the path acceleration within
+/// `a` on the segment and passes its junctions at most at their caps, so at arc length `s`
+/// the speed obeys `v² ≤ cap_start² + 2as` and `v² ≤ cap_end² + 2a(L - s)` (`v²` changes
+/// by at most `2a` per unit length). Near a stop the speed is low, the centripetal terms
+/// `K_i v²`, `3K_i v a` and `K'_i v³` are small, and much more of each axis limit is left
+/// for the ramp than at the design speed, where the segment's own budget is worked out.
+/// Each sample is checked at the highest speed the bounds allow over its neighbourhood
+/// (the curvature terms taken as the largest of three neighbouring samples, with the
+/// safety factors of [`transition_bounds`]), per axis: `|t_i| a + |K_i| v² ≤ A_i` and
+/// `|t_i| j + 3|K_i| v a + |K'_i| v³ ≤ J_i`, within [`PROFILE_SHARE`].
+pub(crate) fn ramp_budget(
+    seg: &PlannedSegment,
+    limits: &MachineLimits,
+    cap_start: f64,
+    cap_end: f64,
+) -> Option<(f64, f64)> {
+    let Curve::Transition(t) = &seg.curve else {
+        return None;
+    };
+    let v_max = seg.v_max_mm_s;
+    if seg.abc_poly.is_some()
+        || seg.abc_start_deg != seg.abc_end_deg
+        || !(v_max > 0.0 && v_max.is_finite() && seg.length_mm > 0.0)
+    {
+        return None;
+    }
+    let n = PIECE_LIMIT_SAMPLES;
+    // Frames, arc length (trapezoid on the speed) and dK/ds by differences on the grid.
+    let frames: Vec<(Vec3, Vec3)> = (0..=n)
+        .map(|i| t.frame_at_param(i as f64 / n as f64))
+        .collect();
+    let mut s = vec![0.0; n + 1];
+    for i in 1..=n {
+        let du = 1.0 / n as f64;
+        s[i] = s[i - 1] + 0.5 * du * (t.speed((i - 1) as f64 * du) + t.speed(i as f64 * du));
+    }
+    let scale = seg.length_mm / s[n];
+    if !scale.is_finite() {
+        return None;
+    }
+    s.iter_mut().for_each(|x| *x *= scale);
+    let rate: Vec<Vec3> = (0..=n)
+        .map(|i| {
+            let (ia, ib) = (i.saturating_sub(1), (i + 1).min(n));
+            (frames[ib].1 - frames[ia].1) / (s[ib] - s[ia])
+        })
+        .collect();
+    // Per sample: the window maxima with safety factors, and the window's extent.
+    struct Sample {
+        tangent: [f64; 3],
+        curvature: [f64; 3],
+        curvature_rate: [f64; 3],
+        s_lo: f64,
+        s_hi: f64,
+    }
+    let samples: Vec<Sample> = (0..=n)
+        .map(|i| {
+            let (ia, ib) = (i.saturating_sub(1), (i + 1).min(n));
+            let mut x = Sample {
+                tangent: [0.0; 3],
+                curvature: [0.0; 3],
+                curvature_rate: [0.0; 3],
+                s_lo: s[ia],
+                s_hi: s[ib],
+            };
+            for ((tan, k), dk) in frames[ia..=ib].iter().zip(&rate[ia..=ib]) {
+                for ax in 0..3 {
+                    x.tangent[ax] = x.tangent[ax].max(tan[ax].abs() * TANGENT_SAFETY);
+                    x.curvature[ax] = x.curvature[ax].max(k[ax].abs() * CURVATURE_SAFETY);
+                    x.curvature_rate[ax] = x.curvature_rate[ax].max(dk[ax].abs() * LIMIT_SAFETY);
+                }
+            }
+            x
+        })
+        .collect();
+    let share = PROFILE_SHARE;
+    let speed = |x: &Sample, a: f64| -> f64 {
+        v_max
+            .min((cap_start * cap_start + 2.0 * a * x.s_hi).sqrt())
+            .min((cap_end * cap_end + 2.0 * a * (seg.length_mm - x.s_lo)).sqrt())
+    };
+    // The largest jerk the samples allow with acceleration `a`: 0 if `a` does not fit.
+    let jerk_for = |a: f64| -> f64 {
+        let mut j = f64::INFINITY;
+        for x in &samples {
+            let v = speed(x, a);
+            for ax in 0..3 {
+                let Some(l) = limits.axes[ax] else {
+                    if x.tangent[ax] > 0.0 || x.curvature[ax] > 0.0 {
+                        return 0.0;
+                    }
+                    continue;
+                };
+                let acc = x.tangent[ax] * a + x.curvature[ax] * v * v;
+                if acc > share * l.acceleration_units_s2 {
+                    return 0.0;
+                }
+                let room = share * l.jerk_units_s3
+                    - 3.0 * x.curvature[ax] * v * a
+                    - x.curvature_rate[ax] * v * v * v;
+                j = j.min(axis_rate(room, x.tangent[ax]));
+            }
+        }
+        j
+    };
+    let mut a_top = f64::INFINITY;
+    for ax in 0..3 {
+        if let Some(l) = limits.axes[ax] {
+            let w = samples.iter().map(|x| x.tangent[ax]).fold(0.0, f64::max);
+            if w > 0.0 {
+                a_top = a_top.min(share * l.acceleration_units_s2 / w);
+            }
+        }
+    }
+    if !(a_top > 0.0 && a_top.is_finite()) {
+        return None;
+    }
+    let own = change_time_s(v_max, seg.accel_mm_s2, seg.jerk_mm_s3);
+    let mut best: Option<(f64, f64, f64)> = None;
+    for k in 0..RAMP_GRID_POINTS {
+        let a = a_top * RAMP_GRID_RATIO.powi(k as i32);
+        let j = jerk_for(a);
+        if !(j > 0.0 && j.is_finite()) {
+            continue;
+        }
+        let time = change_time_s(v_max, a, j);
+        if time < own && best.is_none_or(|b| time < b.0) {
+            best = Some((time, a, j));
+        }
+    }
+    best.map(|(_, a, j)| (a, j))
 }

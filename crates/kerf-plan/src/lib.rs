@@ -29,8 +29,13 @@
 //!   without a corner (tangent-continuous, no exact stop) up to its end, at most
 //!   [`DESIGN_RUN_MM`]; for a smoothed piece the path that runs on without a corner
 //!   through it to the end of its run, at least the whole run, at most `DESIGN_RUN_MM`
-//!   (the smoother emits nothing of a run before that much of it is known); for a blend
-//!   or transition its own length. These distances are geometry only, never the limits. At each design speed the tangential acceleration
+//!   (the smoother emits nothing of a run before that much of it is known); for a G2
+//!   transition at a joint with an arc, like an arc, the path that runs on without a
+//!   corner up to the end of the move after it, at most `DESIGN_RUN_MM` (issue 11:
+//!   designed for their own 2 mm from rest, the transitions of an obround's 2 mm corners
+//!   ran at 24.6 mm/s and held the arcs and lines beside them there, where 35 mm/s fit);
+//!   for a corner blend its own length. These distances are geometry only, never the
+//!   limits. At each design speed the tangential acceleration
 //!   is the one that makes that ramp quickest given the jerk the axes leave at it (the
 //!   normal jerk `3κva` grows with it), never a share of the axis limit and never more than
 //!   the ramp can use, `sqrt(v·j)`. Both choices are minima over sets that only grow when
@@ -48,6 +53,14 @@
 //!   direction and split the motion core's sections.
 //!   Only [`PROFILE_SHARE`] of each axis limit is used by the path profile; the rest is left
 //!   for the junctions.
+//! - **Ramp budgets at stops** (issue 11): a smoothed piece that starts or ends at a
+//!   junction capped below half its design speed gets the tangential budget of
+//!   `budget::ramp_budget` where that stops quicker: there the speed obeys
+//!   `v² ≤ cap² + 2a·distance` (the motion core keeps the path acceleration within `a` and
+//!   the junctions within their caps), so the curvature terms are checked at that lower
+//!   speed, sample by sample, instead of at the design speed. Where only the start is
+//!   slow, the raised budget splits a motion-core section mid-ramp, so it is used only
+//!   where a rough estimate says that pays.
 //! - **G2 transitions at joints with arcs.** A tangent line→arc, arc→line or arc→arc joint
 //!   is a curvature step, which at speed v is an acceleration step `v²Δκ`; left alone its
 //!   cap `sqrt(JUNCTION_SHARE·J·T/Δκ)` is low (≈3.5 mm/s for r = 5 mm, J = 50,000 mm/s³,

@@ -6,10 +6,11 @@
 
 use kerf_geom::{CornerMode, Curve, Move, Path, Vec3};
 
-use crate::budget::{limits_key, segment_limits_pair};
+use crate::budget::{limits_key, ramp_budget, segment_limits_pair};
 use crate::junction::junction_cap;
 use crate::memo::{ArcMemo, LimitsMemo};
 use crate::run::{RunState, joining_frame, line_dir, line_len, next_start_frame, turn_fits};
+use crate::timing::{change_time_s, reach_speed};
 use crate::{
     AXIS_NAMES, DESIGN_RUN_MM, MAX_DESIGN_OVERRIDE, MIN_SEGMENT_MM, MachineLimits, PlanError,
     PlannedSegment, smooth,
@@ -18,6 +19,10 @@ use crate::{
 /// Two segments continue each other in tangent when every axis' `d/ds` differs by at most
 /// this: 1e-6 (1 µm per m) is rounding noise of the tangents, not a corner.
 const TANGENT_MATCH: f64 = 1e-6;
+/// A smoothed piece gets a ramp budget ([`ramp_budget`]) where a junction at its start or
+/// end is capped below this share of its design speed: a ramp there runs at speeds low
+/// enough to leave more of the axis limits than the design speed does.
+const RAMP_CAP_RATIO: f64 = 0.5;
 
 /// The move currently waiting for its successor (its end may still be blended).
 #[derive(Clone, Copy, Debug)]
@@ -46,6 +51,8 @@ pub struct Planner {
     pub(crate) last_origin: Option<Curve>,
     /// Length of `last` before a transition trimmed its start, path units.
     pub(crate) last_full_length: f64,
+    /// Speed cap at the start of `last` (its junction with the segment before), mm/s.
+    pub(crate) last_start_cap: f64,
     pub(crate) next_index: u64,
     pub(crate) abc_current: [f64; 3],
     /// The dense-polyline run being collected, if any.
@@ -99,6 +106,7 @@ impl Planner {
             last_corner: CornerMode::ExactStop,
             last_origin: None,
             last_full_length: 0.0,
+            last_start_cap: 0.0,
             next_index: 0,
             abc_current: [0.0; 3],
             run: None,
@@ -346,6 +354,7 @@ impl Planner {
         }
         if let Some(mut last) = self.last.take() {
             last.end_cap_mm_s = 0.0;
+            self.ramp_upgrade(&mut last, None);
             out.push(last);
         }
     }
@@ -466,10 +475,13 @@ impl Planner {
     ) {
         let full_length = seg.length_mm;
         self.chain_mm = self.chain_before(&seg) + seg.length_mm;
+        // The cap at the start of `seg`: 0 after an exact stop or on an idle machine.
+        let mut start_cap = 0.0;
         if let Some(mut prev) = self.last.take() {
             match corner_tolerance(self.last_corner, own, self.limits.tolerance_mm) {
                 None => {
                     prev.end_cap_mm_s = 0.0;
+                    self.ramp_upgrade(&mut prev, None);
                     out.push(prev);
                 }
                 Some(tol) => match self.transition(&prev, &seg, tol, origin.as_ref()) {
@@ -478,20 +490,61 @@ impl Planner {
                         seg = s;
                         prev.end_cap_mm_s = junction_cap(&prev, &t, &self.limits);
                         t.end_cap_mm_s = junction_cap(&t, &seg, &self.limits);
+                        start_cap = t.end_cap_mm_s;
+                        self.ramp_upgrade(&mut prev, Some(&t));
                         out.push(prev);
                         out.push(t);
                     }
                     None => {
                         prev.end_cap_mm_s = junction_cap(&prev, &seg, &self.limits);
+                        start_cap = prev.end_cap_mm_s;
+                        self.ramp_upgrade(&mut prev, Some(&seg));
                         out.push(prev);
                     }
                 },
             }
         }
+        self.last_start_cap = start_cap;
         self.last = Some(seg);
         self.last_corner = corner;
         self.last_origin = origin;
         self.last_full_length = full_length;
+    }
+
+    /// Raises the tangential budget of `seg` (the held-back segment, its end cap set) where
+    /// it starts or ends at a junction much slower than its design speed, to what the
+    /// axis limits leave at the low speeds the ramp there runs at ([`ramp_budget`]).
+    ///
+    /// A piece slow only at its start keeps its budget unless [`ramp_split_pays`]: raised,
+    /// it runs in a motion-core section of its own, and the return to zero acceleration
+    /// at its end, mid-ramp, can cost more than the raised budget gains (the dense circle:
+    /// 3 ms per ramp). Raising the budget of a piece slow at its end never splits a
+    /// section (a segment joins the section before it when its limits are not much below
+    /// the section's).
+    fn ramp_upgrade(&self, seg: &mut PlannedSegment, next: Option<&PlannedSegment>) {
+        let slow = RAMP_CAP_RATIO * seg.v_max_mm_s;
+        // Smoothed pieces only, and only without a boost design (pieces keep the
+        // programmed feed), so the speed never exceeds `v_max_mm_s` at any override.
+        if seg.move_count <= 1
+            || seg.v_boost_mm_s > seg.v_max_mm_s
+            || (self.last_start_cap >= slow && seg.end_cap_mm_s >= slow)
+        {
+            return;
+        }
+        let Some((a, j)) = ramp_budget(seg, &self.limits, self.last_start_cap, seg.end_cap_mm_s)
+        else {
+            return;
+        };
+        if seg.end_cap_mm_s >= slow
+            && let Some(n) = next
+            && !ramp_split_pays(seg, n, self.last_start_cap, (a, j))
+        {
+            return;
+        }
+        seg.accel_mm_s2 = a;
+        seg.jerk_mm_s3 = j;
+        seg.accel_boost_mm_s2 = a;
+        seg.jerk_boost_mm_s3 = j;
     }
 
     /// The length of the path that runs on without a corner into `seg`: the chain ending
@@ -510,6 +563,11 @@ impl Planner {
 
     /// Sets `v_max_mm_s`, `accel_mm_s2` and `jerk_mm_s3` of `seg` from the axis limits.
     pub(crate) fn set_limits(&self, seg: &mut PlannedSegment, _rapid: bool) {
+        self.set_limits_for_run(seg, self.run_mm);
+    }
+
+    /// [`Planner::set_limits`] with the design run `run_mm` (see [`segment_limits`]).
+    pub(crate) fn set_limits_for_run(&self, seg: &mut PlannedSegment, run_mm: f64) {
         // Curved segments (not smoothed pieces, which keep the programmed feed) also get a
         // design for the highest override, which the motion core uses while the override
         // is above 100 %. Straight segments are limited by the axes alone.
@@ -521,16 +579,11 @@ impl Planner {
         let boost_scale =
             (curved && seg.feed_mm_s.is_finite() && self.design_override < MAX_DESIGN_OVERRIDE)
                 .then_some(MAX_DESIGN_OVERRIDE);
-        let key = limits_key(seg, self.design_override, boost_scale, self.run_mm);
+        let key = limits_key(seg, self.design_override, boost_scale, run_mm);
         let memo = key.as_ref().and_then(|k| self.memo.borrow().get(k));
         let ((v, a, j), boost) = memo.unwrap_or_else(|| {
-            let found = segment_limits_pair(
-                seg,
-                &self.limits,
-                self.design_override,
-                boost_scale,
-                self.run_mm,
-            );
+            let found =
+                segment_limits_pair(seg, &self.limits, self.design_override, boost_scale, run_mm);
             if let Some(k) = key {
                 self.memo.borrow_mut().put(k, found);
             }
@@ -552,6 +605,35 @@ impl Planner {
             seg.jerk_boost_mm_s3 = jb.min(j);
         }
     }
+}
+
+/// Whether raising the budget of `seg`, which starts at `cap_start` (slow) and runs on
+/// into `next` at speed, to `(a, j)` saves time by a rough estimate (each ramp's time less
+/// its distance at the top speed `v`): one ramp from rest to `v` with the limits the
+/// section of `seg` and `next` would have (the smaller of each), against a ramp in `seg`
+/// to the speed `v_b` it reaches with `(a, j)` plus the rest of the ramp, from `v_b` to
+/// `v`, with `next`'s limits after a return to zero acceleration.
+fn ramp_split_pays(
+    seg: &PlannedSegment,
+    next: &PlannedSegment,
+    cap_start: f64,
+    (a, j): (f64, f64),
+) -> bool {
+    let v = seg.v_max_mm_s.min(seg.feed_mm_s);
+    if !(v > 0.0 && v.is_finite()) {
+        return false;
+    }
+    let v0 = cap_start.min(v);
+    let merged = change_time_s(
+        v - v0,
+        seg.accel_mm_s2.min(next.accel_mm_s2),
+        seg.jerk_mm_s3.min(next.jerk_mm_s3),
+    ) * (v - v0)
+        / (2.0 * v);
+    let v_b = v0 + reach_speed(seg.length_mm, v - v0, a, j);
+    let first = change_time_s(v_b - v0, a, j) * (1.0 - (v0 + v_b) / (2.0 * v));
+    let rest = change_time_s(v - v_b, next.accel_mm_s2, next.jerk_mm_s3) * (v - v_b) / (2.0 * v);
+    first + rest < merged
 }
 
 pub(crate) fn feed_of(mv: &Move) -> f64 {

@@ -4,6 +4,7 @@
 
 use kerf_geom::{Curve, Transition};
 
+use crate::DESIGN_RUN_MM;
 use crate::junction::junction_cap;
 use crate::memo::{KEY_ARC_LENGTH, KEY_WORDS};
 use crate::planner::Planner;
@@ -184,7 +185,9 @@ impl Planner {
                     prev.feed_mm_s.min(seg.feed_mm_s),
                 )
             };
-            self.set_limits(&mut t, false);
+            // Designed like an arc: for the path that runs on without a corner up to the
+            // end of `seg` (geometry only), not for its own length from rest.
+            self.set_limits_for_run(&mut t, self.chain_mm.min(DESIGN_RUN_MM));
             let mut p = *prev;
             p.curve = ca;
             p.length_mm = ca.length();
