@@ -107,7 +107,7 @@ pub const MOVE_WINDOW_RANGE: RangeInclusive<u32> = 16..=65_536;
 pub const DAEMON_PERIOD_RANGE_US: RangeInclusive<u32> = 125..=10_000;
 
 // The drive side (`[axes.*.drive]`, the following-error keys of `[axes.*]`, `[safety]`).
-// Read and validated here; the daemon does not use them yet (docs/DRIVES.md).
+// Read and validated here; the daemon's drive stage is built from them (docs/DRIVES.md).
 
 /// Default drive scale when `counts_per_mm` / `counts_per_deg` is not given: 1000 counts
 /// per mm (1 µm) or per degree.
@@ -379,8 +379,8 @@ pub struct Config {
     /// start ([`Config::program_settings`]) and written by `kerf run` after a program that
     /// ended normally.
     pub parameter_file: Option<PathBuf>,
-    /// The drive side: `[axes.*.drive]`, `ferror_*`/`min_ferror_*`, `[safety]` (not used by
-    /// the daemon yet).
+    /// The drive side: `[axes.*.drive]`, `ferror_*`/`min_ferror_*`, `[safety]` (the
+    /// daemon's drive stage is built from it).
     pub drive: DriveSide,
 }
 
