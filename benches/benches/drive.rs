@@ -21,7 +21,7 @@ fn bench_drive(c: &mut Criterion) {
         let t = k as f64 * 1e-3;
         let w = 2.0 * std::f64::consts::PI;
         let s = 1.0 - (w * t).cos();
-        let p = [5.0 * s, 3.0 * s, -1.0 * s, 0.0, 0.0, 0.0];
+        let p = [5.0 * s, 3.0 * s, -s, 0.0, 0.0, 0.0];
         stage.cycle(&StageInput {
             setpoint: Some(p),
             line: 1,
