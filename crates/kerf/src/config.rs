@@ -124,6 +124,10 @@ pub const BANDWIDTH_RANGE_HZ: RangeInclusive<f64> = 0.1..=1000.0;
 /// Accepted sim drive damping ratios.
 pub const DAMPING_RANGE: RangeInclusive<f64> = 0.01..=10.0;
 
+/// Accepted sim drive inertia ratios (the load's inertia over the inertia its position
+/// loop was tuned for).
+pub const INERTIA_RATIO_RANGE: RangeInclusive<f64> = 0.01..=100.0;
+
 /// Accepted sim drive velocity feed-forward gains.
 pub const VELOCITY_FEED_FORWARD_RANGE: RangeInclusive<f64> = 0.0..=1.0;
 
@@ -188,7 +192,8 @@ pub struct AxisDrive {
     pub kind: DriveKind,
     /// `counts_per_mm` (`counts_per_deg`) and `direction`.
     pub scale: Scale,
-    /// The sim drive's tuning: `bandwidth_hz`, `damping`, `velocity_feed_forward`,
+    /// The sim drive's tuning: `bandwidth_hz`, `damping`, `inertia_ratio`,
+    /// `velocity_feed_forward`,
     /// `substeps`, `overcurrent_accel_counts_s2`, `quick_stop_decel_counts_s2`,
     /// `following_error_window_counts`. Its period and start position are not keys:
     /// [`Config::drive_configs`] sets them.
@@ -1015,6 +1020,7 @@ struct RawDrive {
     direction: Option<Spanned<i64>>,
     bandwidth_hz: Option<Spanned<f64>>,
     damping: Option<Spanned<f64>>,
+    inertia_ratio: Option<Spanned<f64>>,
     velocity_feed_forward: Option<Spanned<f64>>,
     substeps: Option<Spanned<i64>>,
     overcurrent_accel_counts_s2: Option<Spanned<f64>>,
@@ -1400,6 +1406,13 @@ impl Checker<'_> {
             DAMPING_RANGE,
             &raw.damping,
             d.sim.damping,
+        )?;
+        d.sim.inertia_ratio = self.within_or(
+            &key("inertia_ratio"),
+            "(load inertia over the tuned inertia)",
+            INERTIA_RATIO_RANGE,
+            &raw.inertia_ratio,
+            d.sim.inertia_ratio,
         )?;
         d.sim.velocity_feed_forward = self.within_or(
             &key("velocity_feed_forward"),
@@ -2139,7 +2152,7 @@ radius_mm = 0.0
     }
 
     /// Every key of `[axes.x.drive]`, at its default.
-    const DRIVE_X: &str = "[axes.x.drive]\nkind = \"sim\"\ncounts_per_mm = 1000.0\ndirection = 1\nbandwidth_hz = 50.0\ndamping = 1.0\nvelocity_feed_forward = 1.0\nsubsteps = 20\novercurrent_accel_counts_s2 = 1e9\nquick_stop_decel_counts_s2 = 1e6\nfollowing_error_window_counts = 1000\nenable_timeout_ms = 1000\n";
+    const DRIVE_X: &str = "[axes.x.drive]\nkind = \"sim\"\ncounts_per_mm = 1000.0\ndirection = 1\nbandwidth_hz = 50.0\ndamping = 1.0\ninertia_ratio = 1.0\nvelocity_feed_forward = 1.0\nsubsteps = 20\novercurrent_accel_counts_s2 = 1e9\nquick_stop_decel_counts_s2 = 1e6\nfollowing_error_window_counts = 1000\nenable_timeout_ms = 1000\n";
 
     /// MINIMAL with every optional table, so that any key can be set by [`with_key`].
     fn full() -> String {
@@ -2321,6 +2334,13 @@ radius_mm = 0.0
                 &["0.01", "10"],
                 &["0.0099", "10.1", "-1"],
                 "between 0.01 and 10 (damping ratio)",
+            ),
+            (
+                "axes.x.drive",
+                "inertia_ratio",
+                &["0.01", "100"],
+                &["0.0099", "100.1", "nan"],
+                "between 0.01 and 100 (load inertia over the tuned inertia)",
             ),
             (
                 "axes.x.drive",
@@ -2832,7 +2852,7 @@ radius_mm = 0.0
     #[test]
     fn built_drive_and_safety_configs_carry_the_files_values() {
         let text = format!(
-            "period_us = 2000\n{}[axes.x.drive]\nkind = \"sim\"\ncounts_per_mm = 800.0\ndirection = -1\nbandwidth_hz = 20.0\ndamping = 0.7\nvelocity_feed_forward = 0.5\nsubsteps = 40\novercurrent_accel_counts_s2 = 5e8\nquick_stop_decel_counts_s2 = 2e5\nfollowing_error_window_counts = 77\nenable_timeout_ms = 3\n[axes.b]\nvelocity_deg_s = 90.0\nacceleration_deg_s2 = 900.0\njerk_deg_s3 = 9000.0\nmin_deg = -30.0\nmax_deg = 120.0\nferror_deg = 2.0\nmin_ferror_deg = 0.5\n[axes.b.drive]\ncounts_per_deg = 3600.0\n[safety]\nmargin = 0.1\nstall_cycles = 7\nrecorder_seconds = 2.5\n",
+            "period_us = 2000\n{}[axes.x.drive]\nkind = \"sim\"\ncounts_per_mm = 800.0\ndirection = -1\nbandwidth_hz = 20.0\ndamping = 0.7\ninertia_ratio = 1.5\nvelocity_feed_forward = 0.5\nsubsteps = 40\novercurrent_accel_counts_s2 = 5e8\nquick_stop_decel_counts_s2 = 2e5\nfollowing_error_window_counts = 77\nenable_timeout_ms = 3\n[axes.b]\nvelocity_deg_s = 90.0\nacceleration_deg_s2 = 900.0\njerk_deg_s3 = 9000.0\nmin_deg = -30.0\nmax_deg = 120.0\nferror_deg = 2.0\nmin_ferror_deg = 0.5\n[axes.b.drive]\ncounts_per_deg = 3600.0\n[safety]\nmargin = 0.1\nstall_cycles = 7\nrecorder_seconds = 2.5\n",
             MINIMAL.replacen(
                 "max_mm = 10.0\n",
                 "max_mm = 10.0\nferror_mm = 0.4\nmin_ferror_mm = 0.02\n",
@@ -2853,6 +2873,7 @@ radius_mm = 0.0
                 period_ns: 2_000_000,
                 bandwidth_hz: 20.0,
                 damping: 0.7,
+                inertia_ratio: 1.5,
                 velocity_feed_forward: 0.5,
                 substeps: 40,
                 overcurrent_accel_counts_s2: 5e8,
