@@ -14,11 +14,35 @@ pub use clap_complete::Shell;
 /// The shells completions are generated for: bash, zsh and fish.
 pub const SHELLS: [Shell; 3] = [Shell::Bash, Shell::Zsh, Shell::Fish];
 
-/// Writes the completion script of `cmd` for `shell` to `out`.
+/// Writes the completion script of `cmd` for `shell` to `out`, without its hidden
+/// arguments and subcommands (clap_complete would offer them).
 pub fn write_completions(cmd: clap::Command, shell: Shell, out: &mut dyn Write) {
-    let mut cmd = cmd;
+    let mut cmd = visible(&cmd);
     let name = cmd.get_name().to_string();
     clap_complete::generate(shell, &mut cmd, name, out);
+}
+
+/// `cmd` with only what its help shows: the hidden arguments and subcommands left out.
+fn visible(cmd: &clap::Command) -> clap::Command {
+    let mut out = clap::Command::new(cmd.get_name().to_string());
+    if let Some(about) = cmd.get_about() {
+        out = out.about(about.clone());
+    }
+    if let Some(version) = cmd.get_version() {
+        out = out.version(version.to_string());
+    }
+    out.args(
+        cmd.get_arguments()
+            .filter(|a| !a.is_hide_set())
+            .cloned()
+            .collect::<Vec<_>>(),
+    )
+    .subcommands(
+        cmd.get_subcommands()
+            .filter(|s| !s.is_hide_set())
+            .map(visible)
+            .collect::<Vec<_>>(),
+    )
 }
 
 /// Writes the man page of `cmd` (section 1) and one for each of its visible subcommands
