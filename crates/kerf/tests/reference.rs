@@ -113,7 +113,10 @@ fn validate(root: &Value, schema: &Value, v: &Value, at: &str) -> Vec<String> {
                     passing >= 1
                 };
                 if !ok {
-                    fail(&mut errors, format!("{passing} of the {key} alternatives match"));
+                    fail(
+                        &mut errors,
+                        format!("{passing} of the {key} alternatives match"),
+                    );
                 }
             }
             "type" => {
@@ -157,7 +160,10 @@ fn validate(root: &Value, schema: &Value, v: &Value, at: &str) -> Vec<String> {
                         items.len() <= n
                     };
                     if !ok {
-                        fail(&mut errors, format!("{} items break {key} {n}", items.len()));
+                        fail(
+                            &mut errors,
+                            format!("{} items break {key} {n}", items.len()),
+                        );
                     }
                 }
             }
@@ -245,12 +251,14 @@ fn plan_output_of_every_dialect_matches_the_schema() {
             let errors = validate(&schema, &schema, line, "");
             assert!(errors.is_empty(), "{file} line {i}: {line}: {errors:?}");
             let kind = line["type"].as_str().unwrap();
-            kinds.insert(match (kind, line.get("rapid")) {
-                ("line", Some(Value::Bool(true))) => "rapid",
-                ("line", _) => "feed_line",
-                (other, _) => other,
-            }
-            .to_string());
+            kinds.insert(
+                match (kind, line.get("rapid")) {
+                    ("line", Some(Value::Bool(true))) => "rapid",
+                    ("line", _) => "feed_line",
+                    (other, _) => other,
+                }
+                .to_string(),
+            );
             if kind == "event" {
                 codes.insert(line["code"].as_str().unwrap().to_string());
             }
@@ -281,7 +289,9 @@ fn the_schema_refuses_malformed_lines() {
     assert!(!is_valid(&broken(&|v| v["feed_mm_min"] = Value::Null)));
     assert!(!is_valid(&broken(&|v| v["feed_mm_min"] = 0.0.into())));
     assert!(!is_valid(&broken(&|v| v["line"] = 0.into())));
-    assert!(!is_valid(&broken(&|v| v["end"] = serde_json::json!([1.0, 0.0]))));
+    assert!(!is_valid(&broken(
+        &|v| v["end"] = serde_json::json!([1.0, 0.0])
+    )));
     assert!(!is_valid(&broken(&|v| v["extra"] = 1.into())));
     let mut without_start = ok.clone();
     without_start.as_object_mut().unwrap().remove("start");
@@ -363,7 +373,10 @@ fn the_example_part_is_the_same_in_every_dialect() {
         let moves = merged_moves(&lines);
         assert_eq!(moves.len(), reference_moves.len(), "{name}");
         for (i, (a, b)) in moves.iter().zip(&reference_moves).enumerate() {
-            assert!(close(a, b), "{name}: move {i}: {a} differs from part.ngc's {b}");
+            assert!(
+                close(a, b),
+                "{name}: move {i}: {a} differs from part.ngc's {b}"
+            );
         }
         // Heidenhain's tool call `T1 G17 S8000` has no M6; the others write `T1 M6`.
         let strip_m6 = |e: Vec<String>| -> Vec<String> {
@@ -409,7 +422,11 @@ fn every_example_runs_in_kerf_sim_with_the_same_setpoints() {
         assert!(summary.starts_with("duration "), "{name}: {summary}");
         let text = std::fs::read_to_string(&csv).unwrap();
         let mut rows = text.lines();
-        assert_eq!(rows.next(), Some(documented_csv_header(false).as_str()), "{name}");
+        assert_eq!(
+            rows.next(),
+            Some(documented_csv_header(false).as_str()),
+            "{name}"
+        );
         // t, x, y, z and feed: every column but the source line.
         let rows: Vec<Vec<f64>> = rows
             .map(|r| {
@@ -429,8 +446,15 @@ fn every_example_runs_in_kerf_sim_with_the_same_setpoints() {
             Some(reference) => {
                 assert_eq!(rows.len(), reference.len(), "{name}: number of periods");
                 for (i, (a, b)) in rows.iter().zip(reference).enumerate() {
-                    let worst = a.iter().zip(b).map(|(p, q)| (p - q).abs()).fold(0.0, f64::max);
-                    assert!(worst < 1e-6, "{name}: row {i}: {a:?} against part.ngc {b:?}");
+                    let worst = a
+                        .iter()
+                        .zip(b)
+                        .map(|(p, q)| (p - q).abs())
+                        .fold(0.0, f64::max);
+                    assert!(
+                        worst < 1e-6,
+                        "{name}: row {i}: {a:?} against part.ngc {b:?}"
+                    );
                 }
             }
         }
@@ -442,19 +466,28 @@ fn every_example_runs_in_kerf_sim_with_the_same_setpoints() {
 #[test]
 fn completions_and_man_pages_come_from_the_binaries() {
     let subcommands = [
-        "plan", "sim", "run", "status", "hold", "resume", "abort", "override", "record",
-        "reset", "dump", "plot",
+        "plan", "sim", "run", "status", "hold", "resume", "abort", "override", "record", "reset",
+        "dump", "plot",
     ];
     let help = String::from_utf8(run(KERF, &["--help"]).stdout).unwrap();
     for sub in subcommands {
-        assert!(help.contains(&format!("  {sub} ")), "{sub} not in kerf --help");
+        assert!(
+            help.contains(&format!("  {sub} ")),
+            "{sub} not in kerf --help"
+        );
     }
     // The packaging commands stay out of the user's help.
-    assert!(!help.contains("completions") && !help.contains("  man "), "{help}");
+    assert!(
+        !help.contains("completions") && !help.contains("  man "),
+        "{help}"
+    );
 
     for shell in ["bash", "zsh", "fish"] {
         let script = String::from_utf8(run(KERF, &["completions", shell]).stdout).unwrap();
-        for word in subcommands.iter().chain(&["--dialect", "--override", "--plot"]) {
+        for word in subcommands
+            .iter()
+            .chain(&["--dialect", "--override", "--plot"])
+        {
             let word = if shell == "fish" {
                 word.trim_start_matches("--")
             } else {
@@ -472,7 +505,10 @@ fn completions_and_man_pages_come_from_the_binaries() {
         for hidden in ["test-faults", "completions", "--man", "-l man"] {
             assert!(!daemon.contains(hidden), "{shell}: hidden {hidden} offered");
         }
-        assert!(!script.contains("completions"), "{shell}: hidden subcommand offered");
+        assert!(
+            !script.contains("completions"),
+            "{shell}: hidden subcommand offered"
+        );
     }
 
     let dir = scratch_dir("man");
@@ -492,7 +528,10 @@ fn completions_and_man_pages_come_from_the_binaries() {
     assert!(sim.starts_with(".ie"), "{sim}");
     assert!(sim.contains(".TH KERF-SIM 1"), "{sim}");
     assert!(sim.contains("\\-\\-override"), "{sim}");
-    assert!(sim.contains("kerf sim"), "synopsis names the whole command: {sim}");
+    assert!(
+        sim.contains("kerf sim"),
+        "synopsis names the whole command: {sim}"
+    );
     let kerfd = std::fs::read_to_string(dir.join("kerfd.1")).unwrap();
     assert!(kerfd.contains("\\-\\-config"), "{kerfd}");
     assert!(!kerfd.contains("test\\-faults"), "{kerfd}");
