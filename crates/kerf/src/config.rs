@@ -25,6 +25,8 @@ use kerf_geom::AxisLimits;
 use serde::Deserialize;
 use toml::Spanned;
 
+pub mod reference;
+
 /// The bundled example configuration (`config/kerf.toml`), used when no `--config` is given.
 pub const BUILTIN_TOML: &str = include_str!("../../../config/kerf.toml");
 

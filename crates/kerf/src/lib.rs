@@ -10,6 +10,7 @@
 //! - [`client`]: requests, status and the setpoint stream for `kerf run`, `status`,
 //!   `hold`, `resume`, `abort`, `override`, `record`, `reset` and `dump`.
 //! - [`blackbox`]: the drive side's black-box files read and drawn (`kerf plot`).
+//! - [`clidoc`]: shell completions and man pages from the binaries' clap definitions.
 //!
 //! The binaries (`src/bin/kerf`, `src/bin/kerfd.rs`) only parse arguments, open files,
 //! print errors and pick exit codes; everything with behaviour worth testing lives here.
@@ -18,6 +19,7 @@
 #![deny(missing_docs)]
 
 pub mod blackbox;
+pub mod clidoc;
 pub mod client;
 pub mod config;
 pub mod daemon;

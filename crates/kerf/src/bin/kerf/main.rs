@@ -14,7 +14,7 @@ use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, CommandFactory, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressFinish, ProgressStyle};
 use kerf::sim::{Prepass, PrepassError, SimError, SimOptions};
 use kerf::{Config, DialectSource, PlanError, assumed_dialect_note, choose_dialect_from};
@@ -72,6 +72,22 @@ enum Command {
     /// Draw a black-box file (from `kerf dump`, or the one written at a fault) as SVG: per
     /// axis the commanded against the actual position and the following error over time.
     Plot(PlotArgs),
+    /// Print the shell completion script of `kerf` (bash, zsh or fish) on standard output
+    /// (for packaging: `kerf completions bash > /usr/share/bash-completion/completions/kerf`).
+    #[command(hide = true)]
+    Completions {
+        /// The shell.
+        #[arg(value_name = "SHELL")]
+        shell: kerf::clidoc::Shell,
+    },
+    /// Write the man pages of `kerf` and each of its subcommands (`kerf.1`, `kerf-plan.1`,
+    /// ...) into DIR (for packaging).
+    #[command(hide = true)]
+    Man {
+        /// The directory, created when missing.
+        #[arg(value_name = "DIR")]
+        dir: PathBuf,
+    },
 }
 
 #[derive(Args)]
@@ -204,6 +220,14 @@ fn main() -> ExitCode {
         Command::Reset(args) => machine::reset(&args),
         Command::Dump(args) => machine::dump(&args),
         Command::Plot(args) => run_plot(&args),
+        Command::Completions { shell } => {
+            let mut out = Vec::new();
+            kerf::clidoc::write_completions(Cli::command(), shell, &mut out);
+            io::stdout().lock().write_all(&out).map_err(Failure::from)
+        }
+        Command::Man { dir } => kerf::clidoc::write_man_pages(Cli::command(), &dir)
+            .map(|_| ())
+            .map_err(|e| Failure::Error(format!("{}: error: {e}", dir.display()))),
     };
     match result {
         Ok(()) | Err(Failure::BrokenPipe) => ExitCode::SUCCESS,
