@@ -232,6 +232,12 @@ pub fn keys() -> Vec<KeyDoc> {
             "Damping ratio of the simulated servo.",
         ),
         k(
+            "axes.*.drive.inertia_ratio",
+            f(sim.inertia_ratio),
+            rf(INERTIA_RATIO_RANGE),
+            "Load inertia of the simulated servo over the inertia its loop was tuned for.",
+        ),
+        k(
             "axes.*.drive.velocity_feed_forward",
             f(sim.velocity_feed_forward),
             rf(VELOCITY_FEED_FORWARD_RANGE),
