@@ -169,62 +169,213 @@ impl RapidIndex {
     }
 }
 
-/// The toolpath, thinned: a point is kept when it is `tol_mm` from the last kept one, or
-/// when the kind of move (rapid or feed) changes.
+/// A point of the toolpath, and whether the move that reaches it is a rapid.
+type PathPoint = ([f64; 3], bool);
+
+/// The directions from a vertex within which the polyline may go on straight: each point
+/// since the vertex narrows them to those whose line passes within the tolerance of it
+/// (a sleeve), and a point that comes back towards the vertex ends it.
+#[derive(Clone, Copy, Debug)]
+struct Sleeve {
+    anchor: (f64, f64),
+    /// Direction of the first point beyond the tolerance, and the allowed directions
+    /// around it, radians.
+    cone: Option<(f64, f64, f64)>,
+    /// The farthest a point has been from the anchor.
+    reach: f64,
+}
+
+impl Sleeve {
+    fn at(anchor: (f64, f64)) -> Self {
+        Sleeve {
+            anchor,
+            cone: None,
+            reach: 0.0,
+        }
+    }
+
+    /// The sleeve narrowed by `q`, or `None` when the line from the anchor to `q` misses a
+    /// point since the anchor by more than `tol`.
+    fn through(&self, q: (f64, f64), tol: f64) -> Option<Sleeve> {
+        let (dx, dy) = (q.0 - self.anchor.0, q.1 - self.anchor.1);
+        let d = dx.hypot(dy);
+        if d < self.reach - tol {
+            return None;
+        }
+        if d <= tol {
+            return Some(*self);
+        }
+        let half = (tol / d).asin();
+        let angle = dy.atan2(dx);
+        let cone = match self.cone {
+            None => (angle, -half, half),
+            Some((axis, lo, hi)) => {
+                let mut rel = angle - axis;
+                if rel > std::f64::consts::PI {
+                    rel -= std::f64::consts::TAU;
+                } else if rel < -std::f64::consts::PI {
+                    rel += std::f64::consts::TAU;
+                }
+                if rel < lo || rel > hi {
+                    return None;
+                }
+                (axis, lo.max(rel - half), hi.min(rel + half))
+            }
+        };
+        Some(Sleeve {
+            anchor: self.anchor,
+            cone: Some(cone),
+            reach: self.reach.max(d),
+        })
+    }
+}
+
+/// Thins a polyline as its points come: a point is kept (a vertex) where the line from the
+/// last vertex would pass farther than `tol` from a point in between, in any of the
+/// `planes` (pairs of coordinates, each scaled), and where the kind of move changes.
+#[derive(Debug)]
+struct Thinner<const N: usize> {
+    tol: f64,
+    planes: [(usize, usize, f64, f64); N],
+    sleeves: Option<[Sleeve; N]>,
+    prev: Option<PathPoint>,
+    out: Vec<PathPoint>,
+}
+
+impl<const N: usize> Thinner<N> {
+    fn new(tol: f64, planes: [(usize, usize, f64, f64); N]) -> Self {
+        Thinner {
+            tol,
+            planes,
+            sleeves: None,
+            prev: None,
+            out: Vec::new(),
+        }
+    }
+
+    fn project(&self, p: &[f64; 3], k: usize) -> (f64, f64) {
+        let (h, v, sh, sv) = self.planes[k];
+        (p[h] * sh, p[v] * sv)
+    }
+
+    fn vertex(&mut self, p: PathPoint) {
+        self.out.push(p);
+        self.sleeves = Some(std::array::from_fn(|k| Sleeve::at(self.project(&p.0, k))));
+    }
+
+    fn push(&mut self, p: PathPoint) {
+        let Some(prev) = self.prev else {
+            self.vertex(p);
+            self.prev = Some(p);
+            return;
+        };
+        if p.1 != prev.1 {
+            if self.out.last() != Some(&prev) {
+                self.vertex(prev);
+            }
+            self.vertex(p);
+            self.prev = Some(p);
+            return;
+        }
+        for attempt in 0..2 {
+            let Some(sleeves) = self.sleeves else {
+                break;
+            };
+            let mut next = sleeves;
+            let mut fits = true;
+            for (k, s) in sleeves.iter().enumerate() {
+                match s.through(self.project(&p.0, k), self.tol) {
+                    Some(n) => next[k] = n,
+                    None => fits = false,
+                }
+            }
+            if fits {
+                self.sleeves = Some(next);
+                break;
+            }
+            if attempt == 0 && self.out.last() != Some(&prev) {
+                // The previous point is a corner: the sleeves start again there.
+                self.vertex(prev);
+            } else {
+                self.vertex(p);
+                break;
+            }
+        }
+        self.prev = Some(p);
+    }
+
+    /// The vertices and the last point.
+    fn finish(mut self) -> Vec<PathPoint> {
+        if let Some(p) = self.prev
+            && self.out.last() != Some(&p)
+        {
+            self.out.push(p);
+        }
+        self.out
+    }
+}
+
+/// The three views of the path, in mm.
+const VIEWS_MM: [(usize, usize, f64, f64); 3] =
+    [(0, 1, 1.0, 1.0), (0, 2, 1.0, 1.0), (1, 2, 1.0, 1.0)];
+
+/// The toolpath, thinned as it comes to `tol_mm` in the three views (the tolerance
+/// doubles, and the points kept are thinned again, whenever more than
+/// [`MAX_PATH_POINTS`] are kept).
 #[derive(Debug)]
 struct Trace {
-    tol_mm: f64,
-    /// Position, and whether the move that reaches it is a rapid.
-    points: Vec<([f64; 3], bool)>,
-    /// The last position seen (kept or not).
-    last: Option<([f64; 3], bool)>,
+    thinner: Thinner<3>,
 }
 
 impl Trace {
     fn new() -> Self {
         Trace {
-            tol_mm: 1e-3,
-            points: Vec::new(),
-            last: None,
+            thinner: Thinner::new(1e-3, VIEWS_MM),
         }
-    }
-
-    fn keeps(tol_mm: f64, kept: &([f64; 3], bool), p: &([f64; 3], bool)) -> bool {
-        let d2: f64 = (0..3).map(|i| (p.0[i] - kept.0[i]).powi(2)).sum();
-        p.1 != kept.1 || d2 >= tol_mm * tol_mm
     }
 
     fn push(&mut self, position: [f64; 3], rapid: bool) {
-        let p = (position, rapid);
-        self.last = Some(p);
-        match self.points.last() {
-            Some(k) if !Trace::keeps(self.tol_mm, k, &p) => return,
-            _ => {}
-        }
-        self.points.push(p);
-        while self.points.len() > MAX_PATH_POINTS {
-            self.tol_mm *= 2.0;
-            let tol = self.tol_mm;
-            let mut kept: Vec<([f64; 3], bool)> = Vec::with_capacity(self.points.len() / 2);
-            for p in &self.points {
-                match kept.last() {
-                    Some(k) if !Trace::keeps(tol, k, p) => {}
-                    _ => kept.push(*p),
-                }
+        self.thinner.push((position, rapid));
+        while self.thinner.out.len() > MAX_PATH_POINTS {
+            let tol = self.thinner.tol * 2.0;
+            let mut again = Thinner::new(tol, VIEWS_MM);
+            for p in &self.thinner.out {
+                again.push(*p);
             }
-            self.points = kept;
+            let mut kept = again.finish();
+            // Thinning goes on from the last point seen.
+            let prev = self.thinner.prev;
+            if let Some(p) = prev
+                && kept.last() == Some(&p)
+            {
+                kept.pop();
+            }
+            let mut next = Thinner::new(tol, VIEWS_MM);
+            for p in kept {
+                next.push(p);
+            }
+            if let Some(p) = prev {
+                next.push(p);
+            }
+            self.thinner = next;
         }
     }
 
-    /// The kept points and the last one.
-    fn all(&self) -> Vec<([f64; 3], bool)> {
-        let mut v = self.points.clone();
-        if let Some(l) = self.last
-            && v.last() != Some(&l)
+    /// The points kept and the last one.
+    fn all(&self) -> Vec<PathPoint> {
+        let mut v = self.thinner.out.clone();
+        if let Some(p) = self.thinner.prev
+            && v.last() != Some(&p)
         {
-            v.push(l);
+            v.push(p);
         }
         v
+    }
+
+    /// Points kept.
+    #[cfg(test)]
+    fn len(&self) -> usize {
+        self.thinner.out.len()
     }
 }
 
@@ -496,7 +647,11 @@ impl PlotRecorder {
                 f64::from(pw.max(1)) / (xr.1 - xr.0),
                 f64::from(ph.max(1)) / (yr.1 - yr.0),
             );
-            let points = thin(&all, |p| (p[h] * px.0, p[v] * px.1), 0.25);
+            let mut thinner = Thinner::new(0.25, [(h, v, px.0, px.1)]);
+            for p in &all {
+                thinner.push(*p);
+            }
+            let points = thinner.finish();
             // Runs of one kind, each starting where the previous ended.
             let mut marked = std::collections::HashSet::new();
             let mut start = 0;
@@ -688,87 +843,6 @@ impl PlotRecorder {
         }
         self.draw_envelope(&mut chart, c)
     }
-}
-
-/// The points of `all` to draw so that the polyline stays within `tol` of every point
-/// (in the units of `project`, pixels): a sleeve of directions from the last vertex is
-/// narrowed by every point; a point outside it makes the previous point a vertex. Where
-/// the kind of move changes the points are kept.
-fn thin(
-    all: &[([f64; 3], bool)],
-    project: impl Fn(&[f64; 3]) -> (f64, f64),
-    tol: f64,
-) -> Vec<([f64; 3], bool)> {
-    let mut out: Vec<([f64; 3], bool)> = Vec::new();
-    let Some(first) = all.first() else {
-        return out;
-    };
-    out.push(*first);
-    let mut anchor = project(&first.0);
-    // Direction of the sleeve's axis and its half-width around it, radians.
-    let mut sleeve: Option<(f64, f64, f64)> = None;
-    // The farthest a point has been from the vertex: coming back along the same line is
-    // a turn too.
-    let mut reach = 0.0f64;
-    let mut prev = *first;
-    let mut i = 1;
-    while i < all.len() {
-        let p = all[i];
-        let q = project(&p.0);
-        let (dx, dy) = (q.0 - anchor.0, q.1 - anchor.1);
-        let d = dx.hypot(dy);
-        let vertex = if p.1 != prev.1 || d < reach - tol {
-            true
-        } else if d <= tol {
-            false
-        } else {
-            let half = (tol / d).asin();
-            match sleeve {
-                None => {
-                    let axis = dy.atan2(dx);
-                    sleeve = Some((axis, -half, half));
-                    false
-                }
-                Some((axis, lo, hi)) => {
-                    let mut rel = dy.atan2(dx) - axis;
-                    if rel > std::f64::consts::PI {
-                        rel -= std::f64::consts::TAU;
-                    } else if rel < -std::f64::consts::PI {
-                        rel += std::f64::consts::TAU;
-                    }
-                    if rel < lo || rel > hi {
-                        true
-                    } else {
-                        sleeve = Some((axis, lo.max(rel - half), hi.min(rel + half)));
-                        false
-                    }
-                }
-            }
-        };
-        if vertex && out.last() != Some(&prev) {
-            out.push(prev);
-            anchor = project(&prev.0);
-            sleeve = None;
-            reach = 0.0;
-            // The same point again, from the new vertex.
-            continue;
-        }
-        if vertex {
-            // The previous point is the vertex already (a change of kind right after it).
-            out.push(p);
-            anchor = q;
-            sleeve = None;
-            reach = 0.0;
-        } else {
-            reach = reach.max(d);
-        }
-        prev = p;
-        i += 1;
-    }
-    if out.last() != Some(&prev) {
-        out.push(prev);
-    }
-    out
 }
 
 /// One column of time of a plotted envelope.
@@ -1247,7 +1321,8 @@ mod tests {
 
     #[test]
     fn a_long_run_keeps_bounded_memory_and_every_spike() {
-        // Twenty minutes at 1 ms of circles at 10 mm/s, with one period's jump of feed.
+        // Twenty minutes at 1 ms of wiggling circles at 10 mm/s, with one period's drop of the
+        // feed to zero.
         let config = Config::builtin();
         let limits = sim::machine_limits(&config);
         let mut recorder = PlotRecorder::new(&limits, RapidIndex::default());
@@ -1257,7 +1332,7 @@ mod tests {
             let a = k as f64 * 1e-3;
             let mut sp = Setpoint {
                 position: [
-                    10.0 * a.cos(),
+                    10.0 * a.cos() + 0.05 * (k as f64 * 1.3).sin(),
                     10.0 * a.sin(),
                     (k % 1000) as f64 * 1e-3,
                     0.0,
@@ -1276,7 +1351,9 @@ mod tests {
         }
         assert!(recorder.buckets().len() <= BUCKETS);
         assert!(recorder.buckets().len() > BUCKETS / 2);
-        assert!(recorder.trace.points.len() <= MAX_PATH_POINTS);
+        // The wiggle of 0.05 mm makes the path too detailed at 1 µm: it was thinned further.
+        assert!(recorder.trace.len() <= MAX_PATH_POINTS);
+        assert!(recorder.trace.thinner.tol > 1e-3);
         let per = recorder.periods_per_bucket();
         assert_eq!(per, 1024);
         let dips: Vec<usize> = recorder
@@ -1293,7 +1370,7 @@ mod tests {
             assert!(
                 recorder
                     .trace
-                    .points
+                    .all()
                     .iter()
                     .any(|(p, _)| p[0] * sx > 5.0 && p[1] * sy > 5.0)
             );
