@@ -763,6 +763,22 @@ fn sim_plot_writes_an_svg_image() {
         std::fs::read(&png_csv).unwrap(),
         std::fs::read(&plain).unwrap()
     );
+
+    // `--plot -`: the SVG alone on standard output (the summary goes to standard error).
+    let out = kerf(&[
+        "sim",
+        program.to_str().unwrap(),
+        "--out",
+        plain.to_str().unwrap(),
+        "--plot",
+        "-",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        out.stdout == std::fs::read(&svg).unwrap(),
+        "stdout is not the SVG"
+    );
+    assert!(stderr(&out).starts_with("duration "), "{}", stderr(&out));
 }
 
 #[test]

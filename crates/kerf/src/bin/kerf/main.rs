@@ -461,7 +461,7 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     // Exit 0 means the program ran to its end: the last setpoint is its end point.
     scan.check_end(&summary.raw.last.position)
         .map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
-    let csv_to_stdout = out.inner.is_stdout();
+    let csv_to_stdout = out.inner.is_stdout() || plot.as_ref().is_some_and(Output::is_stdout);
     out.inner.commit()?;
     if let Some(plot) = plot {
         plot.commit()?;
@@ -469,7 +469,8 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     if scan.moves == 0 {
         writeln!(io::stderr().lock(), "note: no motion in {name}")?;
     }
-    // Standard output carries the CSV with `--out -`: the summary goes to standard error.
+    // Standard output carries the CSV with `--out -` (the plot with `--plot -`): the
+    // summary goes to standard error.
     if csv_to_stdout {
         writeln!(io::stderr().lock(), "{summary}")?;
     } else {
