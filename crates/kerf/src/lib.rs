@@ -4,6 +4,7 @@
 //! - [`config`]: the machine configuration file (TOML), validated once into a plain record.
 //! - [`plan`](mod@plan): `kerf plan`, the resolved program as JSON lines (the front end's contract).
 //! - [`sim`]: `kerf sim`, the whole pipeline in virtual time.
+//! - [`sim_plot`]: its plot (`kerf sim --plot FILE.svg|FILE.png`).
 //! - [`travel`]: the configured travel limits checked on the exact path before any motion.
 //! - [`daemon`]: the interpolator daemon's threads (`kerfd`, `kerf run --embedded`).
 //! - [`ipc`]: the iceoryx2 services of a machine, opened alike by the daemon and clients.
@@ -26,6 +27,7 @@ pub mod daemon;
 pub mod ipc;
 pub mod plan;
 pub mod sim;
+pub mod sim_plot;
 pub mod tooltable;
 pub mod travel;
 
