@@ -21,6 +21,7 @@ mod language;
 mod linuxcnc;
 mod modal;
 mod offsets;
+mod reference;
 mod rockwell;
 mod rs274;
 mod sinumerik;

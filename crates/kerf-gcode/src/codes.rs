@@ -454,3 +454,190 @@ mod tests {
         assert_eq!(g_name(30), "G3");
     }
 }
+
+/// One line of the G or M code reference of a dialect ([`code_reference`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CodeInfo {
+    /// The code as written, e.g. `G59.1`, `M3`, `M100–M199`.
+    pub code: String,
+    /// What it does, or `None` when the dialect refuses it.
+    pub does: Option<&'static str>,
+    /// The error a refused code gives (`None` when it is supported).
+    pub error: Option<String>,
+}
+
+/// What a G code does, in one line.
+fn describe_g(g: G) -> &'static str {
+    use crate::interp::FeedMode as FM;
+    use crate::interp::ToolLength as TL;
+    match g {
+        G::Motion(Motion::Rapid) => "rapid move",
+        G::Motion(Motion::Linear) => "linear feed move",
+        G::Motion(Motion::Arc(Some(false))) => "clockwise arc or helix",
+        G::Motion(Motion::Arc(Some(true))) => "counter-clockwise arc or helix",
+        G::Motion(Motion::Arc(None)) => "arc in the direction of the last programmed arc",
+        G::Motion(Motion::PolarLine { rapid: true }) => "rapid polar line (about the pole)",
+        G::Motion(Motion::PolarLine { rapid: false }) => "polar feed line (about the pole)",
+        G::Motion(Motion::PolarArc(Some(false))) => "clockwise polar arc (about the pole)",
+        G::Motion(Motion::PolarArc(Some(true))) => "counter-clockwise polar arc (about the pole)",
+        G::Motion(Motion::PolarArc(None)) => {
+            "polar arc in the direction of the last programmed arc"
+        }
+        G::Motion(Motion::Cycle(k)) => k.describe(),
+        G::NoMotion => "cancel the modal motion (canned cycles)",
+        G::Dwell => "dwell",
+        G::Plane(Plane::Xy) => "XY plane",
+        G::Plane(Plane::Zx) => "ZX plane",
+        G::Plane(Plane::Yz) => "YZ plane",
+        G::Units { inch: true, .. } => "inch units",
+        G::Units { inch: false, .. } => "millimetre units",
+        G::Distance { absolute: true } => "absolute distances",
+        G::Distance { absolute: false } => "incremental distances",
+        G::ArcDistance { absolute: true } => "absolute arc centres (I, J, K)",
+        G::ArcDistance { absolute: false } => "incremental arc centres (I, J, K)",
+        G::Comp(Comp::Off) => "cutter radius compensation off",
+        G::Comp(Comp::Left) => "cutter radius compensation left of the path",
+        G::Comp(Comp::Right) => "cutter radius compensation right of the path",
+        G::CompDiameter(Comp::Left) => "cutter compensation left, diameter from D",
+        G::CompDiameter(_) => "cutter compensation right, diameter from D",
+        G::ToolLength(TL::Apply) => "tool length offset on",
+        G::ToolLength(TL::Dynamic) => "tool length offset from the axis words",
+        G::ToolLength(TL::Add) => "add a tool's length offset",
+        G::ToolLength(TL::Cancel) => "tool length offset off",
+        G::CoordSystem(Some(_)) => "select a work coordinate system",
+        G::CoordSystem(None) => "cancel the work offset",
+        G::Corner { exact: true } => "exact stop mode",
+        G::Corner { exact: false } => "continuous path (blending within the tolerance)",
+        G::ExactStopOnce => "exact stop for this block",
+        G::G92Set => "coordinate system offset from the axis words",
+        G::G92Reset => "clear the coordinate system offset",
+        G::G92Suspend => "suspend the coordinate system offset",
+        G::G92Restore => "restore the coordinate system offset",
+        G::MachineCoords => "this block in machine coordinates",
+        G::SetData => "set tool table or work offset data (L1, L2, L10, L11, L20)",
+        G::Home(false) => "go to the G28 reference position",
+        G::Home(true) => "go to the G30 reference position",
+        G::HomeSet(false) => "store the G28 reference position",
+        G::HomeSet(true) => "store the G30 reference position",
+        G::LocalOffset => "local coordinate system offset",
+        G::FeedPerMinute => "feed per minute",
+        G::FeedMode(FM::InverseTime) => "inverse time feed",
+        G::FeedMode(FM::PerMinute) => "feed per minute",
+        G::FeedMode(FM::PerRev) => "feed per revolution (at the commanded S)",
+        G::Retract { r_plane: false } => "canned cycle return to the initial level",
+        G::Retract { r_plane: true } => "canned cycle return to the R level",
+        G::Pole(PoleRef::LastPosition) => "pole relative to the last position",
+        G::Pole(PoleRef::Workpiece) => "pole absolute in the workpiece",
+        G::Pole(PoleRef::LastPole) => "pole relative to the last pole",
+        G::PoleFromLast => "pole at the last programmed position",
+        G::PolarOrigin => "polar origin",
+        G::AbsCentreOnce => "absolute arc centre for this block",
+        G::BlankForm => "blank form definition (for graphics; no motion)",
+        G::ToolDef => "tool definition",
+        G::NoOp => "accepted, no effect on the motion",
+        G::Unsupported(_) => "not supported",
+    }
+}
+
+/// The M codes of a dialect that are events or LinuxCNC state operations, with what they
+/// do, and the LinuxCNC M codes refused with their errors.
+fn m_codes(d: Dialect) -> Vec<CodeInfo> {
+    let ok = |code: &str, does| CodeInfo {
+        code: code.to_string(),
+        does: Some(does),
+        error: None,
+    };
+    let mut out = vec![
+        ok("M0", "program pause"),
+        ok("M1", "optional program pause"),
+        ok("M2", "program end"),
+        ok("M3", "spindle clockwise"),
+        ok("M4", "spindle counter-clockwise"),
+        ok("M5", "spindle stop"),
+        ok("M6", "tool change"),
+        ok("M7", "mist coolant on"),
+        ok("M8", "flood coolant on"),
+        ok("M9", "coolant off"),
+        ok("M30", "program end and rewind"),
+    ];
+    // The shared table is the truth for the codes above.
+    debug_assert!(out.iter().all(|c| {
+        let n: u16 = c.code[1..].parse().unwrap_or(u16::MAX);
+        m_event(n).is_some()
+    }));
+    if d == Dialect::LinuxCnc {
+        for (code, does) in [
+            ("M19", "spindle orient (event)"),
+            ("M48", "enable the speed and feed overrides (event)"),
+            ("M49", "disable the speed and feed overrides (event)"),
+            ("M50", "feed override control (event)"),
+            ("M51", "spindle speed override control (event)"),
+            ("M52", "adaptive feed control (event)"),
+            ("M53", "feed stop control (event)"),
+            ("M60", "pallet change pause"),
+            ("M61", "set the current tool number"),
+            ("M70", "save the modal state"),
+            ("M71", "invalidate the saved modal state"),
+            ("M72", "restore the saved modal state"),
+            (
+                "M73",
+                "save the modal state, restore it at the end of the subroutine",
+            ),
+            ("M100–M199", "user M codes (events)"),
+        ] {
+            out.push(ok(code, does));
+        }
+        for code in [62u16, 63, 64, 65, 66, 67, 68, 98, 99] {
+            out.push(CodeInfo {
+                code: format!("M{code}"),
+                does: None,
+                error: crate::interp::linuxcnc_m_refusal_of(code).map(str::to_string),
+            });
+        }
+    }
+    out.sort_by_key(|c| {
+        c.code[1..]
+            .split(|ch: char| !ch.is_ascii_digit())
+            .next()
+            .and_then(|n| n.parse::<u32>().ok())
+            .unwrap_or(u32::MAX)
+    });
+    out
+}
+
+/// The G codes (`g = true`) or M codes of dialect `d`: every code it supports with what it
+/// does, and every code it knows but refuses with its error; codes it does not know are
+/// refused as unknown and not listed. Generated from the tables the interpreter uses.
+pub fn code_reference(d: Dialect, g: bool) -> Vec<CodeInfo> {
+    if !g {
+        return m_codes(d);
+    }
+    let mut out = Vec::new();
+    for code10 in 0..=9999u16 {
+        let Some(info) = classify_g(d, code10) else {
+            continue;
+        };
+        out.push(CodeInfo {
+            code: g_name(code10),
+            does: match info {
+                G::Unsupported(_) => None,
+                other => Some(describe_g(other)),
+            },
+            error: match info {
+                G::Unsupported(msg) => Some(msg.to_string()),
+                _ => None,
+            },
+        });
+    }
+    out
+}
+
+/// The word addresses dialect `d` accepts besides G, M and N (and its own block syntax,
+/// e.g. LinuxCNC's O-words and parameters), as written.
+pub fn word_addresses(d: Dialect) -> Vec<String> {
+    let mask = allowed_keys(d);
+    (0u8..32)
+        .filter(|k| mask & (1 << k) != 0)
+        .map(key_name)
+        .collect()
+}

@@ -16,6 +16,7 @@ pub(crate) mod params;
 mod query;
 
 pub(crate) use modal::FeedMode;
+pub(crate) use modal::linuxcnc_m_refusal_of;
 use modal::{ModalFrame, Spindle, StateOp};
 pub(crate) use offsets::ToolLength;
 

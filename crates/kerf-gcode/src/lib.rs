@@ -459,6 +459,7 @@ mod interp;
 mod lex;
 mod ngc;
 
+pub use codes::{CodeInfo, code_reference, word_addresses};
 pub use kerf_geom::{Arc, CornerMode, Line, Move, Path, Vec3};
 
 /// The control whose G-code dialect a program is written in.

@@ -77,6 +77,21 @@ pub(crate) enum CycleKind {
 }
 
 impl CycleKind {
+    /// What the cycle does, in one line.
+    pub(crate) fn describe(self) -> &'static str {
+        match self {
+            CycleKind::G73 => "drilling cycle with chip break",
+            CycleKind::G81 => "drilling cycle",
+            CycleKind::G82 => "drilling cycle with dwell",
+            CycleKind::G83 => "peck drilling cycle",
+            CycleKind::G85 => "boring cycle, feed out",
+            CycleKind::G86 => "boring cycle, spindle stop, rapid out",
+            CycleKind::G87 => "back boring cycle",
+            CycleKind::G88 => "boring cycle, spindle stop, manual out",
+            CycleKind::G89 => "boring cycle, dwell, feed out",
+        }
+    }
+
     /// The cycle of a G number times ten, if it is one.
     pub(crate) fn from_code10(code10: u16) -> Option<CycleKind> {
         Some(match code10 {

@@ -123,22 +123,7 @@ impl State {
         if self.dialect != Dialect::LinuxCnc {
             return None;
         }
-        Some(match code {
-            62 => "M62 is not supported: Kerf has no digital outputs",
-            63 => "M63 is not supported: Kerf has no digital outputs",
-            64 => "M64 is not supported: Kerf has no digital outputs",
-            65 => "M65 is not supported: Kerf has no digital outputs",
-            66 => "M66 is not supported: Kerf has no inputs to wait on",
-            67 => "M67 is not supported: Kerf has no analog outputs",
-            68 => "M68 is not supported: Kerf has no analog outputs",
-            98 => {
-                "M98 is not supported: Fanuc-style subprograms (M98/M99) are not supported, use o-word subroutines (o<name> call)"
-            }
-            99 => {
-                "M99 is not supported: Fanuc-style subprograms (M98/M99) are not supported, use o-word subroutines (o<name> call)"
-            }
-            _ => return None,
-        })
+        linuxcnc_m_refusal_of(code)
     }
 
     /// Checks the words of LinuxCNC M19 as rs274 does: R from 0 to 360 degrees, Q above
@@ -494,6 +479,26 @@ impl State {
             text: None,
         }));
     }
+}
+
+/// The LinuxCNC M codes that Kerf refuses, with the reason (`State::linuxcnc_m_refusal`).
+pub(crate) fn linuxcnc_m_refusal_of(code: u16) -> Option<&'static str> {
+    Some(match code {
+        62 => "M62 is not supported: Kerf has no digital outputs",
+        63 => "M63 is not supported: Kerf has no digital outputs",
+        64 => "M64 is not supported: Kerf has no digital outputs",
+        65 => "M65 is not supported: Kerf has no digital outputs",
+        66 => "M66 is not supported: Kerf has no inputs to wait on",
+        67 => "M67 is not supported: Kerf has no analog outputs",
+        68 => "M68 is not supported: Kerf has no analog outputs",
+        98 => {
+            "M98 is not supported: Fanuc-style subprograms (M98/M99) are not supported, use o-word subroutines (o<name> call)"
+        }
+        99 => {
+            "M99 is not supported: Fanuc-style subprograms (M98/M99) are not supported, use o-word subroutines (o<name> call)"
+        }
+        _ => return None,
+    })
 }
 
 #[cfg(test)]
