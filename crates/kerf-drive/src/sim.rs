@@ -6,7 +6,10 @@
 //! to the new one (the drive's own interpolation of the cyclic target), the velocity
 //! feed-forward is `kff · (target − previous target) / period`, and the commanded
 //! acceleration of the motor (torque / inertia) is
-//! `a = ωn² (r − x) + 2 ζ ωn (v_ff − v)` with `ωn = 2π · bandwidth_hz`. The motor is a
+//! `a = (ωn² (r − x) + 2 ζ ωn (v_ff − v)) / ρ` with `ωn = 2π · bandwidth_hz` and ρ the
+//! `inertia_ratio`: the load's inertia over the inertia the loop was tuned for (1: tuned
+//! for this load; 2: twice as heavy, so the same torque accelerates it half as much, the
+//! loop's natural frequency falls by √2 and its damping too). The motor is a
 //! double integrator (`x'' = a`), integrated with `substeps` semi-implicit Euler steps per
 //! period. Without feed-forward the loop is the textbook second-order system (step
 //! overshoot `exp(−ζπ/√(1−ζ²))`); with full feed-forward the following error under an
@@ -35,6 +38,9 @@ pub struct SimConfig {
     pub bandwidth_hz: f64,
     /// Damping ratio ζ.
     pub damping: f64,
+    /// The load's inertia over the inertia the position loop was tuned for, ρ (1: tuned
+    /// for it). The commanded torque accelerates the load by 1/ρ of what the loop asks.
+    pub inertia_ratio: f64,
     /// Velocity feed-forward gain, 0 (none) to 1 (full).
     pub velocity_feed_forward: f64,
     /// Integration steps per period (at least 1).
@@ -56,6 +62,7 @@ impl Default for SimConfig {
             period_ns: 1_000_000,
             bandwidth_hz: 50.0,
             damping: 1.0,
+            inertia_ratio: 1.0,
             velocity_feed_forward: 1.0,
             substeps: 20,
             overcurrent_accel_counts_s2: 1.0e9,
@@ -67,23 +74,33 @@ impl Default for SimConfig {
 }
 
 impl SimConfig {
-    /// ωn·h·(ωn·h + 4ζ) for the integration step h = period / substeps: the servo model's
-    /// semi-implicit Euler step is stable below 4 (the eigenvalues of its step matrix,
-    /// whose determinant is 1 − 2ζωn·h and trace 2 − (ωn·h)² − 2ζωn·h, stay inside the
-    /// unit circle exactly then).
+    /// The loop as the load sees it: natural frequency ωn/√ρ (rad/s) and damping ratio
+    /// ζ/√ρ.
+    fn effective(&self) -> (f64, f64) {
+        let root = self.inertia_ratio.max(f64::MIN_POSITIVE).sqrt();
+        (
+            2.0 * core::f64::consts::PI * self.bandwidth_hz / root,
+            self.damping / root,
+        )
+    }
+
+    /// ω·h·(ω·h + 4ζ) for the integration step h = period / substeps, with the loop's
+    /// effective ω = ωn/√ρ and ζ/√ρ: the servo model's semi-implicit Euler step is stable
+    /// below 4 (the eigenvalues of its step matrix, whose determinant is 1 − 2ζω·h and
+    /// trace 2 − (ω·h)² − 2ζω·h, stay inside the unit circle exactly then).
     pub fn stability_index(&self) -> f64 {
-        let omega = 2.0 * core::f64::consts::PI * self.bandwidth_hz;
+        let (omega, zeta) = self.effective();
         let h = self.period_ns as f64 * 1e-9 / f64::from(self.substeps.max(1));
-        omega * h * (omega * h + 4.0 * self.damping)
+        omega * h * (omega * h + 4.0 * zeta)
     }
 
     /// The fewest substeps that keep [`SimConfig::stability_index`] at most 2 (half the
     /// stability bound, so that the model is also accurate).
     pub fn min_substeps(&self) -> u32 {
-        let omega = 2.0 * core::f64::consts::PI * self.bandwidth_hz;
+        let (omega, zeta) = self.effective();
         let period_s = self.period_ns as f64 * 1e-9;
         // ωh(ωh + 4ζ) ≤ 2  ⇔  ωh ≤ −2ζ + √(4ζ² + 2).
-        let max_omega_h = -2.0 * self.damping + (4.0 * self.damping * self.damping + 2.0).sqrt();
+        let max_omega_h = -2.0 * zeta + (4.0 * zeta * zeta + 2.0).sqrt();
         let n = (omega * period_s / max_omega_h).ceil();
         if n.is_finite() && n >= 1.0 {
             n.min(f64::from(u32::MAX)) as u32
@@ -249,6 +266,7 @@ impl SimDrive {
                 for i in 0..substeps {
                     // The reference at the start of the substep, with x and v there.
                     let reference = start + (end - start) * f64::from(i) / f64::from(substeps);
+                    // What the loop asks for (the torque, at the tuned inertia)…
                     let accel = omega * omega * (reference - self.position_counts)
                         + 2.0 * self.config.damping * omega * (v_ff - self.velocity_counts_s);
                     if accel.is_nan() || accel.abs() > self.config.overcurrent_accel_counts_s2 {
@@ -256,7 +274,8 @@ impl SimDrive {
                         self.velocity_counts_s = 0.0;
                         break;
                     }
-                    self.velocity_counts_s += accel * dt_s;
+                    // … and what the load does with it.
+                    self.velocity_counts_s += accel / self.config.inertia_ratio * dt_s;
                     self.position_counts += self.velocity_counts_s * dt_s;
                 }
                 self.previous_target_counts = end;

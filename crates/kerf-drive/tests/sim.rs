@@ -343,3 +343,36 @@ fn the_stability_index_tells_a_diverging_model() {
         assert!(run(fixed) < 1e-3, "{fixed:?}");
     }
 }
+
+/// A load heavier or lighter than the loop was tuned for: under a constant acceleration A
+/// with full velocity feed-forward, the motor obeys ρ·ë = −ωn²·e − 2ζωn·ė + ρ·A (e the
+/// error, ρ the inertia ratio), so the error settles at ρ·A/ωn²: twice the inertia, twice
+/// the lag.
+#[test]
+fn the_following_error_under_acceleration_grows_with_the_inertia_ratio() {
+    let a_counts_s2 = 2.0e6; // 2000 mm/s² at 1000 counts/mm
+    for ratio in [0.5, 1.0, 3.0] {
+        let cfg = SimConfig {
+            period_ns: PERIOD_NS,
+            bandwidth_hz: 40.0,
+            inertia_ratio: ratio,
+            ..SimConfig::default()
+        };
+        let mut drive = enabled(cfg);
+        // Accelerate for 0.3 s (long after the transient of a 40 Hz loop), then read the
+        // lag between the target and the motor.
+        let mut lag = 0.0;
+        for k in 1..=300 {
+            let t = k as f64 * PERIOD_S;
+            let target = 0.5 * a_counts_s2 * t * t;
+            drive.write(0x000F, target.round() as i32);
+            lag = target - drive.motor_position_counts();
+        }
+        let omega = 2.0 * std::f64::consts::PI * 40.0;
+        let expected = ratio * a_counts_s2 / (omega * omega);
+        assert!(
+            (lag - expected).abs() < 0.03 * expected + 1.0,
+            "ρ {ratio}: lag {lag} counts, expected {expected}"
+        );
+    }
+}

@@ -25,6 +25,8 @@ use kerf_geom::AxisLimits;
 use serde::Deserialize;
 use toml::Spanned;
 
+pub mod reference;
+
 /// The bundled example configuration (`config/kerf.toml`), used when no `--config` is given.
 pub const BUILTIN_TOML: &str = include_str!("../../../config/kerf.toml");
 
@@ -107,7 +109,7 @@ pub const MOVE_WINDOW_RANGE: RangeInclusive<u32> = 16..=65_536;
 pub const DAEMON_PERIOD_RANGE_US: RangeInclusive<u32> = 125..=10_000;
 
 // The drive side (`[axes.*.drive]`, the following-error keys of `[axes.*]`, `[safety]`).
-// Read and validated here; the daemon does not use them yet (docs/DRIVES.md).
+// Read and validated here; the daemon's drive stage is built from them (docs/DRIVES.md).
 
 /// Default drive scale when `counts_per_mm` / `counts_per_deg` is not given: 1000 counts
 /// per mm (1 µm) or per degree.
@@ -123,6 +125,10 @@ pub const BANDWIDTH_RANGE_HZ: RangeInclusive<f64> = 0.1..=1000.0;
 
 /// Accepted sim drive damping ratios.
 pub const DAMPING_RANGE: RangeInclusive<f64> = 0.01..=10.0;
+
+/// Accepted sim drive inertia ratios (the load's inertia over the inertia its position
+/// loop was tuned for).
+pub const INERTIA_RATIO_RANGE: RangeInclusive<f64> = 0.01..=100.0;
 
 /// Accepted sim drive velocity feed-forward gains.
 pub const VELOCITY_FEED_FORWARD_RANGE: RangeInclusive<f64> = 0.0..=1.0;
@@ -188,7 +194,8 @@ pub struct AxisDrive {
     pub kind: DriveKind,
     /// `counts_per_mm` (`counts_per_deg`) and `direction`.
     pub scale: Scale,
-    /// The sim drive's tuning: `bandwidth_hz`, `damping`, `velocity_feed_forward`,
+    /// The sim drive's tuning: `bandwidth_hz`, `damping`, `inertia_ratio`,
+    /// `velocity_feed_forward`,
     /// `substeps`, `overcurrent_accel_counts_s2`, `quick_stop_decel_counts_s2`,
     /// `following_error_window_counts`. Its period and start position are not keys:
     /// [`Config::drive_configs`] sets them.
@@ -379,8 +386,8 @@ pub struct Config {
     /// start ([`Config::program_settings`]) and written by `kerf run` after a program that
     /// ended normally.
     pub parameter_file: Option<PathBuf>,
-    /// The drive side: `[axes.*.drive]`, `ferror_*`/`min_ferror_*`, `[safety]` (not used by
-    /// the daemon yet).
+    /// The drive side: `[axes.*.drive]`, `ferror_*`/`min_ferror_*`, `[safety]` (the
+    /// daemon's drive stage is built from it).
     pub drive: DriveSide,
 }
 
@@ -1015,6 +1022,7 @@ struct RawDrive {
     direction: Option<Spanned<i64>>,
     bandwidth_hz: Option<Spanned<f64>>,
     damping: Option<Spanned<f64>>,
+    inertia_ratio: Option<Spanned<f64>>,
     velocity_feed_forward: Option<Spanned<f64>>,
     substeps: Option<Spanned<i64>>,
     overcurrent_accel_counts_s2: Option<Spanned<f64>>,
@@ -1400,6 +1408,13 @@ impl Checker<'_> {
             DAMPING_RANGE,
             &raw.damping,
             d.sim.damping,
+        )?;
+        d.sim.inertia_ratio = self.within_or(
+            &key("inertia_ratio"),
+            "(load inertia over the tuned inertia)",
+            INERTIA_RATIO_RANGE,
+            &raw.inertia_ratio,
+            d.sim.inertia_ratio,
         )?;
         d.sim.velocity_feed_forward = self.within_or(
             &key("velocity_feed_forward"),
@@ -2139,7 +2154,7 @@ radius_mm = 0.0
     }
 
     /// Every key of `[axes.x.drive]`, at its default.
-    const DRIVE_X: &str = "[axes.x.drive]\nkind = \"sim\"\ncounts_per_mm = 1000.0\ndirection = 1\nbandwidth_hz = 50.0\ndamping = 1.0\nvelocity_feed_forward = 1.0\nsubsteps = 20\novercurrent_accel_counts_s2 = 1e9\nquick_stop_decel_counts_s2 = 1e6\nfollowing_error_window_counts = 1000\nenable_timeout_ms = 1000\n";
+    const DRIVE_X: &str = "[axes.x.drive]\nkind = \"sim\"\ncounts_per_mm = 1000.0\ndirection = 1\nbandwidth_hz = 50.0\ndamping = 1.0\ninertia_ratio = 1.0\nvelocity_feed_forward = 1.0\nsubsteps = 20\novercurrent_accel_counts_s2 = 1e9\nquick_stop_decel_counts_s2 = 1e6\nfollowing_error_window_counts = 1000\nenable_timeout_ms = 1000\n";
 
     /// MINIMAL with every optional table, so that any key can be set by [`with_key`].
     fn full() -> String {
@@ -2321,6 +2336,13 @@ radius_mm = 0.0
                 &["0.01", "10"],
                 &["0.0099", "10.1", "-1"],
                 "between 0.01 and 10 (damping ratio)",
+            ),
+            (
+                "axes.x.drive",
+                "inertia_ratio",
+                &["0.01", "100"],
+                &["0.0099", "100.1", "nan"],
+                "between 0.01 and 100 (load inertia over the tuned inertia)",
             ),
             (
                 "axes.x.drive",
@@ -2832,7 +2854,7 @@ radius_mm = 0.0
     #[test]
     fn built_drive_and_safety_configs_carry_the_files_values() {
         let text = format!(
-            "period_us = 2000\n{}[axes.x.drive]\nkind = \"sim\"\ncounts_per_mm = 800.0\ndirection = -1\nbandwidth_hz = 20.0\ndamping = 0.7\nvelocity_feed_forward = 0.5\nsubsteps = 40\novercurrent_accel_counts_s2 = 5e8\nquick_stop_decel_counts_s2 = 2e5\nfollowing_error_window_counts = 77\nenable_timeout_ms = 3\n[axes.b]\nvelocity_deg_s = 90.0\nacceleration_deg_s2 = 900.0\njerk_deg_s3 = 9000.0\nmin_deg = -30.0\nmax_deg = 120.0\nferror_deg = 2.0\nmin_ferror_deg = 0.5\n[axes.b.drive]\ncounts_per_deg = 3600.0\n[safety]\nmargin = 0.1\nstall_cycles = 7\nrecorder_seconds = 2.5\n",
+            "period_us = 2000\n{}[axes.x.drive]\nkind = \"sim\"\ncounts_per_mm = 800.0\ndirection = -1\nbandwidth_hz = 20.0\ndamping = 0.7\ninertia_ratio = 1.5\nvelocity_feed_forward = 0.5\nsubsteps = 40\novercurrent_accel_counts_s2 = 5e8\nquick_stop_decel_counts_s2 = 2e5\nfollowing_error_window_counts = 77\nenable_timeout_ms = 3\n[axes.b]\nvelocity_deg_s = 90.0\nacceleration_deg_s2 = 900.0\njerk_deg_s3 = 9000.0\nmin_deg = -30.0\nmax_deg = 120.0\nferror_deg = 2.0\nmin_ferror_deg = 0.5\n[axes.b.drive]\ncounts_per_deg = 3600.0\n[safety]\nmargin = 0.1\nstall_cycles = 7\nrecorder_seconds = 2.5\n",
             MINIMAL.replacen(
                 "max_mm = 10.0\n",
                 "max_mm = 10.0\nferror_mm = 0.4\nmin_ferror_mm = 0.02\n",
@@ -2853,6 +2875,7 @@ radius_mm = 0.0
                 period_ns: 2_000_000,
                 bandwidth_hz: 20.0,
                 damping: 0.7,
+                inertia_ratio: 1.5,
                 velocity_feed_forward: 0.5,
                 substeps: 40,
                 overcurrent_accel_counts_s2: 5e8,

@@ -38,6 +38,7 @@ use kerf_pipeline::{self as driver, Event, Input, Planned, RunError, RunOptions,
 use kerf_plan::{PlanError, Planner};
 
 use crate::config::Config;
+use crate::sim_plot::{PlotOutput, PlotRecorder, RapidIndex};
 use crate::travel::{self, PlannedTravelError, TravelError};
 
 /// Options of a simulation.
@@ -579,14 +580,16 @@ pub fn simulate<W: Write + Send>(
     simulate_and_plot(moves, config, options, out, None)
 }
 
-/// [`simulate`], and with `plot` also draws the toolpath and the feed, acceleration and
-/// jerk over time as an SVG image into it (for `kerf sim --plot FILE.svg`).
+/// [`simulate`], and with `plot` also draws the toolpath, the feed, and each axis's
+/// velocity, acceleration and jerk against its limits over time, as an SVG or PNG image
+/// (for `kerf sim --plot FILE.svg|FILE.png`; see [`crate::sim_plot`]). The CSV is the same
+/// with or without a plot.
 pub fn simulate_and_plot<W: Write + Send>(
     moves: &[Move],
     config: &Config,
     options: &SimOptions,
     out: W,
-    plot: Option<&mut dyn Write>,
+    plot: Option<PlotOutput<'_>>,
 ) -> Result<SimSummary, SimError> {
     let rotary = moves.iter().any(|m| m.abc_deg.is_some_and(|(s, e)| s != e));
     simulate_stream(
@@ -601,15 +604,15 @@ pub fn simulate_and_plot<W: Write + Send>(
 
 /// [`simulate_and_plot`] over a stream of moves (the second pass of `kerf sim`):
 /// `rotary_used` (from the first pass, [`Scan::rotary_used`]) decides the CSV header.
-/// Memory does not grow with the program; with `plot` the recorded plot points do grow
-/// with the motion time (24 bytes per period).
+/// Memory does not grow with the program, nor with the plot (it keeps at most 2,048
+/// columns of time and a thinned toolpath, see [`crate::sim_plot`]).
 pub fn simulate_stream<I, W>(
     moves: I,
     rotary_used: bool,
     config: &Config,
     options: &SimOptions,
     out: W,
-    plot: Option<&mut dyn Write>,
+    plot: Option<PlotOutput<'_>>,
 ) -> Result<SimSummary, SimError>
 where
     I: Iterator<Item = Input> + Send,
@@ -626,7 +629,7 @@ pub fn simulate_kept<W: Write + Send>(
     config: &Config,
     options: &SimOptions,
     out: W,
-    plot: Option<&mut dyn Write>,
+    plot: Option<PlotOutput<'_>>,
 ) -> Result<SimSummary, SimError> {
     let feed: Feed<std::iter::Empty<Input>> = Feed::Kept(kept);
     simulate_feed(feed, scan.rotary_used, config, options, out, plot)
@@ -638,7 +641,7 @@ fn simulate_feed<I, W>(
     config: &Config,
     options: &SimOptions,
     out: W,
-    plot: Option<&mut dyn Write>,
+    plot: Option<PlotOutput<'_>>,
 ) -> Result<SimSummary, SimError>
 where
     I: Iterator<Item = Input> + Send,
@@ -655,7 +658,39 @@ where
             scale[3 + i] = r.min_deg.abs().max(r.max_deg.abs());
         }
     }
-    let mut recorder = plot.is_some().then(|| PlotRecorder::new(&limits));
+    // The plot learns which moves are rapids: from the kept moves, or from the stream as
+    // the planner thread reads it (always before the moves' setpoints).
+    let mut recorder = None;
+    let feed = match feed {
+        Feed::Kept(k) if plot.is_some() => {
+            let mut rapids = RapidIndex::default();
+            for m in &k.moves {
+                rapids.push(m.rapid);
+            }
+            recorder = Some(PlotRecorder::new(&limits, rapids));
+            Feed::Kept(k)
+        }
+        Feed::Stream(moves) if plot.is_some() => {
+            let (flips, rx) = std::sync::mpsc::channel();
+            let mut r = PlotRecorder::new(&limits, RapidIndex::default());
+            r.flips_from(rx);
+            recorder = Some(r);
+            let mut rapids = RapidIndex::default();
+            Feed::Stream(Box::new(moves.inspect(move |i| {
+                if let Input::Move(m) = i
+                    && let Some(at) = rapids.next_flip(m.rapid)
+                {
+                    // The recorder outlives the run: a send cannot fail before it ends.
+                    let _ = flips.send(at);
+                }
+            }))
+                as Box<dyn Iterator<Item = Input> + Send + '_>)
+        }
+        Feed::Stream(moves) => {
+            Feed::Stream(Box::new(moves) as Box<dyn Iterator<Item = Input> + Send + '_>)
+        }
+        Feed::Kept(k) => Feed::Kept(k),
+    };
     // The rows are formatted and written on a second thread, in chunks: at a 1 ms period
     // the text is a large share of a simulation's work.
     let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<(f64, Setpoint)>>(4);
@@ -682,7 +717,7 @@ where
                 chunk.clear();
             }
             if let Some(r) = recorder.as_mut() {
-                r.push(t, sp);
+                r.push(sp);
             }
         });
         // The rows up to a fault are written too: the CSV ends with the offending setpoint.
@@ -697,203 +732,14 @@ where
     });
     written?;
     let summary = summary?;
-    if let (Some(out), Some(r)) = (plot, recorder) {
-        r.write_svg(out)?;
+    if let (Some(plot), Some(r)) = (plot, recorder) {
+        r.write(plot.format, &plot.title, plot.out)?;
     }
     Ok(summary)
 }
 
 /// Rows per chunk handed to the CSV writer thread.
 const ROWS_PER_CHUNK: usize = 4096;
-
-/// One plotted sample (single precision keeps long runs small).
-#[derive(Clone, Copy, Debug)]
-struct PlotPoint {
-    t: f32,
-    x: f32,
-    y: f32,
-    feed: f32,
-    /// Largest |acceleration| / limit over the linear axes, by finite differences.
-    acc: f32,
-    /// Largest |jerk| / limit over the linear axes, by finite differences.
-    jerk: f32,
-}
-
-/// Collects what the plot shows while the simulation runs.
-struct PlotRecorder {
-    limits: MachineLimits,
-    hist: [[f64; 3]; 4],
-    seen: usize,
-    points: Vec<PlotPoint>,
-}
-
-impl PlotRecorder {
-    fn new(limits: &MachineLimits) -> Self {
-        PlotRecorder {
-            limits: *limits,
-            hist: [[0.0; 3]; 4],
-            seen: 0,
-            points: Vec::new(),
-        }
-    }
-
-    fn push(&mut self, t: f64, sp: &Setpoint) {
-        self.hist.rotate_right(1);
-        self.hist[0] = [sp.position[0], sp.position[1], sp.position[2]];
-        self.seen += 1;
-        let dt = self.limits.period_s;
-        let (mut acc, mut jerk) = (0.0f64, 0.0f64);
-        for i in 0..3 {
-            let Some(l) = self.limits.axes[i] else {
-                continue;
-            };
-            let h = |k: usize| self.hist[k][i];
-            if self.seen >= 3 {
-                let a = (h(0) - 2.0 * h(1) + h(2)) / (dt * dt);
-                acc = acc.max(a.abs() / l.acceleration_units_s2);
-            }
-            if self.seen >= 4 {
-                let j = (h(0) - 3.0 * h(1) + 3.0 * h(2) - h(3)) / (dt * dt * dt);
-                jerk = jerk.max(j.abs() / l.jerk_units_s3);
-            }
-        }
-        self.points.push(PlotPoint {
-            t: t as f32,
-            x: sp.position[0] as f32,
-            y: sp.position[1] as f32,
-            feed: sp.feed_mm_s as f32,
-            acc: acc as f32,
-            jerk: jerk as f32,
-        });
-    }
-
-    /// Three panels: the XY toolpath (equal scales), the path feed over time, and the
-    /// largest acceleration and jerk as a fraction of the limit over time (with the 100 %
-    /// line). Time series keep the maximum of each pixel column so spikes stay visible.
-    fn write_svg(&self, out: &mut dyn Write) -> io::Result<()> {
-        let (w, h_path, h_plot, pad) = (900.0f64, 450.0f64, 200.0f64, 40.0f64);
-        let height = h_path + 2.0 * h_plot + 4.0 * pad;
-        writeln!(
-            out,
-            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{height}" font-family="sans-serif" font-size="12">"#
-        )?;
-        writeln!(out, r#"<rect width="100%" height="100%" fill="white"/>"#)?;
-        let pts = &self.points;
-        if pts.is_empty() {
-            return writeln!(out, "</svg>");
-        }
-        // Toolpath.
-        let (mut x0, mut x1, mut y0, mut y1) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
-        for p in pts {
-            x0 = x0.min(p.x);
-            x1 = x1.max(p.x);
-            y0 = y0.min(p.y);
-            y1 = y1.max(p.y);
-        }
-        let span = f64::from((x1 - x0).max(y1 - y0)).max(1e-9);
-        let x_span = f64::from(x1 - x0).max(1e-9);
-        let y_span = f64::from(y1 - y0).max(1e-9);
-        let scale = ((w - 2.0 * pad) / x_span).min((h_path - pad) / y_span);
-        let px = |x: f32| pad + f64::from(x - x0) * scale;
-        let py = |y: f32| pad + h_path - pad - f64::from(y - y0) * scale;
-        writeln!(
-            out,
-            r#"<text x="{pad}" y="{}">toolpath XY ({:.3} mm across)</text>"#,
-            pad - 10.0,
-            span
-        )?;
-        write!(
-            out,
-            r#"<polyline fill="none" stroke="steelblue" stroke-width="1" points=""#
-        )?;
-        let mut last = (f64::NAN, f64::NAN);
-        for p in pts {
-            let q = (px(p.x), py(p.y));
-            if (q.0 - last.0).abs() + (q.1 - last.1).abs() >= 0.5 || last.0.is_nan() {
-                write!(out, "{:.1},{:.1} ", q.0, q.1)?;
-                last = q;
-            }
-        }
-        writeln!(out, r#""/>"#)?;
-        // Time series.
-        let t_end = f64::from(pts[pts.len() - 1].t).max(1e-9);
-        let cols = (w - 2.0 * pad) as usize;
-        let column = |t: f32| ((f64::from(t) / t_end) * (cols as f64 - 1.0)) as usize;
-        let mut feed = vec![0.0f32; cols];
-        let mut acc = vec![0.0f32; cols];
-        let mut jerk = vec![0.0f32; cols];
-        for p in pts {
-            let c = column(p.t).min(cols - 1);
-            feed[c] = feed[c].max(p.feed);
-            acc[c] = acc[c].max(p.acc);
-            jerk[c] = jerk[c].max(p.jerk);
-        }
-        let feed_max = feed.iter().copied().fold(0.0f32, f32::max).max(1e-9);
-        let top2 = h_path + 2.0 * pad;
-        self.series(
-            out,
-            top2,
-            h_plot,
-            &[(&feed, "darkgreen")],
-            f64::from(feed_max),
-        )?;
-        writeln!(
-            out,
-            r#"<text x="{pad}" y="{}">path feed, 0 to {:.1} mm/s, over {:.3} s</text>"#,
-            top2 - 8.0,
-            feed_max,
-            t_end
-        )?;
-        let top3 = top2 + h_plot + pad;
-        self.series(
-            out,
-            top3,
-            h_plot,
-            &[(&acc, "darkorange"), (&jerk, "crimson")],
-            1.1,
-        )?;
-        let y100 = top3 + h_plot - h_plot / 1.1;
-        writeln!(
-            out,
-            r#"<line x1="{pad}" x2="{}" y1="{y100:.1}" y2="{y100:.1}" stroke="gray" stroke-dasharray="4 3"/>"#,
-            w - pad
-        )?;
-        writeln!(
-            out,
-            r#"<text x="{pad}" y="{}">largest axis acceleration (orange) and jerk (red) as a fraction of the limit; dashed = 100 %</text>"#,
-            top3 - 8.0
-        )?;
-        writeln!(out, "</svg>")
-    }
-
-    fn series(
-        &self,
-        out: &mut dyn Write,
-        top: f64,
-        height: f64,
-        lines: &[(&Vec<f32>, &str)],
-        y_max: f64,
-    ) -> io::Result<()> {
-        let pad = 40.0;
-        writeln!(
-            out,
-            r#"<rect x="{pad}" y="{top}" width="{}" height="{height}" fill="none" stroke="black" stroke-width="0.5"/>"#,
-            900.0 - 2.0 * pad
-        )?;
-        for (values, color) in lines {
-            write!(
-                out,
-                r#"<polyline fill="none" stroke="{color}" stroke-width="1" points=""#
-            )?;
-            for (c, v) in values.iter().enumerate() {
-                let y = top + height - (f64::from(*v) / y_max).min(1.0) * height;
-                write!(out, "{:.1},{:.1} ", pad + c as f64, y)?;
-            }
-            writeln!(out, r#""/>"#)?;
-        }
-        Ok(())
-    }
-}
 
 /// Writes one CSV row. Floats use the shortest round-trip form of the `zmij` crate (as
 /// `kerf plan` does), which is several times faster than `Display` and matters here: at a
@@ -992,7 +838,11 @@ mod tests {
             &config,
             &SimOptions::default(),
             &mut first,
-            Some(&mut svg),
+            Some(PlotOutput {
+                format: crate::sim_plot::PlotFormat::Svg,
+                out: &mut svg,
+                title: "program".to_string(),
+            }),
         )
         .unwrap();
         let mut second = Vec::new();

@@ -745,6 +745,67 @@ fn sim_plot_writes_an_svg_image() {
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
     assert_eq!(std::fs::read(&csv).unwrap(), std::fs::read(&plain).unwrap());
+
+    // `.png` (any case) gives a PNG image, and the same CSV.
+    let (png_csv, png) = (dir.join("sim-plot-png.csv"), dir.join("sim-plot.PNG"));
+    let out = kerf(&[
+        "sim",
+        program.to_str().unwrap(),
+        "--out",
+        png_csv.to_str().unwrap(),
+        "--plot",
+        png.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let image = std::fs::read(&png).unwrap();
+    assert!(image.starts_with(b"\x89PNG\r\n\x1a\n"), "{:?}", &image[..8]);
+    assert_eq!(
+        std::fs::read(&png_csv).unwrap(),
+        std::fs::read(&plain).unwrap()
+    );
+
+    // `--plot -`: the SVG alone on standard output (the summary goes to standard error).
+    let out = kerf(&[
+        "sim",
+        program.to_str().unwrap(),
+        "--out",
+        plain.to_str().unwrap(),
+        "--plot",
+        "-",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        out.stdout == std::fs::read(&svg).unwrap(),
+        "stdout is not the SVG"
+    );
+    assert!(stderr(&out).starts_with("duration "), "{}", stderr(&out));
+}
+
+#[test]
+fn sim_plot_of_another_format_is_refused_before_the_run() {
+    // The program would fail too (outside the travel): the plot's name is checked first,
+    // and nothing is written.
+    let program = scratch("sim-plot-jpg.ngc", "G21 G90\nG1 X5000 F600\n");
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("kerf-cli-tests");
+    let (csv, jpg) = (dir.join("sim-plot-jpg.csv"), dir.join("sim-plot.jpg"));
+    let out = kerf(&[
+        "sim",
+        program.to_str().unwrap(),
+        "--out",
+        csv.to_str().unwrap(),
+        "--plot",
+        jpg.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = stderr(&out);
+    assert_eq!(
+        err,
+        format!(
+            "{}: error: the plot format is chosen by the file name, which must end in .svg or .png\n",
+            jpg.display()
+        )
+    );
+    assert!(!csv.exists() && !jpg.exists());
 }
 
 #[test]

@@ -15,7 +15,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context;
-use clap::Parser;
+use clap::{CommandFactory, Parser};
 
 /// How often the main thread looks at signals and feeds the watchdog.
 const SUPERVISE_EVERY: Duration = Duration::from_millis(20);
@@ -30,10 +30,19 @@ struct Args {
     /// Tests only: accept the fault injections of the control service (REQUEST_INJECT).
     #[arg(long, hide = true)]
     test_faults: bool,
+    /// Packaging: print the shell completion script (bash, zsh or fish) and exit.
+    #[arg(long, hide = true, value_name = "SHELL")]
+    completions: Option<kerf::clidoc::Shell>,
+    /// Packaging: write the man page `kerfd.1` into DIR and exit.
+    #[arg(long, hide = true, value_name = "DIR")]
+    man: Option<PathBuf>,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    if let Some(code) = packaging(&args) {
+        return code;
+    }
     // journald adds the time; a terminal gets it from us.
     let under_journal = std::env::var_os("JOURNAL_STREAM").is_some();
     let builder = tracing_subscriber::fmt()
@@ -52,6 +61,28 @@ fn main() -> ExitCode {
             ExitCode::from(1)
         }
     }
+}
+
+/// `--completions` and `--man`: generated from this file's clap definition, so that the
+/// package's copies match the binary.
+fn packaging(args: &Args) -> Option<ExitCode> {
+    use std::io::Write;
+    if let Some(shell) = args.completions {
+        let mut out = Vec::new();
+        kerf::clidoc::write_completions(Args::command(), shell, &mut out);
+        return Some(match std::io::stdout().lock().write_all(&out) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(_) => ExitCode::from(1),
+        });
+    }
+    let dir = args.man.as_ref()?;
+    Some(match kerf::clidoc::write_man_pages(Args::command(), dir) {
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("{}: error: {e}", dir.display());
+            ExitCode::from(1)
+        }
+    })
 }
 
 fn run(args: &Args) -> anyhow::Result<()> {

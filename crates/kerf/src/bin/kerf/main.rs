@@ -14,7 +14,7 @@ use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, CommandFactory, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressFinish, ProgressStyle};
 use kerf::sim::{Prepass, PrepassError, SimError, SimOptions};
 use kerf::{Config, DialectSource, PlanError, assumed_dialect_note, choose_dialect_from};
@@ -72,6 +72,22 @@ enum Command {
     /// Draw a black-box file (from `kerf dump`, or the one written at a fault) as SVG: per
     /// axis the commanded against the actual position and the following error over time.
     Plot(PlotArgs),
+    /// Print the shell completion script of `kerf` (bash, zsh or fish) on standard output
+    /// (for packaging: `kerf completions bash > /usr/share/bash-completion/completions/kerf`).
+    #[command(hide = true)]
+    Completions {
+        /// The shell.
+        #[arg(value_name = "SHELL")]
+        shell: kerf::clidoc::Shell,
+    },
+    /// Write the man pages of `kerf` and each of its subcommands (`kerf.1`, `kerf-plan.1`,
+    /// ...) into DIR (for packaging).
+    #[command(hide = true)]
+    Man {
+        /// The directory, created when missing.
+        #[arg(value_name = "DIR")]
+        dir: PathBuf,
+    },
 }
 
 #[derive(Args)]
@@ -123,8 +139,10 @@ struct SimArgs {
     /// Where to write the CSV: `t,x,y,z` (then `a,b,c` when used), `line`, `feed_mm_s`.
     #[arg(long, value_name = "FILE.csv")]
     out: PathBuf,
-    /// Also draw the toolpath and the feed, acceleration and jerk over time as an SVG image.
-    #[arg(long, value_name = "FILE.svg")]
+    /// Also draw the toolpath (XY, XZ, YZ; rapids in orange), the feed, and each axis's
+    /// velocity, acceleration and jerk against its limits over time: an SVG or PNG image by
+    /// the extension (`-`: SVG on standard output).
+    #[arg(long, value_name = "FILE.svg|FILE.png")]
     plot: Option<PathBuf>,
 }
 
@@ -204,6 +222,14 @@ fn main() -> ExitCode {
         Command::Reset(args) => machine::reset(&args),
         Command::Dump(args) => machine::dump(&args),
         Command::Plot(args) => run_plot(&args),
+        Command::Completions { shell } => {
+            let mut out = Vec::new();
+            kerf::clidoc::write_completions(Cli::command(), shell, &mut out);
+            io::stdout().lock().write_all(&out).map_err(Failure::from)
+        }
+        Command::Man { dir } => kerf::clidoc::write_man_pages(Cli::command(), &dir)
+            .map(|_| ())
+            .map_err(|e| Failure::Error(format!("{}: error: {e}", dir.display()))),
     };
     match result {
         Ok(()) | Err(Failure::BrokenPipe) => ExitCode::SUCCESS,
@@ -347,6 +373,13 @@ fn run_plan(args: &PlanArgs) -> Result<(), Failure> {
 }
 
 fn run_sim(args: &SimArgs) -> Result<(), Failure> {
+    let plot_format = match &args.plot {
+        Some(path) => Some(
+            kerf::sim_plot::PlotFormat::of_path(path)
+                .map_err(|e| Failure::Error(format!("{}: error: {e}", path.display())))?,
+        ),
+        None => None,
+    };
     let config = load_config(args.program.config.as_deref())?;
     let source = SimSource::open(&args.program, &config)?;
     let name = &source.name;
@@ -388,7 +421,14 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     let axes = config.axes;
     let changed = AtomicBool::new(false);
     let mut seen = scan.moves;
-    let plot_out = plot.as_mut().map(|w| w as &mut dyn Write);
+    let plot_out = plot
+        .as_mut()
+        .zip(plot_format)
+        .map(|(w, format)| kerf::sim_plot::PlotOutput {
+            format,
+            out: w,
+            title: name.clone(),
+        });
     let result = match checked.kept {
         Some(kept) => kerf::sim::simulate_kept(kept, &scan, &config, &options, &mut out, plot_out),
         None => {
@@ -445,7 +485,7 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     // Exit 0 means the program ran to its end: the last setpoint is its end point.
     scan.check_end(&summary.raw.last.position)
         .map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
-    let csv_to_stdout = out.inner.is_stdout();
+    let csv_to_stdout = out.inner.is_stdout() || plot.as_ref().is_some_and(Output::is_stdout);
     out.inner.commit()?;
     if let Some(plot) = plot {
         plot.commit()?;
@@ -453,7 +493,8 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     if scan.moves == 0 {
         writeln!(io::stderr().lock(), "note: no motion in {name}")?;
     }
-    // Standard output carries the CSV with `--out -`: the summary goes to standard error.
+    // Standard output carries the CSV with `--out -` (the plot with `--plot -`): the
+    // summary goes to standard error.
     if csv_to_stdout {
         writeln!(io::stderr().lock(), "{summary}")?;
     } else {

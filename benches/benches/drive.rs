@@ -1,0 +1,60 @@
+//! The drive side's cost per real-time cycle: `DriveStage::cycle` with the daemon's
+//! configuration (three simulated drives, 20 integration substeps each at 1 ms, the
+//! safety checks, the 10 s black box), following a motion; and the same with a dump being
+//! copied out (256 records per cycle).
+//!
+//! `cargo bench -p kerf-benches --bench drive`
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use kerf::Config;
+use kerf::daemon::worker::drive_stage;
+use kerf_drive::stage::StageInput;
+
+fn bench_drive(c: &mut Criterion) {
+    let config = Config::builtin();
+    let mut stage = drive_stage(&config, [0.0; 6]).expect("the built-in machine's drives");
+    let mut k = 0u64;
+    // Enable, then a back-and-forth motion along a diagonal, once per second (from rest:
+    // 5·(1 − cos ωt), at most 197 mm/s² and 31 mm/s).
+    let mut step = |stage: &mut kerf_drive::stage::DriveStage<_>| {
+        k += 1;
+        let t = k as f64 * 1e-3;
+        let w = 2.0 * std::f64::consts::PI;
+        let s = 1.0 - (w * t).cos();
+        let p = [5.0 * s, 3.0 * s, -s, 0.0, 0.0, 0.0];
+        stage.cycle(&StageInput {
+            setpoint: Some(p),
+            line: 1,
+            time_s: t,
+        })
+    };
+    for _ in 0..10 {
+        stage.cycle(&StageInput {
+            setpoint: Some([0.0; 6]),
+            line: 0,
+            time_s: 0.0,
+        });
+    }
+    assert!(stage.ready());
+    let mut group = c.benchmark_group("drive_stage");
+    group.bench_function("cycle_3_sim_drives", |b| {
+        b.iter(|| {
+            let out = step(&mut stage);
+            assert!(out.tripped.is_none());
+            out
+        })
+    });
+    group.bench_function("cycle_3_sim_drives_while_dumping", |b| {
+        b.iter(|| {
+            if let Some(d) = stage.take_dump() {
+                stage.return_spare(d.recorder);
+            }
+            stage.request_dump(1);
+            step(&mut stage)
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_drive);
+criterion_main!(benches);
