@@ -822,8 +822,10 @@ fn envelope_budget(
                 break;
             }
             let e = if known.is_nan() {
-                // Is `best` itself within the envelope bound of this interval?
-                if best <= jerk_at(v[k + 1], (2.0 * best * d[k]).sqrt()) {
+                // Is `best` itself within the envelope bound of this interval? (Not
+                // asked of an infinite bound: `jerk_at` of an infinite acceleration is
+                // no answer, a 0·∞ on a straight piece.)
+                if best.is_finite() && best <= jerk_at(v[k + 1], (2.0 * best * d[k]).sqrt()) {
                     env_floor[k].set(best);
                     continue;
                 }
