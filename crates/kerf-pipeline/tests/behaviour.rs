@@ -695,3 +695,49 @@ fn arc_ramps_use_the_acceleration_left_below_the_top_speed() {
         }
     }
 }
+
+#[test]
+fn half_circle_from_rest_keeps_every_axis_within_its_limits() {
+    // The arc of kerf-plan's budget test (r = 10, 100 mm/s, centripetal 1000 mm/s² of the
+    // 2000 on this mill), run from rest to rest: its tangential budget is designed under
+    // the jerk-limited envelope, more than the full acceleration at the feed would leave
+    // (sqrt(2000² − 1000²) ≈ 1732 mm/s² at most), so what matters is the motion. Per axis,
+    // the acceleration and jerk by finite differences of the setpoints stay within 1 % of
+    // the limits, and the feed is reached.
+    let limits = mill(200.0, 2000.0, 50000.0, 0.01);
+    let r = 10.0;
+    let moves = vec![arc(
+        1,
+        Vec3::new(r, 0.0, 0.0),
+        Vec3::zeros(),
+        std::f64::consts::PI,
+        0.0,
+        6000.0,
+    )];
+    let period = limits.period_s;
+    let mut points: Vec<[f64; 2]> = Vec::new();
+    let s = run(moves, &limits, &RunOptions::default(), |_, sp| {
+        points.push([sp.position[0], sp.position[1]]);
+    })
+    .unwrap();
+    assert!(s.max_deviation_mm <= 0.01, "{}", s.max_deviation_mm);
+    let (mut v_max, mut a_max, mut j_max) = ([0.0f64; 2], [0.0f64; 2], [0.0f64; 2]);
+    for w in points.windows(4) {
+        for i in 0..2 {
+            let d1 = w[1][i] - w[0][i];
+            let d2 = w[2][i] - 2.0 * w[1][i] + w[0][i];
+            let d3 = w[3][i] - 3.0 * w[2][i] + 3.0 * w[1][i] - w[0][i];
+            v_max[i] = v_max[i].max(d1.abs() / period);
+            a_max[i] = a_max[i].max(d2.abs() / period.powi(2));
+            j_max[i] = j_max[i].max(d3.abs() / period.powi(3));
+        }
+    }
+    for i in 0..2 {
+        assert!(a_max[i] <= 1.01 * 2000.0, "axis {i}: a {}", a_max[i]);
+        assert!(j_max[i] <= 1.01 * 50000.0, "axis {i}: j {}", j_max[i]);
+    }
+    // At the feed one axis moves at 100 mm/s where the path is parallel to it.
+    assert!(v_max[0].max(v_max[1]) >= 0.99 * 100.0, "{v_max:?}");
+    let end = points.last().expect("setpoints");
+    assert!((end[0] + r).abs() < 1e-9 && end[1].abs() < 1e-9, "{end:?}");
+}
