@@ -708,8 +708,8 @@ fn half_circle_from_rest_keeps_every_axis_within_its_limits() {
     let r = 10.0;
     let moves = vec![arc(
         1,
-        Vec3::new(r, 0.0, 0.0),
         Vec3::zeros(),
+        Vec3::new(r, 0.0, 0.0),
         std::f64::consts::PI,
         0.0,
         6000.0,
@@ -739,5 +739,8 @@ fn half_circle_from_rest_keeps_every_axis_within_its_limits() {
     // At the feed one axis moves at 100 mm/s where the path is parallel to it.
     assert!(v_max[0].max(v_max[1]) >= 0.99 * 100.0, "{v_max:?}");
     let end = points.last().expect("setpoints");
-    assert!((end[0] + r).abs() < 1e-9 && end[1].abs() < 1e-9, "{end:?}");
+    assert!(
+        (end[0] - 2.0 * r).abs() < 1e-9 && end[1].abs() < 1e-9,
+        "{end:?}"
+    );
 }
