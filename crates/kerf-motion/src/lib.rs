@@ -1259,7 +1259,12 @@ impl MotionCore {
         let head = self.sec_head;
         let sec = *self.sec(head);
         if !sec.boosted && sec.wants_boost(self.override_factor) {
-            if self.a.abs() <= sec.accel_boost && self.v <= sec.v_boost {
+            // The boost budgets hold under the envelope `v + a²/2j ≤ v_boost` (see
+            // `kerf-plan`'s budgets): a deceleration begun at the base level must be
+            // within it at the boost jerk too.
+            let within_envelope =
+                self.a >= 0.0 || self.v + self.a * self.a / (2.0 * sec.jerk_boost) <= sec.v_boost;
+            if self.a.abs() <= sec.accel_boost && self.v <= sec.v_boost && within_envelope {
                 self.sec_mut(head).boosted = true;
                 if self.replan_at_level() {
                     return;
@@ -1472,12 +1477,15 @@ impl MotionCore {
             } else {
                 0.0
             };
-        let mut ok = true;
+        // The segments' budgets hold where `v + a²/2j ≤ v_max` (the jerk-limited envelope,
+        // see `kerf-plan`'s budgets); a stop with a lower jerk than the front section's
+        // (a later section's) rises to `v_peak` first, which must stay within the limit.
+        let mut ok = v_peak <= front.limits(front.boosted).0 * (1.0 + 1e-9);
         let mut boundary = front.length - self.s_local;
         let mut k = self.sec_head;
         let end = self.sec_head + self.sec_count;
         let mut n = 0;
-        while boundary < dist {
+        while ok && boundary < dist {
             let s = self.sec(k);
             // Past the front section the stop runs on limits valid at the boost level.
             let hard = if k == self.sec_head {

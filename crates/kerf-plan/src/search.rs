@@ -60,3 +60,50 @@ pub(crate) fn bisect_max(ok: impl Fn(f64) -> bool, hi: f64) -> f64 {
     }
     lo
 }
+
+/// The largest `x` known with `gap(x) ≤ 0` between `good` (`gap(good) ≤ 0`) and `bad`
+/// (`gap(bad) > 0`), for a `gap` that changes sign once there (it grows with `x` where it
+/// matters): regula falsi, Illinois variant (the end kept twice in a row has its value
+/// halved), which converges in about ten steps where a bisection takes 24 to 60 and never
+/// leaves the bracket. Stops once the bracket is within `rel` of `bad`, or after `steps`;
+/// a NaN `gap` counts as past the root (the bracket halves there).
+pub(crate) fn falsi_max(
+    mut good: f64,
+    mut bad: f64,
+    rel: f64,
+    steps: usize,
+    gap: impl Fn(f64) -> f64,
+) -> f64 {
+    let (mut g_good, mut g_bad) = (gap(good), gap(bad));
+    if !(g_good <= 0.0 && g_bad > 0.0 && bad > good) {
+        return good;
+    }
+    // Which end moved last: -1 the good one, 1 the bad one.
+    let mut side = 0i8;
+    for _ in 0..steps {
+        if bad - good <= rel * bad.abs() {
+            break;
+        }
+        let mut mid = (good * g_bad - bad * g_good) / (g_bad - g_good);
+        if !(mid > good && mid < bad) {
+            mid = 0.5 * (good + bad);
+        }
+        let g = gap(mid);
+        if g <= 0.0 {
+            good = mid;
+            g_good = g;
+            if side == -1 {
+                g_bad *= 0.5;
+            }
+            side = -1;
+        } else {
+            bad = mid;
+            g_bad = if g.is_nan() { f64::MAX } else { g };
+            if side == 1 {
+                g_good *= 0.5;
+            }
+            side = 1;
+        }
+    }
+    good
+}
