@@ -845,7 +845,7 @@ fn corner_blends_pass_at_the_speed_their_shape_allows() {
     //
     // Below its blend's speed every corner is blended at the feed. At F3000 a sharp
     // corner may be a stop instead, where crawling round the blend costs more than
-    // stopping (the 90° corner at 0.01 mm: round a 0.04 mm blend at under 3 mm/s; see
+    // stopping (the 90° corner at 0.01 mm: round a 0.06 mm blend at under 3 mm/s; see
     // `isolated_corners_take_the_quickest_of_stop_and_blend`); the 10° corner never is.
     for (acc, jerk) in [(2000.0, 50000.0), (1000.0, 20000.0), (5000.0, 300000.0)] {
         for tol in [0.01, 0.05] {
