@@ -46,6 +46,7 @@ pub fn corpus() -> Vec<CamProgram> {
     for d in [3, 4, 6] {
         out.push(raster("raster B", curved_surface, d, 3, 40.0));
     }
+    out.push(raster("raster C", wavy_surface, 4, 3, 40.0));
     for d in [3, 4, 6] {
         out.push(dense_circle(d, 3600));
     }
@@ -103,6 +104,21 @@ pub fn curved_surface(x: f64, y: f64) -> (f64, f64, f64) {
         1.5 * s1 * cy + 0.3 * s2,
         1.5 / 2.5 * c1 * cy + 0.3 / 1.2 * c2,
         -1.5 / 6.25 * s1 * cy - 0.3 / 1.44 * s2,
+    )
+}
+
+/// A wavy surface for raster C, zero at the origin: waves of 7.9 mm and 3.1 mm along X
+/// (amplitudes 0.6 and 0.1 mm), where Z's jerk limit, not its acceleration, holds the
+/// speed far under the feed: at a constant speed `v` Z's jerk is `z'''·v³` (`|z'''|` up
+/// to about 1.1 /mm²), so about 26 mm/s at the crests of the short wave.
+pub fn wavy_surface(x: f64, y: f64) -> (f64, f64, f64) {
+    let (s1, c1) = (x / 1.25).sin_cos();
+    let cy = (y / 4.0).cos();
+    let (s2, c2) = ((x + y) / 0.5).sin_cos();
+    (
+        0.6 * s1 * cy + 0.1 * s2,
+        0.6 / 1.25 * c1 * cy + 0.1 / 0.5 * c2,
+        -0.6 / 1.5625 * s1 * cy - 0.1 / 0.25 * s2,
     )
 }
 

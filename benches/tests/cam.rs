@@ -257,3 +257,30 @@ fn kerf_is_never_faster_than_the_bound_nor_the_bound_than_the_feed() {
         assert!(row.kerf.max_deviation_mm <= 0.01, "{}: {row:?}", p.name);
     }
 }
+
+#[test]
+fn raster_surfaces_carry_their_own_derivatives() {
+    // The bound follows a row through ∂z/∂x and ∂²z/∂x² as each surface states them:
+    // checked against central differences of z itself.
+    let h = 1e-4;
+    for (name, f) in [
+        (
+            "gentle",
+            cam::gentle_surface as fn(f64, f64) -> (f64, f64, f64),
+        ),
+        ("curved", cam::curved_surface),
+        ("wavy", cam::wavy_surface),
+    ] {
+        assert!(f(0.0, 0.0).0.abs() < 1e-15, "{name}: zero at the origin");
+        for k in 0..400 {
+            let (x, y) = (0.1 * k as f64, 0.5 * (k % 6) as f64);
+            let (z, zx, zxx) = f(x, y);
+            let (zm, zp) = (f(x - h, y).0, f(x + h, y).0);
+            assert!((zx - (zp - zm) / (2.0 * h)).abs() < 1e-6, "{name} at {x}");
+            assert!(
+                (zxx - (zp - 2.0 * z + zm) / (h * h)).abs() < 1e-4,
+                "{name} at {x}"
+            );
+        }
+    }
+}

@@ -1,0 +1,98 @@
+#!/usr/bin/env python3
+"""Constant-speed reference times for the raster programs of the CAM corpus.
+
+For each raster (benches/src/cam.rs: surfaces `gentle_surface`, `curved_surface`,
+`wavy_surface`, rows along X every 0.5 mm in Y, F3000) and the mill of
+benches/cam-mill.toml, every point of a row is given the highest speed at which the
+path could pass it at constant speed with X and Z within their velocity, acceleration and
+jerk limits (the exact surface, closed-form derivatives), capped by the feed; the
+reference time is the integral of ds / v over the rows, plus the joins at the feed.
+
+It is neither a lower nor an upper bound: it has no ramps at all (from rest, at the row
+ends, between the speeds), and a planner that changes its tangential acceleration along
+the path can now and then pass a point faster than at constant speed. It says how much of
+a raster's time its geometry costs under jerk limits, which the acceleration-limited lower
+bound of `cam_table` ignores.
+
+Usage: python3 benches/constant_speed.py   (standard library only, a few seconds)
+"""
+import math
+
+FEED = 50.0
+LIMITS = {"x": (200.0, 2000.0, 50000.0), "z": (100.0, 1000.0, 20000.0)}
+
+
+def waves(terms):
+    """z(x, y) and its first three x-derivatives for a sum of a*sin(x/l + y/m)*cos(y/n)."""
+    def f(x, y):
+        out = [0.0, 0.0, 0.0, 0.0]
+        for a, l, m, n in terms:
+            ph = x / l + (y / m if m else 0.0)
+            c = math.cos(y / n) if n else 1.0
+            s, co = math.sin(ph), math.cos(ph)
+            out[0] += a * s * c
+            out[1] += a / l * co * c
+            out[2] += -a / l**2 * s * c
+            out[3] += -a / l**3 * co * c
+        return out
+    return f
+
+
+SURFACES = {
+    # name: (surface, rows, row length mm)
+    "raster A": (waves([(1.5, 4.0, 0, 6.0), (0.3, 1.7, 1.7, 0)]), 6, 20.0),
+    "raster B": (waves([(1.5, 2.5, 0, 4.0), (0.3, 1.2, 1.2, 0)]), 3, 40.0),
+    "raster C": (waves([(0.6, 1.25, 0, 4.0), (0.1, 0.5, 0.5, 0)]), 3, 40.0),
+}
+
+
+def axes_at(v, z1, z2, z3):
+    """X and Z velocity, acceleration and jerk at path speed v on z(x) (v constant)."""
+    g = math.sqrt(1.0 + z1 * z1)          # ds/dx
+    g1 = z1 * z2 / g                      # dg/dx
+    g2 = (z2 * z2 + z1 * z3) / g - z1 * z2 * g1 / g**2
+    xd = v / g
+    xdd = -v * v * g1 / g**3
+    xddd = -v**3 * (g2 / g**4 - 3.0 * g1 * g1 / g**5)
+    zd = z1 * xd
+    zdd = z2 * xd * xd + z1 * xdd
+    zddd = z3 * xd**3 + 3.0 * z2 * xd * xdd + z1 * xddd
+    return (xd, xdd, xddd), (zd, zdd, zddd)
+
+
+def within(v, z1, z2, z3):
+    (x, z) = axes_at(v, z1, z2, z3)
+    return all(abs(q) <= lim for q, lim in zip(x, LIMITS["x"])) and all(
+        abs(q) <= lim for q, lim in zip(z, LIMITS["z"]))
+
+
+def speed(z1, z2, z3):
+    if within(FEED, z1, z2, z3):
+        return FEED
+    lo, hi = 0.0, FEED
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        if within(mid, z1, z2, z3):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+def main():
+    for name, (surface, rows, length) in SURFACES.items():
+        total, slowest, n = 0.0, FEED, 8000
+        h = length / n
+        for r in range(rows):
+            y = 0.5 * r
+            for i in range(n):
+                z, z1, z2, z3 = surface((i + 0.5) * h, y)
+                v = speed(z1, z2, z3)
+                slowest = min(slowest, v)
+                total += h * math.sqrt(1.0 + z1 * z1) / v
+        joins = (rows - 1) * 0.5 / FEED
+        print(f"{name}: constant-speed reference {total + joins:.3f} s, slowest {slowest:.1f} mm/s")
+
+
+if __name__ == "__main__":
+    main()
