@@ -20,14 +20,15 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc;
 
+mod common;
+
 use kerf::Config;
 use kerf::daemon::worker::{
-    Command, Cycle, DumpWriterRings, Incoming, Injection, Planning, PlanningCounters, Refusal,
-    Snapshot,
+    Command, Cycle, DumpWriterRings, Injection, Planning, PlanningCounters, Refusal, Snapshot,
 };
 use kerf_drive::safety::{Check, ResetRefused};
 use kerf_drive::stage::DumpReason;
-use kerf_proto::{MoveMsg, Resolved, SetpointMsg, State, StreamCheck};
+use kerf_proto::{SetpointMsg, State};
 
 /// Counts allocations (and reallocations) on threads whose flag is set.
 struct Counting;
@@ -119,38 +120,9 @@ fn dense_program(n: usize, start: [f64; 6]) -> String {
     text
 }
 
-/// Feeds one program to the planning worker the way the daemon's planning thread does:
-/// every item as a message through the stream check.
+/// Feeds one program to the planning worker (see [`common::feed_program`]).
 fn feed(planning: &mut Planning, config: &Config, id: u64, start: [f64; 6], text: &str) {
-    let mut check = StreamCheck::new();
-    let mut settings = config.settings();
-    settings.start_mm_deg = start;
-    let mut handle = |msg: MoveMsg| {
-        let incoming = match check.check(&msg).expect("a valid message") {
-            Resolved::Begin {
-                program_id,
-                start_mm_deg,
-                ..
-            } => Incoming::Begin {
-                program_id,
-                start: start_mm_deg,
-            },
-            Resolved::Move(m) => Incoming::Move(m),
-            Resolved::Event(e) => Incoming::Event(e),
-            Resolved::End { .. } => Incoming::End,
-        };
-        assert!(planning.handle(incoming), "the planning worker stopped");
-    };
-    handle(MoveMsg::begin(id, start, 0));
-    let mut seq = 0;
-    for item in
-        kerf_gcode::Interpreter::new(text.as_bytes(), kerf_gcode::Dialect::LinuxCnc, settings)
-    {
-        let item = item.expect("the program is valid");
-        seq += 1;
-        handle(MoveMsg::from_item(id, seq, &item));
-    }
-    handle(MoveMsg::end(id, seq));
+    common::feed_program(planning, config, id, start, text);
 }
 
 /// What the test does to the cycle while a program runs.

@@ -14,13 +14,13 @@
 //!   refused without moving until a reset; after the reset it runs from where the
 //!   axes stopped.
 
+mod common;
+
 use kerf::Config;
 use kerf::daemon::worker::{
-    Command, Cycle, CycleOutput, Incoming, Planning, PlanningCounters, Refusal, RtItem, Snapshot,
-    dump_rings,
+    Command, Cycle, CycleOutput, Planning, PlanningCounters, Refusal, RtItem, Snapshot, dump_rings,
 };
 use kerf_drive::safety::Check;
-use kerf_proto::{MoveMsg, Resolved, StreamCheck};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
@@ -104,36 +104,7 @@ impl Machine {
     fn send(&mut self, text: &str, start: [f64; 6]) -> u64 {
         let id = self.next_id;
         self.next_id += 1;
-        let mut check = StreamCheck::new();
-        let mut settings = self.config.settings();
-        settings.start_mm_deg = start;
-        let planning = &mut self.planning;
-        let mut handle = |msg: MoveMsg| {
-            let incoming = match check.check(&msg).expect("a valid message") {
-                Resolved::Begin {
-                    program_id,
-                    start_mm_deg,
-                    ..
-                } => Incoming::Begin {
-                    program_id,
-                    start: start_mm_deg,
-                },
-                Resolved::Move(m) => Incoming::Move(m),
-                Resolved::Event(e) => Incoming::Event(e),
-                Resolved::End { .. } => Incoming::End,
-            };
-            assert!(planning.handle(incoming), "the planning worker stopped");
-        };
-        handle(MoveMsg::begin(id, start, 0));
-        let mut seq = 0;
-        for item in
-            kerf_gcode::Interpreter::new(text.as_bytes(), kerf_gcode::Dialect::LinuxCnc, settings)
-        {
-            let item = item.expect("the program is valid");
-            seq += 1;
-            handle(MoveMsg::from_item(id, seq, &item));
-        }
-        handle(MoveMsg::end(id, seq));
+        common::feed_program(&mut self.planning, &self.config, id, start, text);
         id
     }
 
