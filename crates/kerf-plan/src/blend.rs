@@ -126,7 +126,10 @@ impl Planner {
             tol_mm: tol,
             room_mm,
         };
-        let lines = self.corner_lines(&seg, u1, u2, (len1 - prev.start_trim).min(len2));
+        let mut lines = self.corner_lines(&seg, u1, u2, (len1 - prev.start_trim).min(len2));
+        // Each side at its own move's feed (the blend runs at the lesser).
+        lines.0.feed_mm_s = feed_of(&prev.mv);
+        lines.1.feed_mm_s = feed_of(&next.mv);
         let arc_time_s = corner_time_s(&seg, d, &lines, &self.limits);
         let (best, best_time_s) = match self.g2_blend(&corner_g2, &seg, &lines) {
             Some((g2, d_g2, time_s)) if time_s < arc_time_s => ((g2, d_g2), time_s),
@@ -290,26 +293,39 @@ impl G2Corner {
     }
 }
 
+/// The speed a corner's stand-in line runs at: its limit, at most its own move's feed.
+fn side_speed(line: &PlannedSegment) -> f64 {
+    line.v_max_mm_s.min(line.feed_mm_s)
+}
+
 /// Rough time a stop at a corner costs over running straight through at the lines' speed:
-/// the slow-down to rest and back with the lines' limits.
+/// on each side, half the slow-down to rest (and back), from that line's own speed (a rapid
+/// into a plunge at the feed slows down from the rapid's).
 fn stop_time_s(lines: &(PlannedSegment, PlannedSegment)) -> f64 {
+    let (a, j) = corner_ramp_limits(lines);
+    let side = |l: &PlannedSegment| 0.5 * change_time_s(side_speed(l), a, j);
+    side(&lines.0) + side(&lines.1)
+}
+
+/// The acceleration and jerk both sides of a corner are judged with: the lesser of the
+/// two lines' (the estimate compares a stop with blends, not the lines with each other).
+fn corner_ramp_limits(lines: &(PlannedSegment, PlannedSegment)) -> (f64, f64) {
     let (line_in, line_out) = lines;
-    let v_line = line_in
-        .v_max_mm_s
-        .min(line_out.v_max_mm_s)
-        .min(line_in.feed_mm_s);
-    change_time_s(
-        v_line,
+    (
         line_in.accel_mm_s2.min(line_out.accel_mm_s2),
         line_in.jerk_mm_s3.min(line_out.jerk_mm_s3),
     )
 }
 
-/// Rough time a corner blend costs over running straight through at the lines' speed:
-/// the slow-down to the speed the blend and its joints allow and back (with the lines'
-/// limits), the transit of the blend, less the `2·d` of line it replaces. Used to choose
-/// between a circular and a G2 blend (the circular one is entered at its curvature-step
-/// cap but may speed up inside; the G2 one has no such step).
+/// Rough time a corner blend costs over running straight through at the lines' speed: the
+/// transit of the blend, and on each side the slow-down from that line's own speed to the
+/// speed the blend and its joints allow, less the `d` of line
+/// the blend replaces there at that line's speed. (With one speed for both sides, the
+/// lesser, a rapid into a plunge at F150 was credited 15 ms for the 0.04 mm of rapid a
+/// blend replaces, which the rapid runs in its last milliseconds before it stops: the
+/// blend was chosen and cost 10 ms more than the stop.) Used to choose between a circular
+/// and a G2 blend (the circular one is entered at its curvature-step cap but may speed up
+/// inside; the G2 one has no such step) and a stop.
 fn corner_time_s(
     blend: &PlannedSegment,
     d: f64,
@@ -317,12 +333,6 @@ fn corner_time_s(
     limits: &MachineLimits,
 ) -> f64 {
     let (line_in, line_out) = lines;
-    let v_line = line_in
-        .v_max_mm_s
-        .min(line_out.v_max_mm_s)
-        .min(blend.feed_mm_s);
-    let a_line = line_in.accel_mm_s2.min(line_out.accel_mm_s2);
-    let j_line = line_in.jerk_mm_s3.min(line_out.jerk_mm_s3);
     let v_top = blend.v_max_mm_s.min(blend.feed_mm_s);
     let v_in = junction_cap(line_in, blend, limits)
         .min(junction_cap(blend, line_out, limits))
@@ -334,8 +344,13 @@ fn corner_time_s(
         blend.accel_mm_s2,
         blend.jerk_mm_s3,
     );
-    let dv = (v_line - v_in).max(0.0);
-    // Slowing from v_line to v_in and back: 2·t over a distance (v_line + v_in)·t.
-    let dip = change_time_s(dv, a_line, j_line) * dv / v_line;
-    transit + dip - 2.0 * d / v_line
+    // On each side, slowing from v to v_in (or speeding back up): t over a distance
+    // (v + v_in)·t/2, which at v would take (v + v_in)·t/(2v); the loss is the rest.
+    let (a, j) = corner_ramp_limits(lines);
+    let side = |l: &PlannedSegment| {
+        let v = side_speed(l);
+        let dv = (v - v_in).max(0.0);
+        0.5 * change_time_s(dv, a, j) * dv / v - d / v
+    };
+    transit + side(line_in) + side(line_out)
 }
