@@ -319,13 +319,13 @@ fn corner_ramp_limits(lines: &(PlannedSegment, PlannedSegment)) -> (f64, f64) {
 
 /// Rough time a corner blend costs over running straight through at the lines' speed: the
 /// transit of the blend, and on each side the slow-down from that line's own speed to the
-/// speed the blend and its joints allow, less the `d` of line
-/// the blend replaces there at that line's speed. (With one speed for both sides, the
-/// lesser, a rapid into a plunge at F150 was credited 15 ms for the 0.04 mm of rapid a
-/// blend replaces, which the rapid runs in its last milliseconds before it stops: the
-/// blend was chosen and cost 10 ms more than the stop.) Used to choose between a circular
-/// and a G2 blend (the circular one is entered at its curvature-step cap but may speed up
-/// inside; the G2 one has no such step) and a stop.
+/// speed the blend and its joints allow, less the `d` of line the blend replaces there at
+/// that line's speed. (With one speed for both sides, the lesser, a rapid into a plunge at
+/// F150 was credited 15 ms for the 0.04 mm of rapid a blend replaces, which the rapid runs
+/// in its last milliseconds before it stops: the blend was chosen and cost 10 ms more than
+/// the stop.) Used to choose between a circular and a G2 blend (the circular one is
+/// entered at its curvature-step cap but may speed up inside; the G2 one has no such step)
+/// and a stop.
 fn corner_time_s(
     blend: &PlannedSegment,
     d: f64,
@@ -349,6 +349,9 @@ fn corner_time_s(
     let (a, j) = corner_ramp_limits(lines);
     let side = |l: &PlannedSegment| {
         let v = side_speed(l);
+        if !(v > 0.0 && v.is_finite()) {
+            return 0.0;
+        }
         let dv = (v - v_in).max(0.0);
         0.5 * change_time_s(dv, a, j) * dv / v - d / v
     };
