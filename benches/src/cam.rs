@@ -110,7 +110,7 @@ pub fn curved_surface(x: f64, y: f64) -> (f64, f64, f64) {
 /// A wavy surface for raster C, zero at the origin: waves of 7.9 mm and 3.1 mm along X
 /// (amplitudes 0.6 and 0.1 mm), where Z's jerk limit, not its acceleration, holds the
 /// speed far under the feed: at a constant speed `v` Z's jerk is `z'''·v³` (`|z'''|` up
-/// to about 1.1 /mm²), so about 26 mm/s at the crests of the short wave.
+/// to about 1.1 /mm², on the flanks of the short wave), so under 30 mm/s there.
 pub fn wavy_surface(x: f64, y: f64) -> (f64, f64, f64) {
     let (s1, c1) = (x / 1.25).sin_cos();
     let cy = (y / 4.0).cos();
