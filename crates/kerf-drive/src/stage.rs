@@ -343,7 +343,7 @@ impl<D: Drive> DriveStage<D> {
     /// One cycle. See the module documentation. Allocation-free.
     pub fn cycle(&mut self, input: &StageInput) -> StageOutput {
         self.sequence += 1;
-        let actual = read_actual(&self.axes);
+        let mut actual = [0.0; MAX_AXES];
         let mut drive_fault = [false; MAX_AXES];
         let mut controlwords = [0u16; MAX_AXES];
         let mut statuswords = [0u16; MAX_AXES];
@@ -353,6 +353,7 @@ impl<D: Drive> DriveStage<D> {
             let Some(ax) = ax else { continue };
             let sw = ax.drive.statusword();
             let pos = ax.drive.position_actual_counts();
+            actual[i] = ax.scale.to_units(pos);
             let code = ax.drive.error_code();
             self.error_codes[i] = code;
             let out = self.enablers[i].cycle(sw, pos, code);
