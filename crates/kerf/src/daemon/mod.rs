@@ -544,7 +544,31 @@ pub fn dump_patience(config: &Config) -> Duration {
     period.saturating_mul(u32::try_from(cycles).unwrap_or(u32::MAX)) + Duration::from_secs(2)
 }
 
-/// Waits for the outcome of reset `tag` (the status snapshots carry it).
+/// Polls the cycle every [`POLL`] (the latest status snapshot into `latest`) until
+/// `outcome` has an answer, at most `patience`; `None` if it ran out.
+fn poll_cycle<T>(
+    status: &mut rtrb::Consumer<Snapshot>,
+    latest: &mut Snapshot,
+    patience: Duration,
+    mut outcome: impl FnMut(&Snapshot) -> Option<T>,
+) -> Option<T> {
+    let deadline = Instant::now() + patience;
+    loop {
+        while let Ok(s) = status.pop() {
+            *latest = s;
+        }
+        if let Some(answer) = outcome(latest) {
+            return Some(answer);
+        }
+        if Instant::now() > deadline {
+            return None;
+        }
+        std::thread::sleep(POLL);
+    }
+}
+
+/// Waits for the outcome of reset `tag` (the status snapshots carry it), writing the
+/// dumps that come out meanwhile.
 fn wait_reset(
     status: &mut rtrb::Consumer<Snapshot>,
     latest: &mut Snapshot,
@@ -553,25 +577,20 @@ fn wait_reset(
     tag: u64,
     patience: Duration,
 ) -> (u32, String) {
-    let deadline = Instant::now() + patience;
-    loop {
-        while let Ok(s) = status.pop() {
-            *latest = s;
-        }
+    let outcome = poll_cycle(status, latest, patience, |s| {
         writer.take(dumps, None);
-        match latest.reset {
-            Some((t, Ok(()))) if t == tag => return (REASON_OK, String::new()),
-            Some((t, Err(e))) if t == tag => return (REASON_NOT_ALLOWED, e.to_string()),
-            _ => {}
+        match s.reset {
+            Some((t, Ok(()))) if t == tag => Some((REASON_OK, String::new())),
+            Some((t, Err(e))) if t == tag => Some((REASON_NOT_ALLOWED, e.to_string())),
+            _ => None,
         }
-        if Instant::now() > deadline {
-            return (
-                REASON_NOT_ALLOWED,
-                "reset: no outcome from the real-time cycle in time".to_string(),
-            );
-        }
-        std::thread::sleep(POLL);
-    }
+    });
+    outcome.unwrap_or_else(|| {
+        (
+            REASON_NOT_ALLOWED,
+            "reset: no outcome from the real-time cycle in time".to_string(),
+        )
+    })
 }
 
 /// Waits for dump `tag` and writes it; its file.
@@ -583,21 +602,9 @@ fn wait_dump(
     tag: u64,
     patience: Duration,
 ) -> Result<std::path::PathBuf, String> {
-    let deadline = Instant::now() + patience;
-    loop {
-        while let Ok(s) = status.pop() {
-            *latest = s;
-        }
-        if let Some(result) = writer.take(dumps, Some(tag)) {
-            return result;
-        }
-        if Instant::now() > deadline {
-            return Err(
-                "dump: the black box did not come out of the real-time cycle in time".to_string(),
-            );
-        }
-        std::thread::sleep(POLL);
-    }
+    poll_cycle(status, latest, patience, |_| writer.take(dumps, Some(tag))).unwrap_or_else(|| {
+        Err("dump: the black box did not come out of the real-time cycle in time".to_string())
+    })
 }
 
 /// Writes the black-box dumps that come out of the cycle into the dump directory.
