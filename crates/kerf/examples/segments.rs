@@ -38,10 +38,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     use std::io::Write;
     let mut stdout = std::io::stdout().lock();
     for s in &out {
+        // Corner blends, smoothed pieces (several moves) and G2 transitions apart.
         let kind = match s.curve {
+            kerf_geom::Curve::Line { .. } if s.blend => "lblend",
             kerf_geom::Curve::Line { .. } => "line",
+            kerf_geom::Curve::Helix(_) if s.blend => "ablend",
             kerf_geom::Curve::Helix(_) => "arc",
-            kerf_geom::Curve::Transition(_) => "quintic",
+            kerf_geom::Curve::Transition(_) if s.move_count > 1 => "piece",
+            kerf_geom::Curve::Transition(_) => "g2",
         };
         let written = writeln!(
             stdout,
