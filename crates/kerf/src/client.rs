@@ -184,13 +184,9 @@ pub fn check_name(code: u32) -> Option<&'static str> {
 /// value against its limit, the program line and the cycle; `None` when none is latched.
 pub fn safety_text(s: &StatusMsg) -> Option<String> {
     let name = check_name(s.safety_check)?;
-    let axis = AXIS_KEYS
-        .get(s.safety_axis as usize)
-        .map(|a| a.to_ascii_uppercase());
+    let axis = kerf_geom::AXIS_NAMES.get(s.safety_axis as usize);
     let unit = if s.safety_axis >= 3 { "deg" } else { "mm" };
-    let on = axis
-        .as_ref()
-        .map_or(String::new(), |a| format!(" on axis {a}"));
+    let on = axis.map_or(String::new(), |a| format!(" on axis {a}"));
     let (value, limit) = (s.safety_value, s.safety_limit);
     let what = match s.safety_check {
         kerf_proto::SAFETY_VELOCITY => {
