@@ -95,7 +95,6 @@ impl Planner {
         });
         let curve = Curve::from_path(&path);
         let feed = feed_of(&prev.mv).min(feed_of(&next.mv));
-        let rapid = prev.mv.rapid && next.mv.rapid;
         let mut seg = PlannedSegment {
             blend: true,
             ..PlannedSegment::with_zero_limits(
@@ -107,7 +106,7 @@ impl Planner {
                 feed,
             )
         };
-        self.set_limits(&mut seg, rapid);
+        self.set_limits(&mut seg);
         // Isolated: both lines keep a remnant of at least [`MIN_REMNANT_MM`], so the
         // neighbouring blends do not meet. A G2 blend within the tolerance takes more than
         // half of what the arc would (about as much, except near reversals); where that
@@ -165,8 +164,8 @@ impl Planner {
         line_in.length_mm = 1.0;
         let mut line_out = line_in;
         line_out.curve = Curve::line(blend.curve.end(), blend.curve.end() + u2);
-        self.set_limits(&mut line_in, false);
-        self.set_limits(&mut line_out, false);
+        self.set_limits(&mut line_in);
+        self.set_limits(&mut line_out);
         for l in [&mut line_in, &mut line_out] {
             let v = reach_speed(reach_mm, l.v_max_mm_s, l.accel_mm_s2, l.jerk_mm_s3);
             l.v_max_mm_s = v;

@@ -34,8 +34,9 @@
 //!   corner up to the end of the move after it, at most `DESIGN_RUN_MM` (issue 11:
 //!   designed for their own 2 mm from rest, the transitions of an obround's 2 mm corners
 //!   ran at 24.6 mm/s and held the arcs and lines beside them there, where 35 mm/s fit);
-//!   for a corner blend its own length. These distances are geometry only, never the
-//!   limits. At each design speed the tangential acceleration
+//!   for a circular corner blend its own length; for a G2 corner blend `DESIGN_RUN_MM`
+//!   (it is entered and left at speed, the lines do the slowing). These distances are
+//!   geometry only, never the limits. At each design speed the tangential acceleration
 //!   is the one that makes that ramp quickest given the jerk the axes leave at it (the
 //!   normal jerk `3κva` grows with it), never a share of the axis limit and never more than
 //!   the ramp can use, `sqrt(v·j)`. Both choices are minima over sets that only grow when

@@ -65,9 +65,6 @@ pub struct Planner {
     /// Length of the path that runs on without a corner (tangent-continuous, no exact
     /// stop) up to the end of `last`, mm.
     pub(crate) chain_mm: f64,
-    /// The run the next programmed arc or smoothed piece is designed for (see
-    /// [`segment_limits`]), mm; 0 for every other segment.
-    pub(crate) run_mm: f64,
     /// Limits of recent curved segments by their exact inputs (bounded; see
     /// [`crate::memo`]).
     pub(crate) memo: std::cell::RefCell<LimitsMemo>,
@@ -113,7 +110,6 @@ impl Planner {
             pieces: Vec::new(),
             design_override: 1.0,
             chain_mm: 0.0,
-            run_mm: 0.0,
             memo: std::cell::RefCell::new(LimitsMemo::new()),
             arc_memo: std::cell::RefCell::new(ArcMemo::new()),
         }
@@ -319,11 +315,10 @@ impl Planner {
             // Designed for the path that runs on without a corner through the piece to the
             // end of its run (at least the whole run), at most [`DESIGN_RUN_MM`]: known
             // geometry only, as for programmed arcs.
-            self.run_mm = (self.chain_before(&seg) + e.rest_mm)
+            let run_mm = (self.chain_before(&seg) + e.rest_mm)
                 .max(e.design_run_mm)
                 .min(DESIGN_RUN_MM);
-            self.set_limits(&mut seg, false);
-            self.run_mm = 0.0;
+            self.set_limits_for_run(&mut seg, run_mm);
             let corner = match last_corner {
                 Some(c) if i + 1 == n => c,
                 _ => CornerMode::Blend {
@@ -451,9 +446,8 @@ impl Planner {
         // A programmed arc is designed for the path that runs on without a corner up to
         // its end, at most [`DESIGN_RUN_MM`]: known geometry only, so that the choice
         // does not depend on the limits.
-        self.run_mm = (self.chain_before(&seg) + seg.length_mm).min(DESIGN_RUN_MM);
-        self.set_limits(&mut seg, p.mv.rapid);
-        self.run_mm = 0.0;
+        let run_mm = (self.chain_before(&seg) + seg.length_mm).min(DESIGN_RUN_MM);
+        self.set_limits_for_run(&mut seg, run_mm);
         self.emit(
             seg,
             p.mv.corner,
@@ -561,12 +555,15 @@ impl Planner {
         if tangent { self.chain_mm } else { 0.0 }
     }
 
-    /// Sets `v_max_mm_s`, `accel_mm_s2` and `jerk_mm_s3` of `seg` from the axis limits.
-    pub(crate) fn set_limits(&self, seg: &mut PlannedSegment, _rapid: bool) {
-        self.set_limits_for_run(seg, self.run_mm);
+    /// Sets `v_max_mm_s`, `accel_mm_s2` and `jerk_mm_s3` of `seg` from the axis limits, a
+    /// curve designed for its own length (a circular corner blend, a corner's stand-in
+    /// lines).
+    pub(crate) fn set_limits(&self, seg: &mut PlannedSegment) {
+        self.set_limits_for_run(seg, 0.0);
     }
 
-    /// [`Planner::set_limits`] with the design run `run_mm` (see [`segment_limits`]).
+    /// [`Planner::set_limits`] with the design run `run_mm` (see [`segment_limits`]): the
+    /// distance a curved segment's design speed is chosen for, at least its own length.
     pub(crate) fn set_limits_for_run(&self, seg: &mut PlannedSegment, run_mm: f64) {
         // Curved segments (not smoothed pieces, which keep the programmed feed) also get a
         // design for the highest override, which the motion core uses while the override
