@@ -140,28 +140,33 @@ pub fn command(args: &MachineArgs, command: Command) -> Result<(), Failure> {
     Ok(())
 }
 
-/// `kerf reset`: answered once the reset has ended.
-pub fn reset(args: &MachineArgs) -> Result<(), Failure> {
+/// Sends `command` and waits for its answer as long as `patience` says the daemon may
+/// take on this machine; an answer other than OK is an error with the daemon's message.
+fn request_answered(
+    args: &MachineArgs,
+    command: Command,
+    patience: fn(&kerf::Config) -> Duration,
+) -> Result<kerf_proto::Response, Failure> {
     let (mut client, config) = connect(args)?;
     let r = client
-        .request_within(Command::Reset, kerf::daemon::reset_patience(&config))
+        .request_within(command, patience(&config))
         .map_err(client_failure)?;
     if r.reason != kerf_proto::REASON_OK {
         return Err(Failure::Error(format!("kerf: error: {}", r.message())));
     }
+    Ok(r)
+}
+
+/// `kerf reset`: answered once the reset has ended.
+pub fn reset(args: &MachineArgs) -> Result<(), Failure> {
+    request_answered(args, Command::Reset, kerf::daemon::reset_patience)?;
     Ok(())
 }
 
 /// `kerf dump`: the daemon writes its black box to a file in its dump directory; the file
 /// is copied to `--out`.
 pub fn dump(args: &DumpArgs) -> Result<(), Failure> {
-    let (mut client, config) = connect(&args.machine)?;
-    let r = client
-        .request_within(Command::Dump, kerf::daemon::dump_patience(&config))
-        .map_err(client_failure)?;
-    if r.reason != kerf_proto::REASON_OK {
-        return Err(Failure::Error(format!("kerf: error: {}", r.message())));
-    }
+    let r = request_answered(&args.machine, Command::Dump, kerf::daemon::dump_patience)?;
     let written = PathBuf::from(r.message());
     let mut out = Output::create(&args.out)?;
     let copied = std::fs::File::open(&written).and_then(|mut f| io::copy(&mut f, &mut out));
