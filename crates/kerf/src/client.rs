@@ -466,3 +466,32 @@ impl MoveSender {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use kerf_drive::safety::Check;
+
+    #[test]
+    fn safety_checks_go_on_the_wire_as_the_protocol_numbers_them() {
+        // The daemon sends `Check::code()`; the client reads it against the protocol's
+        // `SAFETY_*` numbers (docs/PROTOCOL.md). Both lists are written by hand: they must
+        // agree check by check, and every check must have its name back.
+        let wire = [
+            (Check::Velocity, kerf_proto::SAFETY_VELOCITY),
+            (Check::Acceleration, kerf_proto::SAFETY_ACCELERATION),
+            (Check::SoftLimit, kerf_proto::SAFETY_SOFT_LIMIT),
+            (Check::FollowingError, kerf_proto::SAFETY_FOLLOWING_ERROR),
+            (Check::StreamStall, kerf_proto::SAFETY_STREAM_STALL),
+            (Check::DriveFault, kerf_proto::SAFETY_DRIVE_FAULT),
+            (Check::EnableTimeout, kerf_proto::SAFETY_ENABLE_TIMEOUT),
+            (Check::DriveDisabled, kerf_proto::SAFETY_DRIVE_DISABLED),
+        ];
+        assert_eq!(wire.len(), Check::ALL.len());
+        for (check, code) in wire {
+            assert!(Check::ALL.contains(&check), "{check:?}");
+            assert_eq!(check.code(), code, "{check:?}");
+            assert_eq!(super::check_name(code), Some(check.name()), "{check:?}");
+        }
+        assert_eq!(super::check_name(kerf_proto::SAFETY_NONE), None);
+    }
+}
