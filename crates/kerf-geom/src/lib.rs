@@ -131,5 +131,5 @@ mod segment;
 mod transition;
 pub use curve::{Curve, CurvePoint, Helix, line_distance};
 pub use limits::{AXIS_NAMES, AxisLimits, MachineLimits};
-pub use segment::{PlannedSegment, poly5, rotary_derivatives};
+pub use segment::{MERGE_RATIO, MERGE_RATIO_JERK, PlannedSegment, poly5, rotary_derivatives};
 pub use transition::{TABLE_POINTS, Transition};

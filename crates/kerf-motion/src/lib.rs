@@ -88,7 +88,7 @@
 
 use kerf_geom::Vec3;
 use kerf_geom::ramp::{bisect, change_time_s};
-pub use kerf_geom::{AxisLimits, MachineLimits, PlannedSegment};
+pub use kerf_geom::{AxisLimits, MERGE_RATIO, MERGE_RATIO_JERK, MachineLimits, PlannedSegment};
 use rsruckig::prelude::*;
 
 pub mod monitor;
@@ -96,21 +96,6 @@ mod profile;
 
 pub use profile::JerkProfile;
 
-/// Sections merge segments whose acceleration limits are at least this fraction of the
-/// first one's. A section runs at the least of its segments' limits, and a boundary costs a
-/// return to `a = 0`: 0.9 measured quickest on the CAM corpus of `kerf-benches` (smoothed
-/// pieces whose budgets vary along a raster row: 0.8 ran raster B 0.1 % slower; 0.95 ran
-/// the dense circle 3 % slower, at the boundaries between its pieces' slightly different
-/// budgets).
-pub const MERGE_RATIO: f64 = 0.9;
-/// Sections merge segments whose jerk limit is at least this fraction of the first one's.
-/// It is looser than [`MERGE_RATIO`]: running a section at a lower jerk only lengthens its
-/// ramps by `a/j`, while a boundary in the middle of a ramp is a stall. 0.8 measured
-/// quickest: the former 0.6 let a piece with 60 % of its neighbours' jerk slow a whole
-/// section's ramps (raster B 1.3 % slower since the budgets follow the jerk-limited
-/// envelope), and 0.9 cost 2.6 % on a faceted raster (rows flat, then up a 30° slope,
-/// then flat again, as 0.05 mm G1 points).
-pub const MERGE_RATIO_JERK: f64 = 0.8;
 /// Sections merge segments whose speed limit and feed are at least this fraction of the
 /// first one's. It is tight because the lookahead's speed at a section boundary uses this
 /// conservative value: a boundary inside constant-feed code costs at most 1 % of the feed.

@@ -4,7 +4,7 @@
 //! ([`crate::blend`]), inserts G2 transitions at joints with arcs ([`crate::transition`])
 //! and sets every segment's limits ([`crate::budget`]) and end cap ([`crate::junction`]).
 
-use kerf_geom::{CornerMode, Curve, Move, Path, Vec3};
+use kerf_geom::{CornerMode, Curve, MERGE_RATIO, MERGE_RATIO_JERK, Move, Path, Vec3};
 
 use crate::budget::{limits_key, ramp_budget, segment_limits_pair};
 use crate::junction::junction_cap;
@@ -53,6 +53,8 @@ pub struct Planner {
     pub(crate) last_full_length: f64,
     /// Speed cap at the start of `last` (its junction with the segment before), mm/s.
     pub(crate) last_start_cap: f64,
+    /// Path acceleration and jerk of the segment emitted just before `last`.
+    pub(crate) before_last_limits: Option<(f64, f64)>,
     pub(crate) next_index: u64,
     pub(crate) abc_current: [f64; 3],
     /// The dense-polyline run being collected, if any.
@@ -104,6 +106,7 @@ impl Planner {
             last_origin: None,
             last_full_length: 0.0,
             last_start_cap: 0.0,
+            before_last_limits: None,
             next_index: 0,
             abc_current: [0.0; 3],
             run: None,
@@ -350,7 +353,7 @@ impl Planner {
         if let Some(mut last) = self.last.take() {
             last.end_cap_mm_s = 0.0;
             self.ramp_upgrade(&mut last, None);
-            out.push(last);
+            self.push_out(last, out);
         }
     }
 
@@ -476,7 +479,7 @@ impl Planner {
                 None => {
                     prev.end_cap_mm_s = 0.0;
                     self.ramp_upgrade(&mut prev, None);
-                    out.push(prev);
+                    self.push_out(prev, out);
                 }
                 Some(tol) => match self.transition(&prev, &seg, tol, origin.as_ref()) {
                     Some((p, mut t, s)) => {
@@ -486,14 +489,14 @@ impl Planner {
                         t.end_cap_mm_s = junction_cap(&t, &seg, &self.limits);
                         start_cap = t.end_cap_mm_s;
                         self.ramp_upgrade(&mut prev, Some(&t));
-                        out.push(prev);
-                        out.push(t);
+                        self.push_out(prev, out);
+                        self.push_out(t, out);
                     }
                     None => {
                         prev.end_cap_mm_s = junction_cap(&prev, &seg, &self.limits);
                         start_cap = prev.end_cap_mm_s;
                         self.ramp_upgrade(&mut prev, Some(&seg));
-                        out.push(prev);
+                        self.push_out(prev, out);
                     }
                 },
             }
@@ -503,6 +506,12 @@ impl Planner {
         self.last_corner = corner;
         self.last_origin = origin;
         self.last_full_length = full_length;
+    }
+
+    /// Emits a finished segment.
+    fn push_out(&mut self, seg: PlannedSegment, out: &mut Vec<PlannedSegment>) {
+        self.before_last_limits = Some((seg.accel_mm_s2, seg.jerk_mm_s3));
+        out.push(seg);
     }
 
     /// Raises the tangential budget of `seg` (the held-back segment, its end cap set) where
@@ -525,8 +534,21 @@ impl Planner {
         {
             return;
         }
-        let Some((a, j)) = ramp_budget(seg, &self.limits, self.last_start_cap, seg.end_cap_mm_s)
-        else {
+        // A piece entered at speed whose limits are like those of the segment before it
+        // joins that segment's motion-core section and runs at the lesser of their limits
+        // (the section's first segment decides; the one before is the estimate here).
+        let section = self.before_last_limits.filter(|&(a, j)| {
+            self.last_start_cap >= slow
+                && seg.accel_mm_s2 >= MERGE_RATIO * a
+                && seg.jerk_mm_s3 >= MERGE_RATIO_JERK * j
+        });
+        let Some((a, j)) = ramp_budget(
+            seg,
+            &self.limits,
+            self.last_start_cap,
+            seg.end_cap_mm_s,
+            section,
+        ) else {
             return;
         };
         if seg.end_cap_mm_s >= slow

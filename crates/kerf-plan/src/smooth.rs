@@ -26,15 +26,19 @@
 //!   length units. A degree per millimetre of tolerance is the choice made here.)
 //! - **Knots** are vertices of the polyline, every [`WINDOW_MM`] or less of chord length.
 //!   At a knot the unit tangent and the curvature vector come from a weighted least-squares
-//!   cubic through the vertex, fitted to the vertices within a window around it (biweight
+//!   quartic (a cubic in windows of few vertices) through the vertex, fitted to the
+//!   vertices within a window around it (biweight
 //!   weights in chord length, uniform for the one-sided window at a run end; at least two
 //!   vertices each side): rounding noise averages out over the window. The window halves
-//!   (down to two vertices each side) until the cubic explains every vertex in it within
+//!   (down to two vertices each side) until the fit explains every vertex in it within
 //!   [`RESIDUAL_TOL_SHARE`] of the tolerance, so that it does not reach across a change
 //!   of shape.
 //! - **Pieces** between consecutive knots are quintic Hermite curves
 //!   ([`kerf_geom::Transition`]) matching position, tangent and curvature at both knots, so
-//!   the chain is curvature-continuous and the joints cost no speed. Each piece is sampled
+//!   the chain is curvature-continuous and the joints cost no speed. Their parameter scale
+//!   is the polyline's length between the knots (the arc length, to the rounding), so a
+//!   smooth curve is reproduced to sixth order and its third derivative, which the axes'
+//!   jerk must follow, is the curve's and not an artefact of the fit. Each piece is sampled
 //!   against the polyline it replaces (every setpoint must lie within the tolerance of the
 //!   programmed path) and halved until it fits within [`TRANSITION_TOL_SHARE`] of the
 //!   tolerance. A single line whose piece does not fit is kept as the line.
@@ -73,8 +77,11 @@ pub const SAG_TOL_SHARE: f64 = 0.5;
 pub const MIN_RUN_MOVES: usize = 8;
 /// Half-width of the widest fitting window, and the longest piece, mm of chord.
 pub const WINDOW_MM: f64 = 2.0;
-/// Largest residual of the window's cubic, as a share of the tolerance.
+/// Largest residual of the window's fit, as a share of the tolerance.
 pub const RESIDUAL_TOL_SHARE: f64 = 0.25;
+/// Fewest vertices in a fitting window (besides the knot's own) for the quartic fit;
+/// smaller windows get a cubic.
+const QUARTIC_MIN_VERTICES: usize = 16;
 /// Growth of the buffer between tries to drop the vertices behind the current knot.
 const DROP_ABOVE: usize = 4096;
 
@@ -413,11 +420,25 @@ impl Run {
         if chord.is_nan() || chord <= 0.0 {
             return None;
         }
-        let tr = Transition::hermite(ka.p, ka.t, ka.k, kb.p, kb.t, kb.k, chord)?;
+        // The parameter scale is the arc length of the polyline between the knots (the
+        // vertices are dense, so it is the curve's arc length to within the rounding):
+        // `p'(u) = λt`, `p''(u) = λ²K` at both ends are then exactly the derivatives of
+        // the curve parametrised by `u = s/λ`, and the quintic reproduces a smooth curve to
+        // sixth order. With the chord (shorter by `θ²/24` of the length for a turn of θ)
+        // the ends were parametrised too slowly for the middle: on a raster over a
+        // 7.5 mm wave the pieces sagged 6 µm between knots 2 mm apart and their third
+        // derivative, which Z's jerk must follow, was a fifth higher than the surface's.
+        let poly_len = self.v(kb.idx).sigma - self.v(ka.idx).sigma;
+        let lambda = if poly_len.is_finite() && poly_len >= chord {
+            poly_len
+        } else {
+            chord
+        };
+        let tr = Transition::hermite(ka.p, ka.t, ka.k, kb.p, kb.t, kb.k, lambda)?;
         // With p'(0) = λt and p''(0) = λ²K (K ⟂ t), ds/du = λ and d²s/du² = 0 at the ends,
         // so dA/du = λ dA/ds and d²A/du² = λ² d²A/ds² there.
         let poly = self.rotary.then(|| {
-            let l = chord;
+            let l = lambda;
             std::array::from_fn(|i| {
                 hermite5(
                     ka.a[i],
@@ -456,7 +477,6 @@ impl Run {
         }
         let tr = tr.with_arc_length()?;
         // The arc-length table must not be much longer than the polyline (a loop).
-        let poly_len = self.v(kb.idx).sigma - self.v(ka.idx).sigma;
         (tr.length_mm <= 1.5 * poly_len + self.tol).then_some((tr, poly))
     }
 
@@ -481,7 +501,7 @@ impl Run {
         best
     }
 
-    /// Tangent and curvature at vertex `idx` from the widest window whose cubic explains
+    /// Tangent and curvature at vertex `idx` from the widest window whose fit explains
     /// its vertices.
     fn fit_knot(&self, idx: u64) -> Knot {
         let first = self.base;
@@ -548,22 +568,35 @@ impl Run {
         }
     }
 
-    /// Weighted least-squares `p(x) = p_idx + d1 x + d2 x²/2 + d3 x³/6` (x = chord length
-    /// from the vertex) over the vertices within `w` (biweight), constrained through the
-    /// vertex. The cubic term keeps the curvature of a circle from leaking into the
-    /// residual, so windows stay wide on arcs.
+    /// Weighted least-squares `p(x) = p_idx + d1 x + d2 x²/2 + d3 x³/6 + d4 x⁴/24` (x =
+    /// chord length from the vertex) over the vertices within `w` (biweight), constrained
+    /// through the vertex; a cubic where the window has fewer than [`QUARTIC_MIN_VERTICES`]
+    /// vertices. The cubic term keeps the curvature of a circle from leaking into the
+    /// residual, so windows stay wide on arcs; the quartic term keeps a curve's fourth
+    /// derivative out of the curvature (in a symmetric window a cubic's x² coefficient
+    /// absorbs the x⁴ term). Measured: a 2 mm circle's pieces within 0.12 µm of it (0.75 µm
+    /// with the cubic), raster C of the CAM corpus 0.6 % quicker.
     fn local_fit(&self, idx: u64, w: f64) -> Option<LocalFit> {
+        let lo = self.window_end(idx, w * 1.000_001, false);
+        let hi = self.window_end(idx, w * 1.000_001, true);
+        if (hi - lo) as usize >= QUARTIC_MIN_VERTICES {
+            self.local_fit_n::<4>(idx, w, lo, hi)
+        } else {
+            self.local_fit_n::<3>(idx, w, lo, hi)
+        }
+    }
+
+    /// [`Run::local_fit`] with `N` polynomial terms over the vertices `lo..=hi`.
+    fn local_fit_n<const N: usize>(&self, idx: u64, w: f64, lo: u64, hi: u64) -> Option<LocalFit> {
         let s0 = self.v(idx).sigma;
         let p0 = self.v(idx).p;
         let a0 = Vec3::from(self.v(idx).abc);
         let w = w * 1.000_001;
         // Normal equations in scaled x (x/w) for conditioning; XYZ and A, B, C share them.
-        let mut m = [[0.0f64; 3]; 3];
-        let mut r = [Vec3::zeros(); 3];
-        let mut ra = [Vec3::zeros(); 3];
+        let mut m = [[0.0f64; N]; N];
+        let mut r = [Vec3::zeros(); N];
+        let mut ra = [Vec3::zeros(); N];
         let mut count = 0;
-        let lo = self.window_end(idx, w, false);
-        let hi = self.window_end(idx, w, true);
         // A one-sided window (a run end) weighs its vertices equally: tapering it would
         // leave the curvature to the few vertices next to the end.
         let one_sided = lo == idx || hi == idx;
@@ -580,9 +613,9 @@ impl Run {
             };
             let y = v.p - p0;
             let ya = Vec3::from(v.abc) - a0;
-            let basis = [x, 0.5 * x * x, x * x * x / 6.0];
-            for i in 0..3 {
-                for j in 0..3 {
+            let basis = taylor_basis::<N>(x);
+            for i in 0..N {
+                for j in 0..N {
                     m[i][j] += om * basis[i] * basis[j];
                 }
                 r[i] += y * (om * basis[i]);
@@ -592,36 +625,43 @@ impl Run {
             }
             count += 1;
         }
-        if count < 3 {
+        if count < N {
             return None;
         }
-        let c = solve3(&m, &r)?;
-        let d1 = c[0] / w;
-        let d2 = c[1] / (w * w);
-        let d3 = c[2] / (w * w * w);
+        // Back to mm: the k-th coefficient is the k-th derivative times w^k.
+        let unscale = |c: [Vec3; N]| -> [Vec3; N] {
+            let mut f = 1.0;
+            std::array::from_fn(|k| {
+                f *= w;
+                c[k] / f
+            })
+        };
+        let d = unscale(solve_normal(&m, &r)?);
+        let (d1, d2) = (d[0], d[1]);
         if !d1.iter().chain(d2.iter()).all(|c| c.is_finite()) || d1.norm() <= 1e-9 {
             return None;
         }
-        let (a1, a2, a3) = if self.rotary {
-            let ca = solve3(&m, &ra)?;
-            (ca[0] / w, ca[1] / (w * w), ca[2] / (w * w * w))
+        let da = if self.rotary {
+            unscale(solve_normal(&m, &ra)?)
         } else {
-            (Vec3::zeros(), Vec3::zeros(), Vec3::zeros())
+            [Vec3::zeros(); N]
         };
-        if !a1.iter().chain(a2.iter()).all(|c| c.is_finite()) {
+        if !da[0].iter().chain(da[1].iter()).all(|c| c.is_finite()) {
             return None;
         }
         // The largest residual, in mm for XYZ and in degrees for the rotary axes (both
         // against the same tolerance number).
         let mut residual: f64 = 0.0;
+        let poly = |c: &[Vec3; N], x: f64| -> Vec3 {
+            let b = taylor_basis::<N>(x);
+            (0..N).fold(Vec3::zeros(), |acc, k| acc + c[k] * b[k])
+        };
         for k in lo..=hi {
             let v = self.v(k);
             let x = v.sigma - s0;
-            let cubic =
-                |c1: Vec3, c2: Vec3, c3: Vec3| c1 * x + c2 * (0.5 * x * x) + c3 * (x * x * x / 6.0);
-            residual = residual.max((p0 + cubic(d1, d2, d3) - v.p).norm());
+            residual = residual.max((p0 + poly(&d, x) - v.p).norm());
             if self.rotary {
-                let fit = a0 + cubic(a1, a2, a3);
+                let fit = a0 + poly(&da, x);
                 for i in 0..3 {
                     residual = residual.max((fit[i] - v.abc[i]).abs());
                 }
@@ -630,8 +670,8 @@ impl Run {
         Some(LocalFit {
             d1,
             d2,
-            a1: a1.into(),
-            a2: a2.into(),
+            a1: da[0].into(),
+            a2: da[1].into(),
             residual,
         })
     }
@@ -684,28 +724,48 @@ struct LocalFit {
     residual: f64,
 }
 
-/// Solves the symmetric 3×3 system `m c = r` (one right-hand side per coordinate) by
-/// Cramer's rule; `None` if it is singular.
-fn solve3(m: &[[f64; 3]; 3], r: &[Vec3; 3]) -> Option<[Vec3; 3]> {
-    let det3 = |a: [[f64; 3]; 3]| {
-        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
-            - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
-    };
-    let det = det3(*m);
-    let scale = m[0][0] * m[1][1] * m[2][2];
-    if !det.is_finite() || det.abs() <= 1e-12 * scale.abs() {
+/// `[x, x²/2, x³/6, …]`: the Taylor basis with `N` terms (no constant).
+fn taylor_basis<const N: usize>(x: f64) -> [f64; N] {
+    let mut term = 1.0;
+    std::array::from_fn(|k| {
+        term *= x / (k + 1) as f64;
+        term
+    })
+}
+
+/// Solves the symmetric positive semi-definite system `m c = r` (one right-hand side per
+/// coordinate) by Gaussian elimination with partial pivoting; `None` if it is singular
+/// (a pivot under 1e-12 of the diagonal's scale).
+fn solve_normal<const N: usize>(m: &[[f64; N]; N], r: &[Vec3; N]) -> Option<[Vec3; N]> {
+    let mut a = *m;
+    let mut b = *r;
+    let scale = (0..N).map(|i| m[i][i].abs()).fold(0.0, f64::max);
+    if !scale.is_finite() || scale <= 0.0 {
         return None;
     }
-    let mut out = [Vec3::zeros(); 3];
-    for col in 0..3 {
-        for axis in 0..3 {
-            let mut a = *m;
-            for row in 0..3 {
-                a[row][col] = r[row][axis];
-            }
-            out[col][axis] = det3(a) / det;
+    for col in 0..N {
+        let pivot = (col..N).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        if a[pivot][col].abs() <= 1e-12 * scale {
+            return None;
         }
+        a.swap(col, pivot);
+        b.swap(col, pivot);
+        let (pivot_row, pivot_b) = (a[col], b[col]);
+        for row in col + 1..N {
+            let f = a[row][col] / pivot_row[col];
+            for (x, p) in a[row].iter_mut().zip(&pivot_row).skip(col) {
+                *x -= f * p;
+            }
+            b[row] -= pivot_b * f;
+        }
+    }
+    let mut out = [Vec3::zeros(); N];
+    for col in (0..N).rev() {
+        let mut acc = b[col];
+        for k in col + 1..N {
+            acc -= out[k] * a[col][k];
+        }
+        out[col] = acc / a[col][col];
     }
     Some(out)
 }
@@ -861,6 +921,98 @@ mod tests {
                     s.v_max_mm_s
                 );
             }
+        }
+    }
+
+    /// On dense code from a smooth curve (6 decimals, so the vertices are exact to 0.5 µm),
+    /// the pieces follow the curve itself, not just the band: within a fraction of a
+    /// micrometre of it, with its curvature. Measured against the closed-form curve: tight
+    /// circles (radius 1.5 to 5 mm, a piece turning up to 75°), a helix, and a raster row
+    /// over a surface of 7.5 mm waves. With the chord as the pieces' parameter scale the
+    /// 2 mm circle was off by 8 µm with a curvature 9 % wrong mid-piece, and the raster
+    /// row by 6 µm.
+    #[test]
+    fn pieces_follow_the_smooth_curve_the_vertices_come_from() {
+        let round6 = |v: f64| (v * 1e6).round() / 1e6;
+        // (name, exact curve at parameter t in [0, 1], chords)
+        type Exact = Box<dyn Fn(f64) -> Vec3>;
+        let mut cases: Vec<(String, Exact, usize)> = Vec::new();
+        for r in [1.5, 2.0, 5.0] {
+            // Three quarters of a circle in 0.05 mm chords.
+            let len = 1.5 * std::f64::consts::PI * r;
+            let n = (len / 0.05).round() as usize;
+            cases.push((
+                format!("circle r{r}"),
+                Box::new(move |t: f64| {
+                    let a = 1.5 * std::f64::consts::PI * t;
+                    Vec3::new(r * a.sin(), r - r * a.cos(), 0.0)
+                }),
+                n,
+            ));
+        }
+        cases.push((
+            "helix r3".into(),
+            Box::new(|t: f64| {
+                let a = 2.0 * std::f64::consts::PI * t;
+                Vec3::new(3.0 * a.sin(), 3.0 - 3.0 * a.cos(), -t)
+            }),
+            380,
+        ));
+        cases.push((
+            "surface row".into(),
+            Box::new(|t: f64| {
+                let x = 20.0 * t;
+                Vec3::new(x, 0.0, 1.5 * (x / 2.5).sin() + 0.3 * (x / 1.2).sin())
+            }),
+            400,
+        ));
+        for (name, curve, n) in &cases {
+            let pts: Vec<Vec3> = (0..=*n)
+                .map(|k| curve(k as f64 / *n as f64).map(round6))
+                .collect();
+            let segs = plan(&lines(&pts, 3000.0));
+            assert!(
+                segs.iter().all(|s| matches!(s.curve, Curve::Transition(_))),
+                "{name}: not smoothed"
+            );
+            // The exact curve, densely, to measure distances and curvature against.
+            let fine: Vec<Vec3> = (0..=40 * n)
+                .map(|k| curve(k as f64 / (40 * n) as f64))
+                .collect();
+            let curvature_at = |m: usize| {
+                let (a, b, c) = (fine[m - 20], fine[m], fine[m + 20]);
+                2.0 * (b - a).cross(&(c - b)).norm()
+                    / ((b - a).norm() * (c - b).norm() * (c - a).norm())
+            };
+            let kappa_max = (20..fine.len() - 20).map(curvature_at).fold(0.0, f64::max);
+            let (mut worst_d, mut worst_k) = (0.0f64, 0.0f64);
+            for s in &segs {
+                for i in 0..=100 {
+                    let e = s.curve.eval(s.length_mm * i as f64 / 100.0);
+                    let d = polyline_distance(&e.point, &fine);
+                    worst_d = worst_d.max(d);
+                    // The exact curvature where the piece is: from three points of the
+                    // fine curve around the nearest one (its circumscribed circle).
+                    let m = (0..fine.len())
+                        .min_by(|&a, &b| {
+                            (fine[a] - e.point)
+                                .norm()
+                                .total_cmp(&(fine[b] - e.point).norm())
+                        })
+                        .unwrap()
+                        .clamp(20, fine.len() - 21);
+                    let exact = curvature_at(m);
+                    let got = e.curvature.norm();
+                    worst_k = worst_k.max((got - exact).abs() / kappa_max);
+                }
+            }
+            // A tenth of the 0.01 mm tolerance the test mill has (its band is not used to
+            // bend the curve), and the curvature within 5 % of the curve's largest.
+            assert!(worst_d <= 0.0015, "{name}: {worst_d} mm from the curve");
+            assert!(
+                worst_k <= 0.05,
+                "{name}: curvature off by {worst_k} of the largest"
+            );
         }
     }
 
