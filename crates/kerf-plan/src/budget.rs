@@ -1101,14 +1101,19 @@ pub(crate) fn ramp_budget(
     if !(a_top > 0.0 && a_top.is_finite()) {
         return None;
     }
-    // Budgets are compared by the stop they give where they run: within `section`, the
-    // lesser of each limit (a budget that trades acceleration for jerk would otherwise
-    // lower the acceleration of every ramp of the section: the dense circle's last piece
-    // took 1,708 mm/s² with 41,000 mm/s³ for its own 1,880 and 35,600, and the whole
-    // circle ran its ramps at 1,708).
+    // Budgets are compared by the time the stop from `v_max` loses against running on at
+    // `v_max` (a ramp's duration less its distance at `v_max`), where they run: within
+    // `section`, at the lesser of each limit (a budget that trades acceleration for jerk
+    // would otherwise lower the acceleration of every ramp of the section: the dense
+    // circle's last piece took 1,708 mm/s² with 41,000 mm/s³ for its own 1,880 and
+    // 35,600, and the whole circle ran its ramps at 1,708).
+    let lost = |v_from: f64, v_to: f64, a: f64, j: f64| {
+        let t = change_time_s(v_from - v_to, a, j);
+        t - 0.5 * (v_from + v_to) * t / v_max
+    };
     let stop_time = |a: f64, j: f64| match section {
         Some((sec_a, sec_j)) if a >= MERGE_RATIO * sec_a && j >= MERGE_RATIO_JERK * sec_j => {
-            change_time_s(v_max, a.min(sec_a), j.min(sec_j))
+            lost(v_max, 0.0, a.min(sec_a), j.min(sec_j))
         }
         // A budget the section would not take starts a section of its own at the piece's
         // start, passed with zero acceleration: the section before slows to the speed
@@ -1120,9 +1125,9 @@ pub(crate) fn ramp_budget(
             } else {
                 bisect(0.0, v_max, STOP_SPLIT_STEPS, fits)
             };
-            change_time_s(v_max - v_b, sec_a, sec_j) + change_time_s(v_b, a, j)
+            lost(v_max, v_b, sec_a, sec_j) + lost(v_b, 0.0, a, j)
         }
-        None => change_time_s(v_max, a, j),
+        None => lost(v_max, 0.0, a, j),
     };
     let own = stop_time(seg.accel_mm_s2, seg.jerk_mm_s3);
     let mut best: Option<(f64, f64, f64)> = None;
