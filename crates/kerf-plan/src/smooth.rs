@@ -83,7 +83,7 @@ pub const WINDOW_MM: f64 = 2.0;
 /// against the polyline within [`TRANSITION_TOL_SHARE`]). At 25 % a raster written with 2
 /// decimals (rounding up to half the 0.01 mm band) shrank every window to five vertices,
 /// whose curvature was noise: 18.3 s where the same raster with 3 decimals takes 3.9 s
-/// (4.55 s now, with the fit's free constant of [`Run::local_fit`]).
+/// (4.55 s now, with the fit's free constant, see `Run::local_fit`).
 pub const RESIDUAL_TOL_SHARE: f64 = 0.7;
 /// Fewest vertices in a fitting window (besides the knot's own) for the quartic fit;
 /// smaller windows get a cubic.
@@ -577,14 +577,14 @@ impl Run {
     /// Weighted least-squares `p(x) = p_idx + d0 + d1 x + d2 x²/2 + d3 x³/6 + d4 x⁴/24`
     /// (x = chord length from the vertex) over the vertices within `w` (biweight); a cubic
     /// where the window has fewer than [`QUARTIC_MIN_VERTICES`] vertices. Except at a run
-    /// end, the fit is not held through the vertex (`d0` is free): a rounded vertex would tilt the tangent and bend the
-    /// curvature by its own rounding (a raster written with 2 decimals, rounded by up to
-    /// half the band, ran 1.5 × slower so). The knot stays on the vertex all the same: the
-    /// pieces pass through vertices, and a piece's check against the polyline keeps it in
-    /// the band. The cubic term keeps the curvature of a circle from leaking into the
-    /// residual, so windows stay wide on arcs; the quartic term keeps a curve's fourth
-    /// derivative out of the curvature (in a symmetric window a cubic's x² coefficient
-    /// absorbs the x⁴ term). Measured: a 2 mm circle's pieces within 0.12 µm of it (0.75 µm
+    /// end, the fit is not held through the vertex (`d0` is free): a rounded vertex would
+    /// tilt the tangent and bend the curvature by its own rounding (a raster written with 2
+    /// decimals, rounded by up to half the band, ran 1.5 × slower so). The knot stays on
+    /// the vertex all the same: the pieces pass through vertices, and a piece's check
+    /// against the polyline keeps it in the band. The cubic term keeps the curvature of a
+    /// circle from leaking into the residual, so windows stay wide on arcs; the quartic
+    /// term keeps a curve's fourth derivative out of the curvature (in a symmetric window a
+    /// cubic's x² coefficient absorbs the x⁴ term). Measured: a 2 mm circle's pieces within 0.12 µm of it (0.75 µm
     /// with the cubic), raster C of the CAM corpus 0.6 % quicker.
     fn local_fit(&self, idx: u64, w: f64) -> Option<LocalFit> {
         let lo = self.window_end(idx, w * 1.000_001, false);
