@@ -131,5 +131,7 @@ mod segment;
 mod transition;
 pub use curve::{Curve, CurvePoint, Helix, line_distance};
 pub use limits::{AXIS_NAMES, AxisLimits, MachineLimits};
-pub use segment::{MERGE_RATIO, MERGE_RATIO_JERK, PlannedSegment, poly5, rotary_derivatives};
+pub use segment::{
+    MERGE_RATIO, MERGE_RATIO_JERK, PlannedSegment, limits_merge, poly5, rotary_derivatives,
+};
 pub use transition::{TABLE_POINTS, Transition};

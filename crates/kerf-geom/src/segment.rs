@@ -19,6 +19,14 @@ pub const MERGE_RATIO: f64 = 0.9;
 /// envelope), and 0.9 cost 2.6 % on a faceted raster (rows flat, then up a 30° slope,
 /// then flat again, as 0.05 mm G1 points).
 pub const MERGE_RATIO_JERK: f64 = 0.8;
+/// Whether a segment with path acceleration `accel_mm_s2` and jerk `jerk_mm_s3` passes the
+/// limit part of the motion core's merge rule for a section whose first segment has
+/// `first = (acceleration, jerk)`: within [`MERGE_RATIO`] and [`MERGE_RATIO_JERK`] of it.
+/// (The motion core also compares speeds and the junction cap; it keeps the two thresholds
+/// per section, since its lookahead uses them as limits.)
+pub fn limits_merge(accel_mm_s2: f64, jerk_mm_s3: f64, first: (f64, f64)) -> bool {
+    accel_mm_s2 >= MERGE_RATIO * first.0 && jerk_mm_s3 >= MERGE_RATIO_JERK * first.1
+}
 /// One segment ready for the motion core: geometry plus its limits along the path.
 ///
 /// The path parameter `s` runs over `[0, length_mm]`; it is the XYZ arc length in mm, or,

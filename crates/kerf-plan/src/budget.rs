@@ -4,7 +4,7 @@
 use std::cell::Cell;
 
 use kerf_geom::ramp::bisect;
-use kerf_geom::{Curve, MERGE_RATIO, MERGE_RATIO_JERK, Transition, Vec3, rotary_derivatives};
+use kerf_geom::{Curve, Transition, Vec3, limits_merge, rotary_derivatives};
 
 use crate::memo::{KEY_WORDS, Key, Limits};
 use crate::search::{bisect_max, falsi_max, golden_min};
@@ -1116,7 +1116,7 @@ pub(crate) fn ramp_budget(
         t - 0.5 * (v_from + v_to) * t / v_max
     };
     let stop_loss = |a: f64, j: f64| match section {
-        Some((sec_a, sec_j)) if a >= MERGE_RATIO * sec_a && j >= MERGE_RATIO_JERK * sec_j => {
+        Some((sec_a, sec_j)) if limits_merge(a, j, (sec_a, sec_j)) => {
             lost(v_max, 0.0, a.min(sec_a), j.min(sec_j))
         }
         // A budget the section would not take starts a section of its own at the piece's

@@ -63,7 +63,7 @@
 //!   slow, the raised budget splits a motion-core section mid-ramp, so it is used only
 //!   where a rough estimate says that pays. Budgets are compared by the stop they give
 //!   where they run: a piece entered at speed joins the section of the segment before it
-//!   when its limits are like that segment's (`kerf_geom::MERGE_RATIO`), and then runs at
+//!   when its limits are like that segment's (`kerf_geom::limits_merge`), and then runs at
 //!   the lesser of both.
 //! - **G2 transitions at joints with arcs.** A tangent line→arc, arc→line or arc→arc joint
 //!   is a curvature step, which at speed v is an acceleration step `v²Δκ`; left alone its

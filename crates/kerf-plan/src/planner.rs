@@ -4,7 +4,7 @@
 //! ([`crate::blend`]), inserts G2 transitions at joints with arcs ([`crate::transition`])
 //! and sets every segment's limits ([`crate::budget`]) and end cap ([`crate::junction`]).
 
-use kerf_geom::{CornerMode, Curve, MERGE_RATIO, MERGE_RATIO_JERK, Move, Path, Vec3};
+use kerf_geom::{CornerMode, Curve, Move, Path, Vec3, limits_merge};
 
 use crate::budget::{limits_key, ramp_budget, segment_limits_pair};
 use crate::junction::junction_cap;
@@ -537,10 +537,8 @@ impl Planner {
         // A piece entered at speed whose limits are like those of the segment before it
         // joins that segment's motion-core section and runs at the lesser of their limits
         // (the section's first segment decides; the one before is the estimate here).
-        let section = self.before_last_limits.filter(|&(a, j)| {
-            self.last_start_cap >= slow
-                && seg.accel_mm_s2 >= MERGE_RATIO * a
-                && seg.jerk_mm_s3 >= MERGE_RATIO_JERK * j
+        let section = self.before_last_limits.filter(|&before| {
+            self.last_start_cap >= slow && limits_merge(seg.accel_mm_s2, seg.jerk_mm_s3, before)
         });
         let Some((a, j)) = ramp_budget(
             seg,
