@@ -19,13 +19,26 @@ pub const MERGE_RATIO: f64 = 0.9;
 /// envelope), and 0.9 cost 2.6 % on a faceted raster (rows flat, then up a 30° slope,
 /// then flat again, as 0.05 mm G1 points).
 pub const MERGE_RATIO_JERK: f64 = 0.8;
+/// Nor does a segment join a section whose first segment has less than `1/MERGE_ABOVE` of
+/// its acceleration or jerk: it would run its own ramps at the section's much lower
+/// limits. A line behind a short corner blend stopped with the blend's jerk, a fifteenth
+/// of its own (27 ms more on a plain 5 mm line, `tests/data/ngc/basic/lines.ngc`). Below
+/// this factor a boundary (a return to `a = 0`) costs more than the lower limits do: the
+/// budgets of neighbouring smoothed pieces differ by up to about 3 × along a raster row,
+/// and 2 ran raster A (3 decimals) and the 10,000-move spiral slower; 3 and 4 measured
+/// the same on every bundled program (`benches/compare.sh`).
+pub const MERGE_ABOVE: f64 = 4.0;
 /// Whether a segment with path acceleration `accel_mm_s2` and jerk `jerk_mm_s3` passes the
 /// limit part of the motion core's merge rule for a section whose first segment has
-/// `first = (acceleration, jerk)`: within [`MERGE_RATIO`] and [`MERGE_RATIO_JERK`] of it.
-/// (The motion core also compares speeds and the junction cap; it keeps the two thresholds
-/// per section, since its lookahead uses them as limits.)
+/// `first = (acceleration, jerk)`: within [`MERGE_RATIO`] and [`MERGE_RATIO_JERK`] of it
+/// from below, and [`MERGE_ABOVE`] from above. (The motion core also compares speeds and
+/// the junction cap; it keeps the thresholds per section, since its lookahead uses the
+/// lower ones as limits.)
 pub fn limits_merge(accel_mm_s2: f64, jerk_mm_s3: f64, first: (f64, f64)) -> bool {
-    accel_mm_s2 >= MERGE_RATIO * first.0 && jerk_mm_s3 >= MERGE_RATIO_JERK * first.1
+    accel_mm_s2 >= MERGE_RATIO * first.0
+        && jerk_mm_s3 >= MERGE_RATIO_JERK * first.1
+        && accel_mm_s2 <= MERGE_ABOVE * first.0
+        && jerk_mm_s3 <= MERGE_ABOVE * first.1
 }
 /// One segment ready for the motion core: geometry plus its limits along the path.
 ///

@@ -183,6 +183,13 @@ impl Transition {
         ((c[5] * (20.0 * u) + c[4] * 12.0) * u + c[3] * 6.0) * u + c[2] * 2.0
     }
 
+    /// `p'''(u)`.
+    #[inline]
+    pub fn d3(&self, u: f64) -> Vec3 {
+        let c = &self.coef;
+        (c[5] * (60.0 * u) + c[4] * 24.0) * u + c[3] * 6.0
+    }
+
     /// `|p'(u)|`, mm per unit of `u`.
     #[inline]
     pub fn speed(&self, u: f64) -> f64 {
@@ -263,6 +270,30 @@ impl Transition {
         (t, k)
     }
 
+    /// Unit tangent, curvature vector `K = dT/ds` and its arc-length derivative `dK/ds`
+    /// at parameter `u`, in closed form from the polynomial's first three derivatives
+    /// (the axes' third derivatives along the path: at constant speed `v` each axis's
+    /// jerk is `K'_i v³`).
+    ///
+    /// With `q = p'`, `r = p''`, `w = p'''`, `g = q·q` and `m = q·r`:
+    /// `K = N/g` with `N = r − q m/g`, so `dK/du = N'/g − N g'/g²` with `g' = 2m`,
+    /// `N' = w − r m/g − q (m'/g − m g'/g²)`, `m' = r·r + q·w`; and `dK/ds = (dK/du)/√g`.
+    pub fn frame_rate_at_param(&self, u: f64) -> (Vec3, Vec3, Vec3) {
+        let q = self.d1(u);
+        let r = self.d2(u);
+        let w = self.d3(u);
+        let g = q.norm_squared();
+        let sigma = g.sqrt();
+        let m = q.dot(&r);
+        let dg = 2.0 * m;
+        let dm = r.norm_squared() + q.dot(&w);
+        let n = r - q * (m / g);
+        let dn = w - r * (m / g) - q * (dm / g - m * dg / (g * g));
+        let k = n / g;
+        let dk_du = dn / g - n * (dg / (g * g));
+        (q / sigma, k, dk_du / sigma)
+    }
+
     /// Unit tangent and curvature vector at arc length `s` (exact at the ends).
     pub fn frame_at(&self, s: f64) -> (Vec3, Vec3) {
         if s <= 0.0 {
@@ -337,5 +368,48 @@ mod tests {
         assert_eq!(tr.point_at(0.0), p0);
         assert!((tr.point_at(l * (1.0 - 1e-12)) - p1).norm() < 1e-9);
         assert!(tr.distance_to(&p0) < 1e-12);
+    }
+
+    /// The closed-form `dK/ds` is the third derivative of the point along the arc length,
+    /// measured here by differences of `point_at` (the arc-length table, not the formula).
+    #[test]
+    fn curvature_rate_is_the_third_derivative_along_the_path() {
+        // A twisted piece: tangents and curvatures out of one plane.
+        let p0 = Vec3::new(0.0, 0.0, 0.0);
+        let t0 = Vec3::new(1.0, 0.2, -0.3).normalize();
+        let k0 = {
+            let k = Vec3::new(0.0, 0.4, 0.3);
+            k - t0 * k.dot(&t0)
+        };
+        let p1 = Vec3::new(1.8, 0.5, 0.2);
+        let t1 = Vec3::new(0.8, 0.1, 0.6).normalize();
+        let k1 = {
+            let k = Vec3::new(-0.2, -0.5, 0.4);
+            k - t1 * k.dot(&t1)
+        };
+        let tr = Transition::new(p0, t0, k0, p1, t1, k1, (p1 - p0).norm()).unwrap();
+        let l = tr.length_mm;
+        let h = 0.01;
+        let mut largest: f64 = 0.0;
+        let mut worst: f64 = 0.0;
+        for i in 1..40 {
+            let s = 2.0 * h + (l - 4.0 * h) * i as f64 / 40.0;
+            let x = |k: f64| tr.point_at(s + k * h);
+            let third = (x(2.0) - x(1.0) * 2.0 + x(-1.0) * 2.0 - x(-2.0)) / (2.0 * h * h * h);
+            let second = (x(1.0) - x(0.0) * 2.0 + x(-1.0)) / (h * h);
+            let (t, k, dk) = tr.frame_rate_at_param(tr.param_at(s));
+            assert!((t - (x(1.0) - x(-1.0)) / (2.0 * h)).norm() < 1e-4);
+            assert!(
+                (k - second).norm() < 1e-3 * k.norm().max(1.0),
+                "{k} {second}"
+            );
+            largest = largest.max(dk.norm());
+            worst = worst.max((dk - third).norm());
+        }
+        assert!(
+            largest > 0.5,
+            "the test piece is not curved enough: {largest}"
+        );
+        assert!(worst < 2e-3 * largest, "{worst} of {largest}");
     }
 }

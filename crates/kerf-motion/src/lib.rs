@@ -13,7 +13,9 @@
 //!   junction before it can be passed at that speed. Its speed `min(v_max, feed)` must
 //!   not be more than that ratio *above* the first segment's either: the section runs at
 //!   its minima, so a long fast segment merged behind a short slow one (a low feed, a
-//!   tight G2 transition) would otherwise crawl at the slow one's speed. The running
+//!   tight G2 transition) would otherwise crawl at the slow one's speed. For the same
+//!   reason its acceleration and jerk must not exceed [`MERGE_ABOVE`] times the first
+//!   segment's (a line behind a short corner blend would stop with the blend's jerk). The running
 //!   section is frozen; segments it has passed are released at once, so a program longer
 //!   than the queue never stops for room. Dense CAM code thus becomes a few long
 //!   sections, and the one-dimensional path profile only has `a = 0` at section
@@ -88,7 +90,9 @@
 
 use kerf_geom::Vec3;
 use kerf_geom::ramp::{bisect, change_time_s};
-pub use kerf_geom::{AxisLimits, MERGE_RATIO, MERGE_RATIO_JERK, MachineLimits, PlannedSegment};
+pub use kerf_geom::{
+    AxisLimits, MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MachineLimits, PlannedSegment,
+};
 use rsruckig::prelude::*;
 
 pub mod monitor;
@@ -660,6 +664,9 @@ impl MotionCore {
                     <= t.c_v.min(t.c_feed)
                 && seg.accel_mm_s2 >= t.c_accel
                 && seg.jerk_mm_s3 >= t.c_jerk
+                // Nor much stronger: it would ramp at the section's limits.
+                && seg.accel_mm_s2 * MERGE_RATIO <= MERGE_ABOVE * t.c_accel
+                && seg.jerk_mm_s3 * MERGE_RATIO_JERK <= MERGE_ABOVE * t.c_jerk
                 && prev_cap >= t.c_v.min(t.c_feed * MAX_OVERRIDE)
                 && seg_vb >= t.c_v_boost
                 && seg_ab >= t.c_accel_boost
@@ -1720,6 +1727,58 @@ mod tests {
             }
             assert!(feeds[under..].iter().all(|&f| f <= new_feed + 1e-9));
         }
+    }
+
+    /// A long line behind a short segment with a fifteenth of its acceleration and jerk (a
+    /// corner blend) stops with its own limits, not the short one's: it is a section of
+    /// its own ([`MERGE_ABOVE`]). Measured from the positions: the stop at the end takes
+    /// about `2·sqrt(v/j)` with the line's jerk (15 ms), where the blend's limits need
+    /// `v/a + a/j` (62 ms; 59 ms measured without the rule). The junction between them is
+    /// passable at any speed, so only the limits decide.
+    #[test]
+    fn a_line_behind_a_much_weaker_segment_stops_with_its_own_limits() {
+        let v = 4.17;
+        let seg = |x0: f64, len: f64, a: f64, j: f64, cap: f64| {
+            let curve = Curve::line(Vec3::new(x0, 0.0, 0.0), Vec3::new(x0 + len, 0.0, 0.0));
+            let mut s = PlannedSegment::with_zero_limits(curve, len, ([0.0; 3], [0.0; 3]), 1, 0, v);
+            s.v_max_mm_s = 200.0;
+            (s.accel_mm_s2, s.jerk_mm_s3) = (a, j);
+            (s.v_boost_mm_s, s.accel_boost_mm_s2, s.jerk_boost_mm_s3) = (200.0, a, j);
+            s.end_cap_mm_s = cap;
+            s
+        };
+        let (a_weak, j_weak, a_line, j_line) = (100.0, 5000.0, 1900.0, 75_000.0);
+        // Within the lower merge ratios the weak segment would join the line; from above
+        // it may not.
+        assert!(a_line > MERGE_ABOVE * a_weak && j_line > MERGE_ABOVE * j_weak);
+        let mut core = MotionCore::new(0.001, 8);
+        core.push(&seg(0.0, 0.05, a_weak, j_weak, 200.0)).unwrap();
+        core.push(&seg(0.05, 5.0, a_line, j_line, 0.0)).unwrap();
+        let mut sp = Setpoint::default();
+        let mut xs = vec![0.0];
+        loop {
+            let r = core.step(&mut sp);
+            xs.push(sp.position[0]);
+            if r == StepResult::Idle {
+                break;
+            }
+            assert!(xs.len() < 100_000);
+        }
+        assert!(
+            (xs[xs.len() - 1] - 5.05).abs() < 1e-9,
+            "{}",
+            xs[xs.len() - 1]
+        );
+        let speeds: Vec<f64> = xs.windows(2).map(|w| (w[1] - w[0]) / 0.001).collect();
+        // From the last period at (nearly) the feed to rest.
+        let last_fast = speeds.iter().rposition(|&s| s > 0.99 * v).unwrap();
+        let stop_s = (speeds.len() - last_fast) as f64 * 0.001;
+        let with_line = 2.0 * (v / j_line).sqrt();
+        let with_weak = v / a_weak + a_weak / j_weak;
+        assert!(
+            stop_s < 0.5 * (with_line + with_weak),
+            "stop took {stop_s} s: {with_line} s with the line's limits, {with_weak} s with the weak one's"
+        );
     }
 
     /// With every solver call failing, the closed-form fallback runs the whole program:

@@ -20,23 +20,30 @@ use crate::{MachineLimits, PROFILE_SHARE, PlannedSegment};
 const CENTRIPETAL_SHARE: f64 = 0.85;
 
 /// Samples of a transition for its curvature bounds: 128 like [`crate::DEVIATION_SAMPLES`];
-/// what rises between samples is covered by [`LIMIT_SAFETY`] and [`CURVATURE_SAFETY`].
+/// what rises between samples is covered by [`rate_rise`] with [`RATE_SAFETY`],
+/// [`CURVATURE_SAFETY`] and, on rotary axes, [`LIMIT_SAFETY`].
 const LIMIT_SAMPLES: usize = 128;
 /// Samples for the curvature bounds of a smoothed piece that covers several moves: such
 /// pieces are gentle (their curvature follows a fitted window, not a corner), so half of
 /// [`LIMIT_SAMPLES`] suffices and halves the cost on dense CAM code.
 const PIECE_LIMIT_SAMPLES: usize = 64;
-/// Safety factor on the sampled curvature bounds of a transition: 10 % covers the
-/// finite-difference error of the curvature's derivative and its rise between samples.
+/// Safety factor on the sampled bounds of the rotary axes' second derivatives along a
+/// transition and of their rate (by central differences): 10 % covers the
+/// finite-difference error and the rise between samples. (X, Y, Z take the curvature's
+/// derivative in closed form, with [`RATE_SAFETY`].)
 pub const LIMIT_SAFETY: f64 = 1.1;
 /// Safety factor on the sampled unit-tangent components of a transition: the tangent turns
 /// little between samples, so 0.1 % covers its rise there.
 const TANGENT_SAFETY: f64 = 1.001;
 /// Safety factor on the sampled curvature of a transition. The curvature itself is
-/// sampled directly (its derivative by finite differences, hence the larger
-/// [`LIMIT_SAFETY`]); between samples of a smooth quintic it cannot rise by more than a
+/// sampled directly; between samples of a smooth quintic it cannot rise by more than a
 /// fraction of a per cent.
 pub const CURVATURE_SAFETY: f64 = 1.02;
+/// Safety factor on the curvature's derivative of a transition (XYZ), evaluated in closed
+/// form at each sample with its rise between samples bounded by [`rate_rise`]: 2 % for
+/// what that bound misses. (It was [`LIMIT_SAFETY`] on central differences, which smooth
+/// the peaks; the 8 % between them cost jerk-bound curves 2.5 % of their speed.)
+pub const RATE_SAFETY: f64 = 1.02;
 
 /// Per-axis geometric weights of a segment: the largest |component| over the segment of
 /// the unit tangent split into in-plane and axial parts, and the curvature terms.
@@ -389,7 +396,7 @@ fn design_speed_search(
     (vd, found.1, found.2)
 }
 
-/// Sampled bounds of a transition (with [`LIMIT_SAFETY`] on the curvature terms).
+/// Sampled bounds of a transition (with the safety factors above on the curvature terms).
 struct TransitionBounds {
     /// Per axis X..C: largest `|t_i|` (unit tangent; for rotary axes `dA/ds`).
     tangent: [f64; 6],
@@ -421,66 +428,86 @@ fn transition_bounds(
         plane: [1.0; 3],
     };
     let n = samples;
-    // Frames on a grid in u; dK/ds by central differences on the grid (one-sided at the
-    // ends), so each sample costs one evaluation.
-    // Six-axis frames: XYZ unit tangent and curvature vector, and the rotary axes'
-    // derivatives with respect to the XYZ arc length.
-    let frame = |i: usize| {
+    // Frames on a grid in u. X, Y, Z: the curvature's derivative in closed form
+    // ([`Transition::frame_rate_at_param`]), its rise between samples bounded by
+    // [`rate_rise`]. Rotary axes: their derivatives with respect to the XYZ arc length,
+    // the second one's rate by central differences on the grid (one-sided at the ends).
+    let mut rate = vec![[0.0; 3]; n + 1];
+    let mut kappa_rate = vec![0.0; n + 1];
+    let rotary = |i: usize| {
         let u = i as f64 / n as f64;
-        let (tan, k) = t.frame_at_param(u);
-        let mut t6 = [tan[0], tan[1], tan[2], 0.0, 0.0, 0.0];
-        let mut k6 = [k[0], k[1], k[2], 0.0, 0.0, 0.0];
-        if let Some(c) = abc {
-            let (rt, rk) = rotary_derivatives(t, c, u);
-            t6[3..6].copy_from_slice(&rt);
-            k6[3..6].copy_from_slice(&rk);
-        }
-        (tan, k, t6, k6)
+        abc.map_or(([0.0; 3], [0.0; 3]), |c| rotary_derivatives(t, c, u))
     };
-    let (mut prev, mut cur) = (frame(0), frame(0));
+    let (mut prev, mut cur) = (rotary(0), rotary(0));
     for i in 0..=n {
-        let next = if i < n { frame(i + 1) } else { cur };
-        let (tan, k, t6, k6) = cur;
-        let (ia, ib) = (i.saturating_sub(1), (i + 1).min(n));
-        let du = (ib - ia) as f64 / n as f64;
-        let ka = if i == 0 { cur.3 } else { prev.3 };
-        let kb = if i == n { cur.3 } else { next.3 };
-        let ds = du * t.speed(i as f64 / n as f64);
-        let dk6: [f64; 6] = std::array::from_fn(|ax| (kb[ax] - ka[ax]) / ds);
-        let dk = Vec3::new(dk6[0], dk6[1], dk6[2]);
-        for ax in 0..6 {
-            b.tangent[ax] = b.tangent[ax].max(t6[ax].abs());
-            b.curvature[ax] = b.curvature[ax].max(k6[ax].abs());
-            b.curvature_rate[ax] = b.curvature_rate[ax].max(dk6[ax].abs());
+        let u = i as f64 / n as f64;
+        let (tan, k, dk) = t.frame_rate_at_param(u);
+        let next = if i < n { rotary(i + 1) } else { cur };
+        for ax in 0..3 {
+            b.tangent[ax] = b.tangent[ax].max(tan[ax].abs());
+            b.curvature[ax] = b.curvature[ax].max(k[ax].abs());
+            rate[i][ax] = dk[ax];
         }
         let kappa = k.norm();
         b.kappa = b.kappa.max(kappa);
-        b.kappa_rate = b.kappa_rate.max((dk + tan * (kappa * kappa)).norm());
+        kappa_rate[i] = (dk + tan * (kappa * kappa)).norm();
+        if abc.is_some() {
+            let (ia, ib) = (i.saturating_sub(1), (i + 1).min(n));
+            let ka = if i == 0 { cur.1 } else { prev.1 };
+            let kb = if i == n { cur.1 } else { next.1 };
+            let ds = (ib - ia) as f64 / n as f64 * t.speed(u);
+            for r in 0..3 {
+                let ax = 3 + r;
+                b.tangent[ax] = b.tangent[ax].max(cur.0[r].abs());
+                b.curvature[ax] = b.curvature[ax].max(cur.1[r].abs());
+                b.curvature_rate[ax] = b.curvature_rate[ax].max(((kb[r] - ka[r]) / ds).abs());
+            }
+        }
         prev = cur;
         cur = next;
     }
+    for ax in 0..3 {
+        b.curvature_rate[ax] = rate_rise(rate.iter().map(|r| r[ax])) * RATE_SAFETY;
+    }
+    b.kappa_rate = rate_rise(kappa_rate.iter().copied()) * RATE_SAFETY;
     for ax in 0..6 {
         b.tangent[ax] *= TANGENT_SAFETY;
         if ax < 3 {
             b.tangent[ax] = b.tangent[ax].min(1.0);
         }
-        // Rotary derivatives are sampled like the curvature's derivative: the larger
-        // factor.
-        b.curvature[ax] *= if ax < 3 {
-            CURVATURE_SAFETY
+        // Rotary derivatives are sampled like the curvature's derivative used to be: the
+        // larger factor.
+        if ax < 3 {
+            b.curvature[ax] *= CURVATURE_SAFETY;
         } else {
-            LIMIT_SAFETY
-        };
-        b.curvature_rate[ax] *= LIMIT_SAFETY;
+            b.curvature[ax] *= LIMIT_SAFETY;
+            b.curvature_rate[ax] *= LIMIT_SAFETY;
+        }
     }
     b.kappa *= CURVATURE_SAFETY;
-    b.kappa_rate *= LIMIT_SAFETY;
     if let Some(normal) = plane_normal(&t.coef) {
         for ax in 0..3 {
             b.plane[ax] = (1.0 - normal[ax] * normal[ax]).max(0.0).sqrt();
         }
     }
     b
+}
+
+/// A bound on `|f|` between equally spaced samples `f_k` of a smooth function: the largest
+/// `|f_k|` plus a quarter of the largest second difference `|f_k+1 − 2f_k + f_k−1|`. A
+/// parabola through three samples rises above them by at most an eighth of its second
+/// difference; twice that covers the change of the second derivative between samples.
+fn rate_rise(f: impl Iterator<Item = f64> + Clone) -> f64 {
+    let top = f.clone().fold(0.0, |m: f64, x| m.max(x.abs()));
+    let (mut a, mut b, mut bend) = (f64::NAN, f64::NAN, 0.0_f64);
+    for x in f {
+        if !a.is_nan() {
+            bend = bend.max((x - 2.0 * b + a).abs());
+        }
+        a = b;
+        b = x;
+    }
+    top + 0.25 * bend
 }
 
 /// A curve counts as straight when its coefficients' largest cross product is below this,
@@ -1015,9 +1042,9 @@ pub(crate) fn ramp_budget(
         return None;
     }
     let n = PIECE_LIMIT_SAMPLES;
-    // Frames, arc length (trapezoid on the speed) and dK/ds by differences on the grid.
-    let frames: Vec<(Vec3, Vec3)> = (0..=n)
-        .map(|i| t.frame_at_param(i as f64 / n as f64))
+    // Frames with dK/ds in closed form, and the arc length (trapezoid on the speed).
+    let frames: Vec<(Vec3, Vec3, Vec3)> = (0..=n)
+        .map(|i| t.frame_rate_at_param(i as f64 / n as f64))
         .collect();
     let mut s = vec![0.0; n + 1];
     for i in 1..=n {
@@ -1029,12 +1056,11 @@ pub(crate) fn ramp_budget(
         return None;
     }
     s.iter_mut().for_each(|x| *x *= scale);
-    let rate: Vec<Vec3> = (0..=n)
-        .map(|i| {
-            let (ia, ib) = (i.saturating_sub(1), (i + 1).min(n));
-            (frames[ib].1 - frames[ia].1) / (s[ib] - s[ia])
-        })
-        .collect();
+    // What the rate may rise between samples, per axis (see [`rate_rise`]).
+    let rise: [f64; 3] = std::array::from_fn(|ax| {
+        let f = frames.iter().map(|f| f.2[ax]);
+        rate_rise(f.clone()) - f.fold(0.0, |m: f64, x| m.max(x.abs()))
+    });
     // Per sample: the window maxima with safety factors, and the window's extent.
     struct Sample {
         tangent: [f64; 3],
@@ -1053,11 +1079,12 @@ pub(crate) fn ramp_budget(
                 s_lo: s[ia],
                 s_hi: s[ib],
             };
-            for ((tan, k), dk) in frames[ia..=ib].iter().zip(&rate[ia..=ib]) {
+            for (tan, k, dk) in &frames[ia..=ib] {
                 for ax in 0..3 {
                     x.tangent[ax] = x.tangent[ax].max(tan[ax].abs() * TANGENT_SAFETY);
                     x.curvature[ax] = x.curvature[ax].max(k[ax].abs() * CURVATURE_SAFETY);
-                    x.curvature_rate[ax] = x.curvature_rate[ax].max(dk[ax].abs() * LIMIT_SAFETY);
+                    x.curvature_rate[ax] =
+                        x.curvature_rate[ax].max((dk[ax].abs() + rise[ax]) * RATE_SAFETY);
                 }
             }
             x

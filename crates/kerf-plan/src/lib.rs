@@ -76,14 +76,15 @@
 //!   curvature vector at both ends. Its distance from the two programmed moves is sampled
 //!   ([`DEVIATION_SAMPLES`] points, at most [`TRANSITION_TOL_SHARE`] of the tolerance);
 //!   `d` starts above the estimate `Δκ(2d)²/24 ≈ tol` and shrinks until it holds. The
-//!   transition is kept only if it makes the joint faster and, if it runs below a quarter
+//!   transition is kept only if it makes the joint faster and, if it runs below 30 %
 //!   of the neighbours' speed, takes at most 20 ms (crawling round a sharp kink at a tiny
 //!   tolerance is slower than stopping at it); otherwise the joint is taken at its cap as
 //!   before. Rotary motion on either side, exact stops and joints between two lines are
 //!   left alone. A transition makes [`PlannedSegment`] a few hundred bytes larger (the
 //!   curve carries its arc-length table inline).
 //!   Its limits come from sampled per-axis bounds of `|t_i|`, `|K_i|` and `|K'_i|`
-//!   (curvature vector and its arc-length derivative, ×[`LIMIT_SAFETY`]): with arc-length
+//!   (curvature vector and its arc-length derivative, in closed form at each sample, with
+//!   a bound on the rise between samples and [`RATE_SAFETY`]): with arc-length
 //!   parametrisation `x_i'' = t_i a + K_i v²` and `x_i''' = t_i j + 3K_i v a + K'_i v³`.
 //!   Example: r = 5 mm, 0.01 mm tolerance, F3000 on a 2,000 mm/s², 50,000 mm/s³ mill: the
 //!   joints run at the full 50 mm/s instead of 3.5 mm/s.
@@ -154,7 +155,7 @@ mod timing;
 mod transition;
 
 pub use blend::G2_LAMBDA_RATIOS;
-pub use budget::{CURVATURE_SAFETY, DESIGN_RUN_MM, LIMIT_SAFETY, segment_limits};
+pub use budget::{CURVATURE_SAFETY, DESIGN_RUN_MM, LIMIT_SAFETY, RATE_SAFETY, segment_limits};
 pub use junction::junction_cap;
 pub use planner::Planner;
 pub use transition::TRANSITION_SHARE_OF_MOVE;
