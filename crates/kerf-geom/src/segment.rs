@@ -28,6 +28,16 @@ pub const MERGE_RATIO_JERK: f64 = 0.8;
 /// and 2 ran raster A (3 decimals) and the 10,000-move spiral slower; 3 and 4 measured
 /// the same on every bundled program (`benches/compare.sh`).
 pub const MERGE_ABOVE: f64 = 4.0;
+/// Sections merge segments whose speed limit and feed are at least this fraction of the
+/// first one's. It is tight because the lookahead's speed at a section boundary uses this
+/// conservative value: a boundary inside constant-feed code costs at most 1 % of the feed.
+pub const MERGE_RATIO_SPEED: f64 = 0.99;
+/// A segment slower than a section's first one by at most this ratio (but by more than
+/// [`MERGE_RATIO_SPEED`]) still joins it, the section then running at its speed, where
+/// that is safe (see `push`): a boundary between pieces whose speeds differ by a few per
+/// cent is a return to `a = 0`, and a chain of them lets a slow-down shed only a few mm/s
+/// per section.
+pub const MERGE_RATIO_SLOWER: f64 = 0.97;
 /// Whether a segment with path acceleration `accel_mm_s2` and jerk `jerk_mm_s3` passes the
 /// limit part of the motion core's merge rule for a section whose first segment has
 /// `first = (acceleration, jerk)`: within [`MERGE_RATIO`] and [`MERGE_RATIO_JERK`] of it
@@ -39,6 +49,14 @@ pub fn limits_merge(accel_mm_s2: f64, jerk_mm_s3: f64, first: (f64, f64)) -> boo
         && jerk_mm_s3 >= MERGE_RATIO_JERK * first.1
         && accel_mm_s2 <= MERGE_ABOVE * first.0
         && jerk_mm_s3 <= MERGE_ABOVE * first.1
+}
+/// Whether a segment with speed limit `v_mm_s` passes the speed part of the motion core's
+/// merge rule for a section whose first segment has `first_v_mm_s`: at most
+/// [`MERGE_RATIO_SLOWER`] below it (the motion core also asks that nothing was committed
+/// faster, which holds at the tail almost always) and not more than [`MERGE_RATIO_SPEED`]
+/// above its conservative speed.
+pub fn speeds_merge(v_mm_s: f64, first_v_mm_s: f64) -> bool {
+    v_mm_s >= MERGE_RATIO_SLOWER * first_v_mm_s && v_mm_s * MERGE_RATIO_SPEED <= first_v_mm_s
 }
 /// One segment ready for the motion core: geometry plus its limits along the path.
 ///

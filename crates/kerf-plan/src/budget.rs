@@ -4,7 +4,7 @@
 use std::cell::Cell;
 
 use kerf_geom::ramp::bisect;
-use kerf_geom::{Curve, Transition, Vec3, limits_merge, rotary_derivatives};
+use kerf_geom::{Curve, Transition, Vec3, limits_merge, rotary_derivatives, speeds_merge};
 
 use crate::memo::{KEY_WORDS, Key, Limits};
 use crate::search::{bisect_max, falsi_max, golden_min};
@@ -1004,15 +1004,21 @@ const RAMP_GRID_RATIO: f64 = 0.9;
 /// Points of that grid: down to `0.9⁴⁴ ≈ 1 %` of the line's acceleration, below which
 /// the segment's own design is better anyway.
 const RAMP_GRID_POINTS: usize = 45;
+/// Speed intervals per sample in [`ramp_budget`]'s envelope check: the acceleration bound
+/// `sqrt(2j(v_max − u))` is taken at each interval's bottom, the curvature terms at its top.
+const RAMP_ENVELOPE_INTERVALS: usize = 8;
 /// Halvings for the speed at which a piece's own stop begins (see [`ramp_budget`]).
 const STOP_SPLIT_STEPS: usize = 30;
 
 /// The tangential budget `(a, j)` of a smoothed piece (a [`Transition`] without rotary
 /// motion, designed at `seg.v_max_mm_s`) that is entered at most at `cap_start` or left
 /// at most at `cap_end`, with the quickest stop from `v_max` (by [`change_time_s`], the
-/// time lost against running on at `v_max`, judged in `section`, the limits of the
-/// segment before, when the piece joins its motion-core section), if that is quicker than
-/// its own design: ramps at the acceleration the limits leave at each speed.
+/// time lost against running on at `v_max`, judged in `section`, the speed limit,
+/// acceleration and jerk of the segment before, as the motion core would: with the
+/// lesser limits of both when the budget joins that segment's section
+/// ([`limits_merge`] and [`speeds_merge`]), else after that section slows to a speed from
+/// which the piece can stop), if that is quicker than its own design: ramps at the
+/// acceleration the limits leave at each speed.
 ///
 /// Why a higher budget is safe there: the motion core keeps the path acceleration within
 /// `a` on the segment and passes its junctions at most at their caps, so at arc length `s`
@@ -1022,14 +1028,17 @@ const STOP_SPLIT_STEPS: usize = 30;
 /// for the ramp than at the design speed, where the segment's own budget is worked out.
 /// Each sample is checked at the highest speed the bounds allow over its neighbourhood
 /// (the curvature terms taken as the largest of three neighbouring samples, with the
-/// safety factors of [`transition_bounds`]), per axis: `|t_i| a + |K_i| v² ≤ A_i` and
-/// `|t_i| j + 3|K_i| v a + |K'_i| v³ ≤ J_i`, within [`PROFILE_SHARE`].
+/// safety factors of [`transition_bounds`]), per axis: `|t_i| a_u + |K_i| u² ≤ A_i` and
+/// `|t_i| j + 3|K_i| u a_u + |K'_i| u³ ≤ J_i` at every speed `u` up to that one, within
+/// [`PROFILE_SHARE`], with `a_u = min(a, sqrt(2j(v_max − u)))`, the acceleration the
+/// jerk-limited envelope leaves at `u` (see `jerk_for` below): near `v_max` a ramp has
+/// little acceleration left, which is where the curvature terms are largest.
 pub(crate) fn ramp_budget(
     seg: &PlannedSegment,
     limits: &MachineLimits,
     cap_start: f64,
     cap_end: f64,
-    section: Option<(f64, f64)>,
+    section: Option<(f64, f64, f64)>,
 ) -> Option<(f64, f64)> {
     let Curve::Transition(t) = &seg.curve else {
         return None;
@@ -1097,25 +1106,55 @@ pub(crate) fn ramp_budget(
             .min((cap_end * cap_end + 2.0 * a * (seg.length_mm - x.s_lo)).sqrt())
     };
     // The largest jerk the samples allow with acceleration `a`: 0 if `a` does not fit.
+    // Under the jerk-limited envelope (see [`envelope_budget`]): the section this piece
+    // runs in is at most `v_max` fast and has at most the jerk `j` found here, so at speed
+    // `u` the acceleration in use is at most `min(a, sqrt(2j(v_max − u)))`. Each sample's
+    // speeds `[0, v]` (`v` its highest, from the caps and `a`) are cut into
+    // [`RAMP_ENVELOPE_INTERVALS`], each covered conservatively (the curvature terms at its
+    // top, the acceleration at its bottom). Per axis and interval a jerk fits exactly when
+    // it fits with the full `a` or with the envelope alone (both in closed form), as in
+    // `envelope_budget`; without the envelope (the full `a` at `v`, as before) the budget
+    // was never larger.
     let jerk_for = |a: f64| -> f64 {
         let mut j = f64::INFINITY;
         for x in &samples {
             let v = speed(x, a);
-            for ax in 0..3 {
-                let Some(l) = limits.axes[ax] else {
-                    if x.tangent[ax] > 0.0 || x.curvature[ax] > 0.0 {
+            for k in 0..RAMP_ENVELOPE_INTERVALS {
+                let n = RAMP_ENVELOPE_INTERVALS as f64;
+                let (u_lo, u) = (v * k as f64 / n, v * (k + 1) as f64 / n);
+                let d = (v_max - u_lo).max(0.0);
+                for ax in 0..3 {
+                    let Some(l) = limits.axes[ax] else {
+                        if x.tangent[ax] > 0.0 || x.curvature[ax] > 0.0 {
+                            return 0.0;
+                        }
+                        continue;
+                    };
+                    let (t, kc, kr) = (x.tangent[ax], x.curvature[ax], x.curvature_rate[ax]);
+                    // t·min(a, sqrt(2jd)) + K u² ≤ A.
+                    let room_a = share * l.acceleration_units_s2 - kc * u * u;
+                    if room_a < 0.0 {
                         return 0.0;
                     }
-                    continue;
-                };
-                let acc = x.tangent[ax] * a + x.curvature[ax] * v * v;
-                if acc > share * l.acceleration_units_s2 {
-                    return 0.0;
+                    if t * a > room_a {
+                        j = j.min(room_a * room_a / (2.0 * d * t * t));
+                    }
+                    // t·j + 3K u·min(a, sqrt(2jd)) + K' u³ ≤ J.
+                    let c = share * l.jerk_units_s3 - kr * u * u * u;
+                    if c < 0.0 {
+                        return 0.0;
+                    }
+                    let full = axis_rate(c - 3.0 * kc * u * a, t);
+                    // t·y² + b·y ≤ c with y = sqrt(j).
+                    let b = 3.0 * kc * u * (2.0 * d).sqrt();
+                    let envelope = if t > 0.0 || b > 0.0 {
+                        let y = 2.0 * c / (b + (b * b + 4.0 * t * c).sqrt());
+                        y * y
+                    } else {
+                        f64::INFINITY
+                    };
+                    j = j.min(full.max(envelope));
                 }
-                let room = share * l.jerk_units_s3
-                    - 3.0 * x.curvature[ax] * v * a
-                    - x.curvature_rate[ax] * v * v * v;
-                j = j.min(axis_rate(room, x.tangent[ax]));
             }
         }
         j
@@ -1143,13 +1182,15 @@ pub(crate) fn ramp_budget(
         t - 0.5 * (v_from + v_to) * t / v_max
     };
     let stop_loss = |a: f64, j: f64| match section {
-        Some((sec_a, sec_j)) if limits_merge(a, j, (sec_a, sec_j)) => {
+        Some((sec_v, sec_a, sec_j))
+            if limits_merge(a, j, (sec_a, sec_j)) && speeds_merge(v_max, sec_v) =>
+        {
             lost(v_max, 0.0, a.min(sec_a), j.min(sec_j))
         }
         // A budget the section would not take starts a section of its own at the piece's
         // start, passed with zero acceleration: the section before slows to the speed
         // from which the piece can stop within its length, and the piece stops from there.
-        Some((sec_a, sec_j)) => {
+        Some((_, sec_a, sec_j)) => {
             let fits = |v: f64| 0.5 * v * change_time_s(v, a, j) <= seg.length_mm;
             let v_b = if fits(v_max) {
                 v_max

@@ -63,8 +63,10 @@
 //!   slow, the raised budget splits a motion-core section mid-ramp, so it is used only
 //!   where a rough estimate says that pays. Budgets are compared by the stop they give
 //!   where they run: a piece entered at speed joins the section of the segment before it
-//!   when its limits are like that segment's (`kerf_geom::limits_merge`), and then runs at
-//!   the lesser of both.
+//!   when its limits and speed are like that segment's (`kerf_geom::limits_merge`,
+//!   `kerf_geom::speeds_merge`), and then runs at the lesser of both. The curvature
+//!   terms are checked under the jerk-limited envelope: at speed `u` a ramp whose top
+//!   speed is `v_max` has at most `sqrt(2j(v_max − u))` of acceleration left.
 //! - **G2 transitions at joints with arcs.** A tangent line→arc, arc→line or arc→arc joint
 //!   is a curvature step, which at speed v is an acceleration step `v²Δκ`; left alone its
 //!   cap `sqrt(JUNCTION_SHARE·J·T/Δκ)` is low (≈3.5 mm/s for r = 5 mm, J = 50,000 mm/s³,

@@ -4,7 +4,7 @@
 //! ([`crate::blend`]), inserts G2 transitions at joints with arcs ([`crate::transition`])
 //! and sets every segment's limits ([`crate::budget`]) and end cap ([`crate::junction`]).
 
-use kerf_geom::{CornerMode, Curve, Move, Path, Vec3, limits_merge};
+use kerf_geom::{CornerMode, Curve, Move, Path, Vec3};
 
 use crate::budget::{limits_key, ramp_budget, segment_limits_pair};
 use crate::junction::junction_cap;
@@ -53,8 +53,8 @@ pub struct Planner {
     pub(crate) last_full_length: f64,
     /// Speed cap at the start of `last` (its junction with the segment before), mm/s.
     pub(crate) last_start_cap: f64,
-    /// Path acceleration and jerk of the segment emitted just before `last`.
-    pub(crate) before_last_limits: Option<(f64, f64)>,
+    /// Speed limit, path acceleration and jerk of the segment emitted just before `last`.
+    pub(crate) before_last_limits: Option<(f64, f64, f64)>,
     pub(crate) next_index: u64,
     pub(crate) abc_current: [f64; 3],
     /// The dense-polyline run being collected, if any.
@@ -510,7 +510,7 @@ impl Planner {
 
     /// Emits a finished segment.
     fn push_out(&mut self, seg: PlannedSegment, out: &mut Vec<PlannedSegment>) {
-        self.before_last_limits = Some((seg.accel_mm_s2, seg.jerk_mm_s3));
+        self.before_last_limits = Some((seg.v_max_mm_s, seg.accel_mm_s2, seg.jerk_mm_s3));
         out.push(seg);
     }
 
@@ -536,10 +536,14 @@ impl Planner {
         }
         // A piece entered at speed whose limits are like those of the segment before it
         // joins that segment's motion-core section and runs at the lesser of their limits
-        // (the section's first segment decides; the one before is the estimate here).
-        let section = self.before_last_limits.filter(|&before| {
-            self.last_start_cap >= slow && limits_merge(seg.accel_mm_s2, seg.jerk_mm_s3, before)
-        });
+        // (the section's first segment decides; the one before is the estimate here);
+        // each candidate budget is judged by whether it joins (`ramp_budget`). (Passing
+        // the section only where the piece's own budget joined it judged a candidate
+        // that would not as if it stopped within the piece, and one that would as if it
+        // did not: raster B's first row end chose a budget 3 ms slower.)
+        let section = self
+            .before_last_limits
+            .filter(|_| self.last_start_cap >= slow);
         let Some((a, j)) = ramp_budget(
             seg,
             &self.limits,
