@@ -1859,6 +1859,58 @@ mod tests {
         );
     }
 
+    /// The planner judges ramp budgets by whether a piece joins the section before it
+    /// (`kerf_geom::speeds_merge`, `kerf_geom::limits_merge`); the motion core decides the
+    /// same: for two segments with the given speed limits and limits ratios, at the tail
+    /// of a queue (where the slower-merge condition holds), it makes one section exactly
+    /// when both functions say so.
+    #[test]
+    fn the_planners_merge_estimate_is_the_motion_cores_rule() {
+        let mut log_uniform = crate::profile::tests::log_uniform_source(0x5eed_cafe);
+        let seg = |x0: f64, v: f64, a: f64, j: f64| {
+            let len = 2.0;
+            let curve = Curve::line(Vec3::new(x0, 0.0, 0.0), Vec3::new(x0 + len, 0.0, 0.0));
+            let mut s =
+                PlannedSegment::with_zero_limits(curve, len, ([0.0; 3], [0.0; 3]), 1, 0, 1000.0);
+            s.v_max_mm_s = v;
+            (s.accel_mm_s2, s.jerk_mm_s3) = (a, j);
+            (s.v_boost_mm_s, s.accel_boost_mm_s2, s.jerk_boost_mm_s3) = (v, a, j);
+            s.end_cap_mm_s = 1e6;
+            s
+        };
+        let (mut merged, mut split, mut slower) = (0, 0, 0);
+        for _ in 0..2000 {
+            let v1 = log_uniform(20.0, 200.0);
+            let (a1, j1) = (log_uniform(500.0, 5000.0), log_uniform(5e3, 1e5));
+            let v2 = v1 * log_uniform(0.9, 1.1);
+            let a2 = a1 * log_uniform(0.8, 5.0);
+            let j2 = j1 * log_uniform(0.7, 5.0);
+            let mut core = MotionCore::new(0.001, 8);
+            core.push(&seg(0.0, v1, a1, j1)).unwrap();
+            core.push(&seg(2.0, v2, a2, j2)).unwrap();
+            let expected =
+                kerf_geom::speeds_merge(v2, v1) && kerf_geom::limits_merge(a2, j2, (a1, j1));
+            let one_section = core.sec_count == 1;
+            assert_eq!(
+                one_section, expected,
+                "v {v1} -> {v2}, a {a1} -> {a2}, j {j1} -> {j2}"
+            );
+            if one_section {
+                merged += 1;
+                if v2 < MERGE_RATIO_SPEED * v1 {
+                    slower += 1;
+                }
+            } else {
+                split += 1;
+            }
+        }
+        // Both outcomes are exercised, the slower merge among them.
+        assert!(
+            merged > 100 && split > 100 && slower > 20,
+            "{merged} merged ({slower} slower), {split} split"
+        );
+    }
+
     /// With every solver call failing, the closed-form fallback runs the whole program:
     /// no jump, every limit holds by finite differences of the positions, and the run
     /// ends at rest exactly at the program's end.
