@@ -43,9 +43,9 @@ pub const MERGE_RATIO_SLOWER: f64 = 0.97;
 /// Whether a segment with path acceleration `accel_mm_s2` and jerk `jerk_mm_s3` passes the
 /// limit part of the motion core's merge rule for a section whose first segment has
 /// `first = (acceleration, jerk)`: within [`MERGE_RATIO`] and [`MERGE_RATIO_JERK`] of it
-/// from below, and [`MERGE_ABOVE`] from above. (The motion core also compares speeds and
-/// the junction cap; it keeps the thresholds per section, since its lookahead uses the
-/// lower ones as limits.)
+/// from below, and [`MERGE_ABOVE`] from above. The motion core merges by this function
+/// (and also compares speeds and the junction cap); the planner's ramp budgets use it to
+/// estimate the section a piece runs in.
 pub fn limits_merge(accel_mm_s2: f64, jerk_mm_s3: f64, first: (f64, f64)) -> bool {
     accel_mm_s2 >= MERGE_RATIO * first.0
         && jerk_mm_s3 >= MERGE_RATIO_JERK * first.1

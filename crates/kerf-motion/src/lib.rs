@@ -95,6 +95,7 @@
 #![deny(missing_docs)]
 
 use kerf_geom::Vec3;
+use kerf_geom::limits_merge;
 use kerf_geom::ramp::{bisect, change_time_s};
 pub use kerf_geom::{
     AxisLimits, MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED,
@@ -234,12 +235,14 @@ struct Section {
     /// [`MERGE_RATIO_SLOWER`]).
     v_first: f64,
     v_first_boost: f64,
+    /// Acceleration and jerk limits of the first segment: the merge rule's reference
+    /// ([`limits_merge`]); the hard lookahead's are their merge ratios
+    /// ([`Section::c_accel_jerk`]).
+    accel_jerk_first: (f64, f64),
     /// Conservative limits fixed at creation (hard lookahead); the speeds are lowered when
     /// a slightly slower segment joins (see [`MERGE_RATIO_SLOWER`]).
     c_v: f64,
     c_feed: f64,
-    c_accel: f64,
-    c_jerk: f64,
     /// The same for the boost level.
     c_v_boost: f64,
     c_accel_boost: f64,
@@ -259,6 +262,13 @@ struct Section {
 }
 
 impl Section {
+    /// The conservative acceleration and jerk of the hard lookahead: the merge ratios of
+    /// the first segment's, which every segment of the section has at least.
+    fn c_accel_jerk(&self) -> (f64, f64) {
+        let (a, j) = self.accel_jerk_first;
+        (MERGE_RATIO * a, MERGE_RATIO_JERK * j)
+    }
+
     /// Speed limit, acceleration and jerk at a level.
     fn limits(&self, boosted: bool) -> (f64, f64, f64) {
         if boosted {
@@ -445,8 +455,7 @@ impl MotionCore {
             v_first_boost: 0.0,
             c_v: 0.0,
             c_feed: 0.0,
-            c_accel: 0.0,
-            c_jerk: 0.0,
+            accel_jerk_first: (0.0, 0.0),
             c_v_boost: 0.0,
             c_accel_boost: 0.0,
             c_jerk_boost: 0.0,
@@ -688,11 +697,9 @@ impl MotionCore {
                 // a slow one (a slow feed, a tight transition) would crawl through it.
                 && seg_v.min(seg_feed) * MERGE_RATIO_SPEED * MERGE_RATIO_SPEED
                     <= t.c_v.min(t.c_feed)
-                && seg.accel_mm_s2 >= t.c_accel
-                && seg.jerk_mm_s3 >= t.c_jerk
-                // Nor much stronger: it would ramp at the section's limits.
-                && seg.accel_mm_s2 * MERGE_RATIO <= MERGE_ABOVE * t.c_accel
-                && seg.jerk_mm_s3 * MERGE_RATIO_JERK <= MERGE_ABOVE * t.c_jerk
+                // Not much weaker, nor much stronger (it would ramp at the section's
+                // limits): the planner judges ramp budgets by the same function.
+                && limits_merge(seg.accel_mm_s2, seg.jerk_mm_s3, t.accel_jerk_first)
                 && prev_cap >= c_v.min(t.c_feed * MAX_OVERRIDE)
                 && (seg_vb >= t.c_v_boost
                     || slower(seg_vb, t.c_v_boost, t.v_first_boost, t.hard_start_boost))
@@ -734,8 +741,7 @@ impl MotionCore {
                 v_first_boost: seg_vb,
                 c_v: MERGE_RATIO_SPEED * seg_v,
                 c_feed: MERGE_RATIO_SPEED * seg_feed,
-                c_accel: MERGE_RATIO * seg.accel_mm_s2,
-                c_jerk: MERGE_RATIO_JERK * seg.jerk_mm_s3,
+                accel_jerk_first: (seg.accel_mm_s2, seg.jerk_mm_s3),
                 v_boost: seg_vb,
                 accel_boost: seg_ab,
                 jerk_boost: seg_jb,
@@ -796,11 +802,10 @@ impl MotionCore {
                 break;
             }
             let d = s.length * BACKWARD_MARGIN;
-            let hard = s
-                .c_v
-                .min(s.c_feed * MAX_OVERRIDE)
-                .min(s.start_cap)
-                .min(reach_back(hard_end, d, s.c_accel, s.c_jerk));
+            let hard = s.c_v.min(s.c_feed * MAX_OVERRIDE).min(s.start_cap).min({
+                let (c_accel, c_jerk) = s.c_accel_jerk();
+                reach_back(hard_end, d, c_accel, c_jerk)
+            });
             let hard_boost = s
                 .c_v_boost
                 .min(s.c_feed * MAX_OVERRIDE)

@@ -432,7 +432,7 @@ fn transition_bounds(
     // ([`Transition::frame_rate_at_param`]), its rise between samples bounded by
     // [`rate_rise`]. Rotary axes: their derivatives with respect to the XYZ arc length,
     // the second one's rate by central differences on the grid (one-sided at the ends).
-    let mut rate = vec![[0.0; 3]; n + 1];
+    let mut rate: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n + 1]);
     let mut kappa_rate = vec![0.0; n + 1];
     let rotary = |i: usize| {
         let u = i as f64 / n as f64;
@@ -446,7 +446,7 @@ fn transition_bounds(
         for ax in 0..3 {
             b.tangent[ax] = b.tangent[ax].max(tan[ax].abs());
             b.curvature[ax] = b.curvature[ax].max(k[ax].abs());
-            rate[i][ax] = dk[ax];
+            rate[ax][i] = dk[ax];
         }
         let kappa = k.norm();
         b.kappa = b.kappa.max(kappa);
@@ -466,10 +466,10 @@ fn transition_bounds(
         prev = cur;
         cur = next;
     }
-    for ax in 0..3 {
-        b.curvature_rate[ax] = rate_rise(rate.iter().map(|r| r[ax])) * RATE_SAFETY;
+    for (bound, f) in b.curvature_rate.iter_mut().zip(&rate) {
+        *bound = rate_rise(f) * RATE_SAFETY;
     }
-    b.kappa_rate = rate_rise(kappa_rate.iter().copied()) * RATE_SAFETY;
+    b.kappa_rate = rate_rise(&kappa_rate) * RATE_SAFETY;
     for ax in 0..6 {
         b.tangent[ax] *= TANGENT_SAFETY;
         if ax < 3 {
@@ -494,20 +494,21 @@ fn transition_bounds(
 }
 
 /// A bound on `|f|` between equally spaced samples `f_k` of a smooth function: the largest
-/// `|f_k|` plus a quarter of the largest second difference `|f_k+1 − 2f_k + f_k−1|`. A
-/// parabola through three samples rises above them by at most an eighth of its second
+/// `|f_k|` plus [`rise_between_samples`].
+fn rate_rise(f: &[f64]) -> f64 {
+    f.iter().fold(0.0, |m: f64, x| m.max(x.abs())) + rise_between_samples(f)
+}
+
+/// How far a smooth function may rise between equally spaced samples `f_k` above the
+/// larger of the two: a quarter of the largest second difference `|f_k+1 − 2f_k + f_k−1|`.
+/// A parabola through three samples rises above them by at most an eighth of its second
 /// difference; twice that covers the change of the second derivative between samples.
-fn rate_rise(f: impl Iterator<Item = f64> + Clone) -> f64 {
-    let top = f.clone().fold(0.0, |m: f64, x| m.max(x.abs()));
-    let (mut a, mut b, mut bend) = (f64::NAN, f64::NAN, 0.0_f64);
-    for x in f {
-        if !a.is_nan() {
-            bend = bend.max((x - 2.0 * b + a).abs());
-        }
-        a = b;
-        b = x;
-    }
-    top + 0.25 * bend
+fn rise_between_samples(f: &[f64]) -> f64 {
+    let bend = f
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+        .fold(0.0, f64::max);
+    0.25 * bend
 }
 
 /// A curve counts as straight when its coefficients' largest cross product is below this,
@@ -1065,10 +1066,10 @@ pub(crate) fn ramp_budget(
         return None;
     }
     s.iter_mut().for_each(|x| *x *= scale);
-    // What the rate may rise between samples, per axis (see [`rate_rise`]).
+    // What the rate may rise between samples, per axis.
     let rise: [f64; 3] = std::array::from_fn(|ax| {
-        let f = frames.iter().map(|f| f.2[ax]);
-        rate_rise(f.clone()) - f.fold(0.0, |m: f64, x| m.max(x.abs()))
+        let f: Vec<f64> = frames.iter().map(|f| f.2[ax]).collect();
+        rise_between_samples(&f)
     });
     // Per sample: the window maxima with safety factors, and the window's extent.
     struct Sample {
