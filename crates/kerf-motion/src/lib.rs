@@ -28,7 +28,15 @@
 //!   boundaries, not at every tiny segment.
 //! - **Profiles.** Each section's path parameter `s(t)` is one jerk-limited profile from
 //!   `rsruckig` (position interface, `min_velocity = 0`, target = section end with the
-//!   lookahead's end speed and `a = 0`). `calculate()` runs once per section and per event
+//!   lookahead's end speed and `a = 0`). A section too short to finish its speed-up
+//!   hands it on instead: its target is the highest end speed it can reach with some
+//!   acceleration `a1 > 0`, the next section starting from that state, where the speed
+//!   `v1 + a1²/2j` at which the next section has brought the acceleration to zero (at its
+//!   conservative jerk) is within its start and end lookahead speeds and that happens
+//!   within its length (see `MotionCore::carry_target`). The next section is then entered
+//!   as if at `a = 0` within its hard lookahead, a few jerk-limited milliseconds later, so
+//!   every lookahead argument below still holds; a ramp across short sections is one ramp,
+//!   not a stair of `a = 0` steps. `calculate()` runs once per section and per event
 //!   (override, hold, resume, more queue); `at_time()` samples it every cycle. Time left
 //!   over when a profile ends inside a cycle carries into the next section, so a segment
 //!   shorter than one period never slows the feed.
@@ -328,6 +336,9 @@ pub struct MotionCore {
     traj_t: f64,
     /// End speed the running profile targets.
     traj_end_v: f64,
+    /// End acceleration the running profile targets: zero except where a speed-up goes on
+    /// into the next section (see `carry_target`).
+    traj_end_a: f64,
     /// The running profile is `own` (the closed-form fallback) instead of `traj`.
     own_active: bool,
     own: JerkProfile,
@@ -426,6 +437,69 @@ pub fn reach_back(v_end: f64, d: f64, accel: f64, jerk: f64) -> f64 {
     reach(v_end, d, accel, jerk).max(reach(0.0, d, accel, jerk))
 }
 
+/// Share of the section the quickest rise of a carried speed-up may take (see
+/// `MotionCore::carry_target`): the rest is the solver's room.
+const CARRY_FILL: f64 = 0.98;
+/// Least share of a carried speed-up's rise beyond the least one with its end
+/// acceleration (see `MotionCore::carry_target`).
+const CARRY_MIN_RISE: f64 = 0.05;
+
+/// Speed and distance once acceleration `a0` at speed `v0` has been brought to zero at
+/// jerk `jerk`.
+fn settle(v0: f64, a0: f64, jerk: f64) -> (f64, f64) {
+    let tau = a0.abs() / jerk;
+    let v_at = v0 + a0 * a0.abs() / (2.0 * jerk);
+    let d0 = v0 * tau + 0.5 * a0 * tau * tau - a0.signum() * jerk * tau * tau * tau / 6.0;
+    (v_at, d0)
+}
+
+/// Least speed gain of a rise from acceleration `a0` to `a1` (both `≥ 0`) at jerk `jerk`
+/// without the acceleration falling below either: up to the larger, down to `a1`.
+fn rise_min_dv(a0: f64, a1: f64, jerk: f64) -> f64 {
+    let peak = a0.max(a1);
+    (2.0 * peak * peak - a0 * a0 - a1 * a1) / (2.0 * jerk)
+}
+
+/// Distance of the quickest rise from `(v0, a0)` to `(v1, a1)` (accelerations in
+/// `[0, accel]`): the acceleration up at the jerk limit, held at `accel` if need be, and
+/// down to `a1`. `None` when the speed gain is below [`rise_min_dv`] (it would need the
+/// acceleration to dip) or an input is out of range.
+fn rise_distance(v0: f64, a0: f64, v1: f64, a1: f64, accel: f64, jerk: f64) -> Option<f64> {
+    let in_range = |a: f64| (0.0..=accel).contains(&a);
+    if !(in_range(a0) && in_range(a1) && jerk > 0.0 && v0 >= 0.0) {
+        return None;
+    }
+    let dv = v1 - v0;
+    let low = a0.max(a1);
+    if dv < rise_min_dv(a0, a1, jerk) * (1.0 - 1e-12) {
+        return None;
+    }
+    let peak = ((2.0 * jerk * dv + a0 * a0 + a1 * a1) / 2.0)
+        .sqrt()
+        .max(low);
+    let (peak, hold_s) = if peak <= accel {
+        (peak, 0.0)
+    } else {
+        let dv_ramps = (2.0 * accel * accel - a0 * a0 - a1 * a1) / (2.0 * jerk);
+        (accel, ((dv - dv_ramps) / accel).max(0.0))
+    };
+    // Integrate the three phases of constant jerk.
+    let mut state = (0.0, v0, a0);
+    for (t, j) in [
+        ((peak - a0) / jerk, jerk),
+        (hold_s, 0.0),
+        ((peak - a1) / jerk, -jerk),
+    ] {
+        let (p, v, a) = state;
+        state = (
+            p + t * (v + t * (a / 2.0 + t * j / 6.0)),
+            v + t * (a + t * j / 2.0),
+            a + t * j,
+        );
+    }
+    Some(state.0)
+}
+
 impl MotionCore {
     /// A core interpolating at `period_s` (seconds per [`MotionCore::step`]) holding up to
     /// `capacity` segments. All memory is allocated here. The core needs no machine limits:
@@ -493,6 +567,7 @@ impl MotionCore {
             traj_origin: 0.0,
             traj_t: 0.0,
             traj_end_v: 0.0,
+            traj_end_a: 0.0,
             own_active: false,
             own: JerkProfile::default(),
             coast_s: 0.0,
@@ -992,7 +1067,7 @@ impl MotionCore {
             }
             // The profile ends inside this cycle: carry the leftover time on.
             let leftover = self.traj_t - dur;
-            let end_v = self.traj_end_v;
+            let (end_v, end_a) = (self.traj_end_v, self.traj_end_a);
             self.pop_section();
             changes += 1;
             if self.sec_count == 0 {
@@ -1001,7 +1076,7 @@ impl MotionCore {
                 return StepResult::Idle;
             }
             self.v = end_v;
-            self.a = 0.0;
+            self.a = end_a;
             self.s_local = 0.0;
             self.plan_section_start();
             if self.mode == Mode::HoldPending {
@@ -1154,15 +1229,8 @@ impl MotionCore {
     /// and whether it is certainly reachable.
     fn end_target(&self, v0: f64, rem: f64) -> (f64, bool) {
         let sec = self.sec(self.sec_head);
-        let ovr = self.override_factor;
         let hard = sec.hard_end_at(sec.boosted);
-        let mut want = sec.soft_end.min(sec.v_eff(ovr, sec.boosted)).min(hard);
-        if self.sec_count > 1 {
-            let next = self.sec(self.sec_head + 1);
-            want = want.min(next.v_eff(ovr, next.wants_boost(ovr)));
-        } else {
-            want = 0.0;
-        }
+        let want = self.want_end();
         let d = rem * PLAN_MARGIN;
         let (_, a, j) = sec.limits(sec.boosted);
         let fits = |v1: f64| change_distance(v0, v1, a, j) <= d;
@@ -1186,19 +1254,127 @@ impl MotionCore {
         }
     }
 
+    /// The end speed the front section aims at: its soft lookahead within its own and the
+    /// next section's speed limits and its hard lookahead (zero at the queue end).
+    fn want_end(&self) -> f64 {
+        if self.sec_count < 2 {
+            return 0.0;
+        }
+        let sec = self.sec(self.sec_head);
+        let next = self.sec(self.sec_head + 1);
+        let ovr = self.override_factor;
+        sec.soft_end
+            .min(sec.v_eff(ovr, sec.boosted))
+            .min(sec.hard_end_at(sec.boosted))
+            .min(next.v_eff(ovr, next.wants_boost(ovr)))
+    }
+
+    /// A speed-up that goes on into the next section: the end state `(v1, a1)`, `a1 > 0`,
+    /// for the front section entered (or re-planned) at `(v0, a0)` with `rem` left, or
+    /// `None` where the speed-up should end at `a = 0` as usual.
+    ///
+    /// A section whose end speed is bounded by the distance it has to speed up in would
+    /// otherwise end its speed-up at `a = 0` and the next section start a new one: a stair
+    /// whose every step costs the time the jerk needs to bring the acceleration down and up
+    /// again (on the pieces of smoothed CAM code, a ramp from rest crosses two or three
+    /// sections). Only at the base level of both sections and while no hold is pending.
+    ///
+    /// The speed `v1 + a1²/2j` at which the next section can have brought the acceleration
+    /// to zero at its conservative jerk (that of its hard lookahead, which segments merged
+    /// into it later never go below) must be within:
+    /// - its hard and soft start speeds and its conservative feed: the envelope
+    ///   `v + a²/2j ≤ v_max` under which the planner's budgets hold is kept (in this
+    ///   section too, with its own jerk);
+    /// - its hard and soft end speeds: it then reaches its end within its lookahead as from
+    ///   an entry at `a = 0` within its hard start speed, once the acceleration is down,
+    ///   which must fit in its length. (Without this the speed-up could overshoot what the
+    ///   next section has to slow down to, and then lose more than it gained: raising an
+    ///   acceleration limit slowed a program of `monotonic.rs` by 2 %.)
+    fn carry_target(&self, v0: f64, a0: f64, rem: f64) -> Option<(f64, f64)> {
+        if self.mode != Mode::Run || self.sec_count < 2 || a0 < 0.0 {
+            return None;
+        }
+        let ovr = self.override_factor;
+        let sec = self.sec(self.sec_head);
+        let next = self.sec(self.sec_head + 1);
+        if sec.boosted || next.wants_boost(ovr) || next.hard_start < 0.0 || next.soft_start < 0.0 {
+            return None;
+        }
+        let (v_machine, accel, jerk) = sec.limits(false);
+        let vmax = sec.v_eff(ovr, false).min(v_machine);
+        let want = self.want_end();
+        let (v_at, d0) = settle(v0, a0, jerk);
+        let d = rem * PLAN_MARGIN;
+        if d0 >= d || v_at >= want || reach(v_at, d - d0, accel, jerk) >= want {
+            return None;
+        }
+        let (c_accel, c_jerk) = next.c_accel_jerk();
+        let next_top = next
+            .hard_start
+            .min(next.soft_start)
+            .min(next.v_eff(ovr, false))
+            .min(next.c_feed * ovr)
+            .min(next.hard_end)
+            .min(next.soft_end);
+        let enters = |v1: f64, a1: f64| {
+            let (peak, d_settle) = settle(v1, a1, c_jerk);
+            peak <= next_top && d_settle <= next.length * BACKWARD_MARGIN
+        };
+        // The highest end speed reachable with end acceleration `a1`: the quickest rise
+        // filling the section, or at most `CARRY_FILL` of it, and not only the rise of the
+        // acceleration to `a1`, so that the solver meets a target inside what is reachable,
+        // not on its edge (where it failed in the property tests). None when even the rise
+        // to `a1` does not fit.
+        let top = want.min(vmax);
+        let reach_with = |a1: f64| {
+            let fits = |v: f64| {
+                rise_distance(v0, a0, v, a1, accel, jerk).is_some_and(|x| x <= CARRY_FILL * d)
+            };
+            let lo = v0 + rise_min_dv(a0, a1, jerk);
+            let v1 = if !fits(lo) {
+                return None;
+            } else if fits(top) {
+                top
+            } else {
+                bisect(lo, top, 40, fits)
+            };
+            (v1 - lo > CARRY_MIN_RISE * (v1 - v0)).then_some(v1)
+        };
+        // Within the room `a1²/2j` above it, in this section and the next.
+        let room = |a1: f64| {
+            reach_with(a1).is_some_and(|v1| v1 + a1 * a1 / (2.0 * jerk) <= vmax && enters(v1, a1))
+        };
+        // The end speed rises with `a1`, and so does the room it needs: the highest `a1`
+        // that keeps within it. Below a tenth of the limit the carry is not worth a solver
+        // call.
+        let a_top = accel.min(c_accel);
+        let a1 = if room(a_top) {
+            a_top
+        } else if room(0.1 * a_top) {
+            bisect(0.1 * a_top, a_top, 20, room)
+        } else {
+            return None;
+        };
+        reach_with(a1).map(|v1| (v1, a1))
+    }
+
     /// Plans the front section's profile from the current state at its start (or where a
     /// hold left it, at rest).
     fn plan_section_start(&mut self) {
         self.boost_pending = false;
         self.choose_level();
         let sec = *self.sec(self.sec_head);
-        let v0 = self.v;
+        // Entered accelerating where the section before carried its speed-up over (see
+        // `carry_target`); else `a0 = 0`. Reachability is judged from where the acceleration
+        // has come down to zero.
+        let (v0, a0) = (self.v, self.a);
         let rem = (sec.length - self.s_local).max(0.0);
-        let (target, _) = self.end_target(v0, rem);
         let (v_machine, accel, jerk) = sec.limits(sec.boosted);
+        let (v_at, d0) = settle(v0, a0, jerk);
+        let (target, _) = self.end_target(v_at.max(0.0), (rem - d0).max(0.0));
         let vmax = sec.v_eff(self.override_factor, sec.boosted).min(v_machine);
         let origin = self.s_local;
-        if v0 > vmax * (1.0 + 1e-9) && rem > 0.0 {
+        if v0.max(v_at) > vmax * (1.0 + 1e-9) && rem > 0.0 {
             // Entered above the speed limit of this section (its level's feed or override
             // is lower than the one the junction was planned with): come down to it as
             // fast as the limits allow, cruise, and meet the end speed. The solver's own
@@ -1210,19 +1386,28 @@ impl MotionCore {
             // `kerf-pipeline`'s properties found it after override cuts.)
             let ends = [target.min(vmax), target];
             for end_v in ends.into_iter().take(if target > vmax { 2 } else { 1 }) {
-                if let Some(p) = JerkProfile::cruise_between(v0, end_v, rem, vmax, accel, jerk) {
+                if let Some(p) =
+                    JerkProfile::cruise_between_from(v0, a0, end_v, rem, vmax, accel, jerk)
+                {
                     self.run_own(origin, p, end_v);
                     return;
                 }
             }
         }
-        if self.calc(origin, v0, 0.0, rem, target, vmax, accel, jerk) {
+        if let Some(carry) = self.carry_target(v0, a0, rem) {
+            if self.calc(origin, v0, a0, rem, carry, vmax, accel, jerk) {
+                return;
+            }
+            self.failures += 1;
+        }
+        if self.calc(origin, v0, a0, rem, (target, 0.0), vmax, accel, jerk) {
             return;
         }
         self.failures += 1;
         // Entered above the feed: let the profile keep the entry speed as its ceiling.
-        let vmax2 = vmax.max(v0).min(v_machine.max(v0));
-        if self.calc(origin, v0, 0.0, rem, target, vmax2, accel, jerk) {
+        let peak = v0.max(v_at);
+        let vmax2 = vmax.max(peak).min(v_machine.max(peak));
+        if self.calc(origin, v0, a0, rem, (target, 0.0), vmax2, accel, jerk) {
             return;
         }
         self.failures += 1;
@@ -1231,7 +1416,9 @@ impl MotionCore {
         // which the section's limits can stop from within its length).
         let target = target.min(vmax2);
         for end_v in [target, 0.0] {
-            if let Some(p) = JerkProfile::cruise_between(v0, end_v, rem, vmax2, accel, jerk) {
+            if let Some(p) =
+                JerkProfile::cruise_between_from(v0, a0, end_v, rem, vmax2, accel, jerk)
+            {
                 self.run_own(origin, p, end_v);
                 return;
             }
@@ -1251,16 +1438,28 @@ impl MotionCore {
         self.traj_origin = origin;
         self.traj_t = 0.0;
         self.traj_end_v = end_v;
+        self.traj_end_a = 0.0;
     }
 
-    /// A jerk-limited stop on the path from the current state (`a = 0`) with the given
-    /// limits, crossing section ends like a hold's stop; the motion goes on when it ends
-    /// unless a hold is in force. Only reached when no plan within the section exists.
+    /// A jerk-limited stop on the path from the current state (its acceleration first
+    /// brought to zero at the jerk limit) with the given limits, crossing section ends like
+    /// a hold's stop; the motion goes on when it ends unless a hold is in force. Only
+    /// reached when no plan within the section exists.
     fn emergency_stop(&mut self, accel: f64, jerk: f64) {
         self.emergencies += 1;
-        let v0 = self.v;
-        let d = change_distance(v0, 0.0, accel, jerk);
-        match JerkProfile::cruise_between(v0, 0.0, d * (1.0 + 1e-12) + 1e-15, v0, accel, jerk) {
+        let (v0, a0) = (self.v, self.a);
+        let (v_at, d0) = settle(v0, a0, jerk);
+        let d = d0 + change_distance(v_at.max(0.0), 0.0, accel, jerk);
+        let top = v0.max(v_at);
+        match JerkProfile::cruise_between_from(
+            v0,
+            a0,
+            0.0,
+            d * (1.0 + 1e-12) + 1e-15,
+            top,
+            accel.max(a0.abs()),
+            jerk,
+        ) {
             Some(p) => {
                 self.run_own(self.s_local, p, 0.0);
                 self.mode = Mode::Braking;
@@ -1326,9 +1525,7 @@ impl MotionCore {
         let (v0, a0) = (self.v, self.a);
         let (v_machine, accel, j) = sec.limits(sec.boosted);
         // Bring the acceleration to zero first, then check reachability from there.
-        let tau = a0.abs() / j;
-        let v_at = v0 + a0 * a0.abs() / (2.0 * j);
-        let d0 = v0 * tau + 0.5 * a0 * tau * tau - a0.signum() * j * tau * tau * tau / 6.0;
+        let (v_at, d0) = settle(v0, a0, j);
         let rem = sec.length - self.s_local;
         if v_at < 0.0 || d0 >= rem || rem <= 0.0 {
             return false;
@@ -1344,7 +1541,13 @@ impl MotionCore {
             return false;
         }
         let vmax = sec.v_eff(self.override_factor, sec.boosted).max(peak);
-        if self.calc(self.s_local, v0, a0, rem, target, vmax, accel, j) {
+        if let Some(carry) = self.carry_target(v0, a0, rem) {
+            if self.calc(self.s_local, v0, a0, rem, carry, vmax, accel, j) {
+                return true;
+            }
+            self.failures += 1;
+        }
+        if self.calc(self.s_local, v0, a0, rem, (target, 0.0), vmax, accel, j) {
             true
         } else {
             // The previous profile is untouched and still valid.
@@ -1353,8 +1556,9 @@ impl MotionCore {
         }
     }
 
-    /// One position-interface profile calculation; on success it becomes the running
-    /// profile, on failure the running profile is left untouched.
+    /// One position-interface profile calculation from `(v0, a0)` to `(v1, a1)` at
+    /// `distance`; on success it becomes the running profile, on failure the running
+    /// profile is left untouched.
     ///
     /// Very short moves are planned in scaled units: the solver's numerics fail on
     /// remainders of nanometres (left by a stop or a hold right at a section end). With the
@@ -1367,22 +1571,23 @@ impl MotionCore {
         v0: f64,
         a0: f64,
         distance: f64,
-        v1: f64,
+        (v1, a1): (f64, f64),
         vmax: f64,
         accel: f64,
         jerk: f64,
     ) -> bool {
         // A remainder below a picometre is taken as reached at the current speed: the step
         // it leaves in the position is invisible even in the jerk at the period.
-        let (a0, distance, v1, vmax) = if distance < 1e-12 {
-            (0.0, 0.0, v0, vmax.max(v0))
+        let (a0, distance, v1, a1, vmax) = if distance < 1e-12 {
+            (0.0, 0.0, v0, 0.0, vmax.max(v0))
         } else {
-            (a0, distance, v1, vmax)
+            (a0, distance, v1, a1, vmax)
         };
         // A sliver section (blends that meet leave nanometre remnants of a line) is passed at
         // the entry speed in the time it takes: no speed can change over it, and the solver
         // fails on such inputs. Its time is kept, so the positions stay smooth.
         if a0 == 0.0
+            && a1 == 0.0
             && v0 > 0.0
             && distance > 0.0
             && distance < COAST_BELOW_MM.max(v0 * COAST_BELOW_S)
@@ -1392,6 +1597,7 @@ impl MotionCore {
             self.traj_origin = origin;
             self.traj_t = 0.0;
             self.traj_end_v = v0;
+            self.traj_end_a = 0.0;
             return true;
         }
         // Scaled units: the distance is the unit of length and the time to cover it at the
@@ -1418,7 +1624,7 @@ impl MotionCore {
         inp.current_acceleration[0] = a0 * ka;
         inp.target_position[0] = distance * k;
         inp.target_velocity[0] = v1.min(vmax) * kv;
-        inp.target_acceleration[0] = 0.0;
+        inp.target_acceleration[0] = a1 * ka;
         inp.max_velocity[0] = vmax.max(1e-9) * kv;
         inp.max_acceleration[0] = accel * ka;
         inp.max_jerk[0] = jerk * kj;
@@ -1435,6 +1641,7 @@ impl MotionCore {
             self.traj_origin = origin;
             self.traj_t = 0.0;
             self.traj_end_v = v1.min(vmax);
+            self.traj_end_a = a1;
         }
         ok
     }
@@ -1560,6 +1767,7 @@ impl MotionCore {
             self.traj_origin = self.s_local;
             self.traj_t = 0.0;
             self.traj_end_v = 0.0;
+            self.traj_end_a = 0.0;
             self.mode = Mode::Braking;
         }
     }
@@ -1674,7 +1882,7 @@ mod tests {
                 continue;
             }
             tried += 1;
-            if !core.calc(0.0, v0, 0.0, d, v1, vmax, a, j) {
+            if !core.calc(0.0, v0, 0.0, d, (v1, 0.0), vmax, a, j) {
                 failed += 1;
             }
         }
@@ -1824,6 +2032,72 @@ mod tests {
     /// at the slowest one's speed (one section by any rule), which is nowhere faster: the
     /// chain takes at most 5 % longer (3.0 % measured; 16.8 % without
     /// [`MERGE_RATIO_SLOWER`]).
+    /// A speed-up from rest over a short section into a longer one it cannot merge with
+    /// (its jerk is under the merge ratio of the first's; a third section, weaker again,
+    /// ends the program) goes on across the boundary: measured from the positions, the
+    /// acceleration does not come down to zero between leaving rest and nearing the feed,
+    /// and every limit holds (each section's own past its start).
+    #[test]
+    fn a_speed_up_goes_on_into_the_next_section_without_a_stair() {
+        let feed = 50.0;
+        let seg = |x0: f64, len: f64, a: f64, j: f64, cap: f64| {
+            let curve = Curve::line(Vec3::new(x0, 0.0, 0.0), Vec3::new(x0 + len, 0.0, 0.0));
+            let mut s =
+                PlannedSegment::with_zero_limits(curve, len, ([0.0; 3], [0.0; 3]), 1, 0, feed);
+            s.v_max_mm_s = feed;
+            (s.accel_mm_s2, s.jerk_mm_s3) = (a, j);
+            (s.v_boost_mm_s, s.accel_boost_mm_s2, s.jerk_boost_mm_s3) = (feed, a, j);
+            s.end_cap_mm_s = cap;
+            s
+        };
+        let (accel, j_first, j_second, j_third) = (1200.0, 18_000.0, 13_000.0, 9_000.0);
+        assert!(!limits_merge(accel, j_second, (accel, j_first)));
+        assert!(!limits_merge(accel, j_third, (accel, j_second)));
+        let mut core = MotionCore::new(0.001, 8);
+        core.push(&seg(0.0, 1.0, accel, j_first, feed)).unwrap();
+        core.push(&seg(1.0, 15.0, accel, j_second, feed)).unwrap();
+        core.push(&seg(16.0, 30.0, accel, j_third, 0.0)).unwrap();
+        let mut sp = Setpoint::default();
+        let mut xs = vec![0.0];
+        loop {
+            let r = core.step(&mut sp);
+            xs.push(sp.position[0]);
+            if r == StepResult::Idle {
+                break;
+            }
+            assert!(xs.len() < 100_000);
+        }
+        assert!((xs[xs.len() - 1] - 46.0).abs() < 1e-9);
+        assert_eq!(core.plan_failures(), 0);
+        let dt = 0.001;
+        let v: Vec<f64> = xs.windows(2).map(|w| (w[1] - w[0]) / dt).collect();
+        let a: Vec<f64> = v.windows(2).map(|w| (w[1] - w[0]) / dt).collect();
+        let j: Vec<f64> = a.windows(2).map(|w| (w[1] - w[0]) / dt).collect();
+        assert!(v.iter().all(|&v| v <= feed * 1.01));
+        assert!(a.iter().all(|&a| a.abs() <= accel * 1.01));
+        for (k, &j) in j.iter().enumerate() {
+            // Past the boundary (with the three periods a third difference spans).
+            let limit = match xs[k] {
+                x if x > 16.0 => j_third,
+                x if x > 1.0 => j_second,
+                _ => j_first,
+            };
+            assert!(j.abs() <= limit * 1.01, "jerk {j} at x = {}", xs[k]);
+        }
+        let rising = v.iter().position(|&v| v > 0.1 * feed).unwrap();
+        let near = v.iter().position(|&v| v > 0.9 * feed).unwrap();
+        let boundary = xs.iter().position(|&x| x > 1.0).unwrap();
+        assert!(rising < boundary && boundary < near);
+        let low = a[rising..near]
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            low > 0.25 * accel,
+            "the acceleration came down to {low} mm/s² on the way up"
+        );
+    }
+
     #[test]
     fn a_slow_down_across_pieces_of_nearly_equal_speed_makes_no_stair() {
         let run = |speeds: &[f64]| -> f64 {

@@ -12,8 +12,9 @@
 use crate::change_distance;
 use kerf_geom::ramp::bisect;
 
-/// Most phases of a profile: up (3), cruise (1), down (3).
-const MAX_PHASES: usize = 7;
+/// Most phases of a profile: the entry acceleration brought to zero (1), up (3), cruise
+/// (1), down (3).
+const MAX_PHASES: usize = 8;
 
 /// A piecewise-constant-jerk profile `s(t)` from `s = 0`, with the state at the start
 /// of every phase precomputed.
@@ -45,12 +46,48 @@ impl JerkProfile {
         accel: f64,
         jerk: f64,
     ) -> Option<Self> {
-        let finite = [v0, v1, distance, v_max, accel, jerk]
+        Self::cruise_between_from(v0, 0.0, v1, distance, v_max, accel, jerk)
+    }
+
+    /// [`JerkProfile::cruise_between`] entered with acceleration `a0` (at most `accel` in
+    /// magnitude): a first phase at the jerk limit brings it to zero, then the profile goes
+    /// on from the speed that phase ends at (which may be above `v_max`: it then comes down
+    /// to it as from any entry above the ceiling). `None` also when that first phase does
+    /// not fit in `distance` or would reverse.
+    pub fn cruise_between_from(
+        v0: f64,
+        a0: f64,
+        v1: f64,
+        distance: f64,
+        v_max: f64,
+        accel: f64,
+        jerk: f64,
+    ) -> Option<Self> {
+        let finite = [v0, a0, v1, distance, v_max, accel, jerk]
             .iter()
             .all(|x| x.is_finite());
-        if !finite || v0 < 0.0 || v1 < 0.0 || distance <= 0.0 || accel <= 0.0 || jerk <= 0.0 {
+        if !finite
+            || v0 < 0.0
+            || v1 < 0.0
+            || distance <= 0.0
+            || accel <= 0.0
+            || jerk <= 0.0
+            || a0.abs() > accel * (1.0 + 1e-9)
+        {
             return None;
         }
+        let mut prof = JerkProfile::default();
+        prof.v[0] = v0;
+        prof.a[0] = a0;
+        if a0 != 0.0 {
+            prof.push_phase(a0.abs() / jerk, -a0.signum() * jerk);
+            prof.a[prof.phases] = 0.0;
+        }
+        let (d0, v0) = (prof.p[prof.phases], prof.v[prof.phases]);
+        if v0 < 0.0 || d0 >= distance {
+            return None;
+        }
+        let distance = distance - d0;
         let need =
             |vc: f64| change_distance(v0, vc, accel, jerk) + change_distance(vc, v1, accel, jerk);
         let lo = v0.max(v1);
@@ -77,8 +114,6 @@ impl JerkProfile {
         if vc <= 0.0 {
             return None;
         }
-        let mut prof = JerkProfile::default();
-        prof.v[0] = v0;
         prof.push_change(v0, vc, accel, jerk);
         let cruise_s = (distance - need(vc)).max(0.0) / vc;
         prof.push_phase(cruise_s, 0.0);
@@ -320,6 +355,42 @@ pub(crate) mod tests {
             } else {
                 assert!(change_distance(v0, v1, a, j) > d * (1.0 - 1e-12));
             }
+        }
+        assert!(built > 200, "{built}");
+    }
+
+    #[test]
+    fn entered_accelerating_it_starts_from_that_acceleration_and_holds_its_limits() {
+        // A section entered with a speed-up (or slow-down) carried over: the profile starts
+        // with the entry acceleration (no step in it) and ends at the end speed with
+        // `a = 0`, within the limits, the speed ceiling raised only by what bringing the
+        // acceleration to zero at the jerk limit adds (`a0²/2j`).
+        let mut log_uniform = crate::profile::tests::log_uniform_source(0x9E37_79B9_7F4A_7C15);
+        let mut built = 0;
+        for k in 0..400 {
+            let vmax = log_uniform(1.0, 5000.0);
+            let a = log_uniform(100.0, 1e6);
+            let j = log_uniform(1e3, 1e9);
+            let d = log_uniform(1e-4, 1000.0);
+            let v0 = vmax * log_uniform(1e-3, 1.0);
+            let v1 = vmax * log_uniform(1e-3, 1.0) * if d < 10.0 { 0.0 } else { 1.0 };
+            // Within the envelope of the entry (the speed can neither pass the ceiling nor
+            // reverse while the acceleration comes down).
+            let a_env = (2.0 * j * if k % 2 == 0 { vmax - v0 } else { v0 }).sqrt();
+            let a0 = a.min(a_env) * log_uniform(1e-3, 1.0) * if k % 2 == 0 { 1.0 } else { -1.0 };
+            let Some(p) = JerkProfile::cruise_between_from(v0, a0, v1, d, vmax, a, j) else {
+                // Refused only where bringing the acceleration to zero and then changing to
+                // the end speed does not fit.
+                let t = a0.abs() / j;
+                let v_at = v0 + a0 * a0.abs() / (2.0 * j);
+                let d0 = v0 * t + a0 * t * t / 2.0 - a0.signum() * j * t * t * t / 6.0;
+                assert!(d0 + change_distance(v_at, v1, a, j) > d * (1.0 - 1e-12));
+                continue;
+            };
+            let (_, ve, ae) = p.at(0.0);
+            assert!((ve - v0).abs() <= 1e-12 * v0 && (ae - a0).abs() <= 1e-12 * a.max(1.0));
+            check(&p, v0, v1, d, vmax, a, j);
+            built += 1;
         }
         assert!(built > 200, "{built}");
     }
