@@ -75,7 +75,9 @@
 //! - **Bounded cycle**: evaluating a segment is O(1) on every curve kind, G2 transitions
 //!   included (table lookup, a cubic interpolation and one Newton step on the arc length,
 //!   see `kerf_geom::Transition`). `step` does at most a few `calculate()` calls (the running
-//!   section's re-plan, the next section's profile, a hold's stop) and crosses at most
+//!   section's re-plan, the next section's profile, a carried speed-up's target and the
+//!   plain one if that fails, a hold's stop; choosing a carried end acceleration is at
+//!   most five closed-form rises, see `MotionCore::carry_target`) and crosses at most
 //!   `MAX_SECTIONS_PER_STEP` section ends in one cycle; past that the leftover time of the
 //!   cycle is dropped (a delay of under one period, the motion stays continuous).
 //! - **Slivers**: a section shorter than [`COAST_BELOW_MM`], or taking less than
@@ -443,6 +445,14 @@ const CARRY_FILL: f64 = 0.98;
 /// Least share of a carried speed-up's rise beyond the least one with its end
 /// acceleration (see `MotionCore::carry_target`).
 const CARRY_MIN_RISE: f64 = 0.05;
+/// End accelerations tried for a carried speed-up, as shares of the acceleration limit:
+/// `CARRY_SHARE_RATIO^k` for `k < CARRY_SHARE_STEPS`, highest first (down to a tenth; see
+/// `MotionCore::carry_target`).
+const CARRY_SHARE_RATIO: f64 = 0.85;
+const CARRY_SHARE_STEPS: i32 = 15;
+/// Bisection steps on the peak acceleration in `rise_reach`: to 1/4096 of its range, the
+/// speed found a few hundredths of a per cent low at most (lower is always reachable).
+const RISE_STEPS: usize = 12;
 
 /// Speed and distance once acceleration `a0` at speed `v0` has been brought to zero at
 /// jerk `jerk`.
@@ -453,51 +463,49 @@ fn settle(v0: f64, a0: f64, jerk: f64) -> (f64, f64) {
     (v_at, d0)
 }
 
-/// Least speed gain of a rise from acceleration `a0` to `a1` (both `≥ 0`) at jerk `jerk`
-/// without the acceleration falling below either: up to the larger, down to `a1`.
-fn rise_min_dv(a0: f64, a1: f64, jerk: f64) -> f64 {
-    let peak = a0.max(a1);
-    (2.0 * peak * peak - a0 * a0 - a1 * a1) / (2.0 * jerk)
+/// Distance and end speed of a rise from `(v0, a0)` at jerk `jerk`: the acceleration up
+/// to `peak`, held there for `hold_s`, and down to `a1` (`peak ≥ a0, a1 ≥ 0`).
+fn rise_with_peak(v0: f64, a0: f64, a1: f64, peak: f64, hold_s: f64, jerk: f64) -> (f64, f64) {
+    let (t1, t3) = ((peak - a0) / jerk, (peak - a1) / jerk);
+    let d1 = t1 * (v0 + t1 * (a0 / 2.0 + t1 * jerk / 6.0));
+    let v_up = v0 + (peak * peak - a0 * a0) / (2.0 * jerk);
+    let d2 = hold_s * (v_up + hold_s * peak / 2.0);
+    let v_held = v_up + peak * hold_s;
+    let d3 = t3 * (v_held + t3 * (peak / 2.0 - t3 * jerk / 6.0));
+    (
+        d1 + d2 + d3,
+        v_held + (peak * peak - a1 * a1) / (2.0 * jerk),
+    )
 }
 
-/// Distance of the quickest rise from `(v0, a0)` to `(v1, a1)` (accelerations in
-/// `[0, accel]`): the acceleration up at the jerk limit, held at `accel` if need be, and
-/// down to `a1`. `None` when the speed gain is below [`rise_min_dv`] (it would need the
-/// acceleration to dip) or an input is out of range.
-fn rise_distance(v0: f64, a0: f64, v1: f64, a1: f64, accel: f64, jerk: f64) -> Option<f64> {
+/// The highest speed the quickest rise from `(v0, a0)` reaches in distance `d`, ending
+/// with acceleration `a1` (accelerations in `[0, accel]`): the acceleration up at the jerk
+/// limit, held at `accel` if need be, and down to `a1`. `None` when even the rise of the
+/// acceleration (to the larger of `a0` and `a1`, and down to `a1`) does not fit, or an
+/// input is out of range. Closed form where the acceleration is held, else a bisection on
+/// the peak acceleration (the distance grows with it): cheap enough for the cycle.
+fn rise_reach(v0: f64, a0: f64, a1: f64, d: f64, accel: f64, jerk: f64) -> Option<f64> {
     let in_range = |a: f64| (0.0..=accel).contains(&a);
-    if !(in_range(a0) && in_range(a1) && jerk > 0.0 && v0 >= 0.0) {
+    if !(in_range(a0) && in_range(a1) && jerk > 0.0 && v0 >= 0.0 && d > 0.0) {
         return None;
     }
-    let dv = v1 - v0;
     let low = a0.max(a1);
-    if dv < rise_min_dv(a0, a1, jerk) * (1.0 - 1e-12) {
+    if rise_with_peak(v0, a0, a1, low, 0.0, jerk).0 > d {
         return None;
     }
-    let peak = ((2.0 * jerk * dv + a0 * a0 + a1 * a1) / 2.0)
-        .sqrt()
-        .max(low);
-    let (peak, hold_s) = if peak <= accel {
-        (peak, 0.0)
-    } else {
-        let dv_ramps = (2.0 * accel * accel - a0 * a0 - a1 * a1) / (2.0 * jerk);
-        (accel, ((dv - dv_ramps) / accel).max(0.0))
-    };
-    // Integrate the three phases of constant jerk.
-    let mut state = (0.0, v0, a0);
-    for (t, j) in [
-        ((peak - a0) / jerk, jerk),
-        (hold_s, 0.0),
-        ((peak - a1) / jerk, -jerk),
-    ] {
-        let (p, v, a) = state;
-        state = (
-            p + t * (v + t * (a / 2.0 + t * j / 6.0)),
-            v + t * (a + t * j / 2.0),
-            a + t * j,
-        );
+    let (d_top, v_top) = rise_with_peak(v0, a0, a1, accel, 0.0, jerk);
+    if d_top <= d {
+        // Held at `accel` for `h`: the distance grows by `(v_up + accel·t3)·h + accel·h²/2`.
+        let t3 = (accel - a1) / jerk;
+        let v_up = v0 + (accel * accel - a0 * a0) / (2.0 * jerk);
+        let b = v_up + accel * t3;
+        let h = 2.0 * (d - d_top) / (b + (b * b + 2.0 * accel * (d - d_top)).sqrt());
+        return Some(v_top + accel * h);
     }
-    Some(state.0)
+    let peak = bisect(low, accel, RISE_STEPS, |p| {
+        rise_with_peak(v0, a0, a1, p, 0.0, jerk).0 <= d
+    });
+    Some(rise_with_peak(v0, a0, a1, peak, 0.0, jerk).1)
 }
 
 impl MotionCore {
@@ -1305,7 +1313,9 @@ impl MotionCore {
         let want = self.want_end();
         let (v_at, d0) = settle(v0, a0, jerk);
         let d = rem * PLAN_MARGIN;
-        if d0 >= d || v_at >= want || reach(v_at, d - d0, accel, jerk) >= want {
+        // The end speed with `a = 0`: the carry reaches about as much before its own room.
+        let plain = reach(v_at, d - d0, accel, jerk);
+        if d0 >= d || v_at >= want || plain >= want {
             return None;
         }
         let (c_accel, c_jerk) = next.c_accel_jerk();
@@ -1316,46 +1326,48 @@ impl MotionCore {
             .min(next.c_feed * ovr)
             .min(next.hard_end)
             .min(next.soft_end);
-        let enters = |v1: f64, a1: f64| {
-            let (peak, d_settle) = settle(v1, a1, c_jerk);
-            peak <= next_top && d_settle <= next.length * BACKWARD_MARGIN
-        };
+        // The next section brings the acceleration to zero within its length.
+        let settles = |v1: f64, a1: f64| settle(v1, a1, c_jerk).1 <= next.length * BACKWARD_MARGIN;
         // The highest end speed reachable with end acceleration `a1`: the quickest rise
-        // filling the section, or at most `CARRY_FILL` of it, and not only the rise of the
-        // acceleration to `a1`, so that the solver meets a target inside what is reachable,
-        // not on its edge (where it failed in the property tests). None when even the rise
-        // to `a1` does not fit.
+        // filling `CARRY_FILL` of the section, so that the solver meets a target inside what
+        // is reachable, not on its edge (where it failed in the property tests), and more
+        // than the mere rise and fall of the acceleration. None when even that does not fit.
         let top = want.min(vmax);
         let reach_with = |a1: f64| {
-            let fits = |v: f64| {
-                rise_distance(v0, a0, v, a1, accel, jerk).is_some_and(|x| x <= CARRY_FILL * d)
-            };
-            let lo = v0 + rise_min_dv(a0, a1, jerk);
-            let v1 = if !fits(lo) {
-                return None;
-            } else if fits(top) {
-                top
-            } else {
-                bisect(lo, top, 40, fits)
-            };
-            (v1 - lo > CARRY_MIN_RISE * (v1 - v0)).then_some(v1)
+            let v1 = rise_reach(v0, a0, a1, CARRY_FILL * d, accel, jerk)?.min(top);
+            let peak = a0.max(a1);
+            let least = (2.0 * peak * peak - a0 * a0 - a1 * a1) / (2.0 * jerk);
+            (v1 - v0 - least > CARRY_MIN_RISE * (v1 - v0)).then_some(v1)
         };
-        // Within the room `a1²/2j` above it, in this section and the next.
-        let room = |a1: f64| {
-            reach_with(a1).is_some_and(|v1| v1 + a1 * a1 / (2.0 * jerk) <= vmax && enters(v1, a1))
-        };
-        // The end speed rises with `a1`, and so does the room it needs: the highest `a1`
-        // that keeps within it. Below a tenth of the limit the carry is not worth a solver
-        // call.
+        // The end speed rises with `a1`, and so does the room `a1²/2j` it needs above it,
+        // in this section and the next, and the distance the next one needs to bring it to
+        // zero: the highest share of the limit on a geometric grid that keeps within them,
+        // by bisection on the grid (each condition fails from some share up), so that the
+        // cycle does a handful of closed-form rises at most.
         let a_top = accel.min(c_accel);
-        let a1 = if room(a_top) {
-            a_top
-        } else if room(0.1 * a_top) {
-            bisect(0.1 * a_top, a_top, 20, room)
-        } else {
-            return None;
+        let room = |v: f64, a1: f64| {
+            v + a1 * a1 / (2.0 * jerk) <= vmax && v + a1 * a1 / (2.0 * c_jerk) <= next_top
         };
-        reach_with(a1).map(|v1| (v1, a1))
+        let carry_at = |k: i32| {
+            let a1 = CARRY_SHARE_RATIO.powi(k) * a_top;
+            // A pre-check without the rise: no room even above the plain end speed.
+            if !room(plain, a1) {
+                return None;
+            }
+            reach_with(a1)
+                .filter(|&v1| room(v1, a1) && settles(v1, a1))
+                .map(|v1| (v1, a1))
+        };
+        let (mut bad, mut good) = (-1, CARRY_SHARE_STEPS - 1);
+        let mut found = carry_at(good)?;
+        while good - bad > 1 {
+            let mid = (bad + good) / 2;
+            match carry_at(mid) {
+                Some(c) => (good, found) = (mid, c),
+                None => bad = mid,
+            }
+        }
+        Some(found)
     }
 
     /// Plans the front section's profile from the current state at its start (or where a
