@@ -45,8 +45,13 @@ pub const MAX_CONTROL_CLIENTS: usize = 16;
 /// A node with iceoryx2's own signal handling off. iceoryx2's own log says only errors
 /// (unless `IOX2_LOG_LEVEL` says otherwise): its notice that no iceoryx2 configuration
 /// file exists is expected here, where the defaults are used on purpose.
+///
+/// Segments that a process killed while creating a service left empty are removed first
+/// ([`remove_unfinished_segments`]): creating a node cleans up after dead nodes, and
+/// opening such a segment there would wait forever.
 pub fn node(name: &str) -> Result<Node<ipc::Service>, String> {
     set_log_level_from_env_or(LogLevel::Error);
+    remove_unfinished_segments();
     let node_name = NodeName::new(name).map_err(|e| format!("node name `{name}`: {e:?}"))?;
     NodeBuilder::new()
         .name(&node_name)
@@ -60,6 +65,7 @@ pub fn node(name: &str) -> Result<Node<ipc::Service>, String> {
 /// nodes were cleaned.
 pub fn clean_dead_nodes() -> usize {
     set_log_level_from_env_or(LogLevel::Error);
+    remove_unfinished_segments();
     let mut dead = Vec::new();
     let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
         if let NodeState::Dead(view) = state {
@@ -111,6 +117,72 @@ pub fn remove_unfinished_services() -> usize {
 
 /// How old an empty service file must be to count as abandoned.
 pub const UNFINISHED_AFTER: Duration = Duration::from_millis(100);
+
+/// Where POSIX shared memory lives (iceoryx2's segments: `shm_open` names).
+#[cfg(target_os = "linux")]
+const SHM_DIR: &str = "/dev/shm";
+
+/// Removes the shared-memory segments of services whose creation never finished: a
+/// process killed in the moment between creating a service's dynamic segment and sizing
+/// it leaves an empty segment. Opening it waits without end (iceoryx2 0.10 applies its
+/// time-out to every state of a segment but an empty one), and every process that cleans
+/// up after dead nodes opens it: creating a node does, so every later `kerf` command and
+/// daemon start would hang. (A daemon test that kills starting daemons left one, and a
+/// `kerf status` of another test hung in `Node::create`.)
+///
+/// Only empty segments with iceoryx2's prefix and its dynamic-segment suffix are taken,
+/// once older than [`UNFINISHED_AFTER`]: a creation in progress sizes its segment within
+/// microseconds. A younger empty one is waited for until it is that old (so at most that
+/// long) and taken if it is still empty. Returns how many were removed.
+pub fn remove_unfinished_segments() -> usize {
+    #[cfg(target_os = "linux")]
+    {
+        let global = &Config::global_config().global;
+        let text = |name: &[u8]| String::from_utf8_lossy(name).into_owned();
+        let prefix = text(global.prefix.as_bytes());
+        let suffix = text(global.service.dynamic_config_storage_suffix.as_bytes());
+        remove_empty_files(std::path::Path::new(SHM_DIR), &prefix, &suffix)
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        0
+    }
+}
+
+/// [`remove_unfinished_segments`] in `dir`: the empty files named `prefix…suffix`.
+fn remove_empty_files(dir: &std::path::Path, prefix: &str, suffix: &str) -> usize {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return 0;
+    };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let name = name.to_string_lossy();
+        if !(name.starts_with(prefix) && name.ends_with(suffix)) {
+            continue;
+        }
+        let empty_age = |path: &std::path::Path| {
+            let meta = std::fs::metadata(path).ok()?;
+            (meta.is_file() && meta.len() == 0)
+                .then(|| meta.modified().ok()?.elapsed().ok())
+                .flatten()
+        };
+        let path = entry.path();
+        let Some(age) = empty_age(&path) else {
+            continue;
+        };
+        if age < UNFINISHED_AFTER {
+            std::thread::sleep(UNFINISHED_AFTER - age);
+            if empty_age(&path).is_none() {
+                continue;
+            }
+        }
+        if std::fs::remove_file(&path).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
 
 fn service_name(machine: &str, which: &str) -> Result<ServiceName, String> {
     let name = kerf_proto::service_name(machine, which).map_err(|e| e.to_string())?;
@@ -314,4 +386,29 @@ pub fn open_control(node: &Node<ipc::Service>, machine: &str) -> Result<ControlS
         .request_response::<Request, Response>()
         .open()
         .map_err(|e| format!("{e:?}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_empty_segments_of_the_prefix_and_suffix_are_removed() {
+        let dir = std::env::temp_dir().join(format!("kerf-ipc-empty-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let files = [
+            ("iox2_a_1.dynamic", &b""[..]),
+            ("iox2_a_2.dynamic", &b"initialised"[..]),
+            ("other_a_3.dynamic", &b""[..]),
+            ("iox2_a_4.data", &b""[..]),
+        ];
+        for (name, text) in files {
+            std::fs::write(dir.join(name), text).unwrap();
+        }
+        // Younger than UNFINISHED_AFTER: waited for, then taken while still empty.
+        assert_eq!(remove_empty_files(&dir, "iox2_", ".dynamic"), 1);
+        let left: Vec<bool> = files.iter().map(|(n, _)| dir.join(n).exists()).collect();
+        assert_eq!(left, [false, true, true, true]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

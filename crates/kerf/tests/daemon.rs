@@ -191,15 +191,27 @@ impl Env {
     }
 
     /// `kerf SUBCOMMAND --config C ARGS…`, to completion.
+    ///
+    /// A command that has not exited after [`PATIENCE`] is killed and the test fails,
+    /// rather than hang: a `kerf status` that waited without end inside iceoryx2 (see
+    /// `a_service_segment_left_empty_by_a_killed_creator_stops_nothing`) once held a whole
+    /// CI run until it was stopped.
     fn kerf(&self, subcommand: &str, args: &[&str]) -> Output {
-        Command::new(KERF)
-            .arg(subcommand)
-            .arg("--config")
-            .arg(&self.config_path)
-            .args(args)
-            .stdin(Stdio::null())
-            .output()
-            .unwrap()
+        static RUNS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let name = format!("kerf-{subcommand}-{n}");
+        let mut args_all = vec![subcommand, "--config", self.config_arg()];
+        args_all.extend_from_slice(args);
+        let mut p = Proc::spawn(&name, &self.dir, KERF, &args_all);
+        let status = p.wait(1);
+        let out = Output {
+            status,
+            stdout: fs::read(self.dir.join(format!("{name}.stdout"))).unwrap(),
+            stderr: fs::read(self.dir.join(format!("{name}.stderr"))).unwrap(),
+        };
+        let _ = fs::remove_file(self.dir.join(format!("{name}.stdout")));
+        let _ = fs::remove_file(self.dir.join(format!("{name}.stderr")));
+        out
     }
 
     /// Starts `kerfd` and waits until `kerf status` answers.
@@ -1246,6 +1258,77 @@ fn a_daemon_killed_while_it_starts_leaves_nothing_that_stops_the_next() {
     // Files a killed creator left count as abandoned after 100 ms.
     std::thread::sleep(kerf::ipc::UNFINISHED_AFTER * 2);
     let _daemon = env.start_daemon("kerfd");
+    let program = env.write("short.ngc", "G21 G90\nG1 X2 Y1 F3000\nG0 X0 Y0\nM2\n");
+    env.run_ok("run", &program, None);
+}
+
+#[test]
+fn a_service_segment_left_empty_by_a_killed_creator_stops_nothing() {
+    // A process killed between creating a service's shared-memory segment and sizing it
+    // leaves the segment empty and write-only. iceoryx2 waits without end when it opens
+    // one, and every process that creates a node opens the segments of dead nodes'
+    // services to clean up after them: every later `kerf` command hung (a daemon test
+    // that kills starting daemons left one, and another test's `kerf status` hung in CI).
+    // Made here on purpose: a serving daemon's control service's dynamic segment emptied
+    // as a killed creator leaves it, and the daemon killed.
+    use iceoryx2::prelude::SemanticString as _;
+    use std::os::unix::fs::PermissionsExt;
+    let env = Env::new("emptyseg", &[]);
+    let mut daemon = env.start_daemon("kerfd");
+    // The segment is named after the service's unique id (`unique_value · 2⁶⁴ +
+    // payload_value`), which its static file records.
+    let services = iceoryx2::prelude::Config::global_config()
+        .global
+        .service_dir();
+    let services = PathBuf::from(String::from_utf8_lossy(services.as_bytes()).into_owned());
+    let wanted = format!("service_name = \"kerf/{}/control\"", env.machine);
+    let id = fs::read_dir(&services)
+        .unwrap()
+        .flatten()
+        .find_map(|e| {
+            let text = fs::read_to_string(e.path()).ok()?;
+            text.lines().any(|l| l == wanted).then_some(())?;
+            let value = |key: &str| -> Option<u128> {
+                let line = text.lines().find(|l| l.starts_with(key))?;
+                line.split('=').nth(1)?.trim().parse().ok()
+            };
+            Some((value("unique_value")? << 64) + value("payload_value")?)
+        })
+        .expect("the control service's static file");
+    let segment = fs::read_dir("/dev/shm")
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| {
+            let name = p.file_name().unwrap().to_string_lossy();
+            name.starts_with("iox2_") && name.ends_with(&format!("_{id}.dynamic"))
+        })
+        .expect("the control service's dynamic segment");
+    fs::OpenOptions::new()
+        .write(true)
+        .open(&segment)
+        .unwrap()
+        .set_len(0)
+        .unwrap();
+    fs::set_permissions(&segment, fs::Permissions::from_mode(0o200)).unwrap();
+    // Emptied while its daemon lives (which may die of it), so that no other process has
+    // it mapped: every process that cleans up after dead nodes maps their segments, and
+    // emptying one under it would be a SIGBUS there. Then the daemon dies.
+    daemon.signal("KILL");
+    let _ = daemon.wait(1);
+    // `kerf status` says that no daemon answers (within `Env::kerf`'s patience) and the
+    // segment is gone.
+    let out = env.kerf("status", &[]);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no kerfd answers"));
+    assert!(!segment.exists(), "{segment:?} is still there");
+    // A new daemon starts and runs a program.
+    let _daemon = env.start_daemon("kerfd-again");
     let program = env.write("short.ngc", "G21 G90\nG1 X2 Y1 F3000\nG0 X0 Y0\nM2\n");
     env.run_ok("run", &program, None);
 }
