@@ -464,18 +464,13 @@ fn settle(v0: f64, a0: f64, jerk: f64) -> (f64, f64) {
 }
 
 /// Distance and end speed of a rise from `(v0, a0)` at jerk `jerk`: the acceleration up
-/// to `peak`, held there for `hold_s`, and down to `a1` (`peak ≥ a0, a1 ≥ 0`).
-fn rise_with_peak(v0: f64, a0: f64, a1: f64, peak: f64, hold_s: f64, jerk: f64) -> (f64, f64) {
+/// to `peak` and down to `a1` (`peak ≥ a0, a1 ≥ 0`).
+fn rise_with_peak(v0: f64, a0: f64, a1: f64, peak: f64, jerk: f64) -> (f64, f64) {
     let (t1, t3) = ((peak - a0) / jerk, (peak - a1) / jerk);
     let d1 = t1 * (v0 + t1 * (a0 / 2.0 + t1 * jerk / 6.0));
     let v_up = v0 + (peak * peak - a0 * a0) / (2.0 * jerk);
-    let d2 = hold_s * (v_up + hold_s * peak / 2.0);
-    let v_held = v_up + peak * hold_s;
-    let d3 = t3 * (v_held + t3 * (peak / 2.0 - t3 * jerk / 6.0));
-    (
-        d1 + d2 + d3,
-        v_held + (peak * peak - a1 * a1) / (2.0 * jerk),
-    )
+    let d3 = t3 * (v_up + t3 * (peak / 2.0 - t3 * jerk / 6.0));
+    (d1 + d3, v_up + (peak * peak - a1 * a1) / (2.0 * jerk))
 }
 
 /// The highest speed the quickest rise from `(v0, a0)` reaches in distance `d`, ending
@@ -490,10 +485,10 @@ fn rise_reach(v0: f64, a0: f64, a1: f64, d: f64, accel: f64, jerk: f64) -> Optio
         return None;
     }
     let low = a0.max(a1);
-    if rise_with_peak(v0, a0, a1, low, 0.0, jerk).0 > d {
+    if rise_with_peak(v0, a0, a1, low, jerk).0 > d {
         return None;
     }
-    let (d_top, v_top) = rise_with_peak(v0, a0, a1, accel, 0.0, jerk);
+    let (d_top, v_top) = rise_with_peak(v0, a0, a1, accel, jerk);
     if d_top <= d {
         // Held at `accel` for `h`: the distance grows by `(v_up + accel·t3)·h + accel·h²/2`.
         let t3 = (accel - a1) / jerk;
@@ -503,9 +498,9 @@ fn rise_reach(v0: f64, a0: f64, a1: f64, d: f64, accel: f64, jerk: f64) -> Optio
         return Some(v_top + accel * h);
     }
     let peak = bisect(low, accel, RISE_STEPS, |p| {
-        rise_with_peak(v0, a0, a1, p, 0.0, jerk).0 <= d
+        rise_with_peak(v0, a0, a1, p, jerk).0 <= d
     });
-    Some(rise_with_peak(v0, a0, a1, peak, 0.0, jerk).1)
+    Some(rise_with_peak(v0, a0, a1, peak, jerk).1)
 }
 
 impl MotionCore {
