@@ -450,9 +450,10 @@ const CARRY_MIN_RISE: f64 = 0.05;
 /// `MotionCore::carry_target`).
 const CARRY_SHARE_RATIO: f64 = 0.85;
 const CARRY_SHARE_STEPS: i32 = 15;
-/// Bisection steps on the peak acceleration in `rise_reach`: to 1/4096 of its range, the
-/// speed found a few hundredths of a per cent low at most (lower is always reachable).
-const RISE_STEPS: usize = 12;
+/// Bisection steps on the peak acceleration in `rise_reach`: to 1/65,536 of its range
+/// (from the least peak to a bound from the distance); the speed found is at most that
+/// low, and lower is always reachable.
+const RISE_STEPS: usize = 16;
 
 /// Speed and distance once acceleration `a0` at speed `v0` has been brought to zero at
 /// jerk `jerk`.
@@ -497,7 +498,13 @@ fn rise_reach(v0: f64, a0: f64, a1: f64, d: f64, accel: f64, jerk: f64) -> Optio
         let h = 2.0 * (d - d_top) / (b + (b * b + 2.0 * accel * (d - d_top)).sqrt());
         return Some(v_top + accel * h);
     }
-    let peak = bisect(low, accel, RISE_STEPS, |p| {
+    // The peak is bounded by the distance too: the rise up to it alone takes at least
+    // `J t³/6` (from `a0 ≥ 0`), and both ramps at least `v0` times their time.
+    let mut top = accel.min(a0 + jerk * (6.0 * d / jerk).cbrt());
+    if v0 > 0.0 {
+        top = top.min(0.5 * (jerk * d / v0 + a0 + a1));
+    }
+    let peak = bisect(low, top.max(low), RISE_STEPS, |p| {
         rise_with_peak(v0, a0, a1, p, jerk).0 <= d
     });
     Some(rise_with_peak(v0, a0, a1, peak, jerk).1)
@@ -2150,6 +2157,67 @@ mod tests {
     /// same: for two segments with the given speed limits and limits ratios, at the tail
     /// of a queue (where the slower-merge condition holds), it makes one section exactly
     /// when both functions say so.
+    /// `rise_reach` against a search by numerical integration: each candidate rise (jerk up
+    /// to a peak, a hold there, jerk down to `a1`) is stepped through in small time steps,
+    /// and the highest peak, then the longest hold at the acceleration limit, that fits in
+    /// the distance is found by bisection; its end speed must be the closed form's (which
+    /// bisects its peak only 16 times, so to within 1e-3).
+    #[test]
+    fn the_quickest_rise_matches_a_brute_force_search() {
+        let mut log_uniform = crate::profile::tests::log_uniform_source(0x0bad_5eed);
+        let mut compared = 0;
+        for _ in 0..60 {
+            let accel = log_uniform(100.0, 1e4);
+            let jerk = log_uniform(1e3, 1e6);
+            let v0 = log_uniform(0.1, 100.0);
+            let a0 = accel * log_uniform(1e-3, 1.0);
+            let a1 = accel * log_uniform(1e-3, 1.0);
+            let d = log_uniform(0.01, 20.0);
+            let Some(v_closed) = rise_reach(v0, a0, a1, d, accel, jerk) else {
+                continue;
+            };
+            // Numerical integration of one rise: distance and end speed.
+            let simulate = |peak: f64, hold_s: f64| {
+                let phases = [
+                    ((peak - a0) / jerk, jerk),
+                    (hold_s, 0.0),
+                    ((peak - a1) / jerk, -jerk),
+                ];
+                let (mut p, mut v, mut a) = (0.0, v0, a0);
+                for (t, j) in phases {
+                    let n = 400;
+                    let dt = t / n as f64;
+                    for _ in 0..n {
+                        // Midpoint steps: exact for the cubic up to rounding.
+                        let a_mid = a + j * dt / 2.0;
+                        let v_mid = v + a * dt / 2.0 + j * dt * dt / 8.0;
+                        p += v_mid * dt + j * dt * dt * dt / 24.0;
+                        v += a_mid * dt;
+                        a += j * dt;
+                    }
+                }
+                (p, v)
+            };
+            // The distance grows with the peak and the hold: the highest peak that fits,
+            // by bisection on the simulated distance, and at the acceleration limit the
+            // longest hold that fits.
+            let low = a0.max(a1);
+            let best = if simulate(accel, 0.0).0 <= d {
+                let hold = bisect(0.0, 2.0 * d / v0, 60, |h| simulate(accel, h).0 <= d);
+                simulate(accel, hold).1
+            } else {
+                let peak = bisect(low, accel, 60, |p| simulate(p, 0.0).0 <= d);
+                simulate(peak, 0.0).1
+            };
+            assert!(
+                (best - v_closed).abs() <= 1e-3 * v_closed,
+                "closed form {v_closed}, brute force {best} (v0 {v0} a0 {a0} a1 {a1} d {d} accel {accel} jerk {jerk})"
+            );
+            compared += 1;
+        }
+        assert!(compared > 20, "{compared}");
+    }
+
     #[test]
     fn the_planners_merge_estimate_is_the_motion_cores_rule() {
         let mut log_uniform = crate::profile::tests::log_uniform_source(0x5eed_cafe);
