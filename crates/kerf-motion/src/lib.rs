@@ -1845,6 +1845,39 @@ mod tests {
     use super::*;
     use kerf_geom::{Arc, CornerMode, Curve, Line, Move, Path};
 
+    /// A planned line along X from `x0`, `len` mm long, with speed limit `v_max` and feed
+    /// `feed` (mm/s), acceleration `a` and jerk `j` at both levels, and end cap `cap`.
+    fn x_line(
+        x0: f64,
+        len: f64,
+        (v_max, feed): (f64, f64),
+        (a, j): (f64, f64),
+        cap: f64,
+    ) -> PlannedSegment {
+        let curve = Curve::line(Vec3::new(x0, 0.0, 0.0), Vec3::new(x0 + len, 0.0, 0.0));
+        let mut s = PlannedSegment::with_zero_limits(curve, len, ([0.0; 3], [0.0; 3]), 1, 0, feed);
+        s.v_max_mm_s = v_max;
+        (s.accel_mm_s2, s.jerk_mm_s3) = (a, j);
+        (s.v_boost_mm_s, s.accel_boost_mm_s2, s.jerk_boost_mm_s3) = (v_max, a, j);
+        s.end_cap_mm_s = cap;
+        s
+    }
+
+    /// Steps `core` until it is idle: the X position before the first step and after
+    /// every step, the idle one included.
+    fn x_positions(core: &mut MotionCore) -> Vec<f64> {
+        let mut sp = Setpoint::default();
+        let mut xs = vec![0.0];
+        loop {
+            let r = core.step(&mut sp);
+            xs.push(sp.position[0]);
+            if r == StepResult::Idle {
+                return xs;
+            }
+            assert!(xs.len() < 100_000);
+        }
+    }
+
     fn mv(path: Path, feed_mm_min: f64) -> Move {
         Move {
             line: 1,
@@ -1913,14 +1946,7 @@ mod tests {
     #[test]
     fn entered_above_the_overridden_feed_it_slows_on_without_solver_failures() {
         let seg = |x0: f64, len: f64, feed: f64, a: f64, j: f64, cap: f64| {
-            let curve = Curve::line(Vec3::new(x0, 0.0, 0.0), Vec3::new(x0 + len, 0.0, 0.0));
-            let mut s =
-                PlannedSegment::with_zero_limits(curve, len, ([0.0; 3], [0.0; 3]), 1, 0, feed);
-            s.v_max_mm_s = 200.0;
-            (s.accel_mm_s2, s.jerk_mm_s3) = (a, j);
-            (s.v_boost_mm_s, s.accel_boost_mm_s2, s.jerk_boost_mm_s3) = (200.0, a, j);
-            s.end_cap_mm_s = cap;
-            s
+            x_line(x0, len, (200.0, feed), (a, j), cap)
         };
         // Feeds differ by more than the merge ratio, so every short move is a section.
         let short = [
@@ -1996,15 +2022,8 @@ mod tests {
     #[test]
     fn a_line_behind_a_much_weaker_segment_stops_with_its_own_limits() {
         let v = 4.17;
-        let seg = |x0: f64, len: f64, a: f64, j: f64, cap: f64| {
-            let curve = Curve::line(Vec3::new(x0, 0.0, 0.0), Vec3::new(x0 + len, 0.0, 0.0));
-            let mut s = PlannedSegment::with_zero_limits(curve, len, ([0.0; 3], [0.0; 3]), 1, 0, v);
-            s.v_max_mm_s = 200.0;
-            (s.accel_mm_s2, s.jerk_mm_s3) = (a, j);
-            (s.v_boost_mm_s, s.accel_boost_mm_s2, s.jerk_boost_mm_s3) = (200.0, a, j);
-            s.end_cap_mm_s = cap;
-            s
-        };
+        let seg =
+            |x0: f64, len: f64, a: f64, j: f64, cap: f64| x_line(x0, len, (200.0, v), (a, j), cap);
         let (a_weak, j_weak, a_line, j_line) = (100.0, 5000.0, 1900.0, 75_000.0);
         // Within the lower merge ratios the weak segment would join the line; from above
         // it may not.
@@ -2012,16 +2031,7 @@ mod tests {
         let mut core = MotionCore::new(0.001, 8);
         core.push(&seg(0.0, 0.05, a_weak, j_weak, 200.0)).unwrap();
         core.push(&seg(0.05, 5.0, a_line, j_line, 0.0)).unwrap();
-        let mut sp = Setpoint::default();
-        let mut xs = vec![0.0];
-        loop {
-            let r = core.step(&mut sp);
-            xs.push(sp.position[0]);
-            if r == StepResult::Idle {
-                break;
-            }
-            assert!(xs.len() < 100_000);
-        }
+        let xs = x_positions(&mut core);
         assert!(
             (xs[xs.len() - 1] - 5.05).abs() < 1e-9,
             "{}",
@@ -2039,13 +2049,6 @@ mod tests {
         );
     }
 
-    /// A chain of 2 mm segments whose speeds differ by 1–2 % (smoothed pieces on a slope)
-    /// ending at a stop: a slower segment joins the section before it, so speeds stepping
-    /// down make no stair of sections each ending at `a = 0` (a step up still starts a
-    /// section). Measured from the positions against the same chain with every segment
-    /// at the slowest one's speed (one section by any rule), which is nowhere faster: the
-    /// chain takes at most 5 % longer (3.0 % measured; 16.8 % without
-    /// [`MERGE_RATIO_SLOWER`]).
     /// A speed-up from rest over a short section into a longer one it cannot merge with
     /// (its jerk is under the merge ratio of the first's; a third section, weaker again,
     /// ends the program) goes on across the boundary: measured from the positions, the
@@ -2055,14 +2058,7 @@ mod tests {
     fn a_speed_up_goes_on_into_the_next_section_without_a_stair() {
         let feed = 50.0;
         let seg = |x0: f64, len: f64, a: f64, j: f64, cap: f64| {
-            let curve = Curve::line(Vec3::new(x0, 0.0, 0.0), Vec3::new(x0 + len, 0.0, 0.0));
-            let mut s =
-                PlannedSegment::with_zero_limits(curve, len, ([0.0; 3], [0.0; 3]), 1, 0, feed);
-            s.v_max_mm_s = feed;
-            (s.accel_mm_s2, s.jerk_mm_s3) = (a, j);
-            (s.v_boost_mm_s, s.accel_boost_mm_s2, s.jerk_boost_mm_s3) = (feed, a, j);
-            s.end_cap_mm_s = cap;
-            s
+            x_line(x0, len, (feed, feed), (a, j), cap)
         };
         let (accel, j_first, j_second, j_third) = (1200.0, 18_000.0, 13_000.0, 9_000.0);
         assert!(!limits_merge(accel, j_second, (accel, j_first)));
@@ -2071,16 +2067,7 @@ mod tests {
         core.push(&seg(0.0, 1.0, accel, j_first, feed)).unwrap();
         core.push(&seg(1.0, 15.0, accel, j_second, feed)).unwrap();
         core.push(&seg(16.0, 30.0, accel, j_third, 0.0)).unwrap();
-        let mut sp = Setpoint::default();
-        let mut xs = vec![0.0];
-        loop {
-            let r = core.step(&mut sp);
-            xs.push(sp.position[0]);
-            if r == StepResult::Idle {
-                break;
-            }
-            assert!(xs.len() < 100_000);
-        }
+        let xs = x_positions(&mut core);
         assert!((xs[xs.len() - 1] - 46.0).abs() < 1e-9);
         assert_eq!(core.plan_failures(), 0);
         let dt = 0.001;
@@ -2112,6 +2099,13 @@ mod tests {
         );
     }
 
+    /// A chain of 2 mm segments whose speeds differ by 1–2 % (smoothed pieces on a slope)
+    /// ending at a stop: a slower segment joins the section before it, so speeds stepping
+    /// down make no stair of sections each ending at `a = 0` (a step up still starts a
+    /// section). Measured from the positions against the same chain with every segment
+    /// at the slowest one's speed (one section by any rule), which is nowhere faster: the
+    /// chain takes at most 5 % longer (3.0 % measured; 16.8 % without
+    /// [`MERGE_RATIO_SLOWER`]).
     #[test]
     fn a_slow_down_across_pieces_of_nearly_equal_speed_makes_no_stair() {
         let run = |speeds: &[f64]| -> f64 {
@@ -2119,14 +2113,8 @@ mod tests {
             let mut x = 0.0;
             for (k, &v) in speeds.iter().enumerate() {
                 let len = 2.0;
-                let curve = Curve::line(Vec3::new(x, 0.0, 0.0), Vec3::new(x + len, 0.0, 0.0));
-                let mut s =
-                    PlannedSegment::with_zero_limits(curve, len, ([0.0; 3], [0.0; 3]), 1, 0, 100.0);
-                s.v_max_mm_s = v;
-                (s.accel_mm_s2, s.jerk_mm_s3) = (1400.0, 10_000.0);
-                (s.v_boost_mm_s, s.accel_boost_mm_s2, s.jerk_boost_mm_s3) = (v, 1400.0, 10_000.0);
                 let next = speeds.get(k + 1).copied().unwrap_or(0.0);
-                s.end_cap_mm_s = v.min(next);
+                let s = x_line(x, len, (v, 100.0), (1400.0, 10_000.0), v.min(next));
                 core.push(&s).unwrap();
                 x += len;
             }
@@ -2152,11 +2140,6 @@ mod tests {
         );
     }
 
-    /// The planner judges ramp budgets by whether a piece joins the section before it
-    /// (`kerf_geom::speeds_merge`, `kerf_geom::limits_merge`); the motion core decides the
-    /// same: for two segments with the given speed limits and limits ratios, at the tail
-    /// of a queue (where the slower-merge condition holds), it makes one section exactly
-    /// when both functions say so.
     /// `rise_reach` against a search by numerical integration: each candidate rise (jerk up
     /// to a peak, a hold there, jerk down to `a1`) is stepped through in small time steps,
     /// and the highest peak, then the longest hold at the acceleration limit, that fits in
@@ -2218,20 +2201,15 @@ mod tests {
         assert!(compared > 20, "{compared}");
     }
 
+    /// The planner judges ramp budgets by whether a piece joins the section before it
+    /// (`kerf_geom::speeds_merge`, `kerf_geom::limits_merge`); the motion core decides the
+    /// same: for two segments with the given speed limits and limits ratios, at the tail
+    /// of a queue (where the slower-merge condition holds), it makes one section exactly
+    /// when both functions say so.
     #[test]
     fn the_planners_merge_estimate_is_the_motion_cores_rule() {
         let mut log_uniform = crate::profile::tests::log_uniform_source(0x5eed_cafe);
-        let seg = |x0: f64, v: f64, a: f64, j: f64| {
-            let len = 2.0;
-            let curve = Curve::line(Vec3::new(x0, 0.0, 0.0), Vec3::new(x0 + len, 0.0, 0.0));
-            let mut s =
-                PlannedSegment::with_zero_limits(curve, len, ([0.0; 3], [0.0; 3]), 1, 0, 1000.0);
-            s.v_max_mm_s = v;
-            (s.accel_mm_s2, s.jerk_mm_s3) = (a, j);
-            (s.v_boost_mm_s, s.accel_boost_mm_s2, s.jerk_boost_mm_s3) = (v, a, j);
-            s.end_cap_mm_s = 1e6;
-            s
-        };
+        let seg = |x0: f64, v: f64, a: f64, j: f64| x_line(x0, 2.0, (v, 1000.0), (a, j), 1e6);
         let (mut merged, mut split, mut slower) = (0, 0, 0);
         for _ in 0..2000 {
             let v1 = log_uniform(20.0, 200.0);
