@@ -95,24 +95,7 @@ pub fn remove_unfinished_services() -> usize {
     let Ok(dir) = std::str::from_utf8(dir.as_bytes()).map(std::path::PathBuf::from) else {
         return 0;
     };
-    let Ok(entries) = std::fs::read_dir(&dir) else {
-        return 0;
-    };
-    let mut removed = 0;
-    for entry in entries.flatten() {
-        let Ok(meta) = entry.metadata() else {
-            continue;
-        };
-        let old = meta
-            .modified()
-            .ok()
-            .and_then(|m| m.elapsed().ok())
-            .is_some_and(|age| age > UNFINISHED_AFTER);
-        if meta.is_file() && meta.len() == 0 && old && std::fs::remove_file(entry.path()).is_ok() {
-            removed += 1;
-        }
-    }
-    removed
+    remove_empty_files(&dir, "", "", false)
 }
 
 /// How old an empty service file must be to count as abandoned.
@@ -141,7 +124,7 @@ pub fn remove_unfinished_segments() -> usize {
         let text = |name: &[u8]| String::from_utf8_lossy(name).into_owned();
         let prefix = text(global.prefix.as_bytes());
         let suffix = text(global.service.dynamic_config_storage_suffix.as_bytes());
-        remove_empty_files(std::path::Path::new(SHM_DIR), &prefix, &suffix)
+        remove_empty_files(std::path::Path::new(SHM_DIR), &prefix, &suffix, true)
     }
     #[cfg(not(target_os = "linux"))]
     {
@@ -149,8 +132,15 @@ pub fn remove_unfinished_segments() -> usize {
     }
 }
 
-/// [`remove_unfinished_segments`] in `dir`: the empty files named `prefix…suffix`.
-fn remove_empty_files(dir: &std::path::Path, prefix: &str, suffix: &str) -> usize {
+/// Removes the empty files named `prefix…suffix` in `dir` that are older than
+/// [`UNFINISHED_AFTER`]; with `wait_for_young`, a younger one is waited for until it is
+/// that old and taken if it is still empty. Returns how many were removed.
+fn remove_empty_files(
+    dir: &std::path::Path,
+    prefix: &str,
+    suffix: &str,
+    wait_for_young: bool,
+) -> usize {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return 0;
     };
@@ -171,6 +161,9 @@ fn remove_empty_files(dir: &std::path::Path, prefix: &str, suffix: &str) -> usiz
         let Some(age) = empty_age(&path) else {
             continue;
         };
+        if !wait_for_young && age <= UNFINISHED_AFTER {
+            continue;
+        }
         if age < UNFINISHED_AFTER {
             std::thread::sleep(UNFINISHED_AFTER - age);
             if empty_age(&path).is_none() {
@@ -406,7 +399,7 @@ mod tests {
             std::fs::write(dir.join(name), text).unwrap();
         }
         // Younger than UNFINISHED_AFTER: waited for, then taken while still empty.
-        assert_eq!(remove_empty_files(&dir, "iox2_", ".dynamic"), 1);
+        assert_eq!(remove_empty_files(&dir, "iox2_", ".dynamic", true), 1);
         let left: Vec<bool> = files.iter().map(|(n, _)| dir.join(n).exists()).collect();
         assert_eq!(left, [false, true, true, true]);
         std::fs::remove_dir_all(&dir).unwrap();
