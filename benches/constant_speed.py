@@ -14,7 +14,9 @@ the path can now and then pass a point faster than at constant speed. It says ho
 a raster's time its geometry costs under jerk limits, which the acceleration-limited lower
 bound of `cam_table` ignores.
 
-Usage: python3 benches/constant_speed.py   (standard library only, a few seconds)
+Usage: python3 benches/constant_speed.py [--window MM]   (standard library only, seconds)
+  --window MM also gives each point the slowest speed within MM of it along its row: what a
+  planner that cannot change its speed within that distance could at best do.
 """
 import math
 
@@ -80,18 +82,32 @@ def speed(z1, z2, z3):
 
 
 def main():
+    import sys
+    # --window MM: also each point at the slowest speed within MM of it along its row, what
+    # a planner that cannot change its speed within that distance could at best do.
+    window = float(sys.argv[sys.argv.index("--window") + 1]) if "--window" in sys.argv else None
     for name, (surface, rows, length) in SURFACES.items():
-        total, slowest, n = 0.0, FEED, 8000
+        total, windowed, slowest, n = 0.0, 0.0, FEED, 8000
         h = length / n
         for r in range(rows):
             y = 0.5 * r
+            ds, vs = [], []
             for i in range(n):
                 z, z1, z2, z3 = surface((i + 0.5) * h, y)
                 v = speed(z1, z2, z3)
                 slowest = min(slowest, v)
-                total += h * math.sqrt(1.0 + z1 * z1) / v
+                ds.append(h * math.sqrt(1.0 + z1 * z1))
+                vs.append(v)
+                total += ds[-1] / v
+            if window is not None:
+                k = int(round(window / h))
+                for i in range(n):
+                    windowed += ds[i] / min(vs[max(0, i - k):i + k + 1])
         joins = (rows - 1) * 0.5 / FEED
-        print(f"{name}: constant-speed reference {total + joins:.3f} s, slowest {slowest:.1f} mm/s")
+        line = f"{name}: constant-speed reference {total + joins:.3f} s, slowest {slowest:.1f} mm/s"
+        if window is not None:
+            line += f"; at the slowest within {window} mm: {windowed + joins:.3f} s"
+        print(line)
 
 
 if __name__ == "__main__":

@@ -166,7 +166,7 @@ impl Planner {
                     .as_ref()
                     .and_then(|p| joining_frame(p, &next, tol))
             });
-            self.run = Some(RunState::new(next, tol, frame));
+            self.run = Some(RunState::new(next, tol, frame, &self.limits));
             return Ok(());
         }
         self.push_plain(next, out);

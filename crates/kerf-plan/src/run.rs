@@ -36,11 +36,21 @@ impl RunState {
         (tol > 0.0 && tol.is_finite() && smoothable(p)).then_some(tol)
     }
 
-    pub(crate) fn new(p: Pending, tol: f64, start_frame: Option<smooth::EndFrame>) -> RunState {
+    pub(crate) fn new(
+        p: Pending,
+        tol: f64,
+        start_frame: Option<smooth::EndFrame>,
+        limits: &MachineLimits,
+    ) -> RunState {
         let CornerMode::Blend { tolerance_mm, .. } = p.mv.corner else {
             unreachable!("checked by RunState::starts")
         };
-        let mut run = smooth::Run::new(p.mv.path.start(), p.abc_start, start_frame, tol);
+        let xyz_limits = std::array::from_fn(|i| match limits.axes[i] {
+            Some(a) => [a.velocity_units_s, a.acceleration_units_s2, a.jerk_units_s3],
+            None => [f64::INFINITY; 3],
+        });
+        let mut run =
+            smooth::Run::new(p.mv.path.start(), p.abc_start, start_frame, tol, xyz_limits);
         run.push(
             p.mv.path.end(),
             p.abc_end,
