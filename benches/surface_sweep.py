@@ -10,7 +10,7 @@ rasters are (3 rows of 30 mm, a G1 point every 0.05 mm, Z with 3, 4 or 6 decimal
 G64 P0.01) and run with `kerf sim` on benches/cam-mill.toml. The reference has no ramps
 (see constant_speed.py): it says what the geometry costs under the jerk limits, not a bound.
 
-Usage: python3 benches/surface_sweep.py KERF [OTHER_KERF] [--seed S] [--cases N]
+Usage: python3 benches/surface_sweep.py KERF [OTHER_KERF] [--seed S] [--cases N] [--decimals D]
   e.g. python3 benches/surface_sweep.py /tmp/old/release/kerf target/release/kerf
 Standard library only; about a second per case and build.
 """
@@ -90,6 +90,9 @@ def main():
     ap.add_argument("kerf", nargs="+")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--cases", type=int, default=30)
+    ap.add_argument("--decimals", type=int, default=None,
+                    help="write every case with this many decimals (2: rounding up to half "
+                    "the 0.01 mm band) instead of drawing 3, 4 or 6")
     args = ap.parse_args()
     rnd = random.Random(args.seed)
     slower = faster = 0
@@ -99,6 +102,8 @@ def main():
               " | ".join(f"build {i + 1} s (/feed, /ref)" for i in range(len(args.kerf))))
         for k in range(args.cases):
             (a1, l1, n1, a2, l2), dec = case(rnd)
+            if args.decimals is not None:
+                dec = args.decimals
             surface = cs.waves([(a1, l1, 0, n1), (a2, l2, l2, 0)])
             with open(path, "w") as f:
                 f.write(program(surface, dec))

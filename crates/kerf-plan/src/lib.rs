@@ -92,8 +92,8 @@
 //!   joints run at the full 50 mm/s instead of 3.5 mm/s.
 //! - **Dense polylines are smoothed** (module `smooth`): runs of short feed lines with small
 //!   turns (CAM output approximating a curve) become curvature-continuous quintic pieces
-//!   through vertices of the polyline, with tangents and curvatures fitted over a window of
-//!   vertices, each piece checked to stay within the tolerance of the lines it replaces.
+//!   with knots at vertices of the polyline (moved within their rounding), with positions,
+//!   tangents and curvatures fitted over windows of vertices, each piece checked to stay within the tolerance of the lines it replaces.
 //!   Rounded vertices then no longer turn into curvature noise: the 3,600-line circle of
 //!   radius 10 mm runs in the same time with 3, 4 or 12 decimals. A piece stands for
 //!   several moves (`move_count`).

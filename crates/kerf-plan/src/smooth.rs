@@ -1,6 +1,7 @@
 //! Smoothing of dense polylines: runs of short, nearly collinear lines (CAM output that
-//! approximates a curve) become a chain of curvature-continuous quintic pieces that pass
-//! exactly through vertices of the polyline and stay within the path tolerance of it.
+//! approximates a curve) become a chain of curvature-continuous quintic pieces whose knots
+//! lie at vertices of the polyline, moved by at most their rounding, and that stay within
+//! the path tolerance of it.
 //!
 //! Why: a polyline that approximates a circle has vertices rounded to the program's
 //! decimals. Following the vertices (or circular blends at each of them) turns that
@@ -24,8 +25,13 @@
 //!   interpolation; the rate change at a vertex must sag within the same share of it. (No
 //!   control's manual sets a rotary tolerance for blending; LinuxCNC's `G64 P` is in
 //!   length units. A degree per millimetre of tolerance is the choice made here.)
-//! - **Knots** are vertices of the polyline, every [`WINDOW_MM`] or less of chord length.
-//!   At a knot the unit tangent and the curvature vector come from a weighted least-squares
+//! - **Knots** are at vertices of the polyline, every [`WINDOW_MM`] or less of chord
+//!   length. Inside a run a knot lies where a quadratic fitted over
+//!   [`POSITION_WINDOW_MM`] each side puts its vertex (within half the band of it), not on
+//!   the rounded vertex itself, where the vertices are coarsely rounded
+//!   ([`POSITION_NOISE_SHARE`]): the band, not the vertices, holds the curve, so rounding
+//!   does not bend it between knots (a raster written with 2 decimals, rounded by up to
+//!   half the band, ran 8 % slower with knots on the vertices). At a knot the unit tangent and the curvature vector come from a weighted least-squares
 //!   quartic (a cubic in windows of few vertices) through the vertex, fitted to the
 //!   vertices within a window around it (biweight
 //!   weights in chord length, uniform for the one-sided window at a run end; at least two
@@ -106,6 +112,28 @@ const RATE_SPLIT_FEED_MARGIN: f64 = 1.1;
 const RATE_SPLIT_MIN_VERTICES: u64 = 6;
 /// Shortest half of a piece halved for its third derivative, mm.
 const RATE_SPLIT_MIN_MM: f64 = 0.5;
+/// Half-width of the window whose quadratic places a knot inside a run, mm of chord:
+/// wide enough to average rounding over a dozen or more vertices of CAM code, narrow
+/// enough that a curve's fourth derivative hardly moves the knot (see
+/// `Run::position_offset`). Measured with every knot moved (before the noise share
+/// below): 0.25 mm left raster B written with 2 decimals 6 % slower than 0.4 mm; 1 mm
+/// made a fine texture 18 % slower.
+const POSITION_WINDOW_MM: f64 = 0.4;
+/// A knot is moved off its vertex only where the vertices within [`POSITION_WINDOW_MM`]
+/// leave a quartic fitted to them by this share of the tolerance or more (2 µm at
+/// 0.01 mm): rounding to 2 decimals (up to 7 µm off in X and Z together), not to 3
+/// (0.7 µm). Moving every knot made random surfaces written with 3 to 6 decimals up to
+/// 0.8 % slower about as often as quicker (the fit's own bias moved knots off the curve
+/// by as much as the rounding it took out); at 0.1, 3-decimal rounding still crossed the
+/// share at some knots, and raster B with 3 decimals ran 1 ms slower.
+const POSITION_NOISE_SHARE: f64 = 0.2;
+/// A knot is moved off its vertex only where the curve turns by at most this much within
+/// [`POSITION_WINDOW_MM`] (`κ·w`, radians): the fits follow a tighter turn, the start of
+/// an Archimedean spiral of 0.01 mm pitch say, only by leaving its vertices, and moved
+/// its knots off the curve (`tests/data/ngc/lang/spiral10k.ngc` 3 ms slower).
+const POSITION_MAX_TURN_RAD: f64 = 0.5;
+/// Largest distance of a knot from its vertex, as a share of the tolerance.
+const POSITION_TOL_SHARE: f64 = 0.5;
 /// Fewest vertices in a fitting window (besides the knot's own) for the quartic fit;
 /// smaller windows get a cubic.
 const QUARTIC_MIN_VERTICES: usize = 16;
@@ -414,9 +442,10 @@ impl Run {
                 return kb;
             }
             if ib == ka.idx + 1 {
-                // Keep the line; the next piece starts on it with its direction.
+                // Keep the line (from the knot, which is within half the band of its
+                // vertex); the next piece starts on it with its direction.
                 let (va, vb) = (self.v(ka.idx), self.v(ib));
-                let (p, q) = (va.p, vb.p);
+                let (p, q) = (ka.p, vb.p);
                 let len = (q - p).norm();
                 let line_knot = Knot {
                     idx: ib,
@@ -659,6 +688,13 @@ impl Run {
                 let along = f.d1.dot(&f.d2) / sq;
                 let da = std::array::from_fn(|i| f.a1[i] / speed);
                 let dda = std::array::from_fn(|i| (f.a2[i] - f.a1[i] * along) / sq);
+                // Where the curve turns by more than POSITION_MAX_TURN_RAD within the
+                // window (the start of a spiral), no low-order fit follows it.
+                let p = if k.norm() * POSITION_WINDOW_MM <= POSITION_MAX_TURN_RAD {
+                    p + self.position_offset(idx)
+                } else {
+                    p
+                };
                 Knot {
                     idx,
                     p,
@@ -690,14 +726,47 @@ impl Run {
         }
     }
 
+    /// Where a knot inside the run lies relative to its vertex: the value at the vertex
+    /// of a weighted least-squares quadratic over the vertices within
+    /// [`POSITION_WINDOW_MM`] (its free constant), so that a coarsely rounded vertex does
+    /// not pull the curve by its rounding. Zero (the knot on its vertex) where that fit
+    /// leaves every vertex within [`POSITION_NOISE_SHARE`] of the tolerance (the vertices
+    /// are precise, and the fit's own bias would only move the knot off the curve), where
+    /// it fails, and at a run end (a one-sided window holds the fit through the vertex).
+    fn position_offset(&self, idx: u64) -> Vec3 {
+        let w = POSITION_WINDOW_MM * 1.000_001;
+        let lo = self.window_end(idx, w, false);
+        let hi = self.window_end(idx, w, true);
+        // Rounding shows as the residual of a quartic over the same vertices, which
+        // follows a curve's fourth derivative where a quadratic would leave it.
+        let noisy = self
+            .local_fit_n::<5>(idx, w, lo, hi)
+            .is_some_and(|f| f.residual >= POSITION_NOISE_SHARE * self.tol);
+        let d0 = match self.local_fit_n::<3>(idx, w, lo, hi) {
+            Some(f) if noisy => f.d0,
+            _ => return Vec3::zeros(),
+        };
+        // At most half the band (rounding to half the band is the most a fit should take
+        // out), so that a line kept from this knot stays within the band too.
+        let limit = POSITION_TOL_SHARE * self.tol;
+        let off = d0.norm();
+        if off.is_finite() && off <= limit {
+            d0
+        } else if off.is_finite() {
+            d0 * (limit / off)
+        } else {
+            Vec3::zeros()
+        }
+    }
+
     /// Weighted least-squares `p(x) = p_idx + d0 + d1 x + d2 x²/2 + d3 x³/6 + d4 x⁴/24`
     /// (x = chord length from the vertex) over the vertices within `w` (biweight); a cubic
     /// where the window has fewer than [`QUARTIC_MIN_VERTICES`] vertices. Except at a run
     /// end, the fit is not held through the vertex (`d0` is free): a rounded vertex would
     /// tilt the tangent and bend the curvature by its own rounding (a raster written with 2
-    /// decimals, rounded by up to half the band, ran 1.5 × slower so). The knot stays on
-    /// the vertex all the same: the pieces pass through vertices, and a piece's check
-    /// against the polyline keeps it in the band. The cubic term keeps the curvature of a
+    /// decimals, rounded by up to half the band, ran 1.5 × slower so). The knot's position
+    /// comes from a narrower fit ([`Run::position_offset`]), whose fourth-derivative bias
+    /// is smaller; a piece's check against the polyline keeps it in the band. The cubic term keeps the curvature of a
     /// circle from leaking into the residual, so windows stay wide on arcs; the quartic
     /// term keeps a curve's fourth derivative out of the curvature (in a symmetric window a
     /// cubic's x² coefficient absorbs the x⁴ term). Measured: a 2 mm circle's pieces within
@@ -805,6 +874,7 @@ impl Run {
             }
         }
         Some(LocalFit {
+            d0: d[0],
             d1,
             d2,
             a1: da[1].into(),
@@ -853,6 +923,8 @@ impl Run {
 /// The first two derivatives of a local fit at its vertex, and its largest residual.
 #[derive(Clone, Copy, Debug)]
 struct LocalFit {
+    /// The fit's offset from the vertex at the vertex (zero at a run end).
+    d0: Vec3,
     d1: Vec3,
     d2: Vec3,
     /// First and second derivatives of A, B, C against the chord parameter.
@@ -1014,7 +1086,7 @@ mod tests {
     }
 
     #[test]
-    fn rounded_circle_becomes_a_smooth_chain_through_its_vertices() {
+    fn rounded_circle_becomes_a_smooth_chain_near_its_vertices() {
         for decimals in [3, 4, 6] {
             let pts = rounded_circle(3600, decimals, 1.0);
             let segs = plan(&lines(&pts, 6000.0));
@@ -1027,10 +1099,18 @@ mod tests {
                 next += s.move_count as u64;
             }
             assert_eq!(next as usize, pts.len() - 1);
+            let quantum = 10f64.powi(-decimals);
+            let mut worst_vertex = 0.0f64;
             for (k, s) in segs.iter().enumerate() {
-                // Knots are vertices of the polyline, exactly.
-                let end = pts[(s.move_index + s.move_count as u64) as usize];
-                assert_eq!(s.curve.end(), end);
+                // Knots lie within the rounding of their vertices (at these decimals, on
+                // them: see `coarse_rounding_is_not_followed_to_the_knots`); the run ends
+                // on its last vertex exactly.
+                let vertex = pts[(s.move_index + s.move_count as u64) as usize];
+                let end = s.curve.end();
+                if k + 1 == segs.len() {
+                    assert_eq!(end, vertex);
+                }
+                worst_vertex = worst_vertex.max((end - vertex).norm() / quantum);
                 // Curvature-continuous joints cost no speed.
                 if k + 1 < segs.len() {
                     let a = s.curve.eval(s.length_mm);
@@ -1060,6 +1140,11 @@ mod tests {
                     s.v_max_mm_s
                 );
             }
+            // A rounded vertex is within √2/2 of a quantum of the circle.
+            assert!(
+                worst_vertex <= 0.5,
+                "{decimals}: a knot {worst_vertex} quanta from its vertex"
+            );
         }
     }
 
@@ -1208,6 +1293,44 @@ mod tests {
             worst = worst.max(got / exact);
         }
         assert!(worst <= 1.15, "a piece's Z''' is {worst} × the surface's");
+    }
+
+    /// Coarse rounding is not followed to the knots: a raster row over a surface of 7.5 mm
+    /// waves, as G1 points every 0.05 mm with Z rounded to 2 decimals (up to half the
+    /// 0.01 mm band). The knots inside the run lie nearer the surface than their rounded
+    /// vertices: the RMS of their Z errors against the closed-form surface is at most 0.6 ×
+    /// that of the vertices at the same places (on the vertices it is 1 ×), and each knot
+    /// stays within half the band of its vertex.
+    #[test]
+    fn coarse_rounding_is_not_followed_to_the_knots() {
+        let surface = |x: f64| 1.5 * (x / 2.5).sin() + 0.3 * (x / 1.2).sin();
+        let r2 = |v: f64| (v * 100.0).round() / 100.0;
+        let pts: Vec<Vec3> = (0..=600)
+            .map(|k| {
+                let x = k as f64 * 0.05;
+                Vec3::new(x, 0.0, r2(surface(x)))
+            })
+            .collect();
+        let segs = plan(&lines(&pts, 3000.0));
+        let (mut knot_sq, mut vertex_sq, mut n) = (0.0, 0.0, 0);
+        for s in &segs[..segs.len() - 1] {
+            assert!(matches!(s.curve, Curve::Transition(_)), "not smoothed");
+            let vertex = pts[(s.move_index + s.move_count as u64) as usize];
+            let knot = s.curve.end();
+            assert!(
+                (knot - vertex).norm() <= 0.005 + 1e-12,
+                "{knot} vs {vertex}"
+            );
+            knot_sq += (knot.z - surface(knot.x)).powi(2);
+            vertex_sq += (vertex.z - surface(vertex.x)).powi(2);
+            n += 1;
+        }
+        assert!(n >= 10, "{n} knots");
+        let ratio = (knot_sq / vertex_sq).sqrt();
+        assert!(
+            ratio <= 0.6,
+            "knots {ratio} × as far from the surface as the vertices"
+        );
     }
 
     /// Rounding up to half the tolerance band (2 decimals at 0.01 mm) is averaged out: a
@@ -1391,8 +1514,7 @@ mod tests {
     #[test]
     fn rotary_axes_are_smoothed_with_the_path() {
         // The rounded circle with A turning 0.1° per line (a steady rate plus a wave): the
-        // pieces carry A as quintics that pass through the vertices' A exactly at the
-        // knots, join with continuous dA/ds and d²A/ds², and stay within the tolerance
+        // pieces carry A as quintics that take the vertices' A exactly at the knots, join with continuous dA/ds and d²A/ds², and stay within the tolerance
         // (in degrees) of the programmed linear interpolation.
         let pts = rounded_circle(3600, 4, 1.0);
         let mut moves = lines(&pts, 6000.0);
