@@ -1,7 +1,7 @@
 //! Smoothing of dense polylines: runs of short, nearly collinear lines (CAM output that
 //! approximates a curve) become a chain of curvature-continuous quintic pieces whose knots
-//! lie at vertices of the polyline, moved by at most their rounding, and that stay within
-//! the path tolerance of it.
+//! lie at vertices of the polyline (or, where the vertices are coarsely rounded, within
+//! half the band of them) and that stay within the path tolerance of it.
 //!
 //! Why: a polyline that approximates a circle has vertices rounded to the program's
 //! decimals. Following the vertices (or circular blends at each of them) turns that
@@ -26,16 +26,16 @@
 //!   control's manual sets a rotary tolerance for blending; LinuxCNC's `G64 P` is in
 //!   length units. A degree per millimetre of tolerance is the choice made here.)
 //! - **Knots** are at vertices of the polyline, every [`WINDOW_MM`] or less of chord
-//!   length. Inside a run a knot lies where a quadratic fitted over
-//!   [`POSITION_WINDOW_MM`] each side puts its vertex (within half the band of it), not on
-//!   the rounded vertex itself, where the vertices are coarsely rounded
-//!   ([`POSITION_NOISE_SHARE`]): the band, not the vertices, holds the curve, so rounding
-//!   does not bend it between knots (a raster written with 2 decimals, rounded by up to
-//!   half the band, ran 8 % slower with knots on the vertices). At a knot the unit tangent and the curvature vector come from a weighted least-squares
-//!   quartic (a cubic in windows of few vertices) through the vertex, fitted to the
-//!   vertices within a window around it (biweight
-//!   weights in chord length, uniform for the one-sided window at a run end; at least two
-//!   vertices each side): rounding noise averages out over the window. The window halves
+//!   length. Where the vertices are coarsely rounded ([`POSITION_NOISE_SHARE`]), a knot
+//!   inside a run lies where a quadratic fitted over [`POSITION_WINDOW_MM`] each side puts
+//!   its vertex (within half the band of it), not on the rounded vertex itself: the band,
+//!   not the vertices, holds the curve, so rounding does not bend it between knots (a
+//!   raster written with 2 decimals, rounded by up to half the band, ran 8 % slower with
+//!   knots on the vertices). At a knot the unit tangent and the curvature vector come from
+//!   a weighted least-squares quartic (a cubic in windows of few vertices) through the
+//!   vertex, fitted to the vertices within a window around it (biweight weights in chord
+//!   length, uniform for the one-sided window at a run end; at least two vertices each
+//!   side): rounding noise averages out over the window. The window halves
 //!   (down to two vertices each side) until the fit explains every vertex in it within
 //!   [`RESIDUAL_TOL_SHARE`] of the tolerance, so that it does not reach across a change
 //!   of shape.
@@ -742,9 +742,11 @@ impl Run {
         let noisy = self
             .local_fit_n::<5>(idx, w, lo, hi)
             .is_some_and(|f| f.residual >= POSITION_NOISE_SHARE * self.tol);
-        let d0 = match self.local_fit_n::<3>(idx, w, lo, hi) {
-            Some(f) if noisy => f.d0,
-            _ => return Vec3::zeros(),
+        if !noisy {
+            return Vec3::zeros();
+        }
+        let Some(d0) = self.local_fit_n::<3>(idx, w, lo, hi).map(|f| f.d0) else {
+            return Vec3::zeros();
         };
         // At most half the band (rounding to half the band is the most a fit should take
         // out), so that a line kept from this knot stays within the band too.
@@ -764,13 +766,15 @@ impl Run {
     /// where the window has fewer than [`QUARTIC_MIN_VERTICES`] vertices. Except at a run
     /// end, the fit is not held through the vertex (`d0` is free): a rounded vertex would
     /// tilt the tangent and bend the curvature by its own rounding (a raster written with 2
-    /// decimals, rounded by up to half the band, ran 1.5 × slower so). The knot's position
-    /// comes from a narrower fit ([`Run::position_offset`]), whose fourth-derivative bias
-    /// is smaller; a piece's check against the polyline keeps it in the band. The cubic term keeps the curvature of a
-    /// circle from leaking into the residual, so windows stay wide on arcs; the quartic
-    /// term keeps a curve's fourth derivative out of the curvature (in a symmetric window a
-    /// cubic's x² coefficient absorbs the x⁴ term). Measured: a 2 mm circle's pieces within
-    /// 0.14 µm of it (0.75 µm with the cubic), raster C of the CAM corpus 0.6 % quicker.
+    /// decimals, rounded by up to half the band, ran 1.5 × slower so). The knot stays on
+    /// its vertex, or where the vertices are coarsely rounded takes its position from a
+    /// narrower fit ([`Run::position_offset`]) whose fourth-derivative bias is smaller; a
+    /// piece's check against the polyline keeps it in the band. The cubic term keeps the
+    /// curvature of a circle from leaking into the residual, so windows stay wide on arcs;
+    /// the quartic term keeps a curve's fourth derivative out of the curvature (in a
+    /// symmetric window a cubic's x² coefficient absorbs the x⁴ term). Measured: a 2 mm
+    /// circle's pieces within 0.14 µm of it (0.75 µm with the cubic), raster C of the CAM
+    /// corpus 0.6 % quicker.
     fn local_fit(&self, idx: u64, w: f64) -> Option<LocalFit> {
         let w = w * 1.000_001;
         let lo = self.window_end(idx, w, false);
@@ -1514,8 +1518,9 @@ mod tests {
     #[test]
     fn rotary_axes_are_smoothed_with_the_path() {
         // The rounded circle with A turning 0.1° per line (a steady rate plus a wave): the
-        // pieces carry A as quintics that take the vertices' A exactly at the knots, join with continuous dA/ds and d²A/ds², and stay within the tolerance
-        // (in degrees) of the programmed linear interpolation.
+        // pieces carry A as quintics that take the vertices' A exactly at the knots, join
+        // with continuous dA/ds and d²A/ds², and stay within the tolerance (in degrees) of
+        // the programmed linear interpolation.
         let pts = rounded_circle(3600, 4, 1.0);
         let mut moves = lines(&pts, 6000.0);
         let a_at = |k: usize| {
