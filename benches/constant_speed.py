@@ -19,6 +19,7 @@ Usage: python3 benches/constant_speed.py [--window MM]   (standard library only,
   planner that cannot change its speed within that distance could at best do.
 """
 import math
+import sys
 
 FEED = 50.0
 LIMITS = {"x": (200.0, 2000.0, 50000.0), "z": (100.0, 1000.0, 20000.0)}
@@ -82,9 +83,6 @@ def speed(z1, z2, z3):
 
 
 def main():
-    import sys
-    # --window MM: also each point at the slowest speed within MM of it along its row, what
-    # a planner that cannot change its speed within that distance could at best do.
     window = float(sys.argv[sys.argv.index("--window") + 1]) if "--window" in sys.argv else None
     for name, (surface, rows, length) in SURFACES.items():
         total, windowed, slowest, n = 0.0, 0.0, FEED, 8000
