@@ -1337,8 +1337,7 @@ impl MotionCore {
         let top = want.min(vmax);
         let reach_with = |a1: f64| {
             let v1 = rise_reach(v0, a0, a1, CARRY_FILL * d, accel, jerk)?.min(top);
-            let peak = a0.max(a1);
-            let least = (2.0 * peak * peak - a0 * a0 - a1 * a1) / (2.0 * jerk);
+            let least = rise_with_peak(v0, a0, a1, a0.max(a1), jerk).1 - v0;
             (v1 - v0 - least > CARRY_MIN_RISE * (v1 - v0)).then_some(v1)
         };
         // The end speed rises with `a1`, and so does the room `a1²/2j` it needs above it,
@@ -1408,16 +1407,9 @@ impl MotionCore {
                 }
             }
         }
-        if let Some(carry) = self.carry_target(v0, a0, rem) {
-            if self.calc(origin, v0, a0, rem, carry, vmax, accel, jerk) {
-                return;
-            }
-            self.failures += 1;
-        }
-        if self.calc(origin, v0, a0, rem, (target, 0.0), vmax, accel, jerk) {
+        if self.calc_front(origin, v0, a0, rem, target, vmax, accel, jerk) {
             return;
         }
-        self.failures += 1;
         // Entered above the feed: let the profile keep the entry speed as its ceiling.
         let peak = v0.max(v_at);
         let vmax2 = vmax.max(peak).min(v_machine.max(peak));
@@ -1555,19 +1547,37 @@ impl MotionCore {
             return false;
         }
         let vmax = sec.v_eff(self.override_factor, sec.boosted).max(peak);
+        // On failure the previous profile is untouched and still valid.
+        self.calc_front(self.s_local, v0, a0, rem, target, vmax, accel, j)
+    }
+
+    /// The front section's profile from `(v0, a0)` at `origin` with `rem` left: to the
+    /// carried speed-up's end state where [`MotionCore::carry_target`] offers one and the
+    /// solver takes it, else to `target` with `a = 0`. Each calculation refused counts as
+    /// a solver failure; on `false` the running profile is untouched.
+    #[allow(clippy::too_many_arguments)]
+    fn calc_front(
+        &mut self,
+        origin: f64,
+        v0: f64,
+        a0: f64,
+        rem: f64,
+        target: f64,
+        vmax: f64,
+        accel: f64,
+        jerk: f64,
+    ) -> bool {
         if let Some(carry) = self.carry_target(v0, a0, rem) {
-            if self.calc(self.s_local, v0, a0, rem, carry, vmax, accel, j) {
+            if self.calc(origin, v0, a0, rem, carry, vmax, accel, jerk) {
                 return true;
             }
             self.failures += 1;
         }
-        if self.calc(self.s_local, v0, a0, rem, (target, 0.0), vmax, accel, j) {
-            true
-        } else {
-            // The previous profile is untouched and still valid.
+        let ok = self.calc(origin, v0, a0, rem, (target, 0.0), vmax, accel, jerk);
+        if !ok {
             self.failures += 1;
-            false
         }
+        ok
     }
 
     /// One position-interface profile calculation from `(v0, a0)` to `(v1, a1)` at
