@@ -45,6 +45,7 @@ const PATH_ROUNDING_MM: f64 = 1e-6;
 struct Proc {
     name: String,
     child: Option<Child>,
+    stdout: PathBuf,
     stderr: PathBuf,
 }
 
@@ -62,6 +63,7 @@ impl Proc {
         Proc {
             name: name.to_string(),
             child: Some(child),
+            stdout,
             stderr,
         }
     }
@@ -206,11 +208,11 @@ impl Env {
         let status = p.wait(1);
         let out = Output {
             status,
-            stdout: fs::read(self.dir.join(format!("{name}.stdout"))).unwrap(),
-            stderr: fs::read(self.dir.join(format!("{name}.stderr"))).unwrap(),
+            stdout: fs::read(&p.stdout).unwrap(),
+            stderr: fs::read(&p.stderr).unwrap(),
         };
-        let _ = fs::remove_file(self.dir.join(format!("{name}.stdout")));
-        let _ = fs::remove_file(self.dir.join(format!("{name}.stderr")));
+        let _ = fs::remove_file(&p.stdout);
+        let _ = fs::remove_file(&p.stderr);
         out
     }
 
