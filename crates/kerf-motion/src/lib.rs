@@ -58,7 +58,9 @@
 //! - **Hold / abort** plan a jerk-limited stop (velocity interface) on the path with the
 //!   lowest limits of every section it crosses, after checking that it passes every
 //!   junction at or below its hard speed and stops before the queue end; otherwise the
-//!   ordinary plan (which is slowing down anyway) runs until the check passes.
+//!   running plan goes on and the check is made again as each next section starts (the
+//!   plan may still be finishing a speed-up, one carried into that section included:
+//!   within the limits, but the stop starts that much later).
 //! - **Override** scales the programmed feed (0–200 %); it re-plans the running section
 //!   from the current state and recomputes the soft lookahead (one pass over the queue, on
 //!   the event). Curved segments have two levels of limits (see `kerf-plan`): the base
@@ -76,8 +78,9 @@
 //!   included (table lookup, a cubic interpolation and one Newton step on the arc length,
 //!   see `kerf_geom::Transition`). `step` does at most a few `calculate()` calls (the running
 //!   section's re-plan, the next section's profile, a carried speed-up's target and the
-//!   plain one if that fails, a hold's stop; choosing a carried end acceleration is at
-//!   most five closed-form rises, see `MotionCore::carry_target`) and crosses at most
+//!   plain one if that fails, a hold's stop; choosing a carried end acceleration tries at
+//!   most five end accelerations, each a rise in closed form or by a bisection of
+//!   `RISE_STEPS` closed-form rises, see `MotionCore::carry_target`) and crosses at most
 //!   `MAX_SECTIONS_PER_STEP` section ends in one cycle; past that the leftover time of the
 //!   cycle is dropped (a delay of under one period, the motion stays continuous).
 //! - **Slivers**: a section shorter than [`COAST_BELOW_MM`], or taking less than
@@ -1480,20 +1483,33 @@ impl MotionCore {
     /// Fixes the level the front section runs at as it starts: the one the override wants
     /// (see `Section::wants_boost`), if the entry speed is within that level's speed limit
     /// and hard lookahead, else the other (the previous section ended within the hard
-    /// speed of the level it planned for, so one of them always fits).
+    /// speed of the level it planned for, so one of them always fits). An entry with a
+    /// carried speed-up, which is planned for the base level, takes the boost level only
+    /// within its acceleration and envelope; else the section starts at the base level
+    /// and moves up as [`MotionCore::replan_running`] does, once the acceleration allows.
     fn choose_level(&mut self) {
         let ovr = self.override_factor;
-        let v0 = self.v;
+        let (v0, a0) = (self.v, self.a);
         let head = self.sec_head;
         let sec = self.sec_mut(head);
         let fits = |v: f64, hard: f64| v0 <= v * (1.0 + 1e-9) && v0 <= hard * (1.0 + 1e-9) + 1e-9;
         let base_ok = fits(sec.v_machine, sec.hard_start);
-        let boost_ok = fits(sec.v_boost, sec.hard_start_boost);
-        sec.boosted = if sec.wants_boost(ovr) {
+        // Entered with a speed-up carried over (planned for the base level, see
+        // `carry_target`): the boost level only if the acceleration is within its limit and
+        // its envelope, as `replan_running` asks before moving a running section there.
+        let carry_fits_boost = a0 <= 0.0
+            || (a0 <= sec.accel_boost * (1.0 + 1e-9)
+                && v0 + a0 * a0 / (2.0 * sec.jerk_boost) <= sec.v_boost * (1.0 + 1e-9));
+        let boost_speed_ok = fits(sec.v_boost, sec.hard_start_boost);
+        let boost_ok = boost_speed_ok && carry_fits_boost;
+        let wants = sec.wants_boost(ovr);
+        sec.boosted = if wants {
             boost_ok || !base_ok
         } else {
             !base_ok && boost_ok
         };
+        // Refused for the carried acceleration alone: move up once it has come down.
+        self.boost_pending = wants && !sec.boosted && boost_speed_ok;
     }
 
     /// Re-plans the running section from the current state (more queue, override).
@@ -2023,8 +2039,8 @@ mod tests {
         }
     }
 
-    /// A long line behind a short segment with a fifteenth of its acceleration and jerk (a
-    /// corner blend) stops with its own limits, not the short one's: it is a section of
+    /// A long line behind a short segment with about a nineteenth of its acceleration and a
+    /// fifteenth of its jerk (a corner blend) stops with its own limits, not the short one's: it is a section of
     /// its own ([`MERGE_ABOVE`]). Measured from the positions: the stop at the end takes
     /// about `2·sqrt(v/j)` with the line's jerk (15 ms), where the blend's limits need
     /// `v/a + a/j` (62 ms; 59 ms measured without the rule). The junction between them is
@@ -2035,8 +2051,8 @@ mod tests {
         let seg =
             |x0: f64, len: f64, a: f64, j: f64, cap: f64| x_line(x0, len, (200.0, v), (a, j), cap);
         let (a_weak, j_weak, a_line, j_line) = (100.0, 5000.0, 1900.0, 75_000.0);
-        // Within the lower merge ratios the weak segment would join the line; from above
-        // it may not.
+        // By the lower merge ratios alone the line would join the weak segment's section
+        // (its limits are above them); more than `MERGE_ABOVE` times above, it may not.
         assert!(a_line > MERGE_ABOVE * a_weak && j_line > MERGE_ABOVE * j_weak);
         let mut core = MotionCore::new(0.001, 8);
         core.push(&seg(0.0, 0.05, a_weak, j_weak, 200.0)).unwrap();
@@ -2107,6 +2123,77 @@ mod tests {
             low > 0.25 * accel,
             "the acceleration came down to {low} mm/s² on the way up"
         );
+    }
+
+    /// A carried speed-up whose next section comes to want its boost level while the
+    /// carry runs (the feed override raised near the boundary, too late for the running
+    /// section to re-plan to `a = 0`): the next section starts at a level whose limits the
+    /// carried acceleration is within (the boost level's acceleration is lower here), and
+    /// moves to the boost level once it is. While a section runs at its boost level, the
+    /// acceleration from the positions stays within that level's.
+    #[test]
+    fn an_override_raised_during_a_carried_speed_up_keeps_a_level_that_fits_it() {
+        let feed = 50.0;
+        let (accel, j_first, j_second) = (1200.0, 18_000.0, 13_000.0);
+        let (v_boost, accel_boost, jerk_boost) = (80.0, 300.0, 6_000.0);
+        let mut second = x_line(1.0, 15.0, (feed, feed), (accel, j_second), feed);
+        (
+            second.v_boost_mm_s,
+            second.accel_boost_mm_s2,
+            second.jerk_boost_mm_s3,
+        ) = (v_boost, accel_boost, jerk_boost);
+        let (mut carried, mut boosted_runs) = (0, 0);
+        // Raise the override at every period of the first section's second half in turn.
+        for raise_at in 1..200 {
+            let mut core = MotionCore::new(0.001, 8);
+            core.push(&x_line(0.0, 1.0, (feed, feed), (accel, j_first), feed))
+                .unwrap();
+            core.push(&second).unwrap();
+            core.push(&x_line(16.0, 30.0, (feed, feed), (accel, j_second), 0.0))
+                .unwrap();
+            let mut sp = Setpoint::default();
+            // Position after each step, and whether the section running was boosted.
+            let mut xs = vec![(0.0, false)];
+            loop {
+                let r = core.step(&mut sp);
+                let boosted = core.sec_count > 0 && core.sec(core.sec_head).boosted;
+                xs.push((sp.position[0], boosted));
+                if xs.len() == raise_at {
+                    if !(0.5..1.0).contains(&sp.position[0]) {
+                        break;
+                    }
+                    if core.traj_end_a > 0.0 {
+                        carried += 1;
+                    }
+                    core.set_feed_override(1.5);
+                }
+                if r == StepResult::Idle {
+                    break;
+                }
+                assert!(xs.len() < 100_000);
+            }
+            if xs.len() <= raise_at {
+                continue;
+            }
+            assert!((xs[xs.len() - 1].0 - 46.0).abs() < 1e-9);
+            assert_eq!(core.plan_failures(), 0, "raised at {raise_at}");
+            assert_eq!(core.emergency_stops(), 0, "raised at {raise_at}");
+            let dt = 0.001;
+            if xs.iter().any(|&(_, b)| b) {
+                boosted_runs += 1;
+            }
+            for (k, w) in xs.windows(3).enumerate() {
+                let a = (w[2].0 - 2.0 * w[1].0 + w[0].0) / (dt * dt);
+                let limit = if w[1].1 && w[2].1 { accel_boost } else { accel };
+                assert!(
+                    a.abs() <= limit * 1.01,
+                    "raised at {raise_at}: a {a} mm/s² at step {k}, x = {}",
+                    w[1].0
+                );
+            }
+        }
+        assert!(carried > 5, "{carried}");
+        assert!(boosted_runs > 5, "{boosted_runs}");
     }
 
     /// A chain of 2 mm segments whose speeds differ by 1–2 % (smoothed pieces on a slope)

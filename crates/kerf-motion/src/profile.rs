@@ -1,13 +1,17 @@
 //! A closed-form jerk-limited path profile: the motion core's own fallback when the
 //! solver cannot plan a section.
 //!
-//! [`JerkProfile`] is a sequence of at most seven phases of constant jerk starting at rest
-//! acceleration: a speed change from `v0` to a cruise speed, a cruise, and a speed change
-//! to `v1`. Each speed change is the symmetric jerk-limited S-curve with `a = 0` at both
-//! ends (the same curve [`crate::change_distance`] measures), so the profile never
-//! exceeds the acceleration and jerk it was built with, and its speed stays between its
-//! end speeds and the cruise speed. It is built in closed form (plus a bisection on the
-//! cruise speed) without allocation, so it is safe to build inside `step()`.
+//! [`JerkProfile`] is a sequence of at most eight phases of constant jerk: where it is
+//! entered accelerating (`a0 ≠ 0`, a speed-up carried over from the section before), a
+//! first phase at the jerk limit brings the acceleration to zero; then a speed change to
+//! a cruise speed, a cruise, and a speed change to `v1`. Each speed change is the
+//! symmetric jerk-limited S-curve with `a = 0` at both ends (the same curve
+//! [`crate::change_distance`] measures), so the profile never exceeds the acceleration
+//! and jerk it was built with, and after its first phase its speed stays between the
+//! speeds it starts and ends its speed changes at and the cruise speed (the first phase
+//! moves the speed by `a0²/2j`, which can take it above the cruise ceiling; it then comes
+//! down to it). It is built in closed form (plus a bisection on the cruise speed) without
+//! allocation, so it is safe to build inside `step()`.
 
 use crate::change_distance;
 use kerf_geom::ramp::bisect;
