@@ -85,9 +85,11 @@
 //!   left alone. A transition makes [`PlannedSegment`] a few hundred bytes larger (the
 //!   curve carries its arc-length table inline).
 //!   Its limits come from sampled per-axis bounds of `|t_i|`, `|K_i|` and `|K'_i|`
-//!   (curvature vector and its arc-length derivative, in closed form at each sample, with
-//!   a bound on the rise between samples and [`RATE_SAFETY`]): with arc-length
-//!   parametrisation `x_i'' = t_i a + K_i v²` and `x_i''' = t_i j + 3K_i v a + K'_i v³`.
+//!   (curvature vector and its arc-length derivative; for X, Y, Z the derivative in closed
+//!   form at each sample, with a bound on the rise between samples and [`RATE_SAFETY`];
+//!   for the rotary axes A, B, C (`K_i = d²A/ds²`) by central differences on the
+//!   samples, with [`LIMIT_SAFETY`] on both their bounds): with arc-length parametrisation
+//!   `x_i'' = t_i a + K_i v²` and `x_i''' = t_i j + 3K_i v a + K'_i v³`.
 //!   Example: r = 5 mm, 0.01 mm tolerance, F3000 on a 2,000 mm/s², 50,000 mm/s³ mill: the
 //!   joints run at the full 50 mm/s instead of 3.5 mm/s.
 //! - **Dense polylines are smoothed** (module `smooth`): runs of short feed lines with small

@@ -521,9 +521,12 @@ impl Planner {
     /// A piece slow only at its start keeps its budget unless [`ramp_split_pays`]: raised,
     /// it runs in a motion-core section of its own, and the return to zero acceleration
     /// at its end, mid-ramp, can cost more than the raised budget gains (the dense circle:
-    /// 3 ms per ramp). Raising the budget of a piece slow at its end never splits a
-    /// section (a segment joins the section before it when its limits are not much below
-    /// the section's).
+    /// 3 ms per ramp). A piece entered at speed and slow only at its end is raised without
+    /// that check, but a raised budget can split a section there too: the piece joins the
+    /// section before it only if its limits pass [`kerf_geom::limits_merge`] with the
+    /// section's (not much below them, nor more than `MERGE_ABOVE` = 4 × above) and its
+    /// speed limit passes [`kerf_geom::speeds_merge`], else it starts a section of its
+    /// own; [`ramp_budget`] prices each candidate budget by which of the two it makes.
     fn ramp_upgrade(&self, seg: &mut PlannedSegment, next: Option<&PlannedSegment>) {
         let slow = RAMP_CAP_RATIO * seg.v_max_mm_s;
         // Smoothed pieces only, and only without a boost design (pieces keep the

@@ -1,5 +1,7 @@
-//! One-dimensional numeric searches (golden section here; the bisection is
-//! `kerf_geom::ramp::bisect`, shared with the motion core).
+//! One-dimensional numeric searches: golden section for a minimum ([`golden_min`]),
+//! bisection for the largest `x` that passes a monotone test ([`bisect_max`]) and regula
+//! falsi for the largest `x` below a sign change ([`falsi_max`]). The plain bisection is
+//! `kerf_geom::ramp::bisect`, shared with the motion core and re-exported here.
 
 pub(crate) use kerf_geom::ramp::bisect;
 

@@ -32,10 +32,12 @@
 //!   not the vertices, holds the curve, so rounding does not bend it between knots (a
 //!   raster written with 2 decimals, rounded by up to half the band, ran 8 % slower with
 //!   knots on the vertices). At a knot the unit tangent and the curvature vector come from
-//!   a weighted least-squares quartic (a cubic in windows of few vertices) through the
-//!   vertex, fitted to the vertices within a window around it (biweight weights in chord
-//!   length, uniform for the one-sided window at a run end; at least two vertices each
-//!   side): rounding noise averages out over the window. The window halves
+//!   a weighted least-squares quartic (a cubic in windows of fewer than
+//!   [`QUARTIC_MIN_VERTICES`] vertices besides the knot's own) fitted to the vertices
+//!   within a window around it (biweight weights in chord length, uniform for the
+//!   one-sided window at a run end; at least two vertices each side) with a free constant
+//!   (held through the vertex only at a run end), so that the vertex's own rounding does
+//!   not tilt the tangent: rounding noise averages out over the window. The window halves
 //!   (down to two vertices each side) until the fit explains every vertex in it within
 //!   [`RESIDUAL_TOL_SHARE`] of the tolerance, so that it does not reach across a change
 //!   of shape.
@@ -47,7 +49,8 @@
 //!   jerk must follow, is the curve's and not an artefact of the fit. Each piece is sampled
 //!   against the polyline it replaces (every setpoint must lie within the tolerance of the
 //!   programmed path) and halved until it fits within [`TRANSITION_TOL_SHARE`] of the
-//!   tolerance. A single line whose piece does not fit is kept as the line.
+//!   tolerance. A single line whose piece does not fit is kept as a line from its start
+//!   knot (which may lie off its vertex, within half the band) to its end vertex.
 //! - **Pieces follow the curve's third derivative.** A piece is also halved where its
 //!   halves, each at the highest speed its geometry allows at constant speed within the
 //!   axis limits (capped a little above the feed), would take at most
@@ -97,8 +100,9 @@ pub const WINDOW_MM: f64 = 2.0;
 /// over the whole window instead of shrinking it (the pieces themselves are still checked
 /// against the polyline within [`TRANSITION_TOL_SHARE`]). At 25 % a raster written with 2
 /// decimals (rounding up to half the 0.01 mm band) shrank every window to five vertices,
-/// whose curvature was noise: 18.3 s where the same raster with 3 decimals takes 3.9 s
-/// (4.55 s now, with the fit's free constant, see `Run::local_fit`).
+/// whose curvature was noise: 18.3 s where the same raster with 3 decimals took 3.9 s
+/// (4.55 s with the fit's free constant, see `Run::local_fit`; 4.087 s after step 15 of
+/// issue 11 in `docs/PERFORMANCE.md`, knots off coarse rounding).
 pub const RESIDUAL_TOL_SHARE: f64 = 0.7;
 /// A piece is halved where its halves' time at constant speed within the axis limits is
 /// at most this share of its own (see `Run::rate_split`). 0.97 measured the same on the
@@ -110,7 +114,9 @@ pub const RATE_SPLIT_GAIN: f64 = 0.95;
 const RATE_SPLIT_FEED_MARGIN: f64 = 1.1;
 /// Fewest vertices in each half of a piece halved for its third derivative.
 const RATE_SPLIT_MIN_VERTICES: u64 = 6;
-/// Shortest half of a piece halved for its third derivative, mm.
+/// Half the shortest piece halved for its third derivative, mm: a piece must be at least
+/// twice this long. The halves split at its middle vertex by count, not by length, so
+/// with uneven vertex spacing one half can be shorter than this.
 const RATE_SPLIT_MIN_MM: f64 = 0.5;
 /// Half-width of the window whose quadratic places a knot inside a run, mm of chord:
 /// wide enough to average rounding over a dozen or more vertices of CAM code, narrow
@@ -127,10 +133,11 @@ const POSITION_WINDOW_MM: f64 = 0.4;
 /// by as much as the rounding it took out); at 0.1, 3-decimal rounding still crossed the
 /// share at some knots, and raster B with 3 decimals ran 1 ms slower.
 const POSITION_NOISE_SHARE: f64 = 0.2;
-/// A knot is moved off its vertex only where the curve turns by at most this much within
-/// [`POSITION_WINDOW_MM`] (`κ·w`, radians): the fits follow a tighter turn, the start of
-/// an Archimedean spiral of 0.01 mm pitch say, only by leaving its vertices, and moved
-/// its knots off the curve (`tests/data/ngc/lang/spiral10k.ngc` 3 ms slower).
+/// A knot is moved off its vertex only where the curve turns by at most this much over
+/// [`POSITION_WINDOW_MM`], half the window (`κ·w`, radians): the fits follow a tighter
+/// turn, the start of an Archimedean spiral of 0.01 mm pitch say, only by leaving its
+/// vertices, and moved its knots off the curve (`tests/data/ngc/lang/spiral10k.ngc` 3 ms
+/// slower).
 const POSITION_MAX_TURN_RAD: f64 = 0.5;
 /// Largest distance of a knot from its vertex, as a share of the tolerance.
 const POSITION_TOL_SHARE: f64 = 0.5;
@@ -487,7 +494,9 @@ impl Run {
             return None;
         }
         let (t_whole, feed_bound) = self.constant_speed_time(whole, ka.idx, kb.idx);
-        if feed_bound {
+        // No finite time (a zero limit, which `kerf` refuses in its configuration but a
+        // `Planner` is not kept from): nothing to gain.
+        if feed_bound || !t_whole.is_finite() {
             return None;
         }
         let mid = ka.idx + n / 2;
@@ -652,8 +661,11 @@ impl Run {
         best
     }
 
-    /// Tangent and curvature at vertex `idx` from the widest window whose fit explains
-    /// its vertices.
+    /// The knot at vertex `idx`: tangent and curvature (and the rotary axes' derivatives)
+    /// from the widest window whose fit explains its vertices, and its position, the
+    /// vertex moved by [`Run::position_offset`] where the curve turns by at most
+    /// [`POSITION_MAX_TURN_RAD`] over [`POSITION_WINDOW_MM`] (else, and where no fit
+    /// succeeds, the vertex itself).
     fn fit_knot(&self, idx: u64) -> Knot {
         let first = self.base;
         let last = self.last_idx();
@@ -688,8 +700,9 @@ impl Run {
                 let along = f.d1.dot(&f.d2) / sq;
                 let da = std::array::from_fn(|i| f.a1[i] / speed);
                 let dda = std::array::from_fn(|i| (f.a2[i] - f.a1[i] * along) / sq);
-                // Where the curve turns by more than POSITION_MAX_TURN_RAD within the
-                // window (the start of a spiral), no low-order fit follows it.
+                // Where the curve turns by more than POSITION_MAX_TURN_RAD over
+                // POSITION_WINDOW_MM, half the window (the start of a spiral), no low-order
+                // fit follows it: the knot stays on its vertex.
                 let p = if k.norm() * POSITION_WINDOW_MM <= POSITION_MAX_TURN_RAD {
                     p + self.position_offset(idx)
                 } else {
@@ -764,18 +777,18 @@ impl Run {
 
     /// Weighted least-squares `p(x) = p_idx + d0 + d1 x + d2 x²/2 + d3 x³/6 + d4 x⁴/24`
     /// (x = chord length from the vertex) over the vertices within `w` (biweight); a cubic
-    /// where the window has fewer than [`QUARTIC_MIN_VERTICES`] vertices. Except at a run
-    /// end, the fit is not held through the vertex (`d0` is free): a rounded vertex would
-    /// tilt the tangent and bend the curvature by its own rounding (a raster written with 2
-    /// decimals, rounded by up to half the band, ran 1.5 × slower so). The knot stays on
-    /// its vertex, or where the vertices are coarsely rounded takes its position from a
-    /// narrower fit ([`Run::position_offset`]) whose fourth-derivative bias is smaller; a
-    /// piece's check against the polyline keeps it in the band. The cubic term keeps the
-    /// curvature of a circle from leaking into the residual, so windows stay wide on arcs;
-    /// the quartic term keeps a curve's fourth derivative out of the curvature (in a
-    /// symmetric window a cubic's x² coefficient absorbs the x⁴ term). Measured: a 2 mm
-    /// circle's pieces within 0.14 µm of it (0.75 µm with the cubic), raster C of the CAM
-    /// corpus 0.6 % quicker.
+    /// where the window has fewer than [`QUARTIC_MIN_VERTICES`] vertices besides the
+    /// knot's own. Except at a run end, the fit is not held through the vertex (`d0` is
+    /// free): a rounded vertex would tilt the tangent and bend the curvature by its own
+    /// rounding (a raster written with 2 decimals, rounded by up to half the band, ran
+    /// 1.5 × slower so). The knot stays on its vertex, or where the vertices are coarsely
+    /// rounded takes its position from a narrower fit ([`Run::position_offset`]) whose
+    /// fourth-derivative bias is smaller; a piece's check against the polyline keeps it in
+    /// the band. The cubic term keeps the curvature of a circle from leaking into the
+    /// residual, so windows stay wide on arcs; the quartic term keeps a curve's fourth
+    /// derivative out of the curvature (in a symmetric window a cubic's x² coefficient
+    /// absorbs the x⁴ term). Measured: a 2 mm circle's pieces within 0.14 µm of it
+    /// (0.75 µm with the cubic), raster C of the CAM corpus 0.6 % quicker.
     fn local_fit(&self, idx: u64, w: f64) -> Option<LocalFit> {
         let w = w * 1.000_001;
         let lo = self.window_end(idx, w, false);
@@ -1143,8 +1156,8 @@ mod tests {
     }
 
     /// On dense code from a smooth curve (6 decimals, so the vertices are exact to 0.5 µm),
-    /// the pieces follow the curve itself, not just the band: within a fraction of a
-    /// micrometre of it, with its curvature. Measured against the closed-form curve: tight
+    /// the pieces follow the curve itself, not just the band: within about a micrometre of
+    /// it, with its curvature. Measured against the closed-form curve: tight
     /// circles (radius 1.5 to 5 mm, a piece turning up to 75°), a helix, and a raster row
     /// over a surface of 7.5 mm waves. With the chord as the pieces' parameter scale the
     /// 2 mm circle was off by 8 µm with a curvature 9 % wrong mid-piece, and the raster
@@ -1224,8 +1237,10 @@ mod tests {
                     worst_k = worst_k.max((got - exact).abs() / kappa_max);
                 }
             }
-            // A tenth of the 0.01 mm tolerance the test mill has (its band is not used to
-            // bend the curve), and the curvature within 5 % of the curve's largest.
+            // 1.5 µm, under a sixth of the 0.01 mm tolerance the test mill has (its band is
+            // not used to bend the curve; measured: 0.43 µm on the 1.5 mm circle, 1.3 µm on
+            // the surface row, the quintics' own error over 7.5 mm waves), and the curvature
+            // within 5 % of the curve's largest (4.7 % on the surface row).
             assert!(worst_d <= 0.0015, "{name}: {worst_d} mm from the curve");
             assert!(
                 worst_k <= 0.05,
