@@ -15,11 +15,12 @@ a raster's time its geometry costs under jerk limits, which the acceleration-lim
 bound of `cam_table` ignores.
 
 Usage: python3 benches/constant_speed.py [--window MM]   (standard library only, seconds)
-  --window MM also gives each point the slowest speed within MM of it along its row: what a
-  planner that cannot change its speed within that distance could at best do.
+  --window MM also gives each point the slowest speed within MM of it along its row
+  (measured in X, the row's direction): what a planner that cannot change its speed within
+  that distance could at best do.
 """
+import argparse
 import math
-import sys
 
 FEED = 50.0
 LIMITS = {"x": (200.0, 2000.0, 50000.0), "z": (100.0, 1000.0, 20000.0)}
@@ -83,7 +84,10 @@ def speed(z1, z2, z3):
 
 
 def main():
-    window = float(sys.argv[sys.argv.index("--window") + 1]) if "--window" in sys.argv else None
+    ap = argparse.ArgumentParser(description="Constant-speed reference of the CAM rasters.")
+    ap.add_argument("--window", type=float, metavar="MM",
+                    help="also the slowest speed within MM of each point along its row")
+    window = ap.parse_args().window
     for name, (surface, rows, length) in SURFACES.items():
         total, windowed, slowest, n = 0.0, 0.0, FEED, 8000
         h = length / n

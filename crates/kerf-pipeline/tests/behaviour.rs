@@ -577,7 +577,7 @@ fn dense_curves_stop_with_the_acceleration_left_at_low_speed() {
             assert_within_limits(&s, &limits, 3);
             assert!(s.max_deviation_mm <= 0.01, "{}", s.max_deviation_mm);
             let length: f64 = (0..400).map(|k| (pt(k + 1) - pt(k)).norm()).sum();
-            let line_s = length / 50.0 + kerf_geom::ramp::change_time_s(50.0, 0.95 * a, 0.95 * j);
+            let line_s = length / 50.0 + s_curve_time(50.0, 0.95 * a, 0.95 * j);
             eprintln!(
                 "h {h} w {w} a {a} j {j}: {:.3} s, line {line_s:.3} s ({:.2} ×)",
                 s.duration_s,
@@ -645,7 +645,7 @@ fn arc_ramps_use_the_acceleration_left_below_the_top_speed() {
     // the jerk-limited envelope (the full acceleration never at the top speed), so the
     // ramp to the feed, measured from the setpoints (speed by finite differences), is
     // quicker than the best ramp with the full acceleration at the top speed, and within
-    // a few per cent of the best envelope ramp (the planner covers the speeds with 32
+    // a few per cent of the best envelope ramp (the planner covers the speeds with 64
     // conservative intervals), over a sweep of machines and radii.
     for (acc, jerk) in [(2000.0, 50000.0), (1000.0, 20000.0), (5000.0, 300000.0)] {
         for r in [3.0, 10.0] {
