@@ -2040,11 +2040,11 @@ mod tests {
     }
 
     /// A long line behind a short segment with about a nineteenth of its acceleration and a
-    /// fifteenth of its jerk (a corner blend) stops with its own limits, not the short one's: it is a section of
-    /// its own ([`MERGE_ABOVE`]). Measured from the positions: the stop at the end takes
-    /// about `2·sqrt(v/j)` with the line's jerk (15 ms), where the blend's limits need
-    /// `v/a + a/j` (62 ms; 59 ms measured without the rule). The junction between them is
-    /// passable at any speed, so only the limits decide.
+    /// fifteenth of its jerk (a corner blend) stops with its own limits, not the short
+    /// one's: it is a section of its own ([`MERGE_ABOVE`]). Measured from the positions:
+    /// the stop at the end takes about `2·sqrt(v/j)` with the line's jerk (15 ms), where
+    /// the blend's limits need `v/a + a/j` (62 ms; 59 ms measured without the rule). The
+    /// junction between them is passable at any speed, so only the limits decide.
     #[test]
     fn a_line_behind_a_much_weaker_segment_stops_with_its_own_limits() {
         let v = 4.17;
