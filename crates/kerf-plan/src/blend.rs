@@ -129,7 +129,11 @@ impl Planner {
         // Each side at its own move's feed (the blend runs at the lesser).
         lines.0.feed_mm_s = feed_of(&prev.mv);
         lines.1.feed_mm_s = feed_of(&next.mv);
-        let arc_time_s = corner_time_s(&seg, d, &lines, &self.limits);
+        // The blend begins where the previous corner's blend ended (they meet, as on a
+        // polygon approximating an arc at a wide tolerance): it is entered from that arc,
+        // not from a line through a curvature step.
+        let chained_in = prev.start_trim > 0.0 && d >= len1 - prev.start_trim - MIN_REMNANT_MM;
+        let arc_time_s = corner_time_s(&seg, d, &lines, chained_in, &self.limits);
         let (best, best_time_s) = match self.g2_blend(&corner_g2, &seg, &lines) {
             Some((g2, d_g2, time_s)) if time_s < arc_time_s => ((g2, d_g2), time_s),
             _ => ((seg, d), arc_time_s),
@@ -235,7 +239,7 @@ impl Planner {
             // constant speed, for tangential budget it never uses; now 2.31 mm/s (87 %:
             // the profile's share, the sampling margin and the centripetal share).
             self.set_limits_for_run(&mut seg, DESIGN_RUN_MM);
-            let time_s = corner_time_s(&seg, d, lines, &self.limits);
+            let time_s = corner_time_s(&seg, d, lines, false, &self.limits);
             if best.as_ref().is_none_or(|b| time_s < b.2) {
                 best = Some((seg, d, time_s));
             }
@@ -324,18 +328,25 @@ fn corner_ramp_limits(lines: &(PlannedSegment, PlannedSegment)) -> (f64, f64) {
 /// in its last milliseconds before it stops: the blend was chosen and cost 10 ms more than
 /// the stop.) Used to choose between a circular and a G2 blend (the circular one is
 /// entered at its curvature-step cap but may speed up inside; the G2 one has no such step)
-/// and a stop.
+/// and a stop. `chained_in`: the blend begins where the previous corner's ended, so it is
+/// entered from that arc, with no junction cap and no slow-down on the way in (judged as
+/// from a line, the blends of a polygon along an arc looked dearer at every corner until
+/// a stop won, and every later corner stopped: 2.2 × the periods per chord).
 fn corner_time_s(
     blend: &PlannedSegment,
     d: f64,
     lines: &(PlannedSegment, PlannedSegment),
+    chained_in: bool,
     limits: &MachineLimits,
 ) -> f64 {
     let (line_in, line_out) = lines;
     let v_top = blend.v_max_mm_s.min(blend.feed_mm_s);
-    let v_in = junction_cap(line_in, blend, limits)
-        .min(junction_cap(blend, line_out, limits))
-        .min(v_top);
+    let cap_in = if chained_in {
+        f64::INFINITY
+    } else {
+        junction_cap(line_in, blend, limits)
+    };
+    let v_in = cap_in.min(junction_cap(blend, line_out, limits)).min(v_top);
     let transit = transit_time_s(
         blend.length_mm,
         v_in,
@@ -354,5 +365,17 @@ fn corner_time_s(
         let dv = (v - v_in).max(0.0);
         0.5 * change_time_s(dv, a, j) * dv / v - d / v
     };
-    transit + side(line_in) + side(line_out)
+    // Chained: no slow-down on the way in (the previous blend's estimate has it), only the
+    // line the blend replaces there.
+    let side_in = if chained_in {
+        let v = side_speed(line_in);
+        if v > 0.0 && v.is_finite() {
+            -d / v
+        } else {
+            0.0
+        }
+    } else {
+        side(line_in)
+    };
+    transit + side_in + side(line_out)
 }
