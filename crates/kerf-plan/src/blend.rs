@@ -357,25 +357,15 @@ fn corner_time_s(
     // On each side, slowing from v to v_in (or speeding back up): t over a distance
     // (v + v_in)·t/2, which at v would take (v + v_in)·t/(2v); the loss is the rest.
     let (a, j) = corner_ramp_limits(lines);
-    let side = |l: &PlannedSegment| {
+    // Chained in: no slow-down on the way in (the previous blend's estimate has it), only
+    // the line the blend replaces there.
+    let side = |l: &PlannedSegment, slows: bool| {
         let v = side_speed(l);
         if !(v > 0.0 && v.is_finite()) {
             return 0.0;
         }
-        let dv = (v - v_in).max(0.0);
+        let dv = if slows { (v - v_in).max(0.0) } else { 0.0 };
         0.5 * change_time_s(dv, a, j) * dv / v - d / v
     };
-    // Chained: no slow-down on the way in (the previous blend's estimate has it), only the
-    // line the blend replaces there.
-    let side_in = if chained_in {
-        let v = side_speed(line_in);
-        if v > 0.0 && v.is_finite() {
-            -d / v
-        } else {
-            0.0
-        }
-    } else {
-        side(line_in)
-    };
-    transit + side_in + side(line_out)
+    transit + side(line_in, !chained_in) + side(line_out, true)
 }

@@ -515,10 +515,7 @@ impl Run {
     /// moves between vertices `ia` and `ib` (times [`RATE_SPLIT_FEED_MARGIN`]); samples
     /// every 1/32 of the parameter. Also whether that cap is what bounds it.
     fn constant_speed_time(&self, tr: &Transition, ia: u64, ib: u64) -> (f64, bool) {
-        let cap = (ia + 1..=ib)
-            .map(|k| self.v(k).feed)
-            .fold(f64::INFINITY, f64::min)
-            * RATE_SPLIT_FEED_MARGIN;
+        let cap = self.min_feed(ia, ib) * RATE_SPLIT_FEED_MARGIN;
         let mut v = cap;
         for i in 0..=32 {
             let u = f64::from(i) / 32.0;
@@ -543,11 +540,16 @@ impl Run {
         }
     }
 
+    /// The lowest feed of the moves between vertices `ia` and `ib`.
+    fn min_feed(&self, ia: u64, ib: u64) -> f64 {
+        (ia + 1..=ib)
+            .map(|k| self.v(k).feed)
+            .fold(f64::INFINITY, f64::min)
+    }
+
     fn emitted(&self, ia: u64, ib: u64, piece: Piece, abc_poly: Option<[[f64; 6]; 3]>) -> Emitted {
         let first = self.v(ia + 1);
-        let feed = (ia + 1..=ib)
-            .map(|k| self.v(k).feed)
-            .fold(f64::INFINITY, f64::min);
+        let feed = self.min_feed(ia, ib);
         Emitted {
             piece,
             abc_start: self.v(ia).abc,
@@ -748,9 +750,7 @@ impl Run {
     /// the knot off the curve), where a fit fails, and at a run end (a one-sided window
     /// holds the fit through the vertex). At most [`POSITION_TOL_SHARE`] of the tolerance.
     fn position_offset(&self, idx: u64) -> Vec3 {
-        let w = POSITION_WINDOW_MM * 1.000_001;
-        let lo = self.window_end(idx, w, false);
-        let hi = self.window_end(idx, w, true);
+        let (w, lo, hi) = self.window(idx, POSITION_WINDOW_MM);
         // Rounding shows as the residual of a quartic over the same vertices, which
         // follows a curve's fourth derivative where a quadratic would leave it.
         let noisy = self
@@ -790,9 +790,7 @@ impl Run {
     /// absorbs the x⁴ term). Measured: a 2 mm circle's pieces within 0.14 µm of it
     /// (0.75 µm with the cubic), raster C of the CAM corpus 0.6 % quicker.
     fn local_fit(&self, idx: u64, w: f64) -> Option<LocalFit> {
-        let w = w * 1.000_001;
-        let lo = self.window_end(idx, w, false);
-        let hi = self.window_end(idx, w, true);
+        let (w, lo, hi) = self.window(idx, w);
         if (hi - lo) as usize >= QUARTIC_MIN_VERTICES {
             self.local_fit_n::<5>(idx, w, lo, hi)
         } else {
@@ -899,6 +897,18 @@ impl Run {
             a2: da[2].into(),
             residual,
         })
+    }
+
+    /// The window of half-width `w` around vertex `idx`, widened by a rounding margin so
+    /// that a vertex exactly `w` away is inside: that half-width and its first and last
+    /// vertices.
+    fn window(&self, idx: u64, w: f64) -> (f64, u64, u64) {
+        let w = w * 1.000_001;
+        (
+            w,
+            self.window_end(idx, w, false),
+            self.window_end(idx, w, true),
+        )
     }
 
     /// The last vertex within chord distance `w` of `idx` on one side.
