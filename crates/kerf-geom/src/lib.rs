@@ -135,4 +135,4 @@ pub use segment::{
     MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED,
     PlannedSegment, limits_merge, poly5, rotary_derivatives, speeds_merge,
 };
-pub use transition::{TABLE_POINTS, Transition};
+pub use transition::{ARC_MID_RELATIVE, ARC_TABLE_RELATIVE, TABLE_POINTS, Transition};

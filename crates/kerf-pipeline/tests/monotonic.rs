@@ -356,3 +356,68 @@ fn the_full_circle_does_not_slow_with_the_acceleration() {
         check_monotonic("circle", &moves, &m, r, 0.01);
     }
 }
+
+/// Issue 24, case C: a helix of three turns at F61.3, then ten short lines ending in a
+/// smoothed run, on a machine whose axes are far apart (Z's acceleration 11.67 mm/s²
+/// against Y's 660,200). Raising X's acceleration from 855.7 mm/s² (3x, 5x, 10x, 100x)
+/// made it 5 periods slower at 5 ms (24 at 1 ms, 92 at 250 µs): the last smoothed
+/// piece's stop budget was searched on a grid that began at the axes' acceleration over
+/// its tangent and covered 1 % of it, and with X's raised the grid lay above the 18 mm/s²
+/// the stop wanted. The durations here are measured from the setpoints, and must not
+/// grow by even one period, at any of three periods.
+#[test]
+fn case_c_is_not_slowed_by_a_higher_acceleration() {
+    const PROGRAM: &str = "G21 G90 G17 G94 G40 G49 G54
+G2 X0.0087 Y-0.262 Z0.4041 I-0.0496 J-0.1328 P3 F61.3
+G1 X1.08 Y0.913
+X1.076 Y0.916
+G1 X0.963 Y0.943
+X0.955 Y0.942
+G1 X0.947 Y0.941
+X0.939 Y0.943
+X0.932 Y0.944
+X0.922
+X0.914 Y0.945
+X0.907 Y0.946
+X0.901 Y0.943
+M2
+";
+    let moves: Vec<Move> = kerf_gcode::Interpreter::new(
+        PROGRAM.as_bytes(),
+        kerf_gcode::Dialect::LinuxCnc,
+        kerf_gcode::Settings::default(),
+    )
+    .filter_map(|item| match item.expect("case C parses") {
+        kerf_gcode::Item::Move(m) => Some(m),
+        _ => None,
+    })
+    .collect();
+    let axis = |v: f64, a: f64, j: f64| {
+        Some(AxisLimits {
+            velocity_units_s: v,
+            acceleration_units_s2: a,
+            jerk_units_s3: j,
+        })
+    };
+    for period_s in [0.005, 0.001, 0.00025] {
+        let mut m = mill(100.0, 1000.0, 10_000.0, 0.00115);
+        m.period_s = period_s;
+        m.axes[0] = axis(587.0, 855.7, 3853.0);
+        m.axes[1] = axis(136.0, 660_200.0, 1_014_000.0);
+        m.axes[2] = axis(3152.0, 11.67, 228_400_000.0);
+        let before = run_checked("case C", &moves, &m, 0.00115).cycles as f64 * period_s;
+        for factor in [3.0, 5.0, 10.0, 100.0] {
+            let r = Raise {
+                axis: Some(0),
+                quantity: Some(1),
+                factor,
+            };
+            let up = raised(&m, r);
+            let after = run_checked("case C raised", &moves, &up, 0.00115).cycles as f64 * period_s;
+            assert!(
+                after <= before + 1e-9,
+                "period {period_s} s: X's acceleration x{factor} slowed case C from {before} s to {after} s"
+            );
+        }
+    }
+}

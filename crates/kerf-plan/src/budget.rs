@@ -1022,11 +1022,16 @@ fn quickest_budget(vd: f64, a_hi: f64, jerk_for: impl Fn(f64) -> f64) -> Option<
 }
 
 /// Ratio of [`ramp_budget`]'s grid over the acceleration: 10 % steps (the time it
-/// minimises changes little between them).
+/// minimises changes little between them). The grid's points are the powers of this
+/// ratio in mm/s² (fixed values, whatever the limits), so that the candidates of a
+/// machine with a higher limit include those of the same machine with a lower one.
 const RAMP_GRID_RATIO: f64 = 0.9;
-/// Points of that grid: down to `0.9⁴⁴ ≈ 1 %` of the line's acceleration, below which
-/// the segment's own design is better anyway.
+/// Points of that grid: down to `0.9⁴⁴ ≈ 1 %` of the highest acceleration a stop from
+/// the design speed can use, below which the segment's own design is better anyway.
 const RAMP_GRID_POINTS: usize = 45;
+/// Golden-section narrowings of [`ramp_budget`]'s refinement between the best grid
+/// point's neighbours: 8 leave `0.618⁸ ≈ 2 %` of the 20 % bracket.
+const RAMP_GOLDEN_STEPS: usize = 8;
 /// Speed intervals per sample in [`ramp_budget`]'s envelope check: the acceleration bound
 /// `sqrt(2j(v_max − u))` is taken at each interval's bottom, the curvature terms at its top.
 const RAMP_ENVELOPE_INTERVALS: usize = 8;
@@ -1226,9 +1231,33 @@ pub(crate) fn ramp_budget(
         None => lost(v_max, 0.0, a, j),
     };
     let own = stop_loss(seg.accel_mm_s2, seg.jerk_mm_s3);
+    // The grid starts at the highest acceleration a stop from `v_max` can reach with
+    // the most jerk the samples allow (`jerk_for` does not rise with `a`): a jerk-limited
+    // change of speed `v` peaks at `sqrt(v·j)`, so a higher budget only costs jerk. It
+    // used to start at `a_top`, the axes' acceleration over the tangent, and cover 1 %
+    // of it: raising X's acceleration five-fold moved the whole grid above the 18 mm/s²
+    // a 0.02 mm piece's stop wanted (its best candidate left had a ninth of the jerk) and
+    // a program took 5 periods longer (issue 24, case C). `a_top` itself stays a
+    // candidate with its grid below it (as before): whether a budget joins the section
+    // before depends on its acceleration.
+    let j_most = jerk_for(0.0);
+    let a_reach = if j_most.is_finite() && j_most > 0.0 {
+        (v_max * j_most).sqrt() / RAMP_GRID_RATIO
+    } else {
+        a_top
+    };
+    let first_k = (a_top.min(a_reach).ln() / RAMP_GRID_RATIO.ln()).ceil();
+    if !first_k.is_finite() {
+        return None;
+    }
     let mut best: Option<(f64, f64, f64)> = None;
-    for k in 0..RAMP_GRID_POINTS {
-        let a = a_top * RAMP_GRID_RATIO.powi(k as i32);
+    let below_top = (0..RAMP_GRID_POINTS).map(|k| a_top * RAMP_GRID_RATIO.powi(k as i32));
+    let below_reach = (0..RAMP_GRID_POINTS).map(|k| RAMP_GRID_RATIO.powf(first_k + k as f64));
+    // Where `a_top` is above the reach, both grids: the loss has several local minima
+    // (a budget joins the section before or not), and the one below `a_top` alone
+    // found a minimum the other missed on raster B (1 ms).
+    let candidates = below_top.chain(below_reach.filter(|_| a_reach < a_top));
+    for a in candidates {
         let j = jerk_for(a);
         if !(j > 0.0 && j.is_finite()) {
             continue;
@@ -1237,6 +1266,27 @@ pub(crate) fn ramp_budget(
         if loss < own && best.is_none_or(|b| loss < b.0) {
             best = Some((loss, a, j));
         }
+    }
+    // Refined between the best point's neighbours, so that the choice hardly depends on
+    // where the grid's points fall (on the grid alone, the fixed points cost raster B
+    // 1 ms against the old grid's, and gained raster A 5 ms).
+    let (_, a_grid, _) = best?;
+    let cost = |a: f64| {
+        let j = jerk_for(a);
+        if j > 0.0 && j.is_finite() {
+            stop_loss(a, j)
+        } else {
+            f64::INFINITY
+        }
+    };
+    let (a, loss) = golden_min(
+        a_grid * RAMP_GRID_RATIO,
+        (a_grid / RAMP_GRID_RATIO).min(a_top),
+        RAMP_GOLDEN_STEPS,
+        cost,
+    );
+    if best.is_some_and(|b| loss < b.0) {
+        best = Some((loss, a, jerk_for(a)));
     }
     best.map(|(_, a, j)| (a, j))
 }
