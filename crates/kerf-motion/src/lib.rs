@@ -1624,13 +1624,20 @@ impl MotionCore {
             (a0, distance, v1, a1, vmax)
         };
         // A sliver section (blends that meet leave nanometre remnants of a line) is passed at
-        // the entry speed in the time it takes: no speed can change over it, and the solver
-        // fails on such inputs. Its time is kept, so the positions stay smooth.
+        // the entry speed in the time it takes, where the solver fails on such inputs: when
+        // it takes less than `COAST_BELOW_S` (no speed can change over it), or when it is
+        // shorter than `COAST_BELOW_MM` and no slower end is asked for. At a few µm/s a
+        // nanometre takes milliseconds, and the lookahead may have planned a slow-down
+        // over it: coasted at the entry speed, it entered the next junction at 8 times its
+        // cap (a 1e-6 mm remnant between two near-reversing arc blends, 1.8 µm/s against
+        // 0.22 µm/s, a Y jerk of 127 % of 2,000 mm/s³ at 100 µs, issue 24). Its time is
+        // kept, so the positions stay smooth.
         if a0 == 0.0
             && a1 == 0.0
             && v0 > 0.0
             && distance > 0.0
-            && distance < COAST_BELOW_MM.max(v0 * COAST_BELOW_S)
+            && (distance < v0 * COAST_BELOW_S
+                || (distance < COAST_BELOW_MM && v1.min(vmax) >= v0 * (1.0 - 1e-9)))
         {
             self.coast_s = distance / v0;
             self.own_active = false;
