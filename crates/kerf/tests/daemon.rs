@@ -1540,3 +1540,73 @@ fn fault_injection_is_refused_without_test_faults() {
     let s = env.status();
     assert_eq!((state(&s), &s["safety"]), ("idle", &Value::Null));
 }
+
+#[test]
+fn run_record_keeps_the_setpoints_up_to_a_safety_trip() {
+    use kerf::daemon::worker::Injection;
+    let env = Env::new(
+        "triprec",
+        &[(
+            "[daemon]",
+            "[safety]\ndump_dir = \"blackbox\"\nrecorder_seconds = 1.0\n[daemon]",
+        )],
+    );
+    let _daemon = env.start_daemon_with("kerfd", &["--test-faults"]);
+    let text = cam_program(4, 200, 0.5, 3000.0);
+    let program = env.write("cam.ngc", &text);
+    let sim_csv = env.sim(&program, "sim.csv");
+    let sim = read_csv(&sim_csv);
+    // A recording of a failed run is the diagnosis: it replaces what was there.
+    let csv = env.path("run.csv");
+    fs::write(&csv, "an older recording\n").unwrap();
+    let mut run = env.spawn_run("run", &program, Some(&csv));
+    env.wait_status("the program to move", |s| {
+        state(s) == "running" && s["line"].as_u64().unwrap_or(0) > 20
+    });
+    // A 1 mm step of Y on its way to the drive: a velocity trip (the setpoint never
+    // reaches the drive; the quick stop does).
+    let r = inject_fault(&env, Injection::Step(1, Injection::STEP_MM));
+    assert_eq!(r.reason, kerf_proto::REASON_OK, "{}", r.message());
+
+    let status = run.wait(2);
+    assert_eq!(status.code(), Some(2), "{}", run.stderr());
+    let err = run.stderr();
+    assert!(
+        err.contains("the safety layer stopped the machine") && err.contains("velocity on axis Y"),
+        "{err}"
+    );
+    assert!(!err.contains("recording"), "{err}");
+    let s = env.wait_status("the fault's black box", |s| s["safety"]["dump"].is_string());
+    assert_eq!(s["safety"]["check"], "velocity", "{s}");
+
+    // Every row of the program up to the trip: the header, the row at t = 0, then one per
+    // cycle. Up to the cycle before the trip, the same bytes as `kerf sim`'s CSV (the
+    // daemon = sim up to the trip). The last row is the cycle of the trip as the stream
+    // published it: the line being run, the position the drives got (the first step of the
+    // quick stop, within the limits) and no feed (the motion core rests where the drives
+    // stop).
+    let rows = read_csv(&csv);
+    assert!(rows.len() > 100, "{} rows", rows.len());
+    assert!(
+        rows.len() < sim.len(),
+        "{} rows of {}",
+        rows.len(),
+        sim.len()
+    );
+    let (trip, before) = rows.split_last().unwrap();
+    let (recorded, simulated) = (read_text(&csv), read_text(&sim_csv));
+    let recorded = recorded.lines().collect::<Vec<_>>();
+    let simulated = simulated.lines().collect::<Vec<_>>();
+    let n = recorded.len() - 1;
+    assert!(recorded[..n] == simulated[..n], "the rows before the trip");
+    let at_trip = &sim[before.len()];
+    assert_eq!(trip.t, at_trip.t);
+    assert_eq!((trip.line, trip.feed_mm_s), (at_trip.line, 0.0));
+    assert_ne!(trip.position, at_trip.position);
+    check_limits(&env, &rows, "the recording up to the trip");
+    assert_eq!(
+        trip.line as u64,
+        s["safety"]["line"].as_u64().unwrap(),
+        "{s}"
+    );
+}

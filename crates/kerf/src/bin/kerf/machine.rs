@@ -39,7 +39,8 @@ pub struct RunArgs {
     /// services) instead of using a running `kerfd`.
     #[arg(long)]
     pub embedded: bool,
-    /// Write every cycle's setpoint of the program to this CSV (the columns of `kerf sim`).
+    /// Write every cycle's setpoint of the program to this CSV (the columns of `kerf sim`);
+    /// when the safety layer stops the program, the rows up to its trip are kept.
     #[arg(long, value_name = "FILE.csv")]
     pub record: Option<PathBuf>,
 }
@@ -261,7 +262,10 @@ fn setpoint_of(m: &SetpointMsg) -> Setpoint {
 }
 
 /// The program's rows of the setpoint stream as `kerf sim` writes them: the row at t = 0
-/// at the start position, then one per cycle of the program.
+/// at the start position, then one per cycle of the program. It replaces its target when
+/// the program has run to its end, or when the safety layer stopped it (then it ends with
+/// the cycle of the trip: the diagnosis, as `kerf sim` keeps the CSV of a run stopped by a
+/// limit fault); a run that fails otherwise leaves the target as it was.
 struct Recording {
     out: Output,
     rotary: bool,
@@ -331,6 +335,26 @@ impl Watch {
             return Err(f);
         }
         result.map(|_| ()).map_err(client_failure)
+    }
+
+    /// The program was stopped by the safety layer, as the status `s` reports: the
+    /// recording takes every setpoint up to that status (the last of the program is the
+    /// cycle of the trip, with what the drives were sent: a setpoint that breaks a limit
+    /// never reaches them, the quick stop does) and replaces its target. An error names
+    /// why the recording could not be kept.
+    fn keep_to_trip(&mut self, reader: &mut SetpointReader, s: &StatusMsg) -> Result<(), Failure> {
+        if self.recording.is_none() {
+            return Ok(());
+        }
+        self.take(reader)?;
+        while self.last_seq < s.cycles {
+            std::thread::sleep(Duration::from_millis(1));
+            self.take(reader)?;
+        }
+        match self.recording.take() {
+            Some(r) => r.finish(),
+            None => Ok(()),
+        }
     }
 }
 
@@ -419,6 +443,11 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         feed_mm_s: 0.0,
         last_seq: 0,
     };
+    // A program that ended early, or another one, is reported at once.
+    let check =
+        |client: &mut Client, watch: &mut Watch, reader: &mut SetpointReader, s: &StatusMsg| {
+            check_program_state(client, watch, reader, s, id, &name, &machine)
+        };
     let bar = progress_bar(last_line);
     let window = status.window_items.max(1);
     let mut acked = 0u64;
@@ -448,7 +477,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         // Flow control: never more than the daemon's window unacknowledged.
         while sender.sent - acked >= window {
             let s = live_status(&mut client, &mut watch, &mut reader)?;
-            check_program_state(&mut client, &s, id, &name, &machine)?;
+            check(&mut client, &mut watch, &mut reader, &s)?;
             if s.program_id == id {
                 acked = s.moves_received;
             }
@@ -471,7 +500,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         if last_status.elapsed() > STATUS_EVERY * 10 {
             last_status = Instant::now();
             let s = live_status(&mut client, &mut watch, &mut reader)?;
-            check_program_state(&mut client, &s, id, &name, &machine)?;
+            check(&mut client, &mut watch, &mut reader, &s)?;
         }
     }
     sender.send(MoveMsg::end(id, seq)).map_err(client_failure)?;
@@ -494,7 +523,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
                 watch.take(&mut reader)?;
             }
             bar.finish_and_clear();
-            check_program_state(&mut client, &s, id, &name, &machine)?;
+            check(&mut client, &mut watch, &mut reader, &s)?;
             if let Some(r) = watch.recording.take() {
                 r.finish()?;
             }
@@ -517,7 +546,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             }
             return Ok(());
         }
-        check_program_state(&mut client, &s, id, &name, &machine)?;
+        check(&mut client, &mut watch, &mut reader, &s)?;
         std::thread::sleep(STATUS_EVERY);
     }
 }
@@ -526,6 +555,8 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
 /// client's program replaced is reported at once.
 fn check_program_state(
     client: &mut Client,
+    watch: &mut Watch,
+    reader: &mut SetpointReader,
     s: &StatusMsg,
     id: u64,
     name: &str,
@@ -545,6 +576,16 @@ fn check_program_state(
                 )));
             }
             PROGRAM_END_REFUSED if s.safety_check != kerf_proto::SAFETY_NONE => {
+                // The recording up to the trip is the diagnosis: kept before anything else,
+                // while the setpoints it needs are still in the reader's buffer.
+                let recording = match watch.keep_to_trip(reader, s) {
+                    Ok(()) => String::new(),
+                    Err(Failure::Error(e) | Failure::Exit(_, e)) => {
+                        let why = e.split_once("error: ").map_or(e.as_str(), |(_, why)| why);
+                        format!("; the recording was not written: {why}")
+                    }
+                    Err(Failure::BrokenPipe) => return Err(Failure::BrokenPipe),
+                };
                 // The black box is written once the quick stop is at rest: wait for it
                 // (a few seconds at most) to name it.
                 let deadline = Instant::now() + Duration::from_secs(5);
@@ -561,7 +602,7 @@ fn check_program_state(
                     path => format!("; black box: {path}"),
                 };
                 return Err(Failure::Error(format!(
-                    "{name}: error: the safety layer stopped the machine at line {}: {}; the axes came to rest on the quick stop and the rest of the program was dropped{dump}; `kerf reset` clears the fault once its cause is gone",
+                    "{name}: error: the safety layer stopped the machine at line {}: {}; the axes came to rest on the quick stop and the rest of the program was dropped{dump}; `kerf reset` clears the fault once its cause is gone{recording}",
                     s.safety_line,
                     s.fault_text()
                 )));
