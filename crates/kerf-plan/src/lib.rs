@@ -140,7 +140,11 @@
 //! - **Junction caps**: a tangent kink of Δt at speed v is a velocity step `vΔt`; a curvature
 //!   jump Δκ is an acceleration step `v²Δκ`. Sampled at the period T, these look like a jerk
 //!   of `vΔt/T²` and `v²Δκ/T`, so the speed at the junction is capped to keep them within
-//!   [`JUNCTION_SHARE`] of the jerk limit. An exact-stop corner has cap 0.
+//!   [`JUNCTION_SHARE`] of the jerk limit (and the velocity step within that share of the
+//!   acceleration limit over a period). Kinks closer together than a period's travel fall
+//!   several into one finite-difference window, where they add up like a curvature
+//!   `Δt/L` (`L` the shorter of the two segments): the cap also keeps `v²Δt/L` within the
+//!   same share, which binds only where `L < vT`. An exact-stop corner has cap 0.
 #![deny(missing_docs)]
 
 // The planner's input and output types live in kerf-geom (the motion core reads them
