@@ -1630,14 +1630,19 @@ impl MotionCore {
         // nanometre takes milliseconds, and the lookahead may have planned a slow-down
         // over it: coasted at the entry speed, it entered the next junction at 8 times its
         // cap (a 1e-6 mm remnant between two near-reversing arc blends, 1.8 µm/s against
-        // 0.22 µm/s, a Y jerk of 127 % of 2,000 mm/s³ at 100 µs, issue 24). Its time is
+        // 0.22 µm/s, a Y jerk of 127 % of 2,000 mm/s³ at 100 µs, issue 24). Nor where the
+        // coast would take longer than a jerk-limited move across it from rest to rest
+        // (`(32 d / j)^(1/3)`): a 0.2 µm remnant entered at 1 nm/s, the cap of a kink on an
+        // axis with 4 mm/s³, was coasted for 175 s instead of planned in 7 ms. Its time is
         // kept, so the positions stay smooth.
         if a0 == 0.0
             && a1 == 0.0
             && v0 > 0.0
             && distance > 0.0
             && (distance < v0 * COAST_BELOW_S
-                || (distance < COAST_BELOW_MM && v1.min(vmax) >= v0 * (1.0 - 1e-9)))
+                || (distance < COAST_BELOW_MM
+                    && v1.min(vmax) >= v0 * (1.0 - 1e-9)
+                    && distance / v0 <= (32.0 * distance / jerk).cbrt()))
         {
             self.coast_s = distance / v0;
             self.own_active = false;
