@@ -130,7 +130,7 @@ pub mod ramp;
 mod segment;
 mod transition;
 pub use curve::{Curve, CurvePoint, Helix, line_distance};
-pub use limits::{AXIS_NAMES, AxisLimits, MachineLimits};
+pub use limits::{AXIS_NAMES, AxisLimits, MachineLimits, POSITION_ROUNDING_ULPS};
 pub use segment::{
     MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED,
     PlannedSegment, limits_merge, poly5, rotary_derivatives, speeds_merge,

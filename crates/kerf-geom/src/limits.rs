@@ -31,3 +31,11 @@ pub struct MachineLimits {
 
 /// Axis names in the order of [`MachineLimits::axes`].
 pub const AXIS_NAMES: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
+
+/// Rounding error of one computed setpoint position, in units of `ε·M` (`ε` =
+/// [`f64::EPSILON`], `M` = the magnitude the position is computed at): a point on a helix
+/// or quintic, and the path parameter it is taken at, each take a handful of roundings of
+/// values of that magnitude. The motion core's output monitor allows it on every setpoint
+/// (`kerf_motion::monitor::LimitMonitor`); the planner drops a remnant of a move no longer
+/// than it.
+pub const POSITION_ROUNDING_ULPS: f64 = 8.0;

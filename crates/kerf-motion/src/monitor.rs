@@ -13,11 +13,7 @@ use kerf_geom::MachineLimits;
 /// profile's corners slightly rounded or sharpened).
 pub const LIMIT_MARGIN: f64 = 1.01;
 
-/// Rounding error of one computed setpoint position, in units of `ε·M` (`ε` =
-/// [`f64::EPSILON`], `M` = the magnitude the position is computed at, see
-/// [`LimitMonitor`]): a point on a helix or quintic, and the path parameter it is taken
-/// at, each take a handful of roundings of values of that magnitude.
-pub const POSITION_ROUNDING_ULPS: f64 = 8.0;
+pub use kerf_geom::POSITION_ROUNDING_ULPS;
 
 /// What a limit check measures.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -445,21 +445,7 @@ fn rounded_polylines(rng: &mut Rng, n: usize) -> (Vec<Move>, f64) {
                 (v.z * scale).round() / scale,
             )
         };
-        let axis = match rng.pick(4) {
-            0 | 1 => Vec3::z(),
-            2 => Vec3::y(),
-            _ => unit_vec(rng),
-        };
-        let u = {
-            let w = unit_vec(rng);
-            let w = w - axis * w.dot(&axis);
-            if w.norm() < 1e-3 {
-                axis.cross(&Vec3::x()).normalize()
-            } else {
-                w.normalize()
-            }
-        };
-        let v = axis.cross(&u);
+        let (_, u, v) = plane_basis(rng);
         let r = rng.log(0.5, 50.0);
         let spacing = rng.log(0.002, 0.5).min(r);
         let step = spacing / r * if rng.pick(2) == 0 { 1.0 } else { -1.0 };

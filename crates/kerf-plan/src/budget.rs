@@ -1246,10 +1246,9 @@ pub(crate) fn ramp_budget(
     } else {
         a_top
     };
-    let first_k = (a_top.min(a_reach).ln() / RAMP_GRID_RATIO.ln()).ceil();
-    if !first_k.is_finite() {
-        return None;
-    }
+    // The first power of the ratio at or below the reach (`a_top` and `a_reach` are
+    // positive and finite).
+    let first_k = (a_reach.ln() / RAMP_GRID_RATIO.ln()).ceil();
     let mut best: Option<(f64, f64, f64)> = None;
     let below_top = (0..RAMP_GRID_POINTS).map(|k| a_top * RAMP_GRID_RATIO.powi(k as i32));
     let below_reach = (0..RAMP_GRID_POINTS).map(|k| RAMP_GRID_RATIO.powf(first_k + k as f64));
@@ -1270,7 +1269,7 @@ pub(crate) fn ramp_budget(
     // Refined between the best point's neighbours, so that the choice hardly depends on
     // where the grid's points fall (on the grid alone, the fixed points cost raster B
     // 1 ms against the old grid's, and gained raster A 5 ms).
-    let (_, a_grid, _) = best?;
+    let (grid_loss, a_grid, _) = best?;
     let cost = |a: f64| {
         let j = jerk_for(a);
         if j > 0.0 && j.is_finite() {
@@ -1285,8 +1284,8 @@ pub(crate) fn ramp_budget(
         RAMP_GOLDEN_STEPS,
         cost,
     );
-    if best.is_some_and(|b| loss < b.0) {
-        best = Some((loss, a, jerk_for(a)));
+    if loss < grid_loss {
+        return Some((a, jerk_for(a)));
     }
     best.map(|(_, a, j)| (a, j))
 }

@@ -19,12 +19,6 @@ use crate::{
 /// Two segments continue each other in tangent when every axis' `d/ds` differs by at most
 /// this: 1e-6 (1 µm per m) is rounding noise of the tangents, not a corner.
 const TANGENT_MATCH: f64 = 1e-6;
-/// The length below which a remnant of a move between two segments is rounding and is
-/// dropped, in units of `ε·M` (`M` the magnitude of its coordinates): as the motion core's
-/// output monitor counts a position's rounding (`kerf_motion::monitor::POSITION_ROUNDING_ULPS`).
-/// Longer remnants are kept, however short (see `Planner::emit_curve`).
-const REMNANT_ROUNDING_ULPS: f64 = 8.0;
-
 /// A smoothed piece gets a ramp budget ([`ramp_budget`]) where a junction at its start or
 /// end is capped below this share of its design speed: a ramp there runs at speeds low
 /// enough to leave more of the axis limits than the design speed does.
@@ -439,7 +433,8 @@ impl Planner {
         // coordinates (the motion core passes it in the time it takes): dropped below
         // `MIN_SEGMENT_MM`, it left the blends 0.07 pm apart, a jump that at 142 µs is
         // 1.3 times the jerk limit of an axis with 23.4 mm/s³ (issue 24).
-        let rounding = REMNANT_ROUNDING_ULPS * f64::EPSILON * curve.start().norm().max(1.0);
+        let rounding =
+            kerf_geom::POSITION_ROUNDING_ULPS * f64::EPSILON * curve.start().norm().max(1.0);
         let keep = |l: f64| l >= MIN_SEGMENT_MM || (self.last.is_some() && l > rounding);
         let length = if keep(xyz) { xyz } else { rot };
         if !keep(length) {

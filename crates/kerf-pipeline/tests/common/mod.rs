@@ -151,6 +151,24 @@ pub fn unit_vec(rng: &mut Rng) -> Vec3 {
     }
 }
 
+/// A random plane for a circle: its axis (Z half the time, else Y or any direction) and
+/// two unit vectors `u`, `v` spanning it.
+pub fn plane_basis(rng: &mut Rng) -> (Vec3, Vec3, Vec3) {
+    let axis = match rng.pick(4) {
+        0 | 1 => Vec3::z(),
+        2 => Vec3::y(),
+        _ => unit_vec(rng),
+    };
+    let w = unit_vec(rng);
+    let w = w - axis * w.dot(&axis);
+    let u = if w.norm() < 1e-3 {
+        axis.cross(&Vec3::x()).normalize()
+    } else {
+        w.normalize()
+    };
+    (axis, u, axis.cross(&u))
+}
+
 /// A number from the environment (the soak knobs of the property tests), if set.
 pub fn env_number<T: std::str::FromStr>(name: &str) -> Option<T> {
     std::env::var(name).ok().and_then(|s| s.parse().ok())
