@@ -86,7 +86,7 @@ impl TryFrom<u32> for State {
 /// One real-time cycle's output, published on the setpoints service every cycle.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.SetpointMsg.v2")]
+#[type_name("kerf.SetpointMsg.v3")]
 pub struct SetpointMsg {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
@@ -113,6 +113,11 @@ pub struct SetpointMsg {
     pub line: u32,
     /// Bit i set: axis i (X, Y, Z, A, B, C) is configured; other entries are 0.
     pub axes_mask: u32,
+    /// Periods since the daemon started in which no cycle ran (missed deadlines): between
+    /// two samples its increase is the number of periods skipped between them, and
+    /// `time_ns` advances by `(1 + increase) × period`. (A gap in `seq` is samples lost
+    /// on the way, not periods missed.)
+    pub missed_periods: u64,
 }
 
 impl SetpointMsg {
@@ -130,6 +135,7 @@ impl SetpointMsg {
             feed_mm_s: 0.0,
             line: 0,
             axes_mask: 0,
+            missed_periods: 0,
         }
     }
 
@@ -166,11 +172,35 @@ pub const REQUEST_DUMP: u32 = 7;
 /// injection code, a whole number; see `docs/DRIVES.md`). A daemon started without
 /// `--test-faults` refuses it with [`REASON_NOT_ALLOWED`].
 pub const REQUEST_INJECT: u32 = 8;
+/// Request kind: the fate of program `program_id` (the response's `program_fate`, and for
+/// a refused or aborted program the reason in its message). The daemon remembers the last
+/// [`PROGRAMS_REMEMBERED`] programs.
+pub const REQUEST_PROGRAM: u32 = 9;
+
+/// How many programs (the last ones whose BEGIN arrived, accepted or refused) the daemon
+/// remembers for [`REQUEST_PROGRAM`].
+pub const PROGRAMS_REMEMBERED: usize = 256;
+
+/// `Response.program_fate`: the daemon knows no program of this id (never seen, or more
+/// than [`PROGRAMS_REMEMBERED`] programs ago); also the value for every other request.
+pub const PROGRAM_FATE_UNKNOWN: u32 = 0;
+/// `Response.program_fate`: its BEGIN was accepted and its items are being received (its
+/// motion may have started).
+pub const PROGRAM_FATE_RECEIVING: u32 = 1;
+/// `Response.program_fate`: received to its END; running or about to run.
+pub const PROGRAM_FATE_RUNNING: u32 = 2;
+/// `Response.program_fate`: ran to its end; the machine is at rest.
+pub const PROGRAM_FATE_FINISHED: u32 = 3;
+/// `Response.program_fate`: aborted (`kerf abort`, a shutdown); the message says so.
+pub const PROGRAM_FATE_ABORTED: u32 = 4;
+/// `Response.program_fate`: refused (its BEGIN, a message or a move), or stopped by the
+/// safety layer; the message says why.
+pub const PROGRAM_FATE_REFUSED: u32 = 5;
 
 /// A request from a client to the daemon on the control service.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.Request.v2")]
+#[type_name("kerf.Request.v3")]
 pub struct Request {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
@@ -180,6 +210,8 @@ pub struct Request {
     pub id: u64,
     /// [`REQUEST_OVERRIDE`]: percent, 0..=200; 0 for every other kind.
     pub value: f64,
+    /// [`REQUEST_PROGRAM`]: the program asked about (not 0); 0 for every other kind.
+    pub program_id: u64,
 }
 
 /// A validated request.
@@ -207,6 +239,11 @@ pub enum Command {
         /// The injection code.
         code: u32,
     },
+    /// [`REQUEST_PROGRAM`].
+    Program {
+        /// The program asked about.
+        program_id: u64,
+    },
 }
 
 /// Why a [`Request`] was refused; [`RequestReject::reason`] is the response's code.
@@ -219,7 +256,7 @@ pub enum RequestReject {
     #[error("unknown request kind {0}")]
     UnknownKind(u32),
     /// The value is out of range, not finite, or not zero for a kind without one.
-    #[error("request value out of range")]
+    #[error("request value or program id out of range")]
     BadValue,
 }
 
@@ -242,6 +279,7 @@ impl Request {
             kind,
             id,
             value,
+            program_id: 0,
         }
     }
 
@@ -256,6 +294,11 @@ impl Request {
             Command::Reset => (REQUEST_RESET, 0.0),
             Command::Dump => (REQUEST_DUMP, 0.0),
             Command::Inject { code } => (REQUEST_INJECT, f64::from(code)),
+            Command::Program { program_id } => {
+                let mut r = Request::new(REQUEST_PROGRAM, id, 0.0);
+                r.program_id = program_id;
+                return r;
+            }
         };
         Request::new(kind, id, value)
     }
@@ -264,6 +307,17 @@ impl Request {
     pub fn command(&self) -> Result<Command, RequestReject> {
         if self.version != PROTOCOL_VERSION {
             return Err(RequestReject::WrongVersion(self.version));
+        }
+        if self.kind == REQUEST_PROGRAM {
+            if self.program_id == 0 || self.value.to_bits() != 0 {
+                return Err(RequestReject::BadValue);
+            }
+            return Ok(Command::Program {
+                program_id: self.program_id,
+            });
+        }
+        if self.program_id != 0 && matches!(self.kind, REQUEST_STATUS..=REQUEST_INJECT) {
+            return Err(RequestReject::BadValue);
         }
         let command = match self.kind {
             REQUEST_STATUS => Command::Status,
@@ -313,7 +367,7 @@ pub const REASON_NOT_IMPLEMENTED: u32 = 5;
 /// The daemon's status, embedded in every [`Response`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.StatusMsg.v2")]
+#[type_name("kerf.StatusMsg.v3")]
 pub struct StatusMsg {
     /// `STATE_*`.
     pub state: u32,
@@ -495,7 +549,7 @@ impl Default for StatusMsg {
 /// after handling it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.Response.v2")]
+#[type_name("kerf.Response.v3")]
 pub struct Response {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
@@ -505,8 +559,8 @@ pub struct Response {
     pub request_id: u64,
     /// `REASON_*`.
     pub reason: u32,
-    /// Must be zero.
-    pub reserved: u32,
+    /// [`REQUEST_PROGRAM`]: the program's `PROGRAM_FATE_*`; 0 for every other request.
+    pub program_fate: u32,
     /// Human-readable message, UTF-8, NUL-padded (see [`Response::message`]).
     pub message: [u8; 224],
     /// The status after the request was handled.
@@ -522,7 +576,7 @@ impl Response {
             accepted: u32::from(reason == REASON_OK),
             request_id,
             reason,
-            reserved: 0,
+            program_fate: PROGRAM_FATE_UNKNOWN,
             message: [0; 224],
             status,
         };

@@ -34,9 +34,11 @@ mod doc_layout;
 pub use control::{
     Command, DRIVES_ENABLING, DRIVES_HOLDING, DRIVES_QUICK_STOP, DRIVES_RESETTING, DRIVES_RUNNING,
     DRIVES_STOPPED, PROGRAM_END_ABORTED, PROGRAM_END_FINISHED, PROGRAM_END_NONE,
-    PROGRAM_END_REFUSED, REASON_BAD_VALUE, REASON_NOT_ALLOWED, REASON_NOT_IMPLEMENTED, REASON_OK,
-    REASON_UNKNOWN_KIND, REASON_WRONG_VERSION, REQUEST_ABORT, REQUEST_DUMP, REQUEST_HOLD,
-    REQUEST_INJECT, REQUEST_OVERRIDE, REQUEST_RESET, REQUEST_RESUME, REQUEST_STATUS, Request,
+    PROGRAM_END_REFUSED, PROGRAM_FATE_ABORTED, PROGRAM_FATE_FINISHED, PROGRAM_FATE_RECEIVING,
+    PROGRAM_FATE_REFUSED, PROGRAM_FATE_RUNNING, PROGRAM_FATE_UNKNOWN, PROGRAMS_REMEMBERED,
+    REASON_BAD_VALUE, REASON_NOT_ALLOWED, REASON_NOT_IMPLEMENTED, REASON_OK, REASON_UNKNOWN_KIND,
+    REASON_WRONG_VERSION, REQUEST_ABORT, REQUEST_DUMP, REQUEST_HOLD, REQUEST_INJECT,
+    REQUEST_OVERRIDE, REQUEST_PROGRAM, REQUEST_RESET, REQUEST_RESUME, REQUEST_STATUS, Request,
     RequestReject, Response, SAFETY_ACCELERATION, SAFETY_AXIS_NONE, SAFETY_DRIVE_DISABLED,
     SAFETY_DRIVE_FAULT, SAFETY_ENABLE_TIMEOUT, SAFETY_FOLLOWING_ERROR, SAFETY_NONE,
     SAFETY_SOFT_LIMIT, SAFETY_STREAM_STALL, SAFETY_VELOCITY, STATE_FAULT, STATE_HOLDING,
@@ -58,13 +60,13 @@ pub use stream::{CONTINUITY_TOL, StreamCheck, StreamError};
 /// The protocol version carried by every message. A change to any layout or to the meaning
 /// of any field is a new version (and new iceoryx2 type names); receivers refuse messages
 /// of another version.
-pub const PROTOCOL_VERSION: u32 = 2;
+pub const PROTOCOL_VERSION: u32 = 3;
 
 // The sizes in docs/PROTOCOL.md; a layout change must fail the build, not only the tests.
 const _: () = {
     assert!(size_of::<MoveMsg>() == 256);
-    assert!(size_of::<SetpointMsg>() == 152);
-    assert!(size_of::<Request>() == 24);
+    assert!(size_of::<SetpointMsg>() == 160);
+    assert!(size_of::<Request>() == 32);
     assert!(size_of::<StatusMsg>() == 488);
     assert!(size_of::<Response>() == 736);
 };

@@ -121,7 +121,7 @@ pub const ARC_MIN_RADIUS_MM: f64 = 1e-12;
 /// `docs/PROTOCOL.md`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.MoveMsg.v2")]
+#[type_name("kerf.MoveMsg.v3")]
 pub struct MoveMsg {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,

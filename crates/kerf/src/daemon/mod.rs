@@ -422,6 +422,7 @@ fn control_thread(
             let (reason, message) = match request.command() {
                 Err(e) => (e.reason(), e.to_string()),
                 Ok(Request::Status) => (REASON_OK, String::new()),
+                Ok(Request::Program { .. }) => (REASON_OK, String::new()),
                 Ok(Request::Hold) => {
                     // No program yet (id 0) or the last one is over: nothing to hold.
                     if latest.state == State::Idle
