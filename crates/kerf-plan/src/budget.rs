@@ -89,7 +89,10 @@ fn weights(seg: &PlannedSegment) -> Weights {
                 let ax = h.axis[i].abs().min(1.0);
                 w.plane[i] = (1.0 - ax * ax).max(0.0).sqrt();
                 w.axial[i] = ax * c;
-                w.tangent[i] = w.plane[i] * q + w.axial[i];
+                // The drift (what the circle misses of the end, within the protocol's arc
+                // tolerance; rounding on the interpreter's arcs) moves the axis too.
+                let drift = (h.drift_mm_per_rad[i] * h.sweep_rad / h.length_mm).abs();
+                w.tangent[i] = w.plane[i] * q + w.axial[i] + drift;
             }
         }
         Curve::Transition(_) => unreachable!("transitions have their own limits"),
@@ -264,6 +267,9 @@ pub(crate) fn limits_key(
             push(h.length_mm);
             for i in 0..3 {
                 push(h.axis[i]);
+            }
+            for i in 0..3 {
+                push(h.drift_mm_per_rad[i]);
             }
             for i in 0..3 {
                 push(seg.abc_end_deg[i] - seg.abc_start_deg[i]);

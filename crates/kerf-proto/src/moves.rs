@@ -97,18 +97,16 @@ pub const EVENT_USER_M199: u32 = 199;
 
 /// Allowed deviation of `|axis|` from 1 (absolute).
 pub const AXIS_UNIT_TOL: f64 = 1e-9;
-/// Allowed difference between the end radius and the start radius of an arc, as a fraction
-/// of the larger one: `|r_end − r_start| <= 1e-6 · max(r_start, r_end)`. The interpreter
-/// makes its arcs exact, so only rounding (about 1e-15 relative) is expected; 1e-6 leaves
-/// room for planners that compute arcs in other ways while refusing corrupted data (at a
-/// radius of 1 m it is 1 µm).
-pub const ARC_RADIUS_REL_TOL: f64 = 1e-6;
-/// Allowed distance of the centre from the plane through the start normal to the axis, as
-/// a fraction of the start radius.
-pub const ARC_CENTER_PLANE_REL_TOL: f64 = 1e-6;
-/// Allowed difference, modulo whole turns, between `sweep_rad` and the angle from the start
-/// to the end point about the axis, radians.
-pub const ARC_SWEEP_TOL_RAD: f64 = 1e-6;
+/// The absolute part of the arc tolerance, mm: how far `end_mm` may lie from the point
+/// that `start_mm`, `center_mm`, `axis` and `sweep_rad` lead to (see [`arc_tolerance_mm`]).
+/// The interpreter's arcs agree to rounding (about 1e-13 mm at ordinary coordinates); one
+/// micrometre leaves room for planners that compute arcs in other ways while refusing
+/// data that disagree by a visible amount of path, at any radius.
+pub const ARC_END_TOL_MM: f64 = 1e-6;
+/// The relative part of the arc tolerance, 2^-46: the rounding of the arc's numbers
+/// themselves, 64 units in the last place of the largest one (1.4e-12 mm at 100 mm; it
+/// reaches [`ARC_END_TOL_MM`] only beyond 7e7 mm).
+pub const ARC_ROUNDING_REL: f64 = 1.0 / 70_368_744_177_664.0;
 /// Smallest arc radius accepted, mm (the geometry degenerates below it).
 pub const ARC_MIN_RADIUS_MM: f64 = 1e-12;
 
@@ -222,6 +220,28 @@ impl std::fmt::Display for Field {
     }
 }
 
+/// A distance in a message: "90.000 mm" above a micrometre, "2.8e-6 mm" below.
+struct Mm(f64);
+
+impl std::fmt::Display for Mm {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.0.abs() >= 1e-3 {
+            write!(f, "{:.3} mm", self.0)
+        } else {
+            write!(f, "{:.1e} mm", self.0)
+        }
+    }
+}
+
+/// A tolerance in a message, two significant digits: "1.4e-6".
+struct Tol(f64);
+
+impl std::fmt::Display for Tol {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{:.1e}", self.0)
+    }
+}
+
 /// Why a [`MoveMsg`] was refused. The checks run in the order of the variants below (first
 /// the envelope, then the fields the kind does not use, then finiteness, then meaning), and
 /// the first failing one is reported.
@@ -272,18 +292,37 @@ pub enum Reject {
     /// An arc's start lies on its centre (radius below [`ARC_MIN_RADIUS_MM`]).
     #[error("arc radius is zero")]
     ZeroRadius,
-    /// An arc's centre is not in the plane of its start (beyond [`ARC_CENTER_PLANE_REL_TOL`]).
-    #[error("arc centre is not in the plane of its start point")]
-    CenterOffPlane,
-    /// The end radius differs from the start radius beyond [`ARC_RADIUS_REL_TOL`].
-    #[error("arc end point is not at the start radius from the centre")]
-    RadiusMismatch,
+    /// An arc's centre is farther from the plane through its start normal to the axis
+    /// than the arc tolerance ([`arc_tolerance_mm`]).
+    #[error(
+        "arc center_mm is {} from the plane of its start point (tolerance {} mm)",
+        Mm(*off_mm),
+        Tol(*tol_mm)
+    )]
+    CenterOffPlane {
+        /// The centre's distance from the start's plane, mm.
+        off_mm: f64,
+        /// The arc tolerance, mm.
+        tol_mm: f64,
+    },
     /// An arc sweeps no angle.
     #[error("arc sweeps a zero angle")]
     ZeroSweep,
-    /// The end point is not where `sweep_rad` leads (beyond [`ARC_SWEEP_TOL_RAD`]).
-    #[error("arc sweep does not lead from the start point to the end point")]
-    SweepMismatch,
+    /// `end_mm` is farther from the point `sweep_rad` leads to than the arc tolerance
+    /// ([`arc_tolerance_mm`]): the fields disagree about where the arc ends.
+    #[error(
+        "arc end_mm is {} from the point its sweep_rad leads to (tolerance {} mm): \
+         sweep_rad and end_mm disagree",
+        Mm(*off_mm),
+        Tol(*tol_mm)
+    )]
+    EndMismatch {
+        /// The distance between `end_mm` and the point the sweep leads to, mm (NaN when it
+        /// could not be computed).
+        off_mm: f64,
+        /// The arc tolerance, mm.
+        tol_mm: f64,
+    },
     /// `event_code` is none of the `EVENT_*` constants.
     #[error("unknown event code {0}")]
     UnknownEventCode(u32),
@@ -565,45 +604,84 @@ fn finite_a(v: &[f64; 3], field: Field) -> Result<(), Reject> {
     v.iter().try_for_each(|&x| finite_f(x, field))
 }
 
-/// Checks the arc's geometry; all inputs are finite.
+/// The arc tolerance for an arc of radius `radius_mm` (the start's distance from the
+/// centre normal to the axis): `ARC_END_TOL_MM + ARC_ROUNDING_REL × m`, `m` the largest
+/// magnitude among the coordinates of start, end and centre and the path length
+/// `radius_mm · |sweep_rad|`. NaN when a number is NaN.
+fn tolerance_for(a: &Arc, radius_mm: f64) -> f64 {
+    let mut largest = radius_mm * a.sweep_rad.abs();
+    for p in [&a.start, &a.end, &a.center] {
+        for &c in p.iter() {
+            // Written so that a NaN anywhere makes the result NaN (`f64::max` drops it).
+            if largest.is_nan() || c.is_nan() {
+                return f64::NAN;
+            }
+            largest = largest.max(c.abs());
+        }
+    }
+    ARC_END_TOL_MM + ARC_ROUNDING_REL * largest
+}
+
+/// The arc tolerance of `a`, mm (docs/PROTOCOL.md, "One arc, in millimetres"):
+/// `ARC_END_TOL_MM + ARC_ROUNDING_REL × m`, where `m` is the largest magnitude among the
+/// coordinates of `start`, `end` and `center` and the path length `r · |sweep_rad|`, `r`
+/// being the start's distance from the centre normal to the axis. It bounds both the
+/// distance of `end` from the point the sweep leads to and the centre's distance from the
+/// start's plane. NaN when a number is NaN; infinite when the path length overflows
+/// (such an arc is refused).
+pub fn arc_tolerance_mm(a: &Arc) -> f64 {
+    let axis = a.axis.try_normalize(0.0).unwrap_or_else(Vec3::zeros);
+    let u = a.start - a.center;
+    let radius_mm = (u - axis * u.dot(&axis)).norm();
+    tolerance_for(a, radius_mm)
+}
+
+/// Checks the arc's geometry in millimetres of path (docs/PROTOCOL.md, "One arc, in
+/// millimetres"); all inputs are finite. Every check is written as "within" (a comparison
+/// that is false for NaN, then negated) so that a NaN from overflowing intermediate values
+/// (huge coordinates) refuses the arc.
 fn check_arc(a: &Arc) -> Result<(), Reject> {
     let norm = a.axis.norm();
-    if (norm - 1.0).abs() > AXIS_UNIT_TOL {
+    let unit = (norm - 1.0).abs() <= AXIS_UNIT_TOL;
+    if !unit {
         return Err(Reject::AxisNotUnit);
     }
     let axis = a.axis / norm;
     let u = a.start - a.center;
     let along = u.dot(&axis);
     let u = u - axis * along;
-    let r_start = u.norm();
-    if r_start.is_nan() || r_start < ARC_MIN_RADIUS_MM {
+    let radius_mm = u.norm();
+    let has_radius = radius_mm >= ARC_MIN_RADIUS_MM;
+    if !has_radius {
         return Err(Reject::ZeroRadius);
     }
-    let plane_ok = along.abs() <= ARC_CENTER_PLANE_REL_TOL * r_start;
-    if !plane_ok {
-        return Err(Reject::CenterOffPlane);
-    }
-    let w = a.end - a.center;
-    let w = w - axis * w.dot(&axis);
-    let r_end = w.norm();
-    // Written as "within the tolerance" so that NaN (from overflowing intermediate values
-    // on huge coordinates) is refused too.
-    let radius_ok = (r_end - r_start).abs() <= ARC_RADIUS_REL_TOL * r_start.max(r_end);
-    if !radius_ok {
-        return Err(Reject::RadiusMismatch);
+    let tol_mm = tolerance_for(a, radius_mm);
+    let plane_off_mm = along.abs();
+    let in_plane = plane_off_mm <= tol_mm;
+    if !in_plane {
+        return Err(Reject::CenterOffPlane {
+            off_mm: plane_off_mm,
+            tol_mm,
+        });
     }
     if a.sweep_rad == 0.0 {
         return Err(Reject::ZeroSweep);
     }
-    let e1 = u / r_start;
+    // q − start = r (e1 (cos θ − 1) + e2 sin θ) + a h, with cos θ − 1 = −2 sin²(θ/2) so
+    // that a small angle on a huge radius keeps its precision; compared with end − start
+    // rather than q with end, so that coordinates far from the origin lose nothing either.
+    let e1 = u / radius_mm;
     let e2 = axis.cross(&e1);
-    let actual = w.dot(&e2).atan2(w.dot(&e1));
-    let turn = std::f64::consts::TAU;
-    let diff = a.sweep_rad - actual;
-    let off = diff - turn * (diff / turn).round();
-    let sweep_ok = off.abs() <= ARC_SWEEP_TOL_RAD;
-    if !sweep_ok {
-        return Err(Reject::SweepMismatch);
+    let theta = a.sweep_rad;
+    let half_sin = (0.5 * theta).sin();
+    let cos_minus_1 = -2.0 * half_sin * half_sin;
+    let chord = a.end - a.start;
+    let lead = (e1 * cos_minus_1 + e2 * theta.sin()) * radius_mm + axis * chord.dot(&axis);
+    let off_mm = (lead - chord).norm();
+    // An infinite tolerance (a path length beyond f64) accepts nothing.
+    let agree = off_mm <= tol_mm && tol_mm < f64::INFINITY;
+    if !agree {
+        return Err(Reject::EndMismatch { off_mm, tol_mm });
     }
     Ok(())
 }

@@ -1,11 +1,15 @@
 //! Arbitrary bytes reinterpreted as a `MoveMsg` never make the decoder panic: it either
-//! decodes them (and then re-encoding gives the same bytes: nothing is lost or invented)
-//! or names a reason.
+//! decodes them (and then re-encoding gives the same bytes: nothing is lost or invented,
+//! every number it uses is finite, and an arc is a curve the motion can follow) or names a
+//! reason.
 
 use proptest::prelude::*;
 
 use kerf_gcode::{Dialect, Interpreter, Item, Settings};
-use kerf_proto::{MoveMsg, Resolved};
+use kerf_geom::{Arc, CornerMode, Curve, Move, Path, Vec3};
+use kerf_proto::{
+    CORNER_EXACT_STOP, FLAG_NAIVE_CAM, KIND_ARC, KIND_LINE, MoveMsg, PROTOCOL_VERSION, Resolved,
+};
 
 const SIZE: usize = size_of::<MoveMsg>();
 
@@ -44,6 +48,79 @@ fn seeds() -> Vec<MoveMsg> {
             .map(|(i, it)| MoveMsg::from_item(1, i as u64 + 1, it)),
     );
     v.push(MoveMsg::end(1, items.len() as u64));
+    // Blending moves with LinuxCNC's naive-CAM tolerance (G64 P… Q…), which the
+    // interpreter does not send today.
+    let naive: Vec<MoveMsg> = v
+        .iter()
+        .filter(|m| (m.kind == KIND_LINE || m.kind == KIND_ARC) && m.corner != CORNER_EXACT_STOP)
+        .map(|m| {
+            let mut n = *m;
+            n.flags |= FLAG_NAIVE_CAM;
+            n.naive_cam_mm = 0.005;
+            n
+        })
+        .collect();
+    assert!(!naive.is_empty());
+    v.extend(naive);
+    // A BEGIN away from the origin, with rotary positions.
+    v.push(MoveMsg::begin(2, [1.5, -2.0, 30.0, 45.0, 0.0, -90.0], 7));
+    // Arcs at the extremes of radius and sweep: 10 mm of radius 1e8 and 1e12 mm from near
+    // the origin, a 50-turn helix, an arc of radius 1e-3 mm.
+    for (r, sweep, rise) in [
+        (1e8, 1e-7, 0.0),
+        (1e12, -1e-11, 0.0),
+        (2.0, 100.0 * std::f64::consts::PI, -5.0),
+        (1e-3, 2.0, 0.0),
+    ] {
+        v.push(arc_item(Vec3::new(3.0, -4.0, 5.0), r, sweep, rise));
+    }
+    v
+}
+
+/// A consistent arc item about +Z from `start`, its centre `r` along +Y of it.
+fn arc_item(start: Vec3, r: f64, sweep: f64, rise: f64) -> MoveMsg {
+    let half = (0.5 * sweep).sin();
+    // e1 = -Y (centre at +Y), e2 = Z × e1 = +X.
+    let end = start + Vec3::new(r * sweep.sin(), 2.0 * r * half * half, rise);
+    let mv = Move {
+        line: 30,
+        rapid: false,
+        path: Path::Arc(Arc {
+            start,
+            end,
+            center: start + Vec3::new(0.0, r, 0.0),
+            axis: Vec3::z(),
+            sweep_rad: sweep,
+        }),
+        feed_mm_min: Some(1000.0),
+        abc_deg: None,
+        corner: CornerMode::Blend {
+            tolerance_mm: None,
+            naive_cam_mm: None,
+        },
+    };
+    MoveMsg::from_move(1, 40, &mv)
+}
+
+/// Every `f64` of the message.
+fn floats(m: &MoveMsg) -> Vec<(&'static str, f64)> {
+    let mut v = vec![
+        ("feed_mm_min", m.feed_mm_min),
+        ("tolerance_mm", m.tolerance_mm),
+        ("sweep_rad", m.sweep_rad),
+        ("event_value", m.event_value),
+        ("naive_cam_mm", m.naive_cam_mm),
+    ];
+    for (name, a) in [
+        ("start_mm", m.start_mm),
+        ("end_mm", m.end_mm),
+        ("center_mm", m.center_mm),
+        ("axis", m.axis),
+        ("abc_start_deg", m.abc_start_deg),
+        ("abc_end_deg", m.abc_end_deg),
+    ] {
+        v.extend(a.iter().map(|&x| (name, x)));
+    }
     v
 }
 
@@ -51,6 +128,33 @@ fn check(m: &MoveMsg) {
     match Resolved::try_from(m) {
         Err(reason) => assert!(!reason.to_string().is_empty()),
         Ok(r) => {
+            // Every number of an accepted message is finite, used or not (unused ones are
+            // zero).
+            for (name, x) in floats(m) {
+                assert!(x.is_finite(), "{name} = {x} accepted in {m:?}");
+            }
+            // An accepted move within 1e15 mm of the origin is a curve of finite length
+            // (positive for an arc) whose points are finite, ending exactly at its end. (Beyond, the length
+            // of a line or a helix's rise can overflow f64: the daemon's travel check
+            // refuses such moves before any motion.)
+            let machine_sized = [m.start_mm, m.end_mm, m.center_mm]
+                .iter()
+                .flatten()
+                .all(|x| x.abs() <= 1e15);
+            if let (Resolved::Move(Move { path, .. }), true) = (&r, machine_sized) {
+                let c = Curve::from_path(path);
+                let len = c.length();
+                let positive = len > 0.0 || matches!(path, Path::Line(_));
+                assert!(
+                    len.is_finite() && len >= 0.0 && positive,
+                    "length {len} of {m:?}"
+                );
+                for k in 0..=8 {
+                    let p = c.point_at(len * f64::from(k) / 8.0);
+                    assert!(p.iter().all(|x| x.is_finite()), "{p:?} on {m:?}");
+                }
+                assert_eq!(c.point_at(len), path.end());
+            }
             let again = match r {
                 Resolved::Begin {
                     program_id,
@@ -78,14 +182,38 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(4000))]
 
     #[test]
-    fn random_bytes(bytes in prop::collection::vec(any::<u8>(), SIZE), version_one in any::<bool>(), kind in 0u32..7) {
+    fn random_bytes(bytes in prop::collection::vec(any::<u8>(), SIZE), valid_version in any::<bool>(), kind in 0u32..7) {
         let mut b = [0u8; SIZE];
         b.copy_from_slice(&bytes);
         let mut m = from_bytes(&b);
-        if version_one {
+        if valid_version {
             // Get past the first checks so that the later ones see random data too.
-            m.version = 1;
+            m.version = PROTOCOL_VERSION;
             m.kind = kind;
+        }
+        check(&m);
+    }
+
+    #[test]
+    fn arc_numbers_of_any_magnitude(
+        seed in 0usize..64,
+        field in 0usize..13,
+        bits in any::<u64>(),
+        scale in -12i32..14,
+        mantissa in -1.0f64..1.0,
+        raw in any::<bool>(),
+    ) {
+        // One number of an arc replaced by a random bit pattern (NaN, infinities,
+        // subnormals and huge values included) or by a value of any decimal magnitude.
+        let arcs: Vec<MoveMsg> = seeds().into_iter().filter(|m| m.kind == KIND_ARC).collect();
+        let mut m = arcs[seed % arcs.len()];
+        let x = if raw { f64::from_bits(bits) } else { mantissa * 10f64.powi(scale) };
+        match field {
+            0..=2 => m.start_mm[field] = x,
+            3..=5 => m.end_mm[field - 3] = x,
+            6..=8 => m.center_mm[field - 6] = x,
+            9..=11 => m.axis[field - 9] = x,
+            _ => m.sweep_rad = x,
         }
         check(&m);
     }

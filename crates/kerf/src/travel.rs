@@ -3,9 +3,12 @@
 //! Issue 3 asks that positions outside the configured travel anywhere on the path reject
 //! the program before any motion, naming the line. The check is exact for the geometry the
 //! front end produces: a line's extremes are its end points, and an arc's are its end
-//! points plus the points where the circle is tangent to a coordinate direction, when they
-//! fall inside the swept angle (multi-turn helices included). Rotary axes move linearly
-//! with the path, so their end values are their extremes.
+//! points plus the points where a coordinate is stationary along the curve, when they
+//! fall inside the swept angle (multi-turn helices included). The arc's points are those
+//! of the curve the motion follows ([`Curve::from_path`]'s helix, evaluated with its own
+//! `point_at_angle`: relative to the start, with the drift that ends it exactly at its end
+//! point), so what is checked is what is executed, at any radius. Rotary axes move
+//! linearly with the path, so their end values are their extremes.
 //!
 //! Issue 7 adds the planned path: corner blends, transitions and smoothed pieces leave
 //! the programmed lines within the tolerance, and near a limit that can be outside the
@@ -13,10 +16,10 @@
 //! above; quintic curves (and rotary quintics) by sampling with a certified bound (see
 //! [`quintic_beyond`]).
 
-use std::f64::consts::TAU;
+use std::f64::consts::{PI, TAU};
 
 use kerf_geom::PlannedSegment;
-use kerf_geom::{Arc, Curve, Move, Path, Vec3};
+use kerf_geom::{Curve, Helix, Move, Path, Vec3};
 
 use crate::config::Axes;
 
@@ -24,10 +27,19 @@ use crate::config::Axes;
 /// not be rejected because `cos` came out one ulp high.
 const SLACK_MM: f64 = 1e-9;
 
+/// `v` rounded to 1e-9 (a nanometre, or a nano-degree) for messages: a point computed on
+/// a curve carries rounding in its last digits (-1004.9999999999999 for -1005), which
+/// would only hide the number a person wants to read.
+fn to_nanometre(v: &f64) -> f64 {
+    let r = (v * 1e9).round() / 1e9;
+    if r.is_finite() { r } else { *v }
+}
+
 /// A move that leaves an axis's travel.
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 #[error(
-    "{axis} {position}{unit} is outside the travel of the {axis} axis ({min}{unit} to {max}{unit})"
+    "{axis} {}{unit} is outside the travel of the {axis} axis ({min}{unit} to {max}{unit})",
+    to_nanometre(.position)
 )]
 pub struct TravelError {
     /// 1-based source line of the move.
@@ -74,8 +86,11 @@ pub fn check_move(m: &Move, axes: &Axes) -> Result<(), TravelError> {
         Path::Arc(a) => {
             check_point(&a.start)?;
             check_point(&a.end)?;
-            for p in arc_extremes(a).into_iter().flatten() {
-                check_point(&p)?;
+            // The curve the motion follows (drift included), not a recomputed circle.
+            if let Curve::Helix(h) = Curve::from_path(&m.path) {
+                for p in helix_extremes(&h).into_iter().flatten() {
+                    check_point(&p)?;
+                }
             }
         }
     }
@@ -213,14 +228,7 @@ pub fn check_segment(seg: &PlannedSegment, axes: &Axes) -> Result<(), PlannedTra
         Curve::Helix(h) => {
             point_inside(&h.start)?;
             point_inside(&h.end)?;
-            let arc = Arc {
-                start: h.start,
-                end: h.end,
-                center: h.center,
-                axis: h.axis,
-                sweep_rad: h.sweep_rad,
-            };
-            for p in arc_extremes(&arc).into_iter().flatten() {
+            for p in helix_extremes(h).into_iter().flatten() {
                 point_inside(&p)?;
             }
         }
@@ -341,36 +349,50 @@ pub fn quintic_beyond(c: &[f64; 6], limit: f64, upper: bool) -> Option<(f64, f64
     None
 }
 
-/// The points of an arc where a coordinate is at a maximum or minimum of the circle and
-/// which lie inside the swept angle: up to two per coordinate.
-fn arc_extremes(a: &Arc) -> [Option<Vec3>; 6] {
-    let radial = a.start - a.center;
-    let binormal = a.axis.cross(&radial);
-    let axial = (a.end - a.start).dot(&a.axis);
-    let (lo, hi) = if a.sweep_rad < 0.0 {
-        (a.sweep_rad, 0.0)
+/// The points of a helix (the curve the motion follows, see [`kerf_geom::Helix`]) where a
+/// coordinate has a maximum or minimum inside the swept angle, evaluated with the helix's
+/// own [`Helix::point_at_angle`]: up to four per coordinate.
+///
+/// Coordinate `k` along the curve is
+///   `x(θ) = start_k + r (e1_k (cos θ − 1) + e2_k sin θ) + c_k θ`,
+/// with `c_k = axis_k · rise / sweep + drift_k` the part linear in the angle. With
+/// `A = r · sqrt(e1_k² + e2_k²)` and `φ = atan2(e2_k, e1_k)`, `x'(θ) = −A sin(θ − φ) + c_k`
+/// vanishes where `sin(θ − φ) = c_k / A`: at `φ + asin(c_k/A)` and `φ + π − asin(c_k/A)`,
+/// modulo whole turns (for a plain arc about Z, `c_k = 0` in X and Y: where the circle is
+/// tangent to the coordinate direction). When `|c_k| ≥ A` the coordinate is monotonic and
+/// its extremes are the end points. With `c_k ≠ 0` the maxima of successive turns differ
+/// by `2π c_k`, so the first and the last turn's are the candidates.
+fn helix_extremes(h: &Helix) -> [Option<Vec3>; 12] {
+    let (lo, hi) = if h.sweep_rad < 0.0 {
+        (h.sweep_rad, 0.0)
     } else {
-        (0.0, a.sweep_rad)
+        (0.0, h.sweep_rad)
     };
-    // Along the path the point is
-    //   center + cos θ · radial + sin θ · binormal + axis · axial · θ / sweep,
-    // so coordinate k of the circle part is extreme where tan θ = binormal_k / radial_k.
-    let mut out = [None; 6];
+    let mut out = [None; 12];
+    if h.sweep_rad == 0.0 || !h.sweep_rad.is_finite() {
+        return out;
+    }
+    let pitch = h.rise_mm / h.sweep_rad;
     for k in 0..3 {
-        if radial[k] == 0.0 && binormal[k] == 0.0 {
-            // The circle does not move this coordinate (it is the arc's axis).
+        let amp = h.radius_mm * h.e1[k].hypot(h.e2[k]);
+        let c = h.axis[k] * pitch + h.drift_mm_per_rad[k];
+        let turns_back = amp > c.abs();
+        if !turns_back {
+            // The circle does not move this coordinate (it is the arc's axis), or the
+            // linear part outruns it: monotonic, extreme at the end points.
             continue;
         }
-        let base = binormal[k].atan2(radial[k]);
-        for (j, theta0) in [base, base + std::f64::consts::PI].into_iter().enumerate() {
-            // The first angle at or after `lo` that is congruent to `theta0`.
-            let theta = theta0 + ((lo - theta0) / TAU).ceil() * TAU;
-            if theta <= hi && a.sweep_rad != 0.0 {
-                let p = a.center
-                    + radial * theta.cos()
-                    + binormal * theta.sin()
-                    + a.axis * (axial * theta / a.sweep_rad);
-                out[2 * k + j] = Some(p);
+        let phi = h.e2[k].atan2(h.e1[k]);
+        let shift = (c / amp).asin();
+        for (j, theta0) in [phi + shift, phi + PI - shift].into_iter().enumerate() {
+            // The first and the last angle in [lo, hi] congruent to `theta0`.
+            let first = theta0 + ((lo - theta0) / TAU).ceil() * TAU;
+            let last = theta0 + ((hi - theta0) / TAU).floor() * TAU;
+            if first <= hi {
+                out[4 * k + 2 * j] = Some(h.point_at_angle(first));
+            }
+            if last >= lo && last > first {
+                out[4 * k + 2 * j + 1] = Some(h.point_at_angle(last));
             }
         }
     }
@@ -381,8 +403,7 @@ fn arc_extremes(a: &Arc) -> [Option<Vec3>; 6] {
 mod tests {
     use super::*;
     use crate::config::{Config, LinearAxis, RotaryAxis};
-    use kerf_geom::{CornerMode, Line};
-    use std::f64::consts::PI;
+    use kerf_geom::{Arc, CornerMode, Line};
 
     fn axes(min_mm: f64, max_mm: f64) -> Axes {
         let axis = LinearAxis {
@@ -695,6 +716,86 @@ mod tests {
             "the blended path at this corner leaves the C travel (max_deg = 360) by 10.000 deg; \
              lower the tolerance (G64 P) or move the corner inside"
         );
+    }
+
+    #[test]
+    fn huge_radius_arc_bulging_past_a_limit_is_checked_on_the_executed_curve() {
+        // A clockwise arc of radius 1e12 mm from (-1000, y0) to (1000, y0) about a centre
+        // 1e12 mm below: its top, at X 0, is dx² / (r + dy) = 5e-7 mm above the end
+        // points (written without the cancellation of r − dy, so the expected height is
+        // exact to rounding). A circle evaluated about the centre would lose it: a unit in
+        // the last place of 1e12 is 1.2e-4 mm.
+        let radius = 1e12;
+        let y0 = -5e-7;
+        let center = Vec3::new(0.0, y0 - radius, 0.0);
+        let start = Vec3::new(-1000.0, y0, 0.0);
+        let end = Vec3::new(1000.0, y0, 0.0);
+        let (dx, dy) = (start.x - center.x, start.y - center.y);
+        let r = dx.hypot(dy);
+        let top = y0 + dx * dx / (r + dy);
+        assert!((top - 0.0).abs() < 1e-9, "{top}");
+        let sweep = -2.0 * (1000.0 / r).asin();
+        let m = arc(start, end, center, sweep);
+        let mut a = axes(-2000.0, 2000.0);
+        // A ceiling 10 nm above the top passes, one 0.1 µm below it is refused, naming
+        // the top (within the 1 nm rounding slack).
+        a.y.max_mm = top + 1e-8;
+        assert_eq!(check_move(&m, &a), Ok(()));
+        a.y.max_mm = top - 1e-7;
+        let e = check_move(&m, &a).unwrap_err();
+        assert_eq!((e.axis, e.line), ('Y', 4));
+        assert!((e.position - top).abs() < 1e-9, "{e:?} vs {top}");
+        // The same on the planned segment of that arc.
+        let seg = planned(Curve::from_path(&m.path), ([0.0; 3], [0.0; 3]));
+        a.y.max_mm = top + 1e-8;
+        assert_eq!(check_segment(&seg, &a), Ok(()));
+        a.y.max_mm = top - 1e-7;
+        let e = check_segment(&seg, &a).unwrap_err();
+        assert_eq!((e.axis, e.upper), ('Y', true));
+        assert!((e.position - top).abs() < 1e-9, "{e:?} vs {top}");
+    }
+
+    #[test]
+    fn tilted_helix_extremes_follow_the_linear_part() {
+        // A helix of three turns about an axis tilted 45° in XZ: X moves with the circle
+        // and with the rise (axis_x · rise / sweep per radian), so its largest value is
+        // on the last turn, where sin(θ − φ) = c / A (the circle's tangent point shifted
+        // by the rise). Expected maximum by brute force on 2 million points of the same
+        // parametrisation, written out here.
+        let s2 = std::f64::consts::FRAC_1_SQRT_2;
+        let axis = Vec3::new(s2, 0.0, s2);
+        let e1 = Vec3::new(0.0, 1.0, 0.0);
+        let e2 = axis.cross(&e1);
+        let (r, sweep, rise) = (5.0, 3.0 * TAU, 30.0);
+        let start = Vec3::new(10.0, 20.0, 30.0);
+        let at = |th: f64| {
+            start + (e1 * (th.cos() - 1.0) + e2 * th.sin()) * r + axis * (rise * th / sweep)
+        };
+        let end = at(sweep);
+        let mv = Move {
+            line: 7,
+            rapid: false,
+            path: Path::Arc(Arc {
+                start,
+                end,
+                center: start - e1 * r,
+                axis,
+                sweep_rad: sweep,
+            }),
+            feed_mm_min: Some(100.0),
+            abc_deg: None,
+            corner: CornerMode::ExactStop,
+        };
+        let max_x = (0..=2_000_000)
+            .map(|k| at(sweep * k as f64 / 2e6).x)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let mut a = axes(-1000.0, 1000.0);
+        a.x.max_mm = max_x + 1e-8;
+        assert_eq!(check_move(&mv, &a), Ok(()));
+        a.x.max_mm = max_x - 1e-7;
+        let e = check_move(&mv, &a).unwrap_err();
+        assert_eq!(e.axis, 'X');
+        assert!((e.position - max_x).abs() < 1e-8, "{e:?} vs {max_x}");
     }
 
     #[test]
