@@ -32,6 +32,12 @@ pub enum StreamError {
         /// The program of the new BEGIN.
         found: u64,
     },
+    /// A BEGIN whose program id the daemon has seen before (ids must be new).
+    #[error("BEGIN of program {program_id}: that id was used before; a program needs a new id")]
+    RepeatedId {
+        /// The program id.
+        program_id: u64,
+    },
     /// A BEGIN whose sequence number is not 0.
     #[error("BEGIN with sequence number {found}, expected 0")]
     BeginSeq {

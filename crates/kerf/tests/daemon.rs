@@ -1610,3 +1610,45 @@ fn run_record_keeps_the_setpoints_up_to_a_safety_trip() {
         "{s}"
     );
 }
+
+/// An abort while `kerf run` is still streaming a program much longer than the daemon's
+/// window and queue ends the program for everyone at once (issue 25): the daemon says
+/// aborted, takes nothing more of it, and `kerf run` stops sending and exits 2.
+#[test]
+fn an_abort_while_kerf_run_still_streams_ends_the_program_for_the_client() {
+    let env = Env::new(
+        "abort_stream",
+        &[
+            ("queue_segments = 4096", "queue_segments = 64"),
+            ("move_window = 4096", "move_window = 64"),
+        ],
+    );
+    let _daemon = env.start_daemon("kerfd");
+    // 600 exact-stop steps of 0.5 mm: a minute of motion, far more than 64 + 64 items
+    // (`kerf run` simulates the whole program before it sends it: kept short for that).
+    let mut program = String::from("G21 G90 G61\n");
+    for k in 0..600 {
+        let x = if k % 2 == 0 { 0.5 } else { 0.0 };
+        program.push_str(&format!("G1 X{x} F600\n"));
+    }
+    program.push_str("M2\n");
+    let path = env.write("long.ngc", &program);
+    let mut run = env.spawn_run("run-long", &path, None);
+    env.wait_status("motion", |s| state(s) == "running" && moved(s));
+    let o = env.kerf("abort", &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let status = run.wait(1);
+    assert_eq!(status.code(), Some(2), "{}", run.stderr());
+    assert!(run.stderr().contains("aborted"), "{}", run.stderr());
+    let s = env.wait_status("rest after the abort", |s| state(s) != "running");
+    assert_eq!(program_end(&s), "aborted", "{s}");
+    assert_eq!(state(&s), "idle", "{s}");
+    // Nothing more of it is taken or moves (what `kerf run` sent before it saw the abort
+    // was taken and dropped).
+    let received = s["moves_received"].as_u64().unwrap();
+    env.wait_cycles(200);
+    let later = env.status();
+    assert_eq!(later["moves_received"].as_u64().unwrap(), received);
+    assert_eq!(position(&later), position(&s));
+    assert!(received <= 601, "{received} items of a 601-item program");
+}

@@ -20,6 +20,7 @@
 //! - The control thread answers requests with the latest snapshot and turns commands into
 //!   items of the command ring.
 
+pub mod fates;
 pub mod publish;
 pub mod timing;
 pub mod worker;
@@ -32,7 +33,7 @@ use std::time::{Duration, Instant};
 use iceoryx2::prelude::*;
 use kerf_proto::{
     Command as Request, MoveMsg, REASON_NOT_ALLOWED, REASON_OK, Resolved, Response, SetpointMsg,
-    State, StatusMsg, StreamCheck,
+    State, StatusMsg, StreamCheck, StreamError,
 };
 
 use crate::config::Config;
@@ -344,7 +345,7 @@ fn control_thread(
     rt_ok: Arc<AtomicBool>,
     test_faults: bool,
     mut commands: rtrb::Producer<Command>,
-    mut status: rtrb::Consumer<Snapshot>,
+    status: rtrb::Consumer<Snapshot>,
     mut dumps: worker::DumpWriterRings,
 ) -> Result<(), String> {
     let setup = || -> Result<_, StartError> {
@@ -376,7 +377,179 @@ fn control_thread(
     let mut writer = DumpWriter::new(config);
     let reset_patience = reset_patience(config);
     let dump_patience = dump_patience(config);
-    let mut latest = Snapshot {
+    let apply_patience = apply_patience(config);
+    let mut view = CycleView {
+        ring: status,
+        latest: idle_snapshot(),
+        counters: counters.clone(),
+    };
+    let mut rt_flag = 0u32;
+    let mut hold_requested = false;
+    let mut shutdown_sent = false;
+    let mut next_tag = 1u64;
+    // Commands pushed to the cycle so far: an answer waits until the cycle has applied
+    // its command, so that its status is the status after the request.
+    let mut pushed = 0u64;
+    // Requests wait until the cycle has run once: by then every port (moves, setpoints)
+    // is up, so a client that got an answer can open them all (`kerfd` is ready when
+    // `kerf status` answers).
+    let mut cycle_runs = false;
+    loop {
+        cycle_runs |= view.pull();
+        writer.take(&mut dumps, None);
+        if view.latest.state != State::Holding && view.latest.program_done {
+            // The program is over: a hold asked for during it is void.
+            hold_requested = false;
+        }
+        while cycle_runs && let Ok(Some(active)) = server.receive() {
+            let request = *active.payload();
+            let mut fate = kerf_proto::PROGRAM_FATE_UNKNOWN;
+            let mut push = |commands: &mut rtrb::Producer<Command>, c: Command| {
+                let answer = push_command(commands, c);
+                if answer.0 == REASON_OK {
+                    pushed += 1;
+                }
+                answer
+            };
+            let (reason, message) = match request.command() {
+                Err(e) => (e.reason(), e.to_string()),
+                Ok(Request::Status) => (REASON_OK, String::new()),
+                Ok(Request::Program { program_id }) => {
+                    let f = lock_fates(&counters).get(program_id);
+                    fate = f.code;
+                    (REASON_OK, f.reason)
+                }
+                Ok(Request::Hold) => {
+                    let latest = &view.latest;
+                    // No program yet (id 0) or the last one is over: nothing to hold.
+                    if latest.state == State::Idle
+                        && (latest.program_done || latest.program_id == 0)
+                    {
+                        (
+                            REASON_NOT_ALLOWED,
+                            "nothing to hold: no program is running".to_string(),
+                        )
+                    } else {
+                        hold_requested = true;
+                        push(&mut commands, Command::Hold)
+                    }
+                }
+                Ok(Request::Resume) => {
+                    if hold_requested || view.latest.state == State::Holding {
+                        hold_requested = false;
+                        push(&mut commands, Command::Resume)
+                    } else {
+                        (
+                            REASON_NOT_ALLOWED,
+                            "not holding: nothing to resume".to_string(),
+                        )
+                    }
+                }
+                Ok(Request::Abort) => {
+                    hold_requested = false;
+                    // Every program not yet over ends: the one moving, and the one being
+                    // received (which the planning thread stops taking at once).
+                    let open = counters.open.load(Ordering::Acquire);
+                    let unfinished = lock_fates(&counters).unfinished();
+                    counters.abort.store(open, Ordering::Release);
+                    let mut answer = push(&mut commands, Command::Abort);
+                    for id in unfinished {
+                        if answer.0 == REASON_OK {
+                            answer = push(&mut commands, Command::AbortProgram(id));
+                        }
+                    }
+                    answer
+                }
+                Ok(Request::Override { percent }) => {
+                    push(&mut commands, Command::Override(percent))
+                }
+                Ok(Request::Reset) => {
+                    let tag = next_tag;
+                    next_tag += 1;
+                    match push(&mut commands, Command::Reset(tag)) {
+                        (REASON_OK, _) => {
+                            wait_reset(&mut view, &mut writer, &mut dumps, tag, reset_patience)
+                        }
+                        refused => refused,
+                    }
+                }
+                Ok(Request::Dump) => {
+                    let tag = next_tag;
+                    next_tag += 1;
+                    match push(&mut commands, Command::Dump(tag)) {
+                        (REASON_OK, _) => {
+                            let waited = wait_dump(&mut view, &mut writer, &mut dumps, tag, dump_patience);
+                            match waited {
+                                Ok(path) => (REASON_OK, path.display().to_string()),
+                                Err(e) => (REASON_NOT_ALLOWED, e),
+                            }
+                        }
+                        refused => refused,
+                    }
+                }
+                Ok(Request::Inject { code }) => match worker::Injection::from_code(code) {
+                    _ if !test_faults => (
+                        REASON_NOT_ALLOWED,
+                        "fault injection is for tests only: this kerfd was not started with --test-faults".to_string(),
+                    ),
+                    Some(i) => push(&mut commands, Command::Inject(i)),
+                    None => (
+                        kerf_proto::REASON_BAD_VALUE,
+                        format!("unknown injection code {code}"),
+                    ),
+                },
+            };
+            // The answer carries the status after the request: wait until the cycle has
+            // applied every command pushed so far.
+            let applied = poll_cycle(&mut view, apply_patience, |s| {
+                (s.commands_applied >= pushed).then_some(())
+            });
+            if applied.is_none() {
+                tracing::warn!(
+                    "the real-time cycle did not apply a command within {apply_patience:?}"
+                );
+            }
+            let mut msg = status_msg(
+                &view.latest,
+                &counters,
+                rt_flag,
+                overruns.load(Ordering::Acquire),
+                window,
+                axes_mask,
+                period_ns,
+            );
+            if view.latest.drives.fault.is_some()
+                && let Some(path) = writer.fault_path()
+            {
+                msg.set_fault_dump(&path.display().to_string());
+            }
+            let mut response = Response::new(request.id, reason, &message, msg);
+            response.program_fate = fate;
+            let _ = active.send_copy(response);
+        }
+        if rt_flag == 0 && rt_ok.load(Ordering::Acquire) {
+            rt_flag = 1;
+        }
+        if shutdown.load(Ordering::Acquire) && !shutdown_sent {
+            shutdown_sent = commands.push(Command::Shutdown).is_ok();
+            // The program being received ends too: the planning thread drops its rest and
+            // ends it, so that the cycle can come to rest and stop.
+            counters
+                .abort
+                .store(counters.open.load(Ordering::Acquire), Ordering::Release);
+        }
+        if view.latest.shut_down || stop.load(Ordering::Acquire) {
+            done.store(true, Ordering::Release);
+            stop.store(true, Ordering::Release);
+            return Ok(());
+        }
+        std::thread::sleep(POLL);
+    }
+}
+
+/// The snapshot before the cycle's first report.
+fn idle_snapshot() -> Snapshot {
+    Snapshot {
         cycles: 0,
         state: State::Idle,
         line: 0,
@@ -398,128 +571,70 @@ fn control_thread(
             error_code: 0,
         },
         reset: None,
-    };
-    let mut rt_flag = 0u32;
-    let mut hold_requested = false;
-    let mut shutdown_sent = false;
-    let mut next_tag = 1u64;
-    // Requests wait until the cycle has run once: by then every port (moves, setpoints)
-    // is up, so a client that got an answer can open them all (`kerfd` is ready when
-    // `kerf status` answers).
-    let mut cycle_runs = false;
-    loop {
-        while let Ok(s) = status.pop() {
-            latest = s;
-            cycle_runs = true;
-        }
-        writer.take(&mut dumps, None);
-        if latest.state != State::Holding && latest.program_done {
-            // The program is over: a hold asked for during it is void.
-            hold_requested = false;
-        }
-        while cycle_runs && let Ok(Some(active)) = server.receive() {
-            let request = *active.payload();
-            let (reason, message) = match request.command() {
-                Err(e) => (e.reason(), e.to_string()),
-                Ok(Request::Status) => (REASON_OK, String::new()),
-                Ok(Request::Program { .. }) => (REASON_OK, String::new()),
-                Ok(Request::Hold) => {
-                    // No program yet (id 0) or the last one is over: nothing to hold.
-                    if latest.state == State::Idle
-                        && (latest.program_done || latest.program_id == 0)
-                    {
-                        (
-                            REASON_NOT_ALLOWED,
-                            "nothing to hold: no program is running".to_string(),
-                        )
-                    } else {
-                        hold_requested = true;
-                        push_command(&mut commands, Command::Hold)
-                    }
-                }
-                Ok(Request::Resume) => {
-                    if hold_requested || latest.state == State::Holding {
-                        hold_requested = false;
-                        push_command(&mut commands, Command::Resume)
-                    } else {
-                        (
-                            REASON_NOT_ALLOWED,
-                            "not holding: nothing to resume".to_string(),
-                        )
-                    }
-                }
-                Ok(Request::Abort) => {
-                    hold_requested = false;
-                    push_command(&mut commands, Command::Abort)
-                }
-                Ok(Request::Override { percent }) => {
-                    push_command(&mut commands, Command::Override(percent))
-                }
-                Ok(Request::Reset) => {
-                    let tag = next_tag;
-                    next_tag += 1;
-                    match push_command(&mut commands, Command::Reset(tag)) {
-                        (REASON_OK, _) => {
-                            wait_reset(&mut status, &mut latest, &mut writer, &mut dumps, tag, reset_patience)
-                        }
-                        refused => refused,
-                    }
-                }
-                Ok(Request::Dump) => {
-                    let tag = next_tag;
-                    next_tag += 1;
-                    match push_command(&mut commands, Command::Dump(tag)) {
-                        (REASON_OK, _) => {
-                            let waited = wait_dump(&mut status, &mut latest, &mut writer, &mut dumps, tag, dump_patience);
-                            match waited {
-                                Ok(path) => (REASON_OK, path.display().to_string()),
-                                Err(e) => (REASON_NOT_ALLOWED, e),
-                            }
-                        }
-                        refused => refused,
-                    }
-                }
-                Ok(Request::Inject { code }) => match worker::Injection::from_code(code) {
-                    _ if !test_faults => (
-                        REASON_NOT_ALLOWED,
-                        "fault injection is for tests only: this kerfd was not started with --test-faults".to_string(),
-                    ),
-                    Some(i) => push_command(&mut commands, Command::Inject(i)),
-                    None => (
-                        kerf_proto::REASON_BAD_VALUE,
-                        format!("unknown injection code {code}"),
-                    ),
-                },
-            };
-            let mut msg = status_msg(
-                &latest,
-                &counters,
-                rt_flag,
-                overruns.load(Ordering::Acquire),
-                window,
-                axes_mask,
-                period_ns,
-            );
-            if latest.drives.fault.is_some()
-                && let Some(path) = writer.fault_path()
-            {
-                msg.set_fault_dump(&path.display().to_string());
-            }
-            let _ = active.send_copy(Response::new(request.id, reason, &message, msg));
-        }
-        if rt_flag == 0 && rt_ok.load(Ordering::Acquire) {
-            rt_flag = 1;
-        }
-        if shutdown.load(Ordering::Acquire) && !shutdown_sent {
-            shutdown_sent = commands.push(Command::Shutdown).is_ok();
-        }
-        if latest.shut_down || stop.load(Ordering::Acquire) {
-            done.store(true, Ordering::Release);
-            stop.store(true, Ordering::Release);
-            return Ok(());
-        }
-        std::thread::sleep(POLL);
+        commands_applied: 0,
     }
+}
+
+fn lock_fates(counters: &PlanningCounters) -> std::sync::MutexGuard<'_, fates::Fates> {
+    // A panic while holding the lock leaves a consistent table: take it anyway.
+    counters
+        .fates
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// The control thread's view of the cycle: the snapshots it reports, the latest one, and
+/// what they tell of each program's end (recorded in the fates; a program refused when
+/// it would start is counted as refused).
+struct CycleView {
+    ring: rtrb::Consumer<Snapshot>,
+    latest: Snapshot,
+    counters: PlanningCounters,
+}
+
+impl CycleView {
+    /// Takes every snapshot the cycle reported; `true` if there was one.
+    fn pull(&mut self) -> bool {
+        let mut got = false;
+        while let Ok(s) = self.ring.pop() {
+            self.observe(&s);
+            self.latest = s;
+            got = true;
+        }
+        got
+    }
+
+    fn observe(&self, s: &Snapshot) {
+        if s.program_id == 0 || !s.program_done {
+            return;
+        }
+        let (code, reason) = match (s.aborted, s.refusal) {
+            (true, _) => (
+                kerf_proto::PROGRAM_FATE_ABORTED,
+                "aborted: the motion stopped on the path and the rest of the program was dropped"
+                    .to_string(),
+            ),
+            (false, Some(r)) => (kerf_proto::PROGRAM_FATE_REFUSED, r.to_string()),
+            (false, None) => (kerf_proto::PROGRAM_FATE_FINISHED, String::new()),
+        };
+        let changed = lock_fates(&self.counters).end(s.program_id, code, reason);
+        if changed
+            && !s.aborted
+            && matches!(
+                s.refusal,
+                Some(Refusal::WrongStart { .. } | Refusal::Faulted(_))
+            )
+        {
+            // Its BEGIN was refused when the program would have started.
+            self.counters.refused.fetch_add(1, Ordering::AcqRel);
+        }
+    }
+}
+
+/// How long an answer waits for the cycle to apply its command: 100 periods, at least
+/// 100 ms.
+fn apply_patience(config: &Config) -> Duration {
+    Duration::from_micros(u64::from(config.period_us) * 100).max(Duration::from_millis(100))
 }
 
 /// How long a reset may take: a fault reset and then the enable sequence (four
@@ -548,17 +663,14 @@ pub fn dump_patience(config: &Config) -> Duration {
 /// Polls the cycle every [`POLL`] (the latest status snapshot into `latest`) until
 /// `outcome` has an answer, at most `patience`; `None` if it ran out.
 fn poll_cycle<T>(
-    status: &mut rtrb::Consumer<Snapshot>,
-    latest: &mut Snapshot,
+    view: &mut CycleView,
     patience: Duration,
     mut outcome: impl FnMut(&Snapshot) -> Option<T>,
 ) -> Option<T> {
     let deadline = Instant::now() + patience;
     loop {
-        while let Ok(s) = status.pop() {
-            *latest = s;
-        }
-        if let Some(answer) = outcome(latest) {
+        view.pull();
+        if let Some(answer) = outcome(&view.latest) {
             return Some(answer);
         }
         if Instant::now() > deadline {
@@ -571,14 +683,13 @@ fn poll_cycle<T>(
 /// Waits for the outcome of reset `tag` (the status snapshots carry it), writing the
 /// dumps that come out meanwhile.
 fn wait_reset(
-    status: &mut rtrb::Consumer<Snapshot>,
-    latest: &mut Snapshot,
+    view: &mut CycleView,
     writer: &mut DumpWriter,
     dumps: &mut worker::DumpWriterRings,
     tag: u64,
     patience: Duration,
 ) -> (u32, String) {
-    let outcome = poll_cycle(status, latest, patience, |s| {
+    let outcome = poll_cycle(view, patience, |s| {
         writer.take(dumps, None);
         match s.reset {
             Some((t, Ok(()))) if t == tag => Some((REASON_OK, String::new())),
@@ -596,14 +707,13 @@ fn wait_reset(
 
 /// Waits for dump `tag` and writes it; its file.
 fn wait_dump(
-    status: &mut rtrb::Consumer<Snapshot>,
-    latest: &mut Snapshot,
+    view: &mut CycleView,
     writer: &mut DumpWriter,
     dumps: &mut worker::DumpWriterRings,
     tag: u64,
     patience: Duration,
 ) -> Result<std::path::PathBuf, String> {
-    poll_cycle(status, latest, patience, |_| writer.take(dumps, Some(tag))).unwrap_or_else(|| {
+    poll_cycle(view, patience, |_| writer.take(dumps, Some(tag))).unwrap_or_else(|| {
         Err("dump: the black box did not come out of the real-time cycle in time".to_string())
     })
 }
@@ -823,7 +933,11 @@ pub fn planning_thread(
         }
     };
     let mut planning = Planning::new(config, items, stop.clone(), &counters);
-    let mut check = StreamCheck::new();
+    let mut intake = Intake {
+        check: StreamCheck::new(),
+        current: 0,
+        dropping: false,
+    };
     let mut last_message = Instant::now();
     let mut last_sender_check = Instant::now();
     loop {
@@ -838,38 +952,26 @@ pub fn planning_thread(
                 Err(e) => return Err(format!("receiving moves: {e:?}")),
             };
             got = true;
-            let begin = msg.kind == kerf_proto::KIND_BEGIN;
-            if planning.dropping() && !begin {
-                // The rest of a refused program: taken (for the sender's flow control)
-                // and dropped.
-                counters.received.fetch_add(1, Ordering::AcqRel);
-                continue;
-            }
-            if begin {
-                check.reset();
-                counters.received.store(0, Ordering::Release);
-            }
-            counters.received.fetch_add(1, Ordering::AcqRel);
-            let incoming = match check.check(&msg) {
-                Ok(Resolved::Begin {
-                    program_id,
-                    start_mm_deg,
-                    ..
-                }) => Incoming::Begin {
-                    program_id,
-                    start: start_mm_deg,
-                },
-                Ok(Resolved::Move(m)) => Incoming::Move(m),
-                Ok(Resolved::Event(e)) => Incoming::Event(e),
-                Ok(Resolved::End { .. }) => Incoming::End,
-                Err(e) => {
-                    check.reset();
-                    Incoming::Rejected(e)
-                }
-            };
-            if !planning.handle(incoming) {
+            if let Some(incoming) = take_message(&msg, &mut intake, &counters)
+                && !planning.handle(incoming)
+            {
                 return Ok(());
             }
+            if planning.dropping() && intake.check.program_id().is_some() {
+                // The program was refused: it is over, its rest is dropped.
+                intake.check.reset();
+                intake.dropping = true;
+            }
+            if intake.check.program_id().is_none() {
+                counters.open.store(0, Ordering::Release);
+            }
+            // An abort of the open program drops the rest of it at once.
+            if !abort_open(&mut planning, &mut intake, &counters) {
+                return Ok(());
+            }
+        }
+        if !abort_open(&mut planning, &mut intake, &counters) {
+            return Ok(());
         }
         let now = Instant::now();
         if got {
@@ -883,7 +985,8 @@ pub fn planning_thread(
             last_sender_check = now;
             ipc::clean_dead_nodes();
             if service.dynamic_config().number_of_publishers() == 0 {
-                check.reset();
+                intake.check.reset();
+                counters.open.store(0, Ordering::Release);
                 if !planning.handle(Incoming::SenderGone) {
                     return Ok(());
                 }
@@ -891,6 +994,127 @@ pub fn planning_thread(
         }
         std::thread::sleep(POLL);
     }
+}
+
+/// The planning thread's side of the stream rules that span programs: the stream check
+/// of the open program and the program whose items count in `moves_received`.
+struct Intake {
+    check: StreamCheck,
+    /// The open program, or the one stopped early whose rest is being dropped; 0 none.
+    current: u64,
+    /// The current program stopped early: its further items and END are dropped.
+    dropping: bool,
+}
+
+/// A message refused without touching the open program: counted, logged, dropped.
+fn refuse_alone(counters: &PlanningCounters, why: &StreamError) {
+    counters.refused.fetch_add(1, Ordering::AcqRel);
+    tracing::warn!("message refused: {why}");
+}
+
+/// Applies the stream rules that span programs to one message and returns what the
+/// planning worker gets of it (`None`: refused or dropped here, see PROTOCOL.md's stream
+/// rules 1, 2 and 6).
+fn take_message(
+    msg: &MoveMsg,
+    intake: &mut Intake,
+    counters: &PlanningCounters,
+) -> Option<Incoming> {
+    let id = msg.program_id;
+    let open = intake.check.program_id();
+    if msg.kind == kerf_proto::KIND_BEGIN {
+        if let Some(open) = open {
+            let why = StreamError::UnexpectedBegin { open, found: id };
+            refuse_alone(counters, &why);
+            lock_fates(counters).begin(id, Some(why.to_string()));
+            return None;
+        }
+        if id != 0 && lock_fates(counters).knows(id) {
+            refuse_alone(counters, &StreamError::RepeatedId { program_id: id });
+            return None;
+        }
+        return match intake.check.check(msg) {
+            Ok(Resolved::Begin {
+                program_id,
+                start_mm_deg,
+                ..
+            }) => {
+                counters.received.store(0, Ordering::Release);
+                counters.open.store(program_id, Ordering::Release);
+                intake.current = program_id;
+                intake.dropping = false;
+                lock_fates(counters).begin(program_id, None);
+                Some(Incoming::Begin {
+                    program_id,
+                    start: start_mm_deg,
+                })
+            }
+            Ok(_) => None,
+            Err(why) => {
+                refuse_alone(counters, &why);
+                lock_fates(counters).begin(id, Some(format!("message refused: {why}")));
+                None
+            }
+        };
+    }
+    let item = msg.kind != kerf_proto::KIND_END;
+    if intake.dropping && open.is_none() && id == intake.current {
+        // The rest of a program stopped early: taken (for its client's flow control) and
+        // dropped, up to its END.
+        if item {
+            counters.received.fetch_add(1, Ordering::AcqRel);
+        } else {
+            intake.dropping = false;
+        }
+        return None;
+    }
+    match open {
+        Some(open) if open == id => {}
+        Some(open) => {
+            refuse_alone(
+                counters,
+                &StreamError::WrongProgram {
+                    expected: open,
+                    found: id,
+                },
+            );
+            return None;
+        }
+        None => {
+            refuse_alone(counters, &StreamError::NoBegin { program_id: id });
+            return None;
+        }
+    }
+    if item {
+        counters.received.fetch_add(1, Ordering::AcqRel);
+    }
+    Some(match intake.check.check(msg) {
+        Ok(Resolved::Move(m)) => Incoming::Move(m),
+        Ok(Resolved::Event(e)) => Incoming::Event(e),
+        Ok(Resolved::End { .. }) => {
+            lock_fates(counters).received(id);
+            Incoming::End
+        }
+        Ok(Resolved::Begin { .. }) => return None,
+        Err(e) => {
+            intake.check.reset();
+            intake.dropping = true;
+            Incoming::Rejected(e)
+        }
+    })
+}
+
+/// Ends the open program if the control thread asked for its abort. Returns `false` if
+/// the worker must stop.
+fn abort_open(planning: &mut Planning, intake: &mut Intake, counters: &PlanningCounters) -> bool {
+    let id = counters.abort.swap(0, Ordering::AcqRel);
+    if id == 0 || id != intake.current || intake.check.program_id() != Some(id) {
+        return true;
+    }
+    intake.check.reset();
+    intake.dropping = true;
+    counters.open.store(0, Ordering::Release);
+    planning.abort()
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -964,15 +1188,18 @@ fn cycle_thread(
     let mut msg = SetpointMsg::new();
     msg.axes_mask = axes_mask;
     let mut timing = timing::CycleTiming::new();
+    let mut missed_periods = 0u64;
     loop {
         let tick = clock.wait_next();
         if tick.missed > 0 {
+            missed_periods += tick.missed;
             overruns.fetch_add(tick.missed, Ordering::AcqRel);
             // The drives got no setpoint in the periods missed: they held.
             cycle.missed(tick.missed);
         }
         let out = cycle.run();
         out.fill(&mut msg, tick.deadline_ns);
+        msg.missed_periods = missed_periods;
         publisher.push(msg);
         let woke_ns = tick.deadline_ns + tick.latency_ns;
         timing.record(tick.latency_ns, kerf_rt::now_ns().saturating_sub(woke_ns));

@@ -124,6 +124,9 @@ pub enum Command {
     Resume,
     /// Stop on the path and drop the rest of the program.
     Abort,
+    /// Abort program `id`: the running one if it is that one, else the program of that id
+    /// when it begins (it then begins aborted and never moves).
+    AbortProgram(u64),
     /// Feed override, percent (0 to 200).
     Override(f64),
     /// Stop on the path, drop the program, then end the cycle (SIGTERM, SIGINT).
@@ -235,6 +238,9 @@ pub struct Snapshot {
     pub drives: DriveReport,
     /// The last reset's tag and outcome.
     pub reset: Option<(u64, Result<(), ResetRefused>)>,
+    /// Commands the cycle has taken and applied since the start (a request's answer
+    /// waits until its command is among them).
+    pub commands_applied: u64,
 }
 
 /// Periods to wait between polls while the ring to the cycle is full.
@@ -261,10 +267,18 @@ pub struct Planning {
 /// Counters the planning worker shares with the control thread.
 #[derive(Clone, Debug, Default)]
 pub struct PlanningCounters {
-    /// Items of the current program accepted.
+    /// Items (not BEGIN or END) of the current program taken off the moves service.
     pub received: Arc<AtomicU64>,
     /// Messages refused since start.
     pub refused: Arc<AtomicU64>,
+    /// The program being received (its BEGIN accepted, neither its END received nor
+    /// stopped early); 0 when none.
+    pub open: Arc<AtomicU64>,
+    /// A program to abort, set by the control thread; the planning thread drops the rest
+    /// of it (when it is the open one) and clears this.
+    pub abort: Arc<AtomicU64>,
+    /// What became of the last programs.
+    pub fates: Arc<std::sync::Mutex<super::fates::Fates>>,
 }
 
 impl Planning {
@@ -297,6 +311,20 @@ impl Planning {
     /// dropped until the next program begins.
     pub fn dropping(&self) -> bool {
         self.failed
+    }
+
+    /// Drops the rest of the open program after an abort: nothing more of it is planned,
+    /// and the cycle (which aborted the motion) gets its end. Returns `false` if told to
+    /// stop.
+    pub fn abort(&mut self) -> bool {
+        if self.planner.is_none() || self.failed {
+            return true;
+        }
+        tracing::info!("program aborted: the rest of it is dropped");
+        self.buf.clear();
+        self.taken.clear();
+        self.failed = true;
+        self.send(RtItem::End(None))
     }
 
     /// Handles one incoming item. Returns `false` once the worker must stop.
@@ -474,6 +502,8 @@ struct ProgramRun {
     refusal: Option<Refusal>,
     /// Set when the program must not move at all (it starts elsewhere).
     dropped: bool,
+    /// Planned items (segments, dwells) taken for the motion so far.
+    planned: u64,
 }
 
 /// The setpoint of one cycle as the daemon publishes it.
@@ -596,6 +626,14 @@ pub struct Cycle {
     program: Option<ProgramRun>,
     /// The last program's id, why it stopped early, and whether it was aborted.
     last_program: (u64, Option<Refusal>, bool),
+    /// The last program ended in this cycle (a safety trip in the same cycle is its).
+    ended_this_cycle: bool,
+    /// A program to abort when it begins (its abort came before its beginning).
+    pending_abort: u64,
+    /// The feed override in force, percent.
+    override_pct: f64,
+    /// Commands taken from the command ring and applied since the start.
+    commands_applied: u64,
     cycles: u64,
     /// The last setpoint of the motion core (the machine's position between programs).
     setpoint: Setpoint,
@@ -649,6 +687,10 @@ impl Cycle {
             status,
             program: None,
             last_program: (0, None, false),
+            ended_this_cycle: false,
+            pending_abort: 0,
+            override_pct: 100.0,
+            commands_applied: 0,
             cycles: 0,
             setpoint: Setpoint {
                 position: start,
@@ -705,6 +747,7 @@ impl Cycle {
     /// motion, and returns the setpoint. Never allocates, locks or blocks.
     pub fn run(&mut self) -> CycleOutput {
         self.cycles += 1;
+        self.ended_this_cycle = false;
         let mut commands = [None; COMMANDS_PER_CYCLE];
         for slot in commands.iter_mut() {
             match self.commands.pop() {
@@ -718,10 +761,17 @@ impl Cycle {
         let previous = self.sent;
         // Feeding comes before the commands, as in `kerf sim`, where an event applies
         // after the cycle's feeding and before its step.
-        let started = match self.program {
+        let mut started = match self.program {
             Some(p) if !p.dropped => self.feed(),
             _ => false,
         };
+        if started && self.program.is_some_and(|p| p.planned == 0) && self.interp.source_ended() {
+            // Nothing of the program was planned (refused at its first move, or empty):
+            // it ends without a moving cycle.
+            started = false;
+            self.interp.apply(Event::Abort);
+            self.end_program();
+        }
         for c in commands.iter().flatten() {
             self.apply(*c);
         }
@@ -847,10 +897,15 @@ impl Cycle {
             self.interp.next_program();
             self.tracker.clear();
             self.end_program();
+        } else if self.ended_this_cycle && self.last_program.1.is_none() {
+            // The setpoint of the program's last cycle tripped: the program did not
+            // finish, whatever its motion reported.
+            self.last_program.1 = Some(Refusal::Safety(fault));
         }
     }
 
     fn apply(&mut self, c: Command) {
+        self.commands_applied += 1;
         match c {
             // A hold that arrives after its program ended holds nothing: it must not
             // stop the next program before its first move.
@@ -858,6 +913,7 @@ impl Cycle {
             Command::Hold => self.interp.apply(Event::Hold),
             Command::Resume => self.interp.apply(Event::Resume),
             Command::Override(pct) => {
+                self.override_pct = pct;
                 if pct == 0.0 {
                     // A control at 0 % stands still on the path (the core holds).
                     self.interp.apply(Event::Override(0.0));
@@ -871,6 +927,15 @@ impl Cycle {
                 }
                 self.interp.apply(Event::Abort)
             }
+            Command::AbortProgram(id) => match self.program.as_mut() {
+                Some(p) if p.id == id => {
+                    p.aborted = true;
+                    self.interp.apply(Event::Abort)
+                }
+                // Already over, or not begun yet: it begins aborted.
+                _ if self.last_program.0 != id => self.pending_abort = id,
+                _ => {}
+            },
             Command::Shutdown => {
                 if let Some(p) = self.program.as_mut() {
                     p.aborted = true;
@@ -934,20 +999,28 @@ impl Cycle {
                 cycle: 0,
                 refusal: Some(Refusal::Faulted(f)),
                 dropped: true,
+                planned: 0,
             });
             return;
         }
         self.interp.next_program();
         self.tracker.clear();
+        let aborted = self.pending_abort == program_id;
+        if aborted {
+            self.pending_abort = 0;
+        }
         let mut run = ProgramRun {
             id: program_id,
-            aborted: false,
+            aborted,
             cycle: 0,
             refusal: None,
-            dropped: self.shutting_down,
+            dropped: self.shutting_down || aborted,
+            planned: 0,
         };
         for (i, (&s, &p)) in start.iter().zip(self.setpoint.position.iter()).enumerate() {
-            if (s - p).abs() > 1e-6 {
+            // A start that is not a number is refused too.
+            let at_machine = (s - p).abs() <= START_TOL;
+            if !at_machine && !aborted {
                 run.refusal = Some(Refusal::WrongStart {
                     axis: kerf_plan::AXIS_NAMES[i],
                     start: s,
@@ -986,6 +1059,7 @@ impl Cycle {
         let aborted = self.interp.aborted();
         let mut refusal = None;
         let mut pending = false;
+        let mut planned = 0u64;
         let result = self.interp.feed(|| {
             loop {
                 let Ok(item) = items.peek() else {
@@ -1008,6 +1082,7 @@ impl Cycle {
                         if let Planned::Segment(seg, _) = &p {
                             queued.push(segment_time_s(seg));
                         }
+                        planned += 1;
                         let _ = items.pop();
                         return Poll::Ready(p);
                     }
@@ -1020,10 +1095,11 @@ impl Cycle {
                 let _ = items.pop();
             }
         });
-        if let Some(r) = refusal
-            && let Some(p) = self.program.as_mut()
-        {
-            p.refusal = Some(r);
+        if let Some(p) = self.program.as_mut() {
+            p.planned += planned;
+            if let Some(r) = refusal {
+                p.refusal = Some(r);
+            }
         }
         match result {
             Ok(started) => {
@@ -1044,6 +1120,7 @@ impl Cycle {
     fn end_program(&mut self) {
         if let Some(p) = self.program.take() {
             self.last_program = (p.id, p.refusal, p.aborted);
+            self.ended_this_cycle = true;
         }
         self.starved = false;
         self.queued.keep_last(0);
@@ -1081,7 +1158,7 @@ impl Cycle {
             line: self.setpoint.line,
             position: self.setpoint.position,
             feed_mm_s: self.setpoint.feed_mm_s,
-            override_pct: core.feed_override * 100.0,
+            override_pct: self.override_pct,
             queued_segments: core.queued as u64,
             queued_s: self.queued.sum_s.max(0.0),
             program_id,
@@ -1092,6 +1169,7 @@ impl Cycle {
             shut_down: self.shut_down,
             drives: self.drive_report(),
             reset: self.last_reset,
+            commands_applied: self.commands_applied,
         };
         // A full ring means the control thread is behind: it gets the next one.
         let _ = self.status.push(snapshot);
@@ -1115,6 +1193,9 @@ impl Cycle {
         }
     }
 }
+
+/// How far (mm or degrees, any axis) a program may start from the machine's position.
+pub const START_TOL: f64 = 1e-6;
 
 /// Cycles a shutdown waits for the drives to power off before the cycle ends anyway.
 const DISABLE_WAIT_CYCLES: u32 = 1000;

@@ -476,6 +476,12 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         let msg = MoveMsg::from_item(id, seq, &item);
         // Flow control: never more than the daemon's window unacknowledged.
         while sender.sent - acked >= window {
+            if stop.load(Ordering::Acquire) {
+                let _ = client.command(Command::Abort);
+                return Err(Failure::Error(format!(
+                    "{name}: error: interrupted; the motion was aborted on the path"
+                )));
+            }
             let s = live_status(&mut client, &mut watch, &mut reader)?;
             check(&mut client, &mut watch, &mut reader, &s)?;
             if s.program_id == id {
@@ -562,10 +568,29 @@ fn check_program_state(
     name: &str,
     machine: &str,
 ) -> Result<(), Failure> {
-    if s.program_id != id && s.program_id != 0 && s.program_end == PROGRAM_END_NONE {
-        return Err(Failure::Error(format!(
-            "{name}: error: machine `{machine}` started another program"
-        )));
+    if s.program_id != id {
+        // Not (or no longer) the daemon's current program: its own fate says why.
+        if let Ok(r) = client.request(Command::Program { program_id: id }) {
+            match r.program_fate {
+                kerf_proto::PROGRAM_FATE_REFUSED => {
+                    return Err(Failure::Error(format!(
+                        "{name}: error: the daemon refused the program: {}",
+                        r.message()
+                    )));
+                }
+                kerf_proto::PROGRAM_FATE_ABORTED => {
+                    return Err(Failure::Error(format!(
+                        "{name}: error: the program was aborted (kerf abort, or the daemon stopped); the machine stopped on the path"
+                    )));
+                }
+                _ => {}
+            }
+        }
+        if s.program_id != 0 && s.program_end == PROGRAM_END_NONE {
+            return Err(Failure::Error(format!(
+                "{name}: error: machine `{machine}` started another program"
+            )));
+        }
     }
     if s.program_id == id {
         match s.program_end {
