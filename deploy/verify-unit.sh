@@ -3,6 +3,12 @@
 # /usr/bin/kerfd, which is not installed where this runs, so a temporary copy points
 # ExecStart at /bin/true; every other line is checked as written. Fails if systemd-analyze
 # fails or prints anything about the unit.
+#
+# Then, as root (CI), applies deploy/kerfd.tmpfiles with `systemd-tmpfiles --root` to a
+# scratch root whose /etc/passwd has a user kerf and whose /tmp/iceoryx2 holds what a
+# command run with sudo leaves (root-owned nodes/ and a node directory in it): fails
+# unless the whole tree then belongs to kerf, with the modes iceoryx2 set kept, and
+# systemd-tmpfiles printed nothing. As another user it says that it skipped this part.
 set -euo pipefail
 
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -26,3 +32,47 @@ if [ "$status" -ne 0 ] || [ -n "$ours" ]; then
     exit 1
 fi
 echo "verify-unit: kerfd.service OK (systemd $(systemd-analyze --version | head -n1 | awk '{print $2}'))"
+
+# The tmpfiles entry: the whole iceoryx2 tree for user kerf.
+tmpfiles="$here/kerfd.tmpfiles"
+if [ "$(id -u)" -ne 0 ]; then
+    echo "verify-unit: kerfd.tmpfiles not applied (systemd-tmpfiles needs root to chown); run as root to check it"
+    exit 0
+fi
+root="$tmp/root"
+mkdir -p "$root/etc" "$root/tmp/iceoryx2/nodes/1234"
+cp /etc/passwd /etc/group "$root/etc/"
+kerf_id=64999
+echo "kerf:x:$kerf_id:$kerf_id:kerf:/:/usr/sbin/nologin" >>"$root/etc/passwd"
+echo "kerf:x:$kerf_id:" >>"$root/etc/group"
+# Left by root: nodes/ (mode 0750, as iceoryx2 makes it) and a node's file (0400).
+chmod 0750 "$root/tmp/iceoryx2/nodes"
+touch "$root/tmp/iceoryx2/nodes/1234/iox2_node.details"
+chmod 0400 "$root/tmp/iceoryx2/nodes/1234/iox2_node.details"
+output="$(systemd-tmpfiles --root="$root" --create "$tmpfiles" 2>&1)" || {
+    echo "verify-unit: systemd-tmpfiles --create failed on $tmpfiles:" >&2
+    printf '%s\n' "$output" >&2
+    exit 1
+}
+if [ -n "$output" ]; then
+    echo "verify-unit: systemd-tmpfiles printed something about $tmpfiles:" >&2
+    printf '%s\n' "$output" >&2
+    exit 1
+fi
+wrong="$(find "$root/tmp/iceoryx2" \( ! -uid "$kerf_id" -o ! -gid "$kerf_id" \) -printf '%p %u:%g\n')"
+if [ -n "$wrong" ]; then
+    echo "verify-unit: after $tmpfiles, not owned by kerf:" >&2
+    printf '%s\n' "$wrong" >&2
+    exit 1
+fi
+modes="$(cd "$root/tmp/iceoryx2" && stat -c '%n %a' . nodes services nodes/1234/iox2_node.details)"
+expected=". 750
+nodes 750
+services 750
+nodes/1234/iox2_node.details 400"
+if [ "$modes" != "$expected" ]; then
+    echo "verify-unit: after $tmpfiles, unexpected modes:" >&2
+    printf '%s\n' "$modes" >&2
+    exit 1
+fi
+echo "verify-unit: kerfd.tmpfiles OK (the whole /tmp/iceoryx2 tree for user kerf)"

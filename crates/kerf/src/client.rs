@@ -55,12 +55,26 @@ pub struct Client {
 
 impl Client {
     /// Connects to the daemon of `machine` and checks that it answers.
+    ///
+    /// When the iceoryx2 files belong to another user, the error says so instead: the
+    /// user the machine's daemon runs as (run the command as that user), or the owner of
+    /// the tree ([`ipc::owner::client_diagnosis`]); never that no daemon answers while one
+    /// of another user serves the machine. That is checked before the node is created, so
+    /// that root never leaves files in another user's tree that its daemon cannot use.
     pub fn connect(machine: &str) -> Result<Client, ClientError> {
-        let node = ipc::node(&format!("kerf-{}", std::process::id())).map_err(ClientError::Ipc)?;
+        if let Some(why) = ipc::owner::client_refusal(machine) {
+            return Err(ClientError::Ipc(why));
+        }
+        let explained = |e: ClientError| match ipc::owner::client_diagnosis(machine) {
+            Some(why) => ClientError::Ipc(why),
+            None => e,
+        };
+        let node = ipc::node(&format!("kerf-{}", std::process::id()))
+            .map_err(|e| explained(ClientError::Ipc(e)))?;
         let no_daemon = || ClientError::NoDaemon {
             machine: machine.to_string(),
         };
-        let control = ipc::open_control(&node, machine).map_err(|_| no_daemon())?;
+        let control = ipc::open_control(&node, machine).map_err(|_| explained(no_daemon()))?;
         let client = control
             .client_builder()
             .create()
@@ -72,7 +86,10 @@ impl Client {
             client,
             next_id: 1,
         };
-        c.status()?;
+        c.status().map_err(|e| match e {
+            ClientError::NoDaemon { .. } => explained(e),
+            e => e,
+        })?;
         Ok(c)
     }
 

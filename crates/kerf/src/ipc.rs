@@ -6,7 +6,8 @@
 //! Design decisions:
 //! - The daemon creates the services (after removing what dead processes left behind) and
 //!   is their only server and setpoint publisher; clients only open them. A client that
-//!   cannot open a service has no daemon to talk to, and says so.
+//!   cannot open a service has no daemon to talk to, and says so, unless the files belong
+//!   to another user: then it names the user the daemon runs as ([`owner`]).
 //! - Moves are never dropped: the subscriber's buffer holds the whole flow-control window
 //!   plus a margin, and a publisher whose buffer is full waits instead of discarding.
 //! - Setpoints are never waited for: a slow reader loses the oldest samples (safe
@@ -14,6 +15,12 @@
 //!   blocks.
 //! - iceoryx2 installs no signal handlers of its own (the daemon and the commands handle
 //!   SIGINT and SIGTERM themselves).
+//! - iceoryx2's files can be used only by their owner ([`owner`]): a node or service that
+//!   cannot be created because files of the tree belong to another user is reported with
+//!   the path, the owner and what to do, never as iceoryx2's bare `InternalError`. The
+//!   daemon's nodes are the ones named `kerfd-…` ([`DAEMON_NODE_PREFIX`]).
+
+pub mod owner;
 
 use std::time::Duration;
 
@@ -49,16 +56,42 @@ pub const MAX_CONTROL_CLIENTS: usize = 16;
 /// Segments that a process killed while creating a service left empty are removed first
 /// ([`remove_unfinished_segments`]): creating a node cleans up after dead nodes, and
 /// opening such a segment there would wait forever.
+///
+/// A node that cannot be created because files of the iceoryx2 tree belong to another
+/// user says which, whose, and what to do ([`owner::blocked_tree_message`]). The daemon's
+/// first node ([`DAEMON_FIRST_NODE`]) also warns, once at start, of such files that did
+/// not stop it (a dead root process's node it cannot clean up, for instance).
 pub fn node(name: &str) -> Result<Node<ipc::Service>, String> {
     set_log_level_from_env_or(LogLevel::Error);
     remove_unfinished_segments();
     let node_name = NodeName::new(name).map_err(|e| format!("node name `{name}`: {e:?}"))?;
-    NodeBuilder::new()
+    let program = if name.starts_with(DAEMON_NODE_PREFIX) {
+        "kerfd"
+    } else {
+        "kerf"
+    };
+    let node = NodeBuilder::new()
         .name(&node_name)
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<ipc::Service>()
-        .map_err(|e| format!("cannot create an iceoryx2 node: {e:?}"))
+        .map_err(|e| match owner::blocked_tree_message(program) {
+            Some(why) => format!("cannot create an iceoryx2 node: {why}"),
+            None => format!("cannot create an iceoryx2 node: {e:?}"),
+        })?;
+    if name == DAEMON_FIRST_NODE
+        && let Some(why) = owner::blocked_tree_message(program)
+    {
+        tracing::warn!("{why}");
+    }
+    Ok(node)
 }
+
+/// The names of the daemon's nodes start with this (`kerfd-control`, `kerfd-planning`,
+/// `kerfd-publish`); clients' do not.
+pub const DAEMON_NODE_PREFIX: &str = "kerfd-";
+
+/// The daemon's first node, created once at its start.
+pub const DAEMON_FIRST_NODE: &str = "kerfd-control";
 
 /// Removes the shared-memory resources of dead processes (a daemon or client killed with
 /// SIGKILL), so that a restarted daemon needs no manual clean-up. Returns how many dead
@@ -315,7 +348,7 @@ fn repaired<T>(
     which: &str,
     build: impl Fn() -> Result<T, String>,
 ) -> Result<T, String> {
-    match build() {
+    let result = match build() {
         Ok(t) => Ok(t),
         Err(e) => {
             if remove_broken_service(machine, which) {
@@ -327,7 +360,13 @@ fn repaired<T>(
                 Err(e)
             }
         }
-    }
+    };
+    // Files of another user in the tree (a root-owned `services/`): say so, not iceoryx2's
+    // `InternalError`.
+    result.map_err(|e| match owner::blocked_tree_message("kerfd") {
+        Some(why) => format!("cannot create service kerf/{machine}/{which}: {why}"),
+        None => e,
+    })
 }
 
 /// Removes the static file (and the shared memory) of the service `kerf/<machine>/<which>`.
