@@ -249,3 +249,66 @@ fn a_badly_tuned_drive_trips_mid_program_and_nothing_moves_until_reset() {
     let last = sent3.last().unwrap();
     assert!((last[0] - (s.position[0] + 1.0)).abs() < 1e-9);
 }
+
+/// A trip of the safety layer on the very cycle in which a program's motion ended belongs
+/// to that program (issue 25: the inconsistent arc's last setpoint snapped back and tripped,
+/// and the program was reported finished). One cycle later it is no longer the program's.
+#[test]
+fn a_trip_on_the_cycle_a_program_ends_is_that_programs_and_one_after_it_is_not() {
+    let config = machine_variant(1.0, 50.0, 1000.0, 1);
+    let program = "G21 G90 G1 X5 F600\nM2\n";
+    // The program's length in cycles, from a clean run.
+    let mut m = Machine::new(config.clone());
+    let at = m.enable();
+    let id = m.send(program, at);
+    let (sent, _, end) = m.run_program(id);
+    assert_eq!(end.refusal, None);
+    let cycles = sent.len();
+    assert!(cycles > 10, "{cycles}");
+    // The same again, with a 1 mm step injected into the setpoint of cycle `at_cycle`
+    // (1-based from the program's first call): a velocity trip on that cycle.
+    let trip_at = |at_cycle: usize| -> Snapshot {
+        let mut m = Machine::new(config.clone());
+        let at = m.enable();
+        let id = m.send(program, at);
+        for k in 1..=cycles + 5 {
+            if k == at_cycle {
+                let step = kerf::daemon::worker::Injection::Step(0, 1.0);
+                m.commands.push(Command::Inject(step)).expect("room");
+            }
+            m.run();
+        }
+        let s = m.last.expect("status");
+        assert_eq!(s.program_id, id);
+        assert!(s.program_done);
+        assert!(s.drives.fault.is_some(), "no trip at cycle {at_cycle}");
+        s
+    };
+    for at_cycle in [cycles - 1, cycles] {
+        let s = trip_at(at_cycle);
+        assert!(
+            matches!(s.refusal, Some(Refusal::Safety(_))),
+            "a trip at cycle {at_cycle} of {cycles}: {:?}",
+            s.refusal
+        );
+    }
+    let s = trip_at(cycles + 1);
+    assert_eq!(s.refusal, None, "a trip after the program's end");
+}
+
+/// Periods in which no cycle ran are counted in every later setpoint, so that a consumer
+/// sees them (issue 25: a missed deadline was invisible in `seq`).
+#[test]
+fn missed_periods_are_counted_in_the_setpoints() {
+    let mut m = Machine::new(machine_variant(1.0, 50.0, 1000.0, 1));
+    let first = m.run();
+    assert_eq!(first.missed_periods, 0);
+    m.cycle.missed(5);
+    let out = m.run();
+    assert_eq!(out.missed_periods, 5);
+    assert_eq!(out.seq, first.seq + 1, "seq counts cycles run");
+    m.cycle.missed(1);
+    let mut msg = kerf_proto::SetpointMsg::new();
+    m.run().fill(&mut msg, 0);
+    assert_eq!(msg.missed_periods, 6);
+}

@@ -1188,18 +1188,15 @@ fn cycle_thread(
     let mut msg = SetpointMsg::new();
     msg.axes_mask = axes_mask;
     let mut timing = timing::CycleTiming::new();
-    let mut missed_periods = 0u64;
     loop {
         let tick = clock.wait_next();
         if tick.missed > 0 {
-            missed_periods += tick.missed;
             overruns.fetch_add(tick.missed, Ordering::AcqRel);
             // The drives got no setpoint in the periods missed: they held.
             cycle.missed(tick.missed);
         }
         let out = cycle.run();
         out.fill(&mut msg, tick.deadline_ns);
-        msg.missed_periods = missed_periods;
         publisher.push(msg);
         let woke_ns = tick.deadline_ns + tick.latency_ns;
         timing.record(tick.latency_ns, kerf_rt::now_ns().saturating_sub(woke_ns));

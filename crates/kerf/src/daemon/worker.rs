@@ -522,6 +522,8 @@ pub struct CycleOutput {
     pub program_cycle: u64,
     /// What the machine is doing.
     pub state: u32,
+    /// Periods since the start in which no cycle ran (see [`Cycle::missed`]).
+    pub missed_periods: u64,
 }
 
 impl CycleOutput {
@@ -537,6 +539,7 @@ impl CycleOutput {
         msg.velocity_mm_deg_s = self.velocity;
         msg.feed_mm_s = self.setpoint.feed_mm_s;
         msg.line = self.setpoint.line;
+        msg.missed_periods = self.missed_periods;
     }
 }
 
@@ -628,12 +631,15 @@ pub struct Cycle {
     last_program: (u64, Option<Refusal>, bool),
     /// The last program ended in this cycle (a safety trip in the same cycle is its).
     ended_this_cycle: bool,
-    /// A program to abort when it begins (its abort came before its beginning).
-    pending_abort: u64,
+    /// Programs to abort when they begin (their abort came before their beginning); 0 =
+    /// free slot.
+    pending_abort: [u64; PENDING_ABORTS],
     /// The feed override in force, percent.
     override_pct: f64,
     /// Commands taken from the command ring and applied since the start.
     commands_applied: u64,
+    /// Periods in which no cycle ran, since the start.
+    missed_periods: u64,
     cycles: u64,
     /// The last setpoint of the motion core (the machine's position between programs).
     setpoint: Setpoint,
@@ -688,9 +694,10 @@ impl Cycle {
             program: None,
             last_program: (0, None, false),
             ended_this_cycle: false,
-            pending_abort: 0,
+            pending_abort: [0; PENDING_ABORTS],
             override_pct: 100.0,
             commands_applied: 0,
+            missed_periods: 0,
             cycles: 0,
             setpoint: Setpoint {
                 position: start,
@@ -727,8 +734,10 @@ impl Cycle {
     /// without one (the drives hold; the safety layer counts them, at most
     /// `stall_cycles + 1`, enough to trip). The simulated drives have no clock of their
     /// own: their time is the cycle's, and a late cycle delays them with it, so nothing
-    /// was missed. Allocation-free.
+    /// was missed. Every missed period is counted in the setpoints (`missed_periods`).
+    /// Allocation-free.
     pub fn missed(&mut self, periods: u64) {
+        self.missed_periods += periods;
         if !self.drives_keep_time {
             return;
         }
@@ -769,7 +778,6 @@ impl Cycle {
             // Nothing of the program was planned (refused at its first move, or empty):
             // it ends without a moving cycle.
             started = false;
-            self.interp.apply(Event::Abort);
             self.end_program();
         }
         for c in commands.iter().flatten() {
@@ -842,6 +850,7 @@ impl Cycle {
             program_id,
             program_cycle,
             state: state.as_u32(),
+            missed_periods: self.missed_periods,
         }
     }
 
@@ -933,7 +942,11 @@ impl Cycle {
                     self.interp.apply(Event::Abort)
                 }
                 // Already over, or not begun yet: it begins aborted.
-                _ if self.last_program.0 != id => self.pending_abort = id,
+                _ if self.last_program.0 != id && !self.pending_abort.contains(&id) => {
+                    // The oldest request makes room (programs begin in order).
+                    self.pending_abort.rotate_left(1);
+                    self.pending_abort[PENDING_ABORTS - 1] = id;
+                }
                 _ => {}
             },
             Command::Shutdown => {
@@ -1005,9 +1018,11 @@ impl Cycle {
         }
         self.interp.next_program();
         self.tracker.clear();
-        let aborted = self.pending_abort == program_id;
+        let aborted = self.pending_abort.contains(&program_id);
         if aborted {
-            self.pending_abort = 0;
+            for slot in self.pending_abort.iter_mut().filter(|s| **s == program_id) {
+                *slot = 0;
+            }
         }
         let mut run = ProgramRun {
             id: program_id,
@@ -1193,6 +1208,10 @@ impl Cycle {
         }
     }
 }
+
+/// Programs the cycle remembers to abort when they begin (one moving, one received and
+/// waiting, one being received, and a spare).
+const PENDING_ABORTS: usize = 4;
 
 /// How far (mm or degrees, any axis) a program may start from the machine's position.
 pub const START_TOL: f64 = 1e-6;
