@@ -107,6 +107,7 @@ class ProgramFromPython(unittest.TestCase):
         self.assertEqual(j["program_id"], s.program_id)
         self.assertEqual(j["program_done"], s.program_done)
         self.assertEqual(j["moves_received"], s.moves_received)
+        self.assertEqual(j["window_items"], s.window_items)
         self.assertEqual(j["rejected"], s.rejected)
         self.assertEqual(j["override_pct"], s.override_pct)
         self.assertEqual(j["queued_moves"], s.queued_moves)

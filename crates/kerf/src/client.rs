@@ -271,7 +271,7 @@ pub fn status_json(machine: &str, s: &StatusMsg) -> String {
     };
     let _ = write!(
         out,
-        "}},\"override_pct\":{},\"queued_moves\":{},\"queued_s\":{},\"cycles\":{},\"overruns\":{},\"rt\":{},\"fault\":{},\"program_id\":{},\"program_done\":{},\"program_end\":\"{}\",\"moves_received\":{},\"rejected\":{},\"period_us\":{}}}",
+        "}},\"override_pct\":{},\"queued_moves\":{},\"queued_s\":{},\"cycles\":{},\"overruns\":{},\"rt\":{},\"fault\":{},\"program_id\":{},\"program_done\":{},\"program_end\":\"{}\",\"moves_received\":{},\"window_items\":{},\"rejected\":{},\"period_us\":{}}}",
         num(s.override_pct),
         s.queued_moves,
         num(s.queued_s),
@@ -289,6 +289,7 @@ pub fn status_json(machine: &str, s: &StatusMsg) -> String {
             _ => "running",
         },
         s.moves_received,
+        s.window_items,
         s.rejected,
         num(s.period_ns as f64 / 1000.0)
     );

@@ -1174,6 +1174,10 @@ fn status_without_and_with_a_daemon() {
     assert_eq!(s["program_done"].as_bool(), Some(false));
     assert_eq!(program_end(&s), "none");
     assert_eq!(s["moves_received"].as_u64(), Some(0));
+    assert_eq!(
+        s["window_items"].as_u64(),
+        Some(u64::from(env.config.daemon.move_window))
+    );
     assert_eq!(s["rejected"].as_u64(), Some(0));
     assert_eq!(s["period_us"].as_f64(), Some(1000.0));
     let o = env.kerf("status", &[]);
