@@ -22,6 +22,10 @@ pub struct CurvePoint {
     pub curvature: Vec3,
 }
 
+/// What a helix may miss of its end point without a drift, mm: rounding (the
+/// interpreter's arcs at ordinary coordinates miss by about 1e-13 mm).
+const NEGLIGIBLE_MISS_MM: f64 = 1e-12;
+
 /// A circular arc or helix with its frame precomputed.
 ///
 /// At swept angle `θ = sweep · s / length` the point is
@@ -34,7 +38,8 @@ pub struct CurvePoint {
 /// `drift` spreads what the circle misses of the stored end linearly over the angle:
 /// [`Curve::from_path`] sets it to `(end − p₀(sweep)) / sweep`, `p₀` being the curve
 /// without it, so that `p(sweep)` is `end` to rounding and the curve never jumps to its
-/// end. For the interpreter's arcs it is rounding; for an arc the daemon accepted it is
+/// end (a miss of at most 1e-12 mm, rounding, is left as it was: no drift, and the exact
+/// end at `s >= length`). For the interpreter's arcs it is rounding; for an arc the daemon accepted it is
 /// at most the protocol's arc tolerance (docs/PROTOCOL.md, "One arc, in millimetres")
 /// over the sweep. It is part of the tangent `dp/ds`, not of the curvature.
 ///
@@ -128,7 +133,13 @@ impl Curve {
                 // What the helix misses of the end, relative to the start (no rounding at
                 // the coordinates' magnitude), spread over the sweep.
                 let missed = (a.end - a.start) - h.offset_at_angle(a.sweep_rad);
-                h.drift_mm_per_rad = missed / a.sweep_rad;
+                // A rounding-level miss (the interpreter's arcs) is left to the exact end
+                // point at `s >= length`, as before there was a drift: the step is far
+                // below anything a limit can see, and the curve's data stay the same for
+                // the same shape anywhere on the machine (the planner's memos key on them).
+                if missed.norm() > NEGLIGIBLE_MISS_MM {
+                    h.drift_mm_per_rad = missed / a.sweep_rad;
+                }
                 let helix_mm = ((radius_mm * a.sweep_rad).powi(2) + rise_mm * rise_mm).sqrt();
                 h.length_mm = helix_mm + h.drift_mm_per_rad.norm() * a.sweep_rad.abs();
                 let usable = h.length_mm > 0.0
