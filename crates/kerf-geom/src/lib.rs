@@ -1,7 +1,9 @@
 //! Exact path geometry for Kerf.
 //!
 //! This crate owns the canonical description of a programmed move ([`Move`]) and the
-//! geometry of the paths it follows ([`Path`]: straight lines, circular arcs and helices).
+//! geometry of the paths it follows ([`Path`]: straight lines, circular arcs and helices),
+//! and the other items of a resolved program ([`Event`], [`Item`]), so that the G-code
+//! front end and the shared-memory protocol share them without depending on each other.
 //! It also owns the types that cross from the planner to the motion core: the planned
 //! segment ([`PlannedSegment`]) and the machine's limits ([`MachineLimits`]).
 //! It knows nothing of G-code dialects, planning or time: the G-code front end produces
@@ -126,11 +128,13 @@ impl Arc {
 
 mod curve;
 mod limits;
+mod program;
 pub mod ramp;
 mod segment;
 mod transition;
 pub use curve::{Curve, CurvePoint, Helix, line_distance};
 pub use limits::{AXIS_NAMES, AxisLimits, MachineLimits, POSITION_ROUNDING_ULPS};
+pub use program::{Event, EventCode, Item};
 pub use segment::{
     MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED,
     PlannedSegment, limits_merge, poly5, rotary_derivatives, speeds_merge,

@@ -171,6 +171,18 @@ pub fn read_text(field: &[u8]) -> &str {
 mod tests {
     use super::*;
 
+    /// The protocol's clients must not drag the G-code interpreter in: the program items
+    /// come from kerf-geom (issue 26).
+    #[test]
+    fn the_protocol_does_not_depend_on_the_parser() {
+        let manifest = include_str!("../Cargo.toml");
+        let deps = manifest
+            .split("\n[")
+            .find(|section| section.starts_with("dependencies]"))
+            .expect("a [dependencies] section");
+        assert!(!deps.contains("kerf-gcode"), "{deps}");
+    }
+
     #[test]
     fn service_names() {
         assert_eq!(

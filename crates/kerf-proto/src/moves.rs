@@ -2,8 +2,8 @@
 //! types and its validating decoding into [`Resolved`].
 
 use iceoryx2::prelude::ZeroCopySend;
-use kerf_gcode::{Event, EventCode};
 use kerf_geom::{Arc, CornerMode, Line, Move, Path, Vec3};
+use kerf_geom::{Event, EventCode};
 
 use crate::{AXES, PROTOCOL_VERSION};
 
@@ -563,10 +563,10 @@ impl MoveMsg {
     }
 
     /// Item `seq` (1-based) of program `program_id`.
-    pub fn from_item(program_id: u64, seq: u64, item: &kerf_gcode::Item) -> MoveMsg {
+    pub fn from_item(program_id: u64, seq: u64, item: &kerf_geom::Item) -> MoveMsg {
         match item {
-            kerf_gcode::Item::Move(mv) => MoveMsg::from_move(program_id, seq, mv),
-            kerf_gcode::Item::Event(ev) => MoveMsg::from_event(program_id, seq, ev),
+            kerf_geom::Item::Move(mv) => MoveMsg::from_move(program_id, seq, mv),
+            kerf_geom::Item::Event(ev) => MoveMsg::from_event(program_id, seq, ev),
         }
     }
 }
