@@ -133,7 +133,9 @@ pub mod ramp;
 mod segment;
 mod transition;
 pub use curve::{Curve, CurvePoint, Helix, line_distance};
-pub use limits::{AXIS_NAMES, AxisLimits, MachineLimits, POSITION_ROUNDING_ULPS};
+pub use limits::{
+    AXIS_NAMES, AxisLimits, MAX_FEED_OVERRIDE, MachineLimits, POSITION_ROUNDING_ULPS,
+};
 pub use program::{Event, EventCode, Item};
 pub use segment::{
     MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED,

@@ -29,6 +29,12 @@ pub struct MachineLimits {
     pub tolerance_mm: f64,
 }
 
+/// The highest feed override, as a factor (2.0: 200 %): the motion core clamps to it, the
+/// planner designs curved segments for it, the protocol and the commands accept up to it
+/// in percent. One number for all of them; raising it changes what `REQUEST_OVERRIDE`
+/// accepts, a new protocol version.
+pub const MAX_FEED_OVERRIDE: f64 = 2.0;
+
 /// Axis names in the order of [`MachineLimits::axes`].
 pub const AXIS_NAMES: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
 

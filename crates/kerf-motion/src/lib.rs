@@ -121,8 +121,8 @@ mod profile;
 
 pub use profile::JerkProfile;
 
-/// Highest feed override.
-pub const MAX_OVERRIDE: f64 = 2.0;
+/// Highest feed override ([`kerf_geom::MAX_FEED_OVERRIDE`]).
+pub const MAX_OVERRIDE: f64 = kerf_geom::MAX_FEED_OVERRIDE;
 /// Fraction of the remaining distance the lookahead assumes available (numerical margin).
 const BACKWARD_MARGIN: f64 = 0.998;
 /// Fraction of the remaining distance a profile plan may use in its own checks.

@@ -168,10 +168,10 @@ pub use junction::junction_cap;
 pub use planner::Planner;
 pub use transition::TRANSITION_SHARE_OF_MOVE;
 
-/// Highest feed override curved segments are designed for: 2.0 because that is the
-/// motion core's highest override (`kerf_motion::MAX_OVERRIDE`), so no override asks for
-/// more than a boost design covers.
-pub const MAX_DESIGN_OVERRIDE: f64 = 2.0;
+/// Highest feed override curved segments are designed for: the machine's highest override
+/// ([`kerf_geom::MAX_FEED_OVERRIDE`], which the motion core clamps to), so no override
+/// asks for more than a boost design covers.
+pub const MAX_DESIGN_OVERRIDE: f64 = kerf_geom::MAX_FEED_OVERRIDE;
 /// Share of every axis limit that the path profile may use: 95 %, so that with the 5 %
 /// of [`JUNCTION_SHARE`] the profile and the junction steps together stay within 100 %.
 pub const PROFILE_SHARE: f64 = 0.95;

@@ -172,6 +172,9 @@ pub const REQUEST_DUMP: u32 = 7;
 /// injection code, a whole number; see `docs/DRIVES.md`). A daemon started without
 /// `--test-faults` refuses it with [`REASON_NOT_ALLOWED`].
 pub const REQUEST_INJECT: u32 = 8;
+/// The highest feed override [`REQUEST_OVERRIDE`] accepts, percent (200: the machine's
+/// highest override, [`kerf_geom::MAX_FEED_OVERRIDE`]).
+pub const MAX_OVERRIDE_PCT: f64 = kerf_geom::MAX_FEED_OVERRIDE * 100.0;
 /// Request kind: the fate of program `program_id` (the response's `program_fate`, and for
 /// a refused or aborted program the reason in its message). The daemon remembers the last
 /// [`PROGRAMS_REMEMBERED`] programs.
@@ -335,7 +338,7 @@ impl Request {
                 return Ok(Command::Inject { code: v as u32 });
             }
             REQUEST_OVERRIDE => {
-                if !(0.0..=200.0).contains(&self.value) {
+                if !(0.0..=MAX_OVERRIDE_PCT).contains(&self.value) {
                     return Err(RequestReject::BadValue);
                 }
                 return Ok(Command::Override {

@@ -96,9 +96,10 @@ pub struct DumpArgs {
 
 fn parse_live_override(text: &str) -> Result<f64, String> {
     match text.trim_end_matches('%').parse::<f64>() {
-        Ok(pct) if (0.0..=200.0).contains(&pct) => Ok(pct),
+        Ok(pct) if (0.0..=kerf_proto::MAX_OVERRIDE_PCT).contains(&pct) => Ok(pct),
         _ => Err(format!(
-            "`{text}` is not a feed override: it must be 0 to 200 percent"
+            "`{text}` is not a feed override: it must be 0 to {} percent",
+            kerf_proto::MAX_OVERRIDE_PCT
         )),
     }
 }

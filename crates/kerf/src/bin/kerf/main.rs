@@ -150,8 +150,8 @@ struct SimArgs {
 /// thousand times the program's own time, and a tiny value such as 1e-300 would never end.
 const MIN_OVERRIDE_PCT: f64 = 0.1;
 
-/// The largest feed override accepted, percent.
-const MAX_OVERRIDE_PCT: f64 = 200.0;
+/// The largest feed override accepted, percent (the machine's, as the daemon takes it).
+const MAX_OVERRIDE_PCT: f64 = kerf_proto::MAX_OVERRIDE_PCT;
 
 /// A feed override in percent, [`MIN_OVERRIDE_PCT`] to [`MAX_OVERRIDE_PCT`] (a trailing `%`
 /// is allowed).
