@@ -129,7 +129,7 @@ fn feed(planning: &mut Planning, config: &Config, id: u64, start: [f64; 6], text
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Script {
     /// Hold at program cycle 3000, resume after 300 cycles of holding; override 150 % at
-    /// cycle 8000, 60 % at 12000.
+    /// cycle 8000, 0 % at 9000, 60 % 300 cycles later.
     HoldResumeOverride,
     /// Abort at program cycle 3000.
     Abort,
@@ -256,6 +256,7 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
         let mut sent_hold = false;
         let mut sent_resume = false;
         let mut overrides = 0;
+        let mut zero_from = 0u64;
         let mut last_program_cycle = 0u64;
         let mut guard = 0u64;
         while done.is_none() {
@@ -303,11 +304,20 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
                             .expect("command ring");
                         overrides = 1;
                     }
-                    if overrides == 1 && last_program_cycle >= 12000 {
+                    // 0 % (the core holds on the path: its own branch of the cycle),
+                    // then 60 % after 300 cycles at rest.
+                    if overrides == 1 && last_program_cycle >= 9000 {
+                        commands_tx
+                            .push(Command::Override(0.0))
+                            .expect("command ring");
+                        zero_from = last_program_cycle;
+                        overrides = 2;
+                    }
+                    if overrides == 2 && last_program_cycle >= zero_from + 300 {
                         commands_tx
                             .push(Command::Override(60.0))
                             .expect("command ring");
-                        overrides = 2;
+                        overrides = 3;
                     }
                 }
                 Script::Abort => {
@@ -336,7 +346,7 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
         position = end.position;
         match script {
             Script::HoldResumeOverride => {
-                assert!(sent_resume && overrides == 2, "the script ran");
+                assert!(sent_resume && overrides == 3, "the script ran");
                 assert!(!end.aborted && end.refusal.is_none());
             }
             Script::Abort => assert!(end.aborted, "program 2 was aborted"),
