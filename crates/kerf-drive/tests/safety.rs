@@ -122,46 +122,53 @@ fn acceleration_trips_exactly_at_its_limit() {
 
 #[test]
 fn a_stop_that_would_end_beyond_the_travel_trips_before_the_setpoint_crosses() {
-    // X at 50 mm/s towards the limit at 500, steady (a = 0). Its jerk-limited stop
-    // (a_max 1000, j_max 50000): v ≥ a²/j = 20, so t = v/a + a/j = 0.07 s and the distance
-    // is v·t/2 = 1.75 mm. Setpoints stepping 0.05 mm per period trip once the next one
-    // is within 1.75 mm of the limit, while the setpoint itself is still inside. (The
-    // axis gets there from rest at 480 at 500 mm/s², in 2.5 mm.)
-    let mut s = Safety::new(config(mill()), on(0, 480.0)).expect("config");
-    let (mut x, mut v) = (480.0, 0.0);
-    let mut tripped = None;
-    let mut sent = vec![480.0];
-    for k in 0..600 {
-        v = f64::min(v + 0.5, 50.0);
-        x += v * T;
-        let v = s.check(&CycleInput {
-            setpoint: Some(on(0, x)),
-            actual: on(0, s.command()[0]),
-            drive_fault: [false; MAX_AXES],
-            line: k,
-        });
-        sent.push(v.command[0]);
-        if v.tripped.is_some() && tripped.is_none() {
-            tripped = v.tripped.map(|f| (f, x));
+    // X at 50 mm/s towards the limit at 500 (and, mirrored, towards -500), steady (a = 0).
+    // Its jerk-limited stop (a_max 1000, j_max 50000): v ≥ a²/j = 20, so
+    // t = v/a + a/j = 0.07 s and the distance is v·t/2 = 1.75 mm. Setpoints stepping
+    // 0.05 mm per period trip once the next one is within 1.75 mm of the limit, while the
+    // setpoint itself is still inside. (The axis gets there from rest at ±480 at
+    // 500 mm/s², in 2.5 mm.) Both sides: the check on the minimum side is its own code.
+    for dir in [1.0, -1.0] {
+        let limit = 500.0 * dir;
+        let mut s = Safety::new(config(mill()), on(0, 480.0 * dir)).expect("config");
+        let (mut x, mut v) = (480.0 * dir, 0.0);
+        let mut tripped = None;
+        let mut sent = vec![x];
+        for k in 0..600 {
+            v = f64::min(v + 0.5, 50.0);
+            x += dir * v * T;
+            let v = s.check(&CycleInput {
+                setpoint: Some(on(0, x)),
+                actual: on(0, s.command()[0]),
+                drive_fault: [false; MAX_AXES],
+                line: k,
+            });
+            sent.push(v.command[0]);
+            if v.tripped.is_some() && tripped.is_none() {
+                tripped = v.tripped.map(|f| (f, x));
+            }
         }
+        let (f, x_trip) = tripped.expect("trips");
+        assert_eq!(
+            (f.check, f.axis, f.limit),
+            (Check::SoftLimit, Some(0), limit)
+        );
+        // Distances measured towards the limit.
+        let inside = (limit - x_trip) * dir;
+        assert!(inside > 0.0 && inside < 1.75 + 0.1, "{x_trip}");
+        let beyond = (f.value - limit) * dir;
+        assert!(
+            beyond > 0.0 && ((f.value - x_trip) * dir - 1.75).abs() < 0.01,
+            "{f:?}"
+        );
+        // The quick stop from the last setpoint sent ends within the travel.
+        assert!(
+            sent.iter().all(|&p| p * dir <= 500.0),
+            "{:?}",
+            &sent[sent.len() - 5..]
+        );
+        assert_eq!(s.state(), State::Stopped);
     }
-    let (f, x_trip) = tripped.expect("trips");
-    assert_eq!(
-        (f.check, f.axis, f.limit),
-        (Check::SoftLimit, Some(0), 500.0)
-    );
-    assert!(x_trip < 500.0 && x_trip > 500.0 - 1.75 - 0.1, "{x_trip}");
-    assert!(
-        f.value > 500.0 && (f.value - x_trip - 1.75).abs() < 0.01,
-        "{f:?}"
-    );
-    // The quick stop from the last setpoint sent ends within the travel.
-    assert!(
-        sent.iter().all(|&p| p <= 500.0),
-        "{:?}",
-        &sent[sent.len() - 5..]
-    );
-    assert_eq!(s.state(), State::Stopped);
 }
 
 #[test]
