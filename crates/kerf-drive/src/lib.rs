@@ -13,6 +13,7 @@
 //!
 //! Everything called in the real-time cycle is allocation-free.
 #![deny(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod cia402;
 pub mod recorder;

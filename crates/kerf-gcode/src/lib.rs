@@ -452,6 +452,7 @@
 //! - D (tool offset) as in Sinumerik: D0 accepted, D1 and up only while the active tool
 //!   has zero length and radius.
 #![deny(missing_docs)]
+#![forbid(unsafe_code)]
 
 mod arc;
 mod codes;

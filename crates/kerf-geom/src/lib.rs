@@ -22,6 +22,7 @@
 //! - `sweep_rad` is signed about `axis` by the right-hand rule and includes whole turns, so
 //!   a full circle has `|sweep_rad| = 2π` and its start equals its end.
 #![deny(missing_docs)]
+#![forbid(unsafe_code)]
 
 use nalgebra::Vector3;
 

@@ -106,6 +106,7 @@
 //!   Ruckig formats an error message on failure, which allocates: a healthy run has no
 //!   failures and so no allocations.
 #![deny(missing_docs)]
+#![forbid(unsafe_code)]
 
 use kerf_geom::Vec3;
 use kerf_geom::limits_merge;

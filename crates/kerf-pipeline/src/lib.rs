@@ -20,6 +20,7 @@
 //! invariants are about: per-axis peak velocity, acceleration and jerk by finite
 //! differences of the setpoints, and the distance of every setpoint from the programmed
 //! moves.
+#![forbid(unsafe_code)]
 
 use std::collections::VecDeque;
 

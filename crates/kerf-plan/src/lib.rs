@@ -146,6 +146,7 @@
 //!   `Δt/L` (`L` the shorter of the two segments): the cap also keeps `v²Δt/L` within the
 //!   same share, which binds only where `L < vT`. An exact-stop corner has cap 0.
 #![deny(missing_docs)]
+#![forbid(unsafe_code)]
 
 // The planner's input and output types live in kerf-geom (the motion core reads them
 // too); re-exported here because they are this crate's API.

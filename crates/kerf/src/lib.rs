@@ -18,6 +18,7 @@
 //! The library's errors are typed enums that say what went wrong and where; the binary
 //! turns each into one line, `FILE:LINE:COL: error: MESSAGE`, and a non-zero exit code.
 #![deny(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod blackbox;
 pub mod clidoc;

@@ -9,6 +9,7 @@
 //!
 //! Logs go to standard error, one line per event; under systemd, journald stores them.
 //! Exit codes: 0 after a requested stop, 1 when it cannot start or a thread failed.
+#![forbid(unsafe_code)]
 
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -5,6 +5,7 @@
 //! `FILE:LINE:COL: error: MESSAGE` or `FILE: error: MESSAGE`, in a program sometimes
 //! followed by `note:` lines (the subroutine calls that led there; the dialect, when it was
 //! assumed by default).
+#![forbid(unsafe_code)]
 
 use std::ffi::OsStr;
 use std::fs::File;
