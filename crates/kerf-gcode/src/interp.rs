@@ -40,15 +40,10 @@ const MOTION_WORDS: [u8; 18] = [
 /// The LinuxCNC words a motion uses (H and Q belong to G43 and G64 there).
 const LINUXCNC_MOTION_WORDS: [u8; 12] = [KX, KY, KZ, KA, KB, KC, KI, KJ, KK, KR, K_AT, K_CARET];
 
-/// A resolution error: a 1-based column and a message.
-#[derive(Debug)]
-pub(crate) struct ExecError {
-    pub col: u32,
-    pub message: String,
-}
+pub(crate) use crate::lex::BlockError;
 
-fn fail<T>(col: u32, message: impl Into<String>) -> Result<T, ExecError> {
-    Err(ExecError {
+fn fail<T>(col: u32, message: impl Into<String>) -> Result<T, BlockError> {
+    Err(BlockError {
         col,
         message: message.into(),
     })
@@ -304,7 +299,7 @@ impl State {
     }
 
     /// Fills `blk` from the lexed words, checking repeats and per-dialect letters.
-    pub(crate) fn build_block(&self, words: &[Word], blk: &mut Block) -> Result<(), ExecError> {
+    pub(crate) fn build_block(&self, words: &[Word], blk: &mut Block) -> Result<(), BlockError> {
         blk.present = 0;
         blk.ng = 0;
         blk.nm = 0;
@@ -328,7 +323,7 @@ impl State {
                     if blk.ng == blk.gs.len() {
                         return fail(w.col, "too many G codes in one block");
                     }
-                    let code = code10(w.value).ok_or_else(|| ExecError {
+                    let code = code10(w.value).ok_or_else(|| BlockError {
                         col: w.col,
                         message: format!("unknown G code G{}", w.value),
                     })?;
@@ -356,7 +351,7 @@ impl State {
                     let code =
                         code10(w.value)
                             .filter(|c| c % 10 == 0)
-                            .ok_or_else(|| ExecError {
+                            .ok_or_else(|| BlockError {
                                 col: w.col,
                                 message: format!("unknown M code M{}", w.value),
                             })?;
@@ -389,7 +384,7 @@ impl State {
         Ok(())
     }
 
-    fn check_letter(&self, w: &Word) -> Result<(), ExecError> {
+    fn check_letter(&self, w: &Word) -> Result<(), BlockError> {
         let k = w.key;
         let ok = allowed_keys(self.dialect) & (1u32 << k) != 0;
         if ok {
@@ -425,7 +420,7 @@ impl State {
         blk: &Block,
         percent: bool,
         out: &mut Out<'_>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         let start = out.items.len();
         self.m6_in_block = false;
         let readback = self.readback_from;
@@ -476,7 +471,7 @@ impl State {
         blk: &Block,
         percent: bool,
         out: &mut Out<'_>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         if percent && self.dialect == Dialect::Heidenhain {
             // `%NAME G71 *` opens the program and names its unit; the same line at the end
             // closes it.
@@ -506,7 +501,7 @@ impl State {
         // block, so the block's codes are kept in one slot per group.
         let mut slots: [Option<(G, u32)>; N_GROUPS] = [None; N_GROUPS];
         for &(code, col) in &blk.gs[..blk.ng] {
-            let g = classify_g(d, code).ok_or_else(|| ExecError {
+            let g = classify_g(d, code).ok_or_else(|| BlockError {
                 col,
                 message: format!("unknown G code {}", g_name(code)),
             })?;
@@ -692,7 +687,7 @@ impl State {
             out.event(EventCode::S, Some(s));
         }
         if let Some(t) = blk.get(KT) {
-            let n = tool_number(t).ok_or_else(|| ExecError {
+            let n = tool_number(t).ok_or_else(|| BlockError {
                 col: blk.col(KT),
                 message: "tool number must be a non-negative integer".into(),
             })?;
@@ -1066,7 +1061,7 @@ impl State {
         &mut self,
         slots: &[Option<(G, u32)>; N_GROUPS],
         blk: &Block,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         let d = self.dialect;
         // Units first: every value in the block is read in the new unit.
         if let Some((G::Units { inch, feed_too }, _)) = slots[3] {
@@ -1132,7 +1127,7 @@ impl State {
         &self,
         blk: &Block,
         comp: Option<(G, u32)>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         let d = self.dialect;
         if d == Dialect::Sinumerik && blk.has(KH) {
             return fail(blk.col(KH), "H auxiliary functions are not supported");
@@ -1187,7 +1182,7 @@ impl State {
     /// [`MAX_DWELL`]. Except in LinuxCNC, the block
     /// may not hold motion words (the Sinumerik manual: "G4 must be programmed in a
     /// separate block"); a word that would be an axis elsewhere is never silently dropped.
-    fn check_dwell(&self, blk: &Block, col: u32) -> Result<(Option<u8>, f64), ExecError> {
+    fn check_dwell(&self, blk: &Block, col: u32) -> Result<(Option<u8>, f64), BlockError> {
         let d = self.dialect;
         let (g, words): (&str, &[u8]) = match d {
             Dialect::LinuxCnc => ("G4", &[KP]),
@@ -1265,7 +1260,7 @@ impl State {
         blk: &Block,
         m_post: &[Option<EventCode>; 8],
         out: &mut Out<'_>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         if blk.nm == 0 {
             return Ok(());
         }

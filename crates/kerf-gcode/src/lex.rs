@@ -50,15 +50,17 @@ pub(crate) struct BlockFlags {
     pub percent: bool,
 }
 
-/// A lexical error: a 1-based column and a message.
+/// An error in a block, from any stage (reading, the language layer, resolution): a
+/// 1-based column and a message in the control manual's words. The interpreter turns it
+/// into a [`crate::Diagnostic`] with the line and file.
 #[derive(Debug)]
-pub(crate) struct LexError {
+pub(crate) struct BlockError {
     pub col: u32,
     pub message: String,
 }
 
-fn err<T>(pos: usize, message: impl Into<String>) -> Result<T, LexError> {
-    Err(LexError {
+fn err<T>(pos: usize, message: impl Into<String>) -> Result<T, BlockError> {
+    Err(BlockError {
         col: col_of(pos),
         message: message.into(),
     })
@@ -110,7 +112,7 @@ impl Lexer {
         line: &[u8],
         pos: &mut usize,
         words: &mut Vec<Word>,
-    ) -> Result<Option<BlockFlags>, LexError> {
+    ) -> Result<Option<BlockFlags>, BlockError> {
         words.clear();
         let mut flags = BlockFlags::default();
         let mut i = *pos;
@@ -315,7 +317,7 @@ impl Lexer {
     /// Parses the number after an address. LinuxCNC ignores spaces and tabs anywhere in a
     /// line, so `X 1 0.5` is `X10.5` there; the other dialects allow spaces only between
     /// the address and the number.
-    fn value(self, line: &[u8], i: &mut usize) -> Result<f64, LexError> {
+    fn value(self, line: &[u8], i: &mut usize) -> Result<f64, BlockError> {
         skip_spaces(line, i);
         match line.get(*i) {
             Some(b'#') if self.dialect == Dialect::LinuxCnc => {
@@ -335,7 +337,7 @@ impl Lexer {
         line: &[u8],
         i: &mut usize,
         words: &mut Vec<Word>,
-    ) -> Result<(), LexError> {
+    ) -> Result<(), BlockError> {
         let start = *i;
         while *i < line.len() && (line[*i].is_ascii_alphabetic() || line[*i] == b'_') {
             *i += 1;
@@ -417,7 +419,7 @@ impl Lexer {
     }
 }
 
-fn sinumerik_number(line: &[u8], i: &mut usize) -> Result<f64, LexError> {
+fn sinumerik_number(line: &[u8], i: &mut usize) -> Result<f64, BlockError> {
     match line.get(*i) {
         Some(b) if b.is_ascii_alphabetic() => {
             if b.eq_ignore_ascii_case(&b'R') {
@@ -525,7 +527,7 @@ pub(crate) fn parse_number(
     line: &[u8],
     i: &mut usize,
     inner_spaces: bool,
-) -> Result<f64, LexError> {
+) -> Result<f64, BlockError> {
     if let Some(v) = parse_number_fast(line, i, inner_spaces) {
         return Ok(v);
     }
@@ -590,7 +592,7 @@ fn parse_number_fast(line: &[u8], i: &mut usize, inner_spaces: bool) -> Option<f
     Some(if negative { -v } else { v })
 }
 
-fn parse_number_general(line: &[u8], i: &mut usize, inner_spaces: bool) -> Result<f64, LexError> {
+fn parse_number_general(line: &[u8], i: &mut usize, inner_spaces: bool) -> Result<f64, BlockError> {
     // Collect sign, digits and point (without embedded spaces) into a stack buffer and let
     // the standard library round it correctly.
     let start = *i;
@@ -599,7 +601,7 @@ fn parse_number_general(line: &[u8], i: &mut usize, inner_spaces: bool) -> Resul
     let mut j = *i;
     let mut digits = 0usize;
     let mut seen_dot = false;
-    let mut push = |c: u8, n: &mut usize| -> Result<(), LexError> {
+    let mut push = |c: u8, n: &mut usize| -> Result<(), BlockError> {
         match buf.get_mut(*n) {
             Some(slot) => {
                 *slot = c;

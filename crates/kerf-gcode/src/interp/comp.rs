@@ -22,7 +22,7 @@ use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 use kerf_geom::{Move, Path, Vec3};
 
-use super::{ExecError, Out, State, fail};
+use super::{BlockError, Out, State, fail};
 use crate::arc::{self, Plane};
 use crate::{Item, codes::Comp};
 
@@ -186,11 +186,11 @@ impl State {
 
     /// Called at the end of every block: while moves are held, this block's output goes
     /// behind them.
-    pub(super) fn comp_end_block(&mut self, out: &mut Out<'_>) -> Result<(), ExecError> {
+    pub(super) fn comp_end_block(&mut self, out: &mut Out<'_>) -> Result<(), BlockError> {
         self.hold_block_output(out)
     }
 
-    fn hold_block_output(&mut self, out: &mut Out<'_>) -> Result<(), ExecError> {
+    fn hold_block_output(&mut self, out: &mut Out<'_>) -> Result<(), BlockError> {
         if self.crc.held.is_empty() {
             self.crc.mark = out.items.len();
             return Ok(());
@@ -236,7 +236,7 @@ impl State {
         items.extend(self.crc.held.drain(..).map(|h| released(h, plane)));
     }
 
-    fn hold(&mut self, out: &mut Out<'_>, held: Held) -> Result<(), ExecError> {
+    fn hold(&mut self, out: &mut Out<'_>, held: Held) -> Result<(), BlockError> {
         self.hold_block_output(out)?;
         if let Item::Move(m) = &held.item {
             let finite = |p: &Vec3| p.iter().all(|x| x.is_finite());
@@ -280,7 +280,7 @@ impl State {
         &mut self,
         p: (f64, f64),
         out: &mut Out<'_>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         if self.crc.held.is_empty() {
             return Ok(());
         }
@@ -372,7 +372,7 @@ impl State {
         radius_mm: f64,
         col: u32,
         out: &mut Out<'_>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         if side == Comp::Off {
             if self.comp_active() && !self.crc.first {
                 // LinuxCNC releases the held moves with their ends where they are (which
@@ -421,7 +421,7 @@ impl State {
     }
 
     /// Errors for codes LinuxCNC refuses while compensation is on.
-    pub(super) fn comp_refuse(&self, col: u32, message: &str) -> Result<(), ExecError> {
+    pub(super) fn comp_refuse(&self, col: u32, message: &str) -> Result<(), BlockError> {
         if self.crc.on() {
             return fail(col, message.to_string());
         }
@@ -444,7 +444,7 @@ impl State {
     }
 
     /// Checks the arc-after-G40 rule; a straight move clears it.
-    pub(super) fn comp_check_arc(&mut self, is_arc: bool, col: u32) -> Result<(), ExecError> {
+    pub(super) fn comp_check_arc(&mut self, is_arc: bool, col: u32) -> Result<(), BlockError> {
         if is_arc && self.crc.arc_not_allowed {
             return fail(
                 col,
@@ -463,7 +463,7 @@ impl State {
         mut mv: Move,
         col: u32,
         out: &mut Out<'_>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         self.crc.col = col;
         let (u, v, w) = self.uv_axes();
         let side = self.crc.side.unwrap_or(Comp::Left);
@@ -865,7 +865,7 @@ impl State {
         end: Vec3,
         dir: (f64, f64),
         out: &mut Out<'_>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         let mut m = *mv;
         m.path = Path::Line(kerf_geom::Line {
             start: self.crc.tip,
@@ -890,7 +890,7 @@ impl State {
         blk: &super::Block,
         slot: Option<(super::G, u32)>,
         out: &mut Out<'_>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         use super::G;
         use crate::codes::{KD, KL};
         let (g, col) = match slot {
@@ -989,7 +989,7 @@ impl State {
         m_post: &[Option<crate::EventCode>; 8],
         col: u32,
         out: &mut Out<'_>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         use crate::EventCode as E;
         let stop = m_post
             .iter()

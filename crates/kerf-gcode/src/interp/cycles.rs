@@ -30,7 +30,7 @@
 use kerf_geom::{CornerMode, Line, Move, Path, Vec3};
 
 use super::modal::MoveFeed;
-use super::{Block, ExecError, FeedMode, Out, State, fail};
+use super::{Block, BlockError, FeedMode, Out, State, fail};
 use crate::codes::*;
 use crate::lex::{K_AT, K_CARET};
 use crate::{EventCode, Item};
@@ -255,7 +255,7 @@ impl State {
         &mut self,
         blk: &Block,
         code: Option<(G, u32)>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         match code {
             Some((G::NoMotion, col)) => {
                 if blk.any(&XYZ) || blk.any(&ABC) || blk.has(K_AT) || blk.has(K_CARET) {
@@ -294,7 +294,7 @@ impl State {
     /// LinuxCNC: an L word needs a canned cycle that moves (or G10, which is not supported
     /// yet). Axis words without a motion mode are reported first, as rs274 does.
     /// `explicit_cycle`: the block names a cycle (then a missing axis word is the error).
-    pub(super) fn check_l_word(&self, blk: &Block, explicit_cycle: bool) -> Result<(), ExecError> {
+    pub(super) fn check_l_word(&self, blk: &Block, explicit_cycle: bool) -> Result<(), BlockError> {
         let cycle = matches!(self.motion, Some(Motion::Cycle(_)));
         let axes = blk.any(&XYZ) || blk.has(K_AT) || blk.has(K_CARET);
         let used = cycle && (explicit_cycle || axes);
@@ -312,7 +312,7 @@ impl State {
         out: &mut Out<'_>,
         kind: CycleKind,
         explicit: Option<u32>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         let start_items = out.items.len();
         let first_col = explicit.unwrap_or(blk.first_col);
         // Words that are errors in a cycle, whatever else the block holds.
@@ -694,7 +694,7 @@ impl State {
         Ok(())
     }
 
-    fn too_many<T>(&self, col: u32) -> Result<T, ExecError> {
+    fn too_many<T>(&self, col: u32) -> Result<T, BlockError> {
         fail(
             col,
             format!("canned cycle makes more than {MAX_CYCLE_ITEMS} moves and events in one block"),
@@ -710,7 +710,7 @@ impl State {
         to: Vec3,
         feed_mm_min: Option<f64>,
         corner: CornerMode,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         if !to.iter().all(|x| x.is_finite()) {
             return fail(col, "coordinate out of range");
         }

@@ -5,7 +5,7 @@ use std::f64::consts::TAU;
 use kerf_geom::{CornerMode, Line, Move, Path, Vec3};
 
 use super::modal::MoveFeed;
-use super::{Block, ExecError, MM_PER_INCH, Out, State, fail};
+use super::{Block, BlockError, MM_PER_INCH, Out, State, fail};
 use crate::arc::{self, ArcError, Tolerance};
 use crate::codes::*;
 use crate::lex::{Form, K_AP, K_AT, K_CARET, K_CR, K_RP, K_TURN};
@@ -59,7 +59,7 @@ impl State {
         blk: &Block,
         r: PoleRef,
         col: u32,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         let (u, v, _) = self.plane.axes();
         let reference = match r {
             PoleRef::LastPosition => self.pos,
@@ -91,7 +91,7 @@ impl State {
         Ok(())
     }
 
-    pub(super) fn set_fagor_origin(&mut self, blk: &Block, _col: u32) -> Result<(), ExecError> {
+    pub(super) fn set_fagor_origin(&mut self, blk: &Block, _col: u32) -> Result<(), BlockError> {
         let mut o = self.pos;
         let given = blk.any(&IJK);
         if given {
@@ -115,7 +115,7 @@ impl State {
         Ok(())
     }
 
-    pub(super) fn set_heidenhain_cc(&mut self, blk: &Block) -> Result<(), ExecError> {
+    pub(super) fn set_heidenhain_cc(&mut self, blk: &Block) -> Result<(), BlockError> {
         let mut cc = self.pos;
         for (i, &k) in IJK.iter().enumerate() {
             if let Some(v) = blk.get(k) {
@@ -148,7 +148,7 @@ impl State {
         }
     }
 
-    pub(super) fn arc_error(&self, e: ArcError, col: u32) -> ExecError {
+    pub(super) fn arc_error(&self, e: ArcError, col: u32) -> BlockError {
         let message = match e {
             ArcError::ZeroRadius => "zero-radius arc".to_string(),
             ArcError::RadiusTooSmall => "arc radius too small to reach end point".to_string(),
@@ -167,7 +167,7 @@ impl State {
                 format!("{what}: r1={r_start:.4} mm r2={r_end:.4} mm")
             }
         };
-        ExecError { col, message }
+        BlockError { col, message }
     }
 
     /// One motion block. While LinuxCNC cutter compensation is active, the block's end point
@@ -180,7 +180,7 @@ impl State {
         machine: Option<u32>,
         exact_once: bool,
         abs_centre_once: bool,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         if self.dialect != Dialect::LinuxCnc {
             return self.motion_inner(blk, out, motion_col, machine, exact_once, abs_centre_once);
         }
@@ -221,7 +221,7 @@ impl State {
         machine: Option<u32>,
         exact_once: bool,
         abs_centre_once: bool,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         let d = self.dialect;
         let (u, v, w) = self.plane.axes();
         let has_axes = blk.any(&XYZ) || blk.any(&ABC);
@@ -474,7 +474,7 @@ impl State {
     }
 
     /// Errors for words no G code of this block uses (LinuxCNC is strict about them).
-    pub(super) fn check_unused(&self, blk: &Block, arc: bool) -> Result<(), ExecError> {
+    pub(super) fn check_unused(&self, blk: &Block, arc: bool) -> Result<(), BlockError> {
         if !arc {
             let centre_words: &[u8] = match self.dialect {
                 Dialect::Heidenhain => &[],
@@ -548,7 +548,7 @@ impl State {
         &mut self,
         blk: &Block,
         motion: Motion,
-    ) -> Result<(f64, f64), ExecError> {
+    ) -> Result<(f64, f64), BlockError> {
         let d = self.dialect;
         let (u, v, _) = self.plane.axes();
         let cart = match d {
@@ -727,7 +727,7 @@ impl State {
         has_radius: bool,
         abs_centre_once: bool,
         motion_col: u32,
-    ) -> Result<Option<kerf_geom::Arc>, ExecError> {
+    ) -> Result<Option<kerf_geom::Arc>, BlockError> {
         let d = self.dialect;
         let plane = self.plane;
         let (u, v, w) = plane.axes();

@@ -10,7 +10,7 @@
 
 use kerf_geom::{CornerMode, Path};
 
-use super::{Block, ExecError, MM_PER_INCH, Out, State, fail};
+use super::{Block, BlockError, MM_PER_INCH, Out, State, fail};
 use crate::arc::Plane;
 use crate::codes::{Comp, KF, KP, KQ, KR};
 use crate::{Dialect, Event, EventCode, Item};
@@ -128,11 +128,11 @@ impl State {
 
     /// Checks the words of LinuxCNC M19 as rs274 does: R from 0 to 360 degrees, Q above
     /// zero, P 0, 1 or 2.
-    pub(super) fn check_m19(blk: &Block) -> Result<(), ExecError> {
+    pub(super) fn check_m19(blk: &Block) -> Result<(), BlockError> {
         if let Some(r) = blk.get(KR)
             && !(0.0..=360.0).contains(&r)
         {
-            return Err(ExecError {
+            return Err(BlockError {
                 col: blk.col(KR),
                 message: "R value must be within 0..360 with M19".into(),
             });
@@ -140,7 +140,7 @@ impl State {
         if let Some(q) = blk.get(KQ)
             && q <= 0.0
         {
-            return Err(ExecError {
+            return Err(BlockError {
                 col: blk.col(KQ),
                 message: "Q word with M19 requires a value > 0".into(),
             });
@@ -148,7 +148,7 @@ impl State {
         if let Some(p) = blk.get(KP)
             && !(p == 0.0 || p == 1.0 || p == 2.0)
         {
-            return Err(ExecError {
+            return Err(BlockError {
                 col: blk.col(KP),
                 message: "P value must be 0,1,or 2 with M19".into(),
             });
@@ -206,7 +206,7 @@ impl State {
         blk: &Block,
         is_arc: bool,
         motion_col: u32,
-    ) -> Result<MoveFeed, ExecError> {
+    ) -> Result<MoveFeed, BlockError> {
         let d = self.dialect;
         let zero = || {
             let message = match (d, is_arc) {
@@ -279,7 +279,7 @@ impl State {
 
     /// G64 (LinuxCNC): `P` the blend tolerance, `Q` the naive-CAM tolerance (`P` when Q
     /// is absent, as LinuxCNC does), both in program units.
-    pub(super) fn g64_corner(&self, blk: &Block) -> Result<CornerMode, ExecError> {
+    pub(super) fn g64_corner(&self, blk: &Block) -> Result<CornerMode, BlockError> {
         let mm = |k: u8, what: &str| match blk.get(k) {
             Some(v) if v < 0.0 => fail(blk.col(k), format!("negative {what} word with G64")),
             Some(v) => Ok(Some(v * self.scale())),
@@ -337,7 +337,7 @@ impl State {
         op: StateOp,
         col: u32,
         out: &mut Out<'_>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         let snapshot = match op {
             StateOp::Save | StateOp::SaveAutoRestore => Some(Box::new(self.snapshot())),
             _ => None,

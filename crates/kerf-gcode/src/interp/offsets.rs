@@ -22,7 +22,7 @@ use kerf_geom::{Path, Vec3};
 use super::params::{
     COORD_SYSTEM, G28_HOME, G30_HOME, G92_ENABLED, G92_OFFSET, TOOL_NUMBER, TOOL_OFFSET, coord_base,
 };
-use super::{Block, ExecError, Out, State, fail};
+use super::{Block, BlockError, Out, State, fail};
 use crate::codes::*;
 use crate::{Dialect, Tool};
 
@@ -203,7 +203,7 @@ impl State {
     /// G92 (the current point gets the given coordinates), G92.1 (clear, parameters
     /// zeroed), G92.2 (suspend, parameters kept), G92.3 (apply the parameters), and G52
     /// (the offset given directly): LinuxCNC's semantics on #5210–#5219.
-    pub(super) fn exec_g92(&mut self, blk: &Block, g: G, col: u32) -> Result<(), ExecError> {
+    pub(super) fn exec_g92(&mut self, blk: &Block, g: G, col: u32) -> Result<(), BlockError> {
         match g {
             G::G92Set | G::LocalOffset => {
                 if !blk.any(&AXES) {
@@ -246,7 +246,7 @@ impl State {
     }
 
     /// G10 L1/L10/L11 (tool table) and G10 L2/L20 (coordinate systems).
-    pub(super) fn exec_g10(&mut self, blk: &Block, col: u32) -> Result<(), ExecError> {
+    pub(super) fn exec_g10(&mut self, blk: &Block, col: u32) -> Result<(), BlockError> {
         if blk.get(KL) == Some(0.0) {
             if let Some(n) = self.tool_loaded.filter(|&n| n != 0) {
                 return fail(col, format!("G10 L0 not allowed with loaded tool <{n}>"));
@@ -273,7 +273,7 @@ impl State {
         }
     }
 
-    fn set_coordinate_system(&mut self, blk: &Block, l20: bool) -> Result<(), ExecError> {
+    fn set_coordinate_system(&mut self, blk: &Block, l20: bool) -> Result<(), BlockError> {
         let lname = if l20 { "L20" } else { "L2" };
         let p = blk.get(KP).map(f64::round);
         let p = match p {
@@ -370,7 +370,7 @@ impl State {
 
     /// G10 L1 (values), L10 (from the current point with the offsets in effect), L11
     /// (from the current point as if in G59.3 without G52/G92).
-    fn set_tool_entry(&mut self, blk: &Block, l: u8) -> Result<(), ExecError> {
+    fn set_tool_entry(&mut self, blk: &Block, l: u8) -> Result<(), BlockError> {
         let number = blk
             .get(KP)
             .map(f64::round)
@@ -469,7 +469,7 @@ impl State {
         g30: bool,
         col: u32,
         out: &mut Out<'_>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         if self.comp != Comp::Off {
             return fail(col, "Cannot use g28 or g30 with cutter radius comp");
         }
@@ -509,7 +509,7 @@ impl State {
     }
 
     /// T (LinuxCNC: the tool must be in the table; T0 is "no tool").
-    pub(super) fn check_tool_exists(&self, number: u32, col: u32) -> Result<(), ExecError> {
+    pub(super) fn check_tool_exists(&self, number: u32, col: u32) -> Result<(), BlockError> {
         if self.dialect != Dialect::LinuxCnc || number == 0 || self.tool(Some(number)).is_some() {
             return Ok(());
         }
@@ -537,7 +537,7 @@ impl State {
     }
 
     /// M61 Q: the current tool number, without a tool change.
-    pub(super) fn exec_m61(&mut self, blk: &Block, col: u32) -> Result<(), ExecError> {
+    pub(super) fn exec_m61(&mut self, blk: &Block, col: u32) -> Result<(), BlockError> {
         let q = blk.get(KQ).filter(|&q| q >= 0.0);
         let Some(q) = q else {
             let c = if blk.has(KQ) { blk.col(KQ) } else { col };
@@ -566,9 +566,9 @@ impl State {
         kind: ToolLength,
         col: u32,
         motion_in_block: bool,
-    ) -> Result<bool, ExecError> {
+    ) -> Result<bool, BlockError> {
         let lcnc = self.dialect == Dialect::LinuxCnc;
-        let entry = |s: &State, n: u32, c: u32| -> Result<[f64; 6], ExecError> {
+        let entry = |s: &State, n: u32, c: u32| -> Result<[f64; 6], BlockError> {
             if lcnc && n == 0 {
                 // H0: the tool in the spindle (none: zero), on a non-random changer.
                 return Ok(s.tool(s.tool_loaded).map_or([0.0; 6], Tool::offsets_mm_deg));
@@ -590,7 +590,7 @@ impl State {
                     format!("Requested tool {h} not found in the tool table"),
                 );
             }
-            Some(h) => Some(super::tool_number(h).ok_or_else(|| ExecError {
+            Some(h) => Some(super::tool_number(h).ok_or_else(|| BlockError {
                 col: blk.col(KH),
                 message: "H word must be a non-negative integer".into(),
             })?),
@@ -665,7 +665,7 @@ impl State {
         abc: [f64; 3],
         blk: &Block,
         out: &mut Out<'_>,
-    ) -> Result<(), ExecError> {
+    ) -> Result<(), BlockError> {
         let start = self.pos;
         if (end - start).norm() < crate::arc::SAME_POINT_MM && abc == self.abc {
             return Ok(());

@@ -2,7 +2,7 @@
 //! functions and unary minus/plus, read from a normalized line (spaces removed, letters
 //! lower case outside comments).
 
-use super::{Fail, fail};
+use super::{BlockError, fail};
 
 /// Values are equal for EQ/NE when they differ by less than this (LinuxCNC's
 /// TOLERANCE_EQUAL, manual 11.4.7).
@@ -15,9 +15,9 @@ const MAX_DEPTH: u32 = 64;
 /// Where values of parameters come from.
 pub(crate) trait Params {
     /// `#n`: the value, or an error in LinuxCNC's words.
-    fn numbered(&self, n: f64, col: u32) -> Result<f64, Fail>;
+    fn numbered(&self, n: f64, col: u32) -> Result<f64, BlockError>;
     /// `#<name>` (name lower case, spaces removed).
-    fn named(&self, name: &str, col: u32) -> Result<f64, Fail>;
+    fn named(&self, name: &str, col: u32) -> Result<f64, BlockError>;
     /// `EXISTS[#<name>]`.
     fn exists(&self, name: &str) -> bool;
 }
@@ -92,7 +92,7 @@ impl<'a> Reader<'a> {
 
     /// A real value: number, `[expr]`, parameter, unary function, or one of these after a
     /// unary minus or plus.
-    pub(crate) fn real_value(&mut self, p: &dyn Params) -> Result<f64, Fail> {
+    pub(crate) fn real_value(&mut self, p: &dyn Params) -> Result<f64, BlockError> {
         self.depth += 1;
         if self.depth > MAX_DEPTH {
             return fail(self.col(), "expression nested too deeply");
@@ -102,7 +102,7 @@ impl<'a> Reader<'a> {
         v
     }
 
-    fn real_value_inner(&mut self, p: &dyn Params) -> Result<f64, Fail> {
+    fn real_value_inner(&mut self, p: &dyn Params) -> Result<f64, BlockError> {
         let col = self.col();
         match self.peek() {
             Some(b'[') => self.expression(p),
@@ -122,7 +122,7 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn number(&mut self) -> Result<f64, Fail> {
+    fn number(&mut self) -> Result<f64, BlockError> {
         let start = self.pos;
         let mut dot = false;
         let mut digits = 0;
@@ -147,7 +147,7 @@ impl<'a> Reader<'a> {
     }
 
     /// `#n`, `##n`, `#[expr]`, `#<name>`.
-    fn parameter(&mut self, p: &dyn Params) -> Result<f64, Fail> {
+    fn parameter(&mut self, p: &dyn Params) -> Result<f64, BlockError> {
         let col = self.col();
         self.pos += 1; // '#'
         if self.peek() == Some(b'<') {
@@ -159,7 +159,7 @@ impl<'a> Reader<'a> {
     }
 
     /// `<name>` after a `#`: the name, lower case without spaces (already normalized).
-    pub(crate) fn name(&mut self) -> Result<String, Fail> {
+    pub(crate) fn name(&mut self) -> Result<String, BlockError> {
         let col = self.col();
         self.pos += 1; // '<'
         let start = self.pos;
@@ -178,7 +178,7 @@ impl<'a> Reader<'a> {
     }
 
     /// `[` expression `]`.
-    pub(crate) fn expression(&mut self, p: &dyn Params) -> Result<f64, Fail> {
+    pub(crate) fn expression(&mut self, p: &dyn Params) -> Result<f64, BlockError> {
         self.pos += 1; // '['
         let mut values: Vec<f64> = Vec::with_capacity(4);
         let mut ops: Vec<(Op, u32)> = Vec::with_capacity(4);
@@ -210,7 +210,7 @@ impl<'a> Reader<'a> {
             .map_or_else(|| fail(col, "Unknown operation"), Ok)
     }
 
-    fn operator(&mut self) -> Result<Op, Fail> {
+    fn operator(&mut self) -> Result<Op, BlockError> {
         let col = self.col();
         let table: [(&[u8], Op); 15] = [
             (b"**", Op::Pow),
@@ -239,7 +239,7 @@ impl<'a> Reader<'a> {
     }
 
     /// A unary function: `name[expr]`, `atan[a]/[b]`, `exists[#<name>]`.
-    fn unary(&mut self, p: &dyn Params) -> Result<f64, Fail> {
+    fn unary(&mut self, p: &dyn Params) -> Result<f64, BlockError> {
         let col = self.col();
         let start = self.pos;
         while self.peek().is_some_and(|c| c.is_ascii_alphabetic()) {
@@ -329,7 +329,7 @@ impl<'a> Reader<'a> {
     }
 }
 
-fn finite(v: f64, col: u32) -> Result<f64, Fail> {
+fn finite(v: f64, col: u32) -> Result<f64, BlockError> {
     if v.is_finite() {
         Ok(v)
     } else {
@@ -337,7 +337,7 @@ fn finite(v: f64, col: u32) -> Result<f64, Fail> {
     }
 }
 
-fn reduce(values: &mut Vec<f64>, op: Op, col: u32) -> Result<(), Fail> {
+fn reduce(values: &mut Vec<f64>, op: Op, col: u32) -> Result<(), BlockError> {
     let (Some(b), Some(a)) = (values.pop(), values.pop()) else {
         return fail(col, "Unknown operation");
     };

@@ -32,15 +32,10 @@ pub(crate) const MAX_BODY_LINES: usize = 1_000_000;
 /// The most named parameters a program may create (memory stays bounded).
 const MAX_NAMED: usize = 100_000;
 
-/// An error at a column with a message (LinuxCNC's words where it has them).
-#[derive(Debug)]
-pub(crate) struct Fail {
-    pub col: u32,
-    pub message: String,
-}
+pub(crate) use crate::lex::BlockError;
 
-pub(crate) fn fail<T>(col: u32, message: impl Into<String>) -> Result<T, Fail> {
-    Err(Fail {
+pub(crate) fn fail<T>(col: u32, message: impl Into<String>) -> Result<T, BlockError> {
+    Err(BlockError {
         col,
         message: message.into(),
     })
@@ -335,7 +330,7 @@ fn kw_name(kw: Kw) -> &'static str {
 /// Normalizes a line as LinuxCNC reads it: spaces and tabs outside comments removed,
 /// letters lower case outside comments, a `;` comment dropped; `cols` maps each kept byte
 /// to its 1-based source column.
-fn normalize(line: &[u8], norm: &mut Vec<u8>, cols: &mut Vec<u32>) -> Result<(), Fail> {
+fn normalize(line: &[u8], norm: &mut Vec<u8>, cols: &mut Vec<u32>) -> Result<(), BlockError> {
     norm.clear();
     cols.clear();
     let mut i = 0;
@@ -367,7 +362,7 @@ fn normalize(line: &[u8], norm: &mut Vec<u8>, cols: &mut Vec<u32>) -> Result<(),
 /// The O-word of a normalized line: label, keyword and the offset after the keyword.
 /// `Ok(None)` when the line holds no O-word. Leading `N` words and a block delete are
 /// skipped.
-fn o_head(norm: &[u8], cols: &[u32]) -> Result<Option<(Arc<str>, Kw, usize)>, Fail> {
+fn o_head(norm: &[u8], cols: &[u32]) -> Result<Option<(Arc<str>, Kw, usize)>, BlockError> {
     let mut i = 0;
     if norm.first() == Some(&b'/') {
         return Ok(None);
@@ -461,7 +456,7 @@ fn skip_brackets(norm: &[u8], mut i: usize) -> (usize, bool) {
 /// one for `if`/`elseif`/`while`/`repeat`/`return`/`endsub`, any number for `call`), then
 /// only comments. Anything else is LinuxCNC's "Unexpected character after O-word": an
 /// O-word line runs nothing else, so nothing may be silently dropped.
-fn check_o_tail(norm: &[u8], cols: &[u32], after: usize, kw: Kw) -> Result<(), Fail> {
+fn check_o_tail(norm: &[u8], cols: &[u32], after: usize, kw: Kw) -> Result<(), BlockError> {
     let max_groups = match kw {
         Kw::Call => usize::MAX,
         Kw::If | Kw::ElseIf | Kw::While | Kw::Repeat | Kw::Return | Kw::EndSub => 1,
@@ -583,7 +578,7 @@ impl Ctx<'_> {
 }
 
 impl expr::Params for Ctx<'_> {
-    fn numbered(&self, n: f64, col: u32) -> Result<f64, Fail> {
+    fn numbered(&self, n: f64, col: u32) -> Result<f64, BlockError> {
         let i = param_index(n, col)?;
         if (params::CURRENT_POSITION..params::CURRENT_POSITION + 9).contains(&i) {
             let k = i - params::CURRENT_POSITION;
@@ -598,7 +593,7 @@ impl expr::Params for Ctx<'_> {
         }
     }
 
-    fn named(&self, name: &str, col: u32) -> Result<f64, Fail> {
+    fn named(&self, name: &str, col: u32) -> Result<f64, BlockError> {
         let found = if name.starts_with('_') {
             self.predefined(name)
                 .or_else(|| self.ngc.globals.get(name).copied())
@@ -623,7 +618,7 @@ impl expr::Params for Ctx<'_> {
 
 /// The index of a numbered parameter: an integer (within LinuxCNC's tolerance) from 1 to
 /// 5601.
-fn param_index(n: f64, col: u32) -> Result<usize, Fail> {
+fn param_index(n: f64, col: u32) -> Result<usize, BlockError> {
     let r = n.round();
     if (n - r).abs() > 0.0001 {
         return fail(col, "Non integer value for integer");
@@ -656,7 +651,7 @@ impl Ngc {
         line_no: u32,
         state: &mut State,
         words: &mut Vec<Word>,
-    ) -> Result<Action, Fail> {
+    ) -> Result<Action, BlockError> {
         words.clear();
         self.assignments.clear();
         self.messages.clear();
@@ -676,7 +671,7 @@ impl Ngc {
         words: &mut Vec<Word>,
         norm: &mut Vec<u8>,
         cols: &mut Vec<u32>,
-    ) -> Result<Action, Fail> {
+    ) -> Result<Action, BlockError> {
         if !self.from_frame
             && let Some(cap) = self.capture.as_mut()
         {
@@ -759,7 +754,7 @@ impl Ngc {
         words: &mut Vec<Word>,
         norm: &[u8],
         cols: &[u32],
-    ) -> Result<(), Fail> {
+    ) -> Result<(), BlockError> {
         let ctx = self.ctx(state, line_no);
         let mut r = expr::Reader::new(norm, cols, 0);
         let mut assignments = Vec::new();
@@ -878,7 +873,7 @@ impl Ngc {
         state: &mut State,
         items: &mut Vec<Item>,
         line_no: u32,
-    ) -> Result<(), Fail> {
+    ) -> Result<(), BlockError> {
         for (target, v, col) in std::mem::take(&mut self.assignments) {
             match target {
                 Target::Numbered(i) => {
@@ -995,7 +990,7 @@ impl Ngc {
         norm: &[u8],
         cols: &[u32],
         after: usize,
-    ) -> Result<Option<f64>, Fail> {
+    ) -> Result<Option<f64>, BlockError> {
         let mut r = expr::Reader::new(norm, cols, after);
         match r.peek() {
             Some(b'[') => {
@@ -1016,7 +1011,7 @@ impl Ngc {
         after: usize,
         ocol: u32,
         kw: Kw,
-    ) -> Result<f64, Fail> {
+    ) -> Result<f64, BlockError> {
         match self.o_value(state, line_no, norm, cols, after)? {
             Some(v) => Ok(v),
             None => fail(
@@ -1038,7 +1033,7 @@ impl Ngc {
         ocol: u32,
         norm: &[u8],
         cols: &[u32],
-    ) -> Result<(), Fail> {
+    ) -> Result<(), BlockError> {
         let name = label_name(label);
         check_o_tail(norm, cols, after, kw)?;
         if !self.from_frame {
@@ -1079,7 +1074,7 @@ impl Ngc {
                 .find(|(_, l)| matches!(&l.head, Some((lb, k)) if lb == label && kws.contains(k)))
                 .map(|(i, _)| i)
         };
-        let missing = |what: &str| Fail {
+        let missing = |what: &str| BlockError {
             col: ocol,
             message: format!("{name}: matching '{what}' not found"),
         };
@@ -1260,7 +1255,7 @@ impl Ngc {
         name: &str,
         state: &State,
         ocol: u32,
-    ) -> Result<(), Fail> {
+    ) -> Result<(), BlockError> {
         let Some(body) = self.frames.last().map(|f| f.body.clone()) else {
             return Ok(());
         };
@@ -1348,7 +1343,7 @@ impl Ngc {
         kind: LoopKind,
         start: usize,
         count: f64,
-    ) -> Result<(), Fail> {
+    ) -> Result<(), BlockError> {
         let Some(f) = self.frames.last_mut() else {
             return Ok(());
         };
@@ -1371,7 +1366,7 @@ impl Ngc {
         Ok(())
     }
 
-    fn count_iteration(&mut self, name: &str, ocol: u32) -> Result<(), Fail> {
+    fn count_iteration(&mut self, name: &str, ocol: u32) -> Result<(), BlockError> {
         let max = self.max_loop_iterations;
         if let Some(l) = self.frames.last_mut().and_then(|f| f.loops.last_mut()) {
             l.iterations += 1;
@@ -1397,7 +1392,7 @@ impl Ngc {
         cols: &[u32],
         after: usize,
         ocol: u32,
-    ) -> Result<(), Fail> {
+    ) -> Result<(), BlockError> {
         let name = label_name(label);
         // Arguments: `[expr]` each, read before the call.
         let mut args = [0.0f64; 30];
@@ -1430,7 +1425,7 @@ impl Ngc {
                     Ok(None) => self.load_file(label),
                     Err(e) => Err(e),
                 }
-                .map_err(|message| Fail { col: ocol, message })?;
+                .map_err(|message| BlockError { col: ocol, message })?;
                 match b {
                     Some(b) => b,
                     None => {
