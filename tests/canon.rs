@@ -40,7 +40,7 @@
 //!   `LOGAPPEND,f`, `LOG,t`, `LOGCLOSE`.
 //!   `CHANGE_TOOL_NUMBER` (M61) moves nothing and makes no event.
 //! - `SET_MOTION_CONTROL_MODE(CANON_EXACT_STOP)` (G61.1), `(CANON_EXACT_PATH)` (G61),
-//!   `(CANON_CONTINUOUS, tolerance)` (G64 [P], tolerance in the units active when printed,
+//!   `(CANON_CONTINUOUS, tolerance)` (G64 \[P\], tolerance in the units active when printed,
 //!   0 without P); continuous without tolerance at start. `SET_NAIVECAM_TOLERANCE(q)`
 //!   (printed by G64 after the mode, 4 decimals) is the naive-CAM tolerance of the
 //!   continuous mode in force.

@@ -324,7 +324,7 @@
 //!   `#[expr]` are indirect. #5420–#5425 (#5426–#5428 read 0: no U V W) are the current
 //!   position in program coordinates and units, #5400 the tool in the spindle.
 //! - Named parameters: `#<name>` is local to the subroutine call level (reading one never
-//!   set: "Named parameter #<name> not defined"), `#<_name>` global. The predefined ones
+//!   set: "Named parameter `#<name>` not defined"), `#<_name>` global. The predefined ones
 //!   (`#<_x>`, `#<_abs_x>`, `#<_metric>`, `#<_motion_mode>`, `#<_value>`, … the manual's
 //!   list) are read-only ("Cannot assign to read-only parameter").
 //! - Expressions `[..]` anywhere a number stands, G and M numbers included. Precedence,

@@ -40,7 +40,7 @@ const TANGENT_SAFETY: f64 = 1.001;
 /// fraction of a per cent.
 pub const CURVATURE_SAFETY: f64 = 1.02;
 /// Safety factor on the curvature's derivative of a transition (XYZ), evaluated in closed
-/// form at each sample with its rise between samples bounded by [`rate_rise`]: 2 % for
+/// form at each sample with its rise between samples bounded by `rate_rise`: 2 % for
 /// what that bound misses. (It was [`LIMIT_SAFETY`] on central differences, which smooth
 /// the peaks; the 8 % between them cost jerk-bound curves 2.5 % of their speed.)
 pub const RATE_SAFETY: f64 = 1.02;

@@ -596,7 +596,7 @@ impl Planner {
         self.set_limits_for_run(seg, 0.0);
     }
 
-    /// [`Planner::set_limits`] with the design run `run_mm` (see [`segment_limits`]): the
+    /// [`Planner::set_limits`] with the design run `run_mm` (see `segment_limits`): the
     /// distance a curved segment's design speed is chosen for, at least its own length.
     pub(crate) fn set_limits_for_run(&self, seg: &mut PlannedSegment, run_mm: f64) {
         // Curved segments (not smoothed pieces, which keep the programmed feed) also get a

@@ -470,7 +470,7 @@ pub struct KerfdProcess {
 }
 
 /// The `kerfd` processes this process can see in `/proc`, with the machine each serves
-/// (from its `--config` file, else [`SYSTEM_CONFIG`], else the built-in machine).
+/// (from its `--config` file, else `SYSTEM_CONFIG`, else the built-in machine).
 pub fn kerfd_processes() -> Vec<KerfdProcess> {
     let mut found = Vec::new();
     for entry in std::fs::read_dir("/proc").into_iter().flatten().flatten() {
