@@ -24,7 +24,7 @@ mod common;
 
 use std::f64::consts::{PI, TAU};
 
-use common::mill;
+use common::{check_axis_limits, mill};
 use kerf_geom::{Move, Path, Vec3};
 use kerf_motion::{MachineLimits, Setpoint};
 use kerf_pipeline::{RunOptions, run};
@@ -273,35 +273,11 @@ fn run_case(c: &Case, limits: &MachineLimits) -> Measured {
     );
 
     // No jump: finite differences at the period, from rest before and after.
-    let t = limits.period_s;
     let mut padded = vec![rows[0]; 3];
     padded.extend_from_slice(&rows);
     padded.extend_from_slice(&[last; 3]);
-    let big = padded
-        .iter()
-        .flat_map(|r| r.position)
-        .fold(1.0_f64, |a, x| a.max(x.abs()));
-    let noise = 8.0 * f64::EPSILON * big;
-    for i in 0..3 {
-        let Some(l) = limits.axes[i] else { continue };
-        for (k, w) in padded.windows(4).enumerate() {
-            let p = |j: usize| w[j].position[i];
-            let v = (p(3) - p(2)).abs() / t;
-            let a = (p(3) - 2.0 * p(2) + p(1)).abs() / (t * t);
-            let j = (p(3) - 3.0 * p(2) + 3.0 * p(1) - p(0)).abs() / (t * t * t);
-            let ratios = [
-                v / (l.velocity_units_s * 1.01 + noise / t),
-                a / (l.acceleration_units_s2 * 1.01 + 2.0 * noise / (t * t)),
-                j / (l.jerk_units_s3 * 1.01 + 4.0 * noise / (t * t * t)),
-            ];
-            assert!(
-                ratios.iter().all(|&r| r <= 1.0),
-                "{}: axis {i} at padded row {}: v/a/j {ratios:?} of the limits (+1 %)",
-                c.name,
-                k + 3
-            );
-        }
-    }
+    let positions: Vec<[f64; 6]> = padded.iter().map(|r| r.position).collect();
+    check_axis_limits(&c.name, &positions, limits);
     m
 }
 

@@ -887,39 +887,6 @@ fn check_feed(name: &str, moves: &[Move], rows: &[(f64, Setpoint)], period_s: f6
     }
 }
 
-/// Every limit on every axis (A, B, C included), by finite differences of the setpoints,
-/// within 1 % plus the rounding of the positions themselves (a few ulp of the largest
-/// coordinate, divided by the period's power).
-fn check_all_axes(name: &str, rows: &[(f64, Setpoint)], limits: &MachineLimits) {
-    let t = limits.period_s;
-    let big = rows
-        .iter()
-        .flat_map(|r| r.1.position)
-        .fold(1.0_f64, |m, x| m.max(x.abs()));
-    let noise = 8.0 * f64::EPSILON * big;
-    for i in 0..6 {
-        let Some(l) = limits.axes[i] else { continue };
-        for (k, w) in rows.windows(4).enumerate() {
-            let p = |j: usize| w[j].1.position[i];
-            let v = (p(3) - p(2)).abs() / t;
-            let a = (p(3) - 2.0 * p(2) + p(1)).abs() / (t * t);
-            let j = (p(3) - 3.0 * p(2) + 3.0 * p(1) - p(0)).abs() / (t * t * t);
-            let ratios = [
-                v / (l.velocity_units_s * 1.01 + noise / t),
-                a / (l.acceleration_units_s2 * 1.01 + 2.0 * noise / (t * t)),
-                j / (l.jerk_units_s3 * 1.01 + 4.0 * noise / (t * t * t)),
-            ];
-            assert!(
-                ratios.iter().all(|&r| r <= 1.0),
-                "{name}: axis {i} at row {} (t {}): v/a/j {:?} of the limits (+1 %)",
-                k + 3,
-                w[3].0,
-                ratios
-            );
-        }
-    }
-}
-
 /// One run on a swept machine: limits on every axis, path, exact end, feed, no fallback.
 fn check_swept(name: &str, moves: &[Move], limits: &MachineLimits, ovr: f64, tol: f64) {
     let opts = RunOptions {
@@ -932,7 +899,8 @@ fn check_swept(name: &str, moves: &[Move], limits: &MachineLimits, ovr: f64, tol
     })
     .unwrap_or_else(|e| panic!("{name}: {e}"));
     assert!(!s.saw_nan, "{name}: NaN");
-    check_all_axes(name, &rows, limits);
+    let positions: Vec<[f64; 6]> = rows.iter().map(|r| r.1.position).collect();
+    check_axis_limits(name, &positions, limits);
     check_feed(name, moves, &rows, limits.period_s, ovr);
     assert!(
         s.max_deviation_mm <= tol * 1.0001 + 1e-9,

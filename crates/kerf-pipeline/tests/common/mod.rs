@@ -173,3 +173,35 @@ pub fn plane_basis(rng: &mut Rng) -> (Vec3, Vec3, Vec3) {
 pub fn env_number<T: std::str::FromStr>(name: &str) -> Option<T> {
     std::env::var(name).ok().and_then(|s| s.parse().ok())
 }
+
+/// Every limit of every configured axis (A, B, C included), by finite differences of the
+/// setpoint positions at the period, within 1 % plus the rounding of the positions
+/// themselves (8 ulp of the largest coordinate, divided by the period's power). Panics
+/// naming `name`, the axis and the row of the window's last position.
+pub fn check_axis_limits(name: &str, positions: &[[f64; 6]], limits: &MachineLimits) {
+    let t = limits.period_s;
+    let big = positions
+        .iter()
+        .flatten()
+        .fold(1.0_f64, |m, x| m.max(x.abs()));
+    let noise = 8.0 * f64::EPSILON * big;
+    for i in 0..6 {
+        let Some(l) = limits.axes[i] else { continue };
+        for (k, w) in positions.windows(4).enumerate() {
+            let p = |j: usize| w[j][i];
+            let v = (p(3) - p(2)).abs() / t;
+            let a = (p(3) - 2.0 * p(2) + p(1)).abs() / (t * t);
+            let j = (p(3) - 3.0 * p(2) + 3.0 * p(1) - p(0)).abs() / (t * t * t);
+            let ratios = [
+                v / (l.velocity_units_s * 1.01 + noise / t),
+                a / (l.acceleration_units_s2 * 1.01 + 2.0 * noise / (t * t)),
+                j / (l.jerk_units_s3 * 1.01 + 4.0 * noise / (t * t * t)),
+            ];
+            assert!(
+                ratios.iter().all(|&r| r <= 1.0),
+                "{name}: axis {i} at row {}: v/a/j {ratios:?} of the limits (+1 %)",
+                k + 3
+            );
+        }
+    }
+}

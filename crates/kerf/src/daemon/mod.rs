@@ -448,7 +448,10 @@ fn control_thread(
                 Ok(Request::Abort) => {
                     hold_requested = false;
                     // Every program not yet over ends: the one moving, and the one being
-                    // received (which the planning thread stops taking at once).
+                    // received (which the planning thread stops taking at once). The plain
+                    // abort is for the moving one even when the fates have forgotten it
+                    // (256 BEGINs since, refused ones included); aborting it twice is
+                    // harmless.
                     let open = counters.open.load(Ordering::Acquire);
                     let unfinished = lock_fates(&counters).unfinished();
                     counters.abort.store(open, Ordering::Release);
