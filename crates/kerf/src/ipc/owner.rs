@@ -154,7 +154,7 @@ impl Tree {
             root: path(global.root_path().as_bytes()),
             nodes: path(global.node_dir().as_bytes()),
             services: path(global.service_dir().as_bytes()),
-            shm: PathBuf::from("/dev/shm"),
+            shm: PathBuf::from(super::SHM_DIR),
             prefix: String::from_utf8_lossy(global.prefix.as_bytes()).into_owned(),
         }
     }
@@ -538,6 +538,8 @@ fn machine_of(config: Option<&Path>) -> Option<String> {
         None if Path::new(SYSTEM_CONFIG).exists() => PathBuf::from(SYSTEM_CONFIG),
         None => return Some(crate::config::Config::builtin().machine),
     };
+    // Only the machine name, not `config::load_default`: that reads the tool table and
+    // the parameter file too, which another user may not be allowed to read.
     let text = std::fs::read_to_string(path).ok()?;
     let table: toml::Table = toml::from_str(&text).ok()?;
     match table.get("machine") {
