@@ -4,7 +4,7 @@
 # --locked`) and dpkg-deb.
 #
 # The shell completions and man pages are generated from the release binaries themselves
-# (`kerf completions SHELL`, `kerf man DIR`, `kerfd --completions SHELL`, `kerfd --man DIR`),
+# (`kerf completions SHELL`, `kerf man DIR` (which writes kerfd.1 too), `kerfd --completions SHELL`),
 # so they describe exactly the arguments those binaries parse; they are written to
 # <target>/release/kerf-assets/, where the package's assets take them from.
 #
@@ -14,8 +14,8 @@ set -euo pipefail
 
 cd "$(dirname "$0")/.."
 
-echo "== cargo build --release -p kerf --locked"
-cargo build --release -p kerf --locked
+echo "== cargo build --release -p kerf -p kerfd --locked"
+cargo build --release -p kerf -p kerfd --locked
 
 # The target directory as cargo sees it (CARGO_TARGET_DIR, a config file, or ./target).
 target_dir="$(cargo metadata --format-version 1 --no-deps \
@@ -41,8 +41,7 @@ for bin in kerf kerfd; do
         "${gen[@]}" >"$assets/completions/$file"
     done
 done
-"$release/kerf" man "$assets/man"
-"$release/kerfd" --man "$assets/man"
+"$release/kerf" man "$assets/man"   # kerf.1, kerf-*.1 and kerfd.1
 # Debian installs man pages compressed (-n: no time stamp, so the bytes are reproducible).
 gzip -9 -n "$assets"/man/*.1
 

@@ -6,9 +6,9 @@
 //! `cargo bench -p kerf-benches --bench drive`
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use kerf::Config;
-use kerf::daemon::worker::drive_stage;
+use kerf_config::Config;
 use kerf_drive::stage::StageInput;
+use kerfd::worker::drive_stage;
 
 fn bench_drive(c: &mut Criterion) {
     let config = Config::builtin();

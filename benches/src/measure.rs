@@ -4,8 +4,8 @@
 
 use std::fmt::Write as _;
 
-use kerf::config::{Config, ConfigError};
 use kerf::sim::{SimError, SimOptions};
+use kerf_config::{Config, ConfigError};
 use kerf_gcode::{Dialect, Interpreter, Item};
 use kerf_geom::{Move, Path, Vec3};
 
@@ -193,7 +193,7 @@ pub fn run_kerf(name: &str, moves: &[Move], config: &Config) -> Result<KerfRun, 
         .into_iter()
         .map(|(_, v)| v)
         .collect();
-    let limits = kerf::sim::machine_limits(config);
+    let limits = kerf_config::machine_limits(config);
     let options = SimOptions {
         queue_capacity: config.daemon.queue_segments as usize,
         ..SimOptions::default()

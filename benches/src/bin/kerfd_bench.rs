@@ -28,10 +28,10 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use kerf::Config;
 use kerf::client::{Client, MoveSender, SetpointReader};
-use kerf::daemon::timing::Histogram;
+use kerf_config::Config;
 use kerf_proto::{Command, MoveMsg, PROGRAM_END_NONE};
+use kerfd::timing::Histogram;
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -186,7 +186,7 @@ fn timing(args: &[String]) -> Result<(), String> {
     let seconds: f64 = opt(args, "--seconds", 20.0)?;
     let fifo = flag(args, "--fifo");
     let config = bench_config(period_us);
-    let daemon = kerf::daemon::start(&config, fifo).map_err(|e| e.to_string())?;
+    let daemon = kerfd::start(&config, fifo).map_err(|e| e.to_string())?;
     let rt = daemon.rt().clone();
     let mut client = Client::connect(&config.machine).map_err(|e| e.to_string())?;
     let mut sender = MoveSender::open(client.node(), &config.machine).map_err(|e| e.to_string())?;
@@ -279,15 +279,15 @@ fn throughput(args: &[String]) -> Result<(), String> {
     }
 
     let stop = Arc::new(AtomicBool::new(false));
-    let counters = kerf::daemon::worker::PlanningCounters::default();
+    let counters = kerfd::worker::PlanningCounters::default();
     let (items_tx, mut items_rx) =
-        rtrb::RingBuffer::<kerf::daemon::worker::RtItem>::new(kerf::daemon::PLANNED_RING);
+        rtrb::RingBuffer::<kerfd::worker::RtItem>::new(kerfd::PLANNED_RING);
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();
     let planning = {
         let (config, stop, counters) = (config.clone(), stop.clone(), counters.clone());
         std::thread::spawn(move || {
             let machine = config.machine.clone();
-            kerf::daemon::planning_thread(
+            kerfd::planning_thread(
                 &config, &machine, window, ready_tx, stop, counters, items_tx,
             )
         })
@@ -302,13 +302,13 @@ fn throughput(args: &[String]) -> Result<(), String> {
         let mut items = 0u64;
         loop {
             match items_rx.pop() {
-                Ok(kerf::daemon::worker::RtItem::End(_)) => return (items, Instant::now()),
+                Ok(kerfd::worker::RtItem::End(_)) => return (items, Instant::now()),
                 Ok(_) => items += 1,
                 Err(_) => std::thread::sleep(Duration::from_micros(50)),
             }
         }
     });
-    let node = kerf::ipc::node("kerfd-bench").map_err(|e| e.to_string())?;
+    let node = kerfd::ipc::node("kerfd-bench").map_err(|e| e.to_string())?;
     let mut sender = MoveSender::open(&node, &config.machine).map_err(|e| e.to_string())?;
     let mut waits = 0u64;
     let t0 = Instant::now();
@@ -355,9 +355,9 @@ fn transport_only(config: &Config, msgs: &[MoveMsg]) -> Result<(), String> {
         let received = received.clone();
         std::thread::spawn(move || -> Result<Instant, String> {
             let setup = || -> Result<_, String> {
-                let node = kerf::ipc::node("kerfd-bench-rx")?;
-                let service = kerf::ipc::create_moves(&node, &machine, window)?;
-                let subscriber = kerf::ipc::move_subscriber(&service, window)?;
+                let node = kerfd::ipc::node("kerfd-bench-rx")?;
+                let service = kerfd::ipc::create_moves(&node, &machine, window)?;
+                let subscriber = kerfd::ipc::move_subscriber(&service, window)?;
                 Ok((node, service, subscriber))
             };
             let (_node, _service, subscriber) = match setup() {
@@ -389,7 +389,7 @@ fn transport_only(config: &Config, msgs: &[MoveMsg]) -> Result<(), String> {
     ready_rx
         .recv()
         .map_err(|_| "the receiver ended".to_string())??;
-    let tx_node = kerf::ipc::node("kerfd-bench-tx")?;
+    let tx_node = kerfd::ipc::node("kerfd-bench-tx")?;
     let mut sender = MoveSender::open(&tx_node, &config.machine).map_err(|e| e.to_string())?;
     let t0 = Instant::now();
     for m in msgs {
@@ -416,13 +416,13 @@ fn transport_only(config: &Config, msgs: &[MoveMsg]) -> Result<(), String> {
 fn send_copy(args: &[String]) -> Result<(), String> {
     let n: u64 = opt(args, "--samples", 100_000)?;
     let config = bench_config(1000);
-    let node = kerf::ipc::node("kerfd-bench-pub")?;
-    let service = kerf::ipc::create_setpoints(&node, &config.machine)?;
+    let node = kerfd::ipc::node("kerfd-bench-pub")?;
+    let service = kerfd::ipc::create_setpoints(&node, &config.machine)?;
     let publisher = service
         .publisher_builder()
         .create()
         .map_err(|e| format!("{e:?}"))?;
-    let subscriber = kerf::ipc::setpoint_subscriber(&service)?;
+    let subscriber = kerfd::ipc::setpoint_subscriber(&service)?;
     let mut h = Histogram::new();
     let mut msg = kerf_proto::SetpointMsg::new();
     for seq in 1..=n {
@@ -452,7 +452,7 @@ fn hold(args: &[String]) -> Result<(), String> {
         }
         None => {
             let c = bench_config(period_us);
-            let d = kerf::daemon::start(&c, fifo).map_err(|e| e.to_string())?;
+            let d = kerfd::start(&c, fifo).map_err(|e| e.to_string())?;
             (c, Some(d))
         }
     };

@@ -30,7 +30,7 @@ fn main() -> ExitCode {
 fn run() -> anyhow::Result<()> {
     let filter = std::env::args().nth(1).unwrap_or_default();
     let config = measure::machine()?;
-    let limits = kerf::sim::machine_limits(&config);
+    let limits = kerf_config::machine_limits(&config);
     println!(
         "| program | moves | planning, µs per move | planning total | motion time | real-time factor |"
     );

@@ -7,7 +7,7 @@ is stopped (SIGTERM, then SIGKILL) and the scratch directory removed at the end 
 test, whatever happened (``KERF_TEST_KEEP=1`` keeps the directory of a failed test).
 
 Binaries: ``KERFD`` and ``KERF`` (default ``target/debug/kerfd`` and ``target/debug/kerf``
-of this checkout; build them with ``cargo build -p kerf --bins``).
+of this checkout; build them with ``cargo build -p kerf -p kerfd --bins``).
 """
 
 import os
@@ -39,7 +39,7 @@ PATIENCE_S = 30.0
 def need_binaries(test):
     for path in (KERFD, KERF):
         if not os.access(path, os.X_OK):
-            test.fail(f"{path} is missing: build it with `cargo build -p kerf --bins` "
+            test.fail(f"{path} is missing: build it with `cargo build -p kerf -p kerfd --bins` "
                       "(or point KERFD / KERF at the binaries)")
 
 

@@ -9,7 +9,7 @@
 4. Abort while streaming 200,000 short lines: ABORTED, `run_program` returns at once and
    the machine stops.
 
-Build the binaries first: `cargo build -p kerf --bins` (or set KERFD and KERF).
+Build the binaries first: `cargo build -p kerf -p kerfd --bins` (or set KERFD and KERF).
 """
 
 import json

@@ -150,7 +150,7 @@ struct Machine {
 
 impl Machine {
     fn period_s(&self) -> f64 {
-        // As `kerf::sim::machine_limits` computes it.
+        // As `kerf_config::machine_limits` computes it.
         f64::from(self.period_us) * 1e-6
     }
 

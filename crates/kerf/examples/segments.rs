@@ -2,8 +2,8 @@
 //! `cargo run --release -p kerf --example segments -- PROGRAM [DIALECT]` (the machine is
 //! the bundled config, or the file named by `KERF_CONFIG`; `KERF_OVERRIDE` in % sets the design override).
 
-use kerf::config::Config;
-use kerf::sim::machine_limits;
+use kerf_config::Config;
+use kerf_config::machine_limits;
 use kerf_gcode::{Dialect, Interpreter, Item};
 use kerf_plan::Planner;
 

@@ -1,49 +1,16 @@
 //! Shell completions and man pages generated from a binary's clap definition.
 //!
-//! The `kerf` and `kerfd` binaries own their [`clap::Command`]s; each passes its own to
-//! these functions (the hidden `kerf completions SHELL` and `kerf man DIR`, and `kerfd
-//! --completions SHELL` and `kerfd --man DIR`), so the completions and man pages the
+//! The `kerf` and `kerfd` binaries own their [`clap::Command`]s (`kerfd`'s is
+//! [`kerfd::cli::Args`]); the hidden `kerf completions SHELL`, `kerf man DIR` and `kerfd
+//! --completions SHELL` pass them to these functions, so the completions and man pages the
 //! package installs are generated from the same definitions that parse the arguments and
-//! cannot drift from them.
+//! cannot drift from them. `kerf man DIR` writes `kerfd`'s page too: the daemon does not
+//! carry the man-page generator.
 
-use std::io::{self, Write};
+use std::io;
 use std::path::{Path, PathBuf};
 
-pub use clap_complete::Shell;
-
-/// The shells completions are generated for: bash, zsh and fish.
-pub const SHELLS: [Shell; 3] = [Shell::Bash, Shell::Zsh, Shell::Fish];
-
-/// Writes the completion script of `cmd` for `shell` to `out`, without its hidden
-/// arguments and subcommands (clap_complete would offer them).
-pub fn write_completions(cmd: clap::Command, shell: Shell, out: &mut dyn Write) {
-    let mut cmd = visible(&cmd);
-    let name = cmd.get_name().to_string();
-    clap_complete::generate(shell, &mut cmd, name, out);
-}
-
-/// `cmd` with only what its help shows: the hidden arguments and subcommands left out.
-fn visible(cmd: &clap::Command) -> clap::Command {
-    let mut out = clap::Command::new(cmd.get_name().to_string());
-    if let Some(about) = cmd.get_about() {
-        out = out.about(about.clone());
-    }
-    if let Some(version) = cmd.get_version() {
-        out = out.version(version.to_string());
-    }
-    out.args(
-        cmd.get_arguments()
-            .filter(|a| !a.is_hide_set())
-            .cloned()
-            .collect::<Vec<_>>(),
-    )
-    .subcommands(
-        cmd.get_subcommands()
-            .filter(|s| !s.is_hide_set())
-            .map(visible)
-            .collect::<Vec<_>>(),
-    )
-}
+pub use kerfd::cli::{SHELLS, Shell, write_completions};
 
 /// Writes the man page of `cmd` (section 1) and one for each of its visible subcommands
 /// (`kerf-plan.1`, ...) into `dir`, creating it; returns the files written, the command's

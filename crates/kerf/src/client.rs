@@ -7,7 +7,10 @@ use std::time::{Duration, Instant};
 use iceoryx2::prelude::*;
 use kerf_proto::{Command, MoveMsg, REASON_OK, Request, Response, SetpointMsg, State, StatusMsg};
 
-use crate::ipc;
+use kerfd::fault_text::check_name;
+use kerfd::ipc;
+
+pub use kerfd::fault_text::safety_text;
 
 /// How long a request may go unanswered before the daemon counts as absent.
 pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(1);
@@ -187,52 +190,6 @@ pub fn drives_name(s: &StatusMsg) -> &'static str {
         kerf_proto::DRIVES_RESETTING => "resetting",
         _ => "none",
     }
-}
-
-/// The name of a safety check code (`SAFETY_*`), as `kerf_drive::safety::Check::name`.
-pub fn check_name(code: u32) -> Option<&'static str> {
-    kerf_drive::safety::Check::ALL
-        .iter()
-        .find(|c| c.code() == code)
-        .map(|c| c.name())
-}
-
-/// The latched fault of the drive side in words, with units: the check, the axis, the
-/// value against its limit, the program line and the cycle; `None` when none is latched.
-pub fn safety_text(s: &StatusMsg) -> Option<String> {
-    let name = check_name(s.safety_check)?;
-    let axis = kerf_geom::AXIS_NAMES.get(s.safety_axis as usize);
-    let unit = if s.safety_axis >= 3 { "deg" } else { "mm" };
-    let on = axis.map_or(String::new(), |a| format!(" on axis {a}"));
-    let (value, limit) = (s.safety_value, s.safety_limit);
-    let what = match s.safety_check {
-        kerf_proto::SAFETY_VELOCITY => {
-            format!("setpoint step {value:.1} {unit}/s against the limit {limit:.1} {unit}/s")
-        }
-        kerf_proto::SAFETY_ACCELERATION => {
-            format!("{value:.1} {unit}/s² against the limit {limit:.1} {unit}/s²")
-        }
-        kerf_proto::SAFETY_SOFT_LIMIT => {
-            format!("setpoint {value:.4} {unit} beyond the soft limit {limit:.4} {unit}")
-        }
-        kerf_proto::SAFETY_FOLLOWING_ERROR => {
-            format!("{value:.4} {unit} against the limit {limit:.4} {unit}")
-        }
-        kerf_proto::SAFETY_STREAM_STALL => {
-            format!("{value} consecutive cycles without a setpoint (limit {limit})")
-        }
-        kerf_proto::SAFETY_DRIVE_FAULT => {
-            format!("the drive reports error 0x{:04X}", s.drive_error_code)
-        }
-        kerf_proto::SAFETY_ENABLE_TIMEOUT => {
-            format!("the drive did not enable within {limit} cycles")
-        }
-        _ => "the drive left Operation enabled on its own".to_string(),
-    };
-    Some(format!(
-        "{name}{on}: {what} (line {}, cycle {})",
-        s.safety_line, s.safety_cycle
-    ))
 }
 
 /// `kerf status --json`: one JSON object.
@@ -482,34 +439,5 @@ impl MoveSender {
             .map_err(|e| ClientError::Ipc(format!("sending a move: {e:?}")))?;
         self.sent += 1;
         Ok(())
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use kerf_drive::safety::Check;
-
-    #[test]
-    fn safety_checks_go_on_the_wire_as_the_protocol_numbers_them() {
-        // The daemon sends `Check::code()`; the client reads it against the protocol's
-        // `SAFETY_*` numbers (docs/PROTOCOL.md). Both lists are written by hand: they must
-        // agree check by check, and every check must have its name back.
-        let wire = [
-            (Check::Velocity, kerf_proto::SAFETY_VELOCITY),
-            (Check::Acceleration, kerf_proto::SAFETY_ACCELERATION),
-            (Check::SoftLimit, kerf_proto::SAFETY_SOFT_LIMIT),
-            (Check::FollowingError, kerf_proto::SAFETY_FOLLOWING_ERROR),
-            (Check::StreamStall, kerf_proto::SAFETY_STREAM_STALL),
-            (Check::DriveFault, kerf_proto::SAFETY_DRIVE_FAULT),
-            (Check::EnableTimeout, kerf_proto::SAFETY_ENABLE_TIMEOUT),
-            (Check::DriveDisabled, kerf_proto::SAFETY_DRIVE_DISABLED),
-        ];
-        assert_eq!(wire.len(), Check::ALL.len());
-        for (check, code) in wire {
-            assert!(Check::ALL.contains(&check), "{check:?}");
-            assert_eq!(check.code(), code, "{check:?}");
-            assert_eq!(super::check_name(code), Some(check.name()), "{check:?}");
-        }
-        assert_eq!(super::check_name(kerf_proto::SAFETY_NONE), None);
     }
 }

@@ -31,15 +31,16 @@ use std::collections::VecDeque;
 use std::fmt;
 use std::io::{self, BufWriter, Write};
 
+use kerf_config::machine_limits;
 use kerf_geom::{Move, Path, Vec3, line_distance};
 use kerf_motion::monitor::{LimitMonitor, LimitViolation};
-use kerf_motion::{AxisLimits, MachineLimits, PlannedSegment, Setpoint};
+use kerf_motion::{MachineLimits, PlannedSegment, Setpoint};
 use kerf_pipeline::{self as driver, Event, Input, Planned, RunError, RunOptions, Summary};
 use kerf_plan::{PlanError, Planner};
 
-use crate::config::Config;
 use crate::sim_plot::{PlotOutput, PlotRecorder, RapidIndex};
-use crate::travel::{self, PlannedTravelError, TravelError};
+use kerf_config::Config;
+use kerf_config::travel::{self, PlannedTravelError, TravelError};
 
 /// Options of a simulation.
 #[derive(Clone, Debug, PartialEq)]
@@ -228,41 +229,6 @@ impl Scan {
     }
 }
 
-/// What a non-motion event of the program means to the motion: a dwell (`G4`) is an exact
-/// stop and a rest; a program stop (M0, M1), an end (M2, M30), a tool change (M6), a
-/// spindle (M3, M4, M5, S) or coolant (M7, M8, M9) change is an exact stop, because the
-/// control waits for the motion to finish before it acts on it (as LinuxCNC does); a tool
-/// selection (T) does not stop the motion. A pallet-change pause (M60) is a program stop,
-/// and a user M code (M100–M199) runs its program after the motion before it, as LinuxCNC
-/// does; messages (MSG, DEBUG, PRINT), LinuxCNC's log calls (LOG, passed on) and the
-/// override controls (M48–M53) do not stop the motion. The
-/// simulation does not wait at a program stop (it stands for an operator who presses
-/// cycle start at once) and runs M1 like M0.
-pub fn input_of_event(e: &kerf_gcode::Event) -> Option<Input> {
-    use kerf_gcode::EventCode as C;
-    match e.code {
-        C::G4 => Some(Input::Dwell(e.value.unwrap_or(0.0))),
-        // The override controls (M48–M53) change what the operator's overrides do from
-        // this point of the path on: LinuxCNC queues them with the motion, no stop.
-        C::T | C::Msg | C::Debug | C::Print | C::Log => None,
-        C::M48 | C::M49 | C::M50 | C::M51 | C::M52 | C::M53 => None,
-        C::M60 | C::User(_) => Some(Input::Stop),
-        C::M0
-        | C::M1
-        | C::M2
-        | C::M30
-        | C::M3
-        | C::M4
-        | C::M5
-        | C::M6
-        | C::M7
-        | C::M8
-        | C::M9
-        | C::M19
-        | C::S => Some(Input::Stop),
-    }
-}
-
 /// The moves and planned segments of a program small enough to keep between the passes.
 #[derive(Debug)]
 pub struct Kept {
@@ -299,7 +265,7 @@ const RECENT_MOVES: usize = 1 << 16;
 /// window may still change, and the last 65,536 moves are kept to name lines.
 pub struct Prepass {
     planner: Planner,
-    axes: crate::config::Axes,
+    axes: kerf_config::Axes,
     buf: Vec<PlannedSegment>,
     /// Line, start and end of the last moves, by program index.
     recent: VecDeque<(u32, Vec3, Vec3)>,
@@ -363,7 +329,7 @@ impl Prepass {
         self.check_planned()
     }
 
-    /// An exact stop or a dwell at this point of the program (see [`input_of_event`]):
+    /// An exact stop or a dwell at this point of the program (see [`kerfd::worker::input_of_event`]):
     /// the planner ends the path at rest here, as the run's will.
     pub fn stop(&mut self, dwell_s: Option<f64>) -> Result<(), PrepassError> {
         self.planner.finish(&mut self.buf);
@@ -441,30 +407,6 @@ fn estimated_seconds(m: &Move, rapid_mm_s: f64) -> f64 {
         _ => rapid_mm_s,
     };
     length_mm / speed_mm_s
-}
-
-/// The motion core's view of a configuration.
-pub fn machine_limits(config: &Config) -> MachineLimits {
-    let mut axes = [None; 6];
-    for (i, l) in config.axes.linear().iter().enumerate() {
-        axes[i] = Some(AxisLimits {
-            velocity_units_s: l.velocity_mm_s,
-            acceleration_units_s2: l.acceleration_mm_s2,
-            jerk_units_s3: l.jerk_mm_s3,
-        });
-    }
-    for (i, r) in config.axes.rotary().iter().enumerate() {
-        axes[3 + i] = r.map(|r| AxisLimits {
-            velocity_units_s: r.velocity_deg_s,
-            acceleration_units_s2: r.acceleration_deg_s2,
-            jerk_units_s3: r.jerk_deg_s3,
-        });
-    }
-    MachineLimits {
-        axes,
-        period_s: config.period_us as f64 * 1e-6,
-        tolerance_mm: config.tolerance_mm,
-    }
 }
 
 /// Runs `moves` on the machine `limits`, calling `row(t, setpoint)` for every period from
@@ -787,10 +729,10 @@ mod tests {
         ] {
             let mut e = kerf_gcode::Event::new(3, code, None);
             e.text = Some("LOGOPEN,results.txt".into());
-            assert_eq!(input_of_event(&e), None, "{code:?}");
+            assert_eq!(kerfd::worker::input_of_event(&e), None, "{code:?}");
         }
         let m0 = kerf_gcode::Event::new(4, kerf_gcode::EventCode::M0, None);
-        assert_eq!(input_of_event(&m0), Some(Input::Stop));
+        assert_eq!(kerfd::worker::input_of_event(&m0), Some(Input::Stop));
     }
 
     fn program() -> Vec<Move> {
@@ -879,7 +821,7 @@ mod tests {
         )
         .filter_map(|item| match item.unwrap() {
             kerf_gcode::Item::Move(m) => Some(Input::Move(m)),
-            kerf_gcode::Item::Event(e) => input_of_event(&e),
+            kerf_gcode::Item::Event(e) => kerfd::worker::input_of_event(&e),
         })
         .collect()
     }

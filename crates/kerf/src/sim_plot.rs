@@ -966,8 +966,8 @@ fn compact(v: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::Config;
     use crate::sim::{self, SimOptions};
+    use kerf_config::Config;
     use kerf_geom::Move;
 
     /// The moves of a LinuxCNC program.
@@ -1087,7 +1087,7 @@ mod tests {
         let config = Config::builtin();
         let program = moves(&raster(12));
         let rows = csv(&program, &config);
-        let limits = sim::machine_limits(&config);
+        let limits = kerf_config::machine_limits(&config);
         let mut rapids = RapidIndex::default();
         for m in &program {
             rapids.push(m.rapid);
@@ -1324,7 +1324,7 @@ mod tests {
         // Twenty minutes at 1 ms of wiggling circles at 10 mm/s, with one period's drop of the
         // feed to zero.
         let config = Config::builtin();
-        let limits = sim::machine_limits(&config);
+        let limits = kerf_config::machine_limits(&config);
         let mut recorder = PlotRecorder::new(&limits, RapidIndex::default());
         let samples = 20 * 60 * 1000u64;
         let spike_at = 777_777;

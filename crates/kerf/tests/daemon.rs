@@ -19,14 +19,15 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use kerf::Config;
+use kerf_config::Config;
 use kerf_gcode::{Dialect, Interpreter, Item, Settings};
 use kerf_geom::{CornerMode, Curve, Move, Vec3};
 use kerf_motion::monitor::LimitMonitor;
 use serde_json::Value;
 
 const KERF: &str = env!("CARGO_BIN_EXE_kerf");
-const KERFD: &str = env!("CARGO_BIN_EXE_kerfd");
+mod common;
+use common::kerfd;
 
 /// Upper bound on any wait, so that a broken daemon fails a test instead of hanging it.
 const PATIENCE: Duration = Duration::from_secs(30);
@@ -225,7 +226,7 @@ impl Env {
     fn start_daemon_with(&self, name: &str, extra: &[&str]) -> Proc {
         let mut args = vec!["--config", self.config_arg()];
         args.extend_from_slice(extra);
-        let mut d = Proc::spawn(name, &self.dir, KERFD, &args);
+        let mut d = Proc::spawn(name, &self.dir, kerfd(), &args);
         let deadline = Instant::now() + PATIENCE;
         loop {
             if let Some(status) = d.try_wait() {
@@ -432,7 +433,7 @@ fn read_csv(path: &Path) -> Vec<Row> {
 /// the first row; `t` advances by one period per row.
 fn check_limits(env: &Env, rows: &[Row], what: &str) {
     assert!(!rows.is_empty(), "{what}: no rows");
-    let limits = kerf::sim::machine_limits(&env.config);
+    let limits = kerf_config::machine_limits(&env.config);
     let period_s = limits.period_s;
     let mut monitor = LimitMonitor::at_rest(&limits, &rows[0].position);
     for (i, r) in rows.iter().enumerate() {
@@ -930,9 +931,9 @@ fn inject(env: &Env, program_id: u64, bad: impl FnOnce(&mut kerf_proto::MoveMsg)
     let text = "G21 G90 G64 P0.01\nG1 X12 Y3 F3000\nG1 X20 Y10\nM2\n";
     let moves = env.moves(text, start);
     assert_eq!(moves.len(), 2);
-    let node = kerf::ipc::node(&format!("test-{}-{program_id}", std::process::id())).unwrap();
-    let service = kerf::ipc::open_moves(&node, &env.machine).unwrap();
-    let publisher = kerf::ipc::move_publisher(&service).unwrap();
+    let node = kerfd::ipc::node(&format!("test-{}-{program_id}", std::process::id())).unwrap();
+    let service = kerfd::ipc::open_moves(&node, &env.machine).unwrap();
+    let publisher = kerfd::ipc::move_publisher(&service).unwrap();
     let mut second = kerf_proto::MoveMsg::from_move(program_id, 2, &moves[1]);
     bad(&mut second);
     for msg in [
@@ -1196,7 +1197,7 @@ fn a_period_outside_the_daemons_range_is_refused_before_anything_starts() {
             &format!("period{period}"),
             &[("period_us = 1000", &format!("period_us = {period}"))],
         );
-        let out = Command::new(KERFD)
+        let out = Command::new(kerfd())
             .args(["--config", env.config_arg()])
             .output()
             .unwrap();
@@ -1213,7 +1214,7 @@ fn a_period_outside_the_daemons_range_is_refused_before_anything_starts() {
 
 #[test]
 fn a_configuration_that_does_not_load_is_named() {
-    let out = Command::new(KERFD)
+    let out = Command::new(kerfd())
         .args(["--config", "/nonexistent/kerf.toml"])
         .output()
         .unwrap();
@@ -1226,7 +1227,7 @@ fn a_configuration_that_does_not_load_is_named() {
 fn a_second_daemon_or_an_embedded_run_for_the_same_machine_is_refused() {
     let env = Env::new("twice", &[]);
     let _first = env.start_daemon("kerfd");
-    let out = Command::new(KERFD)
+    let out = Command::new(kerfd())
         .args(["--config", env.config_arg()])
         .output()
         .unwrap();
@@ -1254,7 +1255,7 @@ fn a_daemon_killed_while_it_starts_leaves_nothing_that_stops_the_next() {
         let mut d = Proc::spawn(
             "kerfd-killed",
             &env.dir,
-            KERFD,
+            kerfd(),
             &["--config", env.config_arg()],
         );
         std::thread::sleep(Duration::from_millis(2 + 4 * i));
@@ -1262,7 +1263,7 @@ fn a_daemon_killed_while_it_starts_leaves_nothing_that_stops_the_next() {
         d.wait(1);
     }
     // Files a killed creator left count as abandoned after 100 ms.
-    std::thread::sleep(kerf::ipc::UNFINISHED_AFTER * 2);
+    std::thread::sleep(kerfd::ipc::UNFINISHED_AFTER * 2);
     let _daemon = env.start_daemon("kerfd");
     let program = env.write("short.ngc", "G21 G90\nG1 X2 Y1 F3000\nG0 X0 Y0\nM2\n");
     env.run_ok("run", &program, None);
@@ -1392,7 +1393,7 @@ fn env_plot(input: &Path, svg: &Path) -> Output {
 
 /// Sends a fault injection through the control service (accepted by `kerfd --test-faults`
 /// only); the daemon's answer.
-fn inject_fault(env: &Env, injection: kerf::daemon::worker::Injection) -> kerf_proto::Response {
+fn inject_fault(env: &Env, injection: kerfd::worker::Injection) -> kerf_proto::Response {
     let mut client = kerf::client::Client::connect(&env.machine).expect("the daemon answers");
     let code = injection.code().expect("a code for the injection");
     client
@@ -1402,7 +1403,7 @@ fn inject_fault(env: &Env, injection: kerf::daemon::worker::Injection) -> kerf_p
 
 #[test]
 fn a_drive_fault_injected_mid_program_is_latched_reported_dumped_and_reset() {
-    use kerf::daemon::worker::Injection;
+    use kerfd::worker::Injection;
     let env = Env::new(
         "fault",
         &[(
@@ -1538,7 +1539,7 @@ fn a_drive_fault_injected_mid_program_is_latched_reported_dumped_and_reset() {
 fn fault_injection_is_refused_without_test_faults() {
     let env = Env::new("noinj", &[]);
     let _daemon = env.start_daemon("kerfd");
-    let r = inject_fault(&env, kerf::daemon::worker::Injection::DriveFault(0));
+    let r = inject_fault(&env, kerfd::worker::Injection::DriveFault(0));
     assert_eq!(r.reason, kerf_proto::REASON_NOT_ALLOWED);
     assert!(r.message().contains("--test-faults"), "{}", r.message());
     let s = env.status();
@@ -1547,7 +1548,7 @@ fn fault_injection_is_refused_without_test_faults() {
 
 #[test]
 fn run_record_keeps_the_setpoints_up_to_a_safety_trip() {
-    use kerf::daemon::worker::Injection;
+    use kerfd::worker::Injection;
     let env = Env::new(
         "triprec",
         &[(

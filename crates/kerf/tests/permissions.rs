@@ -32,7 +32,8 @@ use std::process::{Child, Command, ExitStatus, Output, Stdio};
 use std::time::{Duration, Instant};
 
 const KERF: &str = env!("CARGO_BIN_EXE_kerf");
-const KERFD: &str = env!("CARGO_BIN_EXE_kerfd");
+mod common;
+use common::kerfd;
 
 /// The daemon's user.
 const SERVICE_UID: u32 = 65534;
@@ -266,7 +267,7 @@ impl Env {
             name,
             &self.dir,
             uid,
-            KERFD,
+            kerfd(),
             &["--config", self.config_arg()],
         )
     }

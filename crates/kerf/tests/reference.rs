@@ -10,7 +10,8 @@ use std::process::{Command, Output};
 use serde_json::Value;
 
 const KERF: &str = env!("CARGO_BIN_EXE_kerf");
-const KERFD: &str = env!("CARGO_BIN_EXE_kerfd");
+mod common;
+use common::kerfd;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -462,7 +463,8 @@ fn every_example_runs_in_kerf_sim_with_the_same_setpoints() {
 }
 
 /// `kerf completions SHELL` and `kerfd --completions SHELL` print scripts that name every
-/// visible subcommand and option; `kerf man` and `kerfd --man` write a page per command.
+/// visible subcommand and option; `kerf man` writes a page per command, `kerfd`'s too
+/// (the daemon does not carry the man-page generator, and refuses `--man`).
 #[test]
 fn completions_and_man_pages_come_from_the_binaries() {
     let subcommands = [
@@ -500,7 +502,7 @@ fn completions_and_man_pages_come_from_the_binaries() {
             "fish" => assert!(script.contains("complete -c kerf"), "{script}"),
             _ => assert!(script.contains("complete -F _kerf"), "{script}"),
         }
-        let daemon = String::from_utf8(run(KERFD, &["--completions", shell]).stdout).unwrap();
+        let daemon = String::from_utf8(run(kerfd(), &["--completions", shell]).stdout).unwrap();
         assert!(daemon.contains("config"), "{shell}: {daemon}");
         for hidden in ["test-faults", "completions", "--man", "-l man"] {
             assert!(!daemon.contains(hidden), "{shell}: hidden {hidden} offered");
@@ -514,7 +516,11 @@ fn completions_and_man_pages_come_from_the_binaries() {
     let dir = scratch_dir("man");
     let dir_arg = dir.display().to_string();
     run(KERF, &["man", &dir_arg]);
-    run(KERFD, &["--man", &dir_arg]);
+    let refused = Command::new(kerfd())
+        .args(["--man", &dir_arg])
+        .output()
+        .unwrap();
+    assert!(!refused.status.success(), "kerfd --man accepted");
     let mut pages: Vec<String> = std::fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())

@@ -10,7 +10,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use kerf::client::{Client, MoveSender, SetpointReader};
-use kerf::config::Config;
+use kerf_config::Config;
 use kerf_proto::{
     CORNER_EXACT_STOP, Command, KIND_ARC, KIND_LINE, MoveMsg, PROGRAM_END_ABORTED,
     PROGRAM_END_FINISHED, PROGRAM_END_NONE, PROGRAM_END_REFUSED, PROGRAM_FATE_ABORTED,
@@ -22,7 +22,7 @@ use kerf_proto::{
 const PATIENCE: Duration = Duration::from_secs(30);
 
 struct Machine {
-    _daemon: kerf::daemon::Daemon,
+    _daemon: kerfd::Daemon,
     client: Client,
     sender: MoveSender,
     reader: SetpointReader,
@@ -48,7 +48,7 @@ impl Machine {
         let path = dir.join("kerf.toml");
         std::fs::write(&path, text).unwrap();
         let config = Config::load(&path).unwrap();
-        let daemon = kerf::daemon::start(&config, false).expect("daemon starts");
+        let daemon = kerfd::start(&config, false).expect("daemon starts");
         let mut client = Client::connect(&machine).expect("daemon answers");
         let sender = MoveSender::open(client.node(), &machine).unwrap();
         let reader = SetpointReader::open(client.node(), &machine).unwrap();

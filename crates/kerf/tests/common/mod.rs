@@ -1,45 +1,21 @@
-//! Helpers shared by the daemon's in-process tests (`drives.rs`, `daemon_alloc.rs`).
+//! What the tests that start `kerf` and `kerfd` as processes share.
 
-use kerf::Config;
-use kerf::daemon::worker::{Incoming, Planning};
-use kerf_proto::{MoveMsg, Resolved, StreamCheck};
+use std::path::Path;
+use std::sync::OnceLock;
 
-/// Feeds program `id` (LinuxCNC text, starting at `start`) to the planning worker the way
-/// the daemon's planning thread does: every item as a message through the stream check.
-pub fn feed_program(
-    planning: &mut Planning,
-    config: &Config,
-    id: u64,
-    start: [f64; 6],
-    text: &str,
-) {
-    let mut check = StreamCheck::new();
-    let mut settings = config.settings();
-    settings.start_mm_deg = start;
-    let mut handle = |msg: MoveMsg| {
-        let incoming = match check.check(&msg).expect("a valid message") {
-            Resolved::Begin {
-                program_id,
-                start_mm_deg,
-                ..
-            } => Incoming::Begin {
-                program_id,
-                start: start_mm_deg,
-            },
-            Resolved::Move(m) => Incoming::Move(m),
-            Resolved::Event(e) => Incoming::Event(e),
-            Resolved::End { .. } => Incoming::End,
-        };
-        assert!(planning.handle(incoming), "the planning worker stopped");
-    };
-    handle(MoveMsg::begin(id, start, 0));
-    let mut seq = 0;
-    for item in
-        kerf_gcode::Interpreter::new(text.as_bytes(), kerf_gcode::Dialect::LinuxCnc, settings)
-    {
-        let item = item.expect("the program is valid");
-        seq += 1;
-        handle(MoveMsg::from_item(id, seq, &item));
-    }
-    handle(MoveMsg::end(id, seq));
+/// The `kerfd` binary beside `kerf` in the target directory. It belongs to the `kerfd`
+/// package, whose binary cargo builds for the workspace's tests (`cargo test --workspace`)
+/// but not for `cargo test -p kerf` alone: then this fails and says so.
+pub fn kerfd() -> &'static str {
+    static PATH: OnceLock<String> = OnceLock::new();
+    PATH.get_or_init(|| {
+        let path = Path::new(env!("CARGO_BIN_EXE_kerf")).with_file_name("kerfd");
+        assert!(
+            path.is_file(),
+            "{} is missing: these tests start the daemon of the `kerfd` package; run \
+             `cargo test --workspace`, or `cargo build -p kerfd` before `cargo test -p kerf`",
+            path.display()
+        );
+        path.display().to_string()
+    })
 }

@@ -113,7 +113,7 @@ fn client_failure(e: ClientError) -> Failure {
     }
 }
 
-fn connect(args: &MachineArgs) -> Result<(Client, kerf::Config), Failure> {
+fn connect(args: &MachineArgs) -> Result<(Client, kerf_config::Config), Failure> {
     let config = load_config(args.config.as_deref())?;
     let client = Client::connect(&config.machine).map_err(client_failure)?;
     Ok((client, config))
@@ -147,7 +147,7 @@ pub fn command(args: &MachineArgs, command: Command) -> Result<(), Failure> {
 fn request_answered(
     args: &MachineArgs,
     command: Command,
-    patience: fn(&kerf::Config) -> Duration,
+    patience: fn(&kerf_config::Config) -> Duration,
 ) -> Result<kerf_proto::Response, Failure> {
     let (mut client, config) = connect(args)?;
     let r = client
@@ -161,14 +161,14 @@ fn request_answered(
 
 /// `kerf reset`: answered once the reset has ended.
 pub fn reset(args: &MachineArgs) -> Result<(), Failure> {
-    request_answered(args, Command::Reset, kerf::daemon::reset_patience)?;
+    request_answered(args, Command::Reset, kerfd::reset_patience)?;
     Ok(())
 }
 
 /// `kerf dump`: the daemon writes its black box to a file in its dump directory; the file
 /// is copied to `--out`.
 pub fn dump(args: &DumpArgs) -> Result<(), Failure> {
-    let r = request_answered(&args.machine, Command::Dump, kerf::daemon::dump_patience)?;
+    let r = request_answered(&args.machine, Command::Dump, kerfd::dump_patience)?;
     let written = PathBuf::from(r.message());
     let mut out = Output::create(&args.out)?;
     let copied = std::fs::File::open(&written).and_then(|mut f| io::copy(&mut f, &mut out));
@@ -390,10 +390,8 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     let source = SimSource::open(&args.program, &config)?;
     let name = source.name.clone();
     let _embedded = if args.embedded {
-        Some(kerf::daemon::start(&config, false).map_err(|e| match e {
-            kerf::daemon::StartError::AlreadyRunning(_) => {
-                Failure::Exit(1, format!("kerf: error: {e}"))
-            }
+        Some(kerfd::start(&config, false).map_err(|e| match e {
+            kerfd::StartError::AlreadyRunning(_) => Failure::Exit(1, format!("kerf: error: {e}")),
             e => Failure::Error(format!("kerf: error: {e}")),
         })?)
     } else {
@@ -540,8 +538,11 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             // The program ended normally: its persistent parameters (G28/G30 positions,
             // work offsets, G92) are kept for the next one, as LinuxCNC keeps its .var file.
             if let Some(path) = &config.parameter_file {
-                kerf::tooltable::write_parameter_file(path, &interpreter.persistent_parameters())
-                    .map_err(|e| {
+                kerf_config::tooltable::write_parameter_file(
+                    path,
+                    &interpreter.persistent_parameters(),
+                )
+                .map_err(|e| {
                     Failure::Error(format!(
                         "{}: error: cannot write the parameter file: {e}",
                         path.display()

@@ -18,7 +18,8 @@ use std::time::{Duration, Instant};
 use clap::{Args, CommandFactory, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressFinish, ProgressStyle};
 use kerf::sim::{Prepass, PrepassError, SimError, SimOptions};
-use kerf::{Config, DialectSource, PlanError, assumed_dialect_note, choose_dialect_from};
+use kerf::{DialectSource, PlanError, assumed_dialect_note, choose_dialect_from};
+use kerf_config::Config;
 use kerf_gcode::{Dialect, Interpreter, Item};
 use kerf_pipeline::Input;
 
@@ -81,8 +82,8 @@ enum Command {
         #[arg(value_name = "SHELL")]
         shell: kerf::clidoc::Shell,
     },
-    /// Write the man pages of `kerf` and each of its subcommands (`kerf.1`, `kerf-plan.1`,
-    /// ...) into DIR (for packaging).
+    /// Write the man pages of `kerf`, each of its subcommands (`kerf.1`, `kerf-plan.1`,
+    /// ...) and the daemon (`kerfd.1`) into DIR (for packaging).
     #[command(hide = true)]
     Man {
         /// The directory, created when missing.
@@ -229,6 +230,7 @@ fn main() -> ExitCode {
             io::stdout().lock().write_all(&out).map_err(Failure::from)
         }
         Command::Man { dir } => kerf::clidoc::write_man_pages(Cli::command(), &dir)
+            .and_then(|_| kerf::clidoc::write_man_pages(kerfd::cli::Args::definition(), &dir))
             .map(|_| ())
             .map_err(|e| Failure::Error(format!("{}: error: {e}", dir.display()))),
     };
@@ -248,10 +250,10 @@ fn main() -> ExitCode {
 
 pub fn load_config(path: Option<&Path>) -> Result<Config, Failure> {
     let (mut config, origin) =
-        kerf::config::load_default(path).map_err(|e| Failure::Error(e.to_string()))?;
+        kerf_config::load_default(path).map_err(|e| Failure::Error(e.to_string()))?;
     // The bundled example names LinuxCNC, the default anyway: nobody chose it for this
     // machine, so a program that fails in it gets the note on how to choose another.
-    if origin == kerf::config::BUILTIN_ORIGIN && config.dialect == Some(Dialect::LinuxCnc) {
+    if origin == kerf_config::BUILTIN_ORIGIN && config.dialect == Some(Dialect::LinuxCnc) {
         config.dialect = None;
     }
     Ok(config)
@@ -438,13 +440,14 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
                 .map_while(|item| match item {
                     Ok(Item::Move(m)) => {
                         seen += 1;
-                        if seen > scan.moves || kerf::travel::check_move(&m, &axes).is_err() {
+                        if seen > scan.moves || kerf_config::travel::check_move(&m, &axes).is_err()
+                        {
                             changed.store(true, Ordering::Relaxed);
                             return None;
                         }
                         Some(Some(Input::Move(m)))
                     }
-                    Ok(Item::Event(e)) => Some(kerf::sim::input_of_event(&e)),
+                    Ok(Item::Event(e)) => Some(kerfd::worker::input_of_event(&e)),
                     Err(_) => {
                         changed.store(true, Ordering::Relaxed);
                         None
@@ -557,7 +560,7 @@ pub fn check_program(
             }
             Ok(Item::Event(e)) => {
                 last_line = e.line;
-                match kerf::sim::input_of_event(&e) {
+                match kerfd::worker::input_of_event(&e) {
                     Some(Input::Dwell(seconds)) => prepass.stop(Some(seconds)).map_err(refused)?,
                     Some(_) => prepass.stop(None).map_err(refused)?,
                     None => {}

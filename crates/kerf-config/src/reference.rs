@@ -485,8 +485,8 @@ pub fn markdown() -> String {
     let mut out = String::new();
     out.push_str(
         "# Configuration reference\n\n\
-         <!-- Generated from crates/kerf/src/config/reference.rs; do not edit. After a change run\n     \
-         KERF_BLESS=1 cargo test -p kerf --lib config::reference -->\n\n\
+         <!-- Generated from crates/kerf-config/src/reference.rs; do not edit. After a change run\n     \
+         KERF_BLESS=1 cargo test -p kerf-config --lib reference -->\n\n\
          The machine configuration is a TOML file: `--config FILE`, else `/etc/kerf/kerf.toml`\n\
          when it exists, else the built-in example [config/kerf.toml](../config/kerf.toml),\n\
          which comments every key. Unknown keys are errors. Units are part of the key names\n\
@@ -533,7 +533,7 @@ mod tests {
         let have = std::fs::read_to_string(doc_path()).unwrap_or_default();
         assert!(
             have == want,
-            "docs/CONFIG.md is out of date: run KERF_BLESS=1 cargo test -p kerf --lib config::reference"
+            "docs/CONFIG.md is out of date: run KERF_BLESS=1 cargo test -p kerf-config --lib reference"
         );
     }
 

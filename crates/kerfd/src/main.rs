@@ -11,33 +11,14 @@
 //! Exit codes: 0 after a requested stop, 1 when it cannot start or a thread failed.
 #![forbid(unsafe_code)]
 
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use anyhow::Context;
-use clap::{CommandFactory, Parser};
+use clap::Parser;
+use kerfd::cli::Args;
 
 /// How often the main thread looks at signals and feeds the watchdog.
 const SUPERVISE_EVERY: Duration = Duration::from_millis(20);
-
-#[derive(Parser)]
-#[command(name = "kerfd", version, about = "Kerf real-time interpolator daemon")]
-struct Args {
-    /// Machine configuration (TOML). Without it: /etc/kerf/kerf.toml if present, else the
-    /// built-in example machine.
-    #[arg(long, value_name = "FILE")]
-    config: Option<PathBuf>,
-    /// Tests only: accept the fault injections of the control service (REQUEST_INJECT).
-    #[arg(long, hide = true)]
-    test_faults: bool,
-    /// Packaging: print the shell completion script (bash, zsh or fish) and exit.
-    #[arg(long, hide = true, value_name = "SHELL")]
-    completions: Option<kerf::clidoc::Shell>,
-    /// Packaging: write the man page `kerfd.1` into DIR and exit.
-    #[arg(long, hide = true, value_name = "DIR")]
-    man: Option<PathBuf>,
-}
 
 fn main() -> ExitCode {
     let args = Args::parse();
@@ -58,43 +39,34 @@ fn main() -> ExitCode {
     match run(&args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            tracing::error!("{e:#}");
+            tracing::error!("{e}");
             ExitCode::from(1)
         }
     }
 }
 
-/// `--completions` and `--man`: generated from this file's clap definition, so that the
-/// package's copies match the binary.
+/// `--completions`: generated from the clap definition ([`kerfd::cli`]), so that the
+/// package's copy matches the binary. (The man page is written by `kerf man DIR`.)
 fn packaging(args: &Args) -> Option<ExitCode> {
     use std::io::Write;
-    if let Some(shell) = args.completions {
-        let mut out = Vec::new();
-        kerf::clidoc::write_completions(Args::command(), shell, &mut out);
-        return Some(match std::io::stdout().lock().write_all(&out) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(_) => ExitCode::from(1),
-        });
-    }
-    let dir = args.man.as_ref()?;
-    Some(match kerf::clidoc::write_man_pages(Args::command(), dir) {
-        Ok(_) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("{}: error: {e}", dir.display());
-            ExitCode::from(1)
-        }
+    let shell = args.completions?;
+    let mut out = Vec::new();
+    kerfd::cli::write_completions(Args::definition(), shell, &mut out);
+    Some(match std::io::stdout().lock().write_all(&out) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(_) => ExitCode::from(1),
     })
 }
 
-fn run(args: &Args) -> anyhow::Result<()> {
+fn run(args: &Args) -> Result<(), String> {
     let (config, origin) =
-        kerf::config::load_default(args.config.as_deref()).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let signals = kerf_rt::Signals::install().context("cannot install signal handlers")?;
+        kerf_config::load_default(args.config.as_deref()).map_err(|e| e.to_string())?;
+    let signals =
+        kerf_rt::Signals::install().map_err(|e| format!("cannot install signal handlers: {e}"))?;
     if args.test_faults {
         tracing::warn!("--test-faults: the control service accepts injected faults (tests only)");
     }
-    let daemon = kerf::daemon::start_with(&config, true, args.test_faults)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let daemon = kerfd::start_with(&config, true, args.test_faults).map_err(|e| e.to_string())?;
     let rt = daemon.rt();
     if rt.rt {
         tracing::info!("real-time scheduling and locked memory in effect");
@@ -127,9 +99,9 @@ fn run(args: &Args) -> anyhow::Result<()> {
             break;
         }
     }
-    daemon.join().map_err(|e| anyhow::anyhow!("{e}"))?;
+    daemon.join().map_err(|e| e.to_string())?;
     if !stopping {
-        anyhow::bail!("the daemon stopped without being asked to");
+        return Err("the daemon stopped without being asked to".into());
     }
     tracing::info!("stopped");
     Ok(())

@@ -21,7 +21,7 @@ use std::f64::consts::{PI, TAU};
 use kerf_geom::PlannedSegment;
 use kerf_geom::{Curve, Helix, Move, Path, Vec3};
 
-use crate::config::Axes;
+use crate::Axes;
 
 /// Slack for rounding in computed arc points, mm: a path that touches a limit exactly must
 /// not be rejected because `cos` came out one ulp high.
@@ -402,7 +402,7 @@ fn helix_extremes(h: &Helix) -> [Option<Vec3>; 12] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{Config, LinearAxis, RotaryAxis};
+    use crate::{Config, LinearAxis, RotaryAxis};
     use kerf_geom::{Arc, CornerMode, Line};
 
     fn axes(min_mm: f64, max_mm: f64) -> Axes {

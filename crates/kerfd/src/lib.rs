@@ -20,7 +20,13 @@
 //! - The control thread answers requests with the latest snapshot and turns commands into
 //!   items of the command ring.
 
+#![deny(missing_docs)]
+#![forbid(unsafe_code)]
+
+pub mod cli;
 pub mod fates;
+pub mod fault_text;
+pub mod ipc;
 pub mod publish;
 pub mod timing;
 pub mod worker;
@@ -36,8 +42,7 @@ use kerf_proto::{
     State, StatusMsg, StreamCheck, StreamError,
 };
 
-use crate::config::Config;
-use crate::ipc;
+use kerf_config::Config;
 use worker::{Command, Cycle, Incoming, Planning, PlanningCounters, Refusal, RtItem, Snapshot};
 
 /// Planned items the ring from the planning thread to the cycle holds: a few seconds of
@@ -161,7 +166,7 @@ impl Drop for Daemon {
 
 /// The period range the daemon runs, checked before anything starts.
 pub fn check_period(config: &Config) -> Result<(), StartError> {
-    let range = crate::config::DAEMON_PERIOD_RANGE_US;
+    let range = kerf_config::DAEMON_PERIOD_RANGE_US;
     if range.contains(&config.period_us) {
         Ok(())
     } else {
@@ -904,7 +909,7 @@ fn status_msg(
         msg.safety_cycle = f.cycle;
         msg.drive_error_code = u32::from(d.error_code);
         msg.fault = 2;
-        msg.set_fault_text(&crate::client::safety_text(&msg).unwrap_or_default());
+        msg.set_fault_text(&fault_text::safety_text(&msg).unwrap_or_default());
     }
     msg
 }

@@ -16,11 +16,11 @@
 
 mod common;
 
-use kerf::Config;
-use kerf::daemon::worker::{
+use kerf_config::Config;
+use kerf_drive::safety::Check;
+use kerfd::worker::{
     Command, Cycle, CycleOutput, Planning, PlanningCounters, Refusal, RtItem, Snapshot, dump_rings,
 };
-use kerf_drive::safety::Check;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
@@ -273,7 +273,7 @@ fn a_trip_on_the_cycle_a_program_ends_is_that_programs_and_one_after_it_is_not()
         let id = m.send(program, at);
         for k in 1..=cycles + 5 {
             if k == at_cycle {
-                let step = kerf::daemon::worker::Injection::Step(0, 1.0);
+                let step = kerfd::worker::Injection::Step(0, 1.0);
                 m.commands.push(Command::Inject(step)).expect("room");
             }
             m.run();

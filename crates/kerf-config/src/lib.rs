@@ -1,4 +1,10 @@
-//! The machine configuration file (TOML).
+//! The machine configuration file (TOML): the one crate that knows it.
+//!
+//! - this module: the file read and checked once into a plain [`Config`] record;
+//! - [`reference`]: the reference of every key (docs/CONFIG.md is generated from it);
+//! - [`tooltable`]: LinuxCNC tool tables and parameter files;
+//! - [`travel`]: the configured travel checked on the exact path before any motion;
+//! - [`machine_limits`]: the motion core's view of the axes.
 //!
 //! A machine builder writes one file per machine; `config/kerf.toml` in the repository is a
 //! commented 3-axis mill example and is compiled into the binary as the default
@@ -11,6 +17,8 @@
 //! - Every error names the file, and the line and column where TOML gives a place, in the
 //!   same `FILE:LINE:COL: error: MESSAGE` shape as program errors.
 //! - Every quantity carries its unit in the key and in the field name (`jerk_mm_s3`).
+#![deny(missing_docs)]
+#![forbid(unsafe_code)]
 
 use std::io;
 use std::ops::{Range, RangeInclusive};
@@ -21,11 +29,13 @@ use kerf_drive::cia402::{Enabler, Scale};
 use kerf_drive::safety::{AxisSafety, SafetyConfig};
 use kerf_drive::sim::SimConfig;
 use kerf_gcode::{Dialect, Settings, Tool};
-use kerf_geom::AxisLimits;
+use kerf_geom::{AxisLimits, MachineLimits};
 use serde::Deserialize;
 use toml::Spanned;
 
 pub mod reference;
+pub mod tooltable;
+pub mod travel;
 
 /// The bundled example configuration (`config/kerf.toml`), used when no `--config` is given.
 pub const BUILTIN_TOML: &str = include_str!("../../../config/kerf.toml");
@@ -1845,6 +1855,43 @@ impl Checker<'_> {
                 number(MAX_COORDINATE_MM)
             ),
         ))
+    }
+}
+
+/// The motion core's view of a configuration.
+pub fn machine_limits(config: &Config) -> MachineLimits {
+    let mut axes = [None; 6];
+    for (i, l) in config.axes.linear().iter().enumerate() {
+        axes[i] = Some(AxisLimits {
+            velocity_units_s: l.velocity_mm_s,
+            acceleration_units_s2: l.acceleration_mm_s2,
+            jerk_units_s3: l.jerk_mm_s3,
+        });
+    }
+    for (i, r) in config.axes.rotary().iter().enumerate() {
+        axes[3 + i] = r.map(|r| AxisLimits {
+            velocity_units_s: r.velocity_deg_s,
+            acceleration_units_s2: r.acceleration_deg_s2,
+            jerk_units_s3: r.jerk_deg_s3,
+        });
+    }
+    MachineLimits {
+        axes,
+        period_s: config.period_us as f64 * 1e-6,
+        tolerance_mm: config.tolerance_mm,
+    }
+}
+
+/// The machine name a configuration file's text gives (`machine`, else
+/// [`DEFAULT_MACHINE`]), read without checking the rest of the file and without reading
+/// the files it names; `None` when the text is not TOML or `machine` is not a string.
+/// For a client that must find another user's daemon from its configuration alone.
+pub fn machine_name(text: &str) -> Option<String> {
+    let table: toml::Table = toml::from_str(text).ok()?;
+    match table.get("machine") {
+        Some(toml::Value::String(m)) => Some(m.clone()),
+        Some(_) => None,
+        None => Some(DEFAULT_MACHINE.to_string()),
     }
 }
 

@@ -19,7 +19,7 @@ use std::path::Path;
 
 use kerf_gcode::Tool;
 
-use crate::config::{ConfigError, MAX_COORDINATE_MM, TextPosition};
+use crate::{ConfigError, MAX_COORDINATE_MM, TextPosition};
 
 /// The most tools a table may hold: far beyond any tool changer, and it keeps a mistaken
 /// file from filling memory.

@@ -1,7 +1,7 @@
 //! The real-time cycle allocates nothing: a counting global allocator counts every
 //! allocation made on the cycle's thread while it runs `Cycle::run()` and publishes the
 //! setpoint over iceoryx2 the way the daemon does (iceoryx2's `send_copy` allocates, so
-//! the cycle hands the setpoint to the publisher thread of `kerf::daemon::publish`
+//! the cycle hands the setpoint to the publisher thread of `kerfd::publish`
 //! through a preallocated ring), for every cycle of whole programs: the example
 //! part (with a hold and resume and two override changes), a dense polyline (aborted in
 //! the middle), a dense polyline stopped by a drive fault injected in the middle (the
@@ -22,13 +22,13 @@ use std::sync::mpsc;
 
 mod common;
 
-use kerf::Config;
-use kerf::daemon::worker::{
-    Command, Cycle, DumpWriterRings, Injection, Planning, PlanningCounters, Refusal, Snapshot,
-};
+use kerf_config::Config;
 use kerf_drive::safety::{Check, ResetRefused};
 use kerf_drive::stage::DumpReason;
 use kerf_proto::{SetpointMsg, State};
+use kerfd::worker::{
+    Command, Cycle, DumpWriterRings, Injection, Planning, PlanningCounters, Refusal, Snapshot,
+};
 
 /// Counts allocations (and reallocations) on threads whose flag is set.
 struct Counting;
@@ -143,12 +143,12 @@ enum Script {
 /// setpoint at the reader.
 fn counted_cycle(
     cycle: &mut Cycle,
-    publisher: &mut kerf::daemon::publish::SetpointOut,
+    publisher: &mut kerfd::publish::SetpointOut,
     msg: &mut SetpointMsg,
-    reader: &iceoryx2::port::subscriber::Subscriber<kerf::ipc::Ipc, SetpointMsg, ()>,
+    reader: &iceoryx2::port::subscriber::Subscriber<kerfd::ipc::Ipc, SetpointMsg, ()>,
     last_seq: &mut u64,
     received: &mut u64,
-) -> kerf::daemon::worker::CycleOutput {
+) -> kerfd::worker::CycleOutput {
     PHASE.with(|p| p.set(PHASE_RUN));
     let out = cycle.run();
     PHASE.with(|p| p.set(PHASE_NONE));
@@ -189,7 +189,7 @@ fn take_dumps(rings: &mut DumpWriterRings, reasons: &mut Vec<DumpReason>, rows: 
 fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
     let mut config = Config::builtin();
     config.machine = format!("alloc_{}", std::process::id());
-    let (items_tx, items_rx) = rtrb::RingBuffer::new(kerf::daemon::PLANNED_RING);
+    let (items_tx, items_rx) = rtrb::RingBuffer::new(kerfd::PLANNED_RING);
     let (mut commands_tx, commands_rx) = rtrb::RingBuffer::<Command>::new(64);
     let (status_tx, mut status_rx) = rtrb::RingBuffer::<Snapshot>::new(256);
     let stop = Arc::new(AtomicBool::new(false));
@@ -210,13 +210,13 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
     };
 
     let (mut publisher, helper) =
-        kerf::daemon::publish::spawn(&config.machine, None).expect("publisher thread");
-    let node = kerf::ipc::node(&format!("alloc-test-{}", std::process::id())).expect("node");
-    let service = kerf::ipc::open_setpoints(&node, &config.machine).expect("service");
-    let early_reader = kerf::ipc::setpoint_subscriber(&service).expect("subscriber");
+        kerfd::publish::spawn(&config.machine, None).expect("publisher thread");
+    let node = kerfd::ipc::node(&format!("alloc-test-{}", std::process::id())).expect("node");
+    let service = kerfd::ipc::open_setpoints(&node, &config.machine).expect("service");
+    let early_reader = kerfd::ipc::setpoint_subscriber(&service).expect("subscriber");
     let mut late_reader = None;
 
-    let (dump_rings, mut dump_writer) = kerf::daemon::worker::dump_rings();
+    let (dump_rings, mut dump_writer) = kerfd::worker::dump_rings();
     let mut cycle = Cycle::new(
         &config,
         [0.0; 6],
@@ -337,7 +337,7 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
                 Script::Plain => {
                     if late_reader.is_none() && last_program_cycle >= 1000 {
                         late_reader =
-                            Some(kerf::ipc::setpoint_subscriber(&service).expect("subscriber"));
+                            Some(kerfd::ipc::setpoint_subscriber(&service).expect("subscriber"));
                     }
                 }
             }

@@ -33,7 +33,7 @@ use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
 
 /// Where the daemon's configuration lives when `kerfd` is started without `--config`.
-const SYSTEM_CONFIG: &str = crate::config::SYSTEM_CONFIG;
+const SYSTEM_CONFIG: &str = kerf_config::SYSTEM_CONFIG;
 
 /// The name of the daemon's node that holds the control service (`kerfd-control`).
 const DAEMON_CONTROL_NODE: &str = "kerfd-control";
@@ -536,17 +536,12 @@ fn machine_of(config: Option<&Path>) -> Option<String> {
     let path = match config {
         Some(p) => p.to_path_buf(),
         None if Path::new(SYSTEM_CONFIG).exists() => PathBuf::from(SYSTEM_CONFIG),
-        None => return Some(crate::config::Config::builtin().machine),
+        None => return Some(kerf_config::Config::builtin().machine),
     };
-    // Only the machine name, not `config::load_default`: that reads the tool table and
-    // the parameter file too, which another user may not be allowed to read.
+    // Only the machine name, not `kerf_config::load_default`: that reads the tool table
+    // and the parameter file too, which another user may not be allowed to read.
     let text = std::fs::read_to_string(path).ok()?;
-    let table: toml::Table = toml::from_str(&text).ok()?;
-    match table.get("machine") {
-        Some(toml::Value::String(m)) => Some(m.clone()),
-        Some(_) => None,
-        None => Some(crate::config::DEFAULT_MACHINE.to_string()),
-    }
+    kerf_config::machine_name(&text)
 }
 
 #[cfg(test)]
