@@ -7,7 +7,11 @@
 use std::fmt::Write as _;
 use std::ops::RangeInclusive;
 
-use super::*;
+use kerf_drive::sim::SimConfig;
+use kerf_gcode::Dialect;
+
+use crate::toml_words::{number, unit_of};
+use crate::*;
 
 /// One key of the configuration file.
 #[derive(Clone, Debug)]
@@ -45,6 +49,9 @@ fn k(key: &'static str, default: String, range: String, meaning: &'static str) -
 }
 
 /// Every key of the configuration file, in the order of docs/CONFIG.md.
+///
+/// One table in one piece (over 400 lines): it is the page, row by row, and a reader
+/// checks a key against the page by finding it here; split, the order would be lost.
 pub fn keys() -> Vec<KeyDoc> {
     let req = || "required".to_string();
     let none = || "none".to_string();
@@ -516,6 +523,7 @@ pub fn markdown() -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::raw::*;
     use serde::de::DeserializeOwned;
     use std::collections::BTreeSet;
 

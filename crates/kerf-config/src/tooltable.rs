@@ -51,141 +51,8 @@ pub fn parse_tool_table(text: &str, origin: &str) -> Result<Vec<Tool>, ConfigErr
     for (i, raw_line) in text.lines().enumerate() {
         let line_no = i + 1;
         let line = raw_line.split(';').next().unwrap_or("");
-        let mut tool = Tool::default();
-        let mut seen = [false; 26];
-        let mut number_col = None;
-        let mut pos = 0;
-        let bytes = line.as_bytes();
-        while pos < bytes.len() {
-            if bytes[pos].is_ascii_whitespace() {
-                pos += 1;
-                continue;
-            }
-            let col = line[..pos].chars().count() + 1;
-            let letter = bytes[pos].to_ascii_uppercase();
-            if !letter.is_ascii_uppercase() {
-                let c = line[pos..].chars().next().unwrap_or('?');
-                return Err(invalid(
-                    origin,
-                    line_no,
-                    col,
-                    format!("expected a word (a letter and a number), found `{c}`"),
-                ));
-            }
-            let start = pos + 1;
-            let mut end = start;
-            while end < bytes.len() && !bytes[end].is_ascii_whitespace() {
-                end += 1;
-            }
-            let word = &line[pos..end];
-            pos = end;
-            let value: f64 = match line[start..end].parse() {
-                Ok(v) if f64::is_finite(v) => v,
-                _ => {
-                    return Err(invalid(
-                        origin,
-                        line_no,
-                        col,
-                        format!("`{word}` is not a letter followed by a number"),
-                    ));
-                }
-            };
-            let slot = usize::from(letter - b'A');
-            if seen[slot] {
-                return Err(invalid(
-                    origin,
-                    line_no,
-                    col,
-                    format!("word {} repeated", letter as char),
-                ));
-            }
-            seen[slot] = true;
-            let whole = |what: &str, max: f64| -> Result<u32, ConfigError> {
-                if value.fract() == 0.0 && (0.0..=max).contains(&value) {
-                    Ok(value as u32)
-                } else {
-                    Err(invalid(
-                        origin,
-                        line_no,
-                        col,
-                        format!("{what} must be a whole number from 0 to {max}, found {value}"),
-                    ))
-                }
-            };
-            let coordinate = |what: &str| -> Result<f64, ConfigError> {
-                if value.abs() <= MAX_COORDINATE_MM {
-                    Ok(value)
-                } else {
-                    Err(invalid(
-                        origin,
-                        line_no,
-                        col,
-                        format!(
-                            "{what} must be between -{MAX_COORDINATE_MM} and {MAX_COORDINATE_MM}, found {value}"
-                        ),
-                    ))
-                }
-            };
-            match letter {
-                b'T' => {
-                    tool.number = whole("the tool number T", f64::from(u32::MAX))?;
-                    number_col = Some(col);
-                }
-                b'P' => tool.pocket = whole("the pocket P", f64::from(u32::MAX))?,
-                b'X' => tool.offset_xy_mm[0] = coordinate("the X offset (mm)")?,
-                b'Y' => tool.offset_xy_mm[1] = coordinate("the Y offset (mm)")?,
-                b'Z' => tool.length_mm = coordinate("the Z offset (mm)")?,
-                b'A' => tool.offset_abc_deg[0] = coordinate("the A offset (degrees)")?,
-                b'B' => tool.offset_abc_deg[1] = coordinate("the B offset (degrees)")?,
-                b'C' => tool.offset_abc_deg[2] = coordinate("the C offset (degrees)")?,
-                b'U' | b'V' | b'W' => {
-                    if value != 0.0 {
-                        return Err(invalid(
-                            origin,
-                            line_no,
-                            col,
-                            "U, V and W offsets are not supported (Kerf has no U, V, W axes)"
-                                .to_string(),
-                        ));
-                    }
-                }
-                b'D' => {
-                    if !(0.0..=2.0 * MAX_COORDINATE_MM).contains(&value) {
-                        return Err(invalid(
-                            origin,
-                            line_no,
-                            col,
-                            format!(
-                                "the diameter D must be from 0 to {} mm, found {value}",
-                                2.0 * MAX_COORDINATE_MM
-                            ),
-                        ));
-                    }
-                    tool.radius_mm = value / 2.0;
-                }
-                b'I' => tool.front_angle_deg = coordinate("the front angle I (degrees)")?,
-                b'J' => tool.back_angle_deg = coordinate("the back angle J (degrees)")?,
-                b'Q' => tool.orientation = whole("the orientation Q", 9.0)? as u8,
-                _ => {
-                    return Err(invalid(
-                        origin,
-                        line_no,
-                        col,
-                        format!("unknown word {} in a tool table", letter as char),
-                    ));
-                }
-            }
-        }
-        if seen.iter().all(|s| !s) {
+        let Some((tool, col)) = parse_line(line, line_no, origin)? else {
             continue;
-        }
-        let Some(col) = number_col else {
-            return Err(invalid(
-                origin,
-                line_no,
-                1,
-                "tool table line without a tool number T".to_string(),
-            ));
         };
         if tools.iter().any(|t| t.number == tool.number) {
             return Err(invalid(
@@ -206,6 +73,152 @@ pub fn parse_tool_table(text: &str, origin: &str) -> Result<Vec<Tool>, ConfigErr
         tools.push(tool);
     }
     Ok(tools)
+}
+
+/// One line of a tool table without its comment: the tool and the column of its number,
+/// or `None` for a line without words.
+fn parse_line(
+    line: &str,
+    line_no: usize,
+    origin: &str,
+) -> Result<Option<(Tool, usize)>, ConfigError> {
+    let mut tool = Tool::default();
+    let mut seen = [false; 26];
+    let mut number_col = None;
+    let mut pos = 0;
+    let bytes = line.as_bytes();
+    while pos < bytes.len() {
+        if bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+            continue;
+        }
+        let col = line[..pos].chars().count() + 1;
+        let letter = bytes[pos].to_ascii_uppercase();
+        if !letter.is_ascii_uppercase() {
+            let c = line[pos..].chars().next().unwrap_or('?');
+            return Err(invalid(
+                origin,
+                line_no,
+                col,
+                format!("expected a word (a letter and a number), found `{c}`"),
+            ));
+        }
+        let start = pos + 1;
+        let mut end = start;
+        while end < bytes.len() && !bytes[end].is_ascii_whitespace() {
+            end += 1;
+        }
+        let word = &line[pos..end];
+        pos = end;
+        let value: f64 = match line[start..end].parse() {
+            Ok(v) if f64::is_finite(v) => v,
+            _ => {
+                return Err(invalid(
+                    origin,
+                    line_no,
+                    col,
+                    format!("`{word}` is not a letter followed by a number"),
+                ));
+            }
+        };
+        let slot = usize::from(letter - b'A');
+        if seen[slot] {
+            return Err(invalid(
+                origin,
+                line_no,
+                col,
+                format!("word {} repeated", letter as char),
+            ));
+        }
+        seen[slot] = true;
+        let whole = |what: &str, max: f64| -> Result<u32, ConfigError> {
+            if value.fract() == 0.0 && (0.0..=max).contains(&value) {
+                Ok(value as u32)
+            } else {
+                Err(invalid(
+                    origin,
+                    line_no,
+                    col,
+                    format!("{what} must be a whole number from 0 to {max}, found {value}"),
+                ))
+            }
+        };
+        let coordinate = |what: &str| -> Result<f64, ConfigError> {
+            if value.abs() <= MAX_COORDINATE_MM {
+                Ok(value)
+            } else {
+                Err(invalid(
+                    origin,
+                    line_no,
+                    col,
+                    format!(
+                        "{what} must be between -{MAX_COORDINATE_MM} and {MAX_COORDINATE_MM}, found {value}"
+                    ),
+                ))
+            }
+        };
+        match letter {
+            b'T' => {
+                tool.number = whole("the tool number T", f64::from(u32::MAX))?;
+                number_col = Some(col);
+            }
+            b'P' => tool.pocket = whole("the pocket P", f64::from(u32::MAX))?,
+            b'X' => tool.offset_xy_mm[0] = coordinate("the X offset (mm)")?,
+            b'Y' => tool.offset_xy_mm[1] = coordinate("the Y offset (mm)")?,
+            b'Z' => tool.length_mm = coordinate("the Z offset (mm)")?,
+            b'A' => tool.offset_abc_deg[0] = coordinate("the A offset (degrees)")?,
+            b'B' => tool.offset_abc_deg[1] = coordinate("the B offset (degrees)")?,
+            b'C' => tool.offset_abc_deg[2] = coordinate("the C offset (degrees)")?,
+            b'U' | b'V' | b'W' => {
+                if value != 0.0 {
+                    return Err(invalid(
+                        origin,
+                        line_no,
+                        col,
+                        "U, V and W offsets are not supported (Kerf has no U, V, W axes)"
+                            .to_string(),
+                    ));
+                }
+            }
+            b'D' => {
+                if !(0.0..=2.0 * MAX_COORDINATE_MM).contains(&value) {
+                    return Err(invalid(
+                        origin,
+                        line_no,
+                        col,
+                        format!(
+                            "the diameter D must be from 0 to {} mm, found {value}",
+                            2.0 * MAX_COORDINATE_MM
+                        ),
+                    ));
+                }
+                tool.radius_mm = value / 2.0;
+            }
+            b'I' => tool.front_angle_deg = coordinate("the front angle I (degrees)")?,
+            b'J' => tool.back_angle_deg = coordinate("the back angle J (degrees)")?,
+            b'Q' => tool.orientation = whole("the orientation Q", 9.0)? as u8,
+            _ => {
+                return Err(invalid(
+                    origin,
+                    line_no,
+                    col,
+                    format!("unknown word {} in a tool table", letter as char),
+                ));
+            }
+        }
+    }
+    if seen.iter().all(|s| !s) {
+        return Ok(None);
+    }
+    let Some(col) = number_col else {
+        return Err(invalid(
+            origin,
+            line_no,
+            1,
+            "tool table line without a tool number T".to_string(),
+        ));
+    };
+    Ok(Some((tool, col)))
 }
 
 /// Reads a parameter file. A missing file is an empty one (LinuxCNC starts with its

@@ -1,0 +1,143 @@
+//! The ranges and defaults the configuration checker uses: the one place each limit of a
+//! key is written (docs/CONFIG.md is generated from these constants).
+
+use std::ops::RangeInclusive;
+
+/// Default interpolation period when `period_us` is not given, microseconds.
+pub const DEFAULT_PERIOD_US: u32 = 1000;
+
+/// Default path tolerance when `tolerance_mm` is not given, mm.
+pub const DEFAULT_TOLERANCE_MM: f64 = 0.01;
+
+/// The longest period accepted, microseconds: beyond one second a "real-time" loop makes
+/// no sense and the value is more likely a unit mistake (seconds or nanoseconds).
+pub const MAX_PERIOD_US: u32 = 1_000_000;
+
+/// The shortest period accepted, microseconds. EtherCAT masters commonly run 62.5 to 125 µs
+/// cycles, and nothing shorter is meaningful for a PC-based interpolator; below about this
+/// the finite differences of positions at the period are dominated by floating-point
+/// rounding (at 1 µs the third difference of a clean profile reads 142 % of the jerk limit).
+pub const MIN_PERIOD_US: u32 = 50;
+
+// The accepted range of every machine number, inclusive at both ends. A value outside
+// these ranges is not a machine but a typo or a unit mistake, and some of them make a run
+// that can never finish (velocity 1e-300 mm/s) or whose arithmetic breaks down
+// (acceleration 1e300 mm/s²). Rotary axes use the same numbers in degrees.
+
+/// Axis velocity, mm/s (deg/s): from 0.001 mm/s (3.6 mm/h, slower than any feed a program
+/// can ask for in a useful time) to 100,000 mm/s (6,000 m/min, beyond the fastest linear
+/// motors).
+pub const VELOCITY_RANGE: RangeInclusive<f64> = 0.001..=100_000.0;
+
+/// Axis acceleration, mm/s² (deg/s²): from 0.01 mm/s² to 1e8 mm/s² (about 10,000 g, far
+/// beyond any machine axis).
+pub const ACCELERATION_RANGE: RangeInclusive<f64> = 0.01..=1e8;
+
+/// Axis jerk, mm/s³ (deg/s³): from 1 mm/s³ to 1e12 mm/s³ (at a 50 µs period that jerk
+/// reaches 1e8 mm/s² in 0.1 ms; higher values only mean "no jerk limit" and strain the
+/// arithmetic of the profiles).
+pub const JERK_RANGE: RangeInclusive<f64> = 1.0..=1e12;
+
+/// Path tolerance (`tolerance_mm`) and absolute arc end-point tolerance
+/// (`gcode.arc_tolerance_mm`), mm: from 1 nm (beyond any machine's resolution; smaller
+/// values only make blends vanish in rounding) to 10 mm (a "tolerance" larger than that is
+/// not a finishing path any more).
+pub const TOLERANCE_RANGE_MM: RangeInclusive<f64> = 1e-6..=10.0;
+
+/// Relative arc end-point tolerance (`gcode.arc_tolerance_rel`), a fraction of the radius:
+/// up to 10 % (beyond that the program's arcs are not arcs at all).
+pub const ARC_TOLERANCE_REL_RANGE: RangeInclusive<f64> = 1e-9..=0.1;
+
+/// The largest magnitude of a travel limit, work offset or tool length or radius, mm
+/// (degrees for rotary travel): one kilometre, larger than any machine bed.
+pub const MAX_COORDINATE_MM: f64 = 1e6;
+
+/// The machine name when the file gives none.
+pub const DEFAULT_MACHINE: &str = "default";
+
+/// Default real-time priority of the daemon's cycle thread (SCHED_FIFO, 1 to 99): above
+/// the kernel's threaded interrupt handlers (50) and below the watchdog threads (99).
+pub const DEFAULT_PRIORITY: u8 = 80;
+
+/// Default capacity of the motion core's queue, segments: the lookahead window. `kerf sim`
+/// uses the same number, so that the daemon's setpoints equal the simulator's.
+pub const DEFAULT_QUEUE_SEGMENTS: u32 = 4096;
+
+/// Accepted queue capacities, segments: below 16 the lookahead cannot reach full speed on
+/// short moves; above 65,536 the core's memory (about 1 KiB per segment) serves nothing.
+pub const QUEUE_SEGMENTS_RANGE: RangeInclusive<u32> = 16..=65_536;
+
+/// Default number of resolved moves a planner process may have sent that the daemon has
+/// not yet taken (the flow-control window of `kerf run`).
+pub const DEFAULT_MOVE_WINDOW: u32 = 4096;
+
+/// Accepted move windows.
+pub const MOVE_WINDOW_RANGE: RangeInclusive<u32> = 16..=65_536;
+
+/// The periods the daemon runs, microseconds: 125 µs (8 kHz) to 10 ms. `kerf sim`
+/// accepts a wider range ([`MIN_PERIOD_US`] to [`MAX_PERIOD_US`]) for studies.
+pub const DAEMON_PERIOD_RANGE_US: RangeInclusive<u32> = 125..=10_000;
+
+// The drive side (`[axes.*.drive]`, the following-error keys of `[axes.*]`, `[safety]`).
+// Read and validated here; the daemon's drive stage is built from them (docs/DRIVES.md).
+
+/// Default drive scale when `counts_per_mm` / `counts_per_deg` is not given: 1000 counts
+/// per mm (1 µm) or per degree.
+pub const DEFAULT_COUNTS_PER_UNIT: f64 = 1000.0;
+
+/// Accepted drive scales, counts per mm (per degree for rotary axes).
+pub const COUNTS_PER_UNIT_RANGE: RangeInclusive<f64> = 1e-3..=1e9;
+
+/// Accepted sim drive position loop bandwidths, Hz (with `damping` and the period, they
+/// set the fewest `substeps` that keep the model stable and accurate: see
+/// `SimConfig::min_substeps`; a configuration with fewer is refused).
+pub const BANDWIDTH_RANGE_HZ: RangeInclusive<f64> = 0.1..=1000.0;
+
+/// Accepted sim drive damping ratios.
+pub const DAMPING_RANGE: RangeInclusive<f64> = 0.01..=10.0;
+
+/// Accepted sim drive inertia ratios (the load's inertia over the inertia its position
+/// loop was tuned for).
+pub const INERTIA_RATIO_RANGE: RangeInclusive<f64> = 0.01..=100.0;
+
+/// Accepted sim drive velocity feed-forward gains.
+pub const VELOCITY_FEED_FORWARD_RANGE: RangeInclusive<f64> = 0.0..=1.0;
+
+/// Accepted sim drive integration substeps per period.
+pub const SUBSTEPS_RANGE: RangeInclusive<u32> = 1..=1000;
+
+/// Accepted sim drive accelerations (overcurrent threshold, quick-stop deceleration),
+/// counts/s².
+pub const DRIVE_ACCELERATION_RANGE_COUNTS_S2: RangeInclusive<f64> = 1.0..=1e15;
+
+/// Accepted sim drive following-error windows, counts.
+pub const FOLLOWING_ERROR_WINDOW_RANGE_COUNTS: RangeInclusive<u32> = 1..=1_000_000_000;
+
+/// Default timeout of each transition of the enable sequence, ms.
+pub const DEFAULT_ENABLE_TIMEOUT_MS: u32 = 1000;
+
+/// Accepted enable timeouts, ms.
+pub const ENABLE_TIMEOUT_RANGE_MS: RangeInclusive<u32> = 1..=60_000;
+
+/// Default following-error limit at maximum velocity (LinuxCNC `FERROR`), mm or deg.
+pub const DEFAULT_FERROR_MM: f64 = 1.0;
+
+/// Default following-error limit at rest (LinuxCNC `MIN_FERROR`), mm or deg.
+pub const DEFAULT_MIN_FERROR_MM: f64 = 0.1;
+
+/// Accepted following-error limits, mm or deg.
+pub const FERROR_RANGE_MM: RangeInclusive<f64> = 1e-6..=1000.0;
+
+/// Accepted plausibility margins (`safety.margin`), a fraction of the limits.
+pub const MARGIN_RANGE: RangeInclusive<f64> = 0.0..=1.0;
+
+/// Accepted `safety.stall_cycles`.
+pub const STALL_CYCLES_RANGE: RangeInclusive<u32> = 1..=10_000;
+
+/// Accepted black-box recorder lengths (`safety.recorder_seconds`), s: at most a minute
+/// (at 125 µs that is 480,000 cycles, about 100 MB).
+pub const RECORDER_SECONDS_RANGE: RangeInclusive<f64> = 0.1..=60.0;
+
+/// The accepted `gcode.max_loop_iterations`: at least 1, at most 1e12 (a loop that runs
+/// longer is not a program but a hang).
+pub const MAX_LOOP_ITERATIONS_RANGE: RangeInclusive<u64> = 1..=1_000_000_000_000;
