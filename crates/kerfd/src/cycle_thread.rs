@@ -1,0 +1,119 @@
+//! The real-time thread: the cycle at the period, publishing through its helper.
+
+use super::*;
+use crate::status::axes_mask;
+
+/// What the cycle thread is built from: the ring of planned items, the commands, the
+/// status snapshots and the dump rings.
+pub(crate) type CycleParts = (
+    rtrb::Consumer<RtItem>,
+    rtrb::Consumer<Command>,
+    rtrb::Producer<Snapshot>,
+    worker::DumpRings,
+);
+
+/// The real-time thread's loop; `real_time` asks for SCHED_FIFO and locked memory.
+pub(crate) fn cycle_thread(
+    config: &Config,
+    real_time: bool,
+    shared: Shared,
+    ready: Ready,
+    parts: CycleParts,
+) -> Result<(), String> {
+    let Shared {
+        timing: timing_out,
+        stop,
+        cycles,
+        overruns,
+        rt_ok,
+        ..
+    } = shared;
+    let (items, commands, status, dump_rings) = parts;
+    // iceoryx2 allocates on publish: a helper thread publishes (see `publish`).
+    let helper_rt = real_time.then(|| kerf_rt::RtConfig {
+        priority: Some(config.daemon.priority.saturating_sub(1).max(1)),
+        cpu: config.daemon.cpu.map(|c| c as usize),
+        prefault_stack_bytes: PREFAULT_STACK_BYTES,
+    });
+    let (mut publisher, helper) = match publish::spawn(&config.machine, helper_rt) {
+        Ok(p) => p,
+        Err(e) => {
+            let _ = ready.send(Err(StartError::Setup(e.clone())));
+            return Err(e);
+        }
+    };
+    let mut cycle = match Cycle::new(config, [0.0; 6], items, commands, status, dump_rings) {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = ready.send(Err(StartError::Config(e.clone())));
+            return Err(e);
+        }
+    };
+    let rt = if real_time {
+        let report = kerf_rt::rt_setup(&kerf_rt::RtConfig {
+            priority: Some(config.daemon.priority),
+            cpu: config.daemon.cpu.map(|c| c as usize),
+            prefault_stack_bytes: PREFAULT_STACK_BYTES,
+        });
+        match report {
+            Ok(r) => {
+                let ok = r.mlocked && r.fifo;
+                rt_ok.store(ok, Ordering::Release);
+                RtStatus {
+                    rt: ok,
+                    messages: r.messages,
+                }
+            }
+            Err(e) => {
+                let _ = ready.send(Err(StartError::Config(e.to_string())));
+                return Err(e.to_string());
+            }
+        }
+    } else {
+        RtStatus {
+            rt: false,
+            messages: vec!["real-time scheduling not requested".to_string()],
+        }
+    };
+    let axes_mask = axes_mask(config);
+    let mut clock = match kerf_rt::PeriodicClock::new(config.period_us as u64 * 1000) {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = ready.send(Err(StartError::Config(e.to_string())));
+            return Err(e.to_string());
+        }
+    };
+    let _ = ready.send(Ok(Some(rt)));
+    let mut msg = SetpointMsg::new();
+    msg.axes_mask = axes_mask;
+    let mut timing = timing::CycleTiming::new();
+    loop {
+        let tick = clock.wait_next();
+        if tick.missed > 0 {
+            overruns.fetch_add(tick.missed, Ordering::AcqRel);
+            // The drives got no setpoint in the periods missed: they held.
+            cycle.missed(tick.missed);
+        }
+        let out = cycle.run();
+        out.fill(&mut msg, tick.deadline_ns);
+        publisher.push(msg);
+        let woke_ns = tick.deadline_ns + tick.latency_ns;
+        timing.record(tick.latency_ns, kerf_rt::now_ns().saturating_sub(woke_ns));
+        cycles.store(out.seq, Ordering::Release);
+        if cycle.shut_down() || stop.load(Ordering::Acquire) {
+            let mut summary = timing.summary();
+            if let Some(h) = helper.finish() {
+                summary.publish = h.percentiles();
+            }
+            tracing::info!(
+                "cycle timing: {summary}; {} setpoints dropped",
+                publisher.dropped()
+            );
+            if let Ok(mut t) = timing_out.lock() {
+                *t = Some(summary);
+            }
+            stop.store(true, Ordering::Release);
+            return Ok(());
+        }
+    }
+}

@@ -1,0 +1,485 @@
+//! The real-time cycle: commands and planned items in, one setpoint out per period, with
+//! the drive side and the black box.
+
+mod commands;
+mod program;
+mod report;
+
+use super::*;
+
+/// A program the cycle is running.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ProgramRun {
+    id: u64,
+    aborted: bool,
+    cycle: u64,
+    refusal: Option<Refusal>,
+    /// Set when the program must not move at all (it starts elsewhere).
+    dropped: bool,
+    /// Planned items (segments, dwells) taken for the motion so far.
+    planned: u64,
+}
+
+/// The setpoint of one cycle as the daemon publishes it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CycleOutput {
+    /// Cycle number since the daemon started (1 for the first).
+    pub seq: u64,
+    /// The setpoint.
+    pub setpoint: Setpoint,
+    /// Per-axis velocity, by the backward difference of the positions, per s.
+    pub velocity: [f64; 6],
+    /// The program this setpoint belongs to (0: none).
+    pub program_id: u64,
+    /// Cycles of that program so far (its program time is this × period); 0 while the
+    /// program waits for its lookahead window.
+    pub program_cycle: u64,
+    /// What the machine is doing.
+    pub state: u32,
+    /// Periods since the start in which no cycle ran (see [`Cycle::missed`]).
+    pub missed_periods: u64,
+}
+
+impl CycleOutput {
+    /// Writes this cycle into the published message (`time_ns`: the cycle's deadline on
+    /// CLOCK_MONOTONIC); the message's other fields (version, axes) stay.
+    pub fn fill(&self, msg: &mut SetpointMsg, time_ns: u64) {
+        msg.state = self.state;
+        msg.seq = self.seq;
+        msg.time_ns = time_ns;
+        msg.program_id = self.program_id;
+        msg.program_cycle = self.program_cycle;
+        msg.position_mm_deg = self.setpoint.position;
+        msg.velocity_mm_deg_s = self.velocity;
+        msg.feed_mm_s = self.setpoint.feed_mm_s;
+        msg.line = self.setpoint.line;
+        msg.missed_periods = self.missed_periods;
+    }
+}
+
+/// Commands taken per cycle at most (the rest wait for the next cycle).
+pub(crate) const COMMANDS_PER_CYCLE: usize = 8;
+
+/// Programmed moves the cycle's tracker holds without allocating: far more than the
+/// moves of a full queue of smoothed pieces (a smoothing window drops its oldest moves
+/// beyond 4,096).
+pub const TRACKED_MOVES: usize = 65_536;
+
+/// The ends of the rings that carry black-box dumps out of the cycle and their rings back.
+pub struct DumpRings {
+    /// Finished dumps, to the thread that writes them.
+    pub dumps: rtrb::Producer<Dump>,
+    /// Rings written and given back.
+    pub spares: rtrb::Consumer<Box<Recorder>>,
+}
+
+/// The other ends of [`DumpRings`], for the thread that writes the dumps.
+pub struct DumpWriterRings {
+    /// Finished dumps.
+    pub dumps: rtrb::Consumer<Dump>,
+    /// Where written rings go back.
+    pub spares: rtrb::Producer<Box<Recorder>>,
+}
+
+/// The two rings between the cycle and the dump writer (a dump is two boxes at most:
+/// one being written, one waiting).
+pub fn dump_rings() -> (DumpRings, DumpWriterRings) {
+    let (dumps_tx, dumps_rx) = rtrb::RingBuffer::new(2);
+    let (spares_tx, spares_rx) = rtrb::RingBuffer::new(2);
+    (
+        DumpRings {
+            dumps: dumps_tx,
+            spares: spares_rx,
+        },
+        DumpWriterRings {
+            dumps: dumps_rx,
+            spares: spares_tx,
+        },
+    )
+}
+
+/// The drive stage of `config`'s machine: a simulated drive per axis whose motor stands
+/// at `position` at power-up, the safety layer and the black box.
+pub fn drive_stage(config: &Config, position: [f64; 6]) -> Result<DriveStage<SimDrive>, String> {
+    let setups = config.drive_configs();
+    let mut axes: [Option<AxisDrive<SimDrive>>; 6] = [None, None, None, None, None, None];
+    for (i, (slot, setup)) in axes.iter_mut().zip(setups.iter()).enumerate() {
+        let Some(setup) = setup else { continue };
+        let name = kerf_plan::AXIS_NAMES[i];
+        let counts = setup
+            .scale
+            .to_counts(position[i])
+            .map_err(|e| format!("axis {name}: the start position: {e}"))?;
+        let sim = kerf_drive::sim::SimConfig {
+            initial_position_counts: f64::from(counts),
+            ..setup.sim
+        };
+        *slot = Some(AxisDrive {
+            drive: SimDrive::new(sim),
+            scale: setup.scale,
+            enable_timeout_cycles: setup.enable_timeout_cycles,
+        });
+    }
+    DriveStage::new(axes, config.safety_config(), config.recorder_capacity())
+        .map_err(|e| e.to_string())
+}
+
+/// The real-time cycle: commands and planned items in, one setpoint out per period;
+/// allocation-free once built.
+///
+/// After the motion core's step, the drive stage (`kerf_drive::stage`) checks the setpoint
+/// and sends it to the drives; what the cycle publishes is what the drives were sent.
+/// Programs wait until every drive is enabled, and start from the drives' actual
+/// positions; a trip of the safety layer drops the running program, the drives ramp to
+/// rest on the quick stop and the motion core rests where they stopped; programs are
+/// refused until `kerf reset` clears the fault.
+pub struct Cycle {
+    interp: Interpolator,
+    tracker: Tracker,
+    period_s: f64,
+    items: rtrb::Consumer<RtItem>,
+    commands: rtrb::Consumer<Command>,
+    status: rtrb::Producer<Snapshot>,
+    program: Option<ProgramRun>,
+    /// The last program's id, why it stopped early, and whether it was aborted.
+    last_program: (u64, Option<Refusal>, bool),
+    /// The last program ended in this cycle (a safety trip in the same cycle is its).
+    ended_this_cycle: bool,
+    /// Programs to abort when they begin (their abort came before their beginning); 0 =
+    /// free slot.
+    pending_abort: [u64; PENDING_ABORTS],
+    /// The feed override in force, percent.
+    override_pct: f64,
+    /// Commands taken from the command ring and applied since the start.
+    commands_applied: u64,
+    /// Periods in which no cycle ran, since the start.
+    missed_periods: u64,
+    cycles: u64,
+    /// The last setpoint of the motion core (the machine's position between programs).
+    setpoint: Setpoint,
+    /// The position sent to the drives in the last cycle.
+    sent: [f64; 6],
+    starved: bool,
+    shutting_down: bool,
+    shut_down: bool,
+    /// Estimated motion time of the queued segments.
+    queued: QueuedTime,
+    stage: DriveStage<SimDrive>,
+    dump_rings: DumpRings,
+    /// A finished dump the dump ring had no room for.
+    dump_waiting: Option<Dump>,
+    /// The reset asked for (its tag) and the last reset's outcome.
+    reset_tag: Option<u64>,
+    last_reset: Option<(u64, Result<(), ResetRefused>)>,
+    /// Injected faults still to apply.
+    stall_left: u32,
+    step: Option<(usize, f64)>,
+    /// Cycles since a shutdown asked the drives to power off.
+    disable_wait: u32,
+    /// Whether any drive keeps its own time (see [`Cycle::missed`]).
+    drives_keep_time: bool,
+}
+
+impl Cycle {
+    /// A cycle for the machine of `config`; the simulated drives' motors stand at
+    /// `position` at power-up, and the motion core starts where the drives report once
+    /// they are enabled.
+    pub fn new(
+        config: &Config,
+        position: [f64; 6],
+        items: rtrb::Consumer<RtItem>,
+        commands: rtrb::Consumer<Command>,
+        status: rtrb::Producer<Snapshot>,
+        dump_rings: DumpRings,
+    ) -> Result<Self, String> {
+        let limits = kerf_config::machine_limits(config);
+        let capacity = config.daemon.queue_segments as usize;
+        let stage = drive_stage(config, position)?;
+        let start = stage.command();
+        let mut core = MotionCore::new(limits.period_s, capacity);
+        core.set_position(start);
+        Ok(Cycle {
+            interp: Interpolator::new(core),
+            tracker: Tracker::with_capacity(TRACKED_MOVES),
+            period_s: limits.period_s,
+            items,
+            commands,
+            status,
+            program: None,
+            last_program: (0, None, false),
+            ended_this_cycle: false,
+            pending_abort: [0; PENDING_ABORTS],
+            override_pct: 100.0,
+            commands_applied: 0,
+            missed_periods: 0,
+            cycles: 0,
+            setpoint: Setpoint {
+                position: start,
+                ..Setpoint::default()
+            },
+            sent: start,
+            starved: false,
+            shutting_down: false,
+            shut_down: false,
+            queued: QueuedTime::with_capacity(capacity),
+            stage,
+            dump_rings,
+            dump_waiting: None,
+            reset_tag: None,
+            last_reset: None,
+            stall_left: 0,
+            step: None,
+            disable_wait: 0,
+            drives_keep_time: config
+                .drive_configs()
+                .iter()
+                .flatten()
+                .any(|d| d.kind.keeps_time()),
+        })
+    }
+
+    /// The drive stage (for tests: its black box and drives).
+    pub fn stage(&self) -> &DriveStage<SimDrive> {
+        &self.stage
+    }
+
+    /// Periods the cycle did not run (its deadline was missed). A drive that keeps its own
+    /// time (a fieldbus drive) got no setpoint in each: the drive side runs a cycle
+    /// without one (the drives hold; the safety layer counts them, at most
+    /// `stall_cycles + 1`, enough to trip). The simulated drives have no clock of their
+    /// own: their time is the cycle's, and a late cycle delays them with it, so nothing
+    /// was missed. Every missed period is counted in the setpoints (`missed_periods`).
+    /// Allocation-free.
+    pub fn missed(&mut self, periods: u64) {
+        self.missed_periods += periods;
+        if !self.drives_keep_time {
+            return;
+        }
+        let n = periods.min(u64::from(self.stage.safety().config().stall_cycles) + 1);
+        for _ in 0..n {
+            self.drive_cycle(None);
+        }
+    }
+
+    /// `true` once a shutdown has brought the machine to rest.
+    pub fn shut_down(&self) -> bool {
+        self.shut_down
+    }
+
+    /// Runs one period: takes commands and planned items without blocking, steps the
+    /// motion, and returns the setpoint. Never allocates, locks or blocks.
+    pub fn run(&mut self) -> CycleOutput {
+        self.cycles += 1;
+        self.ended_this_cycle = false;
+        let mut commands = [None; COMMANDS_PER_CYCLE];
+        for slot in commands.iter_mut() {
+            match self.commands.pop() {
+                Ok(c) => *slot = Some(c),
+                Err(_) => break,
+            }
+        }
+        if self.program.is_none() {
+            self.begin_next();
+        }
+        let previous = self.sent;
+        // Feeding comes before the commands, as in `kerf sim`, where an event applies
+        // after the cycle's feeding and before its step.
+        let mut started = match self.program {
+            Some(p) if !p.dropped => self.feed(),
+            _ => false,
+        };
+        if started && self.program.is_some_and(|p| p.planned == 0) && self.interp.source_ended() {
+            // Nothing of the program was planned (refused at its first move, or empty):
+            // it ends without a moving cycle.
+            started = false;
+            self.end_program();
+        }
+        for c in commands.iter().flatten() {
+            self.apply(*c);
+        }
+        let mut program_id = self.last_program.0;
+        let mut program_cycle = 0;
+        if started {
+            let mut sp = Setpoint::default();
+            self.interp.step(&mut sp);
+            self.tracker.track(&mut sp);
+            self.setpoint = sp;
+            // Forget the estimated times of the segments the core has finished.
+            self.queued.keep_last(self.interp.core().queued());
+            if let Some(p) = self.program.as_mut() {
+                p.cycle += 1;
+                program_id = p.id;
+                program_cycle = p.cycle;
+            }
+            if self.interp.finished() {
+                self.end_program();
+            }
+        } else {
+            // At rest (idle, or a program waiting for its lookahead window).
+            self.setpoint.feed_mm_s = 0.0;
+            if let Some(p) = self.program {
+                program_id = p.id;
+                if p.dropped && self.drain_dropped() {
+                    self.end_program();
+                }
+            }
+        }
+        // The drive side: the setpoint (unless an injected stall withholds it, or an
+        // injected step moves it) goes through the safety layer to the drives.
+        let setpoint = if self.stall_left > 0 {
+            self.stall_left -= 1;
+            None
+        } else {
+            let mut p = self.setpoint.position;
+            if let Some((axis, mm)) = self.step.take() {
+                p[axis] += mm;
+            }
+            Some(p)
+        };
+        self.drive_cycle(setpoint);
+        let position = self.sent;
+        let mut velocity = [0.0; 6];
+        for (v, (p, q)) in velocity
+            .iter_mut()
+            .zip(position.iter().zip(previous.iter()))
+        {
+            *v = (p - q) / self.period_s;
+        }
+        if self.shutting_down && self.program.is_none() && self.interp.core().is_idle() {
+            // At rest: the drives are powered off (the brakes hold), then the cycle ends.
+            if self.disable_wait == 0 {
+                self.stage.request_disable();
+            }
+            self.disable_wait += 1;
+            self.shut_down = self.stage.disabled() || self.disable_wait > DISABLE_WAIT_CYCLES;
+        }
+        let state = self.state();
+        self.report(state);
+        let mut sp = self.setpoint;
+        sp.position = position;
+        CycleOutput {
+            seq: self.cycles,
+            setpoint: sp,
+            velocity,
+            program_id,
+            program_cycle,
+            state: state.as_u32(),
+            missed_periods: self.missed_periods,
+        }
+    }
+
+    /// One cycle of the drive side with `setpoint` (`None`: a missed cycle).
+    fn drive_cycle(&mut self, setpoint: Option<[f64; 6]>) {
+        let out = self.stage.cycle(&StageInput {
+            setpoint,
+            line: self.setpoint.line,
+            time_s: self.cycles as f64 * self.period_s,
+        });
+        if let Some(p) = out.enabled_at {
+            self.rest_at(p);
+        }
+        if let Some(f) = out.tripped {
+            self.safety_stop(f);
+        }
+        if self.stage.fault().is_some() {
+            // The drives follow the quick stop; the motion core rests where they are.
+            self.rest_at(out.command);
+        }
+        if let Some(r) = out.reset
+            && let Some(tag) = self.reset_tag.take()
+        {
+            self.last_reset = Some((tag, r));
+        }
+        self.sent = out.command;
+        while let Ok(ring) = self.dump_rings.spares.pop() {
+            self.stage.return_spare(ring);
+        }
+        if self.dump_waiting.is_none() {
+            self.dump_waiting = self.stage.take_dump();
+        }
+        if let Some(d) = self.dump_waiting.take()
+            && let Err(rtrb::PushError::Full(d)) = self.dump_rings.dumps.push(d)
+        {
+            self.dump_waiting = Some(d);
+        }
+    }
+
+    /// The motion core drops everything and rests at `position`.
+    fn rest_at(&mut self, position: [f64; 6]) {
+        self.interp.core_mut().reset_to(position);
+        self.setpoint.position = position;
+        self.setpoint.feed_mm_s = 0.0;
+    }
+
+    /// The safety layer tripped: the program is dropped (its rest is refused), the
+    /// motion core forgets its queue.
+    fn safety_stop(&mut self, fault: Fault) {
+        if let Some(p) = self.program.as_mut() {
+            p.refusal = Some(Refusal::Safety(fault));
+            self.interp.apply(Event::Abort);
+            self.interp.next_program();
+            self.tracker.clear();
+            self.end_program();
+        } else if self.ended_this_cycle && self.last_program.1.is_none() {
+            // The setpoint of the program's last cycle tripped: the program did not
+            // finish, whatever its motion reported.
+            self.last_program.1 = Some(Refusal::Safety(fault));
+        }
+    }
+}
+
+/// Programs the cycle remembers to abort when they begin (one moving, one received and
+/// waiting, one being received, and a spare).
+pub(crate) const PENDING_ABORTS: usize = 4;
+
+/// How far (mm or degrees, any axis) a program may start from the machine's position.
+pub const START_TOL: f64 = 1e-6;
+
+/// Cycles a shutdown waits for the drives to power off before the cycle ends anyway.
+pub(crate) const DISABLE_WAIT_CYCLES: u32 = 1000;
+
+/// The estimated motion time of a segment at its planned speed limit, s.
+pub(crate) fn segment_time_s(seg: &PlannedSegment) -> f64 {
+    let v = seg.v_max_mm_s.min(seg.feed_mm_s);
+    if v > 0.0 && v.is_finite() {
+        seg.length_mm / v
+    } else {
+        0.0
+    }
+}
+
+/// The estimated motion times of the segments in the motion queue, in push order, and
+/// their sum: preallocated for the whole queue, so that it never allocates.
+pub(crate) struct QueuedTime {
+    times_s: std::collections::VecDeque<f64>,
+    sum_s: f64,
+}
+
+impl QueuedTime {
+    fn with_capacity(segments: usize) -> Self {
+        QueuedTime {
+            times_s: std::collections::VecDeque::with_capacity(segments),
+            sum_s: 0.0,
+        }
+    }
+
+    /// Adds a pushed segment's time (never beyond the reserved capacity).
+    fn push(&mut self, t_s: f64) {
+        if self.times_s.len() < self.times_s.capacity() {
+            self.times_s.push_back(t_s);
+            self.sum_s += t_s;
+        }
+    }
+
+    /// Forgets all but the `n` segments pushed last (the core has finished the others).
+    fn keep_last(&mut self, n: usize) {
+        while self.times_s.len() > n {
+            if let Some(t) = self.times_s.pop_front() {
+                self.sum_s -= t;
+            }
+        }
+        if self.times_s.is_empty() {
+            self.sum_s = 0.0;
+        }
+    }
+}

@@ -1,0 +1,78 @@
+//! The operator's commands applied in the cycle, and the tests' fault injections.
+
+use super::*;
+
+impl Cycle {
+    pub(super) fn apply(&mut self, c: Command) {
+        self.commands_applied += 1;
+        match c {
+            // A hold that arrives after its program ended holds nothing: it must not
+            // stop the next program before its first move.
+            Command::Hold if self.program.is_none() => {}
+            Command::Hold => self.interp.apply(Event::Hold),
+            Command::Resume => self.interp.apply(Event::Resume),
+            Command::Override(pct) => {
+                self.override_pct = pct;
+                if pct == 0.0 {
+                    // A control at 0 % stands still on the path (the core holds).
+                    self.interp.apply(Event::Override(0.0));
+                } else {
+                    self.interp.apply(Event::Override(pct / 100.0));
+                }
+            }
+            Command::Abort => {
+                if let Some(p) = self.program.as_mut() {
+                    p.aborted = true;
+                }
+                self.interp.apply(Event::Abort)
+            }
+            Command::AbortProgram(id) => match self.program.as_mut() {
+                Some(p) if p.id == id => {
+                    p.aborted = true;
+                    self.interp.apply(Event::Abort)
+                }
+                // Already over, or not begun yet: it begins aborted.
+                _ if self.last_program.0 != id && !self.pending_abort.contains(&id) => {
+                    // The oldest request makes room (programs begin in order).
+                    self.pending_abort.rotate_left(1);
+                    self.pending_abort[PENDING_ABORTS - 1] = id;
+                }
+                _ => {}
+            },
+            Command::Shutdown => {
+                if let Some(p) = self.program.as_mut() {
+                    p.aborted = true;
+                }
+                self.shutting_down = true;
+                self.interp.apply(Event::Abort);
+            }
+            Command::Reset(tag) => {
+                self.reset_tag = Some(tag);
+                self.stage.request_reset();
+            }
+            Command::Dump(tag) => self.stage.request_dump(tag),
+            Command::Inject(i) => self.inject(i),
+        }
+    }
+
+    pub(super) fn inject(&mut self, injection: Injection) {
+        match injection {
+            Injection::DriveFault(axis) => {
+                if let Some(d) = self.stage.drive_mut(axis) {
+                    d.set_fault_cause(Some(INJECTED_DRIVE_FAULT));
+                }
+            }
+            Injection::ClearDriveFault(axis) => {
+                if let Some(d) = self.stage.drive_mut(axis) {
+                    d.set_fault_cause(None);
+                }
+            }
+            Injection::Step(axis, mm) => {
+                if axis < 6 {
+                    self.step = Some((axis, mm));
+                }
+            }
+            Injection::Stall(n) => self.stall_left = n,
+        }
+    }
+}

@@ -1,0 +1,161 @@
+//! Programs in the cycle: the next one begun at the machine's position, planned items fed
+//! to the motion core, a program ended or its dropped rest drained.
+
+use super::*;
+
+impl Cycle {
+    /// Starts the next program if its beginning is in the ring (it waits while the
+    /// drives are being enabled, and is refused while a fault is latched).
+    pub(super) fn begin_next(&mut self) {
+        let Ok(RtItem::Begin { program_id, start }) = self.items.peek().copied() else {
+            // Anything but a beginning while no program runs is the rest of an aborted
+            // or refused program: dropped.
+            while let Ok(item) = self.items.peek() {
+                if matches!(item, RtItem::Begin { .. }) {
+                    break;
+                }
+                let _ = self.items.pop();
+            }
+            return;
+        };
+        let fault = self.stage.fault().copied();
+        if fault.is_none() && !self.stage.ready() {
+            return;
+        }
+        let _ = self.items.pop();
+        if let Some(f) = fault {
+            self.program = Some(ProgramRun {
+                id: program_id,
+                aborted: false,
+                cycle: 0,
+                refusal: Some(Refusal::Faulted(f)),
+                dropped: true,
+                planned: 0,
+            });
+            return;
+        }
+        self.interp.next_program();
+        self.tracker.clear();
+        let aborted = self.pending_abort.contains(&program_id);
+        if aborted {
+            for slot in self.pending_abort.iter_mut().filter(|s| **s == program_id) {
+                *slot = 0;
+            }
+        }
+        let mut run = ProgramRun {
+            id: program_id,
+            aborted,
+            cycle: 0,
+            refusal: None,
+            dropped: self.shutting_down || aborted,
+            planned: 0,
+        };
+        for (i, (&s, &p)) in start.iter().zip(self.setpoint.position.iter()).enumerate() {
+            // A start that is not a number is refused too.
+            let at_machine = (s - p).abs() <= START_TOL;
+            if !at_machine && !aborted {
+                run.refusal = Some(Refusal::WrongStart {
+                    axis: kerf_plan::AXIS_NAMES[i],
+                    start: s,
+                    actual: p,
+                });
+                run.dropped = true;
+                break;
+            }
+        }
+        self.setpoint.line = 0;
+        self.program = Some(run);
+    }
+
+    /// Drops the items of a program that must not move; `true` once its end was taken.
+    pub(super) fn drain_dropped(&mut self) -> bool {
+        loop {
+            match self.items.peek() {
+                Ok(RtItem::Begin { .. }) => return true,
+                Ok(RtItem::End(_)) => {
+                    let _ = self.items.pop();
+                    return true;
+                }
+                Ok(RtItem::Planned(_) | RtItem::Move(_)) => {
+                    let _ = self.items.pop();
+                }
+                Err(_) => return false,
+            }
+        }
+    }
+
+    /// Feeds the interpolator from the ring; returns whether the motion may step.
+    pub(super) fn feed(&mut self) -> bool {
+        let items = &mut self.items;
+        let tracker = &mut self.tracker;
+        let queued = &mut self.queued;
+        let aborted = self.interp.aborted();
+        let mut refusal = None;
+        let mut pending = false;
+        let mut planned = 0u64;
+        let result = self.interp.feed(|| {
+            loop {
+                let Ok(item) = items.peek() else {
+                    pending = true;
+                    return Poll::Pending;
+                };
+                match *item {
+                    // The next program's beginning: this one ended without its end (cannot
+                    // happen: the planning worker always ends a program before the next).
+                    RtItem::Begin { .. } => return Poll::End,
+                    RtItem::Move(_) if tracker.is_full() => return Poll::Pending,
+                    // Programmed moves go to the tracker until the next planned item;
+                    // after an abort they are not needed (as in `kerf sim`).
+                    RtItem::Move(m) => {
+                        if !aborted || tracker.is_empty() {
+                            tracker.add(&m);
+                        }
+                    }
+                    RtItem::Planned(p) => {
+                        if let Planned::Segment(seg, _) = &p {
+                            queued.push(segment_time_s(seg));
+                        }
+                        planned += 1;
+                        let _ = items.pop();
+                        return Poll::Ready(p);
+                    }
+                    RtItem::End(r) => {
+                        refusal = r;
+                        let _ = items.pop();
+                        return Poll::End;
+                    }
+                }
+                let _ = items.pop();
+            }
+        });
+        if let Some(p) = self.program.as_mut() {
+            p.planned += planned;
+            if let Some(r) = refusal {
+                p.refusal = Some(r);
+            }
+        }
+        match result {
+            Ok(started) => {
+                self.starved = pending && started && !self.interp.source_ended();
+                started
+            }
+            Err(RunError::Rejected { line }) => {
+                if let Some(p) = self.program.as_mut() {
+                    p.refusal.get_or_insert(Refusal::Core { line });
+                }
+                self.interp.apply(Event::Abort);
+                true
+            }
+            Err(_) => true,
+        }
+    }
+
+    pub(super) fn end_program(&mut self) {
+        if let Some(p) = self.program.take() {
+            self.last_program = (p.id, p.refusal, p.aborted);
+            self.ended_this_cycle = true;
+        }
+        self.starved = false;
+        self.queued.keep_last(0);
+    }
+}

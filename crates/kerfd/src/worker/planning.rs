@@ -1,0 +1,254 @@
+//! The planning worker: received items → checked moves → the planner → the ring of
+//! planned items to the cycle.
+
+use super::*;
+
+/// Periods to wait between polls while the ring to the cycle is full.
+pub(crate) const RING_FULL_WAIT: Duration = Duration::from_micros(200);
+
+/// The planning worker's side of the ring to the cycle; the worker stops when `stop` is
+/// set.
+pub struct Planning {
+    limits: MachineLimits,
+    axes: Axes,
+    out: rtrb::Producer<RtItem>,
+    stop: Arc<AtomicBool>,
+    /// Messages refused since the daemon started.
+    refused: Arc<AtomicU64>,
+    planner: Option<Planner>,
+    /// The current program was stopped early: its remaining items are dropped until the
+    /// next one begins.
+    failed: bool,
+    buf: Vec<PlannedSegment>,
+    /// Moves taken by the planner and not yet sent to the cycle.
+    taken: std::collections::VecDeque<Move>,
+}
+
+/// Counters the planning worker shares with the control thread.
+#[derive(Clone, Debug, Default)]
+pub struct PlanningCounters {
+    /// Items (not BEGIN or END) of the current program taken off the moves service.
+    pub received: Arc<AtomicU64>,
+    /// Messages refused since start.
+    pub refused: Arc<AtomicU64>,
+    /// The program being received (its BEGIN accepted, neither its END received nor
+    /// stopped early); 0 when none.
+    pub open: Arc<AtomicU64>,
+    /// A program to abort, set by the control thread; the planning thread drops the rest
+    /// of it (when it is the open one) and clears this.
+    pub abort: Arc<AtomicU64>,
+    /// What became of the last programs.
+    pub fates: Arc<std::sync::Mutex<crate::fates::Fates>>,
+}
+
+impl Planning {
+    /// A worker for the machine of `config`, feeding `out`.
+    pub fn new(
+        config: &Config,
+        out: rtrb::Producer<RtItem>,
+        stop: Arc<AtomicBool>,
+        counters: &PlanningCounters,
+    ) -> Self {
+        Planning {
+            limits: kerf_config::machine_limits(config),
+            axes: config.axes,
+            out,
+            stop,
+            refused: counters.refused.clone(),
+            planner: None,
+            failed: false,
+            buf: Vec::new(),
+            taken: std::collections::VecDeque::new(),
+        }
+    }
+
+    /// `true` while a program is being received.
+    pub fn in_program(&self) -> bool {
+        self.planner.is_some()
+    }
+
+    /// `true` after the current program was stopped early: its remaining messages are
+    /// dropped until the next program begins.
+    pub fn dropping(&self) -> bool {
+        self.failed
+    }
+
+    /// Drops the rest of the open program after an abort: nothing more of it is planned,
+    /// and the cycle (which aborted the motion) gets its end. Returns `false` if told to
+    /// stop.
+    pub fn abort(&mut self) -> bool {
+        if self.planner.is_none() || self.failed {
+            return true;
+        }
+        tracing::info!("program aborted: the rest of it is dropped");
+        self.buf.clear();
+        self.taken.clear();
+        self.failed = true;
+        self.send(RtItem::End(None))
+    }
+
+    /// Handles one incoming item. Returns `false` once the worker must stop.
+    pub fn handle(&mut self, item: Incoming) -> bool {
+        match item {
+            Incoming::Begin { program_id, start } => {
+                if self.planner.is_some() && !self.failed {
+                    self.fail(Refusal::Interrupted);
+                }
+                self.failed = false;
+                self.taken.clear();
+                self.planner = Some(Planner::new(self.limits));
+                self.send(RtItem::Begin { program_id, start })
+            }
+            Incoming::Move(m) => {
+                if self.failed || self.planner.is_none() {
+                    return true;
+                }
+                match self.plan(&Input::Move(m), Some(&m)) {
+                    Ok(()) => self.flush(),
+                    Err(r) => self.refuse(r),
+                }
+            }
+            Incoming::Event(e) => {
+                if self.failed || self.planner.is_none() {
+                    return true;
+                }
+                let Some(input) = input_of_event(&e) else {
+                    return true;
+                };
+                match self.plan(&input, None) {
+                    Ok(()) => {
+                        if !self.flush() {
+                            return false;
+                        }
+                        match input {
+                            Input::Dwell(s) => self.send(RtItem::Planned(Planned::Dwell(s))),
+                            _ => true,
+                        }
+                    }
+                    Err(r) => self.refuse(r),
+                }
+            }
+            Incoming::End => match self.planner.take() {
+                Some(mut planner) if !self.failed => {
+                    planner.finish(&mut self.buf);
+                    self.planner = Some(planner);
+                    let ok = self.flush();
+                    self.planner = None;
+                    ok && self.send(RtItem::End(None))
+                }
+                _ => {
+                    self.planner = None;
+                    true
+                }
+            },
+            Incoming::Rejected(reject) => {
+                self.refused.fetch_add(1, Ordering::AcqRel);
+                tracing::warn!("message refused: {reject}");
+                if self.planner.is_some() && !self.failed {
+                    self.fail(Refusal::Message(reject))
+                } else {
+                    true
+                }
+            }
+            Incoming::SenderGone => {
+                if self.planner.is_some() && !self.failed {
+                    tracing::warn!("the planner process went away in the middle of a program");
+                    let ok = self.fail(Refusal::SenderGone);
+                    self.planner = None;
+                    ok
+                } else {
+                    self.planner = None;
+                    true
+                }
+            }
+        }
+    }
+
+    /// A received move or event failed the daemon's own checks (travel, planning): the
+    /// message is refused and counted like one the stream check refused, and the program
+    /// stops at the end of its last valid move.
+    fn refuse(&mut self, reason: Refusal) -> bool {
+        self.refused.fetch_add(1, Ordering::AcqRel);
+        self.fail(reason)
+    }
+
+    /// Validates and plans one input into `buf`.
+    fn plan(&mut self, input: &Input, m: Option<&Move>) -> Result<(), Refusal> {
+        if let Some(m) = m {
+            check_move(m, &self.axes).map_err(Refusal::Travel)?;
+        }
+        let Some(planner) = self.planner.as_mut() else {
+            return Ok(());
+        };
+        plan_input(planner, input, &mut self.buf).map_err(Refusal::Plan)?;
+        if let Some(m) = m {
+            self.taken.push_back(*m);
+        }
+        for seg in &self.buf {
+            check_segment(seg, &self.axes).map_err(Refusal::PlannedTravel)?;
+        }
+        Ok(())
+    }
+
+    /// Sends the planned segments in `buf`, each after the moves taken before it was
+    /// planned.
+    fn flush(&mut self) -> bool {
+        let mut buf = std::mem::take(&mut self.buf);
+        let mut ok = true;
+        if !buf.is_empty() {
+            while let Some(m) = self.taken.pop_front() {
+                if !self.send(RtItem::Move(m)) {
+                    self.buf = buf;
+                    return false;
+                }
+            }
+        }
+        for seg in buf.drain(..) {
+            // The count of moves known is only used by the offline deviation check.
+            if !self.send(RtItem::Planned(Planned::Segment(seg, 0))) {
+                ok = false;
+                break;
+            }
+        }
+        self.buf = buf;
+        ok
+    }
+
+    /// Stops the current program at the end of its last valid move: the segments planned
+    /// from the valid moves are sent (the planner holds back the end of the path for
+    /// blending), then the end with the reason.
+    fn fail(&mut self, reason: Refusal) -> bool {
+        tracing::warn!("program stopped: {reason}");
+        self.buf.clear();
+        if let Some(planner) = self.planner.as_mut() {
+            planner.finish(&mut self.buf);
+        }
+        // A segment planned from the valid moves that leaves the travel is dropped with
+        // everything after it.
+        if let Some(bad) = self
+            .buf
+            .iter()
+            .position(|seg| check_segment(seg, &self.axes).is_err())
+        {
+            self.buf.truncate(bad);
+        }
+        self.failed = true;
+        self.flush() && self.send(RtItem::End(Some(reason)))
+    }
+
+    /// Sends one item, waiting while the ring is full. Returns `false` if told to stop.
+    fn send(&mut self, mut item: RtItem) -> bool {
+        loop {
+            match self.out.push(item) {
+                Ok(()) => return true,
+                Err(rtrb::PushError::Full(back)) => {
+                    if self.stop.load(Ordering::Acquire) {
+                        return false;
+                    }
+                    item = back;
+                    std::thread::sleep(RING_FULL_WAIT);
+                }
+            }
+        }
+    }
+}
