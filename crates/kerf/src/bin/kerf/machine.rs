@@ -398,19 +398,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         None
     };
     let mut client = Client::connect(&config.machine).map_err(client_failure)?;
-    let status = client.status().map_err(client_failure)?;
-    if status.program_id != 0 && status.program_end == PROGRAM_END_NONE {
-        return Err(Failure::Error(format!(
-            "kerf: error: machine `{}` is busy with another program (`kerf status`; `kerf abort` ends it)",
-            config.machine
-        )));
-    }
-    if let Some(fault) = kerf::client::safety_text(&status) {
-        return Err(Failure::Error(format!(
-            "kerf: error: machine `{}` is in fault: {fault}; `kerf reset` clears it once its cause is gone (`kerf status` says more)",
-            config.machine
-        )));
-    }
+    let status = idle_status(&mut client, &config.machine)?;
     let start = status.position_mm_deg;
     let mut settings =
         crate::settings_for(crate::program_settings(&config)?, &args.program.program);
@@ -532,31 +520,60 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             if let Some(r) = watch.recording.take() {
                 r.finish()?;
             }
-            // Exit 0 means the program ran to its end point.
-            scan.check_end(&s.position_mm_deg)
-                .map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
-            // The program ended normally: its persistent parameters (G28/G30 positions,
-            // work offsets, G92) are kept for the next one, as LinuxCNC keeps its .var file.
-            if let Some(path) = &config.parameter_file {
-                kerf_config::tooltable::write_parameter_file(
-                    path,
-                    &interpreter.persistent_parameters(),
-                )
-                .map_err(|e| {
-                    Failure::Error(format!(
-                        "{}: error: cannot write the parameter file: {e}",
-                        path.display()
-                    ))
-                })?;
-            }
-            if scan.moves == 0 {
-                writeln!(io::stderr().lock(), "note: no motion in {name}")?;
-            }
-            return Ok(());
+            return program_ended(&scan, &s, &config, &interpreter, &name);
         }
         check(&mut client, &mut watch, &mut reader, &s)?;
         std::thread::sleep(STATUS_EVERY);
     }
+}
+
+/// The machine's status when it can take a program: idle (no other program unfinished)
+/// and not in fault; otherwise the error that says what to do.
+fn idle_status(client: &mut Client, machine: &str) -> Result<StatusMsg, Failure> {
+    let status = client.status().map_err(client_failure)?;
+    if status.program_id != 0 && status.program_end == PROGRAM_END_NONE {
+        return Err(Failure::Error(format!(
+            "kerf: error: machine `{}` is busy with another program (`kerf status`; `kerf abort` ends it)",
+            machine
+        )));
+    }
+    if let Some(fault) = kerf::client::safety_text(&status) {
+        return Err(Failure::Error(format!(
+            "kerf: error: machine `{}` is in fault: {fault}; `kerf reset` clears it once its cause is gone (`kerf status` says more)",
+            machine
+        )));
+    }
+    Ok(status)
+}
+
+/// What `kerf run` does once the daemon reports the program over and every setpoint has
+/// been read: the end point checked (exit 0 means the program ran to it), the persistent
+/// parameters written, a program without motion noted.
+fn program_ended(
+    scan: &kerf::sim::Scan,
+    s: &StatusMsg,
+    config: &kerf_config::Config,
+    interpreter: &Interpreter<Box<dyn io::BufRead + Send>>,
+    name: &str,
+) -> Result<(), Failure> {
+    // Exit 0 means the program ran to its end point.
+    scan.check_end(&s.position_mm_deg)
+        .map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
+    // The program ended normally: its persistent parameters (G28/G30 positions,
+    // work offsets, G92) are kept for the next one, as LinuxCNC keeps its .var file.
+    if let Some(path) = &config.parameter_file {
+        kerf_config::tooltable::write_parameter_file(path, &interpreter.persistent_parameters())
+            .map_err(|e| {
+                Failure::Error(format!(
+                    "{}: error: cannot write the parameter file: {e}",
+                    path.display()
+                ))
+            })?;
+    }
+    if scan.moves == 0 {
+        writeln!(io::stderr().lock(), "note: no motion in {name}")?;
+    }
+    Ok(())
 }
 
 /// A program that ended early (aborted, or refused by the daemon) or that another
