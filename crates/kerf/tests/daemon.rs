@@ -16,7 +16,7 @@
 
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Output, Stdio};
+use std::process::{Command, ExitStatus, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use kerf_config::Config;
@@ -27,7 +27,7 @@ use serde_json::Value;
 
 const KERF: &str = env!("CARGO_BIN_EXE_kerf");
 mod common;
-use common::kerfd;
+use common::{Proc, kerfd, read_text};
 
 /// Upper bound on any wait, so that a broken daemon fails a test instead of hanging it.
 const PATIENCE: Duration = Duration::from_secs(30);
@@ -42,101 +42,16 @@ const PATH_ROUNDING_MM: f64 = 1e-6;
 // Processes and scratch directories
 // ---------------------------------------------------------------------------------------
 
-/// A child process that is stopped (SIGTERM, then SIGKILL) and reaped when dropped.
-struct Proc {
-    name: String,
-    child: Option<Child>,
-    stdout: PathBuf,
-    stderr: PathBuf,
+/// Starts `program ARGS` with its output in the scratch directory `dir`.
+fn spawn(name: &str, dir: &Path, program: &str, args: &[&str]) -> Proc {
+    let mut command = Command::new(program);
+    command.args(args);
+    Proc::start(name, dir, command)
 }
 
-impl Proc {
-    fn spawn(name: &str, dir: &Path, program: &str, args: &[&str]) -> Proc {
-        let stdout = dir.join(format!("{name}.stdout"));
-        let stderr = dir.join(format!("{name}.stderr"));
-        let child = Command::new(program)
-            .args(args)
-            .stdin(Stdio::null())
-            .stdout(fs::File::create(&stdout).unwrap())
-            .stderr(fs::File::create(&stderr).unwrap())
-            .spawn()
-            .unwrap_or_else(|e| panic!("cannot start {program}: {e}"));
-        Proc {
-            name: name.to_string(),
-            child: Some(child),
-            stdout,
-            stderr,
-        }
-    }
-
-    fn pid(&self) -> u32 {
-        self.child.as_ref().expect("running").id()
-    }
-
-    /// Sends a signal by name (`INT`, `TERM`, `KILL`).
-    fn signal(&self, signal: &str) {
-        let status = Command::new("kill")
-            .arg(format!("-{signal}"))
-            .arg(self.pid().to_string())
-            .status()
-            .unwrap();
-        assert!(status.success(), "kill -{signal} {} failed", self.name);
-    }
-
-    /// `Some(status)` once the process has exited.
-    fn try_wait(&mut self) -> Option<ExitStatus> {
-        self.child.as_mut().expect("running").try_wait().unwrap()
-    }
-
-    /// Waits for the process to exit (panics after [`PATIENCE`] times `factor`).
-    fn wait(&mut self, factor: u32) -> ExitStatus {
-        let deadline = Instant::now() + PATIENCE * factor;
-        loop {
-            if let Some(status) = self.try_wait() {
-                self.child = None;
-                return status;
-            }
-            if Instant::now() > deadline {
-                panic!(
-                    "{} did not exit; stderr: {}",
-                    self.name,
-                    read_text(&self.stderr)
-                );
-            }
-            std::thread::sleep(POLL);
-        }
-    }
-
-    fn stderr(&self) -> String {
-        read_text(&self.stderr)
-    }
-}
-
-impl Drop for Proc {
-    /// SIGTERM first, so that a daemon or client removes its shared memory as it exits;
-    /// SIGKILL if it has not exited within a few seconds.
-    fn drop(&mut self) {
-        if let Some(mut child) = self.child.take() {
-            if let Ok(None) = child.try_wait() {
-                let _ = Command::new("kill")
-                    .args(["-TERM", &child.id().to_string()])
-                    .status();
-                let start = Instant::now();
-                while start.elapsed() < Duration::from_secs(5) {
-                    if let Ok(Some(_)) = child.try_wait() {
-                        return;
-                    }
-                    std::thread::sleep(Duration::from_millis(10));
-                }
-            }
-            let _ = child.kill();
-            let _ = child.wait();
-        }
-    }
-}
-
-fn read_text(path: &Path) -> String {
-    fs::read_to_string(path).unwrap_or_default()
+/// Waits for `p` to exit (panics after [`PATIENCE`] times `factor`).
+fn wait(p: &mut Proc, factor: u32) -> ExitStatus {
+    p.wait_within(PATIENCE * factor)
 }
 
 /// One test's machine: a scratch directory with its configuration file.
@@ -205,8 +120,8 @@ impl Env {
         let name = format!("kerf-{subcommand}-{n}");
         let mut args_all = vec![subcommand, "--config", self.config_arg()];
         args_all.extend_from_slice(args);
-        let mut p = Proc::spawn(&name, &self.dir, KERF, &args_all);
-        let status = p.wait(1);
+        let mut p = spawn(&name, &self.dir, KERF, &args_all);
+        let status = wait(&mut p, 1);
         let out = Output {
             status,
             stdout: fs::read(&p.stdout).unwrap(),
@@ -226,11 +141,10 @@ impl Env {
     fn start_daemon_with(&self, name: &str, extra: &[&str]) -> Proc {
         let mut args = vec!["--config", self.config_arg()];
         args.extend_from_slice(extra);
-        let mut d = Proc::spawn(name, &self.dir, kerfd(), &args);
+        let mut d = spawn(name, &self.dir, kerfd(), &args);
         let deadline = Instant::now() + PATIENCE;
         loop {
             if let Some(status) = d.try_wait() {
-                d.child = None;
                 panic!("kerfd exited at start ({status}): {}", d.stderr());
             }
             if self.kerf("status", &[]).status.success() {
@@ -280,7 +194,7 @@ impl Env {
     /// Starts `kerf record` into `name` and waits until it writes rows.
     fn start_record(&self, name: &str) -> (Proc, PathBuf) {
         let out = self.path(name);
-        let mut p = Proc::spawn(
+        let mut p = spawn(
             &format!("record-{name}"),
             &self.dir,
             KERF,
@@ -295,7 +209,6 @@ impl Env {
         let deadline = Instant::now() + PATIENCE;
         while read_text(&out).lines().count() < 2 {
             if let Some(status) = p.try_wait() {
-                p.child = None;
                 panic!("kerf record exited at start ({status}): {}", p.stderr());
             }
             assert!(Instant::now() < deadline, "kerf record wrote no rows");
@@ -312,13 +225,13 @@ impl Env {
             args.push(r.to_str().unwrap());
         }
         args.push(program.to_str().unwrap());
-        Proc::spawn(name, &self.dir, KERF, &args)
+        spawn(name, &self.dir, KERF, &args)
     }
 
     /// `kerf run`, to completion; asserts exit 0.
     fn run_ok(&self, name: &str, program: &Path, record: Option<&Path>) {
         let mut p = self.spawn_run(name, program, record);
-        let status = p.wait(2);
+        let status = wait(&mut p, 2);
         assert!(
             status.success(),
             "kerf run {name} failed ({status}): {}",
@@ -552,7 +465,7 @@ fn assert_record_matches_sim(recorded: &[Row], sim: &[Row], what: &str) {
 /// Stops `kerf record` with SIGINT; asserts it exits 0 (no gap).
 fn stop_record(mut p: Proc) {
     p.signal("INT");
-    let status = p.wait(1);
+    let status = wait(&mut p, 1);
     assert!(
         status.success(),
         "kerf record failed ({status}): {}",
@@ -711,7 +624,7 @@ fn hold_resume_override_and_abort_mid_program() {
     assert!(err.contains("busy"), "{err}");
     let o = env.kerf("resume", &[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let status = run.wait(1);
+    let status = wait(&mut run, 1);
     assert!(status.success(), "{}", run.stderr());
     let s = env.status();
     assert_eq!(program_end(&s), "finished", "{s}");
@@ -742,7 +655,7 @@ fn hold_resume_override_and_abort_mid_program() {
         s["override_pct"].as_f64() == Some(150.0)
     });
     assert_eq!(program_end(&s), "running", "{s}");
-    let status = run.wait(1);
+    let status = wait(&mut run, 1);
     assert!(status.success(), "{}", run.stderr());
     assert!(env.kerf("override", &["100"]).status.success());
 
@@ -754,7 +667,7 @@ fn hold_resume_override_and_abort_mid_program() {
     env.wait_status("motion", |s| state(s) == "running" && moved(s));
     let o = env.kerf("abort", &[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let status = run.wait(1);
+    let status = wait(&mut run, 1);
     assert!(!status.success(), "kerf run exited 0 after an abort");
     assert!(run.stderr().contains("aborted"), "{}", run.stderr());
     let s = env.wait_status("rest after the abort", |s| state(s) != "running");
@@ -831,8 +744,7 @@ fn planner_killed_mid_stream() {
         "the planner was not streaming any more: {s}"
     );
     run.signal("KILL");
-    let _ = run.wait(1);
-    run.child = None;
+    let _ = wait(&mut run, 1);
 
     let mut states = Vec::new();
     let s = env.wait_status("rest after the planner died", |s| {
@@ -881,8 +793,8 @@ fn daemon_killed_then_restarted_without_clean_up() {
     let mut run = env.spawn_run("run", &program, None);
     env.wait_status("motion", |s| state(s) == "running" && moved(s));
     daemon.signal("KILL");
-    let _ = daemon.wait(1);
-    let status = run.wait(1);
+    let _ = wait(&mut daemon, 1);
+    let status = wait(&mut run, 1);
     assert!(!status.success(), "kerf run exited 0 after the daemon died");
     let err = run.stderr();
     assert!(
@@ -890,7 +802,7 @@ fn daemon_killed_then_restarted_without_clean_up() {
         "{err}"
     );
     // The recorder sees the stream stall (not a gap) and stops.
-    let status = record.wait(1);
+    let status = wait(&mut record, 1);
     assert!(!status.success());
     assert!(!record.stderr().contains("lost"), "{}", record.stderr());
     let rows = read_csv(&recorded);
@@ -917,7 +829,7 @@ fn daemon_killed_then_restarted_without_clean_up() {
     check_stream(&env, &recorded, &env.moves(PART, [0.0; 6]), "record again");
     // SIGINT at rest: exit 0.
     daemon.signal("INT");
-    let status = daemon.wait(1);
+    let status = wait(&mut daemon, 1);
     assert!(status.success(), "kerfd: {status}: {}", daemon.stderr());
 }
 
@@ -1064,7 +976,7 @@ fn embedded_run_equals_kerf_sim() {
     let env = Env::new("emb", &[]);
     let program = env.write("part.ngc", PART);
     let run_csv = env.path("run.csv");
-    let mut run = Proc::spawn(
+    let mut run = spawn(
         "run",
         &env.dir,
         KERF,
@@ -1078,7 +990,7 @@ fn embedded_run_equals_kerf_sim() {
             program.to_str().unwrap(),
         ],
     );
-    let status = run.wait(2);
+    let status = wait(&mut run, 2);
     assert!(status.success(), "{}", run.stderr());
     let sim = env.sim(&program, "sim.csv");
     assert!(fs::read(&sim).unwrap() == fs::read(&run_csv).unwrap());
@@ -1102,15 +1014,15 @@ fn sigterm_stops_on_the_path_then_exits_0() {
     // At speed on the first line.
     env.wait_status("speed", |s| state(s) == "running" && position(s)[0] > 20.0);
     daemon.signal("TERM");
-    let status = daemon.wait(1);
+    let status = wait(&mut daemon, 1);
     assert!(status.success(), "kerfd: {status}: {}", daemon.stderr());
-    let status = run.wait(1);
+    let status = wait(&mut run, 1);
     assert!(
         !status.success(),
         "kerf run exited 0 though the daemon stopped"
     );
     // The recorder sees the stream end (no gap) and stops.
-    let _ = record.wait(1);
+    let _ = wait(&mut record, 1);
     assert!(!record.stderr().contains("lost"), "{}", record.stderr());
     let rows = check_stream(&env, &recorded, &env.moves(LINES, [0.0; 6]), "record");
     // Stopped before the program's end (the origin), and at rest.
@@ -1252,7 +1164,7 @@ fn a_daemon_killed_while_it_starts_leaves_nothing_that_stops_the_next() {
     // SIGKILL at staggered moments of the start-up: some before, some while, some after
     // the services are created.
     for i in 0..24u64 {
-        let mut d = Proc::spawn(
+        let mut d = spawn(
             "kerfd-killed",
             &env.dir,
             kerfd(),
@@ -1260,7 +1172,7 @@ fn a_daemon_killed_while_it_starts_leaves_nothing_that_stops_the_next() {
         );
         std::thread::sleep(Duration::from_millis(2 + 4 * i));
         d.signal("KILL");
-        d.wait(1);
+        wait(&mut d, 1);
     }
     // Files a killed creator left count as abandoned after 100 ms.
     std::thread::sleep(kerfd::ipc::UNFINISHED_AFTER * 2);
@@ -1322,7 +1234,7 @@ fn a_service_segment_left_empty_by_a_killed_creator_stops_nothing() {
     // it mapped: every process that cleans up after dead nodes maps their segments, and
     // emptying one under it would be a SIGBUS there. Then the daemon dies.
     daemon.signal("KILL");
-    let _ = daemon.wait(1);
+    let _ = wait(&mut daemon, 1);
     // `kerf status` says that no daemon answers (within `Env::kerf`'s patience) and the
     // segment is gone.
     let out = env.kerf("status", &[]);
@@ -1421,7 +1333,7 @@ fn a_drive_fault_injected_mid_program_is_latched_reported_dumped_and_reset() {
     assert_eq!(r.reason, kerf_proto::REASON_OK, "{}", r.message());
 
     // `kerf run` fails and says why.
-    let status = run.wait(2);
+    let status = wait(&mut run, 2);
     assert_eq!(status.code(), Some(2), "{}", run.stderr());
     let err = run.stderr();
     assert!(
@@ -1573,7 +1485,7 @@ fn run_record_keeps_the_setpoints_up_to_a_safety_trip() {
     let r = inject_fault(&env, Injection::Step(1, Injection::STEP_MM));
     assert_eq!(r.reason, kerf_proto::REASON_OK, "{}", r.message());
 
-    let status = run.wait(2);
+    let status = wait(&mut run, 2);
     assert_eq!(status.code(), Some(2), "{}", run.stderr());
     let err = run.stderr();
     assert!(
@@ -1642,7 +1554,7 @@ fn an_abort_while_kerf_run_still_streams_ends_the_program_for_the_client() {
     env.wait_status("motion", |s| state(s) == "running" && moved(s));
     let o = env.kerf("abort", &[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let status = run.wait(1);
+    let status = wait(&mut run, 1);
     assert_eq!(status.code(), Some(2), "{}", run.stderr());
     assert!(run.stderr().contains("aborted"), "{}", run.stderr());
     let s = env.wait_status("rest after the abort", |s| state(s) != "running");

@@ -28,12 +28,12 @@ use std::fs;
 use std::os::unix::fs::{MetadataExt, PermissionsExt};
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Output, Stdio};
+use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
 const KERF: &str = env!("CARGO_BIN_EXE_kerf");
 mod common;
-use common::kerfd;
+use common::{Proc, kerfd};
 
 /// The daemon's user.
 const SERVICE_UID: u32 = 65534;
@@ -92,96 +92,14 @@ fn named(uid: u32) -> (String, String, String) {
     }
 }
 
-/// A child process that is stopped (SIGTERM, then SIGKILL) and reaped when dropped.
-struct Proc {
-    name: String,
-    child: Option<Child>,
-    stdout: PathBuf,
-    stderr: PathBuf,
-}
-
-impl Proc {
-    /// Starts `program ARGS` as `uid` (its own group too; no supplementary groups) in `dir`.
-    fn spawn(name: &str, dir: &Path, uid: u32, program: &str, args: &[&str]) -> Proc {
-        let stdout = dir.join(format!("{name}.stdout"));
-        let stderr = dir.join(format!("{name}.stderr"));
-        let mut command = Command::new(program);
-        command
-            .args(args)
-            .current_dir(dir)
-            .stdin(Stdio::null())
-            .stdout(fs::File::create(&stdout).unwrap())
-            .stderr(fs::File::create(&stderr).unwrap());
-        if uid != euid() {
-            command.uid(uid).gid(uid);
-        }
-        let child = command
-            .spawn()
-            .unwrap_or_else(|e| panic!("cannot start {program} as uid {uid}: {e}"));
-        Proc {
-            name: name.to_string(),
-            child: Some(child),
-            stdout,
-            stderr,
-        }
+/// Starts `program ARGS` as `uid` (its own group too; no supplementary groups) in `dir`.
+fn spawn(name: &str, dir: &Path, uid: u32, program: &str, args: &[&str]) -> Proc {
+    let mut command = Command::new(program);
+    command.args(args).current_dir(dir);
+    if uid != euid() {
+        command.uid(uid).gid(uid);
     }
-
-    fn try_wait(&mut self) -> Option<ExitStatus> {
-        self.child.as_mut().expect("running").try_wait().unwrap()
-    }
-
-    /// Waits for the process to exit (panics after [`PATIENCE`]).
-    fn wait(&mut self) -> ExitStatus {
-        let deadline = Instant::now() + PATIENCE;
-        loop {
-            if let Some(status) = self.try_wait() {
-                self.child = None;
-                return status;
-            }
-            assert!(
-                Instant::now() < deadline,
-                "{} did not exit; stderr: {}",
-                self.name,
-                self.stderr()
-            );
-            std::thread::sleep(POLL);
-        }
-    }
-
-    fn signal(&self, signal: &str) {
-        let pid = self.child.as_ref().expect("running").id();
-        let status = Command::new("kill")
-            .arg(format!("-{signal}"))
-            .arg(pid.to_string())
-            .status()
-            .unwrap();
-        assert!(status.success(), "kill -{signal} {} failed", self.name);
-    }
-
-    fn stderr(&self) -> String {
-        fs::read_to_string(&self.stderr).unwrap_or_default()
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        if let Some(mut child) = self.child.take() {
-            if let Ok(None) = child.try_wait() {
-                let _ = Command::new("kill")
-                    .args(["-TERM", &child.id().to_string()])
-                    .status();
-                let start = Instant::now();
-                while start.elapsed() < Duration::from_secs(5) {
-                    if let Ok(Some(_)) = child.try_wait() {
-                        return;
-                    }
-                    std::thread::sleep(Duration::from_millis(10));
-                }
-            }
-            let _ = child.kill();
-            let _ = child.wait();
-        }
-    }
+    Proc::start(name, dir, command)
 }
 
 /// One test's machine and iceoryx2 tree.
@@ -244,14 +162,14 @@ impl Env {
         static RUNS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let n = RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let name = format!("kerf-{subcommand}-{uid}-{n}");
-        let mut p = Proc::spawn(
+        let mut p = spawn(
             &name,
             &self.dir,
             uid,
             KERF,
             &[subcommand, "--config", self.config_arg()],
         );
-        let status = p.wait();
+        let status = p.wait_within(PATIENCE);
         let out = Output {
             status,
             stdout: fs::read(&p.stdout).unwrap(),
@@ -263,7 +181,7 @@ impl Env {
     }
 
     fn spawn_daemon(&self, name: &str, uid: u32) -> Proc {
-        Proc::spawn(
+        spawn(
             name,
             &self.dir,
             uid,
@@ -278,7 +196,6 @@ impl Env {
         let deadline = Instant::now() + PATIENCE;
         loop {
             if let Some(status) = d.try_wait() {
-                d.child = None;
                 panic!("kerfd exited at start ({status}): {}", d.stderr());
             }
             let out = self.kerf(uid, "status");
@@ -403,7 +320,7 @@ fn without_a_daemon_a_tree_of_another_user_means_run_as_the_service_user() {
     let env = Env::new("stopped");
     let mut daemon = env.start_daemon("kerfd", SERVICE_UID);
     daemon.signal("TERM");
-    let status = daemon.wait();
+    let status = daemon.wait_within(PATIENCE);
     assert!(status.success(), "kerfd: {status}: {}", daemon.stderr());
     let service_user = match user_name(SERVICE_UID) {
         Some(n) => format!("`{n}`"),
@@ -425,7 +342,7 @@ fn a_root_owned_directory_in_the_tree_stops_the_daemon_with_the_path_owner_and_f
         fs::create_dir(&dir).unwrap();
         fs::set_permissions(&dir, fs::Permissions::from_mode(0o750)).unwrap();
         let mut daemon = env.spawn_daemon("kerfd-refused", SERVICE_UID);
-        let status = daemon.wait();
+        let status = daemon.wait_within(PATIENCE);
         let stderr = daemon.stderr();
         assert_eq!(status.code(), Some(1), "kerfd ({leftover}): {stderr}");
         let (_, _, plain) = named(SERVICE_UID);
