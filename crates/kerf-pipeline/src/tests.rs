@@ -133,7 +133,7 @@ fn a_two_percent_excess_is_a_fault_naming_the_quantity_and_the_first_setpoint() 
 
 #[test]
 fn a_jump_is_a_velocity_fault_at_the_setpoint_that_jumps() {
-    // The teleport: at rest at the origin, then 4.14 mm in one 1 ms period on
+    // A teleport: at rest at the origin, then 4.14 mm in one 1 ms period on
     // a 1,000 mm/s machine (414 % of the velocity limit).
     let limits = machine(1e-3, 1000.0, 1e5, 1e7);
     let mut stream = vec![[0.0; 6]; 5];
