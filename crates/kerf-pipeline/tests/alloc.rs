@@ -164,9 +164,9 @@ fn allocations_while_running(limits: MachineLimits, cycles: u64) -> u64 {
     COUNT.load(Ordering::SeqCst)
 }
 
-/// One test, so that no other test's allocations are counted: a mill, the fast machine on
-/// which the solver used to fail (and allocate its error message), and a fast machine
-/// with a short period.
+/// One test, so that no other test's allocations are counted: a mill, the fast machine
+/// (where a failing solve would allocate its error message), and a fast machine with a
+/// short period.
 #[test]
 fn push_and_step_never_allocate() {
     let mut fast = mill(1000.0, 100_000.0, 1e7, 0.01);

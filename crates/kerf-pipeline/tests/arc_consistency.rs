@@ -1,4 +1,4 @@
-//! What is checked is what is executed, for arcs (issue 25): an arc the daemon accepts is
+//! What is checked is what is executed, for arcs: an arc the daemon accepts is
 //! run on the circle its numbers describe, ends exactly at its `end_mm`, and never jumps,
 //! at any radius.
 //!
@@ -162,7 +162,8 @@ fn cases() -> Vec<Case> {
             }
         }
     }
-    // Issue 25's geometry, consistent: 10 mm of radius 1e8 and 1e10 mm, centre on +Y.
+    // 10 mm of radius 1e8 and 1e10 mm, centre on +Y, consistent: the geometry of
+    // `the_issue_25_arc_is_refused_before_it_can_run` without its disagreeing sweep.
     for r in [1e8, 1e10] {
         let mut c = Case::new(r, Vec3::z(), 0.0, 10.0 / r, 0.0, 0.0, "none");
         c.name = format!("issue 25 at r {r:e}");

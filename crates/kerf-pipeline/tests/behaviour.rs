@@ -374,8 +374,8 @@ fn rounded_dense_circle_holds_the_limits() {
     // The 3,600-line circle as a CAM system writes it, every vertex rounded to 6 decimals
     // and entered from the centre by a straight line. The rounding makes neighbouring
     // blends meet and leaves nanometre remnants of the lines between them; the solver
-    // cannot plan such slivers, and falling back used to follow a stale profile: peaks of
-    // 2.4× the acceleration and 94× the jerk limit. Slivers are now coasted through.
+    // cannot plan such slivers, and a fallback that followed a stale profile would break
+    // the acceleration and jerk limits many times over. Slivers are coasted through.
     let limits = mill(200.0, 2000.0, 50000.0, 0.01);
     let round = |x: f64| (x * 1e6).round() / 1e6;
     let pt = |k: usize| {
@@ -495,8 +495,7 @@ fn tangent_line_arc_joints_run_near_the_clothoid_speed() {
     // most cbrt(J r L); the arc itself at most sqrt(A r) (centripetal acceleration) and
     // cbrt(J r²) (the jerk v³/r² of uniform circular motion). The slowest speed between
     // the joints must reach 80 % of the least of these and the feed (measured: 84–86 %);
-    // designed for their own length from rest, the transitions used to run at 57–65 % of
-    // it (obround corner, r = 2 mm on the mill: 24.4 mm/s of 41 mm/s).
+    // transitions designed for their own length from rest run far slower (about 60 %).
     let eps: f64 = 0.01;
     let mut worst = f64::INFINITY;
     for r in [1.0f64, 2.0, 5.0] {
@@ -640,7 +639,7 @@ fn best_ramp_on_circle(vd: f64, k: f64, acc: f64, jerk: f64, envelope: bool) -> 
 
 #[test]
 fn arc_ramps_use_the_acceleration_left_below_the_top_speed() {
-    // Issue 11, item 3: a circle started from rest at a feed where the centripetal
+    // A circle started from rest at a feed where the centripetal
     // acceleration takes half of the axis limit. The tangential budget is designed under
     // the jerk-limited envelope (the full acceleration never at the top speed), so the
     // ramp to the feed, measured from the setpoints (speed by finite differences), is
@@ -831,7 +830,7 @@ fn g2_corner_shape(
 
 #[test]
 fn corner_blends_pass_at_the_speed_their_shape_allows() {
-    // Issue 11, item 2: a line-line corner blended within the tolerance is passed at
+    // A line-line corner blended within the tolerance is passed at
     // nearly the highest speed its shape allows: the axis acceleration and jerk along it
     // at constant speed, worked out in the test from the shape. The shapes are the
     // planner's symmetric quintic G2 blends (`blend.rs`: scales 1.0, 1.2 and 1.5 × the

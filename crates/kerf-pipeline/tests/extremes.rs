@@ -1,9 +1,9 @@
-//! Extreme machines and the programs that reach their corners (issue 24).
+//! Extreme machines and the programs that reach their corners.
 //!
 //! `properties.rs` sweeps machines over a middle band of the accepted range with programs
-//! built for a mill. An outside tester found setpoints that break an axis's jerk or
-//! acceleration limit at the seams between planned pieces on machines and programs that
-//! band never reaches. This file draws from the whole range the configuration accepts and
+//! built for a mill. Machines and programs that band never reaches stress the seams
+//! between planned pieces hardest, where an axis's jerk or acceleration limit is easiest
+//! to break. This file draws from the whole range the configuration accepts and
 //! writes every case as G-code text, read back by `kerf_gcode::Interpreter` exactly as
 //! `kerf sim` reads it, so that a failure prints a reproducer that runs unchanged.
 //!
@@ -1947,20 +1947,18 @@ fn extreme_machines_hold_every_invariant() {
     fail_on(&tally, &format!("extreme cases of seed {seed}"));
 }
 
-/// Escapes found by soaks: (seed, cases), replayed in every run. The first sweeps (seed 24,
-/// 300 cases; seed 1, 1,000 cases) at commit 3abee69 found those of seeds 24 and 1: jerk
-/// and acceleration far beyond the limits at the seams of smoothed dense polylines, at
-/// zig-zag corners and where circles meet; the programmed feed exceeded on smoothed
-/// pieces. Seed 2 (1,000 cases) after ffb0a0e found one more zig-zag. The soak of seed 1
-/// (20,000 cases) found case 14517: two arc blends of a zig-zag 0.07 pm apart, where the
-/// planner had dropped the remnant of the line between them (a jump: X jerk 1.34 x a
-/// limit of 23.4 mm/s³ at 142 µs); and case 17536 with seed 2's case 19379 (20,000
-/// cases): smoothed pieces 1.5 % and 1.0 % beyond the tolerance between the samples of
-/// their deviation check. Seed 3 (20,000 cases) found case 15501: a polygon of 3.5 µm
-/// corner blends passed two or three to a 4.666 ms period, whose kinks, each within its
-/// junction cap alone, added up in one finite-difference window (Z acceleration 1.0148x);
-/// and cases 16266 and 16890, which ran out of cycles: a 0.2 µm remnant entered at the
-/// 1 nm/s cap of a kink on an axis with 4 mm/s³ was coasted for 175 s.
+/// Escapes found by soaks: (seed, cases), replayed in every run. Those of seeds 24 and 1
+/// below 1,000 and seed 2's case 124 stress the seams of smoothed dense polylines, zig-zag
+/// corners, circles meeting circles (jerk and acceleration at the limits) and the
+/// programmed feed on smoothed pieces. Seed 1's case 14517: two arc blends of a zig-zag
+/// 0.07 pm apart, the remnant of the line between them kept (dropping it is a jump, seen
+/// in X's jerk against its limit of 23.4 mm/s³ at a 142 µs period). Seed 1's case 17536
+/// and seed 2's case 19379: smoothed pieces within the tolerance between the samples of
+/// their deviation check too. Seed 3's case 15501: a polygon of 3.5 µm corner blends
+/// passed two or three to a 4.666 ms period, whose kinks, each within its junction cap
+/// alone, must not add up beyond the limit in one finite-difference window. Seed 3's cases
+/// 16266 and 16890: a 0.2 µm remnant entered at the 1 nm/s cap of a kink on an axis with
+/// 4 mm/s³ must not be coasted through for minutes (the run must end within its cycles).
 const ESCAPES: &[(u64, &[usize])] = &[
     (
         24,
@@ -1985,9 +1983,9 @@ struct Fixed {
     gcode: &'static str,
 }
 
-/// Case A of issue 24, from the outside tester: a zig-zag of short lines with tight turns
-/// on a machine whose acceleration is 27 times its jerk × 1 s. At 3abee69 the jerk was
-/// 4305 % of the limit at 3.7 s (a jump inside a smoothed piece, `Transition::param_at`).
+/// Case A: a zig-zag of short lines with tight turns on a machine whose acceleration is 27
+/// times its jerk × 1 s; a jump inside a smoothed piece (`Transition::param_at`) shows
+/// here as a jerk far beyond the limit.
 const CASE_A: Fixed = Fixed {
     name: "A: zig-zag, a/j 27 s",
     toml: "# kerf sim --config m.toml p.ngc --out o.csv --override 100
@@ -2030,8 +2028,8 @@ M2
 ",
 };
 
-/// Case B of issue 24: a whole circle into a two-turn helix in G19, at 100 µs. At 3abee69
-/// the jerk was 2455 % of the limit at 0.581 s (in the G2 transition between them).
+/// Case B: a whole circle into a two-turn helix in G19, at 100 µs; the G2 transition
+/// between them must keep the jerk within the limit.
 const CASE_B: Fixed = Fixed {
     name: "B: circle into helix, G19",
     toml: "# kerf sim --config m.toml p.ngc --out o.csv --override 100
@@ -2066,9 +2064,9 @@ M2
 };
 
 /// Minimised escapes of the random sweep (the reproducers as printed, travel left out),
-/// replayed by [`extreme_escapes_stay_fixed`]: the first seven (tight zig-zags on µm-scale
-/// lines) outlived the first fix of `Transition::param_at` (ffb0a0e); the rest (dense
-/// polylines, circles meeting circles, feeds exceeded on smoothed pieces) failed at 3abee69.
+/// replayed by [`extreme_escapes_stay_fixed`]: the first seven are tight zig-zags on
+/// µm-scale lines; the rest dense polylines, circles meeting circles, and feeds on smoothed
+/// pieces.
 const FIXED: &[Fixed] = &[
     Fixed {
         name: "seed 1 case 14517, zig-zag, 19 moves at 157.4 %: X jerk 1.34x (a dropped remnant)",

@@ -172,7 +172,7 @@ mod tests {
     use super::*;
 
     /// The protocol's clients must not drag the G-code interpreter in: the program items
-    /// come from kerf-geom (issue 26).
+    /// come from kerf-geom.
     #[test]
     fn the_protocol_does_not_depend_on_the_parser() {
         let manifest = include_str!("../Cargo.toml");

@@ -408,10 +408,11 @@ fn arc_end(start: Vec3, e1: Vec3, axis: Vec3, r: f64, sweep: f64, rise: f64) -> 
 
 #[test]
 fn sweep_and_end_that_disagree_by_90_mm_at_radius_1e8_are_refused() {
-    // Issue 25's reproducer: the centre 1e8 mm (then 1e10 mm) away on +Y, the end 10 mm
-    // from the start along the circle, the sweep 9e-7 rad larger than the end's angle.
-    // The sweep leads 2 r sin(4.5e-7) further: 90 mm at 1e8 (9000 mm at 1e10), which the
-    // old rule (1e-6 rad) let through.
+    // The centre 1e8 mm (then 1e10 mm) away on +Y, the end 10 mm from the start along
+    // the circle, the sweep 9e-7 rad larger than the end's angle. The sweep leads
+    // 2 r sin(4.5e-7) further: 90 mm at 1e8 (9000 mm at 1e10), far beyond the arc
+    // tolerance although the angles differ by less than 1e-6 rad: a tolerance on the
+    // angle alone would let it through.
     for (r, expected_mm) in [(1e8f64, 90.0), (1e10, 9000.0)] {
         let theta = 10.0 / r;
         let start = Vec3::zeros();
