@@ -30,7 +30,7 @@ use std::time::{Duration, Instant};
 
 use kerf::client::{Client, MoveSender, SetpointReader};
 use kerf_config::Config;
-use kerf_proto::{Command, MoveMsg, PROGRAM_END_NONE};
+use kerf_proto::{ControlCommand, MoveMsg, PROGRAM_END_NONE};
 use kerfd::timing::Histogram;
 
 fn main() -> ExitCode {
@@ -495,7 +495,9 @@ fn hold(args: &[String]) -> Result<(), String> {
             std::thread::sleep(Duration::from_micros(200));
         }
         let sent_ns = kerf_rt::now_ns();
-        client.command(Command::Hold).map_err(|e| e.to_string())?;
+        client
+            .command(ControlCommand::Hold)
+            .map_err(|e| e.to_string())?;
         let acked_ns = kerf_rt::now_ns();
         // The first setpoint stamped after the request whose feed is below the one before.
         // The feed of the last setpoint before the request: the steady one.
@@ -531,7 +533,9 @@ fn hold(args: &[String]) -> Result<(), String> {
             us(rtt),
             excess
         );
-        client.command(Command::Resume).map_err(|e| e.to_string())?;
+        client
+            .command(ControlCommand::Resume)
+            .map_err(|e| e.to_string())?;
     }
     let worst = excess_cycles
         .iter()
@@ -559,7 +563,7 @@ fn hold(args: &[String]) -> Result<(), String> {
     );
     println!("round trip µs: {}", exact(rtt_us));
     println!("largest (delay - round trip): {worst:.2} cycles");
-    let _ = client.command(Command::Abort);
+    let _ = client.command(ControlCommand::Abort);
     wait_end(&mut client, id)?;
     if let Some(d) = daemon {
         d.shutdown();

@@ -89,7 +89,7 @@ pub mod sw {
 
 /// A power state of the CiA 402 state machine.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum State {
+pub enum DriveState {
     /// Not ready to switch on (initialising).
     NotReadyToSwitchOn,
     /// Switch on disabled.
@@ -109,20 +109,20 @@ pub enum State {
 }
 
 /// The standard's state decoding table: (mask, value, state). Bits 0-3, 5 and 6 decide.
-const STATE_TABLE: [(u16, u16, State); 8] = [
-    (0x004F, 0x0000, State::NotReadyToSwitchOn),
-    (0x004F, 0x0040, State::SwitchOnDisabled),
-    (0x006F, 0x0021, State::ReadyToSwitchOn),
-    (0x006F, 0x0023, State::SwitchedOn),
-    (0x006F, 0x0027, State::OperationEnabled),
-    (0x006F, 0x0007, State::QuickStopActive),
-    (0x004F, 0x000F, State::FaultReactionActive),
-    (0x004F, 0x0008, State::Fault),
+const STATE_TABLE: [(u16, u16, DriveState); 8] = [
+    (0x004F, 0x0000, DriveState::NotReadyToSwitchOn),
+    (0x004F, 0x0040, DriveState::SwitchOnDisabled),
+    (0x006F, 0x0021, DriveState::ReadyToSwitchOn),
+    (0x006F, 0x0023, DriveState::SwitchedOn),
+    (0x006F, 0x0027, DriveState::OperationEnabled),
+    (0x006F, 0x0007, DriveState::QuickStopActive),
+    (0x004F, 0x000F, DriveState::FaultReactionActive),
+    (0x004F, 0x0008, DriveState::Fault),
 ];
 
-impl State {
+impl DriveState {
     /// Decodes a statusword; `None` for a pattern the standard does not define.
-    pub fn from_statusword(statusword: u16) -> Option<State> {
+    pub fn from_statusword(statusword: u16) -> Option<DriveState> {
         STATE_TABLE
             .iter()
             .find(|(mask, value, _)| statusword & mask == *value)
@@ -133,21 +133,21 @@ impl State {
     /// the power stage has voltage; bits 7-15 left to the caller).
     pub fn statusword_bits(self) -> u16 {
         match self {
-            State::NotReadyToSwitchOn => 0x0000,
-            State::SwitchOnDisabled => 0x0040,
-            State::ReadyToSwitchOn => 0x0031,
-            State::SwitchedOn => 0x0033,
-            State::OperationEnabled => 0x0037,
-            State::QuickStopActive => 0x0017,
-            State::FaultReactionActive => 0x001F,
-            State::Fault => 0x0008,
+            DriveState::NotReadyToSwitchOn => 0x0000,
+            DriveState::SwitchOnDisabled => 0x0040,
+            DriveState::ReadyToSwitchOn => 0x0031,
+            DriveState::SwitchedOn => 0x0033,
+            DriveState::OperationEnabled => 0x0037,
+            DriveState::QuickStopActive => 0x0017,
+            DriveState::FaultReactionActive => 0x001F,
+            DriveState::Fault => 0x0008,
         }
     }
 }
 
 /// A controlword command as the standard's command table decodes it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Command {
+pub enum DriveCommand {
     /// Shutdown: 0xxx x110.
     Shutdown,
     /// Switch on, or Disable operation: 0xxx 0111.
@@ -160,23 +160,23 @@ pub enum Command {
     QuickStop,
 }
 
-impl Command {
+impl DriveCommand {
     /// Decodes a controlword; `None` when bit 7 (fault reset) is set, since every
     /// command of the table has bit 7 clear. The fault reset is the rising edge of bit 7
     /// and is seen by comparing two controlwords (see [`is_fault_reset_edge`]).
-    pub fn from_controlword(controlword: u16) -> Option<Command> {
+    pub fn from_controlword(controlword: u16) -> Option<DriveCommand> {
         if controlword & cw::FAULT_RESET != 0 {
             None
         } else if controlword & cw::ENABLE_VOLTAGE == 0 {
-            Some(Command::DisableVoltage)
+            Some(DriveCommand::DisableVoltage)
         } else if controlword & cw::QUICK_STOP == 0 {
-            Some(Command::QuickStop)
+            Some(DriveCommand::QuickStop)
         } else if controlword & cw::SWITCH_ON == 0 {
-            Some(Command::Shutdown)
+            Some(DriveCommand::Shutdown)
         } else if controlword & cw::ENABLE_OPERATION == 0 {
-            Some(Command::SwitchOn)
+            Some(DriveCommand::SwitchOn)
         } else {
-            Some(Command::EnableOperation)
+            Some(DriveCommand::EnableOperation)
         }
     }
 }
@@ -189,8 +189,8 @@ pub fn is_fault_reset_edge(previous: u16, current: u16) -> bool {
 /// True when the standard's state machine has a transition `from` → `to` (or `from`
 /// equals `to`). Transition numbers as in the standard: 0-16 (16, Quick stop active →
 /// Operation enabled, only with quick stop option codes 5-8).
-pub fn is_allowed_transition(from: State, to: State) -> bool {
-    use State::*;
+pub fn is_allowed_transition(from: DriveState, to: DriveState) -> bool {
+    use DriveState::*;
     if from == to || to == FaultReactionActive {
         return true; // 13: any state on a fault
     }
@@ -329,20 +329,20 @@ pub enum Request {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum EnablerStatus {
     /// On the way; the drive is in this state.
-    InProgress(State),
+    InProgress(DriveState),
     /// The request is done: the drive is in this state (Operation enabled for
     /// [`Request::Enable`], Switch on disabled for the others).
-    Done(State),
+    Done(DriveState),
     /// The drive stayed in `state` for longer than the timeout.
     Timeout {
         /// The state the drive did not leave.
-        state: State,
+        state: DriveState,
     },
     /// The drive left Operation enabled on its own (not into a fault) after the enable
     /// request was done; the enabler does not enable it again until a new request.
     Dropped {
         /// The state the drive went to.
-        state: State,
+        state: DriveState,
     },
     /// The drive is in Fault or Fault reaction active (a fault reset is needed).
     Fault {
@@ -379,10 +379,10 @@ pub struct EnablerOutput {
 pub struct Enabler {
     timeout_cycles: u32,
     request: Request,
-    last_state: Option<State>,
+    last_state: Option<DriveState>,
     cycles_in_state: u32,
-    timed_out: Option<State>,
-    dropped: Option<State>,
+    timed_out: Option<DriveState>,
+    dropped: Option<DriveState>,
     reached: bool,
     fault_reset_low_sent: bool,
     last_controlword: u16,
@@ -450,7 +450,7 @@ impl Enabler {
         error_code: u16,
     ) -> EnablerOutput {
         let hold = Some(position_actual_counts);
-        let Some(state) = State::from_statusword(statusword) else {
+        let Some(state) = DriveState::from_statusword(statusword) else {
             return EnablerOutput {
                 controlword: cw::DISABLE_VOLTAGE,
                 hold_target_counts: hold,
@@ -463,7 +463,7 @@ impl Enabler {
             self.last_state = Some(state);
             self.cycles_in_state = 0;
         }
-        let hold_target_counts = if state == State::OperationEnabled {
+        let hold_target_counts = if state == DriveState::OperationEnabled {
             None
         } else {
             hold
@@ -473,7 +473,7 @@ impl Enabler {
             && self.dropped.is_none()
             && !matches!(
                 state,
-                State::OperationEnabled | State::Fault | State::FaultReactionActive
+                DriveState::OperationEnabled | DriveState::Fault | DriveState::FaultReactionActive
             )
         {
             self.dropped = Some(state);
@@ -498,7 +498,7 @@ impl Enabler {
                 self.reached = true;
             }
             EnablerStatus::Done(state)
-        } else if matches!(state, State::Fault | State::FaultReactionActive)
+        } else if matches!(state, DriveState::Fault | DriveState::FaultReactionActive)
             && self.request != Request::FaultReset
         {
             EnablerStatus::Fault { error_code }
@@ -528,8 +528,8 @@ impl Enabler {
     }
 
     /// The controlword for `state` under the current request, and whether it is done.
-    fn step_for(&mut self, state: State) -> (u16, bool) {
-        use State::*;
+    fn step_for(&mut self, state: DriveState) -> (u16, bool) {
+        use DriveState::*;
         match self.request {
             Request::Enable => match state {
                 NotReadyToSwitchOn => (cw::DISABLE_VOLTAGE, false),

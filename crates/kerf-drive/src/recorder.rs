@@ -8,7 +8,7 @@
 //! ring, or while the cycle is stopped).
 
 use crate::MAX_AXES;
-use crate::safety::State;
+use crate::safety::SafetyState;
 use kerf_geom::AXIS_NAMES;
 use std::io::Write;
 
@@ -33,7 +33,7 @@ pub struct CycleRecord {
     /// CiA 402 statusword (0x6041) read from each drive.
     pub statusword: [u16; MAX_AXES],
     /// State of the safety layer.
-    pub state: State,
+    pub state: SafetyState,
 }
 
 impl Default for CycleRecord {
@@ -46,7 +46,7 @@ impl Default for CycleRecord {
             following_error: [0.0; MAX_AXES],
             controlword: [0; MAX_AXES],
             statusword: [0; MAX_AXES],
-            state: State::Running,
+            state: SafetyState::Running,
         }
     }
 }

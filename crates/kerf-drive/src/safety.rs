@@ -90,7 +90,7 @@ impl SafetyConfig {
 
 /// A configuration [`Safety::new`] refuses.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum ConfigError {
+pub enum SafetyConfigError {
     /// The period is not a positive finite number.
     #[error("safety: the cycle period must be positive, got {0} s")]
     Period(f64),
@@ -266,7 +266,7 @@ pub struct CycleInput {
 
 /// What the safety layer is doing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum State {
+pub enum SafetyState {
     /// Setpoints pass through to the drives.
     Running,
     /// A missed cycle: the last position is held.
@@ -277,14 +277,14 @@ pub enum State {
     Stopped,
 }
 
-impl State {
+impl SafetyState {
     /// `running`, `holding`, `quick_stop` or `stopped`.
     pub fn name(self) -> &'static str {
         match self {
-            State::Running => "running",
-            State::Holding => "holding",
-            State::QuickStop => "quick_stop",
-            State::Stopped => "stopped",
+            SafetyState::Running => "running",
+            SafetyState::Holding => "holding",
+            SafetyState::QuickStop => "quick_stop",
+            SafetyState::Stopped => "stopped",
         }
     }
 }
@@ -293,7 +293,7 @@ impl State {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Verdict {
     /// State after this cycle.
-    pub state: State,
+    pub state: SafetyState,
     /// Position to send to each drive this cycle.
     pub command: [f64; MAX_AXES],
     /// The fault that tripped in this very cycle, if any (it is also latched).
@@ -419,26 +419,26 @@ pub struct Safety {
     stop_elapsed_s: f64,
     cycle: u64,
     last: Option<CycleInput>,
-    state: State,
+    state: SafetyState,
 }
 
 impl Safety {
     /// A safety layer at rest at `position` (the drives' actual positions when enabled).
-    pub fn new(config: SafetyConfig, position: [f64; MAX_AXES]) -> Result<Self, ConfigError> {
+    pub fn new(config: SafetyConfig, position: [f64; MAX_AXES]) -> Result<Self, SafetyConfigError> {
         let pos_finite = |v: f64| v.is_finite() && v > 0.0;
         if !pos_finite(config.period_s) {
-            return Err(ConfigError::Period(config.period_s));
+            return Err(SafetyConfigError::Period(config.period_s));
         }
         if !(config.margin.is_finite() && config.margin >= 0.0) {
-            return Err(ConfigError::Margin(config.margin));
+            return Err(SafetyConfigError::Margin(config.margin));
         }
         if config.stall_cycles == 0 {
-            return Err(ConfigError::StallCycles);
+            return Err(SafetyConfigError::StallCycles);
         }
         for (i, ax) in config.axes.iter().enumerate() {
             let axis = AXIS_NAMES[i];
             if !position[i].is_finite() {
-                return Err(ConfigError::StartPosition(axis));
+                return Err(SafetyConfigError::StartPosition(axis));
             }
             let Some(ax) = ax else { continue };
             let l = &ax.limits;
@@ -446,7 +446,7 @@ impl Safety {
                 && pos_finite(l.acceleration_units_s2)
                 && pos_finite(l.jerk_units_s3))
             {
-                return Err(ConfigError::Axis {
+                return Err(SafetyConfigError::Axis {
                     axis,
                     what: "velocity, acceleration and jerk limits must be positive",
                 });
@@ -454,14 +454,14 @@ impl Safety {
             if !(ax.min_limit.is_finite() && ax.max_limit.is_finite())
                 || ax.min_limit > ax.max_limit
             {
-                return Err(ConfigError::Axis {
+                return Err(SafetyConfigError::Axis {
                     axis,
                     what: "min_limit must be at most max_limit",
                 });
             }
             let non_negative = |v: f64| v.is_finite() && v >= 0.0;
             if !(non_negative(ax.ferror) && non_negative(ax.min_ferror)) {
-                return Err(ConfigError::Axis {
+                return Err(SafetyConfigError::Axis {
                     axis,
                     what: "ferror and min_ferror must be zero or positive",
                 });
@@ -477,7 +477,7 @@ impl Safety {
             stop_elapsed_s: 0.0,
             cycle: 0,
             last: None,
-            state: State::Running,
+            state: SafetyState::Running,
         })
     }
 
@@ -492,7 +492,7 @@ impl Safety {
     }
 
     /// The current state.
-    pub fn state(&self) -> State {
+    pub fn state(&self) -> SafetyState {
         self.state
     }
 
@@ -524,16 +524,16 @@ impl Safety {
                 }
             }
             self.state = if moving {
-                State::QuickStop
+                SafetyState::QuickStop
             } else {
-                State::Stopped
+                SafetyState::Stopped
             };
             cmd
         } else if let Some(sp) = input.setpoint {
-            self.state = State::Running;
+            self.state = SafetyState::Running;
             sp
         } else {
-            self.state = State::Holding;
+            self.state = SafetyState::Holding;
             self.out[0]
         };
         self.out = [command, self.out[0], self.out[1]];
@@ -620,7 +620,7 @@ impl Safety {
         let t = self.config.period_s;
         // A held command is at rest: the velocity step of the hold is not carried into
         // the stop as an acceleration (the stop would back up).
-        let held = self.state == State::Holding;
+        let held = self.state == SafetyState::Holding;
         self.fault = Some(f);
         self.stop_elapsed_s = 0.0;
         for (i, ax) in self.config.axes.iter().enumerate() {
@@ -658,7 +658,7 @@ impl Safety {
             cycle: self.cycle,
         };
         self.latch(f);
-        self.state = State::QuickStop;
+        self.state = SafetyState::QuickStop;
         Some(f)
     }
 
@@ -667,7 +667,7 @@ impl Safety {
     /// away from the last command. Only while a fault is latched and every axis is at
     /// rest; returns whether it was done.
     pub fn rebase(&mut self, axis: usize, position: f64) -> bool {
-        if self.fault.is_none() || self.state != State::Stopped || axis >= MAX_AXES {
+        if self.fault.is_none() || self.state != SafetyState::Stopped || axis >= MAX_AXES {
             return false;
         }
         if !position.is_finite() {
@@ -726,7 +726,7 @@ impl Safety {
         self.stream = [held; 2];
         self.missed = 0;
         self.fault = None;
-        self.state = State::Running;
+        self.state = SafetyState::Running;
         Ok(())
     }
 }

@@ -24,7 +24,9 @@
 //! Without power (every state but Operation enabled and Quick stop active) the holding
 //! brake keeps the motor where it is.
 
-use crate::cia402::{Command, Drive, MODE_CYCLIC_SYNC_POSITION, State, is_fault_reset_edge, sw};
+use crate::cia402::{
+    Drive, DriveCommand, DriveState, MODE_CYCLIC_SYNC_POSITION, is_fault_reset_edge, sw,
+};
 
 /// Error code 0x2310: continuous over current.
 pub const ERROR_OVERCURRENT: u16 = 0x2310;
@@ -114,7 +116,7 @@ impl SimConfig {
 #[derive(Debug, Clone)]
 pub struct SimDrive {
     config: SimConfig,
-    state: State,
+    state: DriveState,
     mode: i8,
     position_counts: f64,
     velocity_counts_s: f64,
@@ -145,7 +147,7 @@ impl SimDrive {
     pub fn new(config: SimConfig) -> SimDrive {
         SimDrive {
             config,
-            state: State::NotReadyToSwitchOn,
+            state: DriveState::NotReadyToSwitchOn,
             mode: MODE_CYCLIC_SYNC_POSITION,
             position_counts: config.initial_position_counts,
             velocity_counts_s: 0.0,
@@ -164,7 +166,7 @@ impl SimDrive {
     }
 
     /// The power state.
-    pub fn state(&self) -> State {
+    pub fn state(&self) -> DriveState {
         self.state
     }
 
@@ -194,7 +196,7 @@ impl SimDrive {
     }
 
     fn trip(&mut self, error_code: u16) {
-        self.state = State::FaultReactionActive;
+        self.state = DriveState::FaultReactionActive;
         self.error_code = error_code;
     }
 
@@ -203,13 +205,16 @@ impl SimDrive {
         let edge = is_fault_reset_edge(self.last_controlword, controlword);
         self.last_controlword = controlword;
         if let Some(code) = self.pending_fault.take().or(self.fault_cause)
-            && !matches!(self.state, State::FaultReactionActive | State::Fault)
+            && !matches!(
+                self.state,
+                DriveState::FaultReactionActive | DriveState::Fault
+            )
         {
             self.trip(code);
             return;
         }
-        let command = Command::from_controlword(controlword);
-        use State::*;
+        let command = DriveCommand::from_controlword(controlword);
+        use DriveState::*;
         let next = match (self.state, command) {
             (NotReadyToSwitchOn, _) => SwitchOnDisabled, // 1 (initialisation done)
             (FaultReactionActive, _) => Fault,           // 14
@@ -218,23 +223,23 @@ impl SimDrive {
                 SwitchOnDisabled // 15
             }
             (Fault, _) => Fault,
-            (SwitchOnDisabled, Some(Command::Shutdown)) => ReadyToSwitchOn, // 2
-            (ReadyToSwitchOn, Some(Command::SwitchOn | Command::EnableOperation)) => {
+            (SwitchOnDisabled, Some(DriveCommand::Shutdown)) => ReadyToSwitchOn, // 2
+            (ReadyToSwitchOn, Some(DriveCommand::SwitchOn | DriveCommand::EnableOperation)) => {
                 SwitchedOn // 3
             }
-            (ReadyToSwitchOn, Some(Command::DisableVoltage | Command::QuickStop)) => {
+            (ReadyToSwitchOn, Some(DriveCommand::DisableVoltage | DriveCommand::QuickStop)) => {
                 SwitchOnDisabled // 7
             }
-            (SwitchedOn, Some(Command::EnableOperation)) => OperationEnabled, // 4
-            (SwitchedOn, Some(Command::Shutdown)) => ReadyToSwitchOn,         // 6
-            (SwitchedOn, Some(Command::DisableVoltage | Command::QuickStop)) => {
+            (SwitchedOn, Some(DriveCommand::EnableOperation)) => OperationEnabled, // 4
+            (SwitchedOn, Some(DriveCommand::Shutdown)) => ReadyToSwitchOn,         // 6
+            (SwitchedOn, Some(DriveCommand::DisableVoltage | DriveCommand::QuickStop)) => {
                 SwitchOnDisabled // 10
             }
-            (OperationEnabled, Some(Command::SwitchOn)) => SwitchedOn, // 5
-            (OperationEnabled, Some(Command::Shutdown)) => ReadyToSwitchOn, // 8
-            (OperationEnabled, Some(Command::DisableVoltage)) => SwitchOnDisabled, // 9
-            (OperationEnabled, Some(Command::QuickStop)) => QuickStopActive, // 11
-            (QuickStopActive, Some(Command::DisableVoltage)) => SwitchOnDisabled, // 12
+            (OperationEnabled, Some(DriveCommand::SwitchOn)) => SwitchedOn, // 5
+            (OperationEnabled, Some(DriveCommand::Shutdown)) => ReadyToSwitchOn, // 8
+            (OperationEnabled, Some(DriveCommand::DisableVoltage)) => SwitchOnDisabled, // 9
+            (OperationEnabled, Some(DriveCommand::QuickStop)) => QuickStopActive, // 11
+            (QuickStopActive, Some(DriveCommand::DisableVoltage)) => SwitchOnDisabled, // 12
             (state, _) => state,
         };
         if next == OperationEnabled && self.state != OperationEnabled {
@@ -250,7 +255,7 @@ impl SimDrive {
         let substeps = self.config.substeps.max(1);
         let dt_s = period_s / f64::from(substeps);
         match self.state {
-            State::OperationEnabled => {
+            DriveState::OperationEnabled => {
                 let start = self.previous_target_counts;
                 let end = if self.mode == MODE_CYCLIC_SYNC_POSITION {
                     f64::from(target_counts)
@@ -281,7 +286,7 @@ impl SimDrive {
                 self.previous_target_counts = end;
                 self.demand_counts = saturate_i32(end);
             }
-            State::QuickStopActive => {
+            DriveState::QuickStopActive => {
                 let decel = self.config.quick_stop_decel_counts_s2.abs();
                 for _ in 0..substeps {
                     let v = self.velocity_counts_s;
@@ -296,7 +301,7 @@ impl SimDrive {
                 }
                 self.demand_counts = saturate_i32(self.position_counts);
                 if self.velocity_counts_s == 0.0 {
-                    self.state = State::SwitchOnDisabled; // 12: quick stop completed
+                    self.state = DriveState::SwitchOnDisabled; // 12: quick stop completed
                 }
             }
             _ => {
@@ -324,7 +329,7 @@ impl Drive for SimDrive {
 
     fn statusword(&self) -> u16 {
         let mut word = self.state.statusword_bits() | sw::REMOTE;
-        if self.state == State::OperationEnabled && self.mode == MODE_CYCLIC_SYNC_POSITION {
+        if self.state == DriveState::OperationEnabled && self.mode == MODE_CYCLIC_SYNC_POSITION {
             word |= sw::DRIVE_FOLLOWS_TARGET;
         }
         if self.following_error_counts().unsigned_abs() > self.config.following_error_window_counts

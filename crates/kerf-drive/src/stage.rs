@@ -28,12 +28,10 @@
 
 use crate::MAX_AXES;
 use crate::cia402::Enabler;
-use crate::cia402::{
-    Drive, EnablerStatus, MODE_CYCLIC_SYNC_POSITION, Request, Scale, State as DriveState,
-};
+use crate::cia402::{Drive, DriveState, EnablerStatus, MODE_CYCLIC_SYNC_POSITION, Request, Scale};
 use crate::recorder::{CycleRecord, Recorder};
 use crate::safety::{
-    Check, ConfigError, CycleInput, Fault, ResetRefused, Safety, SafetyConfig, State,
+    Check, CycleInput, Fault, ResetRefused, Safety, SafetyConfig, SafetyConfigError, SafetyState,
 };
 
 /// Records copied from the black box into a dump per cycle: a few microseconds of copying.
@@ -91,7 +89,7 @@ pub struct StageOutput {
     /// The phase after this cycle.
     pub phase: Phase,
     /// The safety layer's state after this cycle.
-    pub state: State,
+    pub state: SafetyState,
     /// The position sent to each drive this cycle (the hold position while a drive is not
     /// enabled), units.
     pub command: [f64; MAX_AXES],
@@ -179,7 +177,7 @@ pub struct DriveStage<D: Drive> {
 pub enum StageError {
     /// The safety configuration is refused.
     #[error(transparent)]
-    Safety(#[from] ConfigError),
+    Safety(#[from] SafetyConfigError),
     /// An axis has a drive but no safety configuration, or the other way round.
     #[error("axis {0}: a drive needs the axis's safety configuration, and the other way round")]
     Axes(char),
@@ -438,7 +436,7 @@ impl<D: Drive> DriveStage<D> {
             self.trip_dump = Some(f);
         }
         if let Some(f) = self.trip_dump
-            && self.safety.state() == State::Stopped
+            && self.safety.state() == SafetyState::Stopped
         {
             self.trip_dump = None;
             self.wanted = Some(DumpReason::Fault(f));
@@ -529,7 +527,7 @@ impl<D: Drive> DriveStage<D> {
         if self.phase == Phase::Resetting {
             return None;
         }
-        if self.safety.state() == State::QuickStop {
+        if self.safety.state() == SafetyState::QuickStop {
             let i = self
                 .config
                 .axes

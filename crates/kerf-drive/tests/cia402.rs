@@ -2,22 +2,23 @@
 //! from the standard's tables (IEC 61800-7-201 / CiA 402 part 2), not from the code.
 
 use kerf_drive::cia402::{
-    Cia402Error, Command, Drive, Enabler, EnablerStatus, Request, Scale, State, is_fault_reset_edge,
+    Cia402Error, Drive, DriveCommand, DriveState, Enabler, EnablerStatus, Request, Scale,
+    is_fault_reset_edge,
 };
 use kerf_drive::sim::{SimConfig, SimDrive};
 
 /// The standard's statusword table, written out: for each state, the bits that decide
 /// (x = don't care) as a string, bit 15 first. Every pattern of the deciding bits 0-3,
 /// 5, 6 is enumerated below and checked against this table.
-const TABLE: [(&str, State); 8] = [
-    ("xxxxxxxxx0xx0000", State::NotReadyToSwitchOn),
-    ("xxxxxxxxx1xx0000", State::SwitchOnDisabled),
-    ("xxxxxxxxx01x0001", State::ReadyToSwitchOn),
-    ("xxxxxxxxx01x0011", State::SwitchedOn),
-    ("xxxxxxxxx01x0111", State::OperationEnabled),
-    ("xxxxxxxxx00x0111", State::QuickStopActive),
-    ("xxxxxxxxx0xx1111", State::FaultReactionActive),
-    ("xxxxxxxxx0xx1000", State::Fault),
+const TABLE: [(&str, DriveState); 8] = [
+    ("xxxxxxxxx0xx0000", DriveState::NotReadyToSwitchOn),
+    ("xxxxxxxxx1xx0000", DriveState::SwitchOnDisabled),
+    ("xxxxxxxxx01x0001", DriveState::ReadyToSwitchOn),
+    ("xxxxxxxxx01x0011", DriveState::SwitchedOn),
+    ("xxxxxxxxx01x0111", DriveState::OperationEnabled),
+    ("xxxxxxxxx00x0111", DriveState::QuickStopActive),
+    ("xxxxxxxxx0xx1111", DriveState::FaultReactionActive),
+    ("xxxxxxxxx0xx1000", DriveState::Fault),
 ];
 
 fn matches_pattern(word: u16, pattern: &str) -> bool {
@@ -35,43 +36,55 @@ fn matches_pattern(word: u16, pattern: &str) -> bool {
 fn every_statusword_decodes_as_the_standard_table_says() {
     // All 65536 words: the decoded state is the table's row, or none when no row fits.
     for word in 0..=u16::MAX {
-        let expected: Vec<State> = TABLE
+        let expected: Vec<DriveState> = TABLE
             .iter()
             .filter(|(p, _)| matches_pattern(word, p))
             .map(|(_, s)| *s)
             .collect();
         assert!(expected.len() <= 1, "table rows overlap for {word:#06x}");
         assert_eq!(
-            State::from_statusword(word),
+            DriveState::from_statusword(word),
             expected.first().copied(),
             "statusword {word:#06x}"
         );
     }
     // And some literal words a drive sends (voltage enabled, remote, bits 12/13 set).
     assert_eq!(
-        State::from_statusword(0x0250),
-        Some(State::SwitchOnDisabled)
+        DriveState::from_statusword(0x0250),
+        Some(DriveState::SwitchOnDisabled)
     );
-    assert_eq!(State::from_statusword(0x0231), Some(State::ReadyToSwitchOn));
-    assert_eq!(State::from_statusword(0x0233), Some(State::SwitchedOn));
     assert_eq!(
-        State::from_statusword(0x1237),
-        Some(State::OperationEnabled)
+        DriveState::from_statusword(0x0231),
+        Some(DriveState::ReadyToSwitchOn)
     );
-    assert_eq!(State::from_statusword(0x0217), Some(State::QuickStopActive));
     assert_eq!(
-        State::from_statusword(0x021F),
-        Some(State::FaultReactionActive)
+        DriveState::from_statusword(0x0233),
+        Some(DriveState::SwitchedOn)
     );
-    assert_eq!(State::from_statusword(0x0218), Some(State::Fault));
+    assert_eq!(
+        DriveState::from_statusword(0x1237),
+        Some(DriveState::OperationEnabled)
+    );
+    assert_eq!(
+        DriveState::from_statusword(0x0217),
+        Some(DriveState::QuickStopActive)
+    );
+    assert_eq!(
+        DriveState::from_statusword(0x021F),
+        Some(DriveState::FaultReactionActive)
+    );
+    assert_eq!(DriveState::from_statusword(0x0218), Some(DriveState::Fault));
     // Undefined: bit 6 with bit 0 set.
-    assert_eq!(State::from_statusword(0x0041), None);
+    assert_eq!(DriveState::from_statusword(0x0041), None);
 }
 
 #[test]
 fn statusword_bits_of_each_state_decode_back() {
     for (_, state) in TABLE {
-        assert_eq!(State::from_statusword(state.statusword_bits()), Some(state));
+        assert_eq!(
+            DriveState::from_statusword(state.statusword_bits()),
+            Some(state)
+        );
     }
 }
 
@@ -79,30 +92,45 @@ fn statusword_bits_of_each_state_decode_back() {
 fn controlword_commands_decode_as_the_standard_table_says() {
     // Command table: Shutdown 0xxx x110, Switch on 0xxx 0111, Enable operation
     // 0xxx 1111, Disable voltage 0xxx xx0x, Quick stop 0xxx x01x.
-    assert_eq!(Command::from_controlword(0x0006), Some(Command::Shutdown));
-    assert_eq!(Command::from_controlword(0x000E), Some(Command::Shutdown));
-    assert_eq!(Command::from_controlword(0x0007), Some(Command::SwitchOn));
     assert_eq!(
-        Command::from_controlword(0x000F),
-        Some(Command::EnableOperation)
+        DriveCommand::from_controlword(0x0006),
+        Some(DriveCommand::Shutdown)
     );
     assert_eq!(
-        Command::from_controlword(0x0000),
-        Some(Command::DisableVoltage)
+        DriveCommand::from_controlword(0x000E),
+        Some(DriveCommand::Shutdown)
     );
     assert_eq!(
-        Command::from_controlword(0x000D),
-        Some(Command::DisableVoltage)
+        DriveCommand::from_controlword(0x0007),
+        Some(DriveCommand::SwitchOn)
     );
-    assert_eq!(Command::from_controlword(0x0002), Some(Command::QuickStop));
-    assert_eq!(Command::from_controlword(0x000B), Some(Command::QuickStop));
+    assert_eq!(
+        DriveCommand::from_controlword(0x000F),
+        Some(DriveCommand::EnableOperation)
+    );
+    assert_eq!(
+        DriveCommand::from_controlword(0x0000),
+        Some(DriveCommand::DisableVoltage)
+    );
+    assert_eq!(
+        DriveCommand::from_controlword(0x000D),
+        Some(DriveCommand::DisableVoltage)
+    );
+    assert_eq!(
+        DriveCommand::from_controlword(0x0002),
+        Some(DriveCommand::QuickStop)
+    );
+    assert_eq!(
+        DriveCommand::from_controlword(0x000B),
+        Some(DriveCommand::QuickStop)
+    );
     // Bits 4-6 and 8-15 do not change the command.
     assert_eq!(
-        Command::from_controlword(0x017F),
-        Some(Command::EnableOperation)
+        DriveCommand::from_controlword(0x017F),
+        Some(DriveCommand::EnableOperation)
     );
     // Bit 7 set: no command of the table.
-    assert_eq!(Command::from_controlword(0x008F), None);
+    assert_eq!(DriveCommand::from_controlword(0x008F), None);
     assert!(is_fault_reset_edge(0x0000, 0x0080));
     assert!(!is_fault_reset_edge(0x0080, 0x0080));
     assert!(!is_fault_reset_edge(0x0080, 0x0000));
@@ -174,7 +202,7 @@ fn enable_from_switch_on_disabled_takes_three_transitions() {
     let mut drive = sim_at(1234.0);
     // Transition 1 (initialisation) on the first exchange.
     drive.write(0, 0);
-    assert_eq!(drive.state(), State::SwitchOnDisabled);
+    assert_eq!(drive.state(), DriveState::SwitchOnDisabled);
     let mut enabler = Enabler::new(10);
     enabler.request(Request::Enable);
     let seen = run(&mut drive, &mut enabler, 4, 1234);
@@ -183,10 +211,10 @@ fn enable_from_switch_on_disabled_takes_three_transitions() {
     assert_eq!(
         seen,
         vec![
-            EnablerStatus::InProgress(State::SwitchOnDisabled),
-            EnablerStatus::InProgress(State::ReadyToSwitchOn),
-            EnablerStatus::InProgress(State::SwitchedOn),
-            EnablerStatus::Done(State::OperationEnabled),
+            EnablerStatus::InProgress(DriveState::SwitchOnDisabled),
+            EnablerStatus::InProgress(DriveState::ReadyToSwitchOn),
+            EnablerStatus::InProgress(DriveState::SwitchedOn),
+            EnablerStatus::Done(DriveState::OperationEnabled),
         ]
     );
 }
@@ -204,7 +232,7 @@ fn enable_does_not_jump_the_target_equals_the_actual_position() {
         let out = enabler.cycle(drive.statusword(), actual, drive.error_code());
         // The master's own setpoint is 0, ~98 765 counts away.
         let target = out.hold_target_counts.unwrap_or(0);
-        if out.status == EnablerStatus::Done(State::OperationEnabled) {
+        if out.status == EnablerStatus::Done(DriveState::OperationEnabled) {
             break;
         }
         if out.controlword == 0x000F && target_at_enable.is_none() {
@@ -215,7 +243,7 @@ fn enable_does_not_jump_the_target_equals_the_actual_position() {
     let (target, actual) = target_at_enable.expect("enable operation was sent");
     assert_eq!(target, actual);
     assert_eq!(actual, -98_765);
-    assert_eq!(drive.state(), State::OperationEnabled);
+    assert_eq!(drive.state(), DriveState::OperationEnabled);
     // The motor did not move by more than the rounding of the initial position (the
     // loop stops before the master's setpoint 0 would be written).
     assert!((drive.motor_position_counts() + 98_765.4).abs() < 1.0);
@@ -255,20 +283,26 @@ fn enable_times_out_when_the_drive_does_not_answer() {
     // Cycles 0-4 wait in Switch on disabled, the sixth (5 cycles later) times out, and
     // the timeout stays.
     for status in &seen[..5] {
-        assert_eq!(*status, EnablerStatus::InProgress(State::SwitchOnDisabled));
+        assert_eq!(
+            *status,
+            EnablerStatus::InProgress(DriveState::SwitchOnDisabled)
+        );
     }
     for status in &seen[5..] {
         assert_eq!(
             *status,
             EnablerStatus::Timeout {
-                state: State::SwitchOnDisabled
+                state: DriveState::SwitchOnDisabled
             }
         );
     }
     // A new request starts again.
     enabler.request(Request::Enable);
     let seen = run(&mut drive, &mut enabler, 1, 0);
-    assert_eq!(seen[0], EnablerStatus::InProgress(State::SwitchOnDisabled));
+    assert_eq!(
+        seen[0],
+        EnablerStatus::InProgress(DriveState::SwitchOnDisabled)
+    );
 }
 
 #[test]
@@ -277,26 +311,26 @@ fn fault_needs_a_reset_and_the_reset_is_an_edge() {
     let mut enabler = Enabler::new(10);
     enabler.request(Request::Enable);
     run(&mut drive, &mut enabler, 5, 0);
-    assert_eq!(drive.state(), State::OperationEnabled);
+    assert_eq!(drive.state(), DriveState::OperationEnabled);
     drive.inject_fault(0x5432);
     let seen = run(&mut drive, &mut enabler, 20, 0);
     assert_eq!(
         seen.last(),
         Some(&EnablerStatus::Fault { error_code: 0x5432 })
     );
-    assert_eq!(drive.state(), State::Fault);
+    assert_eq!(drive.state(), DriveState::Fault);
     enabler.request(Request::FaultReset);
     let seen = run(&mut drive, &mut enabler, 4, 0);
     assert_eq!(
         seen.last(),
-        Some(&EnablerStatus::Done(State::SwitchOnDisabled))
+        Some(&EnablerStatus::Done(DriveState::SwitchOnDisabled))
     );
     assert_eq!(drive.error_code(), 0);
     enabler.request(Request::Enable);
     let seen = run(&mut drive, &mut enabler, 4, 0);
     assert_eq!(
         seen.last(),
-        Some(&EnablerStatus::Done(State::OperationEnabled))
+        Some(&EnablerStatus::Done(DriveState::OperationEnabled))
     );
 }
 
@@ -306,13 +340,13 @@ fn fault_reset_is_refused_while_the_cause_persists() {
     let mut enabler = Enabler::new(10);
     drive.set_fault_cause(Some(0x4310));
     run(&mut drive, &mut enabler, 4, 0);
-    assert_eq!(drive.state(), State::Fault);
+    assert_eq!(drive.state(), DriveState::Fault);
     enabler.request(Request::FaultReset);
     let seen = run(&mut drive, &mut enabler, 15, 0);
     assert_eq!(
         seen.last(),
         Some(&EnablerStatus::Timeout {
-            state: State::Fault
+            state: DriveState::Fault
         })
     );
     drive.set_fault_cause(None);
@@ -320,7 +354,7 @@ fn fault_reset_is_refused_while_the_cause_persists() {
     let seen = run(&mut drive, &mut enabler, 4, 0);
     assert_eq!(
         seen.last(),
-        Some(&EnablerStatus::Done(State::SwitchOnDisabled))
+        Some(&EnablerStatus::Done(DriveState::SwitchOnDisabled))
     );
 }
 
@@ -334,7 +368,7 @@ fn quick_stop_request_ends_in_switch_on_disabled() {
     let seen = run(&mut drive, &mut enabler, 3, 0);
     assert_eq!(
         seen.last(),
-        Some(&EnablerStatus::Done(State::SwitchOnDisabled))
+        Some(&EnablerStatus::Done(DriveState::SwitchOnDisabled))
     );
 }
 
@@ -346,27 +380,27 @@ fn a_drive_that_drops_out_is_not_enabled_again_without_a_new_request() {
     let seen = run(&mut drive, &mut enabler, 5, 500);
     assert_eq!(
         seen.last(),
-        Some(&EnablerStatus::Done(State::OperationEnabled))
+        Some(&EnablerStatus::Done(DriveState::OperationEnabled))
     );
     // Something else shuts the drive down (transition 8).
     drive.write(0x0006, 500);
-    assert_eq!(drive.state(), State::ReadyToSwitchOn);
+    assert_eq!(drive.state(), DriveState::ReadyToSwitchOn);
     let seen = run(&mut drive, &mut enabler, 10, 500);
     for status in &seen {
         assert_eq!(
             *status,
             EnablerStatus::Dropped {
-                state: State::ReadyToSwitchOn
+                state: DriveState::ReadyToSwitchOn
             }
         );
     }
-    assert_ne!(drive.state(), State::OperationEnabled);
+    assert_ne!(drive.state(), DriveState::OperationEnabled);
     // A new request enables it again.
     enabler.request(Request::Enable);
     let seen = run(&mut drive, &mut enabler, 4, 500);
     assert_eq!(
         seen.last(),
-        Some(&EnablerStatus::Done(State::OperationEnabled))
+        Some(&EnablerStatus::Done(DriveState::OperationEnabled))
     );
 }
 
@@ -415,10 +449,10 @@ mod properties {
                 let target = out.hold_target_counts.unwrap_or(actual.saturating_add(offset / 100));
                 drive.write(out.controlword, target);
                 let after = drive.state();
-                if after == State::OperationEnabled && before != State::OperationEnabled {
+                if after == DriveState::OperationEnabled && before != DriveState::OperationEnabled {
                     prop_assert_eq!(target, actual);
                 }
-                if before == State::Fault && after != State::Fault {
+                if before == DriveState::Fault && after != DriveState::Fault {
                     prop_assert!(reset_requested);
                     prop_assert_eq!(enabler.current_request(), Request::FaultReset);
                 }

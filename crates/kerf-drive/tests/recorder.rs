@@ -4,7 +4,7 @@
 
 use kerf_drive::MAX_AXES;
 use kerf_drive::recorder::{CycleRecord, DEFAULT_SECONDS, Recorder};
-use kerf_drive::safety::{AxisSafety, CycleInput, Safety, SafetyConfig, State};
+use kerf_drive::safety::{AxisSafety, CycleInput, Safety, SafetyConfig, SafetyState};
 use kerf_geom::AxisLimits;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -71,10 +71,10 @@ fn rec(k: u64) -> CycleRecord {
         controlword: [0x000f, 0x0002, k as u16, 0, 0, 0],
         statusword: [0x1237, 0x0217, 0x0008, 0, 0, 0],
         state: [
-            State::Running,
-            State::Holding,
-            State::QuickStop,
-            State::Stopped,
+            SafetyState::Running,
+            SafetyState::Holding,
+            SafetyState::QuickStop,
+            SafetyState::Stopped,
         ][(k % 4) as usize],
     }
 }
@@ -246,13 +246,13 @@ fn the_cycle_with_safety_and_recorder_does_not_allocate() {
     // The run did go through a fault and a reset (the counter was armed over them).
     assert!(
         rec.iter()
-            .any(|r| r.state == State::Stopped || r.state == State::QuickStop)
+            .any(|r| r.state == SafetyState::Stopped || r.state == SafetyState::QuickStop)
     );
     assert_eq!(rec.len(), 500);
     // ... and the reset at cycle 1100 was accepted: the end runs again.
     assert_eq!(
         rec.iter().last().map(|r| r.state),
-        Some(State::Running),
+        Some(SafetyState::Running),
         "{:?}",
         safety.fault()
     );

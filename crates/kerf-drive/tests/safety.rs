@@ -5,7 +5,7 @@
 
 use kerf_drive::MAX_AXES;
 use kerf_drive::safety::{
-    AxisSafety, Check, CycleInput, ResetRefused, Safety, SafetyConfig, State, StopProfile,
+    AxisSafety, Check, CycleInput, ResetRefused, Safety, SafetyConfig, SafetyState, StopProfile,
 };
 use kerf_geom::AxisLimits;
 use proptest::prelude::*;
@@ -83,7 +83,7 @@ fn velocity_trips_exactly_at_its_limit() {
     let step = 105.0 * T;
     let mut r = Rig::new(cfg);
     let v = r.step(Some(on(1, step * (1.0 - 1e-9))));
-    assert_eq!(v.state, State::Running);
+    assert_eq!(v.state, SafetyState::Running);
     assert!(v.tripped.is_none());
     assert_eq!(v.command[1], step * (1.0 - 1e-9));
 
@@ -167,7 +167,7 @@ fn a_stop_that_would_end_beyond_the_travel_trips_before_the_setpoint_crosses() {
             "{:?}",
             &sent[sent.len() - 5..]
         );
-        assert_eq!(s.state(), State::Stopped);
+        assert_eq!(s.state(), SafetyState::Stopped);
     }
 }
 
@@ -197,7 +197,7 @@ fn soft_limits_trip_just_beyond_the_travel() {
         );
         // Never sent: the axis stays where it is, at rest.
         assert_eq!(v.command[axis], end);
-        assert_eq!(v.state, State::Stopped);
+        assert_eq!(v.state, SafetyState::Stopped);
     }
 }
 
@@ -244,13 +244,13 @@ fn a_stall_holds_for_n_minus_one_cycles_then_stops() {
     // Two missed cycles, then the stream comes back: no trip.
     for _ in 0..2 {
         let v = r.step(None);
-        assert_eq!(v.state, State::Holding);
+        assert_eq!(v.state, SafetyState::Holding);
         assert_eq!(v.command[0], 0.1);
     }
-    assert_eq!(r.step(Some(on(0, 0.11))).state, State::Running);
+    assert_eq!(r.step(Some(on(0, 0.11))).state, SafetyState::Running);
     for _ in 0..2 {
         let v = r.step(None);
-        assert_eq!((v.state, v.command[0]), (State::Holding, 0.11));
+        assert_eq!((v.state, v.command[0]), (SafetyState::Holding, 0.11));
         assert!(v.tripped.is_none());
     }
     let v = r.step(None);
@@ -261,7 +261,7 @@ fn a_stall_holds_for_n_minus_one_cycles_then_stops() {
     );
     // Held at rest, so the quick stop is already at rest there.
     assert_eq!(v.command[0], 0.11);
-    assert_eq!(v.state, State::Stopped);
+    assert_eq!(v.state, SafetyState::Stopped);
 }
 
 #[test]
@@ -282,7 +282,7 @@ fn a_stall_in_motion_stops_where_the_position_is_held() {
         assert_eq!(v.command, last);
     }
     assert_eq!(r.s.fault().map(|f| f.check), Some(Check::StreamStall));
-    assert_eq!(r.s.state(), State::Stopped);
+    assert_eq!(r.s.state(), SafetyState::Stopped);
 }
 
 /// A stream from rest at constant acceleration `a` up to `v`, then `cruise` cycles at
@@ -323,7 +323,7 @@ fn a_drive_fault_on_one_axis_stops_all() {
         assert!(v.tripped.is_none());
         cmds.push(v.command);
     }
-    assert_eq!(r.s.state(), State::Stopped);
+    assert_eq!(r.s.state(), SafetyState::Stopped);
     assert_eq!(r.s.fault(), Some(&f), "latched");
     for ax in 0..3 {
         let n = cmds.len();
@@ -392,7 +392,7 @@ fn quick_stop_from_full_speed_is_within_limits_and_takes_the_analytic_time() {
         assert!((rest_s - t_stop).abs() <= 1.0 * T, "{rest_s} vs {t_stop}");
         let travelled = xs[xs.len() - 1] - x0;
         assert!((travelled - dist).abs() < 1e-9, "{travelled} vs {dist}");
-        assert_eq!(r.s.state(), State::Stopped);
+        assert_eq!(r.s.state(), SafetyState::Stopped);
     }
 }
 
@@ -441,7 +441,7 @@ fn reset_is_refused_while_the_cause_persists() {
     for _ in 0..200 {
         r.step(Some(sp));
     }
-    assert_eq!(r.s.state(), State::Stopped);
+    assert_eq!(r.s.state(), SafetyState::Stopped);
     assert_eq!(r.s.reset(), Err(ResetRefused::DriveFault(0)));
     assert!(r.s.fault().is_some(), "still latched");
     r.fault[0] = false;
@@ -454,7 +454,7 @@ fn reset_is_refused_while_the_cause_persists() {
     let v = r.step(Some(held));
     assert_eq!(
         (v.state, v.command, v.tripped),
-        (State::Running, held, None)
+        (SafetyState::Running, held, None)
     );
 
     // Following error: refused while the axis still lags by more than MIN_FERROR.
@@ -549,26 +549,26 @@ proptest! {
 
 #[test]
 fn bad_configurations_are_refused() {
-    use kerf_drive::safety::ConfigError;
+    use kerf_drive::safety::SafetyConfigError;
     let ok = config(mill());
     assert!(Safety::new(ok, [0.0; MAX_AXES]).is_ok());
     let mut c = ok;
     c.period_s = 0.0;
     assert_eq!(
         Safety::new(c, [0.0; MAX_AXES]).err(),
-        Some(ConfigError::Period(0.0))
+        Some(SafetyConfigError::Period(0.0))
     );
     let mut c = ok;
     c.stall_cycles = 0;
     assert_eq!(
         Safety::new(c, [0.0; MAX_AXES]).err(),
-        Some(ConfigError::StallCycles)
+        Some(SafetyConfigError::StallCycles)
     );
     let mut c = ok;
     c.margin = -0.01;
     assert!(matches!(
         Safety::new(c, [0.0; MAX_AXES]),
-        Err(ConfigError::Margin(_))
+        Err(SafetyConfigError::Margin(_))
     ));
     let mut ax = mill();
     ax.min_limit = 600.0;
@@ -576,7 +576,7 @@ fn bad_configurations_are_refused() {
     c.axes[1] = Some(ax);
     assert!(matches!(
         Safety::new(c, [0.0; MAX_AXES]),
-        Err(ConfigError::Axis { axis: 'Y', .. })
+        Err(SafetyConfigError::Axis { axis: 'Y', .. })
     ));
     let mut ax = mill();
     ax.limits.jerk_units_s3 = 0.0;
@@ -584,11 +584,11 @@ fn bad_configurations_are_refused() {
     c.axes[2] = Some(ax);
     assert!(matches!(
         Safety::new(c, [0.0; MAX_AXES]),
-        Err(ConfigError::Axis { axis: 'Z', .. })
+        Err(SafetyConfigError::Axis { axis: 'Z', .. })
     ));
     assert_eq!(
         Safety::new(ok, on(0, f64::NAN)).err(),
-        Some(ConfigError::StartPosition('X'))
+        Some(SafetyConfigError::StartPosition('X'))
     );
 }
 

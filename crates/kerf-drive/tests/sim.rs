@@ -2,7 +2,7 @@
 //! come from second-order system theory, the move's own kinematics, and the standard's
 //! transition table (written out here), never from the code under test.
 
-use kerf_drive::cia402::{Drive, State};
+use kerf_drive::cia402::{Drive, DriveState};
 use kerf_drive::sim::{ERROR_OVERCURRENT, SimConfig, SimDrive};
 use proptest::prelude::*;
 
@@ -16,7 +16,7 @@ fn enabled(config: SimConfig) -> SimDrive {
         let actual = drive.position_actual_counts();
         drive.write(controlword, actual);
     }
-    assert_eq!(drive.state(), State::OperationEnabled);
+    assert_eq!(drive.state(), DriveState::OperationEnabled);
     drive
 }
 
@@ -34,7 +34,7 @@ fn max_following_error(config: SimConfig, distance: f64, duration_s: f64) -> f64
     for k in 1..=cycles {
         let target = quintic(distance, duration_s, k as f64 * PERIOD_S).round() as i32;
         drive.write(0x000F, target);
-        assert_eq!(drive.state(), State::OperationEnabled);
+        assert_eq!(drive.state(), DriveState::OperationEnabled);
         worst = worst.max(f64::from(drive.following_error_counts()).abs());
     }
     worst
@@ -134,25 +134,25 @@ fn overcurrent_trips_fault_and_needs_a_reset() {
     let mut drive = enabled(config);
     drive.write(0x000F, 1000);
     assert_eq!(
-        State::from_statusword(drive.statusword()),
-        Some(State::FaultReactionActive)
+        DriveState::from_statusword(drive.statusword()),
+        Some(DriveState::FaultReactionActive)
     );
     assert_eq!(drive.error_code(), ERROR_OVERCURRENT);
     drive.write(0x000F, 0);
     assert_eq!(
-        State::from_statusword(drive.statusword()),
-        Some(State::Fault)
+        DriveState::from_statusword(drive.statusword()),
+        Some(DriveState::Fault)
     );
     // Commands do not leave Fault.
     for controlword in [0x000F, 0x0006, 0x0007, 0x0000, 0x0002] {
         drive.write(controlword, 0);
-        assert_eq!(drive.state(), State::Fault, "after {controlword:#06x}");
+        assert_eq!(drive.state(), DriveState::Fault, "after {controlword:#06x}");
     }
     // The rising edge of bit 7 does.
     drive.write(0x0080, 0);
     assert_eq!(
-        State::from_statusword(drive.statusword()),
-        Some(State::SwitchOnDisabled)
+        DriveState::from_statusword(drive.statusword()),
+        Some(DriveState::SwitchOnDisabled)
     );
     assert_eq!(drive.error_code(), 0);
     // A fault while bit 7 is held high: holding it is no new edge.
@@ -160,10 +160,10 @@ fn overcurrent_trips_fault_and_needs_a_reset() {
     for _ in 0..5 {
         drive.write(0x0080, 0);
     }
-    assert_eq!(drive.state(), State::Fault);
+    assert_eq!(drive.state(), DriveState::Fault);
     drive.write(0x0000, 0);
     drive.write(0x0080, 0);
-    assert_eq!(drive.state(), State::SwitchOnDisabled);
+    assert_eq!(drive.state(), DriveState::SwitchOnDisabled);
 }
 
 #[test]
@@ -175,7 +175,7 @@ fn injected_fault_latches() {
     for _ in 0..100 {
         drive.write(0x000F, 0);
     }
-    assert_eq!(drive.state(), State::Fault);
+    assert_eq!(drive.state(), DriveState::Fault);
     assert_eq!(drive.error_code(), 0x7500);
 }
 
@@ -198,7 +198,7 @@ fn quick_stop_ramps_to_rest_over_the_kinematic_distance() {
     assert!((v0 - speed).abs() < 1.0, "cruise velocity {v0}");
     let x0 = drive.motor_position_counts();
     let mut cycles = 0;
-    while drive.state() != State::SwitchOnDisabled {
+    while drive.state() != DriveState::SwitchOnDisabled {
         drive.write(0x0002, (target + 1e6) as i32); // the target is ignored
         cycles += 1;
         assert!(cycles < 10_000, "quick stop never completed");
@@ -220,8 +220,8 @@ fn quick_stop_ramps_to_rest_over_the_kinematic_distance() {
 /// The standard's transitions (IEC 61800-7-201, figure of the power state machine):
 /// 1-12, 14, 15 and 13 (any state to Fault reaction active). 16 is not possible with
 /// quick stop option code 2, which the sim drive uses.
-fn standard_allows(from: State, to: State) -> bool {
-    use State::*;
+fn standard_allows(from: DriveState, to: DriveState) -> bool {
+    use DriveState::*;
     from == to
         || to == FaultReactionActive
         || matches!(
@@ -264,19 +264,19 @@ proptest! {
             overcurrent_accel_counts_s2: 5.0e8,
             ..SimConfig::default()
         });
-        let mut state = State::from_statusword(drive.statusword());
-        prop_assert_eq!(state, Some(State::NotReadyToSwitchOn));
+        let mut state = DriveState::from_statusword(drive.statusword());
+        prop_assert_eq!(state, Some(DriveState::NotReadyToSwitchOn));
         for (controlword, target, fault) in steps {
             if fault {
                 drive.inject_fault(0x1000);
             }
             drive.write(controlword, target);
-            let next = State::from_statusword(drive.statusword());
+            let next = DriveState::from_statusword(drive.statusword());
             prop_assert!(next.is_some(), "undecodable statusword {:#06x}", drive.statusword());
-            let (from, to) = (state.unwrap_or(State::Fault), next.unwrap_or(State::Fault));
+            let (from, to) = (state.unwrap_or(DriveState::Fault), next.unwrap_or(DriveState::Fault));
             prop_assert!(standard_allows(from, to), "{:?} -> {:?} on {:#06x}", from, to, controlword);
             // Fault is left only by a fault reset (bit 7 set in this word).
-            if from == State::Fault && to != State::Fault {
+            if from == DriveState::Fault && to != DriveState::Fault {
                 prop_assert!(controlword & 0x0080 != 0);
             }
             state = next;
@@ -289,7 +289,7 @@ proptest! {
 /// it; `min_substeps` keeps it at most 2.
 #[test]
 fn the_stability_index_tells_a_diverging_model() {
-    use kerf_drive::cia402::{Drive, State as S};
+    use kerf_drive::cia402::{Drive, DriveState as S};
     let run = |cfg: SimConfig| -> f64 {
         let mut d = SimDrive::new(cfg);
         for c in [0u16, 0x06, 0x07, 0x0F] {

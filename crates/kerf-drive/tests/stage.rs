@@ -11,9 +11,9 @@
 //! produced by the code under test.
 
 use kerf_drive::MAX_AXES;
-use kerf_drive::cia402::{Drive, State as DriveState, cw};
+use kerf_drive::cia402::{Drive, DriveState, cw};
 use kerf_drive::recorder::CycleRecord;
-use kerf_drive::safety::{AxisSafety, Check, ResetRefused, SafetyConfig, State};
+use kerf_drive::safety::{AxisSafety, Check, ResetRefused, SafetyConfig, SafetyState};
 use kerf_drive::sim::{ERROR_OVERCURRENT, SimConfig, SimDrive};
 use kerf_drive::stage::{AxisDrive, DriveStage, DumpReason, Phase, StageInput, StageOutput};
 use kerf_geom::AxisLimits;
@@ -232,7 +232,7 @@ fn the_drives_enable_where_their_motors_stand_and_nothing_moves_meanwhile() {
     // Holding the position keeps it, to the count.
     for _ in 0..100 {
         let out = r.step(Some([at[0], at[1], at[2]]));
-        assert_eq!(out.state, State::Running);
+        assert_eq!(out.state, SafetyState::Running);
         assert_eq!(&out.command[..3], &at[..3]);
     }
 }
@@ -354,7 +354,7 @@ fn a_low_bandwidth_drive_trips_the_following_error_check() {
     for _ in 0..400 {
         r.step(None);
     }
-    assert_eq!(r.stage.safety().state(), State::Stopped);
+    assert_eq!(r.stage.safety().state(), SafetyState::Stopped);
     assert_within_limits(&sent[k - 3..], &l, "the ramp");
     let sent = r.sent();
     assert_within_limits(&sent[k - 3..], &l, "the quick stop");
@@ -375,14 +375,14 @@ fn a_missing_stream_is_held_then_quick_stopped() {
     // Two missed cycles: held at the last setpoint.
     for _ in 0..2 {
         let out = r.step(None);
-        assert_eq!(out.state, State::Holding);
+        assert_eq!(out.state, SafetyState::Holding);
         assert_eq!(out.command[0], at(100)[0]);
         assert!(out.tripped.is_none());
     }
     // The stream resumes: running again.
     for k in 101..=150 {
         let out = r.step(Some(at(k)));
-        assert_eq!(out.state, State::Running, "cycle {k}");
+        assert_eq!(out.state, SafetyState::Running, "cycle {k}");
     }
     // Three missed cycles in a row trip on the third.
     assert!(r.step(None).tripped.is_none());
@@ -430,7 +430,7 @@ fn a_setpoint_step_injected_below_the_motion_core_never_reaches_a_drive() {
     // From the trip on, a jerk-limited stop of every axis, to rest.
     let trip = r.outputs.iter().position(|o| o.tripped.is_some()).unwrap();
     assert_within_limits(&sent[trip - 3..], &l, "the quick stop after a step");
-    assert_eq!(r.stage.safety().state(), State::Stopped);
+    assert_eq!(r.stage.safety().state(), SafetyState::Stopped);
 }
 
 #[test]
@@ -479,7 +479,7 @@ fn a_setpoint_beyond_the_soft_limit_never_reaches_a_drive() {
         (Check::SoftLimit, Some(0), 10.0)
     );
     assert!(f.value > 10.0);
-    assert_eq!(r.stage.safety().state(), State::Stopped);
+    assert_eq!(r.stage.safety().state(), SafetyState::Stopped);
     let sent = r.sent();
     let at = r.outputs.iter().position(|o| o.tripped.is_some()).unwrap();
     assert_within_limits(&sent[at - 3..], &l, "the stop before the soft limit");
@@ -514,7 +514,7 @@ fn a_drive_fault_on_one_axis_stops_all_and_reset_waits_for_its_cause() {
     for _ in 0..400 {
         r.step(Some([0.0; 3]));
     }
-    assert_eq!(r.stage.safety().state(), State::Stopped);
+    assert_eq!(r.stage.safety().state(), SafetyState::Stopped);
     // X and Z ramp to rest within their limits; Y's drive is off in Fault.
     let sent = r.sent();
     // (Y's target is its braked motor's position from the trip on.)
@@ -555,7 +555,7 @@ fn a_drive_fault_on_one_axis_stops_all_and_reset_waits_for_its_cause() {
     let from = [at_reset[0], at_reset[1], at_reset[2]];
     for _ in 0..50 {
         let out = r.step(Some(from));
-        assert_eq!(out.state, State::Running);
+        assert_eq!(out.state, SafetyState::Running);
         assert!(out.tripped.is_none());
     }
 }
@@ -635,9 +635,9 @@ fn a_trip_dumps_the_black_box_once_the_quick_stop_is_at_rest() {
     assert_eq!((f.check, f.axis), (Check::DriveFault, Some(0)));
     let rows: Vec<&CycleRecord> = dump.recorder.iter().collect();
     // It holds the motion before the trip and the whole stop, ending at rest.
-    assert!(rows.iter().any(|c| c.state == State::Running));
-    assert_eq!(rows.last().unwrap().state, State::Stopped);
-    assert!(rows.iter().any(|c| c.state == State::QuickStop) || rows.len() > 1);
+    assert!(rows.iter().any(|c| c.state == SafetyState::Running));
+    assert_eq!(rows.last().unwrap().state, SafetyState::Stopped);
+    assert!(rows.iter().any(|c| c.state == SafetyState::QuickStop) || rows.len() > 1);
 }
 
 #[test]

@@ -2,7 +2,7 @@
 
 /// An input event applied before a given cycle.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Event {
+pub enum OperatorEvent {
     /// Feed hold.
     Hold,
     /// Resume after a hold.

@@ -4,7 +4,7 @@
 use kerf_motion::{MotionCore, PushError, Setpoint, StepResult};
 use kerf_plan::PlannedSegment;
 
-use crate::{Event, RunError, dwell_periods};
+use crate::{OperatorEvent, RunError, dwell_periods};
 
 /// What a source of planned items has for the [`Interpolator`] when asked.
 // Nearly every item is a segment (see [`Planned`]).
@@ -83,15 +83,15 @@ impl Interpolator {
     }
 
     /// Applies a command before the next [`step`](Self::step).
-    pub fn apply(&mut self, event: Event) {
+    pub fn apply(&mut self, event: OperatorEvent) {
         match event {
-            Event::Hold => self.core.hold(),
-            Event::Resume => self.core.resume(),
-            Event::Abort => {
+            OperatorEvent::Hold => self.core.hold(),
+            OperatorEvent::Resume => self.core.resume(),
+            OperatorEvent::Abort => {
                 self.core.abort();
                 self.aborted = true;
             }
-            Event::Override(f) => self.core.set_feed_override(f),
+            OperatorEvent::Override(f) => self.core.set_feed_override(f),
         }
     }
 

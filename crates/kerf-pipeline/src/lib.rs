@@ -39,7 +39,7 @@ mod tracker;
 #[cfg(test)]
 mod tests;
 
-pub use command::Event;
+pub use command::OperatorEvent;
 pub use error::RunError;
 pub use input::{Input, dwell_periods, plan_input};
 pub use interpolator::{Interpolator, Planned, Poll};

@@ -7,7 +7,7 @@ use kerf_motion::{MotionCore, Setpoint, StepResult};
 use kerf_plan::{MachineLimits, PlanError};
 
 use crate::measure::Measure;
-use crate::{Event, Interpolator, Planned, Poll, RunError, Sink, Summary, cycle_time_s};
+use crate::{Interpolator, OperatorEvent, Planned, Poll, RunError, Sink, Summary, cycle_time_s};
 
 /// Options of a run.
 #[derive(Clone, Debug, PartialEq)]
@@ -18,7 +18,7 @@ pub struct RunOptions {
     pub feed_override: f64,
     /// Events, each applied just before the cycle with the given number (1-based, in
     /// order of cycle number).
-    pub events: Vec<(u64, Event)>,
+    pub events: Vec<(u64, OperatorEvent)>,
     /// Stop after this many cycles even if not at rest (a guard for tests).
     pub max_cycles: u64,
 }
@@ -56,7 +56,7 @@ pub(crate) struct Runner<'a, F: Sink> {
     period_s: f64,
     sink: F,
     cycle: u64,
-    events: &'a [(u64, Event)],
+    events: &'a [(u64, OperatorEvent)],
     next_event: usize,
     max_cycles: u64,
     /// Programmed moves recorded so far.

@@ -4,7 +4,7 @@ mod common;
 use common::*;
 use kerf_geom::Vec3;
 use kerf_motion::{Setpoint, change_distance, reach};
-use kerf_pipeline::{Event, RunOptions, run};
+use kerf_pipeline::{OperatorEvent, RunOptions, run};
 use kerf_plan::Planner;
 
 #[test]
@@ -177,7 +177,7 @@ fn hold_stops_on_the_path_and_resume_finishes() {
     let limits = mill(200.0, 2000.0, 50000.0, 0.01);
     let moves = vec![line(1, Vec3::zeros(), Vec3::new(100.0, 0.0, 0.0), 6000.0)];
     let opts = RunOptions {
-        events: vec![(300, Event::Hold), (1500, Event::Resume)],
+        events: vec![(300, OperatorEvent::Hold), (1500, OperatorEvent::Resume)],
         ..RunOptions::default()
     };
     let mut rows: Vec<Setpoint> = Vec::new();
@@ -415,7 +415,7 @@ fn raising_the_override_mid_arc_speeds_the_arc_up() {
     )];
     let plain = run(circle.clone(), &limits, &RunOptions::default(), |_, _| {}).unwrap();
     let opts = RunOptions {
-        events: vec![(200, Event::Override(2.0))],
+        events: vec![(200, OperatorEvent::Override(2.0))],
         ..RunOptions::default()
     };
     let mut peak_after: f64 = 0.0;
@@ -444,7 +444,7 @@ fn raising_the_override_mid_arc_speeds_the_arc_up() {
     // And back down: 200 % from the start, 100 % after 0.2 s, still within the limits.
     let opts = RunOptions {
         feed_override: 2.0,
-        events: vec![(200, Event::Override(1.0))],
+        events: vec![(200, OperatorEvent::Override(1.0))],
         ..RunOptions::default()
     };
     let end = circle[0].path.end();

@@ -5,7 +5,7 @@ mod common;
 use common::*;
 use kerf_geom::{CornerMode, Curve, Move, Path, Vec3};
 use kerf_motion::{MachineLimits, Setpoint};
-use kerf_pipeline::{Event, RunOptions, Summary, run};
+use kerf_pipeline::{OperatorEvent, RunOptions, Summary, run};
 
 fn random_limits(rng: &mut Rng) -> MachineLimits {
     let mut m = mill(100.0, 1000.0, 10000.0, rng.log(0.002, 0.1));
@@ -264,18 +264,18 @@ fn override_changes_and_hold_resume_hold_every_invariant() {
         let mut at = 1 + rng.pick(n as usize / 3) as u64;
         while at < n {
             let e = match rng.pick(5) {
-                0 => Event::Override(rng.range(0.0, 2.0)),
-                4 => Event::Override(0.0),
-                1 => Event::Override(rng.range(0.5, 1.5)),
-                2 => Event::Hold,
-                _ => Event::Resume,
+                0 => OperatorEvent::Override(rng.range(0.0, 2.0)),
+                4 => OperatorEvent::Override(0.0),
+                1 => OperatorEvent::Override(rng.range(0.5, 1.5)),
+                2 => OperatorEvent::Hold,
+                _ => OperatorEvent::Resume,
             };
             events.push((at, e));
             at += 1 + rng.pick(n as usize / 4 + 1) as u64;
         }
         // Always end resumed at a non-zero override so that the program finishes.
-        events.push((at, Event::Override(1.0)));
-        events.push((at + 1, Event::Resume));
+        events.push((at, OperatorEvent::Override(1.0)));
+        events.push((at + 1, OperatorEvent::Resume));
         let opts = RunOptions {
             events,
             max_cycles: 50 * n + 100_000,
@@ -303,7 +303,7 @@ fn abort_stops_on_the_path_within_the_limits() {
         .unwrap();
         let at = 1 + rng.pick(base.cycles.max(2) as usize - 1) as u64;
         let opts = RunOptions {
-            events: vec![(at, Event::Abort)],
+            events: vec![(at, OperatorEvent::Abort)],
             ..RunOptions::default()
         };
         let s = check(&format!("abort {case}"), &moves, &limits, &opts, tol);
@@ -364,17 +364,17 @@ fn soak() {
         let mut at = 1 + rng.pick(n as usize / 3) as u64;
         while at < n {
             let e = match rng.pick(6) {
-                0 => Event::Override(rng.range(0.0, 2.0)),
-                1 => Event::Override(rng.range(0.5, 1.5)),
-                2 => Event::Hold,
-                3 => Event::Override(0.0),
-                _ => Event::Resume,
+                0 => OperatorEvent::Override(rng.range(0.0, 2.0)),
+                1 => OperatorEvent::Override(rng.range(0.5, 1.5)),
+                2 => OperatorEvent::Hold,
+                3 => OperatorEvent::Override(0.0),
+                _ => OperatorEvent::Resume,
             };
             events.push((at, e));
             at += 1 + rng.pick(n as usize / 4 + 1) as u64;
         }
-        events.push((at, Event::Override(1.0)));
-        events.push((at + 1, Event::Resume));
+        events.push((at, OperatorEvent::Override(1.0)));
+        events.push((at + 1, OperatorEvent::Resume));
         let capacity = if rng.pick(3) == 0 {
             2 + rng.pick(30)
         } else {
@@ -1022,11 +1022,14 @@ fn hold_stops_within_the_stopping_time_and_resume_finishes() {
         let resume_at = hold_at + base.cycles + 1000;
         let events = if zero {
             vec![
-                (hold_at, Event::Override(0.0)),
-                (resume_at, Event::Override(1.0)),
+                (hold_at, OperatorEvent::Override(0.0)),
+                (resume_at, OperatorEvent::Override(1.0)),
             ]
         } else {
-            vec![(hold_at, Event::Hold), (resume_at, Event::Resume)]
+            vec![
+                (hold_at, OperatorEvent::Hold),
+                (resume_at, OperatorEvent::Resume),
+            ]
         };
         let opts = RunOptions {
             events,

@@ -21,7 +21,7 @@ pub const STATE_STOPPING: u32 = 5;
 
 /// The daemon's state, decoded from a `state` field with [`TryFrom<u32>`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum State {
+pub enum MachineState {
     /// [`STATE_IDLE`].
     Idle,
     /// [`STATE_RUNNING`].
@@ -41,43 +41,43 @@ pub enum State {
 #[error("unknown daemon state {0}")]
 pub struct UnknownState(pub u32);
 
-impl State {
+impl MachineState {
     /// The `STATE_*` value.
     pub fn as_u32(self) -> u32 {
         match self {
-            State::Idle => STATE_IDLE,
-            State::Running => STATE_RUNNING,
-            State::Holding => STATE_HOLDING,
-            State::Starved => STATE_STARVED,
-            State::Fault => STATE_FAULT,
-            State::Stopping => STATE_STOPPING,
+            MachineState::Idle => STATE_IDLE,
+            MachineState::Running => STATE_RUNNING,
+            MachineState::Holding => STATE_HOLDING,
+            MachineState::Starved => STATE_STARVED,
+            MachineState::Fault => STATE_FAULT,
+            MachineState::Stopping => STATE_STOPPING,
         }
     }
 
     /// Lowercase name: "idle", "running", ...
     pub fn as_str(self) -> &'static str {
         match self {
-            State::Idle => "idle",
-            State::Running => "running",
-            State::Holding => "holding",
-            State::Starved => "starved",
-            State::Fault => "fault",
-            State::Stopping => "stopping",
+            MachineState::Idle => "idle",
+            MachineState::Running => "running",
+            MachineState::Holding => "holding",
+            MachineState::Starved => "starved",
+            MachineState::Fault => "fault",
+            MachineState::Stopping => "stopping",
         }
     }
 }
 
-impl TryFrom<u32> for State {
+impl TryFrom<u32> for MachineState {
     type Error = UnknownState;
 
-    fn try_from(v: u32) -> Result<State, UnknownState> {
+    fn try_from(v: u32) -> Result<MachineState, UnknownState> {
         Ok(match v {
-            STATE_IDLE => State::Idle,
-            STATE_RUNNING => State::Running,
-            STATE_HOLDING => State::Holding,
-            STATE_STARVED => State::Starved,
-            STATE_FAULT => State::Fault,
-            STATE_STOPPING => State::Stopping,
+            STATE_IDLE => MachineState::Idle,
+            STATE_RUNNING => MachineState::Running,
+            STATE_HOLDING => MachineState::Holding,
+            STATE_STARVED => MachineState::Starved,
+            STATE_FAULT => MachineState::Fault,
+            STATE_STOPPING => MachineState::Stopping,
             other => return Err(UnknownState(other)),
         })
     }
@@ -140,8 +140,8 @@ impl SetpointMsg {
     }
 
     /// The decoded state.
-    pub fn state(&self) -> Result<State, UnknownState> {
-        State::try_from(self.state)
+    pub fn state(&self) -> Result<MachineState, UnknownState> {
+        MachineState::try_from(self.state)
     }
 }
 
@@ -219,7 +219,7 @@ pub struct Request {
 
 /// A validated request.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Command {
+pub enum ControlCommand {
     /// [`REQUEST_STATUS`].
     Status,
     /// [`REQUEST_HOLD`].
@@ -287,17 +287,17 @@ impl Request {
     }
 
     /// The request for `command`.
-    pub fn from_command(command: Command, id: u64) -> Request {
+    pub fn from_command(command: ControlCommand, id: u64) -> Request {
         let (kind, value) = match command {
-            Command::Status => (REQUEST_STATUS, 0.0),
-            Command::Hold => (REQUEST_HOLD, 0.0),
-            Command::Resume => (REQUEST_RESUME, 0.0),
-            Command::Abort => (REQUEST_ABORT, 0.0),
-            Command::Override { percent } => (REQUEST_OVERRIDE, percent),
-            Command::Reset => (REQUEST_RESET, 0.0),
-            Command::Dump => (REQUEST_DUMP, 0.0),
-            Command::Inject { code } => (REQUEST_INJECT, f64::from(code)),
-            Command::Program { program_id } => {
+            ControlCommand::Status => (REQUEST_STATUS, 0.0),
+            ControlCommand::Hold => (REQUEST_HOLD, 0.0),
+            ControlCommand::Resume => (REQUEST_RESUME, 0.0),
+            ControlCommand::Abort => (REQUEST_ABORT, 0.0),
+            ControlCommand::Override { percent } => (REQUEST_OVERRIDE, percent),
+            ControlCommand::Reset => (REQUEST_RESET, 0.0),
+            ControlCommand::Dump => (REQUEST_DUMP, 0.0),
+            ControlCommand::Inject { code } => (REQUEST_INJECT, f64::from(code)),
+            ControlCommand::Program { program_id } => {
                 let mut r = Request::new(REQUEST_PROGRAM, id, 0.0);
                 r.program_id = program_id;
                 return r;
@@ -307,7 +307,7 @@ impl Request {
     }
 
     /// Validates the request.
-    pub fn command(&self) -> Result<Command, RequestReject> {
+    pub fn command(&self) -> Result<ControlCommand, RequestReject> {
         if self.version != PROTOCOL_VERSION {
             return Err(RequestReject::WrongVersion(self.version));
         }
@@ -315,7 +315,7 @@ impl Request {
             if self.program_id == 0 || self.value.to_bits() != 0 {
                 return Err(RequestReject::BadValue);
             }
-            return Ok(Command::Program {
+            return Ok(ControlCommand::Program {
                 program_id: self.program_id,
             });
         }
@@ -323,25 +323,25 @@ impl Request {
             return Err(RequestReject::BadValue);
         }
         let command = match self.kind {
-            REQUEST_STATUS => Command::Status,
-            REQUEST_HOLD => Command::Hold,
-            REQUEST_RESUME => Command::Resume,
-            REQUEST_ABORT => Command::Abort,
-            REQUEST_RESET => Command::Reset,
-            REQUEST_DUMP => Command::Dump,
+            REQUEST_STATUS => ControlCommand::Status,
+            REQUEST_HOLD => ControlCommand::Hold,
+            REQUEST_RESUME => ControlCommand::Resume,
+            REQUEST_ABORT => ControlCommand::Abort,
+            REQUEST_RESET => ControlCommand::Reset,
+            REQUEST_DUMP => ControlCommand::Dump,
             REQUEST_INJECT => {
                 let v = self.value;
                 if !(v >= 0.0 && v <= f64::from(u32::MAX) && v.fract() == 0.0) {
                     return Err(RequestReject::BadValue);
                 }
                 // A whole number within the range: the cast is exact.
-                return Ok(Command::Inject { code: v as u32 });
+                return Ok(ControlCommand::Inject { code: v as u32 });
             }
             REQUEST_OVERRIDE => {
                 if !(0.0..=MAX_OVERRIDE_PCT).contains(&self.value) {
                     return Err(RequestReject::BadValue);
                 }
-                return Ok(Command::Override {
+                return Ok(ControlCommand::Override {
                     percent: self.value,
                 });
             }
@@ -517,8 +517,8 @@ impl StatusMsg {
     }
 
     /// The decoded state.
-    pub fn state(&self) -> Result<State, UnknownState> {
-        State::try_from(self.state)
+    pub fn state(&self) -> Result<MachineState, UnknownState> {
+        MachineState::try_from(self.state)
     }
 
     /// Sets `fault_text`, truncated at a character boundary to 128 bytes.
@@ -605,39 +605,45 @@ mod tests {
     #[test]
     fn states_round_trip_and_unknown_is_refused() {
         let all = [
-            State::Idle,
-            State::Running,
-            State::Holding,
-            State::Starved,
-            State::Fault,
-            State::Stopping,
+            MachineState::Idle,
+            MachineState::Running,
+            MachineState::Holding,
+            MachineState::Starved,
+            MachineState::Fault,
+            MachineState::Stopping,
         ];
         for s in all {
-            assert_eq!(State::try_from(s.as_u32()), Ok(s));
+            assert_eq!(MachineState::try_from(s.as_u32()), Ok(s));
         }
-        assert_eq!(State::try_from(6), Err(UnknownState(6)));
-        assert_eq!(State::try_from(u32::MAX), Err(UnknownState(u32::MAX)));
+        assert_eq!(MachineState::try_from(6), Err(UnknownState(6)));
+        assert_eq!(
+            MachineState::try_from(u32::MAX),
+            Err(UnknownState(u32::MAX))
+        );
     }
 
     #[test]
     fn requests_validate() {
         for (c, kind) in [
-            (Command::Status, REQUEST_STATUS),
-            (Command::Hold, REQUEST_HOLD),
-            (Command::Resume, REQUEST_RESUME),
-            (Command::Abort, REQUEST_ABORT),
-            (Command::Override { percent: 150.0 }, REQUEST_OVERRIDE),
-            (Command::Reset, REQUEST_RESET),
-            (Command::Dump, REQUEST_DUMP),
-            (Command::Inject { code: 17 }, REQUEST_INJECT),
+            (ControlCommand::Status, REQUEST_STATUS),
+            (ControlCommand::Hold, REQUEST_HOLD),
+            (ControlCommand::Resume, REQUEST_RESUME),
+            (ControlCommand::Abort, REQUEST_ABORT),
+            (
+                ControlCommand::Override { percent: 150.0 },
+                REQUEST_OVERRIDE,
+            ),
+            (ControlCommand::Reset, REQUEST_RESET),
+            (ControlCommand::Dump, REQUEST_DUMP),
+            (ControlCommand::Inject { code: 17 }, REQUEST_INJECT),
         ] {
             let r = Request::from_command(c, 7);
             assert_eq!(r.kind, kind);
             assert_eq!(r.command(), Ok(c));
         }
         let ovr = |v| Request::new(REQUEST_OVERRIDE, 1, v).command();
-        assert_eq!(ovr(0.0), Ok(Command::Override { percent: 0.0 }));
-        assert_eq!(ovr(200.0), Ok(Command::Override { percent: 200.0 }));
+        assert_eq!(ovr(0.0), Ok(ControlCommand::Override { percent: 0.0 }));
+        assert_eq!(ovr(200.0), Ok(ControlCommand::Override { percent: 200.0 }));
         assert_eq!(ovr(200.5), Err(RequestReject::BadValue));
         assert_eq!(ovr(-1.0), Err(RequestReject::BadValue));
         assert_eq!(ovr(f64::NAN), Err(RequestReject::BadValue));
@@ -650,7 +656,7 @@ mod tests {
             Err(RequestReject::UnknownKind(0))
         );
         let inject = |v| Request::new(REQUEST_INJECT, 1, v).command();
-        assert_eq!(inject(0.0), Ok(Command::Inject { code: 0 }));
+        assert_eq!(inject(0.0), Ok(ControlCommand::Inject { code: 0 }));
         assert_eq!(inject(1.5), Err(RequestReject::BadValue));
         assert_eq!(inject(-1.0), Err(RequestReject::BadValue));
         assert_eq!(inject(f64::NAN), Err(RequestReject::BadValue));

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use iceoryx2::prelude::*;
 use kerf_gcode::{Dialect, Interpreter, Item, Settings};
 use kerf_proto::{
-    Command, MoveMsg, REASON_OK, Request, Resolved, Response, STATE_RUNNING, SetpointMsg,
+    ControlCommand, MoveMsg, REASON_OK, Request, Resolved, Response, STATE_RUNNING, SetpointMsg,
     StatusMsg, StreamCheck,
 };
 
@@ -111,12 +111,15 @@ fn control_goes_through_request_response() {
     let server = service.server_builder().create().expect("server");
     let client = service.client_builder().create().expect("client");
 
-    let request = Request::from_command(Command::Override { percent: 120.0 }, 77);
+    let request = Request::from_command(ControlCommand::Override { percent: 120.0 }, 77);
     let pending = client.send_copy(request).expect("send request");
 
     let active = server.receive().expect("receive").expect("a request");
     assert_eq!(*active, request);
-    assert_eq!(active.command(), Ok(Command::Override { percent: 120.0 }));
+    assert_eq!(
+        active.command(),
+        Ok(ControlCommand::Override { percent: 120.0 })
+    );
     let mut status = StatusMsg::zeroed();
     status.override_pct = 120.0;
     status.set_fault_text("none");

@@ -5,7 +5,9 @@ use std::fmt::Write as _;
 use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
-use kerf_proto::{Command, MoveMsg, REASON_OK, Request, Response, SetpointMsg, State, StatusMsg};
+use kerf_proto::{
+    ControlCommand, MachineState, MoveMsg, REASON_OK, Request, Response, SetpointMsg, StatusMsg,
+};
 
 use kerfd::fault_text::check_name;
 use kerfd::ipc;
@@ -108,14 +110,14 @@ impl Client {
 
     /// Sends `command` and waits for the answer (at most [`REQUEST_TIMEOUT`]). A refusal
     /// is returned as the response; only a missing answer is an error.
-    pub fn request(&mut self, command: Command) -> Result<Response, ClientError> {
+    pub fn request(&mut self, command: ControlCommand) -> Result<Response, ClientError> {
         self.request_within(command, REQUEST_TIMEOUT)
     }
 
     /// [`request`](Self::request) waiting at most `timeout`.
     pub fn request_within(
         &mut self,
-        command: Command,
+        command: ControlCommand,
         timeout: Duration,
     ) -> Result<Response, ClientError> {
         let id = self.next_id;
@@ -149,11 +151,11 @@ impl Client {
 
     /// The daemon's status.
     pub fn status(&mut self) -> Result<StatusMsg, ClientError> {
-        Ok(self.request(Command::Status)?.status)
+        Ok(self.request(ControlCommand::Status)?.status)
     }
 
     /// Sends a command; a refusal is an error with the daemon's words.
-    pub fn command(&mut self, command: Command) -> Result<StatusMsg, ClientError> {
+    pub fn command(&mut self, command: ControlCommand) -> Result<StatusMsg, ClientError> {
         let r = self.request(command)?;
         if r.reason == REASON_OK {
             Ok(r.status)
@@ -166,12 +168,12 @@ impl Client {
 /// The name of a status state in `kerf status`.
 pub fn state_name(s: &StatusMsg) -> &'static str {
     match s.state() {
-        Ok(State::Idle) => "idle",
-        Ok(State::Running) => "running",
-        Ok(State::Holding) => "holding",
-        Ok(State::Starved) => "starved",
-        Ok(State::Fault) => "fault",
-        Ok(State::Stopping) => "stopping",
+        Ok(MachineState::Idle) => "idle",
+        Ok(MachineState::Running) => "running",
+        Ok(MachineState::Holding) => "holding",
+        Ok(MachineState::Starved) => "starved",
+        Ok(MachineState::Fault) => "fault",
+        Ok(MachineState::Stopping) => "stopping",
         Err(_) => "unknown",
     }
 }

@@ -26,6 +26,6 @@ pub mod sim;
 pub mod sim_plot;
 
 pub use plan::{
-    DialectSource, PlanError, assumed_dialect_note, choose_dialect, choose_dialect_from, plan,
-    plan_counted,
+    DialectSource, PlanOutputError, assumed_dialect_note, choose_dialect, choose_dialect_from,
+    plan, plan_counted,
 };

@@ -53,7 +53,7 @@ const CHUNK_BYTES: usize = 64 * 1024;
 /// Why `kerf plan` stopped before the end of the program.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
-pub enum PlanError {
+pub enum PlanOutputError {
     /// The program is wrong at a place (or could not be read); nothing after it was written.
     #[error("{0}")]
     Program(Diagnostic),
@@ -85,7 +85,7 @@ pub fn plan<R: BufRead + Send, W: Write>(
     writer: W,
     dialect: Dialect,
     settings: Settings,
-) -> Result<u64, PlanError> {
+) -> Result<u64, PlanOutputError> {
     plan_counted(reader, writer, dialect, settings).map(|written| written.items)
 }
 
@@ -104,7 +104,7 @@ pub fn plan_counted<R: BufRead + Send, W: Write>(
     writer: W,
     dialect: Dialect,
     settings: Settings,
-) -> Result<Written, PlanError> {
+) -> Result<Written, PlanOutputError> {
     let (to_writer, from_interpreter) = mpsc::sync_channel::<Batch>(QUEUE_BATCHES);
     std::thread::scope(|scope| {
         let interpreter = scope.spawn(move || {
@@ -133,7 +133,7 @@ pub fn plan_counted<R: BufRead + Send, W: Write>(
         // output is never reported as a success.
         match interpreter.join() {
             Ok(()) => written,
-            Err(_) => Err(PlanError::Interrupted),
+            Err(_) => Err(PlanOutputError::Interrupted),
         }
     })
 }
@@ -144,7 +144,7 @@ pub fn plan_sequential<R: BufRead, W: Write>(
     writer: W,
     dialect: Dialect,
     settings: Settings,
-) -> Result<u64, PlanError> {
+) -> Result<u64, PlanOutputError> {
     write_items(Interpreter::new(reader, dialect, settings), writer).map(|written| written.items)
 }
 
@@ -158,7 +158,7 @@ const BATCH_ITEMS: usize = 1024;
 const QUEUE_BATCHES: usize = 4;
 
 /// Writes items until the first error, then flushes; returns the number of items written.
-fn write_items<I, W>(items: I, mut writer: W) -> Result<Written, PlanError>
+fn write_items<I, W>(items: I, mut writer: W) -> Result<Written, PlanOutputError>
 where
     I: IntoIterator<Item = Result<Item, Diagnostic>>,
     W: Write,
@@ -166,12 +166,12 @@ where
     let mut buf: Vec<u8> = Vec::with_capacity(CHUNK_BYTES + 1024);
     let mut json = JsonLines::new();
     let mut count = Written::default();
-    let mut failure: Option<PlanError> = None;
+    let mut failure: Option<PlanOutputError> = None;
     for item in items {
         let is_move = matches!(item, Ok(Item::Move(_)));
         let written = match item {
             Ok(item) => json.write(&mut buf, &item),
-            Err(diagnostic) => Err(PlanError::Program(diagnostic)),
+            Err(diagnostic) => Err(PlanOutputError::Program(diagnostic)),
         };
         if let Err(e) = written {
             failure = Some(e);
@@ -197,7 +197,7 @@ where
 ///
 /// On error `out` is left as it was. A stream of items is written faster by one
 /// [`JsonLines`], which reuses the text of each move's end point as the next one's start.
-pub fn write_item(out: &mut Vec<u8>, item: &Item) -> Result<(), PlanError> {
+pub fn write_item(out: &mut Vec<u8>, item: &Item) -> Result<(), PlanOutputError> {
     JsonLines::new().write(out, item)
 }
 
@@ -222,7 +222,7 @@ impl JsonLines {
     /// Appends the JSON line (with its trailing newline) for `item` to `out`.
     ///
     /// On error `out` is left as it was.
-    pub fn write(&mut self, out: &mut Vec<u8>, item: &Item) -> Result<(), PlanError> {
+    pub fn write(&mut self, out: &mut Vec<u8>, item: &Item) -> Result<(), PlanOutputError> {
         let mark = out.len();
         let mut w = JsonWriter {
             out,
@@ -245,7 +245,7 @@ impl JsonLines {
         } else {
             out.truncate(mark);
             self.end_bits = None;
-            Err(PlanError::NonFinite { line })
+            Err(PlanOutputError::NonFinite { line })
         }
     }
 }
@@ -745,7 +745,7 @@ mod tests {
         let mut m = line_move(false, Some(f64::NAN));
         m.line = 9;
         match write_item(&mut buf, &Item::Move(m)) {
-            Err(PlanError::NonFinite { line: 9 }) => {}
+            Err(PlanOutputError::NonFinite { line: 9 }) => {}
             other => panic!("unexpected {other:?}"),
         }
         assert_eq!(buf, b"kept");
@@ -795,7 +795,7 @@ mod tests {
             assert_eq!(lines, 5000 + 1667 + m2);
             match (a, b, error_at_end) {
                 (Ok(n), Ok(m), false) => assert_eq!((n, m), (lines, lines)),
-                (Err(PlanError::Program(d)), Err(PlanError::Program(e)), true) => {
+                (Err(PlanOutputError::Program(d)), Err(PlanOutputError::Program(e)), true) => {
                     assert_eq!(d, e);
                     assert_eq!(d.line, 1 + 5000 + 1667 + 1);
                 }
@@ -834,7 +834,7 @@ mod tests {
             Settings::default(),
         );
         match result {
-            Err(PlanError::Output(e)) => assert_eq!(e.kind(), io::ErrorKind::BrokenPipe),
+            Err(PlanOutputError::Output(e)) => assert_eq!(e.kind(), io::ErrorKind::BrokenPipe),
             other => panic!("unexpected {other:?}"),
         }
     }
@@ -866,7 +866,10 @@ mod tests {
         });
         let mut out = Vec::new();
         let result = plan(reader, &mut out, Dialect::LinuxCnc, Settings::default());
-        assert!(matches!(result, Err(PlanError::Interrupted)), "{result:?}");
+        assert!(
+            matches!(result, Err(PlanOutputError::Interrupted)),
+            "{result:?}"
+        );
     }
 
     #[test]

@@ -35,7 +35,7 @@ use kerf_config::machine_limits;
 use kerf_geom::{Move, Path, Vec3, line_distance};
 use kerf_motion::monitor::{LimitMonitor, LimitViolation};
 use kerf_motion::{MachineLimits, PlannedSegment, Setpoint};
-use kerf_pipeline::{self as driver, Event, Input, Planned, RunError, RunOptions, Summary};
+use kerf_pipeline::{self as driver, Input, OperatorEvent, Planned, RunError, RunOptions, Summary};
 use kerf_plan::{PlanError, Planner};
 
 use crate::sim_plot::{PlotOutput, PlotRecorder, RapidIndex};
@@ -50,7 +50,7 @@ pub struct SimOptions {
     /// Motion queue capacity in segments (the daemon's default is 4,096).
     pub queue_capacity: usize,
     /// Events applied before the given cycle number (hold, resume, abort, override).
-    pub events: Vec<(u64, Event)>,
+    pub events: Vec<(u64, OperatorEvent)>,
 }
 
 impl Default for SimOptions {

@@ -1309,7 +1309,7 @@ fn inject_fault(env: &Env, injection: kerfd::worker::Injection) -> kerf_proto::R
     let mut client = kerf::client::Client::connect(&env.machine).expect("the daemon answers");
     let code = injection.code().expect("a code for the injection");
     client
-        .request(kerf_proto::Command::Inject { code })
+        .request(kerf_proto::ControlCommand::Inject { code })
         .expect("an answer")
 }
 

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use kerf::client::{Client, MoveSender, SetpointReader};
 use kerf_config::Config;
 use kerf_proto::{
-    CORNER_EXACT_STOP, Command, KIND_ARC, KIND_LINE, MoveMsg, PROGRAM_END_ABORTED,
+    CORNER_EXACT_STOP, ControlCommand, KIND_ARC, KIND_LINE, MoveMsg, PROGRAM_END_ABORTED,
     PROGRAM_END_FINISHED, PROGRAM_END_NONE, PROGRAM_END_REFUSED, PROGRAM_FATE_ABORTED,
     PROGRAM_FATE_FINISHED, PROGRAM_FATE_REFUSED, PROGRAM_FATE_UNKNOWN, PROTOCOL_VERSION, Response,
     SetpointMsg, StatusMsg,
@@ -71,12 +71,12 @@ impl Machine {
         self.client.status().unwrap()
     }
 
-    fn request(&mut self, c: Command) -> Response {
+    fn request(&mut self, c: ControlCommand) -> Response {
         self.client.request(c).unwrap()
     }
 
     fn fate(&mut self, program_id: u64) -> Response {
-        self.request(Command::Program { program_id })
+        self.request(ControlCommand::Program { program_id })
     }
 
     fn send(&mut self, msg: MoveMsg) {
@@ -320,11 +320,11 @@ fn an_inconsistent_arc_is_refused_in_millimetres_and_nothing_moves() {
 #[test]
 fn override_zero_is_reported_in_the_answer_and_the_status() {
     let mut m = Machine::start("override_zero");
-    let r = m.request(Command::Override { percent: 0.0 });
+    let r = m.request(ControlCommand::Override { percent: 0.0 });
     assert_eq!(r.reason, kerf_proto::REASON_OK);
     assert_eq!(r.status.override_pct, 0.0, "the answer is the state after");
     assert_eq!(m.status().override_pct, 0.0);
-    let r = m.request(Command::Override { percent: 37.5 });
+    let r = m.request(ControlCommand::Override { percent: 37.5 });
     assert_eq!(r.status.override_pct, 37.5);
 }
 
@@ -363,7 +363,7 @@ fn an_abort_ends_a_program_that_is_still_being_sent_for_everyone() {
         assert!(Instant::now() < deadline, "the motion never started: {s:?}");
         std::thread::sleep(Duration::from_millis(5));
     }
-    let r = m.request(Command::Abort);
+    let r = m.request(ControlCommand::Abort);
     assert_eq!(r.reason, kerf_proto::REASON_OK);
     // The client goes on sending (as a client that has not looked yet would).
     let received = m.status().moves_received;

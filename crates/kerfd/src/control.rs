@@ -8,7 +8,7 @@ use crate::status::{axes_mask, idle_snapshot, status_msg};
 /// The control thread's ends of the rings: commands to the cycle, its status snapshots,
 /// and the black-box rings it fills.
 pub(crate) struct ControlPorts {
-    pub(crate) commands: rtrb::Producer<Command>,
+    pub(crate) commands: rtrb::Producer<CycleCommand>,
     pub(crate) status: rtrb::Consumer<Snapshot>,
     pub(crate) dumps: worker::DumpWriterRings,
 }
@@ -86,7 +86,7 @@ pub(crate) fn control_thread(
     loop {
         cycle_runs |= view.pull();
         writer.take(&mut dumps, None);
-        if view.latest.state != State::Holding && view.latest.program_done {
+        if view.latest.state != MachineState::Holding && view.latest.program_done {
             // The program is over: a hold asked for during it is void.
             requests.hold_requested = false;
         }
@@ -132,7 +132,7 @@ pub(crate) fn control_thread(
             rt_flag = 1;
         }
         if shutdown.load(Ordering::Acquire) && !shutdown_sent {
-            shutdown_sent = commands.push(Command::Shutdown).is_ok();
+            shutdown_sent = commands.push(CycleCommand::Shutdown).is_ok();
             // The program being received ends too: the planning thread drops its rest and
             // ends it, so that the cycle can come to rest and stop.
             counters
@@ -168,7 +168,7 @@ impl Requests {
     fn carry_out(
         &mut self,
         request: &kerf_proto::Request,
-        commands: &mut rtrb::Producer<Command>,
+        commands: &mut rtrb::Producer<CycleCommand>,
         view: &mut CycleView,
         writer: &mut DumpWriter,
         dumps: &mut worker::DumpWriterRings,
@@ -176,7 +176,7 @@ impl Requests {
     ) -> (u32, String, u32) {
         let mut fate = kerf_proto::PROGRAM_FATE_UNKNOWN;
         let pushed = &mut self.pushed;
-        let mut push = |commands: &mut rtrb::Producer<Command>, c: Command| {
+        let mut push = |commands: &mut rtrb::Producer<CycleCommand>, c: CycleCommand| {
             let answer = push_command(commands, c);
             if answer.0 == REASON_OK {
                 *pushed += 1;
@@ -185,16 +185,16 @@ impl Requests {
         };
         let (reason, message) = match request.command() {
             Err(e) => (e.reason(), e.to_string()),
-            Ok(Request::Status) => (REASON_OK, String::new()),
-            Ok(Request::Program { program_id }) => {
+            Ok(ControlCommand::Status) => (REASON_OK, String::new()),
+            Ok(ControlCommand::Program { program_id }) => {
                 let f = lock_fates(counters).get(program_id);
                 fate = f.code;
                 (REASON_OK, f.reason)
             }
-            Ok(Request::Hold) => {
+            Ok(ControlCommand::Hold) => {
                 let latest = &view.latest;
                 // No program yet (id 0) or the last one is over: nothing to hold.
-                if latest.state == State::Idle
+                if latest.state == MachineState::Idle
                     && (latest.program_done || latest.program_id == 0)
                 {
                     (
@@ -203,13 +203,13 @@ impl Requests {
                     )
                 } else {
                     self.hold_requested = true;
-                    push(commands, Command::Hold)
+                    push(commands, CycleCommand::Hold)
                 }
             }
-            Ok(Request::Resume) => {
-                if self.hold_requested || view.latest.state == State::Holding {
+            Ok(ControlCommand::Resume) => {
+                if self.hold_requested || view.latest.state == MachineState::Holding {
                     self.hold_requested = false;
-                    push(commands, Command::Resume)
+                    push(commands, CycleCommand::Resume)
                 } else {
                     (
                         REASON_NOT_ALLOWED,
@@ -217,7 +217,7 @@ impl Requests {
                     )
                 }
             }
-            Ok(Request::Abort) => {
+            Ok(ControlCommand::Abort) => {
                 self.hold_requested = false;
                 // Every program not yet over ends: the one moving, and the one being
                 // received (which the planning thread stops taking at once). The plain
@@ -227,31 +227,31 @@ impl Requests {
                 let open = counters.open.load(Ordering::Acquire);
                 let unfinished = lock_fates(counters).unfinished();
                 counters.abort.store(open, Ordering::Release);
-                let mut answer = push(commands, Command::Abort);
+                let mut answer = push(commands, CycleCommand::Abort);
                 for id in unfinished {
                     if answer.0 == REASON_OK {
-                        answer = push(commands, Command::AbortProgram(id));
+                        answer = push(commands, CycleCommand::AbortProgram(id));
                     }
                 }
                 answer
             }
-            Ok(Request::Override { percent }) => {
-                push(commands, Command::Override(percent))
+            Ok(ControlCommand::Override { percent }) => {
+                push(commands, CycleCommand::Override(percent))
             }
-            Ok(Request::Reset) => {
+            Ok(ControlCommand::Reset) => {
                 let tag = self.next_tag;
                 self.next_tag += 1;
-                match push(commands, Command::Reset(tag)) {
+                match push(commands, CycleCommand::Reset(tag)) {
                     (REASON_OK, _) => {
                         wait_reset(view, writer, dumps, tag, self.reset_patience)
                     }
                     refused => refused,
                 }
             }
-            Ok(Request::Dump) => {
+            Ok(ControlCommand::Dump) => {
                 let tag = self.next_tag;
                 self.next_tag += 1;
-                match push(commands, Command::Dump(tag)) {
+                match push(commands, CycleCommand::Dump(tag)) {
                     (REASON_OK, _) => {
                         let waited = wait_dump(view, writer, dumps, tag, self.dump_patience);
                         match waited {
@@ -262,12 +262,12 @@ impl Requests {
                     refused => refused,
                 }
             }
-            Ok(Request::Inject { code }) => match worker::Injection::from_code(code) {
+            Ok(ControlCommand::Inject { code }) => match worker::Injection::from_code(code) {
                 _ if !self.test_faults => (
                     REASON_NOT_ALLOWED,
                     "fault injection is for tests only: this kerfd was not started with --test-faults".to_string(),
                 ),
-                Some(i) => push(commands, Command::Inject(i)),
+                Some(i) => push(commands, CycleCommand::Inject(i)),
                 None => (
                     kerf_proto::REASON_BAD_VALUE,
                     format!("unknown injection code {code}"),
@@ -421,7 +421,10 @@ pub(crate) fn wait_dump(
     })
 }
 
-pub(crate) fn push_command(commands: &mut rtrb::Producer<Command>, c: Command) -> (u32, String) {
+pub(crate) fn push_command(
+    commands: &mut rtrb::Producer<CycleCommand>,
+    c: CycleCommand,
+) -> (u32, String) {
     match commands.push(c) {
         Ok(()) => (REASON_OK, String::new()),
         Err(_) => (

@@ -7,7 +7,7 @@ use crate::status::axes_mask;
 /// status snapshots and the dump rings.
 pub(crate) type CycleParts = (
     rtrb::Consumer<RtItem>,
-    rtrb::Consumer<Command>,
+    rtrb::Consumer<CycleCommand>,
     rtrb::Producer<Snapshot>,
     worker::DumpRings,
 );

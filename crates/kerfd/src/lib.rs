@@ -43,8 +43,8 @@ use std::time::{Duration, Instant};
 
 use iceoryx2::prelude::*;
 use kerf_proto::{
-    Command as Request, MoveMsg, REASON_NOT_ALLOWED, REASON_OK, Resolved, Response, SetpointMsg,
-    State, StatusMsg, StreamCheck, StreamError,
+    ControlCommand, MachineState, MoveMsg, REASON_NOT_ALLOWED, REASON_OK, Resolved, Response,
+    SetpointMsg, StatusMsg, StreamCheck, StreamError,
 };
 
 use kerf_config::Config;
@@ -53,7 +53,9 @@ use control::control_thread;
 pub use control::{dump_patience, reset_patience};
 use cycle_thread::cycle_thread;
 pub use planning::planning_thread;
-use worker::{Command, Cycle, Incoming, Planning, PlanningCounters, Refusal, RtItem, Snapshot};
+use worker::{
+    Cycle, CycleCommand, Incoming, Planning, PlanningCounters, Refusal, RtItem, Snapshot,
+};
 
 /// Planned items the ring from the planning thread to the cycle holds: a few seconds of
 /// dense code ahead of the motion queue.
@@ -237,7 +239,7 @@ pub fn start_with(
     let shared = Shared::default();
 
     let (items_tx, items_rx) = rtrb::RingBuffer::<RtItem>::new(PLANNED_RING);
-    let (commands_tx, commands_rx) = rtrb::RingBuffer::<Command>::new(COMMAND_RING);
+    let (commands_tx, commands_rx) = rtrb::RingBuffer::<CycleCommand>::new(COMMAND_RING);
     let (status_tx, status_rx) = rtrb::RingBuffer::<Snapshot>::new(STATUS_RING);
     let (dump_rings, dump_writer) = worker::dump_rings();
     let cycle_parts = (items_rx, commands_rx, status_tx, dump_rings);

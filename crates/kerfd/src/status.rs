@@ -6,7 +6,7 @@ use super::*;
 pub(crate) fn idle_snapshot() -> Snapshot {
     Snapshot {
         cycles: 0,
-        state: State::Idle,
+        state: MachineState::Idle,
         line: 0,
         position: [0.0; 6],
         feed_mm_s: 0.0,
@@ -21,7 +21,7 @@ pub(crate) fn idle_snapshot() -> Snapshot {
         shut_down: false,
         drives: worker::DriveReport {
             phase: kerf_drive::stage::Phase::Enabling,
-            state: kerf_drive::safety::State::Running,
+            state: kerf_drive::safety::SafetyState::Running,
             fault: None,
             error_code: 0,
         },
@@ -53,13 +53,13 @@ pub(crate) fn status_msg(
     msg.state = match (s.state, s.refusal) {
         // A planner process that went away is no fault of the machine: it comes to rest
         // and reports idle (the reason stays in `fault` and `program_end`).
-        (State::Idle, Some(Refusal::SenderGone)) => State::Idle,
+        (MachineState::Idle, Some(Refusal::SenderGone)) => MachineState::Idle,
         // A program the safety layer stopped (or refused while a fault was latched):
         // the fault is the drive side's, shown while it is latched (below); once reset,
         // the machine is idle.
-        (State::Idle, Some(Refusal::Safety(_) | Refusal::Faulted(_))) => State::Idle,
+        (MachineState::Idle, Some(Refusal::Safety(_) | Refusal::Faulted(_))) => MachineState::Idle,
         // The refused program's fault is shown until the next program begins.
-        (State::Idle, Some(_)) => State::Fault,
+        (MachineState::Idle, Some(_)) => MachineState::Fault,
         (state, _) => state,
     }
     .as_u32();
@@ -96,13 +96,13 @@ pub(crate) fn status_msg(
     msg.drives = match (d.phase, d.state) {
         (kerf_drive::stage::Phase::Enabling, _) => kerf_proto::DRIVES_ENABLING,
         (kerf_drive::stage::Phase::Resetting, _) => kerf_proto::DRIVES_RESETTING,
-        (_, kerf_drive::safety::State::Running) => kerf_proto::DRIVES_RUNNING,
-        (_, kerf_drive::safety::State::Holding) => kerf_proto::DRIVES_HOLDING,
-        (_, kerf_drive::safety::State::QuickStop) => kerf_proto::DRIVES_QUICK_STOP,
-        (_, kerf_drive::safety::State::Stopped) => kerf_proto::DRIVES_STOPPED,
+        (_, kerf_drive::safety::SafetyState::Running) => kerf_proto::DRIVES_RUNNING,
+        (_, kerf_drive::safety::SafetyState::Holding) => kerf_proto::DRIVES_HOLDING,
+        (_, kerf_drive::safety::SafetyState::QuickStop) => kerf_proto::DRIVES_QUICK_STOP,
+        (_, kerf_drive::safety::SafetyState::Stopped) => kerf_proto::DRIVES_STOPPED,
     };
     if let Some(f) = d.fault {
-        msg.state = State::Fault.as_u32();
+        msg.state = MachineState::Fault.as_u32();
         msg.safety_check = f.check.code();
         msg.safety_axis = f.axis.map_or(kerf_proto::SAFETY_AXIS_NONE, |a| a as u32);
         msg.safety_value = f.value;

@@ -25,9 +25,9 @@ mod common;
 use kerf_config::Config;
 use kerf_drive::safety::{Check, ResetRefused};
 use kerf_drive::stage::DumpReason;
-use kerf_proto::{SetpointMsg, State};
+use kerf_proto::{MachineState, SetpointMsg};
 use kerfd::worker::{
-    Command, Cycle, DumpWriterRings, Injection, Planning, PlanningCounters, Refusal, Snapshot,
+    Cycle, CycleCommand, DumpWriterRings, Injection, Planning, PlanningCounters, Refusal, Snapshot,
 };
 
 /// Counts allocations (and reallocations) on threads whose flag is set.
@@ -190,7 +190,7 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
     let mut config = Config::builtin();
     config.machine = format!("alloc_{}", std::process::id());
     let (items_tx, items_rx) = rtrb::RingBuffer::new(kerfd::PLANNED_RING);
-    let (mut commands_tx, commands_rx) = rtrb::RingBuffer::<Command>::new(64);
+    let (mut commands_tx, commands_rx) = rtrb::RingBuffer::<CycleCommand>::new(64);
     let (status_tx, mut status_rx) = rtrb::RingBuffer::<Snapshot>::new(256);
     let stop = Arc::new(AtomicBool::new(false));
 
@@ -277,7 +277,7 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
             }
             while let Ok(s) = status_rx.pop() {
                 max_override_seen = max_override_seen.max(s.override_pct);
-                if s.state == State::Holding {
+                if s.state == MachineState::Holding {
                     holding_for += 1;
                     held_cycles += 1;
                 }
@@ -291,16 +291,18 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
             match script {
                 Script::HoldResumeOverride => {
                     if !sent_hold && last_program_cycle >= 3000 {
-                        commands_tx.push(Command::Hold).expect("command ring");
+                        commands_tx.push(CycleCommand::Hold).expect("command ring");
                         sent_hold = true;
                     }
                     if sent_hold && !sent_resume && holding_for >= 300 {
-                        commands_tx.push(Command::Resume).expect("command ring");
+                        commands_tx
+                            .push(CycleCommand::Resume)
+                            .expect("command ring");
                         sent_resume = true;
                     }
                     if overrides == 0 && last_program_cycle >= 8000 {
                         commands_tx
-                            .push(Command::Override(150.0))
+                            .push(CycleCommand::Override(150.0))
                             .expect("command ring");
                         overrides = 1;
                     }
@@ -308,28 +310,28 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
                     // then 60 % after 300 cycles at rest.
                     if overrides == 1 && last_program_cycle >= 9000 {
                         commands_tx
-                            .push(Command::Override(0.0))
+                            .push(CycleCommand::Override(0.0))
                             .expect("command ring");
                         zero_from = last_program_cycle;
                         overrides = 2;
                     }
                     if overrides == 2 && last_program_cycle >= zero_from + 300 {
                         commands_tx
-                            .push(Command::Override(60.0))
+                            .push(CycleCommand::Override(60.0))
                             .expect("command ring");
                         overrides = 3;
                     }
                 }
                 Script::Abort => {
                     if !sent_hold && last_program_cycle >= 3000 {
-                        commands_tx.push(Command::Abort).expect("command ring");
+                        commands_tx.push(CycleCommand::Abort).expect("command ring");
                         sent_hold = true;
                     }
                 }
                 Script::DriveFault => {
                     if !sent_hold && last_program_cycle >= 2000 {
                         commands_tx
-                            .push(Command::Inject(Injection::DriveFault(1)))
+                            .push(CycleCommand::Inject(Injection::DriveFault(1)))
                             .expect("command ring");
                         sent_hold = true;
                     }
@@ -361,14 +363,14 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
                 // persists, the cause removed, a reset accepted, an injected stall of the
                 // stream at rest (it trips), a reset refused while it lasts and one
                 // accepted after it.
-                let script: [(u64, Command); 7] = [
-                    (0, Command::Dump(7)),
-                    (1, Command::Reset(8)),
-                    (2, Command::Inject(Injection::ClearDriveFault(1))),
-                    (3, Command::Reset(9)),
-                    (4, Command::Inject(Injection::Stall(10))),
-                    (5, Command::Reset(10)),
-                    (6, Command::Reset(11)),
+                let script: [(u64, CycleCommand); 7] = [
+                    (0, CycleCommand::Dump(7)),
+                    (1, CycleCommand::Reset(8)),
+                    (2, CycleCommand::Inject(Injection::ClearDriveFault(1))),
+                    (3, CycleCommand::Reset(9)),
+                    (4, CycleCommand::Inject(Injection::Stall(10))),
+                    (5, CycleCommand::Reset(10)),
+                    (6, CycleCommand::Reset(11)),
                 ];
                 let mut since_stall_reset = 0;
                 let mut next = 0;
@@ -401,7 +403,7 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
                     }
                     // Each step waits for the previous one's effect.
                     let ready = match next {
-                        0 => latest.drives.state == kerf_drive::safety::State::Stopped,
+                        0 => latest.drives.state == kerf_drive::safety::SafetyState::Stopped,
                         1 => !dump_reasons.is_empty(),
                         2 => latest.reset.map(|r| r.0) == Some(8),
                         3 => true,

@@ -19,7 +19,8 @@ mod common;
 use kerf_config::Config;
 use kerf_drive::safety::Check;
 use kerfd::worker::{
-    Command, Cycle, CycleOutput, Planning, PlanningCounters, Refusal, RtItem, Snapshot, dump_rings,
+    Cycle, CycleCommand, CycleOutput, Planning, PlanningCounters, Refusal, RtItem, Snapshot,
+    dump_rings,
 };
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -47,7 +48,7 @@ fn programs() -> Vec<(String, String)> {
 struct Machine {
     cycle: Cycle,
     planning: Planning,
-    commands: rtrb::Producer<Command>,
+    commands: rtrb::Producer<CycleCommand>,
     status: rtrb::Consumer<Snapshot>,
     config: Config,
     last: Option<Snapshot>,
@@ -59,7 +60,7 @@ impl Machine {
         // A ring large enough for a whole program, so that one thread can plan it all
         // before the cycle runs.
         let (items_tx, items_rx) = rtrb::RingBuffer::<RtItem>::new(1 << 20);
-        let (commands_tx, commands_rx) = rtrb::RingBuffer::<Command>::new(64);
+        let (commands_tx, commands_rx) = rtrb::RingBuffer::<CycleCommand>::new(64);
         let (status_tx, status_rx) = rtrb::RingBuffer::<Snapshot>::new(1 << 16);
         let (dumps, _writer) = dump_rings();
         let cycle = Cycle::new(&config, [0.0; 6], items_rx, commands_rx, status_tx, dumps)
@@ -224,7 +225,7 @@ fn a_badly_tuned_drive_trips_mid_program_and_nothing_moves_until_reset() {
         rest = m.run().setpoint.position;
     }
     let stopped = m.last.expect("status").drives.state;
-    assert_eq!(stopped, kerf_drive::safety::State::Stopped);
+    assert_eq!(stopped, kerf_drive::safety::SafetyState::Stopped);
     // The next program is refused and moves nothing.
     let id2 = m.send("G21 G90 G1 X1 F600\nM2\n", rest);
     let (sent2, _, end2) = m.run_program(id2);
@@ -236,7 +237,7 @@ fn a_badly_tuned_drive_trips_mid_program_and_nothing_moves_until_reset() {
     assert!(sent2.iter().all(|p| *p == rest));
     // A reset (the stop is over, the drives follow at rest) clears it; the program then
     // runs from where the axes stopped.
-    m.commands.push(Command::Reset(1)).expect("room");
+    m.commands.push(CycleCommand::Reset(1)).expect("room");
     for _ in 0..100 {
         m.run();
     }
@@ -274,7 +275,7 @@ fn a_trip_on_the_cycle_a_program_ends_is_that_programs_and_one_after_it_is_not()
         for k in 1..=cycles + 5 {
             if k == at_cycle {
                 let step = kerfd::worker::Injection::Step(0, 1.0);
-                m.commands.push(Command::Inject(step)).expect("room");
+                m.commands.push(CycleCommand::Inject(step)).expect("room");
             }
             m.run();
         }

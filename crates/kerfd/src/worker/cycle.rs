@@ -138,7 +138,7 @@ pub struct Cycle {
     tracker: Tracker,
     period_s: f64,
     items: rtrb::Consumer<RtItem>,
-    commands: rtrb::Consumer<Command>,
+    commands: rtrb::Consumer<CycleCommand>,
     status: rtrb::Producer<Snapshot>,
     program: Option<ProgramRun>,
     /// The last program's id, why it stopped early, and whether it was aborted.
@@ -188,7 +188,7 @@ impl Cycle {
         config: &Config,
         position: [f64; 6],
         items: rtrb::Consumer<RtItem>,
-        commands: rtrb::Consumer<Command>,
+        commands: rtrb::Consumer<CycleCommand>,
         status: rtrb::Producer<Snapshot>,
         dump_rings: DumpRings,
     ) -> Result<Self, String> {
@@ -416,7 +416,7 @@ impl Cycle {
     fn safety_stop(&mut self, fault: Fault) {
         if let Some(p) = self.program.as_mut() {
             p.refusal = Some(Refusal::Safety(fault));
-            self.interp.apply(Event::Abort);
+            self.interp.apply(OperatorEvent::Abort);
             self.interp.next_program();
             self.tracker.clear();
             self.end_program();

@@ -11,14 +11,16 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 
 use kerf_drive::recorder::Recorder;
-use kerf_drive::safety::{Fault, ResetRefused, State as SafetyState};
+use kerf_drive::safety::{Fault, ResetRefused, SafetyState};
 use kerf_drive::sim::SimDrive;
 use kerf_drive::stage::{AxisDrive, DriveStage, Dump, Phase, StageInput};
 use kerf_geom::Move;
 use kerf_motion::{MotionCore, MotionState, Setpoint};
-use kerf_pipeline::{Event, Input, Interpolator, Planned, Poll, RunError, Tracker, plan_input};
+use kerf_pipeline::{
+    Input, Interpolator, OperatorEvent, Planned, Poll, RunError, Tracker, plan_input,
+};
 use kerf_plan::{MachineLimits, PlanError, PlannedSegment, Planner};
-use kerf_proto::{SetpointMsg, State, StreamError};
+use kerf_proto::{MachineState, SetpointMsg, StreamError};
 
 use kerf_config::travel::{PlannedTravelError, TravelError, check_move, check_segment};
 use kerf_config::{Axes, Config};
@@ -125,7 +127,7 @@ pub enum RtItem {
 
 /// A command for the real-time cycle.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Command {
+pub enum CycleCommand {
     /// Feed hold: a jerk-limited stop on the path.
     Hold,
     /// Resume after a hold.
@@ -217,7 +219,7 @@ pub struct Snapshot {
     /// Cycles run since the daemon started.
     pub cycles: u64,
     /// What the machine is doing.
-    pub state: State,
+    pub state: MachineState,
     /// Source line of the motion.
     pub line: u32,
     /// Setpoint position, X Y Z mm, A B C deg.

@@ -14,8 +14,8 @@ use kerf::sim::{SimOptions, csv_header, write_row};
 use kerf_gcode::Interpreter;
 use kerf_motion::Setpoint;
 use kerf_proto::{
-    Command, MoveMsg, PROGRAM_END_ABORTED, PROGRAM_END_NONE, PROGRAM_END_REFUSED, SetpointMsg,
-    StatusMsg,
+    ControlCommand, MoveMsg, PROGRAM_END_ABORTED, PROGRAM_END_NONE, PROGRAM_END_REFUSED,
+    SetpointMsg, StatusMsg,
 };
 
 use crate::output::Output;
@@ -133,7 +133,7 @@ pub fn status(args: &StatusArgs) -> Result<(), Failure> {
 }
 
 /// `kerf hold`, `resume`, `abort`, `override`.
-pub fn command(args: &MachineArgs, command: Command) -> Result<(), Failure> {
+pub fn command(args: &MachineArgs, command: ControlCommand) -> Result<(), Failure> {
     let (mut client, _) = connect(args)?;
     client.command(command).map_err(|e| match e {
         ClientError::Refused(m) => Failure::Error(format!("kerf: error: refused: {m}")),
@@ -146,7 +146,7 @@ pub fn command(args: &MachineArgs, command: Command) -> Result<(), Failure> {
 /// take on this machine; an answer other than OK is an error with the daemon's message.
 fn request_answered(
     args: &MachineArgs,
-    command: Command,
+    command: ControlCommand,
     patience: fn(&kerf_config::Config) -> Duration,
 ) -> Result<kerf_proto::Response, Failure> {
     let (mut client, config) = connect(args)?;
@@ -161,14 +161,14 @@ fn request_answered(
 
 /// `kerf reset`: answered once the reset has ended.
 pub fn reset(args: &MachineArgs) -> Result<(), Failure> {
-    request_answered(args, Command::Reset, kerfd::reset_patience)?;
+    request_answered(args, ControlCommand::Reset, kerfd::reset_patience)?;
     Ok(())
 }
 
 /// `kerf dump`: the daemon writes its black box to a file in its dump directory; the file
 /// is copied to `--out`.
 pub fn dump(args: &DumpArgs) -> Result<(), Failure> {
-    let r = request_answered(&args.machine, Command::Dump, kerfd::dump_patience)?;
+    let r = request_answered(&args.machine, ControlCommand::Dump, kerfd::dump_patience)?;
     let written = PathBuf::from(r.message());
     let mut out = Output::create(&args.out)?;
     let copied = std::fs::File::open(&written).and_then(|mut f| io::copy(&mut f, &mut out));
@@ -368,7 +368,7 @@ fn live_status(
     reader: &mut SetpointReader,
 ) -> Result<StatusMsg, Failure> {
     loop {
-        match client.request_within(Command::Status, LIVE_REQUEST_TIMEOUT) {
+        match client.request_within(ControlCommand::Status, LIVE_REQUEST_TIMEOUT) {
             Ok(r) => return Ok(r.status),
             Err(ClientError::NoDaemon { .. }) => watch.take(reader)?,
             Err(e) => return Err(client_failure(e)),
@@ -452,7 +452,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             Ok(item) => item,
             // Pass 1 read it without an error: the file changed in between.
             Err(d) => {
-                let _ = client.command(Command::Abort);
+                let _ = client.command(ControlCommand::Abort);
                 return Err(Failure::Error(format!(
                     "{} (the file changed after it was checked; the motion was aborted)",
                     d.render(&name)
@@ -464,7 +464,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         // Flow control: never more than the daemon's window unacknowledged.
         while sender.sent - acked >= window {
             if stop.load(Ordering::Acquire) {
-                let _ = client.command(Command::Abort);
+                let _ = client.command(ControlCommand::Abort);
                 return Err(Failure::Error(format!(
                     "{name}: error: interrupted; the motion was aborted on the path"
                 )));
@@ -485,7 +485,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             update_bar(&bar, &watch, last_line, None);
         }
         if stop.load(Ordering::Acquire) {
-            let _ = client.command(Command::Abort);
+            let _ = client.command(ControlCommand::Abort);
             return Err(Failure::Error(format!(
                 "{name}: error: interrupted; the motion was aborted on the path"
             )));
@@ -504,7 +504,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         let s = live_status(&mut client, &mut watch, &mut reader)?;
         update_bar(&bar, &watch, last_line, Some(&s));
         if stop.load(Ordering::Acquire) {
-            let _ = client.command(Command::Abort);
+            let _ = client.command(ControlCommand::Abort);
             return Err(Failure::Error(format!(
                 "{name}: error: interrupted; the motion was aborted on the path"
             )));
@@ -589,7 +589,7 @@ fn check_program_state(
 ) -> Result<(), Failure> {
     if s.program_id != id {
         // Not (or no longer) the daemon's current program: its own fate says why.
-        if let Ok(r) = client.request(Command::Program { program_id: id }) {
+        if let Ok(r) = client.request(ControlCommand::Program { program_id: id }) {
             match r.program_fate {
                 kerf_proto::PROGRAM_FATE_REFUSED => {
                     return Err(Failure::Error(format!(

@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 use clap::{Args, CommandFactory, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressFinish, ProgressStyle};
 use kerf::sim::{Prepass, PrepassError, SimError, SimOptions};
-use kerf::{DialectSource, PlanError, assumed_dialect_note, choose_dialect_from};
+use kerf::{DialectSource, PlanOutputError, assumed_dialect_note, choose_dialect_from};
 use kerf_config::Config;
 use kerf_gcode::{Dialect, Interpreter, Item};
 use kerf_pipeline::Input;
@@ -211,12 +211,12 @@ fn main() -> ExitCode {
         Command::Sim(args) => run_sim(&args),
         Command::Run(args) => machine::run(&args),
         Command::Status(args) => machine::status(&args),
-        Command::Hold(args) => machine::command(&args, kerf_proto::Command::Hold),
-        Command::Resume(args) => machine::command(&args, kerf_proto::Command::Resume),
-        Command::Abort(args) => machine::command(&args, kerf_proto::Command::Abort),
+        Command::Hold(args) => machine::command(&args, kerf_proto::ControlCommand::Hold),
+        Command::Resume(args) => machine::command(&args, kerf_proto::ControlCommand::Resume),
+        Command::Abort(args) => machine::command(&args, kerf_proto::ControlCommand::Abort),
         Command::Override(args) => machine::command(
             &args.machine,
-            kerf_proto::Command::Override {
+            kerf_proto::ControlCommand::Override {
                 percent: args.percent,
             },
         ),
@@ -360,15 +360,15 @@ fn run_plan(args: &PlanArgs) -> Result<(), Failure> {
             Ok(())
         }
         Ok(_) => Ok(()),
-        Err(PlanError::Output(e)) => Err(e.into()),
+        Err(PlanOutputError::Output(e)) => Err(e.into()),
         // A LinuxCNC subroutine error names its file and the calls that led there.
-        Err(PlanError::Program(d)) => Err(Failure::Error(with_dialect_note(
+        Err(PlanOutputError::Program(d)) => Err(Failure::Error(with_dialect_note(
             d.render(&program.name),
             program.dialect,
             program.assumed,
         ))),
         // These carry their own `LINE:COL: error: ...`.
-        Err(e @ PlanError::NonFinite { .. }) => {
+        Err(e @ PlanOutputError::NonFinite { .. }) => {
             Err(Failure::Error(format!("{}:{e}", program.name)))
         }
         Err(e) => Err(Failure::Error(format!("{}: error: {e}", program.name))),

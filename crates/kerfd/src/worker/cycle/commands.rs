@@ -3,33 +3,33 @@
 use super::*;
 
 impl Cycle {
-    pub(super) fn apply(&mut self, c: Command) {
+    pub(super) fn apply(&mut self, c: CycleCommand) {
         self.commands_applied += 1;
         match c {
             // A hold that arrives after its program ended holds nothing: it must not
             // stop the next program before its first move.
-            Command::Hold if self.program.is_none() => {}
-            Command::Hold => self.interp.apply(Event::Hold),
-            Command::Resume => self.interp.apply(Event::Resume),
-            Command::Override(pct) => {
+            CycleCommand::Hold if self.program.is_none() => {}
+            CycleCommand::Hold => self.interp.apply(OperatorEvent::Hold),
+            CycleCommand::Resume => self.interp.apply(OperatorEvent::Resume),
+            CycleCommand::Override(pct) => {
                 self.override_pct = pct;
                 if pct == 0.0 {
                     // A control at 0 % stands still on the path (the core holds).
-                    self.interp.apply(Event::Override(0.0));
+                    self.interp.apply(OperatorEvent::Override(0.0));
                 } else {
-                    self.interp.apply(Event::Override(pct / 100.0));
+                    self.interp.apply(OperatorEvent::Override(pct / 100.0));
                 }
             }
-            Command::Abort => {
+            CycleCommand::Abort => {
                 if let Some(p) = self.program.as_mut() {
                     p.aborted = true;
                 }
-                self.interp.apply(Event::Abort)
+                self.interp.apply(OperatorEvent::Abort)
             }
-            Command::AbortProgram(id) => match self.program.as_mut() {
+            CycleCommand::AbortProgram(id) => match self.program.as_mut() {
                 Some(p) if p.id == id => {
                     p.aborted = true;
-                    self.interp.apply(Event::Abort)
+                    self.interp.apply(OperatorEvent::Abort)
                 }
                 // Already over, or not begun yet: it begins aborted.
                 _ if self.last_program.0 != id && !self.pending_abort.contains(&id) => {
@@ -39,19 +39,19 @@ impl Cycle {
                 }
                 _ => {}
             },
-            Command::Shutdown => {
+            CycleCommand::Shutdown => {
                 if let Some(p) = self.program.as_mut() {
                     p.aborted = true;
                 }
                 self.shutting_down = true;
-                self.interp.apply(Event::Abort);
+                self.interp.apply(OperatorEvent::Abort);
             }
-            Command::Reset(tag) => {
+            CycleCommand::Reset(tag) => {
                 self.reset_tag = Some(tag);
                 self.stage.request_reset();
             }
-            Command::Dump(tag) => self.stage.request_dump(tag),
-            Command::Inject(i) => self.inject(i),
+            CycleCommand::Dump(tag) => self.stage.request_dump(tag),
+            CycleCommand::Inject(i) => self.inject(i),
         }
     }
 

@@ -143,7 +143,7 @@ impl Cycle {
                 if let Some(p) = self.program.as_mut() {
                     p.refusal.get_or_insert(Refusal::Core { line });
                 }
-                self.interp.apply(Event::Abort);
+                self.interp.apply(OperatorEvent::Abort);
                 true
             }
             Err(_) => true,

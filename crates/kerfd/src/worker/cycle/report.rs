@@ -3,22 +3,22 @@
 use super::*;
 
 impl Cycle {
-    pub(super) fn state(&self) -> State {
+    pub(super) fn state(&self) -> MachineState {
         if self.stage.fault().is_some() {
-            return State::Fault;
+            return MachineState::Fault;
         }
         let core = self.interp.core().status();
         match core.state {
-            MotionState::Held => State::Holding,
-            MotionState::Stopping if self.interp.core().is_held() => State::Holding,
-            _ if self.program.is_some() && self.starved => State::Starved,
-            _ if self.program.is_some() => State::Running,
-            MotionState::Idle => State::Idle,
-            _ => State::Running,
+            MotionState::Held => MachineState::Holding,
+            MotionState::Stopping if self.interp.core().is_held() => MachineState::Holding,
+            _ if self.program.is_some() && self.starved => MachineState::Starved,
+            _ if self.program.is_some() => MachineState::Running,
+            MotionState::Idle => MachineState::Idle,
+            _ => MachineState::Running,
         }
     }
 
-    pub(super) fn report(&mut self, state: State) {
+    pub(super) fn report(&mut self, state: MachineState) {
         let core = self.interp.core().status();
         let (program_id, refusal, aborted, done) = match self.program {
             Some(p) => (p.id, p.refusal, p.aborted, false),
