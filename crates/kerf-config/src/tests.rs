@@ -1064,14 +1064,14 @@ fn built_drive_and_safety_configs_carry_the_files_values() {
                 acceleration_units_s2: 1000.0,
                 jerk_units_s3: 10000.0,
             },
-            min_limit: -10.0,
-            max_limit: 10.0,
-            ferror: 0.4,
-            min_ferror: 0.02,
+            min_limit_units: -10.0,
+            max_limit_units: 10.0,
+            ferror_units: 0.4,
+            min_ferror_units: 0.02,
         })
     );
     assert_eq!(
-        s.axes[1].map(|a| (a.ferror, a.min_ferror)),
+        s.axes[1].map(|a| (a.ferror_units, a.min_ferror_units)),
         Some((1.0, 0.1))
     );
     assert_eq!(
@@ -1082,16 +1082,16 @@ fn built_drive_and_safety_configs_carry_the_files_values() {
                 acceleration_units_s2: 900.0,
                 jerk_units_s3: 9000.0,
             },
-            min_limit: -30.0,
-            max_limit: 120.0,
-            ferror: 2.0,
-            min_ferror: 0.5,
+            min_limit_units: -30.0,
+            max_limit_units: 120.0,
+            ferror_units: 2.0,
+            min_ferror_units: 0.5,
         })
     );
     assert!(s.axes[3].is_none() && s.axes[5].is_none());
     // LinuxCNC's rule on the configured values: 0.4 mm at 100 mm/s, 0.02 at rest.
-    assert_eq!(s.axes[0].unwrap().ferror_limit(100.0), 0.4);
-    assert_eq!(s.axes[0].unwrap().ferror_limit(0.0), 0.02);
+    assert_eq!(s.axes[0].unwrap().ferror_limit_units(100.0), 0.4);
+    assert_eq!(s.axes[0].unwrap().ferror_limit_units(0.0), 0.02);
     assert!(kerf_drive::safety::Safety::new(s, [0.0; MAX_AXES]).is_ok());
 
     // 2.5 s at 2 ms: 1250 cycles, as the recorder itself sizes it.

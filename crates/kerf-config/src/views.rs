@@ -51,10 +51,10 @@ impl Config {
             if let (Some((limits, min, max)), Some(drive)) = (axis, &self.drive.axes[i]) {
                 axes[i] = Some(AxisSafety {
                     limits: *limits,
-                    min_limit: *min,
-                    max_limit: *max,
-                    ferror: drive.ferror_mm_deg,
-                    min_ferror: drive.min_ferror_mm_deg,
+                    min_limit_units: *min,
+                    max_limit_units: *max,
+                    ferror_units: drive.ferror_mm_deg,
+                    min_ferror_units: drive.min_ferror_mm_deg,
                 });
             }
         }

@@ -8,9 +8,9 @@
 //! The checks (formulas and defaults in `docs/DRIVES.md`, "Safety checks"):
 //! - plausibility of each new setpoint against the previous one of the stream:
 //!   |Δx|/T ≤ v_max·(1 + margin) and |Δ²x|/T² ≤ a_max·(1 + margin);
-//! - soft limits: `min_limit` ≤ x ≤ `max_limit`;
+//! - soft limits: `min_limit_units` ≤ x ≤ `max_limit_units`;
 //! - following error as LinuxCNC defines it: |commanded − actual| ≤
-//!   max(`min_ferror`, `ferror`·|v|/v_max);
+//!   max(`min_ferror_units`, `ferror_units`·|v|/v_max);
 //! - stream supervision: a missed cycle holds the last position, `stall_cycles`
 //!   consecutive missed cycles trip; a drive reporting a fault trips.
 //!
@@ -40,23 +40,23 @@ pub struct AxisSafety {
     /// Velocity, acceleration and jerk limits; the quick stop stays within them.
     pub limits: AxisLimits,
     /// Soft limit, lower end of travel, mm or deg (LinuxCNC's `MIN_LIMIT`).
-    pub min_limit: f64,
+    pub min_limit_units: f64,
     /// Soft limit, upper end of travel, mm or deg (LinuxCNC's `MAX_LIMIT`).
-    pub max_limit: f64,
+    pub max_limit_units: f64,
     /// Following-error limit at the axis's maximum velocity, mm or deg (LinuxCNC's
     /// `FERROR`); scaled by |v|/v_max.
-    pub ferror: f64,
+    pub ferror_units: f64,
     /// Following-error limit at rest and at low speed, mm or deg (LinuxCNC's
     /// `MIN_FERROR`).
-    pub min_ferror: f64,
+    pub min_ferror_units: f64,
 }
 
 impl AxisSafety {
-    /// The following-error limit at commanded velocity `velocity` (units/s):
-    /// max(`min_ferror`, `ferror`·|v|/v_max).
-    pub fn ferror_limit(&self, velocity: f64) -> f64 {
-        self.min_ferror
-            .max(self.ferror * velocity.abs() / self.limits.velocity_units_s)
+    /// The following-error limit at commanded velocity `velocity_units_s`:
+    /// max(`min_ferror_units`, `ferror_units`·|v|/v_max).
+    pub fn ferror_limit_units(&self, velocity_units_s: f64) -> f64 {
+        self.min_ferror_units
+            .max(self.ferror_units * velocity_units_s.abs() / self.limits.velocity_units_s)
     }
 }
 
@@ -451,8 +451,8 @@ impl Safety {
                     what: "velocity, acceleration and jerk limits must be positive",
                 });
             }
-            if !(ax.min_limit.is_finite() && ax.max_limit.is_finite())
-                || ax.min_limit > ax.max_limit
+            if !(ax.min_limit_units.is_finite() && ax.max_limit_units.is_finite())
+                || ax.min_limit_units > ax.max_limit_units
             {
                 return Err(SafetyConfigError::Axis {
                     axis,
@@ -460,7 +460,7 @@ impl Safety {
                 });
             }
             let non_negative = |v: f64| v.is_finite() && v >= 0.0;
-            if !(non_negative(ax.ferror) && non_negative(ax.min_ferror)) {
+            if !(non_negative(ax.ferror_units) && non_negative(ax.min_ferror_units)) {
                 return Err(SafetyConfigError::Axis {
                     axis,
                     what: "ferror and min_ferror must be zero or positive",
@@ -566,7 +566,7 @@ impl Safety {
             }
             // Following error against the previous command.
             let v_cmd = (self.out[0][i] - self.out[1][i]) / t;
-            let limit = ax.ferror_limit(v_cmd);
+            let limit = ax.ferror_limit_units(v_cmd);
             let err = (self.out[0][i] - input.actual[i]).abs();
             let err = if err.is_finite() { err } else { f64::INFINITY };
             if err > limit {
@@ -603,11 +603,21 @@ impl Safety {
             let rest =
                 StopProfile::from_samples(x, self.stream[0][i], self.stream[1][i], t, &ax.limits)
                     .end_position();
-            if x < ax.min_limit || rest < ax.min_limit - SOFT_LIMIT_ROUNDING {
-                return Some(fault(Check::SoftLimit, Some(i), rest.min(x), ax.min_limit));
+            if x < ax.min_limit_units || rest < ax.min_limit_units - SOFT_LIMIT_ROUNDING {
+                return Some(fault(
+                    Check::SoftLimit,
+                    Some(i),
+                    rest.min(x),
+                    ax.min_limit_units,
+                ));
             }
-            if x > ax.max_limit || rest > ax.max_limit + SOFT_LIMIT_ROUNDING {
-                return Some(fault(Check::SoftLimit, Some(i), rest.max(x), ax.max_limit));
+            if x > ax.max_limit_units || rest > ax.max_limit_units + SOFT_LIMIT_ROUNDING {
+                return Some(fault(
+                    Check::SoftLimit,
+                    Some(i),
+                    rest.max(x),
+                    ax.max_limit_units,
+                ));
             }
         }
         self.missed = 0;
@@ -705,16 +715,16 @@ impl Safety {
                 return Err(ResetRefused::DriveFault(i));
             }
             let x = last.actual[i];
-            if !(x >= ax.min_limit && x <= ax.max_limit) {
+            if !(x >= ax.min_limit_units && x <= ax.max_limit_units) {
                 return Err(ResetRefused::SoftLimit { axis: i, value: x });
             }
             // The actual position was read against the command of the cycle before.
             let err = (self.out[1][i] - x).abs();
-            if err.is_nan() || err > ax.min_ferror {
+            if err.is_nan() || err > ax.min_ferror_units {
                 return Err(ResetRefused::FollowingError {
                     axis: i,
                     value: err,
-                    limit: ax.min_ferror,
+                    limit: ax.min_ferror_units,
                 });
             }
         }

@@ -177,10 +177,10 @@ fn the_cycle_with_safety_and_recorder_does_not_allocate() {
             acceleration_units_s2: 1000.0,
             jerk_units_s3: 50_000.0,
         },
-        min_limit: -500.0,
-        max_limit: 500.0,
-        ferror: 1.0,
-        min_ferror: 0.1,
+        min_limit_units: -500.0,
+        max_limit_units: 500.0,
+        ferror_units: 1.0,
+        min_ferror_units: 0.1,
     };
     let cfg = SafetyConfig::new([Some(ax), Some(ax), Some(ax), None, None, None], 0.001);
     let mut safety = Safety::new(cfg, [0.0; MAX_AXES]).expect("config");

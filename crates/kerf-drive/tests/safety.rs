@@ -19,10 +19,10 @@ fn axis(v: f64, a: f64, j: f64) -> AxisSafety {
             acceleration_units_s2: a,
             jerk_units_s3: j,
         },
-        min_limit: -500.0,
-        max_limit: 500.0,
-        ferror: 1.0,
-        min_ferror: 0.1,
+        min_limit_units: -500.0,
+        max_limit_units: 500.0,
+        ferror_units: 1.0,
+        min_ferror_units: 0.1,
     }
 }
 
@@ -571,7 +571,7 @@ fn bad_configurations_are_refused() {
         Err(SafetyConfigError::Margin(_))
     ));
     let mut ax = mill();
-    ax.min_limit = 600.0;
+    ax.min_limit_units = 600.0;
     let mut c = ok;
     c.axes[1] = Some(ax);
     assert!(matches!(

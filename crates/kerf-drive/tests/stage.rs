@@ -33,10 +33,10 @@ fn limits(v: f64, a: f64, j: f64) -> AxisLimits {
 fn safety_axis(l: AxisLimits) -> AxisSafety {
     AxisSafety {
         limits: l,
-        min_limit: -500.0,
-        max_limit: 500.0,
-        ferror: 1.0,
-        min_ferror: 0.1,
+        min_limit_units: -500.0,
+        max_limit_units: 500.0,
+        ferror_units: 1.0,
+        min_ferror_units: 0.1,
     }
 }
 
@@ -437,7 +437,7 @@ fn a_setpoint_step_injected_below_the_motion_core_never_reaches_a_drive() {
 fn a_setpoint_beyond_the_soft_limit_never_reaches_a_drive() {
     let l = limits(200.0, 2000.0, 50_000.0);
     let ax = Some(AxisSafety {
-        max_limit: 10.0,
+        max_limit_units: 10.0,
         ..safety_axis(l)
     });
     let cfg = SafetyConfig::new([ax, ax, ax, None, None, None], T);
