@@ -308,7 +308,9 @@ fn throughput(args: &[String]) -> Result<(), String> {
             }
         }
     });
-    let node = kerfd::ipc::node("kerfd-bench").map_err(|e| e.to_string())?;
+    let node = kerfd::ipc::node("kerfd-bench")
+        .map_err(|e| e.to_string())
+        .map_err(|e| e.to_string())?;
     let mut sender = MoveSender::open(&node, &config.machine).map_err(|e| e.to_string())?;
     let mut waits = 0u64;
     let t0 = Instant::now();
@@ -355,9 +357,11 @@ fn transport_only(config: &Config, msgs: &[MoveMsg]) -> Result<(), String> {
         let received = received.clone();
         std::thread::spawn(move || -> Result<Instant, String> {
             let setup = || -> Result<_, String> {
-                let node = kerfd::ipc::node("kerfd-bench-rx")?;
-                let service = kerfd::ipc::create_moves(&node, &machine, window)?;
-                let subscriber = kerfd::ipc::move_subscriber(&service, window)?;
+                let node = kerfd::ipc::node("kerfd-bench-rx").map_err(|e| e.to_string())?;
+                let service =
+                    kerfd::ipc::create_moves(&node, &machine, window).map_err(|e| e.to_string())?;
+                let subscriber =
+                    kerfd::ipc::move_subscriber(&service, window).map_err(|e| e.to_string())?;
                 Ok((node, service, subscriber))
             };
             let (_node, _service, subscriber) = match setup() {
@@ -389,7 +393,7 @@ fn transport_only(config: &Config, msgs: &[MoveMsg]) -> Result<(), String> {
     ready_rx
         .recv()
         .map_err(|_| "the receiver ended".to_string())??;
-    let tx_node = kerfd::ipc::node("kerfd-bench-tx")?;
+    let tx_node = kerfd::ipc::node("kerfd-bench-tx").map_err(|e| e.to_string())?;
     let mut sender = MoveSender::open(&tx_node, &config.machine).map_err(|e| e.to_string())?;
     let t0 = Instant::now();
     for m in msgs {
@@ -416,13 +420,14 @@ fn transport_only(config: &Config, msgs: &[MoveMsg]) -> Result<(), String> {
 fn send_copy(args: &[String]) -> Result<(), String> {
     let n: u64 = opt(args, "--samples", 100_000)?;
     let config = bench_config(1000);
-    let node = kerfd::ipc::node("kerfd-bench-pub")?;
-    let service = kerfd::ipc::create_setpoints(&node, &config.machine)?;
+    let node = kerfd::ipc::node("kerfd-bench-pub").map_err(|e| e.to_string())?;
+    let service =
+        kerfd::ipc::create_setpoints(&node, &config.machine).map_err(|e| e.to_string())?;
     let publisher = service
         .publisher_builder()
         .create()
         .map_err(|e| format!("{e:?}"))?;
-    let subscriber = kerfd::ipc::setpoint_subscriber(&service)?;
+    let subscriber = kerfd::ipc::setpoint_subscriber(&service).map_err(|e| e.to_string())?;
     let mut h = Histogram::new();
     let mut msg = kerf_proto::SetpointMsg::new();
     for seq in 1..=n {

@@ -47,6 +47,9 @@ pub enum ClientError {
     /// Shared memory could not be used.
     #[error("{0}")]
     Ipc(String),
+    /// A node, service or port of the machine's services could not be made.
+    #[error("{0}")]
+    Service(#[from] ipc::IpcError),
 }
 
 /// A connection to one machine's daemon.
@@ -75,7 +78,7 @@ impl Client {
             None => e,
         };
         let node = ipc::node(&format!("kerf-{}", std::process::id()))
-            .map_err(|e| explained(ClientError::Ipc(e)))?;
+            .map_err(|e| explained(ClientError::Service(e)))?;
         let no_daemon = || ClientError::NoDaemon {
             machine: machine.to_string(),
         };
@@ -350,7 +353,7 @@ impl SetpointReader {
         let service = ipc::open_setpoints(node, machine).map_err(|_| ClientError::NoDaemon {
             machine: machine.to_string(),
         })?;
-        let subscriber = ipc::setpoint_subscriber(&service).map_err(ClientError::Ipc)?;
+        let subscriber = ipc::setpoint_subscriber(&service).map_err(ClientError::Service)?;
         Ok(SetpointReader {
             machine: machine.to_string(),
             _service: service,
@@ -426,7 +429,7 @@ impl MoveSender {
         let service = ipc::open_moves(node, machine).map_err(|_| ClientError::NoDaemon {
             machine: machine.to_string(),
         })?;
-        let publisher = ipc::move_publisher(&service).map_err(ClientError::Ipc)?;
+        let publisher = ipc::move_publisher(&service).map_err(ClientError::Service)?;
         Ok(MoveSender {
             _service: service,
             publisher,

@@ -37,8 +37,8 @@ pub(crate) fn control_thread(
         mut dumps,
     } = ports;
     let setup = || -> Result<_, StartError> {
-        let node = ipc::node("kerfd-control").map_err(StartError::Setup)?;
-        let service = ipc::create_control(&node, machine).map_err(StartError::Setup)?;
+        let node = ipc::node("kerfd-control")?;
+        let service = ipc::create_control(&node, machine)?;
         // The control service has one server slot: taken means a live daemon serves the
         // machine (a dead one's was removed with its node).
         let server = service

@@ -20,12 +20,17 @@
 //!   the path, the owner and what to do, never as iceoryx2's bare `InternalError`. The
 //!   daemon's nodes are the ones named `kerfd-…` ([`DAEMON_NODE_PREFIX`]).
 
+mod error;
 pub mod owner;
+
+pub use error::IpcError;
 
 use std::time::Duration;
 
 use iceoryx2::port::backpressure_strategy::BackpressureStrategy;
 use iceoryx2::prelude::*;
+use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenError::DoesNotExist as PubSubMissing;
+use iceoryx2::service::builder::request_response::RequestResponseOpenError::DoesNotExist as ReqRespMissing;
 use kerf_proto::{MoveMsg, Request, Response, SetpointMsg};
 
 /// The iceoryx2 service type Kerf uses: inter-process, shared memory.
@@ -61,10 +66,11 @@ pub const MAX_CONTROL_CLIENTS: usize = 16;
 /// user says which, whose, and what to do ([`owner::blocked_tree_message`]). The daemon's
 /// first node ([`DAEMON_FIRST_NODE`]) also warns, once at start, of such files that did
 /// not stop it (a dead root process's node it cannot clean up, for instance).
-pub fn node(name: &str) -> Result<Node<ipc::Service>, String> {
+pub fn node(name: &str) -> Result<Node<ipc::Service>, IpcError> {
     set_log_level_from_env_or(LogLevel::Error);
     remove_unfinished_segments();
-    let node_name = NodeName::new(name).map_err(|e| format!("node name `{name}`: {e:?}"))?;
+    let node_name = NodeName::new(name)
+        .map_err(|e| IpcError::InvalidName(format!("node name `{name}`: {e:?}")))?;
     let program = if name.starts_with(DAEMON_NODE_PREFIX) {
         "kerfd"
     } else {
@@ -75,8 +81,11 @@ pub fn node(name: &str) -> Result<Node<ipc::Service>, String> {
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<ipc::Service>()
         .map_err(|e| match owner::blocked_tree_message(program) {
-            Some(why) => format!("cannot create an iceoryx2 node: {why}"),
-            None => format!("cannot create an iceoryx2 node: {e:?}"),
+            Some(why) => IpcError::PermissionDenied {
+                action: "cannot create an iceoryx2 node".to_string(),
+                why,
+            },
+            None => IpcError::refused("cannot create an iceoryx2 node", e),
         })?;
     if name == DAEMON_FIRST_NODE
         && let Some(why) = owner::blocked_tree_message(program)
@@ -210,11 +219,24 @@ fn remove_empty_files(
     removed
 }
 
-fn service_name(machine: &str, which: &str) -> Result<ServiceName, String> {
-    let name = kerf_proto::service_name(machine, which).map_err(|e| e.to_string())?;
-    ServiceName::new(&name).map_err(|e| format!("service name `{name}`: {e:?}"))
+fn service_name(machine: &str, which: &str) -> Result<ServiceName, IpcError> {
+    let name = kerf_proto::service_name(machine, which)
+        .map_err(|e| IpcError::InvalidName(e.to_string()))?;
+    ServiceName::new(&name)
+        .map_err(|e| IpcError::InvalidName(format!("service name `{name}`: {e:?}")))
 }
 
+/// An open refused because the service does not exist means that no daemon serves the
+/// machine.
+fn open_error(action: &str, does_not_exist: bool, e: impl std::fmt::Debug) -> IpcError {
+    if does_not_exist {
+        IpcError::NoService {
+            action: action.to_string(),
+        }
+    } else {
+        IpcError::refused(action, e)
+    }
+}
 /// The moves service type.
 pub type MovesService =
     iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, MoveMsg, ()>;
@@ -236,8 +258,8 @@ pub fn create_moves(
     node: &Node<ipc::Service>,
     machine: &str,
     window: usize,
-) -> Result<MovesService, String> {
-    let builder = || -> Result<_, String> {
+) -> Result<MovesService, IpcError> {
+    let builder = || -> Result<_, IpcError> {
         Ok(node
             .service_builder(&service_name(machine, kerf_proto::SERVICE_MOVES)?)
             .publish_subscribe::<MoveMsg>()
@@ -250,46 +272,46 @@ pub fn create_moves(
     repaired(machine, kerf_proto::SERVICE_MOVES, || {
         builder()?
             .open_or_create()
-            .map_err(|e| format!("cannot create the moves service: {e:?}"))
+            .map_err(|e| IpcError::refused("cannot create the moves service", e))
     })
 }
 
 /// Opens the moves service (planner process).
-pub fn open_moves(node: &Node<ipc::Service>, machine: &str) -> Result<MovesService, String> {
+pub fn open_moves(node: &Node<ipc::Service>, machine: &str) -> Result<MovesService, IpcError> {
     node.service_builder(&service_name(machine, kerf_proto::SERVICE_MOVES)?)
         .publish_subscribe::<MoveMsg>()
         .open()
-        .map_err(|e| format!("{e:?}"))
+        .map_err(|e| open_error("cannot open the moves service", e == PubSubMissing, e))
 }
 
 /// A publisher of moves that waits while the daemon's buffer is full (never drops).
 pub fn move_publisher(
     service: &MovesService,
-) -> Result<iceoryx2::port::publisher::Publisher<ipc::Service, MoveMsg, ()>, String> {
+) -> Result<iceoryx2::port::publisher::Publisher<ipc::Service, MoveMsg, ()>, IpcError> {
     service
         .publisher_builder()
         .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
         .create()
-        .map_err(|e| format!("cannot publish moves: {e:?}"))
+        .map_err(|e| IpcError::refused("cannot publish moves", e))
 }
 
 /// The daemon's subscriber of moves.
 pub fn move_subscriber(
     service: &MovesService,
     window: usize,
-) -> Result<iceoryx2::port::subscriber::Subscriber<ipc::Service, MoveMsg, ()>, String> {
+) -> Result<iceoryx2::port::subscriber::Subscriber<ipc::Service, MoveMsg, ()>, IpcError> {
     service
         .subscriber_builder()
         .buffer_size(window + MOVE_BUFFER_MARGIN)
         .create()
-        .map_err(|e| format!("cannot subscribe to moves: {e:?}"))
+        .map_err(|e| IpcError::refused("cannot subscribe to moves", e))
 }
 
 /// Creates the setpoints service (daemon).
 pub fn create_setpoints(
     node: &Node<ipc::Service>,
     machine: &str,
-) -> Result<SetpointsService, String> {
+) -> Result<SetpointsService, IpcError> {
     repaired(machine, kerf_proto::SERVICE_SETPOINTS, || {
         node.service_builder(&service_name(machine, kerf_proto::SERVICE_SETPOINTS)?)
             .publish_subscribe::<SetpointMsg>()
@@ -299,7 +321,7 @@ pub fn create_setpoints(
             .history_size(0)
             .enable_safe_overflow(true)
             .open_or_create()
-            .map_err(|e| format!("cannot create the setpoints service: {e:?}"))
+            .map_err(|e| IpcError::refused("cannot create the setpoints service", e))
     })
 }
 
@@ -307,33 +329,36 @@ pub fn create_setpoints(
 pub fn open_setpoints(
     node: &Node<ipc::Service>,
     machine: &str,
-) -> Result<SetpointsService, String> {
+) -> Result<SetpointsService, IpcError> {
     node.service_builder(&service_name(machine, kerf_proto::SERVICE_SETPOINTS)?)
         .publish_subscribe::<SetpointMsg>()
         .open()
-        .map_err(|e| format!("{e:?}"))
+        .map_err(|e| open_error("cannot open the setpoints service", e == PubSubMissing, e))
 }
 
 /// A subscriber of setpoints with the largest buffer.
 pub fn setpoint_subscriber(
     service: &SetpointsService,
-) -> Result<iceoryx2::port::subscriber::Subscriber<ipc::Service, SetpointMsg, ()>, String> {
+) -> Result<iceoryx2::port::subscriber::Subscriber<ipc::Service, SetpointMsg, ()>, IpcError> {
     service
         .subscriber_builder()
         .buffer_size(SETPOINT_BUFFER)
         .create()
-        .map_err(|e| format!("cannot subscribe to setpoints: {e:?}"))
+        .map_err(|e| IpcError::refused("cannot subscribe to setpoints", e))
 }
 
 /// Creates the control service (daemon).
-pub fn create_control(node: &Node<ipc::Service>, machine: &str) -> Result<ControlService, String> {
+pub fn create_control(
+    node: &Node<ipc::Service>,
+    machine: &str,
+) -> Result<ControlService, IpcError> {
     repaired(machine, kerf_proto::SERVICE_CONTROL, || {
         node.service_builder(&service_name(machine, kerf_proto::SERVICE_CONTROL)?)
             .request_response::<Request, Response>()
             .max_servers(1)
             .max_clients(MAX_CONTROL_CLIENTS)
             .open_or_create()
-            .map_err(|e| format!("cannot create the control service: {e:?}"))
+            .map_err(|e| IpcError::refused("cannot create the control service", e))
     })
 }
 
@@ -346,8 +371,8 @@ pub fn create_control(node: &Node<ipc::Service>, machine: &str) -> Result<Contro
 fn repaired<T>(
     machine: &str,
     which: &str,
-    build: impl Fn() -> Result<T, String>,
-) -> Result<T, String> {
+    build: impl Fn() -> Result<T, IpcError>,
+) -> Result<T, IpcError> {
     let result = match build() {
         Ok(t) => Ok(t),
         Err(e) => {
@@ -364,7 +389,10 @@ fn repaired<T>(
     // Files of another user in the tree (a root-owned `services/`): say so, not iceoryx2's
     // `InternalError`.
     result.map_err(|e| match owner::blocked_tree_message("kerfd") {
-        Some(why) => format!("cannot create service kerf/{machine}/{which}: {why}"),
+        Some(why) => IpcError::PermissionDenied {
+            action: format!("cannot create service kerf/{machine}/{which}"),
+            why,
+        },
         None => e,
     })
 }
@@ -413,11 +441,11 @@ fn remove_broken_service(machine: &str, which: &str) -> bool {
 }
 
 /// Opens the control service (clients).
-pub fn open_control(node: &Node<ipc::Service>, machine: &str) -> Result<ControlService, String> {
+pub fn open_control(node: &Node<ipc::Service>, machine: &str) -> Result<ControlService, IpcError> {
     node.service_builder(&service_name(machine, kerf_proto::SERVICE_CONTROL)?)
         .request_response::<Request, Response>()
         .open()
-        .map_err(|e| format!("{e:?}"))
+        .map_err(|e| open_error("cannot open the control service", e == ReqRespMissing, e))
 }
 
 #[cfg(test)]
@@ -442,5 +470,19 @@ mod tests {
         let left: Vec<bool> = files.iter().map(|(n, _)| dir.join(n).exists()).collect();
         assert_eq!(left, [false, true, true, true]);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_service_no_daemon_created_is_told_apart_from_other_failures() {
+        let pid = std::process::id();
+        let node = node(&format!("kerf-ipc-test-{pid}")).unwrap();
+        let machine = format!("no-daemon-{pid}");
+        let no_service = |r: Result<(), IpcError>| matches!(r, Err(IpcError::NoService { .. }));
+        assert!(no_service(open_control(&node, &machine).map(|_| ())));
+        assert!(no_service(open_moves(&node, &machine).map(|_| ())));
+        assert!(no_service(open_setpoints(&node, &machine).map(|_| ())));
+        // A name iceoryx2 or the protocol refuses is not "no daemon".
+        let bad = open_control(&node, "not a machine name").map(|_| ());
+        assert!(matches!(bad, Err(IpcError::InvalidName(_))), "{bad:?}");
     }
 }

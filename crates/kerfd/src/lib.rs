@@ -91,6 +91,9 @@ pub enum StartError {
     /// Shared memory or threads could not be set up.
     #[error("{0}")]
     Setup(String),
+    /// A node, service or port of the machine's iceoryx2 services could not be made.
+    #[error("{0}")]
+    Ipc(#[from] ipc::IpcError),
 }
 
 /// What the real-time setup achieved.

@@ -14,7 +14,7 @@ pub fn planning_thread(
     counters: PlanningCounters,
     items: rtrb::Producer<RtItem>,
 ) -> Result<(), String> {
-    let setup = || -> Result<_, String> {
+    let setup = || -> Result<_, ipc::IpcError> {
         let node = ipc::node("kerfd-planning")?;
         let service = ipc::create_moves(&node, machine, window)?;
         let subscriber = ipc::move_subscriber(&service, window)?;
@@ -26,8 +26,9 @@ pub fn planning_thread(
             ports
         }
         Err(e) => {
-            let _ = ready.send(Err(StartError::Setup(e.clone())));
-            return Err(e);
+            let message = e.to_string();
+            let _ = ready.send(Err(StartError::Ipc(e)));
+            return Err(message);
         }
     };
     let mut planning = Planning::new(config, items, stop.clone(), &counters);

@@ -124,19 +124,19 @@ fn publish_thread(
     mut ring: rtrb::Consumer<(SetpointMsg, u64)>,
 ) -> Histogram {
     let mut added = Histogram::new();
-    let setup = || -> Result<_, String> {
+    let setup = || -> Result<_, ipc::IpcError> {
         let node = ipc::node("kerfd-publish")?;
         let service = ipc::create_setpoints(&node, machine)?;
         let publisher = service
             .publisher_builder()
             .create()
-            .map_err(|e| format!("cannot publish setpoints: {e:?}"))?;
+            .map_err(|e| ipc::IpcError::refused("cannot publish setpoints", e))?;
         Ok((node, service, publisher))
     };
     let (_node, _service, publisher) = match setup() {
         Ok(ports) => ports,
         Err(e) => {
-            let _ = ready.send(Err(e));
+            let _ = ready.send(Err(e.to_string()));
             return added;
         }
     };
