@@ -10,6 +10,7 @@ use crate::codes::*;
 use crate::lex::{K_AT, K_CARET};
 use crate::{Dialect, Event, EventCode, Item, Settings, Tool};
 
+mod arcs;
 mod block;
 mod comp;
 pub(crate) mod cycles;
@@ -18,8 +19,10 @@ mod exec;
 mod geometry;
 mod mcodes;
 mod modal;
+mod motion;
 mod offsets;
 pub(crate) mod params;
+mod polar;
 mod query;
 mod tooling;
 mod unused;
@@ -134,7 +137,7 @@ pub(crate) struct State {
     /// LinuxCNC: the block being run holds M19, whose R word is its angle.
     m19_in_block: bool,
     /// LinuxCNC: the end of an arc whose end lies on the ray from its centre through its
-    /// start, reached by a radial line after the whole turn (`geometry::arc_path`).
+    /// start, reached by a radial line after the whole turn (`arcs::arc_path`).
     arc_tail: Option<Vec3>,
 }
 
