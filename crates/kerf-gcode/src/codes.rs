@@ -253,7 +253,7 @@ pub(crate) fn classify_g(d: Dialect, code10: u16) -> Option<G> {
             970 => NoOp,
             980 => Retract { r_plane: false },
             990 => Retract { r_plane: true },
-            // Out of scope (issue 9): each refusal names its code and the construct.
+            // Not supported: each refusal names its code and the construct.
             50 => Unsupported("G5 is not supported: splines"),
             51 => Unsupported("G5.1 is not supported: splines"),
             52 => Unsupported("G5.2 is not supported: splines (NURBS)"),

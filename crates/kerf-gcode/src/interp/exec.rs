@@ -28,9 +28,9 @@ impl State {
     /// move (`T1 M6 G43 H1`, or a G43 before the M6) are not yet counted. So the axes the
     /// next move does not name go to that program point with the new offsets, as rs274
     /// prints it (the machine moves by the offset change), and the move starts where the
-    /// machine is. (A real LinuxCNC reads back the machine position instead; the issue
-    /// makes rs274 the reference.) An arc cannot start at two points: an arc as that next
-    /// move, with the point changed, is an error.
+    /// machine is. (A real LinuxCNC reads back the machine position instead; Kerf follows
+    /// rs274, its reference for LinuxCNC.) An arc cannot start at two points: an arc as that
+    /// next move, with the point changed, is an error.
     pub(crate) fn exec(
         &mut self,
         blk: &Block,
