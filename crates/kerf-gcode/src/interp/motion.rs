@@ -63,79 +63,18 @@ impl State {
         exact_once: bool,
         abs_centre_once: bool,
     ) -> Result<(), BlockError> {
-        let d = self.dialect;
-        let (u, v, w) = self.plane.axes();
-        let has_axes = blk.any(&XYZ) || blk.any(&ABC);
-        if blk.any(&ABC) {
-            self.abc_used = true;
-        }
-        let Some(motion) = self.motion else {
-            let polar_words: &[u8] = match d {
-                Dialect::LinuxCnc => &[K_AT, K_CARET],
-                Dialect::Sinumerik => &[K_RP, K_AP],
-                Dialect::Heidenhain => &[KR, KH],
-                Dialect::Fagor => &[KR, KQ],
-                Dialect::Rockwell => &[],
-            };
-            if has_axes || blk.any(polar_words) {
-                let k = blk
-                    .first_of(&[KX, KY, KZ, KA, KB, KC])
-                    .or(blk.first_of(polar_words))
-                    .unwrap_or(KX);
-                return fail(
-                    blk.col(k),
-                    "cannot use axis values without a G code that uses them",
-                );
-            }
-            return self.check_unused(blk, false);
+        let Some(MotionWords {
+            motion,
+            has_polar,
+            is_arc,
+            has_radius,
+        }) = self.motion_words(blk, motion_col, machine)?
+        else {
+            return Ok(());
         };
-        let has_polar = match d {
-            Dialect::LinuxCnc => blk.has(K_AT) || blk.has(K_CARET),
-            Dialect::Sinumerik => blk.has(K_RP) || blk.has(K_AP),
-            Dialect::Heidenhain => {
-                blk.has(KH)
-                    || (blk.has(KR)
-                        && matches!(motion, Motion::PolarLine { .. } | Motion::PolarArc(_)))
-            }
-            Dialect::Fagor => blk.has(KQ) || (blk.has(KR) && !blk.has(XYZ[u]) && !blk.has(XYZ[v])),
-            Dialect::Rockwell => false,
-        };
-        let is_arc = matches!(motion, Motion::Arc(_) | Motion::PolarArc(_));
-        let has_centre = blk.any(&IJK) && d != Dialect::Heidenhain;
-        let has_radius = match d {
-            Dialect::Sinumerik => blk.has(K_CR),
-            Dialect::Heidenhain => blk.has(KR) && matches!(motion, Motion::Arc(_)),
-            Dialect::Fagor => blk.has(KR) && (blk.has(XYZ[u]) || blk.has(XYZ[v])),
-            _ => blk.has(KR),
-        };
-        let wants_motion = has_axes
-            || has_polar
-            || (is_arc && (has_centre || blk.has(K_TURN)) && d != Dialect::Heidenhain);
-        if !wants_motion {
-            return self.check_unused(blk, false);
-        }
-        self.check_unused(blk, is_arc)?;
-        if d == Dialect::LinuxCnc {
-            self.comp_check_arc(is_arc, motion_col)?;
-        }
-
-        // G53's conditions come first, as rs274 checks them.
-        if let Some(col) = machine {
-            if !self.absolute {
-                return fail(col, "Cannot use g53 incremental");
-            }
-            if !matches!(motion, Motion::Rapid | Motion::Linear) {
-                return fail(col, "Must use g0 or g1 with g53");
-            }
-            self.comp_refuse(col, "Cannot use g53 with cutter radius comp")?;
-        }
 
         // Feed.
-        let rapid = match motion {
-            Motion::Rapid => true,
-            Motion::PolarLine { rapid } => rapid,
-            _ => false,
-        };
+        let rapid = is_rapid(motion);
         let feed = if rapid {
             None
         } else {
@@ -143,47 +82,9 @@ impl State {
         };
 
         let start = self.pos;
-        let mut abc_end = self.abc_target(blk);
-        if machine.is_some() {
-            for (i, &k) in ABC.iter().enumerate() {
-                if let Some(v) = blk.get(k) {
-                    abc_end[i] = v;
-                }
-            }
-        }
-        let mut end = start;
-        let mut new_polar: Option<(f64, f64)> = None;
-
+        let abc_end = self.abc_end(blk, machine);
         // End point.
-        if machine.is_some() {
-            // Machine coordinates: the named axes go there, the others stay where they
-            // are on the machine (under a rotated system too).
-            let mut m = self.frame_to_machine(start);
-            for (i, &k) in XYZ.iter().enumerate() {
-                if let Some(val) = blk.get(k) {
-                    m[i] = val * self.scale();
-                }
-            }
-            end = self.machine_to_frame(m);
-        } else if has_polar && !matches!(motion, Motion::PolarArc(_)) {
-            let (r, a_deg) = self.polar_end(blk, motion)?;
-            let pole = self.polar_reference();
-            let a = a_deg.to_radians();
-            // LinuxCNC polar words always give X and Y; the others work in the active plane.
-            let (pu, pv, pw) = if d == Dialect::LinuxCnc {
-                (0, 1, 2)
-            } else {
-                (u, v, w)
-            };
-            end[pu] = pole[pu] + r * a.cos();
-            end[pv] = pole[pv] + r * a.sin();
-            end[pw] = self.linear_target(blk, XYZ[pw], pw);
-            new_polar = Some((r, a_deg));
-        } else {
-            for (i, &k) in XYZ.iter().enumerate() {
-                end[i] = self.linear_target(blk, k, i);
-            }
-        }
+        let (mut end, new_polar) = self.move_end(blk, motion, machine, has_polar, start)?;
 
         let corner = if exact_once {
             CornerMode::ExactStop
@@ -217,15 +118,7 @@ impl State {
                 return fail(motion_col, "canned cycle outside its resolution");
             }
             Motion::Arc(dir) | Motion::PolarArc(dir) => {
-                let ccw = match dir.or(self.last_ccw) {
-                    Some(c) => c,
-                    None => {
-                        return fail(
-                            motion_col,
-                            "no direction of rotation programmed before G05/G15",
-                        );
-                    }
-                };
+                let ccw = self.arc_direction(dir, motion_col)?;
                 match self.arc_path(
                     blk,
                     motion,
@@ -248,13 +141,7 @@ impl State {
                 }
             }
         };
-        let finite = |p: &Vec3| p.iter().all(|x| x.is_finite());
-        let finite_path = match &path {
-            Path::Line(l) => finite(&l.start) && finite(&l.end),
-            Path::Arc(a) => {
-                finite(&a.start) && finite(&a.end) && finite(&a.center) && a.sweep_rad.is_finite()
-            }
-        };
+        let finite_path = path_is_finite(&path);
         if !finite_path || !abc_end.iter().all(|x| x.is_finite()) {
             return fail(blk.first_col, "coordinate out of range");
         }
@@ -312,5 +199,189 @@ impl State {
             self.polar_last = new_polar;
         }
         Ok(())
+    }
+
+    /// The motion words of a block in motion mode: `None` when the block makes no move
+    /// (no motion mode, or no word that asks for one; its other words checked). Checks the
+    /// words no code uses and G53's conditions, as rs274 checks them.
+    fn motion_words(
+        &mut self,
+        blk: &Block,
+        motion_col: u32,
+        machine: Option<u32>,
+    ) -> Result<Option<MotionWords>, BlockError> {
+        let d = self.dialect;
+        let (u, v, _) = self.plane.axes();
+        let has_axes = blk.any(&XYZ) || blk.any(&ABC);
+        if blk.any(&ABC) {
+            self.abc_used = true;
+        }
+        let Some(motion) = self.motion else {
+            let polar_words: &[u8] = match d {
+                Dialect::LinuxCnc => &[K_AT, K_CARET],
+                Dialect::Sinumerik => &[K_RP, K_AP],
+                Dialect::Heidenhain => &[KR, KH],
+                Dialect::Fagor => &[KR, KQ],
+                Dialect::Rockwell => &[],
+            };
+            if has_axes || blk.any(polar_words) {
+                let k = blk
+                    .first_of(&[KX, KY, KZ, KA, KB, KC])
+                    .or(blk.first_of(polar_words))
+                    .unwrap_or(KX);
+                return fail(
+                    blk.col(k),
+                    "cannot use axis values without a G code that uses them",
+                );
+            }
+            return self.check_unused(blk, false).map(|()| None);
+        };
+        let has_polar = match d {
+            Dialect::LinuxCnc => blk.has(K_AT) || blk.has(K_CARET),
+            Dialect::Sinumerik => blk.has(K_RP) || blk.has(K_AP),
+            Dialect::Heidenhain => {
+                blk.has(KH)
+                    || (blk.has(KR)
+                        && matches!(motion, Motion::PolarLine { .. } | Motion::PolarArc(_)))
+            }
+            Dialect::Fagor => blk.has(KQ) || (blk.has(KR) && !blk.has(XYZ[u]) && !blk.has(XYZ[v])),
+            Dialect::Rockwell => false,
+        };
+        let is_arc = matches!(motion, Motion::Arc(_) | Motion::PolarArc(_));
+        let has_centre = blk.any(&IJK) && d != Dialect::Heidenhain;
+        let has_radius = match d {
+            Dialect::Sinumerik => blk.has(K_CR),
+            Dialect::Heidenhain => blk.has(KR) && matches!(motion, Motion::Arc(_)),
+            Dialect::Fagor => blk.has(KR) && (blk.has(XYZ[u]) || blk.has(XYZ[v])),
+            _ => blk.has(KR),
+        };
+        let wants_motion = has_axes
+            || has_polar
+            || (is_arc && (has_centre || blk.has(K_TURN)) && d != Dialect::Heidenhain);
+        if !wants_motion {
+            return self.check_unused(blk, false).map(|()| None);
+        }
+        self.check_unused(blk, is_arc)?;
+        if d == Dialect::LinuxCnc {
+            self.comp_check_arc(is_arc, motion_col)?;
+        }
+
+        // G53's conditions come first, as rs274 checks them.
+        if let Some(col) = machine {
+            if !self.absolute {
+                return fail(col, "Cannot use g53 incremental");
+            }
+            if !matches!(motion, Motion::Rapid | Motion::Linear) {
+                return fail(col, "Must use g0 or g1 with g53");
+            }
+            self.comp_refuse(col, "Cannot use g53 with cutter radius comp")?;
+        }
+        Ok(Some(MotionWords {
+            motion,
+            has_polar,
+            is_arc,
+            has_radius,
+        }))
+    }
+
+    /// The direction of an arc (`true`: counter-clockwise): the block's, or the last
+    /// arc's for Heidenhain G05/G15.
+    fn arc_direction(&self, dir: Option<bool>, motion_col: u32) -> Result<bool, BlockError> {
+        match dir.or(self.last_ccw) {
+            Some(c) => Ok(c),
+            None => fail(
+                motion_col,
+                "no direction of rotation programmed before G05/G15",
+            ),
+        }
+    }
+
+    /// The A, B, C end of a move; with G53 the words are machine values.
+    fn abc_end(&self, blk: &Block, machine: Option<u32>) -> [f64; 3] {
+        let mut abc_end = self.abc_target(blk);
+        if machine.is_some() {
+            for (i, &k) in ABC.iter().enumerate() {
+                if let Some(v) = blk.get(k) {
+                    abc_end[i] = v;
+                }
+            }
+        }
+        abc_end
+    }
+
+    /// The end point of a move from `start` (frame coordinates) and, for a polar end
+    /// point, its radius and angle.
+    fn move_end(
+        &mut self,
+        blk: &Block,
+        motion: Motion,
+        machine: Option<u32>,
+        has_polar: bool,
+        start: Vec3,
+    ) -> Result<(Vec3, Option<(f64, f64)>), BlockError> {
+        let d = self.dialect;
+        let (u, v, w) = self.plane.axes();
+        let mut end = start;
+        let mut new_polar: Option<(f64, f64)> = None;
+        if machine.is_some() {
+            // Machine coordinates: the named axes go there, the others stay where they
+            // are on the machine (under a rotated system too).
+            let mut m = self.frame_to_machine(start);
+            for (i, &k) in XYZ.iter().enumerate() {
+                if let Some(val) = blk.get(k) {
+                    m[i] = val * self.scale();
+                }
+            }
+            end = self.machine_to_frame(m);
+        } else if has_polar && !matches!(motion, Motion::PolarArc(_)) {
+            let (r, a_deg) = self.polar_end(blk, motion)?;
+            let pole = self.polar_reference();
+            let a = a_deg.to_radians();
+            // LinuxCNC polar words always give X and Y; the others work in the active plane.
+            let (pu, pv, pw) = if d == Dialect::LinuxCnc {
+                (0, 1, 2)
+            } else {
+                (u, v, w)
+            };
+            end[pu] = pole[pu] + r * a.cos();
+            end[pv] = pole[pv] + r * a.sin();
+            end[pw] = self.linear_target(blk, XYZ[pw], pw);
+            new_polar = Some((r, a_deg));
+        } else {
+            for (i, &k) in XYZ.iter().enumerate() {
+                end[i] = self.linear_target(blk, k, i);
+            }
+        }
+        Ok((end, new_polar))
+    }
+}
+
+/// What a motion block's words ask for (see `State::motion_words`).
+struct MotionWords {
+    motion: Motion,
+    /// The end point is given in polar words.
+    has_polar: bool,
+    is_arc: bool,
+    /// The arc is given by its radius.
+    has_radius: bool,
+}
+
+/// Whether every coordinate of the path is finite.
+fn path_is_finite(path: &Path) -> bool {
+    let finite = |p: &Vec3| p.iter().all(|x| x.is_finite());
+    match path {
+        Path::Line(l) => finite(&l.start) && finite(&l.end),
+        Path::Arc(a) => {
+            finite(&a.start) && finite(&a.end) && finite(&a.center) && a.sweep_rad.is_finite()
+        }
+    }
+}
+
+/// Whether the motion mode moves at rapid rate.
+fn is_rapid(motion: Motion) -> bool {
+    match motion {
+        Motion::Rapid => true,
+        Motion::PolarLine { rapid } => rapid,
+        _ => false,
     }
 }
