@@ -154,155 +154,174 @@ impl State {
         }
         let s = self.scale();
         match d {
-            Dialect::LinuxCnc => {
-                if !matches!(motion, Motion::Rapid | Motion::Linear) {
-                    let k = blk.first_of(&[K_AT, K_CARET]).unwrap_or(K_AT);
-                    return fail(
-                        blk.col(k),
-                        "polar coordinates (@ ^) can only be used with G0 and G1",
-                    );
-                }
-                let (r0, a0) = self.current_polar();
-                let at = blk.get(K_AT).map(|x| x * s);
-                let caret = blk.get(K_CARET);
-                // At program zero the current point has no angle: LinuxCNC refuses what
-                // would need it, in its own words.
-                let at_zero = r0 < 1e-9;
-                if self.absolute {
-                    if at_zero && caret.is_none() {
-                        return fail(
-                            blk.col(K_AT),
-                            "Must specify angle in polar coordinate if at the origin",
-                        );
-                    }
-                    Ok((at.unwrap_or(r0), caret.unwrap_or(a0)))
-                } else {
-                    if at_zero {
-                        let (k, message) = if at.is_some() {
-                            (
-                                K_AT,
-                                "Incremental motion with polar coordinates is indeterminate when at the origin",
-                            )
-                        } else {
-                            (
-                                K_CARET,
-                                "G91 motion with polar coordinates is indeterminate when at the origin",
-                            )
-                        };
-                        return fail(blk.col(k), message);
-                    }
-                    Ok((r0 + at.unwrap_or(0.0), a0 + caret.unwrap_or(0.0)))
-                }
-            }
-            Dialect::Sinumerik => {
-                let rp = match blk.get(K_RP) {
-                    Some(r) => {
-                        let r = r * s;
-                        let r = if blk.forms[K_RP as usize] == Form::Inc {
-                            self.rp_mm.unwrap_or(0.0) + r
-                        } else {
-                            r
-                        };
-                        if r < 0.0 {
-                            return fail(blk.col(K_RP), "polar radius RP must not be negative");
-                        }
-                        r
-                    }
-                    None => match self.rp_mm {
-                        Some(r) => r,
-                        None => {
-                            return fail(
-                                blk.col(K_AP),
-                                "polar radius RP not programmed (required after a pole or plane change)",
-                            );
-                        }
-                    },
-                };
-                let ap = match blk.get(K_AP) {
-                    Some(a) if blk.forms[K_AP as usize] == Form::Inc => match self.ap_deg {
-                        Some(a0) => a0 + a,
-                        None => {
-                            return fail(blk.col(K_AP), "AP=IC() needs a previous polar angle AP");
-                        }
-                    },
-                    Some(a) => a,
-                    None => match self.ap_deg {
-                        Some(a) => a,
-                        None => {
-                            return fail(
-                                blk.col(K_RP),
-                                "polar angle AP not programmed (required after a pole or plane change)",
-                            );
-                        }
-                    },
-                };
-                if !(-360.0..=360.0).contains(&blk.get(K_AP).unwrap_or(0.0)) {
-                    return fail(
-                        blk.col(K_AP),
-                        "polar angle AP out of range (-360..360 degrees)",
-                    );
-                }
-                self.rp_mm = Some(rp);
-                self.ap_deg = Some(ap);
-                Ok((rp, ap))
-            }
-            Dialect::Heidenhain | Dialect::Fagor => {
-                let (rk, ak) = if d == Dialect::Heidenhain {
-                    (KR, KH)
-                } else {
-                    (KR, KQ)
-                };
-                if d == Dialect::Heidenhain
-                    && !matches!(motion, Motion::PolarLine { .. } | Motion::PolarArc(_))
-                {
-                    let k = blk.first_of(&[KH, KR]).unwrap_or(KH);
-                    return fail(
-                        blk.col(k),
-                        "polar coordinates need G10, G11, G12, G13 or G15",
-                    );
-                }
-                if self.dialect == Dialect::Heidenhain && self.cc.is_none() {
-                    return fail(blk.first_col, "pole (I, J) not defined");
-                }
-                let (r0, a0) = self.current_polar();
-                let r = match blk.get(rk) {
-                    Some(r) if self.word_absolute(blk, rk) => r * s,
-                    Some(r) => r0 + r * s,
-                    None => r0,
-                };
-                if r < 0.0 {
-                    return fail(blk.col(rk), "polar radius must not be negative");
-                }
-                let a = match blk.get(ak) {
-                    Some(a) => {
-                        let limit =
-                            if matches!(motion, Motion::PolarArc(_)) && d == Dialect::Heidenhain {
-                                5400.0
-                            } else if d == Dialect::Heidenhain {
-                                360.0
-                            } else {
-                                f64::INFINITY
-                            };
-                        if a.abs() > limit {
-                            return fail(
-                                blk.col(ak),
-                                format!(
-                                    "polar angle {} out of range (-{limit}..+{limit} degrees)",
-                                    key_name(ak)
-                                ),
-                            );
-                        }
-                        if self.word_absolute(blk, ak) {
-                            a
-                        } else {
-                            a0 + a
-                        }
-                    }
-                    None => a0,
-                };
-                Ok((r, a))
-            }
+            Dialect::LinuxCnc => self.polar_end_linuxcnc(blk, motion, s),
+            Dialect::Sinumerik => self.polar_end_sinumerik(blk, s),
+            Dialect::Heidenhain | Dialect::Fagor => self.polar_end_tnc_fagor(blk, motion, s),
             Dialect::Rockwell => Ok(self.current_polar()),
         }
+    }
+
+    /// LinuxCNC `@` (radius) and `^` (angle) about program zero, in G0 and G1.
+    fn polar_end_linuxcnc(
+        &self,
+        blk: &Block,
+        motion: Motion,
+        s: f64,
+    ) -> Result<(f64, f64), BlockError> {
+        if !matches!(motion, Motion::Rapid | Motion::Linear) {
+            let k = blk.first_of(&[K_AT, K_CARET]).unwrap_or(K_AT);
+            return fail(
+                blk.col(k),
+                "polar coordinates (@ ^) can only be used with G0 and G1",
+            );
+        }
+        let (r0, a0) = self.current_polar();
+        let at = blk.get(K_AT).map(|x| x * s);
+        let caret = blk.get(K_CARET);
+        // At program zero the current point has no angle: LinuxCNC refuses what
+        // would need it, in its own words.
+        let at_zero = r0 < 1e-9;
+        if self.absolute {
+            if at_zero && caret.is_none() {
+                return fail(
+                    blk.col(K_AT),
+                    "Must specify angle in polar coordinate if at the origin",
+                );
+            }
+            Ok((at.unwrap_or(r0), caret.unwrap_or(a0)))
+        } else {
+            if at_zero {
+                let (k, message) = if at.is_some() {
+                    (
+                        K_AT,
+                        "Incremental motion with polar coordinates is indeterminate when at the origin",
+                    )
+                } else {
+                    (
+                        K_CARET,
+                        "G91 motion with polar coordinates is indeterminate when at the origin",
+                    )
+                };
+                return fail(blk.col(k), message);
+            }
+            Ok((r0 + at.unwrap_or(0.0), a0 + caret.unwrap_or(0.0)))
+        }
+    }
+
+    /// Sinumerik RP and AP about the pole, kept as the modal polar values.
+    fn polar_end_sinumerik(&mut self, blk: &Block, s: f64) -> Result<(f64, f64), BlockError> {
+        let rp = match blk.get(K_RP) {
+            Some(r) => {
+                let r = r * s;
+                let r = if blk.forms[K_RP as usize] == Form::Inc {
+                    self.rp_mm.unwrap_or(0.0) + r
+                } else {
+                    r
+                };
+                if r < 0.0 {
+                    return fail(blk.col(K_RP), "polar radius RP must not be negative");
+                }
+                r
+            }
+            None => match self.rp_mm {
+                Some(r) => r,
+                None => {
+                    return fail(
+                        blk.col(K_AP),
+                        "polar radius RP not programmed (required after a pole or plane change)",
+                    );
+                }
+            },
+        };
+        let ap = match blk.get(K_AP) {
+            Some(a) if blk.forms[K_AP as usize] == Form::Inc => match self.ap_deg {
+                Some(a0) => a0 + a,
+                None => {
+                    return fail(blk.col(K_AP), "AP=IC() needs a previous polar angle AP");
+                }
+            },
+            Some(a) => a,
+            None => match self.ap_deg {
+                Some(a) => a,
+                None => {
+                    return fail(
+                        blk.col(K_RP),
+                        "polar angle AP not programmed (required after a pole or plane change)",
+                    );
+                }
+            },
+        };
+        if !(-360.0..=360.0).contains(&blk.get(K_AP).unwrap_or(0.0)) {
+            return fail(
+                blk.col(K_AP),
+                "polar angle AP out of range (-360..360 degrees)",
+            );
+        }
+        self.rp_mm = Some(rp);
+        self.ap_deg = Some(ap);
+        Ok((rp, ap))
+    }
+
+    /// Heidenhain R and H about the pole (CC), Fagor R and Q about the polar origin.
+    fn polar_end_tnc_fagor(
+        &self,
+        blk: &Block,
+        motion: Motion,
+        s: f64,
+    ) -> Result<(f64, f64), BlockError> {
+        let d = self.dialect;
+        let (rk, ak) = if d == Dialect::Heidenhain {
+            (KR, KH)
+        } else {
+            (KR, KQ)
+        };
+        if d == Dialect::Heidenhain
+            && !matches!(motion, Motion::PolarLine { .. } | Motion::PolarArc(_))
+        {
+            let k = blk.first_of(&[KH, KR]).unwrap_or(KH);
+            return fail(
+                blk.col(k),
+                "polar coordinates need G10, G11, G12, G13 or G15",
+            );
+        }
+        if self.dialect == Dialect::Heidenhain && self.cc.is_none() {
+            return fail(blk.first_col, "pole (I, J) not defined");
+        }
+        let (r0, a0) = self.current_polar();
+        let r = match blk.get(rk) {
+            Some(r) if self.word_absolute(blk, rk) => r * s,
+            Some(r) => r0 + r * s,
+            None => r0,
+        };
+        if r < 0.0 {
+            return fail(blk.col(rk), "polar radius must not be negative");
+        }
+        let a = match blk.get(ak) {
+            Some(a) => {
+                let limit = if matches!(motion, Motion::PolarArc(_)) && d == Dialect::Heidenhain {
+                    5400.0
+                } else if d == Dialect::Heidenhain {
+                    360.0
+                } else {
+                    f64::INFINITY
+                };
+                if a.abs() > limit {
+                    return fail(
+                        blk.col(ak),
+                        format!(
+                            "polar angle {} out of range (-{limit}..+{limit} degrees)",
+                            key_name(ak)
+                        ),
+                    );
+                }
+                if self.word_absolute(blk, ak) {
+                    a
+                } else {
+                    a0 + a
+                }
+            }
+            None => a0,
+        };
+        Ok((r, a))
     }
 }
