@@ -74,116 +74,17 @@ impl State {
         let tol = self.arc_tolerance();
 
         // Turns.
-        let extra_turns: u32 = match d {
-            Dialect::LinuxCnc => match blk.get(KP) {
-                Some(p) => {
-                    if p.fract() != 0.0 || !(1.0..=1e6).contains(&p) {
-                        return fail(
-                            blk.col(KP),
-                            "P word with G2 or G3 must be a positive integer",
-                        );
-                    }
-                    p as u32 - 1
-                }
-                None => 0,
-            },
-            Dialect::Sinumerik => match blk.get(K_TURN) {
-                Some(t) => {
-                    if t.fract() != 0.0 || !(0.0..=999.0).contains(&t) {
-                        return fail(blk.col(K_TURN), "TURN must be an integer from 0 to 999");
-                    }
-                    t as u32
-                }
-                None => 0,
-            },
-            _ => 0,
-        };
+        let extra_turns = self.arc_turns(blk)?;
 
         // Heidenhain polar circles: centre = pole, angle H, optional helix along the normal.
         if let Motion::PolarArc(_) = motion {
-            let Some(cc) = self.cc else {
-                return fail(motion_col, "pole (I, J) not defined");
-            };
-            if let Some(k) = blk.first_of(&[XYZ[u], XYZ[v], KR]) {
-                return fail(
-                    blk.col(k),
-                    format!(
-                        "{} not allowed in a polar circle (G12/G13/G15): the radius is the distance to the pole",
-                        key_name(k)
-                    ),
-                );
-            }
-            let (r0, a0) = self.current_polar();
-            if r0 < arc::SAME_POINT_MM {
-                return fail(motion_col, "zero-radius arc: the start point is the pole");
-            }
-            let Some(h) = blk.get(KH) else {
-                return fail(motion_col, "polar angle H missing");
-            };
-            if h.abs() > 5400.0 {
-                return fail(
-                    blk.col(KH),
-                    "polar angle H out of range (-5400..+5400 degrees)",
-                );
-            }
-            let (sweep_deg, a_end) = if self.word_absolute(blk, KH) {
-                // Absolute H is the angular position of the end point (seed 004), a point:
-                // H and H ± 360° name the same one. The arc runs from the start point in
-                // the programmed direction to that point, less than one turn, or one whole
-                // turn when it is the start point. The start's angle is measured from its
-                // position, never taken from how it was programmed (after `H-360` or
-                // `H+0` or a Cartesian move to the same point, `G13 H+5` sweeps 5°).
-                let (_, a_start) = self.measured_polar();
-                let mut ahead = (h - a_start).rem_euclid(360.0);
-                if !(POLAR_SAME_ANGLE_DEG..=360.0 - POLAR_SAME_ANGLE_DEG).contains(&ahead) {
-                    ahead = 0.0;
-                }
-                let sweep = match (ccw, ahead == 0.0) {
-                    (true, true) => 360.0,
-                    (true, false) => ahead,
-                    (false, true) => -360.0,
-                    (false, false) => ahead - 360.0,
-                };
-                (sweep, h)
-            } else {
-                if h == 0.0 || (h > 0.0) != ccw {
-                    return fail(
-                        blk.col(KH),
-                        "incremental polar angle and direction of rotation disagree",
-                    );
-                }
-                (h, a0 + h)
-            };
-            if sweep_deg % 360.0 == 0.0 {
-                // Whole turns end exactly where they started, not one rounding away.
-                end[u] = start[u];
-                end[v] = start[v];
-            } else {
-                let a = a_end.to_radians();
-                end[u] = cc[u] + r0 * a.cos();
-                end[v] = cc[v] + r0 * a.sin();
-            }
-            end[w] = self.linear_target(blk, XYZ[w], w);
-            let arc = arc::make_arc(start, *end, (cc[u], cc[v]), plane, sweep_deg.to_radians());
-            self.polar_last = Some((r0, a_end));
-            return Ok(Some(arc));
+            return self
+                .polar_circle(blk, start, end, ccw, motion_col)
+                .map(Some);
         }
 
         // Out-of-plane centre words.
-        if d != Dialect::Heidenhain
-            && let Some(k) = blk.first_of(&[IJK[w]])
-        {
-            let message = if d == Dialect::LinuxCnc {
-                format!(
-                    "{} word given for arc in {} plane",
-                    key_name(k),
-                    plane.name()
-                )
-            } else {
-                format!("{} word in {} plane", key_name(k), plane.name())
-            };
-            return fail(blk.col(k), message);
-        }
+        self.check_out_of_plane_centre(blk)?;
         let has_centre = blk.has(IJK[u]) || blk.has(IJK[v]);
 
         // Radius format.
@@ -238,7 +139,189 @@ impl State {
         }
 
         // Centre.
-        let centre = match d {
+        let centre = self.arc_centre(blk, start, polar, has_centre, abs_centre_once, motion_col)?;
+
+        // Heidenhain: an end point within 0.016 mm of the start is a full circle.
+        if d == Dialect::Heidenhain {
+            let (du, dv) = (end[u] - start[u], end[v] - start[v]);
+            if arc::len2(du, dv) <= 0.016 {
+                end[u] = start[u];
+                end[v] = start[v];
+            }
+        }
+
+        // Fagor G91 Q360 (a multiple of 360° incremental about the polar origin): whole circles.
+        if let Some(a) = self.fagor_whole_circles(
+            blk,
+            start,
+            end,
+            centre,
+            ccw,
+            polar && !has_centre,
+            motion_col,
+        )? {
+            return Ok(Some(a));
+        }
+
+        let col = if has_centre {
+            blk.first_of(&IJK).map_or(motion_col, |k| blk.col(k))
+        } else {
+            motion_col
+        };
+        let arc = arc::arc_from_center(start, *end, centre, plane, ccw, extra_turns, tol)
+            .map_err(|e| self.arc_error(e, col))?;
+        if d == Dialect::LinuxCnc && arc::end_on_start_ray(&start, end, centre, plane) {
+            // LinuxCNC turns a whole circle about the programmed centre, spiralling to the
+            // end radius. Kerf's arcs are exact circles: the whole turn at the start radius
+            // (the helix reaching the end's height), then the radial line to the end, which
+            // is as long as the radii differ (within the arc tolerance checked above).
+            if self.crc.actual.is_some() {
+                return fail(
+                    col,
+                    "an arc whose end lies on the ray from its centre through its start (a whole turn that changes radius) is not supported with cutter compensation",
+                );
+            }
+            if self.feed_mode == super::FeedMode::InverseTime {
+                return fail(
+                    col,
+                    "an arc whose end lies on the ray from its centre through its start (a whole turn that changes radius) is not supported in inverse time (G93)",
+                );
+            }
+            let mut turn_end = start;
+            turn_end[w] = end[w];
+            let whole = arc::arc_from_center(start, turn_end, centre, plane, ccw, extra_turns, tol)
+                .map_err(|e| self.arc_error(e, col))?;
+            self.arc_tail = Some(*end);
+            *end = whole.end;
+            return Ok(Some(whole));
+        }
+        Ok(Some(arc))
+    }
+
+    /// The whole turns an arc makes beyond its sweep: LinuxCNC P (the number of turns),
+    /// Sinumerik TURN.
+    fn arc_turns(&self, blk: &Block) -> Result<u32, BlockError> {
+        Ok(match self.dialect {
+            Dialect::LinuxCnc => match blk.get(KP) {
+                Some(p) => {
+                    if p.fract() != 0.0 || !(1.0..=1e6).contains(&p) {
+                        return fail(
+                            blk.col(KP),
+                            "P word with G2 or G3 must be a positive integer",
+                        );
+                    }
+                    p as u32 - 1
+                }
+                None => 0,
+            },
+            Dialect::Sinumerik => match blk.get(K_TURN) {
+                Some(t) => {
+                    if t.fract() != 0.0 || !(0.0..=999.0).contains(&t) {
+                        return fail(blk.col(K_TURN), "TURN must be an integer from 0 to 999");
+                    }
+                    t as u32
+                }
+                None => 0,
+            },
+            _ => 0,
+        })
+    }
+
+    /// Heidenhain polar circles (G12/G13/G15): centre = pole, angle H, optional helix along
+    /// the normal. Sets the end point.
+    fn polar_circle(
+        &mut self,
+        blk: &Block,
+        start: Vec3,
+        end: &mut Vec3,
+        ccw: bool,
+        motion_col: u32,
+    ) -> Result<kerf_geom::Arc, BlockError> {
+        let plane = self.plane;
+        let (u, v, w) = plane.axes();
+        let Some(cc) = self.cc else {
+            return fail(motion_col, "pole (I, J) not defined");
+        };
+        if let Some(k) = blk.first_of(&[XYZ[u], XYZ[v], KR]) {
+            return fail(
+                blk.col(k),
+                format!(
+                    "{} not allowed in a polar circle (G12/G13/G15): the radius is the distance to the pole",
+                    key_name(k)
+                ),
+            );
+        }
+        let (r0, a0) = self.current_polar();
+        if r0 < arc::SAME_POINT_MM {
+            return fail(motion_col, "zero-radius arc: the start point is the pole");
+        }
+        let Some(h) = blk.get(KH) else {
+            return fail(motion_col, "polar angle H missing");
+        };
+        if h.abs() > 5400.0 {
+            return fail(
+                blk.col(KH),
+                "polar angle H out of range (-5400..+5400 degrees)",
+            );
+        }
+        let (sweep_deg, a_end) = if self.word_absolute(blk, KH) {
+            // Absolute H is the angular position of the end point (seed 004), a point:
+            // H and H ± 360° name the same one. The arc runs from the start point in
+            // the programmed direction to that point, less than one turn, or one whole
+            // turn when it is the start point. The start's angle is measured from its
+            // position, never taken from how it was programmed (after `H-360` or
+            // `H+0` or a Cartesian move to the same point, `G13 H+5` sweeps 5°).
+            let (_, a_start) = self.measured_polar();
+            let mut ahead = (h - a_start).rem_euclid(360.0);
+            if !(POLAR_SAME_ANGLE_DEG..=360.0 - POLAR_SAME_ANGLE_DEG).contains(&ahead) {
+                ahead = 0.0;
+            }
+            let sweep = match (ccw, ahead == 0.0) {
+                (true, true) => 360.0,
+                (true, false) => ahead,
+                (false, true) => -360.0,
+                (false, false) => ahead - 360.0,
+            };
+            (sweep, h)
+        } else {
+            if h == 0.0 || (h > 0.0) != ccw {
+                return fail(
+                    blk.col(KH),
+                    "incremental polar angle and direction of rotation disagree",
+                );
+            }
+            (h, a0 + h)
+        };
+        if sweep_deg % 360.0 == 0.0 {
+            // Whole turns end exactly where they started, not one rounding away.
+            end[u] = start[u];
+            end[v] = start[v];
+        } else {
+            let a = a_end.to_radians();
+            end[u] = cc[u] + r0 * a.cos();
+            end[v] = cc[v] + r0 * a.sin();
+        }
+        end[w] = self.linear_target(blk, XYZ[w], w);
+        let arc = arc::make_arc(start, *end, (cc[u], cc[v]), plane, sweep_deg.to_radians());
+        self.polar_last = Some((r0, a_end));
+        Ok(arc)
+    }
+
+    /// The centre of an arc in the plane (frame coordinates): from I, J, K, the pole or
+    /// polar origin, or the Heidenhain circle centre.
+    fn arc_centre(
+        &self,
+        blk: &Block,
+        start: Vec3,
+        polar: bool,
+        has_centre: bool,
+        abs_centre_once: bool,
+        motion_col: u32,
+    ) -> Result<(f64, f64), BlockError> {
+        let d = self.dialect;
+        let (u, v, _) = self.plane.axes();
+        let s = self.scale();
+        Ok(match d {
             Dialect::LinuxCnc | Dialect::Rockwell | Dialect::Sinumerik => {
                 if !has_centre && !polar {
                     let message = match d {
@@ -304,21 +387,26 @@ impl State {
                     (o[u], o[v])
                 }
             }
-        };
+        })
+    }
 
-        // Heidenhain: an end point within 0.016 mm of the start is a full circle.
-        if d == Dialect::Heidenhain {
-            let (du, dv) = (end[u] - start[u], end[v] - start[v]);
-            if arc::len2(du, dv) <= 0.016 {
-                end[u] = start[u];
-                end[v] = start[v];
-            }
-        }
-
-        // Fagor G91 Q360 (a multiple of 360° incremental about the polar origin): whole circles.
-        if d == Dialect::Fagor
-            && polar
-            && !has_centre
+    /// Fagor: `G91 Q` a non-zero multiple of 360° about the polar origin makes whole
+    /// circles ending at the start; `None` otherwise.
+    #[allow(clippy::too_many_arguments)]
+    fn fagor_whole_circles(
+        &self,
+        blk: &Block,
+        start: Vec3,
+        end: &mut Vec3,
+        centre: (f64, f64),
+        ccw: bool,
+        polar_about_origin: bool,
+        motion_col: u32,
+    ) -> Result<Option<kerf_geom::Arc>, BlockError> {
+        let plane = self.plane;
+        let (u, v, _) = plane.axes();
+        if self.dialect == Dialect::Fagor
+            && polar_about_origin
             && let (Some(q), false) = (blk.get(KQ), self.word_absolute(blk, KQ))
         {
             let turns = (q / 360.0).round();
@@ -336,39 +424,28 @@ impl State {
                 return Ok(Some(a));
             }
         }
+        Ok(None)
+    }
 
-        let col = if has_centre {
-            blk.first_of(&IJK).map_or(motion_col, |k| blk.col(k))
-        } else {
-            motion_col
-        };
-        let arc = arc::arc_from_center(start, *end, centre, plane, ccw, extra_turns, tol)
-            .map_err(|e| self.arc_error(e, col))?;
-        if d == Dialect::LinuxCnc && arc::end_on_start_ray(&start, end, centre, plane) {
-            // LinuxCNC turns a whole circle about the programmed centre, spiralling to the
-            // end radius. Kerf's arcs are exact circles: the whole turn at the start radius
-            // (the helix reaching the end's height), then the radial line to the end, which
-            // is as long as the radii differ (within the arc tolerance checked above).
-            if self.crc.actual.is_some() {
-                return fail(
-                    col,
-                    "an arc whose end lies on the ray from its centre through its start (a whole turn that changes radius) is not supported with cutter compensation",
-                );
-            }
-            if self.feed_mode == super::FeedMode::InverseTime {
-                return fail(
-                    col,
-                    "an arc whose end lies on the ray from its centre through its start (a whole turn that changes radius) is not supported in inverse time (G93)",
-                );
-            }
-            let mut turn_end = start;
-            turn_end[w] = end[w];
-            let whole = arc::arc_from_center(start, turn_end, centre, plane, ccw, extra_turns, tol)
-                .map_err(|e| self.arc_error(e, col))?;
-            self.arc_tail = Some(*end);
-            *end = whole.end;
-            return Ok(Some(whole));
+    /// A centre word along the plane's normal (K in G17): an error, except in Heidenhain.
+    fn check_out_of_plane_centre(&self, blk: &Block) -> Result<(), BlockError> {
+        let d = self.dialect;
+        let plane = self.plane;
+        let (_, _, w) = plane.axes();
+        if d != Dialect::Heidenhain
+            && let Some(k) = blk.first_of(&[IJK[w]])
+        {
+            let message = if d == Dialect::LinuxCnc {
+                format!(
+                    "{} word given for arc in {} plane",
+                    key_name(k),
+                    plane.name()
+                )
+            } else {
+                format!("{} word in {} plane", key_name(k), plane.name())
+            };
+            return fail(blk.col(k), message);
         }
-        Ok(Some(arc))
+        Ok(())
     }
 }
