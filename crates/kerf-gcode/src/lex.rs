@@ -211,84 +211,10 @@ impl Lexer {
                     });
                 }
                 _ if c.is_ascii_alphabetic() => {
-                    // Fast path for the overwhelmingly common `X-12.345` word: a letter
-                    // directly followed by a plain number and then a separator.
-                    let letter = c.to_ascii_uppercase();
-                    if letter != b'O'
-                        && let Some((value, j)) = fast_number(line, i + 1)
-                    {
-                        let plain_end = match line.get(j) {
-                            None | Some(b'(' | b';' | b'*' | b'\r') => true,
-                            // LinuxCNC ignores spaces, so `X1 0` is X10: let the
-                            // general path look further.
-                            Some(b' ' | b'\t') => {
-                                self.dialect != Dialect::LinuxCnc
-                                    || !matches!(next_non_space(line, j), Some(b'0'..=b'9' | b'.'))
-                            }
-                            Some(c) => c.is_ascii_alphabetic(),
-                        };
-                        if plain_end {
-                            words.push(Word {
-                                key: key(letter),
-                                value,
-                                col: col_of(i),
-                                form: Form::Plain,
-                            });
-                            i = j;
-                            continue;
-                        }
-                    }
-                    if self.dialect == Dialect::Sinumerik {
-                        self.sinumerik_word(line, &mut i, words)?;
-                    } else {
-                        let letter = c.to_ascii_uppercase();
-                        let col = col_of(i);
-                        if letter == b'O' {
-                            match self.dialect {
-                                Dialect::LinuxCnc => {
-                                    return err(
-                                        i,
-                                        "O-words (subroutines and loops) are not supported yet",
-                                    );
-                                }
-                                Dialect::Rockwell if words.is_empty() => {
-                                    // A Fanuc-style program number `O1234` names the program;
-                                    // it carries no motion, so the rest of the line is skipped.
-                                    *pos = self.block_end(line, i);
-                                    return Ok(Some(flags));
-                                }
-                                _ => {}
-                            }
-                        }
-                        i += 1;
-                        if self.dialect == Dialect::Fagor
-                            && line.get(i).is_some_and(|b| b.is_ascii_alphabetic())
-                        {
-                            return err(
-                                i - 1,
-                                "Fagor high-level instructions and variables are not supported yet",
-                            );
-                        }
-                        let value = self.value(line, &mut i).map_err(|mut e| {
-                            if e.message == "bad number format" {
-                                // Point at the word whose number is malformed.
-                                e.col = col;
-                                e.message = format!("bad number format after {}", letter as char);
-                            }
-                            e
-                        })?;
-                        if self.dialect == Dialect::Fagor
-                            && letter == b'P'
-                            && next_non_space(line, i) == Some(b'=')
-                        {
-                            return err(i, "arithmetic parameters (P) are not supported yet");
-                        }
-                        words.push(Word {
-                            key: key(letter),
-                            value,
-                            col,
-                            form: Form::Plain,
-                        });
+                    if let Some(end) = self.letter_word(line, &mut i, c, words)? {
+                        // A Rockwell program number: the rest of the line is skipped.
+                        *pos = end;
+                        return Ok(Some(flags));
                     }
                 }
                 _ => {
@@ -296,6 +222,95 @@ impl Lexer {
                 }
             }
         }
+    }
+
+    /// A word that starts with the letter `c` at `*i`, pushed to `words` (Sinumerik words
+    /// by `sinumerik_word`). Returns the end of the block when the word ends it (a
+    /// Rockwell program number `O1234` at the start of a block).
+    #[inline]
+    fn letter_word(
+        self,
+        line: &[u8],
+        i: &mut usize,
+        c: u8,
+        words: &mut Vec<Word>,
+    ) -> Result<Option<usize>, BlockError> {
+        // Fast path for the overwhelmingly common `X-12.345` word: a letter
+        // directly followed by a plain number and then a separator.
+        let letter = c.to_ascii_uppercase();
+        if letter != b'O'
+            && let Some((value, j)) = fast_number(line, *i + 1)
+        {
+            let plain_end = match line.get(j) {
+                None | Some(b'(' | b';' | b'*' | b'\r') => true,
+                // LinuxCNC ignores spaces, so `X1 0` is X10: let the
+                // general path look further.
+                Some(b' ' | b'\t') => {
+                    self.dialect != Dialect::LinuxCnc
+                        || !matches!(next_non_space(line, j), Some(b'0'..=b'9' | b'.'))
+                }
+                Some(c) => c.is_ascii_alphabetic(),
+            };
+            if plain_end {
+                words.push(Word {
+                    key: key(letter),
+                    value,
+                    col: col_of(*i),
+                    form: Form::Plain,
+                });
+                *i = j;
+                return Ok(None);
+            }
+        }
+        if self.dialect == Dialect::Sinumerik {
+            self.sinumerik_word(line, i, words)?;
+        } else {
+            let letter = c.to_ascii_uppercase();
+            let col = col_of(*i);
+            if letter == b'O' {
+                match self.dialect {
+                    Dialect::LinuxCnc => {
+                        return err(*i, "O-words (subroutines and loops) are not supported yet");
+                    }
+                    Dialect::Rockwell if words.is_empty() => {
+                        // A Fanuc-style program number `O1234` names the program;
+                        // it carries no motion, so the rest of the line is skipped.
+                        return Ok(Some(self.block_end(line, *i)));
+                    }
+                    _ => {}
+                }
+            }
+            *i += 1;
+            if self.dialect == Dialect::Fagor
+                && line.get(*i).is_some_and(|b| b.is_ascii_alphabetic())
+            {
+                return err(
+                    *i - 1,
+                    "Fagor high-level instructions and variables are not supported yet",
+                );
+            }
+            let value = self.value(line, i).map_err(|mut e| {
+                if e.message == "bad number format" {
+                    // Point at the word whose number is malformed.
+                    e.col = col;
+                    e.message = format!("bad number format after {}", letter as char);
+                }
+                e
+            })?;
+            if self.dialect == Dialect::Fagor
+                && letter == b'P'
+                && next_non_space(line, *i) == Some(b'=')
+            {
+                return err(*i, "arithmetic parameters (P) are not supported yet");
+            }
+            words.push(Word {
+                key: key(letter),
+                value,
+                col,
+                form: Form::Plain,
+            });
+        }
+        Ok(None)
     }
 
     /// The offset just past the end of the block that contains `from`.

@@ -1,0 +1,328 @@
+//! The streaming [`Interpreter`]: reads a program one source line at a time, through the
+//! lexer or the LinuxCNC language layer, resolves each block and yields its items.
+
+use crate::{Diagnostic, Dialect, Item, Settings, interp, lex, ngc};
+
+/// The longest source line accepted, in bytes. Longer lines are an error, which keeps the
+/// interpreter's memory bounded on any input.
+pub const MAX_LINE_BYTES: usize = 64 * 1024;
+
+/// Streams items from a reader: constant memory, one source line at a time.
+///
+/// The iterator yields items in program order. After the first `Err` it yields `None`
+/// forever: nothing after a failing block is produced. The items of a block are only
+/// yielded once the whole block has been resolved without error.
+pub struct Interpreter<R: std::io::BufRead> {
+    reader: R,
+    line: Vec<u8>,
+    line_no: u32,
+    /// Lines read from the reader (`line_no` is the line being run, which may come from
+    /// a subroutine or loop kept in memory).
+    reader_line: u32,
+    lexer: lex::Lexer,
+    words: Vec<lex::Word>,
+    block: interp::Block,
+    state: interp::State,
+    pending: Vec<Item>,
+    next_pending: usize,
+    error: Option<Diagnostic>,
+    finished: bool,
+    percent_seen: bool,
+    blocks_seen: bool,
+    /// The LinuxCNC language layer (parameters, expressions, O-words, messages).
+    ngc: ngc::Ngc,
+}
+
+impl<R: std::io::BufRead> Interpreter<R> {
+    /// An interpreter for `dialect` reading from `reader`.
+    pub fn new(reader: R, dialect: Dialect, settings: Settings) -> Self {
+        Self::with_program_dir(reader, dialect, settings, None)
+    }
+
+    /// Like [`Interpreter::new`] for a program read from a file in `dir`: LinuxCNC looks
+    /// for subroutine files `NAME.ngc` there first, then on [`Settings::subroutine_path`].
+    pub fn with_program_dir(
+        reader: R,
+        dialect: Dialect,
+        settings: Settings,
+        dir: Option<&std::path::Path>,
+    ) -> Self {
+        let program_dir = settings.program_file.as_deref().map(|f| match f.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => std::path::PathBuf::from("."),
+        });
+        let mut search: Vec<std::path::PathBuf> = dir
+            .map(|d| d.to_path_buf())
+            .into_iter()
+            .chain(program_dir)
+            .collect();
+        search.extend(settings.subroutine_path.iter().cloned());
+        let ngc = ngc::Ngc::new(
+            search,
+            settings.max_loop_iterations,
+            settings.program_file.clone(),
+        );
+        Interpreter {
+            ngc,
+            reader,
+            line: Vec::with_capacity(256),
+            line_no: 0,
+            reader_line: 0,
+            lexer: lex::Lexer::new(dialect).with_block_delete(settings.block_delete),
+            words: Vec::with_capacity(32),
+            block: interp::Block::new(),
+            state: interp::State::new(dialect, settings),
+            pending: Vec::with_capacity(16),
+            next_pending: 0,
+            error: None,
+            finished: false,
+            percent_seen: false,
+            blocks_seen: false,
+        }
+    }
+
+    /// LinuxCNC's persistent numbered parameters #5161–#5390 as they are now (after a
+    /// program that ended normally: its end values), in mm and degrees: the G28 and G30
+    /// positions, the G92 offset and its flag, the active coordinate system and the
+    /// G54–G59.3 offsets and rotations. `kerf run` writes them to the parameter file.
+    pub fn persistent_parameters(&self) -> Vec<(u32, f64)> {
+        self.state.params.persistent()
+    }
+
+    /// True when the program ended with M2 or M30 (or a Heidenhain end line).
+    pub fn ended(&self) -> bool {
+        self.state.done
+    }
+
+    fn diag(&self, col: u32, message: impl Into<String>) -> Diagnostic {
+        Diagnostic {
+            line: self.line_no,
+            col,
+            message: message.into(),
+            file: self.ngc.current_file(),
+            called_from: self.ngc.call_chain(),
+        }
+    }
+
+    /// Reads the next line into `self.line` without its line end. `Ok(false)` at the end
+    /// of the input.
+    fn read_line(&mut self) -> Result<bool, Diagnostic> {
+        use std::io::{BufRead, Read};
+        self.line.clear();
+        let limit = MAX_LINE_BYTES as u64 + 1;
+        let n = loop {
+            match (&mut self.reader)
+                .take(limit)
+                .read_until(b'\n', &mut self.line)
+            {
+                Ok(n) => break n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => {
+                    self.reader_line = self.reader_line.saturating_add(1);
+                    self.line_no = self.reader_line;
+                    return Err(self.diag(1, format!("read error: {e}")));
+                }
+            }
+        };
+        if n == 0 {
+            return Ok(false);
+        }
+        self.reader_line = self.reader_line.saturating_add(1);
+        self.line_no = self.reader_line;
+        if self.line.last() == Some(&b'\n') {
+            self.line.pop();
+        } else if self.line.len() > MAX_LINE_BYTES {
+            return Err(self.diag(1, format!("line longer than {MAX_LINE_BYTES} bytes")));
+        }
+        if self.line.last() == Some(&b'\r') {
+            self.line.pop();
+        }
+        if self.line_no == 1 && self.line.starts_with(b"\xef\xbb\xbf") {
+            // A UTF-8 byte-order mark, as some Windows editors write: not part of the program.
+            // Blanking it keeps the columns of the first line right.
+            self.line[..3].copy_from_slice(b"   ");
+        }
+        Ok(true)
+    }
+
+    /// Resolves every block of the current line into `pending`, stopping at the first error.
+    fn process_line(&mut self) -> Result<(), Diagnostic> {
+        // Plain ASCII without NUL is the common case and needs no further check.
+        if self.line.iter().any(|&b| b == 0 || b >= 0x80) {
+            if let Some(i) = self.line.iter().position(|&b| b == 0) {
+                return Err(self.diag(lex::col_of(i), "NUL byte in program"));
+            }
+            if let Err(e) = std::str::from_utf8(&self.line) {
+                return Err(self.diag(lex::col_of(e.valid_up_to()), "invalid UTF-8 in program"));
+            }
+        }
+        let dialect = self.state.dialect();
+        if dialect == Dialect::LinuxCnc
+            && (self.ngc.busy() || ngc::needs_language(&self.line))
+            && self.process_ngc_line()?
+        {
+            return Ok(());
+        }
+        let mut pos = 0;
+        loop {
+            let start = self.pending.len();
+            let flags = match self.lexer.next_block(&self.line, &mut pos, &mut self.words) {
+                Ok(Some(f)) => f,
+                Ok(None) => return Ok(()),
+                Err(e) => return Err(self.diag(e.col, e.message)),
+            };
+            if flags.deleted {
+                continue;
+            }
+            if flags.percent && matches!(dialect, Dialect::LinuxCnc | Dialect::Rockwell) {
+                // A `%` line opens the program; the next one ends it and the rest of the
+                // file is ignored, as on the control.
+                if dialect == Dialect::LinuxCnc && !self.percent_seen && self.blocks_seen {
+                    // rs274: a `%` closes only a program that a `%` opened.
+                    return Err(self.diag(1, "Bad character '%' used"));
+                }
+                if self.percent_seen || self.blocks_seen {
+                    self.finished = true;
+                    // LinuxCNC does not run a move held back by cutter compensation
+                    // when the program ends at `%`; neither does Kerf.
+                    return Ok(());
+                }
+                self.percent_seen = true;
+                continue;
+            }
+            if self.words.is_empty() && !flags.percent {
+                continue;
+            }
+            self.blocks_seen = true;
+            let result = self
+                .state
+                .build_block(&self.words, &mut self.block)
+                .and_then(|()| {
+                    let mut out = interp::Out {
+                        items: &mut self.pending,
+                        line: self.line_no,
+                    };
+                    self.state.exec(&self.block, flags.percent, &mut out)
+                });
+            if let Err(e) = result {
+                self.pending.truncate(start);
+                return Err(self.diag(e.col, e.message));
+            }
+            if self.state.done {
+                self.finished = true;
+                return Ok(());
+            }
+        }
+    }
+}
+
+impl<R: std::io::BufRead> Interpreter<R> {
+    /// A LinuxCNC line through the language layer. `Ok(false)`: the plain path handles it.
+    fn process_ngc_line(&mut self) -> Result<bool, Diagnostic> {
+        let action = self
+            .ngc
+            .line(&self.line, self.line_no, &mut self.state, &mut self.words)
+            .map_err(|e| self.diag(e.col, e.message))?;
+        self.ngc.take_restored(&mut self.pending);
+        match action {
+            ngc::Action::Nothing => return Ok(true),
+            ngc::Action::Plain => return Ok(false),
+            ngc::Action::Block => {}
+        }
+        self.blocks_seen = true;
+        let start = self.pending.len();
+        let result = self
+            .state
+            .build_block(&self.words, &mut self.block)
+            .map_err(|e| (e.col, e.message))
+            .and_then(|()| {
+                self.ngc
+                    .commit(&mut self.state, &mut self.pending, self.line_no)
+                    .map_err(|e| (e.col, e.message))
+            })
+            .and_then(|()| {
+                let mut out = interp::Out {
+                    items: &mut self.pending,
+                    line: self.line_no,
+                };
+                self.state
+                    .exec(&self.block, false, &mut out)
+                    .map_err(|e| (e.col, e.message))
+            });
+        if let Err((col, message)) = result {
+            self.pending.truncate(start);
+            return Err(self.diag(col, message));
+        }
+        if self.state.done {
+            self.finished = true;
+        }
+        Ok(true)
+    }
+}
+
+impl<R: std::io::BufRead> Iterator for Interpreter<R> {
+    type Item = Result<Item, Diagnostic>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            if let Some(item) = self.pending.get(self.next_pending) {
+                self.next_pending += 1;
+                return Some(Ok(item.clone()));
+            }
+            self.pending.clear();
+            self.next_pending = 0;
+            if let Some(e) = self.error.take() {
+                self.finished = true;
+                return Some(Err(e));
+            }
+            if self.finished {
+                return None;
+            }
+            let from_memory = if self.state.dialect() == Dialect::LinuxCnc {
+                self.ngc.next_line(&mut self.line)
+            } else {
+                None
+            };
+            let got = match from_memory {
+                Some(n) => {
+                    self.line_no = n;
+                    Ok(true)
+                }
+                None => self.read_line(),
+            };
+            match got {
+                Ok(true) => {}
+                Ok(false) => {
+                    self.finished = true;
+                    if let Some((line, m)) = self.ngc.unfinished() {
+                        self.line_no = line;
+                        return Some(Err(self.diag(1, m)));
+                    }
+                    if self.state.dialect() == Dialect::LinuxCnc {
+                        // rs274 refuses a program that ends without M2/M30 or its closing
+                        // `%`, at the last line of the file; the moves before it have run,
+                        // a move held back by cutter compensation has not.
+                        self.line_no = self.reader_line.max(1);
+                        let m = if self.percent_seen {
+                            "File ended with no percent sign"
+                        } else {
+                            "File ended with no percent sign or program end"
+                        };
+                        return Some(Err(self.diag(1, m)));
+                    }
+                    // Moves held back by cutter compensation run at the end of the file.
+                    self.state.comp_finish(&mut self.pending);
+                    continue;
+                }
+                Err(e) => {
+                    self.finished = true;
+                    return Some(Err(e));
+                }
+            }
+            if let Err(e) = self.process_line() {
+                self.error = Some(e);
+                self.finished = true;
+            }
+        }
+    }
+}
