@@ -6,48 +6,11 @@ use kerf_drive::MAX_AXES;
 use kerf_drive::recorder::{CycleRecord, DEFAULT_SECONDS, Recorder};
 use kerf_drive::safety::{AxisSafety, CycleInput, Safety, SafetyConfig, SafetyState};
 use kerf_geom::AxisLimits;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicU64, Ordering};
 
-struct Counting;
-
-thread_local! {
-    // Per thread, so that the other tests of this file, running in parallel, are not
-    // counted. `Cell<bool>` needs no destructor, so it is usable inside the allocator.
-    static ARMED: Cell<bool> = const { Cell::new(false) };
-}
-static COUNT: AtomicU64 = AtomicU64::new(0);
-
-fn armed() -> bool {
-    ARMED.try_with(Cell::get).unwrap_or(false)
-}
-
-// SAFETY: every call is forwarded unchanged to the system allocator; the counter is only
-// an atomic increment.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if armed() {
-            COUNT.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if armed() {
-            COUNT.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+use kerf_testkit::alloc::{Count, CountingAllocator};
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 const XYZ: [bool; MAX_AXES] = [true, true, true, false, false, false];
 
@@ -187,14 +150,12 @@ fn the_cycle_with_safety_and_recorder_does_not_allocate() {
     let mut rec = Recorder::new(0.5, 0.001, XYZ).expect("size");
     let mut fault = [false; MAX_AXES];
     // The counter does count this thread's allocations.
-    COUNT.store(0, Ordering::SeqCst);
-    ARMED.with(|a| a.set(true));
+    let count = Count::start();
     let probe = std::hint::black_box(vec![1u8; 16]);
-    ARMED.with(|a| a.set(false));
+    let probed = count.stop();
     drop(probe);
-    assert!(COUNT.load(Ordering::SeqCst) >= 1);
-    COUNT.store(0, Ordering::SeqCst);
-    ARMED.with(|a| a.set(true));
+    assert!(probed >= 1);
+    let count = Count::start();
     // Ramp, cruise, missed cycles, a drive fault, the quick stop, a refused and an
     // accepted reset, wrapping the ring twice.
     let mut x = 0.0f64;
@@ -241,8 +202,8 @@ fn the_cycle_with_safety_and_recorder_does_not_allocate() {
             state: verdict.state,
         });
     }
-    ARMED.with(|a| a.set(false));
-    assert_eq!(COUNT.load(Ordering::SeqCst), 0, "allocations in the cycle");
+    let in_cycle = count.stop();
+    assert_eq!(in_cycle, 0, "allocations in the cycle");
     // The run did go through a fault and a reset (the counter was armed over them).
     assert!(
         rec.iter()

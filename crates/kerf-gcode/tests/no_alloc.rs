@@ -1,46 +1,12 @@
 //! The interpreter's hot path does not allocate: after the first lines have sized its
 //! reused buffers, resolving further lines and arcs allocates nothing.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use kerf_gcode::{Dialect, Interpreter, Item, Settings};
 
-/// Counts allocations made by the current thread, so that tests running in parallel on
-/// other threads do not disturb the count.
-struct Counting;
-
-thread_local! {
-    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
-}
-
-// SAFETY: every call is forwarded unchanged to the system allocator; the counter is a
-// thread-local `Cell` that does not allocate.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        // SAFETY: the caller upholds `GlobalAlloc::alloc`'s contract, which we pass on.
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: `ptr` was allocated by `System` with `layout` through `alloc` above.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        // SAFETY: forwarded unchanged; the caller upholds `GlobalAlloc::realloc`'s contract.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+use kerf_testkit::alloc::{Count, CountingAllocator};
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations() -> u64 {
-    ALLOCATIONS.with(Cell::get)
-}
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 #[test]
 fn resolving_blocks_does_not_allocate() {
@@ -78,7 +44,7 @@ fn resolving_blocks_does_not_allocate() {
         for item in it.by_ref().take(100) {
             assert!(item.is_ok(), "{dialect:?}: {item:?}");
         }
-        let before = allocations();
+        let count = Count::start();
         let mut moves = 0u64;
         for item in it.by_ref() {
             match item {
@@ -87,12 +53,8 @@ fn resolving_blocks_does_not_allocate() {
                 Err(e) => panic!("{dialect:?}: {e}"),
             }
         }
-        let after = allocations();
+        let allocations = count.stop();
         assert!(moves > 1000, "{dialect:?}");
-        assert_eq!(
-            after - before,
-            0,
-            "{dialect:?}: allocations on the hot path"
-        );
+        assert_eq!(allocations, 0, "{dialect:?}: allocations on the hot path");
     }
 }

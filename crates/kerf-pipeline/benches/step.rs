@@ -13,22 +13,11 @@ use std::time::Instant;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use kerf_geom::{CornerMode, Line, Move, Path, Vec3};
-use kerf_motion::{AxisLimits, MachineLimits, MotionCore, PlannedSegment, Setpoint};
+use kerf_motion::{MotionCore, PlannedSegment, Setpoint};
 use kerf_pipeline::{RunOptions, run};
 use kerf_plan::Planner;
 
-fn mill() -> MachineLimits {
-    let l = AxisLimits {
-        velocity_units_s: 200.0,
-        acceleration_units_s2: 2000.0,
-        jerk_units_s3: 50000.0,
-    };
-    MachineLimits {
-        axes: [Some(l), Some(l), Some(l), None, None, None],
-        period_s: 0.001,
-        tolerance_mm: 0.01,
-    }
-}
+use kerf_testkit::machines::mill;
 
 fn circle(n: usize) -> Vec<Move> {
     let r = 10.0;

@@ -7,48 +7,11 @@ use common::*;
 use kerf_geom::Vec3;
 use kerf_motion::{MachineLimits, MotionCore, PlannedSegment, Setpoint, StepResult};
 use kerf_plan::Planner;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicU64, Ordering};
 
-struct Counting;
-
-thread_local! {
-    // Armed on the test's own thread only: the test harness's main thread may allocate
-    // meanwhile (its "running for over 60 seconds" note on a loaded machine), which is
-    // not the motion core's doing. A const-initialised `Cell` never allocates to read.
-    static ARMED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
-}
-
-fn armed() -> bool {
-    ARMED.try_with(|a| a.get()).unwrap_or(false)
-}
-static COUNT: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: every call is forwarded unchanged to the system allocator; the counter is only
-// an atomic increment.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if armed() {
-            COUNT.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if armed() {
-            COUNT.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+use kerf_testkit::alloc::{Count, CountingAllocator};
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 /// A closed program (starts and ends at the origin): a dense circle, a square with sharp
 /// corners, a tangent arc, the helix of the fast-machine report, and a slow
@@ -120,8 +83,7 @@ fn allocations_while_running(limits: MachineLimits, cycles: u64) -> u64 {
     let mut sp = Setpoint::default();
     let mut next = 0usize;
     let mut moving = 0u64;
-    COUNT.store(0, Ordering::SeqCst);
-    ARMED.with(|a| a.set(true));
+    let count = Count::start();
     for cycle in 0..cycles {
         while core.free() > 0 {
             if core.push(&program[next % program.len()]).is_err() {
@@ -150,7 +112,7 @@ fn allocations_while_running(limits: MachineLimits, cycles: u64) -> u64 {
             break;
         }
     }
-    ARMED.with(|a| a.set(false));
+    let allocations = count.stop();
     assert!(core.is_idle(), "the abort should have stopped the core");
     assert!(
         moving > cycles / 2,
@@ -161,7 +123,7 @@ fn allocations_while_running(limits: MachineLimits, cycles: u64) -> u64 {
         "the queue should have turned over ({next} pushes)"
     );
     assert_eq!(core.plan_failures(), 0, "profile fallbacks");
-    COUNT.load(Ordering::SeqCst)
+    allocations
 }
 
 /// One test, so that no other test's allocations are counted: a mill, the fast machine

@@ -14,10 +14,8 @@
 //! Only the cycle's thread counts (a thread-local flag), so the planning worker, which
 //! allocates freely on its own thread, does not disturb the count.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 
 mod common;
@@ -30,70 +28,15 @@ use kerfd::worker::{
     Cycle, CycleCommand, DumpWriterRings, Injection, Planning, PlanningCounters, Refusal, Snapshot,
 };
 
-/// Counts allocations (and reallocations) on threads whose flag is set.
-struct Counting;
-
-/// Allocations counted during `Cycle::run()`.
-static IN_RUN: AtomicU64 = AtomicU64::new(0);
-/// Allocations counted during the publish (`SetpointOut::push`).
-static IN_SEND: AtomicU64 = AtomicU64::new(0);
-/// Deallocations counted in either.
-static FREES: AtomicU64 = AtomicU64::new(0);
-
-/// What the current thread is doing: 0 nothing counted, 1 the cycle, 2 the publish.
-const PHASE_NONE: u8 = 0;
-const PHASE_RUN: u8 = 1;
-const PHASE_SEND: u8 = 2;
-
-thread_local! {
-    // A const-initialised `Cell` of a plain integer: reading it never allocates.
-    static PHASE: Cell<u8> = const { Cell::new(PHASE_NONE) };
-}
-
-fn count_alloc() {
-    match PHASE.try_with(|p| p.get()).unwrap_or(PHASE_NONE) {
-        PHASE_RUN => {
-            IN_RUN.fetch_add(1, Ordering::Relaxed);
-        }
-        PHASE_SEND => {
-            IN_SEND.fetch_add(1, Ordering::Relaxed);
-        }
-        _ => {}
-    }
-}
-
-// SAFETY: every call is forwarded to the system allocator unchanged; the counting only
-// touches atomics and a const thread-local.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count_alloc();
-        // SAFETY: forwarded with the caller's layout.
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        count_alloc();
-        // SAFETY: forwarded with the caller's layout.
-        unsafe { System.alloc_zeroed(layout) }
-    }
-
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count_alloc();
-        // SAFETY: forwarded with the caller's pointer, layout and size.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        if PHASE.try_with(|p| p.get()).unwrap_or(PHASE_NONE) != PHASE_NONE {
-            FREES.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: forwarded with the caller's pointer and layout.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
+use kerf_testkit::alloc::{CountingAllocator, NOT_COUNTING, allocations, frees, set_phase};
 
 #[global_allocator]
-static ALLOCATOR: Counting = Counting;
+static ALLOCATOR: CountingAllocator = CountingAllocator;
+
+/// The phase of the thread that runs the cycle: `Cycle::run()`.
+const PHASE_RUN: u8 = 1;
+/// The phase of the thread that publishes (`SetpointOut::push`).
+const PHASE_SEND: u8 = 2;
 
 /// The example part shipped with Kerf.
 fn part_program() -> String {
@@ -149,13 +92,13 @@ fn counted_cycle(
     last_seq: &mut u64,
     received: &mut u64,
 ) -> kerfd::worker::CycleOutput {
-    PHASE.with(|p| p.set(PHASE_RUN));
+    set_phase(PHASE_RUN);
     let out = cycle.run();
-    PHASE.with(|p| p.set(PHASE_NONE));
+    set_phase(NOT_COUNTING);
     out.fill(msg, out.seq * 1_000_000);
-    PHASE.with(|p| p.set(PHASE_SEND));
+    set_phase(PHASE_SEND);
     assert!(publisher.push(*msg), "the ring to the publisher has room");
-    PHASE.with(|p| p.set(PHASE_NONE));
+    set_phase(NOT_COUNTING);
     // The cycle runs unclocked here, so it waits for each setpoint to arrive.
     let mut spins = 0u64;
     while *last_seq < out.seq {
@@ -487,9 +430,9 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
         cycles,
         "the publisher thread published every setpoint"
     );
-    let in_run = IN_RUN.load(Ordering::Relaxed);
-    let in_send = IN_SEND.load(Ordering::Relaxed);
-    let frees = FREES.load(Ordering::Relaxed);
+    let in_run = allocations(PHASE_RUN);
+    let in_send = allocations(PHASE_SEND);
+    let frees = frees(PHASE_RUN) + frees(PHASE_SEND);
     assert_eq!(
         (in_run, in_send, frees),
         (0, 0, 0),

@@ -2,21 +2,11 @@
 #![allow(dead_code)]
 
 use kerf_geom::{Arc, CornerMode, Line, Move, Path, Vec3};
-use kerf_motion::{AxisLimits, MachineLimits};
+use kerf_motion::MachineLimits;
 
 /// A mill with the same limits on X, Y, Z.
-pub fn mill(v: f64, a: f64, j: f64, tol: f64) -> MachineLimits {
-    let l = AxisLimits {
-        velocity_units_s: v,
-        acceleration_units_s2: a,
-        jerk_units_s3: j,
-    };
-    MachineLimits {
-        axes: [Some(l), Some(l), Some(l), None, None, None],
-        period_s: 0.001,
-        tolerance_mm: tol,
-    }
-}
+#[allow(unused_imports)]
+pub use kerf_testkit::machines::mill_with as mill;
 
 pub fn blend() -> CornerMode {
     CornerMode::Blend {

@@ -1,0 +1,11 @@
+//! What Kerf's tests share; a dev-dependency of the crates whose tests use it, never a
+//! dependency of shipped code.
+//!
+//! - [`alloc`]: a counting global allocator, armed per thread, that the allocation tests
+//!   of the real-time paths install (the motion core, the daemon's cycle, the drive side,
+//!   the periodic clock, the interpreter's hot path);
+//! - [`machines`]: the test machines the planner and motion tests measure against.
+#![deny(missing_docs)]
+
+pub mod alloc;
+pub mod machines;
