@@ -1,6 +1,6 @@
 //! [`PlannedSegment`]: the unit of work the planner hands to the motion core.
 
-use crate::{Curve, Transition};
+use crate::{Curve, Transition, quintic};
 
 /// The motion core (`kerf-motion`) merges consecutive segments into one section while
 /// their acceleration limits are at least this fraction of the section's first one's (the
@@ -219,15 +219,7 @@ impl PlannedSegment {
 /// `Σ c[k] uᵏ`: a quintic in power basis, as in [`PlannedSegment::abc_poly`].
 #[inline]
 pub fn poly5(c: &[f64; 6], u: f64) -> f64 {
-    ((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]
-}
-
-/// First and second derivative of `Σ c[k] uᵏ`.
-#[inline]
-fn poly5_d(c: &[f64; 6], u: f64) -> (f64, f64) {
-    let d1 = (((5.0 * c[5] * u + 4.0 * c[4]) * u + 3.0 * c[3]) * u + 2.0 * c[2]) * u + c[1];
-    let d2 = ((20.0 * c[5] * u + 12.0 * c[4]) * u + 6.0 * c[3]) * u + 2.0 * c[2];
-    (d1, d2)
+    quintic::value(c, u)
 }
 
 /// Derivatives of rotary quintics `c` (in the parameter `u` of `tr`) with respect to the
@@ -241,7 +233,7 @@ pub fn rotary_derivatives(tr: &Transition, c: &[[f64; 6]; 3], u: f64) -> ([f64; 
     let mut t = [0.0; 3];
     let mut k = [0.0; 3];
     for i in 0..3 {
-        let (d1, d2) = poly5_d(&c[i], u);
+        let (d1, d2) = quintic::d1_d2_scaled_coef(&c[i], u);
         t[i] = d1 / speed;
         k[i] = (d2 - d1 * along) / sq;
     }

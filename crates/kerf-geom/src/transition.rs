@@ -22,7 +22,7 @@
 //! and refuses a curve it cannot serve; the planner then builds another (a shorter transition, other
 //! smoothed pieces) or none.
 
-use crate::Vec3;
+use crate::{Vec3, quintic};
 
 /// Nodes of the arc-length table (equal steps in `s`).
 pub const TABLE_POINTS: usize = 33;
@@ -115,16 +115,9 @@ impl Transition {
         let v1 = t1 * lambda;
         let a0 = k0 * (lambda * lambda);
         let a1 = k1 * (lambda * lambda);
-        let d = p1 - p0;
-        // Quintic Hermite in power basis.
-        let c0 = p0;
-        let c1 = v0;
-        let c2 = a0 * 0.5;
-        let c3 = d * 10.0 - v0 * 6.0 - v1 * 4.0 - a0 * 1.5 + a1 * 0.5;
-        let c4 = -d * 15.0 + v0 * 8.0 + v1 * 7.0 + a0 * 1.5 - a1;
-        let c5 = d * 6.0 - v0 * 3.0 - v1 * 3.0 - a0 * 0.5 + a1 * 0.5;
+        let coef = quintic::hermite(p0, v0, a0, p1, v1, a1);
         let tr = Transition {
-            coef: [c0, c1, c2, c3, c4, c5],
+            coef,
             start: p0,
             end: p1,
             t0,
@@ -207,29 +200,25 @@ impl Transition {
     /// `p(u)`.
     #[inline]
     pub fn poly(&self, u: f64) -> Vec3 {
-        let c = &self.coef;
-        ((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]
+        quintic::value(&self.coef, u)
     }
 
     /// `p'(u)`.
     #[inline]
     pub fn d1(&self, u: f64) -> Vec3 {
-        let c = &self.coef;
-        (((c[5] * (5.0 * u) + c[4] * 4.0) * u + c[3] * 3.0) * u + c[2] * 2.0) * u + c[1]
+        quintic::d1(&self.coef, u)
     }
 
     /// `p''(u)`.
     #[inline]
     pub fn d2(&self, u: f64) -> Vec3 {
-        let c = &self.coef;
-        ((c[5] * (20.0 * u) + c[4] * 12.0) * u + c[3] * 6.0) * u + c[2] * 2.0
+        quintic::d2(&self.coef, u)
     }
 
     /// `p'''(u)`.
     #[inline]
     pub fn d3(&self, u: f64) -> Vec3 {
-        let c = &self.coef;
-        (c[5] * (60.0 * u) + c[4] * 24.0) * u + c[3] * 6.0
+        quintic::d3(&self.coef, u)
     }
 
     /// `|p'(u)|`, mm per unit of `u`.

@@ -82,8 +82,8 @@
 //! names the first one (`line`, `move_index`) and how many it covers (`move_count`).
 
 use crate::{DESIGN_RUN_MM, TRANSITION_TOL_SHARE};
-use kerf_geom::poly5;
 use kerf_geom::{Transition, Vec3};
+use kerf_geom::{poly5, quintic};
 
 /// Longest line that may join a run, mm.
 pub const MAX_SEGMENT_MM: f64 = 10.0;
@@ -602,7 +602,7 @@ impl Run {
         let poly = self.rotary.then(|| {
             let l = lambda;
             std::array::from_fn(|i| {
-                hermite5(
+                quintic::hermite(
                     ka.a[i],
                     l * ka.da[i],
                     l * l * ka.dda[i],
@@ -1030,20 +1030,6 @@ fn segment_distance_along(q: &Vec3, a: &Vec3, b: &Vec3) -> (f64, f64) {
     }
     let t = ((q - a).dot(&ab) / l2).clamp(0.0, 1.0);
     ((q - (a + ab * t)).norm(), t)
-}
-
-/// Quintic Hermite coefficients (power basis in `u ∈ [0, 1]`) from values, first and
-/// second derivatives at both ends (derivatives with respect to `u`).
-fn hermite5(p0: f64, v0: f64, a0: f64, p1: f64, v1: f64, a1: f64) -> [f64; 6] {
-    let d = p1 - p0;
-    [
-        p0,
-        v0,
-        0.5 * a0,
-        10.0 * d - 6.0 * v0 - 4.0 * v1 - 1.5 * a0 + 0.5 * a1,
-        -15.0 * d + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1,
-        6.0 * d - 3.0 * v0 - 3.0 * v1 - 0.5 * a0 + 0.5 * a1,
-    ]
 }
 
 #[cfg(test)]
