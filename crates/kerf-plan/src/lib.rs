@@ -154,6 +154,7 @@ pub use kerf_geom::{AXIS_NAMES, AxisLimits, MachineLimits, PlannedSegment};
 
 mod blend;
 mod budget;
+mod grid_search;
 mod junction;
 mod memo;
 mod planner;
