@@ -15,8 +15,8 @@
 //! That evaluation is only as good as the quadrature over a table interval, and a curve
 //! whose parametric speed changes sharply (a quintic close to a cusp: over a 1.6 mm
 //! smoothed piece of a zig-zag, from 0.12 to 2.1 mm per unit of `u`) defeats it: the
-//! position jumped by 0.14 µm at a table node, a jerk of 43 times the limit of an axis
-//! with 3,292 mm/s³ at 1 ms (issue 24). [`Transition::with_arc_length`] therefore checks
+//! position can jump at a table node by a fraction of a micrometre, many times an axis'
+//! jerk limit at a 1 ms period. [`Transition::with_arc_length`] therefore checks
 //! the run-time evaluation against the table on every interval, at its end (where a
 //! mismatch is a jump: [`ARC_TABLE_RELATIVE`]) and in its middle ([`ARC_MID_RELATIVE`]),
 //! and refuses a curve it cannot serve; the planner then builds another (a shorter transition, other

@@ -1,5 +1,5 @@
 //! Limit budgets: the path limits `(v, a, j)` of a segment such that every axis stays
-//! within [`PROFILE_SHARE`] of its limits, and the design speed of curved segments.
+//! within [`crate::PROFILE_SHARE`] of its limits, and the design speed of curved segments.
 //!
 //! One file per step: [`arc`] (lines, arcs and helices: weights and budgets in closed form
 //! or by bisection), [`bounds`] (sampled bounds of a quintic), [`transition_limits`]
@@ -46,7 +46,7 @@ const PIECE_LIMIT_SAMPLES: usize = 64;
 /// derivative in closed form, with [`RATE_SAFETY`].)
 pub const LIMIT_SAFETY: f64 = 1.1;
 /// Safety factor on the sampled unit-tangent components of a transition (X, Y, Z: with
-/// their rise between samples bounded by [`rate_rise`]): 0.1 % for what that bound misses.
+/// their rise between samples bounded by [`bounds::rate_rise`]): 0.1 % for what that bound misses.
 const TANGENT_SAFETY: f64 = 1.001;
 /// Safety factor on the sampled curvature of a transition. The curvature itself is
 /// sampled directly; between samples of a smooth quintic it cannot rise by more than a
@@ -62,7 +62,7 @@ pub const RATE_SAFETY: f64 = 1.02;
 const TOP_PROBE_RATIO: f64 = 0.99;
 
 /// Path limits `(v_max, a_max, j_max)` of a segment such that every axis stays within
-/// [`PROFILE_SHARE`] of its limits at any speed `v` up to `v_max` (curved segments: up to
+/// [`crate::PROFILE_SHARE`] of its limits at any speed `v` up to `v_max` (curved segments: up to
 /// the programmed feed) with jerk up to `j_max` and tangential acceleration within the
 /// jerk-limited envelope `|a| ≤ min(a_max, sqrt(2 j_max (v_max − v)))`: the full `a_max`
 /// only where `v` is far enough below `v_max`. That is how the motion core runs: a
