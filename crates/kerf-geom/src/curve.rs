@@ -134,7 +134,7 @@ impl Curve {
                 // the coordinates' magnitude), spread over the sweep.
                 let missed = (a.end - a.start) - h.offset_at_angle(a.sweep_rad);
                 // A rounding-level miss (the interpreter's arcs) is left to the exact end
-                // point at `s >= length`, as before there was a drift: the step is far
+                // point at `s >= length`, with no drift: the step is far
                 // below anything a limit can see, and the curve's data stay the same for
                 // the same shape anywhere on the machine (the planner's memos key on them).
                 if missed.norm() > NEGLIGIBLE_MISS_MM {

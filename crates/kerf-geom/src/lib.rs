@@ -130,6 +130,7 @@ impl Arc {
 mod curve;
 mod limits;
 mod program;
+pub mod quintic;
 pub mod ramp;
 mod segment;
 mod transition;

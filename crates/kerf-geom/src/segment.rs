@@ -1,32 +1,28 @@
 //! [`PlannedSegment`]: the unit of work the planner hands to the motion core.
 
-use crate::{Curve, Transition};
+use crate::{Curve, Transition, quintic};
 
 /// The motion core (`kerf-motion`) merges consecutive segments into one section while
 /// their acceleration limits are at least this fraction of the section's first one's (the
 /// planner's ramp budgets judge what a piece costs the section it joins by the same rule).
 /// A section runs at the least of its segments' limits, and a boundary costs a return to
-/// `a = 0`: 0.9 measured quickest on the CAM corpus of `kerf-benches` (smoothed
-/// pieces whose budgets vary along a raster row: 0.8 ran raster B 0.1 % slower; 0.95 ran
-/// the dense circle 3 % slower, at the boundaries between its pieces' slightly different
-/// budgets).
+/// `a = 0`: the ratio trades the one against the other where smoothed pieces' budgets vary
+/// along a path (looser runs whole sections at a lower limit, tighter puts boundaries
+/// between pieces whose budgets differ slightly; `docs/PERFORMANCE.md` has the
+/// measurements).
 pub const MERGE_RATIO: f64 = 0.9;
 /// The same for the jerk limit (see [`MERGE_RATIO`]).
 /// It is looser than [`MERGE_RATIO`]: running a section at a lower jerk only lengthens its
-/// ramps by `a/j`, while a boundary in the middle of a ramp is a stall. 0.8 measured
-/// quickest: the former 0.6 let a piece with 60 % of its neighbours' jerk slow a whole
-/// section's ramps (raster B 1.3 % slower since the budgets follow the jerk-limited
-/// envelope), and 0.9 cost 2.6 % on a faceted raster (rows flat, then up a 30° slope,
-/// then flat again, as 0.05 mm G1 points).
+/// ramps by `a/j`, while a boundary in the middle of a ramp is a stall. Much looser lets a
+/// piece with far less jerk than its neighbours slow a whole section's ramps; tighter
+/// splits sections where a path changes slope.
 pub const MERGE_RATIO_JERK: f64 = 0.8;
 /// Nor does a segment join a section whose first segment has less than `1/MERGE_ABOVE` of
 /// its acceleration or jerk: it would run its own ramps at the section's much lower
-/// limits. A line behind a short corner blend stopped with the blend's jerk, a fifteenth
-/// of its own (27 ms more on a plain 5 mm line, `tests/data/ngc/basic/lines.ngc`). Below
-/// this factor a boundary (a return to `a = 0`) costs more than the lower limits do: the
-/// budgets of neighbouring smoothed pieces differ by up to about 3 × along a raster row,
-/// and 2 ran raster A (3 decimals) and the 10,000-move spiral slower; 3 and 4 measured
-/// the same on every bundled program (`benches/compare.sh`).
+/// limits (a line behind a short corner blend would stop with the blend's much lower
+/// jerk). Below this factor a boundary (a return to `a = 0`) costs more than the lower
+/// limits do: the budgets of neighbouring smoothed pieces differ by up to about 3 × along
+/// a raster row.
 pub const MERGE_ABOVE: f64 = 4.0;
 /// Sections merge segments whose speed limit and feed are at least this fraction of the
 /// first one's (slower speed limits: [`MERGE_RATIO_SLOWER`]). It is tight because the
@@ -37,8 +33,8 @@ pub const MERGE_RATIO_SPEED: f64 = 0.99;
 /// [`MERGE_RATIO_SPEED`]) still joins it, the section then running at its speed, where
 /// that is safe (`kerf-motion`'s `MotionCore::push`: nothing committed faster): a boundary
 /// between pieces whose speeds differ by a few per cent is a return to `a = 0`, and a
-/// chain of them lets a slow-down shed only a few mm/s per section. 3 %: 5 % ran a steep
-/// raster 3 % quicker but raster C and the texture slower; 2 % gained less on both.
+/// chain of them lets a slow-down shed only a few mm/s per section. 3 % balances steep
+/// rasters, which gain from a looser ratio, against other CAM code, which loses.
 pub const MERGE_RATIO_SLOWER: f64 = 0.97;
 /// Whether a segment with path acceleration `accel_mm_s2` and jerk `jerk_mm_s3` passes the
 /// limit part of the motion core's merge rule for a section whose first segment has
@@ -219,15 +215,7 @@ impl PlannedSegment {
 /// `Σ c[k] uᵏ`: a quintic in power basis, as in [`PlannedSegment::abc_poly`].
 #[inline]
 pub fn poly5(c: &[f64; 6], u: f64) -> f64 {
-    ((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]
-}
-
-/// First and second derivative of `Σ c[k] uᵏ`.
-#[inline]
-fn poly5_d(c: &[f64; 6], u: f64) -> (f64, f64) {
-    let d1 = (((5.0 * c[5] * u + 4.0 * c[4]) * u + 3.0 * c[3]) * u + 2.0 * c[2]) * u + c[1];
-    let d2 = ((20.0 * c[5] * u + 12.0 * c[4]) * u + 6.0 * c[3]) * u + 2.0 * c[2];
-    (d1, d2)
+    quintic::value(c, u)
 }
 
 /// Derivatives of rotary quintics `c` (in the parameter `u` of `tr`) with respect to the
@@ -241,7 +229,7 @@ pub fn rotary_derivatives(tr: &Transition, c: &[[f64; 6]; 3], u: f64) -> ([f64; 
     let mut t = [0.0; 3];
     let mut k = [0.0; 3];
     for i in 0..3 {
-        let (d1, d2) = poly5_d(&c[i], u);
+        let (d1, d2) = quintic::d1_d2_scaled_coef(&c[i], u);
         t[i] = d1 / speed;
         k[i] = (d2 - d1 * along) / sq;
     }

@@ -15,14 +15,14 @@
 //! That evaluation is only as good as the quadrature over a table interval, and a curve
 //! whose parametric speed changes sharply (a quintic close to a cusp: over a 1.6 mm
 //! smoothed piece of a zig-zag, from 0.12 to 2.1 mm per unit of `u`) defeats it: the
-//! position jumped by 0.14 µm at a table node, a jerk of 43 times the limit of an axis
-//! with 3,292 mm/s³ at 1 ms (issue 24). [`Transition::with_arc_length`] therefore checks
+//! position can jump at a table node by a fraction of a micrometre, many times an axis'
+//! jerk limit at a 1 ms period. [`Transition::with_arc_length`] therefore checks
 //! the run-time evaluation against the table on every interval, at its end (where a
 //! mismatch is a jump: [`ARC_TABLE_RELATIVE`]) and in its middle ([`ARC_MID_RELATIVE`]),
 //! and refuses a curve it cannot serve; the planner then builds another (a shorter transition, other
 //! smoothed pieces) or none.
 
-use crate::Vec3;
+use crate::{Vec3, quintic};
 
 /// Nodes of the arc-length table (equal steps in `s`).
 pub const TABLE_POINTS: usize = 33;
@@ -115,16 +115,9 @@ impl Transition {
         let v1 = t1 * lambda;
         let a0 = k0 * (lambda * lambda);
         let a1 = k1 * (lambda * lambda);
-        let d = p1 - p0;
-        // Quintic Hermite in power basis.
-        let c0 = p0;
-        let c1 = v0;
-        let c2 = a0 * 0.5;
-        let c3 = d * 10.0 - v0 * 6.0 - v1 * 4.0 - a0 * 1.5 + a1 * 0.5;
-        let c4 = -d * 15.0 + v0 * 8.0 + v1 * 7.0 + a0 * 1.5 - a1;
-        let c5 = d * 6.0 - v0 * 3.0 - v1 * 3.0 - a0 * 0.5 + a1 * 0.5;
+        let coef = quintic::hermite(p0, v0, a0, p1, v1, a1);
         let tr = Transition {
-            coef: [c0, c1, c2, c3, c4, c5],
+            coef,
             start: p0,
             end: p1,
             t0,
@@ -207,29 +200,25 @@ impl Transition {
     /// `p(u)`.
     #[inline]
     pub fn poly(&self, u: f64) -> Vec3 {
-        let c = &self.coef;
-        ((((c[5] * u + c[4]) * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0]
+        quintic::value(&self.coef, u)
     }
 
     /// `p'(u)`.
     #[inline]
     pub fn d1(&self, u: f64) -> Vec3 {
-        let c = &self.coef;
-        (((c[5] * (5.0 * u) + c[4] * 4.0) * u + c[3] * 3.0) * u + c[2] * 2.0) * u + c[1]
+        quintic::d1(&self.coef, u)
     }
 
     /// `p''(u)`.
     #[inline]
     pub fn d2(&self, u: f64) -> Vec3 {
-        let c = &self.coef;
-        ((c[5] * (20.0 * u) + c[4] * 12.0) * u + c[3] * 6.0) * u + c[2] * 2.0
+        quintic::d2(&self.coef, u)
     }
 
     /// `p'''(u)`.
     #[inline]
     pub fn d3(&self, u: f64) -> Vec3 {
-        let c = &self.coef;
-        (c[5] * (60.0 * u) + c[4] * 24.0) * u + c[3] * 6.0
+        quintic::d3(&self.coef, u)
     }
 
     /// `|p'(u)|`, mm per unit of `u`.

@@ -326,24 +326,22 @@ fn corner_ramp_limits(lines: &(PlannedSegment, PlannedSegment)) -> (f64, f64) {
 /// Rough time a corner blend costs over running straight through at the lines' speed: the
 /// transit of the blend, and on each side the slow-down from that line's own speed to the
 /// speed the blend and its joints allow, less the `d` of line the blend replaces there at
-/// that line's speed. (With one speed for both sides, the lesser, a rapid into a plunge at
-/// F150 was credited 15 ms for the 0.04 mm of rapid a blend replaces, which the rapid runs
-/// in its last milliseconds before it stops: the blend was chosen and cost 10 ms more than
-/// the stop.) Used to choose between a circular and a G2 blend (the circular one is
+/// that line's speed. (With one speed for both sides, the lesser, a rapid into a slow
+/// plunge would be credited the time of the rapid a blend replaces at the plunge's speed,
+/// though the rapid runs it in its last milliseconds before it stops, and a blend that
+/// costs more than the stop would win.) Used to choose between a circular and a G2 blend (the circular one is
 /// entered at its curvature-step cap but may speed up inside; the G2 one has no such step)
 /// and a stop. `chained_in`: the blend begins where the previous corner's ended, so it is
 /// entered from that arc, with no junction cap and no slow-down on the way in (judged as
-/// from a line, the blends of a polygon along an arc looked dearer at every corner until
-/// a stop won, and every later corner stopped: 2.2 × the periods per chord).
+/// from a line, the blends of a polygon along an arc would look dearer at every corner
+/// until a stop won, and every later corner would stop).
 /// `chained_out`: the blend ends where the next corner's blend may begin (it takes all
 /// the outgoing line it may), so it is left into that blend, with no junction cap and no
 /// slow-down on the way out; a stop at the next corner is charged by that corner's
 /// estimate, over the short rest of the line. Judged as leaving into a line, the first
-/// corner of such a chain paid a slow-down to the curvature-step cap and back that the
-/// chain never makes, and won over a stop by a hair or lost; where it lost, no later
-/// corner could be entered from a blend and every one of them stopped (a polygon of
-/// 0.386 mm chords: 0.108 s per chord against 0.052 s, and a raised acceleration, which
-/// makes a stop look quicker, tipped it: 4.735 s -> 5.276 s).
+/// corner of such a chain would pay a slow-down to the curvature-step cap and back that
+/// the chain never makes, and could lose to a stop; then no later corner could be entered
+/// from a blend and every one of them would stop.
 fn corner_time_s(
     blend: &PlannedSegment,
     d: f64,

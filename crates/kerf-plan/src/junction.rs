@@ -31,8 +31,8 @@ pub fn junction_cap(a: &PlannedSegment, b: &PlannedSegment, limits: &MachineLimi
             // Kinks closer than a period's travel fall several into one finite-difference
             // window, where they add up like a curvature `Δt / L`: `v²·Δt/L` within the same
             // share. It binds only where `L < v·T` (then `sqrt(room·L/Δt) < room·T/Δt`).
-            // Counted per kink alone, a polygon of 3.5 µm corner blends passed two or three
-            // to a 4.666 ms period took Z to 1.0148 times its acceleration (issue 24).
+            // Counted per kink alone, a polygon of tiny corner blends passed two or three
+            // to a period would take an axis beyond its acceleration.
             let near = a.length_mm.min(b.length_mm);
             if near > 0.0 {
                 cap = cap.min((room * near / dt).sqrt());

@@ -31,9 +31,9 @@
 //!   through it to the end of its run, at least the whole run, at most `DESIGN_RUN_MM`
 //!   (the smoother emits nothing of a run before that much of it is known); for a G2
 //!   transition at a joint with an arc, like an arc, the path that runs on without a
-//!   corner up to the end of the move after it, at most `DESIGN_RUN_MM` (issue 11:
-//!   designed for their own 2 mm from rest, the transitions of an obround's 2 mm corners
-//!   ran at 24.6 mm/s and held the arcs and lines beside them there, where 35 mm/s fit);
+//!   corner up to the end of the move after it, at most `DESIGN_RUN_MM` (designed for
+//!   their own short length from rest, transitions would hold the arcs and lines beside
+//!   them below the speed that fits);
 //!   for a circular corner blend its own length; for a G2 corner blend `DESIGN_RUN_MM`
 //!   (it is entered and left at speed, the lines do the slowing). These distances are
 //!   geometry only, never the limits. At each design speed the tangential acceleration
@@ -41,9 +41,8 @@
 //!   normal jerk `3κva` grows with it), never a share of the axis limit and never more than
 //!   the ramp can use, `sqrt(v·j)`. Both choices are minima over sets that only grow when
 //!   an axis limit is raised, so raising one never lowers the design by that measure.
-//!   (Issue 7: the tangential acceleration used to be tried as fractions of the axis
-//!   limit; with a large acceleration and a small jerk every fraction left no jerk, and a
-//!   circle at F600 with jerk 1,000 mm/s³ took 503 s at 200,000 mm/s² instead of 7.2 s.)
+//!   (Fractions of the axis limit would not do: with a large acceleration and a small
+//!   jerk every fraction can leave no jerk, and a circle then crawls.)
 //!   `v_max_mm_s` is that design speed. For a feed
 //!   override above 100 %, arcs and transitions carry a second design for the highest
 //!   override (`v_boost_mm_s`, `accel_boost_mm_s2`, `jerk_boost_mm_s3`, where that gains at least 10 %
@@ -54,7 +53,7 @@
 //!   direction and split the motion core's sections.
 //!   Only [`PROFILE_SHARE`] of each axis limit is used by the path profile; the rest is left
 //!   for the junctions.
-//! - **Ramp budgets at stops** (issue 11): a smoothed piece that starts or ends at a
+//! - **Ramp budgets at stops**: a smoothed piece that starts or ends at a
 //!   junction capped below half its design speed gets the tangential budget of
 //!   `budget::ramp_budget` where that stops quicker: there the speed obeys
 //!   `v² ≤ cap² + 2a·distance` (the motion core keeps the path acceleration within `a` and
@@ -154,6 +153,7 @@ pub use kerf_geom::{AXIS_NAMES, AxisLimits, MachineLimits, PlannedSegment};
 
 mod blend;
 mod budget;
+mod grid_search;
 mod junction;
 mod memo;
 mod planner;

@@ -431,8 +431,8 @@ impl Planner {
             .sqrt();
         // A remnant of a line between two blends is kept down to the rounding of the
         // coordinates (the motion core passes it in the time it takes): dropped below
-        // `MIN_SEGMENT_MM`, it left the blends 0.07 pm apart, a jump that at 142 µs is
-        // 1.3 times the jerk limit of an axis with 23.4 mm/s³ (issue 24).
+        // `MIN_SEGMENT_MM`, it would leave the blends apart by its length, a jump that at
+        // a short period can exceed the jerk limit of a slow axis.
         let rounding =
             kerf_geom::POSITION_ROUNDING_ULPS * f64::EPSILON * curve.start().norm().max(1.0);
         let keep = |l: f64| l >= MIN_SEGMENT_MM || (self.last.is_some() && l > rounding);
@@ -547,10 +547,9 @@ impl Planner {
         // A piece entered at speed whose limits are like those of the segment before it
         // joins that segment's motion-core section and runs at the lesser of their limits
         // (the section's first segment decides; the one before is the estimate here);
-        // each candidate budget is judged by whether it joins (`ramp_budget`). (Passing
-        // the section only where the piece's own budget joined it judged a candidate
-        // that would not as if it stopped within the piece, and one that would as if it
-        // did not: raster B's first row end chose a budget 3 ms slower.)
+        // each candidate budget is judged by whether it joins (`ramp_budget`), so the
+        // section is passed whether or not the piece's own budget joins it: a candidate
+        // is judged by where it itself would run.
         let section = self
             .before_last_limits
             .filter(|_| self.last_start_cap >= slow);

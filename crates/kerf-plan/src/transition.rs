@@ -26,10 +26,8 @@ pub const TRANSITION_SHARE_OF_MOVE: f64 = 0.45;
 /// at it.
 const MAX_CRAWL_S: f64 = 0.02;
 /// Below this share of the neighbours' speed a transition counts as a crawl (see
-/// [`MAX_CRAWL_S`]): 30 %. At a quarter, the former value, crawling already lost to a
-/// stop: the 90° joints between a rapid and an arc at F300 of
-/// `tests/data/ngc/basic/arcs_planes.ngc`, 0.05 mm transitions passable at 25.4 % of the
-/// feed, each cost 16 ms more than stopping at the joint.
+/// [`MAX_CRAWL_S`]): 30 %. Somewhat below it crawling round a sharp joint (a 90° joint
+/// between a rapid and an arc, say, with a short transition) already loses to a stop.
 const CRAWL_SPEED_RATIO: f64 = 0.3;
 /// A joint already passable at this share of its neighbours' speed gets no transition:
 /// at most 10 % would be gained, not worth trimming two programmed moves.

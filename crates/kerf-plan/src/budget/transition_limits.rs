@@ -1,0 +1,105 @@
+//! Limits of a quintic segment (a G2 transition, a G2 corner blend or a smoothed piece)
+//! from its sampled bounds, by the per-axis and the Frenet bound, whichever is larger.
+
+use kerf_geom::Transition;
+
+use super::bounds::transition_bounds;
+use super::design::design_speed_search;
+use super::envelope::envelope_budget;
+use super::{CENTRIPETAL_SHARE, boosted};
+use crate::memo::Limits;
+use crate::{MachineLimits, PROFILE_SHARE, PlannedSegment};
+
+/// Path limits of a G2 transition. With arc-length parametrisation each axis sees
+/// `x_i'' = t_i a + K_i v²` and `x_i''' = t_i j + 3 K_i v a + K'_i v³`. Two bounds hold for
+/// every axis and either may be used: the per-axis one, `|t_i| a + |K_i| v²` and
+/// `|t_i| j + 3 |K_i| v a + |K'_i| v³` with the sampled maxima; and the Frenet one,
+/// `w_i sqrt(a² + (κv²)²)` and `w_i sqrt((j + κ²v³)² + (3κva + |K' + κ²t| v³)²)` (the
+/// tangent and normal parts of the vectors are orthogonal; `w_i` is the axis' share of the
+/// curve's plane), which is much tighter where the curve turns. They are kept within
+/// [`PROFILE_SHARE`] of the limits at every speed `v` up to the design speed `vd` with
+/// tangential accelerations `|a| ≤ sqrt(2j(vd − v))`, the jerk-limited envelope of
+/// [`envelope_budget`] (not the full `a` at `vd`); the design speed is chosen like on
+/// arcs.
+pub(super) fn transition_limits(
+    seg: &PlannedSegment,
+    t: &Transition,
+    limits: &MachineLimits,
+    samples: usize,
+    feed_scale: f64,
+    boost_scale: Option<f64>,
+    run_mm: f64,
+) -> Limits {
+    let b = transition_bounds(t, seg.abc_poly.as_ref(), samples);
+    let (tm, km, kp) = (b.tangent, b.curvature, b.curvature_rate);
+    let share = PROFILE_SHARE;
+    let mut v = f64::INFINITY;
+    for i in 0..6 {
+        let Some(l) = limits.axes[i] else { continue };
+        if tm[i] > 0.0 {
+            v = v.min(share * l.velocity_units_s / tm[i]);
+        }
+        if km[i] > 0.0 {
+            v = v.min((CENTRIPETAL_SHARE * share * l.acceleration_units_s2 / km[i]).sqrt());
+        }
+        if kp[i] > 0.0 {
+            v = v.min((CENTRIPETAL_SHARE * share * l.jerk_units_s3 / kp[i]).cbrt());
+        }
+    }
+    // Largest tangential acceleration at speed vd, by either bound.
+    let accel_at = |vd: f64| -> Option<f64> {
+        let mut per_axis = f64::INFINITY;
+        let mut frenet = f64::INFINITY;
+        for i in 0..6 {
+            let Some(l) = limits.axes[i] else { continue };
+            let own = axis_rate(share * l.acceleration_units_s2 - km[i] * vd * vd, tm[i]);
+            per_axis = per_axis.min(own);
+            if i >= 3 {
+                // Rotary axes have only the per-axis bound, under either choice.
+                frenet = frenet.min(own);
+            } else if b.plane[i] > 0.0 {
+                let c = share * l.acceleration_units_s2 / b.plane[i];
+                let n = b.kappa * vd * vd;
+                frenet = frenet.min((c * c - n * n).max(0.0).sqrt());
+            }
+        }
+        let a = per_axis.max(frenet);
+        (a > 0.0 && a.is_finite()).then_some(a)
+    };
+    let jerk_at = |vd: f64, a: f64| -> f64 {
+        let mut per_axis = f64::INFINITY;
+        let mut frenet = f64::INFINITY;
+        for i in 0..6 {
+            let Some(l) = limits.axes[i] else { continue };
+            let room = share * l.jerk_units_s3 - 3.0 * km[i] * vd * a - kp[i] * vd * vd * vd;
+            let own = axis_rate(room, tm[i]);
+            per_axis = per_axis.min(own);
+            if i >= 3 {
+                frenet = frenet.min(own);
+            } else if b.plane[i] > 0.0 {
+                let c = share * l.jerk_units_s3 / b.plane[i];
+                let n = 3.0 * b.kappa * vd * a + b.kappa_rate * vd * vd * vd;
+                let tangential = (c * c - n * n).max(0.0).sqrt() - b.kappa * b.kappa * vd.powi(3);
+                frenet = frenet.min(tangential.max(0.0));
+            }
+        }
+        per_axis.max(frenet)
+    };
+    let budget = |vd: f64| envelope_budget(vd, &accel_at, &jerk_at);
+    let run_mm = seg.length_mm.max(run_mm);
+    let search = |v_start: f64| design_speed_search(run_mm, v_start, budget);
+    boosted(v, seg.feed_mm_s, feed_scale, boost_scale, search)
+}
+
+/// The largest tangential rate (acceleration or jerk) an axis allows when `room` of its
+/// limit is left after the curvature terms and it sees `weight` of the tangential rate:
+/// none if nothing is left, any if it does not see it.
+pub(super) fn axis_rate(room: f64, weight: f64) -> f64 {
+    if room <= 0.0 {
+        0.0
+    } else if weight > 0.0 {
+        room / weight
+    } else {
+        f64::INFINITY
+    }
+}
