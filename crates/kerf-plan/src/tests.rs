@@ -4,18 +4,7 @@ use super::*;
 use kerf_geom::{Arc, Line};
 use kerf_geom::{CornerMode, Curve, Move, Path, Vec3};
 
-fn mill() -> MachineLimits {
-    let l = AxisLimits {
-        velocity_units_s: 200.0,
-        acceleration_units_s2: 2000.0,
-        jerk_units_s3: 50000.0,
-    };
-    MachineLimits {
-        axes: [Some(l), Some(l), Some(l), None, None, None],
-        period_s: 0.001,
-        tolerance_mm: 0.01,
-    }
-}
+use kerf_testkit::machines::mill;
 
 fn mv(path: Path, feed: f64) -> Move {
     Move {
