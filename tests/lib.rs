@@ -155,7 +155,7 @@ pub fn run_with(dialect: Dialect, settings: Settings, src: &str) -> Result<Vec<I
         // The M2 event of the added line is not the program's.
         let added_line = u32::try_from(ended.lines().count()).unwrap_or(u32::MAX);
         if let Some(Item::Event(e)) = out.items.last()
-            && e.code == kerf_gcode::EventCode::M2
+            && e.code == EventCode::M2
             && e.line == added_line
         {
             out.items.pop();

@@ -4,6 +4,8 @@
 //! copied out (256 records per cycle).
 //!
 //! `cargo bench -p kerf-benches --bench drive`
+// criterion_main! writes this bench's `main`, without a doc comment.
+#![allow(missing_docs)]
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use kerf_config::Config;

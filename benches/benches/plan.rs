@@ -9,6 +9,8 @@
 //!   output costs on its own.
 //!
 //! Run: `cargo bench -p kerf-benches --bench plan`. Figures go in docs/PERFORMANCE.md.
+// criterion_main! writes this bench's `main`, without a doc comment.
+#![allow(missing_docs)]
 
 use std::hint::black_box;
 use std::io;

@@ -263,11 +263,9 @@ fn raster_surfaces_carry_their_own_derivatives() {
     // The bound follows a row through ∂z/∂x and ∂²z/∂x² as each surface states them:
     // checked against central differences of z itself.
     let h = 1e-4;
+    let gentle: fn(f64, f64) -> (f64, f64, f64) = cam::gentle_surface;
     for (name, f) in [
-        (
-            "gentle",
-            cam::gentle_surface as fn(f64, f64) -> (f64, f64, f64),
-        ),
+        ("gentle", gentle),
         ("curved", cam::curved_surface),
         ("wavy", cam::wavy_surface),
     ] {

@@ -9,7 +9,7 @@ use kerf_tests::*;
 
 const D: Dialect = Dialect::LinuxCnc;
 
-fn events(src: &str) -> Vec<kerf_gcode::Event> {
+fn events(src: &str) -> Vec<Event> {
     items(D, src)
         .into_iter()
         .filter_map(|i| match i {
@@ -180,7 +180,7 @@ fn the_end_of_file_rules() {
 }
 
 #[track_caller]
-fn near(got: kerf_gcode::Vec3, want: kerf_gcode::Vec3) {
+fn near(got: Vec3, want: Vec3) {
     assert_point("point", got, want, 1e-12);
 }
 

@@ -654,7 +654,7 @@ fn g90_1_and_g91_1_arc_centres() {
 #[test]
 fn block_delete_and_unsupported_modal_codes() {
     // Manual 11.4.2.1: `/` first on a line deletes the block when the switch is on.
-    let on = kerf_gcode::Settings {
+    let on = Settings {
         block_delete: true,
         ..Default::default()
     };

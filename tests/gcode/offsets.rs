@@ -10,7 +10,7 @@ use kerf_tests::*;
 
 const D: Dialect = Dialect::LinuxCnc;
 
-fn o() -> kerf_gcode::Vec3 {
+fn o() -> Vec3 {
     v(0.0, 0.0, 0.0)
 }
 

@@ -167,8 +167,8 @@ fn word_order_inside_a_block_does_not_matter() {
 }
 
 /// Settings with the block delete switch on (it is off by default).
-fn block_delete_on() -> kerf_gcode::Settings {
-    kerf_gcode::Settings {
+fn block_delete_on() -> Settings {
+    Settings {
         block_delete: true,
         ..Default::default()
     }

@@ -89,7 +89,7 @@ impl Config {
         let mut settings = self.settings();
         if let Some(path) = &self.parameter_file {
             settings.parameters =
-                crate::tooltable::load_parameter_file(path, &path.display().to_string())?;
+                tooltable::load_parameter_file(path, &path.display().to_string())?;
         }
         Ok(settings)
     }

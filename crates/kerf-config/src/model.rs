@@ -92,7 +92,7 @@ pub struct DriveSetup {
 }
 
 /// The daemon's own settings (`[daemon]`).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DaemonConfig {
     /// SCHED_FIFO priority of the cycle thread, 1 to 99.
     pub priority: u8,

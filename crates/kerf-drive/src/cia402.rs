@@ -375,6 +375,8 @@ pub struct EnablerOutput {
 /// [`Enabler::request`] starts it again. A drive that leaves Operation enabled on its
 /// own is reported as [`EnablerStatus::Dropped`] and not enabled again until a new
 /// request. A fault is never reset on its own.
+// A copy would be a second instance of its state, silently diverging from the first.
+#[allow(missing_copy_implementations)]
 #[derive(Debug, Clone)]
 pub struct Enabler {
     timeout_cycles: u32,

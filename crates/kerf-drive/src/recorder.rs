@@ -52,7 +52,7 @@ impl Default for CycleRecord {
 }
 
 /// A [`Recorder`] size that cannot be built.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 pub enum RecorderError {
     /// Seconds or period not positive and finite, or a capacity of 0 cycles.
     #[error("recorder: {seconds} s at a period of {period_s} s is not a positive number of cycles")]

@@ -89,7 +89,7 @@ impl SafetyConfig {
 }
 
 /// A configuration [`Safety::new`] refuses.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 pub enum SafetyConfigError {
     /// The period is not a positive finite number.
     #[error("safety: the cycle period must be positive, got {0} s")]

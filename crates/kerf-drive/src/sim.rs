@@ -113,6 +113,8 @@ impl SimConfig {
 }
 
 /// A simulated CiA 402 drive (see the module documentation).
+// A copy would be a second instance of its state, silently diverging from the first.
+#[allow(missing_copy_implementations)]
 #[derive(Debug, Clone)]
 pub struct SimDrive {
     config: SimConfig,
@@ -205,10 +207,7 @@ impl SimDrive {
         let edge = is_fault_reset_edge(self.last_controlword, controlword);
         self.last_controlword = controlword;
         if let Some(code) = self.pending_fault.take().or(self.fault_cause)
-            && !matches!(
-                self.state,
-                DriveState::FaultReactionActive | DriveState::Fault
-            )
+            && !matches!(self.state, FaultReactionActive | Fault)
         {
             self.trip(code);
             return;

@@ -173,7 +173,7 @@ pub struct DriveStage<D: Drive> {
 }
 
 /// A stage that cannot be built.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 pub enum StageError {
     /// The safety configuration is refused.
     #[error(transparent)]

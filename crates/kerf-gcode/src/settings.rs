@@ -4,7 +4,7 @@
 ///
 /// LinuxCNC applies every offset of the entry with G43 (X, Y, Z, A, B, C); the other
 /// controls use the length only.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Tool {
     /// Tool number (T word).
     pub number: u32,

@@ -21,7 +21,7 @@ pub struct AxisPeak {
 }
 
 /// What a run measured.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Summary {
     /// Cycles stepped (rows after the one at t = 0).
     pub cycles: u64,

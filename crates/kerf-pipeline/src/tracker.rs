@@ -345,8 +345,7 @@ mod tests {
         let mut t = tracker_of(&pts);
         let distance = |k: usize, p: Vec3| {
             let (a, b) = (pts[k], pts[k + 1]);
-            kerf_geom::Curve::line(Vec3::new(a[0], a[1], 0.0), Vec3::new(b[0], b[1], 0.0))
-                .distance_to(&p)
+            Curve::line(Vec3::new(a[0], a[1], 0.0), Vec3::new(b[0], b[1], 0.0)).distance_to(&p)
         };
         for n in 0..2000 {
             let a = n as f64 * 0.01;

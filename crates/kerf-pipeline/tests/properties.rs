@@ -152,7 +152,7 @@ fn random_program(rng: &mut Rng, n: usize) -> (Vec<Move>, f64) {
             }
             dir = match m.path {
                 Path::Line(l) => (l.end - l.start).normalize(),
-                Path::Arc(_) => kerf_geom::Curve::from_path(&m.path).eval(1e300).tangent,
+                Path::Arc(_) => Curve::from_path(&m.path).eval(1e300).tangent,
             };
             moves.push(m);
         }
@@ -613,7 +613,7 @@ fn tangent_chain(rng: &mut Rng, n: usize) -> (Vec<Move>, f64) {
         p = m.path.end();
         dir = match m.path {
             Path::Line(l) => (l.end - l.start).normalize(),
-            Path::Arc(_) => kerf_geom::Curve::from_path(&m.path).eval(1e300).tangent,
+            Path::Arc(_) => Curve::from_path(&m.path).eval(1e300).tangent,
         };
         moves.push(m);
     }
@@ -638,7 +638,7 @@ fn tangent_line_arc_chains_hold_every_invariant() {
         joints += moves.len() - 1;
         transitions += segs
             .iter()
-            .filter(|s| matches!(s.curve, kerf_geom::Curve::Transition(_)))
+            .filter(|s| matches!(s.curve, Curve::Transition(_)))
             .count();
         let opts = if case % 4 == 3 {
             RunOptions {

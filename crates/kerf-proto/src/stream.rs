@@ -126,6 +126,8 @@ struct Open {
 ///   carry them, and keep their last value across moves that do not.
 ///
 /// Travel limits are not checked here: the daemon owns them.
+// A copy would be a second instance of its state, silently diverging from the first.
+#[allow(missing_copy_implementations)]
 #[derive(Clone, Debug, Default)]
 pub struct StreamCheck {
     open: Option<Open>,

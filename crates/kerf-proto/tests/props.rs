@@ -22,7 +22,7 @@ fn from_bytes(b: &[u8; SIZE]) -> MoveMsg {
 
 fn to_bytes(m: &MoveMsg) -> [u8; SIZE] {
     // SAFETY: as above; a MoveMsg has no padding, so all SIZE bytes are initialised.
-    unsafe { std::ptr::read_unaligned((m as *const MoveMsg).cast::<[u8; SIZE]>()) }
+    unsafe { std::ptr::read_unaligned(std::ptr::from_ref(m).cast::<[u8; SIZE]>()) }
 }
 
 /// Valid messages to start from: every item of a small program with lines, arcs, a helix,

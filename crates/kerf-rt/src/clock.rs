@@ -44,6 +44,8 @@ pub struct Tick {
 ///
 /// Deadlines are `start + k·period`, so sleep jitter never accumulates into drift. The first
 /// deadline is one period after [`PeriodicClock::new`].
+// A copy would be a second instance of its state, silently diverging from the first.
+#[allow(missing_copy_implementations)]
 #[derive(Debug, Clone)]
 pub struct PeriodicClock {
     period_ns: u64,

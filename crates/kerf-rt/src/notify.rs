@@ -43,6 +43,8 @@ pub fn watchdog_interval() -> Option<Duration> {
 /// [`watchdog_interval`]) with the real-time thread's cycle counter. A keep-alive goes out
 /// only if the counter moved since the previous call, so a stalled cycle lets the watchdog
 /// expire and systemd restarts the service.
+// A copy would be a second instance of its state, silently diverging from the first.
+#[allow(missing_copy_implementations)]
 #[derive(Debug, Clone, Default)]
 pub struct Watchdog {
     last_cycles: Option<u64>,

@@ -5,7 +5,7 @@ use std::io;
 use crate::RtError;
 
 /// What [`rt_setup`] should do for the calling thread.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RtConfig {
     /// `SCHED_FIFO` priority, 1..=99; `None` keeps the thread's current (normal) policy.
     pub priority: Option<u8>,
@@ -163,7 +163,7 @@ fn configured_cpu_count() -> Result<usize, RtError> {
 /// Bytes between the caller's stack position and the lowest address of the thread's stack.
 fn stack_bytes_left() -> Result<usize, RtError> {
     let marker = 0u8;
-    let here = std::hint::black_box(&marker) as *const u8 as usize;
+    let here = std::ptr::from_ref(std::hint::black_box(&marker)) as usize;
     let mut attr = std::mem::MaybeUninit::<libc::pthread_attr_t>::uninit();
     // SAFETY: pthread_getattr_np initialises `attr` on success; it is destroyed below.
     let rc = unsafe { libc::pthread_getattr_np(libc::pthread_self(), attr.as_mut_ptr()) };
@@ -213,7 +213,7 @@ fn pin_to_cpu(cpu: usize) -> io::Result<()> {
     // SAFETY: `cpu` < CPU_SETSIZE was checked by the caller.
     unsafe { libc::CPU_SET(cpu, &mut set) };
     // SAFETY: pid 0 is the calling thread; `set` is a valid cpu_set_t of the given size.
-    let rc = unsafe { libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) };
+    let rc = unsafe { libc::sched_setaffinity(0, size_of::<libc::cpu_set_t>(), &set) };
     if rc == 0 {
         Ok(())
     } else {

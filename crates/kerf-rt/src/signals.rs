@@ -36,7 +36,8 @@ impl Signals {
         for (i, &signal) in STOP_SIGNALS.iter().enumerate() {
             // SAFETY: as above.
             let mut action: libc::sigaction = unsafe { std::mem::zeroed() };
-            action.sa_sigaction = record_stop_signal as extern "C" fn(libc::c_int) as usize;
+            let handler: extern "C" fn(libc::c_int) = record_stop_signal;
+            action.sa_sigaction = handler as usize;
             action.sa_flags = libc::SA_RESTART;
             // SAFETY: `action.sa_mask` is a valid sigset_t to empty.
             unsafe { libc::sigemptyset(&mut action.sa_mask) };

@@ -14,8 +14,7 @@ fn current_policy_and_priority() -> (libc::c_int, libc::c_int) {
 fn allowed_cpus() -> Vec<usize> {
     // SAFETY: a zeroed cpu_set_t is a valid out-parameter.
     let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
-    let rc =
-        unsafe { libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) };
+    let rc = unsafe { libc::sched_getaffinity(0, size_of::<libc::cpu_set_t>(), &mut set) };
     assert_eq!(rc, 0);
     (0..libc::CPU_SETSIZE as usize)
         // SAFETY: i < CPU_SETSIZE.

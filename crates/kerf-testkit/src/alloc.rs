@@ -102,6 +102,8 @@ pub fn frees(phase: u8) -> u64 {
 }
 
 /// A count of the current thread's allocations over a stretch of code.
+// Started once and read once: a copy could be read twice.
+#[allow(missing_copy_implementations)]
 #[derive(Debug)]
 #[must_use = "a count is read with `stop`"]
 pub struct Count {

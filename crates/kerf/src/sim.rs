@@ -358,8 +358,7 @@ impl Prepass {
             let known = self.scan.moves as usize;
             k.segments
                 .extend(self.buf.iter().map(|s| Planned::Segment(*s, known)));
-            let bytes = k.moves.len() * std::mem::size_of::<Move>()
-                + k.segments.len() * std::mem::size_of::<Planned>();
+            let bytes = k.moves.len() * size_of::<Move>() + k.segments.len() * size_of::<Planned>();
             if bytes > KEEP_BYTES {
                 self.kept = None;
             }
@@ -618,18 +617,20 @@ where
             r.flips_from(rx);
             recorder = Some(r);
             let mut rapids = RapidIndex::default();
-            Feed::Stream(Box::new(moves.inspect(move |i| {
-                if let Input::Move(m) = i
-                    && let Some(at) = rapids.next_flip(m.rapid)
-                {
-                    // The recorder outlives the run: a send cannot fail before it ends.
-                    let _ = flips.send(at);
-                }
-            }))
-                as Box<dyn Iterator<Item = Input> + Send + '_>)
+            let watched: Box<dyn Iterator<Item = Input> + Send + '_> =
+                Box::new(moves.inspect(move |i| {
+                    if let Input::Move(m) = i
+                        && let Some(at) = rapids.next_flip(m.rapid)
+                    {
+                        // The recorder outlives the run: a send cannot fail before it ends.
+                        let _ = flips.send(at);
+                    }
+                }));
+            Feed::Stream(watched)
         }
         Feed::Stream(moves) => {
-            Feed::Stream(Box::new(moves) as Box<dyn Iterator<Item = Input> + Send + '_>)
+            let moves: Box<dyn Iterator<Item = Input> + Send + '_> = Box::new(moves);
+            Feed::Stream(moves)
         }
         Feed::Kept(k) => Feed::Kept(k),
     };
@@ -904,7 +905,7 @@ mod tests {
     fn a_program_beyond_the_keep_budget_is_not_kept() {
         // Long lines with stops in between: one segment per move.
         let config = Config::builtin();
-        let per_move = std::mem::size_of::<Move>() + std::mem::size_of::<Planned>();
+        let per_move = size_of::<Move>() + size_of::<Planned>();
         let n = KEEP_BYTES / per_move + 10;
         let mut pre = Prepass::new(&config, &SimOptions::default());
         let mut m = mixed_moves()[0];

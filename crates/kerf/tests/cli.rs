@@ -826,7 +826,7 @@ fn sim_program_error_names_the_place() {
 fn cam_circle(decimals: usize) -> String {
     let mut text = String::from("G21 G90 G17 G64 F6000\n");
     for k in 1..=3600 {
-        let a = 2.0 * std::f64::consts::PI * k as f64 / 3600.0;
+        let a = 2.0 * PI * k as f64 / 3600.0;
         let (x, y) = (10.0 - 10.0 * a.cos(), 10.0 * a.sin());
         text.push_str(&format!("G1 X{x:.decimals$} Y{y:.decimals$}\n"));
     }
@@ -1280,7 +1280,7 @@ fn sim_smoothed_cam_polyline_touching_the_travel_limit_stays_inside_or_is_refuse
     // CAM-like: a quarter circle of radius 10 mm in 0.2 mm steps (3 decimals) that becomes
     // tangent to X = 1000, then 20 mm of points along X = 1000; smoothed into quintics.
     let mut text = String::from("G21 G90 G17 G64 F3000\nG0 X990 Y-20\n");
-    let n = (10.0 * std::f64::consts::FRAC_PI_2 / 0.2) as usize;
+    let n = (10.0 * FRAC_PI_2 / 0.2) as usize;
     for k in 1..=n {
         let a = -FRAC_PI_2 + FRAC_PI_2 * k as f64 / n as f64;
         text += &format!(

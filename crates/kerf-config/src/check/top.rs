@@ -242,8 +242,8 @@ impl Checker<'_> {
         }
 
         if let (Some(path), Some(f)) = (&tool_table, &g.tool_table) {
-            let table = crate::tooltable::load_tool_table(path, &path.display().to_string())
-                .map_err(|e| match e {
+            let table = tooltable::load_tool_table(path, &path.display().to_string()).map_err(
+                |e| match e {
                     ConfigError::Io { source, .. } => self.error(
                         f.span(),
                         format!(
@@ -252,7 +252,8 @@ impl Checker<'_> {
                         ),
                     ),
                     e => e,
-                })?;
+                },
+            )?;
             for t in table {
                 if tools.iter().any(|e| e.number == t.number) {
                     return Err(self.error(

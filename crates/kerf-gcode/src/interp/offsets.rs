@@ -390,7 +390,7 @@ impl State {
                 format!("Requested tool {number} not found in the tool table"),
             );
         };
-        let mut tool = self.settings.tools[index].clone();
+        let mut tool = self.settings.tools[index];
         let mut offs = tool.offsets_mm_deg();
         let machine = self.frame_to_machine(self.pos);
         let current = [

@@ -42,7 +42,7 @@ pub enum PlotFormat {
 }
 
 /// A plot file name that ends in neither `.svg` nor `.png`.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("the plot format is chosen by the file name, which must end in .svg or .png")]
 pub struct PlotFormatError;
 

@@ -329,7 +329,7 @@ fn the_png_has_the_size_and_the_colours_of_the_plot() {
         }),
     )
     .unwrap();
-    let decoder = png::Decoder::new(std::io::Cursor::new(image));
+    let decoder = png::Decoder::new(io::Cursor::new(image));
     let mut reader = decoder.read_info().unwrap();
     let mut rgb = vec![0; reader.output_buffer_size()];
     let info = reader.next_frame(&mut rgb).unwrap();

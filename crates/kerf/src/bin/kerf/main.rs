@@ -248,6 +248,7 @@ fn main() -> ExitCode {
     }
 }
 
+/// The machine configuration: `path`, else the system's, else the built-in example.
 pub fn load_config(path: Option<&Path>) -> Result<Config, Failure> {
     let (mut config, origin) =
         kerf_config::load_default(path).map_err(|e| Failure::Error(e.to_string()))?;
@@ -284,13 +285,13 @@ struct Program {
 /// where LinuxCNC's interpreter finds `NAME.ngc` files next to the program.
 pub(crate) fn settings_for(
     mut settings: kerf_gcode::Settings,
-    program: &std::path::Path,
+    program: &Path,
 ) -> kerf_gcode::Settings {
     if program.as_os_str() != OsStr::new("-") {
         let dir = program
             .parent()
             .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(std::path::Path::new("."));
+            .unwrap_or(Path::new("."));
         settings.subroutine_path.insert(0, dir.to_path_buf());
         if program.is_file() {
             // Read again for subs called before their definition (never a pipe).
@@ -339,7 +340,7 @@ fn run_plot(args: &PlotArgs) -> Result<(), Failure> {
         File::open(&args.input).map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
     let bb = kerf::blackbox::read(BufReader::new(file))
         .map_err(|e| Failure::Error(format!("{name}:{}: error: {}", e.line, e.message)))?;
-    let mut out = output::Output::create(&args.out)?;
+    let mut out = Output::create(&args.out)?;
     kerf::blackbox::write_svg(&bb, &mut out).map_err(|e| out.error(e))?;
     out.commit()
 }
@@ -587,7 +588,9 @@ pub fn check_program(
 /// file (removed when this is dropped), so that memory does not grow with the program.
 pub struct SimSource {
     path: PathBuf,
+    /// The program's name in messages (its path, or `stdin`).
     pub name: String,
+    /// The dialect it is read in.
     pub dialect: Dialect,
     /// The dialect was nobody's choice (see [`with_dialect_note`]).
     pub assumed_dialect: bool,
@@ -596,6 +599,7 @@ pub struct SimSource {
 }
 
 impl SimSource {
+    /// Opens the program `args` names, in the dialect they and `config` choose.
     pub fn open(args: &ProgramArgs, config: &Config) -> Result<SimSource, Failure> {
         if args.program.as_os_str() == OsStr::new("-") {
             let name = "<stdin>".to_string();
