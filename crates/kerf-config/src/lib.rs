@@ -1,7 +1,7 @@
 //! The machine configuration file (TOML): the one crate that knows it.
 //!
 //! - this module: the file read and checked once into a plain [`Config`] record;
-//! - [`reference`]: the reference of every key (docs/CONFIG.md is generated from it);
+//! - [`reference`](mod@reference): the reference of every key (docs/CONFIG.md is generated from it);
 //! - [`tooltable`]: LinuxCNC tool tables and parameter files;
 //! - [`travel`]: the configured travel checked on the exact path before any motion;
 //! - [`machine_limits`]: the motion core's view of the axes.

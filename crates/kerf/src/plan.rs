@@ -40,7 +40,7 @@
 //!   on two cores and memory stays constant. [`plan_sequential`] gives the same bytes on one
 //!   thread.
 //! - The front end never produces non-finite numbers; if one ever appears the output would
-//!   not be JSON, so it becomes an error ([`PlanError::NonFinite`]) instead.
+//!   not be JSON, so it becomes an error ([`PlanOutputError::NonFinite`]) instead.
 
 use std::io::{self, BufRead, Write};
 use std::sync::mpsc;
