@@ -338,32 +338,47 @@ impl<D: Drive> DriveStage<D> {
             })
     }
 
-    /// One cycle. See the module documentation. Allocation-free.
-    pub fn cycle(&mut self, input: &StageInput) -> StageOutput {
-        self.sequence += 1;
-        let mut actual = [0.0; MAX_AXES];
-        let mut drive_fault = [false; MAX_AXES];
-        let mut controlwords = [0u16; MAX_AXES];
-        let mut statuswords = [0u16; MAX_AXES];
-        let mut hold = [None; MAX_AXES];
-        let mut status = [None; MAX_AXES];
+    /// Reads every drive and steps its enable sequence: the first part of a cycle.
+    fn read_drives(&mut self) -> DriveReadings {
+        let mut r = DriveReadings {
+            actual: [0.0; MAX_AXES],
+            drive_fault: [false; MAX_AXES],
+            controlwords: [0u16; MAX_AXES],
+            statuswords: [0u16; MAX_AXES],
+            hold: [None; MAX_AXES],
+            status: [None; MAX_AXES],
+        };
         for (i, ax) in self.axes.iter().enumerate() {
             let Some(ax) = ax else { continue };
             let sw = ax.drive.statusword();
             let pos = ax.drive.position_actual_counts();
-            actual[i] = ax.scale.to_units(pos);
+            r.actual[i] = ax.scale.to_units(pos);
             let code = ax.drive.error_code();
             self.error_codes[i] = code;
             let out = self.enablers[i].cycle(sw, pos, code);
-            statuswords[i] = sw;
-            controlwords[i] = out.controlword;
-            hold[i] = out.hold_target_counts;
-            status[i] = Some(out.status);
-            drive_fault[i] = matches!(
+            r.statuswords[i] = sw;
+            r.controlwords[i] = out.controlword;
+            r.hold[i] = out.hold_target_counts;
+            r.status[i] = Some(out.status);
+            r.drive_fault[i] = matches!(
                 DriveState::from_statusword(sw),
                 Some(DriveState::Fault | DriveState::FaultReactionActive)
             );
         }
+        r
+    }
+
+    /// One cycle. See the module documentation. Allocation-free.
+    pub fn cycle(&mut self, input: &StageInput) -> StageOutput {
+        self.sequence += 1;
+        let DriveReadings {
+            actual,
+            drive_fault,
+            controlwords,
+            statuswords,
+            hold,
+            status,
+        } = self.read_drives();
         let mut tripped = None;
         let mut enabled_at = None;
         let mut reset = None;
@@ -655,4 +670,20 @@ impl<D: Drive> DriveStage<D> {
             });
         }
     }
+}
+
+/// What a cycle reads from the drives before it checks anything, per axis.
+struct DriveReadings {
+    /// Actual positions, mm or deg.
+    actual: [f64; MAX_AXES],
+    /// The drive reports Fault or Fault reaction active.
+    drive_fault: [bool; MAX_AXES],
+    /// The enable sequences' controlwords.
+    controlwords: [u16; MAX_AXES],
+    /// The drives' statuswords.
+    statuswords: [u16; MAX_AXES],
+    /// The target an enable sequence holds the drive at, counts.
+    hold: [Option<i32>; MAX_AXES],
+    /// The enable sequences' status.
+    status: [Option<EnablerStatus>; MAX_AXES],
 }
