@@ -37,66 +37,92 @@ impl MotionCore {
     /// - its hard and soft end speeds: it then reaches its end within its lookahead as from
     ///   an entry at `a = 0` within its hard start speed, once the acceleration is down,
     ///   which must fit in its length. (Without this the speed-up could overshoot what the
-    ///   next section has to slow down to, and then lose more than it gained: raising an
-    ///   acceleration limit slowed a program of `monotonic.rs` by 2 %.)
-    pub(crate) fn carry_target(&self, v0: f64, a0: f64, rem: f64) -> Option<(f64, f64)> {
-        if self.mode != Mode::Run || self.sec_count < 2 || a0 < 0.0 {
+    ///   next section has to slow down to, and then lose more than it gained.)
+    pub(crate) fn carry_target(
+        &self,
+        v0_mm_s: f64,
+        a0_mm_s2: f64,
+        rem_mm: f64,
+    ) -> Option<(f64, f64)> {
+        if self.mode != Mode::Run || self.sec_count < 2 || a0_mm_s2 < 0.0 {
             return None;
         }
         let ovr = self.override_factor;
         let sec = self.sec(self.sec_head);
         let next = self.sec(self.sec_head + 1);
-        if sec.boosted || next.wants_boost(ovr) || next.hard_start < 0.0 || next.soft_start < 0.0 {
+        if sec.boosted
+            || next.wants_boost(ovr)
+            || next.hard_start_mm_s < 0.0
+            || next.soft_start_mm_s < 0.0
+        {
             return None;
         }
-        let (v_machine, accel, jerk) = sec.limits(false);
-        let vmax = sec.v_eff(ovr, false).min(v_machine);
-        let want = self.want_end();
-        let (v_at, d0) = settle(v0, a0, jerk);
-        let d = rem * PLAN_MARGIN;
+        let (v_machine_mm_s, accel_mm_s2, jerk_mm_s3) = sec.limits(false);
+        let v_max_mm_s = sec.v_eff(ovr, false).min(v_machine_mm_s);
+        let want_mm_s = self.want_end();
+        let (v_at_mm_s, d0_mm) = settle(v0_mm_s, a0_mm_s2, jerk_mm_s3);
+        let d_mm = rem_mm * PLAN_MARGIN;
         // The end speed with `a = 0`: the carry reaches about as much before its own room.
-        let plain = reach(v_at, d - d0, accel, jerk);
-        if d0 >= d || v_at >= want || plain >= want {
+        let plain_mm_s = reach(v_at_mm_s, d_mm - d0_mm, accel_mm_s2, jerk_mm_s3);
+        if d0_mm >= d_mm || v_at_mm_s >= want_mm_s || plain_mm_s >= want_mm_s {
             return None;
         }
-        let (c_accel, c_jerk) = next.c_accel_jerk();
-        let next_top = next
-            .hard_start
-            .min(next.soft_start)
+        let (c_accel_mm_s2, c_jerk_mm_s3) = next.c_accel_jerk();
+        let next_top_mm_s = next
+            .hard_start_mm_s
+            .min(next.soft_start_mm_s)
             .min(next.v_eff(ovr, false))
-            .min(next.c_feed * ovr)
-            .min(next.hard_end)
-            .min(next.soft_end);
+            .min(next.c_feed_mm_s * ovr)
+            .min(next.hard_end_mm_s)
+            .min(next.soft_end_mm_s);
         // The next section brings the acceleration to zero within its length.
-        let settles = |v1: f64, a1: f64| settle(v1, a1, c_jerk).1 <= next.length * BACKWARD_MARGIN;
+        let settles = |v1_mm_s: f64, a1_mm_s2: f64| {
+            settle(v1_mm_s, a1_mm_s2, c_jerk_mm_s3).1 <= next.length_mm * BACKWARD_MARGIN
+        };
         // The highest end speed reachable with end acceleration `a1`: the quickest rise
         // filling `CARRY_FILL` of the section, so that the solver meets a target inside what
         // is reachable, not on its edge (where it failed in the property tests), and more
         // than the mere rise and fall of the acceleration. None when even that does not fit.
-        let top = want.min(vmax);
-        let reach_with = |a1: f64| {
-            let v1 = rise_reach(v0, a0, a1, CARRY_FILL * d, accel, jerk)?.min(top);
-            let least = rise_with_peak(v0, a0, a1, a0.max(a1), jerk).1 - v0;
-            (v1 - v0 - least > CARRY_MIN_RISE * (v1 - v0)).then_some(v1)
+        let top = want_mm_s.min(v_max_mm_s);
+        let reach_with = |a1_mm_s2: f64| {
+            let v1_mm_s = rise_reach(
+                v0_mm_s,
+                a0_mm_s2,
+                a1_mm_s2,
+                CARRY_FILL * d_mm,
+                accel_mm_s2,
+                jerk_mm_s3,
+            )?
+            .min(top);
+            let least = rise_with_peak(
+                v0_mm_s,
+                a0_mm_s2,
+                a1_mm_s2,
+                a0_mm_s2.max(a1_mm_s2),
+                jerk_mm_s3,
+            )
+            .1 - v0_mm_s;
+            (v1_mm_s - v0_mm_s - least > CARRY_MIN_RISE * (v1_mm_s - v0_mm_s)).then_some(v1_mm_s)
         };
         // The end speed rises with `a1`, and so does the room `a1²/2j` it needs above it,
         // in this section and the next, and the distance the next one needs to bring it to
         // zero: the highest share of the limit on a geometric grid that keeps within them,
         // by bisection on the grid (each condition fails from some share up), so that the
         // cycle does a handful of closed-form rises at most.
-        let a_top = accel.min(c_accel);
-        let room = |v: f64, a1: f64| {
-            v + a1 * a1 / (2.0 * jerk) <= vmax && v + a1 * a1 / (2.0 * c_jerk) <= next_top
+        let a_top_mm_s2 = accel_mm_s2.min(c_accel_mm_s2);
+        let room = |v: f64, a1_mm_s2: f64| {
+            v + a1_mm_s2 * a1_mm_s2 / (2.0 * jerk_mm_s3) <= v_max_mm_s
+                && v + a1_mm_s2 * a1_mm_s2 / (2.0 * c_jerk_mm_s3) <= next_top_mm_s
         };
         let carry_at = |k: i32| {
-            let a1 = CARRY_SHARE_RATIO.powi(k) * a_top;
+            let a1_mm_s2 = CARRY_SHARE_RATIO.powi(k) * a_top_mm_s2;
             // A pre-check without the rise: no room even above the plain end speed.
-            if !room(plain, a1) {
+            if !room(plain_mm_s, a1_mm_s2) {
                 return None;
             }
-            reach_with(a1)
-                .filter(|&v1| room(v1, a1) && settles(v1, a1))
-                .map(|v1| (v1, a1))
+            reach_with(a1_mm_s2)
+                .filter(|&v1_mm_s| room(v1_mm_s, a1_mm_s2) && settles(v1_mm_s, a1_mm_s2))
+                .map(|v1_mm_s| (v1_mm_s, a1_mm_s2))
         };
         let (mut bad, mut good) = (-1, CARRY_SHARE_STEPS - 1);
         let mut found = carry_at(good)?;

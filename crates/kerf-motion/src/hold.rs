@@ -79,7 +79,7 @@ impl MotionCore {
     /// Aborts: stops on the path as fast as the limits allow, then drops the queue.
     pub fn abort(&mut self) {
         self.abort_requested = true;
-        if self.mode == Mode::Held || self.v == 0.0 && self.a == 0.0 {
+        if self.mode == Mode::Held || self.v_mm_s == 0.0 && self.a_mm_s2 == 0.0 {
             self.clear();
             return;
         }
@@ -92,7 +92,7 @@ impl MotionCore {
     /// its distance at or below the hard lookahead speed and stop before the queue end.
     pub(crate) fn try_brake(&mut self) {
         if self.sec_count == 0 || !self.running {
-            if self.v == 0.0 {
+            if self.v_mm_s == 0.0 {
                 self.mode = if self.abort_requested {
                     Mode::Run
                 } else {
@@ -104,79 +104,79 @@ impl MotionCore {
             }
             return;
         }
-        let (v0, a0) = (self.v, self.a);
+        let (v0_mm_s, a0_mm_s2) = (self.v_mm_s, self.a_mm_s2);
         let front = *self.sec(self.sec_head);
         // The front section runs at its level; the later ones may start at either, so the
         // stop uses the limits valid at both (the boost ones are at most the base ones).
-        let (_, mut accel, mut jerk) = front.limits(front.boosted);
-        let (front_accel, front_jerk) = (accel, jerk);
+        let (_, mut accel_mm_s2, mut jerk_mm_s3) = front.limits(front.boosted);
+        let (front_accel_mm_s2, front_jerk_mm_s3) = (accel_mm_s2, jerk_mm_s3);
 
         for _ in 0..3 {
-            if !self.calc_brake(PathState::new(v0, a0), accel, jerk) {
+            if !self.calc_brake(PathState::new(v0_mm_s, a0_mm_s2), accel_mm_s2, jerk_mm_s3) {
                 self.failures += 1;
                 return;
             }
-            let dist = self.brake_distance();
+            let dist_mm = self.brake_distance();
             // Lowest limits over the sections the stop crosses.
-            let (mut a_min, mut j_min) = (front_accel, front_jerk);
-            let mut covered = front.length - self.s_local;
+            let (mut a_min_mm_s2, mut j_min_mm_s3) = (front_accel_mm_s2, front_jerk_mm_s3);
+            let mut covered_mm = front.length_mm - self.s_local_mm;
             let mut k = self.sec_head + 1;
             let mut n = 0;
-            while covered < dist && k < self.sec_head + self.sec_count && n < MAX_HOLD_SCAN {
+            while covered_mm < dist_mm && k < self.sec_head + self.sec_count && n < MAX_HOLD_SCAN {
                 let s = self.sec(k);
-                a_min = a_min.min(s.accel).min(s.accel_boost);
-                j_min = j_min.min(s.jerk).min(s.jerk_boost);
-                covered += s.length;
+                a_min_mm_s2 = a_min_mm_s2.min(s.accel_mm_s2).min(s.accel_boost_mm_s2);
+                j_min_mm_s3 = j_min_mm_s3.min(s.jerk_mm_s3).min(s.jerk_boost_mm_s3);
+                covered_mm += s.length_mm;
                 k += 1;
                 n += 1;
             }
-            if a_min >= accel && j_min >= jerk {
+            if a_min_mm_s2 >= accel_mm_s2 && j_min_mm_s3 >= jerk_mm_s3 {
                 break;
             }
-            accel = a_min;
-            jerk = j_min;
+            accel_mm_s2 = a_min_mm_s2;
+            jerk_mm_s3 = j_min_mm_s3;
         }
         // Already decelerating so hard that a stop with these limits would undershoot into
         // reverse: the running plan stops sooner anyway, so wait for the next section.
-        if a0 < 0.0 && v0 + a0 * a0.abs() / (2.0 * jerk) <= 1e-9 {
+        if a0_mm_s2 < 0.0 && v0_mm_s + a0_mm_s2 * a0_mm_s2.abs() / (2.0 * jerk_mm_s3) <= 1e-9 {
             return;
         }
-        let dist = self.brake_distance();
-        let v_peak = v0
-            + if a0 > 0.0 {
-                a0 * a0 / (2.0 * jerk)
+        let dist_mm = self.brake_distance();
+        let v_peak_mm_s = v0_mm_s
+            + if a0_mm_s2 > 0.0 {
+                a0_mm_s2 * a0_mm_s2 / (2.0 * jerk_mm_s3)
             } else {
                 0.0
             };
         // The segments' budgets hold where `v + a²/2j ≤ v_max` (the jerk-limited envelope,
         // see `kerf-plan`'s budgets); a stop with a lower jerk than the front section's
         // (a later section's) rises to `v_peak` first, which must stay within the limit.
-        let mut ok = v_peak <= front.limits(front.boosted).0 * (1.0 + 1e-9);
-        let mut boundary = front.length - self.s_local;
+        let mut ok = v_peak_mm_s <= front.limits(front.boosted).0 * (1.0 + 1e-9);
+        let mut boundary_mm = front.length_mm - self.s_local_mm;
         let mut k = self.sec_head;
         let end = self.sec_head + self.sec_count;
         let mut n = 0;
-        while ok && boundary < dist {
+        while ok && boundary_mm < dist_mm {
             let s = self.sec(k);
             // Past the front section the stop runs on limits valid at the boost level.
             let hard = if k == self.sec_head {
                 s.hard_end_at(s.boosted)
             } else {
-                s.hard_end_boost
+                s.hard_end_boost_mm_s
             };
-            if k + 1 >= end || n >= MAX_HOLD_SCAN || hard < v_peak {
+            if k + 1 >= end || n >= MAX_HOLD_SCAN || hard < v_peak_mm_s {
                 ok = false;
                 break;
             }
             let next = self.sec(k + 1);
-            if next.v_boost < v_peak
-                || next.accel.min(next.accel_boost) < accel
-                || next.jerk.min(next.jerk_boost) < jerk
+            if next.v_boost_mm_s < v_peak_mm_s
+                || next.accel_mm_s2.min(next.accel_boost_mm_s2) < accel_mm_s2
+                || next.jerk_mm_s3.min(next.jerk_boost_mm_s3) < jerk_mm_s3
             {
                 ok = false;
                 break;
             }
-            boundary += next.length;
+            boundary_mm += next.length_mm;
             k += 1;
             n += 1;
         }
@@ -185,11 +185,11 @@ impl MotionCore {
             self.own_active = false;
             self.coast_s = 0.0;
             self.traj_scale = self.brake_scale;
-            self.traj_time_scale = self.brake_time_scale;
-            self.traj_origin = self.s_local;
-            self.traj_t = 0.0;
-            self.traj_end_v = 0.0;
-            self.traj_end_a = 0.0;
+            self.traj_time_scale_s = self.brake_time_scale_s;
+            self.traj_origin_mm = self.s_local_mm;
+            self.traj_t_s = 0.0;
+            self.traj_end_v_mm_s = 0.0;
+            self.traj_end_a_mm_s2 = 0.0;
             self.mode = Mode::Braking;
         }
     }

@@ -91,10 +91,10 @@
 //!   order one (the distance as the unit of length, `(d/j)^(1/3)` as the unit of time;
 //!   for stops, the stop's own jerk time `sqrt(v/j)`). The solver's tolerances are
 //!   absolute (1e-10 on the acceleration): in mm and s, a fast machine's accelerations
-//!   (1e4–1e6 mm/s²) carry more rounding than that, and it failed on 0.3 % of ordinary
-//!   feasible inputs over the accepted range of limits (58 of the 20,000 of the unit test
-//!   `scaled_solver_calls_plan_every_feasible_section`; none in scaled units), from rest
-//!   to rest on a plain arc among them.
+//!   (1e4–1e6 mm/s²) carry more rounding than that, and the solver fails on ordinary
+//!   feasible inputs over the accepted range of limits, from rest to rest on a plain arc
+//!   among them (the unit test `scaled_solver_calls_plan_every_feasible_section` plans
+//!   20,000 of them in scaled units, none failing).
 //! - **Fallbacks** never jump. A solver result is used only if it ends where it should.
 //!   When the solver fails at a section start, [`JerkProfile`] (closed form: S-curve to a
 //!   cruise speed, cruise, S-curve to the end speed, all within the section's limits)
@@ -140,7 +140,7 @@ pub const COAST_BELOW_MM: f64 = 1e-6;
 
 /// Sections that take less than this at the entry speed are coasted through as well, s.
 /// (At speed, the solver's scaled-unit profile for a remnant of a few nanometres is
-/// wrong: it froze the position for several cycles while the speed ran on.)
+/// wrong: it can hold the position for several cycles while the speed runs on.)
 pub const COAST_BELOW_S: f64 = 1e-6;
 
 /// One setpoint: positions of every axis at the end of a cycle.

@@ -33,45 +33,50 @@ impl MotionCore {
         loop {
             let is_running = k == first && self.running;
             let s = self.sec_mut(k);
-            s.hard_end = hard_end;
-            s.hard_end_boost = hard_end_boost;
-            s.soft_end = soft_end;
+            s.hard_end_mm_s = hard_end;
+            s.hard_end_boost_mm_s = hard_end_boost;
+            s.soft_end_mm_s = soft_end;
             if is_running {
                 // The running section's limits are frozen; a higher end speed is taken by
                 // re-planning its profile.
                 let hard = s.hard_end_at(s.boosted);
-                if hard.min(soft_end) > self.traj_end_v * 1.001 + 1e-9 {
+                if hard.min(soft_end) > self.traj_end_v_mm_s * 1.001 + 1e-9 {
                     self.replan = true;
                 }
                 break;
             }
-            let d = s.length * BACKWARD_MARGIN;
-            let hard = s.c_v.min(s.c_feed * MAX_OVERRIDE).min(s.start_cap).min({
-                let (c_accel, c_jerk) = s.c_accel_jerk();
-                reach_back(hard_end, d, c_accel, c_jerk)
-            });
+            let d_mm = s.length_mm * BACKWARD_MARGIN;
+            let hard = s
+                .c_v_mm_s
+                .min(s.c_feed_mm_s * MAX_OVERRIDE)
+                .min(s.start_cap_mm_s)
+                .min({
+                    let (c_accel_mm_s2, c_jerk_mm_s3) = s.c_accel_jerk();
+                    reach_back(hard_end, d_mm, c_accel_mm_s2, c_jerk_mm_s3)
+                });
             let hard_boost = s
-                .c_v_boost
-                .min(s.c_feed * MAX_OVERRIDE)
-                .min(s.start_cap)
+                .c_v_boost_mm_s
+                .min(s.c_feed_mm_s * MAX_OVERRIDE)
+                .min(s.start_cap_mm_s)
                 .min(reach_back(
                     hard_end_boost,
-                    d,
-                    s.c_accel_boost,
-                    s.c_jerk_boost,
+                    d_mm,
+                    s.c_accel_boost_mm_s2,
+                    s.c_jerk_boost_mm_s3,
                 ));
             let level = s.wants_boost(ovr);
             let (_, a, j) = s.limits(level);
             let soft = s
                 .v_eff(ovr, level)
-                .min(s.start_cap)
+                .min(s.start_cap_mm_s)
                 .min(if level { hard_boost } else { hard })
-                .min(reach_back(soft_end, d, a, j));
-            let changed =
-                hard != s.hard_start || hard_boost != s.hard_start_boost || soft != s.soft_start;
-            s.hard_start = hard;
-            s.hard_start_boost = hard_boost;
-            s.soft_start = soft;
+                .min(reach_back(soft_end, d_mm, a, j));
+            let changed = hard != s.hard_start_mm_s
+                || hard_boost != s.hard_start_boost_mm_s
+                || soft != s.soft_start_mm_s;
+            s.hard_start_mm_s = hard;
+            s.hard_start_boost_mm_s = hard_boost;
+            s.soft_start_mm_s = soft;
             visited += 1;
             if !changed || k == first || visited >= max_sections {
                 break;
@@ -87,32 +92,32 @@ impl MotionCore {
     pub(crate) fn full_soft_pass(&mut self) {
         // Forcing a change in every section makes the pass run to the front.
         for k in self.sec_head..self.sec_head + self.sec_count {
-            self.sec_mut(k).soft_start = -1.0;
+            self.sec_mut(k).soft_start_mm_s = -1.0;
         }
         self.backward_pass(usize::MAX);
     }
 
     /// Target end speed of the front section from state `(v0, a = 0)` with `rem` left,
     /// and whether it is certainly reachable.
-    pub(crate) fn end_target(&self, v0: f64, rem: f64) -> (f64, bool) {
+    pub(crate) fn end_target(&self, v0_mm_s: f64, rem_mm: f64) -> (f64, bool) {
         let sec = self.sec(self.sec_head);
         let hard = sec.hard_end_at(sec.boosted);
-        let want = self.want_end();
-        let d = rem * PLAN_MARGIN;
+        let want_mm_s = self.want_end();
+        let d_mm = rem_mm * PLAN_MARGIN;
         let (_, a, j) = sec.limits(sec.boosted);
-        let fits = |v1: f64| change_distance(v0, v1, a, j) <= d;
-        if v0 < want {
-            return (want.min(reach(v0, d, a, j)), true);
+        let fits = |v1_mm_s: f64| change_distance(v0_mm_s, v1_mm_s, a, j) <= d_mm;
+        if v0_mm_s < want_mm_s {
+            return (want_mm_s.min(reach(v0_mm_s, d_mm, a, j)), true);
         }
-        if fits(want) {
-            return (want, true);
+        if fits(want_mm_s) {
+            return (want_mm_s, true);
         }
         // The soft target is out of reach; slowing down partially can be out of reach too
         // while a full stop is not (see [`reach_back`]). Take the lowest reachable speed at
         // or above the soft target, else the hard end speed, else a stop.
-        let top = v0.min(hard);
-        if v0 <= hard {
-            return (bisect(top, want, 30, fits), false);
+        let top = v0_mm_s.min(hard);
+        if v0_mm_s <= hard {
+            return (bisect(top, want_mm_s, 30, fits), false);
         }
         if fits(hard) {
             (hard, false)
@@ -130,7 +135,7 @@ impl MotionCore {
         let sec = self.sec(self.sec_head);
         let next = self.sec(self.sec_head + 1);
         let ovr = self.override_factor;
-        sec.soft_end
+        sec.soft_end_mm_s
             .min(sec.v_eff(ovr, sec.boosted))
             .min(sec.hard_end_at(sec.boosted))
             .min(next.v_eff(ovr, next.wants_boost(ovr)))

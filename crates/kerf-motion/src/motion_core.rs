@@ -26,7 +26,7 @@ pub struct MotionCore {
     pub(crate) period_s: f64,
     pub(crate) segs: Vec<PlannedSegment>,
     /// Offset of each segment's start within its section (parallel to `segs`).
-    pub(crate) seg_offset: Vec<f64>,
+    pub(crate) seg_offset_mm: Vec<f64>,
     pub(crate) seg_head: u64,
     pub(crate) seg_count: u64,
     pub(crate) secs: Vec<Section>,
@@ -42,20 +42,20 @@ pub struct MotionCore {
     /// Factor the running profile's positions are scaled by (see `calc`).
     pub(crate) traj_scale: f64,
     /// Seconds per time unit of the running profile (see `calc`).
-    pub(crate) traj_time_scale: f64,
+    pub(crate) traj_time_scale_s: f64,
     /// Section-local position where the profile starts.
-    pub(crate) traj_origin: f64,
+    pub(crate) traj_origin_mm: f64,
     /// Time since the profile start, s.
-    pub(crate) traj_t: f64,
+    pub(crate) traj_t_s: f64,
     /// End speed the running profile targets.
-    pub(crate) traj_end_v: f64,
+    pub(crate) traj_end_v_mm_s: f64,
     /// End acceleration the running profile targets: zero except where a speed-up goes on
     /// into the next section (see `carry_target`).
-    pub(crate) traj_end_a: f64,
+    pub(crate) traj_end_a_mm_s2: f64,
     /// The running profile is `own` (the closed-form fallback) instead of `traj`.
     pub(crate) own_active: bool,
     pub(crate) own: JerkProfile,
-    /// When positive, the running "profile" is a coast at `traj_end_v` through a sliver
+    /// When positive, the running "profile" is a coast at `traj_end_v_mm_s` through a sliver
     /// section this many seconds long instead of `traj` (see `calc`).
     pub(crate) coast_s: f64,
     /// Set when the lookahead raised the running section's end speed.
@@ -72,16 +72,16 @@ pub struct MotionCore {
     pub(crate) override_hold: bool,
     /// Current segment (absolute index) and section-local state.
     pub(crate) cursor: u64,
-    pub(crate) s_local: f64,
-    pub(crate) v: f64,
-    pub(crate) a: f64,
+    pub(crate) s_local_mm: f64,
+    pub(crate) v_mm_s: f64,
+    pub(crate) a_mm_s2: f64,
     pub(crate) last: Setpoint,
     pub(crate) failures: u64,
     /// Stops forced because no plan within a section existed (see `emergency_stop`).
     pub(crate) emergencies: u64,
     /// Units of the profile in `scratch` after `calc_brake` (see there).
     pub(crate) brake_scale: f64,
-    pub(crate) brake_time_scale: f64,
+    pub(crate) brake_time_scale_s: f64,
     /// Tests: make every solver call fail, to exercise the fallbacks.
     #[cfg(test)]
     pub(crate) fail_solver: bool,
@@ -120,7 +120,7 @@ impl MotionCore {
         MotionCore {
             period_s,
             segs: vec![dummy; capacity],
-            seg_offset: vec![0.0; capacity],
+            seg_offset_mm: vec![0.0; capacity],
             seg_head: 0,
             seg_count: 0,
             secs: vec![Section::EMPTY; capacity],
@@ -132,11 +132,11 @@ impl MotionCore {
             traj,
             scratch,
             traj_scale: 1.0,
-            traj_time_scale: 1.0,
-            traj_origin: 0.0,
-            traj_t: 0.0,
-            traj_end_v: 0.0,
-            traj_end_a: 0.0,
+            traj_time_scale_s: 1.0,
+            traj_origin_mm: 0.0,
+            traj_t_s: 0.0,
+            traj_end_v_mm_s: 0.0,
+            traj_end_a_mm_s2: 0.0,
             own_active: false,
             own: JerkProfile::default(),
             coast_s: 0.0,
@@ -148,14 +148,14 @@ impl MotionCore {
             user_hold: false,
             override_hold: false,
             cursor: 0,
-            s_local: 0.0,
-            v: 0.0,
-            a: 0.0,
+            s_local_mm: 0.0,
+            v_mm_s: 0.0,
+            a_mm_s2: 0.0,
             last: Setpoint::default(),
             failures: 0,
             emergencies: 0,
             brake_scale: 1.0,
-            brake_time_scale: 1.0,
+            brake_time_scale_s: 1.0,
             #[cfg(test)]
             fail_solver: false,
         }
@@ -183,7 +183,7 @@ impl MotionCore {
 
     /// `true` when at rest with nothing queued.
     pub fn is_idle(&self) -> bool {
-        self.seg_count == 0 && self.v == 0.0
+        self.seg_count == 0 && self.v_mm_s == 0.0
     }
 
     /// `true` while stopped on the path in feed hold (or by zero override).
@@ -204,7 +204,7 @@ impl MotionCore {
             line: self.last.line,
             queued: self.queued(),
             free: self.free(),
-            feed_mm_s: self.v,
+            feed_mm_s: self.v_mm_s,
             feed_override: self.override_factor,
             plan_failures: self.failures,
         }
@@ -273,9 +273,9 @@ impl MotionCore {
         self.abort_requested = false;
         self.user_hold = false;
         self.override_hold = false;
-        self.v = 0.0;
-        self.a = 0.0;
-        self.s_local = 0.0;
+        self.v_mm_s = 0.0;
+        self.a_mm_s2 = 0.0;
+        self.s_local_mm = 0.0;
         self.last.feed_mm_s = 0.0;
     }
 }

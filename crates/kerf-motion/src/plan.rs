@@ -17,52 +17,62 @@ impl MotionCore {
         // Entered accelerating where the section before carried its speed-up over (see
         // `carry_target`); else `a0 = 0`. Reachability is judged from where the acceleration
         // has come down to zero.
-        let (v0, a0) = (self.v, self.a);
-        let rem = (sec.length - self.s_local).max(0.0);
-        let (v_machine, accel, jerk) = sec.limits(sec.boosted);
-        let (v_at, d0) = settle(v0, a0, jerk);
-        let (target, _) = self.end_target(v_at.max(0.0), (rem - d0).max(0.0));
-        let vmax = sec.v_eff(self.override_factor, sec.boosted).min(v_machine);
-        let origin = self.s_local;
-        if v0.max(v_at) > vmax * (1.0 + 1e-9) && rem > 0.0 {
+        let (v0_mm_s, a0_mm_s2) = (self.v_mm_s, self.a_mm_s2);
+        let rem_mm = (sec.length_mm - self.s_local_mm).max(0.0);
+        let (v_machine_mm_s, accel_mm_s2, jerk_mm_s3) = sec.limits(sec.boosted);
+        let (v_at_mm_s, d0_mm) = settle(v0_mm_s, a0_mm_s2, jerk_mm_s3);
+        let (target_mm_s, _) = self.end_target(v_at_mm_s.max(0.0), (rem_mm - d0_mm).max(0.0));
+        let v_max_mm_s = sec
+            .v_eff(self.override_factor, sec.boosted)
+            .min(v_machine_mm_s);
+        let origin_mm = self.s_local_mm;
+        if v0_mm_s.max(v_at_mm_s) > v_max_mm_s * (1.0 + 1e-9) && rem_mm > 0.0 {
             // Entered above the speed limit of this section (its level's feed or override
             // is lower than the one the junction was planned with): come down to it as
             // fast as the limits allow, cruise, and meet the end speed. The solver's own
             // way (brake to the limit, then plan) can overshoot a short section and fail.
             // Where the section is too short to come down to its limit, the end speed is
             // the lowest one reachable (`end_target`'s, above the limit): the machine keeps
-            // slowing down into the next section. (Asking the solver for the limit there
-            // was a request it could not meet, counted as a solver failure: the soak of
-            // `kerf-pipeline`'s properties found it after override cuts.)
-            let ends = [target.min(vmax), target];
-            for end_v in ends.into_iter().take(if target > vmax { 2 } else { 1 }) {
-                if let Some(p) =
-                    JerkProfile::cruise_between_from(v0, a0, end_v, rem, vmax, accel, jerk)
-                {
-                    self.run_own(origin, p, end_v);
+            // slowing down into the next section. (The solver cannot meet a request for
+            // the limit there, and each refusal would count as a solver failure.)
+            let ends = [target_mm_s.min(v_max_mm_s), target_mm_s];
+            for end_v_mm_s in ends
+                .into_iter()
+                .take(if target_mm_s > v_max_mm_s { 2 } else { 1 })
+            {
+                if let Some(p) = JerkProfile::cruise_between_from(
+                    v0_mm_s,
+                    a0_mm_s2,
+                    end_v_mm_s,
+                    rem_mm,
+                    v_max_mm_s,
+                    accel_mm_s2,
+                    jerk_mm_s3,
+                ) {
+                    self.run_own(origin_mm, p, end_v_mm_s);
                     return;
                 }
             }
         }
-        let start = PathState::new(v0, a0);
+        let start = PathState::new(v0_mm_s, a0_mm_s2);
         let limits = PathLimits {
-            v_max_mm_s: vmax,
-            accel_mm_s2: accel,
-            jerk_mm_s3: jerk,
+            v_max_mm_s,
+            accel_mm_s2,
+            jerk_mm_s3,
         };
-        if self.calc_front(origin, start, rem, target, limits) {
+        if self.calc_front(origin_mm, start, rem_mm, target_mm_s, limits) {
             return;
         }
         // Entered above the feed: let the profile keep the entry speed as its ceiling.
-        let peak = v0.max(v_at);
-        let vmax2 = vmax.max(peak).min(v_machine.max(peak));
+        let peak = v0_mm_s.max(v_at_mm_s);
+        let v_max2_mm_s = v_max_mm_s.max(peak).min(v_machine_mm_s.max(peak));
         let request = ProfileRequest {
-            origin_mm: origin,
+            origin_mm,
             start,
-            distance_mm: rem,
-            end: PathState::new(target, 0.0),
+            distance_mm: rem_mm,
+            end: PathState::new(target_mm_s, 0.0),
             limits: PathLimits {
-                v_max_mm_s: vmax2,
+                v_max_mm_s: v_max2_mm_s,
                 ..limits
             },
         };
@@ -73,59 +83,65 @@ impl MotionCore {
         // The solver failed twice: the closed-form profile to the same target, else to a
         // stop at the section end (reachable: the entry speed is within the hard lookahead,
         // which the section's limits can stop from within its length).
-        let target = target.min(vmax2);
-        for end_v in [target, 0.0] {
-            if let Some(p) =
-                JerkProfile::cruise_between_from(v0, a0, end_v, rem, vmax2, accel, jerk)
-            {
-                self.run_own(origin, p, end_v);
+        let target_mm_s = target_mm_s.min(v_max2_mm_s);
+        for end_v_mm_s in [target_mm_s, 0.0] {
+            if let Some(p) = JerkProfile::cruise_between_from(
+                v0_mm_s,
+                a0_mm_s2,
+                end_v_mm_s,
+                rem_mm,
+                v_max2_mm_s,
+                accel_mm_s2,
+                jerk_mm_s3,
+            ) {
+                self.run_own(origin_mm, p, end_v_mm_s);
                 return;
             }
         }
         // Cannot happen while the lookahead holds: stop on the path as fast as the limits
         // allow, into the following sections if need be, then go on.
-        self.emergency_stop(accel, jerk);
+        self.emergency_stop(accel_mm_s2, jerk_mm_s3);
     }
 
     /// Makes `p` the running profile from section-local position `origin`.
-    pub(crate) fn run_own(&mut self, origin: f64, p: JerkProfile, end_v: f64) {
+    pub(crate) fn run_own(&mut self, origin_mm: f64, p: JerkProfile, end_v_mm_s: f64) {
         self.own = p;
         self.own_active = true;
         self.coast_s = 0.0;
         self.traj_scale = 1.0;
-        self.traj_time_scale = 1.0;
-        self.traj_origin = origin;
-        self.traj_t = 0.0;
-        self.traj_end_v = end_v;
-        self.traj_end_a = 0.0;
+        self.traj_time_scale_s = 1.0;
+        self.traj_origin_mm = origin_mm;
+        self.traj_t_s = 0.0;
+        self.traj_end_v_mm_s = end_v_mm_s;
+        self.traj_end_a_mm_s2 = 0.0;
     }
 
     /// A jerk-limited stop on the path from the current state (its acceleration first
     /// brought to zero at the jerk limit) with the given limits, crossing section ends like
     /// a hold's stop; the motion goes on when it ends unless a hold is in force. Only
     /// reached when no plan within the section exists.
-    pub(crate) fn emergency_stop(&mut self, accel: f64, jerk: f64) {
+    pub(crate) fn emergency_stop(&mut self, accel_mm_s2: f64, jerk_mm_s3: f64) {
         self.emergencies += 1;
-        let (v0, a0) = (self.v, self.a);
-        let (v_at, d0) = settle(v0, a0, jerk);
-        let d = d0 + change_distance(v_at.max(0.0), 0.0, accel, jerk);
-        let top = v0.max(v_at);
+        let (v0_mm_s, a0_mm_s2) = (self.v_mm_s, self.a_mm_s2);
+        let (v_at_mm_s, d0_mm) = settle(v0_mm_s, a0_mm_s2, jerk_mm_s3);
+        let d_mm = d0_mm + change_distance(v_at_mm_s.max(0.0), 0.0, accel_mm_s2, jerk_mm_s3);
+        let top = v0_mm_s.max(v_at_mm_s);
         match JerkProfile::cruise_between_from(
-            v0,
-            a0,
+            v0_mm_s,
+            a0_mm_s2,
             0.0,
-            d * (1.0 + 1e-12) + 1e-15,
+            d_mm * (1.0 + 1e-12) + 1e-15,
             top,
-            accel.max(a0.abs()),
-            jerk,
+            accel_mm_s2.max(a0_mm_s2.abs()),
+            jerk_mm_s3,
         ) {
             Some(p) => {
-                self.run_own(self.s_local, p, 0.0);
+                self.run_own(self.s_local_mm, p, 0.0);
                 self.mode = Mode::Braking;
             }
             None => {
                 // At rest (or no distance left): nothing to stop, the section ends here.
-                self.run_own(self.s_local, JerkProfile::default(), 0.0);
+                self.run_own(self.s_local_mm, JerkProfile::default(), 0.0);
             }
         }
     }
@@ -139,18 +155,21 @@ impl MotionCore {
     /// and moves up as [`MotionCore::replan_running`] does, once the acceleration allows.
     pub(crate) fn choose_level(&mut self) {
         let ovr = self.override_factor;
-        let (v0, a0) = (self.v, self.a);
+        let (v0_mm_s, a0_mm_s2) = (self.v_mm_s, self.a_mm_s2);
         let head = self.sec_head;
         let sec = self.sec_mut(head);
-        let fits = |v: f64, hard: f64| v0 <= v * (1.0 + 1e-9) && v0 <= hard * (1.0 + 1e-9) + 1e-9;
-        let base_ok = fits(sec.v_machine, sec.hard_start);
+        let fits = |v: f64, hard: f64| {
+            v0_mm_s <= v * (1.0 + 1e-9) && v0_mm_s <= hard * (1.0 + 1e-9) + 1e-9
+        };
+        let base_ok = fits(sec.v_machine_mm_s, sec.hard_start_mm_s);
         // Entered with a speed-up carried over (planned for the base level, see
         // `carry_target`): the boost level only if the acceleration is within its limit and
         // its envelope, as `replan_running` asks before moving a running section there.
-        let carry_fits_boost = a0 <= 0.0
-            || (a0 <= sec.accel_boost * (1.0 + 1e-9)
-                && v0 + a0 * a0 / (2.0 * sec.jerk_boost) <= sec.v_boost * (1.0 + 1e-9));
-        let boost_speed_ok = fits(sec.v_boost, sec.hard_start_boost);
+        let carry_fits_boost = a0_mm_s2 <= 0.0
+            || (a0_mm_s2 <= sec.accel_boost_mm_s2 * (1.0 + 1e-9)
+                && v0_mm_s + a0_mm_s2 * a0_mm_s2 / (2.0 * sec.jerk_boost_mm_s3)
+                    <= sec.v_boost_mm_s * (1.0 + 1e-9));
+        let boost_speed_ok = fits(sec.v_boost_mm_s, sec.hard_start_boost_mm_s);
         let boost_ok = boost_speed_ok && carry_fits_boost;
         let wants = sec.wants_boost(ovr);
         sec.boosted = if wants {
@@ -175,9 +194,13 @@ impl MotionCore {
             // The boost budgets hold under the envelope `v + a²/2j ≤ v_boost` (see
             // `kerf-plan`'s budgets): a deceleration begun at the base level must be
             // within it at the boost jerk too.
-            let within_envelope =
-                self.a >= 0.0 || self.v + self.a * self.a / (2.0 * sec.jerk_boost) <= sec.v_boost;
-            if self.a.abs() <= sec.accel_boost && self.v <= sec.v_boost && within_envelope {
+            let within_envelope = self.a_mm_s2 >= 0.0
+                || self.v_mm_s + self.a_mm_s2 * self.a_mm_s2 / (2.0 * sec.jerk_boost_mm_s3)
+                    <= sec.v_boost_mm_s;
+            if self.a_mm_s2.abs() <= sec.accel_boost_mm_s2
+                && self.v_mm_s <= sec.v_boost_mm_s
+                && within_envelope
+            {
                 self.sec_mut(head).boosted = true;
                 if self.replan_at_level() {
                     return;
@@ -194,32 +217,38 @@ impl MotionCore {
     /// profile is running.
     pub(crate) fn replan_at_level(&mut self) -> bool {
         let sec = *self.sec(self.sec_head);
-        let (v0, a0) = (self.v, self.a);
-        let (v_machine, accel, j) = sec.limits(sec.boosted);
+        let (v0_mm_s, a0_mm_s2) = (self.v_mm_s, self.a_mm_s2);
+        let (v_machine_mm_s, accel_mm_s2, j) = sec.limits(sec.boosted);
         // Bring the acceleration to zero first, then check reachability from there.
-        let (v_at, d0) = settle(v0, a0, j);
-        let rem = sec.length - self.s_local;
-        if v_at < 0.0 || d0 >= rem || rem <= 0.0 {
+        let (v_at_mm_s, d0_mm) = settle(v0_mm_s, a0_mm_s2, j);
+        let rem_mm = sec.length_mm - self.s_local_mm;
+        if v_at_mm_s < 0.0 || d0_mm >= rem_mm || rem_mm <= 0.0 {
             return false;
         }
-        let (target, sure) = self.end_target(v_at, rem - d0);
+        let (target_mm_s, sure) = self.end_target(v_at_mm_s, rem_mm - d0_mm);
         if !sure {
             return false;
         }
         // The speed still rises to `v_at` while the acceleration comes down: after an
         // override cut that can be above the new feed, and the ceiling must allow it.
-        let peak = v0.max(v_at);
-        if peak > v_machine * (1.0 + 1e-9) {
+        let peak = v0_mm_s.max(v_at_mm_s);
+        if peak > v_machine_mm_s * (1.0 + 1e-9) {
             return false;
         }
-        let vmax = sec.v_eff(self.override_factor, sec.boosted).max(peak);
+        let v_max_mm_s = sec.v_eff(self.override_factor, sec.boosted).max(peak);
         // On failure the previous profile is untouched and still valid.
         let limits = PathLimits {
-            v_max_mm_s: vmax,
-            accel_mm_s2: accel,
+            v_max_mm_s,
+            accel_mm_s2,
             jerk_mm_s3: j,
         };
-        self.calc_front(self.s_local, PathState::new(v0, a0), rem, target, limits)
+        self.calc_front(
+            self.s_local_mm,
+            PathState::new(v0_mm_s, a0_mm_s2),
+            rem_mm,
+            target_mm_s,
+            limits,
+        )
     }
 
     /// The front section's profile from `start` at `origin_mm` with `rem_mm` left: to the
@@ -241,8 +270,8 @@ impl MotionCore {
             end,
             limits,
         };
-        if let Some((v1, a1)) = self.carry_target(start.v_mm_s, start.a_mm_s2, rem_mm) {
-            if self.calc(&request(PathState::new(v1, a1))) {
+        if let Some((v1_mm_s, a1_mm_s2)) = self.carry_target(start.v_mm_s, start.a_mm_s2, rem_mm) {
+            if self.calc(&request(PathState::new(v1_mm_s, a1_mm_s2))) {
                 return true;
             }
             self.failures += 1;

@@ -43,7 +43,7 @@ impl MotionCore {
 
         let boost = boost_limits(seg);
         // The cap at the junction before this segment is the previous segment's end cap.
-        let prev_cap = if abs > self.seg_head {
+        let prev_cap_mm_s = if abs > self.seg_head {
             self.seg(abs - 1).end_cap_mm_s
         } else {
             0.0
@@ -52,26 +52,32 @@ impl MotionCore {
         let plain_run = self.mode == Mode::Run;
         let can_merge = self.sec_count > 0
             && !(self.sec_count == 1 && self.running)
-            && self.sec(tail - 1).takes(seg, boost, prev_cap, plain_run);
+            && self
+                .sec(tail - 1)
+                .takes(seg, boost, prev_cap_mm_s, plain_run);
         if can_merge {
-            let offset = self.sec_mut(tail - 1).absorb(seg, boost, prev_cap);
-            self.seg_offset[slot] = offset;
+            let offset_mm = self.sec_mut(tail - 1).absorb(seg, boost, prev_cap_mm_s);
+            self.seg_offset_mm[slot] = offset_mm;
         } else {
             if self.sec_count as usize >= self.secs.len() {
                 // Cannot happen: there are never more sections than segments.
                 self.seg_count -= 1;
                 return Err(PushError::Full);
             }
-            let start_cap = if self.sec_count > 0 { prev_cap } else { 0.0 };
+            let start_cap = if self.sec_count > 0 {
+                prev_cap_mm_s
+            } else {
+                0.0
+            };
             let sec = Section::of_segment(abs, seg, boost, start_cap);
             let i = self.sec_slot(tail);
             self.secs[i] = sec;
             self.sec_count += 1;
-            self.seg_offset[slot] = 0.0;
+            self.seg_offset_mm[slot] = 0.0;
             if self.sec_count == 1 {
                 // The new section is the front one: the core was idle.
                 self.cursor = abs;
-                self.s_local = 0.0;
+                self.s_local_mm = 0.0;
             }
         }
         self.backward_pass(MAX_BACKWARD_SECTIONS);

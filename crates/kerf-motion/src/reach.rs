@@ -6,27 +6,27 @@ use kerf_geom::ramp::{bisect, change_time_s};
 
 /// Distance to change speed from `v0` to `v1` with `a = 0` at both ends along the
 /// symmetric jerk-limited profile (exact: the speed curve is point-symmetric).
-pub fn change_distance(v0: f64, v1: f64, accel: f64, jerk: f64) -> f64 {
-    0.5 * (v0 + v1) * change_time_s((v1 - v0).abs(), accel, jerk)
+pub fn change_distance(v0_mm_s: f64, v1_mm_s: f64, accel_mm_s2: f64, jerk_mm_s3: f64) -> f64 {
+    0.5 * (v0_mm_s + v1_mm_s) * change_time_s((v1_mm_s - v0_mm_s).abs(), accel_mm_s2, jerk_mm_s3)
 }
 
 /// Highest speed reachable from `v0` (or from which `v0` is reachable) within distance
 /// `d` with `a = 0` at both ends: the inverse of [`change_distance`] in its second
 /// argument, in closed form (a bounded Newton solve of a cubic, then a quadratic).
-pub fn reach(v0: f64, d: f64, accel: f64, jerk: f64) -> f64 {
-    if d <= 0.0 || accel <= 0.0 || jerk <= 0.0 {
-        return v0;
+pub fn reach(v0_mm_s: f64, d_mm: f64, accel_mm_s2: f64, jerk_mm_s3: f64) -> f64 {
+    if d_mm <= 0.0 || accel_mm_s2 <= 0.0 || jerk_mm_s3 <= 0.0 {
+        return v0_mm_s;
     }
-    let v0 = v0.max(0.0);
+    let v0_mm_s = v0_mm_s.max(0.0);
     // Short change: d = (2 v0 + j x²) x with x = sqrt(dv / j). Newton from an upper
     // bound converges monotonically because the cubic is convex for x > 0.
-    let mut x = (d / jerk).cbrt();
-    if v0 > 0.0 {
-        x = x.min(d / (2.0 * v0));
+    let mut x = (d_mm / jerk_mm_s3).cbrt();
+    if v0_mm_s > 0.0 {
+        x = x.min(d_mm / (2.0 * v0_mm_s));
     }
     for _ in 0..12 {
-        let f = jerk * x * x * x + 2.0 * v0 * x - d;
-        let df = 3.0 * jerk * x * x + 2.0 * v0;
+        let f = jerk_mm_s3 * x * x * x + 2.0 * v0_mm_s * x - d_mm;
+        let df = 3.0 * jerk_mm_s3 * x * x + 2.0 * v0_mm_s;
         if df <= 0.0 {
             break;
         }
@@ -37,24 +37,24 @@ pub fn reach(v0: f64, d: f64, accel: f64, jerk: f64) -> f64 {
         }
         x = nx.max(0.0);
     }
-    let dv = jerk * x * x;
-    if dv * jerk <= accel * accel {
-        return v0 + dv;
+    let dv = jerk_mm_s3 * x * x;
+    if dv * jerk_mm_s3 <= accel_mm_s2 * accel_mm_s2 {
+        return v0_mm_s + dv;
     }
     // Long change with a constant-acceleration phase: dv² + B dv + C = 0.
-    let b = 2.0 * v0 + accel * accel / jerk;
-    let c = 2.0 * v0 * accel * accel / jerk - 2.0 * d * accel;
+    let b = 2.0 * v0_mm_s + accel_mm_s2 * accel_mm_s2 / jerk_mm_s3;
+    let c = 2.0 * v0_mm_s * accel_mm_s2 * accel_mm_s2 / jerk_mm_s3 - 2.0 * d_mm * accel_mm_s2;
     let disc = (b * b - 4.0 * c).max(0.0);
     let dv = -2.0 * c / (b + disc.sqrt());
-    v0 + dv.max(0.0)
+    v0_mm_s + dv.max(0.0)
 }
 
 /// Highest speed at the start of a distance `d` from which the speed at its end can be
 /// brought to at most `v_end` (`a = 0` at both ends). Slowing down only partially can need
 /// more distance than stopping (the jerk-limited profile's time grows with the speed
 /// change), so both ending at `v_end` and ending at rest are candidates.
-pub fn reach_back(v_end: f64, d: f64, accel: f64, jerk: f64) -> f64 {
-    reach(v_end, d, accel, jerk).max(reach(0.0, d, accel, jerk))
+pub fn reach_back(v_end_mm_s: f64, d_mm: f64, accel_mm_s2: f64, jerk_mm_s3: f64) -> f64 {
+    reach(v_end_mm_s, d_mm, accel_mm_s2, jerk_mm_s3).max(reach(0.0, d_mm, accel_mm_s2, jerk_mm_s3))
 }
 
 /// Bisection steps on the peak acceleration in `rise_reach`: to 1/65,536 of its range
@@ -64,21 +64,34 @@ pub(crate) const RISE_STEPS: usize = 16;
 
 /// Speed and distance once acceleration `a0` at speed `v0` has been brought to zero at
 /// jerk `jerk`.
-pub(crate) fn settle(v0: f64, a0: f64, jerk: f64) -> (f64, f64) {
-    let tau = a0.abs() / jerk;
-    let v_at = v0 + a0 * a0.abs() / (2.0 * jerk);
-    let d0 = v0 * tau + 0.5 * a0 * tau * tau - a0.signum() * jerk * tau * tau * tau / 6.0;
-    (v_at, d0)
+pub(crate) fn settle(v0_mm_s: f64, a0_mm_s2: f64, jerk_mm_s3: f64) -> (f64, f64) {
+    let tau = a0_mm_s2.abs() / jerk_mm_s3;
+    let v_at_mm_s = v0_mm_s + a0_mm_s2 * a0_mm_s2.abs() / (2.0 * jerk_mm_s3);
+    let d0_mm = v0_mm_s * tau + 0.5 * a0_mm_s2 * tau * tau
+        - a0_mm_s2.signum() * jerk_mm_s3 * tau * tau * tau / 6.0;
+    (v_at_mm_s, d0_mm)
 }
 
 /// Distance and end speed of a rise from `(v0, a0)` at jerk `jerk`: the acceleration up
 /// to `peak` and down to `a1` (`peak ≥ a0, a1 ≥ 0`).
-pub(crate) fn rise_with_peak(v0: f64, a0: f64, a1: f64, peak: f64, jerk: f64) -> (f64, f64) {
-    let (t1, t3) = ((peak - a0) / jerk, (peak - a1) / jerk);
-    let d1 = t1 * (v0 + t1 * (a0 / 2.0 + t1 * jerk / 6.0));
-    let v_up = v0 + (peak * peak - a0 * a0) / (2.0 * jerk);
-    let d3 = t3 * (v_up + t3 * (peak / 2.0 - t3 * jerk / 6.0));
-    (d1 + d3, v_up + (peak * peak - a1 * a1) / (2.0 * jerk))
+pub(crate) fn rise_with_peak(
+    v0_mm_s: f64,
+    a0_mm_s2: f64,
+    a1_mm_s2: f64,
+    peak: f64,
+    jerk_mm_s3: f64,
+) -> (f64, f64) {
+    let (t1, t3) = (
+        (peak - a0_mm_s2) / jerk_mm_s3,
+        (peak - a1_mm_s2) / jerk_mm_s3,
+    );
+    let d1 = t1 * (v0_mm_s + t1 * (a0_mm_s2 / 2.0 + t1 * jerk_mm_s3 / 6.0));
+    let v_up = v0_mm_s + (peak * peak - a0_mm_s2 * a0_mm_s2) / (2.0 * jerk_mm_s3);
+    let d3 = t3 * (v_up + t3 * (peak / 2.0 - t3 * jerk_mm_s3 / 6.0));
+    (
+        d1 + d3,
+        v_up + (peak * peak - a1_mm_s2 * a1_mm_s2) / (2.0 * jerk_mm_s3),
+    )
 }
 
 /// The highest speed the quickest rise from `(v0, a0)` reaches in distance `d`, ending
@@ -87,34 +100,46 @@ pub(crate) fn rise_with_peak(v0: f64, a0: f64, a1: f64, peak: f64, jerk: f64) ->
 /// acceleration (to the larger of `a0` and `a1`, and down to `a1`) does not fit, or an
 /// input is out of range. Closed form where the acceleration is held, else a bisection on
 /// the peak acceleration (the distance grows with it): cheap enough for the cycle.
-pub(crate) fn rise_reach(v0: f64, a0: f64, a1: f64, d: f64, accel: f64, jerk: f64) -> Option<f64> {
-    let in_range = |a: f64| (0.0..=accel).contains(&a);
-    if !(in_range(a0) && in_range(a1) && jerk > 0.0 && v0 >= 0.0 && d > 0.0) {
+pub(crate) fn rise_reach(
+    v0_mm_s: f64,
+    a0_mm_s2: f64,
+    a1_mm_s2: f64,
+    d_mm: f64,
+    accel_mm_s2: f64,
+    jerk_mm_s3: f64,
+) -> Option<f64> {
+    let in_range = |a: f64| (0.0..=accel_mm_s2).contains(&a);
+    if !(in_range(a0_mm_s2)
+        && in_range(a1_mm_s2)
+        && jerk_mm_s3 > 0.0
+        && v0_mm_s >= 0.0
+        && d_mm > 0.0)
+    {
         return None;
     }
-    let low = a0.max(a1);
-    if rise_with_peak(v0, a0, a1, low, jerk).0 > d {
+    let low = a0_mm_s2.max(a1_mm_s2);
+    if rise_with_peak(v0_mm_s, a0_mm_s2, a1_mm_s2, low, jerk_mm_s3).0 > d_mm {
         return None;
     }
-    let (d_top, v_top) = rise_with_peak(v0, a0, a1, accel, jerk);
-    if d_top <= d {
+    let (d_top, v_top) = rise_with_peak(v0_mm_s, a0_mm_s2, a1_mm_s2, accel_mm_s2, jerk_mm_s3);
+    if d_top <= d_mm {
         // Held at `accel` for `h`: the distance grows by `(v_up + accel·t3)·h + accel·h²/2`.
-        let t3 = (accel - a1) / jerk;
-        let v_up = v0 + (accel * accel - a0 * a0) / (2.0 * jerk);
-        let b = v_up + accel * t3;
-        let h = 2.0 * (d - d_top) / (b + (b * b + 2.0 * accel * (d - d_top)).sqrt());
-        return Some(v_top + accel * h);
+        let t3 = (accel_mm_s2 - a1_mm_s2) / jerk_mm_s3;
+        let v_up = v0_mm_s + (accel_mm_s2 * accel_mm_s2 - a0_mm_s2 * a0_mm_s2) / (2.0 * jerk_mm_s3);
+        let b = v_up + accel_mm_s2 * t3;
+        let h = 2.0 * (d_mm - d_top) / (b + (b * b + 2.0 * accel_mm_s2 * (d_mm - d_top)).sqrt());
+        return Some(v_top + accel_mm_s2 * h);
     }
     // The peak is bounded by the distance too: the rise up to it alone takes at least
     // `J t³/6` (from `a0 ≥ 0`), and both ramps at least `v0` times their time.
-    let mut top = accel.min(a0 + jerk * (6.0 * d / jerk).cbrt());
-    if v0 > 0.0 {
-        top = top.min(0.5 * (jerk * d / v0 + a0 + a1));
+    let mut top = accel_mm_s2.min(a0_mm_s2 + jerk_mm_s3 * (6.0 * d_mm / jerk_mm_s3).cbrt());
+    if v0_mm_s > 0.0 {
+        top = top.min(0.5 * (jerk_mm_s3 * d_mm / v0_mm_s + a0_mm_s2 + a1_mm_s2));
     }
     let peak = bisect(low, top.max(low), RISE_STEPS, |p| {
-        rise_with_peak(v0, a0, a1, p, jerk).0 <= d
+        rise_with_peak(v0_mm_s, a0_mm_s2, a1_mm_s2, p, jerk_mm_s3).0 <= d_mm
     });
-    Some(rise_with_peak(v0, a0, a1, peak, jerk).1)
+    Some(rise_with_peak(v0_mm_s, a0_mm_s2, a1_mm_s2, peak, jerk_mm_s3).1)
 }
 
 #[cfg(test)]

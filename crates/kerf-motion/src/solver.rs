@@ -60,58 +60,57 @@ impl MotionCore {
     /// of order one; the profile is the same motion, sampled and scaled back.
     pub(crate) fn calc(&mut self, request: &ProfileRequest) -> bool {
         let ProfileRequest {
-            origin_mm: origin,
+            origin_mm,
             start:
                 PathState {
-                    v_mm_s: v0,
-                    a_mm_s2: a0,
+                    v_mm_s: v0_mm_s,
+                    a_mm_s2: a0_mm_s2,
                 },
-            distance_mm: distance,
-            end: PathState {
-                v_mm_s: v1,
-                a_mm_s2: a1,
-            },
+            distance_mm,
+            end:
+                PathState {
+                    v_mm_s: v1_mm_s,
+                    a_mm_s2: a1_mm_s2,
+                },
             limits:
                 PathLimits {
-                    v_max_mm_s: vmax,
-                    accel_mm_s2: accel,
-                    jerk_mm_s3: jerk,
+                    v_max_mm_s,
+                    accel_mm_s2,
+                    jerk_mm_s3,
                 },
         } = *request;
         // A remainder below a picometre is taken as reached at the current speed: the step
         // it leaves in the position is invisible even in the jerk at the period.
-        let (a0, distance, v1, a1, vmax) = if distance < 1e-12 {
-            (0.0, 0.0, v0, 0.0, vmax.max(v0))
+        let (a0_mm_s2, distance_mm, v1_mm_s, a1_mm_s2, v_max_mm_s) = if distance_mm < 1e-12 {
+            (0.0, 0.0, v0_mm_s, 0.0, v_max_mm_s.max(v0_mm_s))
         } else {
-            (a0, distance, v1, a1, vmax)
+            (a0_mm_s2, distance_mm, v1_mm_s, a1_mm_s2, v_max_mm_s)
         };
         // A sliver section (blends that meet leave nanometre remnants of a line) is passed at
         // the entry speed in the time it takes, where the solver fails on such inputs: when
         // it takes less than `COAST_BELOW_S` (no speed can change over it), or when it is
-        // shorter than `COAST_BELOW_MM` and no slower end is asked for. At a few µm/s a
+        // shorter than `COAST_BELOW_MM` and no slower end is asked for: at a few µm/s a
         // nanometre takes milliseconds, and the lookahead may have planned a slow-down
-        // over it: coasted at the entry speed, it entered the next junction at 8 times its
-        // cap (a 1e-6 mm remnant between two near-reversing arc blends, 1.8 µm/s against
-        // 0.22 µm/s, a Y jerk of 127 % of 2,000 mm/s³ at 100 µs, issue 24). Nor where the
-        // coast would take longer than a jerk-limited move across it from rest to rest
-        // (`(32 d / j)^(1/3)`): a 0.2 µm remnant entered at 1 nm/s, the cap of a kink on an
-        // axis with 4 mm/s³, was coasted for 175 s instead of planned in 7 ms. Its time is
-        // kept, so the positions stay smooth.
-        if a0 == 0.0
-            && a1 == 0.0
-            && v0 > 0.0
-            && distance > 0.0
-            && (distance < v0 * COAST_BELOW_S
-                || (distance < COAST_BELOW_MM
-                    && v1.min(vmax) >= v0 * (1.0 - 1e-9)
-                    && distance / v0 <= (32.0 * distance / jerk).cbrt()))
+        // over it, which a coast at the entry speed would skip, entering the next junction
+        // far above its cap. Nor where the coast would take longer than a jerk-limited
+        // move across it from rest to rest (`(32 d / j)^(1/3)`): at the tiny cap of a kink
+        // on an axis with a low jerk, a coast takes seconds where the move takes
+        // milliseconds. Its time is kept, so the positions stay smooth.
+        if a0_mm_s2 == 0.0
+            && a1_mm_s2 == 0.0
+            && v0_mm_s > 0.0
+            && distance_mm > 0.0
+            && (distance_mm < v0_mm_s * COAST_BELOW_S
+                || (distance_mm < COAST_BELOW_MM
+                    && v1_mm_s.min(v_max_mm_s) >= v0_mm_s * (1.0 - 1e-9)
+                    && distance_mm / v0_mm_s <= (32.0 * distance_mm / jerk_mm_s3).cbrt()))
         {
-            self.coast_s = distance / v0;
+            self.coast_s = distance_mm / v0_mm_s;
             self.own_active = false;
-            self.traj_origin = origin;
-            self.traj_t = 0.0;
-            self.traj_end_v = v0;
-            self.traj_end_a = 0.0;
+            self.traj_origin_mm = origin_mm;
+            self.traj_t_s = 0.0;
+            self.traj_end_v_mm_s = v0_mm_s;
+            self.traj_end_a_mm_s2 = 0.0;
             return true;
         }
         // Scaled units: the distance is the unit of length and the time to cover it at the
@@ -119,13 +118,13 @@ impl MotionCore {
         // one. The solver's tolerances are absolute (1e-10 on the acceleration, 1e-8 on
         // speed and position); in millimetres and seconds a fast machine (acceleration
         // 1e4..1e6 mm/s²) is rounded past them and the solver fails on ordinary
-        // rest-to-rest moves (0.3 % of feasible inputs over the accepted limits).
+        // rest-to-rest moves.
         #[cfg(test)]
         if self.fail_solver {
             return false;
         }
-        let (k, tau) = if distance > 0.0 {
-            (1.0 / distance, (distance / jerk).cbrt())
+        let (k, tau) = if distance_mm > 0.0 {
+            (1.0 / distance_mm, (distance_mm / jerk_mm_s3).cbrt())
         } else {
             (1.0, 1.0)
         };
@@ -134,28 +133,28 @@ impl MotionCore {
         let inp = &mut self.input;
         inp.control_interface = ControlInterface::Position;
         inp.current_position[0] = 0.0;
-        inp.current_velocity[0] = v0 * kv;
-        inp.current_acceleration[0] = a0 * ka;
-        inp.target_position[0] = distance * k;
-        inp.target_velocity[0] = v1.min(vmax) * kv;
-        inp.target_acceleration[0] = a1 * ka;
-        inp.max_velocity[0] = vmax.max(1e-9) * kv;
-        inp.max_acceleration[0] = accel * ka;
-        inp.max_jerk[0] = jerk * kj;
+        inp.current_velocity[0] = v0_mm_s * kv;
+        inp.current_acceleration[0] = a0_mm_s2 * ka;
+        inp.target_position[0] = distance_mm * k;
+        inp.target_velocity[0] = v1_mm_s.min(v_max_mm_s) * kv;
+        inp.target_acceleration[0] = a1_mm_s2 * ka;
+        inp.max_velocity[0] = v_max_mm_s.max(1e-9) * kv;
+        inp.max_acceleration[0] = accel_mm_s2 * ka;
+        inp.max_jerk[0] = jerk_mm_s3 * kj;
         let ok = matches!(
             self.otg.calculate(&self.input, &mut self.scratch),
             Ok(RuckigResult::Working)
-        ) && self.scratch_reaches(distance * k);
+        ) && self.scratch_reaches(distance_mm * k);
         if ok {
             std::mem::swap(&mut self.traj, &mut self.scratch);
             self.own_active = false;
             self.coast_s = 0.0;
             self.traj_scale = k;
-            self.traj_time_scale = tau;
-            self.traj_origin = origin;
-            self.traj_t = 0.0;
-            self.traj_end_v = v1.min(vmax);
-            self.traj_end_a = a1;
+            self.traj_time_scale_s = tau;
+            self.traj_origin_mm = origin_mm;
+            self.traj_t_s = 0.0;
+            self.traj_end_v_mm_s = v1_mm_s.min(v_max_mm_s);
+            self.traj_end_a_mm_s2 = a1_mm_s2;
         }
         ok
     }
@@ -163,14 +162,14 @@ impl MotionCore {
     /// A solver result is used only if its duration is finite and it ends at `target`
     /// (scaled units, so the tolerance is relative).
     pub(crate) fn scratch_reaches(&self, target: f64) -> bool {
-        let dur = self.scratch.get_duration();
-        if !dur.is_finite() || dur < 0.0 {
+        let dur_s = self.scratch.get_duration();
+        if !dur_s.is_finite() || dur_s < 0.0 {
             return false;
         }
         let mut p = DataArrayOrVec::Stack([0.0]);
         let mut section = None;
         self.scratch.at_time(
-            dur,
+            dur_s,
             &mut Some(&mut p),
             &mut None,
             &mut None,
@@ -185,19 +184,21 @@ impl MotionCore {
     /// (`sqrt(v/j)` or `|a|/j`, whichever is longer) and the unit of length what the jerk
     /// covers in it, so that the state is of order one whatever limit is idle (a huge
     /// acceleration limit must not make the speed vanish in the solver's units).
-    /// `brake_scale`/`brake_time_scale` hold the units.
+    /// `brake_scale`/`brake_time_scale_s` hold the units.
     pub(crate) fn calc_brake(
         &mut self,
         start: PathState,
         accel_mm_s2: f64,
         jerk_mm_s3: f64,
     ) -> bool {
-        let (v0, a0, accel, jerk) = (start.v_mm_s, start.a_mm_s2, accel_mm_s2, jerk_mm_s3);
-        let a_lim = accel.max(a0.abs());
-        let tau = (v0.abs() / jerk).sqrt().max(a0.abs() / jerk);
+        let (v0_mm_s, a0_mm_s2) = (start.v_mm_s, start.a_mm_s2);
+        let a_lim_mm_s2 = accel_mm_s2.max(a0_mm_s2.abs());
+        let tau = (v0_mm_s.abs() / jerk_mm_s3)
+            .sqrt()
+            .max(a0_mm_s2.abs() / jerk_mm_s3);
         // At rest there is nothing to scale: the stop is empty in any units.
         let (k, tau) = if tau > 0.0 {
-            (1.0 / (jerk * tau * tau * tau), tau)
+            (1.0 / (jerk_mm_s3 * tau * tau * tau), tau)
         } else {
             (1.0, 1.0)
         };
@@ -208,19 +209,19 @@ impl MotionCore {
         let inp = &mut self.input;
         inp.control_interface = ControlInterface::Velocity;
         inp.current_position[0] = 0.0;
-        inp.current_velocity[0] = v0 * kv;
-        inp.current_acceleration[0] = a0 * ka;
+        inp.current_velocity[0] = v0_mm_s * kv;
+        inp.current_acceleration[0] = a0_mm_s2 * ka;
         inp.target_velocity[0] = 0.0;
         inp.target_acceleration[0] = 0.0;
-        inp.max_acceleration[0] = a_lim * ka;
-        inp.max_jerk[0] = jerk * ka * tau;
+        inp.max_acceleration[0] = a_lim_mm_s2 * ka;
+        inp.max_jerk[0] = jerk_mm_s3 * ka * tau;
         let ok = matches!(
             self.otg.calculate(&self.input, &mut self.scratch),
             Ok(RuckigResult::Working)
         ) && self.scratch.get_duration().is_finite();
         self.input.control_interface = ControlInterface::Position;
         self.brake_scale = k;
-        self.brake_time_scale = tau;
+        self.brake_time_scale_s = tau;
         ok
     }
 

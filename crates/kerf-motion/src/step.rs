@@ -21,8 +21,8 @@ impl MotionCore {
             return StepResult::Held;
         }
         if self.sec_count == 0 {
-            self.v = 0.0;
-            self.a = 0.0;
+            self.v_mm_s = 0.0;
+            self.a_mm_s2 = 0.0;
             self.last.feed_mm_s = 0.0;
             *out = self.last;
             return StepResult::Idle;
@@ -36,17 +36,17 @@ impl MotionCore {
             self.replan_running();
         }
         self.replan = false;
-        self.traj_t += self.period_s;
+        self.traj_t_s += self.period_s;
         let mut changes = 0;
         loop {
-            let dur = self.running_duration();
-            if self.traj_t < dur {
+            let dur_s = self.running_duration();
+            if self.traj_t_s < dur_s {
                 break;
             }
             if self.mode == Mode::Braking {
-                self.sample(dur);
-                self.v = 0.0;
-                self.a = 0.0;
+                self.sample(dur_s);
+                self.v_mm_s = 0.0;
+                self.a_mm_s2 = 0.0;
                 self.mode = Mode::Held;
                 self.emit(out);
                 out.feed_mm_s = 0.0;
@@ -58,8 +58,8 @@ impl MotionCore {
                 return StepResult::Held;
             }
             // The profile ends inside this cycle: carry the leftover time on.
-            let leftover = self.traj_t - dur;
-            let (end_v, end_a) = (self.traj_end_v, self.traj_end_a);
+            let leftover_s = self.traj_t_s - dur_s;
+            let (end_v_mm_s, end_a) = (self.traj_end_v_mm_s, self.traj_end_a_mm_s2);
             self.pop_section();
             changes += 1;
             if self.sec_count == 0 {
@@ -67,9 +67,9 @@ impl MotionCore {
                 self.emit(out);
                 return StepResult::Idle;
             }
-            self.v = end_v;
-            self.a = end_a;
-            self.s_local = 0.0;
+            self.v_mm_s = end_v_mm_s;
+            self.a_mm_s2 = end_a;
+            self.s_local_mm = 0.0;
             self.plan_section_start();
             if self.mode == Mode::HoldPending {
                 self.try_brake();
@@ -77,13 +77,13 @@ impl MotionCore {
             // Pathological queues (hundreds of sections inside one period) would make the
             // cycle unbounded: past the limit the leftover time is dropped, which delays
             // the motion by under one period but keeps it continuous.
-            self.traj_t = if changes >= MAX_SECTIONS_PER_STEP {
+            self.traj_t_s = if changes >= MAX_SECTIONS_PER_STEP {
                 0.0
             } else {
-                leftover
+                leftover_s
             };
         }
-        let t = self.traj_t;
+        let t = self.traj_t_s;
         self.sample(t);
         self.emit(out);
         StepResult::Moving
@@ -96,7 +96,7 @@ impl MotionCore {
         } else if self.own_active {
             self.own.duration_s()
         } else {
-            self.traj.get_duration() * self.traj_time_scale
+            self.traj.get_duration() * self.traj_time_scale_s
         }
     }
 
@@ -107,8 +107,8 @@ impl MotionCore {
         let mut v = [0.0];
         let mut a = [0.0];
         if self.coast_s > 0.0 {
-            p[0] = self.traj_end_v * t.min(self.coast_s);
-            v[0] = self.traj_end_v;
+            p[0] = self.traj_end_v_mm_s * t.min(self.coast_s);
+            v[0] = self.traj_end_v_mm_s;
         } else if self.own_active {
             (p[0], v[0], a[0]) = self.own.at(t);
         } else {
@@ -117,33 +117,33 @@ impl MotionCore {
             let mut acc = DataArrayOrVec::Stack(a);
             let mut section = None;
             self.traj.at_time(
-                t / self.traj_time_scale,
+                t / self.traj_time_scale_s,
                 &mut Some(&mut pos),
                 &mut Some(&mut vel),
                 &mut Some(&mut acc),
                 &mut None,
                 &mut section,
             );
-            let (k, tau) = (self.traj_scale, self.traj_time_scale);
+            let (k, tau) = (self.traj_scale, self.traj_time_scale_s);
             p[0] = pos[0] / k;
             v[0] = vel[0] / (k * tau);
             a[0] = acc[0] / (k * tau * tau);
         }
-        let mut s = self.traj_origin + p[0];
+        let mut s = self.traj_origin_mm + p[0];
         // A braking profile may run into following sections.
         while self.mode == Mode::Braking && self.sec_count > 1 {
-            let len = self.sec(self.sec_head).length;
-            if s <= len {
+            let len_mm = self.sec(self.sec_head).length_mm;
+            if s <= len_mm {
                 break;
             }
             self.pop_section();
-            self.traj_origin -= len;
-            s -= len;
+            self.traj_origin_mm -= len_mm;
+            s -= len_mm;
         }
-        let len = self.sec(self.sec_head).length;
-        self.s_local = s.clamp(0.0, len);
-        self.v = v[0].max(0.0);
-        self.a = a[0];
+        let len_mm = self.sec(self.sec_head).length_mm;
+        self.s_local_mm = s.clamp(0.0, len_mm);
+        self.v_mm_s = v[0].max(0.0);
+        self.a_mm_s2 = a[0];
     }
 
     /// Writes the setpoint for the current section-local position.
@@ -159,8 +159,8 @@ impl MotionCore {
         }
         while self.cursor < last_seg {
             let slot = (self.cursor % self.segs.len() as u64) as usize;
-            let end = self.seg_offset[slot] + self.segs[slot].length_mm;
-            if self.s_local < end {
+            let end = self.seg_offset_mm[slot] + self.segs[slot].length_mm;
+            if self.s_local_mm < end {
                 break;
             }
             self.cursor += 1;
@@ -178,12 +178,12 @@ impl MotionCore {
         }
         let slot = (self.cursor % self.segs.len() as u64) as usize;
         let seg = &self.segs[slot];
-        let local = self.s_local - self.seg_offset[slot];
+        let local = self.s_local_mm - self.seg_offset_mm[slot];
         seg.position_at(local, &mut self.last.position);
         self.last.line = seg.line;
         self.last.move_index = seg.move_index;
         self.last.move_count = seg.move_count;
-        self.last.feed_mm_s = self.v;
+        self.last.feed_mm_s = self.v_mm_s;
         *out = self.last;
     }
 
@@ -197,11 +197,11 @@ impl MotionCore {
         self.last.line = seg.line;
         self.last.move_index = seg.move_index;
         self.last.move_count = seg.move_count;
-        self.v = 0.0;
-        self.a = 0.0;
+        self.v_mm_s = 0.0;
+        self.a_mm_s2 = 0.0;
         self.last.feed_mm_s = 0.0;
-        self.s_local = 0.0;
+        self.s_local_mm = 0.0;
         self.running = false;
-        self.traj_t = 0.0;
+        self.traj_t_s = 0.0;
     }
 }

@@ -251,7 +251,7 @@ fn an_override_raised_during_a_carried_speed_up_keeps_a_level_that_fits_it() {
                 if !(0.5..1.0).contains(&sp.position[0]) {
                     break;
                 }
-                if core.traj_end_a > 0.0 {
+                if core.traj_end_a_mm_s2 > 0.0 {
                     carried += 1;
                 }
                 core.set_feed_override(1.5);
