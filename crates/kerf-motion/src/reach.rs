@@ -1,0 +1,210 @@
+//! Closed-form jerk-limited reachability along the path (`a = 0` at both ends unless
+//! said otherwise): the distance to change speed, the highest speed reachable within a
+//! distance, and the quickest rise to a given end acceleration.
+
+use kerf_geom::ramp::{bisect, change_time_s};
+
+/// Distance to change speed from `v0` to `v1` with `a = 0` at both ends along the
+/// symmetric jerk-limited profile (exact: the speed curve is point-symmetric).
+pub fn change_distance(v0_mm_s: f64, v1_mm_s: f64, accel_mm_s2: f64, jerk_mm_s3: f64) -> f64 {
+    0.5 * (v0_mm_s + v1_mm_s) * change_time_s((v1_mm_s - v0_mm_s).abs(), accel_mm_s2, jerk_mm_s3)
+}
+
+/// Highest speed reachable from `v0` (or from which `v0` is reachable) within distance
+/// `d` with `a = 0` at both ends: the inverse of [`change_distance`] in its second
+/// argument, in closed form (a bounded Newton solve of a cubic, then a quadratic).
+pub fn reach(v0_mm_s: f64, d_mm: f64, accel_mm_s2: f64, jerk_mm_s3: f64) -> f64 {
+    if d_mm <= 0.0 || accel_mm_s2 <= 0.0 || jerk_mm_s3 <= 0.0 {
+        return v0_mm_s;
+    }
+    let v0_mm_s = v0_mm_s.max(0.0);
+    // Short change: d = (2 v0 + j x²) x with x = sqrt(dv / j). Newton from an upper
+    // bound converges monotonically because the cubic is convex for x > 0.
+    let mut x = (d_mm / jerk_mm_s3).cbrt();
+    if v0_mm_s > 0.0 {
+        x = x.min(d_mm / (2.0 * v0_mm_s));
+    }
+    for _ in 0..12 {
+        let f = jerk_mm_s3 * x * x * x + 2.0 * v0_mm_s * x - d_mm;
+        let df = 3.0 * jerk_mm_s3 * x * x + 2.0 * v0_mm_s;
+        if df <= 0.0 {
+            break;
+        }
+        let nx = x - f / df;
+        // Stop when Newton no longer decreases (converged, or NaN from bad input).
+        if nx.partial_cmp(&x) != Some(std::cmp::Ordering::Less) {
+            break;
+        }
+        x = nx.max(0.0);
+    }
+    let dv = jerk_mm_s3 * x * x;
+    if dv * jerk_mm_s3 <= accel_mm_s2 * accel_mm_s2 {
+        return v0_mm_s + dv;
+    }
+    // Long change with a constant-acceleration phase: dv² + B dv + C = 0.
+    let b = 2.0 * v0_mm_s + accel_mm_s2 * accel_mm_s2 / jerk_mm_s3;
+    let c = 2.0 * v0_mm_s * accel_mm_s2 * accel_mm_s2 / jerk_mm_s3 - 2.0 * d_mm * accel_mm_s2;
+    let disc = (b * b - 4.0 * c).max(0.0);
+    let dv = -2.0 * c / (b + disc.sqrt());
+    v0_mm_s + dv.max(0.0)
+}
+
+/// Highest speed at the start of a distance `d` from which the speed at its end can be
+/// brought to at most `v_end` (`a = 0` at both ends). Slowing down only partially can need
+/// more distance than stopping (the jerk-limited profile's time grows with the speed
+/// change), so both ending at `v_end` and ending at rest are candidates.
+pub fn reach_back(v_end_mm_s: f64, d_mm: f64, accel_mm_s2: f64, jerk_mm_s3: f64) -> f64 {
+    reach(v_end_mm_s, d_mm, accel_mm_s2, jerk_mm_s3).max(reach(0.0, d_mm, accel_mm_s2, jerk_mm_s3))
+}
+
+/// Bisection steps on the peak acceleration in `rise_reach`: to 1/65,536 of its range
+/// (from the least peak to a bound from the distance); the speed found is at most that
+/// low, and lower is always reachable.
+pub(crate) const RISE_STEPS: usize = 16;
+
+/// Speed and distance once acceleration `a0` at speed `v0` has been brought to zero at
+/// jerk `jerk`.
+pub(crate) fn settle(v0_mm_s: f64, a0_mm_s2: f64, jerk_mm_s3: f64) -> (f64, f64) {
+    let tau = a0_mm_s2.abs() / jerk_mm_s3;
+    let v_at_mm_s = v0_mm_s + a0_mm_s2 * a0_mm_s2.abs() / (2.0 * jerk_mm_s3);
+    let d0_mm = v0_mm_s * tau + 0.5 * a0_mm_s2 * tau * tau
+        - a0_mm_s2.signum() * jerk_mm_s3 * tau * tau * tau / 6.0;
+    (v_at_mm_s, d0_mm)
+}
+
+/// Distance and end speed of a rise from `(v0, a0)` at jerk `jerk`: the acceleration up
+/// to `peak` and down to `a1` (`peak ≥ a0, a1 ≥ 0`).
+pub(crate) fn rise_with_peak(
+    v0_mm_s: f64,
+    a0_mm_s2: f64,
+    a1_mm_s2: f64,
+    peak: f64,
+    jerk_mm_s3: f64,
+) -> (f64, f64) {
+    let (t1, t3) = (
+        (peak - a0_mm_s2) / jerk_mm_s3,
+        (peak - a1_mm_s2) / jerk_mm_s3,
+    );
+    let d1 = t1 * (v0_mm_s + t1 * (a0_mm_s2 / 2.0 + t1 * jerk_mm_s3 / 6.0));
+    let v_up = v0_mm_s + (peak * peak - a0_mm_s2 * a0_mm_s2) / (2.0 * jerk_mm_s3);
+    let d3 = t3 * (v_up + t3 * (peak / 2.0 - t3 * jerk_mm_s3 / 6.0));
+    (
+        d1 + d3,
+        v_up + (peak * peak - a1_mm_s2 * a1_mm_s2) / (2.0 * jerk_mm_s3),
+    )
+}
+
+/// The highest speed the quickest rise from `(v0, a0)` reaches in distance `d`, ending
+/// with acceleration `a1` (accelerations in `[0, accel]`): the acceleration up at the jerk
+/// limit, held at `accel` if need be, and down to `a1`. `None` when even the rise of the
+/// acceleration (to the larger of `a0` and `a1`, and down to `a1`) does not fit, or an
+/// input is out of range. Closed form where the acceleration is held, else a bisection on
+/// the peak acceleration (the distance grows with it): cheap enough for the cycle.
+pub(crate) fn rise_reach(
+    v0_mm_s: f64,
+    a0_mm_s2: f64,
+    a1_mm_s2: f64,
+    d_mm: f64,
+    accel_mm_s2: f64,
+    jerk_mm_s3: f64,
+) -> Option<f64> {
+    let in_range = |a: f64| (0.0..=accel_mm_s2).contains(&a);
+    if !(in_range(a0_mm_s2)
+        && in_range(a1_mm_s2)
+        && jerk_mm_s3 > 0.0
+        && v0_mm_s >= 0.0
+        && d_mm > 0.0)
+    {
+        return None;
+    }
+    let low = a0_mm_s2.max(a1_mm_s2);
+    if rise_with_peak(v0_mm_s, a0_mm_s2, a1_mm_s2, low, jerk_mm_s3).0 > d_mm {
+        return None;
+    }
+    let (d_top, v_top) = rise_with_peak(v0_mm_s, a0_mm_s2, a1_mm_s2, accel_mm_s2, jerk_mm_s3);
+    if d_top <= d_mm {
+        // Held at `accel` for `h`: the distance grows by `(v_up + accel·t3)·h + accel·h²/2`.
+        let t3 = (accel_mm_s2 - a1_mm_s2) / jerk_mm_s3;
+        let v_up = v0_mm_s + (accel_mm_s2 * accel_mm_s2 - a0_mm_s2 * a0_mm_s2) / (2.0 * jerk_mm_s3);
+        let b = v_up + accel_mm_s2 * t3;
+        let h = 2.0 * (d_mm - d_top) / (b + (b * b + 2.0 * accel_mm_s2 * (d_mm - d_top)).sqrt());
+        return Some(v_top + accel_mm_s2 * h);
+    }
+    // The peak is bounded by the distance too: the rise up to it alone takes at least
+    // `J t³/6` (from `a0 ≥ 0`), and both ramps at least `v0` times their time.
+    let mut top = accel_mm_s2.min(a0_mm_s2 + jerk_mm_s3 * (6.0 * d_mm / jerk_mm_s3).cbrt());
+    if v0_mm_s > 0.0 {
+        top = top.min(0.5 * (jerk_mm_s3 * d_mm / v0_mm_s + a0_mm_s2 + a1_mm_s2));
+    }
+    let peak = bisect(low, top.max(low), RISE_STEPS, |p| {
+        rise_with_peak(v0_mm_s, a0_mm_s2, a1_mm_s2, p, jerk_mm_s3).0 <= d_mm
+    });
+    Some(rise_with_peak(v0_mm_s, a0_mm_s2, a1_mm_s2, peak, jerk_mm_s3).1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::rise_reach;
+    use kerf_geom::ramp::bisect;
+
+    /// `rise_reach` against a search by numerical integration: each candidate rise (jerk up
+    /// to a peak, a hold there, jerk down to `a1`) is stepped through in small time steps,
+    /// and the highest peak, then the longest hold at the acceleration limit, that fits in
+    /// the distance is found by bisection; its end speed must be the closed form's (which
+    /// bisects its peak only 16 times, so to within 1e-3).
+    #[test]
+    fn the_quickest_rise_matches_a_brute_force_search() {
+        let mut log_uniform = crate::profile::tests::log_uniform_source(0x0bad_5eed);
+        let mut compared = 0;
+        for _ in 0..60 {
+            let accel = log_uniform(100.0, 1e4);
+            let jerk = log_uniform(1e3, 1e6);
+            let v0 = log_uniform(0.1, 100.0);
+            let a0 = accel * log_uniform(1e-3, 1.0);
+            let a1 = accel * log_uniform(1e-3, 1.0);
+            let d = log_uniform(0.01, 20.0);
+            let Some(v_closed) = rise_reach(v0, a0, a1, d, accel, jerk) else {
+                continue;
+            };
+            // Numerical integration of one rise: distance and end speed.
+            let simulate = |peak: f64, hold_s: f64| {
+                let phases = [
+                    ((peak - a0) / jerk, jerk),
+                    (hold_s, 0.0),
+                    ((peak - a1) / jerk, -jerk),
+                ];
+                let (mut p, mut v, mut a) = (0.0, v0, a0);
+                for (t, j) in phases {
+                    let n = 400;
+                    let dt = t / n as f64;
+                    for _ in 0..n {
+                        // Midpoint steps: exact for the cubic up to rounding.
+                        let a_mid = a + j * dt / 2.0;
+                        let v_mid = v + a * dt / 2.0 + j * dt * dt / 8.0;
+                        p += v_mid * dt + j * dt * dt * dt / 24.0;
+                        v += a_mid * dt;
+                        a += j * dt;
+                    }
+                }
+                (p, v)
+            };
+            // The distance grows with the peak and the hold: the highest peak that fits,
+            // by bisection on the simulated distance, and at the acceleration limit the
+            // longest hold that fits.
+            let low = a0.max(a1);
+            let best = if simulate(accel, 0.0).0 <= d {
+                let hold = bisect(0.0, 2.0 * d / v0, 60, |h| simulate(accel, h).0 <= d);
+                simulate(accel, hold).1
+            } else {
+                let peak = bisect(low, accel, 60, |p| simulate(p, 0.0).0 <= d);
+                simulate(peak, 0.0).1
+            };
+            assert!(
+                (best - v_closed).abs() <= 1e-3 * v_closed,
+                "closed form {v_closed}, brute force {best} (v0 {v0} a0 {a0} a1 {a1} d {d} accel {accel} jerk {jerk})"
+            );
+            compared += 1;
+        }
+        assert!(compared > 20, "{compared}");
+    }
+}
