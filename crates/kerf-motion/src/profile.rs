@@ -344,7 +344,7 @@ pub(crate) mod tests {
     #[test]
     fn random_inputs_hold_their_limits() {
         // A fixed-seed sweep over the range of machines the configuration accepts.
-        let mut log_uniform = crate::profile::tests::log_uniform_source(0x2545_F491_4F6C_DD1D);
+        let mut log_uniform = log_uniform_source(0x2545_F491_4F6C_DD1D);
         let mut built = 0;
         for _ in 0..400 {
             let vmax = log_uniform(1.0, 5000.0);
@@ -369,7 +369,7 @@ pub(crate) mod tests {
         // with the entry acceleration (no step in it) and ends at the end speed with
         // `a = 0`, within the limits, the speed ceiling raised only by what bringing the
         // acceleration to zero at the jerk limit adds (`a0²/2j`).
-        let mut log_uniform = crate::profile::tests::log_uniform_source(0x9E37_79B9_7F4A_7C15);
+        let mut log_uniform = log_uniform_source(0x9E37_79B9_7F4A_7C15);
         let mut built = 0;
         for k in 0..400 {
             let vmax = log_uniform(1.0, 5000.0);

@@ -333,7 +333,7 @@ fn a_slow_down_across_pieces_of_nearly_equal_speed_makes_no_stair() {
 /// when both functions say so.
 #[test]
 fn the_planners_merge_estimate_is_the_motion_cores_rule() {
-    let mut log_uniform = crate::profile::tests::log_uniform_source(0x5eed_cafe);
+    let mut log_uniform = profile::tests::log_uniform_source(0x5eed_cafe);
     let seg = |x0: f64, v: f64, a: f64, j: f64| x_line(x0, 2.0, (v, 1000.0), (a, j), 1e6);
     let (mut merged, mut split, mut slower) = (0, 0, 0);
     for _ in 0..2000 {
@@ -345,7 +345,7 @@ fn the_planners_merge_estimate_is_the_motion_cores_rule() {
         let mut core = MotionCore::new(0.001, 8);
         core.push(&seg(0.0, v1, a1, j1)).unwrap();
         core.push(&seg(2.0, v2, a2, j2)).unwrap();
-        let expected = kerf_geom::speeds_merge(v2, v1) && kerf_geom::limits_merge(a2, j2, (a1, j1));
+        let expected = kerf_geom::speeds_merge(v2, v1) && limits_merge(a2, j2, (a1, j1));
         let one_section = core.sec_count == 1;
         assert_eq!(
             one_section, expected,
