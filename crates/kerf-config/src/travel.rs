@@ -1,7 +1,7 @@
 //! Travel limits: reject a program whose path leaves an axis's `min`/`max` anywhere.
 //!
-//! Issue 3 asks that positions outside the configured travel anywhere on the path reject
-//! the program before any motion, naming the line. The check is exact for the geometry the
+//! A position outside the configured travel anywhere on the path rejects the program
+//! before any motion, naming the line. The check is exact for the geometry the
 //! front end produces: a line's extremes are its end points, and an arc's are its end
 //! points plus the points where a coordinate is stationary along the curve, when they
 //! fall inside the swept angle (multi-turn helices included). The arc's points are those
@@ -10,7 +10,7 @@
 //! point), so what is checked is what is executed, at any radius. Rotary axes move
 //! linearly with the path, so their end values are their extremes.
 //!
-//! Issue 7 adds the planned path: corner blends, transitions and smoothed pieces leave
+//! The planned path is checked too: corner blends, transitions and smoothed pieces leave
 //! the programmed lines within the tolerance, and near a limit that can be outside the
 //! travel. [`check_segment`] checks every planned segment: lines and arcs exactly as
 //! above; quintic curves (and rotary quintics) by sampling with a certified bound (see

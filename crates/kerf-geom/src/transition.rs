@@ -446,7 +446,7 @@ mod tests {
         }
     }
 
-    /// Issue 24: every curve `with_arc_length` accepts is evaluated at arc length without a
+    /// Every curve `with_arc_length` accepts is evaluated at arc length without a
     /// jump at the table's nodes and where a brute-force inversion of the arc length puts
     /// it; curves it cannot serve so (near-cusp quintics, hairpins) are refused. Random
     /// quintics from gentle to near a cusp: most with tangents near the chord and a

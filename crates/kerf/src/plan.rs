@@ -1,6 +1,6 @@
 //! `kerf plan`: resolve a program and print every move and event as one JSON object per line.
 //!
-//! This output is a contract other tools rely on (issue 2). Each line is one of:
+//! This output is a contract other tools rely on (docs/OUTPUTS.md). Each line is one of:
 //!
 //! ```text
 //! {"type":"line","line":N,"rapid":false,"start":[x,y,z],"end":[x,y,z],"feed_mm_min":F}
