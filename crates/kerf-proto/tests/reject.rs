@@ -573,6 +573,37 @@ fn arc_tolerance_is_the_protocol_formula() {
     assert!((arc_tolerance_mm(&far) - 2e-6).abs() < 1e-18);
 }
 
+/// The radius in the tolerance is the start's distance from the centre *normal to the
+/// axis*: a centre 1e9 mm off the start's plane (an arc the plane check refuses) does not
+/// make the radius 1e9, so the largest number is the centre's coordinate, 1e9 mm.
+#[test]
+fn arc_tolerance_takes_the_radius_normal_to_the_axis() {
+    let off = Arc {
+        start: Vec3::zeros(),
+        end: Vec3::new(2.0, 0.0, 0.0),
+        center: Vec3::new(1.0, 0.0, 1e9),
+        axis: Vec3::z(),
+        sweep_rad: 1.0,
+    };
+    let t = arc_tolerance_mm(&off);
+    assert_eq!(t, 1e-6 + 1e9 / 2f64.powi(46), "{t}");
+}
+
+/// A NaN anywhere makes the tolerance NaN (so that every "within" check refuses), also
+/// when it comes from overflowing intermediate values: coordinates at ±1e308 along the
+/// axis make the radius NaN.
+#[test]
+fn arc_tolerance_is_nan_when_the_radius_overflows() {
+    let huge = Arc {
+        start: Vec3::new(1e308, 0.0, 0.0),
+        end: Vec3::new(1e308, 0.0, 0.0),
+        center: Vec3::new(-1e308, 0.0, 0.0),
+        axis: Vec3::x(),
+        sweep_rad: 1.0,
+    };
+    assert!(arc_tolerance_mm(&huge).is_nan());
+}
+
 #[test]
 fn events() {
     assert_eq!(

@@ -53,6 +53,7 @@ fn a_valid_program_and_the_next_one() {
         for (i, m) in program(id).iter().enumerate() {
             c.check(m).unwrap_or_else(|e| panic!("{id}/{i}: {e}"));
             if i == 3 {
+                assert_eq!(c.program_id(), Some(id));
                 assert_eq!(c.items_received(), 3);
                 assert_eq!(c.position(), Some([4.0, 5.0, 3.0, 0.0, 0.0, 0.0]));
             }
@@ -198,6 +199,21 @@ fn discontinuous_start() {
     // Rounding (1e-12 mm) is accepted.
     let near = MoveMsg::from_move(7, 3, &line_move([4.0, 2.0 + 1e-12, 3.0], [4.0, 5.0, 3.0]));
     assert!(run(&[p[0], p[1], p[2], near]).is_ok());
+}
+
+/// The continuity tolerance is relative beyond 1 mm (PROTOCOL.md, stream rule 5: 1e-9 ×
+/// max(1, |a|, |b|)): at 1,000 mm a step of 5e-7 mm (half of 1e-9 × 1,000) is rounding
+/// and accepted, one of 2e-6 mm is a jump and refused.
+#[test]
+fn continuity_is_relative_at_large_coordinates() {
+    let at = 1000.0;
+    let begin = MoveMsg::begin(9, [at, 0.0, 0.0, 0.0, 0.0, 0.0], 1);
+    let from = |x: f64| MoveMsg::from_move(9, 1, &line_move([x, 0.0, 0.0], [at + 5.0, 0.0, 0.0]));
+    assert!(run(&[begin, from(at + 5e-7)]).is_ok());
+    assert!(matches!(
+        run(&[begin, from(at + 2e-6)]),
+        Err(StreamError::Discontinuous { axis: 0, .. })
+    ));
 }
 
 #[test]
