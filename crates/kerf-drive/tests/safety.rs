@@ -32,7 +32,7 @@ fn config(ax: AxisSafety) -> SafetyConfig {
 }
 
 /// A realistic mill axis: 100 mm/s, 1000 mm/s², 50000 mm/s³.
-fn mill() -> AxisSafety {
+fn mill_axis() -> AxisSafety {
     axis(100.0, 1000.0, 50_000.0)
 }
 
@@ -130,7 +130,7 @@ fn a_stop_that_would_end_beyond_the_travel_trips_before_the_setpoint_crosses() {
     // 500 mm/s², in 2.5 mm.) Both sides: the check on the minimum side is its own code.
     for dir in [1.0, -1.0] {
         let limit = 500.0 * dir;
-        let mut s = Safety::new(config(mill()), on(0, 480.0 * dir)).expect("config");
+        let mut s = Safety::new(config(mill_axis()), on(0, 480.0 * dir)).expect("config");
         let (mut x, mut v) = (480.0 * dir, 0.0);
         let mut tripped = None;
         let mut sent = vec![x];
@@ -176,7 +176,7 @@ fn soft_limits_trip_just_beyond_the_travel() {
     // At rest on the limit; a step of 1e-6 mm is 1e-3 mm/s and 1 mm/s², far within the
     // mill's limits, so only the travel trips.
     for (axis, end) in [(0, 500.0), (1, -500.0)] {
-        let mut s = Safety::new(config(mill()), on(axis, end)).expect("config");
+        let mut s = Safety::new(config(mill_axis()), on(axis, end)).expect("config");
         let input = |x: f64| CycleInput {
             setpoint: Some(on(axis, x)),
             actual: on(axis, end),
@@ -269,7 +269,7 @@ fn a_stall_in_motion_stops_where_the_position_is_held() {
     // 50 mm/s on the mill, then the stream stops: the command is held at the last
     // setpoint, and the quick stop after the second missed cycle (stall_cycles 2)
     // starts from that rest (it does not move on, nor back up).
-    let mut cfg = config(mill());
+    let mut cfg = config(mill_axis());
     cfg.stall_cycles = 2;
     let mut r = Rig::new(cfg);
     let stream = ramp_stream(500.0, 50.0, 20, [1.0, -1.0, 0.0, 0.0, 0.0, 0.0]);
@@ -304,7 +304,7 @@ fn ramp_stream(a: f64, v: f64, cruise: usize, factors: [f64; MAX_AXES]) -> Vec<[
 
 #[test]
 fn a_drive_fault_on_one_axis_stops_all() {
-    let mut r = Rig::new(config(mill()));
+    let mut r = Rig::new(config(mill_axis()));
     let stream = ramp_stream(500.0, 50.0, 50, [1.0, 0.5, -1.0, 0.0, 0.0, 0.0]);
     for sp in &stream {
         assert!(r.step(Some(*sp)).tripped.is_none());
@@ -430,7 +430,7 @@ fn stop_profiles_from_any_state_respect_the_limits() {
 #[test]
 fn reset_is_refused_while_the_cause_persists() {
     // Drive fault: refused while stopping, then while the drive is in fault.
-    let mut r = Rig::new(config(mill()));
+    let mut r = Rig::new(config(mill_axis()));
     for sp in ramp_stream(500.0, 50.0, 10, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]) {
         r.step(Some(sp));
     }
@@ -458,7 +458,7 @@ fn reset_is_refused_while_the_cause_persists() {
     );
 
     // Following error: refused while the axis still lags by more than MIN_FERROR.
-    let mut r = Rig::new(config(mill()));
+    let mut r = Rig::new(config(mill_axis()));
     let lag = on(2, -0.2);
     let f = r
         .step_actual(Some([0.0; MAX_AXES]), lag)
@@ -480,7 +480,7 @@ fn reset_is_refused_while_the_cause_persists() {
     assert_eq!(r.s.reset(), Ok(()));
 
     // Stall: refused while the stream is still missing.
-    let mut r = Rig::new(config(mill()));
+    let mut r = Rig::new(config(mill_axis()));
     for _ in 0..4 {
         r.step(None);
     }
@@ -490,7 +490,7 @@ fn reset_is_refused_while_the_cause_persists() {
     assert_eq!(r.s.reset(), Ok(()));
 
     // Soft limit: refused while an actual position is beyond the travel.
-    let mut r = Rig::new(config(mill()));
+    let mut r = Rig::new(config(mill_axis()));
     let out = on(0, 600.0);
     r.step_actual(Some([0.0; MAX_AXES]), [0.0; MAX_AXES]);
     r.s.check(&CycleInput {
@@ -523,7 +523,7 @@ proptest! {
             ], -0.3f64..0.3, proptest::bool::weighted(0.02), proptest::bool::weighted(0.05)),
             1..300),
     ) {
-        let mut r = Rig::new(config(mill()));
+        let mut r = Rig::new(config(mill_axis()));
         let mut x = 0.0;
         let mut latched = None;
         for (step, lag, drive_fault, reset) in steps {
@@ -550,7 +550,7 @@ proptest! {
 #[test]
 fn bad_configurations_are_refused() {
     use kerf_drive::safety::SafetyConfigError;
-    let ok = config(mill());
+    let ok = config(mill_axis());
     assert!(Safety::new(ok, [0.0; MAX_AXES]).is_ok());
     let mut c = ok;
     c.period_s = 0.0;
@@ -570,7 +570,7 @@ fn bad_configurations_are_refused() {
         Safety::new(c, [0.0; MAX_AXES]),
         Err(SafetyConfigError::Margin(_))
     ));
-    let mut ax = mill();
+    let mut ax = mill_axis();
     ax.min_limit_units = 600.0;
     let mut c = ok;
     c.axes[1] = Some(ax);
@@ -578,7 +578,7 @@ fn bad_configurations_are_refused() {
         Safety::new(c, [0.0; MAX_AXES]),
         Err(SafetyConfigError::Axis { axis: 'Y', .. })
     ));
-    let mut ax = mill();
+    let mut ax = mill_axis();
     ax.limits.jerk_units_s3 = 0.0;
     let mut c = ok;
     c.axes[2] = Some(ax);
@@ -594,7 +594,7 @@ fn bad_configurations_are_refused() {
 
 #[test]
 fn a_fault_names_check_axis_value_limit_and_line() {
-    let mut s = Safety::new(config(mill()), on(0, 500.0)).expect("config");
+    let mut s = Safety::new(config(mill_axis()), on(0, 500.0)).expect("config");
     let f = s
         .check(&CycleInput {
             setpoint: Some(on(0, 500.0005)),

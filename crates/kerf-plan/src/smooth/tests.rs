@@ -5,22 +5,15 @@ use super::*;
 use crate::{AxisLimits, MachineLimits, PlannedSegment, Planner};
 use kerf_geom::{CornerMode, Curve, Line, Move, Path};
 
-fn mill() -> MachineLimits {
-    let l = AxisLimits {
-        velocity_units_s: 200.0,
-        acceleration_units_s2: 2000.0,
-        jerk_units_s3: 50000.0,
-    };
-    let a = AxisLimits {
+/// The test mill with a rotary A axis (3,600 deg/s, 36,000 deg/s², 900,000 deg/s³).
+fn mill_with_a() -> MachineLimits {
+    let mut m = kerf_testkit::machines::mill();
+    m.axes[3] = Some(AxisLimits {
         velocity_units_s: 3600.0,
         acceleration_units_s2: 36000.0,
         jerk_units_s3: 900_000.0,
-    };
-    MachineLimits {
-        axes: [Some(l), Some(l), Some(l), Some(a), None, None],
-        period_s: 0.001,
-        tolerance_mm: 0.01,
-    }
+    });
+    m
 }
 
 fn lines(points: &[Vec3], feed: f64) -> Vec<Move> {
@@ -45,7 +38,7 @@ fn lines(points: &[Vec3], feed: f64) -> Vec<Move> {
 }
 
 fn plan(moves: &[Move]) -> Vec<PlannedSegment> {
-    let mut p = Planner::new(mill());
+    let mut p = Planner::new(mill_with_a());
     let mut out = Vec::new();
     for m in moves {
         p.push(m, &mut out).unwrap();
@@ -419,7 +412,7 @@ fn a_long_run_is_streamed_in_bounded_memory() {
     // run never holds much more than its drop threshold.
     let pts = rounded_circle(3600, 4, 20.0);
     let moves = lines(&pts, 6000.0);
-    let mut p = Planner::new(mill());
+    let mut p = Planner::new(mill_with_a());
     let mut out = Vec::new();
     let mut most = 0;
     for (i, m) in moves.iter().enumerate() {
