@@ -7,8 +7,8 @@
 //! formats and does I/O, so it must run outside the real-time cycle (on a copy of the
 //! ring, or while the cycle is stopped).
 
-use crate::MAX_AXES;
 use crate::safety::SafetyState;
+use crate::{MAX_AXES, PerAxis};
 use kerf_geom::AXIS_NAMES;
 use std::io::Write;
 
@@ -23,15 +23,15 @@ pub struct CycleRecord {
     /// Time of the cycle, s (the cycle's clock, simulated or real).
     pub time_s: f64,
     /// Commanded position per axis.
-    pub commanded: [f64; MAX_AXES],
+    pub commanded: PerAxis<f64>,
     /// Actual position per axis.
-    pub actual: [f64; MAX_AXES],
+    pub actual: PerAxis<f64>,
     /// Following error per axis (commanded − actual as the drive or safety layer saw it).
-    pub following_error: [f64; MAX_AXES],
+    pub following_error: PerAxis<f64>,
     /// CiA 402 controlword (0x6040) sent to each drive.
-    pub controlword: [u16; MAX_AXES],
+    pub controlword: PerAxis<u16>,
     /// CiA 402 statusword (0x6041) read from each drive.
-    pub statusword: [u16; MAX_AXES],
+    pub statusword: PerAxis<u16>,
     /// State of the safety layer.
     pub state: SafetyState,
 }
@@ -73,13 +73,13 @@ pub struct Recorder {
     /// Records held (≤ capacity).
     len: usize,
     /// Axes written to the CSV (those the machine has).
-    axes: [bool; MAX_AXES],
+    axes: PerAxis<bool>,
 }
 
 impl Recorder {
     /// A ring of `seconds / period_s` cycles (rounded to the nearest), for the axes marked
     /// in `axes`. Allocates the whole ring.
-    pub fn new(seconds: f64, period_s: f64, axes: [bool; MAX_AXES]) -> Result<Self, RecorderError> {
+    pub fn new(seconds: f64, period_s: f64, axes: PerAxis<bool>) -> Result<Self, RecorderError> {
         let cycles = (seconds / period_s).round();
         if !(seconds > 0.0 && period_s > 0.0 && cycles.is_finite() && cycles >= 1.0) {
             return Err(RecorderError::Size { seconds, period_s });
@@ -91,7 +91,7 @@ impl Recorder {
     }
 
     /// A ring of exactly `capacity` (at least 1) cycles.
-    pub fn with_capacity(capacity: usize, axes: [bool; MAX_AXES]) -> Self {
+    pub fn with_capacity(capacity: usize, axes: PerAxis<bool>) -> Self {
         Self {
             ring: vec![CycleRecord::default(); capacity.max(1)].into_boxed_slice(),
             next: 0,

@@ -19,7 +19,7 @@
 //! offending setpoint never reaches a drive. Only [`Safety::reset`] clears the fault, and
 //! only once its cause is gone.
 
-use crate::MAX_AXES;
+use crate::{MAX_AXES, PerAxis};
 use kerf_geom::{AXIS_NAMES, AxisLimits};
 
 /// Default allowed excess of a setpoint's velocity or acceleration over the axis limit:
@@ -65,7 +65,7 @@ impl AxisSafety {
 pub struct SafetyConfig {
     /// Per-axis configuration in the order X, Y, Z, A, B, C; `None` for an axis the
     /// machine does not have (its command is passed through unchecked).
-    pub axes: [Option<AxisSafety>; MAX_AXES],
+    pub axes: PerAxis<Option<AxisSafety>>,
     /// Cycle period, s.
     pub period_s: f64,
     /// Allowed relative excess of velocity and acceleration over the axis limits
@@ -78,7 +78,7 @@ pub struct SafetyConfig {
 
 impl SafetyConfig {
     /// A configuration with the default margin and stall count.
-    pub fn new(axes: [Option<AxisSafety>; MAX_AXES], period_s: f64) -> Self {
+    pub fn new(axes: PerAxis<Option<AxisSafety>>, period_s: f64) -> Self {
         Self {
             axes,
             period_s,
@@ -255,11 +255,11 @@ pub enum ResetRefused {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CycleInput {
     /// The motion core's new setpoint per axis, or `None` for a missed cycle.
-    pub setpoint: Option<[f64; MAX_AXES]>,
+    pub setpoint: Option<PerAxis<f64>>,
     /// The drives' actual positions, read this cycle (units as the axis).
-    pub actual: [f64; MAX_AXES],
+    pub actual: PerAxis<f64>,
     /// Whether each drive reports a fault.
-    pub drive_fault: [bool; MAX_AXES],
+    pub drive_fault: PerAxis<bool>,
     /// Program line of the setpoint (for the fault report).
     pub line: u32,
 }
@@ -295,7 +295,7 @@ pub struct Verdict {
     /// State after this cycle.
     pub state: SafetyState,
     /// Position to send to each drive this cycle.
-    pub command: [f64; MAX_AXES],
+    pub command: PerAxis<f64>,
     /// The fault that tripped in this very cycle, if any (it is also latched).
     pub tripped: Option<Fault>,
 }
@@ -410,9 +410,9 @@ impl StopProfile {
 pub struct Safety {
     config: SafetyConfig,
     /// Commands sent in the last three cycles (newest first).
-    out: [[f64; MAX_AXES]; 3],
+    out: [PerAxis<f64>; 3],
     /// Last two setpoints received from the stream (newest first).
-    stream: [[f64; MAX_AXES]; 2],
+    stream: [PerAxis<f64>; 2],
     missed: u32,
     fault: Option<Fault>,
     stops: [StopProfile; MAX_AXES],
@@ -424,7 +424,7 @@ pub struct Safety {
 
 impl Safety {
     /// A safety layer at rest at `position` (the drives' actual positions when enabled).
-    pub fn new(config: SafetyConfig, position: [f64; MAX_AXES]) -> Result<Self, SafetyConfigError> {
+    pub fn new(config: SafetyConfig, position: PerAxis<f64>) -> Result<Self, SafetyConfigError> {
         let pos_finite = |v: f64| v.is_finite() && v > 0.0;
         if !pos_finite(config.period_s) {
             return Err(SafetyConfigError::Period(config.period_s));
@@ -497,7 +497,7 @@ impl Safety {
     }
 
     /// The command sent in the last cycle.
-    pub fn command(&self) -> [f64; MAX_AXES] {
+    pub fn command(&self) -> PerAxis<f64> {
         self.out[0]
     }
 

@@ -26,13 +26,13 @@
 //!
 //! Nothing here allocates after [`DriveStage::new`].
 
-use crate::MAX_AXES;
 use crate::cia402::Enabler;
 use crate::cia402::{Drive, DriveState, EnablerStatus, MODE_CYCLIC_SYNC_POSITION, Request, Scale};
 use crate::recorder::{CycleRecord, Recorder};
 use crate::safety::{
     Check, CycleInput, Fault, ResetRefused, Safety, SafetyConfig, SafetyConfigError, SafetyState,
 };
+use crate::{MAX_AXES, PerAxis};
 
 /// Records copied from the black box into a dump per cycle: a few microseconds of copying.
 pub const DUMP_CHUNK: usize = 256;
@@ -76,7 +76,7 @@ impl Phase {
 pub struct StageInput {
     /// The motion core's new setpoint (X, Y, Z mm, A, B, C deg), or `None` for a missed
     /// cycle.
-    pub setpoint: Option<[f64; MAX_AXES]>,
+    pub setpoint: Option<PerAxis<f64>>,
     /// Program line of the setpoint (for fault reports).
     pub line: u32,
     /// Time of the cycle, s (for the black box).
@@ -92,14 +92,14 @@ pub struct StageOutput {
     pub state: SafetyState,
     /// The position sent to each drive this cycle (the hold position while a drive is not
     /// enabled), units.
-    pub command: [f64; MAX_AXES],
+    pub command: PerAxis<f64>,
     /// The actual positions read this cycle, units.
-    pub actual: [f64; MAX_AXES],
+    pub actual: PerAxis<f64>,
     /// The fault latched in this very cycle, if any.
     pub tripped: Option<Fault>,
     /// `Some(position)` in the cycle the drives became enabled (at start or after a
     /// reset): the motion core must rest there from now on.
-    pub enabled_at: Option<[f64; MAX_AXES]>,
+    pub enabled_at: Option<PerAxis<f64>>,
     /// The outcome of a reset that ended in this cycle.
     pub reset: Option<Result<(), ResetRefused>>,
 }
@@ -150,7 +150,7 @@ enum AxisReset {
 /// The drive stage of the real-time cycle. See the module documentation.
 #[derive(Debug)]
 pub struct DriveStage<D: Drive> {
-    axes: [Option<AxisDrive<D>>; MAX_AXES],
+    axes: PerAxis<Option<AxisDrive<D>>>,
     enablers: [Enabler; MAX_AXES],
     safety: Safety,
     config: SafetyConfig,
@@ -166,10 +166,10 @@ pub struct DriveStage<D: Drive> {
     /// A trip whose dump is taken once the quick stop is at rest.
     trip_dump: Option<Fault>,
     /// The command of the previous cycle (the one the drives have been tracking).
-    previous_command: [f64; MAX_AXES],
+    previous_command: PerAxis<f64>,
     sequence: u64,
     disable: bool,
-    error_codes: [u16; MAX_AXES],
+    error_codes: PerAxis<u16>,
 }
 
 /// A stage that cannot be built.
@@ -186,7 +186,7 @@ pub enum StageError {
     Position(char),
 }
 
-fn read_actual<D: Drive>(axes: &[Option<AxisDrive<D>>; MAX_AXES]) -> [f64; MAX_AXES] {
+fn read_actual<D: Drive>(axes: &PerAxis<Option<AxisDrive<D>>>) -> PerAxis<f64> {
     let mut actual = [0.0; MAX_AXES];
     for (a, ax) in actual.iter_mut().zip(axes.iter()) {
         if let Some(ax) = ax {
@@ -202,7 +202,7 @@ impl<D: Drive> DriveStage<D> {
     /// here, twice: the live ring and the spare a dump is copied into). Sets every
     /// drive's mode of operation to cyclic synchronous position and starts enabling.
     pub fn new(
-        mut axes: [Option<AxisDrive<D>>; MAX_AXES],
+        mut axes: PerAxis<Option<AxisDrive<D>>>,
         config: SafetyConfig,
         recorder_capacity: usize,
     ) -> Result<Self, StageError> {
@@ -271,12 +271,12 @@ impl<D: Drive> DriveStage<D> {
     }
 
     /// The position sent to the drives in the last cycle.
-    pub fn command(&self) -> [f64; MAX_AXES] {
+    pub fn command(&self) -> PerAxis<f64> {
         self.previous_command
     }
 
     /// The error code (0x603F) each drive reported in the last cycle.
-    pub fn error_codes(&self) -> [u16; MAX_AXES] {
+    pub fn error_codes(&self) -> PerAxis<u16> {
         self.error_codes
     }
 
@@ -514,7 +514,7 @@ impl<D: Drive> DriveStage<D> {
     /// cycles).
     fn enable_failure(
         &self,
-        status: &[Option<EnablerStatus>; MAX_AXES],
+        status: &PerAxis<Option<EnablerStatus>>,
     ) -> Option<(Check, usize, f64, f64)> {
         for (i, s) in status.iter().enumerate() {
             let timeout = self.axes[i]
@@ -534,7 +534,7 @@ impl<D: Drive> DriveStage<D> {
     /// Starts a reset; `Some(outcome)` when it ends at once.
     fn start_reset(
         &mut self,
-        status: &[Option<EnablerStatus>; MAX_AXES],
+        status: &PerAxis<Option<EnablerStatus>>,
     ) -> Option<Result<(), ResetRefused>> {
         if self.safety.fault().is_none() {
             return Some(Ok(()));
@@ -580,8 +580,8 @@ impl<D: Drive> DriveStage<D> {
     /// One cycle of a reset; `Some(outcome)` when it ends.
     fn advance_reset(
         &mut self,
-        status: &[Option<EnablerStatus>; MAX_AXES],
-        actual: &[f64; MAX_AXES],
+        status: &PerAxis<Option<EnablerStatus>>,
+        actual: &PerAxis<f64>,
     ) -> Option<Result<(), ResetRefused>> {
         for i in 0..MAX_AXES {
             match (self.resets[i], status[i]) {
@@ -675,15 +675,15 @@ impl<D: Drive> DriveStage<D> {
 /// What a cycle reads from the drives before it checks anything, per axis.
 struct DriveReadings {
     /// Actual positions, mm or deg.
-    actual: [f64; MAX_AXES],
+    actual: PerAxis<f64>,
     /// The drive reports Fault or Fault reaction active.
-    drive_fault: [bool; MAX_AXES],
+    drive_fault: PerAxis<bool>,
     /// The enable sequences' controlwords.
-    controlwords: [u16; MAX_AXES],
+    controlwords: PerAxis<u16>,
     /// The drives' statuswords.
-    statuswords: [u16; MAX_AXES],
+    statuswords: PerAxis<u16>,
     /// The target an enable sequence holds the drive at, counts.
-    hold: [Option<i32>; MAX_AXES],
+    hold: PerAxis<Option<i32>>,
     /// The enable sequences' status.
-    status: [Option<EnablerStatus>; MAX_AXES],
+    status: PerAxis<Option<EnablerStatus>>,
 }
