@@ -611,3 +611,25 @@ fn a_fault_names_check_axis_value_limit_and_line() {
     assert!(text.starts_with("soft_limit on axis X: 500.0"), "{text}");
     assert!(text.contains("against limit 500 (line 42"), "{text}");
 }
+
+/// The checks' numbers on the wire are PROTOCOL.md's `SAFETY_*` (1 velocity … 8 drive
+/// disabled, 0 none), in the order of `Check::ALL`, each with its own name.
+#[test]
+fn check_codes_are_the_protocols_numbers() {
+    let expected = [
+        (Check::Velocity, 1, "velocity"),
+        (Check::Acceleration, 2, "acceleration"),
+        (Check::SoftLimit, 3, "soft_limit"),
+        (Check::FollowingError, 4, "following_error"),
+        (Check::StreamStall, 5, "stream_stall"),
+        (Check::DriveFault, 6, "drive_fault"),
+        (Check::EnableTimeout, 7, "enable_timeout"),
+        (Check::DriveDisabled, 8, "drive_disabled"),
+    ];
+    assert_eq!(Check::ALL.len(), expected.len());
+    for (check, (want, code, name)) in Check::ALL.iter().zip(expected) {
+        assert_eq!(*check, want);
+        assert_eq!(check.code(), code, "{check:?}");
+        assert_eq!(check.name(), name, "{check:?}");
+    }
+}
