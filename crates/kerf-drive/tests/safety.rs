@@ -633,3 +633,18 @@ fn check_codes_are_the_protocols_numbers() {
         assert_eq!(check.name(), name, "{check:?}");
     }
 }
+
+/// The safety layer's states by the names the black box's `state` column and DRIVES.md
+/// use.
+#[test]
+fn safety_states_have_the_documented_names() {
+    let names = [
+        (SafetyState::Running, "running"),
+        (SafetyState::Holding, "holding"),
+        (SafetyState::QuickStop, "quick_stop"),
+        (SafetyState::Stopped, "stopped"),
+    ];
+    for (state, name) in names {
+        assert_eq!(state.name(), name, "{state:?}");
+    }
+}
