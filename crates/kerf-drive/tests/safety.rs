@@ -316,6 +316,8 @@ fn a_drive_fault_on_one_axis_stops_all() {
     let v = r.step(Some(sp));
     let f = v.tripped.expect("drive fault trips");
     assert_eq!((f.check, f.axis), (Check::DriveFault, Some(2)));
+    // Cycles count from 0 at construction: the stream's cycles, then this one.
+    assert_eq!(f.cycle, stream.len() as u64);
     let mut cmds = vec![before, v.command];
     for _ in 0..400 {
         sp = sp.map(|x| x + 0.05);
@@ -375,6 +377,7 @@ fn quick_stop_from_full_speed_is_within_limits_and_takes_the_analytic_time() {
         r.fault[1] = true;
         let mut sp = r.s.command();
         let mut rest_at = None;
+        let mut stopped_at = None;
         for k in 1..=400 {
             sp[0] += vmax * T;
             let v = r.step(Some(sp));
@@ -382,8 +385,20 @@ fn quick_stop_from_full_speed_is_within_limits_and_takes_the_analytic_time() {
             if rest_at.is_none() && v.command[0] == xs[xs.len() - 1] {
                 rest_at = Some(k - 1);
             }
+            // QuickStop while the axis ramps down, Stopped from when it is at rest.
+            match (stopped_at, v.state) {
+                (None, SafetyState::QuickStop) => {}
+                (None, SafetyState::Stopped) => stopped_at = Some(k),
+                (Some(_), SafetyState::Stopped) => {}
+                (_, state) => panic!("cycle {k} of the stop: {state:?}"),
+            }
             xs.push(v.command[0]);
         }
+        let stopped_s = stopped_at.expect("stops") as f64 * T;
+        assert!(
+            (stopped_s - t_stop).abs() <= 2.0 * T,
+            "Stopped after {stopped_s} s of a {t_stop} s stop"
+        );
         let (vm, am, jm) = max_diffs(&xs);
         assert!(vm <= vmax * 1.01, "v {vm}");
         assert!(am <= a * 1.01, "a {am}");
@@ -647,4 +662,52 @@ fn safety_states_have_the_documented_names() {
     for (state, name) in names {
         assert_eq!(state.name(), name, "{state:?}");
     }
+}
+
+/// `rebase` (a drive enabled again away from its last command) is taken only while a
+/// fault is latched and the quick stop is over: never while running, never during the
+/// quick stop, never for an axis beyond the sixth or a non-finite position.
+#[test]
+fn rebase_is_taken_only_in_a_stopped_fault() {
+    let mut r = Rig::new(config(mill_axis()));
+    let stream = ramp_stream(500.0, 50.0, 5, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    for sp in &stream {
+        assert!(r.step(Some(*sp)).tripped.is_none());
+    }
+    assert!(!r.s.rebase(0, 1.0), "rebased while running");
+    r.fault[1] = true;
+    let last = stream[stream.len() - 1];
+    assert!(r.step(Some(last)).tripped.is_some());
+    assert_eq!(r.s.state(), SafetyState::QuickStop);
+    assert!(!r.s.rebase(0, 1.0), "rebased during the quick stop");
+    for _ in 0..400 {
+        r.step(Some(last));
+    }
+    assert_eq!(r.s.state(), SafetyState::Stopped);
+    assert!(!r.s.rebase(MAX_AXES, 1.0));
+    assert!(!r.s.rebase(0, f64::NAN));
+    assert!(r.s.rebase(0, 12.5));
+    assert_eq!(r.s.command()[0], 12.5);
+}
+
+/// A stop profile's state: during the stop the velocity is between the start's and 0,
+/// from its end on the axis is at rest, velocity and acceleration exactly 0.
+#[test]
+fn a_stop_profile_moves_until_its_end_then_rests() {
+    let l = AxisLimits {
+        velocity_units_s: 100.0,
+        acceleration_units_s2: 1000.0,
+        jerk_units_s3: 50_000.0,
+    };
+    // 50 mm/s at constant speed: trapezoidal, 0.05 + 0.02 = 0.07 s.
+    let p = StopProfile::new(0.0, 50.0, 0.0, &l);
+    let d = p.duration_s();
+    assert!((d - 0.07).abs() < 1e-9, "{d}");
+    let (_, v_mid, a_mid) = p.state(d / 2.0);
+    assert!(v_mid > 0.0 && v_mid < 50.0, "{v_mid}");
+    assert!(a_mid < 0.0, "{a_mid}");
+    let (x_end, v_end, a_end) = p.state(d + 0.01);
+    assert_eq!((v_end, a_end), (0.0, 0.0));
+    // v·t/2: the velocity falls point-symmetrically.
+    assert!((x_end - 50.0 * 0.07 / 2.0).abs() < 1e-9, "{x_end}");
 }
