@@ -1218,3 +1218,21 @@ fn drive_side_mistakes_are_named() {
         "{e}"
     );
 }
+
+/// The largest travel that fits the drive's 32-bit position is accepted: ±4 mm at
+/// 536,870,911.75 counts/mm is exactly 2,147,483,647 counts; one count/mm more is not.
+#[test]
+fn a_travel_of_exactly_the_32_bit_range_is_accepted() {
+    let text = MINIMAL.replacen(
+        "min_mm = -10.0\nmax_mm = 10.0\n",
+        "min_mm = -4.0\nmax_mm = 4.0\n",
+        1,
+    );
+    assert_ne!(text, MINIMAL);
+    let fits = format!("{text}[axes.x.drive]\ncounts_per_mm = 536870911.75\n");
+    assert!(Config::from_toml_str(&fits, "m.toml").is_ok());
+    let e = err(&format!(
+        "{text}[axes.x.drive]\ncounts_per_mm = 536870912.75\n"
+    ));
+    assert!(e.contains("beyond the drive's 32-bit position"), "{e}");
+}
