@@ -1236,3 +1236,20 @@ fn a_travel_of_exactly_the_32_bit_range_is_accepted() {
     ));
     assert!(e.contains("beyond the drive's 32-bit position"), "{e}");
 }
+
+/// Without `substeps`, a simulated drive's integration is sized for the configured
+/// period: 1000 Hz, ζ 10 needs h ≤ 7.94 µs (see above), so at `period_us = 5000` at
+/// least 5000 / 7.94 → 630 substeps, and the drives' own check accepts the machine.
+#[test]
+fn substeps_are_sized_for_the_configured_period() {
+    let c = Config::from_toml_str(
+        &format!(
+            "period_us = 5000\n{MINIMAL}[axes.y.drive]\nbandwidth_hz = 1000.0\ndamping = 10.0\n"
+        ),
+        "m.toml",
+    )
+    .expect("valid");
+    let substeps = c.drive.axes[1].expect("a drive on Y").sim.substeps;
+    assert!((630..=640).contains(&substeps), "{substeps}");
+    assert!(c.check_drives().is_ok());
+}
