@@ -224,7 +224,7 @@ impl Curve {
                 } else if s <= 0.0 {
                     h.start
                 } else {
-                    h.point_at_angle(h.sweep_rad * s / h.length_mm)
+                    h.point_at_angle(h.angle_at(s))
                 }
             }
             Curve::Transition(t) => t.point_at(s),
@@ -301,7 +301,7 @@ impl Curve {
                 // r (e1 cos(θ0 + φ) + e2 sin(θ0 + φ)) − r (e1 cos θ0 + e2 sin θ0), the rise
                 // per radian is unchanged and so is the drift per radian; so
                 // p'(φ) = p(θ0) + [p(θ0 + φ) − p(θ0)] = p(θ0 + φ).
-                let th0 = h.sweep_rad * s0 / h.length_mm;
+                let th0 = h.angle_at(s0);
                 let frac = (s1 - s0) / h.length_mm;
                 let (sin, cos) = th0.sin_cos();
                 let e1 = h.e1 * cos + h.e2 * sin;
@@ -341,6 +341,20 @@ pub fn line_distance(start: &Vec3, end: &Vec3, dir: &Vec3, length_mm: f64, p: &V
 }
 
 impl Helix {
+    /// The angle at arc length `s`: `sweep · s / length`, or `sweep · (s / length)` where
+    /// the product overflows (an arc of so many turns that its sweep times its length is
+    /// beyond f64, which would make the angle infinite and the point NaN). Every other arc
+    /// gets the first, bit for bit.
+    #[inline]
+    pub fn angle_at(&self, s: f64) -> f64 {
+        let theta = self.sweep_rad * s / self.length_mm;
+        if theta.is_finite() {
+            theta
+        } else {
+            self.sweep_rad * (s / self.length_mm)
+        }
+    }
+
     /// Point at swept angle `theta` from the start (signed like `sweep_rad`): the point the
     /// motion follows, drift included (see [`Helix`]).
     #[inline]

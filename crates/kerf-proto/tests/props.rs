@@ -248,3 +248,30 @@ fn seeds_are_valid() {
         check(&m);
     }
 }
+
+/// The arc this property once found: a 1 µm-scale circle swept 1.34e156 rad (2e155
+/// turns). Its sweep times its length overflows f64; the curve still evaluates to finite
+/// points at every arc length, ending exactly at its end.
+#[test]
+fn an_arc_of_absurdly_many_turns_evaluates_to_finite_points() {
+    let m = MoveMsg::from_move(
+        1,
+        1,
+        &Move {
+            line: 30,
+            rapid: false,
+            path: Path::Arc(Arc {
+                start: Vec3::new(3.0, -4.0, 5.0),
+                end: Vec3::new(3.000909297426826, -3.9985838531634528, 5.0),
+                center: Vec3::new(3.0, -3.999, 5.0),
+                axis: Vec3::z(),
+                sweep_rad: 1.343155541070819e156,
+            }),
+            feed_mm_min: Some(1000.0),
+            abc_deg: None,
+            corner: CornerMode::ExactStop,
+        },
+    );
+    assert!(Resolved::try_from(&m).is_ok(), "the arc is consistent");
+    check(&m);
+}
