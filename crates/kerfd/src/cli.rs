@@ -4,7 +4,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use clap::{CommandFactory, Parser};
+use clap::Parser;
 pub use clap_complete::Shell;
 
 /// The shells completions are generated for: bash, zsh and fish.
@@ -55,11 +55,4 @@ pub struct Args {
     /// Packaging: print the shell completion script (bash, zsh or fish) and exit.
     #[arg(long, hide = true, value_name = "SHELL")]
     pub completions: Option<Shell>,
-}
-
-impl Args {
-    /// The clap definition of `kerfd`, for its man page and completions.
-    pub fn definition() -> clap::Command {
-        Self::command()
-    }
 }

@@ -14,7 +14,7 @@
 use std::process::ExitCode;
 use std::time::Duration;
 
-use clap::Parser;
+use clap::{CommandFactory, Parser};
 use kerfd::cli::Args;
 
 /// How often the main thread looks at signals and feeds the watchdog.
@@ -51,7 +51,7 @@ fn packaging(args: &Args) -> Option<ExitCode> {
     use std::io::Write;
     let shell = args.completions?;
     let mut out = Vec::new();
-    kerfd::cli::write_completions(Args::definition(), shell, &mut out);
+    kerfd::cli::write_completions(Args::command(), shell, &mut out);
     Some(match std::io::stdout().lock().write_all(&out) {
         Ok(()) => ExitCode::SUCCESS,
         Err(_) => ExitCode::from(1),

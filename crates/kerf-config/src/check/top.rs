@@ -1,6 +1,8 @@
 //! The whole configuration checked, key group by key group: machine, daemon, dialect,
 //! period, tolerance, axes, drives, G-code settings.
 
+use std::path::Path;
+
 use kerf_drive::sim::SimConfig;
 use kerf_gcode::{Dialect, Settings};
 
@@ -108,9 +110,9 @@ impl Checker<'_> {
             self.offset("g59_3", &w.g59_3)?,
         ];
 
-        let tools = self.tools(&raw)?;
         let g = &raw.gcode;
         let tool_table = g.tool_table.as_ref().map(|f| self.dir.join(f.get_ref()));
+        let tools = self.tools(&raw, tool_table.as_deref())?;
         let subroutine_path = match &g.subroutine_path {
             None => Vec::new(),
             Some(list) => list.get_ref().iter().map(|d| self.dir.join(d)).collect(),
@@ -200,10 +202,14 @@ impl Checker<'_> {
         })
     }
 
-    /// `[[tools]]` and the tool table `gcode.tool_table` names: every tool once.
-    fn tools(&self, raw: &RawConfig) -> Result<Vec<ToolEntry>, ConfigError> {
+    /// `[[tools]]` and the tool table `gcode.tool_table` names (at `tool_table`, resolved
+    /// against the configuration's directory): every tool once.
+    fn tools(
+        &self,
+        raw: &RawConfig,
+        tool_table: Option<&Path>,
+    ) -> Result<Vec<ToolEntry>, ConfigError> {
         let g = &raw.gcode;
-        let tool_table = g.tool_table.as_ref().map(|f| self.dir.join(f.get_ref()));
         let mut tools: Vec<ToolEntry> = Vec::with_capacity(raw.tools.len());
         for t in &raw.tools {
             let number = match u32::try_from(*t.number.get_ref()) {
@@ -241,7 +247,7 @@ impl Checker<'_> {
             });
         }
 
-        if let (Some(path), Some(f)) = (&tool_table, &g.tool_table) {
+        if let (Some(path), Some(f)) = (tool_table, &g.tool_table) {
             let table = tooltable::load_tool_table(path, &path.display().to_string()).map_err(
                 |e| match e {
                     ConfigError::Io { source, .. } => self.error(

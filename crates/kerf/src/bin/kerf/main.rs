@@ -230,7 +230,7 @@ fn main() -> ExitCode {
             io::stdout().lock().write_all(&out).map_err(Failure::from)
         }
         Command::Man { dir } => kerf::clidoc::write_man_pages(Cli::command(), &dir)
-            .and_then(|_| kerf::clidoc::write_man_pages(kerfd::cli::Args::definition(), &dir))
+            .and_then(|_| kerf::clidoc::write_man_pages(kerfd::cli::Args::command(), &dir))
             .map(|_| ())
             .map_err(|e| Failure::Error(format!("{}: error: {e}", dir.display()))),
     };
