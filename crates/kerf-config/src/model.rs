@@ -1,5 +1,6 @@
 //! The validated configuration: plain records, nothing downstream re-checks them.
 
+use kerf_geom::PerAxis;
 use std::path::PathBuf;
 
 use kerf_drive::MAX_AXES;
@@ -216,9 +217,9 @@ pub struct Config {
     /// a block starting with `/` runs; on, it is skipped).
     pub block_delete: bool,
     /// `gcode.g28_home_mm_deg`: the G28 position at start, machine X Y Z mm, A B C deg.
-    pub g28_home_mm_deg: [f64; 6],
+    pub g28_home_mm_deg: PerAxis<f64>,
     /// `gcode.g30_home_mm_deg`: the G30 position at start.
-    pub g30_home_mm_deg: [f64; 6],
+    pub g30_home_mm_deg: PerAxis<f64>,
     /// `gcode.parameter_file`: LinuxCNC's persistent numbered parameters, read at program
     /// start ([`Config::program_settings`]) and written by `kerf run` after a program that
     /// ended normally.

@@ -21,9 +21,4 @@ pub mod safety;
 pub mod sim;
 pub mod stage;
 
-/// The most axes a machine has: X, Y, Z, A, B, C.
-pub const MAX_AXES: usize = 6;
-
-/// One value per axis, in the order X, Y, Z, A, B, C (lengths in mm for X, Y, Z and
-/// degrees for A, B, C unless the name says counts): the index is the axis.
-pub type PerAxis<T> = [T; MAX_AXES];
+pub use kerf_geom::{MAX_AXES, PerAxis};

@@ -3,6 +3,7 @@
 //! [`State`] is the interpreter state carried from block to block; a block's words are
 //! gathered in a [`Block`] (`block`) and executed stage by stage (`exec`).
 
+use kerf_geom::PerAxis;
 use kerf_geom::{CornerMode, Vec3};
 
 use crate::arc::Plane;
@@ -83,11 +84,11 @@ pub(crate) struct State {
     tool_length_on: bool,
     /// The tool offsets in effect (G43 family): X, Y, Z mm, A, B, C degrees (LinuxCNC
     /// applies every axis of the entry; the other controls Z only).
-    tool_offset: [f64; 6],
+    tool_offset: PerAxis<f64>,
     /// LinuxCNC: the tool offsets in effect when the last move was made. rs274 reads its
     /// position back after a tool change from the last point it printed, which follows the
     /// moves and the work offsets but not the tool offsets changed since.
-    tool_offset_at_move: [f64; 6],
+    tool_offset_at_move: PerAxis<f64>,
     /// LinuxCNC: an M6 ran in the block being executed.
     m6_in_block: bool,
     /// LinuxCNC: after a tool change whose read-back moved the current point (see

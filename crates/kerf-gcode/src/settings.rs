@@ -1,5 +1,6 @@
 //! The machine settings the interpreter needs and the entries of the tool table.
 
+use kerf_geom::PerAxis;
 /// One entry of the tool table.
 ///
 /// LinuxCNC applies every offset of the entry with G43 (X, Y, Z, A, B, C); the other
@@ -29,7 +30,7 @@ pub struct Tool {
 
 impl Tool {
     /// The offsets of the entry as LinuxCNC applies them: X, Y, Z mm, A, B, C degrees.
-    pub fn offsets_mm_deg(&self) -> [f64; 6] {
+    pub fn offsets_mm_deg(&self) -> PerAxis<f64> {
         let [x, y] = self.offset_xy_mm;
         let [a, b, c] = self.offset_abc_deg;
         [x, y, self.length_mm, a, b, c]
@@ -50,7 +51,7 @@ pub struct Settings {
     pub arc_tolerance_rel: f64,
     /// Where the machine is when the program starts: X, Y, Z machine mm, A, B, C degrees
     /// (the origin by default; `kerf run` gives the daemon's position).
-    pub start_mm_deg: [f64; 6],
+    pub start_mm_deg: PerAxis<f64>,
     /// LinuxCNC: directories searched, in order, for the file `NAME.ngc` of a subroutine
     /// `o<NAME> call` that the program does not define (`[gcode] subroutine_path`).
     pub subroutine_path: Vec<std::path::PathBuf>,
@@ -65,9 +66,9 @@ pub struct Settings {
     pub max_loop_iterations: u64,
     /// LinuxCNC: the G28 and G30 stored positions at program start (parameters
     /// #5161–#5166 and #5181–#5186), machine mm and degrees.
-    pub g28_home_mm_deg: [f64; 6],
+    pub g28_home_mm_deg: PerAxis<f64>,
     /// See [`Settings::g28_home_mm_deg`].
-    pub g30_home_mm_deg: [f64; 6],
+    pub g30_home_mm_deg: PerAxis<f64>,
     /// LinuxCNC: numbered parameters restored at program start, after the values above
     /// (the persistent parameters #5161–#5390 of a parameter file, as LinuxCNC restores
     /// its `.var` file). Values in mm and degrees, Kerf's machine units. A number outside

@@ -29,6 +29,13 @@ use nalgebra::Vector3;
 /// A point or direction in machine space, millimetres.
 pub type Vec3 = Vector3<f64>;
 
+/// The most axes a machine has: X, Y, Z, A, B, C.
+pub const MAX_AXES: usize = 6;
+
+/// One value per axis, in the order X, Y, Z, A, B, C (lengths in mm for X, Y, Z and
+/// degrees for A, B, C unless the name says otherwise): the index is the axis.
+pub type PerAxis<T> = [T; MAX_AXES];
+
 /// A straight segment from `start` to `end`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Line {

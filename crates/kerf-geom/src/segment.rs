@@ -1,5 +1,6 @@
 //! [`PlannedSegment`]: the unit of work the planner hands to the motion core.
 
+use crate::PerAxis;
 use crate::{Curve, Transition, quintic};
 
 /// The motion core (`kerf-motion`) merges consecutive segments into one section while
@@ -144,7 +145,7 @@ impl PlannedSegment {
 
     /// Positions of all six axes at path parameter `s`.
     #[inline]
-    pub fn position_at(&self, s: f64, out: &mut [f64; 6]) {
+    pub fn position_at(&self, s: f64, out: &mut PerAxis<f64>) {
         if let (Some(c), Curve::Transition(t)) = (&self.abc_poly, &self.curve) {
             if s >= self.length_mm {
                 let e = t.end;
@@ -188,7 +189,7 @@ impl PlannedSegment {
     }
 
     /// Derivatives with respect to `s` of all six axes at `s`: (tangent, curvature).
-    pub fn derivatives_at(&self, s: f64) -> ([f64; 6], [f64; 6]) {
+    pub fn derivatives_at(&self, s: f64) -> (PerAxis<f64>, PerAxis<f64>) {
         let mut t = [0.0; 6];
         let mut k = [0.0; 6];
         if self.curve.length() > 0.0 {

@@ -108,6 +108,7 @@
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
+use kerf_geom::PerAxis;
 pub use kerf_geom::{
     AxisLimits, MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED,
     MachineLimits, PlannedSegment,
@@ -147,7 +148,7 @@ pub const COAST_BELOW_S: f64 = 1e-6;
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Setpoint {
     /// X, Y, Z (mm) and A, B, C (degrees).
-    pub position: [f64; 6],
+    pub position: PerAxis<f64>,
     /// Source line of the segment being run.
     pub line: u32,
     /// Index of the source move (program order), for deviation checks.

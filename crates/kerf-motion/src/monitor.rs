@@ -7,6 +7,7 @@
 //! row.
 
 use kerf_geom::MachineLimits;
+use kerf_geom::PerAxis;
 
 /// Allowed excess over a limit before [`LimitMonitor`] reports a fault: 1 %, the margin
 /// the invariants are stated with (finite differences at the period see a jerk-limited
@@ -113,9 +114,9 @@ pub struct LimitMonitor {
     /// `allowanceₙ / M` for n = 1, 2, 3.
     noise: [f64; 3],
     /// Lower bound of `M` per axis.
-    scale: [f64; 6],
+    scale: PerAxis<f64>,
     /// The last four positions, newest first.
-    hist: [[f64; 6]; 4],
+    hist: [PerAxis<f64>; 4],
     /// How many of `hist` are valid.
     len: usize,
     /// Setpoints checked so far.
@@ -154,7 +155,7 @@ impl LimitMonitor {
 
     /// A monitor for a stream that starts at rest at `position` (as `kerf sim` and the
     /// daemon do): the first setpoint is already checked against this rest.
-    pub fn at_rest(limits: &MachineLimits, position: &[f64; 6]) -> Self {
+    pub fn at_rest(limits: &MachineLimits, position: &PerAxis<f64>) -> Self {
         let mut m = LimitMonitor::new(limits);
         m.hist = [*position; 4];
         m.len = 4;
@@ -164,7 +165,7 @@ impl LimitMonitor {
     /// Raises the magnitude `M` of the rounding allowance to at least `scale[i]` on axis
     /// `i` (the largest |coordinate| of the machine's travel is a good choice: the
     /// geometry a position is computed from lies there).
-    pub fn with_position_scale(mut self, scale: [f64; 6]) -> Self {
+    pub fn with_position_scale(mut self, scale: PerAxis<f64>) -> Self {
         for (s, v) in self.scale.iter_mut().zip(scale) {
             *s = v.abs();
         }
@@ -181,7 +182,7 @@ impl LimitMonitor {
     /// violation with the lowest derivative that this setpoint breaks (velocity before
     /// acceleration before jerk; of several axes, the one with the largest ratio), and
     /// then keeps going if called again.
-    pub fn check(&mut self, position: &[f64; 6]) -> Result<(), LimitViolation> {
+    pub fn check(&mut self, position: &PerAxis<f64>) -> Result<(), LimitViolation> {
         self.hist.copy_within(0..3, 1);
         self.hist[0] = *position;
         self.len = (self.len + 1).min(4);

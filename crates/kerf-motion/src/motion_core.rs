@@ -1,6 +1,7 @@
 //! The motion core's state: [`MotionCore`] with its constructor, its read-only
 //! accessors, the ring-buffer indexing of its segment and section queues, and clearing.
 
+use kerf_geom::PerAxis;
 use kerf_geom::{PlannedSegment, Vec3};
 use rsruckig::prelude::*;
 
@@ -229,7 +230,7 @@ impl MotionCore {
 
     /// Sets the position the core rests at (only while idle); the first segment pushed
     /// should start there.
-    pub fn set_position(&mut self, position: [f64; 6]) {
+    pub fn set_position(&mut self, position: PerAxis<f64>) {
         if self.is_idle() {
             self.last.position = position;
         }
@@ -238,7 +239,7 @@ impl MotionCore {
     /// Drops the queue and every motion state at once and rests at `position`: for the
     /// drive side's quick stop, after which the drives stand where its jerk-limited ramp
     /// brought them, not where this core's path stop would have. Never allocates.
-    pub fn reset_to(&mut self, position: [f64; 6]) {
+    pub fn reset_to(&mut self, position: PerAxis<f64>) {
         self.clear();
         self.last = Setpoint {
             position,

@@ -3,6 +3,7 @@
 //! first fault.
 
 use kerf_geom::Move;
+use kerf_geom::PerAxis;
 use kerf_motion::Setpoint;
 use kerf_motion::monitor::{LimitMonitor, LimitViolation};
 use kerf_plan::MachineLimits;
@@ -57,7 +58,7 @@ impl Summary {
 /// What the offline runs measure from the setpoints (the daemon does not).
 pub(crate) struct Measure<'a> {
     period_s: f64,
-    hist: [[f64; 6]; 4],
+    hist: [PerAxis<f64>; 4],
     hist_len: usize,
     pub(crate) summary: Summary,
     /// The programmed moves, for the deviation check and the line being passed.

@@ -249,7 +249,7 @@ where
 mod tests {
     use super::*;
     use crate::tests::machine;
-    use kerf_geom::{Path, Vec3};
+    use kerf_geom::{Path, PerAxis, Vec3};
     use kerf_motion::monitor::*;
     use kerf_plan::Planner;
 
@@ -275,7 +275,7 @@ mod tests {
             Input::Move(mv(corner, Vec3::new(20.0, 2.0, 0.0))),
         ];
         let collect = |streamed: bool| {
-            let mut rows: Vec<[f64; 6]> = Vec::new();
+            let mut rows: Vec<PerAxis<f64>> = Vec::new();
             let opts = RunOptions::default();
             let sink = |_: f64, sp: &Setpoint| rows.push(sp.position);
             if streamed {
@@ -291,7 +291,7 @@ mod tests {
         // The arrival row and 100 periods of rest.
         assert!((101..=102).contains(&at_corner), "{at_corner}");
         // Without the dwell the corner is blended: no setpoint is exactly on it.
-        let mut blended: Vec<[f64; 6]> = Vec::new();
+        let mut blended: Vec<PerAxis<f64>> = Vec::new();
         run(
             [inputs[0], inputs[2]],
             &limits,

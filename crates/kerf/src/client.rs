@@ -15,7 +15,7 @@ use kerfd::ipc;
 pub use kerfd::fault_text::safety_text;
 
 /// How long a request may go unanswered before the daemon counts as absent.
-pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(1);
+pub(crate) const REQUEST_TIMEOUT: Duration = Duration::from_secs(1);
 
 /// How long the setpoint stream may stall before the daemon counts as gone: a hundred
 /// cycles at the longest period the daemon runs would be a second; the stream never
@@ -111,7 +111,7 @@ impl Client {
         &self.node
     }
 
-    /// Sends `command` and waits for the answer (at most [`REQUEST_TIMEOUT`]). A refusal
+    /// Sends `command` and waits for the answer (at most `REQUEST_TIMEOUT`). A refusal
     /// is returned as the response; only a missing answer is an error.
     pub fn request(&mut self, command: ControlCommand) -> Result<Response, ClientError> {
         self.request_within(command, REQUEST_TIMEOUT)
@@ -169,7 +169,7 @@ impl Client {
 }
 
 /// The name of a status state in `kerf status`.
-pub fn state_name(s: &StatusMsg) -> &'static str {
+pub(crate) fn state_name(s: &StatusMsg) -> &'static str {
     match s.state() {
         Ok(MachineState::Idle) => "idle",
         Ok(MachineState::Running) => "running",
@@ -185,7 +185,7 @@ const AXIS_KEYS: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
 
 /// The drive side's state by name: `enabling`, `running`, `holding`, `quick_stop`,
 /// `stopped`, `resetting` (`none` for a status without one).
-pub fn drives_name(s: &StatusMsg) -> &'static str {
+pub(crate) fn drives_name(s: &StatusMsg) -> &'static str {
     match s.drives {
         kerf_proto::DRIVES_ENABLING => "enabling",
         kerf_proto::DRIVES_RUNNING => "running",

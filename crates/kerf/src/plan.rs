@@ -197,7 +197,8 @@ where
 ///
 /// On error `out` is left as it was. A stream of items is written faster by one
 /// [`JsonLines`], which reuses the text of each move's end point as the next one's start.
-pub fn write_item(out: &mut Vec<u8>, item: &Item) -> Result<(), PlanOutputError> {
+#[cfg(test)]
+pub(crate) fn write_item(out: &mut Vec<u8>, item: &Item) -> Result<(), PlanOutputError> {
     JsonLines::new().write(out, item)
 }
 

@@ -27,6 +27,7 @@
 //! allowance): the first setpoint that breaks one stops the run with
 //! [`SimError::Fault`]; the CSV then ends with that setpoint.
 
+use kerf_geom::PerAxis;
 use std::collections::VecDeque;
 use std::fmt;
 use std::io::{self, BufWriter, Write};
@@ -203,13 +204,13 @@ pub struct Scan {
     pub estimated_s: f64,
     /// Where the program ends: X, Y, Z (mm) and A, B, C (degrees) of the last move's end
     /// (the origin for a program without motion). The run must end exactly there.
-    pub end: [f64; 6],
+    pub end: PerAxis<f64>,
 }
 
 impl Scan {
     /// `Err` with a message when a run that ended at rest at `position` did not reach the
     /// program's end (the motion stopped short: exit 0 must mean the program ran).
-    pub fn check_end(&self, position: &[f64; 6]) -> Result<(), String> {
+    pub fn check_end(&self, position: &PerAxis<f64>) -> Result<(), String> {
         let off = (0..6).any(|i| (position[i] - self.end[i]).abs() > 1e-9);
         if !off {
             return Ok(());
@@ -440,7 +441,7 @@ enum Feed<I> {
 fn run_checked<I, F>(
     feed: Feed<I>,
     limits: &MachineLimits,
-    scale: [f64; 6],
+    scale: PerAxis<f64>,
     options: &SimOptions,
     mut row: F,
 ) -> Result<SimSummary, SimError>
@@ -525,7 +526,7 @@ pub fn simulate<W: Write + Send>(
 /// velocity, acceleration and jerk against its limits over time, as an SVG or PNG image
 /// (for `kerf sim --plot FILE.svg|FILE.png`; see [`crate::sim_plot`]). The CSV is the same
 /// with or without a plot.
-pub fn simulate_and_plot<W: Write + Send>(
+pub(crate) fn simulate_and_plot<W: Write + Send>(
     moves: &[Move],
     config: &Config,
     options: &SimOptions,
@@ -543,7 +544,7 @@ pub fn simulate_and_plot<W: Write + Send>(
     )
 }
 
-/// [`simulate_and_plot`] over a stream of moves (the second pass of `kerf sim`):
+/// `simulate_and_plot` over a stream of moves (the second pass of `kerf sim`):
 /// `rotary_used` (from the first pass, [`Scan::rotary_used`]) decides the CSV header.
 /// Memory does not grow with the program, nor with the plot (it keeps at most 2,048
 /// columns of time and a thinned toolpath, see [`crate::sim_plot`]).

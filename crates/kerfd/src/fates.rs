@@ -27,7 +27,7 @@ pub struct Fate {
 
 impl Fate {
     /// `true` once nothing can change it any more.
-    pub fn is_final(&self) -> bool {
+    pub(crate) fn is_final(&self) -> bool {
         matches!(
             self.code,
             PROGRAM_FATE_FINISHED | PROGRAM_FATE_ABORTED | PROGRAM_FATE_REFUSED

@@ -18,7 +18,7 @@
 //! - iceoryx2's files can be used only by their owner ([`owner`]): a node or service that
 //!   cannot be created because files of the tree belong to another user is reported with
 //!   the path, the owner and what to do, never as iceoryx2's bare `InternalError`. The
-//!   daemon's nodes are the ones named `kerfd-…` ([`DAEMON_NODE_PREFIX`]).
+//!   daemon's nodes are the ones named `kerfd-…` (`DAEMON_NODE_PREFIX`).
 
 mod error;
 pub mod owner;
@@ -38,33 +38,33 @@ pub type Ipc = ipc::Service;
 
 /// Samples a setpoint subscriber buffers: 16 s of cycles at 1 kHz. A reader that falls
 /// further behind loses samples and reports the gap.
-pub const SETPOINT_BUFFER: usize = 16_384;
+pub(crate) const SETPOINT_BUFFER: usize = 16_384;
 
 /// Setpoint subscribers at once (recorders, `kerf run`, drive bridges).
-pub const MAX_SETPOINT_SUBSCRIBERS: usize = 8;
+pub(crate) const MAX_SETPOINT_SUBSCRIBERS: usize = 8;
 
 /// Planner processes that may hold the moves service open at once (one streams; the
 /// others are refused by the daemon's stream check until it ends).
-pub const MAX_MOVE_PUBLISHERS: usize = 4;
+pub(crate) const MAX_MOVE_PUBLISHERS: usize = 4;
 
 /// Extra slots in the moves subscriber's buffer beyond the window (the BEGIN and END
 /// messages and a margin).
-pub const MOVE_BUFFER_MARGIN: usize = 64;
+pub(crate) const MOVE_BUFFER_MARGIN: usize = 64;
 
 /// Clients of the control service at once.
-pub const MAX_CONTROL_CLIENTS: usize = 16;
+pub(crate) const MAX_CONTROL_CLIENTS: usize = 16;
 
 /// A node with iceoryx2's own signal handling off. iceoryx2's own log says only errors
 /// (unless `IOX2_LOG_LEVEL` says otherwise): its notice that no iceoryx2 configuration
 /// file exists is expected here, where the defaults are used on purpose.
 ///
 /// Segments that a process killed while creating a service left empty are removed first
-/// ([`remove_unfinished_segments`]): creating a node cleans up after dead nodes, and
+/// (`remove_unfinished_segments`): creating a node cleans up after dead nodes, and
 /// opening such a segment there would wait forever.
 ///
 /// A node that cannot be created because files of the iceoryx2 tree belong to another
-/// user says which, whose, and what to do ([`owner::blocked_tree_message`]). The daemon's
-/// first node ([`DAEMON_FIRST_NODE`]) also warns, once at start, of such files that did
+/// user says which, whose, and what to do (`owner::blocked_tree_message`). The daemon's
+/// first node (`DAEMON_FIRST_NODE`) also warns, once at start, of such files that did
 /// not stop it (a dead root process's node it cannot clean up, for instance).
 pub fn node(name: &str) -> Result<Node<ipc::Service>, IpcError> {
     set_log_level_from_env_or(LogLevel::Error);
@@ -97,15 +97,15 @@ pub fn node(name: &str) -> Result<Node<ipc::Service>, IpcError> {
 
 /// The names of the daemon's nodes start with this (`kerfd-control`, `kerfd-planning`,
 /// `kerfd-publish`); clients' do not.
-pub const DAEMON_NODE_PREFIX: &str = "kerfd-";
+pub(crate) const DAEMON_NODE_PREFIX: &str = "kerfd-";
 
 /// The daemon's first node, created once at its start.
-pub const DAEMON_FIRST_NODE: &str = "kerfd-control";
+pub(crate) const DAEMON_FIRST_NODE: &str = "kerfd-control";
 
 /// Removes the shared-memory resources of dead processes (a daemon or client killed with
 /// SIGKILL), so that a restarted daemon needs no manual clean-up. Returns how many dead
 /// nodes were cleaned.
-pub fn clean_dead_nodes() -> usize {
+pub(crate) fn clean_dead_nodes() -> usize {
     set_log_level_from_env_or(LogLevel::Error);
     remove_unfinished_segments();
     let mut dead = Vec::new();
@@ -132,7 +132,7 @@ pub fn clean_dead_nodes() -> usize {
 /// that no dead node refers to, and the service could never be created again. Only
 /// empty files older than [`UNFINISHED_AFTER`] are taken (a creation in progress writes
 /// its file within microseconds). Returns how many were removed.
-pub fn remove_unfinished_services() -> usize {
+pub(crate) fn remove_unfinished_services() -> usize {
     let dir = Config::global_config().global.service_dir();
     let Ok(dir) = std::str::from_utf8(dir.as_bytes()).map(std::path::PathBuf::from) else {
         return 0;
@@ -159,7 +159,7 @@ const SHM_DIR: &str = "/dev/shm";
 /// once older than [`UNFINISHED_AFTER`]: a creation in progress sizes its segment within
 /// microseconds. A younger empty one is waited for until it is that old (so at most that
 /// long) and taken if it is still empty. Returns how many were removed.
-pub fn remove_unfinished_segments() -> usize {
+pub(crate) fn remove_unfinished_segments() -> usize {
     #[cfg(target_os = "linux")]
     {
         let global = &Config::global_config().global;
@@ -348,7 +348,7 @@ pub fn setpoint_subscriber(
 }
 
 /// Creates the control service (daemon).
-pub fn create_control(
+pub(crate) fn create_control(
     node: &Node<ipc::Service>,
     machine: &str,
 ) -> Result<ControlService, IpcError> {

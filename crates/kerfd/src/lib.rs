@@ -198,7 +198,7 @@ impl Drop for Daemon {
 }
 
 /// The period range the daemon runs, checked before anything starts.
-pub fn check_period(config: &Config) -> Result<(), StartError> {
+pub(crate) fn check_period(config: &Config) -> Result<(), StartError> {
     let range = kerf_config::DAEMON_PERIOD_RANGE_US;
     if range.contains(&config.period_us) {
         Ok(())

@@ -24,7 +24,7 @@ use super::timing::Histogram;
 use crate::ipc;
 
 /// Setpoints the ring to the helper holds: a quarter of a second at 4 kHz.
-pub const SETPOINT_RING: usize = 1024;
+pub(crate) const SETPOINT_RING: usize = 1024;
 
 /// The longest the helper sleeps without being woken (it checks its stop flag).
 const IDLE_WAIT: Duration = Duration::from_millis(20);

@@ -4,7 +4,7 @@
 //!
 //! Recording a value never allocates, locks or logs: a histogram is an array of counters
 //! with log-spaced bucket edges, computed once when it is built. The buckets are
-//! [`BUCKETS_PER_DECADE`] per decade from 1 µs to 100 ms, so a percentile is known to
+//! `BUCKETS_PER_DECADE` per decade from 1 µs to 100 ms, so a percentile is known to
 //! within one bucket (12 %: each edge is 10^(1/20) times the previous one); below 1 µs
 //! and from 100 ms up there is one bucket each. The maximum is kept exactly.
 //!
@@ -14,10 +14,10 @@
 use std::fmt;
 
 /// Buckets per decade of nanoseconds.
-pub const BUCKETS_PER_DECADE: usize = 20;
+pub(crate) const BUCKETS_PER_DECADE: usize = 20;
 
 /// The lower edge of the first log-spaced bucket, ns (1 µs).
-pub const LOWEST_EDGE_NS: u64 = 1_000;
+pub(crate) const LOWEST_EDGE_NS: u64 = 1_000;
 
 /// Decades covered by the log-spaced buckets: 1 µs to 100 ms.
 const DECADES: usize = 5;
@@ -80,7 +80,7 @@ impl Histogram {
 
     /// An upper bound of the `q` quantile (0 < `q` ≤ 1), ns: the upper edge of the bucket
     /// that holds the value of rank ⌈q·count⌉, never above the maximum. 0 when empty.
-    pub fn quantile_ns(&self, q: f64) -> u64 {
+    pub(crate) fn quantile_ns(&self, q: f64) -> u64 {
         if self.total == 0 {
             return 0;
         }

@@ -4,6 +4,7 @@
 mod drives;
 mod top;
 
+use kerf_geom::PerAxis;
 use std::ops::{Range, RangeInclusive};
 use std::path::Path;
 
@@ -233,7 +234,7 @@ impl Checker<'_> {
         &self,
         key: &str,
         raw: &Option<Spanned<Vec<f64>>>,
-    ) -> Result<[f64; 6], ConfigError> {
+    ) -> Result<PerAxis<f64>, ConfigError> {
         let Some(raw) = raw else {
             return Ok([0.0; 6]);
         };

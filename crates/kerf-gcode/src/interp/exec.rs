@@ -9,6 +9,7 @@
 //! its subject.
 
 use kerf_geom::CornerMode;
+use kerf_geom::PerAxis;
 
 use super::mcodes::MCodes;
 use super::{Block, BlockError, LINUXCNC_MOTION_WORDS, MM_PER_INCH, Out, State, fail, params};
@@ -65,7 +66,7 @@ impl State {
             self.tool_offset_at_move = self.tool_offset;
         }
         if self.m6_in_block && !moved {
-            let delta: [f64; 6] =
+            let delta: PerAxis<f64> =
                 std::array::from_fn(|i| self.tool_offset[i] - self.tool_offset_at_move[i]);
             if delta.iter().any(|&d| d != 0.0) {
                 if self.readback_from.is_none() {

@@ -17,6 +17,7 @@
 //! rotation of the whole path about the centre `G5x + tool` (XY), so lines and arcs (in any
 //! plane) stay exact.
 
+use kerf_geom::PerAxis;
 use kerf_geom::{Path, Vec3};
 
 use super::params::{
@@ -75,7 +76,7 @@ impl State {
 
     /// The offsets X Y Z A B C and the rotation (degrees) of coordinate system `index`
     /// (0 = G54).
-    fn work_offset(&self, index: usize) -> ([f64; 6], f64) {
+    fn work_offset(&self, index: usize) -> (PerAxis<f64>, f64) {
         let base = coord_base(index + 1);
         let mut o = [0.0; 6];
         for (i, v) in o.iter_mut().enumerate() {
@@ -85,7 +86,7 @@ impl State {
     }
 
     /// The G52/G92 offset in effect (zero while #5210 is 0).
-    fn g92_offset(&self) -> [f64; 6] {
+    fn g92_offset(&self) -> PerAxis<f64> {
         let mut o = [0.0; 6];
         if self.params.at(G92_ENABLED) != 0.0 {
             for (i, v) in o.iter_mut().enumerate() {
@@ -95,7 +96,7 @@ impl State {
         o
     }
 
-    fn set_g92_offset(&mut self, o: [f64; 6]) {
+    fn set_g92_offset(&mut self, o: PerAxis<f64>) {
         for (i, v) in o.iter().enumerate() {
             self.params.set(G92_OFFSET + i, *v);
         }
@@ -185,7 +186,7 @@ impl State {
     }
 
     /// The current point in program coordinates of the active system, mm and degrees.
-    fn program_point(&self) -> [f64; 6] {
+    fn program_point(&self) -> PerAxis<f64> {
         let mut p = [0.0; 6];
         for i in 0..3 {
             p[i] = self.pos[i] - self.origin[i];
@@ -568,7 +569,7 @@ impl State {
         motion_in_block: bool,
     ) -> Result<bool, BlockError> {
         let lcnc = self.dialect == Dialect::LinuxCnc;
-        let entry = |s: &State, n: u32, c: u32| -> Result<[f64; 6], BlockError> {
+        let entry = |s: &State, n: u32, c: u32| -> Result<PerAxis<f64>, BlockError> {
             if lcnc && n == 0 {
                 // H0: the tool in the spindle (none: zero), on a non-random changer.
                 return Ok(s.tool(s.tool_loaded).map_or([0.0; 6], Tool::offsets_mm_deg));
@@ -647,7 +648,7 @@ impl State {
 
     /// Puts `offsets` (X, Y, Z mm, A, B, C degrees) in effect as the tool offsets, in the
     /// state and in #5401–#5406.
-    pub(super) fn set_tool_offsets(&mut self, offsets: [f64; 6]) {
+    pub(super) fn set_tool_offsets(&mut self, offsets: PerAxis<f64>) {
         self.tool_offset = offsets;
         for (i, v) in offsets.iter().enumerate() {
             self.params.set(TOOL_OFFSET + i, *v);

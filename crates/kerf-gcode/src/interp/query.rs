@@ -3,11 +3,12 @@
 
 use super::{Comp, MM_PER_INCH, Motion, State};
 use crate::arc::Plane;
+use kerf_geom::PerAxis;
 
 impl State {
     /// The current position in program coordinates and units: X, Y, Z (without the work
     /// offset, G92 and tool length), A, B, C (degrees).
-    pub(crate) fn q_program_pos(&self) -> [f64; 6] {
+    pub(crate) fn q_program_pos(&self) -> PerAxis<f64> {
         let s = if self.inch { MM_PER_INCH } else { 1.0 };
         [
             (self.pos[0] - self.origin[0]) / s,
@@ -20,7 +21,7 @@ impl State {
     }
 
     /// The current position in machine coordinates, program units (`#<_abs_x>` …).
-    pub(crate) fn q_machine_pos(&self) -> [f64; 6] {
+    pub(crate) fn q_machine_pos(&self) -> PerAxis<f64> {
         let s = if self.inch { MM_PER_INCH } else { 1.0 };
         [
             self.pos[0] / s,

@@ -3,6 +3,7 @@
 //! coordinate plane, by bisection for helices in tilted planes).
 
 use kerf_geom::Curve;
+use kerf_geom::PerAxis;
 
 use super::design::design_speed_search;
 use super::envelope::envelope_budget;
@@ -19,11 +20,11 @@ const MIN_IN_PLANE_FACTOR: f64 = 1e-9;
 /// the unit tangent split into in-plane and axial parts, and the curvature terms.
 struct Weights {
     /// Max |tangent_i| over the segment.
-    tangent: [f64; 6],
+    tangent: PerAxis<f64>,
     /// In-plane weight `sqrt(1 - axis_i²)` (0 on lines and rotary axes).
-    plane: [f64; 6],
+    plane: PerAxis<f64>,
     /// Axial tangent component `|axis_i| · rise/length` on helices.
-    axial: [f64; 6],
+    axial: PerAxis<f64>,
     /// In-plane speed factor `r |sweep| / length`.
     q: f64,
     /// Curvature, 1/mm.

@@ -2,6 +2,7 @@
 //! derivative per axis, with what they may rise between samples, and the plane of a
 //! planar curve.
 
+use kerf_geom::PerAxis;
 use kerf_geom::{Transition, Vec3, rotary_derivatives};
 
 use super::{CURVATURE_SAFETY, LIMIT_SAFETY, RATE_SAFETY, TANGENT_SAFETY};
@@ -9,11 +10,11 @@ use super::{CURVATURE_SAFETY, LIMIT_SAFETY, RATE_SAFETY, TANGENT_SAFETY};
 /// Sampled bounds of a transition (with the safety factors above on the curvature terms).
 pub(super) struct TransitionBounds {
     /// Per axis X..C: largest `|t_i|` (unit tangent; for rotary axes `dA/ds`).
-    pub(super) tangent: [f64; 6],
+    pub(super) tangent: PerAxis<f64>,
     /// Per axis: largest `|K_i|` (curvature vector; for rotary axes `d²A/ds²`).
-    pub(super) curvature: [f64; 6],
+    pub(super) curvature: PerAxis<f64>,
     /// Per axis: largest `|K'_i|` (derivative of the curvature vector along the path).
-    pub(super) curvature_rate: [f64; 6],
+    pub(super) curvature_rate: PerAxis<f64>,
     /// Largest curvature `κ`, 1/mm.
     pub(super) kappa: f64,
     /// Largest `|K' + κ² t| = sqrt(κ'² + (κτ)²)` (the part of `K'` off the tangent), 1/mm².

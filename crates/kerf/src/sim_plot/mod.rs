@@ -17,8 +17,9 @@
 //! does not grow with the program's time: at most [`BUCKETS`] columns of time (each a
 //! power-of-two number of periods; when the time outgrows them, neighbours are merged and
 //! the width doubles), and a toolpath thinned to a distance that doubles whenever it holds
-//! more than [`MAX_PATH_POINTS`] points.
+//! more than `MAX_PATH_POINTS` points.
 
+use kerf_geom::PerAxis;
 use std::io::{self, Write};
 use std::path::Path;
 
@@ -79,7 +80,7 @@ pub struct PlotOutput<'a> {
 pub const BUCKETS: usize = 2048;
 
 /// Points of the thinned toolpath at most before it is thinned further.
-pub const MAX_PATH_POINTS: usize = 100_000;
+pub(crate) const MAX_PATH_POINTS: usize = 100_000;
 
 /// Series of a bucket: the path feed, then per axis (X … C) velocity, acceleration, jerk.
 const CHANNELS: usize = 1 + 6 * 3;
@@ -156,7 +157,7 @@ impl RapidIndex {
     /// Counts the next move of the program, in program order, without keeping it, and
     /// returns its index when its kind differs from the move before (the flip to hand to
     /// the recorder of a run fed on another thread).
-    pub fn next_flip(&mut self, rapid: bool) -> Option<u64> {
+    pub(crate) fn next_flip(&mut self, rapid: bool) -> Option<u64> {
         let at = (rapid != self.last).then_some(self.moves);
         self.last = rapid;
         self.moves += 1;
@@ -179,7 +180,7 @@ impl RapidIndex {
 pub struct PlotRecorder {
     limits: MachineLimits,
     /// The last four positions, newest first (at rest at the origin before the first).
-    hist: [[f64; 6]; 4],
+    hist: [PerAxis<f64>; 4],
     /// Samples seen.
     samples: u64,
     /// Periods per bucket (a power of two).
@@ -194,7 +195,7 @@ pub struct PlotRecorder {
 
 impl PlotRecorder {
     /// A recorder for a run on `limits` whose moves are rapids as `rapids` says (filled
-    /// now, or later through [`PlotRecorder::flips_from`]).
+    /// now, or later through `PlotRecorder::flips_from`).
     pub fn new(limits: &MachineLimits, rapids: RapidIndex) -> Self {
         PlotRecorder {
             limits: *limits,
@@ -211,7 +212,7 @@ impl PlotRecorder {
 
     /// Takes the flips of the rapid index from `rx` as they come (the moves are read on
     /// another thread, always before their setpoints).
-    pub fn flips_from(&mut self, rx: std::sync::mpsc::Receiver<u64>) {
+    pub(crate) fn flips_from(&mut self, rx: std::sync::mpsc::Receiver<u64>) {
         self.flips = Some(rx);
     }
 
@@ -282,14 +283,15 @@ impl PlotRecorder {
         self.per_bucket *= 2;
     }
 
-    /// The columns of time, each [`PlotRecorder::periods_per_bucket`] periods from t = 0
+    /// The columns of time, each of the same number of periods, from t = 0
     /// (the last may hold fewer).
     pub fn buckets(&self) -> &[Bucket] {
         &self.buckets
     }
 
     /// Periods in each bucket.
-    pub fn periods_per_bucket(&self) -> u64 {
+    #[cfg(test)]
+    pub(crate) fn periods_per_bucket(&self) -> u64 {
         self.per_bucket
     }
 }

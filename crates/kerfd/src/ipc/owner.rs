@@ -39,7 +39,7 @@ const SYSTEM_CONFIG: &str = kerf_config::SYSTEM_CONFIG;
 const DAEMON_CONTROL_NODE: &str = "kerfd-control";
 
 /// The effective user id of this process (`None` where `/proc` does not tell).
-pub fn effective_uid() -> Option<u32> {
+pub(crate) fn effective_uid() -> Option<u32> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     proc_status_field(&status, "Uid:", 1)
 }
@@ -104,7 +104,7 @@ impl User {
     }
 
     /// The argument of `sudo -u`: `kerf`, or `'#65533'` (quoted: `#` starts a comment).
-    pub fn sudo_arg(&self) -> String {
+    pub(crate) fn sudo_arg(&self) -> String {
         match &self.name {
             Some(n) => n.clone(),
             None => format!("'#{}'", self.uid),
@@ -112,7 +112,7 @@ impl User {
     }
 
     /// The owner argument of `chown`: `kerf`, or `65533`.
-    pub fn chown_arg(&self) -> String {
+    pub(crate) fn chown_arg(&self) -> String {
         match &self.name {
             Some(n) => n.clone(),
             None => self.uid.to_string(),
@@ -136,7 +136,7 @@ pub struct Tree {
 }
 
 /// iceoryx2's root directory when no configuration file changes it.
-pub const DEFAULT_ROOT: &str = "/tmp/iceoryx2";
+pub(crate) const DEFAULT_ROOT: &str = "/tmp/iceoryx2";
 
 impl Tree {
     /// The tree iceoryx2 uses in this process (its global configuration).
@@ -161,7 +161,7 @@ impl Tree {
 
     /// Whether this is iceoryx2's default tree, the one the package's tmpfiles entry
     /// gives to the service user.
-    pub fn is_default(&self) -> bool {
+    pub(crate) fn is_default(&self) -> bool {
         self.root == Path::new(DEFAULT_ROOT)
     }
 }
@@ -183,7 +183,7 @@ fn owner_of(path: &Path) -> Option<u32> {
 /// The first of the tree's directories (root, `nodes/`, `services/`) that exists and
 /// belongs to another user than `me`. A root directory that every user may write (mode
 /// 1777, as `/tmp` itself) is shared by design and does not count.
-pub fn foreign_directory(tree: &Tree, me: u32) -> Option<Owned> {
+pub(crate) fn foreign_directory(tree: &Tree, me: u32) -> Option<Owned> {
     [&tree.root, &tree.nodes, &tree.services]
         .into_iter()
         .find_map(|dir| {
@@ -202,7 +202,7 @@ pub fn foreign_directory(tree: &Tree, me: u32) -> Option<Owned> {
 /// first. Files that every user may read and write (iceoryx2's global management
 /// segment) and a root directory every user may write (mode 1777) are left out: they
 /// block no one.
-pub fn foreign_entries(tree: &Tree, me: u32) -> Vec<Owned> {
+pub(crate) fn foreign_entries(tree: &Tree, me: u32) -> Vec<Owned> {
     let mut found = Vec::new();
     let look = |path: &Path, found: &mut Vec<Owned>| {
         let Ok(meta) = std::fs::symlink_metadata(path) else {
@@ -260,7 +260,7 @@ pub fn foreign_entries(tree: &Tree, me: u32) -> Vec<Owned> {
 /// this process runs as root, whom permissions do not stop). For the daemon's failed
 /// node or service creation; e.g. "/tmp/iceoryx2/nodes belongs to root, but kerfd runs as
 /// kerf: run `sudo systemd-tmpfiles --create` or `sudo chown -R kerf: /tmp/iceoryx2`".
-pub fn blocked_tree_message(program: &str) -> Option<String> {
+pub(crate) fn blocked_tree_message(program: &str) -> Option<String> {
     let me = effective_uid()?;
     if me == 0 {
         return None;
@@ -402,7 +402,7 @@ fn client_diagnosis_in(tree: &Tree, machine: &str, me: u32) -> Option<String> {
 }
 
 /// The uid of the live daemon of `machine`, if it runs as another user than `me`.
-pub fn daemon_of_other_user(tree: &Tree, machine: &str, me: u32) -> Option<u32> {
+pub(crate) fn daemon_of_other_user(tree: &Tree, machine: &str, me: u32) -> Option<u32> {
     match std::fs::read_dir(&tree.services) {
         // Readable (root, or the tree's owner): iceoryx2's own records decide.
         Ok(_) => daemon_from_services(tree, machine, me),
@@ -471,7 +471,7 @@ pub struct KerfdProcess {
 
 /// The `kerfd` processes this process can see in `/proc`, with the machine each serves
 /// (from its `--config` file, else `SYSTEM_CONFIG`, else the built-in machine).
-pub fn kerfd_processes() -> Vec<KerfdProcess> {
+pub(crate) fn kerfd_processes() -> Vec<KerfdProcess> {
     let mut found = Vec::new();
     for entry in std::fs::read_dir("/proc").into_iter().flatten().flatten() {
         let Some(pid) = entry

@@ -6,6 +6,7 @@ mod program;
 mod report;
 
 use super::*;
+use kerf_geom::PerAxis;
 
 /// A program the cycle is running.
 #[derive(Clone, Copy, Debug)]
@@ -28,7 +29,7 @@ pub struct CycleOutput {
     /// The setpoint.
     pub setpoint: Setpoint,
     /// Per-axis velocity, by the backward difference of the positions, per s.
-    pub velocity: [f64; 6],
+    pub velocity: PerAxis<f64>,
     /// The program this setpoint belongs to (0: none).
     pub program_id: u64,
     /// Cycles of that program so far (its program time is this × period); 0 while the
@@ -63,7 +64,7 @@ pub(crate) const COMMANDS_PER_CYCLE: usize = 8;
 /// Programmed moves the cycle's tracker holds without allocating: far more than the
 /// moves of a full queue of smoothed pieces (a smoothing window drops its oldest moves
 /// beyond 4,096).
-pub const TRACKED_MOVES: usize = 65_536;
+pub(crate) const TRACKED_MOVES: usize = 65_536;
 
 /// The ends of the rings that carry black-box dumps out of the cycle and their rings back.
 pub struct DumpRings {
@@ -100,7 +101,10 @@ pub fn dump_rings() -> (DumpRings, DumpWriterRings) {
 
 /// The drive stage of `config`'s machine: a simulated drive per axis whose motor stands
 /// at `position` at power-up, the safety layer and the black box.
-pub fn drive_stage(config: &Config, position: [f64; 6]) -> Result<DriveStage<SimDrive>, String> {
+pub fn drive_stage(
+    config: &Config,
+    position: PerAxis<f64>,
+) -> Result<DriveStage<SimDrive>, String> {
     let setups = config.drive_configs();
     let mut axes: [Option<AxisDrive<SimDrive>>; 6] = [None, None, None, None, None, None];
     for (i, (slot, setup)) in axes.iter_mut().zip(setups.iter()).enumerate() {
@@ -158,7 +162,7 @@ pub struct Cycle {
     /// The last setpoint of the motion core (the machine's position between programs).
     setpoint: Setpoint,
     /// The position sent to the drives in the last cycle.
-    sent: [f64; 6],
+    sent: PerAxis<f64>,
     starved: bool,
     shutting_down: bool,
     shut_down: bool,
@@ -186,7 +190,7 @@ impl Cycle {
     /// they are enabled.
     pub fn new(
         config: &Config,
-        position: [f64; 6],
+        position: PerAxis<f64>,
         items: rtrb::Consumer<RtItem>,
         commands: rtrb::Consumer<CycleCommand>,
         status: rtrb::Producer<Snapshot>,
@@ -262,7 +266,7 @@ impl Cycle {
     }
 
     /// `true` once a shutdown has brought the machine to rest.
-    pub fn shut_down(&self) -> bool {
+    pub(crate) fn shut_down(&self) -> bool {
         self.shut_down
     }
 
@@ -369,7 +373,7 @@ impl Cycle {
     }
 
     /// One cycle of the drive side with `setpoint` (`None`: a missed cycle).
-    fn drive_cycle(&mut self, setpoint: Option<[f64; 6]>) {
+    fn drive_cycle(&mut self, setpoint: Option<PerAxis<f64>>) {
         let out = self.stage.cycle(&StageInput {
             setpoint,
             line: self.setpoint.line,
@@ -405,7 +409,7 @@ impl Cycle {
     }
 
     /// The motion core drops everything and rests at `position`.
-    fn rest_at(&mut self, position: [f64; 6]) {
+    fn rest_at(&mut self, position: PerAxis<f64>) {
         self.interp.core_mut().reset_to(position);
         self.setpoint.position = position;
         self.setpoint.feed_mm_s = 0.0;
@@ -433,7 +437,7 @@ impl Cycle {
 pub(crate) const PENDING_ABORTS: usize = 4;
 
 /// How far (mm or degrees, any axis) a program may start from the machine's position.
-pub const START_TOL: f64 = 1e-6;
+pub(crate) const START_TOL: f64 = 1e-6;
 
 /// Cycles a shutdown waits for the drives to power off before the cycle ends anyway.
 pub(crate) const DISABLE_WAIT_CYCLES: u32 = 1000;

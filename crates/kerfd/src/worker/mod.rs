@@ -6,6 +6,7 @@
 //! setpoints into messages, so that everything here is tested without shared memory and
 //! the cycle is the same code whatever carries its input.
 
+use kerf_geom::PerAxis;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
@@ -42,7 +43,7 @@ pub enum Incoming {
         /// The program's id, chosen by the sender.
         program_id: u64,
         /// Where the program starts.
-        start: [f64; 6],
+        start: PerAxis<f64>,
     },
     /// A resolved move.
     Move(Move),
@@ -114,7 +115,7 @@ pub enum RtItem {
         /// Its id.
         program_id: u64,
         /// Where it starts.
-        start: [f64; 6],
+        start: PerAxis<f64>,
     },
     /// A programmed move, sent just before the first segment planned after it was taken
     /// (as `kerf sim` records it), for the line being passed on smoothed curves.
@@ -168,16 +169,16 @@ pub enum Injection {
 
 /// The error code a lasting injected drive fault reports: 0x4310, excess temperature of
 /// the drive.
-pub const INJECTED_DRIVE_FAULT: u16 = 0x4310;
+pub(crate) const INJECTED_DRIVE_FAULT: u16 = 0x4310;
 
 impl Injection {
-    /// The size of the step [`Injection::from_code`] makes, mm (deg).
+    /// The size of the step `Injection::from_code` makes, mm (deg).
     pub const STEP_MM: f64 = 1.0;
 
     /// Decodes a `REQUEST_INJECT` value, `kind · 16 + n`: kind 1 a lasting drive fault on
     /// axis n (0–5 = X–C), 2 its cause removed, 3 a step of [`Injection::STEP_MM`] on axis
     /// n, 4 a stall of n × 10 cycles (n 0–15).
-    pub fn from_code(code: u32) -> Option<Injection> {
+    pub(crate) fn from_code(code: u32) -> Option<Injection> {
         let (kind, arg) = (code / 16, (code % 16) as usize);
         match kind {
             1 if arg < 6 => Some(Injection::DriveFault(arg)),
@@ -223,7 +224,7 @@ pub struct Snapshot {
     /// Source line of the motion.
     pub line: u32,
     /// Setpoint position, X Y Z mm, A B C deg.
-    pub position: [f64; 6],
+    pub position: PerAxis<f64>,
     /// Path speed, mm/s.
     pub feed_mm_s: f64,
     /// Feed override, percent.

@@ -63,7 +63,7 @@ impl Planning {
     }
 
     /// `true` while a program is being received.
-    pub fn in_program(&self) -> bool {
+    pub(crate) fn in_program(&self) -> bool {
         self.planner.is_some()
     }
 

@@ -1,6 +1,7 @@
 //! The commands that talk to a machine's daemon: `kerf run`, `status`, `hold`, `resume`,
 //! `abort`, `override` and `record`.
 
+use kerf_geom::PerAxis;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -274,7 +275,12 @@ struct Recording {
 }
 
 impl Recording {
-    fn create(path: &Path, rotary: bool, period_s: f64, start: [f64; 6]) -> Result<Self, Failure> {
+    fn create(
+        path: &Path,
+        rotary: bool,
+        period_s: f64,
+        start: PerAxis<f64>,
+    ) -> Result<Self, Failure> {
         // Written beside `path` and renamed there when the program has run to its end.
         let mut r = Recording {
             out: Output::create(path)?,
