@@ -237,6 +237,15 @@ fn bus_settings_take_their_documented_defaults() {
     assert_eq!(b.sync0_shift_ns, 62_500);
     let b = bus_config(&bus("dc = false\n", "", ""));
     assert!(!b.dc);
+    // Without distributed clocks there is no SYNC0 to shift.
+    let text = bus("dc = false\nsync0_shift_ns = 1000\n", "", "");
+    assert_eq!(
+        refused(&text),
+        format!(
+            "{}`ethercat.sync0_shift_ns` shifts SYNC0, which runs only with distributed clocks: remove it or set `ethercat.dc = true`",
+            at(&text, "1000\n[[")
+        )
+    );
 }
 
 /// Each integer setting accepted at both ends of its range and refused one past them,

@@ -48,6 +48,13 @@ impl Checker<'_> {
         let e = table.get_ref();
         let period_ns = period_us * 1000;
         let interface = self.interface(&e.interface)?;
+        let dc = e.dc.unwrap_or(DEFAULT_ETHERCAT_DC);
+        if let (false, Some(s)) = (dc, &e.sync0_shift_ns) {
+            return Err(self.error(
+                s.span(),
+                "`ethercat.sync0_shift_ns` shifts SYNC0, which runs only with distributed clocks: remove it or set `ethercat.dc = true`".to_string(),
+            ));
+        }
         let sync0_shift_ns = match &e.sync0_shift_ns {
             None => period_ns / 2,
             Some(s) => self.integer(
@@ -59,7 +66,7 @@ impl Checker<'_> {
         };
         let config = EthercatConfig {
             interface,
-            dc: e.dc.unwrap_or(DEFAULT_ETHERCAT_DC),
+            dc,
             sync0_shift_ns,
             max_missed_cycles: self.integer_or(
                 "ethercat.max_missed_cycles",

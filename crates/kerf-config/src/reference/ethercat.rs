@@ -51,7 +51,7 @@ pub(super) fn keys() -> Vec<KeyDoc> {
             "ethercat.sync0_shift_ns",
             "half the period".into(),
             "0 to the period minus 1 ns".into(),
-            "SYNC0's shift after the cycle start: the time the frame has to reach every subdevice before the drives latch it.",
+            "SYNC0's shift after the cycle start: the time the frame has to reach every subdevice before the drives latch it. Only with `dc = true`.",
         ),
         k(
             "ethercat.max_missed_cycles",
