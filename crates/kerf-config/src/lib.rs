@@ -4,7 +4,8 @@
 //! - [`reference`](mod@reference): the reference of every key (docs/CONFIG.md is generated from it);
 //! - [`tooltable`]: LinuxCNC tool tables and parameter files;
 //! - [`travel`]: the configured travel checked on the exact path before any motion;
-//! - [`machine_limits`]: the motion core's view of the axes.
+//! - [`machine_limits`]: the motion core's view of the axes;
+//! - [`ethercat`]: the EtherCAT bus (`[ethercat]`), when the machine's drives are on one.
 //!
 //! A machine builder writes one file per machine; `config/kerf.toml` in the repository is a
 //! commented 3-axis mill example and is compiled into the binary as the default
@@ -29,6 +30,7 @@ mod raw;
 mod toml_words;
 mod views;
 
+pub mod ethercat;
 pub mod reference;
 pub mod tooltable;
 pub mod travel;
@@ -104,3 +106,7 @@ pub fn machine_name(text: &str) -> Option<String> {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_ethercat;
+#[cfg(test)]
+mod tests_ethercat_objects;

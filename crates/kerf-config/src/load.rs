@@ -52,6 +52,7 @@ impl Config {
                 stall_cycles: kerf_drive::safety::DEFAULT_STALL_CYCLES,
                 recorder_seconds: kerf_drive::recorder::DEFAULT_SECONDS,
             },
+            ethercat: None,
         })
     }
 

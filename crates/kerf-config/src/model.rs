@@ -15,15 +15,20 @@ use crate::ranges::*;
 pub enum DriveKind {
     /// The simulated CiA 402 servo drive (`kerf_drive::sim`), `"sim"`.
     Sim,
+    /// A CiA 402 servo drive on the EtherCAT bus (`"ethercat"`; every axis's drive when
+    /// the file has `[ethercat]`, see [`Config::ethercat`]).
+    Ethercat,
 }
 
 impl DriveKind {
     /// Whether the drive runs on its own clock, so that a cycle the daemon misses is a
     /// cycle the drive got no setpoint in. The simulated drive has no clock of its own:
-    /// it advances one period per exchange.
+    /// it advances one period per exchange; an EtherCAT drive runs on the bus's
+    /// distributed clock (or its own) whether a frame came or not.
     pub fn keeps_time(self) -> bool {
         match self {
             DriveKind::Sim => false,
+            DriveKind::Ethercat => true,
         }
     }
 }
@@ -227,4 +232,15 @@ pub struct Config {
     /// The drive side: `[axes.*.drive]`, `ferror_*`/`min_ferror_*`, `[safety]` (the
     /// daemon's drive stage is built from it).
     pub drive: DriveSide,
+    /// `[ethercat]`: the bus the axes' drives are on; `None`: simulated drives.
+    pub ethercat: Option<crate::ethercat::EthercatConfig>,
+}
+
+impl Config {
+    /// `[ethercat]`, when the machine's drives are on an EtherCAT bus (every axis's
+    /// [`AxisDrive::kind`] is then [`DriveKind::Ethercat`]); `None` when the drives are
+    /// simulated.
+    pub fn ethercat(&self) -> Option<&crate::ethercat::EthercatConfig> {
+        self.ethercat.as_ref()
+    }
 }

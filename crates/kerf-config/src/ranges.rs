@@ -141,3 +141,64 @@ pub const RECORDER_SECONDS_RANGE: RangeInclusive<f64> = 0.1..=60.0;
 /// The accepted `gcode.max_loop_iterations`: at least 1, at most 1e12 (a loop that runs
 /// longer is not a program but a hang).
 pub const MAX_LOOP_ITERATIONS_RANGE: RangeInclusive<u64> = 1..=1_000_000_000_000;
+
+// The EtherCAT bus (`[ethercat]`, docs/CONFIG.md; the fieldbus side reads
+// [`crate::ethercat::EthercatConfig`]).
+
+/// Default `ethercat.dc`: distributed clocks on (SYNC0 at the period).
+pub const DEFAULT_ETHERCAT_DC: bool = true;
+
+/// Default `ethercat.max_missed_cycles`: the third bad cycle in a row latches the fault.
+pub const DEFAULT_MAX_MISSED_CYCLES: u32 = 2;
+
+/// Accepted `ethercat.max_missed_cycles`: a single lost frame never faults, and a bus
+/// silent for more than 1000 cycles (125 ms at 8 kHz, 10 s at 100 Hz) is not supervised.
+pub const MAX_MISSED_CYCLES_RANGE: RangeInclusive<u32> = 1..=1000;
+
+/// The ESC's process-data watchdog unit, µs: the watchdog divider (register 0x0400) at its
+/// default 2498 counts ((2498 + 2) × 40 ns).
+pub const WATCHDOG_UNIT_US: u32 = 100;
+
+/// Default `ethercat.watchdog_us`: 20 ms, at least two periods at the longest period the
+/// daemon runs (10 ms).
+pub const DEFAULT_WATCHDOG_US: u32 = 20_000;
+
+/// The longest `ethercat.watchdog_us`: 0xFFFF watchdog units (register 0x0420 is 16 bits).
+pub const MAX_WATCHDOG_US: u32 = 0xFFFF * WATCHDOG_UNIT_US;
+
+/// The shortest `ethercat.watchdog_us`, in periods: a watchdog shorter than two periods
+/// expires on one late frame.
+pub const MIN_WATCHDOG_PERIODS: u32 = 2;
+
+/// Default `ethercat.state_timeout_ms`: each EtherCAT state change of a subdevice (INIT,
+/// PRE-OP, SAFE-OP, OP).
+pub const DEFAULT_STATE_TIMEOUT_MS: u32 = 5000;
+
+/// Default `ethercat.sdo_timeout_ms`: the answer to one SDO request.
+pub const DEFAULT_SDO_TIMEOUT_MS: u32 = 1000;
+
+/// Default `ethercat.dc_settle_timeout_ms`: the distributed clocks settling after they are
+/// configured.
+pub const DEFAULT_DC_SETTLE_TIMEOUT_MS: u32 = 5000;
+
+/// Accepted bring-up timeouts (`ethercat.*_timeout_ms`), ms.
+pub const BRING_UP_TIMEOUT_RANGE_MS: RangeInclusive<u32> = 1..=60_000;
+
+/// Accepted ring positions: EtherCAT addresses 65,535 subdevices at most.
+pub const RING_POSITION_RANGE: RangeInclusive<u32> = 0..=65_534;
+
+/// Most entries in one PDO mapping (`rx_pdo`, `tx_pdo`).
+pub const MAX_PDO_ENTRIES: usize = 64;
+
+/// Most bytes in one drive's PDO (one SyncManager): a sanity bound far above the CiA 402
+/// objects a drive needs; a drive that takes fewer refuses at bring-up with an SDO abort.
+pub const MAX_PDO_BYTES: usize = 256;
+
+/// Accepted RxPDO mapping objects (`rx_pdo_index`).
+pub const RX_PDO_INDEX_RANGE: RangeInclusive<u32> = 0x1600..=0x17FF;
+
+/// Accepted TxPDO mapping objects (`tx_pdo_index`).
+pub const TX_PDO_INDEX_RANGE: RangeInclusive<u32> = 0x1A00..=0x1BFF;
+
+/// Accepted bit numbers of an I/O subdevice's named inputs and outputs: 256 bytes of each.
+pub const IO_BIT_RANGE: RangeInclusive<u32> = 0..=2047;

@@ -1,6 +1,8 @@
 //! The file as TOML gives it: every key optional and spanned, so that the checker can
 //! name the place of a bad value.
 
+use std::collections::BTreeMap;
+
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -22,6 +24,7 @@ pub(crate) struct RawConfig {
     pub(crate) tools: Vec<RawTool>,
     #[serde(default)]
     pub(crate) safety: RawSafety,
+    pub(crate) ethercat: Option<Spanned<RawEthercat>>,
 }
 
 #[derive(Deserialize)]
@@ -142,4 +145,71 @@ pub(crate) struct RawTool {
     pub(crate) length_mm: Option<Spanned<f64>>,
     #[serde(default)]
     pub(crate) radius_mm: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawEthercat {
+    pub(crate) interface: Spanned<String>,
+    pub(crate) dc: Option<bool>,
+    pub(crate) sync0_shift_ns: Option<Spanned<i64>>,
+    pub(crate) max_missed_cycles: Option<Spanned<i64>>,
+    pub(crate) watchdog_us: Option<Spanned<i64>>,
+    pub(crate) state_timeout_ms: Option<Spanned<i64>>,
+    pub(crate) sdo_timeout_ms: Option<Spanned<i64>>,
+    pub(crate) dc_settle_timeout_ms: Option<Spanned<i64>>,
+    #[serde(default)]
+    pub(crate) drives: Vec<RawEcatDrive>,
+    #[serde(default)]
+    pub(crate) io: Vec<RawEcatIo>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawEcatDrive {
+    pub(crate) axis: Spanned<String>,
+    pub(crate) position: Spanned<i64>,
+    pub(crate) vendor_id: Spanned<i64>,
+    pub(crate) product_code: Spanned<i64>,
+    pub(crate) revision: Option<Spanned<i64>>,
+    pub(crate) mode: Option<Spanned<String>>,
+    pub(crate) rx_pdo_index: Option<Spanned<i64>>,
+    pub(crate) tx_pdo_index: Option<Spanned<i64>>,
+    pub(crate) rx_pdo: Option<Spanned<Vec<RawPdoEntry>>>,
+    pub(crate) tx_pdo: Option<Spanned<Vec<RawPdoEntry>>>,
+    #[serde(default)]
+    pub(crate) sdo: Vec<RawSdo>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawPdoEntry {
+    pub(crate) index: Spanned<i64>,
+    pub(crate) subindex: Spanned<i64>,
+    pub(crate) bits: Spanned<i64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawSdo {
+    pub(crate) index: Spanned<i64>,
+    pub(crate) subindex: Spanned<i64>,
+    #[serde(rename = "type")]
+    pub(crate) kind: Spanned<String>,
+    pub(crate) value: Spanned<i64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawEcatIo {
+    pub(crate) position: Spanned<i64>,
+    pub(crate) vendor_id: Spanned<i64>,
+    pub(crate) product_code: Spanned<i64>,
+    pub(crate) revision: Option<Spanned<i64>>,
+    #[serde(default)]
+    pub(crate) sdo: Vec<RawSdo>,
+    #[serde(default)]
+    pub(crate) inputs: BTreeMap<String, Spanned<i64>>,
+    #[serde(default)]
+    pub(crate) outputs: BTreeMap<String, Spanned<i64>>,
 }

@@ -1155,12 +1155,10 @@ fn the_dump_dir_is_relative_to_the_configuration() {
 
 #[test]
 fn drive_side_mistakes_are_named() {
-    let (text, place) = with_key("axes.x.drive", "kind", "\"ethercat\"");
+    let (text, place) = with_key("axes.x.drive", "kind", "\"servo\"");
     assert_eq!(
         err(&text),
-        format!(
-            "{place}`axes.x.drive.kind` must be \"sim\" (the only drive kind so far), found `ethercat`"
-        )
+        format!("{place}`axes.x.drive.kind` must be \"sim\" or \"ethercat\", found `servo`")
     );
     // Unknown keys, in each new table.
     for (extra, key) in [

@@ -28,11 +28,13 @@ impl Checker<'_> {
         let kind = match &raw.kind {
             None => DriveKind::Sim,
             Some(k) if k.get_ref() == "sim" => DriveKind::Sim,
+            // Checked against `[ethercat]`, and set, by `Checker::ethercat`.
+            Some(k) if k.get_ref() == "ethercat" => DriveKind::Sim,
             Some(k) => {
                 return Err(self.error(
                     k.span(),
                     format!(
-                        "`{}` must be \"sim\" (the only drive kind so far), found `{}`",
+                        "`{}` must be \"sim\" or \"ethercat\", found `{}`",
                         key("kind"),
                         k.get_ref()
                     ),

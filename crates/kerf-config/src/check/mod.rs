@@ -2,6 +2,8 @@
 //! checker and its checks of single values.
 
 mod drives;
+mod ethercat;
+mod ethercat_objects;
 mod top;
 
 use kerf_geom::PerAxis;

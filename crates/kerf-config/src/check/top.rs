@@ -71,6 +71,7 @@ impl Checker<'_> {
         };
         let mut drive = self.drive_side(&raw, &axes)?;
         size_substeps(&raw, &mut drive, period_us);
+        let ethercat = self.ethercat(&raw, &axes, period_us, &mut drive)?;
         let dump_dir = match &raw.safety.dump_dir {
             None => None,
             Some(d) if d.get_ref().is_empty() => {
@@ -146,6 +147,7 @@ impl Checker<'_> {
             g30_home_mm_deg,
             parameter_file,
             drive,
+            ethercat,
         })
     }
     /// `machine`: the name of the daemon's services.

@@ -13,6 +13,8 @@ use kerf_gcode::Dialect;
 use crate::toml_words::{number, unit_of};
 use crate::*;
 
+mod ethercat;
+
 /// One key of the configuration file.
 #[derive(Clone, Debug)]
 pub struct KeyDoc {
@@ -65,7 +67,7 @@ pub fn keys() -> Vec<KeyDoc> {
         .collect::<Vec<_>>()
         .join(", ");
     let dialects = format!("{dialects} (or tormach)");
-    vec![
+    let mut all = vec![
         k(
             "machine",
             format!("\"{DEFAULT_MACHINE}\""),
@@ -204,9 +206,9 @@ pub fn keys() -> Vec<KeyDoc> {
         ),
         k(
             "axes.*.drive.kind",
-            "\"sim\"".into(),
-            "\"sim\"".into(),
-            "Drive kind; the simulated drive is the only one so far.",
+            "\"sim\"; \"ethercat\" with [ethercat]".into(),
+            "\"sim\" or \"ethercat\"".into(),
+            "Drive kind: the simulated drive, or the axis's `[[ethercat.drives]]` (every axis's with [ethercat], none without); the simulated drive's tuning keys below are refused for an EtherCAT drive.",
         ),
         k(
             "axes.*.drive.counts_per_mm",
@@ -484,7 +486,9 @@ pub fn keys() -> Vec<KeyDoc> {
             "a directory".into(),
             "Where the daemon writes black-box files, relative to the configuration's directory.",
         ),
-    ]
+    ];
+    all.extend(ethercat::keys());
+    all
 }
 
 /// docs/CONFIG.md.
@@ -498,8 +502,9 @@ pub fn markdown() -> String {
          when it exists, else the built-in example [config/kerf.toml](../config/kerf.toml),\n\
          which comments every key. Unknown keys are errors. Units are part of the key names\n\
          (`_mm_s`: mm/s, `_us`: microseconds); `*` stands for an axis (`x`, `y`, `z`, or `a`,\n\
-         `b`, `c`). Ranges are inclusive. The ranges and defaults below are the constants\n\
-         the configuration checker uses.\n\n\
+         `b`, `c`). The keys of an array of tables (`[[tools]]`, `[[ethercat.drives]]`) are\n\
+         listed under its name (`tools.number`). Ranges are inclusive. The ranges and\n\
+         defaults below are the constants the configuration checker uses.\n\n\
          | key | unit | default | accepted | meaning |\n|---|---|---|---|---|\n",
     );
     for key in keys() {
@@ -600,6 +605,14 @@ mod tests {
         assert_eq!(documented("work_offsets"), accepted::<RawWorkOffsets>());
         assert_eq!(documented("tools"), accepted::<RawTool>());
         assert_eq!(documented("safety"), accepted::<RawSafety>());
+        assert_eq!(documented("ethercat"), accepted::<RawEthercat>());
+        assert_eq!(documented("ethercat.drives"), accepted::<RawEcatDrive>());
+        assert_eq!(
+            documented("ethercat.drives.rx_pdo"),
+            accepted::<RawPdoEntry>()
+        );
+        assert_eq!(documented("ethercat.drives.sdo"), accepted::<RawSdo>());
+        assert_eq!(documented("ethercat.io"), accepted::<RawEcatIo>());
     }
 
     /// The documented defaults are what a configuration without the keys gets.
