@@ -1125,6 +1125,24 @@ fn a_period_outside_the_daemons_range_is_refused_before_anything_starts() {
 }
 
 #[test]
+fn an_ethercat_configuration_is_refused_until_the_daemon_drives_ethercat() {
+    let example = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../config/ethercat-example.toml"
+    );
+    let out = Command::new(kerfd())
+        .args(["--config", example])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("EtherCAT") && err.contains("remove `[ethercat]`"),
+        "{err}"
+    );
+}
+
+#[test]
 fn a_configuration_that_does_not_load_is_named() {
     let out = Command::new(kerfd())
         .args(["--config", "/nonexistent/kerf.toml"])

@@ -212,6 +212,19 @@ pub(crate) fn check_period(config: &Config) -> Result<(), StartError> {
     }
 }
 
+/// The drives the daemon runs: today the simulated ones only. A configuration with an
+/// `[ethercat]` table is refused before anything starts, rather than run on simulated
+/// drives while the file says real ones.
+pub(crate) fn check_drives(config: &Config) -> Result<(), StartError> {
+    match config.ethercat() {
+        None => Ok(()),
+        Some(bus) => Err(StartError::Config(format!(
+            "the configuration drives the axes over EtherCAT (`[ethercat]` on interface `{}`), which this kerfd cannot run yet: the table is checked, but the daemon drives simulated axes only; remove `[ethercat]` to run the simulated drives",
+            bus.interface
+        ))),
+    }
+}
+
 /// Starts the daemon for the machine of `config`: creates the services (after cleaning
 /// the resources of dead processes), then the three threads. Returns once the cycle runs
 /// and every port is up.
@@ -228,6 +241,7 @@ pub fn start_with(
     test_faults: bool,
 ) -> Result<Daemon, StartError> {
     check_period(config)?;
+    check_drives(config)?;
     let cleaned = ipc::clean_dead_nodes();
     if cleaned > 0 {
         tracing::info!("removed the shared-memory resources of {cleaned} dead process(es)");
