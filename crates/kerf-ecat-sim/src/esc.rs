@@ -251,15 +251,18 @@ impl Esc {
     }
 
     fn writable(at: usize) -> bool {
-        !matches!(at,
+        let read_only_register = matches!(
+            at,
             0x0000..=0x000F
-            | 0x0110..=0x0111
-            | 0x0130..=0x0135
-            | 0x0440..=0x0441
-            | 0x0900..=0x090F
-            | 0x0918..=0x091F)
-            && !((0x0800..0x0880).contains(&at) && at % 8 == 5)
-            && !((0x0800..0x0880).contains(&at) && at % 8 == 7)
+                | 0x0110..=0x0111
+                | 0x0130..=0x0135
+                | 0x0440..=0x0441
+                | 0x0900..=0x090F
+                | 0x0918..=0x091F
+        );
+        // SyncManager status (byte 5) and PDI control (byte 7) belong to the ESC.
+        let sm_status = (0x0800..0x0880).contains(&at) && matches!(at % 8, 5 | 7);
+        !read_only_register && !sm_status
     }
 
     /// A physical write of `data` at `address`.

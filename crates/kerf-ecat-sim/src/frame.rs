@@ -211,9 +211,15 @@ pub fn for_each_datagram(
     Ok(())
 }
 
-/// Builds an Ethernet frame with one EtherCAT datagram (for tests and tools): broadcast
-/// destination, source 10:10:10:10:10:10 (ethercrab's MainDevice address).
-pub fn build_frame(datagrams: &[(Command, u8, u16, u16, &[u8], u16)]) -> Vec<u8> {
+/// A datagram to build: command, index, ADP, ADO, data, working counter.
+pub type DatagramSpec<'a> = (Command, u8, u16, u16, &'a [u8], u16);
+
+/// A parsed datagram: command code, ADP, ADO, data, working counter.
+pub type ParsedDatagram = (u8, u16, u16, Vec<u8>, u16);
+
+/// Builds an Ethernet frame with these EtherCAT datagrams (for tests and tools):
+/// broadcast destination, source 10:10:10:10:10:10 (ethercrab's MainDevice address).
+pub fn build_frame(datagrams: &[DatagramSpec<'_>]) -> Vec<u8> {
     let mut out = vec![0xFF; 6];
     out.extend_from_slice(&[0x10; 6]);
     out.extend_from_slice(&ETHERTYPE.to_be_bytes());
@@ -238,7 +244,7 @@ pub fn build_frame(datagrams: &[(Command, u8, u16, u16, &[u8], u16)]) -> Vec<u8>
 }
 
 /// The datagrams of a frame as (command, ADP, ADO, data, working counter), for tests.
-pub fn parse_datagrams(frame: &[u8]) -> Result<Vec<(u8, u16, u16, Vec<u8>, u16)>, FrameError> {
+pub fn parse_datagrams(frame: &[u8]) -> Result<Vec<ParsedDatagram>, FrameError> {
     let mut copy = frame.to_vec();
     let mut out = Vec::new();
     for_each_datagram(&mut copy, |d| {

@@ -104,12 +104,12 @@ impl Netns {
         }
     }
 
-    /// The emulator's standard input (its control commands).
-    pub fn emulator_stdin(&mut self) -> &mut std::process::ChildStdin {
+    /// Takes the emulator's standard input (its control commands).
+    pub fn take_emulator_stdin(&mut self) -> std::process::ChildStdin {
         self.emulator
             .as_mut()
-            .and_then(|c| c.stdin.as_mut())
-            .expect("emulator running")
+            .and_then(|c| c.stdin.take())
+            .expect("emulator running, stdin not taken yet")
     }
 
     /// Runs `f` on a new thread that has joined the namespace (threads it spawns are in
