@@ -197,3 +197,205 @@ fn logical(esc: &mut Esc, d: &mut Datagram<'_>, ctx: Ctx) {
     };
     d.wkc = d.wkc.wrapping_add(increment);
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::{build_frame, parse_datagrams};
+    use crate::{NetworkSpec, build};
+
+    fn line(drives: u16, io: u16) -> Network {
+        build(&NetworkSpec {
+            drives,
+            io,
+            ..NetworkSpec::default()
+        })
+        .0
+    }
+
+    fn run(
+        network: &mut Network,
+        datagrams: &[frame::DatagramSpec<'_>],
+    ) -> Vec<frame::ParsedDatagram> {
+        let mut frame = build_frame(datagrams);
+        network.process(&mut frame, 1_000_000).unwrap();
+        parse_datagrams(&frame).unwrap()
+    }
+
+    #[test]
+    fn brd_of_the_type_register_counts_every_subdevice() {
+        let mut network = line(3, 1);
+        let out = run(&mut network, &[(Command::Brd, 0, 0, 0x0000, &[0], 0)]);
+        // Each subdevice ORs its type byte (0x11) and adds 1.
+        assert_eq!(out[0].3, vec![0x11]);
+        assert_eq!(out[0].4, 4);
+        assert_eq!(out[0].1, 0, "broadcast leaves the address alone");
+    }
+
+    #[test]
+    fn auto_increment_addresses_the_subdevice_at_that_position() {
+        let mut network = line(3, 0);
+        // APWR to position 2 (ADP = −2): station address 0x1002.
+        let out = run(
+            &mut network,
+            &[(
+                Command::Apwr,
+                0,
+                0u16.wrapping_sub(2),
+                0x0010,
+                &[0x02, 0x10],
+                0,
+            )],
+        );
+        assert_eq!(out[0].4, 1);
+        assert_eq!(out[0].1, 1, "three increments of −2 give 1");
+        let addresses: Vec<u16> = network.escs().iter().map(|e| e.station_address()).collect();
+        assert_eq!(addresses, vec![0, 0, 0x1002]);
+        // FPRD of the AL status at 0x1002 answers INIT (1), WKC 1; an absent address 0.
+        let out = run(
+            &mut network,
+            &[
+                (Command::Fprd, 1, 0x1002, 0x0130, &[0, 0], 0),
+                (Command::Fprd, 2, 0x1003, 0x0130, &[0, 0], 0),
+            ],
+        );
+        assert_eq!((out[0].3.clone(), out[0].4), (vec![1, 0], 1));
+        assert_eq!(out[1].4, 0);
+    }
+
+    #[test]
+    fn read_write_commands_count_three_and_return_the_old_value() {
+        let mut network = line(2, 0);
+        run(
+            &mut network,
+            &[(Command::Apwr, 0, 0, 0x0010, &[0x01, 0x10], 0)],
+        );
+        let out = run(
+            &mut network,
+            &[(Command::Fprw, 0, 0x1001, 0x0012, &[0x34, 0x12], 0)],
+        );
+        assert_eq!((out[0].3.clone(), out[0].4), (vec![0, 0], 3));
+        let out = run(
+            &mut network,
+            &[(Command::Fprd, 0, 0x1001, 0x0012, &[0, 0], 0)],
+        );
+        assert_eq!(out[0].3, vec![0x34, 0x12]);
+    }
+
+    #[test]
+    fn frmw_reads_at_the_addressed_one_and_writes_the_others() {
+        let mut network = line(3, 0);
+        for (position, address) in [(0u16, 0x1000u16), (1, 0x1001), (2, 0x1002)] {
+            let data = address.to_le_bytes();
+            run(
+                &mut network,
+                &[(
+                    Command::Apwr,
+                    0,
+                    0u16.wrapping_sub(position),
+                    0x0010,
+                    &data,
+                    0,
+                )],
+            );
+        }
+        // The first subdevice's alias is read and written to the others.
+        run(
+            &mut network,
+            &[(Command::Fpwr, 0, 0x1000, 0x0012, &[0xCD, 0xAB], 0)],
+        );
+        let out = run(
+            &mut network,
+            &[(Command::Frmw, 0, 0x1000, 0x0012, &[0, 0], 0)],
+        );
+        assert_eq!((out[0].3.clone(), out[0].4), (vec![0xCD, 0xAB], 3));
+        let out = run(&mut network, &[(Command::Brd, 0, 0, 0x0012, &[0, 0], 0)]);
+        assert_eq!(out[0].3, vec![0xCD, 0xAB]);
+    }
+
+    #[test]
+    fn an_al_request_past_pre_op_is_refused_with_0x0011_and_init_to_pre_op_needs_the_mailbox() {
+        let mut network = line(1, 0);
+        run(&mut network, &[(Command::Bwr, 0, 0, 0x0120, &[0x08, 0], 0)]);
+        let out = run(&mut network, &[(Command::Brd, 0, 0, 0x0130, &[0; 6], 0)]);
+        assert_eq!(out[0].3, vec![0x11, 0, 0, 0, 0x11, 0x00]);
+        // Acknowledge and ask for PRE-OP without mailbox SyncManagers: 0x0016.
+        run(&mut network, &[(Command::Bwr, 0, 0, 0x0120, &[0x12, 0], 0)]);
+        let out = run(&mut network, &[(Command::Brd, 0, 0, 0x0130, &[0; 6], 0)]);
+        assert_eq!(out[0].3, vec![0x11, 0, 0, 0, 0x16, 0x00]);
+        // Configure SM0/SM1 as the EEPROM says (0x1000/128 control 0x26, 0x1080/128 0x22).
+        let sm = [
+            0x00, 0x10, 128, 0, 0x26, 0, 1, 0, 0x80, 0x10, 128, 0, 0x22, 0, 1, 0,
+        ];
+        run(&mut network, &[(Command::Bwr, 0, 0, 0x0800, &sm, 0)]);
+        run(&mut network, &[(Command::Bwr, 0, 0, 0x0120, &[0x12, 0], 0)]);
+        let out = run(&mut network, &[(Command::Brd, 0, 0, 0x0130, &[0; 6], 0)]);
+        assert_eq!(out[0].3, vec![0x02, 0, 0, 0, 0, 0]);
+    }
+
+    #[test]
+    fn sii_reads_return_eight_bytes_of_the_identity() {
+        let mut network = line(1, 0);
+        // Read request for word 0x0008 (ETG.1000.4 SII control: read bit in byte 1).
+        run(
+            &mut network,
+            &[(
+                Command::Apwr,
+                0,
+                0,
+                0x0502,
+                &[0x00, 0x01, 0x08, 0x00, 0, 0],
+                0,
+            )],
+        );
+        let out = run(&mut network, &[(Command::Aprd, 0, 0, 0x0502, &[0; 14], 0)]);
+        assert_eq!(out[0].3[1] & 0x80, 0, "not busy");
+        // Vendor 0x00004B52, product 0x00000402.
+        assert_eq!(&out[0].3[6..14], &[0x52, 0x4B, 0, 0, 0x02, 0x04, 0, 0]);
+    }
+
+    #[test]
+    fn logical_commands_reach_only_subdevices_in_safe_op_or_op() {
+        let mut network = line(0, 2);
+        // Configure each I/O: SM0 outputs 0x0F00/1, SM1 inputs 0x1000/1; FMMU0 writes
+        // logical 0x10+n to SM0, FMMU1 reads logical 0x20+n from SM1.
+        for n in 0..2u16 {
+            let adp = 0u16.wrapping_sub(n);
+            let sm = [
+                0x00, 0x0F, 1, 0, 0x44, 0, 1, 0, 0x00, 0x10, 1, 0, 0x00, 0, 1, 0,
+            ];
+            let lo = 0x10 + n as u8;
+            let li = 0x20 + n as u8;
+            let fmmu = [
+                lo, 0, 0, 0, 1, 0, 0, 7, 0x00, 0x0F, 0, 2, 1, 0, 0, 0, //
+                li, 0, 0, 0, 1, 0, 0, 7, 0x00, 0x10, 0, 1, 1, 0, 0, 0,
+            ];
+            run(
+                &mut network,
+                &[
+                    (Command::Apwr, 0, adp, 0x0800, &sm, 0),
+                    (Command::Apwr, 0, adp, 0x0600, &fmmu, 0),
+                ],
+            );
+        }
+        let out = run(&mut network, &[(Command::Lrw, 0, 0x10, 0, &[0; 32], 0)]);
+        assert_eq!(
+            out[0].4, 0,
+            "PRE-OP is not reached yet: INIT answers no logical command"
+        );
+        for control in [0x02u8, 0x04, 0x08] {
+            run(
+                &mut network,
+                &[(Command::Bwr, 0, 0, 0x0120, &[control, 0], 0)],
+            );
+        }
+        let out = run(&mut network, &[(Command::Brd, 0, 0, 0x0130, &[0; 2], 0)]);
+        assert_eq!(out[0].3, vec![0x08, 0]);
+        let out = run(&mut network, &[(Command::Lrw, 0, 0x10, 0, &[0; 32], 0)]);
+        assert_eq!(out[0].4, 6, "2 subdevices × (1 read + 2 write)");
+        let out = run(&mut network, &[(Command::Lwr, 0, 0x10, 0, &[0; 2], 0)]);
+        assert_eq!(out[0].4, 2);
+        let out = run(&mut network, &[(Command::Lrd, 0, 0x30, 0, &[0; 2], 0)]);
+        assert_eq!(out[0].4, 0, "nothing mapped there");
+    }
+}
