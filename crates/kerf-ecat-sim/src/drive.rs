@@ -51,6 +51,9 @@ pub struct DriveDevice {
     sii: SiiSpec,
     od: Od,
     drive: SimDrive,
+    /// Set once the watchdog expired: the time of the last model step of the drive's own
+    /// quick stop.
+    stopping_since_ns: Option<u64>,
 }
 
 impl DriveDevice {
@@ -134,6 +137,7 @@ impl DriveDevice {
             sii,
             od,
             drive: SimDrive::new(config),
+            stopping_since_ns: None,
         };
         device.refresh_inputs();
         device
@@ -173,6 +177,17 @@ impl DriveDevice {
         self.od
             .set(0x60F4, 0, &d.following_error_counts().to_le_bytes());
         self.od.set(0x603F, 0, &d.error_code().to_le_bytes());
+    }
+}
+
+impl DriveDevice {
+    /// One model step of the drive's own quick stop: controlword Quick stop (0x0002)
+    /// with the target where the motor is.
+    fn step_quick_stop(&mut self) {
+        let here = self.drive.position_actual_counts();
+        self.drive
+            .write(kerf_drive::cia402::cw::QUICK_STOP_CMD, here);
+        self.refresh_inputs();
     }
 }
 
@@ -225,8 +240,32 @@ impl Application for DriveDevice {
         }
         let controlword = self.od.get_u32(0x6040, 0) as u16;
         let target = self.od.get_u32(0x607A, 0) as i32;
+        self.stopping_since_ns = None;
         self.drive.write(controlword, target);
         self.refresh_inputs();
+    }
+
+    fn watchdog_expired(&mut self, now_ns: u64) {
+        self.stopping_since_ns = Some(now_ns);
+        self.step_quick_stop();
+    }
+
+    fn tick(&mut self, now_ns: u64) {
+        let Some(mut since) = self.stopping_since_ns else {
+            return;
+        };
+        let period_ns = self.drive.config().period_ns.max(1);
+        // One model period per period of time, as if the drive's own cycle went on.
+        while now_ns.saturating_sub(since) >= period_ns {
+            since += period_ns;
+            self.step_quick_stop();
+        }
+        self.stopping_since_ns = Some(since);
+    }
+
+    fn inject_fault(&mut self, error_code: u16) -> bool {
+        self.drive.inject_fault(error_code);
+        true
     }
 
     fn inputs(&mut self, data: &mut [u8]) {

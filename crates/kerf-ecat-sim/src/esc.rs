@@ -83,10 +83,15 @@ pub trait Application: Send {
     fn inputs(&mut self, data: &mut [u8]);
     /// A state change took place.
     fn transition(&mut self, from: AlState, to: AlState);
-    /// Called once per loop turn with the time; returns an AL status code when the
-    /// application drops the subdevice to SAFE-OP with an error (the watchdog).
-    fn tick(&mut self, _now_ns: u64, _state: AlState) -> Option<u16> {
-        None
+    /// The process-data watchdog expired: no output write for the watchdog time. The
+    /// application makes its outputs safe by itself (a drive does its quick stop).
+    fn watchdog_expired(&mut self, _now_ns: u64) {}
+    /// Called once per loop turn with the time (a drive stopping by itself goes on).
+    fn tick(&mut self, _now_ns: u64) {}
+    /// Test hook: trip a fault with this error code; false where the application has
+    /// no such notion.
+    fn inject_fault(&mut self, _error_code: u16) -> bool {
+        false
     }
 }
 
@@ -97,6 +102,7 @@ pub struct Esc {
     al: Al,
     clock: DcClock,
     mailbox_pending: bool,
+    last_output_ns: Option<u64>,
     app: Box<dyn Application>,
 }
 
@@ -123,6 +129,7 @@ impl Esc {
             al: Al::default(),
             clock: DcClock::new(clock_offset_ns),
             mailbox_pending: false,
+            last_output_ns: None,
             app,
         };
         let info: [u8; 10] = [
@@ -276,7 +283,7 @@ impl Esc {
         }
         let touches = |reg: u16, len: usize| overlaps(start, data.len(), usize::from(reg), len);
         if touches(REG_AL_CONTROL, 2) {
-            self.al_request(self.u16_at(REG_AL_CONTROL));
+            self.al_request(self.u16_at(REG_AL_CONTROL), ctx.now_ns);
         }
         if touches(REG_SII_CONTROL, 2) {
             self.sii_command();
@@ -325,6 +332,7 @@ impl Esc {
                 let apply = self.al.state() == AlState::Op;
                 let data = self.memory[range].to_vec();
                 self.app.outputs(&data, apply, ctx.now_ns);
+                self.last_output_ns = Some(ctx.now_ns);
             }
         }
     }
@@ -417,7 +425,7 @@ impl Esc {
         Ok(())
     }
 
-    fn al_request(&mut self, control: u16) {
+    fn al_request(&mut self, control: u16, now_ns: u64) {
         let mut al = self.al;
         let done = al.request(control, |from, to| self.check_transition(from, to));
         self.al = al;
@@ -425,17 +433,45 @@ impl Esc {
             if to < AlState::PreOp || from == AlState::Init {
                 self.mailbox_pending = false;
             }
+            if to == AlState::Op {
+                self.last_output_ns = self.last_output_ns.or(Some(now_ns));
+                self.memory[usize::from(REG_WD_STATUS)] = 1;
+            }
             self.app.transition(from, to);
         }
     }
 
-    /// One loop turn: the application's supervision (its watchdog).
-    pub fn tick(&mut self, now_ns: u64) {
-        if let Some(code) = self.app.tick(now_ns, self.al.state()) {
-            self.al.drop_to(AlState::SafeOp, code);
-            self.memory[usize::from(REG_WD_STATUS)] = 0; // watchdog expired
-        } else {
-            self.memory[usize::from(REG_WD_STATUS)] = 1;
+    /// The SyncManager watchdog time: divider (0x0400, units of 40 ns, plus 2) times the
+    /// SM watchdog (0x0420); `None` when 0x0420 is 0 or the output SyncManager does not
+    /// enable its watchdog (control bit 6).
+    pub fn watchdog_ns(&self) -> Option<u64> {
+        let (_, sm) = self.sm_of(SmUsage::Outputs)?;
+        let count = u64::from(self.u16_at(0x0420));
+        if sm.control & 0x40 == 0 || count == 0 {
+            return None;
         }
+        Some((u64::from(self.u16_at(0x0400)) + 2) * 40 * count)
+    }
+
+    /// One loop turn: the process-data watchdog (in OP, no output write for the watchdog
+    /// time drops the subdevice to SAFE-OP with AL status code 0x001B and tells the
+    /// application), then the application's own tick.
+    pub fn tick(&mut self, now_ns: u64) {
+        let expired = match (self.al.state(), self.last_output_ns, self.watchdog_ns()) {
+            (AlState::Op, Some(last), Some(limit)) => now_ns.saturating_sub(last) > limit,
+            _ => false,
+        };
+        if expired {
+            self.al.drop_to(AlState::SafeOp, al::CODE_SM_WATCHDOG);
+            self.app.watchdog_expired(now_ns);
+            self.memory[usize::from(REG_WD_STATUS)] = 0;
+        }
+        self.app.tick(now_ns);
+    }
+
+    /// The time of the last output write, or of entering SAFE-OP (where the watchdog
+    /// starts counting).
+    pub fn last_output_ns(&self) -> Option<u64> {
+        self.last_output_ns
     }
 }

@@ -130,6 +130,10 @@ impl Application for IoDevice {
         }
     }
 
+    fn watchdog_expired(&mut self, _now_ns: u64) {
+        self.handle.outputs.store(0, Ordering::SeqCst);
+    }
+
     fn transition(&mut self, _from: AlState, to: AlState) {
         if to < AlState::Op {
             self.handle.outputs.store(0, Ordering::SeqCst);

@@ -1,8 +1,13 @@
 //! `kerf-ecat-sim`: the emulated EtherCAT network on a Linux interface. See the library's
 //! documentation for the default identities.
 //!
-//! Control on standard input, one command per line: `mute` stops answering frames (a
-//! pulled cable), `unmute` answers again. SIGTERM or SIGINT ends it cleanly.
+//! Control on standard input, one command per line:
+//! - `mute` stops answering frames (a pulled cable), `unmute` answers again;
+//! - `fault P CODE` trips a fault with error code CODE (e.g. 0x2310) in the drive at
+//!   position P (0 first);
+//! - `inputs N BITS` sets the input bits of the N-th I/O subdevice (0 first).
+//!
+//! SIGTERM or SIGINT ends it cleanly.
 
 use std::io::BufRead;
 use std::sync::mpsc;
@@ -25,7 +30,9 @@ fn parse_u32(text: &str) -> Result<u32, String> {
 /// EtherCAT frames on INTERFACE. Defaults: vendor id 0x00004B52; drives product code
 /// 0x00000402, serials 0x1001, 0x1002, …, name "Kerf CiA402 drive"; I/O product code
 /// 0x00000010, serials 0x2001, …, name "Kerf digital I/O", 8 inputs and 8 outputs;
-/// revision 0x00010000. Standard input: "mute" stops answering, "unmute" answers again.
+/// revision 0x00010000. Standard input, one command a line: "mute" stops answering,
+/// "unmute" answers again, "fault P CODE" trips a fault in the drive at position P,
+/// "inputs N BITS" sets the N-th I/O subdevice's input bits.
 #[derive(Debug, Parser)]
 #[command(name = "kerf-ecat-sim", version)]
 struct Args {
@@ -52,6 +59,39 @@ struct Args {
     revision: u32,
 }
 
+/// Carries out one control command from standard input.
+fn control(
+    command: &str,
+    network: &mut kerf_ecat_sim::network::Network,
+    handles: &[kerf_ecat_sim::io::IoHandle],
+    muted: &mut bool,
+) -> Result<(), String> {
+    let words: Vec<&str> = command.split_whitespace().collect();
+    let index = |text: &str| text.parse::<usize>().map_err(|e| format!("{text:?}: {e}"));
+    match words.as_slice() {
+        ["mute"] => *muted = true,
+        ["unmute"] => *muted = false,
+        ["fault", position, code] => {
+            let code = u16::try_from(parse_u32(code)?).map_err(|e| e.to_string())?;
+            if !network.inject_fault(index(position)?, code) {
+                return Err(format!("no drive at position {position}"));
+            }
+        }
+        ["inputs", n, bits] => {
+            let handle = handles
+                .get(index(n)?)
+                .ok_or_else(|| format!("no I/O subdevice number {n}"))?;
+            handle.set_inputs(u64::from(parse_u32(bits)?));
+        }
+        _ => {
+            return Err(
+                "unknown command (mute, unmute, fault POSITION CODE, inputs N BITS)".into(),
+            );
+        }
+    }
+    Ok(())
+}
+
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     let spec = NetworkSpec {
@@ -63,9 +103,9 @@ fn main() -> anyhow::Result<()> {
         revision: args.revision,
         ..NetworkSpec::default()
     };
-    let (mut network, _handles) = build(&spec);
+    let (mut network, handles) = build(&spec);
     let signals = kerf_rt::Signals::install().context("installing signal handlers")?;
-    let mut socket = RawSocket::open(&args.interface, Duration::from_millis(50))
+    let mut socket = RawSocket::open(&args.interface, Duration::from_millis(1))
         .with_context(|| format!("opening a raw socket on {}", args.interface))?;
     let (control_tx, control_rx) = mpsc::channel::<String>();
     std::thread::spawn(move || {
@@ -84,11 +124,9 @@ fn main() -> anyhow::Result<()> {
     let mut buffer = vec![0u8; 2048];
     while signals.stop_requested().is_none() {
         while let Ok(command) = control_rx.try_recv() {
-            match command.as_str() {
-                "mute" => muted = true,
-                "unmute" => muted = false,
-                "" => {}
-                other => eprintln!("kerf-ecat-sim: unknown command {other:?} (mute, unmute)"),
+            match control(&command, &mut network, &handles, &mut muted) {
+                Ok(()) => eprintln!("kerf-ecat-sim: done: {command}"),
+                Err(e) => eprintln!("kerf-ecat-sim: {command:?} refused: {e}"),
             }
         }
         let now_ns = start.elapsed().as_nanos() as u64;

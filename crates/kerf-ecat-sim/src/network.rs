@@ -85,6 +85,14 @@ impl Network {
         frame::for_each_datagram(frame, |datagram| self.datagram(datagram, now_ns))
     }
 
+    /// Trips a fault with `error_code` in the subdevice at `position`; false where there
+    /// is none or it has no faults (an I/O subdevice).
+    pub fn inject_fault(&mut self, position: usize, error_code: u16) -> bool {
+        self.escs
+            .get_mut(position)
+            .is_some_and(|esc| esc.app_mut().inject_fault(error_code))
+    }
+
     /// One loop turn for every subdevice (watchdogs).
     pub fn tick(&mut self, now_ns: u64) {
         for esc in &mut self.escs {
