@@ -1,6 +1,8 @@
 //! The mailbox (ETG.1000.4 §5.6: 6-byte header with length, address, type and counter)
 //! and CoE SDO services on it (ETG.1000.6 §5.6.2, CiA 301): upload and download,
-//! expedited (up to 4 bytes in the initiate frame) and normal (size then data), and the
+//! expedited (up to 4 bytes in the initiate frame) and normal (size then data), segmented
+//! upload (a value longer than the mailbox: the initiate response gives the size, then
+//! each upload-segment request gets up to mailbox − 9 bytes with the toggle bit), and the
 //! abort transfer with its code.
 
 use crate::od::{ABORT_COMMAND, Od};
@@ -33,7 +35,13 @@ pub enum SdoRequest {
         /// The value.
         value: Vec<u8>,
     },
-    /// Something this emulator does not serve (segments, complete access, SDO info…).
+    /// Upload segment request with its toggle bit.
+    UploadSegment {
+        /// The toggle bit (alternates from 0).
+        toggle: bool,
+    },
+    /// Something this emulator does not serve (download segments, complete access, SDO
+    /// info…).
     Unsupported {
         /// Index.
         index: u16,
@@ -89,6 +97,9 @@ pub fn decode(mailbox: &[u8]) -> Option<(u8, SdoRequest)> {
                 }
             }
         }
+        3 => SdoRequest::UploadSegment {
+            toggle: command & 0x10 != 0,
+        },
         _ => SdoRequest::Unsupported { index, sub_index },
     };
     Some((type_counter & 0x70, request))
@@ -132,34 +143,110 @@ pub fn download_response(counter: u8, index: u16, sub_index: u8) -> Vec<u8> {
     response(counter, 0x60, index, sub_index, &[0; 4])
 }
 
-/// Serves one mailbox request from a dictionary; `on_write` sees each accepted download.
-pub fn serve(
-    od: &mut Od,
-    mailbox: &[u8],
-    pre_op: bool,
-    mut on_write: impl FnMut(u16, u8, &[u8]),
-) -> Option<Vec<u8>> {
-    let (counter, request) = decode(mailbox)?;
-    Some(match request {
-        SdoRequest::Upload { index, sub_index } => match od.read(index, sub_index) {
-            Ok(value) => upload_response(counter, index, sub_index, value),
-            Err(code) => abort(counter, index, sub_index, code),
-        },
-        SdoRequest::Download {
-            index,
-            sub_index,
-            value,
-        } => match od.write(index, sub_index, &value, pre_op) {
-            Ok(()) => {
-                on_write(index, sub_index, &value);
-                download_response(counter, index, sub_index)
-            }
-            Err(code) => abort(counter, index, sub_index, code),
-        },
-        SdoRequest::Unsupported { index, sub_index } => {
-            abort(counter, index, sub_index, ABORT_COMMAND)
+/// A segmented upload under way.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Segmented {
+    index: u16,
+    sub_index: u8,
+    data: Vec<u8>,
+    sent: usize,
+    toggle: bool,
+}
+
+/// The SDO server of one subdevice: serves requests from its dictionary and keeps the
+/// state of a segmented upload.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SdoServer {
+    mailbox_len: usize,
+    segmented: Option<Segmented>,
+}
+
+/// ETG.1000.6 toggle bit error abort.
+pub const ABORT_TOGGLE: u32 = 0x0503_0000;
+
+impl SdoServer {
+    /// A server answering in mailboxes of `mailbox_len` bytes.
+    pub fn new(mailbox_len: u16) -> SdoServer {
+        SdoServer {
+            mailbox_len: usize::from(mailbox_len),
+            segmented: None,
         }
-    })
+    }
+
+    /// Serves one mailbox request; `on_write` sees each accepted download.
+    pub fn serve(
+        &mut self,
+        od: &mut Od,
+        mailbox: &[u8],
+        pre_op: bool,
+        mut on_write: impl FnMut(u16, u8, &[u8]),
+    ) -> Option<Vec<u8>> {
+        let (counter, request) = decode(mailbox)?;
+        if !matches!(request, SdoRequest::UploadSegment { .. }) {
+            self.segmented = None;
+        }
+        Some(match request {
+            SdoRequest::Upload { index, sub_index } => match od.read(index, sub_index) {
+                Ok(value) if 16 + value.len() > self.mailbox_len => {
+                    let value = value.to_vec();
+                    let size = (value.len() as u32).to_le_bytes();
+                    self.segmented = Some(Segmented {
+                        index,
+                        sub_index,
+                        data: value,
+                        sent: 0,
+                        toggle: false,
+                    });
+                    response(counter, 0x41, index, sub_index, &size)
+                }
+                Ok(value) => upload_response(counter, index, sub_index, value),
+                Err(code) => abort(counter, index, sub_index, code),
+            },
+            SdoRequest::UploadSegment { toggle } => self.segment(counter, toggle),
+            SdoRequest::Download {
+                index,
+                sub_index,
+                value,
+            } => match od.write(index, sub_index, &value, pre_op) {
+                Ok(()) => {
+                    on_write(index, sub_index, &value);
+                    download_response(counter, index, sub_index)
+                }
+                Err(code) => abort(counter, index, sub_index, code),
+            },
+            SdoRequest::Unsupported { index, sub_index } => {
+                abort(counter, index, sub_index, ABORT_COMMAND)
+            }
+        })
+    }
+
+    fn segment(&mut self, counter: u8, toggle: bool) -> Vec<u8> {
+        let Some(mut upload) = self.segmented.take() else {
+            return abort(counter, 0, 0, ABORT_COMMAND);
+        };
+        if toggle != upload.toggle {
+            return abort(counter, upload.index, upload.sub_index, ABORT_TOGGLE);
+        }
+        let room = self.mailbox_len - MAILBOX_HEADER_LEN - 3;
+        let chunk = &upload.data[upload.sent..(upload.sent + room).min(upload.data.len())];
+        let last = upload.sent + chunk.len() == upload.data.len();
+        let unused = 7usize.saturating_sub(chunk.len()) as u8;
+        let command = (u8::from(toggle) << 4) | (unused << 1) | u8::from(last);
+        let len = 3 + chunk.len().max(7);
+        let mut out = Vec::with_capacity(MAILBOX_HEADER_LEN + len);
+        out.extend_from_slice(&(len as u16).to_le_bytes());
+        out.extend_from_slice(&[0, 0, 0, MAILBOX_TYPE_COE | counter]);
+        out.extend_from_slice(&(SERVICE_SDO_RESPONSE << 12).to_le_bytes());
+        out.push(command);
+        out.extend_from_slice(chunk);
+        out.resize(MAILBOX_HEADER_LEN + len, 0);
+        upload.sent += chunk.len();
+        upload.toggle = !upload.toggle;
+        if !last {
+            self.segmented = Some(upload);
+        }
+        out
+    }
 }
 
 #[cfg(test)]
@@ -179,7 +266,9 @@ mod tests {
     fn an_expedited_upload_answers_with_size_and_value() {
         let mut od = Od::default();
         od.insert(0x1018, 1, &0x0000_4B52u32.to_le_bytes(), Access::ReadOnly);
-        let out = serve(&mut od, &upload_request(), true, |_, _, _| {}).unwrap();
+        let out = SdoServer::new(128)
+            .serve(&mut od, &upload_request(), true, |_, _, _| {})
+            .unwrap();
         assert_eq!(
             out,
             vec![
@@ -192,7 +281,9 @@ mod tests {
     #[test]
     fn a_missing_object_aborts_with_its_code() {
         let mut od = Od::default();
-        let out = serve(&mut od, &upload_request(), true, |_, _, _| {}).unwrap();
+        let out = SdoServer::new(128)
+            .serve(&mut od, &upload_request(), true, |_, _, _| {})
+            .unwrap();
         assert_eq!(
             &out[8..16],
             &[0x80, 0x18, 0x10, 0x01, 0x00, 0x00, 0x02, 0x06]
@@ -207,10 +298,61 @@ mod tests {
         let mut m = vec![0x0A, 0x00, 0x00, 0x00, 0x00, 0x23, 0x00, 0x20];
         m.extend_from_slice(&[0x2F, 0x60, 0x60, 0x00, 0x09, 0, 0, 0]);
         let mut seen = None;
-        let out = serve(&mut od, &m, true, |i, s, v| seen = Some((i, s, v.to_vec()))).unwrap();
+        let out = SdoServer::new(128)
+            .serve(&mut od, &m, true, |i, s, v| seen = Some((i, s, v.to_vec())))
+            .unwrap();
         assert_eq!(&out[8..12], &[0x60, 0x60, 0x60, 0x00]);
         assert_eq!(od.get_u32(0x6060, 0), 9);
         assert_eq!(seen, Some((0x6060, 0, vec![9])));
+    }
+
+    #[test]
+    fn a_long_value_is_uploaded_in_segments_with_alternating_toggle() {
+        let mut od = Od::default();
+        let value: Vec<u8> = (0..150u8).collect();
+        od.insert(0x100A, 0, &value, Access::ReadOnly);
+        let mut server = SdoServer::new(128);
+        let mut m = upload_request();
+        m[9] = 0x0A;
+        m[11] = 0;
+        let out = server.serve(&mut od, &m, true, |_, _, _| {}).unwrap();
+        // Initiate response: normal, size indicated, size 150, no data (length 10).
+        assert_eq!(&out[..2], &[10, 0]);
+        assert_eq!(&out[8..16], &[0x41, 0x0A, 0x10, 0x00, 150, 0, 0, 0]);
+        // Upload segment request, toggle 0 (command 0x60): 119 bytes (128 − 9), more follow.
+        let mut seg = vec![0x0A, 0x00, 0x00, 0x00, 0x00, 0x23, 0x00, 0x20, 0x60];
+        seg.resize(16, 0);
+        let first = server.serve(&mut od, &seg, true, |_, _, _| {}).unwrap();
+        assert_eq!(u16::from_le_bytes([first[0], first[1]]), 3 + 119);
+        assert_eq!(first[8], 0x00);
+        assert_eq!(&first[9..128], &value[..119]);
+        // Toggle 1 (0x70): the remaining 31 bytes, last segment (bit 0), toggle echoed.
+        seg[8] = 0x70;
+        let second = server.serve(&mut od, &seg, true, |_, _, _| {}).unwrap();
+        assert_eq!(u16::from_le_bytes([second[0], second[1]]), 3 + 31);
+        assert_eq!(second[8], 0x11);
+        assert_eq!(&second[9..40], &value[119..]);
+        // A further segment request has no upload under way.
+        let third = server.serve(&mut od, &seg, true, |_, _, _| {}).unwrap();
+        assert_eq!(third[8], 0x80);
+    }
+
+    #[test]
+    fn a_wrong_toggle_aborts_with_0x05030000() {
+        let mut od = Od::default();
+        od.insert(0x100A, 0, &[7; 150], Access::ReadOnly);
+        let mut server = SdoServer::new(128);
+        let mut m = upload_request();
+        m[9] = 0x0A;
+        m[11] = 0;
+        server.serve(&mut od, &m, true, |_, _, _| {}).unwrap();
+        let mut seg = vec![0x0A, 0x00, 0x00, 0x00, 0x00, 0x23, 0x00, 0x20, 0x70];
+        seg.resize(16, 0);
+        let out = server.serve(&mut od, &seg, true, |_, _, _| {}).unwrap();
+        assert_eq!(
+            &out[8..16],
+            &[0x80, 0x0A, 0x10, 0x00, 0x00, 0x00, 0x03, 0x05]
+        );
     }
 
     #[test]
@@ -220,7 +362,9 @@ mod tests {
         let mut m = upload_request();
         m[9] = 0x08;
         m[11] = 0;
-        let out = serve(&mut od, &m, true, |_, _, _| {}).unwrap();
+        let out = SdoServer::new(128)
+            .serve(&mut od, &m, true, |_, _, _| {})
+            .unwrap();
         assert_eq!(out[8], 0x41);
         assert_eq!(&out[12..16], &[10, 0, 0, 0]);
         assert_eq!(&out[16..26], b"Kerf drive");

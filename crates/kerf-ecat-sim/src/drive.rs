@@ -17,6 +17,13 @@ use crate::esc::Application;
 use crate::od::{Access, Od};
 use crate::sii::{Identity, Pdo, PdoEntry, SiiSpec, SmConfig, SmUsage};
 
+/// Object 0x100A, manufacturer software version: longer than a mailbox on purpose, so
+/// that reading it takes a segmented upload (160 bytes). ethercrab 0.7.1 cannot read it:
+/// it decodes the upload-segment response's command specifier (0, CiA 301) as an invalid
+/// value.
+pub const SOFTWARE_VERSION: &str = "kerf-ecat-sim emulated CiA 402 drive: servo model kerf_drive::sim::SimDrive, \
+CSP mode 8, one model step per process data write; this text is 160 bytes long.....";
+
 /// Mailbox size each way, bytes.
 pub const MAILBOX_LEN: u16 = 128;
 
@@ -50,6 +57,7 @@ fn mapping_bytes(mapping: &[u32]) -> u16 {
 pub struct DriveDevice {
     sii: SiiSpec,
     od: Od,
+    sdo: coe::SdoServer,
     drive: SimDrive,
     /// Set once the watchdog expired: the time of the last model step of the drive's own
     /// quick stop.
@@ -105,6 +113,7 @@ impl DriveDevice {
         let mut od = Od::default();
         od.insert(0x1000, 0, &0x0002_0192u32.to_le_bytes(), Access::ReadOnly);
         od.insert(0x1008, 0, name.as_bytes(), Access::ReadOnly);
+        od.insert(0x100A, 0, SOFTWARE_VERSION.as_bytes(), Access::ReadOnly);
         let id = [
             identity.vendor_id,
             identity.product_code,
@@ -136,6 +145,7 @@ impl DriveDevice {
         let mut device = DriveDevice {
             sii,
             od,
+            sdo: coe::SdoServer::new(MAILBOX_LEN),
             drive: SimDrive::new(config),
             stopping_since_ns: None,
         };
@@ -218,7 +228,8 @@ impl Application for DriveDevice {
     fn mailbox(&mut self, request: &[u8], state: AlState) -> Option<Vec<u8>> {
         self.refresh_inputs();
         let mut mode = None;
-        let response = coe::serve(&mut self.od, request, state == AlState::PreOp, |i, _, v| {
+        let pre_op = state == AlState::PreOp;
+        let response = self.sdo.serve(&mut self.od, request, pre_op, |i, _, v| {
             if i == 0x6060 {
                 mode = Some(v[0] as i8);
             }
