@@ -103,6 +103,7 @@ pub struct Esc {
     clock: DcClock,
     mailbox_pending: bool,
     last_output_ns: Option<u64>,
+    refusal: Option<(AlState, u16)>,
     app: Box<dyn Application>,
 }
 
@@ -130,6 +131,7 @@ impl Esc {
             clock: DcClock::new(clock_offset_ns),
             mailbox_pending: false,
             last_output_ns: None,
+            refusal: None,
             app,
         };
         let info: [u8; 10] = [
@@ -381,7 +383,18 @@ impl Esc {
         self.set_u64(REG_DC_RECEIVE_TIME, port0);
     }
 
+    /// Test hook: refuse every request to enter `state` with AL status `code` (e.g.
+    /// SAFE-OP with 0x001D, as a drive whose configuration does not suit it).
+    pub fn refuse(&mut self, state: AlState, code: u16) {
+        self.refusal = Some((state, code));
+    }
+
     fn check_transition(&self, from: AlState, to: AlState) -> Result<(), u16> {
+        if let Some((state, code)) = self.refusal
+            && state == to
+        {
+            return Err(code);
+        }
         let sii = self.app.sii();
         let needs_mailbox = to != AlState::Init && sii.mailbox.is_some();
         if from == AlState::Init && needs_mailbox {

@@ -12,6 +12,12 @@
 //!
 //! where n counts the drives (or the I/O subdevices) from 0. The drives come first on the
 //! line, then the I/O subdevices. Each I/O subdevice has 8 inputs and 8 outputs.
+//!
+//! The binary's control for tests: `--refuse-safe-op P` makes the subdevice at position P
+//! refuse SAFE-OP with AL status code 0x001D; on standard input, `mute` / `unmute` (stop
+//! and resume answering, a pulled cable), `fault P CODE` (a drive fault with that error
+//! code), `inputs N BITS` (an I/O subdevice's inputs). Every output SyncManager enables the
+//! process-data watchdog (ESC defaults: divider 0x09C2 = 100 µs, 0x0420 = 1000, 100 ms).
 #![deny(unsafe_code)]
 
 pub mod al;
@@ -70,6 +76,9 @@ pub struct NetworkSpec {
     pub revision: u32,
     /// The drives' servo model.
     pub sim: SimConfig,
+    /// Positions (0 first) whose subdevice refuses SAFE-OP with AL status code 0x001D
+    /// (invalid output configuration).
+    pub refuse_safe_op: &'static [u16],
 }
 
 impl Default for NetworkSpec {
@@ -82,6 +91,7 @@ impl Default for NetworkSpec {
             io_product_code: IO_PRODUCT_CODE,
             revision: REVISION,
             sim: SimConfig::default(),
+            refuse_safe_op: &[],
         }
     }
 }
@@ -110,6 +120,11 @@ pub fn build(spec: &NetworkSpec) -> (Network, Vec<IoHandle>) {
         let (app, handle) = IoDevice::new(identity, IO_NAME, IO_BITS, IO_BITS);
         escs.push(Esc::new(Box::new(app), 500_000 + u64::from(n) * 1_000_000));
         handles.push(handle);
+    }
+    for &position in spec.refuse_safe_op {
+        if let Some(esc) = escs.get_mut(usize::from(position)) {
+            esc.refuse(al::AlState::SafeOp, al::CODE_INVALID_OUTPUT_CONFIG);
+        }
     }
     (Network::new(escs), handles)
 }

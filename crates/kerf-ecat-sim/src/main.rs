@@ -57,6 +57,10 @@ struct Args {
     /// Revision of every subdevice.
     #[arg(long, value_parser = parse_u32, default_value = "0x00010000")]
     revision: u32,
+    /// The subdevice at this position (0 first; repeatable) refuses SAFE-OP with AL status
+    /// code 0x001D, invalid output configuration.
+    #[arg(long, value_name = "POSITION")]
+    refuse_safe_op: Vec<u16>,
 }
 
 /// Carries out one control command from standard input.
@@ -94,6 +98,14 @@ fn control(
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
+    let count = usize::from(args.drives) + usize::from(args.io);
+    if let Some(bad) = args
+        .refuse_safe_op
+        .iter()
+        .find(|p| usize::from(**p) >= count)
+    {
+        anyhow::bail!("--refuse-safe-op {bad}: the line has only {count} subdevice(s)");
+    }
     let spec = NetworkSpec {
         drives: args.drives,
         io: args.io,
@@ -101,6 +113,7 @@ fn main() -> anyhow::Result<()> {
         drive_product_code: args.product_code,
         io_product_code: args.io_product_code,
         revision: args.revision,
+        refuse_safe_op: args.refuse_safe_op.clone().leak(),
         ..NetworkSpec::default()
     };
     let (mut network, handles) = build(&spec);
