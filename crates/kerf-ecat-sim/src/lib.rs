@@ -60,7 +60,7 @@ pub const IO_NAME: &str = "Kerf digital I/O";
 pub const IO_BITS: u8 = 8;
 
 /// What to emulate.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct NetworkSpec {
     /// Number of drives.
     pub drives: u16,
@@ -78,7 +78,7 @@ pub struct NetworkSpec {
     pub sim: SimConfig,
     /// Positions (0 first) whose subdevice refuses SAFE-OP with AL status code 0x001D
     /// (invalid output configuration).
-    pub refuse_safe_op: &'static [u16],
+    pub refuse_safe_op: Vec<u16>,
 }
 
 impl Default for NetworkSpec {
@@ -91,7 +91,7 @@ impl Default for NetworkSpec {
             io_product_code: IO_PRODUCT_CODE,
             revision: REVISION,
             sim: SimConfig::default(),
-            refuse_safe_op: &[],
+            refuse_safe_op: Vec::new(),
         }
     }
 }
@@ -121,7 +121,7 @@ pub fn build(spec: &NetworkSpec) -> (Network, Vec<IoHandle>) {
         escs.push(Esc::new(Box::new(app), 500_000 + u64::from(n) * 1_000_000));
         handles.push(handle);
     }
-    for &position in spec.refuse_safe_op {
+    for &position in &spec.refuse_safe_op {
         if let Some(esc) = escs.get_mut(usize::from(position)) {
             esc.refuse(al::AlState::SafeOp, al::CODE_INVALID_OUTPUT_CONFIG);
         }

@@ -113,7 +113,7 @@ fn main() -> anyhow::Result<()> {
         drive_product_code: args.product_code,
         io_product_code: args.io_product_code,
         revision: args.revision,
-        refuse_safe_op: args.refuse_safe_op.clone().leak(),
+        refuse_safe_op: args.refuse_safe_op.clone(),
         ..NetworkSpec::default()
     };
     let (mut network, handles) = build(&spec);
