@@ -406,4 +406,56 @@ mod tests {
         let out = run(&mut network, &[(Command::Lrd, 0, 0x30, 0, &[0; 2], 0)]);
         assert_eq!(out[0].4, 0, "nothing mapped there");
     }
+
+    fn run_at(
+        network: &mut Network,
+        now_ns: u64,
+        datagrams: &[frame::DatagramSpec<'_>],
+    ) -> Vec<frame::ParsedDatagram> {
+        let mut frame = build_frame(datagrams);
+        network.process(&mut frame, now_ns).unwrap();
+        parse_datagrams(&frame).unwrap()
+    }
+
+    #[test]
+    fn the_watchdog_drops_op_to_safe_op_100_ms_after_the_last_output_write() {
+        let mut network = line(1, 0);
+        // SM0/SM1 mailboxes, SM2 outputs 0x1100/6 control 0x64 (watchdog on), SM3 inputs
+        // 0x1180/20; FMMU0 writes logical 0..6 to 0x1100.
+        let sm = [
+            0x00, 0x10, 128, 0, 0x26, 0, 1, 0, 0x80, 0x10, 128, 0, 0x22, 0, 1, 0, //
+            0x00, 0x11, 6, 0, 0x64, 0, 1, 0, 0x80, 0x11, 20, 0, 0x20, 0, 1, 0,
+        ];
+        let fmmu = [0, 0, 0, 0, 6, 0, 0, 7, 0x00, 0x11, 0, 2, 1, 0, 0, 0];
+        run_at(
+            &mut network,
+            0,
+            &[
+                (Command::Bwr, 0, 0, 0x0800, &sm, 0),
+                (Command::Bwr, 0, 0, 0x0600, &fmmu, 0),
+            ],
+        );
+        for control in [0x02u8, 0x04, 0x08] {
+            run_at(
+                &mut network,
+                0,
+                &[(Command::Bwr, 0, 0, 0x0120, &[control, 0], 0)],
+            );
+        }
+        let out = run_at(&mut network, 0, &[(Command::Brd, 0, 0, 0x0130, &[0; 2], 0)]);
+        assert_eq!(out[0].3, vec![0x08, 0]);
+        let write_ns = 1_000_000;
+        let out = run_at(
+            &mut network,
+            write_ns,
+            &[(Command::Lwr, 0, 0, 0, &[0; 6], 0)],
+        );
+        assert_eq!(out[0].4, 1);
+        // ESC defaults: divider 0x09C2 → (2498 + 2) · 40 ns = 100 µs; 0x0420 = 1000 → 100 ms.
+        network.tick(write_ns + 100_000_000);
+        assert_eq!(network.escs()[0].al().status_word(), 0x08);
+        network.tick(write_ns + 100_000_001);
+        assert_eq!(network.escs()[0].al().status_word(), 0x14);
+        assert_eq!(network.escs()[0].al().code(), 0x001B);
+    }
 }
