@@ -1,0 +1,130 @@
+//! An emulated EtherCAT network for tests: CiA 402 servo drives and digital I/O
+//! subdevices that answer real EtherCAT frames (EtherType 0x88A4). The core is pure and
+//! deterministic (frame bytes and a time in, frame bytes out, see [`network::Network`]);
+//! the binary `kerf-ecat-sim` puts it on a Linux interface through a raw socket.
+//!
+//! Default identities (all plainly test values; vendor id 0x0000_4B52 is "KR"):
+//!
+//! | kind  | vendor id   | product code | revision    | serial             | name                |
+//! |-------|-------------|--------------|-------------|--------------------|---------------------|
+//! | drive | 0x0000_4B52 | 0x0000_0402  | 0x0001_0000 | 0x0000_1001 + n    | `Kerf CiA402 drive` |
+//! | I/O   | 0x0000_4B52 | 0x0000_0010  | 0x0001_0000 | 0x0000_2001 + n    | `Kerf digital I/O`  |
+//!
+//! where n counts the drives (or the I/O subdevices) from 0. The drives come first on the
+//! line, then the I/O subdevices. Each I/O subdevice has 8 inputs and 8 outputs.
+//!
+//! The binary's control for tests: `--refuse-safe-op P` makes the subdevice at position P
+//! refuse SAFE-OP with AL status code 0x001D; on standard input, `mute` / `unmute` (stop
+//! and resume answering, a pulled cable), `fault P CODE` (a drive fault with that error
+//! code), `inputs N BITS` (an I/O subdevice's inputs). Every output SyncManager enables the
+//! process-data watchdog (ESC defaults: divider 0x09C2 = 100 µs, 0x0420 = 1000, 100 ms).
+#![deny(unsafe_code)]
+
+pub mod al;
+pub mod coe;
+pub mod dc;
+pub mod drive;
+pub mod esc;
+pub mod frame;
+pub mod io;
+pub mod network;
+pub mod od;
+pub mod sii;
+pub mod socket;
+
+use kerf_drive::sim::SimConfig;
+
+use crate::drive::DriveDevice;
+use crate::esc::Esc;
+use crate::io::{IoDevice, IoHandle};
+use crate::network::Network;
+use crate::sii::Identity;
+
+/// Default vendor id.
+pub const VENDOR_ID: u32 = 0x0000_4B52;
+/// Default product code of the drives.
+pub const DRIVE_PRODUCT_CODE: u32 = 0x0000_0402;
+/// Default product code of the I/O subdevices.
+pub const IO_PRODUCT_CODE: u32 = 0x0000_0010;
+/// Default revision.
+pub const REVISION: u32 = 0x0001_0000;
+/// Serial number of the first drive.
+pub const DRIVE_SERIAL_BASE: u32 = 0x0000_1001;
+/// Serial number of the first I/O subdevice.
+pub const IO_SERIAL_BASE: u32 = 0x0000_2001;
+/// Name of the drives.
+pub const DRIVE_NAME: &str = "Kerf CiA402 drive";
+/// Name of the I/O subdevices.
+pub const IO_NAME: &str = "Kerf digital I/O";
+/// Input and output bits of an I/O subdevice.
+pub const IO_BITS: u8 = 8;
+
+/// What to emulate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NetworkSpec {
+    /// Number of drives.
+    pub drives: u16,
+    /// Number of I/O subdevices.
+    pub io: u16,
+    /// Vendor id of every subdevice.
+    pub vendor_id: u32,
+    /// Product code of the drives.
+    pub drive_product_code: u32,
+    /// Product code of the I/O subdevices.
+    pub io_product_code: u32,
+    /// Revision of every subdevice.
+    pub revision: u32,
+    /// The drives' servo model.
+    pub sim: SimConfig,
+    /// Positions (0 first) whose subdevice refuses SAFE-OP with AL status code 0x001D
+    /// (invalid output configuration).
+    pub refuse_safe_op: Vec<u16>,
+}
+
+impl Default for NetworkSpec {
+    fn default() -> Self {
+        NetworkSpec {
+            drives: 0,
+            io: 0,
+            vendor_id: VENDOR_ID,
+            drive_product_code: DRIVE_PRODUCT_CODE,
+            io_product_code: IO_PRODUCT_CODE,
+            revision: REVISION,
+            sim: SimConfig::default(),
+            refuse_safe_op: Vec::new(),
+        }
+    }
+}
+
+/// Builds the line: the drives, then the I/O subdevices; returns the I/O handles too.
+pub fn build(spec: &NetworkSpec) -> (Network, Vec<IoHandle>) {
+    let mut escs = Vec::new();
+    let mut handles = Vec::new();
+    for n in 0..u32::from(spec.drives) {
+        let identity = Identity {
+            vendor_id: spec.vendor_id,
+            product_code: spec.drive_product_code,
+            revision: spec.revision,
+            serial: DRIVE_SERIAL_BASE + n,
+        };
+        let app = DriveDevice::new(identity, DRIVE_NAME, spec.sim);
+        escs.push(Esc::new(Box::new(app), u64::from(n) * 1_000_000));
+    }
+    for n in 0..u32::from(spec.io) {
+        let identity = Identity {
+            vendor_id: spec.vendor_id,
+            product_code: spec.io_product_code,
+            revision: spec.revision,
+            serial: IO_SERIAL_BASE + n,
+        };
+        let (app, handle) = IoDevice::new(identity, IO_NAME, IO_BITS, IO_BITS);
+        escs.push(Esc::new(Box::new(app), 500_000 + u64::from(n) * 1_000_000));
+        handles.push(handle);
+    }
+    for &position in &spec.refuse_safe_op {
+        if let Some(esc) = escs.get_mut(usize::from(position)) {
+            esc.refuse(al::AlState::SafeOp, al::CODE_INVALID_OUTPUT_CONFIG);
+        }
+    }
+    (Network::new(escs), handles)
+}

@@ -1,0 +1,151 @@
+//! ethercrab 0.7.1, unmodified, against the emulator over a veth pair in a private
+//! network namespace: discovery and identities, PRE-OP, SAFE-OP and OP with process data.
+
+#[allow(dead_code)]
+mod netns;
+
+use std::time::Duration;
+
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts, std::ethercat_now};
+use futures_lite::future::block_on;
+use netns::{MAIN_IF, Netns};
+
+const MAX_SUBDEVICES: usize = 8;
+const PDI_LEN: usize = 256;
+
+fn timeouts() -> Timeouts {
+    Timeouts {
+        state_transition: Duration::from_secs(10),
+        pdu: Duration::from_millis(200),
+        eeprom: Duration::from_millis(500),
+        wait_loop_delay: Duration::from_millis(1),
+        mailbox_echo: Duration::from_millis(500),
+        mailbox_response: Duration::from_millis(1000),
+    }
+}
+
+static STORAGE_IDENTITY: PduStorage<16, { PduStorage::element_size(1100) }> = PduStorage::new();
+
+#[test]
+fn ethercrab_discovers_three_drives_and_one_io_with_their_identities_and_reaches_pre_op() {
+    let mut ns = Netns::new();
+    ns.start_emulator(&["--drives", "3", "--io", "1"]);
+    let found = ns.run_inside(|| {
+        let (tx, rx, pdu_loop) = STORAGE_IDENTITY.try_split().expect("split once");
+        let maindevice = MainDevice::new(pdu_loop, timeouts(), MainDeviceConfig::default());
+        std::thread::spawn(move || {
+            let task = ethercrab::std::tx_rx_task(MAIN_IF, tx, rx).expect("TX/RX task");
+            let _ = block_on(task);
+        });
+        let group = block_on(maindevice.init_single_group::<MAX_SUBDEVICES, PDI_LEN>(ethercat_now))
+            .expect("init to PRE-OP");
+        let mut found = Vec::new();
+        for sd in group.iter(&maindevice) {
+            let id = sd.identity();
+            let (state, code) = block_on(sd.status()).expect("status");
+            found.push((
+                sd.name().to_owned(),
+                id.vendor_id,
+                id.product_id,
+                id.revision,
+                id.serial,
+                format!("{state:?}"),
+                u16::from(code),
+            ));
+        }
+        found
+    });
+    let drive = |serial: u32| {
+        (
+            "Kerf CiA402 drive".to_owned(),
+            0x0000_4B52,
+            0x0000_0402,
+            0x0001_0000,
+            serial,
+            "PreOp".to_owned(),
+            0u16,
+        )
+    };
+    assert_eq!(
+        found,
+        vec![
+            drive(0x1001),
+            drive(0x1002),
+            drive(0x1003),
+            (
+                "Kerf digital I/O".to_owned(),
+                0x0000_4B52,
+                0x0000_0010,
+                0x0001_0000,
+                0x2001,
+                "PreOp".to_owned(),
+                0
+            ),
+        ]
+    );
+    assert!(ns.stop_emulator(), "the emulator exits cleanly on SIGTERM");
+}
+
+static STORAGE_OPTIONS: PduStorage<16, { PduStorage::element_size(1100) }> = PduStorage::new();
+
+#[test]
+fn identity_options_are_seen_by_ethercrab_and_a_refused_safe_op_names_its_code() {
+    let mut ns = Netns::new();
+    ns.start_emulator(&[
+        "--drives",
+        "2",
+        "--vendor-id",
+        "0x12345678",
+        "--product-code",
+        "0xCAFE",
+        "--revision",
+        "7",
+        "--refuse-safe-op",
+        "1",
+    ]);
+    let (identities, op_result, codes) = ns.run_inside(|| {
+        let (tx, rx, pdu_loop) = STORAGE_OPTIONS.try_split().expect("split once");
+        let maindevice = MainDevice::new(pdu_loop, timeouts(), MainDeviceConfig::default());
+        std::thread::spawn(move || {
+            let task = ethercrab::std::tx_rx_task(MAIN_IF, tx, rx).expect("TX/RX task");
+            let _ = block_on(task);
+        });
+        let group = block_on(maindevice.init_single_group::<MAX_SUBDEVICES, PDI_LEN>(ethercat_now))
+            .expect("init to PRE-OP");
+        let identities: Vec<(u32, u32, u32)> = group
+            .iter(&maindevice)
+            .map(|sd| {
+                let id = sd.identity();
+                (id.vendor_id, id.product_id, id.revision)
+            })
+            .collect();
+        let addresses: Vec<u16> = group
+            .iter(&maindevice)
+            .map(|sd| sd.configured_address())
+            .collect();
+        let op_result = block_on(group.into_op(&maindevice))
+            .map(|_| ())
+            .map_err(|e| format!("{e:?}"));
+        // Each subdevice's AL status code, read as ethercrab's register read gives it.
+        let codes: Vec<u16> = addresses
+            .iter()
+            .map(|address| {
+                block_on(ethercrab::Command::fprd(*address, 0x0134).receive::<u16>(&maindevice))
+                    .expect("AL status code")
+            })
+            .collect();
+        (identities, op_result, codes)
+    });
+    assert_eq!(
+        identities,
+        vec![(0x1234_5678, 0xCAFE, 7), (0x1234_5678, 0xCAFE, 7)]
+    );
+    assert_eq!(
+        op_result,
+        Err("Timeout(StateTransition)".to_owned()),
+        "OP must be refused"
+    );
+    // The drive at position 1 refused SAFE-OP: 0x001D, invalid output configuration.
+    assert_eq!(codes, vec![0x0000, 0x001D]);
+    assert!(ns.stop_emulator(), "the emulator exits cleanly on SIGTERM");
+}
