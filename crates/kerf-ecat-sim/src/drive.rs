@@ -289,5 +289,55 @@ impl Application for DriveDevice {
         }
     }
 
-    fn transition(&mut self, _from: AlState, _to: AlState) {}
+    fn transition(&mut self, from: AlState, to: AlState) {
+        // The interpolation period the master wrote in PRE-OP (0x60C2) becomes the servo
+        // model's period, as a drive takes its cycle from it: one model period per
+        // process-data write.
+        if from != AlState::PreOp || to != AlState::SafeOp {
+            return;
+        }
+        let value = u64::from(self.od.get_u32(0x60C2, 1) as u8);
+        let exponent = i32::from(self.od.get_u32(0x60C2, 2) as u8 as i8);
+        let Some(period_ns) = interpolation_period_ns(value, exponent) else {
+            return;
+        };
+        if period_ns == self.drive.config().period_ns {
+            return;
+        }
+        let mut config = *self.drive.config();
+        config.period_ns = period_ns;
+        config.initial_position_counts = self.drive.motor_position_counts();
+        config.substeps = config.substeps.max(config.min_substeps());
+        let mode = self.drive.mode_of_operation_display();
+        self.drive = SimDrive::new(config);
+        self.drive.set_mode_of_operation(mode);
+        self.refresh_inputs();
+    }
+}
+
+/// `value · 10^exponent` s in ns, where it is a whole number of ns from 1 ns to 1 s.
+fn interpolation_period_ns(value: u64, exponent: i32) -> Option<u64> {
+    let shift = exponent + 9;
+    if value == 0 || !(0..=9).contains(&shift) {
+        return None;
+    }
+    let ns = value.checked_mul(10u64.pow(shift as u32))?;
+    (ns <= 1_000_000_000).then_some(ns)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::interpolation_period_ns;
+
+    #[test]
+    fn interpolation_periods_are_value_times_a_power_of_ten_seconds() {
+        // 1 · 10⁻³ s = 1 ms; 25 · 10⁻⁵ s = 250 µs; 4 · 10⁻³ s = 4 ms.
+        assert_eq!(interpolation_period_ns(1, -3), Some(1_000_000));
+        assert_eq!(interpolation_period_ns(25, -5), Some(250_000));
+        assert_eq!(interpolation_period_ns(4, -3), Some(4_000_000));
+        // Nothing, sub-nanosecond, or longer than a second is not a drive's cycle.
+        assert_eq!(interpolation_period_ns(0, -3), None);
+        assert_eq!(interpolation_period_ns(1, -10), None);
+        assert_eq!(interpolation_period_ns(2, 0), None);
+    }
 }

@@ -1,0 +1,79 @@
+//! The cyclic exchange of kerf-ethercat allocates nothing: after bring-up, thousands of
+//! exchanges with the emulator over veth are counted by a counting allocator on the
+//! exchanging thread (its own test binary, so that nothing else installs an allocator).
+
+#[allow(dead_code)] // Each test binary uses part of the fixture.
+mod netns;
+
+use kerf_config::ethercat::{DriveMode, EthercatConfig, EthercatDrive, EthercatIo, Identity, Pdo};
+use kerf_ethercat::bus::Bus;
+use kerf_testkit::alloc::{Count, CountingAllocator};
+use netns::{MAIN_IF, Netns};
+
+#[global_allocator]
+static ALLOCATOR: CountingAllocator = CountingAllocator;
+
+const VENDOR: u32 = 0x0000_4B52;
+
+#[test]
+fn ten_thousand_exchanges_allocate_nothing() {
+    let mut ns = Netns::new();
+    ns.start_emulator(&["--drives", "3", "--io", "1"]);
+    let identity = |product_code| Identity {
+        vendor_id: VENDOR,
+        product_code,
+        revision: None,
+    };
+    let config = EthercatConfig {
+        interface: MAIN_IF.to_owned(),
+        dc: false,
+        sync0_shift_ns: 0,
+        max_missed_cycles: 2,
+        watchdog_us: 20_000,
+        state_timeout_ms: 5_000,
+        sdo_timeout_ms: 1_000,
+        dc_settle_timeout_ms: 5_000,
+        drives: (0..3)
+            .map(|i| EthercatDrive {
+                axis_index: i,
+                position: i as u16,
+                identity: identity(0x0402),
+                mode: DriveMode::Csp,
+                rx_pdo: Pdo::default_rx(DriveMode::Csp),
+                tx_pdo: Pdo::default_tx(),
+                sdo: Vec::new(),
+            })
+            .collect(),
+        io: vec![EthercatIo {
+            position: 3,
+            identity: identity(0x0010),
+            sdo: Vec::new(),
+            inputs: Vec::new(),
+            outputs: Vec::new(),
+        }],
+    };
+    let (allocations, wkcs, expected) = ns.run_inside(move || {
+        let mut bus = Bus::bring_up(&config, 1_000_000).unwrap_or_else(|e| panic!("bring-up: {e}"));
+        let mut images = Bus::drive_images(&config).expect("layouts");
+        let expected = bus.expected_working_counter();
+        // Warm up: the first exchanges may touch lazily made state.
+        for _ in 0..100 {
+            bus.exchange(&mut images, std::time::Duration::from_millis(100))
+                .expect("exchange");
+        }
+        let mut wkcs = [0u16; 10_000];
+        let count = Count::start();
+        for wkc in wkcs.iter_mut() {
+            *wkc = bus
+                .exchange(&mut images, std::time::Duration::from_millis(100))
+                .expect("exchange");
+        }
+        (count.stop(), wkcs.to_vec(), expected)
+    });
+    assert_eq!(allocations, 0, "allocations in 10 000 exchanges");
+    assert_eq!(expected, 12);
+    assert!(
+        wkcs.iter().all(|&w| w == expected),
+        "a working counter other than {expected}"
+    );
+}

@@ -1,0 +1,19 @@
+//! The EtherCAT drive side of Kerf, on the pure-Rust MainDevice ethercrab, configured by
+//! kerf.toml's `[ethercat]` table (`kerf_config::ethercat`).
+//!
+//! - [`identity`]: found against expected, one line per differing position.
+//! - [`pdo`]: where the objects the control uses sit in a drive's process data.
+//! - [`image`]: one drive's process data as a [`kerf_drive::cia402::Drive`].
+//! - [`bus`]: bring-up to OP and the cyclic exchange.
+//! - [`commission`]: the scan and SDO access of `kerf ethercat`.
+//! - [`pump`] and [`socket`]: ethercrab's frames moved by the owning thread through a raw
+//!   socket, with no executor, no helper thread and no allocation per exchange.
+#![deny(missing_docs)]
+
+pub mod bus;
+pub mod commission;
+pub mod identity;
+pub mod image;
+pub mod pdo;
+pub mod pump;
+pub mod socket;
