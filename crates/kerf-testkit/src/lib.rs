@@ -4,8 +4,10 @@
 //! - [`alloc`]: a counting global allocator, armed per thread, that the allocation tests
 //!   of the real-time paths install (the motion core, the daemon's cycle, the drive side,
 //!   the periodic clock, the interpreter's hot path);
-//! - [`machines`]: the test machines the planner and motion tests measure against.
+//! - [`machines`]: the test machines the planner and motion tests measure against;
+//! - [`netns`]: a private network namespace with a veth pair, for the EtherCAT tests.
 #![deny(missing_docs)]
 
 pub mod alloc;
 pub mod machines;
+pub mod netns;

@@ -23,6 +23,7 @@ use kerf_config::Config;
 use kerf_gcode::{Dialect, Interpreter, Item};
 use kerf_pipeline::Input;
 
+mod ethercat;
 mod machine;
 mod output;
 
@@ -71,6 +72,8 @@ enum Command {
     /// Write the daemon's black box (the last seconds of every cycle: commanded and actual
     /// positions, following errors, drive words) to CSV.
     Dump(machine::DumpArgs),
+    /// Commission the EtherCAT bus without the daemon: scan it, read and write SDOs.
+    Ethercat(ethercat::EthercatArgs),
     /// Draw a black-box file (from `kerf dump`, or the one written at a fault) as SVG: per
     /// axis the commanded against the actual position and the following error over time.
     Plot(PlotArgs),
@@ -224,6 +227,7 @@ fn main() -> ExitCode {
         Command::Reset(args) => machine::reset(&args),
         Command::Dump(args) => machine::dump(&args),
         Command::Plot(args) => run_plot(&args),
+        Command::Ethercat(args) => ethercat::run(&args),
         Command::Completions { shell } => {
             let mut out = Vec::new();
             kerf::clidoc::write_completions(Cli::command(), shell, &mut out);

@@ -1,0 +1,155 @@
+//! `kerf ethercat`: commissioning the EtherCAT bus without the daemon (the scan, SDO reads
+//! and writes), on the interface given or the configuration's `[ethercat] interface`.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use clap::{Args, Subcommand};
+use kerf_ethercat::commission::{SdoType, scan_detail, sdo_read, sdo_write, value_text};
+
+use crate::{Failure, load_config};
+
+#[derive(Args)]
+pub struct EthercatArgs {
+    #[command(subcommand)]
+    command: EthercatCommand,
+}
+
+#[derive(Subcommand)]
+enum EthercatCommand {
+    /// List every subdevice on the bus: position, name, vendor, product, revision, serial,
+    /// state, distributed-clock support, mailbox protocols and (over CoE) the PDO
+    /// assignment and mapping. Leaves the bus in PRE-OP.
+    Scan(BusArgs),
+    /// Read or write one object of one subdevice over CoE (SDO).
+    Sdo(SdoArgs),
+}
+
+#[derive(Args)]
+struct BusArgs {
+    /// The network interface of the bus. Without it: `[ethercat] interface` of the
+    /// configuration.
+    #[arg(long, value_name = "IF")]
+    interface: Option<String>,
+    /// Machine configuration (TOML) whose `[ethercat] interface` is used. Without it:
+    /// /etc/kerf/kerf.toml if present, else the built-in example machine.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct SdoArgs {
+    #[command(subcommand)]
+    op: SdoOp,
+}
+
+#[derive(Subcommand)]
+enum SdoOp {
+    /// Read an object and print its value.
+    Read(SdoTarget),
+    /// Write a value to an object.
+    Write {
+        #[command(flatten)]
+        target: SdoTarget,
+        /// The value: decimal, or hex with 0x; range-checked against the type.
+        #[arg(allow_hyphen_values = true)]
+        value: String,
+    },
+}
+
+#[derive(Args)]
+struct SdoTarget {
+    #[command(flatten)]
+    bus: BusArgs,
+    /// Ring position of the subdevice, 0 for the first after the MainDevice.
+    #[arg(long)]
+    position: u16,
+    /// The object, INDEX:SUBINDEX in hex (e.g. 6060:00 or 0x607a:0).
+    #[arg(value_name = "INDEX:SUBINDEX")]
+    object: String,
+    /// The CoE type: u8, u16, u32, i8, i16 or i32.
+    #[arg(long = "type", value_name = "TYPE")]
+    kind: String,
+}
+
+fn interface(bus: &BusArgs) -> Result<String, Failure> {
+    if let Some(i) = &bus.interface {
+        return Ok(i.clone());
+    }
+    let config = load_config(bus.config.as_deref())?;
+    config.ethercat().map(|e| e.interface.clone()).ok_or_else(|| {
+        Failure::Error(
+            "error: no EtherCAT interface: give --interface IF, or a configuration with an `[ethercat]` table".to_owned(),
+        )
+    })
+}
+
+/// `6060:00`, `0x607A:0` → (0x6060, 0).
+fn object(text: &str) -> Result<(u16, u8), Failure> {
+    let bad = || {
+        Failure::Error(format!(
+            "error: {text:?} is not an object INDEX:SUBINDEX in hex, e.g. 6060:00"
+        ))
+    };
+    let (index, subindex) = text.split_once(':').ok_or_else(bad)?;
+    let hex = |s: &str| {
+        s.trim_start_matches("0x")
+            .trim_start_matches("0X")
+            .to_owned()
+    };
+    let index = u16::from_str_radix(&hex(index), 16).map_err(|_| bad())?;
+    let subindex = u8::from_str_radix(&hex(subindex), 16).map_err(|_| bad())?;
+    Ok((index, subindex))
+}
+
+fn kind(name: &str) -> Result<SdoType, Failure> {
+    SdoType::from_name(name).ok_or_else(|| {
+        Failure::Error(format!(
+            "error: type {name:?} is not one of u8, u16, u32, i8, i16, i32"
+        ))
+    })
+}
+
+fn bus_failure(interface: &str, e: impl std::fmt::Display) -> Failure {
+    let mut message = format!("error: EtherCAT on {interface}: {e}");
+    if message.contains("Operation not permitted") {
+        message.push_str(" (a raw socket needs root or CAP_NET_RAW)");
+    }
+    Failure::Exit(1, message)
+}
+
+/// Runs `kerf ethercat ...`.
+pub fn run(args: &EthercatArgs) -> Result<(), Failure> {
+    match &args.command {
+        EthercatCommand::Scan(bus) => {
+            let interface = interface(bus)?;
+            let entries = scan_detail(&interface).map_err(|e| bus_failure(&interface, e))?;
+            let mut out = std::io::stdout().lock();
+            writeln!(out, "{} subdevice(s) on {interface}", entries.len())?;
+            for e in &entries {
+                writeln!(out, "{}", e.text())?;
+            }
+            Ok(())
+        }
+        EthercatCommand::Sdo(SdoArgs { op: SdoOp::Read(t) }) => {
+            let interface = interface(&t.bus)?;
+            let (index, subindex) = object(&t.object)?;
+            let value = sdo_read(&interface, t.position, index, subindex, kind(&t.kind)?)
+                .map_err(|e| bus_failure(&interface, e))?;
+            writeln!(std::io::stdout().lock(), "{}", value_text(value))?;
+            Ok(())
+        }
+        EthercatCommand::Sdo(SdoArgs {
+            op: SdoOp::Write { target: t, value },
+        }) => {
+            let interface = interface(&t.bus)?;
+            let (index, subindex) = object(&t.object)?;
+            let value = kind(&t.kind)?
+                .parse(value)
+                .map_err(|e| Failure::Error(format!("error: {e}")))?;
+            sdo_write(&interface, t.position, index, subindex, value)
+                .map_err(|e| bus_failure(&interface, e))?;
+            Ok(())
+        }
+    }
+}
