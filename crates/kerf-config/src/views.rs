@@ -63,6 +63,9 @@ impl Config {
             period_s: self.period_s(),
             margin: self.drive.margin,
             stall_cycles: self.drive.stall_cycles,
+            // On EtherCAT the frame that carries a command brings back the inputs of the
+            // cycle before.
+            feedback_delay_cycles: usize::from(self.ethercat.is_some()),
         }
     }
 

@@ -74,6 +74,12 @@ pub struct SafetyConfig {
     /// Consecutive missed cycles that trip (default [`DEFAULT_STALL_CYCLES`]); fewer are
     /// held.
     pub stall_cycles: u32,
+    /// Cycles between a command leaving the stage and the actual position that answers
+    /// it coming back, beyond the one every drive has: 0 for the simulated drives (the
+    /// drive steps when written), 1 on a fieldbus (the frame that carries a command
+    /// brings back the inputs of the cycle before). The following error is taken against
+    /// the command that many cycles older. At most 1.
+    pub feedback_delay_cycles: usize,
 }
 
 impl SafetyConfig {
@@ -84,6 +90,7 @@ impl SafetyConfig {
             period_s,
             margin: DEFAULT_MARGIN,
             stall_cycles: DEFAULT_STALL_CYCLES,
+            feedback_delay_cycles: 0,
         }
     }
 }
@@ -100,6 +107,9 @@ pub enum SafetyConfigError {
     /// `stall_cycles` is zero.
     #[error("safety: stall_cycles must be at least 1")]
     StallCycles,
+    /// `feedback_delay_cycles` is above 1.
+    #[error("safety: the feedback delay must be 0 or 1 cycles, got {0}")]
+    FeedbackDelay(usize),
     /// A limit of an axis is not positive and finite, or the soft limits are reversed.
     #[error("safety: axis {axis}: {what}")]
     Axis {
@@ -134,6 +144,11 @@ pub enum Check {
     /// A drive left Operation enabled on its own (not into a fault); reported by the
     /// drive stage.
     DriveDisabled,
+    /// The fieldbus stopped carrying the cyclic data: more consecutive cycles without a
+    /// complete exchange (a lost frame, a working counter short) than allowed; reported
+    /// by the daemon's bus ([`crate::stage::DriveStage::trip_fieldbus`]). The drives stop
+    /// by their own process-data watchdog, as the master can no longer command them.
+    Fieldbus,
 }
 
 impl Check {
@@ -149,11 +164,12 @@ impl Check {
             Check::DriveFault => "drive_fault",
             Check::EnableTimeout => "enable_timeout",
             Check::DriveDisabled => "drive_disabled",
+            Check::Fieldbus => "fieldbus",
         }
     }
 
     /// Every check, in the order of their codes.
-    pub const ALL: [Check; 8] = [
+    pub const ALL: [Check; 9] = [
         Check::Velocity,
         Check::Acceleration,
         Check::SoftLimit,
@@ -162,9 +178,10 @@ impl Check {
         Check::DriveFault,
         Check::EnableTimeout,
         Check::DriveDisabled,
+        Check::Fieldbus,
     ];
 
-    /// The check's number on the wire (1 to 8, in the order of [`Check::ALL`]; 0 means
+    /// The check's number on the wire (1 to 9, in the order of [`Check::ALL`]; 0 means
     /// none).
     pub fn code(self) -> u32 {
         match self {
@@ -176,6 +193,7 @@ impl Check {
             Check::DriveFault => 6,
             Check::EnableTimeout => 7,
             Check::DriveDisabled => 8,
+            Check::Fieldbus => 9,
         }
     }
 }
@@ -249,6 +267,12 @@ pub enum ResetRefused {
     /// A drive did not reach Operation enabled again within its enable timeout.
     #[error("reset refused: the drive of axis {} did not enable", AXIS_NAMES[*.0])]
     NotEnabled(usize),
+    /// The fieldbus does not exchange its cyclic data; bringing it back to OP is not
+    /// done by a reset yet.
+    #[error(
+        "reset refused: the EtherCAT bus does not exchange its cyclic data; restart kerfd once the bus is back (a reset does not bring a bus back to OP yet)"
+    )]
+    Fieldbus,
 }
 
 /// What the cycle gives [`Safety::check`].
@@ -435,6 +459,11 @@ impl Safety {
         if config.stall_cycles == 0 {
             return Err(SafetyConfigError::StallCycles);
         }
+        if config.feedback_delay_cycles > 1 {
+            return Err(SafetyConfigError::FeedbackDelay(
+                config.feedback_delay_cycles,
+            ));
+        }
         for (i, ax) in config.axes.iter().enumerate() {
             let axis = AXIS_NAMES[i];
             if !position[i].is_finite() {
@@ -504,7 +533,8 @@ impl Safety {
     /// One cycle: check `input`, and say what to send to the drives. Allocation-free.
     ///
     /// The following error is the actual position against the command of the previous
-    /// cycle (the one the drive has been tracking), with v that command's velocity.
+    /// cycle (the one the drive has been tracking; on a fieldbus the one before,
+    /// [`SafetyConfig::feedback_delay_cycles`]), with v that command's velocity.
     pub fn check(&mut self, input: &CycleInput) -> Verdict {
         let mut tripped = None;
         if self.fault.is_none() {
@@ -564,10 +594,12 @@ impl Safety {
             if input.drive_fault[i] {
                 return Some(fault(Check::DriveFault, Some(i), 1.0, 0.0));
             }
-            // Following error against the previous command.
-            let v_cmd = (self.out[0][i] - self.out[1][i]) / t;
+            // Following error against the command the drive has been tracking: the
+            // previous one, or the one before on a fieldbus.
+            let d = self.config.feedback_delay_cycles.min(1);
+            let v_cmd = (self.out[d][i] - self.out[d + 1][i]) / t;
             let limit = ax.ferror_limit_units(v_cmd);
-            let err = (self.out[0][i] - input.actual[i]).abs();
+            let err = (self.out[d][i] - input.actual[i]).abs();
             let err = if err.is_finite() { err } else { f64::INFINITY };
             if err > limit {
                 return Some(fault(Check::FollowingError, Some(i), err, limit));

@@ -368,6 +368,22 @@ impl<D: Drive> DriveStage<D> {
         r
     }
 
+    /// Latches a fieldbus fault ([`Check::Fieldbus`]): `missed` cycles in a row without a
+    /// complete exchange against the allowed `limit`. The quick stop starts as for any
+    /// fault; the drives, out of reach, stop by their own watchdog. Returns the fault if
+    /// latched now (not when another fault is latched already).
+    pub fn trip_fieldbus(&mut self, missed: u32, limit: u32, line: u32) -> Option<Fault> {
+        let f = self.safety.trip(
+            Check::Fieldbus,
+            None,
+            f64::from(missed),
+            f64::from(limit),
+            line,
+        )?;
+        self.trip_dump = Some(f);
+        Some(f)
+    }
+
     /// One cycle. See the module documentation. Allocation-free.
     pub fn cycle(&mut self, input: &StageInput) -> StageOutput {
         self.sequence += 1;

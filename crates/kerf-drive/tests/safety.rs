@@ -5,7 +5,8 @@
 
 use kerf_drive::MAX_AXES;
 use kerf_drive::safety::{
-    AxisSafety, Check, CycleInput, ResetRefused, Safety, SafetyConfig, SafetyState, StopProfile,
+    AxisSafety, Check, CycleInput, ResetRefused, Safety, SafetyConfig, SafetyConfigError,
+    SafetyState, StopProfile,
 };
 use kerf_geom::AxisLimits;
 use proptest::prelude::*;
@@ -231,6 +232,54 @@ fn following_error_limit_follows_the_linuxcnc_formula() {
             }
         }
     }
+}
+
+#[test]
+fn on_a_fieldbus_the_following_error_is_taken_against_the_command_one_cycle_older() {
+    // A drive at 50 mm/s (0.05 mm per 1 ms period) whose actual position answers the
+    // command of two cycles back, as over a fieldbus, with a servo lag on top. The limit
+    // at 50 mm/s is 0.5 mm. With the one-cycle feedback delay the error is the lag itself;
+    // without it the error is the lag plus one period's travel, 0.05 mm more, so it
+    // trips at a lag of 0.45 mm.
+    let v_mm_s = 50.0;
+    let step = v_mm_s * T;
+    for (delay, lag, trips) in [
+        (1, 0.3, false),
+        (1, 0.5 + 1e-6, true),
+        (0, 0.3, false),
+        (0, 0.45 + 1e-6, true),
+    ] {
+        let mut cfg = config(axis(100.0, 1e12, 1e15));
+        cfg.feedback_delay_cycles = delay;
+        let mut r = Rig::new(cfg);
+        for k in 1..=20 {
+            r.step(Some(on(1, f64::from(k) * step)));
+        }
+        // The command two cycles back is k = 19.
+        let actual = on(1, 19.0 * step - lag);
+        let v = r.step_actual(Some(on(1, 21.0 * step)), actual);
+        assert_eq!(
+            v.tripped.is_some(),
+            trips,
+            "delay {delay} lag {lag}: {:?}",
+            v.tripped
+        );
+        if let Some(f) = v.tripped {
+            // Against the tracked command: k = 19 with the delay, k = 20 without.
+            let tracked = if delay == 1 { 19.0 } else { 20.0 };
+            assert!(
+                (f.value - (tracked * step - (19.0 * step - lag))).abs() < 1e-9,
+                "{f:?}"
+            );
+            assert!((f.limit - 0.5).abs() < 1e-9, "{f:?}");
+        }
+    }
+    let mut cfg = config(axis(100.0, 1e12, 1e15));
+    cfg.feedback_delay_cycles = 2;
+    assert_eq!(
+        Safety::new(cfg, [0.0; MAX_AXES]).err(),
+        Some(SafetyConfigError::FeedbackDelay(2))
+    );
 }
 
 #[test]
@@ -627,8 +676,8 @@ fn a_fault_names_check_axis_value_limit_and_line() {
     assert!(text.contains("against limit 500 (line 42"), "{text}");
 }
 
-/// The checks' numbers on the wire are PROTOCOL.md's `SAFETY_*` (1 velocity … 8 drive
-/// disabled, 0 none), in the order of `Check::ALL`, each with its own name.
+/// The checks' numbers on the wire are PROTOCOL.md's `SAFETY_*` (1 velocity … 9
+/// fieldbus, 0 none), in the order of `Check::ALL`, each with its own name.
 #[test]
 fn check_codes_are_the_protocols_numbers() {
     let expected = [
@@ -640,6 +689,7 @@ fn check_codes_are_the_protocols_numbers() {
         (Check::DriveFault, 6, "drive_fault"),
         (Check::EnableTimeout, 7, "enable_timeout"),
         (Check::DriveDisabled, 8, "drive_disabled"),
+        (Check::Fieldbus, 9, "fieldbus"),
     ];
     assert_eq!(Check::ALL.len(), expected.len());
     for (check, (want, code, name)) in Check::ALL.iter().zip(expected) {

@@ -467,6 +467,9 @@ pub const SAFETY_DRIVE_FAULT: u32 = 6;
 pub const SAFETY_ENABLE_TIMEOUT: u32 = 7;
 /// `StatusMsg::safety_check`: a drive left Operation enabled on its own.
 pub const SAFETY_DRIVE_DISABLED: u32 = 8;
+/// `StatusMsg::safety_check`: the fieldbus stopped carrying the cyclic data (lost frames
+/// or a short working counter, more cycles in a row than allowed).
+pub const SAFETY_FIELDBUS: u32 = 9;
 /// `StatusMsg::safety_axis` of a fault that is not an axis's (a stream stall).
 pub const SAFETY_AXIS_NONE: u32 = 255;
 

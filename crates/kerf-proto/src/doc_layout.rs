@@ -171,6 +171,7 @@ fn constants() -> BTreeMap<&'static str, u32> {
         SAFETY_DRIVE_FAULT,
         SAFETY_ENABLE_TIMEOUT,
         SAFETY_DRIVE_DISABLED,
+        SAFETY_FIELDBUS,
         SAFETY_AXIS_NONE,
     )
 }

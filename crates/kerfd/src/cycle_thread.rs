@@ -76,6 +76,10 @@ pub(crate) fn cycle_thread(
         }
     };
     let axes_mask = axes_mask(config);
+    if let Err(e) = cycle.start_bus(config) {
+        let _ = ready.send(Err(StartError::Config(e.clone())));
+        return Err(e);
+    }
     let mut clock = match kerf_rt::PeriodicClock::new(config.period_us as u64 * 1000) {
         Ok(c) => c,
         Err(e) => {
@@ -109,6 +113,16 @@ pub(crate) fn cycle_thread(
                 "cycle timing: {summary}; {} setpoints dropped",
                 publisher.dropped()
             );
+            if let Some(c) = cycle.bus_counters() {
+                tracing::info!(
+                    "EtherCAT: {} cycles exchanged, {} frames lost, {} short working counters, {} with a subdevice out of OP, at most {} incomplete in a row",
+                    c.complete,
+                    c.lost,
+                    c.short,
+                    c.not_op,
+                    c.longest_gap
+                );
+            }
             if let Ok(mut t) = timing_out.lock() {
                 *t = Some(summary);
             }

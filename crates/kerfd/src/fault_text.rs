@@ -41,6 +41,9 @@ pub fn safety_text(s: &StatusMsg) -> Option<String> {
         kerf_proto::SAFETY_ENABLE_TIMEOUT => {
             format!("the drive did not enable within {limit} cycles")
         }
+        kerf_proto::SAFETY_FIELDBUS => {
+            format!("EtherCAT: {value} cycles in a row without a complete exchange (limit {limit})")
+        }
         _ => "the drive left Operation enabled on its own".to_string(),
     };
     Some(format!(
@@ -68,6 +71,7 @@ mod tests {
             (Check::DriveFault, kerf_proto::SAFETY_DRIVE_FAULT),
             (Check::EnableTimeout, kerf_proto::SAFETY_ENABLE_TIMEOUT),
             (Check::DriveDisabled, kerf_proto::SAFETY_DRIVE_DISABLED),
+            (Check::Fieldbus, kerf_proto::SAFETY_FIELDBUS),
         ];
         assert_eq!(wire.len(), Check::ALL.len());
         for (check, code) in wire {

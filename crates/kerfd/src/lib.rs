@@ -212,15 +212,28 @@ pub(crate) fn check_period(config: &Config) -> Result<(), StartError> {
     }
 }
 
-/// The drives the daemon runs: today the simulated ones only. A configuration with an
-/// `[ethercat]` table is refused before anything starts, rather than run on simulated
-/// drives while the file says real ones.
+/// The drives the daemon can run: simulated ones, and EtherCAT drives in cyclic
+/// synchronous position without distributed clocks (`dc = false`; DC is refused until the
+/// daemon runs it, rather than ignored). A drive configured for cyclic synchronous velocity (`mode =
+/// "csv"`, for a spindle) is refused before anything starts: nothing produces velocity
+/// setpoints yet, and running it as a position axis would not be what the file says.
 pub(crate) fn check_drives(config: &Config) -> Result<(), StartError> {
-    match config.ethercat() {
+    let Some(bus) = config.ethercat() else {
+        return Ok(());
+    };
+    match bus
+        .drives
+        .iter()
+        .find(|d| d.mode != kerf_config::ethercat::DriveMode::Csp)
+    {
         None => Ok(()),
-        Some(bus) => Err(StartError::Config(format!(
-            "the configuration drives the axes over EtherCAT (`[ethercat]` on interface `{}`), which this kerfd cannot run yet: the table is checked, but the daemon drives simulated axes only; remove `[ethercat]` to run the simulated drives",
-            bus.interface
+        Some(d) => Err(StartError::Config(format!(
+            "the EtherCAT drive at position {} (axis {}) is configured for cyclic synchronous velocity (`mode = \"csv\"`), which kerfd cannot run yet: nothing produces velocity setpoints",
+            d.position,
+            kerf_geom::AXIS_NAMES
+                .get(d.axis_index)
+                .copied()
+                .unwrap_or('?')
         ))),
     }
 }

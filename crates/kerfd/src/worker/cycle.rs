@@ -8,6 +8,8 @@ mod report;
 use super::*;
 use kerf_geom::PerAxis;
 
+use super::fieldbus::{BusCounters, Fieldbus, MachineDrive};
+
 /// A program the cycle is running.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct ProgramRun {
@@ -99,17 +101,34 @@ pub fn dump_rings() -> (DumpRings, DumpWriterRings) {
     )
 }
 
-/// The drive stage of `config`'s machine: a simulated drive per axis whose motor stands
-/// at `position` at power-up, the safety layer and the black box.
+/// The drive stage of `config`'s machine, the safety layer and the black box: with an
+/// `[ethercat]` table, each axis's drive on the bus (its process-data image); else a
+/// simulated drive per axis whose motor stands at `position` at power-up.
 pub fn drive_stage(
     config: &Config,
     position: PerAxis<f64>,
-) -> Result<DriveStage<SimDrive>, String> {
+) -> Result<DriveStage<MachineDrive>, String> {
     let setups = config.drive_configs();
-    let mut axes: [Option<AxisDrive<SimDrive>>; 6] = [None, None, None, None, None, None];
+    let mut images = match config.ethercat() {
+        Some(ec) => Some(kerf_ethercat::bus::Bus::drive_images(ec).map_err(|e| e.to_string())?),
+        None => None,
+    };
+    let mut axes: [Option<AxisDrive<MachineDrive>>; 6] = [None, None, None, None, None, None];
     for (i, (slot, setup)) in axes.iter_mut().zip(setups.iter()).enumerate() {
         let Some(setup) = setup else { continue };
         let name = kerf_plan::AXIS_NAMES[i];
+        if let Some(images) = images.as_mut() {
+            let image = images
+                .get_mut(i)
+                .and_then(Option::take)
+                .ok_or_else(|| format!("axis {name}: no drive on the EtherCAT bus"))?;
+            *slot = Some(AxisDrive {
+                drive: MachineDrive::Ethercat(image),
+                scale: setup.scale,
+                enable_timeout_cycles: setup.enable_timeout_cycles,
+            });
+            continue;
+        }
         let counts = setup
             .scale
             .to_counts(position[i])
@@ -119,7 +138,7 @@ pub fn drive_stage(
             ..setup.sim
         };
         *slot = Some(AxisDrive {
-            drive: SimDrive::new(sim),
+            drive: MachineDrive::Sim(SimDrive::new(sim)),
             scale: setup.scale,
             enable_timeout_cycles: setup.enable_timeout_cycles,
         });
@@ -168,7 +187,9 @@ pub struct Cycle {
     shut_down: bool,
     /// Estimated motion time of the queued segments.
     queued: QueuedTime,
-    stage: DriveStage<SimDrive>,
+    stage: DriveStage<MachineDrive>,
+    /// The EtherCAT bus, when the drives are on one.
+    bus: Option<Fieldbus>,
     dump_rings: DumpRings,
     /// A finished dump the dump ring had no room for.
     dump_waiting: Option<Dump>,
@@ -227,6 +248,7 @@ impl Cycle {
             shut_down: false,
             queued: QueuedTime::with_capacity(capacity),
             stage,
+            bus: None,
             dump_rings,
             dump_waiting: None,
             reset_tag: None,
@@ -243,8 +265,26 @@ impl Cycle {
     }
 
     /// The drive stage (for tests: its black box and drives).
-    pub fn stage(&self) -> &DriveStage<SimDrive> {
+    pub fn stage(&self) -> &DriveStage<MachineDrive> {
         &self.stage
+    }
+
+    /// Brings the EtherCAT bus of `config` (if any) to OP: the last step before the first
+    /// period, as from OP on the drives' process-data watchdog expects a frame every
+    /// period. On the cycle thread.
+    pub fn start_bus(&mut self, config: &Config) -> Result<(), String> {
+        self.bus = Fieldbus::start(config)?;
+        Ok(())
+    }
+
+    /// The EtherCAT bus's exchange counters, when the drives are on one.
+    pub fn bus_counters(&self) -> Option<BusCounters> {
+        self.bus.as_ref().map(Fieldbus::counters)
+    }
+
+    /// Whether the EtherCAT bus (if any) missed its last exchange.
+    pub(crate) fn bus_failing(&self) -> bool {
+        self.bus.as_ref().is_some_and(Fieldbus::failing)
     }
 
     /// Periods the cycle did not run (its deadline was missed). A drive that keeps its own
@@ -261,7 +301,9 @@ impl Cycle {
         }
         let n = periods.min(u64::from(self.stage.safety().config().stall_cycles) + 1);
         for _ in 0..n {
-            self.drive_cycle(None);
+            // The periods are gone: no frame went out in them, and none is sent now to
+            // make up (that would only make this cycle later still).
+            self.drive_cycle(None, false);
         }
     }
 
@@ -340,7 +382,7 @@ impl Cycle {
             }
             Some(p)
         };
-        self.drive_cycle(setpoint);
+        self.drive_cycle(setpoint, true);
         let position = self.sent;
         let mut velocity = [0.0; 6];
         for (v, (p, q)) in velocity
@@ -372,13 +414,22 @@ impl Cycle {
         }
     }
 
-    /// One cycle of the drive side with `setpoint` (`None`: a missed cycle).
-    fn drive_cycle(&mut self, setpoint: Option<PerAxis<f64>>) {
+    /// One cycle of the drive side with `setpoint` (`None`: a missed cycle); `exchange`:
+    /// whether the fieldbus (if any) exchanges in it.
+    fn drive_cycle(&mut self, setpoint: Option<PerAxis<f64>>, exchange: bool) {
         let out = self.stage.cycle(&StageInput {
             setpoint,
             line: self.setpoint.line,
             time_s: self.cycles as f64 * self.period_s,
         });
+        // The outputs just written go out, the inputs for the next cycle come back.
+        if exchange
+            && let Some(bus) = self.bus.as_mut()
+            && let Some((missed, limit)) = bus.exchange(&mut self.stage)
+            && let Some(f) = self.stage.trip_fieldbus(missed, limit, self.setpoint.line)
+        {
+            self.safety_stop(f);
+        }
         if let Some(p) = out.enabled_at {
             self.rest_at(p);
         }

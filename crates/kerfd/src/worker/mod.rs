@@ -28,6 +28,7 @@ use kerf_config::{Axes, Config};
 
 mod cycle;
 mod events;
+pub mod fieldbus;
 mod planning;
 
 pub use cycle::*;

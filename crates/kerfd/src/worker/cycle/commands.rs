@@ -1,6 +1,7 @@
 //! The operator's commands applied in the cycle, and the tests' fault injections.
 
 use super::*;
+use crate::worker::fieldbus::MachineDrive;
 
 impl Cycle {
     pub(super) fn apply(&mut self, c: CycleCommand) {
@@ -46,6 +47,9 @@ impl Cycle {
                 self.shutting_down = true;
                 self.interp.apply(OperatorEvent::Abort);
             }
+            CycleCommand::Reset(tag) if self.bus_failing() => {
+                self.last_reset = Some((tag, Err(ResetRefused::Fieldbus)));
+            }
             CycleCommand::Reset(tag) => {
                 self.reset_tag = Some(tag);
                 self.stage.request_reset();
@@ -58,12 +62,13 @@ impl Cycle {
     pub(super) fn inject(&mut self, injection: Injection) {
         match injection {
             Injection::DriveFault(axis) => {
-                if let Some(d) = self.stage.drive_mut(axis) {
+                // On a fieldbus drive the fault is the drive's (or the emulator's) to raise.
+                if let Some(MachineDrive::Sim(d)) = self.stage.drive_mut(axis) {
                     d.set_fault_cause(Some(INJECTED_DRIVE_FAULT));
                 }
             }
             Injection::ClearDriveFault(axis) => {
-                if let Some(d) = self.stage.drive_mut(axis) {
+                if let Some(MachineDrive::Sim(d)) = self.stage.drive_mut(axis) {
                     d.set_fault_cause(None);
                 }
             }
