@@ -221,6 +221,11 @@ pub(crate) fn check_drives(config: &Config) -> Result<(), StartError> {
     let Some(bus) = config.ethercat() else {
         return Ok(());
     };
+    if bus.dc {
+        return Err(StartError::Config(
+            "`[ethercat] dc = true` (the default): kerfd cannot run distributed clocks yet; set `dc = false` to run the drives free-running on the daemon's clock (drives that need SYNC0 for cyclic synchronous position will refuse to enable)".to_owned(),
+        ));
+    }
     match bus
         .drives
         .iter()
