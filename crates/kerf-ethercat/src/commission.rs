@@ -364,6 +364,67 @@ pub fn sdo_write(
     )
 }
 
+/// What `kerf ethercat exchange` measured: the round trip of each cyclic exchange.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RoundTrips {
+    /// Round trips of the complete exchanges, ns, sorted.
+    pub complete_ns: Vec<u64>,
+    /// Exchanges whose frame did not come back within the period.
+    pub lost: u64,
+    /// Exchanges with a working counter short of the bus's.
+    pub short: u64,
+    /// Exchanges with a subdevice not in OP.
+    pub not_op: u64,
+}
+
+impl RoundTrips {
+    /// The `q` quantile of the complete round trips, ns (0 when there is none).
+    pub fn quantile_ns(&self, q: f64) -> u64 {
+        let n = self.complete_ns.len();
+        if n == 0 {
+            return 0;
+        }
+        let i = ((n as f64 * q).ceil() as usize).clamp(1, n) - 1;
+        self.complete_ns[i]
+    }
+}
+
+/// Brings the bus of `config` to OP for a cycle of `period_ns` and runs `cycles`
+/// exchanges paced at the period, with every drive's controlword 0 (the drives stay
+/// disabled: nothing moves), timing each round trip. For commissioning a NIC and for the
+/// figures in PERFORMANCE.md. Not real-time: the pacing is a plain sleep.
+pub fn exchange_round_trips(
+    config: &kerf_config::ethercat::EthercatConfig,
+    period_ns: u64,
+    cycles: u32,
+) -> Result<RoundTrips, BringUpError> {
+    let mut bus = crate::bus::Bus::bring_up(config, period_ns)?;
+    let expected = bus.expected_working_counter();
+    let period = Duration::from_nanos(period_ns);
+    let mut out = RoundTrips {
+        complete_ns: Vec::with_capacity(cycles as usize),
+        lost: 0,
+        short: 0,
+        not_op: 0,
+    };
+    let mut next = std::time::Instant::now();
+    for _ in 0..cycles {
+        next += period;
+        let started = std::time::Instant::now();
+        match bus.tx_rx(period) {
+            Ok(e) if e.not_op.is_some() => out.not_op += 1,
+            Ok(e) if e.working_counter != expected => out.short += 1,
+            Ok(_) => out
+                .complete_ns
+                .push(u64::try_from(started.elapsed().as_nanos()).unwrap_or(u64::MAX)),
+            Err(_) => out.lost += 1,
+        }
+        std::thread::sleep(next.saturating_duration_since(std::time::Instant::now()));
+    }
+    out.complete_ns.sort_unstable();
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -402,6 +463,27 @@ mod tests {
             assert_eq!(SdoType::from_name(name).map(SdoType::name), Some(name));
         }
         assert_eq!(SdoType::from_name("f32"), None);
+    }
+
+    #[test]
+    fn quantiles_are_taken_from_the_sorted_round_trips() {
+        let r = RoundTrips {
+            complete_ns: (1..=1000).collect(),
+            lost: 0,
+            short: 0,
+            not_op: 0,
+        };
+        assert_eq!(r.quantile_ns(0.5), 500);
+        assert_eq!(r.quantile_ns(0.99), 990);
+        assert_eq!(r.quantile_ns(0.999), 999);
+        assert_eq!(r.quantile_ns(1.0), 1000);
+        let none = RoundTrips {
+            complete_ns: Vec::new(),
+            lost: 3,
+            short: 0,
+            not_op: 0,
+        };
+        assert_eq!(none.quantile_ns(0.5), 0);
     }
 
     #[test]

@@ -260,3 +260,66 @@ fn a_pulled_cable_latches_the_fieldbus_fault_and_a_reset_is_refused_while_the_bu
         "{err}"
     );
 }
+
+#[test]
+fn the_commissioning_commands_scan_the_bus_and_time_its_exchanges() {
+    let bench = Bench::new("commission");
+    let run_inside = |args: &[&str]| {
+        let mut c = bench.ns.command(KERF);
+        c.args(args)
+            .args(["--config", bench.config.to_str().unwrap()]);
+        c.output().unwrap()
+    };
+    let out = run_inside(&["ethercat", "scan"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        text.starts_with(&format!("4 subdevice(s) on {MAIN_IF}")),
+        "{text}"
+    );
+    assert_eq!(text.matches("\"Kerf CiA402 drive\"").count(), 3, "{text}");
+    assert!(
+        text.contains("SM2 (outputs) 0x1600: 0x6040:00 16 bit, 0x607a:00 32 bit"),
+        "{text}"
+    );
+    let out = run_inside(&[
+        "ethercat",
+        "sdo",
+        "read",
+        "--position",
+        "1",
+        "1018:01",
+        "--type",
+        "u32",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        String::from_utf8_lossy(&out.stdout).trim(),
+        "19282 (0x00004b52)"
+    );
+    let out = run_inside(&["ethercat", "exchange", "--cycles", "200"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        text.starts_with(&format!(
+            "200 exchanges at 4000 µs on {MAIN_IF}: round trip p50 "
+        )),
+        "{text}"
+    );
+    assert!(
+        text.contains(", 0 short working counters, 0 with a subdevice out of OP"),
+        "{text}"
+    );
+}

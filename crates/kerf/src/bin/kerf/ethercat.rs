@@ -5,7 +5,9 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
-use kerf_ethercat::commission::{SdoType, scan_detail, sdo_read, sdo_write, value_text};
+use kerf_ethercat::commission::{
+    SdoType, exchange_round_trips, scan_detail, sdo_read, sdo_write, value_text,
+};
 
 use crate::{Failure, load_config};
 
@@ -23,6 +25,21 @@ enum EthercatCommand {
     Scan(BusArgs),
     /// Read or write one object of one subdevice over CoE (SDO).
     Sdo(SdoArgs),
+    /// Bring the configuration's bus to OP with every drive disabled (nothing moves) and
+    /// time N cyclic exchanges at the configuration's period: the round trip's p50, p99,
+    /// p99.9 and maximum, and the frames lost. For choosing and preparing a NIC.
+    Exchange(ExchangeArgs),
+}
+
+#[derive(Args)]
+struct ExchangeArgs {
+    /// Machine configuration (TOML) with the `[ethercat]` table. Without it:
+    /// /etc/kerf/kerf.toml if present, else the built-in example machine.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Exchanges to time.
+    #[arg(long, default_value_t = 10_000)]
+    cycles: u32,
 }
 
 #[derive(Args)]
@@ -129,6 +146,33 @@ pub fn run(args: &EthercatArgs) -> Result<(), Failure> {
             for e in &entries {
                 writeln!(out, "{}", e.text())?;
             }
+            Ok(())
+        }
+        EthercatCommand::Exchange(args) => {
+            let config = load_config(args.config.as_deref())?;
+            let Some(bus) = config.ethercat() else {
+                return Err(Failure::Error(
+                    "error: the configuration has no `[ethercat]` table".to_owned(),
+                ));
+            };
+            let period_ns = u64::from(config.period_us) * 1000;
+            let r = exchange_round_trips(bus, period_ns, args.cycles)
+                .map_err(|e| bus_failure(&bus.interface, e))?;
+            let us = |ns: u64| ns as f64 / 1000.0;
+            writeln!(
+                std::io::stdout().lock(),
+                "{} exchanges at {} µs on {}: round trip p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs; {} lost, {} short working counters, {} with a subdevice out of OP",
+                args.cycles,
+                config.period_us,
+                bus.interface,
+                us(r.quantile_ns(0.5)),
+                us(r.quantile_ns(0.99)),
+                us(r.quantile_ns(0.999)),
+                us(r.quantile_ns(1.0)),
+                r.lost,
+                r.short,
+                r.not_op
+            )?;
             Ok(())
         }
         EthercatCommand::Sdo(SdoArgs { op: SdoOp::Read(t) }) => {
