@@ -185,7 +185,7 @@ pub(crate) fn open(
 
 /// Runs one bring-up step on the pump: `timeout` bounds it even where ethercrab's own
 /// timeouts would not.
-fn run<T, F>(
+pub(crate) fn run<T, F>(
     pump: &mut Pump,
     step: impl Fn() -> String,
     future: F,
@@ -458,7 +458,7 @@ pub fn drive_writes(rx: &Pdo, tx: &Pdo, mode: i8, period: (u8, i8)) -> Vec<SdoWr
     writes
 }
 
-async fn sdo_write<S>(
+pub(crate) async fn sdo_write<S>(
     handle: &ethercrab::SubDeviceRef<'_, S>,
     write: SdoWrite,
 ) -> Result<(), ethercrab::error::Error>

@@ -9,7 +9,7 @@ use std::fmt::Write as _;
 use std::time::Duration;
 
 use ethercrab::{DcSupport, MainDevice, Timeouts};
-use kerf_config::ethercat::SdoValue;
+use kerf_config::ethercat::{SdoValue, SdoWrite};
 use thiserror::Error;
 
 use crate::bus::{BringUpError, Group, found_of, open, scan_group};
@@ -134,18 +134,15 @@ fn step(f: &Found, what: &str, source: ethercrab::error::Error) -> BringUpError 
     }
 }
 
+/// [`crate::bus::run`] for one subdevice, its step named by position and name.
 fn run<T>(
     pump: &mut Pump,
     f: &Found,
     what: &str,
     future: impl Future<Output = Result<T, ethercrab::error::Error>>,
 ) -> Result<T, BringUpError> {
-    pump.block_on(future, SDO_BOUND)
-        .map_err(|source| BringUpError::Pump {
-            step: format!("position {} {:?}: {what}", f.position, f.name),
-            source,
-        })?
-        .map_err(|source| step(f, what, source))
+    let step = || format!("position {} {:?}: {what}", f.position, f.name);
+    crate::bus::run(pump, step, future, SDO_BOUND)
 }
 
 /// "SM2 (outputs) 0x1600: 0x6040:00 16 bit, 0x607a:00 32 bit" for each assigned PDO.
@@ -352,14 +349,12 @@ pub fn sdo_write(
                 .subdevice(maindevice, usize::from(position))
                 .map_err(|source| step(f, "not found", source))?;
             let what = format!("SDO write {index:#06x}:{subindex}");
-            match value {
-                SdoValue::U8(v) => run(pump, f, &what, sub.sdo_write(index, subindex, v)),
-                SdoValue::U16(v) => run(pump, f, &what, sub.sdo_write(index, subindex, v)),
-                SdoValue::U32(v) => run(pump, f, &what, sub.sdo_write(index, subindex, v)),
-                SdoValue::I8(v) => run(pump, f, &what, sub.sdo_write(index, subindex, v)),
-                SdoValue::I16(v) => run(pump, f, &what, sub.sdo_write(index, subindex, v)),
-                SdoValue::I32(v) => run(pump, f, &what, sub.sdo_write(index, subindex, v)),
-            }
+            let write = SdoWrite {
+                index,
+                subindex,
+                value,
+            };
+            run(pump, f, &what, crate::bus::sdo_write(&sub, write))
         },
     )
 }
