@@ -4,80 +4,36 @@
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
-use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
 
 /// Interface of the MainDevice's side.
-pub const MAIN_IF: &str = "ecatA";
+pub use kerf_testkit::netns::MAIN_IF;
 /// Interface of the emulator's side.
-pub const SIM_IF: &str = "ecatB";
+pub use kerf_testkit::netns::NETWORK_IF as SIM_IF;
 
-static COUNTER: AtomicU32 = AtomicU32::new(0);
-
-fn ip(args: &[&str]) -> Result<(), String> {
-    let out = Command::new("ip")
-        .args(args)
-        .output()
-        .map_err(|e| format!("cannot run `ip {}`: {e}", args.join(" ")))?;
-    if out.status.success() {
-        Ok(())
-    } else {
-        Err(format!(
-            "`ip {}` failed: {}",
-            args.join(" "),
-            String::from_utf8_lossy(&out.stderr).trim()
-        ))
-    }
-}
-
-/// A namespace with the veth pair up.
+/// A namespace with the veth pair up (`kerf_testkit::netns`), and the emulator in it.
 pub struct Netns {
-    /// Its name.
-    pub name: String,
+    /// The emulator, stopped on drop before the namespace is removed.
     emulator: Option<Child>,
+    ns: kerf_testkit::netns::Netns,
 }
 
 impl Netns {
     /// Creates the namespace and the veth pair; panics with the reason where it cannot
     /// (this test needs root and `ip`: it fails rather than passing silently).
     pub fn new() -> Netns {
-        let name = format!(
-            "kerf-ecs-{}-{}",
-            std::process::id(),
-            COUNTER.fetch_add(1, Ordering::SeqCst)
-        );
-        if let Err(e) = ip(&["netns", "add", &name]) {
-            panic!("cannot create a network namespace (needs root and iproute2): {e}");
-        }
-        let ns = Netns {
-            name,
+        Netns {
             emulator: None,
-        };
-        let n = ns.name.as_str();
-        for args in [
-            &[
-                "-n", n, "link", "add", MAIN_IF, "type", "veth", "peer", "name", SIM_IF,
-            ][..],
-            &["-n", n, "link", "set", MAIN_IF, "up"],
-            &["-n", n, "link", "set", SIM_IF, "up"],
-        ] {
-            if let Err(e) = ip(args) {
-                panic!("cannot set up the veth pair: {e}");
-            }
+            ns: kerf_testkit::netns::Netns::new("kerf-ecs"),
         }
-        ns
     }
 
     /// Starts the emulator in the namespace with these arguments (after `--interface
     /// ecatB`) and waits until it says it is listening.
     pub fn start_emulator(&mut self, args: &[&str]) {
-        let mut child = Command::new("ip")
-            .args([
-                "netns",
-                "exec",
-                &self.name,
-                env!("CARGO_BIN_EXE_kerf-ecat-sim"),
-            ])
+        let mut child = self
+            .ns
+            .command(env!("CARGO_BIN_EXE_kerf-ecat-sim"))
             .args(["--interface", SIM_IF])
             .args(args)
             .stdin(Stdio::piped())
@@ -115,7 +71,7 @@ impl Netns {
     /// Runs `f` on a new thread that has joined the namespace (threads it spawns are in
     /// it too) and returns its result, re-raising its panic.
     pub fn run_inside<T: Send + 'static>(&self, f: impl FnOnce() -> T + Send + 'static) -> T {
-        let path = format!("/var/run/netns/{}", self.name);
+        let path = format!("/var/run/netns/{}", self.ns.name());
         std::thread::spawn(move || {
             let file = std::fs::File::open(&path).expect("open the namespace");
             nix::sched::setns(&file, nix::sched::CloneFlags::CLONE_NEWNET)
@@ -149,10 +105,10 @@ impl Netns {
 
 impl Drop for Netns {
     fn drop(&mut self) {
+        // Reaped here; the namespace (dropped after) kills whatever else runs inside.
         if let Some(mut child) = self.emulator.take() {
             let _ = child.kill();
             let _ = child.wait();
         }
-        let _ = ip(&["netns", "del", &self.name]);
     }
 }
