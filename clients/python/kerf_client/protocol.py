@@ -116,6 +116,7 @@ SAFETY_DRIVE_FAULT = 6
 SAFETY_ENABLE_TIMEOUT = 7
 SAFETY_DRIVE_DISABLED = 8
 SAFETY_FIELDBUS = 9
+SAFETY_SUBDEVICE_STATE = 10
 SAFETY_AXIS_NONE = 255
 
 #: Every constant of the table, by name (what the layout test compares with the page).

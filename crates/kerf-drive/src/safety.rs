@@ -149,6 +149,9 @@ pub enum Check {
     /// by the daemon's bus ([`crate::stage::DriveStage::trip_fieldbus`]). The drives stop
     /// by their own process-data watchdog, as the master can no longer command them.
     Fieldbus,
+    /// A subdevice on the fieldbus left OP on its own (its process-data watchdog, an error
+    /// of its own); the value is its ring position, the limit its AL status code.
+    SubdeviceState,
 }
 
 impl Check {
@@ -165,11 +168,12 @@ impl Check {
             Check::EnableTimeout => "enable_timeout",
             Check::DriveDisabled => "drive_disabled",
             Check::Fieldbus => "fieldbus",
+            Check::SubdeviceState => "subdevice_state",
         }
     }
 
     /// Every check, in the order of their codes.
-    pub const ALL: [Check; 9] = [
+    pub const ALL: [Check; 10] = [
         Check::Velocity,
         Check::Acceleration,
         Check::SoftLimit,
@@ -179,9 +183,10 @@ impl Check {
         Check::EnableTimeout,
         Check::DriveDisabled,
         Check::Fieldbus,
+        Check::SubdeviceState,
     ];
 
-    /// The check's number on the wire (1 to 9, in the order of [`Check::ALL`]; 0 means
+    /// The check's number on the wire (1 to 10, in the order of [`Check::ALL`]; 0 means
     /// none).
     pub fn code(self) -> u32 {
         match self {
@@ -194,6 +199,7 @@ impl Check {
             Check::EnableTimeout => 7,
             Check::DriveDisabled => 8,
             Check::Fieldbus => 9,
+            Check::SubdeviceState => 10,
         }
     }
 }
@@ -267,12 +273,25 @@ pub enum ResetRefused {
     /// A drive did not reach Operation enabled again within its enable timeout.
     #[error("reset refused: the drive of axis {} did not enable", AXIS_NAMES[*.0])]
     NotEnabled(usize),
-    /// The fieldbus does not exchange its cyclic data; bringing it back to OP is not
-    /// done by a reset yet.
+    /// The fieldbus does not answer: its frames do not come back.
     #[error(
-        "reset refused: the EtherCAT bus does not exchange its cyclic data; restart kerfd once the bus is back (a reset does not bring a bus back to OP yet)"
+        "reset refused: the EtherCAT bus does not exchange its cyclic data (no frame came back within {0} ms): check the cable and the subdevices' power"
     )]
-    Fieldbus,
+    Fieldbus(u32),
+    /// A subdevice on the fieldbus did not return to OP.
+    #[error(
+        "reset refused: the EtherCAT subdevice at position {position} did not return to OP within {timeout_ms} ms: it is in {state}, AL status code {code:#06x}"
+    )]
+    SubdeviceState {
+        /// Its ring position.
+        position: u16,
+        /// The state it is in, in words.
+        state: &'static str,
+        /// Its AL status code.
+        code: u16,
+        /// The time it had.
+        timeout_ms: u32,
+    },
 }
 
 /// What the cycle gives [`Safety::check`].

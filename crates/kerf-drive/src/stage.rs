@@ -384,6 +384,20 @@ impl<D: Drive> DriveStage<D> {
         Some(f)
     }
 
+    /// Latches [`Check::SubdeviceState`]: the subdevice at `position` left OP with the AL
+    /// status code `code`. `None` when a fault is already latched.
+    pub fn trip_subdevice(&mut self, position: u16, code: u16, line: u32) -> Option<Fault> {
+        let f = self.safety.trip(
+            Check::SubdeviceState,
+            None,
+            f64::from(position),
+            f64::from(code),
+            line,
+        )?;
+        self.trip_dump = Some(f);
+        Some(f)
+    }
+
     /// One cycle. See the module documentation. Allocation-free.
     pub fn cycle(&mut self, input: &StageInput) -> StageOutput {
         self.sequence += 1;

@@ -676,8 +676,8 @@ fn a_fault_names_check_axis_value_limit_and_line() {
     assert!(text.contains("against limit 500 (line 42"), "{text}");
 }
 
-/// The checks' numbers on the wire are PROTOCOL.md's `SAFETY_*` (1 velocity … 9
-/// fieldbus, 0 none), in the order of `Check::ALL`, each with its own name.
+/// The checks' numbers on the wire are PROTOCOL.md's `SAFETY_*` (1 velocity … 10
+/// subdevice state, 0 none), in the order of `Check::ALL`, each with its own name.
 #[test]
 fn check_codes_are_the_protocols_numbers() {
     let expected = [
@@ -690,6 +690,7 @@ fn check_codes_are_the_protocols_numbers() {
         (Check::EnableTimeout, 7, "enable_timeout"),
         (Check::DriveDisabled, 8, "drive_disabled"),
         (Check::Fieldbus, 9, "fieldbus"),
+        (Check::SubdeviceState, 10, "subdevice_state"),
     ];
     assert_eq!(Check::ALL.len(), expected.len());
     for (check, (want, code, name)) in Check::ALL.iter().zip(expected) {

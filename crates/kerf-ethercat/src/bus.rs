@@ -8,7 +8,12 @@
 //!    PDO mapping (mapping object entries, then the assignment 0x1C12/0x1C13), the mode
 //!    of operation 0x6060 and the interpolation period 0x60C2 = the cycle period; the
 //!    process-data watchdog (register 0x0420);
-//! 4. SAFE-OP (process data sized from the PDO assignment), then OP.
+//! 4. with distributed clocks (`dc = true`): every drive set to run on SYNC0, SYNC0
+//!    programmed at the cycle period, and the bus cycled until every subdevice's clock
+//!    agrees with the reference's (register 0x092C within [`SETTLED_NS`]) and the host's
+//!    cycle is locked onto SYNC0 ([`crate::dc::PhaseLock`]), within `dc_settle_timeout_ms`;
+//! 5. SAFE-OP (process data sized from the PDO assignment), then OP (with distributed
+//!    clocks while cycling, so that the drives see SYNC0 and frames together).
 //!
 //! Every refusal names the subdevice, its position and what failed; an SDO abort is shown
 //! with its code in words, as ethercrab decodes them (ETG.1000.6).
@@ -18,11 +23,15 @@
 
 use std::time::Duration;
 
-use ethercrab::subdevice_group::{Op, PreOp};
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
+use ethercrab::subdevice_group::{DcConfiguration, HasDc, HasPdi, NoDc, Op, PreOp};
+use ethercrab::{
+    DcSync, MainDevice, MainDeviceConfig, PduStorage, RegisterAddress, SubDeviceGroup,
+    SubDeviceState, Timeouts,
+};
 use kerf_config::ethercat::{EthercatConfig, Pdo, SdoValue, SdoWrite};
 use thiserror::Error;
 
+use crate::dc::PhaseLock;
 use crate::identity::{Expected, Found, compare};
 use crate::image::DriveImage;
 use crate::pdo::{
@@ -42,13 +51,31 @@ const MAX_FRAMES: usize = 16;
 const FRAME_DATA: usize = PduStorage::element_size(1100);
 /// The SyncManager watchdog time register (ETG.1000.4, units of the watchdog divider).
 const SM_WATCHDOG_REGISTER: u16 = 0x0420;
+/// A subdevice's clock has settled when its system time difference (0x092C) is within
+/// this, ns.
+pub const SETTLED_NS: u32 = 1_000;
+/// The AL control register (ETG.1000.4): the state requested, bit 4 acknowledges an error.
+const AL_CONTROL_REGISTER: u16 = 0x0120;
+/// AL control's error acknowledge bit.
+const AL_ACKNOWLEDGE: u16 = 0x0010;
+/// The system time difference register of a subdevice's clock (ETG.1000.4).
+const DC_DIFFERENCE_REGISTER: u16 = 0x092C;
+/// Cycles in a row the host's cycle must stay locked before the bus goes to SAFE-OP.
+const LOCKED_CYCLES: u32 = 100;
 /// The axes' letters, by index.
 const AXIS_LETTERS: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
 
 type Storage = PduStorage<MAX_FRAMES, FRAME_DATA>;
-/// The bus's group of subdevices, in state `S` (PRE-OP by default).
-pub(crate) type Group<S = PreOp> =
-    SubDeviceGroup<MAX_SUBDEVICES, MAX_PDI_BYTES, ethercrab::DefaultLock, S>;
+/// The bus's group of subdevices, in state `S` (PRE-OP by default), with distributed
+/// clocks configured (`D` = [`HasDc`]) or not.
+pub(crate) type Group<S = PreOp, D = NoDc> =
+    SubDeviceGroup<MAX_SUBDEVICES, MAX_PDI_BYTES, ethercrab::DefaultLock, S, D>;
+
+/// The group in OP, cycled with or without distributed clocks.
+enum Cyclic {
+    Free(Group<Op>),
+    Clocked(Group<Op, HasDc>),
+}
 
 /// Why the bus did not come up.
 #[derive(Debug, Error)]
@@ -97,6 +124,36 @@ pub enum BringUpError {
         #[source]
         source: LayoutError,
     },
+    /// A drive cannot run on SYNC0.
+    #[error(
+        "{name} (position {position}) has no distributed clock: it cannot run on SYNC0; set `ethercat.dc = false` or use a drive with DC"
+    )]
+    NoClock {
+        /// The drive.
+        name: String,
+        /// Its position.
+        position: u16,
+    },
+    /// The clocks did not settle in time.
+    #[error("distributed clocks did not settle within {timeout_ms} ms: {what}")]
+    Unsettled {
+        /// `dc_settle_timeout_ms`.
+        timeout_ms: u32,
+        /// What was still off.
+        what: String,
+    },
+    /// A subdevice did not reach a state.
+    #[error("{name} (position {position}) stopped in {state}: AL status code {code}")]
+    State {
+        /// The subdevice.
+        name: String,
+        /// Its position.
+        position: u16,
+        /// The state it is in (with "+ error" when its error flag is set).
+        state: String,
+        /// Its AL status code in words.
+        code: String,
+    },
     /// The period cannot be written as the drives' interpolation period.
     #[error(
         "the cycle period of {period_ns} ns is not 1 to 255 times a power of ten seconds, so it cannot be the drives' interpolation period (0x60C2)"
@@ -115,6 +172,67 @@ pub struct Exchange {
     /// The ring position of the first subdevice not in OP (it left OP: a watchdog, an
     /// error of its own), if any.
     pub not_op: Option<u16>,
+    /// Every subdevice's state (AL status: 1 INIT, 2 PRE-OP, 3 BOOT, 4 SAFE-OP, 8 OP), by
+    /// position; the first [`Bus::len`] are the bus's.
+    pub states: [u8; MAX_SUBDEVICES],
+    /// With distributed clocks: the offset of the cycle's start from `sync0_shift_ns`
+    /// before SYNC0 (positive = late), and the correction of the next start, ns.
+    pub dc: Option<DcSample>,
+}
+
+/// One cycle's measurement of the distributed clock.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DcSample {
+    /// The cycle start's offset from where it should be, ns (positive = late).
+    pub offset_ns: i64,
+    /// What to add to the next cycle's start, ns.
+    pub correction_ns: i64,
+}
+
+/// An AL state (the low four bits of the AL status) by its name: "SAFE-OP".
+pub fn state_name(al_status: u8) -> &'static str {
+    match al_status & 0x0F {
+        1 => "INIT",
+        2 => "PRE-OP",
+        3 => "BOOT",
+        4 => "SAFE-OP",
+        8 => "OP",
+        _ => "an unknown state",
+    }
+}
+
+/// The state of a subdevice in words, "+ error" when its error flag is set.
+pub fn state_text(al_status: u8) -> String {
+    let state = state_name(al_status);
+    if al_status & 0x10 != 0 {
+        format!("{state} + error")
+    } else {
+        state.to_owned()
+    }
+}
+
+/// An AL status code (register 0x0134) in words, as ETG.1000.6 names it:
+/// "0x001B (sync manager watchdog)".
+pub fn al_code_text(code: u16) -> String {
+    use ethercrab::EtherCrabWireRead;
+    match ethercrab::AlStatusCode::unpack_from_slice(&code.to_le_bytes()) {
+        Ok(ethercrab::AlStatusCode::Unknown(_)) | Err(_) => format!("{code:#06x}"),
+        Ok(c) => format!("{code:#06x} ({})", words_of(&c)),
+    }
+}
+
+/// ethercrab's name of a code, in lower case words ("SyncManagerWatchdog" becomes "sync
+/// manager watchdog").
+fn words_of(code: &ethercrab::AlStatusCode) -> String {
+    let name = format!("{code:?}");
+    let mut words = String::new();
+    for (i, c) in name.chars().enumerate() {
+        if c.is_ascii_uppercase() && i > 0 {
+            words.push(' ');
+        }
+        words.push(c.to_ascii_lowercase());
+    }
+    words
 }
 
 /// One drive on the bus.
@@ -129,10 +247,16 @@ struct BusDrive {
 /// A running bus in OP.
 pub struct Bus {
     maindevice: MainDevice<'static>,
-    group: Group<Op>,
+    group: Cyclic,
     pump: Pump,
     drives: Vec<BusDrive>,
     found: Vec<Found>,
+    /// The names of the subdevices by position, for messages, and their configured
+    /// station addresses.
+    names: Vec<(String, u16)>,
+    /// With distributed clocks: the loop that keeps the host's cycle on SYNC0, and the
+    /// host time of the first cycle start it computed.
+    lock: Option<(PhaseLock, u64)>,
 }
 
 impl std::fmt::Debug for Bus {
@@ -318,25 +442,292 @@ impl Bus {
             });
         }
 
+        let names = names_by_position(config, &group, &maindevice);
+        let mut bus = if config.dc {
+            Bus::clocked(config, period_ns, maindevice, pump, group, &drives, names)?
+        } else {
+            let step = run(
+                &mut pump,
+                || "PRE-OP to SAFE-OP".to_owned(),
+                group.into_safe_op(&maindevice),
+                state_bound,
+            );
+            let group = Bus::named(&maindevice, &mut pump, &names, step)?;
+            let step = run(
+                &mut pump,
+                || "SAFE-OP to OP".to_owned(),
+                group.into_op(&maindevice),
+                state_bound,
+            );
+            let group = Bus::named(&maindevice, &mut pump, &names, step)?;
+            Bus {
+                maindevice,
+                group: Cyclic::Free(group),
+                pump,
+                drives: Vec::new(),
+                found: Vec::new(),
+                names,
+                lock: None,
+            }
+        };
+        bus.drives = drives;
+        bus.found = found;
+        Ok(bus)
+    }
+
+    /// A failed state change says where it stopped: the first subdevice not in the state
+    /// wanted, its state and its AL status code in words (ethercrab itself only says that
+    /// the change timed out).
+    fn named<T>(
+        maindevice: &MainDevice<'static>,
+        pump: &mut Pump,
+        names: &[(String, u16)],
+        step: Result<T, BringUpError>,
+    ) -> Result<T, BringUpError> {
+        let Err(error) = step else { return step };
+        for (position, (name, address)) in names.iter().enumerate() {
+            let Ok(position) = u16::try_from(position) else {
+                break;
+            };
+            let status = read_status(maindevice, pump, *address);
+            if let Some((al_status, code)) = status
+                && (al_status & 0x10 != 0 || code != 0)
+            {
+                return Err(BringUpError::State {
+                    name: name.clone(),
+                    position,
+                    state: state_text(al_status),
+                    code: al_code_text(code),
+                });
+            }
+        }
+        Err(error)
+    }
+
+    /// Steps 4 and 5 with distributed clocks: SYNC0 on every drive, the clocks settled and
+    /// the host's cycle locked onto SYNC0, then SAFE-OP and OP while cycling.
+    fn clocked(
+        config: &EthercatConfig,
+        period_ns: u64,
+        maindevice: MainDevice<'static>,
+        mut pump: Pump,
+        mut group: Group<PreOp>,
+        drives: &[BusDrive],
+        names: Vec<(String, u16)>,
+    ) -> Result<Bus, BringUpError> {
+        let state_bound = Duration::from_millis(u64::from(config.state_timeout_ms)) * 2;
+        for (position, mut sub) in group.iter_mut(&maindevice).enumerate() {
+            if !drives.iter().any(|d| d.group_index == position) {
+                continue;
+            }
+            if !sub.dc_support().any() {
+                return Err(BringUpError::NoClock {
+                    name: names[position].0.clone(),
+                    position: u16::try_from(position).unwrap_or(u16::MAX),
+                });
+            }
+            sub.set_dc_sync(DcSync::Sync0);
+        }
         let group = run(
+            &mut pump,
+            || "process data image".to_owned(),
+            group.into_pre_op_pdi(&maindevice),
+            state_bound,
+        )?;
+        let group = run(
+            &mut pump,
+            || "distributed clocks: SYNC0".to_owned(),
+            group.configure_dc_sync(
+                &maindevice,
+                DcConfiguration {
+                    // SYNC0 starts once the clocks have had time to settle.
+                    start_delay: Duration::from_millis(100),
+                    sync0_period: Duration::from_nanos(period_ns),
+                    sync0_shift: Duration::ZERO,
+                },
+            ),
+            state_bound,
+        )?;
+        let mut lock = PhaseLock::new(period_ns, u64::from(config.sync0_shift_ns));
+        let mut clock = kerf_rt::PeriodicClock::new(period_ns)
+            .map_err(|_| BringUpError::Period { period_ns })?;
+        let timeout = Duration::from_nanos(period_ns / 2);
+        let settle_ms = config.dc_settle_timeout_ms;
+        let settle_cycles = u64::from(settle_ms) * 1_000_000 / period_ns;
+        // Settle: every subdevice's clock within SETTLED_NS of the reference's, and the
+        // host's cycle within a tenth of a period of its place for LOCKED_CYCLES in a row.
+        let mut locked = 0u32;
+        let mut cycle = 0u64;
+        let mut worst_clock: Option<(usize, i64)> = None;
+        let mut last_offset = None;
+        loop {
+            if cycle > settle_cycles {
+                let what = match (worst_clock, last_offset) {
+                    (Some((position, difference)), _) => format!(
+                        "{} (position {position}) differs from the reference clock by {difference} ns (at most {SETTLED_NS} ns allowed)",
+                        names[position].0
+                    ),
+                    (None, Some(offset)) => format!(
+                        "the cycle does not keep its place before SYNC0: last offset {:.1} µs (a tenth of the period allowed; see docs/ETHERCAT.md on preparing the NIC)",
+                        offset as f64 / 1000.0
+                    ),
+                    (None, None) => "no frame came back".to_owned(),
+                };
+                return Err(BringUpError::Unsettled {
+                    timeout_ms: settle_ms,
+                    what,
+                });
+            }
+            cycle += 1;
+            let tick = clock.wait_next();
+            if let Ok(Some(sample)) = cycle_dc(
+                &maindevice,
+                &mut pump,
+                &group,
+                &mut lock,
+                tick.deadline_ns,
+                timeout,
+            )
+            .map(|r| r.1)
+            {
+                clock.shift_next(sample.correction_ns);
+                last_offset = Some(sample.offset_ns);
+                let in_place = sample.offset_ns.unsigned_abs() < period_ns / 10;
+                locked = if in_place { locked + 1 } else { 0 };
+            } else {
+                locked = 0;
+            }
+            if locked >= LOCKED_CYCLES && cycle.is_multiple_of(10) {
+                worst_clock = worst_difference(&maindevice, &mut pump, &group, drives);
+                if worst_clock.is_none() {
+                    break;
+                }
+            }
+        }
+        let step = run(
             &mut pump,
             || "PRE-OP to SAFE-OP".to_owned(),
             group.into_safe_op(&maindevice),
             state_bound,
-        )?;
+        );
+        let group = Bus::named(&maindevice, &mut pump, &names, step)?;
         let group = run(
             &mut pump,
             || "SAFE-OP to OP".to_owned(),
-            group.into_op(&maindevice),
+            group.request_into_op(&maindevice),
             state_bound,
         )?;
+        // Cycle until every subdevice is in OP: the drives go to OP only with frames
+        // arriving in time for SYNC0.
+        let op_cycles = u64::from(config.state_timeout_ms) * 1_000_000 / period_ns;
+        let mut clock = kerf_rt::PeriodicClock::new(period_ns)
+            .map_err(|_| BringUpError::Period { period_ns })?;
+        for cycle in 0.. {
+            let tick = clock.wait_next();
+            let (all_op, sample) = match cycle_dc(
+                &maindevice,
+                &mut pump,
+                &group,
+                &mut lock,
+                tick.deadline_ns,
+                timeout,
+            ) {
+                Ok((all_op, sample)) => (all_op, sample),
+                Err(_) => (false, None),
+            };
+            if let Some(sample) = sample {
+                clock.shift_next(sample.correction_ns);
+            }
+            if all_op {
+                break;
+            }
+            if cycle > op_cycles {
+                let step: Result<(), BringUpError> = Err(BringUpError::Step {
+                    step: "SAFE-OP to OP".to_owned(),
+                    source: ethercrab::error::Error::Timeout(
+                        ethercrab::error::TimeoutError::StateTransition,
+                    ),
+                });
+                Bus::named(&maindevice, &mut pump, &names, step)?;
+            }
+        }
+        let first = clock.next_deadline_ns();
         Ok(Bus {
             maindevice,
-            group,
+            group: Cyclic::Clocked(group),
             pump,
-            drives,
-            found,
+            drives: Vec::new(),
+            found: Vec::new(),
+            names,
+            lock: Some((lock, first)),
         })
+    }
+
+    /// With distributed clocks, the host time (`CLOCK_MONOTONIC`, ns) at which the cycle's
+    /// clock must start so that it begins locked onto SYNC0; `None` without.
+    pub fn first_cycle_start_ns(&self) -> Option<u64> {
+        self.lock.map(|(_, first)| first)
+    }
+
+    /// Subdevices on the bus.
+    pub fn len(&self) -> usize {
+        self.names.len()
+    }
+
+    /// Whether the bus has no subdevice (never, once up).
+    pub fn is_empty(&self) -> bool {
+        self.names.is_empty()
+    }
+
+    /// The name of the subdevice at `position` in messages ("Y drive", "I/O").
+    pub fn name(&self, position: u16) -> &str {
+        self.names
+            .get(usize::from(position))
+            .map_or("subdevice", |(name, _)| name.as_str())
+    }
+
+    /// Reads the AL status (state, error flag) and the AL status code of the subdevice at
+    /// `position`: one frame's round trip, outside the cycle's exchange (after a subdevice
+    /// left OP). `None` when no answer came within `timeout`.
+    pub fn status_of(&mut self, position: u16, timeout: Duration) -> Option<(u8, u16)> {
+        let position = usize::from(position);
+        let sub = match &self.group {
+            Cyclic::Free(g) => g.subdevice(&self.maindevice, position),
+            Cyclic::Clocked(g) => g.subdevice(&self.maindevice, position),
+        }
+        .ok()?;
+        let status = self
+            .pump
+            .block_on(
+                async {
+                    let state = sub.register_read::<u8>(RegisterAddress::AlStatus).await?;
+                    let code = sub
+                        .register_read::<u16>(RegisterAddress::AlStatusCode)
+                        .await?;
+                    Ok::<_, ethercrab::error::Error>((state, code))
+                },
+                timeout,
+            )
+            .ok()?;
+        status.ok()
+    }
+
+    /// Asks the subdevice at `position` for `state` (2 PRE-OP, 4 SAFE-OP, 8 OP),
+    /// acknowledging its error: one frame's round trip. Whether it answered.
+    pub fn request_state(&mut self, position: u16, state: u8, timeout: Duration) -> bool {
+        let position = usize::from(position);
+        let Ok(sub) = (match &self.group {
+            Cyclic::Free(g) => g.subdevice(&self.maindevice, position),
+            Cyclic::Clocked(g) => g.subdevice(&self.maindevice, position),
+        }) else {
+            return false;
+        };
+        let control = u16::from(state) | AL_ACKNOWLEDGE;
+        matches!(
+            self.pump
+                .block_on(sub.register_write(AL_CONTROL_REGISTER, control), timeout),
+            Ok(Ok(_))
+        )
     }
 
     /// The subdevices found, in ring order.
@@ -361,39 +752,71 @@ impl Bus {
     /// Writes `image`'s outputs into the process data of the drive of `axis` (sent by the
     /// next [`Bus::tx_rx`]); nothing when the bus has no drive for it.
     pub fn write_outputs(&self, axis: usize, image: &DriveImage) {
-        if let Some(d) = self.drives.iter().find(|d| d.axis == axis)
-            && let Ok(sub) = self.group.subdevice(&self.maindevice, d.group_index)
-        {
+        let Some(d) = self.drives.iter().find(|d| d.axis == axis) else {
+            return;
+        };
+        let sub = match &self.group {
+            Cyclic::Free(g) => g.subdevice(&self.maindevice, d.group_index),
+            Cyclic::Clocked(g) => g.subdevice(&self.maindevice, d.group_index),
+        };
+        if let Ok(sub) = sub {
             image.write_outputs(sub.io_raw_mut().outputs());
         }
     }
 
     /// Reads the inputs of the drive of `axis` from the last exchange into `image`.
     pub fn read_inputs(&self, axis: usize, image: &mut DriveImage) {
-        if let Some(d) = self.drives.iter().find(|d| d.axis == axis)
-            && let Ok(sub) = self.group.subdevice(&self.maindevice, d.group_index)
-        {
+        let Some(d) = self.drives.iter().find(|d| d.axis == axis) else {
+            return;
+        };
+        let sub = match &self.group {
+            Cyclic::Free(g) => g.subdevice(&self.maindevice, d.group_index),
+            Cyclic::Clocked(g) => g.subdevice(&self.maindevice, d.group_index),
+        };
+        if let Ok(sub) = sub {
             image.read_inputs(sub.io_raw().inputs());
         }
     }
 
     /// One exchange of the whole process data (one LRW where it fits a frame, with every
-    /// subdevice's AL status read in the same frame), waiting at most `timeout` for it to
-    /// come back.
+    /// subdevice's AL status read in the same frame; with distributed clocks also the
+    /// reference's system time), waiting at most `timeout` for it to come back.
+    /// The cycle is taken to have started now; see [`Bus::tx_rx_at`].
     pub fn tx_rx(&mut self, timeout: Duration) -> Result<Exchange, PumpError> {
-        let response = self
-            .pump
-            .block_on(self.group.tx_rx(&self.maindevice), timeout)?
-            .map_err(PumpError::Frame)?;
-        let not_op = response
-            .subdevice_states
-            .iter()
-            .position(|s| *s != ethercrab::SubDeviceState::Op)
-            .and_then(|i| u16::try_from(i).ok());
-        Ok(Exchange {
-            working_counter: response.working_counter,
-            not_op,
-        })
+        self.tx_rx_at(kerf_rt::now_ns(), timeout)
+    }
+
+    /// [`Bus::tx_rx`] in a cycle that was to start at `start_ns` (host `CLOCK_MONOTONIC`):
+    /// with distributed clocks, the offset and the next start's correction are measured
+    /// against it.
+    pub fn tx_rx_at(&mut self, start_ns: u64, timeout: Duration) -> Result<Exchange, PumpError> {
+        match &self.group {
+            Cyclic::Free(group) => {
+                let response = self
+                    .pump
+                    .block_on(group.tx_rx(&self.maindevice), timeout)?
+                    .map_err(PumpError::Frame)?;
+                Ok(exchange_of(
+                    response.working_counter,
+                    &response.subdevice_states,
+                    None,
+                ))
+            }
+            Cyclic::Clocked(group) => {
+                let Some((lock, _)) = self.lock.as_mut() else {
+                    return Err(PumpError::Frame(ethercrab::error::Error::Internal));
+                };
+                let (exchange, _) = cycle_dc_exchange(
+                    &self.maindevice,
+                    &mut self.pump,
+                    group,
+                    lock,
+                    start_ns,
+                    timeout,
+                )?;
+                Ok(exchange)
+            }
+        }
     }
 
     /// One cyclic exchange with `images` indexed by axis: their outputs written, the
@@ -420,14 +843,160 @@ impl Bus {
     /// The working counter of a complete exchange: per subdevice 1 for its inputs read and
     /// 2 for its outputs written, as a logical read-write (LRW) counts them.
     pub fn expected_working_counter(&self) -> u16 {
-        self.group
-            .iter(&self.maindevice)
-            .map(|s| {
-                let io = s.io_raw();
-                u16::from(!io.inputs().is_empty()) + 2 * u16::from(!io.outputs().is_empty())
-            })
-            .sum()
+        let count =
+            |inputs: usize, outputs: usize| u16::from(inputs > 0) + 2 * u16::from(outputs > 0);
+        match &self.group {
+            Cyclic::Free(g) => g
+                .iter(&self.maindevice)
+                .map(|s| count(s.io_raw().inputs().len(), s.io_raw().outputs().len()))
+                .sum(),
+            Cyclic::Clocked(g) => g
+                .iter(&self.maindevice)
+                .map(|s| count(s.io_raw().inputs().len(), s.io_raw().outputs().len()))
+                .sum(),
+        }
     }
+}
+
+/// The names of the subdevices by position: the configuration's ("X drive", "I/O"), else
+/// "subdevice"; with their configured station addresses.
+fn names_by_position(
+    config: &EthercatConfig,
+    group: &Group<PreOp>,
+    maindevice: &MainDevice<'static>,
+) -> Vec<(String, u16)> {
+    let mut names: Vec<(String, u16)> = group
+        .iter(maindevice)
+        .map(|s| ("subdevice".to_owned(), s.configured_address()))
+        .collect();
+    for e in expected(config) {
+        if let Some(n) = names.get_mut(usize::from(e.position)) {
+            n.0 = e.name;
+        }
+    }
+    names
+}
+
+/// An exchange's outcome from ethercrab's response.
+fn exchange_of(working_counter: u16, states: &[SubDeviceState], dc: Option<DcSample>) -> Exchange {
+    let mut by_position = [0u8; MAX_SUBDEVICES];
+    for (slot, state) in by_position.iter_mut().zip(states) {
+        *slot = u8::from(*state);
+    }
+    let not_op = states
+        .iter()
+        .position(|s| *s != SubDeviceState::Op)
+        .and_then(|i| u16::try_from(i).ok());
+    Exchange {
+        working_counter,
+        not_op,
+        states: by_position,
+        dc,
+    }
+}
+
+/// One exchange with distributed clocks on a group in any state with process data: the
+/// outcome and whether every subdevice is in OP. The phase lock takes the measurement.
+fn cycle_dc_exchange<S: HasPdi>(
+    maindevice: &MainDevice<'static>,
+    pump: &mut Pump,
+    group: &Group<S, HasDc>,
+    lock: &mut PhaseLock,
+    start_ns: u64,
+    timeout: Duration,
+) -> Result<(Exchange, bool), PumpError> {
+    let sent_ns = kerf_rt::now_ns();
+    let response = pump
+        .block_on(group.tx_rx_dc(maindevice), timeout)?
+        .map_err(PumpError::Frame)?;
+    let (offset_ns, correction_ns) = lock.update(start_ns, sent_ns, response.extra.dc_system_time);
+    let all_op = response.all_op();
+    let exchange = exchange_of(
+        response.working_counter,
+        &response.subdevice_states,
+        Some(DcSample {
+            offset_ns,
+            correction_ns,
+        }),
+    );
+    Ok((exchange, all_op))
+}
+
+/// [`cycle_dc_exchange`] for bring-up: whether all are in OP, and the clock's sample.
+fn cycle_dc<S: HasPdi>(
+    maindevice: &MainDevice<'static>,
+    pump: &mut Pump,
+    group: &Group<S, HasDc>,
+    lock: &mut PhaseLock,
+    start_ns: u64,
+    timeout: Duration,
+) -> Result<(bool, Option<DcSample>), PumpError> {
+    let (exchange, all_op) = cycle_dc_exchange(maindevice, pump, group, lock, start_ns, timeout)?;
+    Ok((all_op, exchange.dc))
+}
+
+/// The drive whose clock differs most from the reference's beyond [`SETTLED_NS`]
+/// (register 0x092C: bits 0–30 the difference, bit 31 its sign), if any; a drive that does
+/// not answer counts as unsettled.
+fn worst_difference<S: HasPdi>(
+    maindevice: &MainDevice<'static>,
+    pump: &mut Pump,
+    group: &Group<S, HasDc>,
+    drives: &[BusDrive],
+) -> Option<(usize, i64)> {
+    let mut worst: Option<(usize, i64)> = None;
+    for d in drives {
+        let Ok(sub) = group.subdevice(maindevice, d.group_index) else {
+            continue;
+        };
+        let read = pump.block_on(
+            sub.register_read::<u32>(DC_DIFFERENCE_REGISTER),
+            Duration::from_millis(100),
+        );
+        let difference = match read {
+            Ok(Ok(raw)) => {
+                let magnitude = i64::from(raw & 0x7FFF_FFFF);
+                if raw & 0x8000_0000 != 0 {
+                    -magnitude
+                } else {
+                    magnitude
+                }
+            }
+            _ => i64::MAX,
+        };
+        if difference.unsigned_abs() > u64::from(SETTLED_NS)
+            && worst.is_none_or(|(_, w)| difference.unsigned_abs() > w.unsigned_abs())
+        {
+            worst = Some((d.group_index, difference));
+        }
+    }
+    worst
+}
+
+/// The AL status and AL status code of the subdevice at `position`, read by its
+/// configured address (outside any group); `None` without an answer.
+fn read_status(
+    maindevice: &MainDevice<'static>,
+    pump: &mut Pump,
+    address: u16,
+) -> Option<(u8, u16)> {
+    let state = pump
+        .block_on(
+            ethercrab::Command::fprd(address, RegisterAddress::AlStatus.into())
+                .receive::<u8>(maindevice),
+            Duration::from_millis(200),
+        )
+        .ok()?
+        .ok()?;
+    let code = pump
+        .block_on(
+            ethercrab::Command::fprd(address, RegisterAddress::AlStatusCode.into())
+                .receive::<u16>(maindevice),
+            Duration::from_millis(200),
+        )
+        .ok()?
+        .ok()?;
+    Some((state, code))
 }
 
 /// The SDO writes that configure a drive in PRE-OP: for each direction the assignment

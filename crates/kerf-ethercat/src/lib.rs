@@ -12,6 +12,7 @@
 
 pub mod bus;
 pub mod commission;
+pub mod dc;
 pub mod identity;
 pub mod image;
 pub mod pdo;

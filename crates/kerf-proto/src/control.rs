@@ -470,6 +470,9 @@ pub const SAFETY_DRIVE_DISABLED: u32 = 8;
 /// `StatusMsg::safety_check`: the fieldbus stopped carrying the cyclic data (lost frames
 /// or a short working counter, more cycles in a row than allowed).
 pub const SAFETY_FIELDBUS: u32 = 9;
+/// `StatusMsg::safety_check`: an EtherCAT subdevice left OP on its own; `safety_value` is
+/// its ring position, `safety_limit` its AL status code.
+pub const SAFETY_SUBDEVICE_STATE: u32 = 10;
 /// `StatusMsg::safety_axis` of a fault that is not an axis's (a stream stall).
 pub const SAFETY_AXIS_NONE: u32 = 255;
 

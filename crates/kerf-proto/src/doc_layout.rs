@@ -172,6 +172,7 @@ fn constants() -> BTreeMap<&'static str, u32> {
         SAFETY_ENABLE_TIMEOUT,
         SAFETY_DRIVE_DISABLED,
         SAFETY_FIELDBUS,
+        SAFETY_SUBDEVICE_STATE,
         SAFETY_AXIS_NONE,
     )
 }

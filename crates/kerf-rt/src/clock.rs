@@ -84,6 +84,13 @@ impl PeriodicClock {
         self.next_deadline_ns
     }
 
+    /// Moves the next deadline by `delta_ns` (negative = earlier), and with it every later
+    /// one: how a loop that follows another clock (the EtherCAT bus's distributed clock)
+    /// steers its phase. A deadline moved into the past is met at once by the next wait.
+    pub fn shift_next(&mut self, delta_ns: i64) {
+        self.next_deadline_ns = self.next_deadline_ns.saturating_add_signed(delta_ns);
+    }
+
     /// Wake-ups so far.
     pub fn cycles(&self) -> u64 {
         self.cycles
@@ -169,6 +176,20 @@ mod tests {
         assert_eq!(schedule_after(10_000, 11_000, 1_000), (1, 12_000));
         // 3.5 periods late: deadlines 11 000, 12 000 and 13 000 passed.
         assert_eq!(schedule_after(10_000, 13_500, 1_000), (3, 14_000));
+    }
+
+    #[test]
+    fn a_shifted_deadline_moves_the_following_ones_with_it() {
+        let mut clock = PeriodicClock::starting_at(1_000, 50_000).expect("valid period");
+        clock.shift_next(-30);
+        assert_eq!(clock.next_deadline_ns(), 49_970);
+        clock.shift_next(45);
+        assert_eq!(clock.next_deadline_ns(), 50_015);
+        // The deadline is in the past: the wait returns at once, and the one after keeps
+        // the shifted phase.
+        let tick = clock.wait_next();
+        assert_eq!(tick.deadline_ns, 50_015);
+        assert_eq!((clock.next_deadline_ns() - 50_015) % 1_000, 0);
     }
 
     #[test]

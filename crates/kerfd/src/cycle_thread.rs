@@ -80,7 +80,14 @@ pub(crate) fn cycle_thread(
         let _ = ready.send(Err(StartError::Config(e.clone())));
         return Err(e);
     }
-    let mut clock = match kerf_rt::PeriodicClock::new(config.period_us as u64 * 1000) {
+    let period_ns = config.period_us as u64 * 1000;
+    // With distributed clocks the bring-up locked the bus's cycle onto SYNC0: the clock
+    // starts where it left off.
+    let clock = match cycle.first_cycle_start_ns() {
+        Some(first) => kerf_rt::PeriodicClock::starting_at(period_ns, first),
+        None => kerf_rt::PeriodicClock::new(period_ns),
+    };
+    let mut clock = match clock {
         Ok(c) => c,
         Err(e) => {
             let _ = ready.send(Err(StartError::Config(e.to_string())));
@@ -98,7 +105,10 @@ pub(crate) fn cycle_thread(
             // The drives got no setpoint in the periods missed: they held.
             cycle.missed(tick.missed);
         }
+        cycle.begin(tick.deadline_ns);
         let out = cycle.run();
+        // With distributed clocks: the next start follows SYNC0.
+        clock.shift_next(cycle.take_clock_correction_ns());
         out.fill(&mut msg, tick.deadline_ns);
         publisher.push(msg);
         let woke_ns = tick.deadline_ns + tick.latency_ns;
@@ -121,6 +131,13 @@ pub(crate) fn cycle_thread(
                     c.short,
                     c.not_op,
                     c.longest_gap
+                );
+            }
+            if let Some(dc) = cycle.bus_report().and_then(|b| b.dc) {
+                tracing::info!(
+                    "EtherCAT distributed clocks: the cycle start's offset from its place before SYNC0 over {} cycles: {}",
+                    dc.samples,
+                    dc.offset_abs
                 );
             }
             if let Ok(mut t) = timing_out.lock() {

@@ -44,6 +44,10 @@ pub fn safety_text(s: &StatusMsg) -> Option<String> {
         kerf_proto::SAFETY_FIELDBUS => {
             format!("EtherCAT: {value} cycles in a row without a complete exchange (limit {limit})")
         }
+        kerf_proto::SAFETY_SUBDEVICE_STATE => format!(
+            "EtherCAT: the subdevice at position {value} left OP, AL status code {}",
+            kerf_ethercat::bus::al_code_text(limit as u16)
+        ),
         _ => "the drive left Operation enabled on its own".to_string(),
     };
     Some(format!(
@@ -72,6 +76,7 @@ mod tests {
             (Check::EnableTimeout, kerf_proto::SAFETY_ENABLE_TIMEOUT),
             (Check::DriveDisabled, kerf_proto::SAFETY_DRIVE_DISABLED),
             (Check::Fieldbus, kerf_proto::SAFETY_FIELDBUS),
+            (Check::SubdeviceState, kerf_proto::SAFETY_SUBDEVICE_STATE),
         ];
         assert_eq!(wire.len(), Check::ALL.len());
         for (check, code) in wire {

@@ -213,19 +213,13 @@ pub(crate) fn check_period(config: &Config) -> Result<(), StartError> {
 }
 
 /// The drives the daemon can run: simulated ones, and EtherCAT drives in cyclic
-/// synchronous position without distributed clocks (`dc = false`; DC is refused until the
-/// daemon runs it, rather than ignored). A drive configured for cyclic synchronous velocity (`mode =
+/// synchronous position, with or without distributed clocks. A drive configured for cyclic synchronous velocity (`mode =
 /// "csv"`, for a spindle) is refused before anything starts: nothing produces velocity
 /// setpoints yet, and running it as a position axis would not be what the file says.
 pub(crate) fn check_drives(config: &Config) -> Result<(), StartError> {
     let Some(bus) = config.ethercat() else {
         return Ok(());
     };
-    if bus.dc {
-        return Err(StartError::Config(
-            "`[ethercat] dc = true` (the default): kerfd cannot run distributed clocks yet; set `dc = false` to run the drives free-running on the daemon's clock (drives that need SYNC0 for cyclic synchronous position will refuse to enable)".to_owned(),
-        ));
-    }
     match bus
         .drives
         .iter()

@@ -25,6 +25,7 @@ pub(crate) fn idle_snapshot() -> Snapshot {
             fault: None,
             error_code: 0,
         },
+        bus: None,
         reset: None,
         commands_applied: 0,
     }

@@ -8,7 +8,7 @@ mod report;
 use super::*;
 use kerf_geom::PerAxis;
 
-use super::fieldbus::{BusCounters, Fieldbus, MachineDrive};
+use super::fieldbus::{BusCounters, BusReport, BusTrip, Fieldbus, MachineDrive, Recovered};
 
 /// A program the cycle is running.
 #[derive(Clone, Copy, Debug)]
@@ -190,6 +190,11 @@ pub struct Cycle {
     stage: DriveStage<MachineDrive>,
     /// The EtherCAT bus, when the drives are on one.
     bus: Option<Fieldbus>,
+    /// A reset waiting for the bus to come back to OP.
+    bus_reset_tag: Option<u64>,
+    /// The host time at which this cycle was to start (`CLOCK_MONOTONIC`, ns): the
+    /// distributed clocks' measurement is against it.
+    cycle_start_ns: u64,
     dump_rings: DumpRings,
     /// A finished dump the dump ring had no room for.
     dump_waiting: Option<Dump>,
@@ -249,6 +254,8 @@ impl Cycle {
             queued: QueuedTime::with_capacity(capacity),
             stage,
             bus: None,
+            bus_reset_tag: None,
+            cycle_start_ns: 0,
             dump_rings,
             dump_waiting: None,
             reset_tag: None,
@@ -282,9 +289,30 @@ impl Cycle {
         self.bus.as_ref().map(Fieldbus::counters)
     }
 
-    /// Whether the EtherCAT bus (if any) missed its last exchange.
-    pub(crate) fn bus_failing(&self) -> bool {
-        self.bus.as_ref().is_some_and(Fieldbus::failing)
+    /// The EtherCAT bus as the status shows it, when the drives are on one.
+    pub fn bus_report(&self) -> Option<BusReport> {
+        self.bus.as_ref().map(Fieldbus::report)
+    }
+
+    /// With distributed clocks: the host time at which the cycle's clock must start.
+    pub fn first_cycle_start_ns(&self) -> Option<u64> {
+        self.bus.as_ref().and_then(Fieldbus::first_cycle_start_ns)
+    }
+
+    /// Sets the host time at which the coming cycle was to start (its deadline).
+    pub fn begin(&mut self, start_ns: u64) {
+        self.cycle_start_ns = start_ns;
+    }
+
+    /// With distributed clocks: the correction of the next cycle's start, ns (taken
+    /// once); 0 without.
+    pub fn take_clock_correction_ns(&mut self) -> i64 {
+        self.bus.as_mut().map_or(0, Fieldbus::take_correction_ns)
+    }
+
+    /// Whether a reset must first bring the EtherCAT bus (if any) back to OP.
+    pub(crate) fn bus_needs_recovery(&self) -> bool {
+        self.bus.as_ref().is_some_and(Fieldbus::needs_recovery)
     }
 
     /// Periods the cycle did not run (its deadline was missed). A drive that keeps its own
@@ -423,12 +451,33 @@ impl Cycle {
             time_s: self.cycles as f64 * self.period_s,
         });
         // The outputs just written go out, the inputs for the next cycle come back.
-        if exchange
-            && let Some(bus) = self.bus.as_mut()
-            && let Some((missed, limit)) = bus.exchange(&mut self.stage)
-            && let Some(f) = self.stage.trip_fieldbus(missed, limit, self.setpoint.line)
-        {
-            self.safety_stop(f);
+        if exchange && let Some(bus) = self.bus.as_mut() {
+            let line = self.setpoint.line;
+            let fault = match bus.exchange(&mut self.stage, self.cycle_start_ns) {
+                Some(BusTrip::Missed { in_row, limit }) => {
+                    self.stage.trip_fieldbus(in_row, limit, line)
+                }
+                Some(BusTrip::LeftOp { position, code }) => {
+                    self.stage.trip_subdevice(position, code, line)
+                }
+                None => None,
+            };
+            let recovered = bus.recover();
+            if let Some(f) = fault {
+                self.safety_stop(f);
+            }
+            match (recovered, self.bus_reset_tag) {
+                (Some(Recovered::Done), Some(tag)) => {
+                    self.bus_reset_tag = None;
+                    self.reset_tag = Some(tag);
+                    self.stage.request_reset();
+                }
+                (Some(Recovered::Refused(why)), Some(tag)) => {
+                    self.bus_reset_tag = None;
+                    self.last_reset = Some((tag, Err(why)));
+                }
+                _ => {}
+            }
         }
         if let Some(p) = out.enabled_at {
             self.rest_at(p);

@@ -248,6 +248,8 @@ pub struct Snapshot {
     pub shut_down: bool,
     /// The drive side.
     pub drives: DriveReport,
+    /// The EtherCAT bus, when the drives are on one.
+    pub bus: Option<fieldbus::BusReport>,
     /// The last reset's tag and outcome.
     pub reset: Option<(u64, Result<(), ResetRefused>)>,
     /// Commands the cycle has taken and applied since the start (a request's answer

@@ -47,8 +47,12 @@ impl Cycle {
                 self.shutting_down = true;
                 self.interp.apply(OperatorEvent::Abort);
             }
-            CycleCommand::Reset(tag) if self.bus_failing() => {
-                self.last_reset = Some((tag, Err(ResetRefused::Fieldbus)));
+            CycleCommand::Reset(tag) if self.bus_needs_recovery() => {
+                // The bus first: back to OP, then the drives' reset (see `drive_cycle`).
+                if let Some(bus) = self.bus.as_mut() {
+                    bus.start_recovery();
+                }
+                self.bus_reset_tag = Some(tag);
             }
             CycleCommand::Reset(tag) => {
                 self.reset_tag = Some(tag);

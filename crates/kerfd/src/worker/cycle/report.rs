@@ -45,6 +45,7 @@ impl Cycle {
             program_cycle: self.program.map_or(0, |p| p.cycle),
             shut_down: self.shut_down,
             drives: self.drive_report(),
+            bus: self.bus_report(),
             reset: self.last_reset,
             commands_applied: self.commands_applied,
         };
