@@ -340,9 +340,13 @@ pub(crate) fn apply_patience(config: &Config) -> Duration {
     Duration::from_micros(u64::from(config.period_us) * 100).max(Duration::from_millis(100))
 }
 
-/// How long a reset may take: a fault reset and then the enable sequence (four
-/// transitions), each within the drives' enable timeout, and a second more.
+/// How long a reset may take: on an EtherCAT bus, bringing it back to OP (each subdevice's
+/// state changes within `state_timeout_ms`); a fault reset and then the enable sequence
+/// (four transitions), each within the drives' enable timeout; and a second more.
 pub fn reset_patience(config: &Config) -> Duration {
+    let bus = config.ethercat().map_or(Duration::ZERO, |b| {
+        Duration::from_millis(u64::from(b.state_timeout_ms))
+    });
     let period = Duration::from_micros(u64::from(config.period_us));
     let max_enable_cycles = config
         .drive_configs()
@@ -352,6 +356,7 @@ pub fn reset_patience(config: &Config) -> Duration {
         .max()
         .unwrap_or(1);
     period.saturating_mul(max_enable_cycles.saturating_mul(5).saturating_add(16))
+        + bus
         + Duration::from_secs(1)
 }
 

@@ -76,9 +76,23 @@ pub(crate) fn cycle_thread(
         }
     };
     let axes_mask = axes_mask(config);
+    let bring_up_ns = kerf_rt::now_ns();
     if let Err(e) = cycle.start_bus(config) {
         let _ = ready.send(Err(StartError::Config(e.clone())));
         return Err(e);
+    }
+    if let Some(report) = cycle.bus_report() {
+        // Before the first period: the cycle has not started, so it may log.
+        tracing::info!(
+            "EtherCAT: {} subdevices in OP {} ms after the scan began{}",
+            report.subdevices,
+            kerf_rt::now_ns().saturating_sub(bring_up_ns) / 1_000_000,
+            if report.dc.is_some() {
+                ", with distributed clocks settled and the cycle locked onto SYNC0"
+            } else {
+                ""
+            }
+        );
     }
     let period_ns = config.period_us as u64 * 1000;
     // With distributed clocks the bring-up locked the bus's cycle onto SYNC0: the clock

@@ -42,8 +42,14 @@ pub struct Bench {
 
 impl Bench {
     /// A namespace with the emulator (3 drives and an I/O terminal) and a machine whose
-    /// X, Y and Z drives are on it.
+    /// X, Y and Z drives are on it, without distributed clocks.
     pub fn new(tag: &str) -> Bench {
+        Bench::with(tag, "dc = false\n", &[])
+    }
+
+    /// [`Bench::new`] with `bus` for the `[ethercat]` table's settings (besides the
+    /// interface) and `emulator_args` for the emulator.
+    pub fn with(tag: &str, bus: &str, emulator_args: &[&str]) -> Bench {
         let machine = format!("t{}_{tag}", std::process::id());
         let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
             .join("kerf-ethercat-tests")
@@ -65,7 +71,7 @@ impl Bench {
             // A debug build on a busy two-core machine misses periods now and then; the
             // drives on the bus keep their own time, so a late cycle is a missed setpoint
             // for them: a stall limit of 50 keeps the test about the bus, not the load.
-            "\n[safety]\nstall_cycles = 50\n\n[ethercat]\ninterface = \"{MAIN_IF}\"\ndc = false\n\
+            "\n[safety]\nstall_cycles = 50\n\n[ethercat]\ninterface = \"{MAIN_IF}\"\n{bus}\
              [[ethercat.drives]]\naxis = \"x\"\nposition = 0\nvendor_id = 0x4B52\nproduct_code = 0x402\n\
              [[ethercat.drives]]\naxis = \"y\"\nposition = 1\nvendor_id = 0x4B52\nproduct_code = 0x402\n\
              [[ethercat.drives]]\naxis = \"z\"\nposition = 2\nvendor_id = 0x4B52\nproduct_code = 0x402\n\
@@ -79,6 +85,7 @@ impl Bench {
         let mut c = ns.command("chrt");
         c.args(["-f", "40", &emulator()]);
         c.args(["--interface", NETWORK_IF, "--drives", "3", "--io", "1"]);
+        c.args(emulator_args);
         let log = dir.join("emulator.stderr");
         let mut emulator = c
             .stdin(std::process::Stdio::piped())

@@ -176,6 +176,8 @@ pub struct Fieldbus {
     timeout: Duration,
     max_missed: u32,
     missed_in_row: u32,
+    /// Exchanges in a row whose frame did not come back.
+    lost_in_row: u32,
     counters: BusCounters,
     states: [u8; MAX_SUBDEVICES],
     al_codes: [u16; MAX_SUBDEVICES],
@@ -210,6 +212,7 @@ impl Fieldbus {
             timeout: Duration::from_nanos(period_ns / 2),
             max_missed: ec.max_missed_cycles,
             missed_in_row: 0,
+            lost_in_row: 0,
             counters: BusCounters::default(),
             states: [OP; MAX_SUBDEVICES],
             al_codes: [0; MAX_SUBDEVICES],
@@ -280,10 +283,12 @@ impl Fieldbus {
             self.al_codes = [0; MAX_SUBDEVICES];
             return Some(Recovered::Done);
         }
-        if cycles > self.recovery_cycles {
+        // A bus that does not answer at all is not waited for: its cable or power first.
+        let silent = self.lost_in_row > self.max_missed;
+        if cycles > self.recovery_cycles || (silent && cycles > u64::from(self.max_missed) + 1) {
             self.recovery = None;
             let refusal = match self.first_not_op() {
-                Some(position) if !self.failing() => {
+                Some(position) if self.lost_in_row == 0 => {
                     kerf_drive::safety::ResetRefused::SubdeviceState {
                         position,
                         state: kerf_ethercat::bus::state_name(self.states[usize::from(position)]),
@@ -291,7 +296,9 @@ impl Fieldbus {
                         timeout_ms: self.state_timeout_ms,
                     }
                 }
-                _ => kerf_drive::safety::ResetRefused::Fieldbus(self.state_timeout_ms),
+                _ => kerf_drive::safety::ResetRefused::Fieldbus(
+                    u32::try_from(cycles * self.period_ns / 1_000_000).unwrap_or(u32::MAX),
+                ),
             };
             return Some(Recovered::Refused(refusal));
         }
@@ -350,6 +357,7 @@ impl Fieldbus {
         let mut trip = None;
         let complete = match self.bus.tx_rx_at(start_ns, self.timeout) {
             Ok(e) => {
+                self.lost_in_row = 0;
                 let n = self.bus.len().min(MAX_SUBDEVICES);
                 self.states[..n].copy_from_slice(&e.states[..n]);
                 if let (Some(sample), Some(h)) = (e.dc, self.dc_offsets.as_mut()) {
@@ -382,6 +390,7 @@ impl Fieldbus {
             }
             Err(_) => {
                 self.counters.lost += 1;
+                self.lost_in_row = self.lost_in_row.saturating_add(1);
                 false
             }
         };
