@@ -121,14 +121,14 @@ fn overlaps(a_start: usize, a_len: usize, b_start: usize, b_len: usize) -> bool 
 }
 
 impl Esc {
-    /// A subdevice in INIT whose clock reads `clock_offset_ns` ahead of the loop's time.
-    pub fn new(app: Box<dyn Application>, clock_offset_ns: u64) -> Esc {
+    /// A subdevice in INIT with this distributed clock.
+    pub fn new(app: Box<dyn Application>, clock: DcClock) -> Esc {
         let eeprom = crate::sii::build_image(app.sii());
         let mut esc = Esc {
             memory: vec![0; MEMORY_LEN],
             eeprom,
             al: Al::default(),
-            clock: DcClock::new(clock_offset_ns),
+            clock,
             mailbox_pending: false,
             last_output_ns: None,
             refusal: None,

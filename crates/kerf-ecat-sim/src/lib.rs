@@ -18,6 +18,16 @@
 //! and resume answering, a pulled cable), `fault P CODE` (a drive fault with that error
 //! code), `inputs N BITS` (an I/O subdevice's inputs). Every output SyncManager enables the
 //! process-data watchdog (ESC defaults: divider 0x09C2 = 100 µs, 0x0420 = 1000, 100 ms).
+//!
+//! Distributed clocks: every subdevice has a 64-bit DC. Their local clocks start 0.5 ms
+//! apart (the drives at 0, 1, 2 ms…, the I/O subdevices at 0.5, 1.5 ms… after the host's
+//! time at start) and run from one oscillator for the whole line, which
+//! `--dc-drift-ppm X` ([`NetworkSpec::dc_drift_ppm`]) makes run X parts per million fast
+//! (negative: slow) against the host's CLOCK_MONOTONIC: with X = 50 the reference clock's
+//! system time (0x0910) gains 50 µs per second of host time. The subdevices drift
+//! together, so the MainDevice's drift control keeps them on the reference while the
+//! reference drifts against the host, as a real line's reference clock does. The
+//! process-data watchdog and the drives' own quick stop keep the host's time.
 #![deny(unsafe_code)]
 
 pub mod al;
@@ -34,6 +44,7 @@ pub mod socket;
 
 use kerf_drive::sim::SimConfig;
 
+use crate::dc::DcClock;
 use crate::drive::DriveDevice;
 use crate::esc::Esc;
 use crate::io::{IoDevice, IoHandle};
@@ -79,6 +90,10 @@ pub struct NetworkSpec {
     /// Positions (0 first) whose subdevice refuses SAFE-OP with AL status code 0x001D
     /// (invalid output configuration).
     pub refuse_safe_op: Vec<u16>,
+    /// The line's oscillator runs this many parts per million fast against the host's
+    /// monotonic time (negative: slow): every subdevice's local clock advances
+    /// `1 + dc_drift_ppm · 10⁻⁶` ns per host ns (see [`dc::oscillator_ns`]).
+    pub dc_drift_ppm: f64,
 }
 
 impl Default for NetworkSpec {
@@ -92,6 +107,7 @@ impl Default for NetworkSpec {
             revision: REVISION,
             sim: SimConfig::default(),
             refuse_safe_op: Vec::new(),
+            dc_drift_ppm: 0.0,
         }
     }
 }
@@ -108,7 +124,8 @@ pub fn build(spec: &NetworkSpec) -> (Network, Vec<IoHandle>) {
             serial: DRIVE_SERIAL_BASE + n,
         };
         let app = DriveDevice::new(identity, DRIVE_NAME, spec.sim);
-        escs.push(Esc::new(Box::new(app), u64::from(n) * 1_000_000));
+        let clock = DcClock::new(u64::from(n) * 1_000_000, spec.dc_drift_ppm);
+        escs.push(Esc::new(Box::new(app), clock));
     }
     for n in 0..u32::from(spec.io) {
         let identity = Identity {
@@ -118,7 +135,8 @@ pub fn build(spec: &NetworkSpec) -> (Network, Vec<IoHandle>) {
             serial: IO_SERIAL_BASE + n,
         };
         let (app, handle) = IoDevice::new(identity, IO_NAME, IO_BITS, IO_BITS);
-        escs.push(Esc::new(Box::new(app), 500_000 + u64::from(n) * 1_000_000));
+        let clock = DcClock::new(500_000 + u64::from(n) * 1_000_000, spec.dc_drift_ppm);
+        escs.push(Esc::new(Box::new(app), clock));
         handles.push(handle);
     }
     for &position in &spec.refuse_safe_op {

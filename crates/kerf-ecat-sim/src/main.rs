@@ -61,6 +61,17 @@ struct Args {
     /// code 0x001D, invalid output configuration.
     #[arg(long, value_name = "POSITION")]
     refuse_safe_op: Vec<u16>,
+    /// The line's one oscillator runs PPM parts per million fast against the host's
+    /// CLOCK_MONOTONIC (negative: slow; at most 10000 either way). Every subdevice's
+    /// local clock, and so the reference clock's system time (0x0910), gains PPM µs per
+    /// second on the host; the subdevices do not drift against each other.
+    #[arg(
+        long,
+        value_name = "PPM",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    dc_drift_ppm: f64,
 }
 
 /// Carries out one control command from standard input.
@@ -106,6 +117,13 @@ fn main() -> anyhow::Result<()> {
     {
         anyhow::bail!("--refuse-safe-op {bad}: the line has only {count} subdevice(s)");
     }
+    if args.dc_drift_ppm.is_nan() || args.dc_drift_ppm.abs() > kerf_ecat_sim::dc::MAX_DRIFT_PPM {
+        anyhow::bail!(
+            "--dc-drift-ppm {}: the drift must be a number from -{max} to {max}",
+            args.dc_drift_ppm,
+            max = kerf_ecat_sim::dc::MAX_DRIFT_PPM
+        );
+    }
     let spec = NetworkSpec {
         drives: args.drives,
         io: args.io,
@@ -114,6 +132,7 @@ fn main() -> anyhow::Result<()> {
         io_product_code: args.io_product_code,
         revision: args.revision,
         refuse_safe_op: args.refuse_safe_op.clone(),
+        dc_drift_ppm: args.dc_drift_ppm,
         ..NetworkSpec::default()
     };
     let (mut network, handles) = build(&spec);

@@ -458,4 +458,34 @@ mod tests {
         assert_eq!(network.escs()[0].al().status_word(), 0x14);
         assert_eq!(network.escs()[0].al().code(), 0x001B);
     }
+
+    #[test]
+    fn the_system_time_gains_the_oscillator_drift_on_the_host_time() {
+        let (mut network, _) = build(&NetworkSpec {
+            drives: 2,
+            dc_drift_ppm: 50.0,
+            ..NetworkSpec::default()
+        });
+        let read = |network: &mut Network, now_ns: u64, position: u16| {
+            let out = run_at(
+                network,
+                now_ns,
+                &[(
+                    Command::Aprd,
+                    0,
+                    0u16.wrapping_sub(position),
+                    0x0910,
+                    &[0; 8],
+                    0,
+                )],
+            );
+            u64::from_le_bytes(out[0].3.clone().try_into().unwrap())
+        };
+        // Over 2 s of host time every clock advances 2 s + 100 µs.
+        for position in [0, 1] {
+            let t0 = read(&mut network, 1_000_000_000, position);
+            let t1 = read(&mut network, 3_000_000_000, position);
+            assert_eq!(t1 - t0, 2_000_100_000, "subdevice {position}");
+        }
+    }
 }
