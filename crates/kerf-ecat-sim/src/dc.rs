@@ -88,9 +88,40 @@ impl DcClock {
         let difference = received_ns
             .wrapping_add(u64::from(delay_ns))
             .wrapping_sub(own) as i64;
-        self.correction_ns += difference.clamp(-MAX_STEP_NS, MAX_STEP_NS);
-        difference
+        self.correct(difference)
     }
+
+    /// As [`DcClock::steer`] for a 32-bit write of the system time: only the lower 32 bits
+    /// are received and compared (the difference is taken modulo 2³², as the nearest of
+    /// the candidates, within ±2.1 s).
+    pub fn steer_32(
+        &mut self,
+        now_ns: u64,
+        offset_ns: u64,
+        delay_ns: u32,
+        received_ns: u32,
+    ) -> i64 {
+        let own = self.system_ns(now_ns, offset_ns) as u32;
+        let difference = received_ns.wrapping_add(delay_ns).wrapping_sub(own) as i32;
+        self.correct(i64::from(difference))
+    }
+
+    fn correct(&mut self, difference_ns: i64) -> i64 {
+        self.correction_ns = self
+            .correction_ns
+            .saturating_add(difference_ns.clamp(-MAX_STEP_NS, MAX_STEP_NS));
+        difference_ns
+    }
+}
+
+/// The system time difference register (0x092C) for a difference `received + delay −
+/// own system time` as [`DcClock::steer`] returns it: bits 30:0 the magnitude in ns
+/// (at most 0x7FFF_FFFF), bit 31 set when the local copy of the system time is smaller
+/// than the received one (a positive difference).
+pub fn difference_register(difference_ns: i64) -> u32 {
+    let magnitude = difference_ns.unsigned_abs().min(0x7FFF_FFFF) as u32;
+    let smaller = if difference_ns > 0 { 0x8000_0000 } else { 0 };
+    magnitude | smaller
 }
 
 /// The port receive times latched by a write to 0x0900 for the subdevice at `position` of
@@ -126,6 +157,33 @@ mod tests {
         let d = clock.steer(1_000_000, 0, 0, 0);
         assert_eq!(d, -1_000_300);
         assert_eq!(clock.local_ns(1_000_000), 1_000_000 + 300 - 1_000);
+    }
+
+    #[test]
+    fn a_32_bit_write_compares_the_lower_32_bits_only() {
+        let mut clock = DcClock::new(0, 0.0);
+        // Own system time 0x1_0000_0100 at now; received 0x0000_0180 (upper half not
+        // sent), delay 0x20: 0xA0 ahead.
+        let now_ns = 0x1_0000_0100;
+        assert_eq!(clock.steer_32(now_ns, 0, 0x20, 0x180), 0xA0);
+        assert_eq!(clock.local_ns(now_ns), 0x1_0000_01A0);
+        // Across the 32-bit wrap: own …_FFFF_FFF0, received 0x10 is 0x20 ahead.
+        let mut clock = DcClock::new(0, 0.0);
+        assert_eq!(clock.steer_32(0x2_FFFF_FFF0, 0, 0, 0x10), 0x20);
+        assert_eq!(clock.steer_32(0x2_FFFF_FFF0, 0, 0, 0xFFFF_FF00), -0x110);
+    }
+
+    #[test]
+    fn the_difference_register_holds_the_magnitude_and_whether_the_own_copy_is_smaller() {
+        // Received ahead of the own copy by 300 ns: the own copy is smaller, bit 31.
+        assert_eq!(difference_register(300), 0x8000_012C);
+        // Received behind by 300 ns: bit 31 clear.
+        assert_eq!(difference_register(-300), 0x0000_012C);
+        assert_eq!(difference_register(0), 0);
+        // Beyond 31 bits the magnitude saturates.
+        assert_eq!(difference_register(-(1 << 40)), 0x7FFF_FFFF);
+        assert_eq!(difference_register(i64::MIN), 0x7FFF_FFFF);
+        assert_eq!(difference_register(i64::MAX), 0xFFFF_FFFF);
     }
 
     #[test]

@@ -7,7 +7,9 @@
 //! Registers with behaviour: information 0x0000–0x0008 (read-only), station address
 //! 0x0010 and alias 0x0012, DL status 0x0110, AL control 0x0120 / status 0x0130 / code
 //! 0x0134, watchdogs 0x0400 / 0x0410 / 0x0420 and status 0x0440, SII access 0x0500–0x050F,
-//! FMMUs 0x0600+, SyncManagers 0x0800+ (status byte: mailbox full), DC 0x0900–0x09FF.
+//! FMMUs 0x0600+, SyncManagers 0x0800+ (status byte: mailbox full), DC 0x0900–0x09FF
+//! (receive times, system time 0x0910, offset 0x0920, delay 0x0928, system time
+//! difference 0x092C read-only: see [`crate::dc::difference_register`]).
 
 use crate::al::{self, Al, AlState};
 use crate::dc::{self, DcClock};
@@ -177,6 +179,11 @@ impl Esc {
         u16::from_le_bytes([self.memory[at], self.memory[at + 1]])
     }
 
+    fn u32_at(&self, at: u16) -> u32 {
+        let at = usize::from(at);
+        u32::from_le_bytes(self.memory[at..at + 4].try_into().unwrap_or([0; 4]))
+    }
+
     fn u64_at(&self, at: u16) -> u64 {
         let at = usize::from(at);
         u64::from_le_bytes(self.memory[at..at + 8].try_into().unwrap_or([0; 8]))
@@ -268,6 +275,7 @@ impl Esc {
                 | 0x0440..=0x0441
                 | 0x0900..=0x090F
                 | 0x0918..=0x091F
+                | 0x092C..=0x092F
         );
         // SyncManager status (byte 5) and PDI control (byte 7) belong to the ESC.
         let sm_status = (0x0800..0x0880).contains(&at) && matches!(at % 8, 5 | 7);
@@ -293,20 +301,24 @@ impl Esc {
         if touches(REG_DC_PORT0, 4) {
             self.latch_receive_times(ctx);
         }
-        if touches(REG_DC_SYSTEM_TIME, 4) {
-            let received = if data.len() >= 8 && start == usize::from(REG_DC_SYSTEM_TIME) {
-                self.u64_at(REG_DC_SYSTEM_TIME)
-            } else {
-                u64::from(self.u16_at(REG_DC_SYSTEM_TIME))
-                    | u64::from(self.u16_at(REG_DC_SYSTEM_TIME + 2)) << 16
-            };
-            let offset = self.u64_at(REG_DC_OFFSET);
-            let delay = u32::from(self.u16_at(REG_DC_DELAY))
-                | u32::from(self.u16_at(REG_DC_DELAY + 2)) << 16;
-            let difference = self.clock.steer(ctx.now_ns, offset, delay, received);
-            let magnitude = difference.unsigned_abs().min(0x7FFF_FFFF) as u32;
-            let sign = if difference > 0 { 0x8000_0000 } else { 0 };
-            let word = magnitude | sign;
+        let covers = |reg: u16, len: usize| {
+            start <= usize::from(reg) && usize::from(reg) + len <= start + data.len()
+        };
+        // A write of the reference's system time (FRMW / BWR to 0x0910): 64 bits, or the
+        // lower 32; the difference it shows is kept in 0x092C.
+        let offset = self.u64_at(REG_DC_OFFSET);
+        let delay = self.u32_at(REG_DC_DELAY);
+        let difference = if covers(REG_DC_SYSTEM_TIME, 8) {
+            let received = self.u64_at(REG_DC_SYSTEM_TIME);
+            Some(self.clock.steer(ctx.now_ns, offset, delay, received))
+        } else if covers(REG_DC_SYSTEM_TIME, 4) {
+            let received = self.u32_at(REG_DC_SYSTEM_TIME);
+            Some(self.clock.steer_32(ctx.now_ns, offset, delay, received))
+        } else {
+            None
+        };
+        if let Some(difference) = difference {
+            let word = dc::difference_register(difference);
             self.memory[usize::from(REG_DC_DIFFERENCE)..usize::from(REG_DC_DIFFERENCE) + 4]
                 .copy_from_slice(&word.to_le_bytes());
         }

@@ -488,4 +488,66 @@ mod tests {
             assert_eq!(t1 - t0, 2_000_100_000, "subdevice {position}");
         }
     }
+
+    #[test]
+    fn a_written_system_time_shows_its_difference_in_0x092c() {
+        let mut network = line(2, 0);
+        let at_1 = 0u16.wrapping_sub(1);
+        let now_ns = 1_000_000;
+        // Subdevice 1's local clock starts 1 ms ahead: 2 ms at now. Delay 500 ns.
+        run_at(
+            &mut network,
+            now_ns,
+            &[(Command::Apwr, 0, at_1, 0x0928, &500u32.to_le_bytes(), 0)],
+        );
+        let difference = |network: &mut Network| {
+            let out = run_at(
+                network,
+                now_ns,
+                &[(Command::Aprd, 0, at_1, 0x092C, &[0; 4], 0)],
+            );
+            u32::from_le_bytes(out[0].3.clone().try_into().unwrap())
+        };
+        assert_eq!(difference(&mut network), 0, "nothing received yet");
+        // Received 2 ms + 1.3 µs, + 0.5 µs delay: 1.8 µs ahead of the own copy, which is
+        // smaller (bit 31). The loop corrects 1 µs of it.
+        let received = 2_001_300u64.to_le_bytes();
+        run_at(
+            &mut network,
+            now_ns,
+            &[(Command::Apwr, 0, at_1, 0x0910, &received, 0)],
+        );
+        assert_eq!(difference(&mut network), 0x8000_0000 | 1_800);
+        // Now the own copy is 2.001 ms; received 2 ms + 0.5 µs delay is 500 ns behind.
+        let received = 2_000_000u64.to_le_bytes();
+        run_at(
+            &mut network,
+            now_ns,
+            &[(Command::Apwr, 0, at_1, 0x0910, &received, 0)],
+        );
+        assert_eq!(difference(&mut network), 500);
+        // A 32-bit write compares the lower half: own 2.0005 ms, received 2.0005 ms + 0.5
+        // µs delay → 500 ns ahead.
+        let received = 2_000_500u32.to_le_bytes();
+        run_at(
+            &mut network,
+            now_ns,
+            &[(Command::Apwr, 0, at_1, 0x0910, &received, 0)],
+        );
+        assert_eq!(difference(&mut network), 0x8000_0000 | 500);
+        // The register is the ESC's: a write from the MainDevice does not change it.
+        run_at(
+            &mut network,
+            now_ns,
+            &[(Command::Apwr, 0, at_1, 0x092C, &[0; 4], 0)],
+        );
+        assert_eq!(difference(&mut network), 0x8000_0000 | 500);
+        // Subdevice 0 received nothing.
+        let out = run_at(
+            &mut network,
+            now_ns,
+            &[(Command::Aprd, 0, 0, 0x092C, &[0; 4], 0)],
+        );
+        assert_eq!(out[0].3, vec![0; 4]);
+    }
 }

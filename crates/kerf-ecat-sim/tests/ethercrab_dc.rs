@@ -32,6 +32,10 @@ struct Seen {
     cycle_times: Vec<u64>,
     /// next_cycle_wait of each cycle, ns.
     waits_ns: Vec<u64>,
+    /// System time difference (0x092C) of each subdevice after the cycles.
+    differences: Vec<u32>,
+    /// The last subdevice's 0x092C after a write of its own system time + 10 ms.
+    difference_ahead: u32,
 }
 
 fn run() -> Seen {
@@ -93,6 +97,20 @@ fn run() -> Seen {
         seen.waits_ns
             .push(response.extra.next_cycle_wait.as_nanos() as u64);
     }
+    for sd in group.iter(&md) {
+        let difference = block_on(sd.register_read::<u32>(0x092Cu16));
+        seen.differences
+            .push(difference.expect("system time difference"));
+    }
+    let last = group
+        .subdevice(&md, group.len() - 1)
+        .expect("last subdevice");
+    let own =
+        block_on(last.register_read::<u64>(RegisterAddress::DcSystemTime)).expect("system time");
+    block_on(last.register_write(RegisterAddress::DcSystemTime, own + 10_000_000))
+        .expect("write system time");
+    seen.difference_ahead =
+        block_on(last.register_read::<u32>(0x092Cu16)).expect("system time difference");
     seen
 }
 
@@ -128,6 +146,24 @@ fn ethercrab_aligns_the_clocks_and_runs_cyclic_exchanges_with_dc() {
         "{:?}",
         seen.waits_ns
     );
+    // The subdevices behind the reference receive its system time in every cycle's FRMW
+    // and have followed it: their system time difference (0x092C, bits 30:0 the
+    // magnitude) is within 100 ns. (The reference itself last received ethercrab's reset,
+    // a broadcast write of 0 to 0x0910, at initialisation.)
+    assert_eq!(seen.differences.len(), 4);
+    // A received time 10 ms ahead of the own copy (less the time between the read and the
+    // write, plus the delay): the own copy is smaller, bit 31.
+    let ahead = seen.difference_ahead;
+    assert!(
+        ahead & 0x8000_0000 != 0 && (5_000_000..=10_010_000).contains(&(ahead & 0x7FFF_FFFF)),
+        "0x092C after a write 10 ms ahead: {ahead:#010x}"
+    );
+    for (index, difference) in seen.differences.iter().enumerate().skip(1) {
+        assert!(
+            difference & 0x7FFF_FFFF <= 100,
+            "subdevice {index}: system time difference {difference:#010x}"
+        );
+    }
     assert!(ns.stop_emulator(), "the emulator exits cleanly on SIGTERM");
 }
 
