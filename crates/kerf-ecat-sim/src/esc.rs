@@ -70,6 +70,15 @@ pub struct SmRegisters {
     pub enabled: bool,
 }
 
+/// What the application behind an ESC shows, for the emulator's `state` command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AppSnapshot {
+    /// A CiA 402 drive.
+    Drive(crate::drive::DriveSnapshot),
+    /// A digital I/O subdevice.
+    Io(crate::io::IoSnapshot),
+}
+
 /// What a subdevice does behind its ESC.
 pub trait Application: Send {
     /// The EEPROM contents (and the SyncManager layout it declares).
@@ -95,6 +104,13 @@ pub trait Application: Send {
     fn inject_fault(&mut self, _error_code: u16) -> bool {
         false
     }
+    /// Test hook: jam the motor (`true`) or free it; false where the application has no
+    /// motor.
+    fn set_stalled(&mut self, _stalled: bool) -> bool {
+        false
+    }
+    /// What it shows now.
+    fn snapshot(&self) -> AppSnapshot;
 }
 
 /// One subdevice: registers, EEPROM, AL state, clock and its application.
@@ -105,6 +121,7 @@ pub struct Esc {
     clock: DcClock,
     mailbox_pending: bool,
     last_output_ns: Option<u64>,
+    watchdog_trips: u32,
     refusal: Option<(AlState, u16)>,
     app: Box<dyn Application>,
 }
@@ -133,6 +150,7 @@ impl Esc {
             clock,
             mailbox_pending: false,
             last_output_ns: None,
+            watchdog_trips: 0,
             refusal: None,
             app,
         };
@@ -487,11 +505,17 @@ impl Esc {
             _ => false,
         };
         if expired {
+            self.watchdog_trips = self.watchdog_trips.saturating_add(1);
             self.al.drop_to(AlState::SafeOp, al::CODE_SM_WATCHDOG);
             self.app.watchdog_expired(now_ns);
             self.memory[usize::from(REG_WD_STATUS)] = 0;
         }
         self.app.tick(now_ns);
+    }
+
+    /// How many times the process-data watchdog has expired.
+    pub fn watchdog_trips(&self) -> u32 {
+        self.watchdog_trips
     }
 
     /// The time of the last output write, or of entering SAFE-OP (where the watchdog

@@ -13,11 +13,32 @@
 //! where n counts the drives (or the I/O subdevices) from 0. The drives come first on the
 //! line, then the I/O subdevices. Each I/O subdevice has 8 inputs and 8 outputs.
 //!
-//! The binary's control for tests: `--refuse-safe-op P` makes the subdevice at position P
-//! refuse SAFE-OP with AL status code 0x001D; on standard input, `mute` / `unmute` (stop
-//! and resume answering, a pulled cable), `fault P CODE` (a drive fault with that error
-//! code), `inputs N BITS` (an I/O subdevice's inputs). Every output SyncManager enables the
+//! # The binary's control for tests
+//!
+//! Options: `--refuse-safe-op P` makes the subdevice at position P refuse SAFE-OP with AL
+//! status code 0x001D; `--dc-drift-ppm X` (below). Every output SyncManager enables the
 //! process-data watchdog (ESC defaults: divider 0x09C2 = 100 µs, 0x0420 = 1000, 100 ms).
+//!
+//! Standard input, one command a line, P a ring position (0 first), numbers decimal or
+//! `0x` hex:
+//!
+//! | command         | what it does                                                        |
+//! |-----------------|---------------------------------------------------------------------|
+//! | `mute`          | stop answering frames (a pulled cable)                              |
+//! | `unmute`        | answer again                                                        |
+//! | `fault P CODE`  | the drive at P trips a fault with error code CODE (0x603F)          |
+//! | `stall P`       | the drive at P's motor jams (see [`drive`]): position stays, velocity 0, following error grows with the target, statusword bit 13 beyond the window; no fault of its own |
+//! | `free P`        | it turns again                                                      |
+//! | `inputs N BITS` | the N-th I/O subdevice's (0 first) input bits                       |
+//! | `state`         | one line per subdevice on standard output, flushed ([`report`])     |
+//!
+//! Commands are carried out in order, between frames; a refused one is reported on
+//! standard error. Standard output carries nothing but the answers to `state`, e.g.
+//!
+//! ```text
+//! subdevice 0 kind=drive al=OP al_error=0 al_code=0x0000 watchdog_trips=0 cia402=operation_enabled statusword=0x1237 error_code=0x0000 position_counts=4000 velocity_counts_s=0 following_error_counts=0 stalled=0 stopped_ms=-
+//! subdevice 1 kind=io al=OP al_error=0 al_code=0x0000 watchdog_trips=0 inputs=0x5A outputs=0x00
+//! ```
 //!
 //! Distributed clocks: every subdevice has a 64-bit DC. Their local clocks start 0.5 ms
 //! apart (the drives at 0, 1, 2 ms…, the I/O subdevices at 0.5, 1.5 ms… after the host's
@@ -39,6 +60,7 @@ pub mod frame;
 pub mod io;
 pub mod network;
 pub mod od;
+pub mod report;
 pub mod sii;
 pub mod socket;
 

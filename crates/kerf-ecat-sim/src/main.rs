@@ -1,20 +1,22 @@
 //! `kerf-ecat-sim`: the emulated EtherCAT network on a Linux interface. See the library's
 //! documentation for the default identities.
 //!
-//! Control on standard input, one command per line:
-//! - `mute` stops answering frames (a pulled cable), `unmute` answers again;
-//! - `fault P CODE` trips a fault with error code CODE (e.g. 0x2310) in the drive at
-//!   position P (0 first);
-//! - `inputs N BITS` sets the input bits of the N-th I/O subdevice (0 first).
+//! Control on standard input, one command per line (see `--help` and the library's
+//! documentation): `mute`, `unmute`, `fault P CODE`, `stall P`, `free P`,
+//! `inputs N BITS`, `state`. Standard output carries only the answers to `state`
+//! ([`kerf_ecat_sim::report`]); everything else goes to standard error.
 //!
 //! SIGTERM or SIGINT ends it cleanly.
 
-use std::io::BufRead;
+use std::io::{BufRead, Write};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::Parser;
+use kerf_ecat_sim::io::IoHandle;
+use kerf_ecat_sim::network::Network;
+use kerf_ecat_sim::report;
 use kerf_ecat_sim::socket::RawSocket;
 use kerf_ecat_sim::{NetworkSpec, build};
 
@@ -27,14 +29,36 @@ fn parse_u32(text: &str) -> Result<u32, String> {
 }
 
 /// Emulated EtherCAT network: CiA 402 drives, then digital I/O subdevices, answering
-/// EtherCAT frames on INTERFACE. Defaults: vendor id 0x00004B52; drives product code
-/// 0x00000402, serials 0x1001, 0x1002, …, name "Kerf CiA402 drive"; I/O product code
-/// 0x00000010, serials 0x2001, …, name "Kerf digital I/O", 8 inputs and 8 outputs;
-/// revision 0x00010000. Standard input, one command a line: "mute" stops answering,
-/// "unmute" answers again, "fault P CODE" trips a fault in the drive at position P,
-/// "inputs N BITS" sets the N-th I/O subdevice's input bits.
+/// EtherCAT frames on INTERFACE.
+///
+/// Defaults: vendor id 0x00004B52; drives product code 0x00000402, serials 0x1001,
+/// 0x1002, …, name "Kerf CiA402 drive"; I/O product code 0x00000010, serials 0x2001, …,
+/// name "Kerf digital I/O", 8 inputs and 8 outputs; revision 0x00010000.
+///
+/// Standard input, one command a line (P: ring position, 0 first; numbers decimal or 0x
+/// hex):
+///   mute            stop answering frames (a pulled cable)
+///   unmute          answer again
+///   fault P CODE    trip a fault with error code CODE (0x603F) in the drive at P
+///   stall P         jam the motor of the drive at P: it stays where it is while the
+///                   target moves on, so the following error (0x60F4) grows and
+///                   statusword bit 13 is set beyond the 1000-count window; velocity 0;
+///                   no fault of its own
+///   free P          let it turn again (enabled under a large following error it pulls
+///                   to the target and may trip overcurrent 0x2310)
+///   inputs N BITS   set the input bits of the N-th I/O subdevice (0 first)
+///   state           print one line per subdevice to standard output, e.g.
+///     subdevice 0 kind=drive al=OP al_error=0 al_code=0x0000 watchdog_trips=0
+///       cia402=operation_enabled statusword=0x1237 error_code=0x0000 position_counts=123
+///       velocity_counts_s=0 following_error_counts=0 stalled=0 stopped_ms=-
+///     subdevice 1 kind=io al=SAFE-OP al_error=1 al_code=0x001B watchdog_trips=1
+///       inputs=0xA5 outputs=0x00
+///                   (each on one line). stopped_ms: from the last process-data watchdog
+///                   expiry to the motor at rest by the drive's quick stop, model time,
+///                   "-" until then. Nothing else is ever printed to standard output;
+///                   messages go to standard error.
 #[derive(Debug, Parser)]
-#[command(name = "kerf-ecat-sim", version)]
+#[command(name = "kerf-ecat-sim", version, verbatim_doc_comment)]
 struct Args {
     /// Network interface to answer on.
     #[arg(long)]
@@ -74,12 +98,14 @@ struct Args {
     dc_drift_ppm: f64,
 }
 
-/// Carries out one control command from standard input.
+/// Carries out one control command from standard input; the answer to `state` goes to
+/// `out`.
 fn control(
     command: &str,
-    network: &mut kerf_ecat_sim::network::Network,
-    handles: &[kerf_ecat_sim::io::IoHandle],
+    network: &mut Network,
+    handles: &[IoHandle],
     muted: &mut bool,
+    out: &mut impl Write,
 ) -> Result<(), String> {
     let words: Vec<&str> = command.split_whitespace().collect();
     let index = |text: &str| text.parse::<usize>().map_err(|e| format!("{text:?}: {e}"));
@@ -92,15 +118,29 @@ fn control(
                 return Err(format!("no drive at position {position}"));
             }
         }
+        [verb @ ("stall" | "free"), position] => {
+            if !network.set_stalled(index(position)?, *verb == "stall") {
+                return Err(format!("no drive at position {position}"));
+            }
+        }
         ["inputs", n, bits] => {
             let handle = handles
                 .get(index(n)?)
                 .ok_or_else(|| format!("no I/O subdevice number {n}"))?;
             handle.set_inputs(u64::from(parse_u32(bits)?));
         }
+        ["state"] => {
+            let mut text = String::new();
+            report::write_state(&mut text, network).map_err(|e| e.to_string())?;
+            out.write_all(text.as_bytes())
+                .and_then(|()| out.flush())
+                .map_err(|e| format!("writing to standard output: {e}"))?;
+        }
         _ => {
             return Err(
-                "unknown command (mute, unmute, fault POSITION CODE, inputs N BITS)".into(),
+                "unknown command (mute, unmute, fault POSITION CODE, stall POSITION, \
+                 free POSITION, inputs N BITS, state)"
+                    .into(),
             );
         }
     }
@@ -155,14 +195,15 @@ fn main() -> anyhow::Result<()> {
     let mut muted = false;
     let mut buffer = vec![0u8; 2048];
     while signals.stop_requested().is_none() {
+        let now_ns = start.elapsed().as_nanos() as u64;
+        network.tick(now_ns);
         while let Ok(command) = control_rx.try_recv() {
-            match control(&command, &mut network, &handles, &mut muted) {
+            let mut stdout = std::io::stdout().lock();
+            match control(&command, &mut network, &handles, &mut muted, &mut stdout) {
                 Ok(()) => eprintln!("kerf-ecat-sim: done: {command}"),
                 Err(e) => eprintln!("kerf-ecat-sim: {command:?} refused: {e}"),
             }
         }
-        let now_ns = start.elapsed().as_nanos() as u64;
-        network.tick(now_ns);
         let Some(len) = socket.recv(&mut buffer).context("receiving")? else {
             continue;
         };

@@ -93,6 +93,14 @@ impl Network {
             .is_some_and(|esc| esc.app_mut().inject_fault(error_code))
     }
 
+    /// Jams (`stalled`) or frees the motor of the drive at `position`; false where there
+    /// is none or it has no motor (an I/O subdevice).
+    pub fn set_stalled(&mut self, position: usize, stalled: bool) -> bool {
+        self.escs
+            .get_mut(position)
+            .is_some_and(|esc| esc.app_mut().set_stalled(stalled))
+    }
+
     /// One loop turn for every subdevice (watchdogs).
     pub fn tick(&mut self, now_ns: u64) {
         for esc in &mut self.escs {

@@ -1,7 +1,6 @@
 //! ethercrab 0.7.1, unmodified, against the emulator over a veth pair in a private
 //! network namespace: discovery and identities, PRE-OP, SAFE-OP and OP with process data.
 
-#[allow(dead_code)]
 mod netns;
 
 use std::time::Duration;

@@ -4,7 +4,6 @@
 //! runs cyclically with the reference's system time; with `--dc-drift-ppm`, the
 //! reference's system time gains on the host's monotonic clock at that rate.
 
-#[allow(dead_code)]
 mod netns;
 
 use std::time::{Duration, Instant};
