@@ -414,7 +414,8 @@ impl Esc {
     }
 
     /// Test hook: refuse every request to enter `state` with AL status `code` (e.g.
-    /// SAFE-OP with 0x001D, as a drive whose configuration does not suit it).
+    /// SAFE-OP with 0x001D, as a drive whose configuration does not suit it): the
+    /// subdevice stays where it is, with the error indicator and that code.
     pub fn refuse(&mut self, state: AlState, code: u16) {
         self.refusal = Some((state, code));
     }

@@ -15,8 +15,11 @@
 //!
 //! # The binary's control for tests
 //!
-//! Options: `--refuse-safe-op P` makes the subdevice at position P refuse SAFE-OP with AL
-//! status code 0x001D; `--dc-drift-ppm X` (below). Every output SyncManager enables the
+//! Options: `--refuse-safe-op P[:CODE]` (repeatable) makes the subdevice at position P
+//! refuse PRE-OP → SAFE-OP with AL status code CODE (hexadecimal, `0x` optional; 0x001D,
+//! invalid output configuration, by default): its AL status stays PRE-OP with the error
+//! indicator (0x0130 = 0x12) and 0x0134 holds CODE ([`SafeOpRefusal`]); `--dc-drift-ppm
+//! X` (below). Every output SyncManager enables the
 //! process-data watchdog (ESC defaults: divider 0x09C2 = 100 µs, 0x0420 = 1000, 100 ms).
 //!
 //! Standard input, one command a line, P a ring position (0 first), numbers decimal or
@@ -92,6 +95,18 @@ pub const IO_NAME: &str = "Kerf digital I/O";
 /// Input and output bits of an I/O subdevice.
 pub const IO_BITS: u8 = 8;
 
+/// A subdevice that refuses PRE-OP → SAFE-OP: it stays in PRE-OP with the AL status
+/// error indicator set and this AL status code (0x0134), as a drive does whose
+/// configuration does not suit it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SafeOpRefusal {
+    /// Its position on the line (0 first).
+    pub position: u16,
+    /// The AL status code it answers with (0x001D, invalid output configuration, by
+    /// default: [`al::CODE_INVALID_OUTPUT_CONFIG`]).
+    pub al_status_code: u16,
+}
+
 /// What to emulate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NetworkSpec {
@@ -109,9 +124,8 @@ pub struct NetworkSpec {
     pub revision: u32,
     /// The drives' servo model.
     pub sim: SimConfig,
-    /// Positions (0 first) whose subdevice refuses SAFE-OP with AL status code 0x001D
-    /// (invalid output configuration).
-    pub refuse_safe_op: Vec<u16>,
+    /// Subdevices that refuse PRE-OP → SAFE-OP, each with its AL status code.
+    pub refuse_safe_op: Vec<SafeOpRefusal>,
     /// The line's oscillator runs this many parts per million fast against the host's
     /// monotonic time (negative: slow): every subdevice's local clock advances
     /// `1 + dc_drift_ppm · 10⁻⁶` ns per host ns (see [`dc::oscillator_ns`]).
@@ -161,9 +175,9 @@ pub fn build(spec: &NetworkSpec) -> (Network, Vec<IoHandle>) {
         escs.push(Esc::new(Box::new(app), clock));
         handles.push(handle);
     }
-    for &position in &spec.refuse_safe_op {
-        if let Some(esc) = escs.get_mut(usize::from(position)) {
-            esc.refuse(al::AlState::SafeOp, al::CODE_INVALID_OUTPUT_CONFIG);
+    for refusal in &spec.refuse_safe_op {
+        if let Some(esc) = escs.get_mut(usize::from(refusal.position)) {
+            esc.refuse(al::AlState::SafeOp, refusal.al_status_code);
         }
     }
     (Network::new(escs), handles)

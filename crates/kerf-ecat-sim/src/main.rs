@@ -18,7 +18,7 @@ use kerf_ecat_sim::io::IoHandle;
 use kerf_ecat_sim::network::Network;
 use kerf_ecat_sim::report;
 use kerf_ecat_sim::socket::RawSocket;
-use kerf_ecat_sim::{NetworkSpec, build};
+use kerf_ecat_sim::{NetworkSpec, SafeOpRefusal, build};
 
 fn parse_u32(text: &str) -> Result<u32, String> {
     let parsed = match text.strip_prefix("0x").or_else(|| text.strip_prefix("0X")) {
@@ -26,6 +26,26 @@ fn parse_u32(text: &str) -> Result<u32, String> {
         None => text.replace('_', "").parse(),
     };
     parsed.map_err(|e| format!("{text:?} is not a 32-bit number: {e}"))
+}
+
+/// `P` or `P:CODE`, CODE in hexadecimal (`0x` optional), 0x001D by default.
+fn parse_refusal(text: &str) -> Result<SafeOpRefusal, String> {
+    let (position, code) = match text.split_once(':') {
+        Some((position, code)) => {
+            let hex = code.strip_prefix("0x").or_else(|| code.strip_prefix("0X"));
+            let code = u16::from_str_radix(hex.unwrap_or(code), 16)
+                .map_err(|e| format!("AL status code {code:?} is not 4 hex digits: {e}"))?;
+            (position, code)
+        }
+        None => (text, kerf_ecat_sim::al::CODE_INVALID_OUTPUT_CONFIG),
+    };
+    let position = position
+        .parse()
+        .map_err(|e| format!("position {position:?}: {e}"))?;
+    Ok(SafeOpRefusal {
+        position,
+        al_status_code: code,
+    })
 }
 
 /// Emulated EtherCAT network: CiA 402 drives, then digital I/O subdevices, answering
@@ -81,10 +101,11 @@ struct Args {
     /// Revision of every subdevice.
     #[arg(long, value_parser = parse_u32, default_value = "0x00010000")]
     revision: u32,
-    /// The subdevice at this position (0 first; repeatable) refuses SAFE-OP with AL status
-    /// code 0x001D, invalid output configuration.
-    #[arg(long, value_name = "POSITION")]
-    refuse_safe_op: Vec<u16>,
+    /// The subdevice at POSITION (0 first; repeatable) refuses PRE-OP -> SAFE-OP with AL
+    /// status code CODE (hexadecimal, 0x optional; default 0x001D, invalid output
+    /// configuration): it stays in PRE-OP with the error indicator, 0x0134 = CODE.
+    #[arg(long, value_name = "POSITION[:CODE]", value_parser = parse_refusal)]
+    refuse_safe_op: Vec<SafeOpRefusal>,
     /// The line's one oscillator runs PPM parts per million fast against the host's
     /// CLOCK_MONOTONIC (negative: slow; at most 10000 either way). Every subdevice's
     /// local clock, and so the reference clock's system time (0x0910), gains PPM µs per
@@ -153,9 +174,12 @@ fn main() -> anyhow::Result<()> {
     if let Some(bad) = args
         .refuse_safe_op
         .iter()
-        .find(|p| usize::from(**p) >= count)
+        .find(|r| usize::from(r.position) >= count)
     {
-        anyhow::bail!("--refuse-safe-op {bad}: the line has only {count} subdevice(s)");
+        anyhow::bail!(
+            "--refuse-safe-op {}: the line has only {count} subdevice(s)",
+            bad.position
+        );
     }
     if args.dc_drift_ppm.is_nan() || args.dc_drift_ppm.abs() > kerf_ecat_sim::dc::MAX_DRIFT_PPM {
         anyhow::bail!(
@@ -221,4 +245,25 @@ fn main() -> anyhow::Result<()> {
     }
     eprintln!("kerf-ecat-sim: stopped");
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_refusal_is_a_position_and_an_optional_hex_code() {
+        let refusal = |position, al_status_code| SafeOpRefusal {
+            position,
+            al_status_code,
+        };
+        assert_eq!(parse_refusal("2"), Ok(refusal(2, 0x001D)));
+        assert_eq!(parse_refusal("1:0x0035"), Ok(refusal(1, 0x0035)));
+        assert_eq!(parse_refusal("1:001E"), Ok(refusal(1, 0x001E)));
+        assert_eq!(parse_refusal("0:1b"), Ok(refusal(0, 0x001B)));
+        assert!(parse_refusal("x").is_err());
+        assert!(parse_refusal("1:").is_err());
+        assert!(parse_refusal("1:0x10000").is_err());
+        assert!(parse_refusal("1:zz").is_err());
+    }
 }

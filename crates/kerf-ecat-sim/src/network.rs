@@ -558,4 +558,58 @@ mod tests {
         );
         assert_eq!(out[0].3, vec![0; 4]);
     }
+
+    #[test]
+    fn a_refused_safe_op_stays_in_pre_op_with_the_error_and_its_code() {
+        let (mut network, _) = build(&NetworkSpec {
+            io: 2,
+            refuse_safe_op: vec![crate::SafeOpRefusal {
+                position: 1,
+                al_status_code: 0x0035,
+            }],
+            ..NetworkSpec::default()
+        });
+        // Subdevice 0's SyncManagers set as its EEPROM says; subdevice 1's too, but it
+        // refuses.
+        let sm = [
+            0x00, 0x0F, 1, 0, 0x44, 0, 1, 0, 0x00, 0x10, 1, 0, 0x00, 0, 1, 0,
+        ];
+        run(&mut network, &[(Command::Bwr, 0, 0, 0x0800, &sm, 0)]);
+        for control in [0x02u8, 0x04] {
+            run(
+                &mut network,
+                &[(Command::Bwr, 0, 0, 0x0120, &[control, 0], 0)],
+            );
+        }
+        let status = |network: &mut Network, position: u16| {
+            let out = run(
+                network,
+                &[(
+                    Command::Aprd,
+                    0,
+                    0u16.wrapping_sub(position),
+                    0x0130,
+                    &[0; 6],
+                    0,
+                )],
+            );
+            out[0].3.clone()
+        };
+        assert_eq!(status(&mut network, 0), vec![0x04, 0, 0, 0, 0, 0]);
+        // PRE-OP (2) with the error indicator (0x10), code 0x0035.
+        assert_eq!(status(&mut network, 1), vec![0x12, 0, 0, 0, 0x35, 0]);
+        // Asked again after an acknowledge, it refuses again.
+        run(
+            &mut network,
+            &[(
+                Command::Apwr,
+                0,
+                0u16.wrapping_sub(1),
+                0x0120,
+                &[0x14, 0],
+                0,
+            )],
+        );
+        assert_eq!(status(&mut network, 1), vec![0x12, 0, 0, 0, 0x35, 0]);
+    }
 }
