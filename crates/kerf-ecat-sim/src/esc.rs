@@ -478,7 +478,9 @@ impl Esc {
                 self.mailbox_pending = false;
             }
             if to == AlState::Op {
-                self.last_output_ns = self.last_output_ns.or(Some(now_ns));
+                // The watchdog starts anew: back in OP after it expired, the time since
+                // the last output write is not held against the subdevice again.
+                self.last_output_ns = Some(now_ns);
                 self.memory[usize::from(REG_WD_STATUS)] = 1;
             }
             self.app.transition(from, to);
@@ -498,8 +500,10 @@ impl Esc {
     }
 
     /// One loop turn: the process-data watchdog (in OP, no output write for the watchdog
-    /// time drops the subdevice to SAFE-OP with AL status code 0x001B and tells the
-    /// application), then the application's own tick.
+    /// time since the last one or since entering OP drops the subdevice to SAFE-OP with
+    /// the error indicator and AL status code 0x001B, and tells the application), then
+    /// the application's own tick. The MainDevice brings it back with an acknowledge
+    /// (see [`Al::request`]) and a request for OP.
     pub fn tick(&mut self, now_ns: u64) {
         let expired = match (self.al.state(), self.last_output_ns, self.watchdog_ns()) {
             (AlState::Op, Some(last), Some(limit)) => now_ns.saturating_sub(last) > limit,

@@ -19,8 +19,20 @@
 //! refuse PRE-OP → SAFE-OP with AL status code CODE (hexadecimal, `0x` optional; 0x001D,
 //! invalid output configuration, by default): its AL status stays PRE-OP with the error
 //! indicator (0x0130 = 0x12) and 0x0134 holds CODE ([`SafeOpRefusal`]); `--dc-drift-ppm
-//! X` (below). Every output SyncManager enables the
-//! process-data watchdog (ESC defaults: divider 0x09C2 = 100 µs, 0x0420 = 1000, 100 ms).
+//! X` (below).
+//!
+//! The process-data watchdog: every output SyncManager enables it (ESC defaults: divider
+//! 0x09C2 = 100 µs, 0x0420 = 1000, so 100 ms; the MainDevice may change them). When no
+//! output write arrives for that long in OP, the subdevice drops to SAFE-OP with the
+//! error indicator and AL status code 0x001B (0x0130 = 0x14), a drive stops its motor by
+//! its own quick stop and rests in Switch on disabled, an I/O subdevice clears its
+//! outputs. The MainDevice recovers it by writing AL control 0x0120: the acknowledge bit
+//! 0x10 clears the indicator and the code, and the state bits of the same write are acted
+//! on, so 0x14 (acknowledge, stay in SAFE-OP) then 0x08, or 0x18 at once, return it to OP
+//! (see [`al::Al::request`]); the watchdog counts anew from OP. The drive behind is then
+//! in Switch on disabled (or Fault, if it had one), and its controlword enables it again
+//! where it stopped. Without the acknowledge bit, requests are ignored while the
+//! indicator is set.
 //!
 //! Standard input, one command a line, P a ring position (0 first), numbers decimal or
 //! `0x` hex:

@@ -77,6 +77,12 @@ fn parse_refusal(text: &str) -> Result<SafeOpRefusal, String> {
 ///                   expiry to the motor at rest by the drive's quick stop, model time,
 ///                   "-" until then. Nothing else is ever printed to standard output;
 ///                   messages go to standard error.
+///
+/// Process-data watchdog (100 ms unless the MainDevice sets another): without output
+/// writes in OP, a subdevice drops to SAFE-OP with the error indicator and AL status code
+/// 0x001B, and a drive stops itself by its quick stop. AL control 0x0120 = 0x14
+/// (acknowledge) then 0x08, or 0x18 at once, returns it to OP; its drive is then in
+/// Switch on disabled and its controlword enables it again.
 #[derive(Debug, Parser)]
 #[command(name = "kerf-ecat-sim", version, verbatim_doc_comment)]
 struct Args {

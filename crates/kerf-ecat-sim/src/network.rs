@@ -465,6 +465,36 @@ mod tests {
         network.tick(write_ns + 100_000_001);
         assert_eq!(network.escs()[0].al().status_word(), 0x14);
         assert_eq!(network.escs()[0].al().code(), 0x001B);
+        assert_eq!(network.escs()[0].watchdog_trips(), 1);
+        // Acknowledged (0x14) and asked for OP (0x08), 1 s later, with no output written
+        // since: back in OP, and the watchdog counts from there.
+        let back_ns = write_ns + 1_000_000_000;
+        for control in [0x14u8, 0x08] {
+            run_at(
+                &mut network,
+                back_ns,
+                &[(Command::Bwr, 0, 0, 0x0120, &[control, 0], 0)],
+            );
+        }
+        let out = run_at(
+            &mut network,
+            back_ns,
+            &[(Command::Brd, 0, 0, 0x0130, &[0; 6], 0)],
+        );
+        assert_eq!(out[0].3, vec![0x08, 0, 0, 0, 0, 0]);
+        network.tick(back_ns + 100_000_000);
+        assert_eq!(network.escs()[0].al().status_word(), 0x08);
+        network.tick(back_ns + 100_000_001);
+        assert_eq!(network.escs()[0].al().status_word(), 0x14);
+        assert_eq!(network.escs()[0].watchdog_trips(), 2);
+        // Acknowledge and OP in one write.
+        run_at(
+            &mut network,
+            back_ns + 200_000_000,
+            &[(Command::Bwr, 0, 0, 0x0120, &[0x18, 0], 0)],
+        );
+        assert_eq!(network.escs()[0].al().status_word(), 0x08);
+        assert_eq!(network.escs()[0].al().code(), 0);
     }
 
     #[test]

@@ -1,13 +1,17 @@
 //! Through ethercrab 0.7.1, unmodified, with the emulator's control on its standard input
 //! and its `state` answers on its standard output: a drive whose motor jams (`stall`)
-//! and is freed (`free`).
+//! and is freed (`free`); a pulled cable (`mute`) that the process-data watchdog turns
+//! into SAFE-OP with AL status code 0x001B and the drive's own quick stop, then the
+//! MainDevice's acknowledge (AL control 0x0120) and OP again, and the drive enabled again.
 
 mod netns;
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use ethercrab::subdevice_group::Op;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
+use ethercrab::{
+    MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
+};
 use futures_lite::future::block_on;
 use netns::{Control, MAIN_IF, Netns, field};
 
@@ -202,5 +206,157 @@ fn a_jammed_drive_holds_its_position_while_its_following_error_grows_and_state_s
     assert!((inputs.velocity - 20_000).abs() <= 200, "{inputs:?}");
     assert!((inputs.position - target).abs() <= 50, "{inputs:?}");
     assert_eq!(inputs.statusword & 0x006F, 0x0027, "{inputs:?}");
+    assert!(ns.stop_emulator(), "the emulator exits cleanly on SIGTERM");
+}
+
+static STORAGE_ACK: PduStorage<16, { PduStorage::element_size(1100) }> = PduStorage::new();
+
+#[derive(Debug, Default)]
+struct AckSeen {
+    moving: DriveInputs,
+    /// `state` once every watchdog expired and drive 0 came to rest, while muted.
+    state_tripped: Vec<String>,
+    /// The subdevices' states in tx_rx's answer after `unmute`.
+    states_after_unmute: Vec<SubDeviceState>,
+    /// `state` after drive 0's acknowledge (0x14) alone.
+    state_acknowledged: Vec<String>,
+    /// The subdevices' states in tx_rx's answer after the requests for OP.
+    states_back: Vec<SubDeviceState>,
+    /// `state` back in OP.
+    state_back: Vec<String>,
+    /// Drive 0 enabled again where it stopped.
+    re_enabled: DriveInputs,
+    /// And moving again: (target, inputs).
+    moving_again: (i32, DriveInputs),
+}
+
+/// Writes AL control of the subdevice at `index`.
+fn al_control(group: &Group, md: &MainDevice<'_>, index: usize, value: u16) {
+    let sd = group.subdevice(md, index).expect("subdevice");
+    block_on(sd.register_write(0x0120u16, value)).expect("write AL control");
+}
+
+fn run_ack(mut control: Control) -> AckSeen {
+    let (md, group) = bring_up(&STORAGE_ACK);
+    let mut seen = AckSeen::default();
+    enable(&group, &md, 0);
+    let mut target = 0;
+    for _ in 0..200 {
+        target += 20;
+        seen.moving = cycle(&group, &md, 0x000F, target);
+    }
+    // The cable is pulled: nothing reaches the line; its watchdogs (100 ms) expire and
+    // drive 0 stops itself. The emulator answers `state` meanwhile.
+    control.send("mute");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        let lines = control.state(SUBDEVICES);
+        let tripped = lines.iter().all(|l| field(l, "watchdog_trips") == "1");
+        if tripped && field(&lines[0], "stopped_ms") != "-" {
+            seen.state_tripped = lines;
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "no watchdog expiry in 10 s: {lines:?}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    control.send("unmute");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while seen.states_after_unmute.is_empty() && Instant::now() < deadline {
+        if let Ok(response) = block_on(group.tx_rx(&md)) {
+            seen.states_after_unmute = response.subdevice_states.to_vec();
+        }
+    }
+    // Drive 0: acknowledge in SAFE-OP (0x14), then OP (0x08); drive 1 and the I/O:
+    // acknowledge and OP in one write (0x18).
+    al_control(&group, &md, 0, 0x0014);
+    seen.state_acknowledged = control.state(SUBDEVICES);
+    al_control(&group, &md, 0, 0x0008);
+    al_control(&group, &md, 1, 0x0018);
+    al_control(&group, &md, 2, 0x0018);
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while Instant::now() < deadline {
+        // The target stays where the motor stopped (position actual, as a MainDevice
+        // does while its drive is disabled).
+        let stopped = cycle(&group, &md, 0x0000, target);
+        target = stopped.position;
+        let response = block_on(group.tx_rx(&md)).expect("tx_rx");
+        seen.states_back = response.subdevice_states.to_vec();
+        if seen.states_back.iter().all(|s| *s == SubDeviceState::Op) {
+            break;
+        }
+    }
+    seen.state_back = control.state(SUBDEVICES);
+    seen.re_enabled = enable(&group, &md, target);
+    for _ in 0..200 {
+        target += 20;
+        seen.moving_again = (target, cycle(&group, &md, 0x000F, target));
+    }
+    seen
+}
+
+#[test]
+fn after_the_watchdog_an_acknowledge_brings_the_line_back_to_op_and_the_drive_enables_again() {
+    let mut ns = Netns::new();
+    ns.start_emulator(&["--drives", "2", "--io", "1"]);
+    let control = ns.take_emulator_control();
+    let seen = ns.run_inside(move || run_ack(control));
+    assert!(
+        (seen.moving.velocity - 20_000).abs() <= 200,
+        "{:?}",
+        seen.moving
+    );
+    // While muted: every subdevice dropped to SAFE-OP with the error indicator and
+    // 0x001B (SyncManager watchdog).
+    for line in &seen.state_tripped {
+        assert_eq!(field(line, "al"), "SAFE-OP", "{line}");
+        assert_eq!(field(line, "al_error"), "1", "{line}");
+        assert_eq!(field(line, "al_code"), "0x001B", "{line}");
+    }
+    // Drive 0 stopped by its quick stop: 20 000 counts/s at 1e6 counts/s² takes 20 ms
+    // (one more model period at most, for where the expiry fell in a period).
+    let drive = &seen.state_tripped[0];
+    let stopped_ms: f64 = field(drive, "stopped_ms").parse().expect("a number");
+    assert!((20.0..=21.0).contains(&stopped_ms), "{drive}");
+    assert_eq!(field(drive, "velocity_counts_s"), "0");
+    assert_eq!(field(drive, "cia402"), "switch_on_disabled");
+    // Drive 1 was never enabled: at rest at the expiry.
+    assert_eq!(field(&seen.state_tripped[1], "stopped_ms"), "0.000");
+    // ethercrab sees them in SAFE-OP once the cable is back.
+    assert_eq!(seen.states_after_unmute, vec![SubDeviceState::SafeOp; 3]);
+    // The acknowledge alone cleared drive 0's error and code; it stayed in SAFE-OP.
+    let line = &seen.state_acknowledged[0];
+    assert_eq!(
+        (
+            field(line, "al"),
+            field(line, "al_error"),
+            field(line, "al_code")
+        ),
+        ("SAFE-OP", "0", "0x0000"),
+        "{line}"
+    );
+    assert_eq!(field(&seen.state_acknowledged[1], "al_error"), "1");
+    // OP again, all of them, with no error; the watchdog count stays.
+    assert_eq!(seen.states_back, vec![SubDeviceState::Op; 3]);
+    for line in &seen.state_back {
+        assert_eq!(field(line, "al"), "OP", "{line}");
+        assert_eq!(field(line, "al_error"), "0", "{line}");
+        assert_eq!(field(line, "al_code"), "0x0000", "{line}");
+        assert_eq!(field(line, "watchdog_trips"), "1", "{line}");
+    }
+    // The drive behind came back in Switch on disabled (0x40 under 0x4F) and was enabled
+    // again by its controlword, where it had stopped, then moved again.
+    assert_eq!(field(&seen.state_back[0], "cia402"), "switch_on_disabled");
+    assert_eq!(
+        seen.re_enabled.statusword & 0x006F,
+        0x0027,
+        "{:?}",
+        seen.re_enabled
+    );
+    let (target, inputs) = seen.moving_again;
+    assert!((inputs.velocity - 20_000).abs() <= 200, "{inputs:?}");
+    assert!((inputs.position - target).abs() <= 50, "{inputs:?}");
     assert!(ns.stop_emulator(), "the emulator exits cleanly on SIGTERM");
 }
