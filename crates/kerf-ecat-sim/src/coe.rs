@@ -307,6 +307,34 @@ mod tests {
     }
 
     #[test]
+    fn downloads_that_do_not_fit_the_object_abort_with_its_code() {
+        let mut od = Od::default();
+        od.insert(0x6060, 0, &[8], Access::ReadWrite);
+        od.insert(0x6041, 0, &[0, 0], Access::ReadOnly);
+        // (command, index, subindex, value) → abort code. 0x23: expedited, 4 bytes;
+        // 0x2B: expedited, 2 bytes.
+        for (command, index, sub_index, code) in [
+            (0x23u8, 0x6060u16, 0u8, 0x0607_0010u32), // 4 bytes into 1
+            (0x2B, 0x6041, 0, 0x0601_0002),           // read-only
+            (0x2B, 0x6060, 1, 0x0609_0011),           // no subindex 1
+            (0x2B, 0x2000, 0, 0x0602_0000),           // no object
+        ] {
+            let mut m = vec![0x0A, 0x00, 0x00, 0x00, 0x00, 0x23, 0x00, 0x20, command];
+            m.extend_from_slice(&index.to_le_bytes());
+            m.extend_from_slice(&[sub_index, 9, 0, 0, 0]);
+            let out = SdoServer::new(128)
+                .serve(&mut od, &m, true, |_, _, _| panic!("nothing is written"))
+                .unwrap();
+            let mut expected = vec![0x80];
+            expected.extend_from_slice(&index.to_le_bytes());
+            expected.push(sub_index);
+            expected.extend_from_slice(&code.to_le_bytes());
+            assert_eq!(&out[8..16], &expected[..], "{index:#06x}:{sub_index}");
+        }
+        assert_eq!(od.get_u32(0x6060, 0), 8);
+    }
+
+    #[test]
     fn a_long_value_is_uploaded_in_segments_with_alternating_toggle() {
         let mut od = Od::default();
         let value: Vec<u8> = (0..150u8).collect();

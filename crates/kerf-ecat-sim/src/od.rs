@@ -148,6 +148,9 @@ mod tests {
         assert_eq!(od.write(0x1000, 0, &[0; 4], true), Err(0x0601_0002));
         assert_eq!(od.write(0x1C12, 1, &[0x01, 0x16], false), Err(0x0800_0022));
         assert_eq!(od.write(0x6060, 0, &[9, 0], true), Err(0x0607_0010));
+        assert_eq!(od.write(0x2000, 0, &[9], true), Err(0x0602_0000));
+        assert_eq!(od.write(0x1C12, 7, &[0, 0], true), Err(0x0609_0011));
+        assert_eq!(od.write(0x6060, 0, &[], true), Err(0x0607_0010));
         assert_eq!(od.write(0x6060, 0, &[9], false), Ok(()));
         assert_eq!(od.get_u32(0x6060, 0), 9);
     }
