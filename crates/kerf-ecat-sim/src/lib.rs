@@ -34,8 +34,8 @@
 //! where it stopped. Without the acknowledge bit, requests are ignored while the
 //! indicator is set.
 //!
-//! Standard input, one command a line, P a ring position (0 first), numbers decimal or
-//! `0x` hex:
+//! Standard input, one command a line, P a ring position (0 first) and N decimal, CODE
+//! and BITS decimal or `0x` hex:
 //!
 //! | command         | what it does                                                        |
 //! |-----------------|---------------------------------------------------------------------|

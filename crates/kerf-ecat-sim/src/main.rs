@@ -55,8 +55,8 @@ fn parse_refusal(text: &str) -> Result<SafeOpRefusal, String> {
 /// 0x1002, …, name "Kerf CiA402 drive"; I/O product code 0x00000010, serials 0x2001, …,
 /// name "Kerf digital I/O", 8 inputs and 8 outputs; revision 0x00010000.
 ///
-/// Standard input, one command a line (P: ring position, 0 first; numbers decimal or 0x
-/// hex):
+/// Standard input, one command a line (P: ring position, 0 first, and N decimal; CODE
+/// and BITS decimal or 0x hex):
 ///   mute            stop answering frames (a pulled cable)
 ///   unmute          answer again
 ///   fault P CODE    trip a fault with error code CODE (0x603F) in the drive at P
