@@ -103,9 +103,18 @@ impl Al {
     }
 
     /// A request written to AL control. `check` is the application's verdict on entering a
-    /// state from the current one (`Err(code)` refuses it). While the error indicator is
-    /// set, only a request with the acknowledge bit (bit 4) is acted on. Returns the
-    /// transition that happened, if any.
+    /// state from the current one (`Err(code)` refuses it). Returns the transition that
+    /// happened, if any.
+    ///
+    /// While the error indicator is set, a request without the acknowledge bit (bit 4,
+    /// 0x10) is ignored: the subdevice stays in its state with the indicator and its
+    /// code. With the acknowledge bit, the indicator and the code are cleared and the
+    /// state bits of the same write are then acted on as any request: 0x14 in SAFE-OP
+    /// (acknowledge, stay) then 0x08 returns to OP, and so does 0x18 at once (acknowledge
+    /// and OP in one write). This follows ETG.1000.6's AL control as read here (the
+    /// acknowledge flag travels with a state request, and nothing makes the request wait
+    /// for a second write), not checked against a real ESC; masters mostly send the
+    /// acknowledge with the current state first, which works the same.
     pub fn request(
         &mut self,
         control: u16,
@@ -195,6 +204,44 @@ mod tests {
         let mut al = Al::default();
         al.request(0x05, ok);
         assert_eq!(al.code(), 0x0012);
+    }
+
+    fn in_safe_op_after_the_watchdog() -> Al {
+        let mut al = Al::default();
+        al.request(0x02, ok);
+        al.request(0x04, ok);
+        al.request(0x08, ok);
+        al.drop_to(AlState::SafeOp, CODE_SM_WATCHDOG);
+        al
+    }
+
+    #[test]
+    fn an_acknowledge_clears_the_error_and_op_follows_in_the_same_or_the_next_write() {
+        // Without the acknowledge bit the request for OP is ignored.
+        let mut al = in_safe_op_after_the_watchdog();
+        assert_eq!(al.request(0x08, ok), None);
+        assert_eq!((al.status_word(), al.code()), (0x14, 0x001B));
+        // Acknowledge in SAFE-OP (0x14): SAFE-OP without error, code 0; then OP.
+        assert_eq!(al.request(0x14, ok), None);
+        assert_eq!((al.status_word(), al.code()), (0x04, 0x0000));
+        assert_eq!(al.request(0x08, ok), Some((AlState::SafeOp, AlState::Op)));
+        assert_eq!((al.status_word(), al.code()), (0x08, 0x0000));
+        // Acknowledge and OP in one write (0x18).
+        let mut al = in_safe_op_after_the_watchdog();
+        assert_eq!(al.request(0x18, ok), Some((AlState::SafeOp, AlState::Op)));
+        assert_eq!((al.status_word(), al.code()), (0x08, 0x0000));
+        // Acknowledge and a lower state (0x12): PRE-OP.
+        let mut al = in_safe_op_after_the_watchdog();
+        assert_eq!(
+            al.request(0x12, ok),
+            Some((AlState::SafeOp, AlState::PreOp))
+        );
+        assert_eq!((al.status_word(), al.code()), (0x02, 0x0000));
+        // An acknowledge whose request is refused sets the indicator again, with the
+        // refusal's code.
+        let mut al = in_safe_op_after_the_watchdog();
+        assert_eq!(al.request(0x18, |_, _| Err(0x0035)), None);
+        assert_eq!((al.status_word(), al.code()), (0x14, 0x0035));
     }
 
     #[test]

@@ -7,13 +7,33 @@
 //! 0x607A target position (32); TxPDO 0x1A00 = 0x6041 statusword (16), 0x6064 position
 //! actual (32), 0x606C velocity actual (32), 0x60F4 following error actual (32), 0x603F
 //! error code (16), 0x60FD digital inputs (32).
+//!
+//! The process-data watchdog: when it expires, the drive does its own quick stop (the
+//! servo model's quick stop at its deceleration, one model period per period of host
+//! time), then rests in Switch on disabled. The time from the expiry to the motor at rest
+//! is kept ([`DriveSnapshot::stopped_after_ns`]): counted in model periods, so it does not
+//! depend on the host's scheduling.
+//!
+//! A jammed motor ([`DriveDevice::set_stalled`], the emulator's `stall P`): the motor
+//! stops dead where it is and no longer moves, whatever the drive commands; the power
+//! state machine goes on as before. In Operation enabled the target keeps coming, so the
+//! following error (0x60F4, target − position actual) grows with it, and statusword bit
+//! 13 (following error) is set while it exceeds the servo model's window
+//! (`SimConfig::following_error_window_counts`, 1000 counts by default), exactly as when
+//! the motor merely lags. The drive does not trip a fault of its own for it: the servo
+//! model has no following-error fault, only the bit, so the reaction is the MainDevice's.
+//! A quick stop of a jammed drive ends at once (its motor is at rest). Freed (`free P`), the
+//! motor turns again from where it stuck: if the drive is still enabled with a large
+//! following error, the servo loop pulls it to the target in one cycle, and beyond
+//! about 1600 counts of error (default tuning) that commands more than the overcurrent
+//! limit and trips fault 0x2310, as a real drive released under a large error would.
 
-use kerf_drive::cia402::Drive;
+use kerf_drive::cia402::{Drive, DriveState, MODE_CYCLIC_SYNC_POSITION, cw, sw};
 use kerf_drive::sim::{SimConfig, SimDrive};
 
 use crate::al::AlState;
 use crate::coe;
-use crate::esc::Application;
+use crate::esc::{AppSnapshot, Application};
 use crate::od::{Access, Od};
 use crate::sii::{Identity, Pdo, PdoEntry, SiiSpec, SmConfig, SmUsage};
 
@@ -62,6 +82,75 @@ pub struct DriveDevice {
     /// Set once the watchdog expired: the time of the last model step of the drive's own
     /// quick stop.
     stopping_since_ns: Option<u64>,
+    /// Model steps of the quick stop since the watchdog last expired.
+    quick_stop_steps: u64,
+    /// From the watchdog's last expiry to the motor at rest, ns of model time.
+    stopped_after_ns: Option<u64>,
+    /// Where the motor is jammed (`set_stalled`), counts.
+    stalled_at_counts: Option<i32>,
+    /// A fault injected for the next model step.
+    pending_fault: Option<u16>,
+}
+
+/// What a drive shows, for the emulator's `state` command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DriveSnapshot {
+    /// The CiA 402 power state.
+    pub state: DriveState,
+    /// The statusword (0x6041).
+    pub statusword: u16,
+    /// The error code (0x603F).
+    pub error_code: u16,
+    /// Position actual (0x6064), counts.
+    pub position_counts: i32,
+    /// Velocity actual (0x606C), counts/s.
+    pub velocity_counts_s: i32,
+    /// Following error actual (0x60F4), counts.
+    pub following_error_counts: i32,
+    /// The motor is jammed.
+    pub stalled: bool,
+    /// Model time from the process-data watchdog's last expiry to the motor at rest by
+    /// the drive's own quick stop, ns; `None` when the watchdog has not expired or the
+    /// motor is not at rest yet.
+    pub stopped_after_ns: Option<u64>,
+}
+
+/// A fresh servo model like `drive` (configuration, mode of operation, power state and
+/// error code) but with its motor at rest at `position_counts`. The power state is reached
+/// by replaying the controlwords that lead to it, each with `position_counts` as the
+/// target, so that the motor does not move on the way; `last_controlword` is the last one
+/// replayed in the fault states, so that a fault reset still needs a rising edge of bit 7.
+/// A quick stop in progress ends at once (the motor is at rest): Switch on disabled.
+fn at_rest(drive: &SimDrive, position_counts: i32, last_controlword: u16) -> SimDrive {
+    let mut config = *drive.config();
+    config.initial_position_counts = f64::from(position_counts);
+    let mut fresh = SimDrive::new(config);
+    fresh.set_mode_of_operation(drive.mode_of_operation_display());
+    let enable: &[u16] = &[
+        cw::DISABLE_VOLTAGE,
+        cw::SHUTDOWN,
+        cw::SWITCH_ON_CMD,
+        cw::ENABLE_OPERATION_CMD,
+    ];
+    let replay: &[u16] = match drive.state() {
+        DriveState::NotReadyToSwitchOn => &[],
+        DriveState::SwitchOnDisabled | DriveState::QuickStopActive => &enable[..1],
+        DriveState::ReadyToSwitchOn => &enable[..2],
+        DriveState::SwitchedOn => &enable[..3],
+        DriveState::OperationEnabled => enable,
+        DriveState::FaultReactionActive | DriveState::Fault => {
+            fresh.inject_fault(drive.error_code());
+            if drive.state() == DriveState::Fault {
+                &[last_controlword, last_controlword]
+            } else {
+                &[last_controlword]
+            }
+        }
+    };
+    for &controlword in replay {
+        fresh.write(controlword, position_counts);
+    }
+    fresh
 }
 
 impl DriveDevice {
@@ -148,6 +237,10 @@ impl DriveDevice {
             sdo: coe::SdoServer::new(MAILBOX_LEN),
             drive: SimDrive::new(config),
             stopping_since_ns: None,
+            quick_stop_steps: 0,
+            stopped_after_ns: None,
+            stalled_at_counts: None,
+            pending_fault: None,
         };
         device.refresh_inputs();
         device
@@ -175,29 +268,101 @@ impl DriveDevice {
         out
     }
 
+    /// The following error the drive reports (0x60F4): the servo model's, or while the
+    /// motor is jammed and the drive follows the target, the target less where the motor
+    /// stuck.
+    fn following_error_counts(&self) -> i32 {
+        let follows = self.drive.state() == DriveState::OperationEnabled
+            && self.drive.mode_of_operation_display() == MODE_CYCLIC_SYNC_POSITION;
+        match self.stalled_at_counts {
+            Some(at) if follows => (self.od.get_u32(0x607A, 0) as i32).saturating_sub(at),
+            _ => self.drive.following_error_counts(),
+        }
+    }
+
+    /// The statusword the drive reports (0x6041): the servo model's, with bit 13
+    /// (following error) for the following error reported.
+    fn statusword(&self) -> u16 {
+        let window = self.drive.config().following_error_window_counts;
+        let beyond = self.following_error_counts().unsigned_abs() > window;
+        (self.drive.statusword() & !sw::FOLLOWING_ERROR)
+            | if beyond { sw::FOLLOWING_ERROR } else { 0 }
+    }
+
     fn refresh_inputs(&mut self) {
+        self.od.set(0x6041, 0, &self.statusword().to_le_bytes());
         let d = &self.drive;
-        self.od.set(0x6041, 0, &d.statusword().to_le_bytes());
         self.od
             .set(0x6061, 0, &d.mode_of_operation_display().to_le_bytes());
         self.od
             .set(0x6064, 0, &d.position_actual_counts().to_le_bytes());
         self.od
             .set(0x606C, 0, &d.velocity_actual_counts_s().to_le_bytes());
-        self.od
-            .set(0x60F4, 0, &d.following_error_counts().to_le_bytes());
         self.od.set(0x603F, 0, &d.error_code().to_le_bytes());
+        self.od
+            .set(0x60F4, 0, &self.following_error_counts().to_le_bytes());
+    }
+
+    /// Jams the motor where it is (`true`) or lets it turn again (`false`); see the
+    /// module documentation.
+    pub fn set_stalled(&mut self, stalled: bool) {
+        match (stalled, self.stalled_at_counts) {
+            (true, None) => {
+                let here = self.drive.position_actual_counts();
+                let last_controlword = self.od.get_u32(0x6040, 0) as u16;
+                self.drive = at_rest(&self.drive, here, last_controlword);
+                self.stalled_at_counts = Some(here);
+            }
+            (false, Some(_)) => self.stalled_at_counts = None,
+            _ => {}
+        }
+        self.refresh_inputs();
+    }
+
+    /// What the drive shows now.
+    pub fn snapshot(&self) -> DriveSnapshot {
+        DriveSnapshot {
+            state: self.drive.state(),
+            statusword: self.statusword(),
+            error_code: self.drive.error_code(),
+            position_counts: self.drive.position_actual_counts(),
+            velocity_counts_s: self.drive.velocity_actual_counts_s(),
+            following_error_counts: self.following_error_counts(),
+            stalled: self.stalled_at_counts.is_some(),
+            stopped_after_ns: self.stopped_after_ns,
+        }
+    }
+
+    /// One model step with this controlword and target: a jammed motor is held where it
+    /// stuck (the model gets that position as its target, so its motor stays put), and an
+    /// injected fault trips in this step.
+    fn step(&mut self, controlword: u16, target_counts: i32) {
+        if let Some(code) = self.pending_fault.take() {
+            self.drive.inject_fault(code);
+        }
+        let target_counts = self.stalled_at_counts.unwrap_or(target_counts);
+        self.drive.write(controlword, target_counts);
+        self.refresh_inputs();
     }
 }
 
 impl DriveDevice {
-    /// One model step of the drive's own quick stop: controlword Quick stop (0x0002)
-    /// with the target where the motor is.
+    /// One model step of the drive's own quick stop after the watchdog expired:
+    /// controlword Quick stop (0x0002) with the target where the motor is; notes when the
+    /// motor came to rest.
     fn step_quick_stop(&mut self) {
         let here = self.drive.position_actual_counts();
-        self.drive
-            .write(kerf_drive::cia402::cw::QUICK_STOP_CMD, here);
-        self.refresh_inputs();
+        self.step(cw::QUICK_STOP_CMD, here);
+        self.quick_stop_steps += 1;
+        self.note_rest();
+    }
+
+    /// After the watchdog expired: the motor is at rest, and was not before.
+    fn note_rest(&mut self) {
+        if self.stopped_after_ns.is_none() && self.drive.motor_velocity_counts_s() == 0.0 {
+            let period_ns = self.drive.config().period_ns;
+            self.stopped_after_ns = Some(self.quick_stop_steps.saturating_mul(period_ns));
+        }
     }
 }
 
@@ -252,12 +417,15 @@ impl Application for DriveDevice {
         let controlword = self.od.get_u32(0x6040, 0) as u16;
         let target = self.od.get_u32(0x607A, 0) as i32;
         self.stopping_since_ns = None;
-        self.drive.write(controlword, target);
-        self.refresh_inputs();
+        self.step(controlword, target);
     }
 
     fn watchdog_expired(&mut self, now_ns: u64) {
         self.stopping_since_ns = Some(now_ns);
+        self.quick_stop_steps = 0;
+        self.stopped_after_ns = None;
+        // A motor already at rest stopped at the expiry.
+        self.note_rest();
         self.step_quick_stop();
     }
 
@@ -275,8 +443,17 @@ impl Application for DriveDevice {
     }
 
     fn inject_fault(&mut self, error_code: u16) -> bool {
-        self.drive.inject_fault(error_code);
+        self.pending_fault = Some(error_code);
         true
+    }
+
+    fn set_stalled(&mut self, stalled: bool) -> bool {
+        DriveDevice::set_stalled(self, stalled);
+        true
+    }
+
+    fn snapshot(&self) -> AppSnapshot {
+        AppSnapshot::Drive(DriveDevice::snapshot(self))
     }
 
     fn inputs(&mut self, data: &mut [u8]) {
@@ -327,7 +504,235 @@ fn interpolation_period_ns(value: u64, exponent: i32) -> Option<u64> {
 
 #[cfg(test)]
 mod tests {
-    use super::interpolation_period_ns;
+    use super::*;
+
+    fn drive() -> DriveDevice {
+        let identity = Identity {
+            vendor_id: 1,
+            product_code: 2,
+            revision: 3,
+            serial: 4,
+        };
+        DriveDevice::new(identity, "test drive", SimConfig::default())
+    }
+
+    /// One process-data write in OP with the default mapping: controlword, target.
+    fn cycle(d: &mut DriveDevice, controlword: u16, target_counts: i32) -> DriveSnapshot {
+        let mut data = [0u8; 6];
+        data[..2].copy_from_slice(&controlword.to_le_bytes());
+        data[2..].copy_from_slice(&target_counts.to_le_bytes());
+        Application::outputs(d, &data, true, 0);
+        d.snapshot()
+    }
+
+    fn enable(d: &mut DriveDevice, target_counts: i32) -> DriveSnapshot {
+        for controlword in [0x0000, 0x0006, 0x0007] {
+            cycle(d, controlword, target_counts);
+        }
+        cycle(d, 0x000F, target_counts)
+    }
+
+    /// Enabled at 0 and moving at 20 counts per 1 ms cycle (20 000 counts/s) for 200
+    /// cycles; returns the last target.
+    fn moving(d: &mut DriveDevice) -> i32 {
+        enable(d, 0);
+        let mut target = 0;
+        for _ in 0..200 {
+            target += 20;
+            cycle(d, 0x000F, target);
+        }
+        target
+    }
+
+    /// The inputs the MainDevice reads: statusword, position, velocity, following error.
+    fn inputs(d: &mut DriveDevice) -> (u16, i32, i32, i32) {
+        let mut data = [0u8; 20];
+        Application::inputs(d, &mut data);
+        let i32_at = |at: usize| i32::from_le_bytes(data[at..at + 4].try_into().unwrap());
+        (
+            u16::from_le_bytes([data[0], data[1]]),
+            i32_at(2),
+            i32_at(6),
+            i32_at(10),
+        )
+    }
+
+    #[test]
+    fn a_jammed_motor_stays_while_the_target_moves_on_and_the_following_error_grows() {
+        let mut d = drive();
+        let mut target = moving(&mut d);
+        let before = d.snapshot();
+        assert_eq!(before.state, DriveState::OperationEnabled);
+        assert!(
+            (before.velocity_counts_s - 20_000).abs() <= 200,
+            "{before:?}"
+        );
+        d.set_stalled(true);
+        let at = d.snapshot();
+        assert!(at.stalled);
+        assert_eq!(at.position_counts, before.position_counts);
+        assert_eq!(at.velocity_counts_s, 0);
+        let stuck = at.position_counts;
+        for n in 1..=100 {
+            target += 20;
+            let now = cycle(&mut d, 0x000F, target);
+            assert_eq!(now.state, DriveState::OperationEnabled);
+            assert_eq!((now.position_counts, now.velocity_counts_s), (stuck, 0));
+            assert_eq!(now.following_error_counts, target - stuck, "cycle {n}");
+            // Bit 13 once the error is beyond the 1000-count window.
+            let bit_13 = now.statusword & 0x2000 != 0;
+            assert_eq!(bit_13, target - stuck > 1000, "cycle {n}");
+        }
+        // The process data says the same.
+        let (statusword, position, velocity, following_error) = inputs(&mut d);
+        assert_eq!(statusword & 0x006F, 0x0027, "still Operation enabled");
+        assert_ne!(statusword & 0x2000, 0);
+        assert_eq!((position, velocity), (stuck, 0));
+        assert_eq!(following_error, target - stuck);
+    }
+
+    #[test]
+    fn a_freed_motor_follows_again_from_where_it_stuck() {
+        let mut d = drive();
+        moving(&mut d);
+        d.set_stalled(true);
+        let stuck = d.snapshot().position_counts;
+        // The MainDevice holds the target where the motor is, then the motor is freed
+        // and moves on at 20 counts per cycle.
+        cycle(&mut d, 0x000F, stuck);
+        d.set_stalled(false);
+        assert!(!d.snapshot().stalled);
+        let mut target = stuck;
+        let mut last = d.snapshot();
+        for _ in 0..200 {
+            target += 20;
+            last = cycle(&mut d, 0x000F, target);
+        }
+        assert_eq!(last.state, DriveState::OperationEnabled);
+        assert!((last.velocity_counts_s - 20_000).abs() <= 200, "{last:?}");
+        assert!((last.position_counts - target).abs() <= 50, "{last:?}");
+    }
+
+    #[test]
+    fn freed_under_a_large_following_error_the_drive_lunges_or_trips_overcurrent() {
+        // 2000 counts of error: the servo loop would command 2000 counts in one 1 ms
+        // cycle, 2.0e6 counts/s of feed-forward, ~1.3e9 counts/s² (limit 1e9): 0x2310.
+        let mut d = drive();
+        moving(&mut d);
+        d.set_stalled(true);
+        let stuck = d.snapshot().position_counts;
+        cycle(&mut d, 0x000F, stuck + 2000);
+        d.set_stalled(false);
+        let after = cycle(&mut d, 0x000F, stuck + 2000);
+        assert_eq!(after.state, DriveState::FaultReactionActive, "{after:?}");
+        assert_eq!(after.error_code, 0x2310);
+        // 500 counts: the motor jumps on towards the target without a fault.
+        let mut d = drive();
+        moving(&mut d);
+        d.set_stalled(true);
+        let stuck = d.snapshot().position_counts;
+        cycle(&mut d, 0x000F, stuck + 500);
+        d.set_stalled(false);
+        let mut last = d.snapshot();
+        for _ in 0..100 {
+            last = cycle(&mut d, 0x000F, stuck + 500);
+        }
+        assert_eq!(last.state, DriveState::OperationEnabled);
+        assert!(
+            (last.position_counts - (stuck + 500)).abs() <= 2,
+            "{last:?}"
+        );
+    }
+
+    #[test]
+    fn jamming_keeps_the_power_state_the_mode_and_a_fault() {
+        // Every state the controlword reaches, jammed, stays that state.
+        for (controlwords, state) in [
+            (&[][..], DriveState::NotReadyToSwitchOn),
+            (&[0x0000][..], DriveState::SwitchOnDisabled),
+            (&[0x0000, 0x0006][..], DriveState::ReadyToSwitchOn),
+            (&[0x0000, 0x0006, 0x0007][..], DriveState::SwitchedOn),
+            (
+                &[0x0000, 0x0006, 0x0007, 0x000F][..],
+                DriveState::OperationEnabled,
+            ),
+        ] {
+            let mut d = drive();
+            for &controlword in controlwords {
+                cycle(&mut d, controlword, 0);
+            }
+            assert_eq!(d.snapshot().state, state);
+            d.set_stalled(true);
+            assert_eq!(d.snapshot().state, state);
+        }
+        // A fault stays a fault with its code, and a rising edge of bit 7 resets it.
+        let mut d = drive();
+        enable(&mut d, 0);
+        assert!(Application::inject_fault(&mut d, 0x7500));
+        cycle(&mut d, 0x000F, 0);
+        let faulted = cycle(&mut d, 0x0000, 0);
+        assert_eq!(
+            (faulted.state, faulted.error_code),
+            (DriveState::Fault, 0x7500)
+        );
+        d.set_stalled(true);
+        let jammed = d.snapshot();
+        assert_eq!(
+            (jammed.state, jammed.error_code),
+            (DriveState::Fault, 0x7500)
+        );
+        assert_eq!(cycle(&mut d, 0x0000, 0).state, DriveState::Fault);
+        let reset = cycle(&mut d, 0x0080, 0);
+        assert_eq!(
+            (reset.state, reset.error_code),
+            (DriveState::SwitchOnDisabled, 0)
+        );
+        // And a jammed drive can be enabled, without moving.
+        let enabled = enable(&mut d, 0);
+        assert_eq!(enabled.state, DriveState::OperationEnabled);
+        assert_eq!(enabled.position_counts, 0);
+    }
+
+    #[test]
+    fn after_the_watchdog_the_quick_stop_time_to_rest_is_kept() {
+        let mut d = drive();
+        moving(&mut d);
+        // 20 000 counts/s at the quick-stop deceleration 1e6 counts/s²: 20 ms.
+        let expiry_ns = 5_000_000_000;
+        Application::watchdog_expired(&mut d, expiry_ns);
+        assert_eq!(d.snapshot().stopped_after_ns, None);
+        Application::tick(&mut d, expiry_ns + 10_000_000);
+        assert_eq!(
+            d.snapshot().stopped_after_ns,
+            None,
+            "still braking at 10 ms"
+        );
+        Application::tick(&mut d, expiry_ns + 30_000_000);
+        let stopped = d.snapshot();
+        assert_eq!(stopped.velocity_counts_s, 0);
+        assert_eq!(stopped.state, DriveState::SwitchOnDisabled);
+        let stopped_ns = stopped.stopped_after_ns.expect("at rest");
+        assert!(
+            (20_000_000..=21_000_000).contains(&stopped_ns),
+            "{stopped_ns} ns"
+        );
+        // However late the loop ticks, the time is the model's.
+        let mut late = drive();
+        moving(&mut late);
+        Application::watchdog_expired(&mut late, expiry_ns);
+        Application::tick(&mut late, expiry_ns + 500_000_000);
+        assert_eq!(late.snapshot().stopped_after_ns, Some(stopped_ns));
+        // A drive at rest at the expiry stopped at once; a jammed one too.
+        let mut idle = drive();
+        enable(&mut idle, 0);
+        Application::watchdog_expired(&mut idle, expiry_ns);
+        assert_eq!(idle.snapshot().stopped_after_ns, Some(0));
+        let mut jammed = drive();
+        moving(&mut jammed);
+        jammed.set_stalled(true);
+        Application::watchdog_expired(&mut jammed, expiry_ns);
+        assert_eq!(jammed.snapshot().stopped_after_ns, Some(0));
+    }
 
     #[test]
     fn interpolation_periods_are_value_times_a_power_of_ten_seconds() {

@@ -7,7 +7,9 @@
 //! Registers with behaviour: information 0x0000–0x0008 (read-only), station address
 //! 0x0010 and alias 0x0012, DL status 0x0110, AL control 0x0120 / status 0x0130 / code
 //! 0x0134, watchdogs 0x0400 / 0x0410 / 0x0420 and status 0x0440, SII access 0x0500–0x050F,
-//! FMMUs 0x0600+, SyncManagers 0x0800+ (status byte: mailbox full), DC 0x0900–0x09FF.
+//! FMMUs 0x0600+, SyncManagers 0x0800+ (status byte: mailbox full), DC 0x0900–0x09FF
+//! (receive times, system time 0x0910, offset 0x0920, delay 0x0928, system time
+//! difference 0x092C read-only: see [`crate::dc::difference_register`]).
 
 use crate::al::{self, Al, AlState};
 use crate::dc::{self, DcClock};
@@ -68,6 +70,15 @@ pub struct SmRegisters {
     pub enabled: bool,
 }
 
+/// What the application behind an ESC shows, for the emulator's `state` command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AppSnapshot {
+    /// A CiA 402 drive.
+    Drive(crate::drive::DriveSnapshot),
+    /// A digital I/O subdevice.
+    Io(crate::io::IoSnapshot),
+}
+
 /// What a subdevice does behind its ESC.
 pub trait Application: Send {
     /// The EEPROM contents (and the SyncManager layout it declares).
@@ -93,6 +104,13 @@ pub trait Application: Send {
     fn inject_fault(&mut self, _error_code: u16) -> bool {
         false
     }
+    /// Test hook: jam the motor (`true`) or free it; false where the application has no
+    /// motor.
+    fn set_stalled(&mut self, _stalled: bool) -> bool {
+        false
+    }
+    /// What it shows now.
+    fn snapshot(&self) -> AppSnapshot;
 }
 
 /// One subdevice: registers, EEPROM, AL state, clock and its application.
@@ -103,6 +121,7 @@ pub struct Esc {
     clock: DcClock,
     mailbox_pending: bool,
     last_output_ns: Option<u64>,
+    watchdog_trips: u32,
     refusal: Option<(AlState, u16)>,
     app: Box<dyn Application>,
 }
@@ -121,16 +140,17 @@ fn overlaps(a_start: usize, a_len: usize, b_start: usize, b_len: usize) -> bool 
 }
 
 impl Esc {
-    /// A subdevice in INIT whose clock reads `clock_offset_ns` ahead of the loop's time.
-    pub fn new(app: Box<dyn Application>, clock_offset_ns: u64) -> Esc {
+    /// A subdevice in INIT with this distributed clock.
+    pub fn new(app: Box<dyn Application>, clock: DcClock) -> Esc {
         let eeprom = crate::sii::build_image(app.sii());
         let mut esc = Esc {
             memory: vec![0; MEMORY_LEN],
             eeprom,
             al: Al::default(),
-            clock: DcClock::new(clock_offset_ns),
+            clock,
             mailbox_pending: false,
             last_output_ns: None,
+            watchdog_trips: 0,
             refusal: None,
             app,
         };
@@ -175,6 +195,11 @@ impl Esc {
     fn u16_at(&self, at: u16) -> u16 {
         let at = usize::from(at);
         u16::from_le_bytes([self.memory[at], self.memory[at + 1]])
+    }
+
+    fn u32_at(&self, at: u16) -> u32 {
+        let at = usize::from(at);
+        u32::from_le_bytes(self.memory[at..at + 4].try_into().unwrap_or([0; 4]))
     }
 
     fn u64_at(&self, at: u16) -> u64 {
@@ -268,6 +293,7 @@ impl Esc {
                 | 0x0440..=0x0441
                 | 0x0900..=0x090F
                 | 0x0918..=0x091F
+                | 0x092C..=0x092F
         );
         // SyncManager status (byte 5) and PDI control (byte 7) belong to the ESC.
         let sm_status = (0x0800..0x0880).contains(&at) && matches!(at % 8, 5 | 7);
@@ -293,20 +319,24 @@ impl Esc {
         if touches(REG_DC_PORT0, 4) {
             self.latch_receive_times(ctx);
         }
-        if touches(REG_DC_SYSTEM_TIME, 4) {
-            let received = if data.len() >= 8 && start == usize::from(REG_DC_SYSTEM_TIME) {
-                self.u64_at(REG_DC_SYSTEM_TIME)
-            } else {
-                u64::from(self.u16_at(REG_DC_SYSTEM_TIME))
-                    | u64::from(self.u16_at(REG_DC_SYSTEM_TIME + 2)) << 16
-            };
-            let offset = self.u64_at(REG_DC_OFFSET);
-            let delay = u32::from(self.u16_at(REG_DC_DELAY))
-                | u32::from(self.u16_at(REG_DC_DELAY + 2)) << 16;
-            let difference = self.clock.steer(ctx.now_ns, offset, delay, received);
-            let magnitude = difference.unsigned_abs().min(0x7FFF_FFFF) as u32;
-            let sign = if difference > 0 { 0x8000_0000 } else { 0 };
-            let word = magnitude | sign;
+        let covers = |reg: u16, len: usize| {
+            start <= usize::from(reg) && usize::from(reg) + len <= start + data.len()
+        };
+        // A write of the reference's system time (FRMW / BWR to 0x0910): 64 bits, or the
+        // lower 32; the difference it shows is kept in 0x092C.
+        let offset = self.u64_at(REG_DC_OFFSET);
+        let delay = self.u32_at(REG_DC_DELAY);
+        let difference = if covers(REG_DC_SYSTEM_TIME, 8) {
+            let received = self.u64_at(REG_DC_SYSTEM_TIME);
+            Some(self.clock.steer(ctx.now_ns, offset, delay, received))
+        } else if covers(REG_DC_SYSTEM_TIME, 4) {
+            let received = self.u32_at(REG_DC_SYSTEM_TIME);
+            Some(self.clock.steer_32(ctx.now_ns, offset, delay, received))
+        } else {
+            None
+        };
+        if let Some(difference) = difference {
+            let word = dc::difference_register(difference);
             self.memory[usize::from(REG_DC_DIFFERENCE)..usize::from(REG_DC_DIFFERENCE) + 4]
                 .copy_from_slice(&word.to_le_bytes());
         }
@@ -384,7 +414,8 @@ impl Esc {
     }
 
     /// Test hook: refuse every request to enter `state` with AL status `code` (e.g.
-    /// SAFE-OP with 0x001D, as a drive whose configuration does not suit it).
+    /// SAFE-OP with 0x001D, as a drive whose configuration does not suit it): the
+    /// subdevice stays where it is, with the error indicator and that code.
     pub fn refuse(&mut self, state: AlState, code: u16) {
         self.refusal = Some((state, code));
     }
@@ -447,7 +478,9 @@ impl Esc {
                 self.mailbox_pending = false;
             }
             if to == AlState::Op {
-                self.last_output_ns = self.last_output_ns.or(Some(now_ns));
+                // The watchdog starts anew: back in OP after it expired, the time since
+                // the last output write is not held against the subdevice again.
+                self.last_output_ns = Some(now_ns);
                 self.memory[usize::from(REG_WD_STATUS)] = 1;
             }
             self.app.transition(from, to);
@@ -467,19 +500,27 @@ impl Esc {
     }
 
     /// One loop turn: the process-data watchdog (in OP, no output write for the watchdog
-    /// time drops the subdevice to SAFE-OP with AL status code 0x001B and tells the
-    /// application), then the application's own tick.
+    /// time since the last one or since entering OP drops the subdevice to SAFE-OP with
+    /// the error indicator and AL status code 0x001B, and tells the application), then
+    /// the application's own tick. The MainDevice brings it back with an acknowledge
+    /// (see [`Al::request`]) and a request for OP.
     pub fn tick(&mut self, now_ns: u64) {
         let expired = match (self.al.state(), self.last_output_ns, self.watchdog_ns()) {
             (AlState::Op, Some(last), Some(limit)) => now_ns.saturating_sub(last) > limit,
             _ => false,
         };
         if expired {
+            self.watchdog_trips = self.watchdog_trips.saturating_add(1);
             self.al.drop_to(AlState::SafeOp, al::CODE_SM_WATCHDOG);
             self.app.watchdog_expired(now_ns);
             self.memory[usize::from(REG_WD_STATUS)] = 0;
         }
         self.app.tick(now_ns);
+    }
+
+    /// How many times the process-data watchdog has expired.
+    pub fn watchdog_trips(&self) -> u32 {
+        self.watchdog_trips
     }
 
     /// The time of the last output write, or of entering SAFE-OP (where the watchdog

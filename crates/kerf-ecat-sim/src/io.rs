@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::al::AlState;
-use crate::esc::Application;
+use crate::esc::{AppSnapshot, Application};
 use crate::sii::{Identity, Pdo, PdoEntry, SiiSpec, SmConfig, SmUsage};
 
 /// The most bits per direction.
@@ -32,10 +32,25 @@ impl IoHandle {
     }
 }
 
+/// What an I/O subdevice shows, for the emulator's `state` command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct IoSnapshot {
+    /// Number of input bits.
+    pub input_bits: u8,
+    /// Number of output bits.
+    pub output_bits: u8,
+    /// The input bits (bit n: input n).
+    pub inputs: u64,
+    /// The output bits last written in OP (cleared when it leaves OP).
+    pub outputs: u64,
+}
+
 /// The I/O subdevice.
 #[derive(Debug)]
 pub struct IoDevice {
     sii: SiiSpec,
+    input_bits: u8,
+    output_bits: u8,
     in_bytes: u16,
     out_bytes: u16,
     handle: IoHandle,
@@ -90,6 +105,8 @@ impl IoDevice {
         (
             IoDevice {
                 sii,
+                input_bits: inputs,
+                output_bits: outputs,
                 in_bytes,
                 out_bytes,
                 handle: handle.clone(),
@@ -138,5 +155,15 @@ impl Application for IoDevice {
         if to < AlState::Op {
             self.handle.outputs.store(0, Ordering::SeqCst);
         }
+    }
+
+    fn snapshot(&self) -> AppSnapshot {
+        let mask = |bits: u8| u64::MAX.checked_shr(64 - u32::from(bits)).unwrap_or(0);
+        AppSnapshot::Io(IoSnapshot {
+            input_bits: self.input_bits,
+            output_bits: self.output_bits,
+            inputs: self.handle.inputs.load(Ordering::SeqCst) & mask(self.input_bits),
+            outputs: self.handle.outputs.load(Ordering::SeqCst),
+        })
     }
 }

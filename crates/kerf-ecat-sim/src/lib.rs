@@ -13,11 +13,57 @@
 //! where n counts the drives (or the I/O subdevices) from 0. The drives come first on the
 //! line, then the I/O subdevices. Each I/O subdevice has 8 inputs and 8 outputs.
 //!
-//! The binary's control for tests: `--refuse-safe-op P` makes the subdevice at position P
-//! refuse SAFE-OP with AL status code 0x001D; on standard input, `mute` / `unmute` (stop
-//! and resume answering, a pulled cable), `fault P CODE` (a drive fault with that error
-//! code), `inputs N BITS` (an I/O subdevice's inputs). Every output SyncManager enables the
-//! process-data watchdog (ESC defaults: divider 0x09C2 = 100 µs, 0x0420 = 1000, 100 ms).
+//! # The binary's control for tests
+//!
+//! Options: `--refuse-safe-op P[:CODE]` (repeatable) makes the subdevice at position P
+//! refuse PRE-OP → SAFE-OP with AL status code CODE (hexadecimal, `0x` optional; 0x001D,
+//! invalid output configuration, by default): its AL status stays PRE-OP with the error
+//! indicator (0x0130 = 0x12) and 0x0134 holds CODE ([`SafeOpRefusal`]); `--dc-drift-ppm
+//! X` (below).
+//!
+//! The process-data watchdog: every output SyncManager enables it (ESC defaults: divider
+//! 0x09C2 = 100 µs, 0x0420 = 1000, so 100 ms; the MainDevice may change them). When no
+//! output write arrives for that long in OP, the subdevice drops to SAFE-OP with the
+//! error indicator and AL status code 0x001B (0x0130 = 0x14), a drive stops its motor by
+//! its own quick stop and rests in Switch on disabled, an I/O subdevice clears its
+//! outputs. The MainDevice recovers it by writing AL control 0x0120: the acknowledge bit
+//! 0x10 clears the indicator and the code, and the state bits of the same write are acted
+//! on, so 0x14 (acknowledge, stay in SAFE-OP) then 0x08, or 0x18 at once, return it to OP
+//! (see [`al::Al::request`]); the watchdog counts anew from OP. The drive behind is then
+//! in Switch on disabled (or Fault, if it had one), and its controlword enables it again
+//! where it stopped. Without the acknowledge bit, requests are ignored while the
+//! indicator is set.
+//!
+//! Standard input, one command a line, P a ring position (0 first) and N decimal, CODE
+//! and BITS decimal or `0x` hex:
+//!
+//! | command         | what it does                                                        |
+//! |-----------------|---------------------------------------------------------------------|
+//! | `mute`          | stop answering frames (a pulled cable)                              |
+//! | `unmute`        | answer again                                                        |
+//! | `fault P CODE`  | the drive at P trips a fault with error code CODE (0x603F)          |
+//! | `stall P`       | the drive at P's motor jams (see [`drive`]): position stays, velocity 0, following error grows with the target, statusword bit 13 beyond the window; no fault of its own |
+//! | `free P`        | it turns again                                                      |
+//! | `inputs N BITS` | the N-th I/O subdevice's (0 first) input bits                       |
+//! | `state`         | one line per subdevice on standard output, flushed ([`report`])     |
+//!
+//! Commands are carried out in order, between frames; a refused one is reported on
+//! standard error. Standard output carries nothing but the answers to `state`, e.g.
+//!
+//! ```text
+//! subdevice 0 kind=drive al=OP al_error=0 al_code=0x0000 watchdog_trips=0 cia402=operation_enabled statusword=0x1237 error_code=0x0000 position_counts=4000 velocity_counts_s=0 following_error_counts=0 stalled=0 stopped_ms=-
+//! subdevice 1 kind=io al=OP al_error=0 al_code=0x0000 watchdog_trips=0 inputs=0x5A outputs=0x00
+//! ```
+//!
+//! Distributed clocks: every subdevice has a 64-bit DC. Their local clocks start 0.5 ms
+//! apart (the drives at 0, 1, 2 ms…, the I/O subdevices at 0.5, 1.5 ms… after the host's
+//! time at start) and run from one oscillator for the whole line, which
+//! `--dc-drift-ppm X` ([`NetworkSpec::dc_drift_ppm`]) makes run X parts per million fast
+//! (negative: slow) against the host's CLOCK_MONOTONIC: with X = 50 the reference clock's
+//! system time (0x0910) gains 50 µs per second of host time. The subdevices drift
+//! together, so the MainDevice's drift control keeps them on the reference while the
+//! reference drifts against the host, as a real line's reference clock does. The
+//! process-data watchdog and the drives' own quick stop keep the host's time.
 #![deny(unsafe_code)]
 
 pub mod al;
@@ -29,11 +75,13 @@ pub mod frame;
 pub mod io;
 pub mod network;
 pub mod od;
+pub mod report;
 pub mod sii;
 pub mod socket;
 
 use kerf_drive::sim::SimConfig;
 
+use crate::dc::DcClock;
 use crate::drive::DriveDevice;
 use crate::esc::Esc;
 use crate::io::{IoDevice, IoHandle};
@@ -59,6 +107,18 @@ pub const IO_NAME: &str = "Kerf digital I/O";
 /// Input and output bits of an I/O subdevice.
 pub const IO_BITS: u8 = 8;
 
+/// A subdevice that refuses PRE-OP → SAFE-OP: it stays in PRE-OP with the AL status
+/// error indicator set and this AL status code (0x0134), as a drive does whose
+/// configuration does not suit it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SafeOpRefusal {
+    /// Its position on the line (0 first).
+    pub position: u16,
+    /// The AL status code it answers with (0x001D, invalid output configuration, by
+    /// default: [`al::CODE_INVALID_OUTPUT_CONFIG`]).
+    pub al_status_code: u16,
+}
+
 /// What to emulate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NetworkSpec {
@@ -76,9 +136,12 @@ pub struct NetworkSpec {
     pub revision: u32,
     /// The drives' servo model.
     pub sim: SimConfig,
-    /// Positions (0 first) whose subdevice refuses SAFE-OP with AL status code 0x001D
-    /// (invalid output configuration).
-    pub refuse_safe_op: Vec<u16>,
+    /// Subdevices that refuse PRE-OP → SAFE-OP, each with its AL status code.
+    pub refuse_safe_op: Vec<SafeOpRefusal>,
+    /// The line's oscillator runs this many parts per million fast against the host's
+    /// monotonic time (negative: slow): every subdevice's local clock advances
+    /// `1 + dc_drift_ppm · 10⁻⁶` ns per host ns (see [`dc::oscillator_ns`]).
+    pub dc_drift_ppm: f64,
 }
 
 impl Default for NetworkSpec {
@@ -92,6 +155,7 @@ impl Default for NetworkSpec {
             revision: REVISION,
             sim: SimConfig::default(),
             refuse_safe_op: Vec::new(),
+            dc_drift_ppm: 0.0,
         }
     }
 }
@@ -108,7 +172,8 @@ pub fn build(spec: &NetworkSpec) -> (Network, Vec<IoHandle>) {
             serial: DRIVE_SERIAL_BASE + n,
         };
         let app = DriveDevice::new(identity, DRIVE_NAME, spec.sim);
-        escs.push(Esc::new(Box::new(app), u64::from(n) * 1_000_000));
+        let clock = DcClock::new(u64::from(n) * 1_000_000, spec.dc_drift_ppm);
+        escs.push(Esc::new(Box::new(app), clock));
     }
     for n in 0..u32::from(spec.io) {
         let identity = Identity {
@@ -118,12 +183,13 @@ pub fn build(spec: &NetworkSpec) -> (Network, Vec<IoHandle>) {
             serial: IO_SERIAL_BASE + n,
         };
         let (app, handle) = IoDevice::new(identity, IO_NAME, IO_BITS, IO_BITS);
-        escs.push(Esc::new(Box::new(app), 500_000 + u64::from(n) * 1_000_000));
+        let clock = DcClock::new(500_000 + u64::from(n) * 1_000_000, spec.dc_drift_ppm);
+        escs.push(Esc::new(Box::new(app), clock));
         handles.push(handle);
     }
-    for &position in &spec.refuse_safe_op {
-        if let Some(esc) = escs.get_mut(usize::from(position)) {
-            esc.refuse(al::AlState::SafeOp, al::CODE_INVALID_OUTPUT_CONFIG);
+    for refusal in &spec.refuse_safe_op {
+        if let Some(esc) = escs.get_mut(usize::from(refusal.position)) {
+            esc.refuse(al::AlState::SafeOp, refusal.al_status_code);
         }
     }
     (Network::new(escs), handles)

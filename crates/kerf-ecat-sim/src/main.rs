@@ -1,22 +1,24 @@
 //! `kerf-ecat-sim`: the emulated EtherCAT network on a Linux interface. See the library's
 //! documentation for the default identities.
 //!
-//! Control on standard input, one command per line:
-//! - `mute` stops answering frames (a pulled cable), `unmute` answers again;
-//! - `fault P CODE` trips a fault with error code CODE (e.g. 0x2310) in the drive at
-//!   position P (0 first);
-//! - `inputs N BITS` sets the input bits of the N-th I/O subdevice (0 first).
+//! Control on standard input, one command per line (see `--help` and the library's
+//! documentation): `mute`, `unmute`, `fault P CODE`, `stall P`, `free P`,
+//! `inputs N BITS`, `state`. Standard output carries only the answers to `state`
+//! ([`kerf_ecat_sim::report`]); everything else goes to standard error.
 //!
 //! SIGTERM or SIGINT ends it cleanly.
 
-use std::io::BufRead;
+use std::io::{BufRead, Write};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::Parser;
+use kerf_ecat_sim::io::IoHandle;
+use kerf_ecat_sim::network::Network;
+use kerf_ecat_sim::report;
 use kerf_ecat_sim::socket::RawSocket;
-use kerf_ecat_sim::{NetworkSpec, build};
+use kerf_ecat_sim::{NetworkSpec, SafeOpRefusal, build};
 
 fn parse_u32(text: &str) -> Result<u32, String> {
     let parsed = match text.strip_prefix("0x").or_else(|| text.strip_prefix("0X")) {
@@ -26,15 +28,63 @@ fn parse_u32(text: &str) -> Result<u32, String> {
     parsed.map_err(|e| format!("{text:?} is not a 32-bit number: {e}"))
 }
 
+/// `P` or `P:CODE`, CODE in hexadecimal (`0x` optional), 0x001D by default.
+fn parse_refusal(text: &str) -> Result<SafeOpRefusal, String> {
+    let (position, code) = match text.split_once(':') {
+        Some((position, code)) => {
+            let hex = code.strip_prefix("0x").or_else(|| code.strip_prefix("0X"));
+            let code = u16::from_str_radix(hex.unwrap_or(code), 16)
+                .map_err(|e| format!("AL status code {code:?} is not 4 hex digits: {e}"))?;
+            (position, code)
+        }
+        None => (text, kerf_ecat_sim::al::CODE_INVALID_OUTPUT_CONFIG),
+    };
+    let position = position
+        .parse()
+        .map_err(|e| format!("position {position:?}: {e}"))?;
+    Ok(SafeOpRefusal {
+        position,
+        al_status_code: code,
+    })
+}
+
 /// Emulated EtherCAT network: CiA 402 drives, then digital I/O subdevices, answering
-/// EtherCAT frames on INTERFACE. Defaults: vendor id 0x00004B52; drives product code
-/// 0x00000402, serials 0x1001, 0x1002, …, name "Kerf CiA402 drive"; I/O product code
-/// 0x00000010, serials 0x2001, …, name "Kerf digital I/O", 8 inputs and 8 outputs;
-/// revision 0x00010000. Standard input, one command a line: "mute" stops answering,
-/// "unmute" answers again, "fault P CODE" trips a fault in the drive at position P,
-/// "inputs N BITS" sets the N-th I/O subdevice's input bits.
+/// EtherCAT frames on INTERFACE.
+///
+/// Defaults: vendor id 0x00004B52; drives product code 0x00000402, serials 0x1001,
+/// 0x1002, …, name "Kerf CiA402 drive"; I/O product code 0x00000010, serials 0x2001, …,
+/// name "Kerf digital I/O", 8 inputs and 8 outputs; revision 0x00010000.
+///
+/// Standard input, one command a line (P: ring position, 0 first, and N decimal; CODE
+/// and BITS decimal or 0x hex):
+///   mute            stop answering frames (a pulled cable)
+///   unmute          answer again
+///   fault P CODE    trip a fault with error code CODE (0x603F) in the drive at P
+///   stall P         jam the motor of the drive at P: it stays where it is while the
+///                   target moves on, so the following error (0x60F4) grows and
+///                   statusword bit 13 is set beyond the 1000-count window; velocity 0;
+///                   no fault of its own
+///   free P          let it turn again (enabled under a large following error it pulls
+///                   to the target and may trip overcurrent 0x2310)
+///   inputs N BITS   set the input bits of the N-th I/O subdevice (0 first)
+///   state           print one line per subdevice to standard output, e.g.
+///     subdevice 0 kind=drive al=OP al_error=0 al_code=0x0000 watchdog_trips=0
+///       cia402=operation_enabled statusword=0x1237 error_code=0x0000 position_counts=123
+///       velocity_counts_s=0 following_error_counts=0 stalled=0 stopped_ms=-
+///     subdevice 1 kind=io al=SAFE-OP al_error=1 al_code=0x001B watchdog_trips=1
+///       inputs=0xA5 outputs=0x00
+///                   (each on one line). stopped_ms: from the last process-data watchdog
+///                   expiry to the motor at rest by the drive's quick stop, model time,
+///                   "-" until then. Nothing else is ever printed to standard output;
+///                   messages go to standard error.
+///
+/// Process-data watchdog (100 ms unless the MainDevice sets another): without output
+/// writes in OP, a subdevice drops to SAFE-OP with the error indicator and AL status code
+/// 0x001B, and a drive stops itself by its quick stop. AL control 0x0120 = 0x14
+/// (acknowledge) then 0x08, or 0x18 at once, returns it to OP; its drive is then in
+/// Switch on disabled and its controlword enables it again.
 #[derive(Debug, Parser)]
-#[command(name = "kerf-ecat-sim", version)]
+#[command(name = "kerf-ecat-sim", version, verbatim_doc_comment)]
 struct Args {
     /// Network interface to answer on.
     #[arg(long)]
@@ -57,18 +107,32 @@ struct Args {
     /// Revision of every subdevice.
     #[arg(long, value_parser = parse_u32, default_value = "0x00010000")]
     revision: u32,
-    /// The subdevice at this position (0 first; repeatable) refuses SAFE-OP with AL status
-    /// code 0x001D, invalid output configuration.
-    #[arg(long, value_name = "POSITION")]
-    refuse_safe_op: Vec<u16>,
+    /// The subdevice at POSITION (0 first; repeatable) refuses PRE-OP -> SAFE-OP with AL
+    /// status code CODE (hexadecimal, 0x optional; default 0x001D, invalid output
+    /// configuration): it stays in PRE-OP with the error indicator, 0x0134 = CODE.
+    #[arg(long, value_name = "POSITION[:CODE]", value_parser = parse_refusal)]
+    refuse_safe_op: Vec<SafeOpRefusal>,
+    /// The line's one oscillator runs PPM parts per million fast against the host's
+    /// CLOCK_MONOTONIC (negative: slow; at most 10000 either way). Every subdevice's
+    /// local clock, and so the reference clock's system time (0x0910), gains PPM µs per
+    /// second on the host; the subdevices do not drift against each other.
+    #[arg(
+        long,
+        value_name = "PPM",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    dc_drift_ppm: f64,
 }
 
-/// Carries out one control command from standard input.
+/// Carries out one control command from standard input; the answer to `state` goes to
+/// `out`.
 fn control(
     command: &str,
-    network: &mut kerf_ecat_sim::network::Network,
-    handles: &[kerf_ecat_sim::io::IoHandle],
+    network: &mut Network,
+    handles: &[IoHandle],
     muted: &mut bool,
+    out: &mut impl Write,
 ) -> Result<(), String> {
     let words: Vec<&str> = command.split_whitespace().collect();
     let index = |text: &str| text.parse::<usize>().map_err(|e| format!("{text:?}: {e}"));
@@ -81,15 +145,29 @@ fn control(
                 return Err(format!("no drive at position {position}"));
             }
         }
+        [verb @ ("stall" | "free"), position] => {
+            if !network.set_stalled(index(position)?, *verb == "stall") {
+                return Err(format!("no drive at position {position}"));
+            }
+        }
         ["inputs", n, bits] => {
             let handle = handles
                 .get(index(n)?)
                 .ok_or_else(|| format!("no I/O subdevice number {n}"))?;
             handle.set_inputs(u64::from(parse_u32(bits)?));
         }
+        ["state"] => {
+            let mut text = String::new();
+            report::write_state(&mut text, network).map_err(|e| e.to_string())?;
+            out.write_all(text.as_bytes())
+                .and_then(|()| out.flush())
+                .map_err(|e| format!("writing to standard output: {e}"))?;
+        }
         _ => {
             return Err(
-                "unknown command (mute, unmute, fault POSITION CODE, inputs N BITS)".into(),
+                "unknown command (mute, unmute, fault POSITION CODE, stall POSITION, \
+                 free POSITION, inputs N BITS, state)"
+                    .into(),
             );
         }
     }
@@ -102,9 +180,19 @@ fn main() -> anyhow::Result<()> {
     if let Some(bad) = args
         .refuse_safe_op
         .iter()
-        .find(|p| usize::from(**p) >= count)
+        .find(|r| usize::from(r.position) >= count)
     {
-        anyhow::bail!("--refuse-safe-op {bad}: the line has only {count} subdevice(s)");
+        anyhow::bail!(
+            "--refuse-safe-op {}: the line has only {count} subdevice(s)",
+            bad.position
+        );
+    }
+    if args.dc_drift_ppm.is_nan() || args.dc_drift_ppm.abs() > kerf_ecat_sim::dc::MAX_DRIFT_PPM {
+        anyhow::bail!(
+            "--dc-drift-ppm {}: the drift must be a number from -{max} to {max}",
+            args.dc_drift_ppm,
+            max = kerf_ecat_sim::dc::MAX_DRIFT_PPM
+        );
     }
     let spec = NetworkSpec {
         drives: args.drives,
@@ -114,6 +202,7 @@ fn main() -> anyhow::Result<()> {
         io_product_code: args.io_product_code,
         revision: args.revision,
         refuse_safe_op: args.refuse_safe_op.clone(),
+        dc_drift_ppm: args.dc_drift_ppm,
         ..NetworkSpec::default()
     };
     let (mut network, handles) = build(&spec);
@@ -136,14 +225,15 @@ fn main() -> anyhow::Result<()> {
     let mut muted = false;
     let mut buffer = vec![0u8; 2048];
     while signals.stop_requested().is_none() {
+        let now_ns = start.elapsed().as_nanos() as u64;
+        network.tick(now_ns);
         while let Ok(command) = control_rx.try_recv() {
-            match control(&command, &mut network, &handles, &mut muted) {
+            let mut stdout = std::io::stdout().lock();
+            match control(&command, &mut network, &handles, &mut muted, &mut stdout) {
                 Ok(()) => eprintln!("kerf-ecat-sim: done: {command}"),
                 Err(e) => eprintln!("kerf-ecat-sim: {command:?} refused: {e}"),
             }
         }
-        let now_ns = start.elapsed().as_nanos() as u64;
-        network.tick(now_ns);
         let Some(len) = socket.recv(&mut buffer).context("receiving")? else {
             continue;
         };
@@ -161,4 +251,25 @@ fn main() -> anyhow::Result<()> {
     }
     eprintln!("kerf-ecat-sim: stopped");
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_refusal_is_a_position_and_an_optional_hex_code() {
+        let refusal = |position, al_status_code| SafeOpRefusal {
+            position,
+            al_status_code,
+        };
+        assert_eq!(parse_refusal("2"), Ok(refusal(2, 0x001D)));
+        assert_eq!(parse_refusal("1:0x0035"), Ok(refusal(1, 0x0035)));
+        assert_eq!(parse_refusal("1:001E"), Ok(refusal(1, 0x001E)));
+        assert_eq!(parse_refusal("0:1b"), Ok(refusal(0, 0x001B)));
+        assert!(parse_refusal("x").is_err());
+        assert!(parse_refusal("1:").is_err());
+        assert!(parse_refusal("1:0x10000").is_err());
+        assert!(parse_refusal("1:zz").is_err());
+    }
 }

@@ -93,6 +93,14 @@ impl Network {
             .is_some_and(|esc| esc.app_mut().inject_fault(error_code))
     }
 
+    /// Jams (`stalled`) or frees the motor of the drive at `position`; false where there
+    /// is none or it has no motor (an I/O subdevice).
+    pub fn set_stalled(&mut self, position: usize, stalled: bool) -> bool {
+        self.escs
+            .get_mut(position)
+            .is_some_and(|esc| esc.app_mut().set_stalled(stalled))
+    }
+
     /// One loop turn for every subdevice (watchdogs).
     pub fn tick(&mut self, now_ns: u64) {
         for esc in &mut self.escs {
@@ -457,5 +465,181 @@ mod tests {
         network.tick(write_ns + 100_000_001);
         assert_eq!(network.escs()[0].al().status_word(), 0x14);
         assert_eq!(network.escs()[0].al().code(), 0x001B);
+        assert_eq!(network.escs()[0].watchdog_trips(), 1);
+        // Acknowledged (0x14) and asked for OP (0x08), 1 s later, with no output written
+        // since: back in OP, and the watchdog counts from there.
+        let back_ns = write_ns + 1_000_000_000;
+        for control in [0x14u8, 0x08] {
+            run_at(
+                &mut network,
+                back_ns,
+                &[(Command::Bwr, 0, 0, 0x0120, &[control, 0], 0)],
+            );
+        }
+        let out = run_at(
+            &mut network,
+            back_ns,
+            &[(Command::Brd, 0, 0, 0x0130, &[0; 6], 0)],
+        );
+        assert_eq!(out[0].3, vec![0x08, 0, 0, 0, 0, 0]);
+        network.tick(back_ns + 100_000_000);
+        assert_eq!(network.escs()[0].al().status_word(), 0x08);
+        network.tick(back_ns + 100_000_001);
+        assert_eq!(network.escs()[0].al().status_word(), 0x14);
+        assert_eq!(network.escs()[0].watchdog_trips(), 2);
+        // Acknowledge and OP in one write.
+        run_at(
+            &mut network,
+            back_ns + 200_000_000,
+            &[(Command::Bwr, 0, 0, 0x0120, &[0x18, 0], 0)],
+        );
+        assert_eq!(network.escs()[0].al().status_word(), 0x08);
+        assert_eq!(network.escs()[0].al().code(), 0);
+    }
+
+    #[test]
+    fn the_system_time_gains_the_oscillator_drift_on_the_host_time() {
+        let (mut network, _) = build(&NetworkSpec {
+            drives: 2,
+            dc_drift_ppm: 50.0,
+            ..NetworkSpec::default()
+        });
+        let read = |network: &mut Network, now_ns: u64, position: u16| {
+            let out = run_at(
+                network,
+                now_ns,
+                &[(
+                    Command::Aprd,
+                    0,
+                    0u16.wrapping_sub(position),
+                    0x0910,
+                    &[0; 8],
+                    0,
+                )],
+            );
+            u64::from_le_bytes(out[0].3.clone().try_into().unwrap())
+        };
+        // Over 2 s of host time every clock advances 2 s + 100 µs.
+        for position in [0, 1] {
+            let t0 = read(&mut network, 1_000_000_000, position);
+            let t1 = read(&mut network, 3_000_000_000, position);
+            assert_eq!(t1 - t0, 2_000_100_000, "subdevice {position}");
+        }
+    }
+
+    #[test]
+    fn a_written_system_time_shows_its_difference_in_0x092c() {
+        let mut network = line(2, 0);
+        let at_1 = 0u16.wrapping_sub(1);
+        let now_ns = 1_000_000;
+        // Subdevice 1's local clock starts 1 ms ahead: 2 ms at now. Delay 500 ns.
+        run_at(
+            &mut network,
+            now_ns,
+            &[(Command::Apwr, 0, at_1, 0x0928, &500u32.to_le_bytes(), 0)],
+        );
+        let difference = |network: &mut Network| {
+            let out = run_at(
+                network,
+                now_ns,
+                &[(Command::Aprd, 0, at_1, 0x092C, &[0; 4], 0)],
+            );
+            u32::from_le_bytes(out[0].3.clone().try_into().unwrap())
+        };
+        assert_eq!(difference(&mut network), 0, "nothing received yet");
+        // Received 2 ms + 1.3 µs, + 0.5 µs delay: 1.8 µs ahead of the own copy, which is
+        // smaller (bit 31). The loop corrects 1 µs of it.
+        let received = 2_001_300u64.to_le_bytes();
+        run_at(
+            &mut network,
+            now_ns,
+            &[(Command::Apwr, 0, at_1, 0x0910, &received, 0)],
+        );
+        assert_eq!(difference(&mut network), 0x8000_0000 | 1_800);
+        // Now the own copy is 2.001 ms; received 2 ms + 0.5 µs delay is 500 ns behind.
+        let received = 2_000_000u64.to_le_bytes();
+        run_at(
+            &mut network,
+            now_ns,
+            &[(Command::Apwr, 0, at_1, 0x0910, &received, 0)],
+        );
+        assert_eq!(difference(&mut network), 500);
+        // A 32-bit write compares the lower half: own 2.0005 ms, received 2.0005 ms + 0.5
+        // µs delay → 500 ns ahead.
+        let received = 2_000_500u32.to_le_bytes();
+        run_at(
+            &mut network,
+            now_ns,
+            &[(Command::Apwr, 0, at_1, 0x0910, &received, 0)],
+        );
+        assert_eq!(difference(&mut network), 0x8000_0000 | 500);
+        // The register is the ESC's: a write from the MainDevice does not change it.
+        run_at(
+            &mut network,
+            now_ns,
+            &[(Command::Apwr, 0, at_1, 0x092C, &[0; 4], 0)],
+        );
+        assert_eq!(difference(&mut network), 0x8000_0000 | 500);
+        // Subdevice 0 received nothing.
+        let out = run_at(
+            &mut network,
+            now_ns,
+            &[(Command::Aprd, 0, 0, 0x092C, &[0; 4], 0)],
+        );
+        assert_eq!(out[0].3, vec![0; 4]);
+    }
+
+    #[test]
+    fn a_refused_safe_op_stays_in_pre_op_with_the_error_and_its_code() {
+        let (mut network, _) = build(&NetworkSpec {
+            io: 2,
+            refuse_safe_op: vec![crate::SafeOpRefusal {
+                position: 1,
+                al_status_code: 0x0035,
+            }],
+            ..NetworkSpec::default()
+        });
+        // Subdevice 0's SyncManagers set as its EEPROM says; subdevice 1's too, but it
+        // refuses.
+        let sm = [
+            0x00, 0x0F, 1, 0, 0x44, 0, 1, 0, 0x00, 0x10, 1, 0, 0x00, 0, 1, 0,
+        ];
+        run(&mut network, &[(Command::Bwr, 0, 0, 0x0800, &sm, 0)]);
+        for control in [0x02u8, 0x04] {
+            run(
+                &mut network,
+                &[(Command::Bwr, 0, 0, 0x0120, &[control, 0], 0)],
+            );
+        }
+        let status = |network: &mut Network, position: u16| {
+            let out = run(
+                network,
+                &[(
+                    Command::Aprd,
+                    0,
+                    0u16.wrapping_sub(position),
+                    0x0130,
+                    &[0; 6],
+                    0,
+                )],
+            );
+            out[0].3.clone()
+        };
+        assert_eq!(status(&mut network, 0), vec![0x04, 0, 0, 0, 0, 0]);
+        // PRE-OP (2) with the error indicator (0x10), code 0x0035.
+        assert_eq!(status(&mut network, 1), vec![0x12, 0, 0, 0, 0x35, 0]);
+        // Asked again after an acknowledge, it refuses again.
+        run(
+            &mut network,
+            &[(
+                Command::Apwr,
+                0,
+                0u16.wrapping_sub(1),
+                0x0120,
+                &[0x14, 0],
+                0,
+            )],
+        );
+        assert_eq!(status(&mut network, 1), vec![0x12, 0, 0, 0, 0x35, 0]);
     }
 }

@@ -79,17 +79,18 @@ impl Od {
         }
     }
 
-    /// Writes an entry, checking access and length; `pre_op` tells whether the subdevice
-    /// is in PRE-OP.
-    pub fn write(
-        &mut self,
+    /// Whether a write of `len` bytes would be accepted, and if not the abort code: the
+    /// entry exists, may be written (`pre_op` tells whether the subdevice is in PRE-OP),
+    /// and is `len` bytes long.
+    pub fn check_write(
+        &self,
         index: u16,
         sub_index: u8,
-        value: &[u8],
+        len: usize,
         pre_op: bool,
     ) -> Result<(), u32> {
         self.read(index, sub_index)?;
-        let Some(entry) = self.entries.get_mut(&(index, sub_index)) else {
+        let Some(entry) = self.entries.get(&(index, sub_index)) else {
             return Err(ABORT_NO_OBJECT);
         };
         match entry.access {
@@ -97,10 +98,24 @@ impl Od {
             Access::PreOpOnly if !pre_op => return Err(ABORT_DEVICE_STATE),
             _ => {}
         }
-        if value.len() != entry.value.len() {
+        if len != entry.value.len() {
             return Err(ABORT_TYPE_MISMATCH);
         }
-        entry.value.copy_from_slice(value);
+        Ok(())
+    }
+
+    /// Writes an entry, checking access and length ([`Od::check_write`]).
+    pub fn write(
+        &mut self,
+        index: u16,
+        sub_index: u8,
+        value: &[u8],
+        pre_op: bool,
+    ) -> Result<(), u32> {
+        self.check_write(index, sub_index, value.len(), pre_op)?;
+        if let Some(entry) = self.entries.get_mut(&(index, sub_index)) {
+            entry.value.copy_from_slice(value);
+        }
         Ok(())
     }
 
@@ -148,6 +163,9 @@ mod tests {
         assert_eq!(od.write(0x1000, 0, &[0; 4], true), Err(0x0601_0002));
         assert_eq!(od.write(0x1C12, 1, &[0x01, 0x16], false), Err(0x0800_0022));
         assert_eq!(od.write(0x6060, 0, &[9, 0], true), Err(0x0607_0010));
+        assert_eq!(od.write(0x2000, 0, &[9], true), Err(0x0602_0000));
+        assert_eq!(od.write(0x1C12, 7, &[0, 0], true), Err(0x0609_0011));
+        assert_eq!(od.write(0x6060, 0, &[], true), Err(0x0607_0010));
         assert_eq!(od.write(0x6060, 0, &[9], false), Ok(()));
         assert_eq!(od.get_u32(0x6060, 0), 9);
     }

@@ -1,7 +1,6 @@
 //! ethercrab 0.7.1, unmodified, against the emulator over a veth pair in a private
 //! network namespace: discovery and identities, PRE-OP, SAFE-OP and OP with process data.
 
-#[allow(dead_code)]
 mod netns;
 
 use std::time::Duration;
@@ -93,7 +92,7 @@ fn identity_options_are_seen_by_ethercrab_and_a_refused_safe_op_names_its_code()
     let mut ns = Netns::new();
     ns.start_emulator(&[
         "--drives",
-        "2",
+        "3",
         "--vendor-id",
         "0x12345678",
         "--product-code",
@@ -102,6 +101,8 @@ fn identity_options_are_seen_by_ethercrab_and_a_refused_safe_op_names_its_code()
         "7",
         "--refuse-safe-op",
         "1",
+        "--refuse-safe-op",
+        "2:0x0035",
     ]);
     let (identities, op_result, codes) = ns.run_inside(|| {
         let (tx, rx, pdu_loop) = STORAGE_OPTIONS.try_split().expect("split once");
@@ -126,26 +127,31 @@ fn identity_options_are_seen_by_ethercrab_and_a_refused_safe_op_names_its_code()
         let op_result = block_on(group.into_op(&maindevice))
             .map(|_| ())
             .map_err(|e| format!("{e:?}"));
-        // Each subdevice's AL status code, read as ethercrab's register read gives it.
-        let codes: Vec<u16> = addresses
+        // Each subdevice's AL status and code, read as ethercrab's register read gives
+        // them.
+        let codes: Vec<(u16, u16)> = addresses
             .iter()
             .map(|address| {
-                block_on(ethercrab::Command::fprd(*address, 0x0134).receive::<u16>(&maindevice))
-                    .expect("AL status code")
+                let read = |register: u16| {
+                    block_on(
+                        ethercrab::Command::fprd(*address, register).receive::<u16>(&maindevice),
+                    )
+                    .unwrap_or_else(|e| panic!("register {register:#06x}: {e}"))
+                };
+                (read(0x0130), read(0x0134))
             })
             .collect();
         (identities, op_result, codes)
     });
-    assert_eq!(
-        identities,
-        vec![(0x1234_5678, 0xCAFE, 7), (0x1234_5678, 0xCAFE, 7)]
-    );
+    assert_eq!(identities, vec![(0x1234_5678, 0xCAFE, 7); 3]);
     assert_eq!(
         op_result,
         Err("Timeout(StateTransition)".to_owned()),
         "OP must be refused"
     );
-    // The drive at position 1 refused SAFE-OP: 0x001D, invalid output configuration.
-    assert_eq!(codes, vec![0x0000, 0x001D]);
+    // The drive at 0 went to SAFE-OP (4); the drive at 1 refused it with the default
+    // 0x001D, invalid output configuration, the one at 2 with the code asked for, 0x0035
+    // (invalid sync cycle time): both stayed in PRE-OP with the error indicator (0x12).
+    assert_eq!(codes, vec![(0x04, 0x0000), (0x12, 0x001D), (0x12, 0x0035)]);
     assert!(ns.stop_emulator(), "the emulator exits cleanly on SIGTERM");
 }

@@ -1,12 +1,12 @@
 //! Distributed clocks through ethercrab 0.7.1: the clocks' offsets written at
 //! initialisation make every subdevice's system time agree with the reference's (their
 //! local clocks start 0.5–3 ms apart), `configure_dc_sync` programs SYNC0, and `tx_rx_dc`
-//! runs cyclically with the reference's system time.
+//! runs cyclically with the reference's system time; with `--dc-drift-ppm`, the
+//! reference's system time gains on the host's monotonic clock at that rate.
 
-#[allow(dead_code)]
 mod netns;
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use ethercrab::subdevice_group::DcConfiguration;
 use ethercrab::{
@@ -31,6 +31,10 @@ struct Seen {
     cycle_times: Vec<u64>,
     /// next_cycle_wait of each cycle, ns.
     waits_ns: Vec<u64>,
+    /// System time difference (0x092C) of each subdevice after the cycles.
+    differences: Vec<u32>,
+    /// The last subdevice's 0x092C after a write of its own system time + 10 ms.
+    difference_ahead: u32,
 }
 
 fn run() -> Seen {
@@ -92,6 +96,20 @@ fn run() -> Seen {
         seen.waits_ns
             .push(response.extra.next_cycle_wait.as_nanos() as u64);
     }
+    for sd in group.iter(&md) {
+        let difference = block_on(sd.register_read::<u32>(0x092Cu16));
+        seen.differences
+            .push(difference.expect("system time difference"));
+    }
+    let last = group
+        .subdevice(&md, group.len() - 1)
+        .expect("last subdevice");
+    let own =
+        block_on(last.register_read::<u64>(RegisterAddress::DcSystemTime)).expect("system time");
+    block_on(last.register_write(RegisterAddress::DcSystemTime, own + 10_000_000))
+        .expect("write system time");
+    seen.difference_ahead =
+        block_on(last.register_read::<u32>(0x092Cu16)).expect("system time difference");
     seen
 }
 
@@ -126,6 +144,109 @@ fn ethercrab_aligns_the_clocks_and_runs_cyclic_exchanges_with_dc() {
         seen.waits_ns.iter().all(|w| *w <= SYNC0_PERIOD_NS),
         "{:?}",
         seen.waits_ns
+    );
+    // The subdevices behind the reference receive its system time in every cycle's FRMW
+    // and have followed it: their system time difference (0x092C, bits 30:0 the
+    // magnitude) is within 100 ns. (The reference itself last received ethercrab's reset,
+    // a broadcast write of 0 to 0x0910, at initialisation.)
+    assert_eq!(seen.differences.len(), 4);
+    // A received time 10 ms ahead of the own copy (less the time between the read and the
+    // write, plus the delay): the own copy is smaller, bit 31.
+    let ahead = seen.difference_ahead;
+    assert!(
+        ahead & 0x8000_0000 != 0 && (5_000_000..=10_010_000).contains(&(ahead & 0x7FFF_FFFF)),
+        "0x092C after a write 10 ms ahead: {ahead:#010x}"
+    );
+    for (index, difference) in seen.differences.iter().enumerate().skip(1) {
+        assert!(
+            difference & 0x7FFF_FFFF <= 100,
+            "subdevice {index}: system time difference {difference:#010x}"
+        );
+    }
+    assert!(ns.stop_emulator(), "the emulator exits cleanly on SIGTERM");
+}
+
+static STORAGE_DRIFT: PduStorage<16, { PduStorage::element_size(1100) }> = PduStorage::new();
+
+/// The emulator's drift in the test below, ppm.
+const DRIFT_PPM: f64 = 500.0;
+/// Host time between the two reads.
+const DRIFT_INTERVAL: Duration = Duration::from_secs(2);
+/// The longest round trip of a read that is kept (a slower one is read again).
+const MAX_ROUND_TRIP: Duration = Duration::from_micros(300);
+
+/// A read of the reference's system time, with the host's time just before and just
+/// after it: (before, system time ns, after).
+type Sandwich = (Instant, u64, Instant);
+
+fn run_drift() -> (Sandwich, Sandwich) {
+    let (tx, rx, pdu_loop) = STORAGE_DRIFT.try_split().expect("split once");
+    let timeouts = Timeouts {
+        state_transition: Duration::from_secs(10),
+        pdu: Duration::from_millis(200),
+        eeprom: Duration::from_millis(500),
+        wait_loop_delay: Duration::from_millis(1),
+        mailbox_echo: Duration::from_millis(500),
+        mailbox_response: Duration::from_millis(1000),
+    };
+    let md = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
+    std::thread::spawn(move || {
+        let task = ethercrab::std::tx_rx_task(MAIN_IF, tx, rx).expect("TX/RX task");
+        let _ = block_on(task);
+    });
+    let group = block_on(md.init_single_group::<MAX_SUBDEVICES, PDI_LEN>(ethercat_now))
+        .expect("init to PRE-OP");
+    let reference = group.subdevice(&md, 0).expect("the reference clock");
+    let read = || -> Sandwich {
+        let mut fastest: Option<Sandwich> = None;
+        for _ in 0..50 {
+            let before = Instant::now();
+            let time = block_on(reference.register_read::<u64>(RegisterAddress::DcSystemTime))
+                .expect("system time");
+            let after = Instant::now();
+            if fastest.is_none_or(|(b, _, a)| after - before < a - b) {
+                fastest = Some((before, time, after));
+            }
+            if after - before <= MAX_ROUND_TRIP {
+                break;
+            }
+        }
+        fastest.expect("at least one read")
+    };
+    let first = read();
+    std::thread::sleep(DRIFT_INTERVAL);
+    let second = read();
+    (first, second)
+}
+
+#[test]
+fn the_reference_clock_gains_its_drift_on_the_host_monotonic_clock() {
+    let mut ns = Netns::new();
+    let drift = DRIFT_PPM.to_string();
+    ns.start_emulator(&["--drives", "2", "--dc-drift-ppm", &drift]);
+    let ((before1, time1, after1), (before2, time2, after2)) = ns.run_inside(run_drift);
+    let ns_of = |d: Duration| d.as_nanos() as f64;
+    // The two reads happened between these host intervals apart (both processes read the
+    // same CLOCK_MONOTONIC).
+    let shortest_ns = ns_of(before2 - after1);
+    let longest_ns = ns_of(after2 - before1);
+    let rate = 1.0 + DRIFT_PPM * 1e-6;
+    let elapsed_ns = (time2 - time1) as f64;
+    assert!(
+        shortest_ns * rate <= elapsed_ns && elapsed_ns <= longest_ns * rate,
+        "system time advanced {elapsed_ns} ns over {shortest_ns}..{longest_ns} ns of host \
+         time; at {DRIFT_PPM} ppm it should advance {}..{} ns",
+        shortest_ns * rate,
+        longest_ns * rate
+    );
+    // And the gain is more than the uncertainty of the host interval: the clock is fast,
+    // not merely within the reads' round trips of the host's time.
+    assert!(
+        elapsed_ns > longest_ns,
+        "system time advanced {elapsed_ns} ns, no more than the host's {longest_ns} ns \
+         (round trips {:?} and {:?})",
+        after1 - before1,
+        after2 - before2
     );
     assert!(ns.stop_emulator(), "the emulator exits cleanly on SIGTERM");
 }

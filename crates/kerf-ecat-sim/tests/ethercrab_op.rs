@@ -1,6 +1,7 @@
 //! ethercrab 0.7.1, unmodified, takes the emulator to OP: cyclic process data with the
-//! working counter ETG.1000 gives, SDO read and write with an abort code seen by
-//! ethercrab, a CiA 402 drive enabled through its process data and moved.
+//! working counter ETG.1000 gives, SDO read and write with the abort codes of CiA 301
+//! (object or subindex missing, read-only, length mismatch) as ethercrab reports them, a
+//! CiA 402 drive enabled through its process data and moved.
 
 mod netns;
 
@@ -24,8 +25,8 @@ struct Seen {
     io_sizes: Vec<(usize, usize)>,
     sdo_vendor: u32,
     sdo_mode: i8,
-    abort_missing: u32,
-    abort_read_only: u32,
+    /// Each abort as (code, address, subindex, Display text).
+    aborts: Vec<(u32, u16, u8, String)>,
     statusword: u16,
     position: i32,
     io_input_byte: u8,
@@ -55,12 +56,41 @@ fn run(mut control: std::process::ChildStdin) -> Seen {
         seen.sdo_vendor = block_on(drive.sdo_read::<u32>(0x1018, 1)).expect("read 0x1018:01");
         block_on(drive.sdo_write(0x6060, 0, 8i8)).expect("write 0x6060");
         seen.sdo_mode = block_on(drive.sdo_read::<i8>(0x6061, 0)).expect("read 0x6061");
-        let code = |e: Error| match e {
-            Error::Mailbox(MailboxError::Aborted { code, .. }) => u32::from(code),
+        let abort = |e: Error| match e {
+            Error::Mailbox(MailboxError::Aborted {
+                code,
+                address,
+                sub_index,
+            }) => (u32::from(code), address, sub_index, e.to_string()),
             other => panic!("expected an SDO abort, got {other:?}"),
         };
-        seen.abort_missing = code(block_on(drive.sdo_read::<u32>(0x2345, 0)).unwrap_err());
-        seen.abort_read_only = code(block_on(drive.sdo_write(0x6041, 0, 1u16)).unwrap_err());
+        // An object that does not exist, read and written.
+        seen.aborts.push(abort(
+            block_on(drive.sdo_read::<u32>(0x2345, 0)).unwrap_err(),
+        ));
+        seen.aborts.push(abort(
+            block_on(drive.sdo_write(0x2345, 0, 1u8)).unwrap_err(),
+        ));
+        // A subindex that does not exist in an object that does (0x1018 has 1..=4).
+        seen.aborts.push(abort(
+            block_on(drive.sdo_read::<u32>(0x1018, 9)).unwrap_err(),
+        ));
+        seen.aborts.push(abort(
+            block_on(drive.sdo_write(0x1018, 9, 1u32)).unwrap_err(),
+        ));
+        // A read-only object written.
+        seen.aborts.push(abort(
+            block_on(drive.sdo_write(0x6041, 0, 1u16)).unwrap_err(),
+        ));
+        // Four bytes written to the 1-byte mode of operation.
+        seen.aborts.push(abort(
+            block_on(drive.sdo_write(0x6060, 0, 8u32)).unwrap_err(),
+        ));
+        // None of them changed anything.
+        assert_eq!(
+            block_on(drive.sdo_read::<i8>(0x6061, 0)).expect("0x6061"),
+            8
+        );
     }
     let group = block_on(group.into_op(&maindevice)).expect("PRE-OP -> OP");
     for sd in group.iter(&maindevice) {
@@ -123,8 +153,25 @@ fn ethercrab_reaches_op_exchanges_process_data_serves_sdos_and_moves_a_drive() {
     assert_eq!(seen.io_sizes, vec![(6, 20), (6, 20), (6, 20), (1, 1)]);
     assert_eq!(seen.sdo_vendor, 0x0000_4B52);
     assert_eq!(seen.sdo_mode, 8);
-    assert_eq!(seen.abort_missing, 0x0602_0000);
-    assert_eq!(seen.abort_read_only, 0x0601_0002);
+    let missing = "The object does not exist in the object directory";
+    let no_sub = "Subindex does not exist";
+    let read_only = "Attempt to write to a read only object";
+    let length = "Data type does not match, length of service parameter does not match";
+    let expected: Vec<(u32, u16, u8, String)> = [
+        (0x0602_0000, 0x2345, 0, missing),
+        (0x0602_0000, 0x2345, 0, missing),
+        (0x0609_0011, 0x1018, 9, no_sub),
+        (0x0609_0011, 0x1018, 9, no_sub),
+        (0x0601_0002, 0x6041, 0, read_only),
+        (0x0607_0010, 0x6060, 0, length),
+    ]
+    .into_iter()
+    .map(|(code, index, sub, words)| {
+        let text = format!("mailbox: {index:#06x}:{sub} aborted: {code:#010x}: {words}");
+        (code, index, sub, text)
+    })
+    .collect();
+    assert_eq!(seen.aborts, expected);
     // Operation enabled per CiA 402's decoding table: bits 0-3, 5, 6 = 0x27.
     assert_eq!(
         seen.statusword & 0x006F,

@@ -2,7 +2,6 @@
 //! exchanges with the emulator over veth are counted by a counting allocator on the
 //! exchanging thread (its own test binary, so that nothing else installs an allocator).
 
-#[allow(dead_code)] // Each test binary uses part of the fixture.
 mod netns;
 
 use kerf_config::ethercat::{DriveMode, EthercatConfig, EthercatDrive, EthercatIo, Identity, Pdo};

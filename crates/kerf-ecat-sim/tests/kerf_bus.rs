@@ -2,7 +2,6 @@
 //! pair in a private network namespace: the scan, the identity check, and bring-up.
 //! Expected identities are the emulator's documented defaults, written out here.
 
-#[allow(dead_code)] // Each test binary uses part of the fixture.
 mod netns;
 
 use kerf_config::ethercat::{DriveMode, EthercatConfig, EthercatDrive, EthercatIo, Identity, Pdo};

@@ -1,9 +1,13 @@
 //! Test fixture: a private network namespace with a veth pair (`ecatA` for the
-//! MainDevice, `ecatB` for the emulator), the emulator process running in it, and a way to
-//! run a thread inside it. Everything is removed on drop, even after a failed assertion.
+//! MainDevice, `ecatB` for the emulator), the emulator process running in it, its control
+//! (standard input, and the answers to `state` on its standard output), and a way to run
+//! a thread inside it. Everything is removed on drop, even after a failed assertion.
+// Each test binary uses part of the fixture.
+#![allow(dead_code)]
 
-use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
+use std::io::{BufRead, BufReader, Write};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::{self, Receiver};
 use std::time::{Duration, Instant};
 
 /// Interface of the MainDevice's side.
@@ -15,16 +19,82 @@ pub use kerf_testkit::netns::NETWORK_IF as SIM_IF;
 pub struct Netns {
     /// The emulator, stopped on drop before the namespace is removed.
     emulator: Option<Child>,
+    /// The lines of the emulator's standard output.
+    emulator_stdout: Option<Receiver<String>>,
     ns: kerf_testkit::netns::Netns,
+}
+
+/// The emulator's control: commands to its standard input, the answers to `state` from
+/// its standard output.
+pub struct Control {
+    stdin: ChildStdin,
+    stdout: Receiver<String>,
+}
+
+impl Control {
+    /// Sends one command line.
+    pub fn send(&mut self, command: &str) {
+        writeln!(self.stdin, "{command}").expect("the emulator's standard input");
+    }
+
+    /// Sends `state` and returns its answer, `count` lines (the subdevices on the line);
+    /// since the emulator handles its commands in order, the commands sent before have
+    /// been carried out.
+    pub fn state(&mut self, count: usize) -> Vec<String> {
+        self.send("state");
+        let deadline = Instant::now() + Duration::from_secs(10);
+        (0..count)
+            .map(|n| {
+                let left = deadline.saturating_duration_since(Instant::now());
+                self.stdout
+                    .recv_timeout(left)
+                    .unwrap_or_else(|e| panic!("line {n} of the answer to `state`: {e}"))
+            })
+            .collect()
+    }
+}
+
+/// The value of `key` in a `state` line (`key=value` fields separated by spaces).
+pub fn field<'a>(line: &'a str, key: &str) -> &'a str {
+    line.split(' ')
+        .find_map(|word| word.strip_prefix(key)?.strip_prefix('='))
+        .unwrap_or_else(|| panic!("no {key}= in {line:?}"))
 }
 
 impl Netns {
     /// Creates the namespace and the veth pair; panics with the reason where it cannot
     /// (this test needs root and `ip`: it fails rather than passing silently).
     pub fn new() -> Netns {
-        Netns {
+        let ns = Netns {
             emulator: None,
+            emulator_stdout: None,
             ns: kerf_testkit::netns::Netns::new("kerf-ecs"),
+        };
+        ns.wait_until_up();
+        ns
+    }
+
+    /// Waits until both ends of the veth pair are operationally up: the kernel marks
+    /// them so, and starts their transmit queues, a moment after they are set up (later
+    /// on a busy machine), and frames sent before are dropped.
+    fn wait_until_up(&self) {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        for interface in [MAIN_IF, SIM_IF] {
+            loop {
+                let out = Command::new("ip")
+                    .args(["-n", self.ns.name(), "-o", "link", "show", "dev", interface])
+                    .output()
+                    .expect("run ip link show");
+                let text = String::from_utf8_lossy(&out.stdout);
+                if text.contains("state UP") {
+                    break;
+                }
+                assert!(
+                    Instant::now() < deadline,
+                    "{interface} is not up after 10 s: {text}"
+                );
+                std::thread::sleep(Duration::from_millis(10));
+            }
         }
     }
 
@@ -37,12 +107,22 @@ impl Netns {
             .args(["--interface", SIM_IF])
             .args(args)
             .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
             .expect("cannot start the emulator");
         let stderr = child.stderr.take().expect("piped stderr");
+        let stdout = child.stdout.take().expect("piped stdout");
+        let (out_tx, out_rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                eprintln!("[emulator stdout] {line}");
+                let _ = out_tx.send(line);
+            }
+        });
+        self.emulator_stdout = Some(out_rx);
         self.emulator = Some(child);
-        let (tx, rx) = std::sync::mpsc::channel();
+        let (tx, rx) = mpsc::channel();
         std::thread::spawn(move || {
             for line in BufReader::new(stderr).lines().map_while(Result::ok) {
                 eprintln!("[emulator] {line}");
@@ -61,11 +141,21 @@ impl Netns {
     }
 
     /// Takes the emulator's standard input (its control commands).
-    pub fn take_emulator_stdin(&mut self) -> std::process::ChildStdin {
+    pub fn take_emulator_stdin(&mut self) -> ChildStdin {
         self.emulator
             .as_mut()
             .and_then(|c| c.stdin.take())
             .expect("emulator running, stdin not taken yet")
+    }
+
+    /// Takes the emulator's control: its standard input and output.
+    pub fn take_emulator_control(&mut self) -> Control {
+        let stdin = self.take_emulator_stdin();
+        let stdout = self
+            .emulator_stdout
+            .take()
+            .expect("emulator running, stdout not taken yet");
+        Control { stdin, stdout }
     }
 
     /// Runs `f` on a new thread that has joined the namespace (threads it spawns are in
