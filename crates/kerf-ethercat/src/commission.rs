@@ -3,7 +3,10 @@
 //! state, distributed-clock support, mailbox protocols and (over CoE) its PDO
 //! assignment and mapping; and SDO reads and writes on one subdevice.
 //!
-//! Each runs on the calling thread and leaves the bus in PRE-OP.
+//! Each runs on the calling thread and leaves the bus in PRE-OP. Each needs the
+//! [`Claim`] on the interface, taken by the caller before and held until it returns:
+//! while the daemon (or another command) holds the interface the claim is refused, and
+//! no frame of a command reaches a bus someone else is running.
 
 use std::fmt::Write as _;
 use std::time::Duration;
@@ -13,6 +16,7 @@ use kerf_config::ethercat::{SdoValue, SdoWrite};
 use thiserror::Error;
 
 use crate::bus::{BringUpError, Group, found_of, open, scan_group};
+use crate::claim::Claim;
 use crate::identity::Found;
 use crate::pdo::{SM2_ASSIGNMENT, SM3_ASSIGNMENT};
 use crate::pump::Pump;
@@ -92,10 +96,10 @@ fn mailbox_words(protocols: u16) -> String {
     }
 }
 
-/// Scans the bus on `interface` and describes every subdevice.
-pub fn scan_detail(interface: &str) -> Result<Vec<ScanEntry>, BringUpError> {
+/// Scans the bus on the claimed interface and describes every subdevice.
+pub fn scan_detail(claim: &Claim) -> Result<Vec<ScanEntry>, BringUpError> {
     let timeouts = Timeouts::default();
-    let (maindevice, mut pump) = open(interface, timeouts)?;
+    let (maindevice, mut pump) = open(claim.interface(), timeouts)?;
     let group = scan_group(&maindevice, &mut pump, timeouts.state_transition * 2)?;
     let found = found_of(&group, &maindevice);
     let mut entries = Vec::with_capacity(found.len());
@@ -281,7 +285,7 @@ pub fn value_text(value: SdoValue) -> String {
 
 /// Opens the bus and runs `f` on the subdevice at `position` (its SDO reads and writes).
 fn on_subdevice<T>(
-    interface: &str,
+    claim: &Claim,
     position: u16,
     what: &str,
     f: impl for<'a> FnOnce(
@@ -292,7 +296,7 @@ fn on_subdevice<T>(
     ) -> Result<T, BringUpError>,
 ) -> Result<T, BringUpError> {
     let timeouts = Timeouts::default();
-    let (maindevice, mut pump) = open(interface, timeouts)?;
+    let (maindevice, mut pump) = open(claim.interface(), timeouts)?;
     let group = scan_group(&maindevice, &mut pump, timeouts.state_transition * 2)?;
     let found = found_of(&group, &maindevice);
     let Some(sub) = found.into_iter().find(|s| s.position == position) else {
@@ -303,16 +307,17 @@ fn on_subdevice<T>(
     f(&mut pump, &group, &maindevice, &sub)
 }
 
-/// Reads object `index:subindex` of the subdevice at `position` as `kind`.
+/// Reads object `index:subindex` of the subdevice at `position` on the claimed interface
+/// as `kind`.
 pub fn sdo_read(
-    interface: &str,
+    claim: &Claim,
     position: u16,
     index: u16,
     subindex: u8,
     kind: SdoType,
 ) -> Result<SdoValue, BringUpError> {
     on_subdevice(
-        interface,
+        claim,
         position,
         "the SDO read",
         |pump, group, maindevice, f| {
@@ -332,16 +337,17 @@ pub fn sdo_read(
     )
 }
 
-/// Writes `value` to object `index:subindex` of the subdevice at `position`.
+/// Writes `value` to object `index:subindex` of the subdevice at `position` on the
+/// claimed interface.
 pub fn sdo_write(
-    interface: &str,
+    claim: &Claim,
     position: u16,
     index: u16,
     subindex: u8,
     value: SdoValue,
 ) -> Result<(), BringUpError> {
     on_subdevice(
-        interface,
+        claim,
         position,
         "the SDO write",
         |pump, group, maindevice, f| {
@@ -387,12 +393,23 @@ impl RoundTrips {
 /// Brings the bus of `config` to OP for a cycle of `period_ns` and runs `cycles`
 /// exchanges paced at the period, with every drive's controlword 0 (the drives stay
 /// disabled: nothing moves), timing each round trip. For commissioning a NIC and for the
-/// figures in PERFORMANCE.md. Not real-time: the pacing is a plain sleep.
+/// figures in PERFORMANCE.md. Not real-time: the pacing is a plain sleep. `claim` must be
+/// on the configuration's interface.
 pub fn exchange_round_trips(
+    claim: &Claim,
     config: &kerf_config::ethercat::EthercatConfig,
     period_ns: u64,
     cycles: u32,
 ) -> Result<RoundTrips, BringUpError> {
+    if claim.interface() != config.interface {
+        return Err(BringUpError::Interface {
+            interface: config.interface.clone(),
+            source: std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!("not claimed: the claim held is on {}", claim.interface()),
+            ),
+        });
+    }
     let mut bus = crate::bus::Bus::bring_up(config, period_ns)?;
     let expected = bus.expected_working_counter();
     let period = Duration::from_nanos(period_ns);

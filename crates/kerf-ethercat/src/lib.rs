@@ -11,6 +11,7 @@
 #![deny(missing_docs)]
 
 pub mod bus;
+pub mod claim;
 pub mod commission;
 pub mod dc;
 pub mod identity;

@@ -1,10 +1,13 @@
 //! `kerf ethercat`: commissioning the EtherCAT bus without the daemon (the scan, SDO reads
 //! and writes), on the interface given or the configuration's `[ethercat] interface`.
+//! Each command claims the interface first ([`kerf_ethercat::claim`]) and is refused,
+//! naming the holder, while the daemon or another command holds it.
 
 use std::io::Write;
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
+use kerf_ethercat::claim::{Claim, Holder};
 use kerf_ethercat::commission::{
     SdoType, exchange_round_trips, scan_detail, sdo_read, sdo_write, value_text,
 };
@@ -127,6 +130,13 @@ fn kind(name: &str) -> Result<SdoType, Failure> {
     })
 }
 
+/// The interface for this command, or why not: the daemon or another command holds it.
+/// Held until the command ends: no frame of it goes out before.
+fn claim(interface: &str) -> Result<Claim, Failure> {
+    Claim::take(interface, Holder::Commissioning)
+        .map_err(|e| Failure::Exit(1, format!("error: {e}")))
+}
+
 fn bus_failure(interface: &str, e: impl std::fmt::Display) -> Failure {
     let mut message = format!("error: EtherCAT on {interface}: {e}");
     if message.contains("Operation not permitted") {
@@ -140,7 +150,8 @@ pub fn run(args: &EthercatArgs) -> Result<(), Failure> {
     match &args.command {
         EthercatCommand::Scan(bus) => {
             let interface = interface(bus)?;
-            let entries = scan_detail(&interface).map_err(|e| bus_failure(&interface, e))?;
+            let claim = claim(&interface)?;
+            let entries = scan_detail(&claim).map_err(|e| bus_failure(&interface, e))?;
             let mut out = std::io::stdout().lock();
             writeln!(out, "{} subdevice(s) on {interface}", entries.len())?;
             for e in &entries {
@@ -156,7 +167,8 @@ pub fn run(args: &EthercatArgs) -> Result<(), Failure> {
                 ));
             };
             let period_ns = u64::from(config.period_us) * 1000;
-            let r = exchange_round_trips(bus, period_ns, args.cycles)
+            let claim = claim(&bus.interface)?;
+            let r = exchange_round_trips(&claim, bus, period_ns, args.cycles)
                 .map_err(|e| bus_failure(&bus.interface, e))?;
             let us = |ns: u64| ns as f64 / 1000.0;
             writeln!(
@@ -178,7 +190,9 @@ pub fn run(args: &EthercatArgs) -> Result<(), Failure> {
         EthercatCommand::Sdo(SdoArgs { op: SdoOp::Read(t) }) => {
             let interface = interface(&t.bus)?;
             let (index, subindex) = object(&t.object)?;
-            let value = sdo_read(&interface, t.position, index, subindex, kind(&t.kind)?)
+            let kind = kind(&t.kind)?;
+            let claim = claim(&interface)?;
+            let value = sdo_read(&claim, t.position, index, subindex, kind)
                 .map_err(|e| bus_failure(&interface, e))?;
             writeln!(std::io::stdout().lock(), "{}", value_text(value))?;
             Ok(())
@@ -191,7 +205,8 @@ pub fn run(args: &EthercatArgs) -> Result<(), Failure> {
             let value = kind(&t.kind)?
                 .parse(value)
                 .map_err(|e| Failure::Error(format!("error: {e}")))?;
-            sdo_write(&interface, t.position, index, subindex, value)
+            let claim = claim(&interface)?;
+            sdo_write(&claim, t.position, index, subindex, value)
                 .map_err(|e| bus_failure(&interface, e))?;
             Ok(())
         }
