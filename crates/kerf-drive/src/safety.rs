@@ -457,6 +457,9 @@ pub struct Safety {
     /// Last two setpoints received from the stream (newest first).
     stream: [PerAxis<f64>; 2],
     missed: u32,
+    /// Cycles whose following error is not checked: the drives' feedback is stale (a
+    /// fieldbus exchange missed; see [`Safety::feedback_stale`]).
+    ferror_skip: usize,
     fault: Option<Fault>,
     stops: [StopProfile; MAX_AXES],
     stop_elapsed_s: f64,
@@ -520,6 +523,7 @@ impl Safety {
             out: [position; 3],
             stream: [position; 2],
             missed: 0,
+            ferror_skip: 0,
             fault: None,
             stops: position.map(StopProfile::at_rest),
             stop_elapsed_s: 0.0,
@@ -547,6 +551,17 @@ impl Safety {
     /// The command sent in the last cycle.
     pub fn command(&self) -> PerAxis<f64> {
         self.out[0]
+    }
+
+    /// The actual positions of the coming cycle are stale: the fieldbus exchange that
+    /// should have brought them did not happen or did not come back, so the drives also
+    /// missed a command. The following error is not checked in that cycle and in the
+    /// `feedback_delay_cycles` after it, until the feedback again matches the command it
+    /// is compared with; the fieldbus's own supervision (missed cycles in a row) and every
+    /// other check stay. Without this a single lost frame at speed would read as a
+    /// following error of one period's travel.
+    pub fn feedback_stale(&mut self) {
+        self.ferror_skip = self.config.feedback_delay_cycles + 1;
     }
 
     /// One cycle: check `input`, and say what to send to the drives. Allocation-free.
@@ -608,10 +623,15 @@ impl Safety {
             line: input.line,
             cycle,
         };
+        let check_ferror = self.ferror_skip == 0;
+        self.ferror_skip = self.ferror_skip.saturating_sub(1);
         for (i, ax) in self.config.axes.iter().enumerate() {
             let Some(ax) = ax else { continue };
             if input.drive_fault[i] {
                 return Some(fault(Check::DriveFault, Some(i), 1.0, 0.0));
+            }
+            if !check_ferror {
+                continue;
             }
             // Following error against the command the drive has been tracking: the
             // previous one, or the one before on a fieldbus.

@@ -384,6 +384,12 @@ impl<D: Drive> DriveStage<D> {
         Some(f)
     }
 
+    /// The drives' feedback of the coming cycle is stale (a fieldbus exchange missed):
+    /// see [`crate::safety::Safety::feedback_stale`].
+    pub fn feedback_stale(&mut self) {
+        self.safety.feedback_stale();
+    }
+
     /// Latches [`Check::SubdeviceState`]: the subdevice at `position` left OP with the AL
     /// status code `code`. `None` when a fault is already latched.
     pub fn trip_subdevice(&mut self, position: u16, code: u16, line: u32) -> Option<Fault> {

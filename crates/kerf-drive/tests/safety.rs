@@ -283,6 +283,40 @@ fn on_a_fieldbus_the_following_error_is_taken_against_the_command_one_cycle_olde
 }
 
 #[test]
+fn a_lost_exchange_leaves_the_feedback_stale_for_two_cycles_and_does_not_read_as_a_following_error() {
+    // At 50 mm/s (0.05 mm a period) on a fieldbus (feedback one cycle late) with a tight
+    // following error: 0.03 mm at this speed. The exchange after cycle 20 is lost: cycle
+    // 21 reads the actual position of cycle 20 again, and in cycle 22 the drive, which
+    // missed a command, is still a period behind: 0.05 mm against the tracked command.
+    let step = 50.0 * T;
+    let run = |stale: bool| {
+        let mut ax = axis(100.0, 1e12, 1e15);
+        ax.ferror_units = 0.06;
+        ax.min_ferror_units = 0.01;
+        let mut cfg = config(ax);
+        cfg.feedback_delay_cycles = 1;
+        let mut r = Rig::new(cfg);
+        let mut trips = Vec::new();
+        for k in 1..=30u32 {
+            let k_f = f64::from(k);
+            let behind = if k == 21 || k == 22 { 3.0 } else { 2.0 };
+            if stale && k == 21 {
+                r.s.feedback_stale();
+            }
+            let actual = on(1, (k_f - behind).max(0.0) * step);
+            let v = r.step_actual(Some(on(1, k_f * step)), actual);
+            if v.tripped.is_some() {
+                trips.push(k);
+                break;
+            }
+        }
+        trips
+    };
+    assert_eq!(run(false), vec![21], "without the mark the lost exchange trips");
+    assert_eq!(run(true), Vec::<u32>::new(), "marked stale: no trip");
+}
+
+#[test]
 fn a_stall_holds_for_n_minus_one_cycles_then_stops() {
     let cfg = config(axis(100.0, 1e12, 1e15));
     assert_eq!(cfg.stall_cycles, 3);

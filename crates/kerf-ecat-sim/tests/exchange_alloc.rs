@@ -14,6 +14,13 @@ static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 const VENDOR: u32 = 0x0000_4B52;
 
+/// The claim on the bus's interface, taken inside the namespace (abstract socket names are
+/// per network namespace).
+fn claim() -> kerf_ethercat::claim::Claim {
+    kerf_ethercat::claim::Claim::take(MAIN_IF, kerf_ethercat::claim::Holder::Commissioning)
+        .expect("claim")
+}
+
 #[test]
 fn ten_thousand_exchanges_allocate_nothing() {
     let mut ns = Netns::new();
@@ -52,7 +59,7 @@ fn ten_thousand_exchanges_allocate_nothing() {
         }],
     };
     let (allocations, wkcs, expected) = ns.run_inside(move || {
-        let mut bus = Bus::bring_up(&config, 1_000_000).unwrap_or_else(|e| panic!("bring-up: {e}"));
+        let mut bus = Bus::bring_up(&config, 1_000_000, &claim()).unwrap_or_else(|e| panic!("bring-up: {e}"));
         let mut images = Bus::drive_images(&config).expect("layouts");
         let expected = bus.expected_working_counter();
         // Warm up: the first exchanges may touch lazily made state.

@@ -56,11 +56,18 @@ fn bus(drives: Vec<EthercatDrive>, io_positions: &[u16]) -> EthercatConfig {
     }
 }
 
+/// The claim on the bus's interface, taken inside the namespace (abstract socket names are
+/// per network namespace).
+fn claim() -> kerf_ethercat::claim::Claim {
+    kerf_ethercat::claim::Claim::take(MAIN_IF, kerf_ethercat::claim::Holder::Commissioning)
+        .expect("claim")
+}
+
 #[test]
 fn the_scan_lists_every_subdevice_with_its_identity_in_ring_order() {
     let mut ns = Netns::new();
     ns.start_emulator(&["--drives", "3", "--io", "1"]);
-    let found = ns.run_inside(|| scan(MAIN_IF)).expect("scan");
+    let found = ns.run_inside(|| scan(&claim())).expect("scan");
     let seen: Vec<(u16, &str, u32, u32, u32, u32)> = found
         .iter()
         .map(|f| {
@@ -128,7 +135,7 @@ fn another_identity_and_a_missing_subdevice_are_refused_position_by_position() {
         &[2],
     );
     let error = ns
-        .run_inside(move || Bus::bring_up(&config, 1_000_000))
+        .run_inside(move || Bus::bring_up(&config, 1_000_000, &claim()))
         .unwrap_err();
     let BringUpError::Mismatch { lines } = &error else {
         panic!("not a mismatch: {error}")
@@ -157,7 +164,7 @@ fn an_extra_subdevice_on_the_bus_is_refused() {
         &[],
     );
     let error = ns
-        .run_inside(move || Bus::bring_up(&config, 1_000_000))
+        .run_inside(move || Bus::bring_up(&config, 1_000_000, &claim()))
         .unwrap_err();
     let BringUpError::Mismatch { lines } = &error else {
         panic!("not a mismatch: {error}")
@@ -181,7 +188,7 @@ fn three_drives_and_an_io_subdevice_come_up_to_op_and_exchange_process_data() {
         &[3],
     );
     let (wkc, expected_wkc, statuswords) = ns.run_inside(move || {
-        let mut bus = Bus::bring_up(&config, 1_000_000).unwrap_or_else(|e| panic!("bring-up: {e}"));
+        let mut bus = Bus::bring_up(&config, 1_000_000, &claim()).unwrap_or_else(|e| panic!("bring-up: {e}"));
         let mut images = Bus::drive_images(&config).expect("layouts");
         let mut wkc = 0;
         for _ in 0..10 {

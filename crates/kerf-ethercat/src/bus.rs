@@ -31,6 +31,7 @@ use ethercrab::{
 use kerf_config::ethercat::{EthercatConfig, Pdo, SdoValue, SdoWrite};
 use thiserror::Error;
 
+use crate::claim::Claim;
 use crate::dc::PhaseLock;
 use crate::identity::{Expected, Found, compare};
 use crate::image::DriveImage;
@@ -291,9 +292,10 @@ pub fn expected(config: &EthercatConfig) -> Vec<Expected> {
 /// Opens the interface and the MainDevice. The storage for frames lives as long as the
 /// process: a few tens of kB, once per bus opened.
 pub(crate) fn open(
-    interface: &str,
+    claim: &Claim,
     timeouts: Timeouts,
 ) -> Result<(MainDevice<'static>, Pump), BringUpError> {
+    let interface = claim.interface();
     let socket = RawSocket::open(interface).map_err(|source| BringUpError::Interface {
         interface: interface.to_owned(),
         source,
@@ -344,9 +346,9 @@ pub(crate) fn scan_group(
 
 /// Scans the bus on `interface` and reads every subdevice's identity, leaving the bus in
 /// PRE-OP (the `kerf ethercat scan` view).
-pub fn scan(interface: &str) -> Result<Vec<Found>, BringUpError> {
+pub fn scan(claim: &Claim) -> Result<Vec<Found>, BringUpError> {
     let timeouts = Timeouts::default();
-    let (maindevice, mut pump) = open(interface, timeouts)?;
+    let (maindevice, mut pump) = open(claim, timeouts)?;
     let group = scan_group(&maindevice, &mut pump, timeouts.state_transition * 2)?;
     Ok(found_of(&group, &maindevice))
 }
@@ -371,7 +373,22 @@ pub(crate) fn found_of(group: &Group<PreOp>, maindevice: &MainDevice<'static>) -
 
 impl Bus {
     /// Brings the bus of `config` to OP for a cycle of `period_ns`; see the module's steps.
-    pub fn bring_up(config: &EthercatConfig, period_ns: u64) -> Result<Bus, BringUpError> {
+    /// `claim` is the caller's claim on the configuration's interface, held as long as the
+    /// bus runs (the caller keeps it, so that no other program sends frames on it).
+    pub fn bring_up(
+        config: &EthercatConfig,
+        period_ns: u64,
+        claim: &Claim,
+    ) -> Result<Bus, BringUpError> {
+        if claim.interface() != config.interface {
+            return Err(BringUpError::Interface {
+                interface: config.interface.clone(),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::InvalidInput,
+                    format!("not claimed: the claim held is on {}", claim.interface()),
+                ),
+            });
+        }
         let timeouts = Timeouts {
             state_transition: Duration::from_millis(u64::from(config.state_timeout_ms)),
             mailbox_response: Duration::from_millis(u64::from(config.sdo_timeout_ms)),
@@ -381,7 +398,7 @@ impl Bus {
         // says more) comes first.
         let state_bound = timeouts.state_transition * 2;
         let sdo_bound = timeouts.mailbox_response * 2;
-        let (maindevice, mut pump) = open(&config.interface, timeouts)?;
+        let (maindevice, mut pump) = open(claim, timeouts)?;
         let group = scan_group(&maindevice, &mut pump, state_bound)?;
         let found = found_of(&group, &maindevice);
         compare(&found, &expected(config)).map_err(|lines| BringUpError::Mismatch { lines })?;
@@ -935,7 +952,8 @@ fn cycle_dc<S: HasPdi>(
     Ok((all_op, exchange.dc))
 }
 
-/// The drive whose clock differs most from the reference's beyond [`SETTLED_NS`]
+/// The drive (other than the reference) whose clock differs most from the reference's
+/// beyond [`SETTLED_NS`]
 /// (register 0x092C: bits 0–30 the difference, bit 31 its sign), if any; a drive that does
 /// not answer counts as unsettled.
 fn worst_difference<S: HasPdi>(
@@ -945,10 +963,20 @@ fn worst_difference<S: HasPdi>(
     drives: &[BusDrive],
 ) -> Option<(usize, i64)> {
     let mut worst: Option<(usize, i64)> = None;
+    // ethercrab's reference clock: the first subdevice in ring order with a clock.
+    let reference = group
+        .iter(maindevice)
+        .find(|s| s.dc_support().any())
+        .map(|s| s.configured_address());
     for d in drives {
         let Ok(sub) = group.subdevice(maindevice, d.group_index) else {
             continue;
         };
+        // The reference clock is what the others follow: its own difference register is
+        // not steered and means nothing.
+        if reference == Some(sub.configured_address()) {
+            continue;
+        }
         let read = pump.block_on(
             sub.register_read::<u32>(DC_DIFFERENCE_REGISTER),
             Duration::from_millis(100),

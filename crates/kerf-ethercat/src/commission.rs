@@ -99,7 +99,7 @@ fn mailbox_words(protocols: u16) -> String {
 /// Scans the bus on the claimed interface and describes every subdevice.
 pub fn scan_detail(claim: &Claim) -> Result<Vec<ScanEntry>, BringUpError> {
     let timeouts = Timeouts::default();
-    let (maindevice, mut pump) = open(claim.interface(), timeouts)?;
+    let (maindevice, mut pump) = open(claim, timeouts)?;
     let group = scan_group(&maindevice, &mut pump, timeouts.state_transition * 2)?;
     let found = found_of(&group, &maindevice);
     let mut entries = Vec::with_capacity(found.len());
@@ -296,7 +296,7 @@ fn on_subdevice<T>(
     ) -> Result<T, BringUpError>,
 ) -> Result<T, BringUpError> {
     let timeouts = Timeouts::default();
-    let (maindevice, mut pump) = open(claim.interface(), timeouts)?;
+    let (maindevice, mut pump) = open(claim, timeouts)?;
     let group = scan_group(&maindevice, &mut pump, timeouts.state_transition * 2)?;
     let found = found_of(&group, &maindevice);
     let Some(sub) = found.into_iter().find(|s| s.position == position) else {
@@ -401,16 +401,7 @@ pub fn exchange_round_trips(
     period_ns: u64,
     cycles: u32,
 ) -> Result<RoundTrips, BringUpError> {
-    if claim.interface() != config.interface {
-        return Err(BringUpError::Interface {
-            interface: config.interface.clone(),
-            source: std::io::Error::new(
-                std::io::ErrorKind::InvalidInput,
-                format!("not claimed: the claim held is on {}", claim.interface()),
-            ),
-        });
-    }
-    let mut bus = crate::bus::Bus::bring_up(config, period_ns)?;
+    let mut bus = crate::bus::Bus::bring_up(config, period_ns, claim)?;
     let expected = bus.expected_working_counter();
     let period = Duration::from_nanos(period_ns);
     let mut out = RoundTrips {

@@ -5,6 +5,9 @@
 //! - [`pdo`]: where the objects the control uses sit in a drive's process data.
 //! - [`image`]: one drive's process data as a [`kerf_drive::cia402::Drive`].
 //! - [`bus`]: bring-up to OP and the cyclic exchange.
+//! - [`dc`]: the host's cycle locked onto the distributed clock's SYNC0.
+//! - [`claim`]: one program at a time on an interface (the daemon or a commissioning
+//!   command), the others refused naming the holder.
 //! - [`commission`]: the scan and SDO access of `kerf ethercat`.
 //! - [`pump`] and [`socket`]: ethercrab's frames moved by the owning thread through a raw
 //!   socket, with no executor, no helper thread and no allocation per exchange.

@@ -3,7 +3,7 @@
 //! resolution (`ppoll`), so the cycle thread can wait for a frame's return no longer
 //! than the period allows.
 //!
-//! The only unsafe code of the crate: the socket calls of packet(7) through `libc`.
+//! Unsafe code, as in [`crate::claim`]: the socket calls of packet(7) through `libc`.
 
 use std::ffi::CString;
 use std::io;

@@ -130,8 +130,17 @@ fn a_pulled_cable_latches_the_fieldbus_fault_a_reset_is_refused_while_the_bus_is
     // The cable back in: the drives stopped themselves by their watchdog and wait in
     // SAFE-OP with the error flag set; the reset acknowledges it, brings every subdevice
     // back to OP, resets and enables the drives where they stand.
+    // Every drive stopped itself by its process-data watchdog.
+    for line in &bench.emulator_state()[..3] {
+        assert_eq!(Bench::field(line, "al"), "SAFE-OP", "{line}");
+        assert_eq!(Bench::field(line, "al_code"), "0x001B", "{line}");
+        assert_eq!(Bench::field(line, "velocity_counts_s"), "0", "{line}");
+    }
     bench.emulator_says("unmute");
     let out = bench.kerf(&["reset"]);
+    eprintln!("{:?} {}", bench.emulator_state(), String::from_utf8_lossy(&out.stderr));
+    let out = bench.kerf(&["reset"]);
+    eprintln!("{:?} {}", bench.emulator_state(), String::from_utf8_lossy(&out.stderr));
     assert!(
         out.status.success(),
         "reset refused after the bus came back: {}",
@@ -240,4 +249,47 @@ fn with_distributed_clocks_the_cycle_locks_onto_sync0_and_the_program_runs_as_ke
     // two-core machine; docs/PERFORMANCE.md has the figures of a release build).
     assert_eq!(offsets_us.len(), 4, "{offsets_us:?}");
     assert!(offsets_us[1] < 400.0, "{offsets_us:?}");
+}
+
+#[test]
+fn while_the_daemon_runs_the_bus_the_commissioning_commands_and_a_second_daemon_are_refused() {
+    let bench = Bench::new("claim");
+    let daemon = bench.daemon();
+    let mut c = bench.ns.command(KERF);
+    c.args(["ethercat", "scan", "--interface", MAIN_IF]);
+    let out = c.output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&format!(
+            "EtherCAT interface {MAIN_IF} is in use by kerfd (pid {}): stop it first",
+            daemon.pid()
+        )),
+        "{err}"
+    );
+    // A second machine configured on the same interface.
+    let second = bench.dir.join("second.toml");
+    let text = fs::read_to_string(&bench.config).unwrap();
+    let machine = text
+        .lines()
+        .find(|l| l.starts_with("machine = "))
+        .unwrap()
+        .to_owned();
+    fs::write(
+        &second,
+        text.replacen(&machine, "machine = \"second_on_the_bus\"", 1),
+    )
+    .unwrap();
+    let mut c = bench.ns.command(common::kerfd());
+    c.args(["--config", second.to_str().unwrap()]);
+    let out = c.output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&format!("is in use by kerfd (pid {})", daemon.pid()))
+            && err.contains("another daemon already runs this bus"),
+        "{err}"
+    );
+    // The first daemon still runs its bus.
+    assert_eq!(bench.status()["state"], "idle");
 }

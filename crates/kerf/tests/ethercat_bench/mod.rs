@@ -89,7 +89,7 @@ impl Bench {
         let log = dir.join("emulator.stderr");
         let mut emulator = c
             .stdin(std::process::Stdio::piped())
-            .stdout(std::process::Stdio::null())
+            .stdout(fs::File::create(dir.join("emulator.stdout")).unwrap())
             .stderr(fs::File::create(&log).unwrap())
             .spawn()
             .expect("cannot start the emulator");
@@ -117,6 +117,31 @@ impl Bench {
         use std::io::Write;
         writeln!(self.emulator_stdin, "{line}").expect("emulator's stdin");
         self.emulator_stdin.flush().expect("emulator's stdin");
+    }
+
+    /// The emulator's `state` answer: one line per subdevice (4), in ring order, e.g.
+    /// `subdevice 0 kind=drive al=OP al_error=0 … cia402=operation_enabled …`.
+    pub fn emulator_state(&mut self) -> Vec<String> {
+        let path = self.dir.join("emulator.stdout");
+        let before = read_text(&path).lines().count();
+        self.emulator_says("state");
+        let deadline = Instant::now() + PATIENCE;
+        loop {
+            let text = read_text(&path);
+            let lines: Vec<String> = text.lines().skip(before).map(str::to_owned).collect();
+            if lines.len() >= 4 {
+                return lines[..4].to_vec();
+            }
+            assert!(Instant::now() < deadline, "the emulator did not answer `state`");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// The value of `field` in an emulator `state` line (`al=OP` → "OP").
+    pub fn field<'a>(line: &'a str, field: &str) -> &'a str {
+        line.split(' ')
+            .find_map(|w| w.strip_prefix(field)?.strip_prefix('='))
+            .unwrap_or_else(|| panic!("no {field} in {line}"))
     }
 
     /// `kerf status --json`, parsed.

@@ -445,6 +445,14 @@ impl Cycle {
     /// One cycle of the drive side with `setpoint` (`None`: a missed cycle); `exchange`:
     /// whether the fieldbus (if any) exchanges in it.
     fn drive_cycle(&mut self, setpoint: Option<PerAxis<f64>>, exchange: bool) {
+        if let Some(bus) = self.bus.as_mut() {
+            if bus.inputs_stale() {
+                self.stage.feedback_stale();
+            }
+            if !exchange {
+                bus.skipped();
+            }
+        }
         let out = self.stage.cycle(&StageInput {
             setpoint,
             line: self.setpoint.line,

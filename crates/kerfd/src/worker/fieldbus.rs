@@ -27,6 +27,7 @@ use kerf_drive::cia402::Drive;
 use kerf_drive::sim::SimDrive;
 use kerf_drive::stage::DriveStage;
 use kerf_ethercat::bus::{Bus, MAX_SUBDEVICES};
+use kerf_ethercat::claim::{Claim, Holder};
 use kerf_ethercat::image::DriveImage;
 
 use crate::timing::{Histogram, Percentiles};
@@ -172,12 +173,16 @@ struct Recovery {
 #[derive(Debug)]
 pub struct Fieldbus {
     bus: Bus,
+    /// The claim on the interface, released after the bus (declared after it).
+    _claim: Claim,
     expected_wkc: u16,
     timeout: Duration,
     max_missed: u32,
     missed_in_row: u32,
     /// Exchanges in a row whose frame did not come back.
     lost_in_row: u32,
+    /// The inputs of the last exchange are not this cycle's (see [`Fieldbus::inputs_stale`]).
+    stale: bool,
     counters: BusCounters,
     states: [u8; MAX_SUBDEVICES],
     al_codes: [u16; MAX_SUBDEVICES],
@@ -202,9 +207,13 @@ impl Fieldbus {
             return Ok(None);
         };
         let period_ns = u64::from(config.period_us) * 1000;
-        let bus = Bus::bring_up(ec, period_ns).map_err(|e| e.to_string())?;
+        // The interface is the daemon's while it runs: commissioning commands and a second
+        // daemon are refused, naming it.
+        let claim = Claim::take(&ec.interface, Holder::Daemon).map_err(|e| e.to_string())?;
+        let bus = Bus::bring_up(ec, period_ns, &claim).map_err(|e| e.to_string())?;
         Ok(Some(Fieldbus {
             expected_wkc: bus.expected_working_counter(),
+            _claim: claim,
             dc_offsets: bus.first_cycle_start_ns().map(|_| Histogram::new()),
             bus,
             // Half a period for the frame's round trip: the cycle must still compute and
@@ -213,6 +222,7 @@ impl Fieldbus {
             max_missed: ec.max_missed_cycles,
             missed_in_row: 0,
             lost_in_row: 0,
+            stale: false,
             counters: BusCounters::default(),
             states: [OP; MAX_SUBDEVICES],
             al_codes: [0; MAX_SUBDEVICES],
@@ -304,7 +314,7 @@ impl Fieldbus {
         }
         // Every other cycle: the status read of one subdevice out of OP, then the request
         // its status calls for (acknowledge into SAFE-OP, or OP).
-        if self.failing() || !cycles.is_multiple_of(2) {
+        if self.lost_in_row > 0 || !cycles.is_multiple_of(2) {
             return None;
         }
         let position = self.first_not_op()?;
@@ -335,6 +345,17 @@ impl Fieldbus {
     /// Whether the last exchange was incomplete.
     pub fn failing(&self) -> bool {
         self.missed_in_row > 0
+    }
+
+    /// Whether the drives' inputs the coming cycle reads are stale: the last cycle's
+    /// exchange did not happen or did not come back complete.
+    pub fn inputs_stale(&self) -> bool {
+        self.stale
+    }
+
+    /// A cycle without an exchange (a missed period's catch-up): the next inputs are stale.
+    pub fn skipped(&mut self) {
+        self.stale = true;
     }
 
     /// The counters so far.
@@ -394,6 +415,7 @@ impl Fieldbus {
                 false
             }
         };
+        self.stale = !complete;
         if complete {
             self.counters.complete += 1;
             self.missed_in_row = 0;
