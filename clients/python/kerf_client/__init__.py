@@ -1,5 +1,5 @@
 """kerf_client: drive Kerf's real-time daemon ``kerfd`` from Python over iceoryx2 shared
-memory, speaking protocol version 3 (docs/PROTOCOL.md).
+memory, speaking protocol version 4 (docs/PROTOCOL.md).
 
     from kerf_client import Client, moves
     c = Client("default")

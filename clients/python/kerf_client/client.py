@@ -32,9 +32,10 @@ def _copy(ptr, cls):
 
 class Status:
     """A parsed :class:`~kerf_client.protocol.StatusMsg`: every field as an attribute
-    (arrays as tuples, ``fault_text`` and ``fault_dump`` as ``str``, ``rt`` and
-    ``program_done`` as bool), plus ``state_name``, ``program_end_name``, ``drives_name``
-    and ``position`` (X, Y, Z)."""
+    (arrays as tuples, ``fault_text`` and ``fault_dump`` as ``str``, ``rt``,
+    ``program_done``, ``bus_recovering`` and ``dc_used`` as bool), plus ``state_name``,
+    ``program_end_name``, ``drives_name``, ``position`` (X, Y, Z) and ``ethercat`` (the
+    bus, shaped as ``kerf status --json`` shows it)."""
 
     def __init__(self, raw: p.StatusMsg):
         self.raw = raw.copy()
@@ -42,6 +43,8 @@ class Status:
             setattr(self, k, v)
         self.rt = bool(raw.rt)
         self.program_done = bool(raw.program_done)
+        self.bus_recovering = bool(raw.bus_recovering)
+        self.dc_used = bool(raw.dc_used)
 
     @property
     def state_name(self):
@@ -58,6 +61,48 @@ class Status:
     @property
     def position(self):
         return self.position_mm_deg[:3]
+
+    @property
+    def ethercat(self):
+        """None without an EtherCAT bus; else a dict as ``kerf status --json``'s
+        ``"ethercat"`` (without the subdevices' names, which come from the machine's
+        configuration): ``subdevices`` (``position``, ``state`` such as ``"SAFE-OP"`` or
+        ``"unknown"``, ``al_status_code``), ``recovering``, ``cycles`` (``complete``,
+        ``lost``, ``short``, ``not_op``, ``longest_gap``) and ``dc`` (None, or
+        ``offset_ns``, ``offset_abs_ns`` with ``p50``, ``p99``, ``p999``, ``max``, and
+        ``samples``)."""
+        n = min(self.bus_subdevices, p.BUS_MAX_SUBDEVICES)
+        if n == 0:
+            return None
+        states = {v: k.replace("_", "-") for v, k in p.names("BUS_STATE").items()}
+        return {
+            "subdevices": [
+                {
+                    "position": i,
+                    "state": states.get(self.bus_states[i], "unknown"),
+                    "al_status_code": self.bus_al_codes[i],
+                }
+                for i in range(n)
+            ],
+            "recovering": self.bus_recovering,
+            "cycles": {
+                "complete": self.bus_cycles_complete,
+                "lost": self.bus_cycles_lost,
+                "short": self.bus_cycles_short,
+                "not_op": self.bus_cycles_not_op,
+                "longest_gap": self.bus_longest_gap_cycles,
+            },
+            "dc": {
+                "offset_ns": self.dc_offset_ns,
+                "offset_abs_ns": {
+                    "p50": self.dc_offset_abs_p50_ns,
+                    "p99": self.dc_offset_abs_p99_ns,
+                    "p999": self.dc_offset_abs_p999_ns,
+                    "max": self.dc_offset_abs_max_ns,
+                },
+                "samples": self.dc_samples,
+            } if self.dc_used else None,
+        }
 
     def __repr__(self):
         return (

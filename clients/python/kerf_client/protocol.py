@@ -1,9 +1,9 @@
-"""Kerf's shared-memory protocol, version 3 (docs/PROTOCOL.md), as ctypes structures.
+"""Kerf's shared-memory protocol, version 4 (docs/PROTOCOL.md), as ctypes structures.
 
-Every message is a C struct of u8, u32, u64 and f64 (native byte order, 8-byte alignment,
-no padding). The iceoryx2 Python bindings take a payload's type name from a static
-``type_name()`` method, which here returns the name the Rust crate gives the type with
-``#[type_name("kerf.MoveMsg.v3")]``: iceoryx2 matches the two ends of a service by that
+Every message is a C struct of u8, u16, u32, u64, i64 and f64 (native byte order, 8-byte
+alignment, no padding). The iceoryx2 Python bindings take a payload's type name from a
+static ``type_name()`` method, which here returns the name the Rust crate gives the type
+with ``#[type_name("kerf.MoveMsg.v4")]``: iceoryx2 matches the two ends of a service by that
 name, the size and the alignment, so a layout that drifted would not even connect.
 
 The tests in ``clients/python/tests/test_layout.py`` parse docs/PROTOCOL.md's tables and
@@ -17,7 +17,7 @@ import math
 # Constants (the table "Constants" of docs/PROTOCOL.md, every row)
 # ---------------------------------------------------------------------------------------
 
-PROTOCOL_VERSION = 3
+PROTOCOL_VERSION = 4
 
 KIND_BEGIN = 1
 KIND_LINE = 2
@@ -119,6 +119,13 @@ SAFETY_FIELDBUS = 9
 SAFETY_SUBDEVICE_STATE = 10
 SAFETY_AXIS_NONE = 255
 
+BUS_MAX_SUBDEVICES = 32
+BUS_STATE_INIT = 1
+BUS_STATE_PRE_OP = 2
+BUS_STATE_BOOT = 3
+BUS_STATE_SAFE_OP = 4
+BUS_STATE_OP = 8
+
 #: Every constant of the table, by name (what the layout test compares with the page).
 CONSTANTS = {
     name: value
@@ -138,6 +145,7 @@ CONSTANTS = {
         "PROGRAM",
         "DRIVES",
         "SAFETY",
+        "BUS",
     )
 }
 
@@ -186,8 +194,10 @@ SETPOINT_BUFFER = 16_384
 # ---------------------------------------------------------------------------------------
 
 u8 = ctypes.c_uint8
+u16 = ctypes.c_uint16
 u32 = ctypes.c_uint32
 u64 = ctypes.c_uint64
+i64 = ctypes.c_int64
 f64 = ctypes.c_double
 
 
@@ -238,7 +248,7 @@ def decode_text(raw):
 class MoveMsg(_Message):
     """One program item on the moves service (256 bytes)."""
 
-    TYPE_NAME = "kerf.MoveMsg.v3"
+    TYPE_NAME = "kerf.MoveMsg.v4"
     _fields_ = [
         ("version", u32),
         ("kind", u32),
@@ -267,7 +277,7 @@ class MoveMsg(_Message):
 class SetpointMsg(_Message):
     """The daemon's setpoint of one real-time cycle (160 bytes)."""
 
-    TYPE_NAME = "kerf.SetpointMsg.v3"
+    TYPE_NAME = "kerf.SetpointMsg.v4"
     _fields_ = [
         ("version", u32),
         ("state", u32),
@@ -287,7 +297,7 @@ class SetpointMsg(_Message):
 class Request(_Message):
     """A control request (32 bytes)."""
 
-    TYPE_NAME = "kerf.Request.v3"
+    TYPE_NAME = "kerf.Request.v4"
     _fields_ = [
         ("version", u32),
         ("kind", u32),
@@ -298,9 +308,9 @@ class Request(_Message):
 
 
 class StatusMsg(_Message):
-    """The daemon's status, embedded in every Response (488 bytes)."""
+    """The daemon's status, embedded in every Response (680 bytes)."""
 
-    TYPE_NAME = "kerf.StatusMsg.v3"
+    TYPE_NAME = "kerf.StatusMsg.v4"
     TEXT_FIELDS = ("fault_text", "fault_dump")
     _fields_ = [
         ("state", u32),
@@ -331,13 +341,30 @@ class StatusMsg(_Message):
         ("drive_error_code", u32),
         ("safety_cycle", u64),
         ("fault_dump", u8 * 160),
+        # The EtherCAT bus; all 0 when the drives are not on one.
+        ("bus_subdevices", u32),
+        ("bus_recovering", u32),
+        ("bus_states", u8 * BUS_MAX_SUBDEVICES),
+        ("bus_al_codes", u16 * BUS_MAX_SUBDEVICES),
+        ("bus_cycles_complete", u64),
+        ("bus_cycles_lost", u64),
+        ("bus_cycles_short", u64),
+        ("bus_cycles_not_op", u64),
+        ("bus_longest_gap_cycles", u32),
+        ("dc_used", u32),
+        ("dc_offset_ns", i64),
+        ("dc_offset_abs_p50_ns", u64),
+        ("dc_offset_abs_p99_ns", u64),
+        ("dc_offset_abs_p999_ns", u64),
+        ("dc_offset_abs_max_ns", u64),
+        ("dc_samples", u64),
     ]
 
 
 class Response(_Message):
-    """The daemon's answer to a Request (736 bytes)."""
+    """The daemon's answer to a Request (928 bytes)."""
 
-    TYPE_NAME = "kerf.Response.v3"
+    TYPE_NAME = "kerf.Response.v4"
     TEXT_FIELDS = ("message",)
     _fields_ = [
         ("version", u32),

@@ -113,6 +113,9 @@ class ProgramFromPython(unittest.TestCase):
         self.assertEqual(j["queued_moves"], s.queued_moves)
         self.assertEqual(j["rt"], s.rt)
         self.assertEqual(j["drives"], s.drives_name)
+        # Simulated drives: no EtherCAT bus on either side.
+        self.assertIsNone(j["ethercat"])
+        self.assertIsNone(s.ethercat)
         self.assertEqual(j["period_us"] * 1000.0, s.period_ns)
         self.assertLessEqual(j["cycles"], c.status().status.cycles)
 

@@ -18,8 +18,8 @@ from kerf_client import moves as mv
 from kerf_client import protocol as p
 
 #: The ctypes of the documented scalar types.
-SCALARS = {"u8": ctypes.c_uint8, "u32": ctypes.c_uint32, "u64": ctypes.c_uint64,
-           "f64": ctypes.c_double}
+SCALARS = {"u8": ctypes.c_uint8, "u16": ctypes.c_uint16, "u32": ctypes.c_uint32,
+           "u64": ctypes.c_uint64, "i64": ctypes.c_int64, "f64": ctypes.c_double}
 
 
 def cells(row):
@@ -83,10 +83,10 @@ class ProtocolMdTables(unittest.TestCase):
             cls.text = f.read()
         cls.messages, cls.constants = parse_protocol_md(cls.text)
 
-    def test_the_page_is_protocol_version_3(self):
-        self.assertIn("# Kerf shared-memory protocol, version 3", self.text)
+    def test_the_page_is_protocol_version_4(self):
+        self.assertIn("# Kerf shared-memory protocol, version 4", self.text)
         self.assertEqual(self.constants["PROTOCOL_VERSION"], p.PROTOCOL_VERSION)
-        self.assertEqual(p.PROTOCOL_VERSION, 3)
+        self.assertEqual(p.PROTOCOL_VERSION, 4)
 
     def test_every_message_is_documented_and_every_documented_one_exists(self):
         self.assertEqual(sorted(self.messages), sorted(p.MESSAGES))
@@ -202,6 +202,59 @@ class Helpers(unittest.TestCase):
         self.assertEqual(tuple(b6.abc_start_deg), (4.0, 5.0, 6.0))
         e = mv.end(7, 6, 5)
         self.assertEqual(self.used(e), {"version", "kind", "program_id", "seq", "count"})
+
+
+class EthercatStatus(unittest.TestCase):
+    """The bus section of the status as ``Status.ethercat`` shows it."""
+
+    def test_a_bus_with_a_subdevice_out_of_op_and_distributed_clocks(self):
+        from kerf_client.client import Status
+
+        raw = p.StatusMsg()
+        raw.bus_subdevices = 3
+        raw.bus_recovering = 1
+        raw.bus_states[0], raw.bus_states[1], raw.bus_states[2] = 8, 4, 0
+        raw.bus_states[3] = 8  # beyond the bus: not shown
+        raw.bus_al_codes[1] = 0x001B
+        raw.bus_cycles_complete, raw.bus_cycles_lost = 1000, 3
+        raw.bus_cycles_short, raw.bus_cycles_not_op = 2, 17
+        raw.bus_longest_gap_cycles = 5
+        raw.dc_used = 1
+        raw.dc_offset_ns = -1240
+        raw.dc_offset_abs_p50_ns, raw.dc_offset_abs_p99_ns = 300, 1100
+        raw.dc_offset_abs_p999_ns, raw.dc_offset_abs_max_ns = 2000, 3400
+        raw.dc_samples = 990
+        # Through the bytes, as the shared memory carries it.
+        s = Status(p.StatusMsg.from_buffer_copy(bytes(raw)))
+        self.assertEqual(s.ethercat, {
+            "subdevices": [
+                {"position": 0, "state": "OP", "al_status_code": 0},
+                {"position": 1, "state": "SAFE-OP", "al_status_code": 27},
+                {"position": 2, "state": "unknown", "al_status_code": 0},
+            ],
+            "recovering": True,
+            "cycles": {"complete": 1000, "lost": 3, "short": 2, "not_op": 17,
+                       "longest_gap": 5},
+            "dc": {"offset_ns": -1240,
+                   "offset_abs_ns": {"p50": 300, "p99": 1100, "p999": 2000, "max": 3400},
+                   "samples": 990},
+        })
+        self.assertEqual(s.bus_al_codes[:2], (0, 0x001B))
+        self.assertIs(s.dc_used, True)
+
+    def test_no_bus_and_no_distributed_clocks(self):
+        from kerf_client.client import Status
+
+        self.assertIsNone(Status(p.StatusMsg()).ethercat)
+        raw = p.StatusMsg()
+        raw.bus_subdevices = 1
+        raw.bus_states[0] = 2
+        self.assertEqual(Status(raw).ethercat["subdevices"],
+                         [{"position": 0, "state": "PRE-OP", "al_status_code": 0}])
+        self.assertIsNone(Status(raw).ethercat["dc"])
+        # A count beyond the arrays (a broken writer) is cut to them.
+        raw.bus_subdevices = 0xFFFFFFFF
+        self.assertEqual(len(Status(raw).ethercat["subdevices"]), p.BUS_MAX_SUBDEVICES)
 
 
 class _FakeSample:

@@ -3,7 +3,7 @@
 
 use iceoryx2::prelude::ZeroCopySend;
 
-use crate::{AXES, PROTOCOL_VERSION, read_text, write_text};
+use crate::{AXES, BUS_MAX_SUBDEVICES, PROTOCOL_VERSION, read_text, write_text};
 
 /// Daemon state: no program running, at rest.
 pub const STATE_IDLE: u32 = 0;
@@ -86,7 +86,7 @@ impl TryFrom<u32> for MachineState {
 /// One real-time cycle's output, published on the setpoints service every cycle.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.SetpointMsg.v3")]
+#[type_name("kerf.SetpointMsg.v4")]
 pub struct SetpointMsg {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
@@ -203,7 +203,7 @@ pub const PROGRAM_FATE_REFUSED: u32 = 5;
 /// A request from a client to the daemon on the control service.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.Request.v3")]
+#[type_name("kerf.Request.v4")]
 pub struct Request {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
@@ -370,7 +370,7 @@ pub const REASON_NOT_IMPLEMENTED: u32 = 5;
 /// The daemon's status, embedded in every [`Response`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.StatusMsg.v3")]
+#[type_name("kerf.StatusMsg.v4")]
 pub struct StatusMsg {
     /// `STATE_*`.
     pub state: u32,
@@ -433,7 +433,55 @@ pub struct StatusMsg {
     /// The black-box file written at the latched fault, UTF-8, NUL-padded (empty until
     /// written; see [`StatusMsg::fault_dump`]).
     pub fault_dump: [u8; 160],
+    /// EtherCAT subdevices on the bus (ring positions 0 to `bus_subdevices - 1`); 0 when
+    /// the drives are not on an EtherCAT bus, and then every `bus_*` and `dc_*` field is
+    /// 0. Readers take at most [`BUS_MAX_SUBDEVICES`] ([`StatusMsg::bus_positions`]).
+    pub bus_subdevices: u32,
+    /// 1 while a reset brings the bus back to OP, else 0.
+    pub bus_recovering: u32,
+    /// Each subdevice's AL state by ring position (`BUS_STATE_*`; 0 = unknown), as the
+    /// last exchange that came back saw it; 0 beyond `bus_subdevices`.
+    pub bus_states: [u8; BUS_MAX_SUBDEVICES],
+    /// Each subdevice's AL status code (ETG.1000.6) by ring position, as last read (when
+    /// it left OP, or during a reset's recovery); 0 = none.
+    pub bus_al_codes: [u16; BUS_MAX_SUBDEVICES],
+    /// Cycles whose process data was exchanged completely, since the bus came up.
+    pub bus_cycles_complete: u64,
+    /// Cycles whose frame did not come back in time.
+    pub bus_cycles_lost: u64,
+    /// Cycles whose working counter was short (a subdevice did not take part).
+    pub bus_cycles_short: u64,
+    /// Cycles in which a subdevice was not in OP.
+    pub bus_cycles_not_op: u64,
+    /// The most consecutive incomplete cycles seen, cycles.
+    pub bus_longest_gap_cycles: u32,
+    /// 1 when the bus runs with distributed clocks (the `dc_*` fields below), else 0.
+    pub dc_used: u32,
+    /// The last cycle's offset of its start from its place before SYNC0, ns (positive =
+    /// late).
+    pub dc_offset_ns: i64,
+    /// Median of |offset| over the cycles measured, ns.
+    pub dc_offset_abs_p50_ns: u64,
+    /// 99th percentile of |offset|, ns.
+    pub dc_offset_abs_p99_ns: u64,
+    /// 99.9th percentile of |offset|, ns.
+    pub dc_offset_abs_p999_ns: u64,
+    /// Largest |offset|, ns.
+    pub dc_offset_abs_max_ns: u64,
+    /// Cycles whose offset was measured (the distribution's sample count).
+    pub dc_samples: u64,
 }
+
+/// `StatusMsg::bus_states`: the AL state INIT.
+pub const BUS_STATE_INIT: u8 = 1;
+/// `StatusMsg::bus_states`: the AL state PRE-OP (mailbox, no process data).
+pub const BUS_STATE_PRE_OP: u8 = 2;
+/// `StatusMsg::bus_states`: the AL state BOOT (firmware update).
+pub const BUS_STATE_BOOT: u8 = 3;
+/// `StatusMsg::bus_states`: the AL state SAFE-OP (inputs exchanged, outputs ignored).
+pub const BUS_STATE_SAFE_OP: u8 = 4;
+/// `StatusMsg::bus_states`: the AL state OP (process data exchanged both ways).
+pub const BUS_STATE_OP: u8 = 8;
 
 /// `StatusMsg::drives`: the drives are being enabled; no motion yet.
 pub const DRIVES_ENABLING: u32 = 1;
@@ -519,6 +567,22 @@ impl StatusMsg {
             drive_error_code: 0,
             safety_cycle: 0,
             fault_dump: [0; 160],
+            bus_subdevices: 0,
+            bus_recovering: 0,
+            bus_states: [0; BUS_MAX_SUBDEVICES],
+            bus_al_codes: [0; BUS_MAX_SUBDEVICES],
+            bus_cycles_complete: 0,
+            bus_cycles_lost: 0,
+            bus_cycles_short: 0,
+            bus_cycles_not_op: 0,
+            bus_longest_gap_cycles: 0,
+            dc_used: 0,
+            dc_offset_ns: 0,
+            dc_offset_abs_p50_ns: 0,
+            dc_offset_abs_p99_ns: 0,
+            dc_offset_abs_p999_ns: 0,
+            dc_offset_abs_max_ns: 0,
+            dc_samples: 0,
         }
     }
 
@@ -546,6 +610,13 @@ impl StatusMsg {
     pub fn fault_dump(&self) -> &str {
         read_text(&self.fault_dump)
     }
+
+    /// The ring positions the bus section describes: `bus_subdevices`, at most
+    /// [`BUS_MAX_SUBDEVICES`] whatever a writer left there; 0 without an EtherCAT bus.
+    pub fn bus_positions(&self) -> usize {
+        usize::try_from(self.bus_subdevices)
+            .map_or(BUS_MAX_SUBDEVICES, |n| n.min(BUS_MAX_SUBDEVICES))
+    }
 }
 
 impl Default for StatusMsg {
@@ -558,7 +629,7 @@ impl Default for StatusMsg {
 /// after handling it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.Response.v3")]
+#[type_name("kerf.Response.v4")]
 pub struct Response {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,

@@ -8,14 +8,18 @@ use iceoryx2::prelude::ZeroCopySend;
 
 use crate::*;
 
-fn size_of_field<T, F>(_: fn(&T) -> &F) -> usize {
-    size_of::<F>()
+/// The size and the Rust type name of a field.
+fn field_type<T, F>(_: fn(&T) -> &F) -> (usize, &'static str) {
+    (size_of::<F>(), core::any::type_name::<F>())
 }
 
-/// (field, offset, size) of every field of a struct, in declaration order.
+/// (field, offset, size, Rust type) of every field of a struct, in declaration order.
 macro_rules! fields {
     ($t:ty; $($f:ident),* $(,)?) => {
-        vec![$((stringify!($f), offset_of!($t, $f), size_of_field(|m: &$t| &m.$f))),*]
+        vec![$({
+            let (size, ty) = field_type(|m: &$t| &m.$f);
+            (stringify!($f), offset_of!($t, $f), size, ty)
+        }),*]
     };
 }
 
@@ -24,7 +28,7 @@ struct Message {
     size: usize,
     align: usize,
     type_name: &'static str,
-    fields: Vec<(&'static str, usize, usize)>,
+    fields: Vec<(&'static str, usize, usize, &'static str)>,
 }
 
 fn messages() -> Vec<Message> {
@@ -66,7 +70,11 @@ fn messages() -> Vec<Message> {
                 queued_moves, queued_s, cycles, overruns, rt, program_done, program_id,
                 moves_received, window_items, rejected, fault, axes_mask, fault_text,
                 period_ns, program_end, drives, safety_check, safety_axis, safety_value,
-                safety_limit, safety_line, drive_error_code, safety_cycle, fault_dump),
+                safety_limit, safety_line, drive_error_code, safety_cycle, fault_dump,
+                bus_subdevices, bus_recovering, bus_states, bus_al_codes, bus_cycles_complete,
+                bus_cycles_lost, bus_cycles_short, bus_cycles_not_op, bus_longest_gap_cycles,
+                dc_used, dc_offset_ns, dc_offset_abs_p50_ns, dc_offset_abs_p99_ns,
+                dc_offset_abs_p999_ns, dc_offset_abs_max_ns, dc_samples),
         },
         Message {
             name: "Response",
@@ -81,7 +89,7 @@ fn messages() -> Vec<Message> {
 
 fn constants() -> BTreeMap<&'static str, u32> {
     macro_rules! consts {
-        ($($c:ident),* $(,)?) => { BTreeMap::from([$((stringify!($c), $c)),*]) };
+        ($($c:ident),* $(,)?) => { BTreeMap::from([$((stringify!($c), u32::try_from($c).unwrap())),*]) };
     }
     consts!(
         PROTOCOL_VERSION,
@@ -174,10 +182,33 @@ fn constants() -> BTreeMap<&'static str, u32> {
         SAFETY_FIELDBUS,
         SAFETY_SUBDEVICE_STATE,
         SAFETY_AXIS_NONE,
+        BUS_MAX_SUBDEVICES,
+        BUS_STATE_INIT,
+        BUS_STATE_PRE_OP,
+        BUS_STATE_BOOT,
+        BUS_STATE_SAFE_OP,
+        BUS_STATE_OP,
     )
 }
 
-/// The size of a documented type: `u8`, `u32`, `u64`, `f64`, `T[n]`, or a message name.
+/// Whether a documented type (`u16`, `f64[6]`, `StatusMsg`) is the Rust type `rust`
+/// (`u16`, `[f64; 6]`, `kerf_proto::control::StatusMsg`): a signed field documented as
+/// unsigned fails, not only a field of another size.
+fn same_type(ty: &str, rust: &str) -> bool {
+    if let Some((base, n)) = ty.strip_suffix(']').and_then(|t| t.split_once('[')) {
+        return rust
+            .strip_prefix('[')
+            .and_then(|r| r.strip_suffix(&format!("; {n}]")))
+            .is_some_and(|inner| same_type(base, inner));
+    }
+    match ty {
+        "u8" | "u16" | "u32" | "u64" | "i64" | "f64" => rust == ty,
+        message => rust.ends_with(&format!("::{message}")),
+    }
+}
+
+/// The size of a documented type: `u8`, `u16`, `u32`, `u64`, `i64`, `f64`, `T[n]`, or a
+/// message name.
 fn type_size(ty: &str, msgs: &[Message]) -> usize {
     if let Some((base, n)) = ty.strip_suffix(']').and_then(|t| t.split_once('[')) {
         let n: usize = n.parse().unwrap_or_else(|_| panic!("array length in {ty}"));
@@ -185,8 +216,9 @@ fn type_size(ty: &str, msgs: &[Message]) -> usize {
     }
     match ty {
         "u8" => 1,
+        "u16" => 2,
         "u32" => 4,
-        "u64" | "f64" => 8,
+        "u64" | "i64" | "f64" => 8,
         other => {
             msgs.iter()
                 .find(|m| m.name == other)
@@ -202,6 +234,17 @@ fn cells(row: &str) -> Vec<String> {
         .split('|')
         .map(|c| c.trim().trim_matches('`').to_string())
         .collect()
+}
+
+#[test]
+fn documented_types_are_matched_by_name_and_sign() {
+    assert!(same_type("i64", "i64"));
+    assert!(!same_type("u64", "i64"));
+    assert!(same_type("u16[32]", "[u16; 32]"));
+    assert!(!same_type("u16[32]", "[u16; 31]"));
+    assert!(!same_type("u8[32]", "[u16; 32]"));
+    assert!(same_type("StatusMsg", "kerf_proto::control::StatusMsg"));
+    assert!(!same_type("StatusMsg", "kerf_proto::control::Response"));
 }
 
 #[test]
@@ -252,13 +295,17 @@ fn protocol_md_matches_the_code() {
                 };
                 let offset: usize = offset.parse().expect("offset");
                 let size: usize = size.parse().expect("size");
-                let &(_, code_offset, code_size) =
+                let &(_, code_offset, code_size, code_type) =
                     msg.fields.iter().find(|f| f.0 == field).unwrap_or_else(|| {
                         panic!("{name}.{field} is documented but not in the code")
                     });
                 assert_eq!(offset, code_offset, "{name}.{field}: offset");
                 assert_eq!(size, code_size, "{name}.{field}: size");
                 assert_eq!(type_size(ty, &msgs), size, "{name}.{field}: type {ty}");
+                assert!(
+                    same_type(ty, code_type),
+                    "{name}.{field}: documented as {ty}, the code has {code_type}"
+                );
                 assert_eq!(
                     offset, next_offset,
                     "{name}.{field}: gap or overlap before it"

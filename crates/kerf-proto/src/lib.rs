@@ -7,8 +7,8 @@
 //!
 //! Design decisions:
 //! - **Plain old data only.** Every shared-memory type is `#[repr(C)]`, made of `u8`,
-//!   `u32`, `u64`, `f64` and fixed arrays of them, with every padding byte spelled out as a
-//!   reserved field. No Rust `enum`, `bool`, `Option` or reference crosses the shared
+//!   `u16`, `u32`, `u64`, `i64`, `f64` and fixed arrays of them, with every padding byte
+//!   spelled out as a reserved field. No Rust `enum`, `bool`, `Option` or reference crosses the shared
 //!   memory: any bit pattern a (possibly broken or hostile) writer leaves there is a valid
 //!   value of the type, so reading it is never undefined behaviour. Meaning is given by
 //!   `u32` constants ([`KIND_LINE`], [`FLAG_RAPID`], ...), decoded by validating
@@ -32,6 +32,7 @@ mod stream;
 mod doc_layout;
 
 pub use control::{
+    BUS_STATE_BOOT, BUS_STATE_INIT, BUS_STATE_OP, BUS_STATE_PRE_OP, BUS_STATE_SAFE_OP,
     ControlCommand, DRIVES_ENABLING, DRIVES_HOLDING, DRIVES_QUICK_STOP, DRIVES_RESETTING,
     DRIVES_RUNNING, DRIVES_STOPPED, MAX_OVERRIDE_PCT, MachineState, PROGRAM_END_ABORTED,
     PROGRAM_END_FINISHED, PROGRAM_END_NONE, PROGRAM_END_REFUSED, PROGRAM_FATE_ABORTED,
@@ -60,19 +61,24 @@ pub use stream::{CONTINUITY_TOL, StreamCheck, StreamError};
 /// The protocol version carried by every message. A change to any layout or to the meaning
 /// of any field is a new version (and new iceoryx2 type names); receivers refuse messages
 /// of another version.
-pub const PROTOCOL_VERSION: u32 = 3;
+pub const PROTOCOL_VERSION: u32 = 4;
 
 // The sizes in docs/PROTOCOL.md; a layout change must fail the build, not only the tests.
 const _: () = {
     assert!(size_of::<MoveMsg>() == 256);
     assert!(size_of::<SetpointMsg>() == 160);
     assert!(size_of::<Request>() == 32);
-    assert!(size_of::<StatusMsg>() == 488);
-    assert!(size_of::<Response>() == 736);
+    assert!(size_of::<StatusMsg>() == 680);
+    assert!(size_of::<Response>() == 928);
 };
 
 /// The number of axes in positions and velocities: X, Y, Z (mm), A, B, C (degrees).
 pub const AXES: usize = 6;
+
+/// The most EtherCAT subdevices the status describes: the length of its per-position
+/// arrays (`StatusMsg::bus_states`, `StatusMsg::bus_al_codes`). The daemon's bus takes no
+/// more (`kerf_ethercat::bus::MAX_SUBDEVICES`; `kerfd` asserts the two are equal).
+pub const BUS_MAX_SUBDEVICES: usize = 32;
 
 /// Service carrying [`MoveMsg`]s from the planner to the daemon (publish/subscribe).
 pub const SERVICE_MOVES: &str = "moves";

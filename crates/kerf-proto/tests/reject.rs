@@ -657,8 +657,8 @@ fn reasons_read_as_plain_words() {
         "field sweep_rad is not a finite number"
     );
     assert_eq!(
-        Reject::WrongVersion { found: 4 }.to_string(),
-        "protocol version 4, expected 3"
+        Reject::WrongVersion { found: 3 }.to_string(),
+        "protocol version 3, expected 4"
     );
     assert_eq!(
         Reject::EventValueMissing(EventCode::T).to_string(),

@@ -2,6 +2,11 @@
 
 use super::*;
 
+// The status carries one entry per ring position of the bus the daemon runs: the same
+// number of positions, or the status would drop subdevices (or describe ones that cannot
+// exist). kerf-proto does not depend on kerf-ethercat, so the two constants are tied here.
+const _: () = assert!(kerf_proto::BUS_MAX_SUBDEVICES == kerf_ethercat::bus::MAX_SUBDEVICES);
+
 /// The snapshot before the cycle's first report.
 pub(crate) fn idle_snapshot() -> Snapshot {
     Snapshot {
@@ -114,5 +119,173 @@ pub(crate) fn status_msg(
         msg.fault = 2;
         msg.set_fault_text(&fault_text::safety_text(&msg).unwrap_or_default());
     }
+    if let Some(bus) = &s.bus {
+        fill_bus(&mut msg, bus);
+    }
     msg
+}
+
+/// The EtherCAT section of the status (`bus_*`, `dc_*`) from the cycle's report of its bus.
+fn fill_bus(msg: &mut StatusMsg, bus: &worker::fieldbus::BusReport) {
+    msg.bus_subdevices = u32::from(bus.subdevices);
+    msg.bus_recovering = u32::from(bus.recovering);
+    // Positions beyond the bus stay 0, whatever the report holds there.
+    let n = usize::from(bus.subdevices).min(kerf_proto::BUS_MAX_SUBDEVICES);
+    msg.bus_states[..n].copy_from_slice(&bus.states[..n]);
+    msg.bus_al_codes[..n].copy_from_slice(&bus.al_codes[..n]);
+    let c = &bus.counters;
+    msg.bus_cycles_complete = c.complete;
+    msg.bus_cycles_lost = c.lost;
+    msg.bus_cycles_short = c.short;
+    msg.bus_cycles_not_op = c.not_op;
+    msg.bus_longest_gap_cycles = c.longest_gap;
+    if let Some(dc) = &bus.dc {
+        msg.dc_used = 1;
+        msg.dc_offset_ns = dc.offset_ns;
+        msg.dc_offset_abs_p50_ns = dc.offset_abs.p50_ns;
+        msg.dc_offset_abs_p99_ns = dc.offset_abs.p99_ns;
+        msg.dc_offset_abs_p999_ns = dc.offset_abs.p999_ns;
+        msg.dc_offset_abs_max_ns = dc.offset_abs.max_ns;
+        msg.dc_samples = dc.samples;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::timing::Percentiles;
+    use worker::fieldbus::{BusCounters, BusReport, DcReport};
+
+    fn status_of(bus: Option<BusReport>) -> StatusMsg {
+        let snapshot = Snapshot {
+            bus,
+            ..idle_snapshot()
+        };
+        status_msg(
+            &snapshot,
+            &PlanningCounters::default(),
+            1,
+            0,
+            64,
+            0b111,
+            1_000_000,
+        )
+    }
+
+    /// A bus of 4 subdevices: the Y drive (position 1) dropped to SAFE-OP with a sync
+    /// manager watchdog (0x001B) and a reset is bringing it back; DC in use.
+    fn report() -> BusReport {
+        let mut states = [0u8; 32];
+        states[..4].copy_from_slice(&[8, 4, 8, 8]);
+        // Garbage beyond the bus must not reach the status.
+        states[4] = 8;
+        let mut al_codes = [0u16; 32];
+        al_codes[1] = 0x001B;
+        al_codes[7] = 0x0011;
+        BusReport {
+            subdevices: 4,
+            states,
+            al_codes,
+            counters: BusCounters {
+                complete: 123_456,
+                lost: 3,
+                short: 2,
+                not_op: 17,
+                longest_gap: 5,
+            },
+            dc: Some(DcReport {
+                offset_ns: -1_250,
+                offset_abs: Percentiles {
+                    p50_ns: 300,
+                    p99_ns: 1_100,
+                    p999_ns: 2_000,
+                    max_ns: 3_400,
+                },
+                samples: 123_000,
+            }),
+            recovering: true,
+        }
+    }
+
+    #[test]
+    fn the_bus_section_is_filled_from_the_cycles_report() {
+        let msg = status_of(Some(report()));
+        assert_eq!(msg.bus_subdevices, 4);
+        assert_eq!(msg.bus_positions(), 4);
+        assert_eq!(msg.bus_recovering, 1);
+        let mut states = [0u8; 32];
+        states[..4].copy_from_slice(&[8, 4, 8, 8]);
+        assert_eq!(msg.bus_states, states);
+        let mut codes = [0u16; 32];
+        codes[1] = 0x001B;
+        assert_eq!(msg.bus_al_codes, codes);
+        assert_eq!(
+            (
+                msg.bus_cycles_complete,
+                msg.bus_cycles_lost,
+                msg.bus_cycles_short,
+                msg.bus_cycles_not_op,
+                msg.bus_longest_gap_cycles
+            ),
+            (123_456, 3, 2, 17, 5)
+        );
+        assert_eq!(msg.dc_used, 1);
+        assert_eq!(msg.dc_offset_ns, -1_250);
+        assert_eq!(
+            (
+                msg.dc_offset_abs_p50_ns,
+                msg.dc_offset_abs_p99_ns,
+                msg.dc_offset_abs_p999_ns,
+                msg.dc_offset_abs_max_ns,
+                msg.dc_samples
+            ),
+            (300, 1_100, 2_000, 3_400, 123_000)
+        );
+        // The rest of the status is what it is without a bus.
+        let without = status_of(None);
+        let mut other = msg;
+        other.bus_subdevices = 0;
+        other.bus_recovering = 0;
+        other.bus_states = [0; 32];
+        other.bus_al_codes = [0; 32];
+        other.bus_cycles_complete = 0;
+        other.bus_cycles_lost = 0;
+        other.bus_cycles_short = 0;
+        other.bus_cycles_not_op = 0;
+        other.bus_longest_gap_cycles = 0;
+        other.dc_used = 0;
+        other.dc_offset_ns = 0;
+        other.dc_offset_abs_p50_ns = 0;
+        other.dc_offset_abs_p99_ns = 0;
+        other.dc_offset_abs_p999_ns = 0;
+        other.dc_offset_abs_max_ns = 0;
+        other.dc_samples = 0;
+        assert_eq!(other, without);
+    }
+
+    #[test]
+    fn without_distributed_clocks_the_dc_fields_are_zero() {
+        let msg = status_of(Some(BusReport {
+            dc: None,
+            recovering: false,
+            ..report()
+        }));
+        assert_eq!(msg.bus_subdevices, 4);
+        assert_eq!(msg.bus_recovering, 0);
+        assert_eq!(msg.dc_used, 0);
+        assert_eq!(msg.dc_offset_ns, 0);
+        assert_eq!(msg.dc_offset_abs_max_ns, 0);
+        assert_eq!(msg.dc_samples, 0);
+    }
+
+    #[test]
+    fn without_a_bus_the_section_is_zero() {
+        let msg = status_of(None);
+        assert_eq!(msg.bus_subdevices, 0);
+        assert_eq!(msg.bus_positions(), 0);
+        assert_eq!(msg.bus_states, [0; 32]);
+        assert_eq!(msg.bus_al_codes, [0; 32]);
+        assert_eq!(msg.bus_cycles_complete, 0);
+        assert_eq!(msg.dc_used, 0);
+    }
 }

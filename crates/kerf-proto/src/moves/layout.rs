@@ -42,7 +42,7 @@ pub const CORNER_BLEND_TOLERANCE: u32 = 3;
 /// `docs/PROTOCOL.md`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.MoveMsg.v3")]
+#[type_name("kerf.MoveMsg.v4")]
 pub struct MoveMsg {
     /// [`PROTOCOL_VERSION`].
     ///
