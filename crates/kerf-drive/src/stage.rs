@@ -440,11 +440,16 @@ impl<D: Drive> DriveStage<D> {
             }
         }
 
+        // A reset started in this cycle is advanced from the next: this cycle's enabler
+        // status was decided before the reset's requests (a drive that dropped out of
+        // Operation enabled reads Dropped until its enabler starts again).
+        let started = self.reset_pending;
         if self.reset_pending {
             self.reset_pending = false;
             reset = self.start_reset(&status);
         }
         if self.phase == Phase::Resetting
+            && !started
             && let Some(r) = self.advance_reset(&status, &actual)
         {
             if r.is_ok() {

@@ -283,7 +283,8 @@ fn on_a_fieldbus_the_following_error_is_taken_against_the_command_one_cycle_olde
 }
 
 #[test]
-fn a_lost_exchange_leaves_the_feedback_stale_for_two_cycles_and_does_not_read_as_a_following_error() {
+fn a_lost_exchange_leaves_the_feedback_stale_for_two_cycles_and_does_not_read_as_a_following_error()
+{
     // At 50 mm/s (0.05 mm a period) on a fieldbus (feedback one cycle late) with a tight
     // following error: 0.03 mm at this speed. The exchange after cycle 20 is lost: cycle
     // 21 reads the actual position of cycle 20 again, and in cycle 22 the drive, which
@@ -312,7 +313,11 @@ fn a_lost_exchange_leaves_the_feedback_stale_for_two_cycles_and_does_not_read_as
         }
         trips
     };
-    assert_eq!(run(false), vec![21], "without the mark the lost exchange trips");
+    assert_eq!(
+        run(false),
+        vec![21],
+        "without the mark the lost exchange trips"
+    );
     assert_eq!(run(true), Vec::<u32>::new(), "marked stale: no trip");
 }
 

@@ -673,3 +673,32 @@ fn a_drive_that_disables_itself_trips() {
     assert_eq!((f.check, f.axis), (Check::DriveDisabled, Some(0)));
     let _ = MAX_AXES;
 }
+
+#[test]
+fn a_drive_that_disabled_itself_is_enabled_again_by_a_reset() {
+    // As after a fieldbus watchdog: the drive left Operation enabled on its own, the
+    // fault latched, and a reset must bring it back where it stands.
+    let l = limits(100.0, 1000.0, 50_000.0);
+    let mut r = rig(l, sim_drive(50.0, 1000.0, [1.0, 2.0, 3.0]));
+    let x0 = r.enable();
+    for _ in 0..10 {
+        r.step(Some(x0));
+    }
+    r.stage.drive_mut(1).unwrap().write(cw::SHUTDOWN, 2000);
+    let f = (0..5)
+        .find_map(|_| r.step(Some(x0)).tripped)
+        .expect("it trips");
+    assert_eq!((f.check, f.axis), (Check::DriveDisabled, Some(1)));
+    for _ in 0..50 {
+        r.step(Some(x0));
+    }
+    r.stage.request_reset();
+    let outcome = (0..200)
+        .find_map(|_| r.step(Some(x0)).reset)
+        .expect("the reset ends");
+    assert_eq!(outcome, Ok(()));
+    assert_eq!(
+        DriveState::from_statusword(r.stage.drive_mut(1).unwrap().statusword()),
+        Some(DriveState::OperationEnabled)
+    );
+}

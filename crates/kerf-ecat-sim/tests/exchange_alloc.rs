@@ -59,7 +59,8 @@ fn ten_thousand_exchanges_allocate_nothing() {
         }],
     };
     let (allocations, wkcs, expected) = ns.run_inside(move || {
-        let mut bus = Bus::bring_up(&config, 1_000_000, &claim()).unwrap_or_else(|e| panic!("bring-up: {e}"));
+        let mut bus =
+            Bus::bring_up(&config, 1_000_000, &claim()).unwrap_or_else(|e| panic!("bring-up: {e}"));
         let mut images = Bus::drive_images(&config).expect("layouts");
         let expected = bus.expected_working_counter();
         // Warm up: the first exchanges may touch lazily made state.

@@ -188,7 +188,8 @@ fn three_drives_and_an_io_subdevice_come_up_to_op_and_exchange_process_data() {
         &[3],
     );
     let (wkc, expected_wkc, statuswords) = ns.run_inside(move || {
-        let mut bus = Bus::bring_up(&config, 1_000_000, &claim()).unwrap_or_else(|e| panic!("bring-up: {e}"));
+        let mut bus =
+            Bus::bring_up(&config, 1_000_000, &claim()).unwrap_or_else(|e| panic!("bring-up: {e}"));
         let mut images = Bus::drive_images(&config).expect("layouts");
         let mut wkc = 0;
         for _ in 0..10 {

@@ -177,7 +177,9 @@ pub struct Exchange {
     /// position; the first [`Bus::len`] are the bus's.
     pub states: [u8; MAX_SUBDEVICES],
     /// With distributed clocks: the offset of the cycle's start from `sync0_shift_ns`
-    /// before SYNC0 (positive = late), and the correction of the next start, ns.
+    /// before SYNC0 (positive = late), and the correction of the next start, ns; `None`
+    /// also when the frame's round trip was too long to measure it
+    /// ([`PhaseLock::update`]).
     pub dc: Option<DcSample>,
 }
 
@@ -572,7 +574,8 @@ impl Bus {
         let settle_ms = config.dc_settle_timeout_ms;
         let settle_cycles = u64::from(settle_ms) * 1_000_000 / period_ns;
         // Settle: every subdevice's clock within SETTLED_NS of the reference's, and the
-        // host's cycle within a tenth of a period of its place for LOCKED_CYCLES in a row.
+        // host's cycle within a tenth of a period of its place in LOCKED_CYCLES measured
+        // cycles in a row.
         let mut locked = 0u32;
         let mut cycle = 0u64;
         let mut worst_clock: Option<(usize, i64)> = None;
@@ -597,22 +600,21 @@ impl Bus {
             }
             cycle += 1;
             let tick = clock.wait_next();
-            if let Ok(Some(sample)) = cycle_dc(
+            let measured = cycle_dc(
                 &maindevice,
                 &mut pump,
                 &group,
                 &mut lock,
                 tick.deadline_ns,
                 timeout,
-            )
-            .map(|r| r.1)
-            {
+            );
+            // A round trip too long to measure, or a frame lost, gives no verdict (the
+            // cyclic supervision, not the settling, is about lost frames).
+            if let Ok((_, Some(sample))) = measured {
                 clock.shift_next(sample.correction_ns);
                 last_offset = Some(sample.offset_ns);
                 let in_place = sample.offset_ns.unsigned_abs() < period_ns / 10;
                 locked = if in_place { locked + 1 } else { 0 };
-            } else {
-                locked = 0;
             }
             if locked >= LOCKED_CYCLES && cycle.is_multiple_of(10) {
                 worst_clock = worst_difference(&maindevice, &mut pump, &group, drives);
@@ -926,16 +928,20 @@ fn cycle_dc_exchange<S: HasPdi>(
     let response = pump
         .block_on(group.tx_rx_dc(maindevice), timeout)?
         .map_err(PumpError::Frame)?;
-    let (offset_ns, correction_ns) = lock.update(start_ns, sent_ns, response.extra.dc_system_time);
-    let all_op = response.all_op();
-    let exchange = exchange_of(
-        response.working_counter,
-        &response.subdevice_states,
-        Some(DcSample {
+    let received_ns = kerf_rt::now_ns();
+    let sample = lock
+        .update(
+            start_ns,
+            sent_ns,
+            received_ns,
+            response.extra.dc_system_time,
+        )
+        .map(|(offset_ns, correction_ns)| DcSample {
             offset_ns,
             correction_ns,
-        }),
-    );
+        });
+    let all_op = response.all_op();
+    let exchange = exchange_of(response.working_counter, &response.subdevice_states, sample);
     Ok((exchange, all_op))
 }
 

@@ -13,10 +13,12 @@
 //!
 //! The measurement: the cyclic frame reads the reference's system time as it passes
 //! (ethercrab's `tx_rx_dc`, a read-multiple-write of 0x0910). The host notes its own
-//! clock just before sending; the cycle's start on the bus's time is then the system
-//! time read minus the host's time from the cycle start to the send. The frame's flight
-//! to the reference (µs on a dedicated NIC) is not subtracted: it is constant and small,
-//! and it only moves the lock point earlier by itself.
+//! clock just before sending and when the frame is back; the frame passed the reference
+//! at about the middle of that round trip, so the cycle's start on the bus's time is the
+//! system time read minus the host's time from the cycle start to that middle. A frame
+//! whose round trip took longer than a quarter of the period (a busy host, a NIC that
+//! held it) says too little about when it passed: it is not taken, and the loop keeps
+//! its course for that cycle.
 //!
 //! The offset is the cycle start's distance from where it should be (`shift_ns` before
 //! SYNC0), wrapped into half a period either way; positive = late.
@@ -51,11 +53,16 @@ impl PhaseLock {
         }
     }
 
-    /// The offset of a cycle that started at `start_ns` (host clock), sent its frame at
-    /// `sent_ns` (host clock) and read the reference's system time `dc_time_ns` with it.
-    pub fn offset_ns(&self, start_ns: u64, sent_ns: u64, dc_time_ns: u64) -> i64 {
+    /// The longest round trip a measurement is taken from, ns.
+    pub fn max_round_trip_ns(&self) -> u64 {
+        self.period_ns / 4
+    }
+
+    /// The offset of a cycle that started at `start_ns` (host clock) and whose frame
+    /// passed the reference at host time `passed_ns`, reading its system time `dc_time_ns`.
+    pub fn offset_ns(&self, start_ns: u64, passed_ns: u64, dc_time_ns: u64) -> i64 {
         let period = self.period_ns as i64;
-        let start_on_bus = dc_time_ns.wrapping_sub(sent_ns.saturating_sub(start_ns));
+        let start_on_bus = dc_time_ns.wrapping_sub(passed_ns.saturating_sub(start_ns));
         // Where the start lies in the SYNC0 period, and where it should: `shift` before
         // the next pulse.
         let phase = (start_on_bus % self.period_ns) as i64;
@@ -69,37 +76,35 @@ impl PhaseLock {
         offset
     }
 
-    /// Takes one cycle's measurement (as [`PhaseLock::offset_ns`]); returns the offset and
-    /// the correction to add to the next cycle's start, ns (negative = earlier).
-    pub fn update(&mut self, start_ns: u64, sent_ns: u64, dc_time_ns: u64) -> (i64, i64) {
-        let offset = self.offset_ns(start_ns, sent_ns, dc_time_ns);
+    /// Takes one cycle's measurement: the cycle started at `start_ns`, its frame left at
+    /// `sent_ns` and was back at `received_ns` (host clock) with the reference's system
+    /// time `dc_time_ns`. Returns the offset and the correction to add to the next cycle's
+    /// start, ns (negative = earlier); `None` when the round trip was too long to say.
+    pub fn update(
+        &mut self,
+        start_ns: u64,
+        sent_ns: u64,
+        received_ns: u64,
+        dc_time_ns: u64,
+    ) -> Option<(i64, i64)> {
+        let round_trip_ns = received_ns.saturating_sub(sent_ns);
+        if round_trip_ns > self.max_round_trip_ns() {
+            return None;
+        }
+        let passed_ns = sent_ns + round_trip_ns / 2;
+        let offset = self.offset_ns(start_ns, passed_ns, dc_time_ns);
         self.offset_ns = offset;
         let max = self.max_step_ns as f64;
         // The integral is bounded so that a long disturbance (a frame lost, a late
         // cycle) does not wind it up beyond what one step can give back.
         self.integral_ns = (self.integral_ns + offset as f64).clamp(-max / KI, max / KI);
         let correction = -(KP * offset as f64 + KI * self.integral_ns);
-        (offset, correction.clamp(-max, max).round() as i64)
+        Some((offset, correction.clamp(-max, max).round() as i64))
     }
 
     /// The last offset measured, ns.
     pub fn last_offset_ns(&self) -> i64 {
         self.offset_ns
-    }
-
-    /// The host time of the first cycle start at or after `after_ns` that lies `shift_ns`
-    /// before a SYNC0, given that the reference's system time was `dc_time_ns` at host time
-    /// `at_ns`: where to start the cycle's clock so that it begins locked.
-    pub fn first_start_ns(&self, at_ns: u64, dc_time_ns: u64, after_ns: u64) -> u64 {
-        let period = self.period_ns;
-        let phase = dc_time_ns % period;
-        let wanted = (period - self.shift_ns) % period;
-        let to_wanted = (wanted + period - phase) % period;
-        let mut start = at_ns + to_wanted;
-        if start < after_ns {
-            start += (after_ns - start).div_ceil(period) * period;
-        }
-        start
     }
 }
 
@@ -133,12 +138,12 @@ mod tests {
         let mut lock = PhaseLock::new(PERIOD, SHIFT);
         let mut start = 10_000_000u64;
         let bus_offset = 123_456_789;
-        let first = lock.first_start_ns(start, bus_time(start, ppm, bus_offset), start);
-        start = first;
         let mut offsets = Vec::new();
         for _ in 0..cycles {
             let sent = start + 15_000;
-            let (offset, correction) = lock.update(start, sent, bus_time(sent, ppm, bus_offset));
+            let passed = sent + 10_000;
+            let dc = bus_time(passed, ppm, bus_offset);
+            let (offset, correction) = lock.update(start, sent, passed + 10_000, dc).unwrap();
             offsets.push(offset);
             start = (start as i64 + PERIOD as i64 + correction) as u64;
         }
@@ -146,16 +151,25 @@ mod tests {
     }
 
     #[test]
-    fn the_first_start_is_locked_and_a_drifting_bus_clock_is_followed() {
+    fn a_drifting_bus_clock_is_followed() {
         for ppm in [0.0, 50.0, -100.0, 500.0] {
             let offsets = run(ppm, 20_000);
-            // Locked from the start within the drift of a few cycles...
-            assert!(offsets[0].abs() < 1_000, "{ppm} ppm: {:?}", &offsets[..5]);
-            // ...and after settling within a microsecond, where without the loop the drift
-            // would have walked the start by ppm µs per second (20 s here).
+            // Wherever it began, after settling within a microsecond, where without the loop
+            // the drift would have walked the start by ppm µs per second (20 s here).
             let settled = offsets[1_000..].iter().map(|o| o.abs()).max().unwrap();
             assert!(settled <= 1_000, "{ppm} ppm: {settled} ns");
         }
+    }
+
+    #[test]
+    fn a_frame_with_a_long_round_trip_is_not_taken_and_the_middle_of_a_short_one_is() {
+        let mut lock = PhaseLock::new(PERIOD, SHIFT);
+        // Started on time (SYNC0 at 5 ms on the bus, the start 0.3 ms before it), the
+        // frame out 20 µs later and back 40 µs after that: it passed at 40 µs.
+        assert_eq!(lock.update(1_000, 21_000, 61_000, 4_740_000).unwrap().0, 0);
+        // Back only after 300 µs, beyond a quarter period: not taken.
+        assert_eq!(lock.update(1_000, 21_000, 321_000, 4_740_000), None);
+        assert_eq!(lock.last_offset_ns(), 0);
     }
 
     #[test]
@@ -166,7 +180,7 @@ mod tests {
         // The bus's time puts SYNC0 250 µs away from where it should be.
         for _ in 0..400 {
             let dc = start + 700_000 + 250_000;
-            let (offset, correction) = lock.update(start, start, dc);
+            let (offset, correction) = lock.update(start, start, start, dc).unwrap();
             assert!(correction.abs() <= (PERIOD / 20) as i64);
             offsets.push(offset);
             start = (start as i64 + PERIOD as i64 + correction) as u64;

@@ -88,7 +88,8 @@ fn run_part_as_kerf_sim_does(bench: &Bench) {
 }
 
 #[test]
-fn a_pulled_cable_latches_the_fieldbus_fault_a_reset_is_refused_while_the_bus_is_gone_and_brings_it_back_after() {
+fn a_pulled_cable_latches_the_fieldbus_fault_a_reset_is_refused_while_the_bus_is_gone_and_brings_it_back_after()
+ {
     let mut bench = Bench::new("cable");
     let _daemon = bench.daemon();
     // Wait until the drives are enabled and the machine is idle.
@@ -107,9 +108,9 @@ fn a_pulled_cable_latches_the_fieldbus_fault_a_reset_is_refused_while_the_bus_is
         assert!(Instant::now() < deadline, "no fieldbus fault: {s}");
         std::thread::sleep(Duration::from_millis(20));
     };
-    // Three cycles without an answer: more than the default two allowed.
-    assert_eq!(status["safety"]["value"].as_f64(), Some(3.0), "{status}");
-    assert_eq!(status["safety"]["limit"].as_f64(), Some(2.0), "{status}");
+    // Six cycles without an answer: more than the bench's five allowed.
+    assert_eq!(status["safety"]["value"].as_f64(), Some(6.0), "{status}");
+    assert_eq!(status["safety"]["limit"].as_f64(), Some(5.0), "{status}");
     assert_eq!(
         status["safety"]["axis"],
         serde_json::Value::Null,
@@ -117,7 +118,7 @@ fn a_pulled_cable_latches_the_fieldbus_fault_a_reset_is_refused_while_the_bus_is
     );
     let text = String::from_utf8_lossy(&bench.kerf(&["status"]).stdout).into_owned();
     assert!(
-        text.contains("EtherCAT: 3 cycles in a row without a complete exchange (limit 2)"),
+        text.contains("EtherCAT: 6 cycles in a row without a complete exchange (limit 5)"),
         "{text}"
     );
     let out = bench.kerf(&["reset"]);
@@ -138,9 +139,6 @@ fn a_pulled_cable_latches_the_fieldbus_fault_a_reset_is_refused_while_the_bus_is
     }
     bench.emulator_says("unmute");
     let out = bench.kerf(&["reset"]);
-    eprintln!("{:?} {}", bench.emulator_state(), String::from_utf8_lossy(&out.stderr));
-    let out = bench.kerf(&["reset"]);
-    eprintln!("{:?} {}", bench.emulator_state(), String::from_utf8_lossy(&out.stderr));
     assert!(
         out.status.success(),
         "reset refused after the bus came back: {}",
@@ -149,6 +147,15 @@ fn a_pulled_cable_latches_the_fieldbus_fault_a_reset_is_refused_while_the_bus_is
     let status = bench.status();
     assert_eq!(status["state"], "idle", "{status}");
     assert_eq!(status["fault"], serde_json::Value::Null, "{status}");
+    for s in status["ethercat"]["subdevices"]
+        .as_array()
+        .expect("subdevices")
+    {
+        assert_eq!(s["state"], "OP", "{status}");
+    }
+    for line in &bench.emulator_state()[..3] {
+        assert_eq!(Bench::field(line, "cia402"), "operation_enabled", "{line}");
+    }
     // And the machine runs a part again.
     run_part_as_kerf_sim_does(&bench);
 }
@@ -233,7 +240,9 @@ fn dc_summary(stderr: &str) -> (u64, Vec<f64>) {
 
 #[test]
 fn with_distributed_clocks_the_cycle_locks_onto_sync0_and_the_program_runs_as_kerf_sim_computes() {
-    let bench = Bench::with("dc", "dc = true\n", &[]);
+    // The emulated bus clock runs 200 ppm fast: unsteered, the cycle start would walk
+    // 200 µs per second across SYNC0.
+    let bench = Bench::with("dc", "dc = true\n", &["--dc-drift-ppm", "200"]);
     let mut daemon = bench.daemon();
     run_part_as_kerf_sim_does(&bench);
     daemon.signal("TERM");
@@ -244,11 +253,13 @@ fn with_distributed_clocks_the_cycle_locks_onto_sync0_and_the_program_runs_as_ke
     }
     let (samples, offsets_us) = dc_summary(&daemon.stderr());
     assert!(samples > 500, "{samples} cycles measured");
-    // p50, p99, p99.9, max of |offset|: the cycle start kept its place before SYNC0
-    // within a tenth of the 4 ms period at the 99th percentile (a debug build on a busy
-    // two-core machine; docs/PERFORMANCE.md has the figures of a release build).
+    // p50, p99, p99.9, max of |offset|: the cycle start kept its place before SYNC0,
+    // within a twentieth of the 4 ms period at the median and a quarter at the 99th
+    // percentile (a debug build on a busy two-core machine, the frame's timing taken by a
+    // process; docs/PERFORMANCE.md has the figures of a release build).
     assert_eq!(offsets_us.len(), 4, "{offsets_us:?}");
-    assert!(offsets_us[1] < 400.0, "{offsets_us:?}");
+    assert!(offsets_us[0] < 200.0, "{offsets_us:?}");
+    assert!(offsets_us[1] < 1000.0, "{offsets_us:?}");
 }
 
 #[test]
