@@ -123,6 +123,8 @@ pub struct Esc {
     last_output_ns: Option<u64>,
     watchdog_trips: u32,
     refusal: Option<(AlState, u16)>,
+    /// An error of its own, to take effect at the next tick (see [`Esc::fail_out_of_op`]).
+    pending_failure: Option<u16>,
     app: Box<dyn Application>,
 }
 
@@ -152,6 +154,7 @@ impl Esc {
             last_output_ns: None,
             watchdog_trips: 0,
             refusal: None,
+            pending_failure: None,
             app,
         };
         let info: [u8; 10] = [
@@ -505,6 +508,14 @@ impl Esc {
     /// the application's own tick. The MainDevice brings it back with an acknowledge
     /// (see [`Al::request`]) and a request for OP.
     pub fn tick(&mut self, now_ns: u64) {
+        if let Some(code) = self.pending_failure.take()
+            && self.al.state() == AlState::Op
+        {
+            // An error of its own: out of OP with the code, and, as after the watchdog,
+            // the drive stops itself (its outputs are no longer taken).
+            self.al.drop_to(AlState::SafeOp, code);
+            self.app.watchdog_expired(now_ns);
+        }
         let expired = match (self.al.state(), self.last_output_ns, self.watchdog_ns()) {
             (AlState::Op, Some(last), Some(limit)) => now_ns.saturating_sub(last) > limit,
             _ => false,
@@ -519,6 +530,15 @@ impl Esc {
     }
 
     /// How many times the process-data watchdog has expired.
+    /// An error of the subdevice's own while in OP (a drive's internal error that takes
+    /// its EtherCAT state machine down): at the next tick it drops to SAFE-OP with the
+    /// error flag and AL status `code`, and its application stops as after the watchdog.
+    /// Nothing happens out of OP.
+    pub fn fail_out_of_op(&mut self, code: u16) {
+        self.pending_failure = Some(code);
+    }
+
+    /// Process-data watchdog expiries so far.
     pub fn watchdog_trips(&self) -> u32 {
         self.watchdog_trips
     }

@@ -42,6 +42,7 @@
 //! | `mute`          | stop answering frames (a pulled cable)                              |
 //! | `unmute`        | answer again                                                        |
 //! | `fault P CODE`  | the drive at P trips a fault with error code CODE (0x603F)          |
+//! | `leave-op P CODE` | the subdevice at P leaves OP by an error of its own: SAFE-OP + error, AL status code CODE; a drive stops itself as after its watchdog |
 //! | `stall P`       | the drive at P's motor jams (see [`drive`]): position stays, velocity 0, following error grows with the target, statusword bit 13 beyond the window; no fault of its own |
 //! | `free P`        | it turns again                                                      |
 //! | `inputs N BITS` | the N-th I/O subdevice's (0 first) input bits                       |

@@ -2,7 +2,7 @@
 //! documentation for the default identities.
 //!
 //! Control on standard input, one command per line (see `--help` and the library's
-//! documentation): `mute`, `unmute`, `fault P CODE`, `stall P`, `free P`,
+//! documentation): `mute`, `unmute`, `fault P CODE`, `leave-op P CODE`, `stall P`, `free P`,
 //! `inputs N BITS`, `state`. Standard output carries only the answers to `state`
 //! ([`kerf_ecat_sim::report`]); everything else goes to standard error.
 //!
@@ -60,6 +60,8 @@ fn parse_refusal(text: &str) -> Result<SafeOpRefusal, String> {
 ///   mute            stop answering frames (a pulled cable)
 ///   unmute          answer again
 ///   fault P CODE    trip a fault with error code CODE (0x603F) in the drive at P
+///   leave-op P CODE the subdevice at P leaves OP by an error of its own: SAFE-OP with
+///                   the error flag and AL status code CODE; a drive stops itself
 ///   stall P         jam the motor of the drive at P: it stays where it is while the
 ///                   target moves on, so the following error (0x60F4) grows and
 ///                   statusword bit 13 is set beyond the 1000-count window; velocity 0;
@@ -145,6 +147,12 @@ fn control(
                 return Err(format!("no drive at position {position}"));
             }
         }
+        ["leave-op", position, code] => {
+            let code = u16::try_from(parse_u32(code)?).map_err(|e| e.to_string())?;
+            if !network.fail_out_of_op(index(position)?, code) {
+                return Err(format!("no subdevice at position {position}"));
+            }
+        }
         [verb @ ("stall" | "free"), position] => {
             if !network.set_stalled(index(position)?, *verb == "stall") {
                 return Err(format!("no drive at position {position}"));
@@ -165,8 +173,8 @@ fn control(
         }
         _ => {
             return Err(
-                "unknown command (mute, unmute, fault POSITION CODE, stall POSITION, \
-                 free POSITION, inputs N BITS, state)"
+                "unknown command (mute, unmute, fault POSITION CODE, leave-op POSITION CODE, \
+                 stall POSITION, free POSITION, inputs N BITS, state)"
                     .into(),
             );
         }

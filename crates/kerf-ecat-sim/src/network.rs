@@ -101,6 +101,15 @@ impl Network {
             .is_some_and(|esc| esc.app_mut().set_stalled(stalled))
     }
 
+    /// The subdevice at `position` leaves OP by an error of its own with AL status `code`
+    /// ([`crate::esc::Esc::fail_out_of_op`]); false where there is none.
+    pub fn fail_out_of_op(&mut self, position: usize, code: u16) -> bool {
+        self.escs
+            .get_mut(position)
+            .map(|esc| esc.fail_out_of_op(code))
+            .is_some()
+    }
+
     /// One loop turn for every subdevice (watchdogs).
     pub fn tick(&mut self, now_ns: u64) {
         for esc in &mut self.escs {

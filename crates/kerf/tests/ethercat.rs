@@ -304,3 +304,51 @@ fn while_the_daemon_runs_the_bus_the_commissioning_commands_and_a_second_daemon_
     // The first daemon still runs its bus.
     assert_eq!(bench.status()["state"], "idle");
 }
+
+#[test]
+fn a_subdevice_leaving_op_is_named_with_its_al_status_code_and_a_reset_brings_it_back() {
+    let mut bench = Bench::new("leave");
+    let _daemon = bench.daemon();
+    let deadline = Instant::now() + PATIENCE;
+    while bench.status()["state"] != "idle" {
+        assert!(Instant::now() < deadline, "never idle: {}", bench.status());
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // The Y drive's own error takes it out of OP: 0x001A, synchronization error.
+    bench.emulator_says("leave-op 1 0x001A");
+    let deadline = Instant::now() + PATIENCE;
+    let status = loop {
+        let s = bench.status();
+        if s["safety"]["check"] == "subdevice_state" {
+            break s;
+        }
+        assert!(Instant::now() < deadline, "no subdevice_state fault: {s}");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert_eq!(status["safety"]["value"].as_f64(), Some(1.0), "{status}");
+    assert_eq!(status["safety"]["limit"].as_f64(), Some(26.0), "{status}");
+    let y = &status["ethercat"]["subdevices"][1];
+    assert_eq!(y["name"], "Y drive", "{status}");
+    assert_eq!(y["state"], "SAFE-OP", "{status}");
+    assert_eq!(y["al_status_code"].as_u64(), Some(0x1A), "{status}");
+    let text = String::from_utf8_lossy(&bench.kerf(&["status"]).stdout).into_owned();
+    assert!(
+        text.contains(
+            "EtherCAT: the subdevice at position 1 left OP, AL status code 0x001a (synchronization error)"
+        ),
+        "{text}"
+    );
+    // The others stayed in OP; the reset brings Y back and enables the drives.
+    let out = bench.kerf(&["reset"]);
+    assert!(
+        out.status.success(),
+        "reset refused: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let status = bench.status();
+    assert_eq!(status["state"], "idle", "{status}");
+    for line in &bench.emulator_state()[..3] {
+        assert_eq!(Bench::field(line, "al"), "OP", "{line}");
+        assert_eq!(Bench::field(line, "cia402"), "operation_enabled", "{line}");
+    }
+}
