@@ -23,6 +23,17 @@ fn claim() -> kerf_ethercat::claim::Claim {
 
 #[test]
 fn ten_thousand_exchanges_allocate_nothing() {
+    exchanges_allocate_nothing(false);
+}
+
+/// With distributed clocks every exchange also reads the reference's system time and the
+/// phase lock takes it; the reads and requests of a reset's recovery run beside it.
+#[test]
+fn ten_thousand_exchanges_with_distributed_clocks_and_the_recoverys_requests_allocate_nothing() {
+    exchanges_allocate_nothing(true);
+}
+
+fn exchanges_allocate_nothing(dc: bool) {
     let mut ns = Netns::new();
     ns.start_emulator(&["--drives", "3", "--io", "1"]);
     let identity = |product_code| Identity {
@@ -32,8 +43,8 @@ fn ten_thousand_exchanges_allocate_nothing() {
     };
     let config = EthercatConfig {
         interface: MAIN_IF.to_owned(),
-        dc: false,
-        sync0_shift_ns: 0,
+        dc,
+        sync0_shift_ns: if dc { 500_000 } else { 0 },
         max_missed_cycles: 2,
         watchdog_us: 20_000,
         state_timeout_ms: 5_000,
@@ -70,10 +81,18 @@ fn ten_thousand_exchanges_allocate_nothing() {
         }
         let mut wkcs = [0u16; 10_000];
         let count = Count::start();
-        for wkc in wkcs.iter_mut() {
+        for (i, wkc) in wkcs.iter_mut().enumerate() {
             *wkc = bus
                 .exchange(&mut images, std::time::Duration::from_millis(100))
                 .expect("exchange");
+            if dc && i % 100 == 0 {
+                // A reset's recovery: a subdevice's status read, then a request (for the
+                // state it is in: nothing changes).
+                let position = (i / 100 % 4) as u16;
+                let timeout = std::time::Duration::from_millis(100);
+                let (state, _) = bus.status_of(position, timeout).expect("status");
+                assert!(bus.request_state(position, state & 0x0F, timeout));
+            }
         }
         (count.stop(), wkcs.to_vec(), expected)
     });
