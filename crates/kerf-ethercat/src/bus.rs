@@ -709,12 +709,7 @@ impl Bus {
     /// `position`: one frame's round trip, outside the cycle's exchange (after a subdevice
     /// left OP). `None` when no answer came within `timeout`.
     pub fn status_of(&mut self, position: u16, timeout: Duration) -> Option<(u8, u16)> {
-        let position = usize::from(position);
-        let sub = match &self.group {
-            Cyclic::Free(g) => g.subdevice(&self.maindevice, position),
-            Cyclic::Clocked(g) => g.subdevice(&self.maindevice, position),
-        }
-        .ok()?;
+        let sub = subdevice_of(&self.group, &self.maindevice, usize::from(position))?;
         let status = self
             .pump
             .block_on(
@@ -734,11 +729,7 @@ impl Bus {
     /// Asks the subdevice at `position` for `state` (2 PRE-OP, 4 SAFE-OP, 8 OP),
     /// acknowledging its error: one frame's round trip. Whether it answered.
     pub fn request_state(&mut self, position: u16, state: u8, timeout: Duration) -> bool {
-        let position = usize::from(position);
-        let Ok(sub) = (match &self.group {
-            Cyclic::Free(g) => g.subdevice(&self.maindevice, position),
-            Cyclic::Clocked(g) => g.subdevice(&self.maindevice, position),
-        }) else {
+        let Some(sub) = subdevice_of(&self.group, &self.maindevice, usize::from(position)) else {
             return false;
         };
         let control = u16::from(state) | AL_ACKNOWLEDGE;
@@ -774,11 +765,7 @@ impl Bus {
         let Some(d) = self.drives.iter().find(|d| d.axis == axis) else {
             return;
         };
-        let sub = match &self.group {
-            Cyclic::Free(g) => g.subdevice(&self.maindevice, d.group_index),
-            Cyclic::Clocked(g) => g.subdevice(&self.maindevice, d.group_index),
-        };
-        if let Ok(sub) = sub {
+        if let Some(sub) = subdevice_of(&self.group, &self.maindevice, d.group_index) {
             image.write_outputs(sub.io_raw_mut().outputs());
         }
     }
@@ -788,11 +775,7 @@ impl Bus {
         let Some(d) = self.drives.iter().find(|d| d.axis == axis) else {
             return;
         };
-        let sub = match &self.group {
-            Cyclic::Free(g) => g.subdevice(&self.maindevice, d.group_index),
-            Cyclic::Clocked(g) => g.subdevice(&self.maindevice, d.group_index),
-        };
-        if let Ok(sub) = sub {
+        if let Some(sub) = subdevice_of(&self.group, &self.maindevice, d.group_index) {
             image.read_inputs(sub.io_raw().inputs());
         }
     }
@@ -875,6 +858,21 @@ impl Bus {
                 .sum(),
         }
     }
+}
+
+/// The subdevice at group index `index` of `group`, whichever way it is cycled.
+fn subdevice_of<'a>(
+    group: &'a Cyclic,
+    maindevice: &'a MainDevice<'static>,
+    index: usize,
+) -> Option<
+    ethercrab::SubDeviceRef<'a, ethercrab::SubDevicePdi<'a, MAX_PDI_BYTES, ethercrab::DefaultLock>>,
+> {
+    match group {
+        Cyclic::Free(g) => g.subdevice(maindevice, index),
+        Cyclic::Clocked(g) => g.subdevice(maindevice, index),
+    }
+    .ok()
 }
 
 /// The names of the subdevices by position: the configuration's ("X drive", "I/O"), else
@@ -1014,23 +1012,21 @@ fn read_status(
     pump: &mut Pump,
     address: u16,
 ) -> Option<(u8, u16)> {
-    let state = pump
-        .block_on(
-            ethercrab::Command::fprd(address, RegisterAddress::AlStatus.into())
-                .receive::<u8>(maindevice),
-            Duration::from_millis(200),
-        )
-        .ok()?
-        .ok()?;
-    let code = pump
-        .block_on(
-            ethercrab::Command::fprd(address, RegisterAddress::AlStatusCode.into())
-                .receive::<u16>(maindevice),
-            Duration::from_millis(200),
-        )
-        .ok()?
-        .ok()?;
-    Some((state, code))
+    // Right after a refused transition the first read may find the answer to the
+    // transition's last frame (dropped in flight at its timeout) in its place: three tries.
+    let mut read = |register: RegisterAddress| {
+        (0..3).find_map(|_| {
+            pump.block_on(
+                ethercrab::Command::fprd(address, register.into()).receive::<u16>(maindevice),
+                Duration::from_millis(200),
+            )
+            .ok()?
+            .ok()
+        })
+    };
+    let state = read(RegisterAddress::AlStatus)?;
+    let code = read(RegisterAddress::AlStatusCode)?;
+    Some(((state & 0xFF) as u8, code))
 }
 
 /// The SDO writes that configure a drive in PRE-OP: for each direction the assignment
