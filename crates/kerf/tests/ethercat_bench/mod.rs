@@ -50,6 +50,13 @@ impl Bench {
     /// [`Bench::new`] with `bus` for the `[ethercat]` table's settings (besides the
     /// interface) and `emulator_args` for the emulator.
     pub fn with(tag: &str, bus: &str, emulator_args: &[&str]) -> Bench {
+        Bench::with_x_drive(tag, bus, "", emulator_args)
+    }
+
+    /// [`Bench::with`] with `x_drive` appended to the X drive's `[[ethercat.drives]]`
+    /// table (more keys, e.g. `sdo = [...]`, each line ended by `\n`). The emulator has 3
+    /// drives and 1 I/O subdevice unless `emulator_args` gives `--drives` or `--io`.
+    pub fn with_x_drive(tag: &str, bus: &str, x_drive: &str, emulator_args: &[&str]) -> Bench {
         let machine = format!("t{}_{tag}", std::process::id());
         let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
             .join("kerf-ethercat-tests")
@@ -74,7 +81,7 @@ impl Bench {
             // likewise a frame now and then comes back after its half period, so five
             // incomplete exchanges in a row are allowed, not two.
             "\n[safety]\nstall_cycles = 50\n\n[ethercat]\ninterface = \"{MAIN_IF}\"\nmax_missed_cycles = 5\n{bus}\
-             [[ethercat.drives]]\naxis = \"x\"\nposition = 0\nvendor_id = 0x4B52\nproduct_code = 0x402\n\
+             [[ethercat.drives]]\naxis = \"x\"\nposition = 0\nvendor_id = 0x4B52\nproduct_code = 0x402\n{x_drive}\
              [[ethercat.drives]]\naxis = \"y\"\nposition = 1\nvendor_id = 0x4B52\nproduct_code = 0x402\n\
              [[ethercat.drives]]\naxis = \"z\"\nposition = 2\nvendor_id = 0x4B52\nproduct_code = 0x402\n\
              [[ethercat.io]]\nposition = 3\nvendor_id = 0x4B52\nproduct_code = 0x10\n"
@@ -86,7 +93,12 @@ impl Bench {
         // at a real-time priority (below kerfd's cycle), as root runs these tests.
         let mut c = ns.command("chrt");
         c.args(["-f", "40", &emulator()]);
-        c.args(["--interface", NETWORK_IF, "--drives", "3", "--io", "1"]);
+        c.args(["--interface", NETWORK_IF]);
+        for (option, default) in [("--drives", "3"), ("--io", "1")] {
+            if !emulator_args.contains(&option) {
+                c.args([option, default]);
+            }
+        }
         c.args(emulator_args);
         let log = dir.join("emulator.stderr");
         let mut emulator = c
@@ -166,6 +178,35 @@ impl Bench {
             .args(["--config", self.config.to_str().unwrap()])
             .output()
             .unwrap()
+    }
+
+    /// `kerf status --json` polled until `done` holds (panics after [`PATIENCE`], naming
+    /// `what` and the last status).
+    pub fn status_until(
+        &self,
+        what: &str,
+        done: impl Fn(&serde_json::Value) -> bool,
+    ) -> serde_json::Value {
+        let deadline = Instant::now() + PATIENCE;
+        loop {
+            let s = self.status();
+            if done(&s) {
+                return s;
+            }
+            assert!(Instant::now() < deadline, "never {what}: {s}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Starts the daemon inside the namespace and waits for it to exit, as it does when
+    /// the bus's bring-up is refused: its exit status and standard error. Panics when it
+    /// has not exited within [`PATIENCE`].
+    pub fn daemon_refused(&self) -> (std::process::ExitStatus, String) {
+        let mut c = self.ns.command(kerfd());
+        c.args(["--config", self.config.to_str().unwrap()]);
+        let mut d = Proc::start("kerfd", &self.dir, c);
+        let status = d.wait_within(PATIENCE);
+        (status, d.stderr())
     }
 
     /// Starts the daemon inside the namespace; waits until it answers.
