@@ -291,6 +291,17 @@ pub fn expected(config: &EthercatConfig) -> Vec<Expected> {
     drives.chain(io).collect()
 }
 
+/// ethercrab's timeouts for every bring-up and commissioning step, its defaults but for
+/// the EEPROM: ethercrab bounds each SII read's whole polling loop, frames included, by
+/// it, and its default of 10 ms fails a healthy subdevice whenever the host stalls that
+/// long (a busy machine without real-time scheduling).
+pub(crate) fn timeouts() -> Timeouts {
+    Timeouts {
+        eeprom: Duration::from_millis(200),
+        ..Timeouts::default()
+    }
+}
+
 /// Opens the interface and the MainDevice. The storage for frames lives as long as the
 /// process: a few tens of kB, once per bus opened.
 pub(crate) fn open(
@@ -349,7 +360,7 @@ pub(crate) fn scan_group(
 /// Scans the bus on `interface` and reads every subdevice's identity, leaving the bus in
 /// PRE-OP (the `kerf ethercat scan` view).
 pub fn scan(claim: &Claim) -> Result<Vec<Found>, BringUpError> {
-    let timeouts = Timeouts::default();
+    let timeouts = timeouts();
     let (maindevice, mut pump) = open(claim, timeouts)?;
     let group = scan_group(&maindevice, &mut pump, timeouts.state_transition * 2)?;
     Ok(found_of(&group, &maindevice))
@@ -394,7 +405,7 @@ impl Bus {
         let timeouts = Timeouts {
             state_transition: Duration::from_millis(u64::from(config.state_timeout_ms)),
             mailbox_response: Duration::from_millis(u64::from(config.sdo_timeout_ms)),
-            ..Timeouts::default()
+            ..timeouts()
         };
         // The pump's own bound on a step: twice ethercrab's, so ethercrab's error (which
         // says more) comes first.

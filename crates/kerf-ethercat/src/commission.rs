@@ -11,7 +11,7 @@
 use std::fmt::Write as _;
 use std::time::Duration;
 
-use ethercrab::{DcSupport, MainDevice, Timeouts};
+use ethercrab::{DcSupport, MainDevice};
 use kerf_config::ethercat::{SdoValue, SdoWrite};
 use thiserror::Error;
 
@@ -98,7 +98,7 @@ fn mailbox_words(protocols: u16) -> String {
 
 /// Scans the bus on the claimed interface and describes every subdevice.
 pub fn scan_detail(claim: &Claim) -> Result<Vec<ScanEntry>, BringUpError> {
-    let timeouts = Timeouts::default();
+    let timeouts = crate::bus::timeouts();
     let (maindevice, mut pump) = open(claim, timeouts)?;
     let group = scan_group(&maindevice, &mut pump, timeouts.state_transition * 2)?;
     let found = found_of(&group, &maindevice);
@@ -295,7 +295,7 @@ fn on_subdevice<T>(
         &'a Found,
     ) -> Result<T, BringUpError>,
 ) -> Result<T, BringUpError> {
-    let timeouts = Timeouts::default();
+    let timeouts = crate::bus::timeouts();
     let (maindevice, mut pump) = open(claim, timeouts)?;
     let group = scan_group(&maindevice, &mut pump, timeouts.state_transition * 2)?;
     let found = found_of(&group, &maindevice);
