@@ -280,7 +280,7 @@ pub enum ResetRefused {
     Fieldbus(u32),
     /// A subdevice on the fieldbus did not return to OP.
     #[error(
-        "reset refused: the EtherCAT subdevice at position {position} did not return to OP within {timeout_ms} ms: it is in {state}, AL status code {code:#06x}"
+        "reset refused: the EtherCAT subdevice at position {position} did not return to OP within {timeout_ms} ms: it is in {state}, AL status code {code:#06x} (one that fell to INIT or PRE-OP, e.g. power-cycled, has lost its configuration: restart kerfd)"
     )]
     SubdeviceState {
         /// Its ring position.
