@@ -649,9 +649,9 @@ impl Bus {
         )?;
         // Cycle until every subdevice is in OP: the drives go to OP only with frames
         // arriving in time for SYNC0.
+        // The same clock as the settling: its deadlines passed during the state change
+        // are skipped, and the next keeps the phase the loop found.
         let op_cycles = u64::from(config.state_timeout_ms) * 1_000_000 / period_ns;
-        let mut clock = kerf_rt::PeriodicClock::new(period_ns)
-            .map_err(|_| BringUpError::Period { period_ns })?;
         for cycle in 0.. {
             let tick = clock.wait_next();
             let (all_op, sample) = match cycle_dc(
