@@ -21,24 +21,28 @@
 //! The pump runs on the calling thread: bring-up and the cyclic exchange are driven by the
 //! thread that owns the `Bus`, with no executor or helper thread (see [`crate::pump`]).
 
+mod clocked;
+mod configure;
+
 use std::time::Duration;
 
-use ethercrab::subdevice_group::{DcConfiguration, HasDc, HasPdi, NoDc, Op, PreOp};
+use ethercrab::subdevice_group::{HasDc, NoDc, Op, PreOp};
 use ethercrab::{
-    DcSync, MainDevice, MainDeviceConfig, PduStorage, RegisterAddress, SubDeviceGroup,
-    SubDeviceState, Timeouts,
+    MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
 };
-use kerf_config::ethercat::{EthercatConfig, Pdo, SdoValue, SdoWrite};
+use kerf_config::ethercat::{EthercatConfig, SdoWrite};
 use thiserror::Error;
 
+pub use clocked::SETTLED_NS;
+pub use configure::drive_writes;
+pub(crate) use configure::sdo_write;
+
+use crate::al::{AL_ACKNOWLEDGE, AL_CONTROL_REGISTER, al_code_text, read_status, state_text};
 use crate::claim::Claim;
 use crate::dc::PhaseLock;
 use crate::identity::{Expected, Found, compare};
 use crate::image::DriveImage;
-use crate::pdo::{
-    DriveLayout, INTERPOLATION_PERIOD, LayoutError, MODES_OF_OPERATION, SM2_ASSIGNMENT,
-    SM3_ASSIGNMENT, interpolation_period,
-};
+use crate::pdo::{DriveLayout, LayoutError, interpolation_period};
 use crate::pump::{Pump, PumpError};
 use crate::socket::RawSocket;
 
@@ -52,17 +56,6 @@ const MAX_FRAMES: usize = 16;
 const FRAME_DATA: usize = PduStorage::element_size(1100);
 /// The SyncManager watchdog time register (ETG.1000.4, units of the watchdog divider).
 const SM_WATCHDOG_REGISTER: u16 = 0x0420;
-/// A subdevice's clock has settled when its system time difference (0x092C) is within
-/// this, ns.
-pub const SETTLED_NS: u32 = 1_000;
-/// The AL control register (ETG.1000.4): the state requested, bit 4 acknowledges an error.
-const AL_CONTROL_REGISTER: u16 = 0x0120;
-/// AL control's error acknowledge bit.
-const AL_ACKNOWLEDGE: u16 = 0x0010;
-/// The system time difference register of a subdevice's clock (ETG.1000.4).
-const DC_DIFFERENCE_REGISTER: u16 = 0x092C;
-/// Cycles in a row the host's cycle must stay locked before the bus goes to SAFE-OP.
-const LOCKED_CYCLES: u32 = 100;
 /// The axes' letters, by index.
 const AXIS_LETTERS: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
 
@@ -183,6 +176,33 @@ pub struct Exchange {
     pub dc: Option<DcSample>,
 }
 
+/// What one exchange came to, for the supervision.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome {
+    /// Back in time, every subdevice in OP and taking part.
+    Complete,
+    /// Back, but the subdevice at this position is not in OP.
+    NotOp(u16),
+    /// Back with a working counter short of the bus's: a subdevice did not take part.
+    Short,
+    /// Not back in time.
+    Lost,
+}
+
+/// Classifies an exchange's result against the bus's complete working counter
+/// ([`Bus::expected_working_counter`]).
+pub fn outcome(result: &Result<Exchange, PumpError>, expected_working_counter: u16) -> Outcome {
+    match result {
+        Ok(Exchange {
+            not_op: Some(position),
+            ..
+        }) => Outcome::NotOp(*position),
+        Ok(e) if e.working_counter == expected_working_counter => Outcome::Complete,
+        Ok(_) => Outcome::Short,
+        Err(_) => Outcome::Lost,
+    }
+}
+
 /// One cycle's measurement of the distributed clock.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct DcSample {
@@ -190,52 +210,6 @@ pub struct DcSample {
     pub offset_ns: i64,
     /// What to add to the next cycle's start, ns.
     pub correction_ns: i64,
-}
-
-/// An AL state (the low four bits of the AL status) by its name: "SAFE-OP".
-pub fn state_name(al_status: u8) -> &'static str {
-    match al_status & 0x0F {
-        1 => "INIT",
-        2 => "PRE-OP",
-        3 => "BOOT",
-        4 => "SAFE-OP",
-        8 => "OP",
-        _ => "an unknown state",
-    }
-}
-
-/// The state of a subdevice in words, "+ error" when its error flag is set.
-pub fn state_text(al_status: u8) -> String {
-    let state = state_name(al_status);
-    if al_status & 0x10 != 0 {
-        format!("{state} + error")
-    } else {
-        state.to_owned()
-    }
-}
-
-/// An AL status code (register 0x0134) in words, as ETG.1000.6 names it:
-/// "0x001B (sync manager watchdog)".
-pub fn al_code_text(code: u16) -> String {
-    use ethercrab::EtherCrabWireRead;
-    match ethercrab::AlStatusCode::unpack_from_slice(&code.to_le_bytes()) {
-        Ok(ethercrab::AlStatusCode::Unknown(_)) | Err(_) => format!("{code:#06x}"),
-        Ok(c) => format!("{code:#06x} ({})", words_of(&c)),
-    }
-}
-
-/// ethercrab's name of a code, in lower case words ("SyncManagerWatchdog" becomes "sync
-/// manager watchdog").
-fn words_of(code: &ethercrab::AlStatusCode) -> String {
-    let name = format!("{code:?}");
-    let mut words = String::new();
-    for (i, c) in name.chars().enumerate() {
-        if c.is_ascii_uppercase() && i > 0 {
-            words.push(' ');
-        }
-        words.push(c.to_ascii_lowercase());
-    }
-    words
 }
 
 /// One drive on the bus.
@@ -476,20 +450,22 @@ impl Bus {
         let mut bus = if config.dc {
             Bus::clocked(config, period_ns, maindevice, pump, group, &drives, names)?
         } else {
-            let step = run(
+            let group = transition(
+                &maindevice,
                 &mut pump,
-                || "PRE-OP to SAFE-OP".to_owned(),
+                &names,
+                "PRE-OP to SAFE-OP",
                 group.into_safe_op(&maindevice),
                 state_bound,
-            );
-            let group = Bus::named(&maindevice, &mut pump, &names, step)?;
-            let step = run(
+            )?;
+            let group = transition(
+                &maindevice,
                 &mut pump,
-                || "SAFE-OP to OP".to_owned(),
+                &names,
+                "SAFE-OP to OP",
                 group.into_op(&maindevice),
                 state_bound,
-            );
-            let group = Bus::named(&maindevice, &mut pump, &names, step)?;
+            )?;
             Bus {
                 maindevice,
                 group: Cyclic::Free(group),
@@ -519,7 +495,7 @@ impl Bus {
             let Ok(position) = u16::try_from(position) else {
                 break;
             };
-            let status = read_status(maindevice, pump, *address);
+            let status = read_status(maindevice, pump, *address, Duration::from_millis(200), 3);
             if let Some((al_status, code)) = status
                 && (al_status & 0x10 != 0 || code != 0)
             {
@@ -534,169 +510,16 @@ impl Bus {
         Err(error)
     }
 
-    /// Steps 4 and 5 with distributed clocks: SYNC0 on every drive, the clocks settled and
-    /// the host's cycle locked onto SYNC0, then SAFE-OP and OP while cycling.
-    fn clocked(
-        config: &EthercatConfig,
-        period_ns: u64,
-        maindevice: MainDevice<'static>,
-        mut pump: Pump,
-        mut group: Group<PreOp>,
-        drives: &[BusDrive],
-        names: Vec<(String, u16)>,
-    ) -> Result<Bus, BringUpError> {
-        let state_bound = Duration::from_millis(u64::from(config.state_timeout_ms)) * 2;
-        for (position, mut sub) in group.iter_mut(&maindevice).enumerate() {
-            if !drives.iter().any(|d| d.group_index == position) {
-                continue;
-            }
-            if !sub.dc_support().any() {
-                return Err(BringUpError::NoClock {
-                    name: names[position].0.clone(),
-                    position: u16::try_from(position).unwrap_or(u16::MAX),
-                });
-            }
-            sub.set_dc_sync(DcSync::Sync0);
-        }
-        let group = run(
-            &mut pump,
-            || "process data image".to_owned(),
-            group.into_pre_op_pdi(&maindevice),
-            state_bound,
-        )?;
-        let group = run(
-            &mut pump,
-            || "distributed clocks: SYNC0".to_owned(),
-            group.configure_dc_sync(
-                &maindevice,
-                DcConfiguration {
-                    // SYNC0 starts once the clocks have had time to settle.
-                    start_delay: Duration::from_millis(100),
-                    sync0_period: Duration::from_nanos(period_ns),
-                    sync0_shift: Duration::ZERO,
-                },
-            ),
-            state_bound,
-        )?;
-        let mut lock = PhaseLock::new(period_ns, u64::from(config.sync0_shift_ns));
-        let mut clock = kerf_rt::PeriodicClock::new(period_ns)
-            .map_err(|_| BringUpError::Period { period_ns })?;
-        let timeout = Duration::from_nanos(period_ns / 2);
-        let settle_ms = config.dc_settle_timeout_ms;
-        let settle_cycles = u64::from(settle_ms) * 1_000_000 / period_ns;
-        // Settle: every subdevice's clock within SETTLED_NS of the reference's, and the
-        // host's cycle within a tenth of a period of its place in LOCKED_CYCLES measured
-        // cycles in a row.
-        let mut locked = 0u32;
-        let mut cycle = 0u64;
-        let mut worst_clock: Option<(usize, i64)> = None;
-        let mut last_offset = None;
-        loop {
-            if cycle > settle_cycles {
-                let what = match (worst_clock, last_offset) {
-                    (Some((position, difference)), _) => format!(
-                        "{} (position {position}) differs from the reference clock by {difference} ns (at most {SETTLED_NS} ns allowed)",
-                        names[position].0
-                    ),
-                    (None, Some(offset)) => format!(
-                        "the cycle does not keep its place before SYNC0: last offset {:.1} µs (a tenth of the period allowed; see docs/ETHERCAT.md on preparing the NIC)",
-                        offset as f64 / 1000.0
-                    ),
-                    (None, None) => "no frame came back".to_owned(),
-                };
-                return Err(BringUpError::Unsettled {
-                    timeout_ms: settle_ms,
-                    what,
-                });
-            }
-            cycle += 1;
-            let tick = clock.wait_next();
-            let measured = cycle_dc(
-                &maindevice,
-                &mut pump,
-                &group,
-                &mut lock,
-                tick.deadline_ns,
-                timeout,
-            );
-            // A round trip too long to measure, or a frame lost, gives no verdict (the
-            // cyclic supervision, not the settling, is about lost frames).
-            if let Ok((_, Some(sample))) = measured {
-                clock.shift_next(sample.correction_ns);
-                last_offset = Some(sample.offset_ns);
-                let in_place = sample.offset_ns.unsigned_abs() < period_ns / 10;
-                locked = if in_place { locked + 1 } else { 0 };
-            }
-            if locked >= LOCKED_CYCLES && cycle.is_multiple_of(10) {
-                worst_clock = worst_difference(&maindevice, &mut pump, &group, drives);
-                if worst_clock.is_none() {
-                    break;
-                }
-            }
-        }
-        let step = run(
-            &mut pump,
-            || "PRE-OP to SAFE-OP".to_owned(),
-            group.into_safe_op(&maindevice),
-            state_bound,
-        );
-        let group = Bus::named(&maindevice, &mut pump, &names, step)?;
-        let group = run(
-            &mut pump,
-            || "SAFE-OP to OP".to_owned(),
-            group.request_into_op(&maindevice),
-            state_bound,
-        )?;
-        // Cycle until every subdevice is in OP: the drives go to OP only with frames
-        // arriving in time for SYNC0.
-        // The same clock as the settling: its deadlines passed during the state change
-        // are skipped, and the next keeps the phase the loop found.
-        let op_cycles = u64::from(config.state_timeout_ms) * 1_000_000 / period_ns;
-        for cycle in 0.. {
-            let tick = clock.wait_next();
-            let (all_op, sample) = match cycle_dc(
-                &maindevice,
-                &mut pump,
-                &group,
-                &mut lock,
-                tick.deadline_ns,
-                timeout,
-            ) {
-                Ok((all_op, sample)) => (all_op, sample),
-                Err(_) => (false, None),
-            };
-            if let Some(sample) = sample {
-                clock.shift_next(sample.correction_ns);
-            }
-            if all_op {
-                break;
-            }
-            if cycle > op_cycles {
-                let step: Result<(), BringUpError> = Err(BringUpError::Step {
-                    step: "SAFE-OP to OP".to_owned(),
-                    source: ethercrab::error::Error::Timeout(
-                        ethercrab::error::TimeoutError::StateTransition,
-                    ),
-                });
-                Bus::named(&maindevice, &mut pump, &names, step)?;
-            }
-        }
-        let first = clock.next_deadline_ns();
-        Ok(Bus {
-            maindevice,
-            group: Cyclic::Clocked(group),
-            pump,
-            drives: Vec::new(),
-            found: Vec::new(),
-            names,
-            lock: Some((lock, first)),
-        })
-    }
-
     /// With distributed clocks, the host time (`CLOCK_MONOTONIC`, ns) at which the cycle's
     /// clock must start so that it begins locked onto SYNC0; `None` without.
     pub fn first_cycle_start_ns(&self) -> Option<u64> {
         self.lock.map(|(_, first)| first)
+    }
+
+    /// With distributed clocks, the last offset measured of the cycle start from its place
+    /// before SYNC0, ns (positive = late); `None` without.
+    pub fn dc_offset_ns(&self) -> Option<i64> {
+        self.lock.map(|(lock, _)| lock.last_offset_ns())
     }
 
     /// Subdevices on the bus.
@@ -720,21 +543,8 @@ impl Bus {
     /// `position`: one frame's round trip, outside the cycle's exchange (after a subdevice
     /// left OP). `None` when no answer came within `timeout`.
     pub fn status_of(&mut self, position: u16, timeout: Duration) -> Option<(u8, u16)> {
-        let sub = subdevice_of(&self.group, &self.maindevice, usize::from(position))?;
-        let status = self
-            .pump
-            .block_on(
-                async {
-                    let state = sub.register_read::<u8>(RegisterAddress::AlStatus).await?;
-                    let code = sub
-                        .register_read::<u16>(RegisterAddress::AlStatusCode)
-                        .await?;
-                    Ok::<_, ethercrab::error::Error>((state, code))
-                },
-                timeout,
-            )
-            .ok()?;
-        status.ok()
+        let address = self.names.get(usize::from(position))?.1;
+        read_status(&self.maindevice, &mut self.pump, address, timeout, 1)
     }
 
     /// Asks the subdevice at `position` for `state` (2 PRE-OP, 4 SAFE-OP, 8 OP),
@@ -819,7 +629,7 @@ impl Bus {
                 let Some((lock, _)) = self.lock.as_mut() else {
                     return Err(PumpError::Frame(ethercrab::error::Error::Internal));
                 };
-                let (exchange, _) = cycle_dc_exchange(
+                let (exchange, _) = clocked::cycle_dc_exchange(
                     &self.maindevice,
                     &mut self.pump,
                     group,
@@ -869,6 +679,23 @@ impl Bus {
                 .sum(),
         }
     }
+}
+
+/// Runs a state change of the group ([`run`]); a failure names the subdevice that stopped
+/// ([`Bus::named`]).
+pub(crate) fn transition<T, F>(
+    maindevice: &MainDevice<'static>,
+    pump: &mut Pump,
+    names: &[(String, u16)],
+    step: &str,
+    future: F,
+    bound: Duration,
+) -> Result<T, BringUpError>
+where
+    F: Future<Output = Result<T, ethercrab::error::Error>>,
+{
+    let result = run(pump, || step.to_owned(), future, bound);
+    Bus::named(maindevice, pump, names, result)
 }
 
 /// The subdevice at group index `index` of `group`, whichever way it is cycled.
@@ -923,212 +750,9 @@ fn exchange_of(working_counter: u16, states: &[SubDeviceState], dc: Option<DcSam
     }
 }
 
-/// One exchange with distributed clocks on a group in any state with process data: the
-/// outcome and whether every subdevice is in OP. The phase lock takes the measurement.
-fn cycle_dc_exchange<S: HasPdi>(
-    maindevice: &MainDevice<'static>,
-    pump: &mut Pump,
-    group: &Group<S, HasDc>,
-    lock: &mut PhaseLock,
-    start_ns: u64,
-    timeout: Duration,
-) -> Result<(Exchange, bool), PumpError> {
-    let sent_ns = kerf_rt::now_ns();
-    let response = pump
-        .block_on(group.tx_rx_dc(maindevice), timeout)?
-        .map_err(PumpError::Frame)?;
-    let received_ns = kerf_rt::now_ns();
-    let sample = lock
-        .update(
-            start_ns,
-            sent_ns,
-            received_ns,
-            response.extra.dc_system_time,
-        )
-        .map(|(offset_ns, correction_ns)| DcSample {
-            offset_ns,
-            correction_ns,
-        });
-    let all_op = response.all_op();
-    let exchange = exchange_of(response.working_counter, &response.subdevice_states, sample);
-    Ok((exchange, all_op))
-}
-
-/// [`cycle_dc_exchange`] for bring-up: whether all are in OP, and the clock's sample.
-fn cycle_dc<S: HasPdi>(
-    maindevice: &MainDevice<'static>,
-    pump: &mut Pump,
-    group: &Group<S, HasDc>,
-    lock: &mut PhaseLock,
-    start_ns: u64,
-    timeout: Duration,
-) -> Result<(bool, Option<DcSample>), PumpError> {
-    let (exchange, all_op) = cycle_dc_exchange(maindevice, pump, group, lock, start_ns, timeout)?;
-    Ok((all_op, exchange.dc))
-}
-
-/// The drive (other than the reference) whose clock differs most from the reference's
-/// beyond [`SETTLED_NS`]
-/// (register 0x092C: bits 0–30 the difference, bit 31 its sign), if any; a drive that does
-/// not answer counts as unsettled.
-fn worst_difference<S: HasPdi>(
-    maindevice: &MainDevice<'static>,
-    pump: &mut Pump,
-    group: &Group<S, HasDc>,
-    drives: &[BusDrive],
-) -> Option<(usize, i64)> {
-    let mut worst: Option<(usize, i64)> = None;
-    // ethercrab's reference clock: the first subdevice in ring order with a clock.
-    let reference = group
-        .iter(maindevice)
-        .find(|s| s.dc_support().any())
-        .map(|s| s.configured_address());
-    for d in drives {
-        let Ok(sub) = group.subdevice(maindevice, d.group_index) else {
-            continue;
-        };
-        // The reference clock is what the others follow: its own difference register is
-        // not steered and means nothing.
-        if reference == Some(sub.configured_address()) {
-            continue;
-        }
-        let read = pump.block_on(
-            sub.register_read::<u32>(DC_DIFFERENCE_REGISTER),
-            Duration::from_millis(100),
-        );
-        let difference = match read {
-            Ok(Ok(raw)) => {
-                let magnitude = i64::from(raw & 0x7FFF_FFFF);
-                if raw & 0x8000_0000 != 0 {
-                    -magnitude
-                } else {
-                    magnitude
-                }
-            }
-            _ => i64::MAX,
-        };
-        if difference.unsigned_abs() > u64::from(SETTLED_NS)
-            && worst.is_none_or(|(_, w)| difference.unsigned_abs() > w.unsigned_abs())
-        {
-            worst = Some((d.group_index, difference));
-        }
-    }
-    worst
-}
-
-/// The AL status and AL status code of the subdevice at `position`, read by its
-/// configured address (outside any group); `None` without an answer.
-fn read_status(
-    maindevice: &MainDevice<'static>,
-    pump: &mut Pump,
-    address: u16,
-) -> Option<(u8, u16)> {
-    // Right after a refused transition the first read may find the answer to the
-    // transition's last frame (dropped in flight at its timeout) in its place: three tries.
-    let mut read = |register: RegisterAddress| {
-        (0..3).find_map(|_| {
-            pump.block_on(
-                ethercrab::Command::fprd(address, register.into()).receive::<u16>(maindevice),
-                Duration::from_millis(200),
-            )
-            .ok()?
-            .ok()
-        })
-    };
-    let state = read(RegisterAddress::AlStatus)?;
-    let code = read(RegisterAddress::AlStatusCode)?;
-    Some(((state & 0xFF) as u8, code))
-}
-
-/// The SDO writes that configure a drive in PRE-OP: for each direction the assignment
-/// cleared, the mapping object's count cleared, its entries, its count, the assignment of
-/// that one mapping object; then the mode of operation and the interpolation period.
-pub fn drive_writes(rx: &Pdo, tx: &Pdo, mode: i8, period: (u8, i8)) -> Vec<SdoWrite> {
-    let mut writes = Vec::new();
-    let w = |index, subindex, value| SdoWrite {
-        index,
-        subindex,
-        value,
-    };
-    for (assignment, pdo) in [(SM2_ASSIGNMENT, rx), (SM3_ASSIGNMENT, tx)] {
-        writes.push(w(assignment, 0, SdoValue::U8(0)));
-        writes.push(w(pdo.index, 0, SdoValue::U8(0)));
-        for (i, entry) in pdo.entries.iter().enumerate() {
-            let subindex = u8::try_from(i + 1).unwrap_or(u8::MAX);
-            writes.push(w(pdo.index, subindex, SdoValue::U32(entry.mapping_value())));
-        }
-        let count = u8::try_from(pdo.entries.len()).unwrap_or(u8::MAX);
-        writes.push(w(pdo.index, 0, SdoValue::U8(count)));
-        writes.push(w(assignment, 1, SdoValue::U16(pdo.index)));
-        writes.push(w(assignment, 0, SdoValue::U8(1)));
-    }
-    writes.push(w(MODES_OF_OPERATION, 0, SdoValue::I8(mode)));
-    writes.push(w(INTERPOLATION_PERIOD, 1, SdoValue::U8(period.0)));
-    writes.push(w(INTERPOLATION_PERIOD, 2, SdoValue::I8(period.1)));
-    writes
-}
-
-pub(crate) async fn sdo_write<S>(
-    handle: &ethercrab::SubDeviceRef<'_, S>,
-    write: SdoWrite,
-) -> Result<(), ethercrab::error::Error>
-where
-    S: std::ops::Deref<Target = ethercrab::SubDevice>,
-{
-    let (i, s) = (write.index, write.subindex);
-    match write.value {
-        SdoValue::U8(v) => handle.sdo_write(i, s, v).await,
-        SdoValue::U16(v) => handle.sdo_write(i, s, v).await,
-        SdoValue::U32(v) => handle.sdo_write(i, s, v).await,
-        SdoValue::I8(v) => handle.sdo_write(i, s, v).await,
-        SdoValue::I16(v) => handle.sdo_write(i, s, v).await,
-        SdoValue::I32(v) => handle.sdo_write(i, s, v).await,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use kerf_config::ethercat::DriveMode;
-
-    #[test]
-    fn a_csp_drive_is_configured_as_its_manual_lists_the_writes() {
-        let writes = drive_writes(
-            &Pdo::default_rx(DriveMode::Csp),
-            &Pdo::default_tx(),
-            8,
-            (1, -3),
-        );
-        let as_tuples: Vec<(u16, u8, SdoValue)> = writes
-            .iter()
-            .map(|w| (w.index, w.subindex, w.value))
-            .collect();
-        use SdoValue::*;
-        let expected = vec![
-            (0x1C12, 0, U8(0)),
-            (0x1600, 0, U8(0)),
-            (0x1600, 1, U32(0x6040_0010)),
-            (0x1600, 2, U32(0x607A_0020)),
-            (0x1600, 0, U8(2)),
-            (0x1C12, 1, U16(0x1600)),
-            (0x1C12, 0, U8(1)),
-            (0x1C13, 0, U8(0)),
-            (0x1A00, 0, U8(0)),
-            (0x1A00, 1, U32(0x6041_0010)),
-            (0x1A00, 2, U32(0x6064_0020)),
-            (0x1A00, 3, U32(0x606C_0020)),
-            (0x1A00, 4, U32(0x60F4_0020)),
-            (0x1A00, 5, U32(0x603F_0010)),
-            (0x1A00, 6, U32(0x60FD_0020)),
-            (0x1A00, 0, U8(6)),
-            (0x1C13, 1, U16(0x1A00)),
-            (0x1C13, 0, U8(1)),
-            (0x6060, 0, I8(8)),
-            (0x60C2, 1, U8(1)),
-            (0x60C2, 2, I8(-3)),
-        ];
-        assert_eq!(as_tuples, expected);
-    }
 
     #[test]
     fn drives_are_named_by_their_axis() {

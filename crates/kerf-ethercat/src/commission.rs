@@ -414,13 +414,13 @@ pub fn exchange_round_trips(
     for _ in 0..cycles {
         next += period;
         let started = std::time::Instant::now();
-        match bus.tx_rx(period) {
-            Ok(e) if e.not_op.is_some() => out.not_op += 1,
-            Ok(e) if e.working_counter != expected => out.short += 1,
-            Ok(_) => out
+        match crate::bus::outcome(&bus.tx_rx(period), expected) {
+            crate::bus::Outcome::NotOp(_) => out.not_op += 1,
+            crate::bus::Outcome::Short => out.short += 1,
+            crate::bus::Outcome::Complete => out
                 .complete_ns
                 .push(u64::try_from(started.elapsed().as_nanos()).unwrap_or(u64::MAX)),
-            Err(_) => out.lost += 1,
+            crate::bus::Outcome::Lost => out.lost += 1,
         }
         std::thread::sleep(next.saturating_duration_since(std::time::Instant::now()));
     }

@@ -4,6 +4,8 @@
 //! - [`identity`]: found against expected, one line per differing position.
 //! - [`pdo`]: where the objects the control uses sit in a drive's process data.
 //! - [`image`]: one drive's process data as a [`kerf_drive::cia402::Drive`].
+//! - [`al`]: a subdevice's EtherCAT states and AL status codes in words, and its status
+//!   read.
 //! - [`bus`]: bring-up to OP and the cyclic exchange.
 //! - [`dc`]: the host's cycle locked onto the distributed clock's SYNC0.
 //! - [`claim`]: one program at a time on an interface (the daemon or a commissioning
@@ -13,6 +15,7 @@
 //!   socket, with no executor, no helper thread and no allocation per exchange.
 #![deny(missing_docs)]
 
+pub mod al;
 pub mod bus;
 pub mod claim;
 pub mod commission;

@@ -225,7 +225,7 @@ fn bus_state_name(state: u8) -> &'static str {
         | kerf_proto::BUS_STATE_PRE_OP
         | kerf_proto::BUS_STATE_BOOT
         | kerf_proto::BUS_STATE_SAFE_OP
-        | kerf_proto::BUS_STATE_OP => kerf_ethercat::bus::state_name(state),
+        | kerf_proto::BUS_STATE_OP => kerf_ethercat::al::state_name(state),
         _ => "unknown",
     }
 }
@@ -254,7 +254,7 @@ fn ethercat_json(names: &[String], s: &StatusMsg) -> String {
         let words = if code == 0 {
             "null".to_string()
         } else {
-            json_string(&kerf_ethercat::bus::al_code_text(code))
+            json_string(&kerf_ethercat::al::al_code_text(code))
         };
         let _ = write!(
             out,
@@ -451,7 +451,7 @@ pub fn ethercat_text(names: &[String], s: &StatusMsg) -> Option<String> {
             let _ = write!(
                 out,
                 ", AL status code {}",
-                kerf_ethercat::bus::al_code_text(code)
+                kerf_ethercat::al::al_code_text(code)
             );
         }
     }

@@ -46,7 +46,7 @@ pub fn safety_text(s: &StatusMsg) -> Option<String> {
         }
         kerf_proto::SAFETY_SUBDEVICE_STATE => format!(
             "EtherCAT: the subdevice at position {value} left OP, AL status code {}",
-            kerf_ethercat::bus::al_code_text(limit as u16)
+            kerf_ethercat::al::al_code_text(limit as u16)
         ),
         _ => "the drive left Operation enabled on its own".to_string(),
     };

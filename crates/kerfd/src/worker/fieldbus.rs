@@ -26,7 +26,7 @@ use kerf_config::Config;
 use kerf_drive::cia402::Drive;
 use kerf_drive::sim::SimDrive;
 use kerf_drive::stage::DriveStage;
-use kerf_ethercat::bus::{Bus, MAX_SUBDEVICES};
+use kerf_ethercat::bus::{Bus, MAX_SUBDEVICES, Outcome, outcome};
 use kerf_ethercat::claim::{Claim, Holder};
 use kerf_ethercat::image::DriveImage;
 
@@ -189,7 +189,6 @@ pub struct Fieldbus {
     /// A subdevice out of OP has tripped the fault (once per leaving).
     left_op: bool,
     dc_offsets: Option<Histogram>,
-    dc_last_ns: i64,
     correction_ns: i64,
     recovery: Option<Recovery>,
     /// Cycles a recovery may take: `state_timeout_ms`.
@@ -227,7 +226,6 @@ impl Fieldbus {
             states: [OP; MAX_SUBDEVICES],
             al_codes: [0; MAX_SUBDEVICES],
             left_op: false,
-            dc_last_ns: 0,
             correction_ns: 0,
             recovery: None,
             recovery_cycles: (u64::from(ec.state_timeout_ms) * 1_000_000 / period_ns).max(1),
@@ -256,7 +254,7 @@ impl Fieldbus {
             al_codes: self.al_codes,
             counters: self.counters,
             dc: self.dc_offsets.as_ref().map(|h| DcReport {
-                offset_ns: self.dc_last_ns,
+                offset_ns: self.bus.dc_offset_ns().unwrap_or(0),
                 offset_abs: h.percentiles(),
                 samples: h.count(),
             }),
@@ -301,7 +299,7 @@ impl Fieldbus {
                 Some(position) if self.lost_in_row == 0 => {
                     kerf_drive::safety::ResetRefused::SubdeviceState {
                         position,
-                        state: kerf_ethercat::bus::state_name(self.states[usize::from(position)]),
+                        state: kerf_ethercat::al::state_name(self.states[usize::from(position)]),
                         code: self.al_codes[usize::from(position)],
                         timeout_ms: self.state_timeout_ms,
                     }
@@ -376,40 +374,38 @@ impl Fieldbus {
             }
         }
         let mut trip = None;
-        let complete = match self.bus.tx_rx_at(start_ns, self.timeout) {
-            Ok(e) => {
-                self.lost_in_row = 0;
-                let n = self.bus.len().min(MAX_SUBDEVICES);
-                self.states[..n].copy_from_slice(&e.states[..n]);
-                if let (Some(sample), Some(h)) = (e.dc, self.dc_offsets.as_mut()) {
-                    h.record(sample.offset_ns.unsigned_abs());
-                    self.dc_last_ns = sample.offset_ns;
-                    self.correction_ns = sample.correction_ns;
-                }
-                match e.not_op {
-                    Some(position) => {
-                        self.counters.not_op += 1;
-                        if !self.left_op && self.recovery.is_none() {
-                            self.left_op = true;
-                            // Why it left: its AL status code, one more frame in this
-                            // cycle (the machine is stopping; the cycle may run long).
-                            let code = self
-                                .bus
-                                .status_of(position, self.timeout / 2)
-                                .map_or(0, |(_, code)| code);
-                            self.al_codes[usize::from(position)] = code;
-                            trip = Some(BusTrip::LeftOp { position, code });
-                        }
-                        false
-                    }
-                    None if e.working_counter == self.expected_wkc => true,
-                    None => {
-                        self.counters.short += 1;
-                        false
-                    }
-                }
+        let result = self.bus.tx_rx_at(start_ns, self.timeout);
+        if let Ok(e) = &result {
+            self.lost_in_row = 0;
+            let n = self.bus.len().min(MAX_SUBDEVICES);
+            self.states[..n].copy_from_slice(&e.states[..n]);
+            if let (Some(sample), Some(h)) = (e.dc, self.dc_offsets.as_mut()) {
+                h.record(sample.offset_ns.unsigned_abs());
+                self.correction_ns = sample.correction_ns;
             }
-            Err(_) => {
+        }
+        let complete = match outcome(&result, self.expected_wkc) {
+            Outcome::Complete => true,
+            Outcome::NotOp(position) => {
+                self.counters.not_op += 1;
+                if !self.left_op && self.recovery.is_none() {
+                    self.left_op = true;
+                    // Why it left: its AL status code, one more frame in this cycle (the
+                    // machine is stopping; the cycle may run long).
+                    let code = self
+                        .bus
+                        .status_of(position, self.timeout / 2)
+                        .map_or(0, |(_, code)| code);
+                    self.al_codes[usize::from(position)] = code;
+                    trip = Some(BusTrip::LeftOp { position, code });
+                }
+                false
+            }
+            Outcome::Short => {
+                self.counters.short += 1;
+                false
+            }
+            Outcome::Lost => {
                 self.counters.lost += 1;
                 self.lost_in_row = self.lost_in_row.saturating_add(1);
                 false
@@ -434,11 +430,6 @@ impl Fieldbus {
                 limit: self.max_missed,
             })
         })
-    }
-
-    /// The period, ns.
-    pub fn period_ns(&self) -> u64 {
-        self.period_ns
     }
 }
 
