@@ -11,15 +11,23 @@ use crate::pump::Pump;
 pub(crate) const AL_CONTROL_REGISTER: u16 = 0x0120;
 /// AL control's error acknowledge bit.
 pub(crate) const AL_ACKNOWLEDGE: u16 = 0x0010;
+/// The AL state SAFE-OP (the low four bits of the AL status).
+pub const SAFE_OP: u8 = 4;
+/// The AL state OP.
+pub const OP: u8 = 8;
+/// The AL status's error flag (bit 4).
+pub const ERROR_FLAG: u8 = 0x10;
+/// The AL status's state bits.
+pub const STATE_BITS: u8 = 0x0F;
 
 /// An AL state (the low four bits of the AL status) by its name: "SAFE-OP".
 pub fn state_name(al_status: u8) -> &'static str {
-    match al_status & 0x0F {
+    match al_status & STATE_BITS {
         1 => "INIT",
         2 => "PRE-OP",
         3 => "BOOT",
-        4 => "SAFE-OP",
-        8 => "OP",
+        SAFE_OP => "SAFE-OP",
+        OP => "OP",
         _ => "an unknown state",
     }
 }
@@ -27,7 +35,7 @@ pub fn state_name(al_status: u8) -> &'static str {
 /// The state of a subdevice in words, "+ error" when its error flag is set.
 pub fn state_text(al_status: u8) -> String {
     let state = state_name(al_status);
-    if al_status & 0x10 != 0 {
+    if al_status & ERROR_FLAG != 0 {
         format!("{state} + error")
     } else {
         state.to_owned()

@@ -37,7 +37,9 @@ pub use clocked::SETTLED_NS;
 pub use configure::drive_writes;
 pub(crate) use configure::sdo_write;
 
-use crate::al::{AL_ACKNOWLEDGE, AL_CONTROL_REGISTER, al_code_text, read_status, state_text};
+use crate::al::{
+    AL_ACKNOWLEDGE, AL_CONTROL_REGISTER, ERROR_FLAG, al_code_text, read_status, state_text,
+};
 use crate::claim::Claim;
 use crate::dc::PhaseLock;
 use crate::identity::{Expected, Found, compare};
@@ -497,7 +499,7 @@ impl Bus {
             };
             let status = read_status(maindevice, pump, *address, Duration::from_millis(200), 3);
             if let Some((al_status, code)) = status
-                && (al_status & 0x10 != 0 || code != 0)
+                && (al_status & ERROR_FLAG != 0 || code != 0)
             {
                 return Err(BringUpError::State {
                     name: name.clone(),

@@ -6,6 +6,9 @@ use super::*;
 // number of positions, or the status would drop subdevices (or describe ones that cannot
 // exist). kerf-proto does not depend on kerf-ethercat, so the two constants are tied here.
 const _: () = assert!(kerf_proto::BUS_MAX_SUBDEVICES == kerf_ethercat::bus::MAX_SUBDEVICES);
+// The status carries the AL states as kerf-ethercat reads them.
+const _: () = assert!(kerf_proto::BUS_STATE_OP == kerf_ethercat::al::OP);
+const _: () = assert!(kerf_proto::BUS_STATE_SAFE_OP == kerf_ethercat::al::SAFE_OP);
 
 /// The snapshot before the cycle's first report.
 pub(crate) fn idle_snapshot() -> Snapshot {

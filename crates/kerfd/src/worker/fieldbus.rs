@@ -26,18 +26,12 @@ use kerf_config::Config;
 use kerf_drive::cia402::Drive;
 use kerf_drive::sim::SimDrive;
 use kerf_drive::stage::DriveStage;
+use kerf_ethercat::al::{ERROR_FLAG, OP, SAFE_OP, STATE_BITS};
 use kerf_ethercat::bus::{Bus, MAX_SUBDEVICES, Outcome, outcome};
 use kerf_ethercat::claim::{Claim, Holder};
 use kerf_ethercat::image::DriveImage;
 
 use crate::timing::{Histogram, Percentiles};
-
-/// The AL state OP.
-const OP: u8 = 8;
-/// The AL state SAFE-OP.
-const SAFE_OP: u8 = 4;
-/// The AL status error flag.
-const ERROR_FLAG: u8 = 0x10;
 
 /// One axis's drive.
 #[derive(Debug)]
@@ -319,11 +313,11 @@ impl Fieldbus {
         let timeout = self.timeout / 2;
         if let Some((al_status, code)) = self.bus.status_of(position, timeout) {
             let i = usize::from(position);
-            self.states[i] = al_status & 0x0F;
+            self.states[i] = al_status & STATE_BITS;
             if code != 0 {
                 self.al_codes[i] = code;
             }
-            let wanted = if al_status & ERROR_FLAG != 0 || al_status & 0x0F != SAFE_OP {
+            let wanted = if al_status & ERROR_FLAG != 0 || al_status & STATE_BITS != SAFE_OP {
                 SAFE_OP
             } else {
                 OP
