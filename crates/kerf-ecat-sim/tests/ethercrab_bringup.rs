@@ -3,25 +3,12 @@
 
 mod netns;
 
-use std::time::Duration;
-
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts, std::ethercat_now};
+use ethercrab::{PduStorage, std::ethercat_now};
 use futures_lite::future::block_on;
-use netns::{MAIN_IF, Netns};
+use netns::Netns;
 
 const MAX_SUBDEVICES: usize = 8;
 const PDI_LEN: usize = 256;
-
-fn timeouts() -> Timeouts {
-    Timeouts {
-        state_transition: Duration::from_secs(10),
-        pdu: Duration::from_millis(200),
-        eeprom: Duration::from_millis(500),
-        wait_loop_delay: Duration::from_millis(1),
-        mailbox_echo: Duration::from_millis(500),
-        mailbox_response: Duration::from_millis(1000),
-    }
-}
 
 static STORAGE_IDENTITY: PduStorage<16, { PduStorage::element_size(1100) }> = PduStorage::new();
 
@@ -30,12 +17,7 @@ fn ethercrab_discovers_three_drives_and_one_io_with_their_identities_and_reaches
     let mut ns = Netns::new();
     ns.start_emulator(&["--drives", "3", "--io", "1"]);
     let found = ns.run_inside(|| {
-        let (tx, rx, pdu_loop) = STORAGE_IDENTITY.try_split().expect("split once");
-        let maindevice = MainDevice::new(pdu_loop, timeouts(), MainDeviceConfig::default());
-        std::thread::spawn(move || {
-            let task = ethercrab::std::tx_rx_task(MAIN_IF, tx, rx).expect("TX/RX task");
-            let _ = block_on(task);
-        });
+        let maindevice = netns::maindevice(&STORAGE_IDENTITY);
         let group = block_on(maindevice.init_single_group::<MAX_SUBDEVICES, PDI_LEN>(ethercat_now))
             .expect("init to PRE-OP");
         let mut found = Vec::new();
@@ -105,12 +87,7 @@ fn identity_options_are_seen_by_ethercrab_and_a_refused_safe_op_names_its_code()
         "2:0x0035",
     ]);
     let (identities, op_result, codes) = ns.run_inside(|| {
-        let (tx, rx, pdu_loop) = STORAGE_OPTIONS.try_split().expect("split once");
-        let maindevice = MainDevice::new(pdu_loop, timeouts(), MainDeviceConfig::default());
-        std::thread::spawn(move || {
-            let task = ethercrab::std::tx_rx_task(MAIN_IF, tx, rx).expect("TX/RX task");
-            let _ = block_on(task);
-        });
+        let maindevice = netns::maindevice(&STORAGE_OPTIONS);
         let group = block_on(maindevice.init_single_group::<MAX_SUBDEVICES, PDI_LEN>(ethercat_now))
             .expect("init to PRE-OP");
         let identities: Vec<(u32, u32, u32)> = group

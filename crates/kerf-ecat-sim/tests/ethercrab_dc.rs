@@ -9,11 +9,9 @@ mod netns;
 use std::time::{Duration, Instant};
 
 use ethercrab::subdevice_group::DcConfiguration;
-use ethercrab::{
-    DcSync, MainDevice, MainDeviceConfig, PduStorage, RegisterAddress, Timeouts, std::ethercat_now,
-};
+use ethercrab::{DcSync, PduStorage, RegisterAddress, std::ethercat_now};
 use futures_lite::future::block_on;
-use netns::{MAIN_IF, Netns};
+use netns::Netns;
 
 const MAX_SUBDEVICES: usize = 8;
 const PDI_LEN: usize = 256;
@@ -38,20 +36,7 @@ struct Seen {
 }
 
 fn run() -> Seen {
-    let (tx, rx, pdu_loop) = STORAGE.try_split().expect("split once");
-    let timeouts = Timeouts {
-        state_transition: Duration::from_secs(10),
-        pdu: Duration::from_millis(200),
-        eeprom: Duration::from_millis(500),
-        wait_loop_delay: Duration::from_millis(1),
-        mailbox_echo: Duration::from_millis(500),
-        mailbox_response: Duration::from_millis(1000),
-    };
-    let md = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
-    std::thread::spawn(move || {
-        let task = ethercrab::std::tx_rx_task(MAIN_IF, tx, rx).expect("TX/RX task");
-        let _ = block_on(task);
-    });
+    let md = netns::maindevice(&STORAGE);
     let mut group = block_on(md.init_single_group::<MAX_SUBDEVICES, PDI_LEN>(ethercat_now))
         .expect("init to PRE-OP");
     let mut seen = Seen::default();
@@ -180,20 +165,7 @@ const MAX_ROUND_TRIP: Duration = Duration::from_micros(300);
 type Sandwich = (Instant, u64, Instant);
 
 fn run_drift() -> (Sandwich, Sandwich) {
-    let (tx, rx, pdu_loop) = STORAGE_DRIFT.try_split().expect("split once");
-    let timeouts = Timeouts {
-        state_transition: Duration::from_secs(10),
-        pdu: Duration::from_millis(200),
-        eeprom: Duration::from_millis(500),
-        wait_loop_delay: Duration::from_millis(1),
-        mailbox_echo: Duration::from_millis(500),
-        mailbox_response: Duration::from_millis(1000),
-    };
-    let md = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
-    std::thread::spawn(move || {
-        let task = ethercrab::std::tx_rx_task(MAIN_IF, tx, rx).expect("TX/RX task");
-        let _ = block_on(task);
-    });
+    let md = netns::maindevice(&STORAGE_DRIFT);
     let group = block_on(md.init_single_group::<MAX_SUBDEVICES, PDI_LEN>(ethercat_now))
         .expect("init to PRE-OP");
     let reference = group.subdevice(&md, 0).expect("the reference clock");

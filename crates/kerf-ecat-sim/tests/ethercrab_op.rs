@@ -9,9 +9,9 @@ use std::io::Write;
 use std::time::Duration;
 
 use ethercrab::error::{Error, MailboxError};
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts, std::ethercat_now};
+use ethercrab::{PduStorage, std::ethercat_now};
 use futures_lite::future::block_on;
-use netns::{MAIN_IF, Netns};
+use netns::Netns;
 
 const MAX_SUBDEVICES: usize = 8;
 const PDI_LEN: usize = 256;
@@ -34,20 +34,7 @@ struct Seen {
 }
 
 fn run(mut control: std::process::ChildStdin) -> Seen {
-    let (tx, rx, pdu_loop) = STORAGE.try_split().expect("split once");
-    let timeouts = Timeouts {
-        state_transition: Duration::from_secs(10),
-        pdu: Duration::from_millis(200),
-        eeprom: Duration::from_millis(500),
-        wait_loop_delay: Duration::from_millis(1),
-        mailbox_echo: Duration::from_millis(500),
-        mailbox_response: Duration::from_millis(1000),
-    };
-    let maindevice = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
-    std::thread::spawn(move || {
-        let task = ethercrab::std::tx_rx_task(MAIN_IF, tx, rx).expect("TX/RX task");
-        let _ = block_on(task);
-    });
+    let maindevice = netns::maindevice(&STORAGE);
     let group = block_on(maindevice.init_single_group::<MAX_SUBDEVICES, PDI_LEN>(ethercat_now))
         .expect("init to PRE-OP");
     let mut seen = Seen::default();

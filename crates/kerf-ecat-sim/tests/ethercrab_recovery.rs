@@ -9,11 +9,9 @@ mod netns;
 use std::time::{Duration, Instant};
 
 use ethercrab::subdevice_group::Op;
-use ethercrab::{
-    MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
-};
+use ethercrab::{MainDevice, PduStorage, SubDeviceGroup, SubDeviceState};
 use futures_lite::future::block_on;
-use netns::{Control, MAIN_IF, Netns, field};
+use netns::{Control, Netns, field};
 
 const MAX_SUBDEVICES: usize = 8;
 const PDI_LEN: usize = 256;
@@ -21,17 +19,6 @@ const PDI_LEN: usize = 256;
 const SUBDEVICES: usize = 3;
 
 type Group = SubDeviceGroup<MAX_SUBDEVICES, PDI_LEN, ethercrab::DefaultLock, Op>;
-
-fn timeouts() -> Timeouts {
-    Timeouts {
-        state_transition: Duration::from_secs(10),
-        pdu: Duration::from_millis(200),
-        eeprom: Duration::from_millis(500),
-        wait_loop_delay: Duration::from_millis(1),
-        mailbox_echo: Duration::from_millis(500),
-        mailbox_response: Duration::from_millis(1000),
-    }
-}
 
 /// Drive 0's inputs: statusword, position actual, velocity actual, following error.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -74,12 +61,7 @@ fn enable(group: &Group, md: &MainDevice<'_>, target: i32) -> DriveInputs {
 fn bring_up(
     storage: &'static PduStorage<16, { PduStorage::element_size(1100) }>,
 ) -> (MainDevice<'static>, Group) {
-    let (tx, rx, pdu_loop) = storage.try_split().expect("split once");
-    let md = MainDevice::new(pdu_loop, timeouts(), MainDeviceConfig::default());
-    std::thread::spawn(move || {
-        let task = ethercrab::std::tx_rx_task(MAIN_IF, tx, rx).expect("TX/RX task");
-        let _ = block_on(task);
-    });
+    let md = netns::maindevice(storage);
     let group =
         block_on(md.init_single_group::<MAX_SUBDEVICES, PDI_LEN>(ethercrab::std::ethercat_now))
             .expect("init to PRE-OP");

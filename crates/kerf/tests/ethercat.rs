@@ -93,21 +93,9 @@ fn a_pulled_cable_latches_the_fieldbus_fault_a_reset_is_refused_while_the_bus_is
     let mut bench = Bench::new("cable");
     let _daemon = bench.daemon();
     // Wait until the drives are enabled and the machine is idle.
-    let deadline = Instant::now() + PATIENCE;
-    while bench.status()["state"] != "idle" {
-        assert!(Instant::now() < deadline, "never idle: {}", bench.status());
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    bench.status_until("idle", |s| s["state"] == "idle");
     bench.emulator_says("mute");
-    let deadline = Instant::now() + PATIENCE;
-    let status = loop {
-        let s = bench.status();
-        if s["safety"]["check"] == "fieldbus" {
-            break s;
-        }
-        assert!(Instant::now() < deadline, "no fieldbus fault: {s}");
-        std::thread::sleep(Duration::from_millis(20));
-    };
+    let status = bench.status_until("a fieldbus fault", |s| s["safety"]["check"] == "fieldbus");
     // Six cycles without an answer: more than the bench's five allowed.
     assert_eq!(status["safety"]["value"].as_f64(), Some(6.0), "{status}");
     assert_eq!(status["safety"]["limit"].as_f64(), Some(5.0), "{status}");
@@ -309,22 +297,12 @@ fn while_the_daemon_runs_the_bus_the_commissioning_commands_and_a_second_daemon_
 fn a_subdevice_leaving_op_is_named_with_its_al_status_code_and_a_reset_brings_it_back() {
     let mut bench = Bench::new("leave");
     let _daemon = bench.daemon();
-    let deadline = Instant::now() + PATIENCE;
-    while bench.status()["state"] != "idle" {
-        assert!(Instant::now() < deadline, "never idle: {}", bench.status());
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    bench.status_until("idle", |s| s["state"] == "idle");
     // The Y drive's own error takes it out of OP: 0x001A, synchronization error.
     bench.emulator_says("leave-op 1 0x001A");
-    let deadline = Instant::now() + PATIENCE;
-    let status = loop {
-        let s = bench.status();
-        if s["safety"]["check"] == "subdevice_state" {
-            break s;
-        }
-        assert!(Instant::now() < deadline, "no subdevice_state fault: {s}");
-        std::thread::sleep(Duration::from_millis(20));
-    };
+    let status = bench.status_until("a subdevice_state fault", |s| {
+        s["safety"]["check"] == "subdevice_state"
+    });
     assert_eq!(status["safety"]["value"].as_f64(), Some(1.0), "{status}");
     assert_eq!(status["safety"]["limit"].as_f64(), Some(26.0), "{status}");
     let y = &status["ethercat"]["subdevices"][1];

@@ -202,3 +202,27 @@ impl Drop for Netns {
         }
     }
 }
+
+/// A MainDevice on [`MAIN_IF`] (the caller runs inside the namespace) with the tests'
+/// generous timeouts (a busy two-core machine), its frames moved by ethercrab's own
+/// TX/RX task on a thread of its own. `storage` can be split once.
+pub fn maindevice<const FRAMES: usize, const FRAME_BYTES: usize>(
+    storage: &'static ethercrab::PduStorage<FRAMES, FRAME_BYTES>,
+) -> ethercrab::MainDevice<'static> {
+    let (tx, rx, pdu_loop) = storage.try_split().expect("split once");
+    let timeouts = ethercrab::Timeouts {
+        state_transition: Duration::from_secs(10),
+        pdu: Duration::from_millis(200),
+        eeprom: Duration::from_millis(500),
+        wait_loop_delay: Duration::from_millis(1),
+        mailbox_echo: Duration::from_millis(500),
+        mailbox_response: Duration::from_millis(1000),
+    };
+    let maindevice =
+        ethercrab::MainDevice::new(pdu_loop, timeouts, ethercrab::MainDeviceConfig::default());
+    std::thread::spawn(move || {
+        let task = ethercrab::std::tx_rx_task(MAIN_IF, tx, rx).expect("TX/RX task");
+        let _ = futures_lite::future::block_on(task);
+    });
+    maindevice
+}
