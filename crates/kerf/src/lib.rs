@@ -24,6 +24,7 @@ pub mod client;
 pub mod plan;
 pub mod sim;
 pub mod sim_plot;
+pub mod status_view;
 
 pub use plan::{
     DialectSource, PlanOutputError, assumed_dialect_note, choose_dialect, choose_dialect_from,

@@ -124,11 +124,11 @@ fn connect(args: &MachineArgs) -> Result<(Client, kerf_config::Config), Failure>
 pub fn status(args: &StatusArgs) -> Result<(), Failure> {
     let (mut client, config) = connect(&args.machine)?;
     let s = client.status().map_err(client_failure)?;
-    let names = kerf::client::subdevice_names(&config);
+    let names = kerf::status_view::subdevice_names(&config);
     let line = if args.json {
-        kerf::client::status_json(&config.machine, &names, &s)
+        kerf::status_view::status_json(&config.machine, &names, &s)
     } else {
-        kerf::client::status_text(&config.machine, &names, &s)
+        kerf::status_view::status_text(&config.machine, &names, &s)
     };
     writeln!(io::stdout().lock(), "{line}")?;
     Ok(())

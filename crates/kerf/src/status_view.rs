@@ -1,0 +1,580 @@
+//! The daemon's status in the shapes `kerf status` prints: one line, the EtherCAT block,
+//! and the JSON object of `--json`.
+
+use std::fmt::Write as _;
+
+use kerf_proto::{MachineState, StatusMsg};
+
+use kerfd::fault_text::check_name;
+
+/// The name of a status state in `kerf status`.
+pub(crate) fn state_name(s: &StatusMsg) -> &'static str {
+    match s.state() {
+        Ok(MachineState::Idle) => "idle",
+        Ok(MachineState::Running) => "running",
+        Ok(MachineState::Holding) => "holding",
+        Ok(MachineState::Starved) => "starved",
+        Ok(MachineState::Fault) => "fault",
+        Ok(MachineState::Stopping) => "stopping",
+        Err(_) => "unknown",
+    }
+}
+
+const AXIS_KEYS: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
+
+/// The drive side's state by name: `enabling`, `running`, `holding`, `quick_stop`,
+/// `stopped`, `resetting` (`none` for a status without one).
+pub(crate) fn drives_name(s: &StatusMsg) -> &'static str {
+    match s.drives {
+        kerf_proto::DRIVES_ENABLING => "enabling",
+        kerf_proto::DRIVES_RUNNING => "running",
+        kerf_proto::DRIVES_HOLDING => "holding",
+        kerf_proto::DRIVES_QUICK_STOP => "quick_stop",
+        kerf_proto::DRIVES_STOPPED => "stopped",
+        kerf_proto::DRIVES_RESETTING => "resetting",
+        _ => "none",
+    }
+}
+
+/// The names of the EtherCAT subdevices of `config` by ring position ("X drive", "I/O"),
+/// as the daemon's messages name them, for [`status_text`] and [`status_json`]; an empty
+/// name for a position the configuration does not list, none without `[ethercat]`.
+pub fn subdevice_names(config: &kerf_config::Config) -> Vec<String> {
+    let Some(ethercat) = config.ethercat() else {
+        return Vec::new();
+    };
+    let expected = kerf_ethercat::bus::expected(ethercat);
+    let len = expected
+        .iter()
+        .map(|e| usize::from(e.position) + 1)
+        .max()
+        .unwrap_or(0);
+    let mut names = vec![String::new(); len];
+    for e in expected {
+        names[usize::from(e.position)] = e.name;
+    }
+    names
+}
+
+/// The AL state of a subdevice in the status by name ("OP", "SAFE-OP"); "unknown" for 0
+/// or any value that is not an AL state.
+fn bus_state_name(state: u8) -> &'static str {
+    match state {
+        kerf_proto::BUS_STATE_INIT
+        | kerf_proto::BUS_STATE_PRE_OP
+        | kerf_proto::BUS_STATE_BOOT
+        | kerf_proto::BUS_STATE_SAFE_OP
+        | kerf_proto::BUS_STATE_OP => kerf_ethercat::al::state_name(state),
+        _ => "unknown",
+    }
+}
+
+/// The name of the subdevice at `position`, if the configuration lists it.
+fn subdevice_name(names: &[String], position: usize) -> Option<&str> {
+    names
+        .get(position)
+        .map(String::as_str)
+        .filter(|n| !n.is_empty())
+}
+
+/// The EtherCAT section of `kerf status --json`: `null` without a bus.
+fn ethercat_json(names: &[String], s: &StatusMsg) -> String {
+    let n = s.bus_positions();
+    if n == 0 {
+        return "null".to_string();
+    }
+    let mut out = String::from("{\"subdevices\":[");
+    for position in 0..n {
+        if position > 0 {
+            out.push(',');
+        }
+        let name = subdevice_name(names, position).map_or("null".to_string(), json_string);
+        let code = s.bus_al_codes[position];
+        let words = if code == 0 {
+            "null".to_string()
+        } else {
+            json_string(&kerf_ethercat::al::al_code_text(code))
+        };
+        let _ = write!(
+            out,
+            "{{\"position\":{position},\"name\":{name},\"state\":\"{}\",\"al_status_code\":{code},\"al_status\":{words}}}",
+            bus_state_name(s.bus_states[position])
+        );
+    }
+    let _ = write!(
+        out,
+        "],\"recovering\":{},\"cycles\":{{\"complete\":{},\"lost\":{},\"short\":{},\"not_op\":{},\"longest_gap\":{}}},\"dc\":",
+        s.bus_recovering != 0,
+        s.bus_cycles_complete,
+        s.bus_cycles_lost,
+        s.bus_cycles_short,
+        s.bus_cycles_not_op,
+        s.bus_longest_gap_cycles
+    );
+    if s.dc_used == 0 {
+        out.push_str("null");
+    } else {
+        let _ = write!(
+            out,
+            "{{\"offset_ns\":{},\"offset_abs_ns\":{{\"p50\":{},\"p99\":{},\"p999\":{},\"max\":{}}},\"samples\":{}}}",
+            s.dc_offset_ns,
+            s.dc_offset_abs_p50_ns,
+            s.dc_offset_abs_p99_ns,
+            s.dc_offset_abs_p999_ns,
+            s.dc_offset_abs_max_ns,
+            s.dc_samples
+        );
+    }
+    out.push('}');
+    out
+}
+
+/// `kerf status --json`: one JSON object; `names` are the EtherCAT subdevices' names by
+/// ring position ([`subdevice_names`]).
+pub fn status_json(machine: &str, names: &[String], s: &StatusMsg) -> String {
+    let mut out = String::new();
+    let num = |v: f64| {
+        if v.is_finite() {
+            let mut b = zmij::Buffer::new();
+            b.format(v).to_string()
+        } else {
+            "null".to_string()
+        }
+    };
+    let _ = write!(
+        out,
+        "{{\"machine\":{},\"state\":\"{}\",\"line\":{},\"position\":{{",
+        json_string(machine),
+        state_name(s),
+        s.line
+    );
+    let mut first = true;
+    for (i, key) in AXIS_KEYS.iter().enumerate() {
+        if s.axes_mask & (1 << i) == 0 {
+            continue;
+        }
+        if !first {
+            out.push(',');
+        }
+        first = false;
+        let _ = write!(out, "\"{key}\":{}", num(s.position_mm_deg[i]));
+    }
+    let fault = if s.fault != 0 {
+        json_string(s.fault_text())
+    } else {
+        "null".to_string()
+    };
+    let _ = write!(
+        out,
+        "}},\"override_pct\":{},\"queued_moves\":{},\"queued_s\":{},\"cycles\":{},\"overruns\":{},\"rt\":{},\"fault\":{},\"program_id\":{},\"program_done\":{},\"program_end\":\"{}\",\"moves_received\":{},\"window_items\":{},\"rejected\":{},\"period_us\":{}}}",
+        num(s.override_pct),
+        s.queued_moves,
+        num(s.queued_s),
+        s.cycles,
+        s.overruns,
+        s.rt != 0,
+        fault,
+        s.program_id,
+        s.program_done != 0,
+        match s.program_end {
+            kerf_proto::PROGRAM_END_FINISHED => "finished",
+            kerf_proto::PROGRAM_END_ABORTED => "aborted",
+            kerf_proto::PROGRAM_END_REFUSED => "refused",
+            _ if s.program_id == 0 => "none",
+            _ => "running",
+        },
+        s.moves_received,
+        s.window_items,
+        s.rejected,
+        num(s.period_ns as f64 / 1000.0)
+    );
+    // The drive side, before the closing brace.
+    out.pop();
+    let _ = write!(out, ",\"drives\":\"{}\",\"safety\":", drives_name(s));
+    match check_name(s.safety_check) {
+        None => out.push_str("null"),
+        Some(name) => {
+            let axis = match AXIS_KEYS.get(s.safety_axis as usize) {
+                Some(a) => format!("\"{a}\""),
+                None => "null".to_string(),
+            };
+            let dump = match s.fault_dump() {
+                "" => "null".to_string(),
+                p => json_string(p),
+            };
+            let _ = write!(
+                out,
+                "{{\"check\":\"{name}\",\"axis\":{axis},\"value\":{},\"limit\":{},\"line\":{},\"cycle\":{},\"drive_error_code\":{},\"dump\":{dump}}}",
+                num(s.safety_value),
+                num(s.safety_limit),
+                s.safety_line,
+                s.safety_cycle,
+                s.drive_error_code
+            );
+        }
+    }
+    let _ = write!(out, ",\"ethercat\":{}", ethercat_json(names, s));
+    out.push('}');
+    out
+}
+
+/// `count word` with the word in the plural unless `count` is 1: "1 cycle", "2 cycles".
+fn counted(count: u64, word: &str) -> String {
+    if count == 1 {
+        format!("1 {word}")
+    } else {
+        format!("{count} {word}s")
+    }
+}
+
+/// A duration of the distributed clocks for a person: ns below 1 µs, else µs to 0.1.
+fn dc_time(ns: u64) -> String {
+    if ns < 1_000 {
+        format!("{ns} ns")
+    } else {
+        format!("{:.1} µs", ns as f64 / 1_000.0)
+    }
+}
+
+/// The EtherCAT block of `kerf status`, without a final newline: a summary line, one line
+/// per subdevice and one for the distributed clocks; `None` without a bus.
+pub fn ethercat_text(names: &[String], s: &StatusMsg) -> Option<String> {
+    let n = s.bus_positions();
+    if n == 0 {
+        return None;
+    }
+    let states = &s.bus_states[..n];
+    let not_op = states
+        .iter()
+        .filter(|&&st| st != kerf_proto::BUS_STATE_OP)
+        .count();
+    let mut out = format!("EtherCAT: {}, ", counted(n as u64, "subdevice"));
+    match (not_op, n) {
+        (0, 1) => out.push_str("in OP"),
+        (0, _) => out.push_str("all in OP"),
+        (k, _) => {
+            let _ = write!(out, "{k} not in OP");
+        }
+    }
+    // A lost bus answers nothing: its states are the last ones it sent.
+    if s.safety_check == kerf_proto::SAFETY_FIELDBUS {
+        out.push_str(" when last heard");
+    }
+    if s.bus_recovering != 0 {
+        out.push_str(" (recovering)");
+    }
+    let _ = write!(
+        out,
+        "; {} exchanged, {} lost, {} short, {} out of OP, at most {} incomplete in a row",
+        counted(s.bus_cycles_complete, "cycle"),
+        s.bus_cycles_lost,
+        s.bus_cycles_short,
+        s.bus_cycles_not_op,
+        s.bus_longest_gap_cycles
+    );
+    let position_width = (n - 1).to_string().len();
+    let name_of = |p: usize| subdevice_name(names, p).unwrap_or("(not in the configuration)");
+    let name_width = (0..n)
+        .map(|p| name_of(p).chars().count())
+        .max()
+        .unwrap_or(0);
+    for (position, &state) in states.iter().enumerate() {
+        let _ = write!(
+            out,
+            "\n  {position:>position_width$}  {:<name_width$}  {}",
+            name_of(position),
+            bus_state_name(state)
+        );
+        let code = s.bus_al_codes[position];
+        if code != 0 {
+            let _ = write!(
+                out,
+                ", AL status code {}",
+                kerf_ethercat::al::al_code_text(code)
+            );
+        }
+    }
+    out.push_str("\n  distributed clocks: ");
+    if s.dc_used == 0 {
+        out.push_str("not used");
+    } else if s.dc_samples == 0 {
+        out.push_str("no offset measured yet");
+    } else {
+        let sign = match s.dc_offset_ns {
+            0 => "",
+            o if o < 0 => "-",
+            _ => "+",
+        };
+        let _ = write!(
+            out,
+            "cycle start vs SYNC0 offset now {sign}{}; |offset| p50 {}, p99 {}, p99.9 {}, max {} over {}",
+            dc_time(s.dc_offset_ns.unsigned_abs()),
+            dc_time(s.dc_offset_abs_p50_ns),
+            dc_time(s.dc_offset_abs_p99_ns),
+            dc_time(s.dc_offset_abs_p999_ns),
+            dc_time(s.dc_offset_abs_max_ns),
+            counted(s.dc_samples, "cycle")
+        );
+    }
+    Some(out)
+}
+
+/// `kerf status`: [`status_line`], then the EtherCAT block ([`ethercat_text`]) when the
+/// drives are on a bus; `names` as for [`status_json`].
+pub fn status_text(machine: &str, names: &[String], s: &StatusMsg) -> String {
+    let mut out = status_line(machine, s);
+    if let Some(block) = ethercat_text(names, s) {
+        out.push('\n');
+        out.push_str(&block);
+    }
+    out
+}
+
+/// `kerf status`: one line for a person (the machine, without the EtherCAT block).
+pub fn status_line(machine: &str, s: &StatusMsg) -> String {
+    let mut out = format!("{machine}: {}", state_name(s));
+    if s.line != 0 {
+        let _ = write!(out, " at line {}", s.line);
+    }
+    out.push(',');
+    for (i, key) in AXIS_KEYS.iter().enumerate() {
+        if s.axes_mask & (1 << i) != 0 {
+            let _ = write!(
+                out,
+                " {} {:.3}",
+                key.to_ascii_uppercase(),
+                s.position_mm_deg[i]
+            );
+        }
+    }
+    let _ = write!(
+        out,
+        ", override {} %, {} queued ({:.1} s), {} cycles, {} overruns, rt: {}",
+        s.override_pct,
+        s.queued_moves,
+        s.queued_s,
+        s.cycles,
+        s.overruns,
+        if s.rt != 0 { "yes" } else { "no" }
+    );
+    let _ = write!(out, ", drives: {}", drives_name(s));
+    if s.fault != 0 {
+        let _ = write!(out, ", fault: {}", s.fault_text());
+    }
+    if !s.fault_dump().is_empty() {
+        let _ = write!(out, ", black box: {}", s.fault_dump());
+    }
+    out
+}
+
+fn json_string(s: &str) -> String {
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            c if (c as u32) < 0x20 => {
+                let _ = write!(out, "\\u{:04x}", c as u32);
+            }
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names() -> Vec<String> {
+        ["X drive", "Y drive", "Z drive", "I/O"]
+            .map(String::from)
+            .to_vec()
+    }
+
+    /// An idle 3-axis machine whose 4 subdevices are all in OP, with distributed clocks.
+    fn on_a_bus() -> StatusMsg {
+        let mut s = StatusMsg::zeroed();
+        s.state = kerf_proto::STATE_IDLE;
+        s.axes_mask = 0b111;
+        s.position_mm_deg = [1.0, 2.0, 3.0, 0.0, 0.0, 0.0];
+        s.override_pct = 100.0;
+        s.cycles = 123_460;
+        s.rt = 1;
+        s.period_ns = 1_000_000;
+        s.drives = kerf_proto::DRIVES_RUNNING;
+        s.bus_subdevices = 4;
+        s.bus_states[..4].fill(kerf_proto::BUS_STATE_OP);
+        s.bus_cycles_complete = 123_456;
+        s.dc_used = 1;
+        s.dc_offset_ns = 240;
+        s.dc_offset_abs_p50_ns = 300;
+        s.dc_offset_abs_p99_ns = 1_100;
+        s.dc_offset_abs_p999_ns = 2_000;
+        s.dc_offset_abs_max_ns = 3_400;
+        s.dc_samples = 123_000;
+        s
+    }
+
+    /// The same bus after the Y drive dropped to SAFE-OP with a sync manager watchdog,
+    /// while a reset brings it back.
+    fn y_drive_left_op() -> StatusMsg {
+        let mut s = on_a_bus();
+        s.bus_states[1] = kerf_proto::BUS_STATE_SAFE_OP;
+        s.bus_al_codes[1] = 0x001B;
+        s.bus_recovering = 1;
+        s.bus_cycles_lost = 3;
+        s.bus_cycles_short = 2;
+        s.bus_cycles_not_op = 17;
+        s.bus_longest_gap_cycles = 5;
+        s.dc_offset_ns = -1_240;
+        s
+    }
+
+    #[test]
+    fn status_text_shows_the_bus_per_subdevice() {
+        let text = status_text("m", &names(), &on_a_bus());
+        assert_eq!(
+            text,
+            "m: idle, X 1.000 Y 2.000 Z 3.000, override 100 %, 0 queued (0.0 s), 123460 cycles, 0 overruns, rt: yes, drives: running\n\
+             EtherCAT: 4 subdevices, all in OP; 123456 cycles exchanged, 0 lost, 0 short, 0 out of OP, at most 0 incomplete in a row\n\
+             \x20 0  X drive  OP\n\
+             \x20 1  Y drive  OP\n\
+             \x20 2  Z drive  OP\n\
+             \x20 3  I/O      OP\n\
+             \x20 distributed clocks: cycle start vs SYNC0 offset now +240 ns; |offset| p50 300 ns, p99 1.1 µs, p99.9 2.0 µs, max 3.4 µs over 123000 cycles"
+        );
+    }
+
+    #[test]
+    fn status_text_names_a_subdevice_out_of_op_and_its_al_status_code() {
+        let block = ethercat_text(&names(), &y_drive_left_op()).unwrap();
+        assert_eq!(
+            block,
+            "EtherCAT: 4 subdevices, 1 not in OP (recovering); 123456 cycles exchanged, 3 lost, 2 short, 17 out of OP, at most 5 incomplete in a row\n\
+             \x20 0  X drive  OP\n\
+             \x20 1  Y drive  SAFE-OP, AL status code 0x001b (sync manager watchdog)\n\
+             \x20 2  Z drive  OP\n\
+             \x20 3  I/O      OP\n\
+             \x20 distributed clocks: cycle start vs SYNC0 offset now -1.2 µs; |offset| p50 300 ns, p99 1.1 µs, p99.9 2.0 µs, max 3.4 µs over 123000 cycles"
+        );
+    }
+
+    #[test]
+    fn status_text_without_dc_with_a_lost_bus_and_an_unlisted_subdevice() {
+        let mut s = StatusMsg::zeroed();
+        s.bus_subdevices = 2;
+        s.bus_states[..2].copy_from_slice(&[kerf_proto::BUS_STATE_OP, 0]);
+        s.bus_cycles_complete = 1;
+        s.bus_cycles_lost = 3;
+        s.bus_longest_gap_cycles = 3;
+        s.safety_check = kerf_proto::SAFETY_FIELDBUS;
+        let block = ethercat_text(&["X drive".to_string()], &s).unwrap();
+        assert_eq!(
+            block,
+            "EtherCAT: 2 subdevices, 1 not in OP when last heard; 1 cycle exchanged, 3 lost, 0 short, 0 out of OP, at most 3 incomplete in a row\n\
+             \x20 0  X drive                     OP\n\
+             \x20 1  (not in the configuration)  unknown\n\
+             \x20 distributed clocks: not used"
+        );
+        s.dc_used = 1;
+        let block = ethercat_text(&["X drive".to_string()], &s).unwrap();
+        assert!(
+            block.ends_with("\n  distributed clocks: no offset measured yet"),
+            "{block}"
+        );
+    }
+
+    #[test]
+    fn status_text_without_a_bus_is_the_status_line() {
+        let mut s = on_a_bus();
+        s.bus_subdevices = 0;
+        assert_eq!(ethercat_text(&names(), &s), None);
+        assert_eq!(status_text("m", &names(), &s), status_line("m", &s));
+        assert!(!status_text("m", &names(), &s).contains('\n'));
+    }
+
+    #[test]
+    fn status_json_has_the_ethercat_object() {
+        let json = status_json("m", &names(), &y_drive_left_op());
+        let parsed: serde_json::Value = serde_json::from_str(&json).expect("JSON");
+        assert_eq!(parsed["ethercat"]["dc"]["offset_ns"], -1240);
+        let ethercat = json
+            .split_once(",\"ethercat\":")
+            .map(|(_, e)| e)
+            .expect("an ethercat key");
+        assert_eq!(
+            ethercat,
+            concat!(
+                "{\"subdevices\":[",
+                "{\"position\":0,\"name\":\"X drive\",\"state\":\"OP\",\"al_status_code\":0,\"al_status\":null},",
+                "{\"position\":1,\"name\":\"Y drive\",\"state\":\"SAFE-OP\",\"al_status_code\":27,\"al_status\":\"0x001b (sync manager watchdog)\"},",
+                "{\"position\":2,\"name\":\"Z drive\",\"state\":\"OP\",\"al_status_code\":0,\"al_status\":null},",
+                "{\"position\":3,\"name\":\"I/O\",\"state\":\"OP\",\"al_status_code\":0,\"al_status\":null}",
+                "],\"recovering\":true,",
+                "\"cycles\":{\"complete\":123456,\"lost\":3,\"short\":2,\"not_op\":17,\"longest_gap\":5},",
+                "\"dc\":{\"offset_ns\":-1240,\"offset_abs_ns\":{\"p50\":300,\"p99\":1100,\"p999\":2000,\"max\":3400},\"samples\":123000}",
+                "}}"
+            )
+        );
+        // Without distributed clocks, and a position the configuration does not name.
+        let mut s = y_drive_left_op();
+        s.dc_used = 0;
+        let json = status_json("m", &names()[..1], &s);
+        assert!(json.ends_with(",\"dc\":null}}"), "{json}");
+        assert!(
+            json.contains("{\"position\":1,\"name\":null,\"state\":\"SAFE-OP\""),
+            "{json}"
+        );
+    }
+
+    #[test]
+    fn status_json_without_a_bus_has_ethercat_null() {
+        let mut s = on_a_bus();
+        s.bus_subdevices = 0;
+        let json = status_json("m", &names(), &s);
+        assert!(
+            json.ends_with(",\"safety\":null,\"ethercat\":null}"),
+            "{json}"
+        );
+    }
+
+    #[test]
+    fn subdevices_are_named_by_position_from_the_configuration() {
+        let axis = "velocity_mm_s = 100.0\nacceleration_mm_s2 = 1000.0\njerk_mm_s3 = 10000.0\nmin_mm = -10.0\nmax_mm = 10.0\n";
+        // The I/O coupler first on the ring, then Y and X drives, Z at position 3.
+        let text = format!(
+            "period_us = 1000\n[axes.x]\n{axis}[axes.y]\n{axis}[axes.z]\n{axis}\
+             [ethercat]\ninterface = \"eth0\"\n\
+             [[ethercat.drives]]\naxis = \"x\"\nposition = 2\nvendor_id = 0x2\nproduct_code = 0x402\n\
+             [[ethercat.drives]]\naxis = \"y\"\nposition = 1\nvendor_id = 0x2\nproduct_code = 0x402\n\
+             [[ethercat.drives]]\naxis = \"z\"\nposition = 3\nvendor_id = 0x2\nproduct_code = 0x402\n\
+             [[ethercat.io]]\nposition = 0\nvendor_id = 0x2\nproduct_code = 0x07433052\n"
+        );
+        let config = kerf_config::Config::from_toml_str(&text, "m.toml").unwrap();
+        assert_eq!(
+            subdevice_names(&config),
+            ["I/O", "Y drive", "X drive", "Z drive"]
+        );
+        let simulated = kerf_config::Config::from_toml_str(
+            &format!("period_us = 1000\n[axes.x]\n{axis}[axes.y]\n{axis}[axes.z]\n{axis}"),
+            "m.toml",
+        )
+        .unwrap();
+        assert!(subdevice_names(&simulated).is_empty());
+    }
+
+    #[test]
+    fn a_hostile_subdevice_count_is_cut_to_the_arrays() {
+        let mut s = on_a_bus();
+        s.bus_subdevices = u32::MAX;
+        let block = ethercat_text(&names(), &s).unwrap();
+        assert!(
+            block.starts_with("EtherCAT: 32 subdevices, 28 not in OP;"),
+            "{block}"
+        );
+        assert_eq!(block.lines().count(), 1 + 32 + 1);
+    }
+}
