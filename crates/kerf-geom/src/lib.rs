@@ -136,6 +136,7 @@ impl Arc {
 
 mod curve;
 mod limits;
+pub mod machine;
 mod program;
 pub mod quintic;
 pub mod ramp;

@@ -58,6 +58,27 @@ pub enum EventCode {
     M52,
     /// The feed stop (hold) control enabled (1) or disabled (0) (LinuxCNC M53).
     M53,
+    /// Digital output on, synchronised with the start of the next move (LinuxCNC M62):
+    /// `value` is the output number (P).
+    M62,
+    /// Digital output off, synchronised with the next move (M63): `value` the P word.
+    M63,
+    /// Digital output on at once (M64): `value` the P word.
+    M64,
+    /// Digital output off at once (M65): `value` the P word.
+    M65,
+    /// Wait on a digital input (LinuxCNC M66 P): `value` is the input number, `p` the L
+    /// word (wait mode 0–4, 0 without L), `q` the Q word (timeout, s; `None` without).
+    /// The input's state, or -1 on a timeout, goes to parameter #5399.
+    M66,
+    /// Wait on an analog input (M66 E): `value` is the input number, `p` and `q` as
+    /// [`EventCode::M66`] (only L0 is defined for analog inputs).
+    M66Analog,
+    /// Analog output, synchronised with the next move (M67): `value` the output number
+    /// (E), `q` the value (Q).
+    M67,
+    /// Analog output at once (M68): `value` the E word, `q` the Q word.
+    M68,
     /// A user-defined M code M100–M199 (LinuxCNC), by its number less 100: `value` is its
     /// P word, `q` its Q word.
     User(u8),
@@ -99,6 +120,13 @@ impl EventCode {
             EventCode::M51 => "M51",
             EventCode::M52 => "M52",
             EventCode::M53 => "M53",
+            EventCode::M62 => "M62",
+            EventCode::M63 => "M63",
+            EventCode::M64 => "M64",
+            EventCode::M65 => "M65",
+            EventCode::M66 | EventCode::M66Analog => "M66",
+            EventCode::M67 => "M67",
+            EventCode::M68 => "M68",
             EventCode::User(n) => {
                 let i = 4 * usize::from(n.min(99));
                 &USER_M_NAMES[i..i + 4]
@@ -121,13 +149,13 @@ pub struct Event {
     pub line: u32,
     /// What happens.
     pub code: EventCode,
-    /// S: rpm; T: tool number; G4: dwell seconds; user M codes: the P word; other M
-    /// codes: `None`.
+    /// S: rpm; T: tool number; G4: dwell seconds; user M codes: the P word; M62–M68:
+    /// the output or input number; other M codes: `None`.
     pub value: Option<f64>,
-    /// User M codes and M19: the Q word; otherwise `None`.
+    /// User M codes, M19, M66, M67 and M68: the Q word; otherwise `None`.
     pub q: Option<f64>,
-    /// M19: the P word (the direction mode); otherwise `None` (a user M code's P word is
-    /// its `value`).
+    /// M19: the P word (the direction mode); M66: the L word (the wait mode); otherwise
+    /// `None` (a user M code's P word is its `value`).
     pub p: Option<f64>,
     /// Messages (MSG, DEBUG, PRINT): the text; otherwise `None`.
     pub text: Option<std::sync::Arc<str>>,

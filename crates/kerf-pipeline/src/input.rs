@@ -2,6 +2,7 @@
 //! both planning threads run on them ([`plan_input`]), and how long a dwell rests.
 
 use kerf_geom::Move;
+use kerf_geom::machine::{Action, Sync};
 use kerf_plan::{PlanError, PlannedSegment, Planner};
 
 /// One item of a program as the driver runs it: a move, or a point where the motion must
@@ -18,6 +19,9 @@ pub enum Input {
     Stop,
     /// An exact stop, then rest for this many seconds (rounded up to whole periods).
     Dwell(f64),
+    /// Something the machine does at this point (a pause, the spindle, an output): an
+    /// action with [`Sync::AtRest`] is also an exact stop.
+    Action(Action),
 }
 
 impl From<Move> for Input {
@@ -35,7 +39,8 @@ pub fn plan_input(
 ) -> Result<(), PlanError> {
     match input {
         Input::Move(mv) => planner.push(mv, out),
-        Input::Stop | Input::Dwell(_) => {
+        Input::Action(a) if a.sync() != Sync::AtRest => Ok(()),
+        Input::Stop | Input::Dwell(_) | Input::Action(_) => {
             planner.finish(out);
             Ok(())
         }

@@ -1,6 +1,7 @@
 //! The per-cycle step shared by `kerf sim` and the daemon ([`Interpolator`]), and the
 //! planned items it is fed ([`Planned`], asked for with [`Poll`]).
 
+use kerf_geom::machine::{Action, Gate, MachineIo, Sync};
 use kerf_motion::{MotionCore, PushError, Setpoint, StepResult};
 use kerf_plan::PlannedSegment;
 
@@ -32,7 +33,13 @@ pub enum Planned {
     Segment(PlannedSegment, usize),
     /// Rest for this many seconds once the motion before has stopped.
     Dwell(f64),
+    /// An action for the machine (see [`Sync`] for when it takes effect).
+    Action(Action),
 }
+
+/// Actions synchronised with the motion ([`Sync::WithMotion`]) the interpolator holds
+/// until the segments before them are done; one more waits in hand.
+pub const SYNCED_ACTIONS: usize = 16;
 
 /// The per-cycle step of a program run, shared by `kerf sim` and the daemon's real-time
 /// thread (allocation-free): [`feed`](Self::feed) the motion core from a source, apply
@@ -40,8 +47,14 @@ pub enum Planned {
 ///
 /// Feeding pushes items while the queue has room. The first item that does not fit stays
 /// in hand for the next cycle; a dwell stays in hand until the motion before it has come
-/// to rest and the dwell's periods have passed. After an abort every item up to the
-/// program's end is dropped. The motion of a program starts only when the queue is full,
+/// to rest and the dwell's periods have passed. An action goes to the machine
+/// ([`MachineIo`]): at once ([`Sync::Immediate`]), when the motion has finished the
+/// segments pushed before it ([`Sync::WithMotion`]: checked at the start of every
+/// feeding, so that it takes effect in the cycle of the first setpoint after them), or
+/// once the motion has come to rest and everything before it has taken effect
+/// ([`Sync::AtRest`]: it stays in hand, asked again every cycle, until the machine says it
+/// is done). After an abort every item up to the program's end is dropped, and the
+/// synchronised actions not yet due with it (their move never starts). The motion of a program starts only when the queue is full,
 /// or a dwell or the program's end has been received: the core then has the same
 /// lookahead in the simulator and in the daemon.
 pub struct Interpolator {
@@ -54,7 +67,22 @@ pub struct Interpolator {
     ended: bool,
     aborted: bool,
     last: Option<StepResult>,
+    /// Segments pushed into the core since the start.
+    pushed: u64,
+    /// Synchronised actions waiting for the segments pushed before them (the second
+    /// element: `pushed` when the action was taken), oldest first, in a ring.
+    synced: [(Action, u64); SYNCED_ACTIONS],
+    synced_head: usize,
+    synced_len: usize,
+    /// The action in hand has been handed to the machine and is not done yet.
+    acting: bool,
 }
+
+/// A placeholder for the free slots of the synchronised-action ring.
+const NO_ACTION: Action = Action {
+    line: 0,
+    kind: kerf_geom::machine::ActionKind::ProgramEnd,
+};
 
 impl Interpolator {
     /// An interpolator around `core` (its queue capacity is the lookahead window).
@@ -69,6 +97,11 @@ impl Interpolator {
             ended: false,
             aborted: false,
             last: None,
+            pushed: 0,
+            synced: [(NO_ACTION, 0); SYNCED_ACTIONS],
+            synced_head: 0,
+            synced_len: 0,
+            acting: false,
         }
     }
 
@@ -115,10 +148,22 @@ impl Interpolator {
         self.dwell_left.is_some()
     }
 
+    /// The action the machine is carrying out while the program waits for it (a pause,
+    /// a tool change, a wait for the spindle or an input), if any.
+    pub fn waiting_for(&self) -> Option<&Action> {
+        match &self.hand {
+            Some(Planned::Action(a)) if self.acting => Some(a),
+            _ => None,
+        }
+    }
+
     /// `true` when the program is done: received to its end, everything run, and the
     /// last step found the motion at rest.
     pub fn finished(&self) -> bool {
-        self.ended && self.hand.is_none() && self.last == Some(StepResult::Idle)
+        self.ended
+            && self.hand.is_none()
+            && self.synced_len == 0
+            && self.last == Some(StepResult::Idle)
     }
 
     /// What the last step returned (`None` before the first).
@@ -134,12 +179,23 @@ impl Interpolator {
         self.ended = false;
         self.aborted = false;
         self.last = None;
+        self.synced_len = 0;
+        self.acting = false;
     }
 
-    /// Pushes items from `source` while the queue has room; returns whether the motion
-    /// may step this cycle (the program's motion has started, or starts now). A segment
-    /// the core refuses is a bug of the planner, reported with its line.
-    pub fn feed(&mut self, mut source: impl FnMut() -> Poll) -> Result<bool, RunError> {
+    /// Pushes items from `source` while the queue has room, handing actions to
+    /// `machine`; returns whether the motion may step this cycle (the program's motion
+    /// has started, or starts now). A segment the core refuses is a bug of the planner,
+    /// reported with its line.
+    pub fn feed(
+        &mut self,
+        mut source: impl FnMut() -> Poll,
+        machine: &mut (impl MachineIo + ?Sized),
+    ) -> Result<bool, RunError> {
+        if self.aborted {
+            self.synced_len = 0;
+        }
+        self.fire_synced(machine);
         loop {
             if self.hand.is_none() && !self.ended {
                 match source() {
@@ -153,12 +209,28 @@ impl Interpolator {
             }
             match &self.hand {
                 None => break,
-                Some(_) if self.aborted => self.hand = None,
+                Some(h) if self.aborted => {
+                    if let (Planned::Action(a), true) = (h, self.acting) {
+                        machine.cancel(a);
+                    }
+                    self.acting = false;
+                    self.hand = None;
+                }
                 Some(Planned::Segment(seg, _)) => match self.core.push(seg) {
-                    Ok(()) => self.hand = None,
+                    Ok(()) => {
+                        self.pushed += 1;
+                        self.hand = None;
+                    }
                     Err(PushError::Full) => break,
                     Err(_) => return Err(RunError::Rejected { line: seg.line }),
                 },
+                Some(Planned::Action(a)) => {
+                    let a = *a;
+                    if !self.take_action(a, machine) {
+                        break;
+                    }
+                    self.hand = None;
+                }
                 Some(Planned::Dwell(_)) => match self.dwell_left {
                     Some(0) => {
                         self.dwell_left = None;
@@ -173,6 +245,54 @@ impl Interpolator {
             self.started = self.hand.is_some() || self.ended;
         }
         Ok(self.started)
+    }
+
+    /// Hands `action` (in hand) to the machine; `true` once it has been taken (it may be
+    /// waiting in the synchronised ring), `false` while it must stay in hand.
+    fn take_action(&mut self, action: Action, machine: &mut (impl MachineIo + ?Sized)) -> bool {
+        match action.sync() {
+            Sync::Immediate => {
+                machine.act(&action);
+                true
+            }
+            Sync::WithMotion => {
+                if self.synced_len == SYNCED_ACTIONS {
+                    return false;
+                }
+                let tail = (self.synced_head + self.synced_len) % SYNCED_ACTIONS;
+                self.synced[tail] = (action, self.pushed);
+                self.synced_len += 1;
+                true
+            }
+            Sync::AtRest => {
+                self.fire_synced(machine);
+                if !self.core.is_idle() || self.synced_len > 0 {
+                    return false;
+                }
+                self.acting = true;
+                match machine.act(&action) {
+                    Gate::Done => {
+                        self.acting = false;
+                        true
+                    }
+                    Gate::Wait => false,
+                }
+            }
+        }
+    }
+
+    /// Hands the machine the synchronised actions whose segments are done.
+    fn fire_synced(&mut self, machine: &mut (impl MachineIo + ?Sized)) {
+        let done = self.pushed - self.core.queued() as u64;
+        while self.synced_len > 0 {
+            let (action, after) = self.synced[self.synced_head];
+            if after > done {
+                break;
+            }
+            machine.act(&action);
+            self.synced_head = (self.synced_head + 1) % SYNCED_ACTIONS;
+            self.synced_len -= 1;
+        }
     }
 
     /// Steps the motion one period and writes the setpoint to `out`.

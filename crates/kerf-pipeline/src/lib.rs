@@ -25,6 +25,7 @@
 //! [`MotionCore`]: kerf_motion::MotionCore
 #![forbid(unsafe_code)]
 
+mod actions;
 mod command;
 mod error;
 mod input;
@@ -39,10 +40,11 @@ mod tracker;
 #[cfg(test)]
 mod tests;
 
+pub use actions::{ActionOrder, ProgramActions};
 pub use command::OperatorEvent;
 pub use error::RunError;
 pub use input::{Input, dwell_periods, plan_input};
-pub use interpolator::{Interpolator, Planned, Poll};
+pub use interpolator::{Interpolator, Planned, Poll, SYNCED_ACTIONS};
 pub use measure::{AxisPeak, Summary};
 pub use runner::RunOptions;
 pub use runs::{run, run_parallel, run_planned, run_stream};

@@ -4,7 +4,9 @@
 use kerf_geom::Move;
 use kerf_plan::{MachineLimits, PlanError, PlannedSegment, Planner};
 
-use crate::{Input, Planned, plan_input};
+use kerf_geom::machine::Sync;
+
+use crate::{ActionOrder, Input, Planned, plan_input};
 
 /// The planning step of the offline runs: each input is planned, and every planned
 /// segment carries the number of moves taken so far (the moves the deviation check then
@@ -13,6 +15,7 @@ pub(crate) struct PlanStep {
     planner: Planner,
     buf: Vec<PlannedSegment>,
     known: usize,
+    order: ActionOrder,
 }
 
 impl PlanStep {
@@ -23,6 +26,7 @@ impl PlanStep {
             planner,
             buf: Vec::new(),
             known: 0,
+            order: ActionOrder::new(),
         }
     }
 
@@ -33,15 +37,26 @@ impl PlanStep {
         taken: &mut impl Extend<Move>,
         out: &mut impl Extend<Planned>,
     ) -> Result<(), PlanError> {
+        if let (true, Input::Action(a)) = (ActionOrder::holds(input), input) {
+            self.order.hold(*a);
+            return Ok(());
+        }
         plan_input(&mut self.planner, input, &mut self.buf)?;
         if let Input::Move(mv) = input {
             taken.extend([*mv]);
             self.known += 1;
+            self.order.moved();
         }
-        let known = self.known;
-        out.extend(self.buf.drain(..).map(|s| Planned::Segment(s, known)));
-        if let Input::Dwell(seconds) = input {
-            out.extend([Planned::Dwell(*seconds)]);
+        self.drain(out);
+        match input {
+            Input::Move(_) => {}
+            Input::Action(a) if a.sync() == Sync::Immediate => out.extend([Planned::Action(*a)]),
+            _ => out.extend(self.order.release()),
+        }
+        match input {
+            Input::Dwell(seconds) => out.extend([Planned::Dwell(*seconds)]),
+            Input::Action(a) if a.sync() == Sync::AtRest => out.extend([Planned::Action(*a)]),
+            _ => {}
         }
         Ok(())
     }
@@ -49,7 +64,16 @@ impl PlanStep {
     /// The end of the program: the rest of the path, ending at rest.
     pub(crate) fn finish(&mut self, out: &mut impl Extend<Planned>) {
         self.planner.finish(&mut self.buf);
+        self.drain(out);
+        out.extend(self.order.release());
+    }
+
+    /// The planned segments, each after the held actions due before it.
+    fn drain(&mut self, out: &mut impl Extend<Planned>) {
         let known = self.known;
-        out.extend(self.buf.drain(..).map(|s| Planned::Segment(s, known)));
+        for s in self.buf.drain(..) {
+            out.extend(self.order.before(&s));
+            out.extend([Planned::Segment(s, known)]);
+        }
     }
 }

@@ -2,6 +2,7 @@
 //! a [`Source`], measured, with the commands of [`RunOptions`] applied at their cycles.
 
 use kerf_geom::Move;
+use kerf_geom::machine::InstantMachine;
 use kerf_motion::monitor::LimitMonitor;
 use kerf_motion::{MotionCore, Setpoint, StepResult};
 use kerf_plan::{MachineLimits, PlanError};
@@ -130,7 +131,7 @@ impl<'a, F: Sink> Runner<'a, F> {
                 }
             }
             polled
-        })?;
+        }, &mut InstantMachine)?;
         if let Some(e) = source.take_error() {
             return Err(RunError::Plan(e));
         }

@@ -250,10 +250,13 @@ fn bare_setpoints(moves: &[Move], limits: &MachineLimits, capacity: usize) -> Ve
     let mut out = vec![Setpoint::default()];
     while !interp.finished() {
         interp
-            .feed(|| match segments.next() {
-                Some(s) => Poll::Ready(Planned::Segment(s, 0)),
-                None => Poll::End,
-            })
+            .feed(
+                || match segments.next() {
+                    Some(s) => Poll::Ready(Planned::Segment(s, 0)),
+                    None => Poll::End,
+                },
+                &mut kerf_geom::machine::InstantMachine,
+            )
             .unwrap();
         let mut sp = Setpoint::default();
         interp.step(&mut sp);

@@ -86,7 +86,7 @@ impl TryFrom<u32> for MachineState {
 /// One real-time cycle's output, published on the setpoints service every cycle.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.SetpointMsg.v4")]
+#[type_name("kerf.SetpointMsg.v5")]
 pub struct SetpointMsg {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
@@ -203,7 +203,7 @@ pub const PROGRAM_FATE_REFUSED: u32 = 5;
 /// A request from a client to the daemon on the control service.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.Request.v4")]
+#[type_name("kerf.Request.v5")]
 pub struct Request {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
@@ -370,7 +370,7 @@ pub const REASON_NOT_IMPLEMENTED: u32 = 5;
 /// The daemon's status, embedded in every [`Response`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.StatusMsg.v4")]
+#[type_name("kerf.StatusMsg.v5")]
 pub struct StatusMsg {
     /// `STATE_*`.
     pub state: u32,
@@ -629,7 +629,7 @@ impl Default for StatusMsg {
 /// after handling it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.Response.v4")]
+#[type_name("kerf.Response.v5")]
 pub struct Response {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,

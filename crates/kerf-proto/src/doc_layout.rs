@@ -43,7 +43,7 @@ fn messages() -> Vec<Message> {
             fields: fields!(MoveMsg; version, kind, program_id, seq, line, flags, corner,
                 event_code, feed_mm_min, tolerance_mm, start_mm, end_mm, center_mm, axis,
                 sweep_rad, abc_start_deg, abc_end_deg, event_value, count, naive_cam_mm,
-                reserved),
+                event_p, event_q, reserved),
         },
         Message {
             name: "SetpointMsg",

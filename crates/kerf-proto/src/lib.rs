@@ -51,8 +51,8 @@ pub use moves::{
     CORNER_BLEND_TOLERANCE, CORNER_EXACT_STOP, EVENT_DEBUG, EVENT_G4, EVENT_LOG, EVENT_M0,
     EVENT_M1, EVENT_M2, EVENT_M3, EVENT_M4, EVENT_M5, EVENT_M6, EVENT_M7, EVENT_M8, EVENT_M9,
     EVENT_M19, EVENT_M30, EVENT_M48, EVENT_M49, EVENT_M50, EVENT_M51, EVENT_M52, EVENT_M53,
-    EVENT_M60, EVENT_MSG, EVENT_PRINT, EVENT_S, EVENT_T, EVENT_USER_M100, EVENT_USER_M199,
-    FLAG_ABC, FLAG_EVENT_VALUE, FLAG_NAIVE_CAM, FLAG_RAPID, Field, KIND_ARC, KIND_BEGIN, KIND_END,
+    EVENT_M60, EVENT_M62, EVENT_M63, EVENT_M64, EVENT_M65, EVENT_M66, EVENT_M66_ANALOG, EVENT_M67, EVENT_M68, EVENT_MSG, EVENT_PRINT, EVENT_S, EVENT_T, EVENT_USER_M100, EVENT_USER_M199,
+    FLAG_ABC, FLAG_EVENT_P, FLAG_EVENT_Q, FLAG_EVENT_VALUE, FLAG_NAIVE_CAM, FLAG_RAPID, Field, KIND_ARC, KIND_BEGIN, KIND_END,
     KIND_EVENT, KIND_LINE, MoveMsg, Reject, Resolved, arc_tolerance_mm, event_code_from_u32,
     event_code_to_u32,
 };
@@ -61,7 +61,7 @@ pub use stream::{CONTINUITY_TOL, StreamCheck, StreamError};
 /// The protocol version carried by every message. A change to any layout or to the meaning
 /// of any field is a new version (and new iceoryx2 type names); receivers refuse messages
 /// of another version.
-pub const PROTOCOL_VERSION: u32 = 4;
+pub const PROTOCOL_VERSION: u32 = 5;
 
 // The sizes in docs/PROTOCOL.md; a layout change must fail the build, not only the tests.
 const _: () = {

@@ -120,7 +120,7 @@ fn envelope() {
 #[test]
 fn reserved_and_unused_fields_must_be_zero() {
     let nz = |field| Reject::NonzeroReserved { field };
-    assert_eq!(mutated(line, |m| m.reserved[2] = 1), nz(Field::Reserved));
+    assert_eq!(mutated(line, |m| m.reserved = 1), nz(Field::Reserved));
     // The naive-CAM tolerance only with FLAG_NAIVE_CAM, which an exact stop may not have.
     assert_eq!(
         mutated(line, |m| m.naive_cam_mm = 0.1),
@@ -138,7 +138,7 @@ fn reserved_and_unused_fields_must_be_zero() {
         Reject::NegativeTolerance
     );
     assert_eq!(
-        mutated(arc, |m| m.reserved[0] = u64::MAX),
+        mutated(arc, |m| m.reserved = u64::MAX),
         nz(Field::Reserved)
     );
     // A line carries no arc data.

@@ -36,7 +36,10 @@ use kerf_config::machine_limits;
 use kerf_geom::{Move, Path, Vec3, line_distance};
 use kerf_motion::monitor::{LimitMonitor, LimitViolation};
 use kerf_motion::{MachineLimits, PlannedSegment, Setpoint};
-use kerf_pipeline::{self as driver, Input, OperatorEvent, Planned, RunError, RunOptions, Summary};
+use kerf_geom::machine::Sync;
+use kerf_pipeline::{
+    self as driver, ActionOrder, Input, OperatorEvent, Planned, RunError, RunOptions, Summary,
+};
 use kerf_plan::{PlanError, Planner};
 
 use crate::sim_plot::{PlotOutput, PlotRecorder, RapidIndex};
@@ -275,6 +278,8 @@ pub struct Prepass {
     rapid_mm_s: f64,
     scan: Scan,
     kept: Option<Kept>,
+    /// Where the actions synchronised with the motion go among the kept segments.
+    order: ActionOrder,
 }
 
 impl Prepass {
@@ -296,6 +301,7 @@ impl Prepass {
             recent_base: 0,
             rapid_mm_s,
             scan: Scan::default(),
+            order: ActionOrder::new(),
             kept: Some(Kept {
                 moves: Vec::new(),
                 segments: Vec::new(),
@@ -324,21 +330,41 @@ impl Prepass {
         self.recent
             .push_back((m.line, m.path.start(), m.path.end()));
         self.planner.push(m, &mut self.buf)?;
+        self.order.moved();
         if let Some(k) = self.kept.as_mut() {
             k.moves.push(*m);
         }
         self.check_planned()
     }
 
-    /// An exact stop or a dwell at this point of the program (see [`kerfd::worker::input_of_event`]):
-    /// the planner ends the path at rest here, as the run's will.
-    pub fn stop(&mut self, dwell_s: Option<f64>) -> Result<(), PrepassError> {
-        self.planner.finish(&mut self.buf);
-        self.check_planned()?;
-        if let Some(seconds) = dwell_s {
-            self.scan.estimated_s += seconds;
-            if let Some(k) = self.kept.as_mut() {
-                k.segments.push(Planned::Dwell(seconds));
+    /// One input of the program (see [`ProgramActions`]): a move is checked; at an exact
+    /// stop, a dwell or an action the machine waits for, the planner ends the path at rest
+    /// here, as the run's will.
+    pub fn input(&mut self, input: &Input) -> Result<(), PrepassError> {
+        let kept = |pre: &mut Prepass, p: Planned| {
+            if let Some(k) = pre.kept.as_mut() {
+                k.segments.push(p);
+            }
+        };
+        match input {
+            Input::Move(m) => return self.push(m),
+            Input::Action(a) if ActionOrder::holds(input) => self.order.hold(*a),
+            Input::Action(a) if a.sync() == Sync::Immediate => kept(self, Planned::Action(*a)),
+            Input::Stop | Input::Dwell(_) | Input::Action(_) => {
+                self.planner.finish(&mut self.buf);
+                self.check_planned()?;
+                let released: Vec<Planned> = self.order.release().collect();
+                for p in released {
+                    kept(self, p);
+                }
+                match *input {
+                    Input::Dwell(seconds) => {
+                        self.scan.estimated_s += seconds;
+                        kept(self, Planned::Dwell(seconds));
+                    }
+                    Input::Action(a) => kept(self, Planned::Action(a)),
+                    _ => {}
+                }
             }
         }
         Ok(())
@@ -348,6 +374,9 @@ impl Prepass {
     pub fn finish(mut self) -> Result<Checked, PrepassError> {
         self.planner.finish(&mut self.buf);
         self.check_planned()?;
+        if let Some(k) = self.kept.as_mut() {
+            k.segments.extend(self.order.release());
+        }
         Ok(Checked {
             scan: self.scan,
             kept: self.kept,
@@ -357,8 +386,10 @@ impl Prepass {
     fn check_planned(&mut self) -> Result<(), PrepassError> {
         if let Some(k) = self.kept.as_mut() {
             let known = self.scan.moves as usize;
-            k.segments
-                .extend(self.buf.iter().map(|s| Planned::Segment(*s, known)));
+            for s in &self.buf {
+                k.segments.extend(self.order.before(s));
+                k.segments.push(Planned::Segment(*s, known));
+            }
             let bytes = k.moves.len() * size_of::<Move>() + k.segments.len() * size_of::<Planned>();
             if bytes > KEEP_BYTES {
                 self.kept = None;
@@ -733,8 +764,12 @@ mod tests {
             e.text = Some("LOGOPEN,results.txt".into());
             assert_eq!(kerfd::worker::input_of_event(&e), None, "{code:?}");
         }
+        // A program stop is an action at rest: the path ends there.
         let m0 = kerf_gcode::Event::new(4, kerf_gcode::EventCode::M0, None);
-        assert_eq!(kerfd::worker::input_of_event(&m0), Some(Input::Stop));
+        match kerfd::worker::input_of_event(&m0) {
+            Some(Input::Action(a)) => assert_eq!(a.sync(), Sync::AtRest),
+            other => panic!("M0 became {other:?}"),
+        }
     }
 
     fn program() -> Vec<Move> {
@@ -868,11 +903,7 @@ mod tests {
         let inputs = mixed_program();
         let mut pre = Prepass::new(&config, &options);
         for i in &inputs {
-            match i {
-                Input::Move(m) => pre.push(m).unwrap(),
-                Input::Stop => pre.stop(None).unwrap(),
-                Input::Dwell(s) => pre.stop(Some(*s)).unwrap(),
-            }
+            pre.input(i).unwrap();
         }
         let checked = pre.finish().unwrap();
         assert_eq!(checked.scan.moves, mixed_moves().len() as u64);

@@ -8,7 +8,7 @@ use super::arc::check_arc;
 use super::event_codes::event_code_from_u32;
 use crate::{
     AXES, CORNER_BLEND_DEFAULT, CORNER_BLEND_TOLERANCE, CORNER_EXACT_STOP, FLAG_ABC,
-    FLAG_EVENT_VALUE, FLAG_NAIVE_CAM, FLAG_RAPID, Field, KIND_ARC, KIND_BEGIN, KIND_END,
+    FLAG_EVENT_P, FLAG_EVENT_Q, FLAG_EVENT_VALUE, FLAG_NAIVE_CAM, FLAG_RAPID, Field, KIND_ARC, KIND_BEGIN, KIND_END,
     KIND_EVENT, KIND_LINE, MoveMsg, PROTOCOL_VERSION, Reject,
 };
 
@@ -48,6 +48,10 @@ struct Flags {
     has_value: bool,
     /// [`FLAG_NAIVE_CAM`].
     naive_cam: bool,
+    /// [`FLAG_EVENT_P`].
+    has_p: bool,
+    /// [`FLAG_EVENT_Q`].
+    has_q: bool,
 }
 
 impl TryFrom<&MoveMsg> for Resolved {
@@ -65,7 +69,7 @@ impl TryFrom<&MoveMsg> for Resolved {
                 program_id: m.program_id,
                 items: m.count,
             }),
-            KIND_EVENT => resolve_event(m, flags.has_value),
+            KIND_EVENT => resolve_event(m, flags),
             _ => resolve_move(m, flags),
         }
     }
@@ -86,7 +90,7 @@ fn allowed_flags(m: &MoveMsg) -> Result<u32, Reject> {
         KIND_BEGIN | KIND_END => 0,
         KIND_LINE | KIND_ARC if m.corner == CORNER_EXACT_STOP => FLAG_RAPID | FLAG_ABC,
         KIND_LINE | KIND_ARC => FLAG_RAPID | FLAG_ABC | FLAG_NAIVE_CAM,
-        KIND_EVENT => FLAG_EVENT_VALUE,
+        KIND_EVENT => FLAG_EVENT_VALUE | FLAG_EVENT_P | FLAG_EVENT_Q,
         other => return Err(Reject::UnknownKind(other)),
     })
 }
@@ -109,6 +113,8 @@ fn check_flags(m: &MoveMsg, allowed_flags: u32) -> Result<Flags, Reject> {
         abc: m.flags & FLAG_ABC != 0,
         has_value: m.flags & FLAG_EVENT_VALUE != 0,
         naive_cam: m.flags & FLAG_NAIVE_CAM != 0,
+        has_p: m.flags & FLAG_EVENT_P != 0,
+        has_q: m.flags & FLAG_EVENT_Q != 0,
     })
 }
 
@@ -122,11 +128,11 @@ fn check_unused_zero(m: &MoveMsg, flags: Flags) -> Result<(), Reject> {
         abc,
         has_value,
         naive_cam,
+        has_p,
+        has_q,
     } = flags;
     let is_move = m.kind == KIND_LINE || m.kind == KIND_ARC;
-    m.reserved
-        .iter()
-        .try_for_each(|&r| zero_u(r, F::Reserved))?;
+    zero_u(m.reserved, F::Reserved)?;
     let begin_end = m.kind == KIND_BEGIN || m.kind == KIND_END;
     if begin_end {
         zero_u(m.line.into(), F::Line)?;
@@ -169,6 +175,12 @@ fn check_unused_zero(m: &MoveMsg, flags: Flags) -> Result<(), Reject> {
     if !naive_cam {
         zero_f(m.naive_cam_mm, F::NaiveCamMm)?;
     }
+    if !has_p {
+        zero_f(m.event_p, F::EventP)?;
+    }
+    if !has_q {
+        zero_f(m.event_q, F::EventQ)?;
+    }
     Ok(())
 }
 
@@ -188,22 +200,52 @@ fn resolve_begin(m: &MoveMsg) -> Result<Resolved, Reject> {
 
 /// An event: a finite value, line >= 1, a known code ([`Reject::UnknownEventCode`]), a
 /// value exactly when the code takes one, no negative dwell ([`Reject::NegativeDwell`]).
-fn resolve_event(m: &MoveMsg, has_value: bool) -> Result<Resolved, Reject> {
+fn resolve_event(m: &MoveMsg, flags: Flags) -> Result<Resolved, Reject> {
     use Field as F;
+    let Flags {
+        has_value,
+        has_p,
+        has_q,
+        ..
+    } = flags;
     if has_value {
         finite_f(m.event_value, F::EventValue)?;
+    }
+    if has_p {
+        finite_f(m.event_p, F::EventP)?;
+    }
+    if has_q {
+        finite_f(m.event_q, F::EventQ)?;
     }
     check_line(m)?;
     let code = event_code_from_u32(m.event_code).ok_or(Reject::UnknownEventCode(m.event_code))?;
     check_event_value(code, has_value)?;
+    check_event_words(code, has_p, has_q)?;
     if code == EventCode::G4 && m.event_value < 0.0 {
         return Err(Reject::NegativeDwell);
     }
-    Ok(Resolved::Event(Event::new(
-        m.line,
-        code,
-        has_value.then_some(m.event_value),
-    )))
+    let mut event = Event::new(m.line, code, has_value.then_some(m.event_value));
+    event.p = has_p.then_some(m.event_p);
+    event.q = has_q.then_some(m.event_q);
+    Ok(Resolved::Event(event))
+}
+
+/// M19 and M66 may have a P (L) word, no other event ([`Reject::EventPUnexpected`]); M67
+/// and M68 must have a Q word, M19, M66 and the user M codes may have one, no other event
+/// ([`Reject::EventQ`]).
+fn check_event_words(code: EventCode, has_p: bool, has_q: bool) -> Result<(), Reject> {
+    use EventCode as C;
+    let may_p = matches!(code, C::M19 | C::M66 | C::M66Analog);
+    if has_p && !may_p {
+        return Err(Reject::EventPUnexpected(code));
+    }
+    let needs_q = matches!(code, C::M67 | C::M68);
+    let may_q = needs_q || may_p || matches!(code, C::User(_));
+    match (needs_q, may_q, has_q) {
+        (true, _, false) => Err(Reject::EventQ(code, true)),
+        (_, false, true) => Err(Reject::EventQ(code, false)),
+        _ => Ok(()),
+    }
 }
 
 /// A move or event has line 0: [`Reject::LineZero`].
@@ -214,7 +256,7 @@ fn check_line(m: &MoveMsg) -> Result<(), Reject> {
     Ok(())
 }
 
-/// S, T, G4 and M50 to M53 must have a value ([`Reject::EventValueMissing`]); M19 and the
+/// S, T, G4, M50 to M53 and M62 to M68 (the output or input number) must have a value ([`Reject::EventValueMissing`]); M19 and the
 /// user M codes may have one; the other codes take none ([`Reject::EventValueUnexpected`]).
 fn check_event_value(code: EventCode, has_value: bool) -> Result<(), Reject> {
     let needs_value = matches!(
@@ -226,6 +268,14 @@ fn check_event_value(code: EventCode, has_value: bool) -> Result<(), Reject> {
             | EventCode::M51
             | EventCode::M52
             | EventCode::M53
+            | EventCode::M62
+            | EventCode::M63
+            | EventCode::M64
+            | EventCode::M65
+            | EventCode::M66
+            | EventCode::M66Analog
+            | EventCode::M67
+            | EventCode::M68
     );
     let may_have_value = needs_value || matches!(code, EventCode::User(_) | EventCode::M19);
     match (needs_value, has_value) {

@@ -6,7 +6,7 @@ use kerf_geom::{CornerMode, Event, Move, Path, Vec3};
 use super::event_codes::event_code_to_u32;
 use crate::{
     AXES, CORNER_BLEND_DEFAULT, CORNER_BLEND_TOLERANCE, CORNER_EXACT_STOP, FLAG_ABC,
-    FLAG_EVENT_VALUE, FLAG_NAIVE_CAM, FLAG_RAPID, KIND_ARC, KIND_BEGIN, KIND_END, KIND_EVENT,
+    FLAG_EVENT_P, FLAG_EVENT_Q, FLAG_EVENT_VALUE, FLAG_NAIVE_CAM, FLAG_RAPID, KIND_ARC, KIND_BEGIN, KIND_END, KIND_EVENT,
     KIND_LINE, MoveMsg, PROTOCOL_VERSION,
 };
 
@@ -102,6 +102,14 @@ impl MoveMsg {
         if let Some(v) = ev.value {
             m.flags |= FLAG_EVENT_VALUE;
             m.event_value = v;
+        }
+        if let Some(p) = ev.p {
+            m.flags |= FLAG_EVENT_P;
+            m.event_p = p;
+        }
+        if let Some(q) = ev.q {
+            m.flags |= FLAG_EVENT_Q;
+            m.event_q = q;
         }
         m
     }

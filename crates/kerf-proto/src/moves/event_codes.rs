@@ -57,6 +57,23 @@ pub const EVENT_M53: u32 = 25;
 /// LinuxCNC log call (`LOGOPEN`, `LOGAPPEND`, `LOG`, `LOGCLOSE`); the text (the call) stays
 /// with the planner process.
 pub const EVENT_LOG: u32 = 26;
+/// Digital output on with the next move (LinuxCNC M62); value: the output number (P).
+pub const EVENT_M62: u32 = 27;
+/// Digital output off with the next move (M63); value: the output number.
+pub const EVENT_M63: u32 = 28;
+/// Digital output on at once (M64); value: the output number.
+pub const EVENT_M64: u32 = 29;
+/// Digital output off at once (M65); value: the output number.
+pub const EVENT_M65: u32 = 30;
+/// Wait on a digital input (M66 P); value: the input number, P field: the L word (wait
+/// mode), Q field: the timeout, s.
+pub const EVENT_M66: u32 = 31;
+/// Wait on an analog input (M66 E); value: the input number, P and Q as M66 P.
+pub const EVENT_M66_ANALOG: u32 = 32;
+/// Analog output with the next move (M67); value: the output number (E), Q: the value.
+pub const EVENT_M67: u32 = 33;
+/// Analog output at once (M68); value: the output number, Q: the value.
+pub const EVENT_M68: u32 = 34;
 /// User M code M100 (LinuxCNC); M100 + n is `EVENT_USER_M100 + n`; value: its P word.
 pub const EVENT_USER_M100: u32 = 100;
 /// User M code M199, the last one.
@@ -87,6 +104,14 @@ pub fn event_code_to_u32(code: EventCode) -> u32 {
         EventCode::M51 => EVENT_M51,
         EventCode::M52 => EVENT_M52,
         EventCode::M53 => EVENT_M53,
+        EventCode::M62 => EVENT_M62,
+        EventCode::M63 => EVENT_M63,
+        EventCode::M64 => EVENT_M64,
+        EventCode::M65 => EVENT_M65,
+        EventCode::M66 => EVENT_M66,
+        EventCode::M66Analog => EVENT_M66_ANALOG,
+        EventCode::M67 => EVENT_M67,
+        EventCode::M68 => EVENT_M68,
         EventCode::Msg => EVENT_MSG,
         EventCode::Debug => EVENT_DEBUG,
         EventCode::Print => EVENT_PRINT,
@@ -120,6 +145,14 @@ pub fn event_code_from_u32(code: u32) -> Option<EventCode> {
         EVENT_M51 => EventCode::M51,
         EVENT_M52 => EventCode::M52,
         EVENT_M53 => EventCode::M53,
+        EVENT_M62 => EventCode::M62,
+        EVENT_M63 => EventCode::M63,
+        EVENT_M64 => EventCode::M64,
+        EVENT_M65 => EventCode::M65,
+        EVENT_M66 => EventCode::M66,
+        EVENT_M66_ANALOG => EventCode::M66Analog,
+        EVENT_M67 => EventCode::M67,
+        EVENT_M68 => EventCode::M68,
         EVENT_MSG => EventCode::Msg,
         EVENT_DEBUG => EventCode::Debug,
         EVENT_PRINT => EventCode::Print,

@@ -25,6 +25,12 @@ pub const FLAG_EVENT_VALUE: u32 = 1 << 2;
 /// Flag (blending lines and arcs): `naive_cam_mm` holds LinuxCNC's naive-CAM tolerance
 /// (G64 Q); without it it must be zero. Not allowed with [`CORNER_EXACT_STOP`].
 pub const FLAG_NAIVE_CAM: u32 = 1 << 3;
+/// Flag (events): `event_p` holds the event's P or L word (M19 the direction mode, M66 the
+/// wait mode); without it it must be zero.
+pub const FLAG_EVENT_P: u32 = 1 << 4;
+/// Flag (events): `event_q` holds the event's Q word (M19 and M66 the timeout, M67 and
+/// M68 the value, user M codes their Q); without it it must be zero.
+pub const FLAG_EVENT_Q: u32 = 1 << 5;
 
 /// Corner mode: exact stop at the end of the move.
 pub const CORNER_EXACT_STOP: u32 = 1;
@@ -42,7 +48,7 @@ pub const CORNER_BLEND_TOLERANCE: u32 = 3;
 /// `docs/PROTOCOL.md`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.MoveMsg.v4")]
+#[type_name("kerf.MoveMsg.v5")]
 pub struct MoveMsg {
     /// [`PROTOCOL_VERSION`].
     ///
@@ -87,8 +93,12 @@ pub struct MoveMsg {
     pub count: u64,
     /// Blending moves with [`FLAG_NAIVE_CAM`]: LinuxCNC's naive-CAM tolerance, mm (>= 0).
     pub naive_cam_mm: f64,
+    /// Events with [`FLAG_EVENT_P`]: M19 the direction mode (P), M66 the wait mode (L).
+    pub event_p: f64,
+    /// Events with [`FLAG_EVENT_Q`]: the Q word.
+    pub event_q: f64,
     /// Must be zero.
-    pub reserved: [u64; 3],
+    pub reserved: u64,
 }
 
 /// A field of [`MoveMsg`], as named by a [`Reject`](crate::Reject).
@@ -111,6 +121,8 @@ pub enum Field {
     EventValue,
     Count,
     NaiveCamMm,
+    EventP,
+    EventQ,
     Reserved,
 }
 
@@ -134,6 +146,8 @@ impl Field {
             Field::EventValue => "event_value",
             Field::Count => "count",
             Field::NaiveCamMm => "naive_cam_mm",
+            Field::EventP => "event_p",
+            Field::EventQ => "event_q",
             Field::Reserved => "reserved",
         }
     }
@@ -175,7 +189,9 @@ impl MoveMsg {
             event_value: 0.0,
             count: 0,
             naive_cam_mm: 0.0,
-            reserved: [0; 3],
+            event_p: 0.0,
+            event_q: 0.0,
+            reserved: 0,
         }
     }
 }

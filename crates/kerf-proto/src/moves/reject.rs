@@ -128,6 +128,12 @@ pub enum Reject {
     /// An M-code event with a value.
     #[error("event {} takes no value", .0.as_str())]
     EventValueUnexpected(EventCode),
+    /// An event that takes no P (L) word has one in `event_p`.
+    #[error("event {} takes no P or L word", .0.as_str())]
+    EventPUnexpected(EventCode),
+    /// An event that must have a Q word lacks it, or one that takes none has one.
+    #[error("event {} {}", .0.as_str(), if *.1 { "needs a Q word" } else { "takes no Q word" })]
+    EventQ(EventCode, bool),
     /// A dwell of negative time.
     #[error("negative dwell time")]
     NegativeDwell,

@@ -21,7 +21,7 @@ use kerf::sim::{Prepass, PrepassError, SimError, SimOptions};
 use kerf::{DialectSource, PlanOutputError, assumed_dialect_note, choose_dialect_from};
 use kerf_config::Config;
 use kerf_gcode::{Dialect, Interpreter, Item};
-use kerf_pipeline::Input;
+use kerf_pipeline::ProgramActions;
 
 mod ethercat;
 mod machine;
@@ -441,6 +441,7 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
         Some(kept) => kerf::sim::simulate_kept(kept, &scan, &config, &options, &mut out, plot_out),
         None => {
             seen = 0;
+            let mut actions = ProgramActions::new();
             let moves = Interpreter::new(source.reader()?, source.dialect, settings)
                 .map_while(|item| match item {
                     Ok(Item::Move(m)) => {
@@ -450,14 +451,15 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
                             changed.store(true, Ordering::Relaxed);
                             return None;
                         }
-                        Some(Some(Input::Move(m)))
+                        Some(actions.item(&Item::Move(m)))
                     }
-                    Ok(Item::Event(e)) => Some(kerfd::worker::input_of_event(&e)),
+                    Ok(item) => Some(actions.item(&item)),
                     Err(_) => {
                         changed.store(true, Ordering::Relaxed);
                         None
                     }
                 })
+                .flatten()
                 .flatten();
             kerf::sim::simulate_stream(
                 moves,
@@ -542,10 +544,14 @@ pub fn check_program(
     let mut spinner: Option<ProgressBar> = None;
     let mut moves = 0u64;
     let mut last_line = 0;
+    let mut actions = ProgramActions::new();
     for item in Interpreter::new(source.reader()?, source.dialect, settings) {
         match item {
             Ok(Item::Move(m)) => {
                 last_line = m.line;
+                if let Some(wait) = actions.before_move(&m) {
+                    prepass.input(&wait).map_err(refused)?;
+                }
                 prepass.push(&m).map_err(refused)?;
                 moves += 1;
                 // A long program takes a while to check: say so on a terminal.
@@ -565,10 +571,8 @@ pub fn check_program(
             }
             Ok(Item::Event(e)) => {
                 last_line = e.line;
-                match kerfd::worker::input_of_event(&e) {
-                    Some(Input::Dwell(seconds)) => prepass.stop(Some(seconds)).map_err(refused)?,
-                    Some(_) => prepass.stop(None).map_err(refused)?,
-                    None => {}
+                if let Some(input) = actions.event(&e) {
+                    prepass.input(&input).map_err(refused)?;
                 }
             }
             Err(diagnostic) => {

@@ -127,7 +127,7 @@ impl Cycle {
                 }
                 let _ = items.pop();
             }
-        });
+        }, &mut kerf_geom::machine::InstantMachine);
         if let Some(p) = self.program.as_mut() {
             p.planned += planned;
             if let Some(r) = refusal {
