@@ -152,6 +152,18 @@ pub enum Check {
     /// A subdevice on the fieldbus left OP on its own (its process-data watchdog, an error
     /// of its own); the value is its ring position, the limit its AL status code.
     SubdeviceState,
+    /// The spindle did not reach its commanded speed within the at-speed timeout before
+    /// a feed move; the value is its actual speed, the limit the commanded one, rpm.
+    SpindleAtSpeed,
+    /// The spindle left its at-speed band while the axes fed (a broken belt, a stalled
+    /// spindle); the value is its actual speed, the limit the commanded one, rpm.
+    SpindleBand,
+    /// The spindle's orientation (M19) did not end within its timeout; the value is the
+    /// time waited, the limit the timeout, s.
+    SpindleOrient,
+    /// The automatic tool changer did not report the change done within its timeout; the
+    /// value is the tool, the limit the timeout, s.
+    ToolChange,
 }
 
 impl Check {
@@ -169,11 +181,15 @@ impl Check {
             Check::DriveDisabled => "drive_disabled",
             Check::Fieldbus => "fieldbus",
             Check::SubdeviceState => "subdevice_state",
+            Check::SpindleAtSpeed => "spindle_at_speed",
+            Check::SpindleBand => "spindle_band",
+            Check::SpindleOrient => "spindle_orient",
+            Check::ToolChange => "tool_change",
         }
     }
 
     /// Every check, in the order of their codes.
-    pub const ALL: [Check; 10] = [
+    pub const ALL: [Check; 14] = [
         Check::Velocity,
         Check::Acceleration,
         Check::SoftLimit,
@@ -184,9 +200,13 @@ impl Check {
         Check::DriveDisabled,
         Check::Fieldbus,
         Check::SubdeviceState,
+        Check::SpindleAtSpeed,
+        Check::SpindleBand,
+        Check::SpindleOrient,
+        Check::ToolChange,
     ];
 
-    /// The check's number on the wire (1 to 10, in the order of [`Check::ALL`]; 0 means
+    /// The check's number on the wire (1 to 14, in the order of [`Check::ALL`]; 0 means
     /// none).
     pub fn code(self) -> u32 {
         match self {
@@ -200,6 +220,10 @@ impl Check {
             Check::DriveDisabled => 8,
             Check::Fieldbus => 9,
             Check::SubdeviceState => 10,
+            Check::SpindleAtSpeed => 11,
+            Check::SpindleBand => 12,
+            Check::SpindleOrient => 13,
+            Check::ToolChange => 14,
         }
     }
 }

@@ -404,6 +404,22 @@ impl<D: Drive> DriveStage<D> {
         Some(f)
     }
 
+    /// Latches a fault of the machine around the axes (the spindle, the tool changer:
+    /// [`Check::SpindleAtSpeed`], [`Check::SpindleBand`], [`Check::SpindleOrient`],
+    /// [`Check::ToolChange`]) with its value and limit; the axes stop on the quick stop as
+    /// for any fault. `None` when a fault is already latched.
+    pub fn trip_machine(
+        &mut self,
+        check: Check,
+        value: f64,
+        limit: f64,
+        line: u32,
+    ) -> Option<Fault> {
+        let f = self.safety.trip(check, None, value, limit, line)?;
+        self.trip_dump = Some(f);
+        Some(f)
+    }
+
     /// One cycle. See the module documentation. Allocation-free.
     pub fn cycle(&mut self, input: &StageInput) -> StageOutput {
         self.sequence += 1;

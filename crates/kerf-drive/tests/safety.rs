@@ -730,6 +730,10 @@ fn check_codes_are_the_protocols_numbers() {
         (Check::DriveDisabled, 8, "drive_disabled"),
         (Check::Fieldbus, 9, "fieldbus"),
         (Check::SubdeviceState, 10, "subdevice_state"),
+        (Check::SpindleAtSpeed, 11, "spindle_at_speed"),
+        (Check::SpindleBand, 12, "spindle_band"),
+        (Check::SpindleOrient, 13, "spindle_orient"),
+        (Check::ToolChange, 14, "tool_change"),
     ];
     assert_eq!(Check::ALL.len(), expected.len());
     for (check, (want, code, name)) in Check::ALL.iter().zip(expected) {

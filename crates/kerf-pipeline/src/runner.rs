@@ -119,19 +119,22 @@ impl<'a, F: Sink> Runner<'a, F> {
         let measure = &mut self.measure;
         let known = &mut self.known;
         let aborted = self.interp.aborted();
-        let started = self.interp.feed(|| {
-            let polled = source.poll();
-            if let Poll::Ready(Planned::Segment(_, moves_known)) = &polled {
-                while *known < *moves_known {
-                    let Some(mv) = source.next_move() else {
-                        break;
-                    };
-                    measure.add_move(&mv, aborted);
-                    *known += 1;
+        let started = self.interp.feed(
+            || {
+                let polled = source.poll();
+                if let Poll::Ready(Planned::Segment(_, moves_known)) = &polled {
+                    while *known < *moves_known {
+                        let Some(mv) = source.next_move() else {
+                            break;
+                        };
+                        measure.add_move(&mv, aborted);
+                        *known += 1;
+                    }
                 }
-            }
-            polled
-        }, &mut InstantMachine)?;
+                polled
+            },
+            &mut InstantMachine,
+        )?;
         if let Some(e) = source.take_error() {
             return Err(RunError::Plan(e));
         }

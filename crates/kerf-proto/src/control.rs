@@ -18,6 +18,10 @@ pub const STATE_STARVED: u32 = 3;
 pub const STATE_FAULT: u32 = 4;
 /// Daemon state: aborting (decelerating to rest, then the queue is dropped).
 pub const STATE_STOPPING: u32 = 5;
+/// Daemon state: the program waits at rest for something (`pause_reason`): a program
+/// stop, a manual tool change or single block (cycle start, [`REQUEST_RESUME`], goes on),
+/// the spindle, an input or the tool changer (it goes on by itself).
+pub const STATE_PAUSED: u32 = 6;
 
 /// The daemon's state, decoded from a `state` field with [`TryFrom<u32>`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -34,6 +38,8 @@ pub enum MachineState {
     Fault,
     /// [`STATE_STOPPING`].
     Stopping,
+    /// [`STATE_PAUSED`].
+    Paused,
 }
 
 /// A `state` value that is none of the `STATE_*` constants.
@@ -51,6 +57,7 @@ impl MachineState {
             MachineState::Starved => STATE_STARVED,
             MachineState::Fault => STATE_FAULT,
             MachineState::Stopping => STATE_STOPPING,
+            MachineState::Paused => STATE_PAUSED,
         }
     }
 
@@ -63,6 +70,7 @@ impl MachineState {
             MachineState::Starved => "starved",
             MachineState::Fault => "fault",
             MachineState::Stopping => "stopping",
+            MachineState::Paused => "paused",
         }
     }
 }
@@ -78,6 +86,7 @@ impl TryFrom<u32> for MachineState {
             STATE_STARVED => MachineState::Starved,
             STATE_FAULT => MachineState::Fault,
             STATE_STOPPING => MachineState::Stopping,
+            STATE_PAUSED => MachineState::Paused,
             other => return Err(UnknownState(other)),
         })
     }
@@ -155,7 +164,8 @@ impl Default for SetpointMsg {
 pub const REQUEST_STATUS: u32 = 1;
 /// Request kind: feed hold.
 pub const REQUEST_HOLD: u32 = 2;
-/// Request kind: resume after a feed hold.
+/// Request kind: cycle start: resume after a feed hold, and go on after a pause that
+/// waits for the operator (a program stop, a manual tool change, single block).
 pub const REQUEST_RESUME: u32 = 3;
 /// Request kind: abort the program (stop smoothly, drop the queue).
 pub const REQUEST_ABORT: u32 = 4;
@@ -179,6 +189,29 @@ pub const MAX_OVERRIDE_PCT: f64 = kerf_geom::MAX_FEED_OVERRIDE * 100.0;
 /// a refused or aborted program the reason in its message). The daemon remembers the last
 /// [`PROGRAMS_REMEMBERED`] programs.
 pub const REQUEST_PROGRAM: u32 = 9;
+
+/// Request kind: the optional-stop switch (M1 pauses while on): `value` 1 on, 0 off.
+pub const REQUEST_OPTIONAL_STOP: u32 = 10;
+/// Request kind: the block-delete switch (lines starting with `/` are skipped by programs
+/// sent from now on): `value` 1 on, 0 off.
+pub const REQUEST_BLOCK_DELETE: u32 = 11;
+/// Request kind: the single-block switch (a pause after every block planned from now on):
+/// `value` 1 on, 0 off.
+pub const REQUEST_SINGLE_BLOCK: u32 = 12;
+/// Request kind: the spindle override, `value` percent (0..=200).
+pub const REQUEST_SPINDLE_OVERRIDE: u32 = 13;
+/// Request kind: set simulated digital input `index` (0..=63) to `value` (1 on, 0 off);
+/// refused with [`REASON_NOT_ALLOWED`] for an input that is not simulated.
+pub const REQUEST_SET_INPUT: u32 = 14;
+/// Request kind: set simulated analog input `index` (0..=15) to `value`; refused with
+/// [`REASON_NOT_ALLOWED`] for an input that is not simulated.
+pub const REQUEST_SET_ANALOG_INPUT: u32 = 15;
+/// The highest spindle override [`REQUEST_SPINDLE_OVERRIDE`] accepts, percent.
+pub const MAX_SPINDLE_OVERRIDE_PCT: f64 = 200.0;
+/// Digital inputs and outputs a machine has at most (numbers 0 to 63).
+pub const DIGITAL_IO: usize = 64;
+/// Analog inputs and outputs a machine has at most (numbers 0 to 15).
+pub const ANALOG_IO: usize = 16;
 
 /// How many programs (the last ones whose BEGIN arrived, accepted or refused) the daemon
 /// remembers for [`REQUEST_PROGRAM`].
@@ -215,6 +248,11 @@ pub struct Request {
     pub value: f64,
     /// [`REQUEST_PROGRAM`]: the program asked about (not 0); 0 for every other kind.
     pub program_id: u64,
+    /// [`REQUEST_SET_INPUT`], [`REQUEST_SET_ANALOG_INPUT`]: the input's number; 0 for
+    /// every other kind.
+    pub index: u32,
+    /// Must be zero.
+    pub reserved: u32,
 }
 
 /// A validated request.
@@ -247,6 +285,58 @@ pub enum ControlCommand {
         /// The program asked about.
         program_id: u64,
     },
+    /// [`REQUEST_OPTIONAL_STOP`], [`REQUEST_BLOCK_DELETE`], [`REQUEST_SINGLE_BLOCK`].
+    Switch {
+        /// Which.
+        switch: Switch,
+        /// On or off.
+        on: bool,
+    },
+    /// [`REQUEST_SPINDLE_OVERRIDE`].
+    SpindleOverride {
+        /// Percent, 0..=200.
+        percent: f64,
+    },
+    /// [`REQUEST_SET_INPUT`], [`REQUEST_SET_ANALOG_INPUT`].
+    SetInput {
+        /// An analog input (else digital).
+        analog: bool,
+        /// Its number.
+        index: u32,
+        /// The value (digital: 1 or 0).
+        value: f64,
+    },
+}
+
+/// The operator's switches ([`ControlCommand::Switch`]; `StatusMsg::switches` bits).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Switch {
+    /// M1 pauses while on ([`SWITCH_OPTIONAL_STOP`]).
+    OptionalStop,
+    /// `/` lines are skipped while on ([`SWITCH_BLOCK_DELETE`]).
+    BlockDelete,
+    /// A pause after every block while on ([`SWITCH_SINGLE_BLOCK`]).
+    SingleBlock,
+}
+
+impl Switch {
+    /// Its bit in `StatusMsg::switches`.
+    pub fn bit(self) -> u32 {
+        match self {
+            Switch::OptionalStop => SWITCH_OPTIONAL_STOP,
+            Switch::BlockDelete => SWITCH_BLOCK_DELETE,
+            Switch::SingleBlock => SWITCH_SINGLE_BLOCK,
+        }
+    }
+
+    /// Its name as `kerf` spells it: "optional-stop", "block-delete", "single-block".
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Switch::OptionalStop => "optional-stop",
+            Switch::BlockDelete => "block-delete",
+            Switch::SingleBlock => "single-block",
+        }
+    }
 }
 
 /// Why a [`Request`] was refused; [`RequestReject::reason`] is the response's code.
@@ -283,6 +373,8 @@ impl Request {
             id,
             value,
             program_id: 0,
+            index: 0,
+            reserved: 0,
         }
     }
 
@@ -302,6 +394,29 @@ impl Request {
                 r.program_id = program_id;
                 return r;
             }
+            ControlCommand::Switch { switch, on } => {
+                let kind = match switch {
+                    Switch::OptionalStop => REQUEST_OPTIONAL_STOP,
+                    Switch::BlockDelete => REQUEST_BLOCK_DELETE,
+                    Switch::SingleBlock => REQUEST_SINGLE_BLOCK,
+                };
+                (kind, if on { 1.0 } else { 0.0 })
+            }
+            ControlCommand::SpindleOverride { percent } => (REQUEST_SPINDLE_OVERRIDE, percent),
+            ControlCommand::SetInput {
+                analog,
+                index,
+                value,
+            } => {
+                let kind = if analog {
+                    REQUEST_SET_ANALOG_INPUT
+                } else {
+                    REQUEST_SET_INPUT
+                };
+                let mut r = Request::new(kind, id, value);
+                r.index = index;
+                return r;
+            }
         };
         Request::new(kind, id, value)
     }
@@ -311,6 +426,28 @@ impl Request {
         if self.version != PROTOCOL_VERSION {
             return Err(RequestReject::WrongVersion(self.version));
         }
+        if self.reserved != 0 {
+            return Err(RequestReject::BadValue);
+        }
+        if let REQUEST_SET_INPUT | REQUEST_SET_ANALOG_INPUT = self.kind {
+            let analog = self.kind == REQUEST_SET_ANALOG_INPUT;
+            let (count, value_ok) = if analog {
+                (ANALOG_IO, self.value.is_finite())
+            } else {
+                (DIGITAL_IO, self.value == 0.0 || self.value == 1.0)
+            };
+            if self.program_id != 0 || self.index as usize >= count || !value_ok {
+                return Err(RequestReject::BadValue);
+            }
+            return Ok(ControlCommand::SetInput {
+                analog,
+                index: self.index,
+                value: self.value,
+            });
+        }
+        if self.index != 0 && self.kind <= REQUEST_SPINDLE_OVERRIDE {
+            return Err(RequestReject::BadValue);
+        }
         if self.kind == REQUEST_PROGRAM {
             if self.program_id == 0 || self.value.to_bits() != 0 {
                 return Err(RequestReject::BadValue);
@@ -319,7 +456,11 @@ impl Request {
                 program_id: self.program_id,
             });
         }
-        if self.program_id != 0 && matches!(self.kind, REQUEST_STATUS..=REQUEST_INJECT) {
+        let known = matches!(
+            self.kind,
+            REQUEST_STATUS..=REQUEST_INJECT | REQUEST_OPTIONAL_STOP..=REQUEST_SPINDLE_OVERRIDE
+        );
+        if self.program_id != 0 && known {
             return Err(RequestReject::BadValue);
         }
         let command = match self.kind {
@@ -343,6 +484,28 @@ impl Request {
                 }
                 return Ok(ControlCommand::Override {
                     percent: self.value,
+                });
+            }
+            REQUEST_SPINDLE_OVERRIDE => {
+                if !(0.0..=MAX_SPINDLE_OVERRIDE_PCT).contains(&self.value) {
+                    return Err(RequestReject::BadValue);
+                }
+                return Ok(ControlCommand::SpindleOverride {
+                    percent: self.value,
+                });
+            }
+            REQUEST_OPTIONAL_STOP | REQUEST_BLOCK_DELETE | REQUEST_SINGLE_BLOCK => {
+                if self.value != 0.0 && self.value != 1.0 {
+                    return Err(RequestReject::BadValue);
+                }
+                let switch = match self.kind {
+                    REQUEST_OPTIONAL_STOP => Switch::OptionalStop,
+                    REQUEST_BLOCK_DELETE => Switch::BlockDelete,
+                    _ => Switch::SingleBlock,
+                };
+                return Ok(ControlCommand::Switch {
+                    switch,
+                    on: self.value == 1.0,
                 });
             }
             other => return Err(RequestReject::UnknownKind(other)),
@@ -470,7 +633,113 @@ pub struct StatusMsg {
     pub dc_offset_abs_max_ns: u64,
     /// Cycles whose offset was measured (the distribution's sample count).
     pub dc_samples: u64,
+    /// What the program waits for at rest (`PAUSE_*`; the state is [`STATE_PAUSED`]
+    /// unless a hold or fault says more); [`PAUSE_NONE`] when nothing.
+    pub pause_reason: u32,
+    /// The source line of the pause; 0 when none.
+    pub pause_line: u32,
+    /// [`PAUSE_TOOL_CHANGE`], [`PAUSE_TOOL_CHANGING`]: the tool; [`PAUSE_WAIT_INPUT`]:
+    /// the input's number; otherwise 0.
+    pub pause_value: u32,
+    /// The operator's switches: `SWITCH_*` bits.
+    pub switches: u32,
+    /// The tool in the spindle (0: none).
+    pub tool_in_spindle: u32,
+    /// The tool changer: `TOOL_CHANGER_*`.
+    pub tool_changer: u32,
+    /// The length of the tool in the spindle in the tool table, mm (0 without a tool or
+    /// entry).
+    pub tool_length_mm: f64,
+    /// The spindle: `SPINDLE_*` (its kind); [`SPINDLE_NONE`] makes every `spindle_*`
+    /// field 0.
+    pub spindle_kind: u32,
+    /// The commanded direction: 1 clockwise (M3), -1 counter-clockwise (M4), 0 stopped.
+    pub spindle_dir: i32,
+    /// The programmed speed (S), rpm.
+    pub spindle_programmed_rpm: f64,
+    /// The commanded speed after the override and the speed range, rpm, signed by the
+    /// direction (0 when stopped).
+    pub spindle_commanded_rpm: f64,
+    /// The spindle's actual speed, rpm, signed (the drive's feedback, or for a spindle on
+    /// outputs the commanded speed once at speed).
+    pub spindle_actual_rpm: f64,
+    /// The spindle override, percent (0 to 200).
+    pub spindle_override_pct: f64,
+    /// Flag: 1 when the spindle turns at its commanded speed (within the at-speed band).
+    pub spindle_at_speed: u32,
+    /// Bits: [`OVERRIDES_FEED`], [`OVERRIDES_SPINDLE`] when that override is enabled (M48
+    /// to M51).
+    pub overrides_enabled: u32,
+    /// Bits: [`COOLANT_MIST`], [`COOLANT_FLOOD`] when that coolant output is on.
+    pub coolant: u32,
+    /// The line of the last wait on an input (M66) that ended; 0 when none.
+    pub input_result_line: u32,
+    /// The digital outputs: bit n = output n on.
+    pub digital_outputs: u64,
+    /// The digital inputs: bit n = input n on.
+    pub digital_inputs: u64,
+    /// The analog outputs 0 to 15.
+    pub analog_outputs: [f64; ANALOG_IO],
+    /// The analog inputs 0 to 15.
+    pub analog_inputs: [f64; ANALOG_IO],
+    /// Waits on an input (M66) ended since the daemon started: a planner process waiting
+    /// for one to resolve `#5399` waits for this to pass the count it knew.
+    pub input_result_seq: u64,
+    /// The program of the last wait on an input that ended.
+    pub input_result_program: u64,
+    /// Its result, as `#5399`: the input's value, or -1 when the wait timed out.
+    pub input_result_value: f64,
+    /// What the pause waits for in words ("insert tool T3 (length 45.200 mm)"), UTF-8,
+    /// NUL-padded; empty when nothing.
+    pub pause_text: [u8; 96],
 }
+
+/// `StatusMsg::pause_reason`: nothing.
+pub const PAUSE_NONE: u32 = 0;
+/// A program stop (M0): cycle start goes on.
+pub const PAUSE_PROGRAM_STOP: u32 = 1;
+/// An optional stop (M1, the switch on): cycle start goes on.
+pub const PAUSE_OPTIONAL_STOP: u32 = 2;
+/// A pallet change (M60): cycle start goes on.
+pub const PAUSE_PALLET_CHANGE: u32 = 3;
+/// Single block: the block before ended; cycle start runs the next.
+pub const PAUSE_SINGLE_BLOCK: u32 = 4;
+/// A manual tool change: insert tool `pause_value`, then cycle start.
+pub const PAUSE_TOOL_CHANGE: u32 = 5;
+/// The automatic tool changer is changing to tool `pause_value`.
+pub const PAUSE_TOOL_CHANGING: u32 = 6;
+/// A wait on input `pause_value` (M66).
+pub const PAUSE_WAIT_INPUT: u32 = 7;
+/// A wait for the spindle to reach its speed before a feed move.
+pub const PAUSE_AT_SPEED: u32 = 8;
+/// A wait for the spindle's orientation (M19).
+pub const PAUSE_ORIENT: u32 = 9;
+/// `StatusMsg::switches`: optional stop on.
+pub const SWITCH_OPTIONAL_STOP: u32 = 1;
+/// `StatusMsg::switches`: block delete on.
+pub const SWITCH_BLOCK_DELETE: u32 = 2;
+/// `StatusMsg::switches`: single block on.
+pub const SWITCH_SINGLE_BLOCK: u32 = 4;
+/// `StatusMsg::tool_changer`: M6 is refused.
+pub const TOOL_CHANGER_NONE: u32 = 0;
+/// `StatusMsg::tool_changer`: the operator changes tools at a pause.
+pub const TOOL_CHANGER_MANUAL: u32 = 1;
+/// `StatusMsg::tool_changer`: an automatic changer (output/input handshake).
+pub const TOOL_CHANGER_AUTOMATIC: u32 = 2;
+/// `StatusMsg::spindle_kind`: no spindle.
+pub const SPINDLE_NONE: u32 = 0;
+/// `StatusMsg::spindle_kind`: a drive in velocity mode (simulated, or CiA 402 CSV).
+pub const SPINDLE_DRIVE: u32 = 1;
+/// `StatusMsg::spindle_kind`: enable/direction outputs and an analog speed output.
+pub const SPINDLE_OUTPUTS: u32 = 2;
+/// `StatusMsg::overrides_enabled`: the feed override is enabled.
+pub const OVERRIDES_FEED: u32 = 1;
+/// `StatusMsg::overrides_enabled`: the spindle override is enabled.
+pub const OVERRIDES_SPINDLE: u32 = 2;
+/// `StatusMsg::coolant`: mist (M7) on.
+pub const COOLANT_MIST: u32 = 1;
+/// `StatusMsg::coolant`: flood (M8) on.
+pub const COOLANT_FLOOD: u32 = 2;
 
 /// `StatusMsg::bus_states`: the AL state INIT.
 pub const BUS_STATE_INIT: u8 = 1;
@@ -521,6 +790,18 @@ pub const SAFETY_FIELDBUS: u32 = 9;
 /// `StatusMsg::safety_check`: an EtherCAT subdevice left OP on its own; `safety_value` is
 /// its ring position, `safety_limit` its AL status code.
 pub const SAFETY_SUBDEVICE_STATE: u32 = 10;
+/// Safety check: the spindle did not reach its speed within the at-speed timeout before a
+/// feed move (`safety_value` its actual, `safety_limit` its commanded speed, rpm).
+pub const SAFETY_SPINDLE_AT_SPEED: u32 = 11;
+/// Safety check: the spindle left its at-speed band while the axes fed (value actual,
+/// limit commanded, rpm).
+pub const SAFETY_SPINDLE_BAND: u32 = 12;
+/// Safety check: the spindle's orientation (M19) did not end in time (value the time
+/// waited, limit the timeout, s).
+pub const SAFETY_SPINDLE_ORIENT: u32 = 13;
+/// Safety check: the automatic tool changer did not report the change done in time
+/// (value the tool, limit the timeout, s).
+pub const SAFETY_TOOL_CHANGE: u32 = 14;
 /// `StatusMsg::safety_axis` of a fault that is not an axis's (a stream stall).
 pub const SAFETY_AXIS_NONE: u32 = 255;
 
@@ -583,6 +864,31 @@ impl StatusMsg {
             dc_offset_abs_p999_ns: 0,
             dc_offset_abs_max_ns: 0,
             dc_samples: 0,
+            pause_reason: PAUSE_NONE,
+            pause_line: 0,
+            pause_value: 0,
+            switches: 0,
+            tool_in_spindle: 0,
+            tool_changer: TOOL_CHANGER_NONE,
+            tool_length_mm: 0.0,
+            spindle_kind: SPINDLE_NONE,
+            spindle_dir: 0,
+            spindle_programmed_rpm: 0.0,
+            spindle_commanded_rpm: 0.0,
+            spindle_actual_rpm: 0.0,
+            spindle_override_pct: 0.0,
+            spindle_at_speed: 0,
+            overrides_enabled: 0,
+            coolant: 0,
+            input_result_line: 0,
+            digital_outputs: 0,
+            digital_inputs: 0,
+            analog_outputs: [0.0; ANALOG_IO],
+            analog_inputs: [0.0; ANALOG_IO],
+            input_result_seq: 0,
+            input_result_program: 0,
+            input_result_value: 0.0,
+            pause_text: [0; 96],
         }
     }
 
@@ -609,6 +915,16 @@ impl StatusMsg {
     /// `fault_dump` up to its first NUL (its valid UTF-8 prefix).
     pub fn fault_dump(&self) -> &str {
         read_text(&self.fault_dump)
+    }
+
+    /// Sets `pause_text`, truncated at a character boundary to 96 bytes.
+    pub fn set_pause_text(&mut self, text: &str) {
+        write_text(&mut self.pause_text, text);
+    }
+
+    /// `pause_text` up to its first NUL (its valid UTF-8 prefix).
+    pub fn pause_text(&self) -> &str {
+        read_text(&self.pause_text)
     }
 
     /// The ring positions the bus section describes: `bus_subdevices`, at most
@@ -688,11 +1004,13 @@ mod tests {
             MachineState::Starved,
             MachineState::Fault,
             MachineState::Stopping,
+            MachineState::Paused,
         ];
         for s in all {
             assert_eq!(MachineState::try_from(s.as_u32()), Ok(s));
         }
-        assert_eq!(MachineState::try_from(6), Err(UnknownState(6)));
+        assert_eq!(MachineState::Paused.as_u32(), 6);
+        assert_eq!(MachineState::try_from(7), Err(UnknownState(7)));
         assert_eq!(
             MachineState::try_from(u32::MAX),
             Err(UnknownState(u32::MAX))
@@ -746,6 +1064,94 @@ mod tests {
         old.version = 1;
         assert_eq!(old.command(), Err(RequestReject::WrongVersion(1)));
         assert_eq!(RequestReject::BadValue.reason(), REASON_BAD_VALUE);
+    }
+
+    #[test]
+    fn machine_requests_validate() {
+        let switch = |switch, on| ControlCommand::Switch { switch, on };
+        for (c, kind, value, index) in [
+            (
+                switch(Switch::OptionalStop, true),
+                REQUEST_OPTIONAL_STOP,
+                1.0,
+                0,
+            ),
+            (
+                switch(Switch::BlockDelete, false),
+                REQUEST_BLOCK_DELETE,
+                0.0,
+                0,
+            ),
+            (
+                switch(Switch::SingleBlock, true),
+                REQUEST_SINGLE_BLOCK,
+                1.0,
+                0,
+            ),
+            (
+                ControlCommand::SpindleOverride { percent: 80.0 },
+                REQUEST_SPINDLE_OVERRIDE,
+                80.0,
+                0,
+            ),
+            (
+                ControlCommand::SetInput {
+                    analog: false,
+                    index: 63,
+                    value: 1.0,
+                },
+                REQUEST_SET_INPUT,
+                1.0,
+                63,
+            ),
+            (
+                ControlCommand::SetInput {
+                    analog: true,
+                    index: 15,
+                    value: -2.5,
+                },
+                REQUEST_SET_ANALOG_INPUT,
+                -2.5,
+                15,
+            ),
+        ] {
+            let r = Request::from_command(c, 3);
+            assert_eq!((r.kind, r.value, r.index), (kind, value, index));
+            assert_eq!(r.command(), Ok(c));
+        }
+        let req = |kind, value, index| {
+            let mut r = Request::new(kind, 1, value);
+            r.index = index;
+            r.command()
+        };
+        // A switch is 0 or 1; a digital input 0 or 1 and 0 to 63; an analog one any finite
+        // value, 0 to 15; the override 0 to 200 %.
+        assert_eq!(
+            req(REQUEST_OPTIONAL_STOP, 0.5, 0),
+            Err(RequestReject::BadValue)
+        );
+        assert_eq!(req(REQUEST_SET_INPUT, 2.0, 0), Err(RequestReject::BadValue));
+        assert_eq!(
+            req(REQUEST_SET_INPUT, 1.0, 64),
+            Err(RequestReject::BadValue)
+        );
+        assert_eq!(
+            req(REQUEST_SET_ANALOG_INPUT, 1.0, 16),
+            Err(RequestReject::BadValue)
+        );
+        assert_eq!(
+            req(REQUEST_SET_ANALOG_INPUT, f64::INFINITY, 0),
+            Err(RequestReject::BadValue)
+        );
+        assert_eq!(
+            req(REQUEST_SPINDLE_OVERRIDE, 200.1, 0),
+            Err(RequestReject::BadValue)
+        );
+        // The index belongs to the input requests only, and the reserved word is 0.
+        assert_eq!(req(REQUEST_HOLD, 0.0, 1), Err(RequestReject::BadValue));
+        let mut r = Request::new(REQUEST_STATUS, 1, 0.0);
+        r.reserved = 1;
+        assert_eq!(r.command(), Err(RequestReject::BadValue));
     }
 
     #[test]

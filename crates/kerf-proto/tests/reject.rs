@@ -137,10 +137,7 @@ fn reserved_and_unused_fields_must_be_zero() {
         }),
         Reject::NegativeTolerance
     );
-    assert_eq!(
-        mutated(arc, |m| m.reserved = u64::MAX),
-        nz(Field::Reserved)
-    );
+    assert_eq!(mutated(arc, |m| m.reserved = u64::MAX), nz(Field::Reserved));
     // A line carries no arc data.
     assert_eq!(mutated(line, |m| m.center_mm[1] = 1.0), nz(Field::CenterMm));
     assert_eq!(mutated(line, |m| m.axis[2] = 1.0), nz(Field::Axis));
@@ -645,6 +642,55 @@ fn events() {
         mutated(|| event(EventCode::G4, Some(1.0)), |m| m.event_value = -0.5),
         Reject::NegativeDwell
     );
+    // The P (L) and Q words: M66 may carry both, M67 needs a Q, M3 takes neither.
+    let mut m66 = kerf_geom::Event::new(7, EventCode::M66, Some(2.0));
+    m66.p = Some(3.0);
+    m66.q = Some(1.5);
+    let msg = MoveMsg::from_event(1, 1, &m66);
+    assert_eq!(msg.flags, FLAG_EVENT_VALUE | FLAG_EVENT_P | FLAG_EVENT_Q);
+    assert_eq!(
+        Resolved::try_from(&msg),
+        Ok(Resolved::Event(m66)),
+        "M66 P2 L3 Q1.5 crosses whole"
+    );
+    let m67 = || {
+        let mut e = Event::new(9, EventCode::M67, Some(0.0));
+        e.q = Some(4.5);
+        MoveMsg::from_event(5, 3, &e)
+    };
+    assert_eq!(
+        mutated(m67, |m| {
+            m.flags &= !FLAG_EVENT_Q;
+            m.event_q = 0.0;
+        }),
+        Reject::EventQ(EventCode::M67, true)
+    );
+    assert_eq!(
+        mutated(
+            || event(EventCode::M3, None),
+            |m| {
+                m.flags |= FLAG_EVENT_Q;
+                m.event_q = 1.0;
+            }
+        ),
+        Reject::EventQ(EventCode::M3, false)
+    );
+    assert_eq!(
+        mutated(
+            || event(EventCode::M3, None),
+            |m| {
+                m.flags |= FLAG_EVENT_P;
+                m.event_p = 1.0;
+            }
+        ),
+        Reject::EventPUnexpected(EventCode::M3)
+    );
+    assert_eq!(
+        mutated(|| event(EventCode::M3, None), |m| m.event_q = 1.0),
+        Reject::NonzeroReserved {
+            field: Field::EventQ
+        }
+    );
 }
 
 #[test]
@@ -658,7 +704,7 @@ fn reasons_read_as_plain_words() {
     );
     assert_eq!(
         Reject::WrongVersion { found: 3 }.to_string(),
-        "protocol version 3, expected 4"
+        "protocol version 3, expected 5"
     );
     assert_eq!(
         Reject::EventValueMissing(EventCode::T).to_string(),

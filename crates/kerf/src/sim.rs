@@ -33,10 +33,10 @@ use std::fmt;
 use std::io::{self, BufWriter, Write};
 
 use kerf_config::machine_limits;
+use kerf_geom::machine::Sync;
 use kerf_geom::{Move, Path, Vec3, line_distance};
 use kerf_motion::monitor::{LimitMonitor, LimitViolation};
 use kerf_motion::{MachineLimits, PlannedSegment, Setpoint};
-use kerf_geom::machine::Sync;
 use kerf_pipeline::{
     self as driver, ActionOrder, Input, OperatorEvent, Planned, RunError, RunOptions, Summary,
 };

@@ -16,11 +16,245 @@ pub(crate) fn state_name(s: &StatusMsg) -> &'static str {
         Ok(MachineState::Starved) => "starved",
         Ok(MachineState::Fault) => "fault",
         Ok(MachineState::Stopping) => "stopping",
+        Ok(MachineState::Paused) => "paused",
         Err(_) => "unknown",
     }
 }
 
 const AXIS_KEYS: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
+
+/// The pause reason's name in `kerf status --json` (`none` when nothing).
+pub fn pause_name(reason: u32) -> &'static str {
+    match reason {
+        kerf_proto::PAUSE_PROGRAM_STOP => "program_stop",
+        kerf_proto::PAUSE_OPTIONAL_STOP => "optional_stop",
+        kerf_proto::PAUSE_PALLET_CHANGE => "pallet_change",
+        kerf_proto::PAUSE_SINGLE_BLOCK => "single_block",
+        kerf_proto::PAUSE_TOOL_CHANGE => "tool_change",
+        kerf_proto::PAUSE_TOOL_CHANGING => "tool_changing",
+        kerf_proto::PAUSE_WAIT_INPUT => "wait_input",
+        kerf_proto::PAUSE_AT_SPEED => "spindle_at_speed",
+        kerf_proto::PAUSE_ORIENT => "spindle_orient",
+        _ => "none",
+    }
+}
+
+/// `true` when the pause waits for cycle start (`kerf resume`) rather than for the
+/// machine.
+pub fn pause_waits_for_operator(reason: u32) -> bool {
+    matches!(
+        reason,
+        kerf_proto::PAUSE_PROGRAM_STOP
+            | kerf_proto::PAUSE_OPTIONAL_STOP
+            | kerf_proto::PAUSE_PALLET_CHANGE
+            | kerf_proto::PAUSE_SINGLE_BLOCK
+            | kerf_proto::PAUSE_TOOL_CHANGE
+    )
+}
+
+/// What the program waits for, for a person: "paused at line 12 (M0, program stop):
+/// `kerf resume` to continue", "paused at line 30 (M6): insert tool T3 (length 45.200 mm),
+/// then `kerf resume`", "waiting at line 8 for the spindle to reach its speed"; `None`
+/// when it waits for nothing.
+pub fn pause_text(s: &StatusMsg) -> Option<String> {
+    let line = s.pause_line;
+    let resume = "`kerf resume` to continue";
+    Some(match s.pause_reason {
+        kerf_proto::PAUSE_PROGRAM_STOP => {
+            format!("paused at line {line} (M0, program stop): {resume}")
+        }
+        kerf_proto::PAUSE_OPTIONAL_STOP => {
+            format!("paused at line {line} (M1, optional stop): {resume}")
+        }
+        kerf_proto::PAUSE_PALLET_CHANGE => {
+            format!("paused at line {line} (M60, pallet change): {resume}")
+        }
+        kerf_proto::PAUSE_SINGLE_BLOCK => {
+            format!("paused after line {line} (single block): {resume}")
+        }
+        kerf_proto::PAUSE_TOOL_CHANGE => match s.pause_text() {
+            "" => format!(
+                "paused at line {line} (M6): insert tool T{}, then `kerf resume`",
+                s.pause_value
+            ),
+            what => format!("paused at line {line} (M6): {what}, then `kerf resume`"),
+        },
+        kerf_proto::PAUSE_TOOL_CHANGING => {
+            format!(
+                "waiting at line {line} for the tool changer to load tool T{}",
+                s.pause_value
+            )
+        }
+        kerf_proto::PAUSE_WAIT_INPUT => {
+            format!("waiting at line {line} for input {} (M66)", s.pause_value)
+        }
+        kerf_proto::PAUSE_AT_SPEED => {
+            format!("waiting at line {line} for the spindle to reach its speed")
+        }
+        kerf_proto::PAUSE_ORIENT => {
+            format!("waiting at line {line} for the spindle's orientation (M19)")
+        }
+        _ => return None,
+    })
+}
+
+/// The numbers of the bits set in `bits`, comma-separated ("0,3"; "none").
+fn bit_list(bits: u64) -> String {
+    let on: Vec<String> = (0..64)
+        .filter(|i| bits & (1 << i) != 0)
+        .map(|i| i.to_string())
+        .collect();
+    if on.is_empty() {
+        "none".to_string()
+    } else {
+        on.join(",")
+    }
+}
+
+/// `kerf status`'s machine line: the spindle, coolant, tool, switches and I/O.
+pub fn machine_text(s: &StatusMsg) -> String {
+    let mut out = String::from("  spindle: ");
+    if s.spindle_kind == kerf_proto::SPINDLE_NONE {
+        out.push_str("none");
+    } else {
+        let dir = match s.spindle_dir {
+            1 => "cw",
+            -1 => "ccw",
+            _ => "stopped",
+        };
+        let _ = write!(
+            out,
+            "{dir}, S{} → {:.0} rpm commanded, {:.0} rpm actual{}, override {} %{}",
+            s.spindle_programmed_rpm,
+            s.spindle_commanded_rpm,
+            s.spindle_actual_rpm,
+            if s.spindle_at_speed != 0 {
+                ", at speed"
+            } else {
+                ""
+            },
+            s.spindle_override_pct,
+            if s.overrides_enabled & kerf_proto::OVERRIDES_SPINDLE == 0 {
+                " (disabled)"
+            } else {
+                ""
+            }
+        );
+    }
+    let coolant = match s.coolant & (kerf_proto::COOLANT_MIST | kerf_proto::COOLANT_FLOOD) {
+        0 => "off",
+        kerf_proto::COOLANT_MIST => "mist",
+        kerf_proto::COOLANT_FLOOD => "flood",
+        _ => "mist and flood",
+    };
+    let _ = write!(out, "; coolant: {coolant}; tool: ");
+    match s.tool_in_spindle {
+        0 => out.push_str("none"),
+        t => {
+            let _ = write!(out, "T{t} ({:.3} mm)", s.tool_length_mm);
+        }
+    }
+    let on = |bit| if s.switches & bit != 0 { "on" } else { "off" };
+    let _ = write!(
+        out,
+        "\n  switches: optional stop {}, block delete {}, single block {}; outputs on: {}; inputs on: {}",
+        on(kerf_proto::SWITCH_OPTIONAL_STOP),
+        on(kerf_proto::SWITCH_BLOCK_DELETE),
+        on(kerf_proto::SWITCH_SINGLE_BLOCK),
+        bit_list(s.digital_outputs),
+        bit_list(s.digital_inputs)
+    );
+    out
+}
+
+/// The machine's objects of `kerf status --json`: `pause`, `switches`, `tool`, `spindle`,
+/// `coolant`, `io`, `input_result` (each key with its leading comma).
+fn machine_json(s: &StatusMsg, num: &dyn Fn(f64) -> String) -> String {
+    let mut out = String::from(",\"pause\":");
+    if s.pause_reason == kerf_proto::PAUSE_NONE {
+        out.push_str("null");
+    } else {
+        let _ = write!(
+            out,
+            "{{\"reason\":\"{}\",\"line\":{},\"value\":{},\"waits_for_operator\":{},\"text\":{}}}",
+            pause_name(s.pause_reason),
+            s.pause_line,
+            s.pause_value,
+            pause_waits_for_operator(s.pause_reason),
+            json_string(&pause_text(s).unwrap_or_default())
+        );
+    }
+    let on = |bit| s.switches & bit != 0;
+    let _ = write!(
+        out,
+        ",\"switches\":{{\"optional_stop\":{},\"block_delete\":{},\"single_block\":{}}}",
+        on(kerf_proto::SWITCH_OPTIONAL_STOP),
+        on(kerf_proto::SWITCH_BLOCK_DELETE),
+        on(kerf_proto::SWITCH_SINGLE_BLOCK)
+    );
+    let changer = match s.tool_changer {
+        kerf_proto::TOOL_CHANGER_MANUAL => "manual",
+        kerf_proto::TOOL_CHANGER_AUTOMATIC => "automatic",
+        _ => "none",
+    };
+    let _ = write!(
+        out,
+        ",\"tool\":{{\"in_spindle\":{},\"length_mm\":{},\"changer\":\"{changer}\"}}",
+        s.tool_in_spindle,
+        num(s.tool_length_mm)
+    );
+    out.push_str(",\"spindle\":");
+    if s.spindle_kind == kerf_proto::SPINDLE_NONE {
+        out.push_str("null");
+    } else {
+        let _ = write!(
+            out,
+            "{{\"kind\":\"{}\",\"dir\":{},\"programmed_rpm\":{},\"commanded_rpm\":{},\"actual_rpm\":{},\"at_speed\":{},\"override_pct\":{},\"override_enabled\":{}}}",
+            if s.spindle_kind == kerf_proto::SPINDLE_DRIVE {
+                "drive"
+            } else {
+                "outputs"
+            },
+            s.spindle_dir,
+            num(s.spindle_programmed_rpm),
+            num(s.spindle_commanded_rpm),
+            num(s.spindle_actual_rpm),
+            s.spindle_at_speed != 0,
+            num(s.spindle_override_pct),
+            s.overrides_enabled & kerf_proto::OVERRIDES_SPINDLE != 0
+        );
+    }
+    let _ = write!(
+        out,
+        ",\"feed_override_enabled\":{},\"coolant\":{{\"mist\":{},\"flood\":{}}}",
+        s.overrides_enabled & kerf_proto::OVERRIDES_FEED != 0,
+        s.coolant & kerf_proto::COOLANT_MIST != 0,
+        s.coolant & kerf_proto::COOLANT_FLOOD != 0
+    );
+    let list = |v: &[f64]| v.iter().map(|x| num(*x)).collect::<Vec<_>>().join(",");
+    let _ = write!(
+        out,
+        ",\"io\":{{\"digital_outputs\":{},\"digital_inputs\":{},\"analog_outputs\":[{}],\"analog_inputs\":[{}]}}",
+        s.digital_outputs,
+        s.digital_inputs,
+        list(&s.analog_outputs),
+        list(&s.analog_inputs)
+    );
+    out.push_str(",\"input_result\":");
+    if s.input_result_seq == 0 {
+        out.push_str("null");
+    } else {
+        let _ = write!(
+            out,
+            "{{\"seq\":{},\"program_id\":{},\"line\":{},\"value\":{}}}",
+            s.input_result_seq,
+            s.input_result_program,
+            s.input_result_line,
+            num(s.input_result_value)
+        );
+    }
+    out
+}
 
 /// The drive side's state by name: `enabling`, `running`, `holding`, `quick_stop`,
 /// `stopped`, `resetting` (`none` for a status without one).
@@ -213,6 +447,7 @@ pub fn status_json(machine: &str, names: &[String], s: &StatusMsg) -> String {
             );
         }
     }
+    out.push_str(&machine_json(s, &num));
     let _ = write!(out, ",\"ethercat\":{}", ethercat_json(names, s));
     out.push('}');
     out
@@ -323,6 +558,11 @@ pub fn ethercat_text(names: &[String], s: &StatusMsg) -> Option<String> {
 /// drives are on a bus; `names` as for [`status_json`].
 pub fn status_text(machine: &str, names: &[String], s: &StatusMsg) -> String {
     let mut out = status_line(machine, s);
+    if let Some(pause) = pause_text(s) {
+        let _ = write!(out, "\n  {pause}");
+    }
+    out.push('\n');
+    out.push_str(&machine_text(s));
     if let Some(block) = ethercat_text(names, s) {
         out.push('\n');
         out.push_str(&block);

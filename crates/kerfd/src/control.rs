@@ -70,6 +70,7 @@ pub(crate) fn control_thread(
         hold_requested: false,
         next_tag: 1,
         pushed: 0,
+        inputs: crate::machine::SimInputs::of(config),
     };
     let apply_patience = apply_patience(config);
     let mut view = CycleView {
@@ -161,6 +162,8 @@ struct Requests {
     /// Commands pushed to the cycle so far: an answer waits until the cycle has applied
     /// its command, so that its status is the status after the request.
     pushed: u64,
+    /// Which inputs an operator (or a test) may set: the simulated ones.
+    inputs: crate::machine::SimInputs,
 }
 
 impl Requests {
@@ -207,16 +210,42 @@ impl Requests {
                 }
             }
             Ok(ControlCommand::Resume) => {
-                if self.hold_requested || view.latest.state == MachineState::Holding {
+                let held = self.hold_requested || view.latest.state == MachineState::Holding;
+                if held || view.latest.waits_for_operator() {
                     self.hold_requested = false;
                     push(commands, CycleCommand::Resume)
                 } else {
                     (
                         REASON_NOT_ALLOWED,
-                        "not holding: nothing to resume".to_string(),
+                        "nothing to resume: not holding, and no pause waits for cycle start"
+                            .to_string(),
                     )
                 }
             }
+            Ok(ControlCommand::Switch { switch, on }) => {
+                if switch == kerf_proto::Switch::SingleBlock {
+                    counters.single_block.store(on, Ordering::Release);
+                }
+                push(commands, CycleCommand::Switch(switch, on))
+            }
+            Ok(ControlCommand::SpindleOverride { percent }) => {
+                push(commands, CycleCommand::SpindleOverride(percent))
+            }
+            Ok(ControlCommand::SetInput {
+                analog,
+                index,
+                value,
+            }) => match self.inputs.check(analog, index) {
+                Ok(()) => push(
+                    commands,
+                    CycleCommand::SetInput {
+                        analog,
+                        index: index as u8,
+                        value,
+                    },
+                ),
+                Err(why) => (REASON_NOT_ALLOWED, why),
+            },
             Ok(ControlCommand::Abort) => {
                 self.hold_requested = false;
                 // Every program not yet over ends: the one moving, and the one being

@@ -48,6 +48,18 @@ pub fn safety_text(s: &StatusMsg) -> Option<String> {
             "EtherCAT: the subdevice at position {value} left OP, AL status code {}",
             kerf_ethercat::al::al_code_text(limit as u16)
         ),
+        kerf_proto::SAFETY_SPINDLE_AT_SPEED => {
+            format!("the spindle did not reach {limit:.0} rpm in time (actual {value:.0} rpm)")
+        }
+        kerf_proto::SAFETY_SPINDLE_BAND => format!(
+            "the spindle left its at-speed band while feeding: {value:.0} rpm against {limit:.0} rpm commanded"
+        ),
+        kerf_proto::SAFETY_SPINDLE_ORIENT => {
+            format!("the spindle's orientation did not end within {limit} s")
+        }
+        kerf_proto::SAFETY_TOOL_CHANGE => {
+            format!("the tool changer did not report tool T{value} changed within {limit} s")
+        }
         _ => "the drive left Operation enabled on its own".to_string(),
     };
     Some(format!(
@@ -77,6 +89,10 @@ mod tests {
             (Check::DriveDisabled, kerf_proto::SAFETY_DRIVE_DISABLED),
             (Check::Fieldbus, kerf_proto::SAFETY_FIELDBUS),
             (Check::SubdeviceState, kerf_proto::SAFETY_SUBDEVICE_STATE),
+            (Check::SpindleAtSpeed, kerf_proto::SAFETY_SPINDLE_AT_SPEED),
+            (Check::SpindleBand, kerf_proto::SAFETY_SPINDLE_BAND),
+            (Check::SpindleOrient, kerf_proto::SAFETY_SPINDLE_ORIENT),
+            (Check::ToolChange, kerf_proto::SAFETY_TOOL_CHANGE),
         ];
         assert_eq!(wire.len(), Check::ALL.len());
         for (check, code) in wire {

@@ -7,5 +7,5 @@ use super::*;
 /// the planning threads run): an S while the spindle stands and M6 without a T are read
 /// as they would be at the start of a program.
 pub fn input_of_event(e: &kerf_geom::Event) -> Option<Input> {
-    kerf_pipeline::ProgramActions::new().event(e)
+    ProgramActions::new().event(e)
 }

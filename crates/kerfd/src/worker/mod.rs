@@ -18,7 +18,8 @@ use kerf_drive::stage::{AxisDrive, DriveStage, Dump, Phase, StageInput};
 use kerf_geom::Move;
 use kerf_motion::{MotionCore, MotionState, Setpoint};
 use kerf_pipeline::{
-    Input, Interpolator, OperatorEvent, Planned, Poll, RunError, Tracker, plan_input,
+    ActionOrder, Input, Interpolator, OperatorEvent, Planned, Poll, ProgramActions, RunError,
+    Tracker, plan_input,
 };
 use kerf_plan::{MachineLimits, PlanError, PlannedSegment, Planner};
 use kerf_proto::{MachineState, SetpointMsg, StreamError};
@@ -150,6 +151,19 @@ pub enum CycleCommand {
     Dump(u64),
     /// Tests only: a fault injected below the motion core.
     Inject(Injection),
+    /// An operator's switch on or off.
+    Switch(kerf_proto::Switch, bool),
+    /// The spindle override, percent (0 to 200).
+    SpindleOverride(f64),
+    /// A simulated input's new value (digital: 1 or 0).
+    SetInput {
+        /// An analog input (else digital).
+        analog: bool,
+        /// Its number.
+        index: u8,
+        /// Its value.
+        value: f64,
+    },
 }
 
 /// A fault injected below the motion core, for tests of the safety layer (`kerfd

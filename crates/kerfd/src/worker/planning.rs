@@ -22,6 +22,16 @@ pub struct Planning {
     buf: Vec<PlannedSegment>,
     /// Moves taken by the planner and not yet sent to the cycle.
     taken: std::collections::VecDeque<Move>,
+    /// The program's modal machine state (spindle, coolant, tool), which turns its
+    /// events into actions.
+    actions: ProgramActions,
+    /// Where the actions synchronised with the motion go among the segments.
+    order: ActionOrder,
+    /// The single-block switch, set by the control thread.
+    single_block: Arc<AtomicBool>,
+    /// The source line of the last block planned (for single block: a pause goes between
+    /// two blocks); 0 before the first.
+    last_line: u32,
 }
 
 /// Counters the planning worker shares with the control thread.
@@ -39,6 +49,9 @@ pub struct PlanningCounters {
     pub abort: Arc<AtomicU64>,
     /// What became of the last programs.
     pub fates: Arc<std::sync::Mutex<crate::fates::Fates>>,
+    /// The single-block switch: while on, the planning thread puts a pause after every
+    /// block it plans.
+    pub single_block: Arc<AtomicBool>,
 }
 
 impl Planning {
@@ -59,6 +72,10 @@ impl Planning {
             failed: false,
             buf: Vec::new(),
             taken: std::collections::VecDeque::new(),
+            actions: ProgramActions::new(),
+            order: ActionOrder::new(),
+            single_block: counters.single_block.clone(),
+            last_line: 0,
         }
     }
 
@@ -96,6 +113,9 @@ impl Planning {
                 }
                 self.failed = false;
                 self.taken.clear();
+                self.actions = ProgramActions::new();
+                self.order = ActionOrder::new();
+                self.last_line = 0;
                 self.planner = Some(Planner::new(self.limits));
                 self.send(RtItem::Begin { program_id, start })
             }
@@ -103,30 +123,19 @@ impl Planning {
                 if self.failed || self.planner.is_none() {
                     return true;
                 }
-                match self.plan(&Input::Move(m), Some(&m)) {
-                    Ok(()) => self.flush(),
-                    Err(r) => self.refuse(r),
-                }
+                let [wait, input] = self.actions.item(&kerf_geom::Item::Move(m));
+                self.block(m.line)
+                    && wait.is_none_or(|w| self.input(w))
+                    && input.is_none_or(|i| self.input(i))
             }
             Incoming::Event(e) => {
                 if self.failed || self.planner.is_none() {
                     return true;
                 }
-                let Some(input) = input_of_event(&e) else {
+                let Some(input) = self.actions.event(&e) else {
                     return true;
                 };
-                match self.plan(&input, None) {
-                    Ok(()) => {
-                        if !self.flush() {
-                            return false;
-                        }
-                        match input {
-                            Input::Dwell(s) => self.send(RtItem::Planned(Planned::Dwell(s))),
-                            _ => true,
-                        }
-                    }
-                    Err(r) => self.refuse(r),
-                }
+                self.block(e.line) && self.input(input)
             }
             Incoming::End => match self.planner.take() {
                 Some(mut planner) if !self.failed => {
@@ -134,7 +143,7 @@ impl Planning {
                     self.planner = Some(planner);
                     let ok = self.flush();
                     self.planner = None;
-                    ok && self.send(RtItem::End(None))
+                    ok && self.release() && self.send(RtItem::End(None))
                 }
                 _ => {
                     self.planner = None;
@@ -162,6 +171,58 @@ impl Planning {
                 }
             }
         }
+    }
+
+    /// A new block begins at `line`: with single block on, a pause ends the block before.
+    /// Returns `false` if told to stop.
+    fn block(&mut self, line: u32) -> bool {
+        let previous = std::mem::replace(&mut self.last_line, line);
+        if previous == 0 || previous == line || !self.single_block.load(Ordering::Acquire) {
+            return true;
+        }
+        self.input(Input::Action(kerf_geom::machine::Action {
+            line: previous,
+            kind: kerf_geom::machine::ActionKind::Pause(kerf_geom::machine::PauseCode::SingleBlock),
+        }))
+    }
+
+    /// Plans one input of the open program and sends what it yields: a move's segments
+    /// (each after the moves taken before it), a dwell or an action after the segments
+    /// before it; an action synchronised with the motion waits for the segments of the
+    /// moves before it. A refused move stops the program. Returns `false` if told to stop.
+    fn input(&mut self, input: Input) -> bool {
+        if let (true, Input::Action(a)) = (ActionOrder::holds(&input), input) {
+            self.order.hold(a);
+            return true;
+        }
+        let m = match input {
+            Input::Move(m) => Some(m),
+            _ => None,
+        };
+        if let Err(r) = self.plan(&input, m.as_ref()) {
+            return self.refuse(r);
+        }
+        if m.is_some() {
+            self.order.moved();
+        }
+        if !self.flush() {
+            return false;
+        }
+        match input {
+            Input::Move(_) => true,
+            Input::Action(a) if a.sync() == kerf_geom::machine::Sync::Immediate => {
+                self.send(RtItem::Planned(Planned::Action(a)))
+            }
+            Input::Stop => self.release(),
+            Input::Dwell(s) => self.release() && self.send(RtItem::Planned(Planned::Dwell(s))),
+            Input::Action(a) => self.release() && self.send(RtItem::Planned(Planned::Action(a))),
+        }
+    }
+
+    /// Sends every held synchronised action (the path has ended at rest before them).
+    fn release(&mut self) -> bool {
+        let held: Vec<Planned> = self.order.release().collect();
+        held.into_iter().all(|p| self.send(RtItem::Planned(p)))
     }
 
     /// A received move or event failed the daemon's own checks (travel, planning): the
@@ -204,8 +265,11 @@ impl Planning {
             }
         }
         for seg in buf.drain(..) {
+            let due: Vec<Planned> = self.order.before(&seg).collect();
             // The count of moves known is only used by the offline deviation check.
-            if !self.send(RtItem::Planned(Planned::Segment(seg, 0))) {
+            let sent = due.into_iter().all(|p| self.send(RtItem::Planned(p)))
+                && self.send(RtItem::Planned(Planned::Segment(seg, 0)));
+            if !sent {
                 ok = false;
                 break;
             }
@@ -233,6 +297,8 @@ impl Planning {
             self.buf.truncate(bad);
         }
         self.failed = true;
+        // Outputs synchronised with moves that will not run are dropped with them.
+        self.order = ActionOrder::new();
         self.flush() && self.send(RtItem::End(Some(reason)))
     }
 

@@ -73,6 +73,62 @@ pub struct OverrideArgs {
 }
 
 #[derive(Args)]
+pub struct SpindleOverrideArgs {
+    #[command(flatten)]
+    pub machine: MachineArgs,
+    /// Spindle override in percent, 0 to 200.
+    #[arg(value_name = "PCT", value_parser = parse_spindle_override, allow_hyphen_values = true)]
+    pub percent: f64,
+}
+
+fn parse_spindle_override(text: &str) -> Result<f64, String> {
+    match text.trim_end_matches('%').parse::<f64>() {
+        Ok(pct) if (0.0..=kerf_proto::MAX_SPINDLE_OVERRIDE_PCT).contains(&pct) => Ok(pct),
+        _ => Err(format!(
+            "`{text}` is not a spindle override: it must be 0 to {} percent",
+            kerf_proto::MAX_SPINDLE_OVERRIDE_PCT
+        )),
+    }
+}
+
+#[derive(Args)]
+pub struct SwitchArgs {
+    #[command(flatten)]
+    pub machine: MachineArgs,
+    /// `on` or `off`.
+    #[arg(value_name = "on|off", value_parser = parse_on_off)]
+    pub on: bool,
+}
+
+#[derive(Args)]
+pub struct InputArgs {
+    #[command(flatten)]
+    pub machine: MachineArgs,
+    /// The input's number (as M66 P or E names it).
+    #[arg(value_name = "N")]
+    pub number: u32,
+    /// A digital input's new state: `on` or `off`.
+    #[arg(value_name = "on|off", value_parser = parse_on_off, required_unless_present = "analog")]
+    pub on: Option<bool>,
+    /// An analog input's new value.
+    #[arg(
+        long,
+        value_name = "VALUE",
+        conflicts_with = "on",
+        allow_hyphen_values = true
+    )]
+    pub analog: Option<f64>,
+}
+
+fn parse_on_off(text: &str) -> Result<bool, String> {
+    match text {
+        "on" | "1" | "true" => Ok(true),
+        "off" | "0" | "false" => Ok(false),
+        _ => Err(format!("`{text}`: say `on` or `off`")),
+    }
+}
+
+#[derive(Args)]
 pub struct RecordArgs {
     #[command(flatten)]
     pub machine: MachineArgs,
@@ -132,6 +188,33 @@ pub fn status(args: &StatusArgs) -> Result<(), Failure> {
     };
     writeln!(io::stdout().lock(), "{line}")?;
     Ok(())
+}
+
+/// `kerf optional-stop`, `single-block`, `block-delete`.
+pub fn switch(args: &SwitchArgs, switch: kerf_proto::Switch) -> Result<(), Failure> {
+    command(
+        &args.machine,
+        ControlCommand::Switch {
+            switch,
+            on: args.on,
+        },
+    )
+}
+
+/// `kerf input`.
+pub fn input(args: &InputArgs) -> Result<(), Failure> {
+    let (analog, value) = match (args.analog, args.on) {
+        (Some(v), _) => (true, v),
+        (None, on) => (false, if on == Some(true) { 1.0 } else { 0.0 }),
+    };
+    command(
+        &args.machine,
+        ControlCommand::SetInput {
+            analog,
+            index: args.number,
+            value,
+        },
+    )
 }
 
 /// `kerf hold`, `resume`, `abort`, `override`.

@@ -58,8 +58,26 @@ enum Command {
     Status(machine::StatusArgs),
     /// Feed hold: a jerk-limited stop on the path.
     Hold(machine::MachineArgs),
-    /// Resume after a hold.
+    /// Cycle start: resume after a hold, or go on after a pause that waits for the
+    /// operator (M0, M1, M60, a manual tool change, single block).
     Resume(machine::MachineArgs),
+    /// The optional-stop switch: while on, M1 pauses the program like M0.
+    #[command(name = "optional-stop")]
+    OptionalStop(machine::SwitchArgs),
+    /// The single-block switch: while on, the program pauses after every block (blocks
+    /// the daemon plans from now on; `kerf resume` runs the next).
+    #[command(name = "single-block")]
+    SingleBlock(machine::SwitchArgs),
+    /// The block-delete switch: while on, programs sent from now on skip the lines that
+    /// start with `/`.
+    #[command(name = "block-delete")]
+    BlockDelete(machine::SwitchArgs),
+    /// Set the spindle override, 0 to 200 percent (it applies while enabled: M48, M51).
+    #[command(name = "spindle-override")]
+    SpindleOverride(machine::SpindleOverrideArgs),
+    /// Set a simulated input (the machine's own inputs are set by its wiring): `kerf input
+    /// 3 on`, `kerf input 0 --analog 2.5`.
+    Input(machine::InputArgs),
     /// Stop on the path and drop the rest of the program.
     Abort(machine::MachineArgs),
     /// Set the feed override, 0 to 200 percent.
@@ -216,6 +234,16 @@ fn main() -> ExitCode {
         Command::Status(args) => machine::status(&args),
         Command::Hold(args) => machine::command(&args, kerf_proto::ControlCommand::Hold),
         Command::Resume(args) => machine::command(&args, kerf_proto::ControlCommand::Resume),
+        Command::OptionalStop(args) => machine::switch(&args, kerf_proto::Switch::OptionalStop),
+        Command::SingleBlock(args) => machine::switch(&args, kerf_proto::Switch::SingleBlock),
+        Command::BlockDelete(args) => machine::switch(&args, kerf_proto::Switch::BlockDelete),
+        Command::SpindleOverride(args) => machine::command(
+            &args.machine,
+            kerf_proto::ControlCommand::SpindleOverride {
+                percent: args.percent,
+            },
+        ),
+        Command::Input(args) => machine::input(&args),
         Command::Abort(args) => machine::command(&args, kerf_proto::ControlCommand::Abort),
         Command::Override(args) => machine::command(
             &args.machine,

@@ -93,41 +93,44 @@ impl Cycle {
         let mut refusal = None;
         let mut pending = false;
         let mut planned = 0u64;
-        let result = self.interp.feed(|| {
-            loop {
-                let Ok(item) = items.peek() else {
-                    pending = true;
-                    return Poll::Pending;
-                };
-                match *item {
-                    // The next program's beginning: this one ended without its end (cannot
-                    // happen: the planning worker always ends a program before the next).
-                    RtItem::Begin { .. } => return Poll::End,
-                    RtItem::Move(_) if tracker.is_full() => return Poll::Pending,
-                    // Programmed moves go to the tracker until the next planned item;
-                    // after an abort they are not needed (as in `kerf sim`).
-                    RtItem::Move(m) => {
-                        if !aborted || tracker.is_empty() {
-                            tracker.add(&m);
+        let result = self.interp.feed(
+            || {
+                loop {
+                    let Ok(item) = items.peek() else {
+                        pending = true;
+                        return Poll::Pending;
+                    };
+                    match *item {
+                        // The next program's beginning: this one ended without its end (cannot
+                        // happen: the planning worker always ends a program before the next).
+                        RtItem::Begin { .. } => return Poll::End,
+                        RtItem::Move(_) if tracker.is_full() => return Poll::Pending,
+                        // Programmed moves go to the tracker until the next planned item;
+                        // after an abort they are not needed (as in `kerf sim`).
+                        RtItem::Move(m) => {
+                            if !aborted || tracker.is_empty() {
+                                tracker.add(&m);
+                            }
+                        }
+                        RtItem::Planned(p) => {
+                            if let Planned::Segment(seg, _) = &p {
+                                queued.push(segment_time_s(seg));
+                            }
+                            planned += 1;
+                            let _ = items.pop();
+                            return Poll::Ready(p);
+                        }
+                        RtItem::End(r) => {
+                            refusal = r;
+                            let _ = items.pop();
+                            return Poll::End;
                         }
                     }
-                    RtItem::Planned(p) => {
-                        if let Planned::Segment(seg, _) = &p {
-                            queued.push(segment_time_s(seg));
-                        }
-                        planned += 1;
-                        let _ = items.pop();
-                        return Poll::Ready(p);
-                    }
-                    RtItem::End(r) => {
-                        refusal = r;
-                        let _ = items.pop();
-                        return Poll::End;
-                    }
+                    let _ = items.pop();
                 }
-                let _ = items.pop();
-            }
-        }, &mut kerf_geom::machine::InstantMachine);
+            },
+            &mut kerf_geom::machine::InstantMachine,
+        );
         if let Some(p) = self.program.as_mut() {
             p.planned += planned;
             if let Some(r) = refusal {
