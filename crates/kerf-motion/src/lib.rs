@@ -158,6 +158,9 @@ pub struct Setpoint {
     pub move_count: u32,
     /// Path speed, mm/s (deg/s on rotary-only moves).
     pub feed_mm_s: f64,
+    /// The segment being run is a rapid (the spindle's at-speed band is watched on feed
+    /// moves only).
+    pub rapid: bool,
 }
 
 /// What a cycle did.

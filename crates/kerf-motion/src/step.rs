@@ -183,6 +183,7 @@ impl MotionCore {
         self.last.line = seg.line;
         self.last.move_index = seg.move_index;
         self.last.move_count = seg.move_count;
+        self.last.rapid = seg.feed_mm_s.is_infinite();
         self.last.feed_mm_s = self.v_mm_s;
         *out = self.last;
     }

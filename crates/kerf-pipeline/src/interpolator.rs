@@ -281,8 +281,11 @@ impl Interpolator {
         }
     }
 
-    /// Hands the machine the synchronised actions whose segments are done.
-    fn fire_synced(&mut self, machine: &mut (impl MachineIo + ?Sized)) {
+    /// Hands the machine the synchronised actions ([`Sync::WithMotion`]) whose segments
+    /// are done. Call it after [`step`](Self::step), so that an output switches in the
+    /// cycle of the first setpoint after those segments (feeding calls it too, so an
+    /// action is never lost, only a cycle late).
+    pub fn fire_synced(&mut self, machine: &mut (impl MachineIo + ?Sized)) {
         let done = self.pushed - self.core.queued() as u64;
         while self.synced_len > 0 {
             let (action, after) = self.synced[self.synced_head];

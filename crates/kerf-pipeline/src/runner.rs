@@ -2,12 +2,12 @@
 //! a [`Source`], measured, with the commands of [`RunOptions`] applied at their cycles.
 
 use kerf_geom::Move;
-use kerf_geom::machine::InstantMachine;
 use kerf_motion::monitor::LimitMonitor;
 use kerf_motion::{MotionCore, Setpoint, StepResult};
 use kerf_plan::{MachineLimits, PlanError};
 
 use crate::measure::Measure;
+use crate::sink::SinkMachine;
 use crate::{Interpolator, OperatorEvent, Planned, Poll, RunError, Sink, Summary, cycle_time_s};
 
 /// Options of a run.
@@ -119,6 +119,10 @@ impl<'a, F: Sink> Runner<'a, F> {
         let measure = &mut self.measure;
         let known = &mut self.known;
         let aborted = self.interp.aborted();
+        let mut machine = SinkMachine {
+            sink: &mut self.sink,
+            t_s: cycle_time_s(self.cycle + 1, self.period_s),
+        };
         let started = self.interp.feed(
             || {
                 let polled = source.poll();
@@ -133,7 +137,7 @@ impl<'a, F: Sink> Runner<'a, F> {
                 }
                 polled
             },
-            &mut InstantMachine,
+            &mut machine,
         )?;
         if let Some(e) = source.take_error() {
             return Err(RunError::Plan(e));
@@ -146,6 +150,10 @@ impl<'a, F: Sink> Runner<'a, F> {
         }
         let mut sp = Setpoint::default();
         let r = self.interp.step(&mut sp);
+        self.interp.fire_synced(&mut SinkMachine {
+            sink: &mut self.sink,
+            t_s: cycle_time_s(self.cycle, self.period_s),
+        });
         self.measure.record(&mut sp);
         self.sink
             .setpoint(cycle_time_s(self.cycle, self.period_s), &sp);

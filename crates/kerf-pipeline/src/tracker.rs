@@ -302,6 +302,7 @@ mod tests {
             move_index: first,
             move_count: count,
             feed_mm_s: 1.0,
+            rapid: false,
         };
         let d = t.track(&mut sp).unwrap();
         assert_eq!((sp.move_index, sp.move_count), (u64::from(sp.line) - 1, 1));

@@ -33,7 +33,7 @@ use std::fmt;
 use std::io::{self, BufWriter, Write};
 
 use kerf_config::machine_limits;
-use kerf_geom::machine::Sync;
+use kerf_geom::machine::{Action, Sync};
 use kerf_geom::{Move, Path, Vec3, line_distance};
 use kerf_motion::monitor::{LimitMonitor, LimitViolation};
 use kerf_motion::{MachineLimits, PlannedSegment, Setpoint};
@@ -98,6 +98,10 @@ pub struct SimSummary {
     /// Motion-core profile calculations that needed a fallback (0 on a healthy run; the
     /// setpoints were checked against the limits all the same).
     pub plan_failures: u64,
+    /// The actions a machine waits at (pauses, tool changes, the spindle, inputs) with
+    /// their program times: the simulation stands for an operator who presses cycle
+    /// start at once and a machine that is always ready, and does not wait.
+    pub waits: Vec<(f64, Action)>,
     /// The raw measurements.
     pub raw: Summary,
 }
@@ -118,6 +122,14 @@ impl fmt::Display for SimSummary {
         write!(f, "; max deviation {:.4} mm", self.max_deviation_mm)?;
         if self.plan_failures > 0 {
             write!(f, "; {} profile fallbacks", self.plan_failures)?;
+        }
+        for (t_s, action) in &self.waits {
+            write!(
+                f,
+                "; line {} at t = {t_s:.3} s: {}",
+                action.line,
+                assumed(action)
+            )?;
         }
         Ok(())
     }
@@ -488,14 +500,14 @@ where
     };
     // The machine is at rest at the origin before the first setpoint.
     let mut monitor = LimitMonitor::at_rest(limits, &[0.0; 6]).with_position_scale(scale);
-    let mut last = (0.0, 0u32);
-    let sink = |t: f64, sp: &Setpoint| {
-        last = (t, sp.line);
-        row(t, sp)
+    let mut sink = RowSink {
+        row: &mut row,
+        last: (0.0, 0),
+        waits: Vec::new(),
     };
     let raw = match feed {
         Feed::Stream(moves) => {
-            driver::run_stream(moves, limits, &run_options, Some(&mut monitor), sink)
+            driver::run_stream(moves, limits, &run_options, Some(&mut monitor), &mut sink)
         }
         Feed::Kept(k) => driver::run_planned(
             &k.moves,
@@ -503,9 +515,10 @@ where
             limits,
             &run_options,
             Some(&mut monitor),
-            sink,
+            &mut sink,
         ),
     };
+    let RowSink { last, waits, .. } = sink;
     let raw = match raw {
         Ok(raw) => raw,
         Err(RunError::Fault(violation)) => {
@@ -539,8 +552,60 @@ where
         max_deviation_mm: raw.max_deviation_mm,
         rotary_used: raw.rotary_used,
         plan_failures: raw.plan_failures,
+        waits,
         raw,
     })
+}
+
+/// The sink of a simulation: the rows, the last row's time and line (to name a fault),
+/// and the actions a machine would have waited at.
+struct RowSink<'r, F> {
+    row: &'r mut F,
+    last: (f64, u32),
+    waits: Vec<(f64, Action)>,
+}
+
+impl<F: FnMut(f64, &Setpoint)> driver::Sink for &mut RowSink<'_, F> {
+    fn setpoint(&mut self, t_s: f64, sp: &Setpoint) {
+        self.last = (t_s, sp.line);
+        (self.row)(t_s, sp)
+    }
+
+    fn action(&mut self, t_s: f64, action: &Action) {
+        if waits_on_the_machine(action) {
+            self.waits.push((t_s, *action));
+        }
+    }
+}
+
+/// `true` for an action a machine waits at (a pause, a tool change, the spindle, an
+/// input): the simulation does not wait, and says so.
+fn waits_on_the_machine(action: &Action) -> bool {
+    use kerf_geom::machine::ActionKind as K;
+    matches!(
+        action.kind,
+        K::Pause(_)
+            | K::ToolChange { .. }
+            | K::WaitAtSpeed
+            | K::Orient { .. }
+            | K::WaitInput { .. }
+    )
+}
+
+/// What the simulation assumed at an action a machine waits at.
+fn assumed(action: &Action) -> String {
+    use kerf_geom::machine::{ActionKind as K, PauseCode};
+    match action.kind {
+        K::Pause(PauseCode::ProgramStop) => "M0 pause, cycle start at once".to_string(),
+        K::Pause(PauseCode::OptionalStop) => "M1 optional stop, cycle start at once".to_string(),
+        K::Pause(PauseCode::PalletChange) => "M60 pause, cycle start at once".to_string(),
+        K::Pause(PauseCode::SingleBlock) => "single block, cycle start at once".to_string(),
+        K::ToolChange { tool } => format!("M6 T{tool}, changed at once"),
+        K::WaitAtSpeed => "spindle at speed at once".to_string(),
+        K::Orient { .. } => "M19 oriented at once".to_string(),
+        K::WaitInput { input, .. } => format!("M66 input {input}, no wait"),
+        _ => String::new(),
+    }
 }
 
 /// Runs `moves` with the machine of `config` and writes the CSV to `out`.

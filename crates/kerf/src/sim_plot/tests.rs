@@ -378,6 +378,7 @@ fn a_long_run_keeps_bounded_memory_and_every_spike() {
             move_index: 0,
             move_count: 1,
             feed_mm_s: 10.0,
+            rapid: false,
         };
         if k == spike_at {
             sp.feed_mm_s = 0.0;

@@ -344,6 +344,7 @@ fn setpoint_of(m: &SetpointMsg) -> Setpoint {
         move_index: 0,
         move_count: 1,
         feed_mm_s: m.feed_mm_s,
+        rapid: false,
     }
 }
 
