@@ -1,5 +1,5 @@
 """kerf_client: drive Kerf's real-time daemon ``kerfd`` from Python over iceoryx2 shared
-memory, speaking protocol version 4 (docs/PROTOCOL.md).
+memory, speaking protocol version 5 (docs/PROTOCOL.md).
 
     from kerf_client import Client, moves
     c = Client("default")
@@ -9,6 +9,8 @@ memory, speaking protocol version 4 (docs/PROTOCOL.md).
 from . import moves, protocol
 from .client import (
     FINAL_FATES,
+    OPERATOR_PAUSES,
+    PAUSE_NAMES,
     Client,
     KerfError,
     ProgramResult,
@@ -17,6 +19,7 @@ from .client import (
     SetpointStream,
     Status,
     new_program_id,
+    pause_name,
     wait_for_daemon,
 )
 from .moves import arc, arc_sweep, begin, end, event, line
@@ -34,8 +37,11 @@ __all__ = [
     "SetpointStream",
     "Status",
     "FINAL_FATES",
+    "OPERATOR_PAUSES",
+    "PAUSE_NAMES",
     "PROTOCOL_VERSION",
     "new_program_id",
+    "pause_name",
     "wait_for_daemon",
     "moves",
     "protocol",

@@ -4,6 +4,7 @@ program with the flow control of docs/PROTOCOL.md.
 
 import ctypes
 import itertools
+import math
 import os
 import secrets
 import time
@@ -30,12 +31,50 @@ def _copy(ptr, cls):
 # ---------------------------------------------------------------------------------------
 
 
+#: ``pause_reason`` -> its name in ``kerf status --json`` (``pause.reason``); any other
+#: value is ``"none"`` (crates/kerf/src/status_view.rs, ``pause_name``).
+PAUSE_NAMES = {
+    p.PAUSE_PROGRAM_STOP: "program_stop",
+    p.PAUSE_OPTIONAL_STOP: "optional_stop",
+    p.PAUSE_PALLET_CHANGE: "pallet_change",
+    p.PAUSE_SINGLE_BLOCK: "single_block",
+    p.PAUSE_TOOL_CHANGE: "tool_change",
+    p.PAUSE_TOOL_CHANGING: "tool_changing",
+    p.PAUSE_WAIT_INPUT: "wait_input",
+    p.PAUSE_AT_SPEED: "spindle_at_speed",
+    p.PAUSE_ORIENT: "spindle_orient",
+}
+
+#: The pauses that wait for cycle start (:meth:`Client.resume`, ``kerf resume``) rather
+#: than for the machine.
+OPERATOR_PAUSES = (
+    p.PAUSE_PROGRAM_STOP,
+    p.PAUSE_OPTIONAL_STOP,
+    p.PAUSE_PALLET_CHANGE,
+    p.PAUSE_SINGLE_BLOCK,
+    p.PAUSE_TOOL_CHANGE,
+)
+
+
+def pause_name(reason):
+    """The name of a ``pause_reason`` as ``kerf status --json`` writes it
+    (``"program_stop"``, ``"tool_change"``, ``"spindle_at_speed"``, ...; ``"none"`` for
+    ``PAUSE_NONE`` and any unknown value)."""
+    return PAUSE_NAMES.get(reason, "none")
+
+
+def _num(v):
+    """A number as ``kerf status --json`` writes it: None (``null``) when not finite."""
+    return v if math.isfinite(v) else None
+
+
 class Status:
     """A parsed :class:`~kerf_client.protocol.StatusMsg`: every field as an attribute
-    (arrays as tuples, ``fault_text`` and ``fault_dump`` as ``str``, ``rt``,
-    ``program_done``, ``bus_recovering`` and ``dc_used`` as bool), plus ``state_name``,
-    ``program_end_name``, ``drives_name``, ``position`` (X, Y, Z) and ``ethercat`` (the
-    bus, shaped as ``kerf status --json`` shows it)."""
+    (arrays as tuples, ``fault_text``, ``fault_dump`` and ``pause_text`` as ``str``,
+    ``rt``, ``program_done``, ``bus_recovering``, ``dc_used`` and ``spindle_at_speed`` as
+    bool), plus ``state_name``, ``program_end_name``, ``drives_name``, ``position`` (X, Y,
+    Z), ``pause_name``, ``pause_waits_for_operator``, ``pause_message``, and ``machine``
+    and ``ethercat`` (sections shaped as ``kerf status --json`` shows them)."""
 
     def __init__(self, raw: p.StatusMsg):
         self.raw = raw.copy()
@@ -45,6 +84,7 @@ class Status:
         self.program_done = bool(raw.program_done)
         self.bus_recovering = bool(raw.bus_recovering)
         self.dc_used = bool(raw.dc_used)
+        self.spindle_at_speed = bool(raw.spindle_at_speed)
 
     @property
     def state_name(self):
@@ -61,6 +101,132 @@ class Status:
     @property
     def position(self):
         return self.position_mm_deg[:3]
+
+    @property
+    def paused(self):
+        """True while the program waits at rest for something (``pause_reason`` is not
+        ``PAUSE_NONE``; the state is ``STATE_PAUSED`` unless a hold or a fault says
+        more)."""
+        return self.pause_reason != p.PAUSE_NONE
+
+    @property
+    def pause_name(self):
+        """``pause_reason`` by name, as ``kerf status --json``'s ``pause.reason``."""
+        return pause_name(self.pause_reason)
+
+    @property
+    def pause_waits_for_operator(self):
+        """True when the pause waits for cycle start (:meth:`Client.resume`): a program
+        stop, an optional stop, a pallet change, single block or a manual tool change;
+        False when it waits for the machine (or there is none)."""
+        return self.pause_reason in OPERATOR_PAUSES
+
+    @property
+    def pause_message(self):
+        """What the program waits for, for a person, as ``kerf status`` says it ("paused
+        at line 12 (M0, program stop): `kerf resume` to continue"); None when it waits
+        for nothing."""
+        line, value = self.pause_line, self.pause_value
+        resume = "`kerf resume` to continue"
+        r = self.pause_reason
+        if r == p.PAUSE_PROGRAM_STOP:
+            return f"paused at line {line} (M0, program stop): {resume}"
+        if r == p.PAUSE_OPTIONAL_STOP:
+            return f"paused at line {line} (M1, optional stop): {resume}"
+        if r == p.PAUSE_PALLET_CHANGE:
+            return f"paused at line {line} (M60, pallet change): {resume}"
+        if r == p.PAUSE_SINGLE_BLOCK:
+            return f"paused after line {line} (single block): {resume}"
+        if r == p.PAUSE_TOOL_CHANGE:
+            what = self.pause_text or f"insert tool T{value}"
+            return f"paused at line {line} (M6): {what}, then `kerf resume`"
+        if r == p.PAUSE_TOOL_CHANGING:
+            return f"waiting at line {line} for the tool changer to load tool T{value}"
+        if r == p.PAUSE_WAIT_INPUT:
+            return f"waiting at line {line} for input {value} (M66)"
+        if r == p.PAUSE_AT_SPEED:
+            return f"waiting at line {line} for the spindle to reach its speed"
+        if r == p.PAUSE_ORIENT:
+            return f"waiting at line {line} for the spindle's orientation (M19)"
+        return None
+
+    @property
+    def machine(self):
+        """The machine section as ``kerf status --json`` shows it, a dict with the same
+        keys and shapes (numbers that are not finite are None, JSON's ``null``):
+
+        - ``pause``: None, or ``reason`` (:func:`pause_name`), ``line``, ``value``,
+          ``waits_for_operator``, ``text`` (:attr:`pause_message`);
+        - ``switches``: ``optional_stop``, ``block_delete``, ``single_block`` (bool);
+        - ``tool``: ``in_spindle`` (0 none), ``length_mm``, ``changer`` (``"none"``,
+          ``"manual"``, ``"automatic"``);
+        - ``spindle``: None without one, or ``kind`` (``"drive"``, ``"outputs"``), ``dir``
+          (1, -1, 0), ``programmed_rpm``, ``commanded_rpm``, ``actual_rpm``, ``at_speed``,
+          ``override_pct``, ``override_enabled``;
+        - ``feed_override_enabled`` (bool);
+        - ``coolant``: ``mist``, ``flood`` (bool);
+        - ``io``: ``digital_outputs``, ``digital_inputs`` (bit n: number n on, as ints),
+          ``analog_outputs``, ``analog_inputs`` (lists of 16);
+        - ``input_result``: None before the first wait on an input (M66) ended, else
+          ``seq``, ``program_id``, ``line``, ``value`` (``#5399``: -1 after a time-out).
+        """
+        pause = None
+        if self.pause_reason != p.PAUSE_NONE:
+            pause = {
+                "reason": self.pause_name,
+                "line": self.pause_line,
+                "value": self.pause_value,
+                "waits_for_operator": self.pause_waits_for_operator,
+                "text": self.pause_message or "",
+            }
+        changer = {p.TOOL_CHANGER_MANUAL: "manual",
+                   p.TOOL_CHANGER_AUTOMATIC: "automatic"}.get(self.tool_changer, "none")
+        spindle = None
+        if self.spindle_kind != p.SPINDLE_NONE:
+            spindle = {
+                "kind": "drive" if self.spindle_kind == p.SPINDLE_DRIVE else "outputs",
+                "dir": self.spindle_dir,
+                "programmed_rpm": _num(self.spindle_programmed_rpm),
+                "commanded_rpm": _num(self.spindle_commanded_rpm),
+                "actual_rpm": _num(self.spindle_actual_rpm),
+                "at_speed": self.spindle_at_speed,
+                "override_pct": _num(self.spindle_override_pct),
+                "override_enabled": bool(self.overrides_enabled & p.OVERRIDES_SPINDLE),
+            }
+        input_result = None
+        if self.input_result_seq != 0:
+            input_result = {
+                "seq": self.input_result_seq,
+                "program_id": self.input_result_program,
+                "line": self.input_result_line,
+                "value": _num(self.input_result_value),
+            }
+        return {
+            "pause": pause,
+            "switches": {
+                "optional_stop": bool(self.switches & p.SWITCH_OPTIONAL_STOP),
+                "block_delete": bool(self.switches & p.SWITCH_BLOCK_DELETE),
+                "single_block": bool(self.switches & p.SWITCH_SINGLE_BLOCK),
+            },
+            "tool": {
+                "in_spindle": self.tool_in_spindle,
+                "length_mm": _num(self.tool_length_mm),
+                "changer": changer,
+            },
+            "spindle": spindle,
+            "feed_override_enabled": bool(self.overrides_enabled & p.OVERRIDES_FEED),
+            "coolant": {
+                "mist": bool(self.coolant & p.COOLANT_MIST),
+                "flood": bool(self.coolant & p.COOLANT_FLOOD),
+            },
+            "io": {
+                "digital_outputs": self.digital_outputs,
+                "digital_inputs": self.digital_inputs,
+                "analog_outputs": [_num(x) for x in self.analog_outputs],
+                "analog_inputs": [_num(x) for x in self.analog_inputs],
+            },
+            "input_result": input_result,
+        }
 
     @property
     def ethercat(self):
@@ -110,7 +276,8 @@ class Status:
             f"program_id={self.program_id}, program_end={self.program_end_name}, "
             f"program_done={self.program_done}, moves_received={self.moves_received}, "
             f"window_items={self.window_items}, rejected={self.rejected}, "
-            f"fault={self.fault}, fault_text={self.fault_text!r})"
+            f"fault={self.fault}, fault_text={self.fault_text!r}, "
+            f"pause={self.pause_name})"
         )
 
 
@@ -349,8 +516,11 @@ class Client:
 
     # -- control ---------------------------------------------------------------------
 
-    def request(self, kind, value=0.0, program_id=0, timeout_s=None) -> Reply:
-        """Sends one ``REQUEST_*`` and waits for its answer."""
+    def request(self, kind, value=0.0, program_id=0, timeout_s=None, *, index=0) -> Reply:
+        """Sends one ``REQUEST_*`` (with ``value``, ``program_id`` and ``index`` as the
+        kind uses them; 0 otherwise) and waits for its answer."""
+        if not 0 <= index <= 0xFFFF_FFFF:
+            raise ValueError(f"index {index}: not a u32")
         req = p.Request()
         req.version = p.PROTOCOL_VERSION
         req.kind = kind
@@ -358,6 +528,7 @@ class Client:
         self._next_id += 1
         req.value = value
         req.program_id = program_id
+        req.index = index
         pending = self._client.send_copy(req)
         deadline = time.monotonic() + (self.timeout_s if timeout_s is None else timeout_s)
         other_versions = 0
@@ -398,7 +569,11 @@ class Client:
         return self.request(p.REQUEST_HOLD)
 
     def resume(self) -> Reply:
-        """REQUEST_RESUME: resume after a feed hold."""
+        """REQUEST_RESUME, cycle start: resume after a feed hold, and go on after a pause
+        that waits for the operator (a program stop M0, an optional stop M1, a pallet
+        change M60, single block, or a manual tool change once the tool is in the
+        spindle: ``Status.pause_waits_for_operator``). Refused with ``REASON_NOT_ALLOWED``
+        when there is nothing to resume."""
         return self.request(p.REQUEST_RESUME)
 
     def abort(self) -> Reply:
@@ -409,6 +584,39 @@ class Client:
     def override(self, pct) -> Reply:
         """REQUEST_OVERRIDE: feed override, 0 to 200 percent."""
         return self.request(p.REQUEST_OVERRIDE, value=float(pct))
+
+    def spindle_override(self, pct) -> Reply:
+        """REQUEST_SPINDLE_OVERRIDE: spindle override, 0 to 200 percent (it applies while
+        the spindle override is enabled: M48, M51)."""
+        return self.request(p.REQUEST_SPINDLE_OVERRIDE, value=float(pct))
+
+    def optional_stop(self, on) -> Reply:
+        """REQUEST_OPTIONAL_STOP: the optional-stop switch; while on, M1 pauses the
+        program like M0."""
+        return self.request(p.REQUEST_OPTIONAL_STOP, value=1.0 if on else 0.0)
+
+    def block_delete(self, on) -> Reply:
+        """REQUEST_BLOCK_DELETE: the block-delete switch; while on, programs sent from
+        then on skip their lines that start with ``/`` (the planner process reads the
+        switch when it starts a program; :meth:`run_program` sends resolved items, so it is
+        for the planner that builds them to honour it)."""
+        return self.request(p.REQUEST_BLOCK_DELETE, value=1.0 if on else 0.0)
+
+    def single_block(self, on) -> Reply:
+        """REQUEST_SINGLE_BLOCK: the single-block switch; while on, the program pauses
+        after every block the daemon plans from then on (:meth:`resume` runs the next)."""
+        return self.request(p.REQUEST_SINGLE_BLOCK, value=1.0 if on else 0.0)
+
+    def set_input(self, n, on) -> Reply:
+        """REQUEST_SET_INPUT: set simulated digital input ``n`` (0 to 63) on or off;
+        refused with ``REASON_NOT_ALLOWED`` for an input that is not configured or not
+        simulated, ``REASON_BAD_VALUE`` for a number out of range."""
+        return self.request(p.REQUEST_SET_INPUT, value=1.0 if on else 0.0, index=n)
+
+    def set_analog_input(self, n, value) -> Reply:
+        """REQUEST_SET_ANALOG_INPUT: set simulated analog input ``n`` (0 to 15) to
+        ``value`` (finite); refused as :meth:`set_input`."""
+        return self.request(p.REQUEST_SET_ANALOG_INPUT, value=float(value), index=n)
 
     def reset(self) -> Reply:
         """REQUEST_RESET: clear the drive side's latched fault once its cause is gone."""

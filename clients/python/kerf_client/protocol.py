@@ -1,9 +1,9 @@
-"""Kerf's shared-memory protocol, version 4 (docs/PROTOCOL.md), as ctypes structures.
+"""Kerf's shared-memory protocol, version 5 (docs/PROTOCOL.md), as ctypes structures.
 
-Every message is a C struct of u8, u16, u32, u64, i64 and f64 (native byte order, 8-byte
+Every message is a C struct of u8, u16, u32, i32, u64, i64 and f64 (native byte order, 8-byte
 alignment, no padding). The iceoryx2 Python bindings take a payload's type name from a
 static ``type_name()`` method, which here returns the name the Rust crate gives the type
-with ``#[type_name("kerf.MoveMsg.v4")]``: iceoryx2 matches the two ends of a service by that
+with ``#[type_name("kerf.MoveMsg.v5")]``: iceoryx2 matches the two ends of a service by that
 name, the size and the alignment, so a layout that drifted would not even connect.
 
 The tests in ``clients/python/tests/test_layout.py`` parse docs/PROTOCOL.md's tables and
@@ -17,7 +17,7 @@ import math
 # Constants (the table "Constants" of docs/PROTOCOL.md, every row)
 # ---------------------------------------------------------------------------------------
 
-PROTOCOL_VERSION = 4
+PROTOCOL_VERSION = 5
 
 KIND_BEGIN = 1
 KIND_LINE = 2
@@ -29,6 +29,8 @@ FLAG_RAPID = 1
 FLAG_ABC = 2
 FLAG_EVENT_VALUE = 4
 FLAG_NAIVE_CAM = 8
+FLAG_EVENT_P = 16
+FLAG_EVENT_Q = 32
 
 CORNER_EXACT_STOP = 1
 CORNER_BLEND_DEFAULT = 2
@@ -60,6 +62,14 @@ EVENT_M51 = 23
 EVENT_M52 = 24
 EVENT_M53 = 25
 EVENT_LOG = 26
+EVENT_M62 = 27
+EVENT_M63 = 28
+EVENT_M64 = 29
+EVENT_M65 = 30
+EVENT_M66 = 31
+EVENT_M66_ANALOG = 32
+EVENT_M67 = 33
+EVENT_M68 = 34
 EVENT_USER_M100 = 100
 EVENT_USER_M199 = 199
 
@@ -69,6 +79,7 @@ STATE_HOLDING = 2
 STATE_STARVED = 3
 STATE_FAULT = 4
 STATE_STOPPING = 5
+STATE_PAUSED = 6
 
 REQUEST_STATUS = 1
 REQUEST_HOLD = 2
@@ -79,6 +90,44 @@ REQUEST_RESET = 6
 REQUEST_DUMP = 7
 REQUEST_INJECT = 8
 REQUEST_PROGRAM = 9
+REQUEST_OPTIONAL_STOP = 10
+REQUEST_BLOCK_DELETE = 11
+REQUEST_SINGLE_BLOCK = 12
+REQUEST_SPINDLE_OVERRIDE = 13
+REQUEST_SET_INPUT = 14
+REQUEST_SET_ANALOG_INPUT = 15
+
+DIGITAL_IO = 64
+ANALOG_IO = 16
+
+PAUSE_NONE = 0
+PAUSE_PROGRAM_STOP = 1
+PAUSE_OPTIONAL_STOP = 2
+PAUSE_PALLET_CHANGE = 3
+PAUSE_SINGLE_BLOCK = 4
+PAUSE_TOOL_CHANGE = 5
+PAUSE_TOOL_CHANGING = 6
+PAUSE_WAIT_INPUT = 7
+PAUSE_AT_SPEED = 8
+PAUSE_ORIENT = 9
+
+SWITCH_OPTIONAL_STOP = 1
+SWITCH_BLOCK_DELETE = 2
+SWITCH_SINGLE_BLOCK = 4
+
+TOOL_CHANGER_NONE = 0
+TOOL_CHANGER_MANUAL = 1
+TOOL_CHANGER_AUTOMATIC = 2
+
+SPINDLE_NONE = 0
+SPINDLE_DRIVE = 1
+SPINDLE_OUTPUTS = 2
+
+OVERRIDES_FEED = 1
+OVERRIDES_SPINDLE = 2
+
+COOLANT_MIST = 1
+COOLANT_FLOOD = 2
 
 REASON_OK = 0
 REASON_WRONG_VERSION = 1
@@ -117,6 +166,10 @@ SAFETY_ENABLE_TIMEOUT = 7
 SAFETY_DRIVE_DISABLED = 8
 SAFETY_FIELDBUS = 9
 SAFETY_SUBDEVICE_STATE = 10
+SAFETY_SPINDLE_AT_SPEED = 11
+SAFETY_SPINDLE_BAND = 12
+SAFETY_SPINDLE_ORIENT = 13
+SAFETY_TOOL_CHANGE = 14
 SAFETY_AXIS_NONE = 255
 
 BUS_MAX_SUBDEVICES = 32
@@ -146,6 +199,14 @@ CONSTANTS = {
         "DRIVES",
         "SAFETY",
         "BUS",
+        "DIGITAL",
+        "ANALOG",
+        "PAUSE",
+        "SWITCH",
+        "TOOL",
+        "SPINDLE",
+        "OVERRIDES",
+        "COOLANT",
     )
 }
 
@@ -196,6 +257,7 @@ SETPOINT_BUFFER = 16_384
 u8 = ctypes.c_uint8
 u16 = ctypes.c_uint16
 u32 = ctypes.c_uint32
+i32 = ctypes.c_int32
 u64 = ctypes.c_uint64
 i64 = ctypes.c_int64
 f64 = ctypes.c_double
@@ -248,7 +310,7 @@ def decode_text(raw):
 class MoveMsg(_Message):
     """One program item on the moves service (256 bytes)."""
 
-    TYPE_NAME = "kerf.MoveMsg.v4"
+    TYPE_NAME = "kerf.MoveMsg.v5"
     _fields_ = [
         ("version", u32),
         ("kind", u32),
@@ -270,14 +332,16 @@ class MoveMsg(_Message):
         ("event_value", f64),
         ("count", u64),
         ("naive_cam_mm", f64),
-        ("reserved", u64 * 3),
+        ("event_p", f64),
+        ("event_q", f64),
+        ("reserved", u64),
     ]
 
 
 class SetpointMsg(_Message):
     """The daemon's setpoint of one real-time cycle (160 bytes)."""
 
-    TYPE_NAME = "kerf.SetpointMsg.v4"
+    TYPE_NAME = "kerf.SetpointMsg.v5"
     _fields_ = [
         ("version", u32),
         ("state", u32),
@@ -295,23 +359,25 @@ class SetpointMsg(_Message):
 
 
 class Request(_Message):
-    """A control request (32 bytes)."""
+    """A control request (40 bytes)."""
 
-    TYPE_NAME = "kerf.Request.v4"
+    TYPE_NAME = "kerf.Request.v5"
     _fields_ = [
         ("version", u32),
         ("kind", u32),
         ("id", u64),
         ("value", f64),
         ("program_id", u64),
+        ("index", u32),
+        ("reserved", u32),
     ]
 
 
 class StatusMsg(_Message):
-    """The daemon's status, embedded in every Response (680 bytes)."""
+    """The daemon's status, embedded in every Response (1160 bytes)."""
 
-    TYPE_NAME = "kerf.StatusMsg.v4"
-    TEXT_FIELDS = ("fault_text", "fault_dump")
+    TYPE_NAME = "kerf.StatusMsg.v5"
+    TEXT_FIELDS = ("fault_text", "fault_dump", "pause_text")
     _fields_ = [
         ("state", u32),
         ("line", u32),
@@ -358,13 +424,39 @@ class StatusMsg(_Message):
         ("dc_offset_abs_p999_ns", u64),
         ("dc_offset_abs_max_ns", u64),
         ("dc_samples", u64),
+        # The machine: pause, switches, tool, spindle, coolant, I/O.
+        ("pause_reason", u32),
+        ("pause_line", u32),
+        ("pause_value", u32),
+        ("switches", u32),
+        ("tool_in_spindle", u32),
+        ("tool_changer", u32),
+        ("tool_length_mm", f64),
+        ("spindle_kind", u32),
+        ("spindle_dir", i32),
+        ("spindle_programmed_rpm", f64),
+        ("spindle_commanded_rpm", f64),
+        ("spindle_actual_rpm", f64),
+        ("spindle_override_pct", f64),
+        ("spindle_at_speed", u32),
+        ("overrides_enabled", u32),
+        ("coolant", u32),
+        ("input_result_line", u32),
+        ("digital_outputs", u64),
+        ("digital_inputs", u64),
+        ("analog_outputs", f64 * ANALOG_IO),
+        ("analog_inputs", f64 * ANALOG_IO),
+        ("input_result_seq", u64),
+        ("input_result_program", u64),
+        ("input_result_value", f64),
+        ("pause_text", u8 * 96),
     ]
 
 
 class Response(_Message):
-    """The daemon's answer to a Request (928 bytes)."""
+    """The daemon's answer to a Request (1408 bytes)."""
 
-    TYPE_NAME = "kerf.Response.v4"
+    TYPE_NAME = "kerf.Response.v5"
     TEXT_FIELDS = ("message",)
     _fields_ = [
         ("version", u32),

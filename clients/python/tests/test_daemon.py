@@ -8,6 +8,10 @@
 3. Adversarial messages are refused, counted in `rejected`, and move nothing.
 4. Abort while streaming 200,000 short lines: ABORTED, `run_program` returns at once and
    the machine stops.
+5. The operator's switches set from Python and from `kerf` read the same on both sides,
+   the machine section of the status equals `kerf status --json`'s, and requests the
+   daemon must refuse (a switch 0.5, an input out of range or not simulated, a spindle
+   override of 250 %) are refused with their reason.
 
 Build the binaries first: `cargo build -p kerf -p kerfd --bins` (or set KERFD and KERF).
 """
@@ -117,6 +121,9 @@ class ProgramFromPython(unittest.TestCase):
         self.assertIsNone(j["ethercat"])
         self.assertIsNone(s.ethercat)
         self.assertEqual(j["period_us"] * 1000.0, s.period_ns)
+        # The machine section (protocol version 5), key for key.
+        for key, value in s.machine.items():
+            self.assertEqual(j[key], value, key)
         self.assertLessEqual(j["cycles"], c.status().status.cycles)
 
         # The control requests answer with the status after they were handled.
@@ -378,7 +385,7 @@ class Adversarial(unittest.TestCase):
 
         # 6. A nonzero reserved field.
         res_line = mv.line(home, (x0 + 1.0, y0, z0), F, line=1)
-        res_line.reserved[1] = 1
+        res_line.reserved = 1
         one_bad_item("nonzero reserved field", res_line)
 
         # 7. A message of another program id inside an open program: refused, the open
@@ -514,6 +521,70 @@ class Abort(unittest.TestCase):
         # After the fate was final, the setpoints stand still.
         last = [x for x in samples if x.seq >= samples[-1].seq - 300]
         self.assertTrue(all(x.position_mm_deg == s2.position_mm_deg for x in last))
+
+
+#: The keys of the machine section of `kerf status --json` (crates/kerf/src/status_view.rs).
+MACHINE_KEYS = ("pause", "switches", "tool", "spindle", "feed_override_enabled", "coolant",
+                "io", "input_result")
+
+
+class Switches(unittest.TestCase):
+    def test_5_switches_and_the_machine_section(self):
+        m = Machine(self, "switch")
+        c = m.start()
+        s0 = c.status().status
+        self.assertEqual(sorted(s0.machine), sorted(MACHINE_KEYS))
+        self.assertIsNone(s0.machine["pause"], s0)
+
+        def kerf_json():
+            return json.loads(m.kerf("status", "--json").stdout)
+
+        # Each switch on from Python: the answer's status already shows it (the status
+        # after the request), and `kerf status --json` reads the same.
+        bits = {"optional_stop": p.SWITCH_OPTIONAL_STOP,
+                "block_delete": p.SWITCH_BLOCK_DELETE,
+                "single_block": p.SWITCH_SINGLE_BLOCK}
+        setters = {"optional_stop": c.optional_stop, "block_delete": c.block_delete,
+                   "single_block": c.single_block}
+        for name, setter in setters.items():
+            with self.subTest(switch=name):
+                r = setter(True)
+                self.assertTrue(r.accepted, r)
+                self.assertTrue(r.status.switches & bits[name], r.status)
+                self.assertIs(r.status.machine["switches"][name], True)
+        j = kerf_json()
+        s = c.status().status
+        self.assertEqual(j["switches"], {"optional_stop": True, "block_delete": True,
+                                         "single_block": True})
+        for key in MACHINE_KEYS:
+            self.assertEqual(j[key], s.machine[key], key)
+        # Off from `kerf`, read from Python.
+        m.kerf("optional-stop", "off")
+        m.kerf("single-block", "off")
+        self.assertEqual(c.status().status.machine["switches"],
+                         {"optional_stop": False, "block_delete": True,
+                          "single_block": False})
+        self.assertTrue(c.block_delete(False).accepted)
+        self.assertEqual(c.status().status.switches, 0)
+
+        # Refusals with their reason; nothing changes.
+        r = c.request(p.REQUEST_OPTIONAL_STOP, value=0.5)
+        self.assertEqual((r.accepted, r.reason), (False, p.REASON_BAD_VALUE), r)
+        r = c.request(p.REQUEST_HOLD, index=1)
+        self.assertEqual((r.accepted, r.reason), (False, p.REASON_BAD_VALUE), r)
+        r = c.set_input(p.DIGITAL_IO, True)
+        self.assertEqual((r.accepted, r.reason), (False, p.REASON_BAD_VALUE), r)
+        r = c.set_analog_input(p.ANALOG_IO, 1.0)
+        self.assertEqual((r.accepted, r.reason), (False, p.REASON_BAD_VALUE), r)
+        r = c.spindle_override(250)
+        self.assertEqual((r.accepted, r.reason), (False, p.REASON_BAD_VALUE), r)
+        # config/kerf.toml simulates no input: in range, but not allowed.
+        r = c.set_input(3, True)
+        self.assertEqual((r.accepted, r.reason), (False, p.REASON_NOT_ALLOWED), r)
+        self.assertTrue(r.message, r)
+        s = c.status().status
+        self.assertEqual((s.switches, s.digital_inputs), (0, 0), s)
+        self.assertEqual(s.state, p.STATE_IDLE, s)
 
 
 if __name__ == "__main__":

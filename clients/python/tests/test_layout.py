@@ -8,6 +8,7 @@ page. No daemon needed.
 import ctypes
 import math
 import re
+import struct
 import unittest
 
 import support  # noqa: F401 - puts the package on the path
@@ -19,7 +20,8 @@ from kerf_client import protocol as p
 
 #: The ctypes of the documented scalar types.
 SCALARS = {"u8": ctypes.c_uint8, "u16": ctypes.c_uint16, "u32": ctypes.c_uint32,
-           "u64": ctypes.c_uint64, "i64": ctypes.c_int64, "f64": ctypes.c_double}
+           "i32": ctypes.c_int32, "u64": ctypes.c_uint64, "i64": ctypes.c_int64,
+           "f64": ctypes.c_double}
 
 
 def cells(row):
@@ -83,10 +85,12 @@ class ProtocolMdTables(unittest.TestCase):
             cls.text = f.read()
         cls.messages, cls.constants = parse_protocol_md(cls.text)
 
-    def test_the_page_is_protocol_version_4(self):
-        self.assertIn("# Kerf shared-memory protocol, version 4", self.text)
+    def test_the_page_is_protocol_version_5(self):
+        self.assertIn("# Kerf shared-memory protocol, version 5", self.text)
         self.assertEqual(self.constants["PROTOCOL_VERSION"], p.PROTOCOL_VERSION)
-        self.assertEqual(p.PROTOCOL_VERSION, 4)
+        self.assertEqual(p.PROTOCOL_VERSION, 5)
+        for name, cls in p.MESSAGES.items():
+            self.assertEqual(cls.type_name(), f"kerf.{name}.v5")
 
     def test_every_message_is_documented_and_every_documented_one_exists(self):
         self.assertEqual(sorted(self.messages), sorted(p.MESSAGES))
@@ -125,6 +129,45 @@ class ProtocolMdTables(unittest.TestCase):
         self.assertEqual(self.constants, p.CONSTANTS)
         for k, v in self.constants.items():
             self.assertEqual(getattr(p, k), v, k)
+
+    def test_the_v5_fields_where_version_5_put_them(self):
+        """The fields version 5 added or moved, at the offsets of the change (written
+        out here, not read from the page): what a client of version 4 must not meet."""
+        at = {
+            p.MoveMsg: [("naive_cam_mm", 224, 8), ("event_p", 232, 8), ("event_q", 240, 8),
+                        ("reserved", 248, 8)],
+            p.Request: [("program_id", 24, 8), ("index", 32, 4), ("reserved", 36, 4)],
+            p.StatusMsg: [("dc_samples", 672, 8), ("pause_reason", 680, 4),
+                          ("spindle_dir", 716, 4), ("digital_outputs", 768, 8),
+                          ("analog_outputs", 784, 128), ("analog_inputs", 912, 128),
+                          ("input_result_value", 1056, 8), ("pause_text", 1064, 96)],
+            p.Response: [("message", 24, 224), ("status", 248, 1160)],
+        }
+        for cls, fields in at.items():
+            for field, offset, size in fields:
+                with self.subTest(message=cls.__name__, field=field):
+                    d = getattr(cls, field)
+                    self.assertEqual((d.offset, d.size), (offset, size))
+        self.assertEqual([ctypes.sizeof(c) for c in (p.MoveMsg, p.Request, p.StatusMsg,
+                                                      p.Response)], [256, 40, 1160, 1408])
+        # spindle_dir is signed: -1 (M4) reads back as -1, its bytes as two's complement.
+        st = p.StatusMsg()
+        st.spindle_dir = -1
+        self.assertEqual(bytes(st)[716:720], b"\xff\xff\xff\xff")
+        self.assertEqual(p.StatusMsg.from_buffer_copy(bytes(st)).spindle_dir, -1)
+        # The new text field reads as text.
+        st.pause_text[:5] = b"T3 ok"
+        self.assertEqual(st.to_dict()["pause_text"], "T3 ok")
+
+    def test_v5_constants(self):
+        """A few of version 5's constants, from the change itself."""
+        self.assertEqual((p.FLAG_EVENT_P, p.FLAG_EVENT_Q), (16, 32))
+        self.assertEqual((p.EVENT_M62, p.EVENT_M66_ANALOG, p.EVENT_M68), (27, 32, 34))
+        self.assertEqual(p.STATE_PAUSED, 6)
+        self.assertEqual(p.name_of("STATE", 6), "paused")
+        self.assertEqual((p.REQUEST_OPTIONAL_STOP, p.REQUEST_SET_ANALOG_INPUT), (10, 15))
+        self.assertEqual((p.SAFETY_SPINDLE_AT_SPEED, p.SAFETY_TOOL_CHANGE), (11, 14))
+        self.assertEqual((p.DIGITAL_IO, p.ANALOG_IO), (64, 16))
 
     def test_service_names(self):
         self.assertEqual(p.service_name("default", "moves"), "kerf/default/moves")
@@ -194,6 +237,78 @@ class Helpers(unittest.TestCase):
             mv.event(p.EVENT_T)
         with self.assertRaises(ValueError):
             mv.event(p.EVENT_G4, -1)
+
+    def test_events_with_p_and_q_words(self):
+        """Each word given sets its field and its flag, as Rust's MoveMsg::from_event;
+        one not given leaves both zero. Flags: value 4, P 16, Q 32."""
+        # M66 P2 L3 Q1.5: wait on digital input 2, mode 3, at most 1.5 s.
+        m66 = mv.event(p.EVENT_M66, 2, p=3, q=1.5, line=7)
+        self.assertEqual(m66.flags, 4 | 16 | 32)
+        self.assertEqual((m66.event_code, m66.event_value, m66.event_p, m66.event_q,
+                          m66.line), (31, 2.0, 3.0, 1.5, 7))
+        self.assertEqual(self.used(m66), {"version", "kind", "line", "flags", "event_code",
+                                          "event_value", "event_p", "event_q"})
+        raw = bytes(m66)
+        self.assertEqual(struct.unpack_from("=dd", raw, 232), (3.0, 1.5))
+        self.assertEqual(raw[248:256], bytes(8))
+        # M66 E0 L1 (analog input 0, no timeout): no Q.
+        a = mv.event(p.EVENT_M66_ANALOG, 0, p=1)
+        self.assertEqual((a.flags, a.event_code, a.event_q), (4 | 16, 32, 0.0))
+        # A value 0 is a value: the flag says it is there.
+        self.assertEqual(a.event_value, 0.0)
+        # M67 E1 Q4.5 and M68 E0 Q-2: output number and value.
+        m67 = mv.event(p.EVENT_M67, 1, q=4.5)
+        self.assertEqual((m67.flags, m67.event_value, m67.event_q), (4 | 32, 1.0, 4.5))
+        m68 = mv.event(p.EVENT_M68, 0, q=-2)
+        self.assertEqual((m68.flags, m68.event_code, m68.event_q), (4 | 32, 34, -2.0))
+        # M19 R90 Q2 P1, and M19 alone.
+        m19 = mv.event(p.EVENT_M19, 90, p=1, q=2)
+        self.assertEqual((m19.flags, m19.event_value, m19.event_p, m19.event_q),
+                         (4 | 16 | 32, 90.0, 1.0, 2.0))
+        self.assertEqual(mv.event(p.EVENT_M19).flags, 0)
+        # M101 P2 Q3: a user M code's P is its value; its Q goes to event_q.
+        u = mv.event(p.EVENT_USER_M100 + 1, 2, q=3)
+        self.assertEqual((u.event_code, u.flags, u.event_value, u.event_p, u.event_q),
+                         (101, 4 | 32, 2.0, 0.0, 3.0))
+        self.assertEqual(mv.event(p.EVENT_USER_M199, q=0.5).flags, 32)
+        # M62 P5 .. M65 P5: the output number is required.
+        for code in (p.EVENT_M62, p.EVENT_M63, p.EVENT_M64, p.EVENT_M65):
+            self.assertEqual(mv.event(code, 5).flags, 4)
+
+    def test_events_the_daemon_would_refuse(self):
+        """The rules of docs/PROTOCOL.md (MoveMsg, EVENT) for one event, with the words of
+        the daemon's reasons; check=False builds the event anyway."""
+        nan = float("nan")
+        cases = [
+            ((p.EVENT_M67, 1), {}, "event M67 needs a Q word"),
+            ((p.EVENT_M68, 1), {}, "event M68 needs a Q word"),
+            ((p.EVENT_M3,), {"q": 1}, "event M3 takes no Q word"),
+            ((p.EVENT_M62, 1), {"q": 1}, "event M62 takes no Q word"),
+            ((p.EVENT_M3,), {"p": 1}, "event M3 takes no P or L word"),
+            ((p.EVENT_M67, 1), {"p": 1, "q": 1}, "event M67 takes no P or L word"),
+            ((p.EVENT_USER_M100, 1), {"p": 2}, "event M100 takes no P or L word"),
+            ((p.EVENT_M3, 1), {}, "event M3 takes no value"),
+            ((p.EVENT_M66,), {"p": 1}, "event M66 needs a value"),
+            ((p.EVENT_M66_ANALOG,), {}, "event M66 needs a value"),
+            ((p.EVENT_M63,), {}, "event M63 needs a value"),
+            ((p.EVENT_M50,), {}, "event M50 needs a value"),
+            ((p.EVENT_S,), {}, "event S needs a value"),
+            ((35,), {}, "unknown event code 35"),
+            ((99,), {}, "unknown event code 99"),
+            ((200,), {}, "unknown event code 200"),
+            ((p.EVENT_M66, 1), {"q": nan}, "not a finite number"),
+            ((p.EVENT_G4, -0.5), {}, "a dwell is >= 0 s"),
+        ]
+        for args, kwargs, words in cases:
+            with self.subTest(args=args, kwargs=kwargs):
+                with self.assertRaises(ValueError) as cm:
+                    mv.event(*args, **kwargs)
+                self.assertIn(words, str(cm.exception))
+                m = mv.event(*args, **kwargs, check=False)
+                self.assertEqual(m.event_code, args[0])
+        bad = mv.event(p.EVENT_M3, p=1, q=nan, check=False)
+        self.assertEqual(bad.flags, 16 | 32)
+        self.assertTrue(math.isnan(bad.event_q))
 
     def test_begin_and_end(self):
         b = mv.begin(7, (1, 2, 3), 5)
