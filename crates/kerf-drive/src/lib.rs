@@ -7,6 +7,9 @@
 //!   that following error, overshoot and drive faults behave as a real drive's.
 //! - [`safety`]: the checks of the real-time cycle above every drive (plausibility, soft
 //!   limits, following error, stream supervision), latched faults, the quick stop.
+//! - [`machine`]: the machine model: the program's actions on the spindle (a simulated
+//!   spindle drive or outputs), coolant, tool changer and I/O image, its pauses and
+//!   waits, and its faults.
 //! - [`recorder`]: the black-box ring of the last seconds of cycles and its CSV export.
 //! - [`stage`]: all of it in one call per cycle: read the drives, enable them, check,
 //!   write the targets, record; resets and black-box dumps.
@@ -16,6 +19,7 @@
 #![forbid(unsafe_code)]
 
 pub mod cia402;
+pub mod machine;
 pub mod recorder;
 pub mod safety;
 pub mod sim;
