@@ -2,7 +2,8 @@
 //! `[[ethercat.io]]`): a plain, checked record for the daemon's fieldbus side.
 //!
 //! Every subdevice on the ring is listed, at its ring position (0-based, in the order the
-//! frame passes them): the CiA 402 servo drives, one per configured axis, and every other
+//! frame passes them): the CiA 402 servo drives, one per configured axis and the
+//! spindle's (`axis = "s"`, in cyclic synchronous velocity) when it has one, and every other
 //! subdevice (digital I/O terminals, and couplers, which have no bits) as I/O. The axis's
 //! position scale is not repeated here: it is `[axes.*.drive] counts_per_mm`
 //! (`counts_per_deg`) and `direction`, [`crate::AxisDrive::scale`].
@@ -17,6 +18,11 @@ pub const TARGET_VELOCITY: (u16, u8) = (0x60FF, 0);
 pub const STATUSWORD: (u16, u8) = (0x6041, 0);
 /// The CiA 402 position actual value (0x6064:0, 32 bits), in every drive's TxPDO.
 pub const POSITION_ACTUAL: (u16, u8) = (0x6064, 0);
+/// The CiA 402 velocity actual value (0x606C:0, 32 bits), in the spindle drive's TxPDO.
+pub const VELOCITY_ACTUAL: (u16, u8) = (0x606C, 0);
+/// [`EthercatDrive::axis_index`] of the spindle's drive (`axis = "s"`): after the six
+/// axes X to C.
+pub const SPINDLE_AXIS_INDEX: usize = 6;
 /// The CiA 402 modes of operation (0x6060:0), set from [`DriveMode`] at bring-up.
 pub const MODES_OF_OPERATION: u16 = 0x6060;
 /// The CiA 402 interpolation time period (0x60C2), set from `period_us` at bring-up.
@@ -47,8 +53,8 @@ pub enum DriveMode {
     /// `"csp"`: cyclic synchronous position, mode 8; the axis's setpoints are target
     /// positions (0x607A) each period.
     Csp,
-    /// `"csv"`: cyclic synchronous velocity, mode 9; target velocities (0x60FF). For a
-    /// spindle axis in a later issue: nothing produces velocity setpoints yet.
+    /// `"csv"`: cyclic synchronous velocity, mode 9; target velocities (0x60FF). The
+    /// spindle's drive only (`axis = "s"`, [`SPINDLE_AXIS_INDEX`]).
     Csv,
 }
 
@@ -152,7 +158,7 @@ impl Pdo {
             entries: vec![
                 entry(STATUSWORD, 16),
                 entry(POSITION_ACTUAL, 32),
-                entry((0x606C, 0), 32),
+                entry(VELOCITY_ACTUAL, 32),
                 entry((0x60F4, 0), 32),
                 entry((0x603F, 0), 16),
                 entry((0x60FD, 0), 32),
@@ -214,7 +220,8 @@ pub struct SdoWrite {
 /// One `[[ethercat.drives]]`: the CiA 402 servo drive of an axis.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct EthercatDrive {
-    /// `axis`: the axis it drives, 0 to 5 for X, Y, Z, A, B, C.
+    /// `axis`: the axis it drives, 0 to 5 for X, Y, Z, A, B, C, or
+    /// [`SPINDLE_AXIS_INDEX`] for the spindle (`axis = "s"`, always [`DriveMode::Csv`]).
     pub axis_index: usize,
     /// `position`: ring position, 0-based.
     pub position: u16,
@@ -254,7 +261,8 @@ pub struct EthercatIo {
     pub outputs: Vec<IoBit>,
 }
 
-/// `[ethercat]`: the bus that drives the axes, when the machine has one.
+/// `[ethercat]`: the bus that drives the axes (and the spindle when `[spindle]` is a
+/// drive), when the machine has one.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct EthercatConfig {
     /// `interface`: the network interface the bus is on.
@@ -275,7 +283,7 @@ pub struct EthercatConfig {
     pub sdo_timeout_ms: u32,
     /// `dc_settle_timeout_ms`: time the distributed clocks may take to settle.
     pub dc_settle_timeout_ms: u32,
-    /// The drives, in file order.
+    /// The drives, in file order: the axes' and the spindle's ([`Self::spindle_drive`]).
     pub drives: Vec<EthercatDrive>,
     /// The other subdevices, in file order.
     pub io: Vec<EthercatIo>,
@@ -291,6 +299,11 @@ impl EthercatConfig {
     /// The drive of axis `axis_index` (0 to 5 for X to C), if the bus has one.
     pub fn drive_of_axis(&self, axis_index: usize) -> Option<&EthercatDrive> {
         self.drives.iter().find(|d| d.axis_index == axis_index)
+    }
+
+    /// The spindle's drive (`axis = "s"`), if the bus has one.
+    pub fn spindle_drive(&self) -> Option<&EthercatDrive> {
+        self.drive_of_axis(SPINDLE_AXIS_INDEX)
     }
 
     /// The ESC's process-data watchdog setting for [`Self::watchdog_us`]: the number of

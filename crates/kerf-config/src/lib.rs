@@ -5,7 +5,10 @@
 //! - [`tooltable`]: LinuxCNC tool tables and parameter files;
 //! - [`travel`]: the configured travel checked on the exact path before any motion;
 //! - [`machine_limits`]: the motion core's view of the axes;
-//! - [`ethercat`]: the EtherCAT bus (`[ethercat]`), when the machine's drives are on one.
+//! - [`ethercat`]: the EtherCAT bus (`[ethercat]`), when the machine's drives are on one;
+//! - the machine's functions besides the axes: [`IoConfig`] (`[io]`), [`SpindleConfig`],
+//!   [`CoolantConfig`], [`ToolChanger`], [`OperatorConfig`], and [`MachineCaps`]
+//!   ([`Config::machine_check`]), what a program may command.
 //!
 //! A machine builder writes one file per machine; `config/kerf.toml` in the repository is a
 //! commented 3-axis mill example and is compiled into the binary as the default
@@ -24,6 +27,7 @@
 mod check;
 mod error;
 mod load;
+mod machine;
 mod model;
 mod ranges;
 mod raw;
@@ -40,6 +44,7 @@ use std::path::Path;
 use kerf_geom::{AxisLimits, MachineLimits};
 
 pub use error::{ConfigError, TextPosition};
+pub use machine::*;
 pub use model::*;
 pub use ranges::*;
 pub use raw::valid_machine_name;
@@ -110,3 +115,5 @@ mod tests;
 mod tests_ethercat;
 #[cfg(test)]
 mod tests_ethercat_objects;
+#[cfg(test)]
+mod tests_machine;

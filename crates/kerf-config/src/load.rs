@@ -53,6 +53,11 @@ impl Config {
                 recorder_seconds: kerf_drive::recorder::DEFAULT_SECONDS,
             },
             ethercat: None,
+            io: IoConfig::default(),
+            spindle: SpindleConfig::default(),
+            coolant: CoolantConfig::default(),
+            tool_changer: ToolChanger::default(),
+            operator: OperatorConfig::default(),
         })
     }
 

@@ -8,6 +8,7 @@ use kerf_drive::cia402::Scale;
 use kerf_drive::sim::SimConfig;
 use kerf_gcode::{Dialect, Tool};
 
+use crate::machine::*;
 use crate::ranges::*;
 
 /// The kind of drive behind an axis (`[axes.*.drive] kind`).
@@ -98,7 +99,7 @@ pub struct DriveSetup {
 }
 
 /// The daemon's own settings (`[daemon]`).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct DaemonConfig {
     /// SCHED_FIFO priority of the cycle thread, 1 to 99.
     pub priority: u8,
@@ -108,6 +109,10 @@ pub struct DaemonConfig {
     pub queue_segments: u32,
     /// Resolved moves in flight from a planner process (flow-control window).
     pub move_window: u32,
+    /// `state_file`: where the daemon keeps the machine state that survives a restart
+    /// (the tool in the spindle), written atomically; relative paths resolved against the
+    /// configuration file's directory. `kerf run --embedded` and tests pass another path.
+    pub state_file: PathBuf,
 }
 
 impl Default for DaemonConfig {
@@ -117,6 +122,7 @@ impl Default for DaemonConfig {
             cpu: None,
             queue_segments: DEFAULT_QUEUE_SEGMENTS,
             move_window: DEFAULT_MOVE_WINDOW,
+            state_file: PathBuf::from(DEFAULT_STATE_FILE),
         }
     }
 }
@@ -234,6 +240,16 @@ pub struct Config {
     pub drive: DriveSide,
     /// `[ethercat]`: the bus the axes' drives are on; `None`: simulated drives.
     pub ethercat: Option<crate::ethercat::EthercatConfig>,
+    /// `[io]`: the inputs and outputs programs use by number and the machine by name.
+    pub io: IoConfig,
+    /// `[spindle]`.
+    pub spindle: SpindleConfig,
+    /// `[coolant]`.
+    pub coolant: CoolantConfig,
+    /// `[tool_changer]`.
+    pub tool_changer: ToolChanger,
+    /// `[operator]`: the runtime switches at daemon start.
+    pub operator: OperatorConfig,
 }
 
 impl Config {

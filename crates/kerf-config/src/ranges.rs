@@ -202,3 +202,79 @@ pub const TX_PDO_INDEX_RANGE: RangeInclusive<u32> = 0x1A00..=0x1BFF;
 
 /// Accepted bit numbers of an I/O subdevice's named inputs and outputs: 256 bytes of each.
 pub const IO_BIT_RANGE: RangeInclusive<u32> = 0..=2047;
+
+// The machine's functions besides the axes (`[io]`, `[spindle]`, `[coolant]`,
+// `[tool_changer]`, `[operator]`; `crate::machine`).
+
+/// Accepted numbers of a digital input or output (`io.digital_*.number`): LinuxCNC's
+/// motion module has at most 64 of each (`M62`-`M66` `P`).
+pub const DIGITAL_IO_NUMBER_RANGE: RangeInclusive<u32> = 0..=63;
+
+/// Accepted numbers of an analog input or output (`io.analog_*.number`): LinuxCNC's
+/// motion module has at most 16 of each (`M66` / `M67` / `M68` `E`).
+pub const ANALOG_IO_NUMBER_RANGE: RangeInclusive<u32> = 0..=15;
+
+/// Accepted start values of a simulated analog input (`io.analog_inputs.sim`).
+pub const ANALOG_VALUE_RANGE: RangeInclusive<f64> = -1e9..=1e9;
+
+/// Accepted spindle speeds (`spindle.max_rpm`, `spindle.min_rpm`), rpm: up to a million
+/// (beyond the fastest air-bearing spindles).
+pub const SPINDLE_RPM_RANGE: RangeInclusive<f64> = 0.001..=1e6;
+
+/// Default `spindle.max_rpm`.
+pub const DEFAULT_SPINDLE_MAX_RPM: f64 = 24_000.0;
+
+/// Default `spindle.min_rpm`.
+pub const DEFAULT_SPINDLE_MIN_RPM: f64 = 0.0;
+
+/// Accepted spindle accelerations (`spindle.acceleration_rpm_s`), rpm/s.
+pub const SPINDLE_ACCELERATION_RANGE_RPM_S: RangeInclusive<f64> = 0.1..=1e7;
+
+/// Default `spindle.acceleration_rpm_s`: 0 to 24,000 rpm in 3 s.
+pub const DEFAULT_SPINDLE_ACCELERATION_RPM_S: f64 = 8000.0;
+
+/// Accepted `spindle.at_speed_tolerance`, a fraction of the commanded speed (LinuxCNC's
+/// at-speed band, typically a few percent).
+pub const AT_SPEED_TOLERANCE_RANGE: RangeInclusive<f64> = 0.001..=0.5;
+
+/// Default `spindle.at_speed_tolerance`: 2 %.
+pub const DEFAULT_AT_SPEED_TOLERANCE: f64 = 0.02;
+
+/// Accepted machine waits and their timeouts (`spindle.at_speed_timeout_s`,
+/// `spindle.orient_timeout_s`, `tool_changer.timeout_s`), s: up to an hour.
+pub const MACHINE_TIMEOUT_RANGE_S: RangeInclusive<f64> = 0.01..=3600.0;
+
+/// Default `spindle.at_speed_timeout_s`.
+pub const DEFAULT_AT_SPEED_TIMEOUT_S: f64 = 10.0;
+
+/// Default `spindle.orient_timeout_s` (`M19` without `Q`).
+pub const DEFAULT_ORIENT_TIMEOUT_S: f64 = 5.0;
+
+/// Accepted `spindle.spin_up_s`, s.
+pub const SPIN_UP_RANGE_S: RangeInclusive<f64> = 0.0..=3600.0;
+
+/// Default `spindle.spin_up_s`: the time after a speed change at which a spindle without
+/// `at_speed_input` counts as at speed.
+pub const DEFAULT_SPIN_UP_S: f64 = 3.0;
+
+/// Accepted `spindle.speed_output_scale`, analog output units per rpm.
+pub const SPEED_OUTPUT_SCALE_RANGE: RangeInclusive<f64> = 1e-12..=1e6;
+
+/// Accepted `spindle.counts_per_rev`: the spindle drive's velocity counts per revolution.
+pub const SPINDLE_COUNTS_PER_REV_RANGE: RangeInclusive<f64> = 1e-3..=1e9;
+
+/// Default `spindle.counts_per_rev`.
+pub const DEFAULT_SPINDLE_COUNTS_PER_REV: f64 = 10_000.0;
+
+/// Default `tool_changer.timeout_s`: the automatic changer's handshake.
+pub const DEFAULT_TOOL_CHANGE_TIMEOUT_S: f64 = 30.0;
+
+/// Default `operator.optional_stop`: on, `M1` pauses (LinuxCNC's default).
+pub const DEFAULT_OPTIONAL_STOP: bool = true;
+
+/// Default `operator.single_block`: off.
+pub const DEFAULT_SINGLE_BLOCK: bool = false;
+
+/// Default `daemon.state_file`: where the daemon keeps the machine state that survives a
+/// restart (the tool in the spindle); the shipped systemd unit's state directory.
+pub const DEFAULT_STATE_FILE: &str = "/var/lib/kerf/machine-state.toml";

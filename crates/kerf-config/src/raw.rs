@@ -25,6 +25,14 @@ pub(crate) struct RawConfig {
     #[serde(default)]
     pub(crate) safety: RawSafety,
     pub(crate) ethercat: Option<Spanned<RawEthercat>>,
+    #[serde(default)]
+    pub(crate) io: RawIo,
+    pub(crate) spindle: Option<Spanned<RawSpindle>>,
+    #[serde(default)]
+    pub(crate) coolant: RawCoolant,
+    pub(crate) tool_changer: Option<Spanned<RawToolChanger>>,
+    #[serde(default)]
+    pub(crate) operator: RawOperator,
 }
 
 #[derive(Deserialize)]
@@ -126,6 +134,7 @@ pub(crate) struct RawDaemon {
     pub(crate) cpu: Option<Spanned<i64>>,
     pub(crate) queue_segments: Option<Spanned<i64>>,
     pub(crate) move_window: Option<Spanned<i64>>,
+    pub(crate) state_file: Option<Spanned<String>>,
 }
 
 /// `true` for a machine name that can be part of a service name: ASCII letters, digits,
@@ -212,4 +221,91 @@ pub(crate) struct RawEcatIo {
     pub(crate) inputs: BTreeMap<String, Spanned<i64>>,
     #[serde(default)]
     pub(crate) outputs: BTreeMap<String, Spanned<i64>>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawIo {
+    #[serde(default)]
+    pub(crate) digital_outputs: Vec<RawOutput>,
+    #[serde(default)]
+    pub(crate) digital_inputs: Vec<RawDigitalInput>,
+    #[serde(default)]
+    pub(crate) analog_outputs: Vec<RawOutput>,
+    #[serde(default)]
+    pub(crate) analog_inputs: Vec<RawAnalogInput>,
+}
+
+/// A digital or an analog output: the same keys.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawOutput {
+    pub(crate) number: Spanned<i64>,
+    pub(crate) name: Spanned<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawDigitalInput {
+    pub(crate) number: Spanned<i64>,
+    pub(crate) name: Spanned<String>,
+    pub(crate) sim: Option<Spanned<bool>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawAnalogInput {
+    pub(crate) number: Spanned<i64>,
+    pub(crate) name: Spanned<String>,
+    pub(crate) sim: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawSpindle {
+    pub(crate) kind: Option<Spanned<String>>,
+    pub(crate) max_rpm: Option<Spanned<f64>>,
+    pub(crate) min_rpm: Option<Spanned<f64>>,
+    pub(crate) acceleration_rpm_s: Option<Spanned<f64>>,
+    pub(crate) at_speed_tolerance: Option<Spanned<f64>>,
+    pub(crate) at_speed_timeout_s: Option<Spanned<f64>>,
+    pub(crate) fault_out_of_band: Option<bool>,
+    pub(crate) orient_timeout_s: Option<Spanned<f64>>,
+    pub(crate) enable_output: Option<Spanned<String>>,
+    pub(crate) reverse_output: Option<Spanned<String>>,
+    pub(crate) speed_output: Option<Spanned<String>>,
+    pub(crate) speed_output_scale: Option<Spanned<f64>>,
+    pub(crate) at_speed_input: Option<Spanned<String>>,
+    pub(crate) spin_up_s: Option<Spanned<f64>>,
+    pub(crate) counts_per_rev: Option<Spanned<f64>>,
+    pub(crate) off_at_end: Option<bool>,
+    pub(crate) off_at_abort: Option<bool>,
+    pub(crate) off_at_fault: Option<bool>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawCoolant {
+    pub(crate) mist: Option<Spanned<String>>,
+    pub(crate) flood: Option<Spanned<String>>,
+    pub(crate) off_at_end: Option<bool>,
+    pub(crate) off_at_abort: Option<bool>,
+    pub(crate) off_at_fault: Option<bool>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawToolChanger {
+    pub(crate) kind: Option<Spanned<String>>,
+    pub(crate) number_output: Option<Spanned<String>>,
+    pub(crate) change_output: Option<Spanned<String>>,
+    pub(crate) changed_input: Option<Spanned<String>>,
+    pub(crate) timeout_s: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawOperator {
+    pub(crate) optional_stop: Option<bool>,
+    pub(crate) single_block: Option<bool>,
 }

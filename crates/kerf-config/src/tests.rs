@@ -149,6 +149,7 @@ priority = 80
 cpu = 1
 queue_segments = 4096
 move_window = 1024
+state_file = "state.toml"
 [gcode]
 arc_tolerance_mm = 0.02
 arc_tolerance_rel = 0.001
@@ -171,6 +172,46 @@ g59_3 = [0.0, 0.0, 0.0]
 number = 1
 length_mm = 0.0
 radius_mm = 0.0
+[[io.digital_outputs]]
+number = 0
+name = "change"
+[[io.digital_inputs]]
+number = 0
+name = "changed"
+sim = true
+[[io.analog_outputs]]
+number = 0
+name = "tool_number"
+[[io.analog_inputs]]
+number = 0
+name = "force"
+sim = 0.5
+[spindle]
+kind = "drive"
+max_rpm = 24000.0
+min_rpm = 100.0
+acceleration_rpm_s = 8000.0
+at_speed_tolerance = 0.02
+at_speed_timeout_s = 10.0
+fault_out_of_band = true
+orient_timeout_s = 5.0
+counts_per_rev = 10000.0
+off_at_end = true
+off_at_abort = true
+off_at_fault = true
+[coolant]
+off_at_end = true
+off_at_abort = true
+off_at_fault = true
+[tool_changer]
+kind = "automatic"
+number_output = "tool_number"
+change_output = "change"
+changed_input = "changed"
+timeout_s = 30.0
+[operator]
+optional_stop = true
+single_block = true
 "#;
 
 /// A value of every key replaced by one of a wrong type is refused naming the key, in
@@ -228,8 +269,10 @@ fn every_type_error_names_the_key_and_the_expected_value_in_the_files_terms() {
         checked += 1;
     }
     // 4 top-level keys, 7 + 11 of X and its drive, 5 of Y, 5 of Z, 7 + 1 of C and its
-    // drive, 3 of [safety], 4 of [daemon], 7 of [gcode], 9 work offsets, 3 of a tool.
-    assert_eq!(checked, 66);
+    // drive, 3 of [safety], 5 of [daemon], 7 of [gcode], 9 work offsets, 3 of a tool,
+    // 2 + 3 + 2 + 3 of [io], 12 of [spindle], 3 of [coolant], 5 of [tool_changer], 2 of
+    // [operator].
+    assert_eq!(checked, 67 + 10 + 12 + 3 + 5 + 2);
     // The messages of some keys in full: the unit comes from the key's name.
     let e = err(&EVERY_KEY.replacen("period_us = 1000", "period_us = 1.5", 1));
     assert_eq!(
@@ -752,13 +795,15 @@ fn machine_name_and_daemon_table_default_and_are_checked() {
             cpu: None,
             queue_segments: 4096,
             move_window: 4096,
+            state_file: PathBuf::from("/var/lib/kerf/machine-state.toml"),
         }
     );
-    let c = Config::from_toml_str(
+    let c = Config::from_toml_str_in(
         &format!(
-            "machine = \"mill-2_a\"\n{MINIMAL}[daemon]\npriority = 90\ncpu = 3\nqueue_segments = 16\nmove_window = 65536\n"
+            "machine = \"mill-2_a\"\n{MINIMAL}[daemon]\npriority = 90\ncpu = 3\nqueue_segments = 16\nmove_window = 65536\nstate_file = \"state/m.toml\"\n"
         ),
         "m.toml",
+        Path::new("/etc/kerf"),
     )
     .unwrap();
     assert_eq!(c.machine, "mill-2_a");
@@ -769,6 +814,8 @@ fn machine_name_and_daemon_table_default_and_are_checked() {
             cpu: Some(3),
             queue_segments: 16,
             move_window: 65536,
+            // Relative to the configuration's directory.
+            state_file: PathBuf::from("/etc/kerf/state/m.toml"),
         }
     );
     for bad in ["", "a/b", "mill 2", "é", &"x".repeat(65)] {
@@ -789,6 +836,11 @@ fn machine_name_and_daemon_table_default_and_are_checked() {
         let e = err(&format!("{MINIMAL}[daemon]\n{key} = {value}\n"));
         assert!(e.contains(key), "{key} = {value}: {e}");
     }
+    let e = err(&format!("{MINIMAL}[daemon]\nstate_file = \"\"\n"));
+    assert!(
+        e.ends_with("error: `daemon.state_file` must name a file, found an empty string"),
+        "{e}"
+    );
     let e = err(&format!("{MINIMAL}[daemon]\nperiod_us = 250\n"));
     assert!(e.contains("period_us"), "{e}");
 }

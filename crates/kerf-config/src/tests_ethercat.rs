@@ -41,6 +41,14 @@ pub(crate) fn bus(top: &str, x: &str, io: &str) -> String {
     )
 }
 
+/// A spindle drive (`axis = "s"`) at position 4, after [`bus`]'s subdevices, with
+/// `extra` keys.
+pub(crate) fn spindle_drive(extra: &str) -> String {
+    format!(
+        "[[ethercat.drives]]\naxis = \"s\"\nposition = 4\nvendor_id = 0x2\nproduct_code = 0x402\n{extra}"
+    )
+}
+
 pub(crate) fn load(text: &str) -> Result<Config, String> {
     Config::from_toml_str(text, "m.toml").map_err(|e| e.to_string())
 }
@@ -94,14 +102,20 @@ fn the_example_file_loads_into_the_bus_it_describes() {
     assert_eq!(bus.watchdog_us, 20_000);
     // 20 ms in the ESC's 100 µs watchdog units.
     assert_eq!(bus.watchdog_intervals(), 200);
-    assert_eq!(bus.subdevices(), 4);
+    assert_eq!(bus.subdevices(), 5);
     let axes: Vec<(usize, u16)> = bus
         .drives
         .iter()
         .map(|d| (d.axis_index, d.position))
         .collect();
-    assert_eq!(axes, [(0, 0), (1, 1), (2, 2)]);
-    for d in &bus.drives {
+    assert_eq!(axes, [(0, 0), (1, 1), (2, 2), (SPINDLE_AXIS_INDEX, 3)]);
+    let spindle = bus.spindle_drive().expect("the spindle's drive");
+    assert_eq!(spindle.mode, DriveMode::Csv);
+    assert_eq!(
+        (spindle.identity.vendor_id, spindle.identity.product_code),
+        (0xECA, 0x402)
+    );
+    for d in &bus.drives[..3] {
         assert_eq!(
             (d.identity.vendor_id, d.identity.product_code),
             (0xECA, 0x402)
@@ -164,7 +178,7 @@ fn the_example_file_loads_into_the_bus_it_describes() {
     );
     assert!(bus.drives[1].sdo.is_empty());
     let io = &bus.io[0];
-    assert_eq!((io.position, io.identity.product_code), (3, 0x1001));
+    assert_eq!((io.position, io.identity.product_code), (4, 0x1001));
     let bits = |b: &[IoBit]| {
         b.iter()
             .map(|b| (b.name.clone(), b.bit))
@@ -231,7 +245,10 @@ fn bus_settings_take_their_documented_defaults() {
     assert_eq!(doc["ethercat.sdo_timeout_ms"], "1000");
     assert_eq!(doc["ethercat.dc_settle_timeout_ms"], "5000");
     assert_eq!(doc["ethercat.dc"], "true");
-    assert_eq!(doc["ethercat.drives.mode"], "\"csp\"");
+    assert_eq!(
+        doc["ethercat.drives.mode"],
+        "\"csp\"; \"csv\" for the spindle"
+    );
     // At a 125 µs period the default shift is 62.5 µs.
     let b = bus_config(&bus("", "", "").replace("period_us = 1000", "period_us = 125"));
     assert_eq!(b.sync0_shift_ns, 62_500);
@@ -403,7 +420,7 @@ fn every_configured_axis_has_exactly_one_drive() {
     assert_eq!(
         refused(&text),
         format!(
-            "{}`ethercat.drives[0].axis` must be one of the configured axes x, y, z, found `w`",
+            "{}`ethercat.drives[0].axis` must be one of the configured axes x, y, z, or s for the spindle, found `w`",
             at(&text, "\"w\"")
         )
     );
@@ -412,7 +429,7 @@ fn every_configured_axis_has_exactly_one_drive() {
     assert_eq!(
         refused(&text),
         format!(
-            "{}`ethercat.drives[0].axis` must be one of the configured axes x, y, z, found `a` (the file has no [axes.a])",
+            "{}`ethercat.drives[0].axis` must be one of the configured axes x, y, z, or s for the spindle, found `a` (the file has no [axes.a])",
             at(&text, "\"a\"")
         )
     );
@@ -641,18 +658,61 @@ fn the_axes_drive_tables_agree_with_the_bus() {
 }
 
 #[test]
-fn a_drive_mode_is_csp_or_csv() {
-    let b = bus_config(&bus("", "mode = \"csv\"\n", ""));
-    assert_eq!(b.drives[0].mode, DriveMode::Csv);
-    assert_eq!(b.drives[0].mode.mode_of_operation(), 9);
-    let rx: Vec<(u16, u8, u8)> = b.drives[0]
-        .rx_pdo
-        .entries
-        .iter()
-        .map(|e| (e.index, e.subindex, e.bits))
-        .collect();
-    assert_eq!(rx, [(0x6040, 0, 16), (0x60FF, 0, 32)]);
-    assert_eq!(b.drives[1].mode, DriveMode::Csp);
+fn a_drive_mode_is_csp_for_an_axis_and_csv_for_the_spindle() {
+    // The spindle's drive runs in csv whether `mode` says so or not.
+    for mode in ["", "mode = \"csv\"\n"] {
+        let text = format!("{}{}", bus("", "", ""), spindle_drive(mode));
+        let b = bus_config(&text);
+        let s = b.spindle_drive().expect("the spindle's drive");
+        assert_eq!(s.axis_index, SPINDLE_AXIS_INDEX);
+        assert_eq!(s.axis_index, 6);
+        assert_eq!(s.position, 4);
+        assert_eq!(s.mode, DriveMode::Csv);
+        assert_eq!(s.mode.mode_of_operation(), 9);
+        // CiA 402: controlword 0x6040, target velocity 0x60FF.
+        let rx: Vec<(u16, u8, u8)> = s
+            .rx_pdo
+            .entries
+            .iter()
+            .map(|e| (e.index, e.subindex, e.bits))
+            .collect();
+        assert_eq!(rx, [(0x6040, 0, 16), (0x60FF, 0, 32)]);
+        assert_eq!(b.drives[1].mode, DriveMode::Csp);
+        assert_eq!(b.subdevices(), 5);
+    }
+    let b = bus_config(&bus("", "", ""));
+    assert_eq!(b.spindle_drive(), None);
+    // An axis in csv, the spindle in csp: refused at the mode.
+    let text = bus("", "mode = \"csv\"\n", "");
+    assert_eq!(
+        refused(&text),
+        format!(
+            "{}`ethercat.drives[0].mode` is \"csv\" (cyclic synchronous velocity), which only the spindle's drive (`axis = \"s\"`) runs; axis x runs in \"csp\"",
+            at(&text, "\"csv\"")
+        )
+    );
+    let text = format!("{}{}", bus("", "", ""), spindle_drive("mode = \"csp\"\n"));
+    assert_eq!(
+        refused(&text),
+        format!(
+            "{}`ethercat.drives[3].mode` is \"csp\" but the drive is the spindle's (`axis = \"s\"`), which runs in cyclic synchronous velocity: make it \"csv\" or remove it",
+            at(&text, "\"csp\"")
+        )
+    );
+    // One spindle drive.
+    let text = format!(
+        "{}{}{}",
+        bus("", "", ""),
+        spindle_drive(""),
+        spindle_drive("").replace("position = 4", "position = 5")
+    );
+    assert_eq!(
+        refused(&text),
+        format!(
+            "{}the spindle has two drives: `ethercat.drives[4]` and `ethercat.drives[3]`; it has one",
+            at_nth(&text, "\"s\"", 1)
+        )
+    );
     let text = bus("", "mode = \"pp\"\n", "");
     assert_eq!(
         refused(&text),

@@ -2,7 +2,7 @@
 //! the I/O subdevices' named bits.
 
 use crate::ethercat::*;
-use crate::tests_ethercat::{at, bus, bus_config, refused};
+use crate::tests_ethercat::{at, bus, bus_config, refused, spindle_drive};
 
 fn rx(entries: &str) -> String {
     format!("rx_pdo = [{entries}]\n")
@@ -99,13 +99,35 @@ fn a_pdo_override_must_map_what_the_control_needs() {
             "{x}"
         );
     }
-    // In csv mode the target is the velocity.
-    let text = bus(
-        "",
-        &format!("mode = \"csv\"\n{}", rx(&format!("{CW}, {TP}"))),
-        "",
+    // The spindle's drive (csv) needs the target velocity out and the velocity actual
+    // value in; the position is not needed.
+    let text = format!(
+        "{}{}",
+        bus("", "", ""),
+        spindle_drive(&rx(&format!("{CW}, {TP}")))
     );
-    assert!(refused(&text).ends_with("must map the target velocity 0x60FF:0 (32 bits): the daemon cannot run the drive without it"), "{}", refused(&text));
+    assert_eq!(
+        refused(&text),
+        format!(
+            "{}`ethercat.drives[3].rx_pdo` must map the target velocity 0x60FF:0 (32 bits): the daemon cannot run the drive without it",
+            at(&text, "[{ index")
+        )
+    );
+    let text = format!("{}{}", bus("", "", ""), spindle_drive(&tx(PA)));
+    assert!(refused(&text).ends_with("`ethercat.drives[3].tx_pdo` must map the statusword 0x6041:0 (16 bits): the daemon cannot run the drive without it"), "{}", refused(&text));
+    let text = format!("{}{}", bus("", "", ""), spindle_drive(&tx(SW)));
+    assert!(refused(&text).ends_with("`ethercat.drives[3].tx_pdo` must map the velocity actual value 0x606C:0 (32 bits): the daemon cannot run the drive without it"), "{}", refused(&text));
+    let vel = "{ index = 0x606C, subindex = 0, bits = 32 }";
+    let text = format!(
+        "{}{}",
+        bus("", "", ""),
+        spindle_drive(&tx(&format!("{SW}, {vel}")))
+    );
+    let b = bus_config(&text);
+    assert_eq!(
+        b.spindle_drive().unwrap().tx_pdo.bit_offset(0x606C, 0),
+        Some((16, 32))
+    );
 }
 
 #[test]

@@ -168,7 +168,7 @@ pub(crate) fn expected_in_words(expected: &str, key: &str) -> String {
 
 /// The unit a key name ends with, in words (`period_us`: microseconds).
 pub(crate) fn unit_of(key: &str) -> Option<&'static str> {
-    const UNITS: [(&str, &str); 17] = [
+    const UNITS: [(&str, &str); 20] = [
         ("_mm_s3", "mm/s³"),
         ("_mm_s2", "mm/s²"),
         ("_mm_s", "mm/s"),
@@ -186,6 +186,9 @@ pub(crate) fn unit_of(key: &str) -> Option<&'static str> {
         ("_hz", "Hz"),
         ("_mm", "mm"),
         ("_deg", "degrees"),
+        ("_rpm_s", "rpm/s"),
+        ("_rpm", "rpm"),
+        ("_s", "seconds"),
     ];
     UNITS
         .iter()

@@ -17,6 +17,9 @@ use super::ethercat_objects::Needed;
 /// The axes' names as `axis` gives them, X to C.
 const AXIS_KEYS: [&str; MAX_AXES] = ["x", "y", "z", "a", "b", "c"];
 
+/// The spindle's name as `axis` gives it.
+const SPINDLE_AXIS_KEY: &str = "s";
+
 impl Checker<'_> {
     /// `[ethercat]` for the machine whose axes are `axes`, at `period_us`; marks the axes'
     /// drives as EtherCAT drives in `drive`.
@@ -191,6 +194,7 @@ impl Checker<'_> {
             let name = d.axis.get_ref().to_ascii_lowercase();
             let axis_index = match AXIS_KEYS.iter().position(|a| *a == name) {
                 Some(a) if configured[a] => a,
+                None if name == SPINDLE_AXIS_KEY => SPINDLE_AXIS_INDEX,
                 found => {
                     let known: Vec<&str> = AXIS_KEYS
                         .iter()
@@ -205,7 +209,7 @@ impl Checker<'_> {
                     return Err(self.error(
                         d.axis.span(),
                         format!(
-                            "`{key}.axis` must be one of the configured axes {}, found `{}`{why}",
+                            "`{key}.axis` must be one of the configured axes {}, or s for the spindle, found `{}`{why}",
                             known.join(", "),
                             d.axis.get_ref()
                         ),
@@ -215,9 +219,15 @@ impl Checker<'_> {
             if let Some(j) = out.iter().position(|o| o.axis_index == axis_index) {
                 return Err(self.error(
                     d.axis.span(),
-                    format!(
-                        "axis {name} has two drives: `{key}` and `ethercat.drives[{j}]`; each axis has one"
-                    ),
+                    if axis_index == SPINDLE_AXIS_INDEX {
+                        format!(
+                            "the spindle has two drives: `{key}` and `ethercat.drives[{j}]`; it has one"
+                        )
+                    } else {
+                        format!(
+                            "axis {name} has two drives: `{key}` and `ethercat.drives[{j}]`; each axis has one"
+                        )
+                    },
                 ));
             }
             out.push(self.ecat_drive(&key, d, axis_index)?);
@@ -243,7 +253,9 @@ impl Checker<'_> {
         d: &RawEcatDrive,
         axis_index: usize,
     ) -> Result<EthercatDrive, ConfigError> {
+        let spindle = axis_index == SPINDLE_AXIS_INDEX;
         let mode = match &d.mode {
+            None if spindle => DriveMode::Csv,
             None => DriveMode::Csp,
             Some(m) if m.get_ref() == "csp" => DriveMode::Csp,
             Some(m) if m.get_ref() == "csv" => DriveMode::Csv,
@@ -257,6 +269,26 @@ impl Checker<'_> {
                 ));
             }
         };
+        match (&d.mode, spindle, mode) {
+            (Some(m), true, DriveMode::Csp) => {
+                return Err(self.error(
+                    m.span(),
+                    format!(
+                        "`{key}.mode` is \"csp\" but the drive is the spindle's (`axis = \"s\"`), which runs in cyclic synchronous velocity: make it \"csv\" or remove it"
+                    ),
+                ));
+            }
+            (Some(m), false, DriveMode::Csv) => {
+                return Err(self.error(
+                    m.span(),
+                    format!(
+                        "`{key}.mode` is \"csv\" (cyclic synchronous velocity), which only the spindle's drive (`axis = \"s\"`) runs; axis {} runs in \"csp\"",
+                        AXIS_KEYS[axis_index]
+                    ),
+                ));
+            }
+            _ => {}
+        }
         let target = match mode {
             DriveMode::Csp => "target position",
             DriveMode::Csv => "target velocity",
@@ -281,6 +313,19 @@ impl Checker<'_> {
                 },
             ],
         )?;
+        let actual = if spindle {
+            Needed {
+                object: VELOCITY_ACTUAL,
+                bits: 32,
+                what: "velocity actual value",
+            }
+        } else {
+            Needed {
+                object: POSITION_ACTUAL,
+                bits: 32,
+                what: "position actual value",
+            }
+        };
         let tx_pdo = self.pdo(
             &format!("{key}.tx_pdo"),
             &format!("{key}.tx_pdo_index"),
@@ -294,11 +339,7 @@ impl Checker<'_> {
                     bits: 16,
                     what: "statusword",
                 },
-                Needed {
-                    object: POSITION_ACTUAL,
-                    bits: 32,
-                    what: "position actual value",
-                },
+                actual,
             ],
         )?;
         if let Some(both) = rx_pdo
@@ -375,12 +416,7 @@ impl Checker<'_> {
         let mut out: Vec<IoBit> = Vec::with_capacity(raw.len());
         for (name, bit) in raw {
             let here = format!("{key}.{name}");
-            let valid = (1..=64).contains(&name.len())
-                && name.starts_with(|c: char| c.is_ascii_alphabetic())
-                && name
-                    .bytes()
-                    .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-');
-            if !valid {
+            if !super::valid_io_name(name) {
                 return Err(self.error(
                     bit.span(),
                     format!(

@@ -4,6 +4,7 @@
 mod drives;
 mod ethercat;
 mod ethercat_objects;
+mod machine;
 mod top;
 
 use kerf_geom::PerAxis;
@@ -15,6 +16,16 @@ use toml::Spanned;
 use crate::raw::*;
 use crate::toml_words::{number, position_of};
 use crate::*;
+
+/// `true` for the name of an I/O bit or an `[io]` entry: 1 to 64 ASCII letters, digits,
+/// `_` or `-`, starting with a letter.
+pub(crate) fn valid_io_name(name: &str) -> bool {
+    (1..=64).contains(&name.len())
+        && name.starts_with(|c: char| c.is_ascii_alphabetic())
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+}
 
 /// Validation with access to the source text, so that errors carry line and column.
 pub(crate) struct Checker<'a> {

@@ -1,5 +1,5 @@
 //! The whole configuration checked, key group by key group: machine, daemon, dialect,
-//! period, tolerance, axes, drives, G-code settings.
+//! period, tolerance, axes, drives, the machine's functions, G-code settings.
 
 use std::path::Path;
 
@@ -40,11 +40,22 @@ impl Checker<'_> {
                 w,
             )?,
         };
+        let state_file = match &raw.state_file {
+            None => d.state_file,
+            Some(f) if f.get_ref().is_empty() => {
+                return Err(self.error(
+                    f.span(),
+                    "`daemon.state_file` must name a file, found an empty string".to_string(),
+                ));
+            }
+            Some(f) => self.dir.join(f.get_ref()),
+        };
         Ok(DaemonConfig {
             priority,
             cpu,
             queue_segments,
             move_window,
+            state_file,
         })
     }
 
@@ -72,6 +83,12 @@ impl Checker<'_> {
         let mut drive = self.drive_side(&raw, &axes)?;
         size_substeps(&raw, &mut drive, period_us);
         let ethercat = self.ethercat(&raw, &axes, period_us, &mut drive)?;
+        let io = self.io(&raw.io, ethercat.as_ref())?;
+        let spindle = self.spindle(raw.spindle.as_ref(), &io, ethercat.as_ref())?;
+        let coolant = self.coolant(&raw.coolant, &io)?;
+        let tool_changer = self.tool_changer(raw.tool_changer.as_ref(), &io)?;
+        self.outputs_used_once(&raw)?;
+        let operator = self.operator(&raw.operator);
         let dump_dir = match &raw.safety.dump_dir {
             None => None,
             Some(d) if d.get_ref().is_empty() => {
@@ -148,6 +165,11 @@ impl Checker<'_> {
             parameter_file,
             drive,
             ethercat,
+            io,
+            spindle,
+            coolant,
+            tool_changer,
+            operator,
         })
     }
     /// `machine`: the name of the daemon's services.

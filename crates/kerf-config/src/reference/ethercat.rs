@@ -89,13 +89,14 @@ pub(super) fn keys() -> Vec<KeyDoc> {
             "ethercat.drives",
             "required with [ethercat]".into(),
             "array of tables".into(),
-            "One CiA 402 servo drive per configured axis (`[[ethercat.drives]]`). Its scale is the axis's `[axes.*.drive]` `counts_per_mm` (`counts_per_deg`) and `direction`; the simulated drive's tuning keys are refused.",
+            "One CiA 402 servo drive per configured axis (`[[ethercat.drives]]`), and the spindle's when `[spindle]` is a \"drive\". An axis's scale is its `[axes.*.drive]` `counts_per_mm` (`counts_per_deg`) and `direction` (the simulated drive's tuning keys are refused), the spindle's `spindle.counts_per_rev`.",
         ),
         k(
             "ethercat.drives.axis",
             req(),
-            "x, y, z, a, b, c (either case): a configured axis, once".into(),
-            "The axis the drive moves.",
+            "x, y, z, a, b, c (either case): a configured axis, once; or s: the spindle, once"
+                .into(),
+            "The axis the drive moves, or `s` for the spindle's drive (cyclic synchronous velocity; `spindle.kind` must be \"drive\").",
         ),
         k(
             "ethercat.drives.position",
@@ -123,9 +124,13 @@ pub(super) fn keys() -> Vec<KeyDoc> {
         ),
         k(
             "ethercat.drives.mode",
-            format!("\"{}\"", DriveMode::Csp.name()),
-            "\"csp\" or \"csv\"".into(),
-            "\"csp\": cyclic synchronous position (0x6060 = 8), the axis's setpoints as target positions. \"csv\": cyclic synchronous velocity (0x6060 = 9, target velocity 0x60FF), for a spindle axis in a later issue: nothing produces velocity setpoints yet.",
+            format!(
+                "\"{}\"; \"{}\" for the spindle",
+                DriveMode::Csp.name(),
+                DriveMode::Csv.name()
+            ),
+            "\"csp\" for an axis, \"csv\" for the spindle".into(),
+            "\"csp\": cyclic synchronous position (0x6060 = 8), the axis's setpoints as target positions; every axis's. \"csv\": cyclic synchronous velocity (0x6060 = 9, target velocity 0x60FF), the spindle's (`axis = \"s\"`) only.",
         ),
         k(
             "ethercat.drives.rx_pdo_index",
@@ -171,7 +176,7 @@ pub(super) fn keys() -> Vec<KeyDoc> {
             "ethercat.drives.tx_pdo",
             pdo_words(&Pdo::default_tx()),
             format!("1 to {MAX_PDO_ENTRIES} entries, at most {MAX_PDO_BYTES} bytes"),
-            "The inputs mapping, entries as in `rx_pdo`: it must map the statusword 0x6041:0 (16 bits) and the position actual value 0x6064:0 (32 bits).",
+            "The inputs mapping, entries as in `rx_pdo`: it must map the statusword 0x6041:0 (16 bits) and the position actual value 0x6064:0 (32 bits), for the spindle the velocity actual value 0x606C:0 (32 bits) instead.",
         ),
         k(
             "ethercat.drives.sdo",

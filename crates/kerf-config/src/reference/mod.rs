@@ -14,6 +14,7 @@ use crate::toml_words::{number, unit_of};
 use crate::*;
 
 mod ethercat;
+mod machine;
 
 /// One key of the configuration file.
 #[derive(Clone, Debug)]
@@ -313,6 +314,12 @@ pub fn keys() -> Vec<KeyDoc> {
             "Resolved moves a planner process may send that the daemon has not taken yet.",
         ),
         k(
+            "daemon.state_file",
+            format!("\"{DEFAULT_STATE_FILE}\""),
+            "a file name".into(),
+            "Where the daemon keeps the machine state that survives a restart (the tool in the spindle), written atomically; relative to the configuration's directory. `kerf run --embedded` and tests pass another path.",
+        ),
+        k(
             "gcode",
             "all defaults".into(),
             "table".into(),
@@ -488,6 +495,7 @@ pub fn keys() -> Vec<KeyDoc> {
         ),
     ];
     all.extend(ethercat::keys());
+    all.extend(machine::keys());
     all
 }
 
@@ -613,6 +621,18 @@ mod tests {
         );
         assert_eq!(documented("ethercat.drives.sdo"), accepted::<RawSdo>());
         assert_eq!(documented("ethercat.io"), accepted::<RawEcatIo>());
+        assert_eq!(documented("io"), accepted::<RawIo>());
+        assert_eq!(documented("io.digital_outputs"), accepted::<RawOutput>());
+        assert_eq!(documented("io.analog_outputs"), accepted::<RawOutput>());
+        assert_eq!(
+            documented("io.digital_inputs"),
+            accepted::<RawDigitalInput>()
+        );
+        assert_eq!(documented("io.analog_inputs"), accepted::<RawAnalogInput>());
+        assert_eq!(documented("spindle"), accepted::<RawSpindle>());
+        assert_eq!(documented("coolant"), accepted::<RawCoolant>());
+        assert_eq!(documented("tool_changer"), accepted::<RawToolChanger>());
+        assert_eq!(documented("operator"), accepted::<RawOperator>());
     }
 
     /// The documented defaults are what a configuration without the keys gets.
@@ -636,5 +656,53 @@ mod tests {
             doc["daemon.move_window"],
             config.daemon.move_window.to_string()
         );
+        assert_eq!(
+            doc["daemon.state_file"],
+            format!("\"{}\"", config.daemon.state_file.display())
+        );
+        // The machine's functions: a simulated drive spindle, no coolant, a manual tool
+        // changer, the switches as LinuxCNC starts.
+        let s = &config.spindle;
+        assert!(
+            matches!(s.kind, SpindleKind::Drive(d) if number(d.counts_per_rev) == doc["spindle.counts_per_rev"] && !d.on_bus)
+        );
+        assert_eq!(doc["spindle.max_rpm"], number(s.max_rpm));
+        assert_eq!(doc["spindle.min_rpm"], number(s.min_rpm));
+        assert_eq!(
+            doc["spindle.acceleration_rpm_s"],
+            number(s.acceleration_rpm_s)
+        );
+        assert_eq!(
+            doc["spindle.at_speed_tolerance"],
+            number(s.at_speed_tolerance)
+        );
+        assert_eq!(
+            doc["spindle.at_speed_timeout_s"],
+            number(s.at_speed_timeout_s)
+        );
+        assert_eq!(doc["spindle.orient_timeout_s"], number(s.orient_timeout_s));
+        assert_eq!(
+            doc["spindle.fault_out_of_band"],
+            s.fault_out_of_band.to_string()
+        );
+        for (key, v) in [
+            ("spindle.off_at_end", s.off_at_end),
+            ("spindle.off_at_abort", s.off_at_abort),
+            ("spindle.off_at_fault", s.off_at_fault),
+            ("coolant.off_at_end", config.coolant.off_at_end),
+            ("coolant.off_at_abort", config.coolant.off_at_abort),
+            ("coolant.off_at_fault", config.coolant.off_at_fault),
+            ("operator.optional_stop", config.operator.optional_stop),
+            ("operator.single_block", config.operator.single_block),
+        ] {
+            assert_eq!(doc[key], v.to_string(), "{key}");
+        }
+        assert_eq!(
+            (&config.coolant.mist, &config.coolant.flood),
+            (&None, &None)
+        );
+        assert_eq!(config.tool_changer, ToolChanger::Manual);
+        assert_eq!(doc["tool_changer.kind"], "\"manual\"");
+        assert_eq!(config.io, IoConfig::default());
     }
 }
