@@ -19,7 +19,8 @@ use crate::{Input, Planned};
 /// - M0, M1 and M60 are pauses (M1 only while the optional-stop switch is on, which the
 ///   machine decides when it gets there); M2 and M30 end the program (the machine switches
 ///   the spindle and coolant off as configured); M6 is the change to the tool selected by
-///   the last T (without a T, nothing changes: the tool in the spindle stays).
+///   the last T (without a T, nothing changes: the tool in the spindle stays), and it
+///   leaves the spindle stopped (as LinuxCNC's M6 does).
 /// - M3, M4 and M5 with the last S make the spindle command; an S while the spindle
 ///   turns changes its speed; an S while it stands only sets the speed of the next start.
 ///   The first feed move after a start or a change of speed waits until the spindle is at
@@ -85,7 +86,13 @@ impl ProgramActions {
                 None
             }
             C::M6 => match self.tool {
-                Some(tool) => act(ActionKind::ToolChange { tool }),
+                Some(tool) => {
+                    // The change stops the spindle (as LinuxCNC's M6 does): the program
+                    // starts it again with M3 or M4, and the feed after that waits.
+                    self.dir = SpindleDir::Off;
+                    self.at_speed_due = false;
+                    act(ActionKind::ToolChange { tool })
+                }
                 None => Some(Input::Stop),
             },
             C::S => {

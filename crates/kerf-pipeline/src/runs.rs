@@ -10,7 +10,7 @@ use kerf_plan::{MachineLimits, PlanError};
 
 use crate::plan_step::PlanStep;
 use crate::runner::{Runner, Source};
-use crate::{Input, Planned, Poll, RunError, RunOptions, Summary};
+use crate::{Input, Planned, Poll, RunError, RunOptions, Sink, Summary};
 
 /// The source of [`run`]: plans each input when the run asks for the next item.
 struct Inline<I> {
@@ -158,7 +158,7 @@ pub fn run_stream<I, F>(
 where
     I: Iterator + Send,
     I::Item: Into<Input>,
-    F: FnMut(f64, &Setpoint),
+    F: Sink,
 {
     let (tx, rx) = std::sync::mpsc::sync_channel::<Batch>(4);
     let design_override = options.feed_override;
@@ -234,7 +234,7 @@ pub fn run_planned<S, F>(
 ) -> Result<Summary, RunError>
 where
     S: IntoIterator<Item = Planned>,
-    F: FnMut(f64, &Setpoint),
+    F: Sink,
 {
     let mut runner = Runner::new(limits, options, sink);
     runner.attach(monitor)?;
@@ -328,7 +328,7 @@ mod tests {
             &planned,
             &RunOptions::default(),
             None,
-            |_, sp| free.push(sp.position[0]),
+            |_, sp: &Setpoint| free.push(sp.position[0]),
         )
         .unwrap();
         let first = free
@@ -343,7 +343,7 @@ mod tests {
             &planned,
             &RunOptions::default(),
             Some(&mut monitor),
-            |t, sp| seen.push((t, sp.position[0], sp.line)),
+            |t, sp: &Setpoint| seen.push((t, sp.position[0], sp.line)),
         );
         let Err(RunError::Fault(v)) = result else {
             panic!("no fault: {result:?}");
@@ -369,7 +369,7 @@ mod tests {
             &planned,
             &RunOptions::default(),
             Some(&mut monitor),
-            |_, _| rows += 1,
+            |_, _: &Setpoint| rows += 1,
         );
         assert_eq!(result, Err(RunError::Fault(v)));
         assert_eq!(rows, first + 1);

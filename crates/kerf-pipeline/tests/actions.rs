@@ -23,7 +23,7 @@ fn planned(inputs: &[Input], limits: &MachineLimits) -> Vec<Planned> {
     let mut order = ActionOrder::new();
     let mut buf = Vec::new();
     let mut out = Vec::new();
-    let mut drain = |buf: &mut Vec<_>, order: &mut ActionOrder, out: &mut Vec<Planned>| {
+    let drain = |buf: &mut Vec<_>, order: &mut ActionOrder, out: &mut Vec<Planned>| {
         for s in buf.drain(..) {
             out.extend(order.before(&s));
             out.push(Planned::Segment(s, 0));

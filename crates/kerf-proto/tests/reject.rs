@@ -643,7 +643,7 @@ fn events() {
         Reject::NegativeDwell
     );
     // The P (L) and Q words: M66 may carry both, M67 needs a Q, M3 takes neither.
-    let mut m66 = kerf_geom::Event::new(7, EventCode::M66, Some(2.0));
+    let mut m66 = Event::new(7, EventCode::M66, Some(2.0));
     m66.p = Some(3.0);
     m66.q = Some(1.5);
     let msg = MoveMsg::from_event(1, 1, &m66);

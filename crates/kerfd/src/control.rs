@@ -70,7 +70,7 @@ pub(crate) fn control_thread(
         hold_requested: false,
         next_tag: 1,
         pushed: 0,
-        inputs: crate::machine::SimInputs::of(config),
+        inputs: machine::SimInputs::of(config),
     };
     let apply_patience = apply_patience(config);
     let mut view = CycleView {
@@ -84,12 +84,30 @@ pub(crate) fn control_thread(
     // is up, so a client that got an answer can open them all (`kerfd` is ready when
     // `kerf status` answers).
     let mut cycle_runs = false;
+    let mut saved_tool = machine::load_tool(&config.daemon.state_file).unwrap_or(0);
+    let mut state_warned = false;
     loop {
         cycle_runs |= view.pull();
         writer.take(&mut dumps, None);
         if view.latest.state != MachineState::Holding && view.latest.program_done {
             // The program is over: a hold asked for during it is void.
             requests.hold_requested = false;
+        }
+        let tool = view.latest.machine.tool_in_spindle;
+        if cycle_runs && tool != saved_tool {
+            // The tool in the spindle survives a restart: written as soon as it changes.
+            match machine::save_tool(&config.daemon.state_file, tool) {
+                Ok(()) => saved_tool = tool,
+                Err(e) => {
+                    if !state_warned {
+                        tracing::error!(
+                            "cannot keep the tool in the spindle (T{tool}) in {}: {e}; after a restart the daemon will not know it",
+                            config.daemon.state_file.display()
+                        );
+                        state_warned = true;
+                    }
+                }
+            }
         }
         while cycle_runs && let Ok(Some(active)) = server.receive() {
             let request = *active.payload();
@@ -120,6 +138,8 @@ pub(crate) fn control_thread(
                 axes_mask,
                 period_ns,
             );
+            machine::fill_status(&mut msg, &view.latest.machine, config);
+            msg.input_result_program = view.latest.input_result_program;
             if view.latest.drives.fault.is_some()
                 && let Some(path) = writer.fault_path()
             {
@@ -163,7 +183,7 @@ struct Requests {
     /// its command, so that its status is the status after the request.
     pushed: u64,
     /// Which inputs an operator (or a test) may set: the simulated ones.
-    inputs: crate::machine::SimInputs,
+    inputs: machine::SimInputs,
 }
 
 impl Requests {

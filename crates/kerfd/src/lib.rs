@@ -30,6 +30,7 @@ mod dump_writer;
 pub mod fates;
 pub mod fault_text;
 pub mod ipc;
+pub mod machine;
 mod planning;
 pub mod publish;
 mod status;
@@ -266,6 +267,11 @@ pub fn start_with(
     let window = config.daemon.move_window as usize;
 
     let shared = Shared::default();
+    // The switches start as the configuration says.
+    shared
+        .counters
+        .single_block
+        .store(config.operator.single_block, Ordering::Release);
 
     let (items_tx, items_rx) = rtrb::RingBuffer::<RtItem>::new(PLANNED_RING);
     let (commands_tx, commands_rx) = rtrb::RingBuffer::<CycleCommand>::new(COMMAND_RING);

@@ -36,6 +36,21 @@ pub(crate) fn idle_snapshot() -> Snapshot {
         bus: None,
         reset: None,
         commands_applied: 0,
+        machine: kerf_drive::machine::MachineStatus {
+            pause: None,
+            switches: kerf_drive::machine::Switches::default(),
+            tool_in_spindle: 0,
+            spindle: None,
+            coolant: kerf_drive::machine::CoolantStatus {
+                mist: false,
+                flood: false,
+            },
+            feed_override_enabled: true,
+            io: kerf_drive::machine::IoImage::default(),
+            last_input: None,
+            fault: None,
+        },
+        input_result_program: 0,
     }
 }
 

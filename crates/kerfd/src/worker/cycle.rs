@@ -208,6 +208,15 @@ pub struct Cycle {
     disable_wait: u32,
     /// Whether any drive keeps its own time (see [`Cycle::missed`]).
     drives_keep_time: bool,
+    /// The machine around the axes: spindle, coolant, tool changer, I/O, pauses.
+    machine: Machine,
+    /// The machine's fault was passed to the drive stage (it latches once).
+    machine_fault_tripped: bool,
+    /// Whether the feed override was enabled (M48–M50) in the last cycle.
+    feed_override_enabled: bool,
+    /// The last wait on an input seen ended (its sequence number) and the program it
+    /// ended in.
+    input_result: (u64, u64),
 }
 
 impl Cycle {
@@ -228,6 +237,8 @@ impl Cycle {
         let start = stage.command();
         let mut core = MotionCore::new(limits.period_s, capacity);
         core.set_position(start);
+        let machine = Machine::new(crate::machine::machine_config(config)?)
+            .map_err(|e| format!("the machine's configuration: {e}"))?;
         Ok(Cycle {
             interp: Interpolator::new(core),
             tracker: Tracker::with_capacity(TRACKED_MOVES),
@@ -268,12 +279,21 @@ impl Cycle {
                 .iter()
                 .flatten()
                 .any(|d| d.kind.keeps_time()),
+            machine,
+            machine_fault_tripped: false,
+            feed_override_enabled: true,
+            input_result: (0, 0),
         })
     }
 
     /// The drive stage (for tests: its black box and drives).
     pub fn stage(&self) -> &DriveStage<MachineDrive> {
         &self.stage
+    }
+
+    /// The machine around the axes (for tests: its outputs and spindle).
+    pub fn machine(&self) -> &Machine {
+        &self.machine
     }
 
     /// Brings the EtherCAT bus of `config` (if any) to OP: the last step before the first
@@ -352,6 +372,10 @@ impl Cycle {
                 Err(_) => break,
             }
         }
+        // The machine's models advance one period; the spindle is watched while the
+        // last setpoint fed.
+        let feeding = self.setpoint.feed_mm_s > 0.0 && !self.setpoint.rapid;
+        self.machine.cycle(feeding);
         if self.program.is_none() {
             self.begin_next();
         }
@@ -373,9 +397,11 @@ impl Cycle {
         }
         let mut program_id = self.last_program.0;
         let mut program_cycle = 0;
+        self.apply_feed_override_enable();
         if started {
             let mut sp = Setpoint::default();
             self.interp.step(&mut sp);
+            self.interp.fire_synced(&mut self.machine);
             self.tracker.track(&mut sp);
             self.setpoint = sp;
             // Forget the estimated times of the segments the core has finished.
@@ -398,6 +424,7 @@ impl Cycle {
                 }
             }
         }
+        self.check_machine();
         // The drive side: the setpoint (unless an injected stall withholds it, or an
         // injected step moves it) goes through the safety layer to the drives.
         let setpoint = if self.stall_left > 0 {
@@ -500,6 +527,11 @@ impl Cycle {
         if let Some(r) = out.reset
             && let Some(tag) = self.reset_tag.take()
         {
+            if r.is_ok() {
+                // The drives are back: the machine's own fault (if any) clears with them.
+                self.machine.reset();
+                self.machine_fault_tripped = false;
+            }
             self.last_reset = Some((tag, r));
         }
         self.sent = out.command;
@@ -523,9 +555,70 @@ impl Cycle {
         self.setpoint.feed_mm_s = 0.0;
     }
 
+    /// A fault of the machine (the spindle, the tool changer) latches in the drive stage
+    /// once, as any fault: the axes stop on the quick stop and the program is dropped.
+    fn check_machine(&mut self) {
+        use kerf_drive::machine::MachineFault as F;
+        use kerf_drive::safety::Check;
+        let Some(fault) = self.machine.fault() else {
+            return;
+        };
+        if self.machine_fault_tripped {
+            return;
+        }
+        self.machine_fault_tripped = true;
+        let line = match fault.line() {
+            0 => self.setpoint.line,
+            l => l,
+        };
+        // A spindle on outputs without feedback has no actual speed to report: 0.
+        let rpm = |actual: Option<f64>| actual.unwrap_or(0.0);
+        let (check, value, limit) = match fault {
+            F::SpindleNotAtSpeed {
+                commanded_rpm,
+                actual_rpm,
+                ..
+            } => (Check::SpindleAtSpeed, rpm(actual_rpm), commanded_rpm),
+            F::SpindleOutOfBand {
+                commanded_rpm,
+                actual_rpm,
+                ..
+            } => (Check::SpindleBand, rpm(actual_rpm), commanded_rpm),
+            F::SpindleNotStopped { actual_rpm, .. } => {
+                (Check::SpindleAtSpeed, rpm(actual_rpm), 0.0)
+            }
+            F::OrientTimeout { timeout_s, .. } => (Check::SpindleOrient, timeout_s, timeout_s),
+            F::ToolChangeTimeout { tool, waited_s, .. } => {
+                (Check::ToolChange, f64::from(tool), waited_s)
+            }
+            _ => (Check::SpindleAtSpeed, 0.0, 0.0),
+        };
+        if let Some(f) = self.stage.trip_machine(check, value, limit, line) {
+            self.safety_stop(f);
+        }
+    }
+
+    /// The feed override applies while enabled (M48, M50); disabled, the motion runs at
+    /// 100 %.
+    fn apply_feed_override_enable(&mut self) {
+        let enabled = self.machine.feed_override_enabled();
+        if enabled == self.feed_override_enabled {
+            return;
+        }
+        self.feed_override_enabled = enabled;
+        let factor = if enabled {
+            self.override_pct / 100.0
+        } else {
+            1.0
+        };
+        self.interp.apply(OperatorEvent::Override(factor));
+    }
+
     /// The safety layer tripped: the program is dropped (its rest is refused), the
     /// motion core forgets its queue.
     fn safety_stop(&mut self, fault: Fault) {
+        self.machine
+            .end_program(kerf_drive::machine::EndCause::Fault);
         if let Some(p) = self.program.as_mut() {
             p.refusal = Some(Refusal::Safety(fault));
             self.interp.apply(OperatorEvent::Abort);

@@ -11,6 +11,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 
+use kerf_drive::machine::{Machine, MachineStatus};
 use kerf_drive::recorder::Recorder;
 use kerf_drive::safety::{Fault, ResetRefused, SafetyState};
 use kerf_drive::sim::SimDrive;
@@ -269,4 +270,19 @@ pub struct Snapshot {
     /// Commands the cycle has taken and applied since the start (a request's answer
     /// waits until its command is among them).
     pub commands_applied: u64,
+    /// The machine around the axes: pause, switches, tool, spindle, coolant, I/O.
+    pub machine: MachineStatus,
+    /// The program during which the last wait on an input (its result in
+    /// `machine.last_input`) ended; 0 when none.
+    pub input_result_program: u64,
+}
+
+impl Snapshot {
+    /// `true` when the program waits at a pause that cycle start ends (a program stop, a
+    /// manual tool change, single block).
+    pub fn waits_for_operator(&self) -> bool {
+        self.machine
+            .pause
+            .is_some_and(|p| p.reason.needs_cycle_start())
+    }
 }

@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::worker::fieldbus::MachineDrive;
+use kerf_drive::machine::EndCause;
 
 impl Cycle {
     pub(super) fn apply(&mut self, c: CycleCommand) {
@@ -11,10 +12,17 @@ impl Cycle {
             // stop the next program before its first move.
             CycleCommand::Hold if self.program.is_none() => {}
             CycleCommand::Hold => self.interp.apply(OperatorEvent::Hold),
-            CycleCommand::Resume => self.interp.apply(OperatorEvent::Resume),
+            CycleCommand::Resume => {
+                // Cycle start: a hold resumes, and a pause that waits for the operator
+                // ends (both, when the operator held during a pause).
+                self.interp.apply(OperatorEvent::Resume);
+                self.machine.resume();
+            }
             CycleCommand::Override(pct) => {
                 self.override_pct = pct;
-                if pct == 0.0 {
+                if !self.feed_override_enabled {
+                    // Disabled by the program (M49, M50 P0): kept for when it is enabled.
+                } else if pct == 0.0 {
                     // A control at 0 % stands still on the path (the core holds).
                     self.interp.apply(OperatorEvent::Override(0.0));
                 } else {
@@ -24,12 +32,14 @@ impl Cycle {
             CycleCommand::Abort => {
                 if let Some(p) = self.program.as_mut() {
                     p.aborted = true;
+                    self.machine.end_program(EndCause::Abort);
                 }
                 self.interp.apply(OperatorEvent::Abort)
             }
             CycleCommand::AbortProgram(id) => match self.program.as_mut() {
                 Some(p) if p.id == id => {
                     p.aborted = true;
+                    self.machine.end_program(EndCause::Abort);
                     self.interp.apply(OperatorEvent::Abort)
                 }
                 // Already over, or not begun yet: it begins aborted.
@@ -44,6 +54,7 @@ impl Cycle {
                 if let Some(p) = self.program.as_mut() {
                     p.aborted = true;
                 }
+                self.machine.end_program(EndCause::Abort);
                 self.shutting_down = true;
                 self.interp.apply(OperatorEvent::Abort);
             }
@@ -60,6 +71,24 @@ impl Cycle {
             }
             CycleCommand::Dump(tag) => self.stage.request_dump(tag),
             CycleCommand::Inject(i) => self.inject(i),
+            CycleCommand::Switch(switch, on) => match switch {
+                kerf_proto::Switch::OptionalStop => self.machine.set_optional_stop(on),
+                kerf_proto::Switch::BlockDelete => self.machine.set_block_delete(on),
+                kerf_proto::Switch::SingleBlock => self.machine.set_single_block(on),
+            },
+            CycleCommand::SpindleOverride(pct) => self.machine.set_spindle_override_pct(pct),
+            CycleCommand::SetInput {
+                analog,
+                index,
+                value,
+            } => {
+                // The control thread checked that the input exists and is simulated.
+                let _ = if analog {
+                    self.machine.set_input_analog(index, value)
+                } else {
+                    self.machine.set_input_digital(index, value != 0.0)
+                };
+            }
         }
     }
 

@@ -89,6 +89,7 @@ impl Cycle {
         let items = &mut self.items;
         let tracker = &mut self.tracker;
         let queued = &mut self.queued;
+        let machine = &mut self.machine;
         let aborted = self.interp.aborted();
         let mut refusal = None;
         let mut pending = false;
@@ -129,7 +130,7 @@ impl Cycle {
                     let _ = items.pop();
                 }
             },
-            &mut kerf_geom::machine::InstantMachine,
+            machine,
         );
         if let Some(p) = self.program.as_mut() {
             p.planned += planned;

@@ -11,6 +11,9 @@ impl Cycle {
         match core.state {
             MotionState::Held => MachineState::Holding,
             MotionState::Stopping if self.interp.core().is_held() => MachineState::Holding,
+            _ if self.interp.waiting_for().is_some() && self.machine.pause().is_some() => {
+                MachineState::Paused
+            }
             _ if self.program.is_some() && self.starved => MachineState::Starved,
             _ if self.program.is_some() => MachineState::Running,
             MotionState::Idle => MachineState::Idle,
@@ -20,6 +23,12 @@ impl Cycle {
 
     pub(super) fn report(&mut self, state: MachineState) {
         let core = self.interp.core().status();
+        if let Some(r) = self.machine.status().last_input
+            && r.seq != self.input_result.0
+        {
+            // A wait on an input ended in this cycle: it belongs to the running program.
+            self.input_result = (r.seq, self.program.map_or(self.last_program.0, |p| p.id));
+        }
         let (program_id, refusal, aborted, done) = match self.program {
             Some(p) => (p.id, p.refusal, p.aborted, false),
             None => (
@@ -48,6 +57,8 @@ impl Cycle {
             bus: self.bus_report(),
             reset: self.last_reset,
             commands_applied: self.commands_applied,
+            machine: self.machine.status(),
+            input_result_program: self.input_result.1,
         };
         // A full ring means the control thread is behind: it gets the next one.
         let _ = self.status.push(snapshot);
