@@ -372,3 +372,59 @@ impl Config {
         }
     }
 }
+
+impl MachineCaps {
+    /// `Err` with the reason when this machine cannot do what event `e` asks (a spindle it
+    /// does not have, a speed above its top speed, coolant or an input or output it has no
+    /// wiring for, a tool change without a tool changer): such a program is refused before
+    /// any motion.
+    pub fn check_event(&self, e: &kerf_geom::Event) -> Result<(), String> {
+        use kerf_geom::EventCode as C;
+        let code = e.code.as_str();
+        let number = e.value.unwrap_or(0.0);
+        let n = if number >= 0.0 && number.fract() == 0.0 && number < 64.0 {
+            number as u32
+        } else {
+            u32::MAX
+        };
+        let missing = |what: &str, key: &str| {
+            Err(format!(
+                "{code}{}: this machine has no {what} ({key})",
+                match e.code {
+                    C::M62 | C::M63 | C::M64 | C::M65 | C::M66 => format!(" P{number}"),
+                    C::M66Analog | C::M67 | C::M68 => format!(" E{number}"),
+                    _ => String::new(),
+                }
+            ))
+        };
+        match e.code {
+            C::M3 | C::M4 | C::M19 if self.spindle_max_rpm.is_none() => {
+                missing("spindle", "spindle.kind = \"none\"")
+            }
+            C::S => match (self.spindle_max_rpm, e.value) {
+                (Some(max), Some(rpm)) if rpm > max => Err(format!(
+                    "S{rpm} is above the spindle's top speed, {max} rpm (spindle.max_rpm)"
+                )),
+                _ => Ok(()),
+            },
+            C::M7 if !self.mist => missing("mist coolant output", "coolant.mist"),
+            C::M8 if !self.flood => missing("flood coolant output", "coolant.flood"),
+            C::M6 if self.tool_changer == ToolChangerKind::None => {
+                missing("tool changer", "tool_changer.kind = \"none\"")
+            }
+            C::M62 | C::M63 | C::M64 | C::M65 if !self.has_digital_output(n) => {
+                missing(&format!("digital output {number}"), "[io] digital_outputs")
+            }
+            C::M66 if !self.has_digital_input(n) => {
+                missing(&format!("digital input {number}"), "[io] digital_inputs")
+            }
+            C::M66Analog if !self.has_analog_input(n) => {
+                missing(&format!("analog input {number}"), "[io] analog_inputs")
+            }
+            C::M67 | C::M68 if !self.has_analog_output(n) => {
+                missing(&format!("analog output {number}"), "[io] analog_outputs")
+            }
+            _ => Ok(()),
+        }
+    }
+}

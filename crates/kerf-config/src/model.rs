@@ -111,8 +111,8 @@ pub struct DaemonConfig {
     pub move_window: u32,
     /// `state_file`: where the daemon keeps the machine state that survives a restart
     /// (the tool in the spindle), written atomically; relative paths resolved against the
-    /// configuration file's directory. `kerf run --embedded` and tests pass another path.
-    pub state_file: PathBuf,
+    /// configuration file's directory. `None`: [`Config::state_file`]'s default.
+    pub state_file: Option<PathBuf>,
 }
 
 impl Default for DaemonConfig {
@@ -122,7 +122,7 @@ impl Default for DaemonConfig {
             cpu: None,
             queue_segments: DEFAULT_QUEUE_SEGMENTS,
             move_window: DEFAULT_MOVE_WINDOW,
-            state_file: PathBuf::from(DEFAULT_STATE_FILE),
+            state_file: None,
         }
     }
 }

@@ -275,6 +275,7 @@ pub const DEFAULT_OPTIONAL_STOP: bool = true;
 /// Default `operator.single_block`: off.
 pub const DEFAULT_SINGLE_BLOCK: bool = false;
 
-/// Default `daemon.state_file`: where the daemon keeps the machine state that survives a
-/// restart (the tool in the spindle); the shipped systemd unit's state directory.
-pub const DEFAULT_STATE_FILE: &str = "/var/lib/kerf/machine-state.toml";
+/// The name of `daemon.state_file` by default, in `$STATE_DIRECTORY` (the shipped systemd
+/// unit's /var/lib/kerf) or the temporary directory: `MACHINE` is the machine's name, so
+/// that machines on one computer (and tests) keep their own.
+pub const DEFAULT_STATE_FILE_NAME: &str = "MACHINE.state.toml";

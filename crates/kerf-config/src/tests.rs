@@ -795,7 +795,7 @@ fn machine_name_and_daemon_table_default_and_are_checked() {
             cpu: None,
             queue_segments: 4096,
             move_window: 4096,
-            state_file: PathBuf::from("/var/lib/kerf/machine-state.toml"),
+            state_file: None,
         }
     );
     let c = Config::from_toml_str_in(
@@ -815,7 +815,7 @@ fn machine_name_and_daemon_table_default_and_are_checked() {
             queue_segments: 16,
             move_window: 65536,
             // Relative to the configuration's directory.
-            state_file: PathBuf::from("/etc/kerf/state/m.toml"),
+            state_file: Some(PathBuf::from("/etc/kerf/state/m.toml")),
         }
     );
     for bad in ["", "a/b", "mill 2", "é", &"x".repeat(65)] {

@@ -838,24 +838,48 @@ fn the_bundled_mill_is_a_simulated_machine_with_coolant_and_io() {
             .collect();
     assert_eq!(
         outs,
-        [(0, "mist"), (1, "flood"), (2, "clamp"), (3, "blast")]
+        [
+            (0, "mist"),
+            (1, "flood"),
+            (2, "clamp"),
+            (3, "blast"),
+            (4, "tool_change")
+        ]
     );
     let ins: Vec<(u8, &str, bool)> =
         c.io.digital_inputs
             .iter()
             .map(|i| (i.number, i.name.as_str(), i.sim))
             .collect();
-    assert_eq!(ins, [(0, "part_present", true), (1, "door_closed", true)]);
+    assert_eq!(
+        ins,
+        [
+            (0, "part_present", true),
+            (1, "door_closed", true),
+            (2, "tool_changed", false)
+        ]
+    );
     assert_eq!(c.io.analog_output("laser_power").map(|a| a.number), Some(0));
     assert_eq!(c.io.analog_input("probe_force").map(|a| a.sim), Some(0.0));
     assert_eq!(c.coolant.mist, Some(io_ref("mist", 0)));
     assert_eq!(c.coolant.flood, Some(io_ref("flood", 1)));
-    assert_eq!(c.tool_changer, ToolChanger::Manual);
+    // An automatic changer on the simulated I/O (the kind's default is manual).
+    assert_eq!(
+        c.tool_changer,
+        ToolChanger::Automatic(AutomaticToolChanger {
+            number_output: io_ref("tool_number", 1),
+            change_output: io_ref("tool_change", 4),
+            changed_input: io_ref("tool_changed", 2),
+            timeout_s: 30.0,
+        })
+    );
     assert_eq!(c.spindle, SpindleConfig::default());
     assert_eq!(c.operator, OperatorConfig::default());
+    // Not set: the default, named after the machine, in the state directory.
+    assert_eq!(c.daemon.state_file, None);
     assert_eq!(
-        c.daemon.state_file,
-        Path::new("/var/lib/kerf/machine-state.toml")
+        c.state_file().file_name(),
+        Some(std::ffi::OsStr::new("default.state.toml"))
     );
     assert_eq!(
         c.machine_check(),
@@ -863,11 +887,11 @@ fn the_bundled_mill_is_a_simulated_machine_with_coolant_and_io() {
             spindle_max_rpm: Some(24_000.0),
             mist: true,
             flood: true,
-            digital_outputs: 0b1111,
-            digital_inputs: 0b11,
-            analog_outputs: 1,
+            digital_outputs: 0b1_1111,
+            digital_inputs: 0b111,
+            analog_outputs: 0b11,
             analog_inputs: 1,
-            tool_changer: ToolChangerKind::Manual,
+            tool_changer: ToolChangerKind::Automatic,
         }
     );
 }
@@ -1008,4 +1032,73 @@ fn the_ethercat_example_names_bus_bits_and_its_spindle_drive() {
             tool_changer: ToolChangerKind::Manual,
         }
     );
+}
+
+#[test]
+fn events_the_machine_cannot_do_are_refused_with_the_key_to_look_at() {
+    use kerf_geom::{Event, EventCode as C};
+    let caps = MachineCaps {
+        spindle_max_rpm: Some(12000.0),
+        mist: false,
+        flood: true,
+        digital_outputs: 0b101,
+        digital_inputs: 0b10,
+        analog_outputs: 0b1,
+        analog_inputs: 0,
+        tool_changer: ToolChangerKind::Manual,
+    };
+    let ev = |code, value| Event::new(9, code, value);
+    for ok in [
+        ev(C::M3, None),
+        ev(C::S, Some(12000.0)),
+        ev(C::M8, None),
+        ev(C::M9, None),
+        ev(C::M6, None),
+        ev(C::M62, Some(0.0)),
+        ev(C::M65, Some(2.0)),
+        ev(C::M66, Some(1.0)),
+        ev(C::M68, Some(0.0)),
+    ] {
+        assert_eq!(caps.check_event(&ok), Ok(()), "{ok:?}");
+    }
+    let refused = |e: Event| caps.check_event(&e).unwrap_err();
+    assert_eq!(
+        refused(ev(C::S, Some(12000.5))),
+        "S12000.5 is above the spindle's top speed, 12000 rpm (spindle.max_rpm)"
+    );
+    assert_eq!(
+        refused(ev(C::M7, None)),
+        "M7: this machine has no mist coolant output (coolant.mist)"
+    );
+    assert_eq!(
+        refused(ev(C::M63, Some(1.0))),
+        "M63 P1: this machine has no digital output 1 ([io] digital_outputs)"
+    );
+    assert_eq!(
+        refused(ev(C::M66, Some(0.0))),
+        "M66 P0: this machine has no digital input 0 ([io] digital_inputs)"
+    );
+    assert_eq!(
+        refused(ev(C::M66Analog, Some(0.0))),
+        "M66 E0: this machine has no analog input 0 ([io] analog_inputs)"
+    );
+    assert_eq!(
+        refused(ev(C::M67, Some(3.0))),
+        "M67 E3: this machine has no analog output 3 ([io] analog_outputs)"
+    );
+    let bare = MachineCaps {
+        spindle_max_rpm: None,
+        tool_changer: ToolChangerKind::None,
+        ..caps
+    };
+    assert_eq!(
+        bare.check_event(&ev(C::M4, None)).unwrap_err(),
+        "M4: this machine has no spindle (spindle.kind = \"none\")"
+    );
+    assert_eq!(
+        bare.check_event(&ev(C::M6, None)).unwrap_err(),
+        "M6: this machine has no tool changer (tool_changer.kind = \"none\")"
+    );
+    // Without a spindle any S passes: it commands nothing until M3 or M4.
+    assert_eq!(bare.check_event(&ev(C::S, Some(1e9))), Ok(()));
 }

@@ -101,14 +101,17 @@ impl Config {
         if let Some(d) = &self.dump_dir {
             return d.clone();
         }
-        match std::env::var_os("STATE_DIRECTORY") {
-            // systemd may list several, separated by colons: the first is ours.
-            Some(dirs) if !dirs.is_empty() => {
-                let dirs = dirs.to_string_lossy().into_owned();
-                PathBuf::from(dirs.split(':').next().unwrap_or(&dirs))
-            }
-            _ => std::env::temp_dir(),
+        state_directory()
+    }
+
+    /// `daemon.state_file`, or by default `MACHINE.state.toml` (the machine's name) in
+    /// `$STATE_DIRECTORY` (the shipped systemd unit's /var/lib/kerf), else in the
+    /// temporary directory.
+    pub fn state_file(&self) -> PathBuf {
+        if let Some(f) = &self.daemon.state_file {
+            return f.clone();
         }
+        state_directory().join(DEFAULT_STATE_FILE_NAME.replace("MACHINE", &self.machine))
     }
 
     /// Checks what only the daemon's drive side needs: each simulated drive's `substeps`
@@ -138,5 +141,18 @@ impl Config {
     pub fn recorder_capacity(&self) -> usize {
         // Both factors are range-checked: at most 60 s / 50 µs = 1.2 million cycles.
         ((self.drive.recorder_seconds / self.period_s()).round() as usize).max(1)
+    }
+}
+
+/// The daemon's state directory: the first of systemd's `$STATE_DIRECTORY`, else the
+/// temporary directory.
+fn state_directory() -> PathBuf {
+    match std::env::var_os("STATE_DIRECTORY") {
+        // systemd may list several, separated by colons: the first is ours.
+        Some(dirs) if !dirs.is_empty() => {
+            let dirs = dirs.to_string_lossy().into_owned();
+            PathBuf::from(dirs.split(':').next().unwrap_or(&dirs))
+        }
+        _ => std::env::temp_dir(),
     }
 }

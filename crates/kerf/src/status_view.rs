@@ -679,6 +679,8 @@ mod tests {
         assert_eq!(
             text,
             "m: idle, X 1.000 Y 2.000 Z 3.000, override 100 %, 0 queued (0.0 s), 123460 cycles, 0 overruns, rt: yes, drives: running\n\
+             \x20 spindle: none; coolant: off; tool: none\n\
+             \x20 switches: optional stop off, block delete off, single block off; outputs on: none; inputs on: none\n\
              EtherCAT: 4 subdevices, all in OP; 123456 cycles exchanged, 0 lost, 0 short, 0 out of OP, at most 0 incomplete in a row\n\
              \x20 0  X drive  OP\n\
              \x20 1  Y drive  OP\n\
@@ -728,12 +730,104 @@ mod tests {
     }
 
     #[test]
-    fn status_text_without_a_bus_is_the_status_line() {
+    fn status_text_without_a_bus_is_the_status_line_and_the_machine() {
         let mut s = on_a_bus();
         s.bus_subdevices = 0;
         assert_eq!(ethercat_text(&names(), &s), None);
-        assert_eq!(status_text("m", &names(), &s), status_line("m", &s));
-        assert!(!status_text("m", &names(), &s).contains('\n'));
+        assert_eq!(
+            status_text("m", &names(), &s),
+            format!("{}\n{}", status_line("m", &s), machine_text(&s))
+        );
+    }
+
+    /// A machine paused at a manual tool change with the spindle stopped, flood on,
+    /// outputs 1 and 4 and input 0 on.
+    fn at_a_tool_change() -> StatusMsg {
+        let mut s = on_a_bus();
+        s.bus_subdevices = 0;
+        s.state = kerf_proto::STATE_PAUSED;
+        s.pause_reason = kerf_proto::PAUSE_TOOL_CHANGE;
+        s.pause_line = 30;
+        s.pause_value = 3;
+        s.set_pause_text("insert tool T3 (length 45.200 mm)");
+        s.switches = kerf_proto::SWITCH_OPTIONAL_STOP | kerf_proto::SWITCH_BLOCK_DELETE;
+        s.tool_in_spindle = 1;
+        s.tool_length_mm = 12.5;
+        s.tool_changer = kerf_proto::TOOL_CHANGER_MANUAL;
+        s.spindle_kind = kerf_proto::SPINDLE_DRIVE;
+        s.spindle_programmed_rpm = 12000.0;
+        s.spindle_override_pct = 100.0;
+        s.overrides_enabled = kerf_proto::OVERRIDES_FEED | kerf_proto::OVERRIDES_SPINDLE;
+        s.coolant = kerf_proto::COOLANT_FLOOD;
+        s.digital_outputs = 0b1_0010;
+        s.digital_inputs = 0b1;
+        s
+    }
+
+    #[test]
+    fn a_pause_is_told_in_words_with_what_ends_it() {
+        let s = at_a_tool_change();
+        assert_eq!(state_name(&s), "paused");
+        assert_eq!(
+            pause_text(&s).unwrap(),
+            "paused at line 30 (M6): insert tool T3 (length 45.200 mm), then `kerf resume`"
+        );
+        let text = status_text("m", &names(), &s);
+        assert_eq!(
+            text.lines().collect::<Vec<_>>()[1..],
+            [
+                "  paused at line 30 (M6): insert tool T3 (length 45.200 mm), then `kerf resume`",
+                "  spindle: stopped, S12000 → 0 rpm commanded, 0 rpm actual, override 100 %; coolant: flood; tool: T1 (12.500 mm)",
+                "  switches: optional stop on, block delete on, single block off; outputs on: 1,4; inputs on: 0",
+            ]
+        );
+        let mut m0 = s;
+        m0.pause_reason = kerf_proto::PAUSE_PROGRAM_STOP;
+        m0.pause_line = 12;
+        assert_eq!(
+            pause_text(&m0).unwrap(),
+            "paused at line 12 (M0, program stop): `kerf resume` to continue"
+        );
+        m0.pause_reason = kerf_proto::PAUSE_NONE;
+        assert_eq!(pause_text(&m0), None);
+    }
+
+    #[test]
+    fn status_json_has_the_machine() {
+        let s = at_a_tool_change();
+        let json = status_json("m", &names(), &s);
+        let v: serde_json::Value = serde_json::from_str(&json).expect("JSON");
+        assert_eq!(v["state"], "paused");
+        assert_eq!(v["pause"]["reason"], "tool_change");
+        assert_eq!(v["pause"]["line"], 30);
+        assert_eq!(v["pause"]["value"], 3);
+        assert_eq!(v["pause"]["waits_for_operator"], true);
+        assert_eq!(
+            v["pause"]["text"],
+            "paused at line 30 (M6): insert tool T3 (length 45.200 mm), then `kerf resume`"
+        );
+        assert_eq!(v["switches"]["optional_stop"], true);
+        assert_eq!(v["switches"]["single_block"], false);
+        assert_eq!(v["tool"]["in_spindle"], 1);
+        assert_eq!(v["tool"]["length_mm"], 12.5);
+        assert_eq!(v["tool"]["changer"], "manual");
+        assert_eq!(v["spindle"]["kind"], "drive");
+        assert_eq!(v["spindle"]["programmed_rpm"], 12000.0);
+        assert_eq!(v["spindle"]["at_speed"], false);
+        assert_eq!(v["spindle"]["override_enabled"], true);
+        assert_eq!(v["feed_override_enabled"], true);
+        assert_eq!(v["coolant"]["flood"], true);
+        assert_eq!(v["coolant"]["mist"], false);
+        assert_eq!(v["io"]["digital_outputs"], 18);
+        assert_eq!(v["io"]["analog_inputs"].as_array().unwrap().len(), 16);
+        assert_eq!(v["input_result"], serde_json::Value::Null);
+        let mut none = s;
+        none.spindle_kind = kerf_proto::SPINDLE_NONE;
+        none.pause_reason = kerf_proto::PAUSE_NONE;
+        let v: serde_json::Value =
+            serde_json::from_str(&status_json("m", &names(), &none)).expect("JSON");
+        assert_eq!(v["spindle"], serde_json::Value::Null);
+        assert_eq!(v["pause"], serde_json::Value::Null);
     }
 
     #[test]
@@ -775,10 +869,8 @@ mod tests {
         let mut s = on_a_bus();
         s.bus_subdevices = 0;
         let json = status_json("m", &names(), &s);
-        assert!(
-            json.ends_with(",\"safety\":null,\"ethercat\":null}"),
-            "{json}"
-        );
+        assert!(json.contains(",\"safety\":null,\"pause\":null,"), "{json}");
+        assert!(json.ends_with(",\"ethercat\":null}"), "{json}");
     }
 
     #[test]

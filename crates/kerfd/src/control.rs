@@ -84,7 +84,7 @@ pub(crate) fn control_thread(
     // is up, so a client that got an answer can open them all (`kerfd` is ready when
     // `kerf status` answers).
     let mut cycle_runs = false;
-    let mut saved_tool = machine::load_tool(&config.daemon.state_file).unwrap_or(0);
+    let mut saved_tool = machine::load_tool(&config.state_file()).unwrap_or(0);
     let mut state_warned = false;
     loop {
         cycle_runs |= view.pull();
@@ -96,13 +96,13 @@ pub(crate) fn control_thread(
         let tool = view.latest.machine.tool_in_spindle;
         if cycle_runs && tool != saved_tool {
             // The tool in the spindle survives a restart: written as soon as it changes.
-            match machine::save_tool(&config.daemon.state_file, tool) {
+            match machine::save_tool(&config.state_file(), tool) {
                 Ok(()) => saved_tool = tool,
                 Err(e) => {
                     if !state_warned {
                         tracing::error!(
                             "cannot keep the tool in the spindle (T{tool}) in {}: {e}; after a restart the daemon will not know it",
-                            config.daemon.state_file.display()
+                            config.state_file().display()
                         );
                         state_warned = true;
                     }

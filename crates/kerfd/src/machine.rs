@@ -80,7 +80,7 @@ pub fn machine_config(config: &Config) -> Result<MachineConfig, String> {
         single_block: config.operator.single_block,
         block_delete: config.block_delete,
     };
-    m.tool_in_spindle = load_tool(&config.daemon.state_file)?;
+    m.tool_in_spindle = load_tool(&config.state_file())?;
     Ok(m)
 }
 
@@ -195,9 +195,10 @@ pub fn fill_status(msg: &mut StatusMsg, m: &MachineStatus, config: &Config) {
         }
     }
     let sw = m.switches;
-    msg.switches = u32::from(sw.optional_stop) * kerf_proto::SWITCH_OPTIONAL_STOP
-        | u32::from(sw.block_delete) * kerf_proto::SWITCH_BLOCK_DELETE
-        | u32::from(sw.single_block) * kerf_proto::SWITCH_SINGLE_BLOCK;
+    let bit = |on: bool, bit: u32| if on { bit } else { 0 };
+    msg.switches = bit(sw.optional_stop, kerf_proto::SWITCH_OPTIONAL_STOP)
+        | bit(sw.block_delete, kerf_proto::SWITCH_BLOCK_DELETE)
+        | bit(sw.single_block, kerf_proto::SWITCH_SINGLE_BLOCK);
     msg.tool_in_spindle = m.tool_in_spindle;
     msg.tool_length_mm = length_of(m.tool_in_spindle).unwrap_or(0.0);
     msg.tool_changer = match &config.tool_changer {
@@ -205,7 +206,7 @@ pub fn fill_status(msg: &mut StatusMsg, m: &MachineStatus, config: &Config) {
         kerf_config::ToolChanger::Automatic(_) => kerf_proto::TOOL_CHANGER_AUTOMATIC,
         kerf_config::ToolChanger::None => kerf_proto::TOOL_CHANGER_NONE,
     };
-    msg.overrides_enabled = u32::from(m.feed_override_enabled) * kerf_proto::OVERRIDES_FEED;
+    msg.overrides_enabled = bit(m.feed_override_enabled, kerf_proto::OVERRIDES_FEED);
     if let Some(s) = m.spindle {
         msg.spindle_kind = match config.spindle.kind {
             kerf_config::SpindleKind::Outputs(_) => kerf_proto::SPINDLE_OUTPUTS,
@@ -231,8 +232,8 @@ pub fn fill_status(msg: &mut StatusMsg, m: &MachineStatus, config: &Config) {
             msg.overrides_enabled |= kerf_proto::OVERRIDES_SPINDLE;
         }
     }
-    msg.coolant = u32::from(m.coolant.mist) * kerf_proto::COOLANT_MIST
-        | u32::from(m.coolant.flood) * kerf_proto::COOLANT_FLOOD;
+    msg.coolant = bit(m.coolant.mist, kerf_proto::COOLANT_MIST)
+        | bit(m.coolant.flood, kerf_proto::COOLANT_FLOOD);
     msg.digital_outputs = m.io.digital_outputs;
     msg.digital_inputs = m.io.digital_inputs;
     msg.analog_outputs = m.io.analog_outputs;

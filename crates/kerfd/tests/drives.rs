@@ -82,10 +82,15 @@ impl Machine {
         }
     }
 
+    /// One cycle; at a pause that waits for the operator (a program stop, a manual tool
+    /// change), cycle start is pressed at once, as `kerf sim` assumes.
     fn run(&mut self) -> CycleOutput {
         let out = self.cycle.run();
         while let Ok(s) = self.status.pop() {
             self.last = Some(s);
+        }
+        if self.last.is_some_and(|s| s.waits_for_operator()) {
+            let _ = self.commands.push(CycleCommand::Resume);
         }
         out
     }

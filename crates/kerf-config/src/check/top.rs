@@ -48,7 +48,7 @@ impl Checker<'_> {
                     "`daemon.state_file` must name a file, found an empty string".to_string(),
                 ));
             }
-            Some(f) => self.dir.join(f.get_ref()),
+            Some(f) => Some(self.dir.join(f.get_ref())),
         };
         Ok(DaemonConfig {
             priority,

@@ -315,9 +315,11 @@ pub fn keys() -> Vec<KeyDoc> {
         ),
         k(
             "daemon.state_file",
-            format!("\"{DEFAULT_STATE_FILE}\""),
+            format!(
+                "$STATE_DIRECTORY/{DEFAULT_STATE_FILE_NAME}, else the same in the temporary directory"
+            ),
             "a file name".into(),
-            "Where the daemon keeps the machine state that survives a restart (the tool in the spindle), written atomically; relative to the configuration's directory. `kerf run --embedded` and tests pass another path.",
+            "Where the daemon keeps the machine state that survives a restart (the tool in the spindle), written atomically when it changes; relative to the configuration's directory. By default in the shipped systemd unit's state directory (/var/lib/kerf), named after the machine; without systemd's STATE_DIRECTORY in the temporary directory (it then survives a restart of the daemon but not of the computer).",
         ),
         k(
             "gcode",
@@ -656,10 +658,8 @@ mod tests {
             doc["daemon.move_window"],
             config.daemon.move_window.to_string()
         );
-        assert_eq!(
-            doc["daemon.state_file"],
-            format!("\"{}\"", config.daemon.state_file.display())
-        );
+        assert_eq!(config.daemon.state_file, None);
+        assert!(doc["daemon.state_file"].contains(DEFAULT_STATE_FILE_NAME));
         // The machine's functions: a simulated drive spindle, no coolant, a manual tool
         // changer, the switches as LinuxCNC starts.
         let s = &config.spindle;

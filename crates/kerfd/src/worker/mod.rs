@@ -96,6 +96,20 @@ pub enum Refusal {
     /// The program began while a fault was latched: nothing of it moved.
     #[error("not started: a fault is latched ({0}); clear it with `kerf reset`")]
     Faulted(Fault),
+    /// The program asks for something this machine does not have (a spindle, coolant,
+    /// an input or output, a tool changer, a speed above the spindle's top speed).
+    #[error(
+        "line {line}: this machine cannot carry out {} ({value}): the configuration's [spindle], [coolant], [io] or [tool_changer] has nothing for it",
+        code.as_str()
+    )]
+    Machine {
+        /// Source line.
+        line: u32,
+        /// The code.
+        code: kerf_geom::EventCode,
+        /// Its value (the speed, or the input or output's number).
+        value: f64,
+    },
     /// The program does not start where the machine is.
     #[error("the program starts at {axis} {start}, but the machine is at {axis} {actual}")]
     WrongStart {

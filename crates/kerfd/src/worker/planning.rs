@@ -27,6 +27,8 @@ pub struct Planning {
     actions: ProgramActions,
     /// Where the actions synchronised with the motion go among the segments.
     order: ActionOrder,
+    /// What the machine can do (events it cannot are refused).
+    caps: kerf_config::MachineCaps,
     /// The single-block switch, set by the control thread.
     single_block: Arc<AtomicBool>,
     /// The source line of the last block planned (for single block: a pause goes between
@@ -74,6 +76,7 @@ impl Planning {
             taken: std::collections::VecDeque::new(),
             actions: ProgramActions::new(),
             order: ActionOrder::new(),
+            caps: config.machine_check(),
             single_block: counters.single_block.clone(),
             last_line: 0,
         }
@@ -131,6 +134,13 @@ impl Planning {
             Incoming::Event(e) => {
                 if self.failed || self.planner.is_none() {
                     return true;
+                }
+                if self.caps.check_event(&e).is_err() {
+                    return self.refuse(Refusal::Machine {
+                        line: e.line,
+                        code: e.code,
+                        value: e.value.unwrap_or(0.0),
+                    });
                 }
                 let Some(input) = self.actions.event(&e) else {
                     return true;

@@ -96,7 +96,7 @@ pub struct SwitchArgs {
     #[command(flatten)]
     pub machine: MachineArgs,
     /// `on` or `off`.
-    #[arg(value_name = "on|off", value_parser = parse_on_off)]
+    #[arg(value_name = "on|off", value_parser = parse_on_off, action = clap::ArgAction::Set)]
     pub on: bool,
 }
 

@@ -573,6 +573,7 @@ pub fn check_program(
     let mut moves = 0u64;
     let mut last_line = 0;
     let mut actions = ProgramActions::new();
+    let caps = config.machine_check();
     for item in Interpreter::new(source.reader()?, source.dialect, settings) {
         match item {
             Ok(Item::Move(m)) => {
@@ -599,6 +600,8 @@ pub fn check_program(
             }
             Ok(Item::Event(e)) => {
                 last_line = e.line;
+                caps.check_event(&e)
+                    .map_err(|why| Failure::Error(format!("{name}:{}:1: error: {why}", e.line)))?;
                 if let Some(input) = actions.event(&e) {
                     prepass.input(&input).map_err(refused)?;
                 }
