@@ -41,6 +41,7 @@ pub struct ProgramActions {
     mist: bool,
     flood: bool,
     tool: Option<u32>,
+    loaded: Option<u32>,
     at_speed_due: bool,
 }
 
@@ -60,8 +61,24 @@ impl ProgramActions {
             mist: false,
             flood: false,
             tool: None,
+            loaded: None,
             at_speed_due: false,
         }
+    }
+
+    /// The spindle as the program has commanded it so far: direction and speed, rpm.
+    pub fn spindle(&self) -> (SpindleDir, f64) {
+        (self.dir, self.rpm)
+    }
+
+    /// The coolant as the program has commanded it so far: mist, flood.
+    pub fn coolant(&self) -> (bool, bool) {
+        (self.mist, self.flood)
+    }
+
+    /// The tool the program's last M6 put in the spindle (`None` before its first M6).
+    pub fn loaded_tool(&self) -> Option<u32> {
+        self.loaded
     }
 
     /// The input an event means to the motion and the machine, if any.
@@ -87,6 +104,7 @@ impl ProgramActions {
             }
             C::M6 => match self.tool {
                 Some(tool) => {
+                    self.loaded = Some(tool);
                     // The change stops the spindle (as LinuxCNC's M6 does): the program
                     // starts it again with M3 or M4, and the feed after that waits.
                     self.dir = SpindleDir::Off;

@@ -494,6 +494,8 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     let mut settings =
         crate::settings_for(crate::program_settings(&config)?, &args.program.program);
     settings.start_mm_deg = start;
+    // Block delete is the operator's switch on the machine (`kerf block-delete on|off`).
+    settings.block_delete = status.switches & kerf_proto::SWITCH_BLOCK_DELETE != 0;
     let options = SimOptions {
         queue_capacity: config.daemon.queue_segments as usize,
         ..SimOptions::default()
@@ -521,12 +523,17 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         feed_mm_s: 0.0,
         last_seq: 0,
     };
-    // A program that ended early, or another one, is reported at once.
+    let bar = progress_bar(last_line);
+    // A program that ended early, or another one, is reported at once; a pause of this
+    // program is told once, when it begins.
+    let told_pause = std::cell::Cell::new((0u32, 0u32));
     let check =
         |client: &mut Client, watch: &mut Watch, reader: &mut SetpointReader, s: &StatusMsg| {
+            if s.program_id == id {
+                tell_pause(&bar, &told_pause, s)?;
+            }
             check_program_state(client, watch, reader, s, id, &name, &machine)
         };
-    let bar = progress_bar(last_line);
     let window = status.window_items.max(1);
     let mut acked = 0u64;
     let mut last_status = Instant::now();
@@ -616,6 +623,30 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         check(&mut client, &mut watch, &mut reader, &s)?;
         std::thread::sleep(STATUS_EVERY);
     }
+}
+
+/// Tells a pause of the program once, when it begins: "paused at line 12 (M0, program
+/// stop): `kerf resume` to continue" (above the progress bar on a terminal, else on
+/// standard error). `kerf run` keeps waiting: it ends only when the program does.
+fn tell_pause(
+    bar: &ProgressBar,
+    told: &std::cell::Cell<(u32, u32)>,
+    s: &StatusMsg,
+) -> Result<(), Failure> {
+    let now = (s.pause_reason, s.pause_line);
+    if now == told.get() {
+        return Ok(());
+    }
+    told.set(now);
+    if let Some(text) = kerf::status_view::pause_text(s) {
+        let text = format!("kerf: {text}");
+        if bar.is_hidden() {
+            writeln!(io::stderr().lock(), "{text}")?;
+        } else {
+            bar.println(text);
+        }
+    }
+    Ok(())
 }
 
 /// The machine's status when it can take a program: idle (no other program unfinished)
