@@ -486,3 +486,53 @@ fn offline_the_simulated_inputs_answer() {
         ["1.000000 -1.000000 1.000000 -1.000000 4.250000"]
     );
 }
+
+#[test]
+fn other_dialects_refuse_machine_io_clearly() {
+    // Their manuals' I/O (Sinumerik system variables, the machine builder's M functions of
+    // the others) is not part of Kerf's dialects: a refusal naming it, never a silent skip.
+    let cases: &[(Dialect, &str, &str)] = &[
+        (
+            Dialect::Rockwell,
+            "G21\nM62 P1\nM30\n",
+            "2:1: error: unknown M code M62",
+        ),
+        (
+            Dialect::Fagor,
+            "G71\nM66\nM30\n",
+            "2:1: error: unknown M code M66",
+        ),
+        (
+            Dialect::Heidenhain,
+            "%P G71 *\nN10 M67 *\n%P G71 *\n",
+            "2:5: error: unknown M code M67",
+        ),
+        (
+            Dialect::Sinumerik,
+            "G71\nN10 $A_OUT[1]=1\nM30\n",
+            "2:5: error: system variable $A_OUT is not supported yet",
+        ),
+        (
+            Dialect::Sinumerik,
+            "G71\n$a_in[2]\nM30\n",
+            "2:1: error: system variable $A_IN is not supported yet",
+        ),
+        (
+            Dialect::Sinumerik,
+            "G71\nG1 X1 M62\nM30\n",
+            "2:7: error: unknown M code M62",
+        ),
+        // E is LinuxCNC's I/O word only.
+        (
+            Dialect::Sinumerik,
+            "G71\nE1\nM30\n",
+            "2:1: error: unknown word E",
+        ),
+    ];
+    for (d, src, want) in cases {
+        let e = Interpreter::new(src.as_bytes(), *d, Settings::default())
+            .find_map(Result::err)
+            .unwrap_or_else(|| panic!("{d:?} accepts {src:?}"));
+        assert_eq!(e.to_string(), *want, "{d:?} {src:?}");
+    }
+}
