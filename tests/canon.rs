@@ -145,6 +145,8 @@ pub struct CanonEvent {
     pub value: Option<f64>,
     /// How far `value` may be from the exact value.
     pub value_tol: f64,
+    /// M67/M68: the analog value (Kerf's Q word); `None` for the other events.
+    pub q: Option<f64>,
     /// MESSAGE and PRINT text.
     pub text: Option<String>,
 }
@@ -371,8 +373,20 @@ impl State {
             code,
             value,
             value_tol: BASE_TOL + HALF_DIGIT,
+            q: None,
             text,
         }));
+    }
+
+    /// An output call of M62–M65 (`NAME(index)`) or M67/M68 (`NAME(index,value)`).
+    fn output(&mut self, line: usize, code: EventCode, args: &str) -> Result<(), CanonError> {
+        let analog = matches!(code, EventCode::M67 | EventCode::M68);
+        let v = numbers(args, line, if analog { 2 } else { 1 })?;
+        self.event(line, code, Some(v[0]), None);
+        if analog && let Some(CanonItem::Event(e)) = self.items.last_mut() {
+            e.q = Some(v[1]);
+        }
+        Ok(())
     }
 
     fn straight(&mut self, line: usize, call: &str, kind: MoveKind) -> Result<(), CanonError> {
@@ -672,6 +686,13 @@ impl State {
             "DISABLE_ADAPTIVE_FEED" => self.event(line, EventCode::M52, Some(0.0), None),
             "ENABLE_FEED_HOLD" => self.event(line, EventCode::M53, Some(1.0), None),
             "DISABLE_FEED_HOLD" => self.event(line, EventCode::M53, Some(0.0), None),
+            // M62–M65 and M67/M68 (rs274 prints no call for M66's WAIT).
+            "SET_MOTION_OUTPUT_BIT" => self.output(line, EventCode::M62, args)?,
+            "CLEAR_MOTION_OUTPUT_BIT" => self.output(line, EventCode::M63, args)?,
+            "SET_AUX_OUTPUT_BIT" => self.output(line, EventCode::M64, args)?,
+            "CLEAR_AUX_OUTPUT_BIT" => self.output(line, EventCode::M65, args)?,
+            "SET_MOTION_OUTPUT_VALUE" => self.output(line, EventCode::M67, args)?,
+            "SET_AUX_OUTPUT_VALUE" => self.output(line, EventCode::M68, args)?,
             "STRAIGHT_PROBE"
             | "RIGID_TAP"
             | "NURBS_FEED"

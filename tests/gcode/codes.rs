@@ -1,8 +1,9 @@
 //! LinuxCNC codes of issue 9 that the golden programs (tests/data/ngc/codes/) cannot show
-//! against rs274: the ones Kerf refuses although rs274 accepts them (no I/O, no Fanuc-style
+//! against rs274: the ones Kerf refuses although rs274 accepts them (no Fanuc-style
 //! subprograms, no UVW planes), rs274's word checks of M19, and what the events carry.
-//! Expected values from the LinuxCNC manual (sections M19, M48–M53, M62–M68, M98/M99,
-//! G17.1) and from rs274's messages for the same lines.
+//! Expected values from the LinuxCNC manual (sections M19, M48–M53, M98/M99, G17.1) and
+//! from rs274's messages for the same lines. The machine I/O codes M62–M68 (issue 28):
+//! the goldens of tests/data/ngc/io and the front end's unit tests (`interp::io`).
 
 use kerf_gcode::{Dialect, EventCode, Item};
 use kerf_tests::*;
@@ -20,34 +21,12 @@ fn events(src: &str) -> Vec<Event> {
 }
 
 #[test]
-fn io_codes_and_fanuc_subprograms_are_clear_errors() {
+fn fanuc_subprograms_and_uvw_planes_are_clear_errors() {
     for (line, col, words) in [
-        (
-            "G0 X1 M62 P0",
-            7,
-            &["M62 is not supported", "no digital outputs"][..],
-        ),
-        ("M63 P1", 1, &["M63 is not supported", "no digital outputs"]),
-        ("M64 P0", 1, &["M64 is not supported", "no digital outputs"]),
-        ("M65 P0", 1, &["M65 is not supported", "no digital outputs"]),
-        ("M66 P0 L0", 1, &["M66 is not supported", "no inputs"]),
-        ("M67 Q1", 1, &["M67 is not supported", "no analog outputs"]),
-        ("M68 Q1", 1, &["M68 is not supported", "no analog outputs"]),
-        // With its E word (the output's number), which Kerf does not know.
-        (
-            "M67 E0 Q1",
-            1,
-            &["M67 is not supported", "no analog outputs"],
-        ),
-        (
-            "Q1 E2 M68",
-            7,
-            &["M68 is not supported", "no analog outputs"],
-        ),
         (
             "M98 P100",
             1,
-            &["M98 is not supported", "o-word subroutines"],
+            &["M98 is not supported", "o-word subroutines"][..],
         ),
         ("M99", 1, &["M99 is not supported", "o-word subroutines"]),
         ("G17.1", 1, &["G17.1 is not supported", "U/V/W"]),
@@ -61,6 +40,35 @@ fn io_codes_and_fanuc_subprograms_are_clear_errors() {
         // Nothing of the refused block runs: only the rapid of line 1.
         assert_eq!(only_moves(&out.items).len(), 1, "{line}");
     }
+}
+
+/// Issue 28: the machine I/O codes are events that carry their words (the LinuxCNC
+/// manual's M62–M68: P the digital output or input, E the analog one, L the wait mode, Q
+/// the timeout or the analog value); the golden programs of tests/data/ngc/io compare
+/// them with rs274.
+#[test]
+fn io_codes_are_events_with_their_words() {
+    let ev =
+        events("G21\nM62 P1\nM63 P1\nM64 P7\nM65 P7\nM66 P2 L3 Q4\nM66 E1\nM67 E0 Q5\nM68 E0 Q0\n");
+    type Words = (EventCode, Option<f64>, Option<f64>, Option<f64>);
+    let got: Vec<Words> = ev.iter().map(|e| (e.code, e.value, e.p, e.q)).collect();
+    use EventCode::*;
+    assert_eq!(
+        got,
+        [
+            (M62, Some(1.0), None, None),
+            (M63, Some(1.0), None, None),
+            (M64, Some(7.0), None, None),
+            (M65, Some(7.0), None, None),
+            (M66, Some(2.0), Some(3.0), Some(4.0)),
+            (M66Analog, Some(1.0), Some(0.0), None),
+            (M67, Some(0.0), None, Some(5.0)),
+            (M68, Some(0.0), None, Some(0.0)),
+        ]
+    );
+    // The wait's result, offline (every simulated input off): input 2 never goes high.
+    let e = events("G21\nM66 P2 L3 Q4\n(PRINT,#5399)\n");
+    assert_eq!(e[1].text.as_deref(), Some("-1.000000"));
 }
 
 #[test]

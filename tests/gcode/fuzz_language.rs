@@ -8,6 +8,7 @@
 use proptest::prelude::*;
 use proptest::test_runner::{RngSeed, TestRunner};
 
+use kerf_gcode::InputWait;
 use kerf_tests::*;
 
 const CASES: u32 = 1500;
@@ -95,6 +96,16 @@ const TOKENS: &[&str] = &[
     "-1",
     "1e9",
     "99999999999",
+    // Machine I/O (issue 28) and the wait's result.
+    "M66 P1 L3 Q1",
+    "M66 E0",
+    "M66 P",
+    "M62 P",
+    "M67 E1 Q",
+    "#5399",
+    "#5399=",
+    "EXISTS[#5399]",
+    "(PRINT,#5399)",
 ];
 
 fn soup() -> impl Strategy<Value = Vec<u8>> {
@@ -207,4 +218,116 @@ fn language_corpus_never_panics_or_hangs() {
     for f in files {
         check(&std::fs::read(&f).unwrap());
     }
+}
+
+/// Whole lines around M66 and `#5399`, mostly valid, with some that are not.
+const IO_LINES: &[&str] = &[
+    "M66 P1 L3 Q1",
+    "M66 E2",
+    "M66 P0",
+    "M66 P[#5399+1] L4 Q2",
+    "#1=#5399",
+    "#5399=2",
+    "#2=[#5399*2+#1]",
+    "o1 if [#5399 GT 0]",
+    "o1 else",
+    "o1 endif",
+    "o2 repeat [3]",
+    "o2 endrepeat",
+    "G1 X[#5399] F100",
+    "(PRINT,#5399)",
+    "o3 if [EXISTS[#5399]]",
+    "o3 endif",
+    "M62 P1",
+    "M67 E0 Q#5399",
+    "G0 X1",
+    "M66 P1 L3",
+    "#<v>=#5399",
+    "M2",
+];
+
+/// Programs of [`IO_LINES`], with now and then a token of the soup.
+fn io_program() -> impl Strategy<Value = Vec<u8>> {
+    prop::collection::vec((0..IO_LINES.len(), 0..TOKENS.len(), 0u8..10), 0..40).prop_map(|lines| {
+        let mut s = String::new();
+        for (line, token, junk) in lines {
+            s.push_str(IO_LINES[line]);
+            if junk == 0 {
+                s.push_str(TOKENS[token]);
+            }
+            s.push('\n');
+        }
+        s.into_bytes()
+    })
+}
+
+/// A machine that answers every wait and records what it was asked.
+struct Recorder(std::sync::Arc<std::sync::Mutex<Vec<Event>>>);
+
+impl InputWait for Recorder {
+    fn wait(&mut self, event: &Event) -> Result<f64, String> {
+        let mut asked = self.0.lock().map_err(|e| e.to_string())?;
+        asked.push(event.clone());
+        Ok(if asked.len() % 2 == 0 { 1.0 } else { -1.0 })
+    }
+}
+
+/// Issue 28: on any program the interpreter asks for an M66's answer only after it has
+/// yielded that M66 event, at most once per M66, and in program order: the machine is
+/// never asked to wait on an input it has not been told about.
+#[test]
+fn the_machine_is_asked_only_about_m66_events_already_handed_on() {
+    let config = ProptestConfig {
+        cases: CASES,
+        rng_seed: RngSeed::Fixed(0x6b65_7266_0103),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    };
+    let mut runner = TestRunner::new(config);
+    // Questions over all cases: the property must not hold only because nothing asks.
+    let questions = std::sync::atomic::AtomicUsize::new(0);
+    let strategy = prop_oneof![soup(), io_program()];
+    let result = runner.run(&strategy, |bytes| {
+        let asked = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let settings = Settings {
+            max_loop_iterations: LOOP_LIMIT,
+            ..Settings::default()
+        };
+        let it = Interpreter::new(&bytes[..], Dialect::LinuxCnc, settings)
+            .with_input_wait(Box::new(Recorder(std::sync::Arc::clone(&asked))));
+        // The M66 events yielded so far, and how many of them were asked about.
+        let mut yielded: Vec<Event> = Vec::new();
+        let mut matched = 0usize;
+        let mut n = 0usize;
+        for item in it {
+            n += 1;
+            prop_assert!(n <= ITEM_CAP);
+            let now = asked.lock().expect("lock").clone();
+            // Every new question is about an M66 yielded before this item, after the
+            // M66 of the previous question.
+            for q in &now[matched.min(now.len())..] {
+                let found = yielded.iter().position(|e| e == q);
+                prop_assert!(found.is_some(), "asked about {q:?} before yielding it");
+                yielded.drain(..=found.unwrap_or(0));
+            }
+            matched = now.len();
+            match item {
+                Ok(Item::Event(e)) if matches!(e.code, EventCode::M66 | EventCode::M66Analog) => {
+                    yielded.push(e)
+                }
+                Ok(_) => {}
+                Err(_) => break,
+            }
+        }
+        questions.fetch_add(matched, std::sync::atomic::Ordering::Relaxed);
+        Ok(())
+    });
+    if let Err(e) = result {
+        panic!("{e}");
+    }
+    let questions = questions.into_inner();
+    assert!(
+        questions >= 50,
+        "only {questions} waits asked in {CASES} programs"
+    );
 }

@@ -163,6 +163,51 @@ fn extension_note(d: Dialect) -> &'static str {
     }
 }
 
+/// How a program of the dialect reaches the machine's inputs and outputs (issue 28), and
+/// why: only what the dialect's manual text in Kerf's hands covers and maps onto Kerf's
+/// I/O events is accepted; the rest is refused by name.
+fn io_note(d: Dialect) -> &'static str {
+    match d {
+        Dialect::LinuxCnc => {
+            "M62/M63 switch digital output P on/off with the start of the next move, M64/M65 \
+             at once; M67/M68 set analog output E to Q with the next move / at once; M66 waits \
+             on digital input P or analog input E (L0 immediate, L1 rise, L2 fall, L3 high, L4 \
+             low, with the timeout Q in seconds; analog inputs L0 only). Input and output \
+             numbers are whole numbers 0–63 (LinuxCNC's limit of 64 each); which exist is the \
+             machine configuration's business. rs274's word checks and messages apply (\
+             `No valid P word with M62`, `Zero timeout with wait type != immediate return`, \
+             ...), and Kerf also refuses what rs274 passes on but no machine has: a fraction or \
+             a negative output number, L above 4, M67/M68 without Q. `#5399` holds the result \
+             of the last M66 (1/0, an analog value, -1 after a timeout): a line that reads it \
+             waits for the machine's answer (LinuxCNC drains its lookahead there); `kerf plan` \
+             and `kerf sim` answer from simulated inputs that are all off unless configured. \
+             Details: [LINUXCNC.md](LINUXCNC.md)."
+        }
+        Dialect::Rockwell => {
+            "None. The 9/Series manual text Kerf works from (its seed pages) describes no I/O \
+             codes; M codes beyond the table above are the machine builder's (PAL) and are \
+             refused as `unknown M code M62`."
+        }
+        Dialect::Sinumerik => {
+            "None. The 840D programming manual text Kerf works from (its seed pages) does not \
+             cover the I/O system variables (`$A_OUT[n]`, `$A_IN[n]`, ...), which also need \
+             the assignments and expressions Kerf's Sinumerik dialect does not read yet: \
+             `$A_OUT[1]=1` is `system variable $A_OUT is not supported yet`, and M codes \
+             beyond the table (the machine builder's auxiliary functions) are `unknown M code`."
+        }
+        Dialect::Heidenhain => {
+            "None. The TNC ISO manual text Kerf works from (its seed pages) describes no I/O; \
+             M functions beyond the table are the machine builder's and are refused as \
+             `unknown M code`."
+        }
+        Dialect::Fagor => {
+            "None. The 8070 manual text Kerf works from (its seed pages) describes no I/O; \
+             PLC variables and high-level instructions (`$`, `#`, `V.`) are refused as not \
+             supported yet, and M functions beyond the table as `unknown M code`."
+        }
+    }
+}
+
 fn table(out: &mut String, title: &str, codes: &[CodeInfo], sources: &[(String, String)]) {
     let supported: Vec<&CodeInfo> = codes.iter().filter(|c| c.does.is_some()).collect();
     let refused: Vec<&CodeInfo> = codes.iter().filter(|c| c.does.is_none()).collect();
@@ -224,6 +269,7 @@ fn generate() -> String {
                 .collect::<Vec<_>>()
                 .join(", ")
         );
+        let _ = writeln!(out, "### Machine I/O\n\n{}\n", io_note(d));
     }
     out
 }

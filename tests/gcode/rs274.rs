@@ -322,3 +322,70 @@ fn an_out_of_scope_refusal_in_a_subroutine_file() {
         other => panic!("{other:?}"),
     }
 }
+
+/// The machine I/O goldens (`tests/data/ngc/io`, issue 28): M62–M65 and M67/M68 are
+/// compared with rs274's SET/CLEAR_MOTION/AUX_OUTPUT_BIT and SET_MOTION/AUX_OUTPUT_VALUE
+/// calls, number and value; Kerf's M66 events (rs274 prints no WAIT) are left out, the
+/// branches on `#5399` are compared through the moves they choose; rs274's word errors are
+/// refused on the same line. Changing an output's number, an analog value or the kind of
+/// output in rs274's output is a mismatch.
+#[test]
+fn io_goldens_compare_outputs_and_refusals() {
+    use kerf_tests::rs274::{compare, load_golden, run_kerf_with};
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/ngc/io");
+    let all = goldens(&dir).unwrap_or_else(|e| panic!("{e}"));
+    let mut refusals = 0;
+    for g in &all {
+        let name = g
+            .ngc
+            .file_name()
+            .expect("name")
+            .to_string_lossy()
+            .to_string();
+        let verdict = check_golden(g).unwrap_or_else(|e| panic!("{e}"));
+        if name.starts_with("refuse_") {
+            assert!(
+                matches!(verdict, Verdict::BothRefuse { .. }),
+                "{name}: {verdict:?}"
+            );
+            refusals += 1;
+            continue;
+        }
+        // 6 moves; S, M3, the 8 output events, the PRINT, M5 and M2 (the M66 waits and the
+        // untaken branch's message are not in rs274's output).
+        assert_eq!(
+            verdict,
+            Verdict::Same {
+                moves: 6,
+                events: 13
+            },
+            "{name}"
+        );
+        let l = load_golden(g).unwrap_or_else(|e| panic!("{e}"));
+        let kerf = run_kerf_with(&l.src, l.settings.clone());
+        for (from, to) in [
+            ("SET_MOTION_OUTPUT_BIT(2)", "SET_MOTION_OUTPUT_BIT(3)"),
+            ("SET_MOTION_OUTPUT_BIT(2)", "SET_AUX_OUTPUT_BIT(2)"),
+            ("CLEAR_MOTION_OUTPUT_BIT(2)", "SET_MOTION_OUTPUT_BIT(2)"),
+            ("CLEAR_AUX_OUTPUT_BIT(0)", "CLEAR_AUX_OUTPUT_BIT(1)"),
+            (
+                "SET_MOTION_OUTPUT_VALUE(0,2.500000)",
+                "SET_MOTION_OUTPUT_VALUE(0,2.600000)",
+            ),
+            (
+                "SET_MOTION_OUTPUT_VALUE(0,2.500000)",
+                "SET_AUX_OUTPUT_VALUE(0,2.500000)",
+            ),
+            (
+                "SET_AUX_OUTPUT_VALUE(1,-1.250000)",
+                "SET_AUX_OUTPUT_VALUE(2,-1.250000)",
+            ),
+        ] {
+            assert!(l.canon.contains(from), "{name}: {from}");
+            let changed = l.canon.replacen(from, to, 1);
+            let v = compare(&l.src, &kerf, &changed, None);
+            assert!(matches!(v, Verdict::Mismatch(_)), "{from} -> {to}: {v:?}");
+        }
+    }
+    assert_eq!(refusals, 8, "refusal goldens");
+}

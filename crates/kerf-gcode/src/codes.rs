@@ -24,6 +24,7 @@ pub(crate) const KS: u8 = key(b'S');
 pub(crate) const KT: u8 = key(b'T');
 pub(crate) const KD: u8 = key(b'D');
 pub(crate) const KL: u8 = key(b'L');
+pub(crate) const KE: u8 = key(b'E');
 
 /// Linear axis words, indexed like machine axes (0 = X).
 pub(crate) const XYZ: [u8; 3] = [KX, KY, KZ];
@@ -412,7 +413,8 @@ pub(crate) const fn allowed_keys(d: Dialect) -> u32 {
     }
     match d {
         Dialect::LinuxCnc => mask(&[
-            KA, KB, KC, KD, KF, KH, KI, KJ, KK, KL, KP, KQ, KR, KS, KT, KX, KY, KZ, K_AT, K_CARET,
+            KA, KB, KC, KD, KE, KF, KH, KI, KJ, KK, KL, KP, KQ, KR, KS, KT, KX, KY, KZ, K_AT,
+            K_CARET,
         ]),
         Dialect::Rockwell => mask(&[
             KA, KB, KC, KD, KF, KH, KI, KJ, KK, KP, KQ, KR, KS, KT, KX, KY, KZ,
@@ -580,6 +582,16 @@ fn m_codes(d: Dialect) -> Vec<CodeInfo> {
             ("M53", "feed stop control (event)"),
             ("M60", "pallet change pause"),
             ("M61", "set the current tool number"),
+            ("M62", "digital output P on with the next move (event)"),
+            ("M63", "digital output P off with the next move (event)"),
+            ("M64", "digital output P on at once (event)"),
+            ("M65", "digital output P off at once (event)"),
+            (
+                "M66",
+                "wait on digital input P or analog input E (L mode, Q timeout; result in #5399)",
+            ),
+            ("M67", "analog output E to Q with the next move (event)"),
+            ("M68", "analog output E to Q at once (event)"),
             ("M70", "save the modal state"),
             ("M71", "invalidate the saved modal state"),
             ("M72", "restore the saved modal state"),
@@ -591,7 +603,7 @@ fn m_codes(d: Dialect) -> Vec<CodeInfo> {
         ] {
             out.push(ok(code, does));
         }
-        for code in [62u16, 63, 64, 65, 66, 67, 68, 98, 99] {
+        for code in [98u16, 99] {
             out.push(CodeInfo {
                 code: format!("M{code}"),
                 does: None,

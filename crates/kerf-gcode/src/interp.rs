@@ -18,6 +18,7 @@ pub(crate) mod cycles;
 mod dwell;
 mod exec;
 mod geometry;
+mod io;
 mod mcodes;
 mod modal;
 mod motion;
@@ -140,6 +141,8 @@ pub(crate) struct State {
     /// LinuxCNC: the end of an arc whose end lies on the ray from its centre through its
     /// start, reached by a radial line after the whole turn (`arcs::arc_path`).
     arc_tail: Option<Vec3>,
+    /// LinuxCNC: the answers to M66 waits, read through `#5399` (`io`).
+    inputs: io::InputCell,
 }
 
 /// Output of a block, in execution order.
@@ -228,6 +231,7 @@ impl State {
             crc: comp::Crc::new(),
             m19_in_block: false,
             arc_tail: None,
+            inputs: io::InputCell::default(),
         };
         s.init_params();
         s.update_origin();

@@ -1,7 +1,7 @@
 //! The streaming [`Interpreter`]: reads a program one source line at a time, through the
 //! lexer or the LinuxCNC language layer, resolves each block and yields its items.
 
-use crate::{Diagnostic, Dialect, Item, Settings, interp, lex, ngc};
+use crate::{Diagnostic, Dialect, InputWait, Item, Settings, interp, lex, ngc};
 
 /// The longest source line accepted, in bytes. Longer lines are an error, which keeps the
 /// interpreter's memory bounded on any input.
@@ -79,6 +79,23 @@ impl<R: std::io::BufRead> Interpreter<R> {
             percent_seen: false,
             blocks_seen: false,
         }
+    }
+
+    /// LinuxCNC: where the answer to an `M66` wait comes from when a later line reads
+    /// `#5399` (without one: [`Settings::simulated_inputs`]). The interpreter calls
+    /// [`InputWait::wait`] once per `M66`, and only when a line reads `#5399` while that
+    /// `M66` is outstanding. The `M66` event and every item before it have been yielded by
+    /// then (M62–M68 are refused under cutter compensation, so nothing is held back
+    /// behind a move), so the source may block until the machine has run them and
+    /// answered. Its error ends the program at the line that reads `#5399`.
+    pub fn set_input_wait(&mut self, source: Box<dyn InputWait + Send>) {
+        self.state.set_input_wait(source);
+    }
+
+    /// [`Interpreter::set_input_wait`], builder style.
+    pub fn with_input_wait(mut self, source: Box<dyn InputWait + Send>) -> Self {
+        self.set_input_wait(source);
+        self
     }
 
     /// LinuxCNC's persistent numbered parameters #5161–#5390 as they are now (after a

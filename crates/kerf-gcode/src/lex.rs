@@ -192,6 +192,16 @@ impl Lexer {
                     };
                 }
                 b'[' => return err(i, "expressions ([...]) are not supported yet"),
+                b'$' if self.dialect == Dialect::Sinumerik => {
+                    // A system variable: `$A_OUT[1]=1` (a digital output), `$A_IN[2]` (an
+                    // input), `$P_...`, ... Kerf's Sinumerik dialect has none of them.
+                    let end = line[i + 1..]
+                        .iter()
+                        .position(|b| !(b.is_ascii_alphanumeric() || *b == b'_'))
+                        .map_or(line.len(), |n| i + 1 + n);
+                    let name = String::from_utf8_lossy(&line[i..end]).to_ascii_uppercase();
+                    return err(i, format!("system variable {name} is not supported yet"));
+                }
                 b'$' => return err(i, "'$' control instructions are not supported yet"),
                 b':' if self.dialect == Dialect::Sinumerik && words.is_empty() => {
                     // `:10` is a Sinumerik main block number; like N it carries no meaning here.

@@ -143,8 +143,8 @@
 //!   code in the same block, `G80 G0 X5`, the motion runs, as in rs274), G97/G98/G99
 //!   accepted. G17.1/G18.1/G19.1 (UVW planes) are "not supported". There is no motion mode at start: axis words before G0/G1/G2/G3 are the
 //!   error "cannot use axis values without a G code that uses them".
-//! - **Order of execution** (the manual's list): feed mode G93/G94/G95, F, S, T, M6,
-//!   M3/M4/M5, M70–M73, M7/M8/M9, M100–M199, G4, then plane, units, cutter compensation,
+//! - **Order of execution** (the manual's list): feed mode G93/G94/G95, F, S, T,
+//!   M62–M68, M6, M3/M4/M5, M70–M73, M7/M8/M9, M100–M199, G4, then plane, units, cutter compensation,
 //!   G43/G49, G54–G59.3, G61/G64, G90/G91, G92, the motion, and M0/M1/M2/M30/M60. So F is
 //!   read in the unit in force before the block's G20/G21 (`G20 G1 X1 F40` is 40 mm/min,
 //!   `G21 G1 X1 F2` under G20 is 2 in/min), and M70 saves the state before the block's G
@@ -188,10 +188,36 @@
 //!   (feed override, spindle override, adaptive feed, feed stop; `value` 1, or 0 for `P0`)
 //!   are events ([`EventCode::M48`]…) in their own modal group, after the coolant and
 //!   before the user M codes; `kerf sim` does not stop at them.
-//! - **Refused**: M62–M65 (digital outputs), M66 (wait on an input), M67/M68 (analog
-//!   outputs): Kerf has no I/O, "M62 is not supported: Kerf has no digital outputs" (the
-//!   code is named before its E word); M98/M99 (Fanuc-style subprograms of LinuxCNC 2.9):
-//!   "not supported, use o-word subroutines".
+//! - **Machine I/O** (`interp::io`), one code per block (LinuxCNC's modal group 5), after T
+//!   and before M6, each an event: M62/M63 digital output P on/off with the start of the
+//!   next move, M64/M65 at once (`value` = P); M67/M68 analog output E set to Q with the
+//!   next move / at once (`value` = E, `q` = Q); M66 waits on digital input P
+//!   ([`EventCode::M66`]) or analog input E ([`EventCode::M66Analog`]), `value` = the
+//!   input, `p` = the wait mode L (0 immediate, the default; 1 rise, 2 fall, 3 high, 4
+//!   low; analog inputs only 0), `q` = the timeout Q in seconds (`None` without Q, 0 for
+//!   a Q at or below zero, as rs274 passes it). rs274's checks in its words: "No valid P
+//!   word with M62", "Need to have either a valid P or a valid E word with M66", "Invalid
+//!   to select both a digital and an analog input with M66", "Zero timeout with wait type
+//!   != immediate return" (L1–L4 need Q > 0), "Can't select analog input with wait type !=
+//!   immediate return", "Invalid analog index with M67", and each code's "Cannot … with
+//!   cutter radius compensation on". Kerf is stricter where rs274 passes on a number no
+//!   machine has: an input or output number is a whole number from 0 to
+//!   [`MAX_IO_NUMBER`] (63, LinuxCNC's limit of 64 each; rs274 rounds P and E and takes a
+//!   negative output number), which inputs and outputs exist is the machine
+//!   configuration's business; L is at most 4; M67/M68 need their Q ("Q word missing with
+//!   M67: the value to set"; rs274 sets -1).
+//! - **`#5399`**, the result of the last M66 (the input's state 1/0 or an analog value,
+//!   -1 after a timeout). LinuxCNC stops reading ahead at an M66 until the motion has
+//!   drained and the wait is over. Kerf yields the M66 event and reads on; only a line that
+//!   reads `#5399` (in an expression, an O-word condition, a DEBUG/PRINT text; not
+//!   `EXISTS`) while the M66 is outstanding waits: it asks the [`InputWait`] given by
+//!   [`Interpreter::set_input_wait`] once, and `#5399` keeps the answer until the next M66
+//!   or an assignment to it. Its error stops the program at that line ("#5399 after the
+//!   M66 of line N: …"). Without one, [`Settings::simulated_inputs`] answer (inputs that
+//!   never change: see [`SimulatedInputs`]), so `kerf plan` and `kerf sim` run offline.
+//!   (rs274 itself answers with `#5399`'s previous value.)
+//! - **Refused**: M98/M99 (Fanuc-style subprograms of LinuxCNC 2.9): "not supported, use
+//!   o-word subroutines".
 //! - **G10 L0** reloads the tool table: Kerf's is the configured one with the program's
 //!   G10 L1/L10/L11 changes, so nothing changes; its other words are not read (rs274
 //!   neither). With a tool loaded it is rs274's error `G10 L0 not allowed with loaded
@@ -263,11 +289,12 @@
 //! - Feed errors use LinuxCNC's words: "Cannot do G1 with zero feed rate", "Cannot make arc
 //!   with zero feed rate". F is kept physically across G20/G21 changes.
 //! - Words no G code of the block uses are errors, as in LinuxCNC: I/J/K/R without an arc
-//!   (also with G92, or G87), P without G2/G3/G4/G10/G64, a dwelling cycle or a user M code,
-//!   Q without G10/G64/M61, G73, G83 or a user M code, H without G43 (also with G49), D without
-//!   G41/G42/G41.1/G42.1 in the block, L without G10, a canned cycle or G41.1/G42.1. A motion code with a code that
+//!   (also with G92, or G87), P without G2/G3/G4/G10/G64, a dwelling cycle, M62–M66 or a
+//!   user M code, Q without G10/G64/M61, G73, G83, M66–M68 or a user M code, E without
+//!   M66–M68, H without G43 (also with G49), D without G41/G42/G41.1/G42.1 in the block, L
+//!   without G10, a canned cycle, G41.1/G42.1 or M66. A motion code with a code that
 //!   takes the axis words (G10, G28, G30, G52, G92) is "Cannot use two g codes that both
-//!   use axis values". U, V, W and E are not supported.
+//!   use axis values". U, V and W are not supported.
 //! - Canned cycles G73, G81, G82, G83, G85, G86, G87, G88, G89 (`interp::cycles`) give the
 //!   moves rs274 (LinuxCNC 2.9) gives, in G17, G18 and G19 (the drilling axis is the plane's
 //!   normal: Z, Y, X), with G98 (back to the initial level) or G99 (to R; rs274's default),
@@ -465,11 +492,13 @@ pub use kerf_geom::{Arc, CornerMode, Event, EventCode, Item, Line, Move, Path, V
 
 mod diagnostic;
 mod dialect;
+mod inputs;
 mod interpreter;
 mod settings;
 
 pub use diagnostic::Diagnostic;
 pub use dialect::Dialect;
+pub use inputs::{InputWait, MAX_IO_NUMBER, SimulatedInputs};
 pub use interpreter::{Interpreter, MAX_LINE_BYTES};
 pub use settings::{Settings, Tool};
 

@@ -78,6 +78,10 @@ pub struct Settings {
     /// is skipped; off (the default), the `/` is ignored and the block runs, as LinuxCNC
     /// runs it with its switch off, which is how rs274 and LinuxCNC start.
     pub block_delete: bool,
+    /// LinuxCNC: the inputs an `M66` reads when the program reads `#5399` and no
+    /// [`crate::InputWait`] was given ([`crate::Interpreter::set_input_wait`]): the offline
+    /// answer of `kerf plan` and `kerf sim`. Default: every input off, every analog input 0.
+    pub simulated_inputs: crate::SimulatedInputs,
 }
 
 impl Default for Settings {
@@ -95,6 +99,7 @@ impl Default for Settings {
             g30_home_mm_deg: [0.0; 6],
             parameters: Vec::new(),
             block_delete: false,
+            simulated_inputs: crate::SimulatedInputs::default(),
         }
     }
 }

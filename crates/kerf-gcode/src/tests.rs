@@ -273,7 +273,12 @@ fn linuxcnc_errors_name_the_word() {
     }
     assert_eq!(
         error(d, "F1\nG1 X1\n\nG1 X1e3").to_string(),
-        "4:6: error: unknown word E"
+        "4:6: error: E word with no G70, G76, M66, M67 or M68 to use it"
+    );
+    // The other dialects have no E word.
+    assert_eq!(
+        error(Dialect::Rockwell, "F1\nG1 X1e3").to_string(),
+        "2:6: error: unknown word E"
     );
 }
 

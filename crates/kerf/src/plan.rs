@@ -9,21 +9,29 @@
 //! {"type":"event","line":N,"code":"M3","value":null}
 //! {"type":"event","line":N,"code":"S","value":12000.0}
 //! {"type":"event","line":N,"code":"M101","value":3.0,"q":-4.5}
+//! {"type":"event","line":N,"code":"M62","value":2.0}
+//! {"type":"event","line":N,"code":"M66","value":1.0,"p":3.0,"q":2.5,"input":"digital"}
+//! {"type":"event","line":N,"code":"M67","value":0.0,"q":7.5}
 //! {"type":"event","line":N,"code":"MSG","value":null,"text":"change the clamp"}
 //! ```
 //!
 //! - Lengths are mm in absolute machine coordinates; `line` is the 1-based source line.
 //! - A move on a machine with rotary axes in use adds `"abc_start":[a,b,c],"abc_end":[a,b,c]`
 //!   (degrees) after `feed_mm_min`.
-//! - Events: `code` is one of `M0 M1 M2 M30 M60 M3 M4 M5 M6 M7 M8 M9 S T G4`, a user M
-//!   code `M100`…`M199`, or `MSG`, `DEBUG`, `PRINT`, `LOG` (LinuxCNC's log calls, the call
-//!   in `text`: `LOGOPEN,file`, `LOGAPPEND,file`, `LOG,text`, `LOGCLOSE`; Kerf writes no
-//!   file); `value` is the spindle speed in rpm
-//!   for `S`, the tool number for `T`, the dwell in seconds for `G4`, the P word (or
-//!   `null`) for a user M code, and `null` otherwise. M0, M1 (optional stop) and M60
-//!   (pallet change) are program pauses. A user M code with a Q word adds `"q":Q`; a
-//!   message adds `"text":"..."` (a JSON string: `"`, `\` and control characters
-//!   escaped). Events without them have neither key.
+//! - Events: `code` is one of `M0 M1 M2 M30 M60 M3 M4 M5 M6 M7 M8 M9 M19 M48`–`M53
+//!   M62`–`M68 S T G4`, a user M code `M100`…`M199`, or `MSG`, `DEBUG`, `PRINT`, `LOG`
+//!   (LinuxCNC's log calls, the call in `text`: `LOGOPEN,file`, `LOGAPPEND,file`,
+//!   `LOG,text`, `LOGCLOSE`; Kerf writes no file); `value` is the spindle speed in rpm
+//!   for `S`, the tool number for `T`, the dwell in seconds for `G4`, the angle R for
+//!   M19, 1 (enabled) or 0 for M50–M53, the output number for M62–M65, M67 and M68, the
+//!   input number for M66, the P word (or `null`) for a user M code, and `null`
+//!   otherwise. M0, M1 (optional stop) and M60 (pallet change) are program pauses.
+//!   `"p":P` is added where the event has a P-like word: M19 its P (the direction mode),
+//!   M66 its L (the wait mode, 0–4). `"q":Q` is added where it has a Q word: a user M
+//!   code's Q, M19's and M66's timeout in seconds, M67's and M68's analog value. M66 adds
+//!   `"input":"digital"` (a P input) or `"input":"analog"` (an E input). A message adds
+//!   `"text":"..."` (a JSON string: `"`, `\` and control characters escaped). Events
+//!   without them have none of these keys.
 //! - Numbers are written in the shortest form that parses back to the same `f64`
 //!   (Schubfach via the `zmij` crate, the algorithm `serde_json` uses), e.g. `1.0`, `0.1`,
 //!   `-2.5e-7`, `1e+16`. Integers (`line`) are plain decimal.
@@ -45,7 +53,9 @@
 use std::io::{self, BufRead, Write};
 use std::sync::mpsc;
 
-use kerf_gcode::{Diagnostic, Dialect, Event, Interpreter, Item, Move, Path, Settings, Vec3};
+use kerf_gcode::{
+    Diagnostic, Dialect, Event, EventCode, Interpreter, Item, Move, Path, Settings, Vec3,
+};
 
 /// How many bytes of output are collected before they are handed to the writer.
 const CHUNK_BYTES: usize = 64 * 1024;
@@ -385,9 +395,18 @@ impl JsonWriter<'_> {
         self.raw(e.code.as_str());
         self.raw("\",\"value\":");
         self.opt_float(e.value);
+        if let Some(p) = e.p {
+            self.raw(",\"p\":");
+            self.float(p);
+        }
         if let Some(q) = e.q {
             self.raw(",\"q\":");
             self.float(q);
+        }
+        match e.code {
+            EventCode::M66 => self.raw(",\"input\":\"digital\""),
+            EventCode::M66Analog => self.raw(",\"input\":\"analog\""),
+            _ => {}
         }
         if let Some(text) = &e.text {
             self.raw(",\"text\":");
@@ -563,6 +582,33 @@ mod tests {
         assert_eq!(
             text(&Item::Event(s)),
             "{\"type\":\"event\",\"line\":4,\"code\":\"S\",\"value\":12000.0}\n"
+        );
+    }
+
+    #[test]
+    fn io_events_carry_p_q_and_the_kind_of_input() {
+        let m62 = Event::new(9, EventCode::M62, Some(2.0));
+        assert_eq!(
+            text(&Item::Event(m62)),
+            "{\"type\":\"event\",\"line\":9,\"code\":\"M62\",\"value\":2.0}\n"
+        );
+        let mut m66 = Event::new(10, EventCode::M66, Some(1.0));
+        (m66.p, m66.q) = (Some(3.0), Some(2.5));
+        assert_eq!(
+            text(&Item::Event(m66)),
+            "{\"type\":\"event\",\"line\":10,\"code\":\"M66\",\"value\":1.0,\"p\":3.0,\"q\":2.5,\"input\":\"digital\"}\n"
+        );
+        let mut analog = Event::new(11, EventCode::M66Analog, Some(4.0));
+        analog.p = Some(0.0);
+        assert_eq!(
+            text(&Item::Event(analog)),
+            "{\"type\":\"event\",\"line\":11,\"code\":\"M66\",\"value\":4.0,\"p\":0.0,\"input\":\"analog\"}\n"
+        );
+        let mut m68 = Event::new(12, EventCode::M68, Some(0.0));
+        m68.q = Some(-1.25);
+        assert_eq!(
+            text(&Item::Event(m68)),
+            "{\"type\":\"event\",\"line\":12,\"code\":\"M68\",\"value\":0.0,\"q\":-1.25}\n"
         );
     }
 

@@ -72,8 +72,7 @@ impl State {
         // the block), which exec() would otherwise replace before reading them.
         let mut local: Option<bool> = None;
         let modal = if self.absolute { Form::Abs } else { Form::Inc };
-        // The I/O codes Kerf refuses take words it does not know (M67 E0): the code is
-        // named first.
+        // A code Kerf refuses (M98 P100) is named before any error of its words.
         for w in words.iter().filter(|w| w.key == crate::lex::key(b'M')) {
             if let Some(msg) = code10(w.value).and_then(|c| self.linuxcnc_m_refusal(c / 10)) {
                 return fail(w.col, msg);

@@ -119,6 +119,8 @@ impl State {
         // Spindle, tool and coolant events run before the motion of the block.
         self.exec_spindle_speed(blk, dwell.word, out)?;
         self.exec_tool_call(blk, &slots, out)?;
+        // LinuxCNC: the I/O codes M62–M68 after T, before M6.
+        self.exec_io(blk, &m, out)?;
         self.exec_m_before_motion(blk, &m, out)?;
 
         // The dwell runs after the spindle and coolant events and before the motion (the

@@ -24,6 +24,8 @@ pub(super) struct MCodes {
     pub(super) orient: bool,
     /// One of M50–M53, which take P.
     pub(super) override_p: bool,
+    /// LinuxCNC M62–M68 (modal group 5, `io`) and its column.
+    pub(super) io: Option<(EventCode, u32)>,
 }
 
 impl State {
@@ -37,6 +39,7 @@ impl State {
         let mut state_op: Option<(StateOp, u32)> = None;
         let mut user_m: Option<u8> = None;
         let mut m61: Option<u32> = None;
+        let mut io: Option<(EventCode, u32)> = None;
         for (i, &(code, col)) in blk.ms[..blk.nm].iter().enumerate() {
             if d == Dialect::LinuxCnc && code == 61 {
                 // M61 Q: set the tool number (tool change group), no event.
@@ -63,6 +66,23 @@ impl State {
                 }
                 (None, None) => return fail(col, format!("unknown M code M{code}")),
             };
+            if matches!(
+                ev,
+                EventCode::M62
+                    | EventCode::M63
+                    | EventCode::M64
+                    | EventCode::M65
+                    | EventCode::M66
+                    | EventCode::M67
+                    | EventCode::M68
+            ) {
+                // LinuxCNC modal group 5: one I/O code per block.
+                if io.is_some() {
+                    return fail(col, "two M codes used from same modal group");
+                }
+                io = Some((ev, col));
+                continue;
+            }
             if let EventCode::User(n) = ev {
                 if user_m.is_some() {
                     return fail(col, "two M codes used from same modal group");
@@ -131,6 +151,7 @@ impl State {
             m61,
             orient,
             override_p,
+            io,
         })
     }
 

@@ -93,8 +93,9 @@ pub(crate) enum MoveFeed {
 const INVERSE_TIME_MIN_RATE: f64 = 0.1;
 
 impl State {
-    /// The LinuxCNC M codes this module handles besides the shared ones: M60 (a stop, as
-    /// M0) and M100–M199 as events, M70–M73 as state operations. `None` for others.
+    /// The LinuxCNC M codes this module handles besides the shared ones: M19, M48–M53,
+    /// M60 (a stop, as M0), the machine I/O M62–M68 (`io`) and M100–M199 as events,
+    /// M70–M73 as state operations. `None` for others.
     pub(super) fn linuxcnc_m(&self, code: u16) -> Option<Result<EventCode, StateOp>> {
         if self.dialect != Dialect::LinuxCnc {
             return None;
@@ -108,6 +109,14 @@ impl State {
             52 => Ok(EventCode::M52),
             53 => Ok(EventCode::M53),
             60 => Ok(EventCode::M60),
+            // Machine I/O (`io`): M66 is the digital wait until its words say otherwise.
+            62 => Ok(EventCode::M62),
+            63 => Ok(EventCode::M63),
+            64 => Ok(EventCode::M64),
+            65 => Ok(EventCode::M65),
+            66 => Ok(EventCode::M66),
+            67 => Ok(EventCode::M67),
+            68 => Ok(EventCode::M68),
             70 => Err(StateOp::Save),
             71 => Err(StateOp::Invalidate),
             72 => Err(StateOp::Restore),
@@ -117,8 +126,8 @@ impl State {
         })
     }
 
-    /// The LinuxCNC M codes that Kerf refuses, with the reason: it has no digital or
-    /// analog I/O (M62–M68), and it does not take Fanuc-style subprograms (M98/M99).
+    /// The LinuxCNC M codes that Kerf refuses, with the reason: it does not take
+    /// Fanuc-style subprograms (M98/M99).
     pub(super) fn linuxcnc_m_refusal(&self, code: u16) -> Option<&'static str> {
         if self.dialect != Dialect::LinuxCnc {
             return None;
@@ -484,13 +493,6 @@ impl State {
 /// The LinuxCNC M codes that Kerf refuses, with the reason (`State::linuxcnc_m_refusal`).
 pub(crate) fn linuxcnc_m_refusal_of(code: u16) -> Option<&'static str> {
     Some(match code {
-        62 => "M62 is not supported: Kerf has no digital outputs",
-        63 => "M63 is not supported: Kerf has no digital outputs",
-        64 => "M64 is not supported: Kerf has no digital outputs",
-        65 => "M65 is not supported: Kerf has no digital outputs",
-        66 => "M66 is not supported: Kerf has no inputs to wait on",
-        67 => "M67 is not supported: Kerf has no analog outputs",
-        68 => "M68 is not supported: Kerf has no analog outputs",
         98 => {
             "M98 is not supported: Fanuc-style subprograms (M98/M99) are not supported, use o-word subroutines (o<name> call)"
         }

@@ -28,6 +28,8 @@ pub(crate) const COORD_SYSTEM: usize = 5220;
 pub(crate) const G54_OFFSET: usize = 5221;
 /// The distance between two coordinate systems' parameter blocks.
 pub(crate) const COORD_STRIDE: usize = 20;
+/// The result of the last M66 wait (the input's value, -1 on a timeout): #5399.
+pub(crate) const INPUT_RESULT: usize = 5399;
 /// Tool number in the spindle: #5400.
 pub(crate) const TOOL_NUMBER: usize = 5400;
 /// Tool offsets X..W: #5401–#5409; diameter #5410; front angle #5411, back angle #5412,

@@ -5,8 +5,8 @@
 use super::exec::Slots;
 use super::mcodes::MCodes;
 use super::{Block, BlockError, State, cycles, fail};
-use crate::Dialect;
 use crate::codes::*;
+use crate::{Dialect, EventCode};
 
 impl State {
     /// Refuses the words of a block that no code of it uses (after the motion mode of the
@@ -23,12 +23,26 @@ impl State {
         let d = self.dialect;
         let g64 = matches!(slots[9], Some((G::Corner { exact: false }, _)));
         let motion_g = slots[1];
+        // LinuxCNC's I/O codes: M62–M66 take P, M66–M68 Q, M66 L, M66–M68 E.
+        let io = mc.io.map(|(code, _)| code);
+        let io_p = matches!(
+            io,
+            Some(EventCode::M62 | EventCode::M63 | EventCode::M64 | EventCode::M65)
+                | Some(EventCode::M66)
+        );
+        let io_qe = matches!(io, Some(EventCode::M66 | EventCode::M67 | EventCode::M68));
         if d == Dialect::LinuxCnc {
+            if blk.has(KE) && !io_qe {
+                return fail(
+                    blk.col(KE),
+                    "E word with no G70, G76, M66, M67 or M68 to use it",
+                );
+            }
             let explicit_cycle = matches!(motion_g, Some((G::Motion(Motion::Cycle(_)), _)));
-            // G10 and G41.1/G42.1 take L too, and check it themselves.
+            // G10, G41.1/G42.1 and M66 take L too, and check it themselves.
             let g10 = slots[0].is_some_and(|(g, _)| g == G::SetData);
             let g41_1 = matches!(slots[6], Some((G::CompDiameter(_), _)));
-            if !g10 && !g41_1 {
+            if !g10 && !g41_1 && io != Some(EventCode::M66) {
                 self.check_l_word(blk, explicit_cycle)?;
             }
         }
@@ -48,12 +62,19 @@ impl State {
                     || g10
                     || mc.orient
                     || mc.override_p
+                    || io_p
                     || self.cycle_uses_p())
             {
                 return fail(blk.col(KP), cycles::unused_word_message(KP));
             }
             if blk.has(KQ)
-                && !(g64 || user || g10 || mc.orient || mc.m61.is_some() || self.cycle_uses_q())
+                && !(g64
+                    || user
+                    || g10
+                    || mc.orient
+                    || mc.m61.is_some()
+                    || io_qe
+                    || self.cycle_uses_q())
             {
                 return fail(blk.col(KQ), cycles::unused_word_message(KQ));
             }

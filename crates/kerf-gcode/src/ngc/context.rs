@@ -84,6 +84,10 @@ impl expr::Params for Ctx<'_> {
         if i == params::TOOL_NUMBER {
             return Ok(self.state.q_current_tool());
         }
+        if i == params::INPUT_RESULT {
+            // After an M66, the read that waits for the machine's answer.
+            return self.state.read_input_result(col);
+        }
         match self.state.params.get(i) {
             Some(v) => Ok(v),
             None => fail(col, "Parameter number out of range"),
@@ -102,6 +106,10 @@ impl expr::Params for Ctx<'_> {
             None if self.assigned.borrow().iter().any(|n| n == name) => Ok(0.0),
             None => fail(col, format!("Named parameter #<{name}> not defined")),
         }
+    }
+
+    fn numbered_exists(&self, n: f64, col: u32) -> bool {
+        param_index(n, col).is_ok()
     }
 
     fn exists(&self, name: &str) -> bool {

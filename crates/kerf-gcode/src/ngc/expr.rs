@@ -18,6 +18,11 @@ pub(crate) trait Params {
     fn numbered(&self, n: f64, col: u32) -> Result<f64, BlockError>;
     /// `#<name>` (name lower case, spaces removed).
     fn named(&self, name: &str, col: u32) -> Result<f64, BlockError>;
+    /// `EXISTS[#n]`: whether `#n` can be read, without reading it (reading `#5399` may
+    /// wait for the machine).
+    fn numbered_exists(&self, n: f64, col: u32) -> bool {
+        self.numbered(n, col).is_ok()
+    }
     /// `EXISTS[#<name>]`.
     fn exists(&self, name: &str) -> bool;
 }
@@ -264,7 +269,7 @@ impl<'a> Reader<'a> {
                 let col = self.col();
                 self.pos += 1;
                 let n = self.real_value(p)?;
-                p.numbered(n, col).is_ok()
+                p.numbered_exists(n, col)
             };
             if self.peek() != Some(b']') {
                 return fail(self.col(), "Unknown operation");

@@ -237,11 +237,16 @@ impl Ngc {
         items: &mut Vec<Item>,
         line_no: u32,
     ) -> Result<(), BlockError> {
+        // A #5399 answer read on this line goes into the table before the assignments.
+        state.settle_input();
         for (target, v, col) in std::mem::take(&mut self.assignments) {
             match target {
                 Target::Numbered(i) => {
                     if !state.params.set(i, v) {
                         return fail(col, "Parameter number out of range");
+                    }
+                    if i == params::INPUT_RESULT {
+                        state.input_result_assigned();
                     }
                 }
                 Target::Named(name) => {
@@ -277,6 +282,11 @@ impl Ngc {
             e.text = Some(Arc::from(text));
             items.push(Item::Event(e));
         }
+        // A wait a DEBUG or PRINT text asked for and could not show (`######`).
+        if let Some(message) = state.input_failure() {
+            return fail(1, message);
+        }
+        state.settle_input();
         Ok(())
     }
 
