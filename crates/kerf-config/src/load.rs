@@ -112,8 +112,22 @@ impl Config {
             block_delete: self.block_delete,
             g28_home_mm_deg: self.g28_home_mm_deg,
             g30_home_mm_deg: self.g30_home_mm_deg,
+            simulated_inputs: self.simulated_inputs(),
             ..Settings::default()
         }
+    }
+
+    /// The inputs' values at start as the simulated I/O has them (`sim` in `[io]`): what
+    /// `kerf plan` and `kerf sim` answer an `M66` with (they never change offline).
+    pub fn simulated_inputs(&self) -> kerf_gcode::SimulatedInputs {
+        let mut inputs = kerf_gcode::SimulatedInputs::default();
+        for i in self.io.digital_inputs.iter().filter(|i| i.sim) {
+            inputs.digital |= 1 << i.number;
+        }
+        for i in &self.io.analog_inputs {
+            inputs.analog[usize::from(i.number)] = i.sim;
+        }
+        inputs
     }
 }
 

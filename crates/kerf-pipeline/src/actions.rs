@@ -119,7 +119,7 @@ impl ProgramActions {
                     return None;
                 }
                 self.at_speed_due = true;
-                act(self.spindle())
+                act(self.spindle_command())
             }
             C::M3 | C::M4 => {
                 self.dir = if e.code == C::M3 {
@@ -128,12 +128,12 @@ impl ProgramActions {
                     SpindleDir::Ccw
                 };
                 self.at_speed_due = true;
-                act(self.spindle())
+                act(self.spindle_command())
             }
             C::M5 => {
                 self.dir = SpindleDir::Off;
                 self.at_speed_due = false;
-                act(self.spindle())
+                act(self.spindle_command())
             }
             C::M19 => {
                 self.dir = SpindleDir::Off;
@@ -222,7 +222,7 @@ impl ProgramActions {
         }
     }
 
-    fn spindle(&self) -> ActionKind {
+    fn spindle_command(&self) -> ActionKind {
         ActionKind::Spindle {
             dir: self.dir,
             rpm: self.rpm,

@@ -220,6 +220,9 @@ pub struct Scan {
     /// Where the program ends: X, Y, Z (mm) and A, B, C (degrees) of the last move's end
     /// (the origin for a program without motion). The run must end exactly there.
     pub end: PerAxis<f64>,
+    /// `kerf run`: the check ended at this line, the first that reads `#5399` after an
+    /// `M66` (what follows depends on the machine's input); `None`: the whole program.
+    pub checked_to_line: Option<u32>,
 }
 
 impl Scan {

@@ -12,7 +12,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use kerf::client::{Client, ClientError, MoveSender, SetpointReader};
 use kerf::sim::{SimOptions, csv_header, write_row};
-use kerf_gcode::Interpreter;
+use kerf_gcode::{EventCode, Interpreter, Item};
 use kerf_motion::Setpoint;
 use kerf_proto::{
     ControlCommand, MoveMsg, PROGRAM_END_ABORTED, PROGRAM_END_NONE, PROGRAM_END_REFUSED,
@@ -44,6 +44,13 @@ pub struct RunArgs {
     /// when the safety layer stops the program, the rows up to its trip are kept.
     #[arg(long, value_name = "FILE.csv")]
     pub record: Option<PathBuf>,
+    /// Run from line N: the program is read from its start without motion (modal state,
+    /// offsets, tool, spindle, coolant), then the machine retracts Z to the top of its
+    /// travel, changes the tool if needed, moves over the start of line N, restores the
+    /// spindle and coolant, comes down (the last 5 mm at line N's feed) and runs on
+    /// (docs/MACHINE.md).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub from_line: Option<u32>,
 }
 
 #[derive(Args)]
@@ -501,9 +508,14 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         ..SimOptions::default()
     };
     // Pass 1: the whole program, checked before any motion.
-    let (checked, last_line) = check_program(&source, &config, settings.clone(), &options)?;
+    let (checked, last_line) = check_program(&source, &config, settings.clone(), &options, true)?;
     let scan = checked.scan;
     drop(checked.kept);
+    if let (Some(n), Some(read)) = (args.from_line, scan.checked_to_line) {
+        return Err(Failure::Error(format!(
+            "{name}:{read}:1: error: run from line {n}: the program reads #5399 after an M66 here, so its path depends on the machine's inputs; run it from the start"
+        )));
+    }
 
     let period_s = status.period_ns as f64 * 1e-9;
     let rotary = status.axes_mask & 0b111_000 != 0 && scan.rotary_used;
@@ -526,7 +538,9 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     let bar = progress_bar(last_line);
     // A program that ended early, or another one, is reported at once; a pause of this
     // program is told once, when it begins.
-    let told_pause = std::cell::Cell::new((0u32, 0u32));
+    // The pause told last (its reason and line); the thread that waits for an input's
+    // answer tells pauses too, while the interpreter waits.
+    let told_pause = Arc::new(std::sync::atomic::AtomicU64::new(0));
     let check =
         |client: &mut Client, watch: &mut Watch, reader: &mut SetpointReader, s: &StatusMsg| {
             if s.program_id == id {
@@ -545,9 +559,45 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         .map_err(client_failure)?;
     let mut seq = 0u64;
     let mut interpreter = Interpreter::new(source.reader()?, source.dialect, settings);
-    for item in interpreter.by_ref() {
+    // `#5399` after an M66: the daemon's answer, asked by a thread of its own.
+    let m66_sent = Arc::new(std::sync::atomic::AtomicU64::new(0));
+    if scan.checked_to_line.is_some() {
+        interpreter.set_input_wait(Box::new(DaemonInputs::start(
+            &machine,
+            id,
+            status.input_result_seq,
+            m66_sent.clone(),
+            stop.clone(),
+            (bar.clone(), told_pause.clone()),
+        )));
+    }
+    let items: Box<dyn Iterator<Item = Result<Item, kerf_gcode::Diagnostic>>> = match args.from_line
+    {
+        Some(n) => Box::new(crate::from_line::FromLine::new(
+            interpreter.by_ref(),
+            n,
+            &config,
+            start,
+            status.tool_in_spindle,
+        )),
+        None => Box::new(interpreter.by_ref()),
+    };
+    for item in items {
         let item = match item {
+            // The approach of `--from-line` could not be made.
+            Err(d) if args.from_line == Some(d.line) => {
+                let _ = client.command(ControlCommand::Abort);
+                return Err(Failure::Error(d.render(&name)));
+            }
             Ok(item) => item,
+            // Past the line pass 1 stopped at (a read of `#5399`), errors are the program's.
+            Err(d) if scan.checked_to_line.is_some_and(|l| d.line >= l) => {
+                let _ = client.command(ControlCommand::Abort);
+                return Err(Failure::Error(format!(
+                    "{} (the motion was aborted)",
+                    d.render(&name)
+                )));
+            }
             // Pass 1 read it without an error: the file changed in between.
             Err(d) => {
                 let _ = client.command(ControlCommand::Abort);
@@ -578,6 +628,11 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             }
         }
         sender.send(msg).map_err(client_failure)?;
+        if let Item::Event(e) = &item
+            && matches!(e.code, EventCode::M66 | EventCode::M66Analog)
+        {
+            m66_sent.fetch_add(1, Ordering::AcqRel);
+        }
         if sender.sent % DRAIN_EVERY == 0 {
             watch.take(&mut reader)?;
             update_bar(&bar, &watch, last_line, None);
@@ -625,19 +680,107 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     }
 }
 
+/// The answer to `#5399` in `kerf run`: the daemon's result of the program's M66 wait.
+/// The interpreter asks once the M66 event (and everything before it) has been sent; a
+/// thread with its own connection (the control client cannot leave the main thread)
+/// polls the status until the daemon reports that many waits of this program ended.
+struct DaemonInputs {
+    ask: std::sync::mpsc::Sender<u64>,
+    answer: std::sync::mpsc::Receiver<Result<f64, String>>,
+    /// M66 events this program has sent so far (counted by the streaming loop).
+    m66_sent: Arc<std::sync::atomic::AtomicU64>,
+    /// `input_result_seq` before the program began.
+    start_seq: u64,
+}
+
+impl DaemonInputs {
+    fn start(
+        machine: &str,
+        program_id: u64,
+        start_seq: u64,
+        m66_sent: Arc<std::sync::atomic::AtomicU64>,
+        stop: Arc<AtomicBool>,
+        tell: (ProgressBar, Arc<std::sync::atomic::AtomicU64>),
+    ) -> DaemonInputs {
+        let (ask, asked) = std::sync::mpsc::channel::<u64>();
+        let (answer_tx, answer) = std::sync::mpsc::channel();
+        let machine = machine.to_string();
+        std::thread::spawn(move || {
+            let mut client = None;
+            while let Ok(want) = asked.recv() {
+                let result = wait_for_input(&machine, &mut client, program_id, want, &stop, &tell);
+                if answer_tx.send(result).is_err() {
+                    return;
+                }
+            }
+        });
+        DaemonInputs {
+            ask,
+            answer,
+            m66_sent,
+            start_seq,
+        }
+    }
+}
+
+impl kerf_gcode::InputWait for DaemonInputs {
+    fn wait(&mut self, _event: &kerf_gcode::Event) -> Result<f64, String> {
+        let want = self.start_seq + self.m66_sent.load(Ordering::Acquire);
+        self.ask
+            .send(want)
+            .map_err(|_| "the thread that asks the daemon ended".to_string())?;
+        self.answer
+            .recv()
+            .map_err(|_| "the thread that asks the daemon ended".to_string())?
+    }
+}
+
+/// Polls the daemon until its `want`-th wait on an input (counted since it started) has
+/// ended in program `program_id`: its result. An error when the program ends first, the
+/// daemon goes away, or `kerf run` is interrupted.
+fn wait_for_input(
+    machine: &str,
+    client: &mut Option<Client>,
+    program_id: u64,
+    want: u64,
+    stop: &AtomicBool,
+    tell: &(ProgressBar, Arc<std::sync::atomic::AtomicU64>),
+) -> Result<f64, String> {
+    loop {
+        if stop.load(Ordering::Acquire) {
+            return Err("interrupted while the machine waited on the input".to_string());
+        }
+        if client.is_none() {
+            *client = Some(Client::connect(machine).map_err(|e| e.to_string())?);
+        }
+        let Some(c) = client.as_mut() else { continue };
+        let s = c.status().map_err(|e| e.to_string())?;
+        if s.program_id == program_id {
+            // The program may pause before it gets to the M66: the operator must know.
+            let _ = tell_pause(&tell.0, &tell.1, &s);
+        }
+        if s.input_result_program == program_id && s.input_result_seq >= want {
+            return Ok(s.input_result_value);
+        }
+        if s.program_id == program_id && s.program_end != PROGRAM_END_NONE {
+            return Err("the program ended before the machine answered the M66".to_string());
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
 /// Tells a pause of the program once, when it begins: "paused at line 12 (M0, program
 /// stop): `kerf resume` to continue" (above the progress bar on a terminal, else on
 /// standard error). `kerf run` keeps waiting: it ends only when the program does.
 fn tell_pause(
     bar: &ProgressBar,
-    told: &std::cell::Cell<(u32, u32)>,
+    told: &std::sync::atomic::AtomicU64,
     s: &StatusMsg,
 ) -> Result<(), Failure> {
-    let now = (s.pause_reason, s.pause_line);
-    if now == told.get() {
+    let now = u64::from(s.pause_reason) << 32 | u64::from(s.pause_line);
+    if told.swap(now, Ordering::AcqRel) == now {
         return Ok(());
     }
-    told.set(now);
     if let Some(text) = kerf::status_view::pause_text(s) {
         let text = format!("kerf: {text}");
         if bar.is_hidden() {
@@ -678,9 +821,13 @@ fn program_ended(
     interpreter: &Interpreter<Box<dyn io::BufRead + Send>>,
     name: &str,
 ) -> Result<(), Failure> {
-    // Exit 0 means the program ran to its end point.
-    scan.check_end(&s.position_mm_deg)
-        .map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
+    // Exit 0 means the program ran to its end point (known when the whole program was
+    // checked; after a read of `#5399` the end depends on the machine's input, and the
+    // daemon's own report that the program finished is the proof).
+    if scan.checked_to_line.is_none() {
+        scan.check_end(&s.position_mm_deg)
+            .map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
+    }
     // The program ended normally: its persistent parameters (G28/G30 positions,
     // work offsets, G92) are kept for the next one, as LinuxCNC keeps its .var file.
     if let Some(path) = &config.parameter_file {

@@ -12,6 +12,7 @@ use std::fs::File;
 use std::io::{self, BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -24,6 +25,7 @@ use kerf_gcode::{Dialect, Interpreter, Item};
 use kerf_pipeline::ProgramActions;
 
 mod ethercat;
+mod from_line;
 mod machine;
 mod output;
 
@@ -430,7 +432,7 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     // limits (the programmed moves and the planned path) before the first setpoint: a
     // program that would leave the machine's travel never starts.
     let settings = settings_for(program_settings(&config)?, &args.program.program);
-    let (checked, _) = check_program(&source, &config, settings.clone(), &options)?;
+    let (checked, _) = check_program(&source, &config, settings.clone(), &options, false)?;
     let scan = checked.scan;
 
     if args.plot.as_deref().is_some_and(output::is_stdout) && output::is_stdout(&args.out) {
@@ -556,11 +558,17 @@ fn with_dialect_note(error: String, dialect: Dialect, assumed: bool) -> String {
 /// Pass 1 of `kerf sim` and `kerf run`: the whole program is resolved with `settings`,
 /// planned and checked against the travel limits (the programmed moves and the planned
 /// path). Returns what the check kept and the last source line with a move or event.
+///
+/// With `machine_inputs` (`kerf run`), the inputs an `M66` waits on are the machine's:
+/// the check ends at the first line that reads `#5399` after an `M66` (what follows
+/// depends on the input's value, which only the machine knows), and the scan says so
+/// ([`kerf::sim::Scan::checked_to_line`]).
 pub fn check_program(
     source: &SimSource,
     config: &Config,
     settings: kerf_gcode::Settings,
     options: &SimOptions,
+    machine_inputs: bool,
 ) -> Result<(kerf::sim::Checked, u32), Failure> {
     let name = &source.name;
     let mut prepass = Prepass::new(config, options);
@@ -574,7 +582,13 @@ pub fn check_program(
     let mut last_line = 0;
     let mut actions = ProgramActions::new();
     let caps = config.machine_check();
-    for item in Interpreter::new(source.reader()?, source.dialect, settings) {
+    let mut interpreter = Interpreter::new(source.reader()?, source.dialect, settings);
+    let read_input = Arc::new(AtomicBool::new(false));
+    if machine_inputs {
+        interpreter.set_input_wait(Box::new(StopAtInput(read_input.clone())));
+    }
+    let mut checked_to = None;
+    for item in interpreter {
         match item {
             Ok(Item::Move(m)) => {
                 last_line = m.line;
@@ -606,6 +620,11 @@ pub fn check_program(
                     prepass.input(&input).map_err(refused)?;
                 }
             }
+            Err(d) if read_input.load(Ordering::Acquire) => {
+                // The program reads an input here: the check covers what comes before.
+                checked_to = Some(d.line);
+                break;
+            }
             Err(diagnostic) => {
                 return Err(Failure::Error(with_dialect_note(
                     diagnostic.render(name),
@@ -615,11 +634,23 @@ pub fn check_program(
             }
         }
     }
-    let checked = prepass.finish().map_err(refused)?;
+    let mut checked = prepass.finish().map_err(refused)?;
+    checked.scan.checked_to_line = checked_to;
     if let Some(bar) = spinner {
         bar.finish_and_clear();
     }
     Ok((checked, last_line))
+}
+
+/// The input wait of pass 1 in `kerf run`: the machine's inputs are not known before the
+/// program runs, so the first read of `#5399` after an `M66` ends the check there.
+struct StopAtInput(Arc<AtomicBool>);
+
+impl kerf_gcode::InputWait for StopAtInput {
+    fn wait(&mut self, _event: &kerf_gcode::Event) -> Result<f64, String> {
+        self.0.store(true, Ordering::Release);
+        Err("the input's value is the machine's: the check before motion ends here".to_string())
+    }
 }
 
 /// The program of `kerf sim`, which may be read twice (a checking pass, then the run): a
