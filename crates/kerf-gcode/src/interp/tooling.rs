@@ -11,8 +11,9 @@ use crate::{Dialect, EventCode, Tool};
 const MAX_TOOLS: usize = 10_000;
 
 impl State {
-    /// The T word: selects the tool (and, except in LinuxCNC, makes it current). In a
-    /// Heidenhain tool definition (G99) T is the number being defined.
+    /// The T word: selects the tool (and, except in LinuxCNC, makes it current: the
+    /// events are T and a tool change M6). In a Heidenhain tool definition (G99) T is the
+    /// number being defined.
     pub(super) fn exec_tool_call(
         &mut self,
         blk: &Block,
@@ -48,6 +49,13 @@ impl State {
                     );
                 }
                 out.event(EventCode::T, Some(f64::from(n)));
+                let m6_written = blk.ms[..blk.nm].iter().any(|&(m, _)| m == 6);
+                if d != Dialect::LinuxCnc && !m6_written {
+                    // The call is the change: the machine puts the tool in the spindle
+                    // (its tool changer; a change to the tool already there is nothing).
+                    // With M6 in the block, that M6 is the change.
+                    out.event(EventCode::M6, None);
+                }
             }
         }
         Ok(())

@@ -195,6 +195,9 @@ pub enum Injection {
     Step(usize, f64),
     /// The next this many cycles give the drive side no setpoint.
     Stall(u32),
+    /// The simulated spindle drive loses its load (`true`: a broken belt, its speed
+    /// decays to rest) or gets it back.
+    SpindleStall(bool),
 }
 
 /// The error code a lasting injected drive fault reports: 0x4310, excess temperature of
@@ -207,7 +210,8 @@ impl Injection {
 
     /// Decodes a `REQUEST_INJECT` value, `kind · 16 + n`: kind 1 a lasting drive fault on
     /// axis n (0–5 = X–C), 2 its cause removed, 3 a step of [`Injection::STEP_MM`] on axis
-    /// n, 4 a stall of n × 10 cycles (n 0–15).
+    /// n, 4 a stall of n × 10 cycles (n 0–15), 5 the simulated spindle stalled (n 1) or
+    /// freed (n 0).
     pub(crate) fn from_code(code: u32) -> Option<Injection> {
         let (kind, arg) = (code / 16, (code % 16) as usize);
         match kind {
@@ -215,6 +219,7 @@ impl Injection {
             2 if arg < 6 => Some(Injection::ClearDriveFault(arg)),
             3 if arg < 6 => Some(Injection::Step(arg, Injection::STEP_MM)),
             4 => Some(Injection::Stall(arg as u32 * 10)),
+            5 if arg < 2 => Some(Injection::SpindleStall(arg == 1)),
             _ => None,
         }
     }
@@ -226,6 +231,7 @@ impl Injection {
             Injection::ClearDriveFault(a) if a < 6 => Some(32 + a as u32),
             Injection::Step(a, mm) if a < 6 && mm == Injection::STEP_MM => Some(48 + a as u32),
             Injection::Stall(n) if n % 10 == 0 && n / 10 < 16 => Some(64 + n / 10),
+            Injection::SpindleStall(on) => Some(80 + u32::from(on)),
             _ => None,
         }
     }

@@ -1,4 +1,5 @@
-//! Helpers shared by the daemon's in-process tests (`drives.rs`, `daemon_alloc.rs`).
+//! Helpers shared by the daemon's in-process tests (`drives.rs`, `daemon_alloc.rs`,
+//! `machine.rs`).
 
 use kerf_config::Config;
 use kerf_proto::{MoveMsg, Resolved, StreamCheck};
@@ -12,6 +13,25 @@ pub fn feed_program(
     id: u64,
     start: [f64; 6],
     text: &str,
+) {
+    feed_program_in(
+        planning,
+        config,
+        id,
+        start,
+        text,
+        kerf_gcode::Dialect::LinuxCnc,
+    );
+}
+
+/// [`feed_program`] for a program in `dialect`.
+pub fn feed_program_in(
+    planning: &mut Planning,
+    config: &Config,
+    id: u64,
+    start: [f64; 6],
+    text: &str,
+    dialect: kerf_gcode::Dialect,
 ) {
     let mut check = StreamCheck::new();
     let mut settings = config.settings();
@@ -34,9 +54,7 @@ pub fn feed_program(
     };
     handle(MoveMsg::begin(id, start, 0));
     let mut seq = 0;
-    for item in
-        kerf_gcode::Interpreter::new(text.as_bytes(), kerf_gcode::Dialect::LinuxCnc, settings)
-    {
+    for item in kerf_gcode::Interpreter::new(text.as_bytes(), dialect, settings) {
         let item = item.expect("the program is valid");
         seq += 1;
         handle(MoveMsg::from_item(id, seq, &item));

@@ -111,6 +111,7 @@ impl Cycle {
                 }
             }
             Injection::Stall(n) => self.stall_left = n,
+            Injection::SpindleStall(on) => self.machine.inject_spindle_stall(on),
         }
     }
 }
