@@ -1,7 +1,10 @@
 //! The drive side's cost per real-time cycle: `DriveStage::cycle` with the daemon's
 //! configuration (three simulated drives, 20 integration substeps each at 1 ms, the
 //! safety checks, the 10 s black box), following a motion; and the same with a dump being
-//! copied out (256 records per cycle).
+//! copied out (256 records per cycle). And the machine around the axes
+//! (`kerf_drive::machine::Machine`, the bundled machine's simulated spindle, coolant and
+//! I/O) per cycle: its step while the spindle ramps and is watched while feeding, and a
+//! cycle that also hands it an action.
 //!
 //! `cargo bench -p kerf-benches --bench drive`
 // criterion_main! writes this bench's `main`, without a doc comment.
@@ -58,5 +61,50 @@ fn bench_drive(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_drive);
+fn bench_machine(c: &mut Criterion) {
+    use kerf_geom::machine::{Action, ActionKind, MachineIo, SpindleDir};
+    let config = Config::builtin();
+    let mut machine = kerf_drive::machine::Machine::new(
+        kerfd::machine::machine_config(&config).expect("the built-in machine"),
+    )
+    .expect("a valid machine");
+    let spindle = |dir, rpm| Action {
+        line: 1,
+        kind: ActionKind::Spindle { dir, rpm },
+    };
+    let mut group = c.benchmark_group("machine");
+    // The spindle reverses between ±12000 rpm every 4000 cycles: it ramps most of the time.
+    let mut k = 0u64;
+    group.bench_function("cycle_spindle_ramping_while_feeding", |b| {
+        b.iter(|| {
+            k += 1;
+            if k % 4000 == 0 {
+                let dir = if (k / 4000) % 2 == 0 {
+                    SpindleDir::Cw
+                } else {
+                    SpindleDir::Ccw
+                };
+                machine.act(&spindle(dir, 12000.0));
+            }
+            machine.cycle(true);
+            machine.status()
+        })
+    });
+    let coolant = |flood| Action {
+        line: 2,
+        kind: ActionKind::Coolant { mist: false, flood },
+    };
+    let mut on = false;
+    group.bench_function("cycle_with_an_action", |b| {
+        b.iter(|| {
+            on = !on;
+            machine.act(&coolant(on));
+            machine.cycle(false);
+            machine.status()
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_drive, bench_machine);
 criterion_main!(benches);

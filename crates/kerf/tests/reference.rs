@@ -468,8 +468,24 @@ fn every_example_runs_in_kerf_sim_with_the_same_setpoints() {
 #[test]
 fn completions_and_man_pages_come_from_the_binaries() {
     let subcommands = [
-        "plan", "sim", "run", "status", "hold", "resume", "abort", "override", "record", "reset",
-        "dump", "plot", "ethercat",
+        "plan",
+        "sim",
+        "run",
+        "status",
+        "hold",
+        "resume",
+        "optional-stop",
+        "single-block",
+        "block-delete",
+        "spindle-override",
+        "input",
+        "abort",
+        "override",
+        "record",
+        "reset",
+        "dump",
+        "plot",
+        "ethercat",
     ];
     let help = String::from_utf8(run(KERF, &["--help"]).stdout).unwrap();
     for sub in subcommands {

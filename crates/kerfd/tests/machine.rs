@@ -458,3 +458,42 @@ fn the_bundled_part_runs_with_its_stops_tool_spindle_and_coolant_in_every_dialec
     // The same part: the same end in every dialect.
     assert!(ends.windows(2).all(|w| w[0] == w[1]), "{ends:?}");
 }
+
+/// A hold during a pause holds; one cycle start ends both; an override changed during the
+/// pause applies to the motion after it.
+#[test]
+fn hold_and_override_during_a_pause_behave_as_an_operator_expects() {
+    let mut m = Machine::new(config(""));
+    m.send(1, "G21 G90\nG1 X5 F3000\nM0\nG1 X50 F3000\nM2\n");
+    // Run into the pause.
+    for _ in 0..100_000 {
+        if m.run().pause == Some(PauseReason::ProgramStop) {
+            break;
+        }
+    }
+    m.command(CycleCommand::Hold);
+    m.command(CycleCommand::Override(50.0));
+    for _ in 0..50 {
+        m.run();
+    }
+    assert_eq!(
+        m.last.unwrap().state,
+        MachineState::Holding,
+        "held during the pause"
+    );
+    assert_eq!(m.log.last().unwrap().out.setpoint.position[0], 5.0);
+    m.command(CycleCommand::Resume);
+    let s = m.finish(1, u64::MAX);
+    assert!(s.refusal.is_none() && !s.aborted);
+    // After the pause the move ran at half its 50 mm/s: never faster than 25 mm/s, and
+    // at 25 mm/s for most of it.
+    let after: Vec<f64> = m
+        .log
+        .iter()
+        .filter(|r| r.out.setpoint.line == 4)
+        .map(|r| r.out.setpoint.feed_mm_s)
+        .collect();
+    let peak = after.iter().copied().fold(0.0, f64::max);
+    assert!((peak - 25.0).abs() < 1e-6, "peak feed {peak} mm/s");
+    assert_eq!(m.log.last().unwrap().out.setpoint.position[0], 50.0);
+}

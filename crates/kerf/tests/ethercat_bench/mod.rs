@@ -74,14 +74,12 @@ impl Bench {
         // and of the emulator on a busy two-core machine answer within it (over veth their
         // round trip's 99.9th percentile was 1.5 ms), not within 0.5 ms at 1 ms.
         text = text.replacen("period_us = 1000", "period_us = 4000", 1);
-        // The bundled machine's simulated I/O, spindle and coolant: on a bus they would be
-        // bits and drives of its own, which this bench's bus does not have.
+        // The bundled machine's simulated I/O, spindle, coolant and tool changer: on a bus
+        // they would be bits and drives of its own, which this bench's bus does not have.
         let io = text
             .find("# Inputs and outputs.")
             .expect("config/kerf.toml's [io]");
-        let changer = text
-            .find("# The tool change M6")
-            .expect("its [tool_changer]");
+        let changer = text.find("# The runtime switches").expect("its [operator]");
         text.replace_range(io..changer, "");
         text.push_str(&format!(
             // A debug build on a busy two-core machine misses periods now and then; the
