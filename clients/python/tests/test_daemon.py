@@ -578,12 +578,13 @@ class Switches(unittest.TestCase):
         self.assertEqual((r.accepted, r.reason), (False, p.REASON_BAD_VALUE), r)
         r = c.spindle_override(250)
         self.assertEqual((r.accepted, r.reason), (False, p.REASON_BAD_VALUE), r)
-        # config/kerf.toml simulates no input: in range, but not allowed.
+        # config/kerf.toml has no input 3: in range, but not allowed.
         r = c.set_input(3, True)
         self.assertEqual((r.accepted, r.reason), (False, p.REASON_NOT_ALLOWED), r)
         self.assertTrue(r.message, r)
         s = c.status().status
-        self.assertEqual((s.switches, s.digital_inputs), (0, 0), s)
+        # Inputs 0 and 1 (part_present, door_closed) start on in config/kerf.toml.
+        self.assertEqual((s.switches, s.digital_inputs), (0, 0b11), s)
         self.assertEqual(s.state, p.STATE_IDLE, s)
 
 
