@@ -169,6 +169,7 @@ impl State {
     }
 
     pub(crate) fn new(dialect: Dialect, settings: Settings) -> Self {
+        let tool_loaded = settings.tool_in_spindle;
         let coord_system = match dialect {
             Dialect::LinuxCnc | Dialect::Rockwell | Dialect::Fagor => Some(0),
             Dialect::Sinumerik | Dialect::Heidenhain => None,
@@ -206,7 +207,7 @@ impl State {
             flood: false,
             modal_frames: Vec::new(),
             tool_length_on: false,
-            tool_loaded: None,
+            tool_loaded,
             tool_offset: [0.0; 6],
             tool_offset_at_move: [0.0; 6],
             m6_in_block: false,

@@ -82,6 +82,10 @@ pub struct Settings {
     /// [`crate::InputWait`] was given ([`crate::Interpreter::set_input_wait`]): the offline
     /// answer of `kerf plan` and `kerf sim`. Default: every input off, every analog input 0.
     pub simulated_inputs: crate::SimulatedInputs,
+    /// The tool in the machine's spindle when the program starts (`kerf run` asks the
+    /// daemon): the current tool until the program's first change (`#5400`, `G43`
+    /// without `H`). `None`: none (as rs274 starts).
+    pub tool_in_spindle: Option<u32>,
 }
 
 impl Default for Settings {
@@ -100,6 +104,7 @@ impl Default for Settings {
             parameters: Vec::new(),
             block_delete: false,
             simulated_inputs: crate::SimulatedInputs::default(),
+            tool_in_spindle: None,
         }
     }
 }

@@ -773,3 +773,44 @@ fn random_word_programs_never_panic() {
         "{moves} moves, {arcs} arcs"
     );
 }
+
+#[test]
+fn the_tool_in_the_spindle_at_start_is_the_current_tool() {
+    // LinuxCNC G43 without H applies the current tool's length: with tool 2 (25 mm) in
+    // the spindle when the program starts, Z0 is 25 mm higher in machine coordinates.
+    let tools = vec![crate::Tool {
+        number: 2,
+        length_mm: 25.0,
+        ..crate::Tool::default()
+    }];
+    let loaded = Settings {
+        tools: tools.clone(),
+        tool_in_spindle: Some(2),
+        ..Settings::default()
+    };
+    let items = run_with(
+        Dialect::LinuxCnc,
+        "G21 G43\nG0 Z0\n(DEBUG, #5400)\n",
+        loaded,
+    )
+    .unwrap();
+    // #5400, the tool in the spindle, is 2.
+    assert!(
+        matches!(&items[1], Item::Event(e) if e.text.as_deref() == Some(" 2.000000")),
+        "{items:?}"
+    );
+    let Some(Item::Move(m)) = items.first() else {
+        panic!("{items:?}")
+    };
+    near(m.path.end(), v(0.0, 0.0, 25.0));
+    // With an empty spindle there is no length to apply.
+    let empty = Settings {
+        tools,
+        ..Settings::default()
+    };
+    let items = run_with(Dialect::LinuxCnc, "G21 G43\nG0 Z1\n", empty).unwrap();
+    let Some(Item::Move(m)) = items.first() else {
+        panic!("{items:?}")
+    };
+    near(m.path.end(), v(0.0, 0.0, 1.0));
+}

@@ -501,8 +501,10 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     let mut settings =
         crate::settings_for(crate::program_settings(&config)?, &args.program.program);
     settings.start_mm_deg = start;
-    // Block delete is the operator's switch on the machine (`kerf block-delete on|off`).
+    // Block delete is the operator's switch on the machine (`kerf block-delete on|off`),
+    // and the current tool is the one in its spindle.
     settings.block_delete = status.switches & kerf_proto::SWITCH_BLOCK_DELETE != 0;
+    settings.tool_in_spindle = (status.tool_in_spindle != 0).then_some(status.tool_in_spindle);
     let options = SimOptions {
         queue_capacity: config.daemon.queue_segments as usize,
         ..SimOptions::default()
