@@ -778,10 +778,10 @@ fn random_word_programs_never_panic() {
 fn the_tool_in_the_spindle_at_start_is_the_current_tool() {
     // LinuxCNC G43 without H applies the current tool's length: with tool 2 (25 mm) in
     // the spindle when the program starts, Z0 is 25 mm higher in machine coordinates.
-    let tools = vec![crate::Tool {
+    let tools = vec![Tool {
         number: 2,
         length_mm: 25.0,
-        ..crate::Tool::default()
+        ..Tool::default()
     }];
     let loaded = Settings {
         tools: tools.clone(),
