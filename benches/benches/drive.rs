@@ -78,8 +78,8 @@ fn bench_machine(c: &mut Criterion) {
     group.bench_function("cycle_spindle_ramping_while_feeding", |b| {
         b.iter(|| {
             k += 1;
-            if k % 4000 == 0 {
-                let dir = if (k / 4000) % 2 == 0 {
+            if k.is_multiple_of(4000) {
+                let dir = if (k / 4000).is_multiple_of(2) {
                     SpindleDir::Cw
                 } else {
                     SpindleDir::Ccw
