@@ -691,3 +691,116 @@ pub enum BusTrip {
         code: u16,
     },
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kerf_config::ethercat::{DriveMode, Pdo};
+    use kerf_ethercat::pdo::SpindleLayout;
+
+    /// A spindle drive at 10000 counts/rev with an enable timeout of 5 cycles.
+    fn spindle() -> BusSpindle {
+        let layout =
+            SpindleLayout::new(&Pdo::default_rx(DriveMode::Csv), &Pdo::default_tx()).unwrap();
+        BusSpindle::new(SpindleImage::new(layout, 9), 10_000.0, 5)
+    }
+
+    /// The drive answers with `statusword`, velocity actual `velocity` and `error_code`
+    /// (the default TxPDO: statusword at 0, velocity actual at 6, error code at 14).
+    fn answer(s: &mut BusSpindle, statusword: u16, velocity: i32, error_code: u16) {
+        let mut input = [0u8; 20];
+        input[..2].copy_from_slice(&statusword.to_le_bytes());
+        input[6..10].copy_from_slice(&velocity.to_le_bytes());
+        input[14..16].copy_from_slice(&error_code.to_le_bytes());
+        s.image.read_inputs(&input);
+        s.read = true;
+    }
+
+    #[test]
+    fn the_spindle_is_enabled_then_follows_the_setpoint_in_counts_per_second() {
+        let mut s = spindle();
+        // CiA 402 enable: Switch on disabled → Shutdown (6), Ready → Switch on (7),
+        // Switched on → Enable operation (15); the target stays 0 until enabled.
+        for (statusword, controlword) in [(0x0250, 0x0006), (0x0231, 0x0007), (0x0233, 0x000F)] {
+            answer(&mut s, statusword, 0, 0);
+            assert_eq!(s.step(Phase::Active, false, 6000.0), None);
+            assert_eq!(
+                (s.image.controlword(), s.image.target_velocity_counts_s()),
+                (controlword, 0)
+            );
+        }
+        // Enabled: 6000 rpm × 10000 / 60 = 1 000 000 counts/s; M4 at 1500 rpm: -250 000.
+        answer(&mut s, 0x1237, 0, 0);
+        assert_eq!(s.step(Phase::Active, false, 6000.0), None);
+        assert_eq!(s.image.target_velocity_counts_s(), 1_000_000);
+        assert_eq!(s.step(Phase::Active, false, -1500.0), None);
+        assert_eq!(s.image.target_velocity_counts_s(), -250_000);
+        // Its velocity actual back as rpm: 500 000 counts/s is 3000 rpm.
+        answer(&mut s, 0x1237, 500_000, 0);
+        assert_eq!(s.actual_rpm(), 3000.0);
+    }
+
+    #[test]
+    fn a_spindle_fault_is_reported_once_and_the_reset_clears_and_enables_it() {
+        let mut s = spindle();
+        answer(&mut s, 0x1237, 0, 0);
+        s.enabler.request(Request::Enable);
+        for sw in [0x0250, 0x0231, 0x0233, 0x1237] {
+            answer(&mut s, sw, 0, 0);
+            s.step(Phase::Active, false, 1000.0);
+        }
+        // Fault (0x0218: fault, voltage enabled) with error code 0x4310.
+        answer(&mut s, 0x0218, 0, 0x4310);
+        assert_eq!(
+            s.step(Phase::Active, false, 1000.0),
+            Some(SpindleTrip::Fault { error_code: 0x4310 })
+        );
+        assert_eq!(s.image.target_velocity_counts_s(), 0);
+        assert_eq!(s.step(Phase::Active, false, 1000.0), None, "reported once");
+        assert_eq!(
+            SpindleTrip::Fault { error_code: 0x4310 }.check(),
+            (Check::DriveFault, 17168.0, 0.0)
+        );
+        // The drive stage resets: bit 7 low, then a rising edge.
+        assert_eq!(s.step(Phase::Resetting, false, 0.0), None);
+        assert_eq!(s.image.controlword() & 0x0080, 0);
+        assert_eq!(s.step(Phase::Resetting, false, 0.0), None);
+        assert_eq!(s.image.controlword() & 0x0080, 0x0080);
+        // Out of the fault: enabled again.
+        for (statusword, controlword) in [(0x0250, 0x0006), (0x0231, 0x0007), (0x0233, 0x000F)] {
+            answer(&mut s, statusword, 0, 0);
+            assert_eq!(s.step(Phase::Active, false, 0.0), None);
+            assert_eq!(s.image.controlword(), controlword);
+        }
+        // A shutdown powers it off without a report.
+        answer(&mut s, 0x1237, 0, 0);
+        assert_eq!(s.step(Phase::Active, true, 0.0), None);
+        assert_eq!(s.image.controlword(), 0x0000);
+    }
+
+    #[test]
+    fn a_spindle_that_does_not_enable_or_drops_out_is_reported() {
+        let mut s = spindle();
+        // Stuck in Switch on disabled for more than 5 cycles.
+        let mut trip = None;
+        for _ in 0..8 {
+            answer(&mut s, 0x0250, 0, 0);
+            trip = trip.or(s.step(Phase::Enabling, false, 0.0));
+        }
+        assert_eq!(trip, Some(SpindleTrip::NotEnabled { timeout_cycles: 5 }));
+        let mut s = spindle();
+        for sw in [0x0250, 0x0231, 0x0233, 0x1237] {
+            answer(&mut s, sw, 0, 0);
+            s.step(Phase::Active, false, 0.0);
+        }
+        answer(&mut s, 0x0250, 0, 0);
+        assert_eq!(
+            s.step(Phase::Active, false, 0.0),
+            Some(SpindleTrip::Disabled)
+        );
+        assert_eq!(
+            SpindleTrip::Disabled.check(),
+            (Check::DriveDisabled, 1.0, 0.0)
+        );
+    }
+}
