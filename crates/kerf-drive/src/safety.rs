@@ -164,6 +164,10 @@ pub enum Check {
     /// The automatic tool changer did not report the change done within its timeout; the
     /// value is the tool, the limit the timeout, s.
     ToolChange,
+    /// The spindle's drive on the fieldbus failed: the limit says how (0: it reports a
+    /// fault, the value its error code 0x603F; 1: it did not enable, the value the timeout
+    /// in cycles; 2: it left Operation enabled on its own).
+    SpindleDrive,
 }
 
 impl Check {
@@ -185,11 +189,12 @@ impl Check {
             Check::SpindleBand => "spindle_band",
             Check::SpindleOrient => "spindle_orient",
             Check::ToolChange => "tool_change",
+            Check::SpindleDrive => "spindle_drive",
         }
     }
 
     /// Every check, in the order of their codes.
-    pub const ALL: [Check; 14] = [
+    pub const ALL: [Check; 15] = [
         Check::Velocity,
         Check::Acceleration,
         Check::SoftLimit,
@@ -204,9 +209,10 @@ impl Check {
         Check::SpindleBand,
         Check::SpindleOrient,
         Check::ToolChange,
+        Check::SpindleDrive,
     ];
 
-    /// The check's number on the wire (1 to 14, in the order of [`Check::ALL`]; 0 means
+    /// The check's number on the wire (1 to 15, in the order of [`Check::ALL`]; 0 means
     /// none).
     pub fn code(self) -> u32 {
         match self {
@@ -224,6 +230,7 @@ impl Check {
             Check::SpindleBand => 12,
             Check::SpindleOrient => 13,
             Check::ToolChange => 14,
+            Check::SpindleDrive => 15,
         }
     }
 }

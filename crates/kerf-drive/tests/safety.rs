@@ -734,6 +734,7 @@ fn check_codes_are_the_protocols_numbers() {
         (Check::SpindleBand, 12, "spindle_band"),
         (Check::SpindleOrient, 13, "spindle_orient"),
         (Check::ToolChange, 14, "tool_change"),
+        (Check::SpindleDrive, 15, "spindle_drive"),
     ];
     assert_eq!(Check::ALL.len(), expected.len());
     for (check, (want, code, name)) in Check::ALL.iter().zip(expected) {

@@ -27,8 +27,25 @@
 //! following error, the servo loop pulls it to the target in one cycle, and beyond
 //! about 1600 counts of error (default tuning) that commands more than the overcurrent
 //! limit and trips fault 0x2310, as a real drive released under a large error would.
+//!
+//! Cyclic synchronous velocity (mode 9, 0x6060 written in PRE-OP, as a spindle drive is
+//! run): the power state machine is the servo model's, but the motor follows the target
+//! velocity 0x60FF (counts/s) instead of a position. While Operation enabled its velocity
+//! moves toward the target by at most [`DriveDevice::velocity_accel_counts_s2`] times the
+//! period per model step (a ramp: [`DEFAULT_VELOCITY_ACCEL_COUNTS_S2`] unless set, the
+//! emulator's `--velocity-accel`); in every other state (a quick stop, a fault, power
+//! off) it runs down to rest at the same rate. The position actual integrates the
+//! velocity, the following error is 0, statusword bit 12 (drive follows the command value)
+//! is set while Operation enabled. A jammed motor stands still (velocity 0).
 
 use kerf_drive::cia402::{Drive, DriveState, MODE_CYCLIC_SYNC_POSITION, cw, sw};
+
+/// Mode of operation 9: cyclic synchronous velocity.
+pub const MODE_CYCLIC_SYNC_VELOCITY: i8 = 9;
+
+/// The ramp of the motor's velocity in cyclic synchronous velocity unless set otherwise,
+/// counts/s²: 1e6, e.g. 6000 rpm/s at 10000 counts per revolution.
+pub const DEFAULT_VELOCITY_ACCEL_COUNTS_S2: f64 = 1.0e6;
 use kerf_drive::sim::{SimConfig, SimDrive};
 
 use crate::al::AlState;
@@ -90,6 +107,12 @@ pub struct DriveDevice {
     stalled_at_counts: Option<i32>,
     /// A fault injected for the next model step.
     pending_fault: Option<u16>,
+    /// In cyclic synchronous velocity: the ramp of the motor's velocity, counts/s².
+    velocity_accel_counts_s2: f64,
+    /// In cyclic synchronous velocity: the motor's velocity, counts/s.
+    csv_velocity_counts_s: f64,
+    /// In cyclic synchronous velocity: the motor's position, counts.
+    csv_position_counts: f64,
 }
 
 /// What a drive shows, for the emulator's `state` command.
@@ -113,6 +136,10 @@ pub struct DriveSnapshot {
     /// the drive's own quick stop, ns; `None` when the watchdog has not expired or the
     /// motor is not at rest yet.
     pub stopped_after_ns: Option<u64>,
+    /// The mode of operation (0x6061): 8 position, 9 velocity.
+    pub mode: i8,
+    /// The target velocity (0x60FF) last written, counts/s (used in mode 9).
+    pub target_velocity_counts_s: i32,
 }
 
 /// A fresh servo model like `drive` (configuration, mode of operation, power state and
@@ -220,6 +247,7 @@ impl DriveDevice {
             (0x6060, 1, Access::ReadWrite),
             (0x6061, 1, Access::ReadOnly),
             (0x607A, 4, Access::ReadWrite),
+            (0x60FF, 4, Access::ReadWrite),
             (0x6064, 4, Access::ReadOnly),
             (0x606C, 4, Access::ReadOnly),
             (0x60F4, 4, Access::ReadOnly),
@@ -241,9 +269,85 @@ impl DriveDevice {
             stopped_after_ns: None,
             stalled_at_counts: None,
             pending_fault: None,
+            velocity_accel_counts_s2: DEFAULT_VELOCITY_ACCEL_COUNTS_S2,
+            csv_velocity_counts_s: 0.0,
+            csv_position_counts: 0.0,
         };
         device.refresh_inputs();
         device
+    }
+
+    /// The ramp of the motor's velocity in cyclic synchronous velocity, counts/s².
+    pub fn velocity_accel_counts_s2(&self) -> f64 {
+        self.velocity_accel_counts_s2
+    }
+
+    /// Sets the ramp of the motor's velocity in cyclic synchronous velocity, counts/s²
+    /// (a value that is not a positive number is ignored).
+    pub fn set_velocity_accel_counts_s2(&mut self, accel_counts_s2: f64) {
+        if accel_counts_s2.is_finite() && accel_counts_s2 > 0.0 {
+            self.velocity_accel_counts_s2 = accel_counts_s2;
+        }
+    }
+
+    /// Whether the drive runs in cyclic synchronous velocity.
+    fn csv(&self) -> bool {
+        self.drive.mode_of_operation_display() == MODE_CYCLIC_SYNC_VELOCITY
+    }
+
+    /// The motor's velocity, counts/s, in either mode.
+    fn motor_velocity_counts_s(&self) -> f64 {
+        if self.csv() {
+            self.csv_velocity_counts_s
+        } else {
+            self.drive.motor_velocity_counts_s()
+        }
+    }
+
+    /// The position actual the drive reports (0x6064), counts.
+    fn position_actual_counts(&self) -> i32 {
+        if self.csv() {
+            saturate(self.csv_position_counts)
+        } else {
+            self.drive.position_actual_counts()
+        }
+    }
+
+    /// The velocity actual the drive reports (0x606C), counts/s.
+    fn velocity_actual_counts_s(&self) -> i32 {
+        if self.csv() {
+            saturate(self.csv_velocity_counts_s)
+        } else {
+            self.drive.velocity_actual_counts_s()
+        }
+    }
+
+    /// One model period of the velocity-mode motor after the power state machine's step:
+    /// toward the target velocity while Operation enabled, else toward rest, at most
+    /// the ramp times the period; a jammed motor stands.
+    fn csv_physics(&mut self) {
+        let period_s = self.drive.config().period_ns as f64 * 1e-9;
+        let target = if self.stalled_at_counts.is_some() {
+            self.csv_velocity_counts_s = 0.0;
+            return;
+        } else if self.drive.state() == DriveState::OperationEnabled {
+            f64::from(self.od.get_u32(0x60FF, 0) as i32)
+        } else {
+            0.0
+        };
+        let v = self.csv_velocity_counts_s;
+        let dv = self.velocity_accel_counts_s2 * period_s;
+        let next = if (target - v).abs() <= dv {
+            target
+        } else {
+            v + dv * (target - v).signum()
+        };
+        self.csv_position_counts += 0.5 * (v + next) * period_s;
+        // The position wraps as a 32-bit counter would.
+        if self.csv_position_counts.abs() > f64::from(i32::MAX) {
+            self.csv_position_counts -= self.csv_position_counts.signum() * 4_294_967_296.0;
+        }
+        self.csv_velocity_counts_s = next;
     }
 
     /// The servo model.
@@ -272,6 +376,9 @@ impl DriveDevice {
     /// motor is jammed and the drive follows the target, the target less where the motor
     /// stuck.
     fn following_error_counts(&self) -> i32 {
+        if self.csv() {
+            return 0;
+        }
         let follows = self.drive.state() == DriveState::OperationEnabled
             && self.drive.mode_of_operation_display() == MODE_CYCLIC_SYNC_POSITION;
         match self.stalled_at_counts {
@@ -285,8 +392,10 @@ impl DriveDevice {
     fn statusword(&self) -> u16 {
         let window = self.drive.config().following_error_window_counts;
         let beyond = self.following_error_counts().unsigned_abs() > window;
+        let follows = self.csv() && self.drive.state() == DriveState::OperationEnabled;
         (self.drive.statusword() & !sw::FOLLOWING_ERROR)
             | if beyond { sw::FOLLOWING_ERROR } else { 0 }
+            | if follows { sw::DRIVE_FOLLOWS_TARGET } else { 0 }
     }
 
     fn refresh_inputs(&mut self) {
@@ -294,11 +403,11 @@ impl DriveDevice {
         let d = &self.drive;
         self.od
             .set(0x6061, 0, &d.mode_of_operation_display().to_le_bytes());
-        self.od
-            .set(0x6064, 0, &d.position_actual_counts().to_le_bytes());
-        self.od
-            .set(0x606C, 0, &d.velocity_actual_counts_s().to_le_bytes());
         self.od.set(0x603F, 0, &d.error_code().to_le_bytes());
+        self.od
+            .set(0x6064, 0, &self.position_actual_counts().to_le_bytes());
+        self.od
+            .set(0x606C, 0, &self.velocity_actual_counts_s().to_le_bytes());
         self.od
             .set(0x60F4, 0, &self.following_error_counts().to_le_bytes());
     }
@@ -312,6 +421,7 @@ impl DriveDevice {
                 let last_controlword = self.od.get_u32(0x6040, 0) as u16;
                 self.drive = at_rest(&self.drive, here, last_controlword);
                 self.stalled_at_counts = Some(here);
+                self.csv_velocity_counts_s = 0.0;
             }
             (false, Some(_)) => self.stalled_at_counts = None,
             _ => {}
@@ -325,11 +435,13 @@ impl DriveDevice {
             state: self.drive.state(),
             statusword: self.statusword(),
             error_code: self.drive.error_code(),
-            position_counts: self.drive.position_actual_counts(),
-            velocity_counts_s: self.drive.velocity_actual_counts_s(),
+            position_counts: self.position_actual_counts(),
+            velocity_counts_s: self.velocity_actual_counts_s(),
             following_error_counts: self.following_error_counts(),
             stalled: self.stalled_at_counts.is_some(),
             stopped_after_ns: self.stopped_after_ns,
+            mode: self.drive.mode_of_operation_display(),
+            target_velocity_counts_s: self.od.get_u32(0x60FF, 0) as i32,
         }
     }
 
@@ -340,8 +452,15 @@ impl DriveDevice {
         if let Some(code) = self.pending_fault.take() {
             self.drive.inject_fault(code);
         }
-        let target_counts = self.stalled_at_counts.unwrap_or(target_counts);
-        self.drive.write(controlword, target_counts);
+        if self.csv() {
+            // The servo model runs the power state machine, holding where it is.
+            let here = self.drive.position_actual_counts();
+            self.drive.write(controlword, here);
+            self.csv_physics();
+        } else {
+            let target_counts = self.stalled_at_counts.unwrap_or(target_counts);
+            self.drive.write(controlword, target_counts);
+        }
         self.refresh_inputs();
     }
 }
@@ -351,7 +470,7 @@ impl DriveDevice {
     /// controlword Quick stop (0x0002) with the target where the motor is; notes when the
     /// motor came to rest.
     fn step_quick_stop(&mut self) {
-        let here = self.drive.position_actual_counts();
+        let here = self.position_actual_counts();
         self.step(cw::QUICK_STOP_CMD, here);
         self.quick_stop_steps += 1;
         self.note_rest();
@@ -359,10 +478,20 @@ impl DriveDevice {
 
     /// After the watchdog expired: the motor is at rest, and was not before.
     fn note_rest(&mut self) {
-        if self.stopped_after_ns.is_none() && self.drive.motor_velocity_counts_s() == 0.0 {
+        if self.stopped_after_ns.is_none() && self.motor_velocity_counts_s() == 0.0 {
             let period_ns = self.drive.config().period_ns;
             self.stopped_after_ns = Some(self.quick_stop_steps.saturating_mul(period_ns));
         }
+    }
+}
+
+/// `value` rounded to the nearest count, saturated to 32 bits (0 for NaN).
+fn saturate(value: f64) -> i32 {
+    let rounded = value.round();
+    if rounded.is_nan() {
+        0
+    } else {
+        rounded.clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
     }
 }
 
@@ -732,6 +861,98 @@ mod tests {
         jammed.set_stalled(true);
         Application::watchdog_expired(&mut jammed, expiry_ns);
         assert_eq!(jammed.snapshot().stopped_after_ns, Some(0));
+    }
+
+    /// A drive mapped for cyclic synchronous velocity (controlword, target velocity) in
+    /// mode 9, as the MainDevice configures a spindle drive in PRE-OP.
+    fn velocity_drive() -> DriveDevice {
+        let mut d = drive();
+        d.od.insert_record(0x1600, &[0x6040_0010, 0x60FF_0020], 4, Access::PreOpOnly);
+        d.drive_mut()
+            .set_mode_of_operation(MODE_CYCLIC_SYNC_VELOCITY);
+        d
+    }
+
+    #[test]
+    fn in_velocity_mode_the_motor_ramps_to_the_target_velocity_and_back_to_rest() {
+        let mut d = velocity_drive();
+        // Enabled, then 500 000 counts/s commanded: at the default 1e6 counts/s² and a
+        // 1 ms period the velocity gains 1000 counts/s per cycle, so 250 000 after 250
+        // cycles and the target after 500, where it stays.
+        let enabled = enable(&mut d, 0);
+        assert_eq!(enabled.state, DriveState::OperationEnabled);
+        assert_eq!(enabled.mode, 9);
+        assert_ne!(
+            enabled.statusword & 0x1000,
+            0,
+            "bit 12: follows the command"
+        );
+        let mut last = enabled;
+        for n in 1..=600 {
+            last = cycle(&mut d, 0x000F, 500_000);
+            if n == 250 {
+                assert_eq!(last.velocity_counts_s, 250_000);
+            }
+        }
+        assert_eq!(last.velocity_counts_s, 500_000);
+        assert_eq!(last.target_velocity_counts_s, 500_000);
+        assert_eq!(last.following_error_counts, 0);
+        // The position integrates the ramp (a triangle of 500 000 counts/s over 0.5 s:
+        // 125 000 counts) and then 100 cycles at full speed (50 000 counts).
+        assert_eq!(last.position_counts, 175_000);
+        // The process data carries it: velocity actual at bytes 6..10.
+        let (statusword, _, velocity, following_error) = inputs(&mut d);
+        assert_eq!(statusword & 0x006F, 0x0027);
+        assert_eq!((velocity, following_error), (500_000, 0));
+        // Disable voltage: the drive is off and the motor runs down at the same rate.
+        let off = cycle(&mut d, 0x0000, 500_000);
+        assert_eq!(off.state, DriveState::SwitchOnDisabled);
+        assert_eq!(off.velocity_counts_s, 499_000);
+        for _ in 0..499 {
+            last = cycle(&mut d, 0x0000, 500_000);
+        }
+        assert_eq!(last.velocity_counts_s, 0);
+    }
+
+    #[test]
+    fn in_velocity_mode_a_reversal_passes_through_rest_and_the_ramp_can_be_set() {
+        let mut d = velocity_drive();
+        d.set_velocity_accel_counts_s2(2.0e6);
+        d.set_velocity_accel_counts_s2(f64::NAN);
+        assert_eq!(d.velocity_accel_counts_s2(), 2.0e6);
+        enable(&mut d, 0);
+        for _ in 0..100 {
+            cycle(&mut d, 0x000F, 100_000);
+        }
+        // 2000 counts/s per cycle: at +100 000 after 50 cycles; to -100 000 takes 100.
+        assert_eq!(d.snapshot().velocity_counts_s, 100_000);
+        let mut seen_rest = false;
+        for _ in 0..100 {
+            let s = cycle(&mut d, 0x000F, -100_000);
+            seen_rest |= s.velocity_counts_s == 0;
+        }
+        assert!(seen_rest);
+        assert_eq!(d.snapshot().velocity_counts_s, -100_000);
+        // A jammed spindle stands at once.
+        d.set_stalled(true);
+        assert_eq!(cycle(&mut d, 0x000F, -100_000).velocity_counts_s, 0);
+    }
+
+    #[test]
+    fn in_velocity_mode_the_watchdog_stop_runs_the_motor_down_and_times_it() {
+        let mut d = velocity_drive();
+        enable(&mut d, 0);
+        for _ in 0..200 {
+            cycle(&mut d, 0x000F, 200_000);
+        }
+        // 200 000 counts/s at 1e6 counts/s²: 200 ms to rest.
+        let expiry_ns = 1_000_000_000;
+        Application::watchdog_expired(&mut d, expiry_ns);
+        Application::tick(&mut d, expiry_ns + 300_000_000);
+        let stopped = d.snapshot();
+        assert_eq!(stopped.velocity_counts_s, 0);
+        let ns = stopped.stopped_after_ns.expect("at rest");
+        assert!((200_000_000..=201_000_000).contains(&ns), "{ns} ns");
     }
 
     #[test]

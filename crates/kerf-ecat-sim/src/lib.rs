@@ -52,7 +52,7 @@
 //! standard error. Standard output carries nothing but the answers to `state`, e.g.
 //!
 //! ```text
-//! subdevice 0 kind=drive al=OP al_error=0 al_code=0x0000 watchdog_trips=0 cia402=operation_enabled statusword=0x1237 error_code=0x0000 position_counts=4000 velocity_counts_s=0 following_error_counts=0 stalled=0 stopped_ms=-
+//! subdevice 0 kind=drive al=OP al_error=0 al_code=0x0000 watchdog_trips=0 cia402=operation_enabled statusword=0x1237 error_code=0x0000 position_counts=4000 velocity_counts_s=0 following_error_counts=0 stalled=0 stopped_ms=- mode=8 target_velocity_counts_s=0
 //! subdevice 1 kind=io al=OP al_error=0 al_code=0x0000 watchdog_trips=0 inputs=0x5A outputs=0x00
 //! ```
 //!
@@ -137,6 +137,9 @@ pub struct NetworkSpec {
     pub revision: u32,
     /// The drives' servo model.
     pub sim: SimConfig,
+    /// The ramp of a drive's motor velocity in cyclic synchronous velocity (mode 9, a
+    /// spindle drive), counts/s² ([`drive::DEFAULT_VELOCITY_ACCEL_COUNTS_S2`] by default).
+    pub velocity_accel_counts_s2: f64,
     /// Subdevices that refuse PRE-OP → SAFE-OP, each with its AL status code.
     pub refuse_safe_op: Vec<SafeOpRefusal>,
     /// The line's oscillator runs this many parts per million fast against the host's
@@ -155,6 +158,7 @@ impl Default for NetworkSpec {
             io_product_code: IO_PRODUCT_CODE,
             revision: REVISION,
             sim: SimConfig::default(),
+            velocity_accel_counts_s2: drive::DEFAULT_VELOCITY_ACCEL_COUNTS_S2,
             refuse_safe_op: Vec::new(),
             dc_drift_ppm: 0.0,
         }
@@ -172,7 +176,8 @@ pub fn build(spec: &NetworkSpec) -> (Network, Vec<IoHandle>) {
             revision: spec.revision,
             serial: DRIVE_SERIAL_BASE + n,
         };
-        let app = DriveDevice::new(identity, DRIVE_NAME, spec.sim);
+        let mut app = DriveDevice::new(identity, DRIVE_NAME, spec.sim);
+        app.set_velocity_accel_counts_s2(spec.velocity_accel_counts_s2);
         let clock = DcClock::new(u64::from(n) * 1_000_000, spec.dc_drift_ppm);
         escs.push(Esc::new(Box::new(app), clock));
     }

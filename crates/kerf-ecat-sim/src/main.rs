@@ -72,12 +72,15 @@ fn parse_refusal(text: &str) -> Result<SafeOpRefusal, String> {
 ///   state           print one line per subdevice to standard output, e.g.
 ///     subdevice 0 kind=drive al=OP al_error=0 al_code=0x0000 watchdog_trips=0
 ///       cia402=operation_enabled statusword=0x1237 error_code=0x0000 position_counts=123
-///       velocity_counts_s=0 following_error_counts=0 stalled=0 stopped_ms=-
+///       velocity_counts_s=0 following_error_counts=0 stalled=0 stopped_ms=- mode=8
+///       target_velocity_counts_s=0
 ///     subdevice 1 kind=io al=SAFE-OP al_error=1 al_code=0x001B watchdog_trips=1
 ///       inputs=0xA5 outputs=0x00
 ///                   (each on one line). stopped_ms: from the last process-data watchdog
 ///                   expiry to the motor at rest by the drive's quick stop, model time,
-///                   "-" until then. Nothing else is ever printed to standard output;
+///                   "-" until then. mode: 8 position, 9 velocity (a spindle
+///                   drive: its motor follows target_velocity_counts_s, 0x60FF, on a
+///                   ramp, see --velocity-accel). Nothing else is ever printed to standard output;
 ///                   messages go to standard error.
 ///
 /// Process-data watchdog (100 ms unless the MainDevice sets another): without output
@@ -125,6 +128,11 @@ struct Args {
         allow_negative_numbers = true
     )]
     dc_drift_ppm: f64,
+    /// In cyclic synchronous velocity (mode 9, written to 0x6060 by the MainDevice, as
+    /// for a spindle drive) a drive's motor velocity ramps toward the target velocity
+    /// (0x60FF) at A counts/s², and runs down to rest at A when not enabled.
+    #[arg(long, value_name = "A", default_value_t = kerf_ecat_sim::drive::DEFAULT_VELOCITY_ACCEL_COUNTS_S2)]
+    velocity_accel: f64,
 }
 
 /// Carries out one control command from standard input; the answer to `state` goes to
@@ -202,6 +210,12 @@ fn main() -> anyhow::Result<()> {
             max = kerf_ecat_sim::dc::MAX_DRIFT_PPM
         );
     }
+    if !(args.velocity_accel.is_finite() && args.velocity_accel > 0.0) {
+        anyhow::bail!(
+            "--velocity-accel {}: the ramp must be a number above 0 (counts/s²)",
+            args.velocity_accel
+        );
+    }
     let spec = NetworkSpec {
         drives: args.drives,
         io: args.io,
@@ -211,6 +225,7 @@ fn main() -> anyhow::Result<()> {
         revision: args.revision,
         refuse_safe_op: args.refuse_safe_op.clone(),
         dc_drift_ppm: args.dc_drift_ppm,
+        velocity_accel_counts_s2: args.velocity_accel,
         ..NetworkSpec::default()
     };
     let (mut network, handles) = build(&spec);

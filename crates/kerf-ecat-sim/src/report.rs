@@ -4,7 +4,7 @@
 //! come in the same order:
 //!
 //! ```text
-//! subdevice 0 kind=drive al=OP al_error=0 al_code=0x0000 watchdog_trips=0 cia402=operation_enabled statusword=0x1237 error_code=0x0000 position_counts=123 velocity_counts_s=0 following_error_counts=0 stalled=0 stopped_ms=-
+//! subdevice 0 kind=drive al=OP al_error=0 al_code=0x0000 watchdog_trips=0 cia402=operation_enabled statusword=0x1237 error_code=0x0000 position_counts=123 velocity_counts_s=0 following_error_counts=0 stalled=0 stopped_ms=- mode=8 target_velocity_counts_s=0
 //! subdevice 3 kind=io al=SAFE-OP al_error=1 al_code=0x001B watchdog_trips=1 inputs=0xA5 outputs=0x00
 //! ```
 //!
@@ -26,7 +26,11 @@
 //! - `stopped_ms`: the time from the last expiry of its process-data watchdog to its motor
 //!   at rest by its own quick stop, in ms with 3 decimals (e.g. `20.000`), counted in the
 //!   servo model's periods; `-` when the watchdog has not expired, or the motor is not at
-//!   rest yet.
+//!   rest yet;
+//! - `mode`: the mode of operation (0x6061), `8` cyclic synchronous position or `9`
+//!   cyclic synchronous velocity (a spindle drive);
+//! - `target_velocity_counts_s`: the target velocity (0x60FF) last written, signed decimal
+//!   (what a drive in mode 9 follows).
 //!
 //! An I/O subdevice, then `inputs` and `outputs`: its bits (bit n is input or output n),
 //! `0x` and one upper-case hex digit per 4 bits (2 for 8 bits); `outputs` are those last
@@ -96,9 +100,14 @@ pub fn write_line(out: &mut impl Write, position: usize, esc: &Esc) -> fmt::Resu
                 u8::from(d.stalled)
             )?;
             match d.stopped_after_ns {
-                Some(ns) => write!(out, "{}.{:03}", ns / 1_000_000, (ns / 1_000) % 1_000),
-                None => out.write_char('-'),
+                Some(ns) => write!(out, "{}.{:03}", ns / 1_000_000, (ns / 1_000) % 1_000)?,
+                None => out.write_char('-')?,
             }
+            write!(
+                out,
+                " mode={} target_velocity_counts_s={}",
+                d.mode, d.target_velocity_counts_s
+            )
         }
         AppSnapshot::Io(io) => {
             let digits = |bits: u8| usize::from(bits.div_ceil(4)).max(1);
@@ -143,11 +152,11 @@ mod tests {
             "subdevice 0 kind=drive al=INIT al_error=0 al_code=0x0000 watchdog_trips=0 \
              cia402=not_ready_to_switch_on statusword=0x0200 error_code=0x0000 \
              position_counts=0 velocity_counts_s=0 following_error_counts=0 stalled=0 \
-             stopped_ms=-\n\
+             stopped_ms=- mode=8 target_velocity_counts_s=0\n\
              subdevice 1 kind=drive al=INIT al_error=0 al_code=0x0000 watchdog_trips=0 \
              cia402=not_ready_to_switch_on statusword=0x0200 error_code=0x0000 \
              position_counts=0 velocity_counts_s=0 following_error_counts=0 stalled=0 \
-             stopped_ms=-\n\
+             stopped_ms=- mode=8 target_velocity_counts_s=0\n\
              subdevice 2 kind=io al=INIT al_error=0 al_code=0x0000 watchdog_trips=0 \
              inputs=0xA5 outputs=0x00\n"
         );

@@ -73,6 +73,13 @@ fn exchanges_allocate_nothing(dc: bool) {
         let mut bus =
             Bus::bring_up(&config, 1_000_000, &claim()).unwrap_or_else(|e| panic!("bring-up: {e}"));
         let mut images = Bus::drive_images(&config).expect("layouts");
+        // The machine's I/O on the terminal at position 3: outputs 0 and 9 on its bits 0
+        // and 1, inputs 4 and 5 on its bits 0 and 1.
+        let bit = |bit| kerf_config::BusBit { position: 3, bit };
+        let io = kerf_ethercat::iomap::IoMap::new(
+            [(0, bit(0)), (9, bit(1))].into_iter(),
+            [(4, bit(0)), (5, bit(1))].into_iter(),
+        );
         let expected = bus.expected_working_counter();
         // Warm up: the first exchanges may touch lazily made state.
         for _ in 0..100 {
@@ -82,9 +89,11 @@ fn exchanges_allocate_nothing(dc: bool) {
         let mut wkcs = [0u16; 10_000];
         let count = Count::start();
         for (i, wkc) in wkcs.iter_mut().enumerate() {
+            bus.write_io(&io, i as u64);
             *wkc = bus
                 .exchange(&mut images, std::time::Duration::from_millis(100))
                 .expect("exchange");
+            assert_eq!(bus.read_io(&io) & !(0b11 << 4), 0);
             if dc && i % 100 == 0 {
                 // A reset's recovery: a subdevice's status read, then a request (for the
                 // state it is in: nothing changes).

@@ -30,7 +30,7 @@ use ethercrab::subdevice_group::{HasDc, NoDc, Op, PreOp};
 use ethercrab::{
     MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
 };
-use kerf_config::ethercat::{EthercatConfig, SdoWrite};
+use kerf_config::ethercat::{DriveMode, EthercatConfig, SPINDLE_AXIS_INDEX, SdoWrite};
 use thiserror::Error;
 
 pub use clocked::SETTLED_NS;
@@ -43,8 +43,9 @@ use crate::al::{
 use crate::claim::Claim;
 use crate::dc::PhaseLock;
 use crate::identity::{Expected, Found, compare};
-use crate::image::DriveImage;
-use crate::pdo::{DriveLayout, LayoutError, interpolation_period};
+use crate::image::{DriveImage, SpindleImage};
+use crate::iomap::IoMap;
+use crate::pdo::{DriveLayout, LayoutError, SpindleLayout, interpolation_period};
 use crate::pump::{Pump, PumpError};
 use crate::socket::RawSocket;
 
@@ -247,8 +248,11 @@ impl std::fmt::Debug for Bus {
     }
 }
 
-/// The name of a drive in messages: "X drive".
+/// The name of a drive in messages: "X drive", "spindle drive".
 pub fn drive_name(axis: usize) -> String {
+    if axis == SPINDLE_AXIS_INDEX {
+        return "spindle drive".to_owned();
+    }
     format!("{} drive", AXIS_LETTERS.get(axis).copied().unwrap_or('?'))
 }
 
@@ -420,12 +424,14 @@ impl Bus {
                 run(&mut pump, step, sdo_write(&handle, *write), sdo_bound)?;
             }
             let Some(drive) = drive else { continue };
-            DriveLayout::new(&drive.rx_pdo, &drive.tx_pdo).map_err(|source| {
-                BringUpError::Layout {
-                    name: e.name.clone(),
-                    position: e.position,
-                    source,
-                }
+            let layout = match drive.mode {
+                DriveMode::Csp => DriveLayout::new(&drive.rx_pdo, &drive.tx_pdo).map(|_| ()),
+                DriveMode::Csv => SpindleLayout::new(&drive.rx_pdo, &drive.tx_pdo).map(|_| ()),
+            };
+            layout.map_err(|source| BringUpError::Layout {
+                name: e.name.clone(),
+                position: e.position,
+                source,
             })?;
             for write in drive_writes(
                 &drive.rx_pdo,
@@ -568,10 +574,11 @@ impl Bus {
         &self.found
     }
 
-    /// The images of the drives of `config`, indexed by axis.
+    /// The images of the axes' drives of `config`, indexed by axis (X to C; the
+    /// spindle's is [`Bus::spindle_image`]).
     pub fn drive_images(config: &EthercatConfig) -> Result<Vec<Option<DriveImage>>, LayoutError> {
         let mut images = vec![None; kerf_drive::MAX_AXES];
-        for d in &config.drives {
+        for d in config.drives.iter().filter(|d| d.mode == DriveMode::Csp) {
             if let Some(slot) = images.get_mut(d.axis_index) {
                 *slot = Some(DriveImage::new(
                     DriveLayout::new(&d.rx_pdo, &d.tx_pdo)?,
@@ -580,6 +587,64 @@ impl Bus {
             }
         }
         Ok(images)
+    }
+
+    /// The image of the spindle's drive of `config` (`axis = "s"`, cyclic synchronous
+    /// velocity), if the bus has one.
+    pub fn spindle_image(config: &EthercatConfig) -> Result<Option<SpindleImage>, LayoutError> {
+        config
+            .spindle_drive()
+            .map(|d| {
+                Ok(SpindleImage::new(
+                    SpindleLayout::new(&d.rx_pdo, &d.tx_pdo)?,
+                    d.mode.mode_of_operation(),
+                ))
+            })
+            .transpose()
+    }
+
+    /// Writes the spindle image's outputs into the spindle drive's process data (sent by
+    /// the next [`Bus::tx_rx`]); nothing when the bus has no spindle drive.
+    pub fn write_spindle(&self, image: &SpindleImage) {
+        let Some(d) = self.drives.iter().find(|d| d.axis == SPINDLE_AXIS_INDEX) else {
+            return;
+        };
+        if let Some(sub) = subdevice_of(&self.group, &self.maindevice, d.group_index) {
+            image.write_outputs(sub.io_raw_mut().outputs());
+        }
+    }
+
+    /// Reads the spindle drive's inputs from the last exchange into `image`.
+    pub fn read_spindle(&self, image: &mut SpindleImage) {
+        let Some(d) = self.drives.iter().find(|d| d.axis == SPINDLE_AXIS_INDEX) else {
+            return;
+        };
+        if let Some(sub) = subdevice_of(&self.group, &self.maindevice, d.group_index) {
+            image.read_inputs(sub.io_raw().inputs());
+        }
+    }
+
+    /// Writes the machine's `digital_outputs` (bit n: `[io]` output n) into the output bits
+    /// `map` links them to (sent by the next [`Bus::tx_rx`]). Allocation-free.
+    pub fn write_io(&self, map: &IoMap, digital_outputs: u64) {
+        for &position in map.output_positions() {
+            if let Some(sub) = subdevice_of(&self.group, &self.maindevice, usize::from(position)) {
+                map.write_outputs(position, digital_outputs, sub.io_raw_mut().outputs());
+            }
+        }
+    }
+
+    /// The machine's digital inputs (bit n: `[io]` input n) as the last exchange brought
+    /// them from the input bits `map` links them to; inputs not on the bus read as off.
+    /// Allocation-free.
+    pub fn read_io(&self, map: &IoMap) -> u64 {
+        let mut inputs = 0;
+        for &position in map.input_positions() {
+            if let Some(sub) = subdevice_of(&self.group, &self.maindevice, usize::from(position)) {
+                map.read_inputs(position, sub.io_raw().inputs(), &mut inputs);
+            }
+        }
+        inputs
     }
 
     /// Writes `image`'s outputs into the process data of the drive of `axis` (sent by the
@@ -760,5 +825,6 @@ mod tests {
     fn drives_are_named_by_their_axis() {
         assert_eq!(drive_name(0), "X drive");
         assert_eq!(drive_name(5), "C drive");
+        assert_eq!(drive_name(SPINDLE_AXIS_INDEX), "spindle drive");
     }
 }

@@ -10,7 +10,7 @@
 
 use kerf_drive::cia402::Drive;
 
-use crate::pdo::{DriveLayout, Slot};
+use crate::pdo::{DriveLayout, Slot, SpindleLayout};
 
 /// The mirror of one drive's process data.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -152,6 +152,113 @@ impl Drive for DriveImage {
     }
 }
 
+/// The mirror of the spindle drive's process data (cyclic synchronous velocity): the
+/// controlword and target velocity out, the statusword, velocity actual and error code in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SpindleImage {
+    layout: SpindleLayout,
+    controlword: u16,
+    target_velocity_counts_s: i32,
+    mode: i8,
+    statusword: u16,
+    velocity_actual_counts_s: i32,
+    error_code: u16,
+    mode_display: i8,
+}
+
+impl SpindleImage {
+    /// A spindle drive laid out as `layout`, in mode `mode` (9, written by SDO at
+    /// bring-up).
+    pub fn new(layout: SpindleLayout, mode: i8) -> SpindleImage {
+        SpindleImage {
+            layout,
+            controlword: 0,
+            target_velocity_counts_s: 0,
+            mode,
+            statusword: 0,
+            velocity_actual_counts_s: 0,
+            error_code: 0,
+            mode_display: mode,
+        }
+    }
+
+    /// The layout.
+    pub fn layout(&self) -> &SpindleLayout {
+        &self.layout
+    }
+
+    /// Sets the outputs of the next exchange: controlword (0x6040) and target velocity
+    /// (0x60FF, counts/s).
+    pub fn write(&mut self, controlword: u16, target_velocity_counts_s: i32) {
+        self.controlword = controlword;
+        self.target_velocity_counts_s = target_velocity_counts_s;
+    }
+
+    /// The controlword last written.
+    pub fn controlword(&self) -> u16 {
+        self.controlword
+    }
+
+    /// The target velocity last written, counts/s.
+    pub fn target_velocity_counts_s(&self) -> i32 {
+        self.target_velocity_counts_s
+    }
+
+    /// Statusword (0x6041) of the last exchange.
+    pub fn statusword(&self) -> u16 {
+        self.statusword
+    }
+
+    /// Velocity actual value (0x606C) of the last exchange, counts/s.
+    pub fn velocity_actual_counts_s(&self) -> i32 {
+        self.velocity_actual_counts_s
+    }
+
+    /// Error code (0x603F) of the last exchange, 0 if not mapped.
+    pub fn error_code(&self) -> u16 {
+        self.error_code
+    }
+
+    /// Modes of operation display: 0x6061 when mapped, else the mode written at bring-up.
+    pub fn mode_of_operation_display(&self) -> i8 {
+        self.mode_display
+    }
+
+    /// Writes the outputs into the drive's output image (`out`, its bytes of the PDI).
+    pub fn write_outputs(&self, out: &mut [u8]) {
+        put(
+            out,
+            self.layout.controlword,
+            &self.controlword.to_le_bytes(),
+        );
+        put(
+            out,
+            self.layout.target_velocity,
+            &self.target_velocity_counts_s.to_le_bytes(),
+        );
+        if let Some(slot) = self.layout.modes_of_operation {
+            put(out, slot, &self.mode.to_le_bytes());
+        }
+    }
+
+    /// Reads the inputs from the drive's input image (`input`, its bytes of the PDI).
+    pub fn read_inputs(&mut self, input: &[u8]) {
+        let l = self.layout;
+        if let Some(b) = get::<2>(input, l.statusword) {
+            self.statusword = u16::from_le_bytes(b);
+        }
+        if let Some(b) = get::<4>(input, l.velocity_actual) {
+            self.velocity_actual_counts_s = i32::from_le_bytes(b);
+        }
+        if let Some(b) = l.error_code.and_then(|s| get::<2>(input, s)) {
+            self.error_code = u16::from_le_bytes(b);
+        }
+        if let Some(b) = l.modes_display.and_then(|s| get::<1>(input, s)) {
+            self.mode_display = i8::from_le_bytes(b);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -204,5 +311,30 @@ mod tests {
         image.read_inputs(&[0x21, 0x00]);
         assert_eq!(image.statusword(), 0x0021);
         assert_eq!(image.position_actual_counts(), 1);
+    }
+
+    #[test]
+    fn the_spindle_image_writes_the_target_velocity_and_reads_the_velocity_actual() {
+        let layout =
+            SpindleLayout::new(&Pdo::default_rx(DriveMode::Csv), &Pdo::default_tx()).unwrap();
+        let mut image = SpindleImage::new(layout, 9);
+        // 6000 rpm at 10000 counts/rev: 1e6 counts/s = 0x000F4240.
+        image.write(0x000F, 1_000_000);
+        let mut out = [0u8; 6];
+        image.write_outputs(&mut out);
+        assert_eq!(out, [0x0F, 0x00, 0x40, 0x42, 0x0F, 0x00]);
+        let input = [
+            0x37, 0x16, // statusword 0x1637
+            0x00, 0x00, 0x00, 0x00, // position actual (not used)
+            0xC0, 0xBD, 0xF0, 0xFF, // velocity actual -1e6
+            0x00, 0x00, 0x00, 0x00, // following error
+            0x00, 0x75, // error code 0x7500
+            0x00, 0x00, 0x00, 0x00,
+        ];
+        image.read_inputs(&input);
+        assert_eq!(image.statusword(), 0x1637);
+        assert_eq!(image.velocity_actual_counts_s(), -1_000_000);
+        assert_eq!(image.error_code(), 0x7500);
+        assert_eq!(image.mode_of_operation_display(), 9);
     }
 }

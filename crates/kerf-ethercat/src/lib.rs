@@ -3,7 +3,9 @@
 //!
 //! - [`identity`]: found against expected, one line per differing position.
 //! - [`pdo`]: where the objects the control uses sit in a drive's process data.
-//! - [`image`]: one drive's process data as a [`kerf_drive::cia402::Drive`].
+//! - [`image`]: one drive's process data as a [`kerf_drive::cia402::Drive`], and the
+//!   spindle drive's (cyclic synchronous velocity).
+//! - [`iomap`]: the machine's digital inputs and outputs on the I/O subdevices' bits.
 //! - [`al`]: a subdevice's EtherCAT states and AL status codes in words, and its status
 //!   read.
 //! - [`bus`]: bring-up to OP and the cyclic exchange.
@@ -22,6 +24,7 @@ pub mod commission;
 pub mod dc;
 pub mod identity;
 pub mod image;
+pub mod iomap;
 pub mod pdo;
 pub mod pump;
 pub mod socket;

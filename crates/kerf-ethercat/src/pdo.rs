@@ -26,6 +26,8 @@ pub const POSITION_ACTUAL: u16 = 0x6064;
 pub const VELOCITY_ACTUAL: u16 = 0x606C;
 /// Target position.
 pub const TARGET_POSITION: u16 = 0x607A;
+/// Target velocity (cyclic synchronous velocity).
+pub const TARGET_VELOCITY: u16 = 0x60FF;
 /// Following error actual value.
 pub const FOLLOWING_ERROR_ACTUAL: u16 = 0x60F4;
 /// Digital inputs.
@@ -150,6 +152,48 @@ impl DriveLayout {
             error_code: slot(tx, ERROR_CODE, 16)?,
             modes_display: slot(tx, MODES_OF_OPERATION_DISPLAY, 8)?,
             digital_inputs: slot(tx, DIGITAL_INPUTS, 32)?,
+            output_bytes: rx.size_bytes(),
+            input_bytes: tx.size_bytes(),
+        })
+    }
+}
+
+/// Where the objects the control uses sit in the spindle drive's output and input images
+/// (cyclic synchronous velocity, mode 9): the controlword and the target velocity out, the
+/// statusword and the velocity actual value in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SpindleLayout {
+    /// Controlword in the outputs.
+    pub controlword: Slot,
+    /// Target velocity (0x60FF, counts/s) in the outputs.
+    pub target_velocity: Slot,
+    /// Modes of operation in the outputs, if mapped (else written once by SDO).
+    pub modes_of_operation: Option<Slot>,
+    /// Statusword in the inputs.
+    pub statusword: Slot,
+    /// Velocity actual (0x606C, counts/s) in the inputs.
+    pub velocity_actual: Slot,
+    /// Error code in the inputs, if mapped.
+    pub error_code: Option<Slot>,
+    /// Modes of operation display in the inputs, if mapped.
+    pub modes_display: Option<Slot>,
+    /// Bytes of the outputs.
+    pub output_bytes: usize,
+    /// Bytes of the inputs.
+    pub input_bytes: usize,
+}
+
+impl SpindleLayout {
+    /// The layout of a spindle drive mapped with `rx` (outputs) and `tx` (inputs).
+    pub fn new(rx: &Pdo, tx: &Pdo) -> Result<SpindleLayout, LayoutError> {
+        Ok(SpindleLayout {
+            controlword: needed(rx, "Rx", CONTROLWORD, 16, "controlword")?,
+            target_velocity: needed(rx, "Rx", TARGET_VELOCITY, 32, "target velocity")?,
+            modes_of_operation: slot(rx, MODES_OF_OPERATION, 8)?,
+            statusword: needed(tx, "Tx", STATUSWORD, 16, "statusword")?,
+            velocity_actual: needed(tx, "Tx", VELOCITY_ACTUAL, 32, "velocity actual value")?,
+            error_code: slot(tx, ERROR_CODE, 16)?,
+            modes_display: slot(tx, MODES_OF_OPERATION_DISPLAY, 8)?,
             output_bytes: rx.size_bytes(),
             input_bytes: tx.size_bytes(),
         })
@@ -334,6 +378,49 @@ mod tests {
             }
         );
         assert_eq!(layout.output_bytes, 8);
+    }
+
+    #[test]
+    fn the_csv_default_packs_the_target_velocity_after_the_controlword() {
+        let layout =
+            SpindleLayout::new(&Pdo::default_rx(DriveMode::Csv), &Pdo::default_tx()).unwrap();
+        // RxPDO: controlword 2 bytes at 0, target velocity 4 bytes at 2: 6 bytes.
+        assert_eq!(
+            layout.target_velocity,
+            Slot {
+                offset: 2,
+                bytes: 4
+            }
+        );
+        assert_eq!(layout.output_bytes, 6);
+        // TxPDO: statusword (2), position actual (4), then velocity actual at byte 6.
+        assert_eq!(
+            layout.velocity_actual,
+            Slot {
+                offset: 6,
+                bytes: 4
+            }
+        );
+        assert_eq!(
+            layout.error_code,
+            Some(Slot {
+                offset: 14,
+                bytes: 2
+            })
+        );
+        // A CSP mapping has no target velocity: refused by name.
+        assert_eq!(
+            SpindleLayout::new(&Pdo::default_rx(DriveMode::Csp), &Pdo::default_tx()),
+            Err(LayoutError::Missing {
+                direction: "Rx",
+                index: 0x60FF,
+                name: "target velocity"
+            })
+        );
+        // Only the statusword and the velocity actual are needed in.
+        let tx = pdo(0x1A00, &[(0x6041, 0, 16), (0x606C, 0, 32)]);
+        let layout = SpindleLayout::new(&Pdo::default_rx(DriveMode::Csv), &tx).unwrap();
+        assert_eq!((layout.input_bytes, layout.error_code), (6, None));
     }
 
     #[test]

@@ -264,6 +264,17 @@ impl MotionCore {
         &mut self.secs[i]
     }
 
+    /// Forgets which program line the last setpoint came from (a new program begins at
+    /// rest here: until its first segment runs, its setpoints name no line, as a fresh
+    /// core's do).
+    pub fn forget_line(&mut self) {
+        let position = self.last.position;
+        self.last = Setpoint {
+            position,
+            ..Setpoint::default()
+        };
+    }
+
     pub(crate) fn clear(&mut self) {
         self.seg_head += self.seg_count;
         self.seg_count = 0;

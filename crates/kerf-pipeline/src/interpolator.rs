@@ -171,8 +171,10 @@ impl Interpolator {
         self.last
     }
 
-    /// Gets ready for the next program (the core keeps its position and override).
+    /// Gets ready for the next program (the core keeps its position and override, and
+    /// forgets the last program's line).
     pub fn next_program(&mut self) {
+        self.core.forget_line();
         self.hand = None;
         self.dwell_left = None;
         self.started = false;

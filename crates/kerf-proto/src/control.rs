@@ -802,6 +802,10 @@ pub const SAFETY_SPINDLE_ORIENT: u32 = 13;
 /// Safety check: the automatic tool changer did not report the change done in time
 /// (value the tool, limit the timeout, s).
 pub const SAFETY_TOOL_CHANGE: u32 = 14;
+/// Safety check: the spindle's drive on the fieldbus failed; `safety_limit` says how (0:
+/// a fault, `safety_value` its error code; 1: it did not enable, the value the timeout in
+/// cycles; 2: it left Operation enabled on its own).
+pub const SAFETY_SPINDLE_DRIVE: u32 = 15;
 /// `StatusMsg::safety_axis` of a fault that is not an axis's (a stream stall).
 pub const SAFETY_AXIS_NONE: u32 = 255;
 

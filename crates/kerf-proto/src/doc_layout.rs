@@ -190,6 +190,7 @@ fn constants() -> BTreeMap<&'static str, u32> {
         SAFETY_SPINDLE_BAND,
         SAFETY_SPINDLE_ORIENT,
         SAFETY_TOOL_CHANGE,
+        SAFETY_SPINDLE_DRIVE,
         STATE_STOPPING,
         REQUEST_STATUS,
         REQUEST_HOLD,

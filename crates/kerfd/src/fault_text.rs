@@ -60,6 +60,11 @@ pub fn safety_text(s: &StatusMsg) -> Option<String> {
         kerf_proto::SAFETY_TOOL_CHANGE => {
             format!("the tool changer did not report tool T{value} changed within {limit} s")
         }
+        kerf_proto::SAFETY_SPINDLE_DRIVE => match limit as u32 {
+            0 => format!("the spindle drive reports error 0x{:04X}", value as u32),
+            1 => format!("the spindle drive did not enable within {value} cycles"),
+            _ => "the spindle drive left Operation enabled on its own".to_string(),
+        },
         _ => "the drive left Operation enabled on its own".to_string(),
     };
     Some(format!(
@@ -93,6 +98,7 @@ mod tests {
             (Check::SpindleBand, kerf_proto::SAFETY_SPINDLE_BAND),
             (Check::SpindleOrient, kerf_proto::SAFETY_SPINDLE_ORIENT),
             (Check::ToolChange, kerf_proto::SAFETY_TOOL_CHANGE),
+            (Check::SpindleDrive, kerf_proto::SAFETY_SPINDLE_DRIVE),
         ];
         assert_eq!(wire.len(), Check::ALL.len());
         for (check, code) in wire {

@@ -213,22 +213,25 @@ pub(crate) fn check_period(config: &Config) -> Result<(), StartError> {
     }
 }
 
-/// The drives the daemon can run: simulated ones, and EtherCAT drives in cyclic
-/// synchronous position, with or without distributed clocks. A drive configured for cyclic synchronous velocity (`mode =
-/// "csv"`, for a spindle) is refused before anything starts: nothing produces velocity
-/// setpoints yet, and running it as a position axis would not be what the file says.
+/// The drives the daemon can run: simulated ones, EtherCAT drives in cyclic synchronous
+/// position for the axes, with or without distributed clocks, and the spindle's EtherCAT
+/// drive in cyclic synchronous velocity (`axis = "s"`). A position axis's drive
+/// configured for velocity (`mode = "csv"`) is refused before anything starts (the
+/// configuration refuses it too): running it as a position axis would not be what the
+/// file says.
 pub(crate) fn check_drives(config: &Config) -> Result<(), StartError> {
     let Some(bus) = config.ethercat() else {
         return Ok(());
     };
-    match bus
-        .drives
-        .iter()
-        .find(|d| d.mode != kerf_config::ethercat::DriveMode::Csp)
-    {
+    // Cyclic synchronous velocity is the spindle's drive's mode (its velocity setpoints
+    // come from the machine's spindle); an axis's drive runs in position.
+    match bus.drives.iter().find(|d| {
+        d.mode != kerf_config::ethercat::DriveMode::Csp
+            && d.axis_index != kerf_config::ethercat::SPINDLE_AXIS_INDEX
+    }) {
         None => Ok(()),
         Some(d) => Err(StartError::Config(format!(
-            "the EtherCAT drive at position {} (axis {}) is configured for cyclic synchronous velocity (`mode = \"csv\"`), which kerfd cannot run yet: nothing produces velocity setpoints",
+            "the EtherCAT drive at position {} (axis {}) is configured for cyclic synchronous velocity (`mode = \"csv\"`), which kerfd runs only for the spindle's drive (`axis = \"s\"`): an axis's drive runs in \"csp\"",
             d.position,
             kerf_geom::AXIS_NAMES
                 .get(d.axis_index)

@@ -36,6 +36,8 @@ pub struct Bench {
     /// The emulator's standard input: its control commands (`mute`, `unmute`, ...).
     pub emulator_stdin: std::process::ChildStdin,
     _emulator: std::process::Child,
+    /// Subdevices on the emulated ring.
+    pub subdevices: usize,
     /// Declared last: dropped after the processes, it kills what still runs inside.
     pub ns: Netns,
 }
@@ -57,6 +59,86 @@ impl Bench {
     /// table (more keys, e.g. `sdo = [...]`, each line ended by `\n`). The emulator has 3
     /// drives and 1 I/O subdevice unless `emulator_args` gives `--drives` or `--io`.
     pub fn with_x_drive(tag: &str, bus: &str, x_drive: &str, emulator_args: &[&str]) -> Bench {
+        Bench::build(
+            tag,
+            bus,
+            x_drive,
+            "[[ethercat.io]]\nposition = 3\nvendor_id = 0x4B52\nproduct_code = 0x10\n",
+            "",
+            emulator_args,
+            [("--drives", "3"), ("--io", "1")],
+        )
+    }
+
+    /// A namespace with the emulator (4 drives and an I/O terminal, the 4th drive's motor
+    /// ramping at `velocity_accel_counts_s2` in velocity mode) and a machine whose X, Y and
+    /// Z drives are at positions 0 to 2, its spindle's drive (`axis = "s"`, cyclic
+    /// synchronous velocity, 10000 counts per revolution) at 3 and its I/O terminal at 4,
+    /// without distributed clocks, with a process-data watchdog of 500 ms. The terminal's
+    /// bits and the machine's `[io]`:
+    ///
+    /// | `[io]`                | number | terminal bit |
+    /// |-----------------------|--------|--------------|
+    /// | output `flood` (M8)   | 1      | output 0     |
+    /// | output `clamp`        | 2      | output 1     |
+    /// | output `blast`        | 3      | output 5     |
+    /// | input `part_present`  | 0      | input 0      |
+    /// | input `door_closed`   | 4      | input 1      |
+    ///
+    /// The spindle: `max_rpm` 12000, `acceleration_rpm_s` 12000, at-speed band 2 %,
+    /// `spindle` appended (more `[spindle]` keys). A manual tool changer.
+    pub fn machine(tag: &str, spindle: &str, velocity_accel_counts_s2: f64) -> Bench {
+        let accel = velocity_accel_counts_s2.to_string();
+        Bench::machine_with(tag, spindle, &["--velocity-accel", &accel])
+    }
+
+    /// The machine of [`Bench::machine`] on an emulator started with `emulator_args` (4
+    /// drives and 1 I/O subdevice unless they say otherwise).
+    pub fn machine_on(tag: &str, emulator_args: &[&str]) -> Bench {
+        Bench::machine_with(tag, "", emulator_args)
+    }
+
+    fn machine_with(tag: &str, spindle: &str, emulator_args: &[&str]) -> Bench {
+        Bench::build(
+            tag,
+            // These tests are about the machine on the bus, not about the load: a debug
+            // build on a busy two-core machine stalls for tens of ms now and then, which
+            // the default 20 ms watchdog would take for a lost master.
+            "dc = false\nwatchdog_us = 500000\n",
+            "",
+            "[[ethercat.drives]]\naxis = \"s\"\nposition = 3\nvendor_id = 0x4B52\nproduct_code = 0x402\n\
+             [[ethercat.io]]\nposition = 4\nvendor_id = 0x4B52\nproduct_code = 0x10\n\
+             inputs = { part_present = 0, door_closed = 1 }\n\
+             outputs = { flood = 0, clamp = 1, blast = 5 }\n",
+            &format!(
+                "\n[io]\ndigital_outputs = [\n    {{ number = 1, name = \"flood\" }},\n    \
+                 {{ number = 2, name = \"clamp\" }},\n    {{ number = 3, name = \"blast\" }},\n]\n\
+                 digital_inputs = [\n    {{ number = 0, name = \"part_present\" }},\n    \
+                 {{ number = 4, name = \"door_closed\" }},\n]\n\
+                 \n[spindle]\nkind = \"drive\"\nmax_rpm = 12000.0\nacceleration_rpm_s = 12000.0\n\
+                 at_speed_tolerance = 0.02\nat_speed_timeout_s = 10.0\ncounts_per_rev = 10000.0\n{spindle}\
+                 \n[coolant]\nflood = \"flood\"\n"
+            ),
+            emulator_args,
+            [("--drives", "4"), ("--io", "1")],
+        )
+    }
+
+    /// The bench of `config/kerf.toml` (its simulated I/O, spindle, coolant and tool
+    /// changer taken out, a manual tool changer) with `bus` for the `[ethercat]` table's
+    /// settings, `x_drive` appended to the X drive's table, `ring_tail` the subdevices
+    /// after the X, Y and Z drives (`[[ethercat.drives]]`, `[[ethercat.io]]`),
+    /// `sections` more tables at the end; the emulator with `emulator_args` and the
+    /// `defaults` of the options they do not give.
+    fn build(
+        tag: &str,
+        bus: &str,
+        x_drive: &str,
+        ring_tail: &str,
+        sections: &str,
+        emulator_args: &[&str],
+        defaults: [(&str, &str); 2],
+    ) -> Bench {
         let machine = format!("t{}_{tag}", std::process::id());
         let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
             .join("kerf-ethercat-tests")
@@ -79,7 +161,12 @@ impl Bench {
         let io = text
             .find("# Inputs and outputs.")
             .expect("config/kerf.toml's [io]");
-        let changer = text.find("# The runtime switches").expect("its [operator]");
+        let changer = text
+            .find("# The tool change M6")
+            .expect("its [tool_changer]");
+        let operator = text.find("# The runtime switches").expect("its [operator]");
+        // Its automatic tool changer uses the simulated I/O too: a manual one instead.
+        text.replace_range(changer..operator, "[tool_changer]\nkind = \"manual\"\n\n");
         text.replace_range(io..changer, "");
         text.push_str(&format!(
             // A debug build on a busy two-core machine misses periods now and then; the
@@ -91,7 +178,7 @@ impl Bench {
              [[ethercat.drives]]\naxis = \"x\"\nposition = 0\nvendor_id = 0x4B52\nproduct_code = 0x402\n{x_drive}\
              [[ethercat.drives]]\naxis = \"y\"\nposition = 1\nvendor_id = 0x4B52\nproduct_code = 0x402\n\
              [[ethercat.drives]]\naxis = \"z\"\nposition = 2\nvendor_id = 0x4B52\nproduct_code = 0x402\n\
-             [[ethercat.io]]\nposition = 3\nvendor_id = 0x4B52\nproduct_code = 0x10\n"
+             {ring_tail}{sections}"
         ));
         let config = dir.join("kerf.toml");
         fs::write(&config, text).unwrap();
@@ -101,10 +188,16 @@ impl Bench {
         let mut c = ns.command("chrt");
         c.args(["-f", "40", &emulator()]);
         c.args(["--interface", NETWORK_IF]);
-        for (option, default) in [("--drives", "3"), ("--io", "1")] {
-            if !emulator_args.contains(&option) {
-                c.args([option, default]);
-            }
+        let mut subdevices = 0;
+        for (option, default) in defaults {
+            let value = match emulator_args.iter().position(|a| *a == option) {
+                Some(i) => emulator_args[i + 1],
+                None => {
+                    c.args([option, default]);
+                    default
+                }
+            };
+            subdevices += value.parse::<usize>().expect("a number of subdevices");
         }
         c.args(emulator_args);
         let log = dir.join("emulator.stderr");
@@ -129,6 +222,7 @@ impl Bench {
             config,
             emulator_stdin,
             _emulator: emulator,
+            subdevices,
             ns,
         }
     }
@@ -140,7 +234,7 @@ impl Bench {
         self.emulator_stdin.flush().expect("emulator's stdin");
     }
 
-    /// The emulator's `state` answer: one line per subdevice (4), in ring order, e.g.
+    /// The emulator's `state` answer: one line per subdevice, in ring order, e.g.
     /// `subdevice 0 kind=drive al=OP al_error=0 … cia402=operation_enabled …`.
     pub fn emulator_state(&mut self) -> Vec<String> {
         let path = self.dir.join("emulator.stdout");
@@ -150,8 +244,8 @@ impl Bench {
         loop {
             let text = read_text(&path);
             let lines: Vec<String> = text.lines().skip(before).map(str::to_owned).collect();
-            if lines.len() >= 4 {
-                return lines[..4].to_vec();
+            if lines.len() >= self.subdevices {
+                return lines[..self.subdevices].to_vec();
             }
             assert!(
                 Instant::now() < deadline,

@@ -375,6 +375,10 @@ impl Cycle {
         // The machine's models advance one period; the spindle is watched while the
         // last setpoint fed.
         let feeding = self.setpoint.feed_mm_s > 0.0 && !self.setpoint.rapid;
+        // The inputs and the spindle drive's speed of the last exchange.
+        if let Some(bus) = self.bus.as_ref() {
+            bus.receive_machine(&mut self.machine);
+        }
         self.machine.cycle(feeding);
         if self.program.is_none() {
             self.begin_next();
@@ -488,6 +492,8 @@ impl Cycle {
         // The outputs just written go out, the inputs for the next cycle come back.
         if exchange && let Some(bus) = self.bus.as_mut() {
             let line = self.setpoint.line;
+            // The machine's outputs and the spindle's setpoint go out with the drives'.
+            let spindle = bus.send_machine(&self.machine, &self.stage);
             let fault = match bus.exchange(&mut self.stage, self.cycle_start_ns) {
                 Some(BusTrip::Missed { in_row, limit }) => {
                     self.stage.trip_fieldbus(in_row, limit, line)
@@ -497,6 +503,10 @@ impl Cycle {
                 }
                 None => None,
             };
+            let fault = fault.or_else(|| {
+                let (check, value, limit) = spindle?.check();
+                self.stage.trip_machine(check, value, limit, line)
+            });
             let recovered = bus.recover();
             if let Some(f) = fault {
                 self.safety_stop(f);
