@@ -573,7 +573,8 @@ pub fn status_text(machine: &str, names: &[String], s: &StatusMsg) -> String {
 /// `kerf status`: one line for a person (the machine, without the EtherCAT block).
 pub fn status_line(machine: &str, s: &StatusMsg) -> String {
     let mut out = format!("{machine}: {}", state_name(s));
-    if s.line != 0 {
+    // A pause names its own line on the next line (the setpoint's is the move before).
+    if s.line != 0 && s.pause_reason == kerf_proto::PAUSE_NONE {
         let _ = write!(out, " at line {}", s.line);
     }
     out.push(',');

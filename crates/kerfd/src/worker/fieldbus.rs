@@ -210,9 +210,7 @@ impl SpindleTrip {
     /// 0 against 2.
     pub fn check(self) -> (Check, f64, f64) {
         match self {
-            SpindleTrip::Fault { error_code } => {
-                (Check::SpindleDrive, f64::from(error_code), 0.0)
-            }
+            SpindleTrip::Fault { error_code } => (Check::SpindleDrive, f64::from(error_code), 0.0),
             SpindleTrip::NotEnabled { timeout_cycles } => {
                 (Check::SpindleDrive, f64::from(timeout_cycles), 1.0)
             }
