@@ -757,7 +757,7 @@ mod tests {
         assert_eq!(s.step(Phase::Active, false, 1000.0), None, "reported once");
         assert_eq!(
             SpindleTrip::Fault { error_code: 0x4310 }.check(),
-            (Check::DriveFault, 17168.0, 0.0)
+            (Check::SpindleDrive, 17168.0, 0.0)
         );
         // The drive stage resets: bit 7 low, then a rising edge.
         assert_eq!(s.step(Phase::Resetting, false, 0.0), None);
@@ -797,8 +797,12 @@ mod tests {
             Some(SpindleTrip::Disabled)
         );
         assert_eq!(
+            SpindleTrip::NotEnabled { timeout_cycles: 5 }.check(),
+            (Check::SpindleDrive, 5.0, 1.0)
+        );
+        assert_eq!(
             SpindleTrip::Disabled.check(),
-            (Check::DriveDisabled, 1.0, 0.0)
+            (Check::SpindleDrive, 0.0, 2.0)
         );
     }
 }
