@@ -313,6 +313,9 @@ impl Default for OperatorConfig {
 pub struct MachineCaps {
     /// `spindle.max_rpm` when the machine has a spindle; `None`: `M3`/`M4`/`M19` refused.
     pub spindle_max_rpm: Option<f64>,
+    /// Whether the spindle can orient (`M19`): only the simulated drive does; a velocity
+    /// drive on EtherCAT and a spindle on outputs have no position to stop at.
+    pub spindle_orients: bool,
     /// Whether `M7` (mist) has an output.
     pub mist: bool,
     /// Whether `M8` (flood) has an output.
@@ -361,6 +364,7 @@ impl Config {
         let io = &self.io;
         MachineCaps {
             spindle_max_rpm: self.spindle.exists().then_some(self.spindle.max_rpm),
+            spindle_orients: matches!(self.spindle.kind, SpindleKind::Drive(d) if !d.on_bus),
             mist: self.coolant.mist.is_some(),
             flood: self.coolant.flood.is_some(),
             digital_outputs: mask(&io.digital_outputs, |e| e.number),
@@ -401,6 +405,10 @@ impl MachineCaps {
             C::M3 | C::M4 | C::M19 if self.spindle_max_rpm.is_none() => {
                 missing("spindle", "spindle.kind = \"none\"")
             }
+            C::M19 if !self.spindle_orients => Err(
+                "M19: this machine's spindle cannot orient: it is a velocity drive or switched by outputs, with no position to stop at (spindle.kind)"
+                    .to_string(),
+            ),
             C::S => match (self.spindle_max_rpm, e.value) {
                 (Some(max), Some(rpm)) if rpm > max => Err(format!(
                     "S{rpm} is above the spindle's top speed, {max} rpm (spindle.max_rpm)"

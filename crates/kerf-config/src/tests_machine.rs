@@ -135,6 +135,7 @@ fn without_the_tables_the_machine_is_a_simulated_drive_spindle_and_a_manual_chan
         c.machine_check(),
         MachineCaps {
             spindle_max_rpm: Some(24_000.0),
+            spindle_orients: true,
             mist: false,
             flood: false,
             digital_outputs: 0,
@@ -222,6 +223,7 @@ fn every_key_of_an_outputs_spindle_coolant_and_an_automatic_changer_is_read() {
         c.machine_check(),
         MachineCaps {
             spindle_max_rpm: None,
+            spindle_orients: false,
             mist: true,
             flood: false,
             digital_outputs: 33,
@@ -885,6 +887,7 @@ fn the_bundled_mill_is_a_simulated_machine_with_coolant_and_io() {
         c.machine_check(),
         MachineCaps {
             spindle_max_rpm: Some(24_000.0),
+            spindle_orients: true,
             mist: true,
             flood: true,
             digital_outputs: 0b1_1111,
@@ -1023,6 +1026,7 @@ fn the_ethercat_example_names_bus_bits_and_its_spindle_drive() {
         c.machine_check(),
         MachineCaps {
             spindle_max_rpm: Some(18_000.0),
+            spindle_orients: false,
             mist: false,
             flood: true,
             digital_outputs: 0b11,
@@ -1039,6 +1043,7 @@ fn events_the_machine_cannot_do_are_refused_with_the_key_to_look_at() {
     use kerf_geom::{Event, EventCode as C};
     let caps = MachineCaps {
         spindle_max_rpm: Some(12000.0),
+        spindle_orients: true,
         mist: false,
         flood: true,
         digital_outputs: 0b101,
@@ -1088,6 +1093,7 @@ fn events_the_machine_cannot_do_are_refused_with_the_key_to_look_at() {
     );
     let bare = MachineCaps {
         spindle_max_rpm: None,
+        spindle_orients: false,
         tool_changer: ToolChangerKind::None,
         ..caps
     };
@@ -1098,6 +1104,17 @@ fn events_the_machine_cannot_do_are_refused_with_the_key_to_look_at() {
     assert_eq!(
         bare.check_event(&ev(C::M6, None)).unwrap_err(),
         "M6: this machine has no tool changer (tool_changer.kind = \"none\")"
+    );
+    assert_eq!(caps.check_event(&ev(C::M19, None)), Ok(()));
+    let no_orient = MachineCaps {
+        spindle_orients: false,
+        ..caps
+    };
+    assert!(
+        no_orient
+            .check_event(&ev(C::M19, None))
+            .unwrap_err()
+            .starts_with("M19: this machine's spindle cannot orient")
     );
     // Without a spindle any S passes: it commands nothing until M3 or M4.
     assert_eq!(bare.check_event(&ev(C::S, Some(1e9))), Ok(()));
