@@ -352,9 +352,9 @@ impl Prepass {
         self.check_planned()
     }
 
-    /// One input of the program (see [`ProgramActions`]): a move is checked; at an exact
-    /// stop, a dwell or an action the machine waits for, the planner ends the path at rest
-    /// here, as the run's will.
+    /// One input of the program (see [`kerf_pipeline::ProgramActions`]): a move is
+    /// checked; at an exact stop, a dwell or an action the machine waits for, the planner
+    /// ends the path at rest here, as the run's will.
     pub fn input(&mut self, input: &Input) -> Result<(), PrepassError> {
         let kept = |pre: &mut Prepass, p: Planned| {
             if let Some(k) = pre.kept.as_mut() {
