@@ -1248,3 +1248,34 @@ fn run_from_line_approaches_safely_and_follows_the_full_runs_path() {
     let s = env.status();
     assert_at(&s, [0.0; 3], "after the refusal");
 }
+
+/// A `kerf run` that goes away while its program waits at a pause: the program (all of it
+/// sent) stays paused, `kerf resume` continues it, and the daemon runs it to its end.
+#[test]
+fn a_pause_survives_the_kerf_run_that_sent_the_program() {
+    let env = Env::new("gone", &[]);
+    let _daemon = env.start_daemon("kerfd");
+    let program = env.write("gone.ngc", "G21 G90\nG1 X2 F3000\nM0\nG1 X4 Y2\nM2\n");
+    let mut run = env.spawn_run("run", &program, &[]);
+    env.wait_pause(&mut run, "program_stop");
+    run.signal("KILL");
+    let killed = wait(&mut run, 1);
+    assert!(!killed.success(), "kerf run ended by itself: {killed}");
+    // Still paused at the M0, with nobody attached.
+    let s = env.status();
+    assert_eq!(state(&s), "paused", "{s}");
+    assert_eq!(s["pause"]["line"], 3, "{s}");
+    assert_at(&s, [2.0, 0.0, 0.0], "paused at the M0");
+    env.kerf_ok("resume", &[]);
+    let deadline = Instant::now() + PATIENCE;
+    let s = loop {
+        let s = env.status();
+        if program_end(&s) != "running" {
+            break s;
+        }
+        assert!(Instant::now() < deadline, "the program did not end: {s}");
+        std::thread::sleep(POLL);
+    };
+    assert_finished(&s);
+    assert_at(&s, [4.0, 2.0, 0.0], "at the program's end");
+}
