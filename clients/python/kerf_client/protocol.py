@@ -170,6 +170,8 @@ SAFETY_SPINDLE_AT_SPEED = 11
 SAFETY_SPINDLE_BAND = 12
 SAFETY_SPINDLE_ORIENT = 13
 SAFETY_TOOL_CHANGE = 14
+# The spindle's drive on the fieldbus failed (safety_limit: 0 fault, 1 not enabled, 2 dropped out).
+SAFETY_SPINDLE_DRIVE = 15
 SAFETY_AXIS_NONE = 255
 
 BUS_MAX_SUBDEVICES = 32

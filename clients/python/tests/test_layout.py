@@ -167,6 +167,7 @@ class ProtocolMdTables(unittest.TestCase):
         self.assertEqual(p.name_of("STATE", 6), "paused")
         self.assertEqual((p.REQUEST_OPTIONAL_STOP, p.REQUEST_SET_ANALOG_INPUT), (10, 15))
         self.assertEqual((p.SAFETY_SPINDLE_AT_SPEED, p.SAFETY_TOOL_CHANGE), (11, 14))
+        self.assertEqual(p.SAFETY_SPINDLE_DRIVE, 15)
         self.assertEqual((p.DIGITAL_IO, p.ANALOG_IO), (64, 16))
 
     def test_service_names(self):
