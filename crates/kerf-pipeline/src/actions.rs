@@ -254,14 +254,37 @@ impl ActionOrder {
         self.moves += 1;
     }
 
-    /// `true` if `input` must wait for the segments of the moves before it.
-    pub fn holds(input: &Input) -> bool {
-        matches!(input, Input::Action(a) if a.sync() == Sync::WithMotion)
+    /// Holds `input` if it is an action synchronised with the motion (it waits for the
+    /// segments of the moves before it): `true` when it was taken, and is not to be
+    /// planned.
+    pub fn take_held(&mut self, input: &Input) -> bool {
+        match input {
+            Input::Action(a) if a.sync() == Sync::WithMotion => {
+                self.held.push_back((self.moves, *a));
+                true
+            }
+            _ => false,
+        }
     }
 
-    /// Holds a synchronised action until the segments before it have gone out.
-    pub fn hold(&mut self, action: Action) {
-        self.held.push_back((self.moves, action));
+    /// What goes out after the segments planned for `input` (not a held one): an
+    /// immediate action itself; at an exact stop, a dwell or an action at rest, where the
+    /// path ended at rest, every held action and then the dwell or action; after a move,
+    /// nothing.
+    pub fn after(&mut self, input: &Input, out: &mut impl Extend<Planned>) {
+        match *input {
+            Input::Move(_) => {}
+            Input::Action(a) if a.sync() == Sync::Immediate => out.extend([Planned::Action(a)]),
+            Input::Stop => out.extend(self.release()),
+            Input::Dwell(seconds) => {
+                out.extend(self.release());
+                out.extend([Planned::Dwell(seconds)]);
+            }
+            Input::Action(a) => {
+                out.extend(self.release());
+                out.extend([Planned::Action(a)]);
+            }
+        }
     }
 
     /// The held actions due before `seg`, in order.

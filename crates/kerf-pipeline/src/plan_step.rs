@@ -4,8 +4,6 @@
 use kerf_geom::Move;
 use kerf_plan::{MachineLimits, PlanError, PlannedSegment, Planner};
 
-use kerf_geom::machine::Sync;
-
 use crate::{ActionOrder, Input, Planned, plan_input};
 
 /// The planning step of the offline runs: each input is planned, and every planned
@@ -37,8 +35,7 @@ impl PlanStep {
         taken: &mut impl Extend<Move>,
         out: &mut impl Extend<Planned>,
     ) -> Result<(), PlanError> {
-        if let (true, Input::Action(a)) = (ActionOrder::holds(input), input) {
-            self.order.hold(*a);
+        if self.order.take_held(input) {
             return Ok(());
         }
         plan_input(&mut self.planner, input, &mut self.buf)?;
@@ -48,16 +45,7 @@ impl PlanStep {
             self.order.moved();
         }
         self.drain(out);
-        match input {
-            Input::Move(_) => {}
-            Input::Action(a) if a.sync() == Sync::Immediate => out.extend([Planned::Action(*a)]),
-            _ => out.extend(self.order.release()),
-        }
-        match input {
-            Input::Dwell(seconds) => out.extend([Planned::Dwell(*seconds)]),
-            Input::Action(a) if a.sync() == Sync::AtRest => out.extend([Planned::Action(*a)]),
-            _ => {}
-        }
+        self.order.after(input, out);
         Ok(())
     }
 

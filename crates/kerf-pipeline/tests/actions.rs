@@ -30,8 +30,7 @@ fn planned(inputs: &[Input], limits: &MachineLimits) -> Vec<Planned> {
         }
     };
     for input in inputs {
-        if let (true, Input::Action(a)) = (ActionOrder::holds(input), input) {
-            order.hold(*a);
+        if order.take_held(input) {
             continue;
         }
         plan_input(&mut planner, input, &mut buf).unwrap();
@@ -39,19 +38,7 @@ fn planned(inputs: &[Input], limits: &MachineLimits) -> Vec<Planned> {
             order.moved();
         }
         drain(&mut buf, &mut order, &mut out);
-        match input {
-            Input::Move(_) => {}
-            Input::Action(a) if a.sync() == Sync::Immediate => out.push(Planned::Action(*a)),
-            Input::Dwell(s) => {
-                out.extend(order.release());
-                out.push(Planned::Dwell(*s));
-            }
-            Input::Action(a) => {
-                out.extend(order.release());
-                out.push(Planned::Action(*a));
-            }
-            Input::Stop => out.extend(order.release()),
-        }
+        order.after(input, &mut out);
     }
     planner.finish(&mut buf);
     drain(&mut buf, &mut order, &mut out);

@@ -33,7 +33,7 @@ use std::fmt;
 use std::io::{self, BufWriter, Write};
 
 use kerf_config::machine_limits;
-use kerf_geom::machine::{Action, Sync};
+use kerf_geom::machine::Action;
 use kerf_geom::{Move, Path, Vec3, line_distance};
 use kerf_motion::monitor::{LimitMonitor, LimitViolation};
 use kerf_motion::{MachineLimits, PlannedSegment, Setpoint};
@@ -356,31 +356,22 @@ impl Prepass {
     /// checked; at an exact stop, a dwell or an action the machine waits for, the planner
     /// ends the path at rest here, as the run's will.
     pub fn input(&mut self, input: &Input) -> Result<(), PrepassError> {
-        let kept = |pre: &mut Prepass, p: Planned| {
-            if let Some(k) = pre.kept.as_mut() {
-                k.segments.push(p);
-            }
-        };
-        match input {
-            Input::Move(m) => return self.push(m),
-            Input::Action(a) if ActionOrder::holds(input) => self.order.hold(*a),
-            Input::Action(a) if a.sync() == Sync::Immediate => kept(self, Planned::Action(*a)),
-            Input::Stop | Input::Dwell(_) | Input::Action(_) => {
-                self.planner.finish(&mut self.buf);
-                self.check_planned()?;
-                let released: Vec<Planned> = self.order.release().collect();
-                for p in released {
-                    kept(self, p);
-                }
-                match *input {
-                    Input::Dwell(seconds) => {
-                        self.scan.estimated_s += seconds;
-                        kept(self, Planned::Dwell(seconds));
-                    }
-                    Input::Action(a) => kept(self, Planned::Action(a)),
-                    _ => {}
-                }
-            }
+        if let Input::Move(m) = input {
+            return self.push(m);
+        }
+        if self.order.take_held(input) {
+            return Ok(());
+        }
+        // The path ends at rest at a stop, a dwell or an action at rest.
+        driver::plan_input(&mut self.planner, input, &mut self.buf)?;
+        self.check_planned()?;
+        if let Input::Dwell(seconds) = input {
+            self.scan.estimated_s += seconds;
+        }
+        let mut after = Vec::new();
+        self.order.after(input, &mut after);
+        if let Some(k) = self.kept.as_mut() {
+            k.segments.extend(after);
         }
         Ok(())
     }
@@ -818,6 +809,7 @@ pub fn write_row<W: Write>(w: &mut W, t: f64, sp: &Setpoint, rotary: bool) -> io
 #[cfg(test)]
 mod tests {
     use super::*;
+    use kerf_geom::machine::Sync;
     use kerf_geom::{Arc, CornerMode, Line, Path, Vec3};
 
     #[test]

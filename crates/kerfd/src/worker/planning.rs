@@ -201,8 +201,7 @@ impl Planning {
     /// before it; an action synchronised with the motion waits for the segments of the
     /// moves before it. A refused move stops the program. Returns `false` if told to stop.
     fn input(&mut self, input: Input) -> bool {
-        if let (true, Input::Action(a)) = (ActionOrder::holds(&input), input) {
-            self.order.hold(a);
+        if self.order.take_held(&input) {
             return true;
         }
         let m = match input {
@@ -218,15 +217,9 @@ impl Planning {
         if !self.flush() {
             return false;
         }
-        match input {
-            Input::Move(_) => true,
-            Input::Action(a) if a.sync() == kerf_geom::machine::Sync::Immediate => {
-                self.send(RtItem::Planned(Planned::Action(a)))
-            }
-            Input::Stop => self.release(),
-            Input::Dwell(s) => self.release() && self.send(RtItem::Planned(Planned::Dwell(s))),
-            Input::Action(a) => self.release() && self.send(RtItem::Planned(Planned::Action(a))),
-        }
+        let mut after = Vec::new();
+        self.order.after(&input, &mut after);
+        after.into_iter().all(|p| self.send(RtItem::Planned(p)))
     }
 
     /// Sends every held synchronised action (the path has ended at rest before them).
