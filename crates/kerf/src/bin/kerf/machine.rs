@@ -89,13 +89,7 @@ pub struct SpindleOverrideArgs {
 }
 
 fn parse_spindle_override(text: &str) -> Result<f64, String> {
-    match text.trim_end_matches('%').parse::<f64>() {
-        Ok(pct) if (0.0..=kerf_proto::MAX_SPINDLE_OVERRIDE_PCT).contains(&pct) => Ok(pct),
-        _ => Err(format!(
-            "`{text}` is not a spindle override: it must be 0 to {} percent",
-            kerf_proto::MAX_SPINDLE_OVERRIDE_PCT
-        )),
-    }
+    parse_percent(text, "spindle", kerf_proto::MAX_SPINDLE_OVERRIDE_PCT)
 }
 
 #[derive(Args)]
@@ -159,11 +153,15 @@ pub struct DumpArgs {
 }
 
 fn parse_live_override(text: &str) -> Result<f64, String> {
+    parse_percent(text, "feed", kerf_proto::MAX_OVERRIDE_PCT)
+}
+
+/// An override of `what` ("feed", "spindle"): 0 to `max` percent, `%` allowed.
+fn parse_percent(text: &str, what: &str, max: f64) -> Result<f64, String> {
     match text.trim_end_matches('%').parse::<f64>() {
-        Ok(pct) if (0.0..=kerf_proto::MAX_OVERRIDE_PCT).contains(&pct) => Ok(pct),
+        Ok(pct) if (0.0..=max).contains(&pct) => Ok(pct),
         _ => Err(format!(
-            "`{text}` is not a feed override: it must be 0 to {} percent",
-            kerf_proto::MAX_OVERRIDE_PCT
+            "`{text}` is not a {what} override: it must be 0 to {max} percent"
         )),
     }
 }

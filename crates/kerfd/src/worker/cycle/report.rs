@@ -23,7 +23,8 @@ impl Cycle {
 
     pub(super) fn report(&mut self, state: MachineState) {
         let core = self.interp.core().status();
-        if let Some(r) = self.machine.status().last_input
+        let machine = self.machine.status();
+        if let Some(r) = machine.last_input
             && r.seq != self.input_result.0
         {
             // A wait on an input ended in this cycle: it belongs to the running program.
@@ -57,7 +58,7 @@ impl Cycle {
             bus: self.bus_report(),
             reset: self.last_reset,
             commands_applied: self.commands_applied,
-            machine: self.machine.status(),
+            machine,
             input_result_program: self.input_result.1,
         };
         // A full ring means the control thread is behind: it gets the next one.
