@@ -8,7 +8,9 @@
 //! - [`ethercat`]: the EtherCAT bus (`[ethercat]`), when the machine's drives are on one;
 //! - the machine's functions besides the axes: [`IoConfig`] (`[io]`), [`SpindleConfig`],
 //!   [`CoolantConfig`], [`ToolChanger`], [`OperatorConfig`], and [`MachineCaps`]
-//!   ([`Config::machine_check`]), what a program may command.
+//!   ([`Config::machine_check`]), what a program may command;
+//! - homing, jogging and the axes' switches: [`HomingConfig`] (`[homing]`), [`JogConfig`]
+//!   (`[jog]`), and per axis [`AxisSetup`] ([`Config::axis_setups`]).
 //!
 //! A machine builder writes one file per machine; `config/kerf.toml` in the repository is a
 //! commented 3-axis mill example and is compiled into the binary as the default
@@ -26,6 +28,7 @@
 
 mod check;
 mod error;
+mod homing;
 mod load;
 mod machine;
 mod model;
@@ -44,6 +47,7 @@ use std::path::Path;
 use kerf_geom::{AxisLimits, MachineLimits};
 
 pub use error::{ConfigError, TextPosition};
+pub use homing::*;
 pub use machine::*;
 pub use model::*;
 pub use ranges::*;
@@ -115,5 +119,7 @@ mod tests;
 mod tests_ethercat;
 #[cfg(test)]
 mod tests_ethercat_objects;
+#[cfg(test)]
+mod tests_homing;
 #[cfg(test)]
 mod tests_machine;

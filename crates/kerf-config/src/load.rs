@@ -58,6 +58,16 @@ impl Config {
             coolant: CoolantConfig::default(),
             tool_changer: ToolChanger::default(),
             operator: OperatorConfig::default(),
+            homing: HomingConfig::default(),
+            jog: JogConfig::default(),
+            setups: [
+                Some(AxisSetup::default()),
+                Some(AxisSetup::default()),
+                Some(AxisSetup::default()),
+                None,
+                None,
+                None,
+            ],
         })
     }
 

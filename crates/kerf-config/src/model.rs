@@ -8,6 +8,7 @@ use kerf_drive::cia402::Scale;
 use kerf_drive::sim::SimConfig;
 use kerf_gcode::{Dialect, Tool};
 
+use crate::homing::*;
 use crate::machine::*;
 use crate::ranges::*;
 
@@ -250,6 +251,13 @@ pub struct Config {
     pub tool_changer: ToolChanger,
     /// `[operator]`: the runtime switches at daemon start.
     pub operator: OperatorConfig,
+    /// `[homing]`.
+    pub homing: HomingConfig,
+    /// `[jog]`.
+    pub jog: JogConfig,
+    /// `[axes.*.homing]`, `[axes.*.limit_switches]`, `[axes.*.sim]`, X to C: read with
+    /// [`Config::axis_setups`].
+    pub(crate) setups: [Option<AxisSetup>; MAX_AXES],
 }
 
 impl Config {

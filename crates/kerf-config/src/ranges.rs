@@ -279,3 +279,59 @@ pub const DEFAULT_SINGLE_BLOCK: bool = false;
 /// unit's /var/lib/kerf) or the temporary directory: `MACHINE` is the machine's name, so
 /// that machines on one computer (and tests) keep their own.
 pub const DEFAULT_STATE_FILE_NAME: &str = "MACHINE.state.toml";
+
+// Homing, jogging and the axes' switches (`[homing]`, `[jog]`, `[axes.*.homing]`,
+// `[axes.*.limit_switches]`, `[axes.*.sim]`; `crate::homing`). Rotary axes use the same
+// numbers in degrees.
+
+/// Default `homing.required`: programs and MDI are refused until every axis is homed.
+pub const DEFAULT_HOMING_REQUIRED: bool = true;
+
+/// Accepted `homing.unhomed_jog_pct`, percent of an axis's velocity: an unhomed axis has
+/// no soft limits yet, so its jog speed is capped; 100 % lifts the cap.
+pub const UNHOMED_JOG_PCT_RANGE: RangeInclusive<f64> = 1.0..=100.0;
+
+/// Default `homing.unhomed_jog_pct` (LinuxCNC's usual reduced jog speed before homing).
+pub const DEFAULT_UNHOMED_JOG_PCT: f64 = 10.0;
+
+/// Accepted `jog.deadman_ms`: at most 2 s of motion after a client vanished, at least
+/// 20 ms (a client renews every few tens of milliseconds; shorter would stop a healthy
+/// jog on one late renewal).
+pub const DEADMAN_RANGE_MS: RangeInclusive<u32> = 20..=2000;
+
+/// Default `jog.deadman_ms`.
+pub const DEFAULT_DEADMAN_MS: u32 = 100;
+
+/// Accepted `jog.default_speed_pct`, percent of an axis's velocity.
+pub const JOG_SPEED_PCT_RANGE: RangeInclusive<f64> = 0.1..=100.0;
+
+/// Default `jog.default_speed_pct`: a jog without `--speed` at a quarter of the axis's
+/// velocity.
+pub const DEFAULT_JOG_SPEED_PCT: f64 = 25.0;
+
+/// Default `axes.*.homing.search_distance_mm`, in travels (`max_mm` - `min_mm`): from
+/// anywhere in the travel a search that long passes the far end, with margin for a
+/// machine that starts a little outside it.
+pub const DEFAULT_SEARCH_DISTANCE_TRAVELS: f64 = 1.5;
+
+/// The longest `axes.*.homing.search_distance_mm`, mm (deg): beyond 1.5 times the widest
+/// travel ([`MAX_COORDINATE_MM`] at both ends), so every default fits.
+pub const MAX_SEARCH_DISTANCE_MM: f64 = 1e7;
+
+/// Default `axes.*.homing.home_offset_mm`: the switch's latch point is machine 0.
+pub const DEFAULT_HOME_OFFSET_MM: f64 = 0.0;
+
+/// Default `axes.*.homing.home_mm`: the axis goes to machine 0 after homing (refused
+/// when 0 is outside the travel and the key is not given).
+pub const DEFAULT_HOME_MM: f64 = 0.0;
+
+/// Accepted `axes.*.homing.sequence` (LinuxCNC `HOME_SEQUENCE`): `kerf home --all` homes
+/// sequence 0 first, then 1, ...; axes with the same number home together.
+pub const HOMING_SEQUENCE_RANGE: RangeInclusive<u32> = 0..=9;
+
+/// Default `axes.*.homing.sequence`.
+pub const DEFAULT_HOMING_SEQUENCE: u32 = 0;
+
+/// Default `axes.*.sim.start_mm`: the simulated motor is at 0 of its own frame at
+/// power-up, as the simulated drive always was.
+pub const DEFAULT_SIM_START_MM: f64 = 0.0;

@@ -33,6 +33,10 @@ pub(crate) struct RawConfig {
     pub(crate) tool_changer: Option<Spanned<RawToolChanger>>,
     #[serde(default)]
     pub(crate) operator: RawOperator,
+    #[serde(default)]
+    pub(crate) homing: RawHoming,
+    #[serde(default)]
+    pub(crate) jog: RawJog,
 }
 
 #[derive(Deserialize)]
@@ -57,6 +61,9 @@ pub(crate) struct RawLinearAxis {
     pub(crate) ferror_mm: Option<Spanned<f64>>,
     pub(crate) min_ferror_mm: Option<Spanned<f64>>,
     pub(crate) drive: Option<RawDrive>,
+    pub(crate) homing: Option<RawLinearHoming>,
+    pub(crate) limit_switches: Option<RawLimitSwitches>,
+    pub(crate) sim: Option<Spanned<RawLinearSim>>,
 }
 
 #[derive(Deserialize)]
@@ -70,6 +77,9 @@ pub(crate) struct RawRotaryAxis {
     pub(crate) ferror_deg: Option<Spanned<f64>>,
     pub(crate) min_ferror_deg: Option<Spanned<f64>>,
     pub(crate) drive: Option<RawDrive>,
+    pub(crate) homing: Option<RawRotaryHoming>,
+    pub(crate) limit_switches: Option<RawLimitSwitches>,
+    pub(crate) sim: Option<Spanned<RawRotarySim>>,
 }
 
 #[derive(Deserialize, Default)]
@@ -308,4 +318,175 @@ pub(crate) struct RawToolChanger {
 pub(crate) struct RawOperator {
     pub(crate) optional_stop: Option<bool>,
     pub(crate) single_block: Option<bool>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawHoming {
+    pub(crate) required: Option<bool>,
+    pub(crate) unhomed_jog_pct: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawJog {
+    pub(crate) deadman_ms: Option<Spanned<i64>>,
+    pub(crate) default_speed_pct: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawLinearHoming {
+    pub(crate) kind: Spanned<String>,
+    pub(crate) switch: Option<Spanned<String>>,
+    pub(crate) search_velocity_mm_s: Option<Spanned<f64>>,
+    pub(crate) latch_velocity_mm_s: Option<Spanned<f64>>,
+    pub(crate) search_distance_mm: Option<Spanned<f64>>,
+    pub(crate) home_offset_mm: Option<Spanned<f64>>,
+    pub(crate) home_mm: Option<Spanned<f64>>,
+    pub(crate) final_speed_mm_s: Option<Spanned<f64>>,
+    pub(crate) sequence: Option<Spanned<i64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawRotaryHoming {
+    pub(crate) kind: Spanned<String>,
+    pub(crate) switch: Option<Spanned<String>>,
+    pub(crate) search_velocity_deg_s: Option<Spanned<f64>>,
+    pub(crate) latch_velocity_deg_s: Option<Spanned<f64>>,
+    pub(crate) search_distance_deg: Option<Spanned<f64>>,
+    pub(crate) home_offset_deg: Option<Spanned<f64>>,
+    pub(crate) home_deg: Option<Spanned<f64>>,
+    pub(crate) final_speed_deg_s: Option<Spanned<f64>>,
+    pub(crate) sequence: Option<Spanned<i64>>,
+}
+
+/// `[axes.*.homing]` of either kind of axis, its keys by role (the names
+/// carry the axis's unit: `search_velocity_mm_s` or `search_velocity_deg_s`).
+pub(crate) struct AxisHomingKeys<'r> {
+    pub(crate) kind: &'r Spanned<String>,
+    pub(crate) switch: Option<&'r Spanned<String>>,
+    pub(crate) search_velocity: Option<&'r Spanned<f64>>,
+    pub(crate) latch_velocity: Option<&'r Spanned<f64>>,
+    pub(crate) search_distance: Option<&'r Spanned<f64>>,
+    pub(crate) home_offset: Option<&'r Spanned<f64>>,
+    pub(crate) home: Option<&'r Spanned<f64>>,
+    pub(crate) final_speed: Option<&'r Spanned<f64>>,
+    pub(crate) sequence: Option<&'r Spanned<i64>>,
+}
+
+impl RawLinearHoming {
+    pub(crate) fn keys(&self) -> AxisHomingKeys<'_> {
+        AxisHomingKeys {
+            kind: &self.kind,
+            switch: self.switch.as_ref(),
+            search_velocity: self.search_velocity_mm_s.as_ref(),
+            latch_velocity: self.latch_velocity_mm_s.as_ref(),
+            search_distance: self.search_distance_mm.as_ref(),
+            home_offset: self.home_offset_mm.as_ref(),
+            home: self.home_mm.as_ref(),
+            final_speed: self.final_speed_mm_s.as_ref(),
+            sequence: self.sequence.as_ref(),
+        }
+    }
+}
+
+impl RawRotaryHoming {
+    pub(crate) fn keys(&self) -> AxisHomingKeys<'_> {
+        AxisHomingKeys {
+            kind: &self.kind,
+            switch: self.switch.as_ref(),
+            search_velocity: self.search_velocity_deg_s.as_ref(),
+            latch_velocity: self.latch_velocity_deg_s.as_ref(),
+            search_distance: self.search_distance_deg.as_ref(),
+            home_offset: self.home_offset_deg.as_ref(),
+            home: self.home_deg.as_ref(),
+            final_speed: self.final_speed_deg_s.as_ref(),
+            sequence: self.sequence.as_ref(),
+        }
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawLimitSwitches {
+    pub(crate) min: Option<Spanned<String>>,
+    pub(crate) max: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawLinearSim {
+    pub(crate) start_mm: Option<Spanned<f64>>,
+    pub(crate) home_switch_mm: Option<Spanned<f64>>,
+    pub(crate) min_limit_mm: Option<Spanned<f64>>,
+    pub(crate) max_limit_mm: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawRotarySim {
+    pub(crate) start_deg: Option<Spanned<f64>>,
+    pub(crate) home_switch_deg: Option<Spanned<f64>>,
+    pub(crate) min_limit_deg: Option<Spanned<f64>>,
+    pub(crate) max_limit_deg: Option<Spanned<f64>>,
+}
+
+/// `[axes.*.sim]` of either kind of axis, its keys by role.
+pub(crate) struct AxisSimKeys<'r> {
+    pub(crate) start: Option<&'r Spanned<f64>>,
+    pub(crate) home_switch: Option<&'r Spanned<f64>>,
+    pub(crate) min_limit: Option<&'r Spanned<f64>>,
+    pub(crate) max_limit: Option<&'r Spanned<f64>>,
+}
+
+impl RawLinearSim {
+    pub(crate) fn keys(&self) -> AxisSimKeys<'_> {
+        AxisSimKeys {
+            start: self.start_mm.as_ref(),
+            home_switch: self.home_switch_mm.as_ref(),
+            min_limit: self.min_limit_mm.as_ref(),
+            max_limit: self.max_limit_mm.as_ref(),
+        }
+    }
+}
+
+impl RawRotarySim {
+    pub(crate) fn keys(&self) -> AxisSimKeys<'_> {
+        AxisSimKeys {
+            start: self.start_deg.as_ref(),
+            home_switch: self.home_switch_deg.as_ref(),
+            min_limit: self.min_limit_deg.as_ref(),
+            max_limit: self.max_limit_deg.as_ref(),
+        }
+    }
+}
+
+/// The homing, limit switch and simulation tables of one axis, whichever its kind.
+pub(crate) struct AxisSwitchTables<'r> {
+    pub(crate) homing: Option<AxisHomingKeys<'r>>,
+    pub(crate) limit_switches: Option<&'r RawLimitSwitches>,
+    /// The span of `[axes.*.sim]` and its keys.
+    pub(crate) sim: Option<(std::ops::Range<usize>, AxisSimKeys<'r>)>,
+}
+
+impl RawLinearAxis {
+    pub(crate) fn switch_tables(&self) -> AxisSwitchTables<'_> {
+        AxisSwitchTables {
+            homing: self.homing.as_ref().map(RawLinearHoming::keys),
+            limit_switches: self.limit_switches.as_ref(),
+            sim: self.sim.as_ref().map(|s| (s.span(), s.get_ref().keys())),
+        }
+    }
+}
+
+impl RawRotaryAxis {
+    pub(crate) fn switch_tables(&self) -> AxisSwitchTables<'_> {
+        AxisSwitchTables {
+            homing: self.homing.as_ref().map(RawRotaryHoming::keys),
+            limit_switches: self.limit_switches.as_ref(),
+            sim: self.sim.as_ref().map(|s| (s.span(), s.get_ref().keys())),
+        }
+    }
 }

@@ -168,7 +168,7 @@ pub(crate) fn expected_in_words(expected: &str, key: &str) -> String {
 
 /// The unit a key name ends with, in words (`period_us`: microseconds).
 pub(crate) fn unit_of(key: &str) -> Option<&'static str> {
-    const UNITS: [(&str, &str); 20] = [
+    const UNITS: [(&str, &str); 21] = [
         ("_mm_s3", "mm/s³"),
         ("_mm_s2", "mm/s²"),
         ("_mm_s", "mm/s"),
@@ -189,6 +189,7 @@ pub(crate) fn unit_of(key: &str) -> Option<&'static str> {
         ("_rpm_s", "rpm/s"),
         ("_rpm", "rpm"),
         ("_s", "seconds"),
+        ("_pct", "percent"),
     ];
     UNITS
         .iter()

@@ -17,7 +17,7 @@ use super::{Checker, valid_io_name};
 
 /// The four kinds of `[io]` entry.
 #[derive(Clone, Copy, PartialEq, Eq)]
-enum IoType {
+pub(super) enum IoType {
     DigitalOutput,
     DigitalInput,
     AnalogOutput,
@@ -54,14 +54,14 @@ struct Entry<'r> {
 
 /// A spindle or tool changer kind: its name and the value that gives it (`None`: the
 /// default).
-struct Kind<'r> {
-    name: &'static str,
-    raw: Option<&'r Spanned<String>>,
+pub(super) struct Kind<'r> {
+    pub(super) name: &'static str,
+    pub(super) raw: Option<&'r Spanned<String>>,
 }
 
 impl Kind<'_> {
     /// "`spindle.kind` is \"drive\"" (with "by default" when the file does not give it).
-    fn said(&self, table: &str) -> String {
+    pub(super) fn said(&self, table: &str) -> String {
         match self.raw {
             Some(_) => format!("`{table}.kind` is \"{}\"", self.name),
             None => format!("`{table}.kind` is \"{}\" by default", self.name),
@@ -301,7 +301,7 @@ impl Checker<'_> {
     }
 
     /// The `[io]` entry of type `kind` that `key` names.
-    fn io_ref(
+    pub(super) fn io_ref(
         &self,
         key: &str,
         raw: &Spanned<String>,
@@ -351,7 +351,7 @@ impl Checker<'_> {
     }
 
     /// A kind from `allowed`, or `default`.
-    fn kind<'r>(
+    pub(super) fn kind<'r>(
         &self,
         key: &str,
         raw: Option<&'r Spanned<String>>,
@@ -383,7 +383,7 @@ impl Checker<'_> {
 
     /// The keys of kind `owner` given (`given`: name and place) are refused unless the
     /// kind is `owner`.
-    fn keys_of_kind(
+    pub(super) fn keys_of_kind(
         &self,
         table: &str,
         kind: &Kind,
@@ -406,7 +406,7 @@ impl Checker<'_> {
     }
 
     /// A key the kind needs: present, else an error at the kind (or the table).
-    fn required<'r>(
+    pub(super) fn required<'r>(
         &self,
         table: &str,
         kind: &Kind,
@@ -422,7 +422,7 @@ impl Checker<'_> {
 
     /// The error of a key the kind needs that the file does not give, at the kind (or the
     /// table).
-    fn missing(
+    pub(super) fn missing(
         &self,
         table: &str,
         kind: &Kind,

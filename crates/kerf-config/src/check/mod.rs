@@ -4,6 +4,7 @@
 mod drives;
 mod ethercat;
 mod ethercat_objects;
+mod homing;
 mod machine;
 mod top;
 

@@ -89,6 +89,9 @@ impl Checker<'_> {
         let tool_changer = self.tool_changer(raw.tool_changer.as_ref(), &io)?;
         self.outputs_used_once(&raw)?;
         let operator = self.operator(&raw.operator);
+        let setups = self.axis_setups(&raw, &axes, &io, ethercat.as_ref())?;
+        let homing = self.homing(&raw.homing)?;
+        let jog = self.jog(&raw.jog)?;
         let dump_dir = match &raw.safety.dump_dir {
             None => None,
             Some(d) if d.get_ref().is_empty() => {
@@ -170,6 +173,9 @@ impl Checker<'_> {
             coolant,
             tool_changer,
             operator,
+            homing,
+            jog,
+            setups,
         })
     }
     /// `machine`: the name of the daemon's services.

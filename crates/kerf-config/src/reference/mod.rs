@@ -14,6 +14,7 @@ use crate::toml_words::{number, unit_of};
 use crate::*;
 
 mod ethercat;
+mod homing;
 mod machine;
 
 /// One key of the configuration file.
@@ -53,8 +54,9 @@ fn k(key: &'static str, default: String, range: String, meaning: &'static str) -
 
 /// Every key of the configuration file, in the order of docs/CONFIG.md.
 ///
-/// One table in one piece (over 400 lines): it is the page, row by row, and a reader
-/// checks a key against the page by finding it here; split, the order would be lost.
+/// The rows in page order (over 400 lines): a reader checks a key against the page by
+/// finding it here. The axes' homing, limit switch and simulation tables follow the axes'
+/// drive rows; the bus, the machine's functions, then homing and jogging come last.
 pub fn keys() -> Vec<KeyDoc> {
     let req = || "required".to_string();
     let none = || "none".to_string();
@@ -283,6 +285,9 @@ pub fn keys() -> Vec<KeyDoc> {
             ri(ENABLE_TIMEOUT_RANGE_MS),
             "Time the drive may take to become enabled.",
         ),
+    ];
+    all.extend(homing::axis_keys());
+    all.extend(vec![
         k(
             "daemon",
             "all defaults".into(),
@@ -495,9 +500,10 @@ pub fn keys() -> Vec<KeyDoc> {
             "a directory".into(),
             "Where the daemon writes black-box files, relative to the configuration's directory.",
         ),
-    ];
+    ]);
     all.extend(ethercat::keys());
     all.extend(machine::keys());
+    all.extend(homing::keys());
     all
 }
 
@@ -610,6 +616,18 @@ mod tests {
         axis_keys.extend(accepted::<RawRotaryAxis>());
         assert_eq!(documented("axes.*"), axis_keys);
         assert_eq!(documented("axes.*.drive"), accepted::<RawDrive>());
+        let mut homing_keys = accepted::<RawLinearHoming>();
+        homing_keys.extend(accepted::<RawRotaryHoming>());
+        assert_eq!(documented("axes.*.homing"), homing_keys);
+        assert_eq!(
+            documented("axes.*.limit_switches"),
+            accepted::<RawLimitSwitches>()
+        );
+        let mut sim_keys = accepted::<RawLinearSim>();
+        sim_keys.extend(accepted::<RawRotarySim>());
+        assert_eq!(documented("axes.*.sim"), sim_keys);
+        assert_eq!(documented("homing"), accepted::<RawHoming>());
+        assert_eq!(documented("jog"), accepted::<RawJog>());
         assert_eq!(documented("daemon"), accepted::<RawDaemon>());
         assert_eq!(documented("gcode"), accepted::<RawGcode>());
         assert_eq!(documented("work_offsets"), accepted::<RawWorkOffsets>());
@@ -704,5 +722,26 @@ mod tests {
         assert_eq!(config.tool_changer, ToolChanger::Manual);
         assert_eq!(doc["tool_changer.kind"], "\"manual\"");
         assert_eq!(config.io, IoConfig::default());
+        // Homing and jogging: homing required (every axis of kind "none", homed at
+        // start), the jog settings, every axis without switches or a simulated machine.
+        assert_eq!(doc["homing.required"], config.homing.required.to_string());
+        assert_eq!(
+            doc["homing.unhomed_jog_pct"],
+            number(config.homing.unhomed_jog_pct)
+        );
+        assert_eq!(doc["jog.deadman_ms"], config.jog.deadman_ms.to_string());
+        assert_eq!(
+            doc["jog.default_speed_pct"],
+            number(config.jog.default_speed_pct)
+        );
+        assert_eq!(doc["axes.*.homing"], "kind \"none\"");
+        for setup in &config.axis_setups()[..3] {
+            let s = setup.expect("X, Y and Z");
+            assert_eq!(s.homing.kind, HomingKind::None);
+            assert_eq!(s.limit_switches, LimitSwitches::default());
+            assert_eq!(number(s.sim.start_units), doc["axes.*.sim.start_mm"]);
+            assert_eq!(s.sim.home_switch_units, None);
+        }
+        assert_eq!(config.axis_setups()[3..], [None, None, None]);
     }
 }

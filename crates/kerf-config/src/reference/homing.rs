@@ -1,0 +1,240 @@
+//! The reference rows of `[homing]`, `[jog]` and each axis's `[axes.*.homing]`,
+//! `[axes.*.limit_switches]` and `[axes.*.sim]`, from the constants the checker uses.
+
+use crate::*;
+
+use super::{KeyDoc, f, k, rf, ri};
+
+/// The rows of the axes' tables, in the order of docs/CONFIG.md (after `axes.*.drive`).
+pub(super) fn axis_keys() -> Vec<KeyDoc> {
+    let none = || "none".to_string();
+    let coord = || format!("±{}", f(MAX_COORDINATE_MM));
+    let for_switch = || "required for \"switch\"".to_string();
+    let input = || "a digital input of [io]".to_string();
+    vec![
+        k(
+            "axes.*.homing",
+            "kind \"none\"".into(),
+            "table".into(),
+            "How the axis finds its machine coordinates (`[axes.x.homing]`, ...), keys below: lengths in mm, on A, B, C in degrees (`_deg`, `_deg_s`). The keys of kind \"switch\" are refused for the other kinds. `kerf home` homes the axes; until all are homed, programs and MDI are refused (`homing.required`).",
+        ),
+        k(
+            "axes.*.homing.kind",
+            "required".into(),
+            "\"none\", \"switch\" or \"absolute\" (\"drive\" is refused: not supported yet)".into(),
+            "\"none\": homed at start, the machine coordinates are the drive's from power-up (as before homing existed). \"switch\": Kerf searches the home switch at `search_velocity`, latches its edge at `latch_velocity`, sets the latch point's machine coordinate to `home_offset` and moves to `home`. \"absolute\": an absolute encoder, homed at start without motion, machine coordinate = encoder position + `home_offset`. \"drive\" (CiA 402 homing mode) is refused at load.",
+        ),
+        k(
+            "axes.*.homing.switch",
+            for_switch(),
+            input(),
+            "The home switch's input (with [ethercat] a bit of the bus, as every input of [io]); no other function may use it.",
+        ),
+        k(
+            "axes.*.homing.search_velocity_mm_s",
+            for_switch(),
+            "non-zero, magnitude at most `velocity_mm_s`".into(),
+            "Speed of the search for the switch, signed: its sign is the direction.",
+        ),
+        k(
+            "axes.*.homing.search_velocity_deg_s",
+            for_switch(),
+            "non-zero, magnitude at most `velocity_deg_s`".into(),
+            "The same on a rotary axis.",
+        ),
+        k(
+            "axes.*.homing.latch_velocity_mm_s",
+            for_switch(),
+            "non-zero, magnitude at most that of `search_velocity_mm_s`".into(),
+            "Speed of the latch move, signed: the search's sign backs off and approaches the switch's edge again, the opposite sign leaves the switch and latches where it releases.",
+        ),
+        k(
+            "axes.*.homing.latch_velocity_deg_s",
+            for_switch(),
+            "non-zero, magnitude at most that of `search_velocity_deg_s`".into(),
+            "The same on a rotary axis.",
+        ),
+        k(
+            "axes.*.homing.search_distance_mm",
+            format!(
+                "{} × (`max_mm` - `min_mm`)",
+                f(DEFAULT_SEARCH_DISTANCE_TRAVELS)
+            ),
+            format!("above 0, at most {}", f(MAX_SEARCH_DISTANCE_MM)),
+            "Kind \"switch\": the longest search; a switch not found within it is a fault naming the axis.",
+        ),
+        k(
+            "axes.*.homing.search_distance_deg",
+            format!(
+                "{} × (`max_deg` - `min_deg`)",
+                f(DEFAULT_SEARCH_DISTANCE_TRAVELS)
+            ),
+            format!("above 0, at most {}", f(MAX_SEARCH_DISTANCE_MM)),
+            "The same on a rotary axis.",
+        ),
+        k(
+            "axes.*.homing.home_offset_mm",
+            f(DEFAULT_HOME_OFFSET_MM),
+            coord(),
+            "Kind \"switch\": the machine coordinate of the switch's latch point; kind \"absolute\": the machine coordinate of encoder position 0.",
+        ),
+        k(
+            "axes.*.homing.home_offset_deg",
+            f(DEFAULT_HOME_OFFSET_MM),
+            coord(),
+            "The same on a rotary axis.",
+        ),
+        k(
+            "axes.*.homing.home_mm",
+            format!(
+                "{} (required when that is outside the travel)",
+                f(DEFAULT_HOME_MM)
+            ),
+            "within `min_mm` to `max_mm`".into(),
+            "Kind \"switch\": where the axis goes after homing, machine coordinates.",
+        ),
+        k(
+            "axes.*.homing.home_deg",
+            format!(
+                "{} (required when that is outside the travel)",
+                f(DEFAULT_HOME_MM)
+            ),
+            "within `min_deg` to `max_deg`".into(),
+            "The same on a rotary axis.",
+        ),
+        k(
+            "axes.*.homing.final_speed_mm_s",
+            "the magnitude of `search_velocity_mm_s`".into(),
+            "above 0, at most `velocity_mm_s`".into(),
+            "Kind \"switch\": the speed of the move to `home_mm`.",
+        ),
+        k(
+            "axes.*.homing.final_speed_deg_s",
+            "the magnitude of `search_velocity_deg_s`".into(),
+            "above 0, at most `velocity_deg_s`".into(),
+            "The same on a rotary axis.",
+        ),
+        k(
+            "axes.*.homing.sequence",
+            DEFAULT_HOMING_SEQUENCE.to_string(),
+            ri(HOMING_SEQUENCE_RANGE),
+            "Kind \"switch\" (LinuxCNC `HOME_SEQUENCE`): `kerf home --all` homes sequence 0 first, then 1, ...; axes with the same number home together.",
+        ),
+        k(
+            "axes.*.limit_switches",
+            none(),
+            "table".into(),
+            "The axis's hard limit switches (`[axes.x.limit_switches]`, ...): hitting one is a fault that stops all axes; after the reset the axis jogs only away from it. No other function may use their inputs.",
+        ),
+        k(
+            "axes.*.limit_switches.min",
+            none(),
+            input(),
+            "The switch at the lower end of the travel.",
+        ),
+        k(
+            "axes.*.limit_switches.max",
+            none(),
+            input(),
+            "The switch at the upper end of the travel.",
+        ),
+        k(
+            "axes.*.sim",
+            none(),
+            "table".into(),
+            "The simulated machine behind a simulated drive (`[axes.x.sim]`, ...), refused with [ethercat]. Positions are in the drive's own frame: the position it counts from power-up, the machine coordinate before homing. A switch it places is a simulated input (one of [io], which without [ethercat] are all simulated) whose value the simulation sets from the position, so its `sim` in [io] is refused; a switch input it does not place the operator sets with `kerf input`.",
+        ),
+        k(
+            "axes.*.sim.start_mm",
+            f(DEFAULT_SIM_START_MM),
+            coord(),
+            "The motor's position at power-up.",
+        ),
+        k(
+            "axes.*.sim.start_deg",
+            f(DEFAULT_SIM_START_MM),
+            coord(),
+            "The same on a rotary axis.",
+        ),
+        k(
+            "axes.*.sim.home_switch_mm",
+            none(),
+            coord(),
+            "The simulated home switch (needs `homing.kind` \"switch\"): active at and beyond this point in the search direction.",
+        ),
+        k(
+            "axes.*.sim.home_switch_deg",
+            none(),
+            coord(),
+            "The same on a rotary axis.",
+        ),
+        k(
+            "axes.*.sim.min_limit_mm",
+            none(),
+            coord(),
+            "The simulated min limit switch (needs `limit_switches.min`): active at and below this point.",
+        ),
+        k(
+            "axes.*.sim.min_limit_deg",
+            none(),
+            coord(),
+            "The same on a rotary axis.",
+        ),
+        k(
+            "axes.*.sim.max_limit_mm",
+            none(),
+            format!("{}, above `min_limit_mm`", coord()),
+            "The simulated max limit switch (needs `limit_switches.max`): active at and above this point.",
+        ),
+        k(
+            "axes.*.sim.max_limit_deg",
+            none(),
+            format!("{}, above `min_limit_deg`", coord()),
+            "The same on a rotary axis.",
+        ),
+    ]
+}
+
+/// The rows of `[homing]` and `[jog]`, in the order of docs/CONFIG.md.
+pub(super) fn keys() -> Vec<KeyDoc> {
+    let homing = HomingConfig::default();
+    let jog = JogConfig::default();
+    vec![
+        k(
+            "homing",
+            "all defaults".into(),
+            "table".into(),
+            "Homing for the machine as a whole; each axis's is `[axes.*.homing]`.",
+        ),
+        k(
+            "homing.required",
+            homing.required.to_string(),
+            "true or false".into(),
+            "Programs and MDI are refused until every axis is homed (axes of kind \"none\" and \"absolute\" are homed at start).",
+        ),
+        k(
+            "homing.unhomed_jog_pct",
+            f(homing.unhomed_jog_pct),
+            rf(UNHOMED_JOG_PCT_RANGE),
+            "The jog speed cap of an axis that is not homed (whose soft limits do not apply yet), percent of its velocity.",
+        ),
+        k(
+            "jog",
+            "all defaults".into(),
+            "table".into(),
+            "Jogging (`kerf jog`).",
+        ),
+        k(
+            "jog.deadman_ms",
+            jog.deadman_ms.to_string(),
+            ri(DEADMAN_RANGE_MS),
+            "A continuous jog stops on a jerk-limited ramp when its request is not renewed within this (a client that vanished never leaves an axis running).",
+        ),
+        k(
+            "jog.default_speed_pct",
+            f(jog.default_speed_pct),
+            rf(JOG_SPEED_PCT_RANGE),
+            "The speed of a jog without `--speed`, percent of the axis's velocity.",
+        ),
+    ]
+}
