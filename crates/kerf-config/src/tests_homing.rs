@@ -1007,9 +1007,9 @@ fn the_bundled_mill_homes_on_simulated_switches() {
             kind: HomingKind::Switch,
             switch_input: input(home),
             search_velocity_units_s: -100.0,
-            latch_velocity_units_s: 5.0,
+            latch_velocity_units_s: 2.0,
             search_distance_units: 3000.0,
-            home_offset_units: -990.0,
+            home_offset_units: -100.0,
             home_units: 0.0,
             final_speed_units_s: 200.0,
             sequence: 1,
@@ -1019,8 +1019,8 @@ fn the_bundled_mill_homes_on_simulated_switches() {
             max_input: input(max),
         },
         sim: SimAxis {
-            start_units: 0.0,
-            home_switch_units: Some(-990.0),
+            start_units: -80.0,
+            home_switch_units: Some(-100.0),
             min_limit_units: Some(-1005.0),
             max_limit_units: Some(1005.0),
         },
@@ -1032,8 +1032,8 @@ fn the_bundled_mill_homes_on_simulated_switches() {
             search_velocity_units_s: 50.0,
             latch_velocity_units_s: -2.0,
             search_distance_units: 1500.0,
-            home_offset_units: 495.0,
-            home_units: 50.0,
+            home_offset_units: 50.0,
+            home_units: 0.0,
             final_speed_units_s: 100.0,
             sequence: 0,
         },
@@ -1042,8 +1042,8 @@ fn the_bundled_mill_homes_on_simulated_switches() {
             max_input: input("z_max"),
         },
         sim: SimAxis {
-            start_units: 0.0,
-            home_switch_units: Some(495.0),
+            start_units: 40.0,
+            home_switch_units: Some(50.0),
             min_limit_units: Some(-505.0),
             max_limit_units: Some(505.0),
         },
@@ -1131,7 +1131,7 @@ fn the_quickstart_program_fits_the_homed_bundled_mill() {
             settings.start_mm_deg[i] = s.homing.home_units;
         }
     }
-    assert_eq!(settings.start_mm_deg[..3], [0.0, 0.0, 50.0]);
+    assert_eq!(settings.start_mm_deg[..3], [0.0, 0.0, 0.0]);
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/examples/quickstart.ngc");
     let text = std::fs::read(&path).expect("quickstart.ngc");
     let moves: Vec<kerf_gcode::Move> =
