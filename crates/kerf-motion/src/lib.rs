@@ -3,7 +3,9 @@
 //! [`MotionCore`] holds a fixed-capacity queue of [`PlannedSegment`]s (from `kerf-plan`,
 //! the type lives in `kerf-geom`: this crate depends on `kerf-geom` and `rsruckig` only)
 //! and produces one [`Setpoint`] per [`MotionCore::step`]. Everything is allocated in
-//! [`MotionCore::new`]; `push` and `step` never allocate, lock or do I/O.
+//! [`MotionCore::new`]; `push` and `step` never allocate, lock or do I/O. Apart from the
+//! path, [`AxisMove`] moves one axis on its own (jogging, homing): jerk-limited moves to a
+//! target and runs at a velocity, re-planned from any state, stepped the same way.
 //!
 //! Design decisions:
 //! - **Sections.** Consecutive segments are grouped into sections whose limits are the
@@ -113,6 +115,7 @@ pub use kerf_geom::{
     AxisLimits, MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED,
     MachineLimits, PlannedSegment,
 };
+pub mod axis_move;
 mod carry;
 mod hold;
 mod lookahead;
@@ -129,6 +132,7 @@ mod step;
 #[cfg(test)]
 mod tests;
 
+pub use axis_move::{AxisMove, AxisMoveError};
 pub use motion_core::MotionCore;
 pub use profile::JerkProfile;
 pub use reach::{change_distance, reach, reach_back};
