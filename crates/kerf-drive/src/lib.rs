@@ -10,6 +10,8 @@
 //! - [`machine`]: the machine model: the program's actions on the spindle (a simulated
 //!   spindle drive or outputs), coolant, tool changer and I/O image, its pauses and
 //!   waits, and its faults.
+//! - [`homing`]: the homing sequence of one axis (home switch, absolute encoder) as a
+//!   state machine that tells the axis's mover what to do each cycle.
 //! - [`recorder`]: the black-box ring of the last seconds of cycles and its CSV export.
 //! - [`stage`]: all of it in one call per cycle: read the drives, enable them, check,
 //!   write the targets, record; resets and black-box dumps.
@@ -19,6 +21,7 @@
 #![forbid(unsafe_code)]
 
 pub mod cia402;
+pub mod homing;
 pub mod machine;
 pub mod recorder;
 pub mod safety;
