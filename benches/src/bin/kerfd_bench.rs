@@ -69,9 +69,14 @@ fn flag(args: &[String], name: &str) -> bool {
     args.iter().any(|a| a == name)
 }
 
-/// The built-in machine under a name of its own (so that runs never collide).
+/// The built-in machine under a name of its own (so that runs never collide), without
+/// its homing (every axis homed at start: the benchmark measures the cycle, not homing).
 fn bench_config(period_us: u32) -> Config {
-    let mut config = Config::builtin();
+    let mut config = Config::from_toml_str(
+        &kerf_testkit::config_text::without_homing(kerf_config::BUILTIN_TOML),
+        kerf_config::BUILTIN_ORIGIN,
+    )
+    .expect("the built-in machine without homing");
     config.machine = format!("bench_{}", std::process::id());
     config.period_us = period_us;
     config

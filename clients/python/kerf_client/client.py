@@ -516,9 +516,11 @@ class Client:
 
     # -- control ---------------------------------------------------------------------
 
-    def request(self, kind, value=0.0, program_id=0, timeout_s=None, *, index=0) -> Reply:
-        """Sends one ``REQUEST_*`` (with ``value``, ``program_id`` and ``index`` as the
-        kind uses them; 0 otherwise) and waits for its answer."""
+    def request(
+        self, kind, value=0.0, program_id=0, timeout_s=None, *, index=0, mode=0, speed=0.0
+    ) -> Reply:
+        """Sends one ``REQUEST_*`` (with ``value``, ``program_id``, ``index``, ``mode`` and
+        ``speed`` as the kind uses them; 0 otherwise) and waits for its answer."""
         if not 0 <= index <= 0xFFFF_FFFF:
             raise ValueError(f"index {index}: not a u32")
         req = p.Request()
@@ -529,6 +531,8 @@ class Client:
         req.value = value
         req.program_id = program_id
         req.index = index
+        req.mode = mode
+        req.speed = speed
         pending = self._client.send_copy(req)
         deadline = time.monotonic() + (self.timeout_s if timeout_s is None else timeout_s)
         other_versions = 0
@@ -617,6 +621,34 @@ class Client:
         """REQUEST_SET_ANALOG_INPUT: set simulated analog input ``n`` (0 to 15) to
         ``value`` (finite); refused as :meth:`set_input`."""
         return self.request(p.REQUEST_SET_ANALOG_INPUT, value=float(value), index=n)
+
+    def jog(self, axis, direction, speed=0.0) -> Reply:
+        """REQUEST_JOG, JOG_CONTINUOUS: jog axis ``axis`` (0 to 5 = X to C) in
+        ``direction`` (+1 or -1) at ``speed`` mm/s or deg/s (0: the configured default).
+        The axis moves while this is renewed within the daemon's dead-man time
+        (``[jog] deadman_ms``): call it again every few tens of milliseconds."""
+        return self.request(p.REQUEST_JOG, value=1.0 if direction > 0 else -1.0,
+                            index=axis, mode=p.JOG_CONTINUOUS, speed=float(speed))
+
+    def jog_step(self, axis, step, speed=0.0) -> Reply:
+        """REQUEST_JOG, JOG_STEP: move axis ``axis`` by ``step`` (signed, not 0)."""
+        return self.request(p.REQUEST_JOG, value=float(step), index=axis,
+                            mode=p.JOG_STEP, speed=float(speed))
+
+    def jog_to(self, axis, position, speed=0.0) -> Reply:
+        """REQUEST_JOG, JOG_TO: move axis ``axis`` to machine coordinate ``position``."""
+        return self.request(p.REQUEST_JOG, value=float(position), index=axis,
+                            mode=p.JOG_TO, speed=float(speed))
+
+    def jog_stop(self, axis) -> Reply:
+        """REQUEST_JOG_STOP: stop the jog of axis ``axis`` on a jerk-limited ramp."""
+        return self.request(p.REQUEST_JOG_STOP, index=axis)
+
+    def home(self, axes_mask) -> Reply:
+        """REQUEST_HOME: home the axes of ``axes_mask`` (bit i: axis i) in their home
+        sequence; the status's ``homing``, ``home_phase`` and ``homed`` tell the
+        progress."""
+        return self.request(p.REQUEST_HOME, index=axes_mask)
 
     def reset(self) -> Reply:
         """REQUEST_RESET: clear the drive side's latched fault once its cause is gone."""

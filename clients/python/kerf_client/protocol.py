@@ -3,7 +3,7 @@
 Every message is a C struct of u8, u16, u32, i32, u64, i64 and f64 (native byte order, 8-byte
 alignment, no padding). The iceoryx2 Python bindings take a payload's type name from a
 static ``type_name()`` method, which here returns the name the Rust crate gives the type
-with ``#[type_name("kerf.MoveMsg.v5")]``: iceoryx2 matches the two ends of a service by that
+with ``#[type_name("kerf.MoveMsg.v6")]``: iceoryx2 matches the two ends of a service by that
 name, the size and the alignment, so a layout that drifted would not even connect.
 
 The tests in ``clients/python/tests/test_layout.py`` parse docs/PROTOCOL.md's tables and
@@ -17,7 +17,7 @@ import math
 # Constants (the table "Constants" of docs/PROTOCOL.md, every row)
 # ---------------------------------------------------------------------------------------
 
-PROTOCOL_VERSION = 5
+PROTOCOL_VERSION = 6
 
 KIND_BEGIN = 1
 KIND_LINE = 2
@@ -80,6 +80,7 @@ STATE_STARVED = 3
 STATE_FAULT = 4
 STATE_STOPPING = 5
 STATE_PAUSED = 6
+STATE_MANUAL = 7
 
 REQUEST_STATUS = 1
 REQUEST_HOLD = 2
@@ -96,6 +97,19 @@ REQUEST_SINGLE_BLOCK = 12
 REQUEST_SPINDLE_OVERRIDE = 13
 REQUEST_SET_INPUT = 14
 REQUEST_SET_ANALOG_INPUT = 15
+REQUEST_JOG = 16
+REQUEST_JOG_STOP = 17
+REQUEST_HOME = 18
+JOG_CONTINUOUS = 1
+JOG_STEP = 2
+JOG_TO = 3
+HOME_PHASE_IDLE = 0
+HOME_PHASE_WAITING = 1
+HOME_PHASE_MOVE_OFF = 2
+HOME_PHASE_SEARCH = 3
+HOME_PHASE_BACK_OFF = 4
+HOME_PHASE_LATCH = 5
+HOME_PHASE_FINAL = 6
 
 DIGITAL_IO = 64
 ANALOG_IO = 16
@@ -172,6 +186,10 @@ SAFETY_SPINDLE_ORIENT = 13
 SAFETY_TOOL_CHANGE = 14
 # The spindle's drive on the fieldbus failed (safety_limit: 0 fault, 1 not enabled, 2 dropped out).
 SAFETY_SPINDLE_DRIVE = 15
+SAFETY_HOME_SEARCH = 16
+SAFETY_HOME_RELEASE = 17
+SAFETY_HOME_LATCH = 18
+SAFETY_HARD_LIMIT = 19
 SAFETY_AXIS_NONE = 255
 
 BUS_MAX_SUBDEVICES = 32
@@ -209,6 +227,8 @@ CONSTANTS = {
         "SPINDLE",
         "OVERRIDES",
         "COOLANT",
+        "JOG",
+        "HOME",
     )
 }
 
@@ -312,7 +332,7 @@ def decode_text(raw):
 class MoveMsg(_Message):
     """One program item on the moves service (256 bytes)."""
 
-    TYPE_NAME = "kerf.MoveMsg.v5"
+    TYPE_NAME = "kerf.MoveMsg.v6"
     _fields_ = [
         ("version", u32),
         ("kind", u32),
@@ -343,7 +363,7 @@ class MoveMsg(_Message):
 class SetpointMsg(_Message):
     """The daemon's setpoint of one real-time cycle (160 bytes)."""
 
-    TYPE_NAME = "kerf.SetpointMsg.v5"
+    TYPE_NAME = "kerf.SetpointMsg.v6"
     _fields_ = [
         ("version", u32),
         ("state", u32),
@@ -361,9 +381,9 @@ class SetpointMsg(_Message):
 
 
 class Request(_Message):
-    """A control request (40 bytes)."""
+    """A control request (48 bytes)."""
 
-    TYPE_NAME = "kerf.Request.v5"
+    TYPE_NAME = "kerf.Request.v6"
     _fields_ = [
         ("version", u32),
         ("kind", u32),
@@ -371,14 +391,15 @@ class Request(_Message):
         ("value", f64),
         ("program_id", u64),
         ("index", u32),
-        ("reserved", u32),
+        ("mode", u32),
+        ("speed", f64),
     ]
 
 
 class StatusMsg(_Message):
-    """The daemon's status, embedded in every Response (1160 bytes)."""
+    """The daemon's status, embedded in every Response (1200 bytes)."""
 
-    TYPE_NAME = "kerf.StatusMsg.v5"
+    TYPE_NAME = "kerf.StatusMsg.v6"
     TEXT_FIELDS = ("fault_text", "fault_dump", "pause_text")
     _fields_ = [
         ("state", u32),
@@ -452,13 +473,23 @@ class StatusMsg(_Message):
         ("input_result_program", u64),
         ("input_result_value", f64),
         ("pause_text", u8 * 96),
+        # Homing, jogging and the axes' switches (bit i: axis i).
+        ("homed", u32),
+        ("homing_required", u32),
+        ("homing", u32),
+        ("jogging", u32),
+        ("home_switches", u32),
+        ("min_limit_switches", u32),
+        ("max_limit_switches", u32),
+        ("limit_released", u32),
+        ("home_phase", u8 * 8),
     ]
 
 
 class Response(_Message):
-    """The daemon's answer to a Request (1408 bytes)."""
+    """The daemon's answer to a Request (1448 bytes)."""
 
-    TYPE_NAME = "kerf.Response.v5"
+    TYPE_NAME = "kerf.Response.v6"
     TEXT_FIELDS = ("message",)
     _fields_ = [
         ("version", u32),

@@ -85,12 +85,12 @@ class ProtocolMdTables(unittest.TestCase):
             cls.text = f.read()
         cls.messages, cls.constants = parse_protocol_md(cls.text)
 
-    def test_the_page_is_protocol_version_5(self):
-        self.assertIn("# Kerf shared-memory protocol, version 5", self.text)
+    def test_the_page_is_protocol_version_6(self):
+        self.assertIn("# Kerf shared-memory protocol, version 6", self.text)
         self.assertEqual(self.constants["PROTOCOL_VERSION"], p.PROTOCOL_VERSION)
-        self.assertEqual(p.PROTOCOL_VERSION, 5)
+        self.assertEqual(p.PROTOCOL_VERSION, 6)
         for name, cls in p.MESSAGES.items():
-            self.assertEqual(cls.type_name(), f"kerf.{name}.v5")
+            self.assertEqual(cls.type_name(), f"kerf.{name}.v6")
 
     def test_every_message_is_documented_and_every_documented_one_exists(self):
         self.assertEqual(sorted(self.messages), sorted(p.MESSAGES))
@@ -130,18 +130,21 @@ class ProtocolMdTables(unittest.TestCase):
         for k, v in self.constants.items():
             self.assertEqual(getattr(p, k), v, k)
 
-    def test_the_v5_fields_where_version_5_put_them(self):
-        """The fields version 5 added or moved, at the offsets of the change (written
-        out here, not read from the page): what a client of version 4 must not meet."""
+    def test_the_fields_where_versions_5_and_6_put_them(self):
+        """The fields versions 5 and 6 added or moved, at the offsets of the change
+        (written out here, not read from the page): what an older client must not meet."""
         at = {
             p.MoveMsg: [("naive_cam_mm", 224, 8), ("event_p", 232, 8), ("event_q", 240, 8),
                         ("reserved", 248, 8)],
-            p.Request: [("program_id", 24, 8), ("index", 32, 4), ("reserved", 36, 4)],
+            p.Request: [("program_id", 24, 8), ("index", 32, 4), ("mode", 36, 4),
+                        ("speed", 40, 8)],
             p.StatusMsg: [("dc_samples", 672, 8), ("pause_reason", 680, 4),
                           ("spindle_dir", 716, 4), ("digital_outputs", 768, 8),
                           ("analog_outputs", 784, 128), ("analog_inputs", 912, 128),
-                          ("input_result_value", 1056, 8), ("pause_text", 1064, 96)],
-            p.Response: [("message", 24, 224), ("status", 248, 1160)],
+                          ("input_result_value", 1056, 8), ("pause_text", 1064, 96),
+                          ("homed", 1160, 4), ("jogging", 1172, 4),
+                          ("limit_released", 1188, 4), ("home_phase", 1192, 8)],
+            p.Response: [("message", 24, 224), ("status", 248, 1200)],
         }
         for cls, fields in at.items():
             for field, offset, size in fields:
@@ -149,7 +152,7 @@ class ProtocolMdTables(unittest.TestCase):
                     d = getattr(cls, field)
                     self.assertEqual((d.offset, d.size), (offset, size))
         self.assertEqual([ctypes.sizeof(c) for c in (p.MoveMsg, p.Request, p.StatusMsg,
-                                                      p.Response)], [256, 40, 1160, 1408])
+                                                      p.Response)], [256, 48, 1200, 1448])
         # spindle_dir is signed: -1 (M4) reads back as -1, its bytes as two's complement.
         st = p.StatusMsg()
         st.spindle_dir = -1
@@ -169,6 +172,13 @@ class ProtocolMdTables(unittest.TestCase):
         self.assertEqual((p.SAFETY_SPINDLE_AT_SPEED, p.SAFETY_TOOL_CHANGE), (11, 14))
         self.assertEqual(p.SAFETY_SPINDLE_DRIVE, 15)
         self.assertEqual((p.DIGITAL_IO, p.ANALOG_IO), (64, 16))
+
+    def test_v6_constants(self):
+        """Version 6's constants, from the change itself."""
+        self.assertEqual((p.REQUEST_JOG, p.REQUEST_JOG_STOP, p.REQUEST_HOME), (16, 17, 18))
+        self.assertEqual((p.JOG_CONTINUOUS, p.JOG_STEP, p.JOG_TO), (1, 2, 3))
+        self.assertEqual((p.HOME_PHASE_IDLE, p.HOME_PHASE_FINAL), (0, 6))
+        self.assertEqual((p.SAFETY_HOME_SEARCH, p.SAFETY_HARD_LIMIT), (16, 19))
 
     def test_service_names(self):
         self.assertEqual(p.service_name("default", "moves"), "kerf/default/moves")

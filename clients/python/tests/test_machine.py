@@ -207,12 +207,13 @@ def fake_client():
 
 
 class Requests(unittest.TestCase):
-    """The requests of version 5 as bytes: version u32 at 0, kind u32 at 4, id u64 at 8,
-    value f64 at 16, program_id u64 at 24, index u32 at 32, reserved u32 at 36."""
+    """The requests of version 6 as bytes: version u32 at 0, kind u32 at 4, id u64 at 8,
+    value f64 at 16, program_id u64 at 24, index u32 at 32, mode u32 at 36, speed f64 at
+    40."""
 
     def decode(self, raw):
-        self.assertEqual(len(raw), 40)
-        return struct.unpack("=IIQdQII", raw)
+        self.assertEqual(len(raw), 48)
+        return struct.unpack("=IIQdQIId", raw)
 
     def test_each_new_request(self):
         c = fake_client()
@@ -234,7 +235,24 @@ class Requests(unittest.TestCase):
                 self.assertTrue(r.accepted)
                 self.assertEqual(r.request_id, n)
                 self.assertEqual(self.decode(c._client.sent[-1]),
-                                 (5, kind, n, value, 0, index, 0))
+                                 (6, kind, n, value, 0, index, 0, 0.0))
+
+    def test_manual_requests(self):
+        c = fake_client()
+        calls = [
+            (lambda: c.jog(0, +1), 16, 1.0, 0, 1, 0.0),
+            (lambda: c.jog(5, -1, speed=12.5), 16, -1.0, 5, 1, 12.5),
+            (lambda: c.jog_step(2, -0.1, speed=1.0), 16, -0.1, 2, 2, 1.0),
+            (lambda: c.jog_to(1, 250.0), 16, 250.0, 1, 3, 0.0),
+            (lambda: c.jog_stop(3), 17, 0.0, 3, 0, 0.0),
+            (lambda: c.home(0b101), 18, 0.0, 5, 0, 0.0),
+        ]
+        for n, (call, kind, value, index, mode, speed) in enumerate(calls, start=1):
+            with self.subTest(kind=kind, value=value, index=index):
+                r = call()
+                self.assertTrue(r.accepted)
+                self.assertEqual(self.decode(c._client.sent[-1]),
+                                 (6, kind, n, value, 0, index, mode, speed))
 
     def test_an_index_that_is_no_u32_is_not_sent(self):
         c = fake_client()

@@ -271,6 +271,15 @@ impl Machine {
         }
     }
 
+    /// Sets digital input `n` from a simulation of the machine itself (a simulated home or
+    /// limit switch that follows its axis's motor); ignored for an input that does not
+    /// exist or comes from the fieldbus.
+    pub fn drive_input(&mut self, n: u8, on: bool) {
+        if self.config.io.has_digital_input(n) && self.config.io.simulated_inputs {
+            self.io.set_digital_input(n, on);
+        }
+    }
+
     /// Sets simulated digital input `n` (an operator's or a test's command). Refused for
     /// an input that does not exist, with inputs from the fieldbus, and for an input the
     /// machine's own simulations drive (the changer's answer, a VFD's at-speed signal).

@@ -168,6 +168,17 @@ pub enum Check {
     /// fault, the value its error code 0x603F; 1: it did not enable, the value the timeout
     /// in cycles; 2: it left Operation enabled on its own).
     SpindleDrive,
+    /// Homing found no home switch within the search distance; the value is the distance
+    /// travelled, the limit the search distance, mm or deg.
+    HomeSearch,
+    /// Homing moved off (or backed off) the home switch for the search distance and it
+    /// did not release; value and limit as [`Check::HomeSearch`].
+    HomeRelease,
+    /// Homing found no latch edge of the home switch within the search distance; value and
+    /// limit as [`Check::HomeSearch`].
+    HomeLatch,
+    /// A hard limit switch is active; the value is -1 for the lower, +1 for the upper one.
+    HardLimit,
 }
 
 impl Check {
@@ -190,11 +201,15 @@ impl Check {
             Check::SpindleOrient => "spindle_orient",
             Check::ToolChange => "tool_change",
             Check::SpindleDrive => "spindle_drive",
+            Check::HomeSearch => "home_search",
+            Check::HomeRelease => "home_release",
+            Check::HomeLatch => "home_latch",
+            Check::HardLimit => "hard_limit",
         }
     }
 
     /// Every check, in the order of their codes.
-    pub const ALL: [Check; 15] = [
+    pub const ALL: [Check; 19] = [
         Check::Velocity,
         Check::Acceleration,
         Check::SoftLimit,
@@ -210,9 +225,13 @@ impl Check {
         Check::SpindleOrient,
         Check::ToolChange,
         Check::SpindleDrive,
+        Check::HomeSearch,
+        Check::HomeRelease,
+        Check::HomeLatch,
+        Check::HardLimit,
     ];
 
-    /// The check's number on the wire (1 to 15, in the order of [`Check::ALL`]; 0 means
+    /// The check's number on the wire (1 to 19, in the order of [`Check::ALL`]; 0 means
     /// none).
     pub fn code(self) -> u32 {
         match self {
@@ -231,6 +250,10 @@ impl Check {
             Check::SpindleOrient => 13,
             Check::ToolChange => 14,
             Check::SpindleDrive => 15,
+            Check::HomeSearch => 16,
+            Check::HomeRelease => 17,
+            Check::HomeLatch => 18,
+            Check::HardLimit => 19,
         }
     }
 }
@@ -497,6 +520,8 @@ pub struct Safety {
     cycle: u64,
     last: Option<CycleInput>,
     state: SafetyState,
+    /// Per axis, whether the soft limits are checked (off on an axis not homed yet).
+    soft_limits: PerAxis<bool>,
 }
 
 impl Safety {
@@ -561,7 +586,46 @@ impl Safety {
             cycle: 0,
             last: None,
             state: SafetyState::Running,
+            soft_limits: [true; MAX_AXES],
         })
+    }
+
+    /// Checks axis `axis`'s soft limits (`on`, the default) or not: an axis that is not
+    /// homed has machine coordinates that mean nothing yet (LinuxCNC applies no soft
+    /// limits to an unhomed joint either).
+    pub fn set_soft_limits(&mut self, axis: usize, on: bool) {
+        if axis < MAX_AXES {
+            self.soft_limits[axis] = on;
+        }
+    }
+
+    /// Whether axis `axis`'s soft limits are checked.
+    pub fn soft_limits(&self, axis: usize) -> bool {
+        self.soft_limits.get(axis).copied().unwrap_or(true)
+    }
+
+    /// Shifts axis `axis`'s coordinates by `delta`: every command, setpoint and actual
+    /// position held moves with them (the machine's zero was found by homing; nothing
+    /// moves physically), so the differences the checks take are unchanged. Refused
+    /// (`false`) while a fault is latched (the quick stop runs in the old coordinates).
+    pub fn shift(&mut self, axis: usize, delta: f64) -> bool {
+        if self.fault.is_some() || axis >= MAX_AXES || !delta.is_finite() {
+            return false;
+        }
+        for out in self.out.iter_mut() {
+            out[axis] += delta;
+        }
+        for s in self.stream.iter_mut() {
+            s[axis] += delta;
+        }
+        if let Some(last) = self.last.as_mut() {
+            last.actual[axis] += delta;
+            if let Some(sp) = last.setpoint.as_mut() {
+                sp[axis] += delta;
+            }
+        }
+        self.stops[axis] = StopProfile::at_rest(self.out[0][axis]);
+        true
     }
 
     /// The configuration.
@@ -702,6 +766,9 @@ impl Safety {
             // Where a quick stop from this setpoint would bring the axis to rest: a
             // setpoint is refused once that is beyond a soft limit, so that the quick stop
             // from the last accepted one (the same stop) always ends within the limits.
+            if !self.soft_limits[i] {
+                continue;
+            }
             let rest =
                 StopProfile::from_samples(x, self.stream[0][i], self.stream[1][i], t, &ax.limits)
                     .end_position();
@@ -817,7 +884,7 @@ impl Safety {
                 return Err(ResetRefused::DriveFault(i));
             }
             let x = last.actual[i];
-            if !(x >= ax.min_limit_units && x <= ax.max_limit_units) {
+            if self.soft_limits[i] && !(x >= ax.min_limit_units && x <= ax.max_limit_units) {
                 return Err(ResetRefused::SoftLimit { axis: i, value: x });
             }
             // The actual position was read against the command of the cycle before.

@@ -170,6 +170,11 @@ pub struct DriveStage<D: Drive> {
     sequence: u64,
     disable: bool,
     error_codes: PerAxis<u16>,
+    /// Per axis, the machine coordinate of the drive's position 0 (units): machine =
+    /// drive + offset. 0 until homing (or an absolute encoder's configuration) sets it.
+    offsets: PerAxis<f64>,
+    /// Per axis, whether the soft limits are checked (off on an axis not homed yet).
+    soft_limits: PerAxis<bool>,
 }
 
 /// A stage that cannot be built.
@@ -247,7 +252,67 @@ impl<D: Drive> DriveStage<D> {
             sequence: 0,
             disable: false,
             error_codes: [0; MAX_AXES],
+            offsets: [0.0; MAX_AXES],
+            soft_limits: [true; MAX_AXES],
         })
+    }
+
+    /// Axis `axis`'s machine coordinate of the drive's position 0, units (machine = drive
+    /// + offset).
+    pub fn offset(&self, axis: usize) -> f64 {
+        self.offsets.get(axis).copied().unwrap_or(0.0)
+    }
+
+    /// Sets axis `axis`'s offset before the drives are enabled (an absolute encoder's
+    /// configured offset: its machine coordinates are known from the start). Returns
+    /// whether it was taken (only while enabling, and only a finite offset).
+    pub fn set_offset(&mut self, axis: usize, offset: f64) -> bool {
+        if self.phase != Phase::Enabling || axis >= MAX_AXES || !offset.is_finite() {
+            return false;
+        }
+        self.offsets[axis] = offset;
+        true
+    }
+
+    /// Shifts axis `axis`'s machine coordinates by `delta` (homing has latched where the
+    /// machine's zero is): every position the stage and its safety layer hold moves with
+    /// them, so nothing moves physically and no check sees a jump. Only with every drive
+    /// enabled and no fault latched; returns whether it was done.
+    pub fn shift_axis(&mut self, axis: usize, delta: f64) -> bool {
+        if self.phase != Phase::Active || axis >= MAX_AXES || !delta.is_finite() {
+            return false;
+        }
+        if !self.safety.shift(axis, delta) {
+            return false;
+        }
+        self.offsets[axis] += delta;
+        self.previous_command[axis] += delta;
+        true
+    }
+
+    /// Checks axis `axis`'s soft limits (`on`) or not (an axis that is not homed: its
+    /// machine coordinates mean nothing yet).
+    pub fn set_soft_limits(&mut self, axis: usize, on: bool) {
+        if axis < MAX_AXES {
+            self.soft_limits[axis] = on;
+            self.safety.set_soft_limits(axis, on);
+        }
+    }
+
+    /// Latches a fault found by the machine's manual motion (homing found no switch edge,
+    /// a hard limit switch is active) on axis `axis`; the quick stop follows as for any
+    /// fault. `None` when a fault is already latched.
+    pub fn trip_axis(
+        &mut self,
+        check: Check,
+        axis: usize,
+        value: f64,
+        limit: f64,
+        line: u32,
+    ) -> Option<Fault> {
+        let f = self.safety.trip(check, Some(axis), value, limit, line)?;
+        self.trip_dump = Some(f);
+        Some(f)
     }
 
     /// The phase.
@@ -278,6 +343,11 @@ impl<D: Drive> DriveStage<D> {
     /// The error code (0x603F) each drive reported in the last cycle.
     pub fn error_codes(&self) -> PerAxis<u16> {
         self.error_codes
+    }
+
+    /// The drive of axis `i` (0–5 = X–C), to read it (a test's view of a simulated motor).
+    pub fn drive(&self, i: usize) -> Option<&D> {
+        self.axes.get(i)?.as_ref().map(|a| &a.drive)
     }
 
     /// The drive of axis `i` (0–5 = X–C), e.g. to inject a fault into a simulated drive.
@@ -352,7 +422,7 @@ impl<D: Drive> DriveStage<D> {
             let Some(ax) = ax else { continue };
             let sw = ax.drive.statusword();
             let pos = ax.drive.position_actual_counts();
-            r.actual[i] = ax.scale.to_units(pos);
+            r.actual[i] = ax.scale.to_units(pos) + self.offsets[i];
             let code = ax.drive.error_code();
             self.error_codes[i] = code;
             let out = self.enablers[i].cycle(sw, pos, code);
@@ -447,6 +517,9 @@ impl<D: Drive> DriveStage<D> {
                     && let Ok(s) = Safety::new(self.config, actual)
                 {
                     self.safety = s;
+                    for (i, on) in self.soft_limits.iter().enumerate() {
+                        self.safety.set_soft_limits(i, *on);
+                    }
                     self.phase = Phase::Active;
                     enabled_at = Some(actual);
                 }
@@ -518,12 +591,13 @@ impl<D: Drive> DriveStage<D> {
         let mut sent = command;
         for (i, ax) in self.axes.iter_mut().enumerate() {
             let Some(ax) = ax else { continue };
+            let offset = self.offsets[i];
             let target = match hold[i] {
                 Some(counts) => {
-                    sent[i] = ax.scale.to_units(counts);
+                    sent[i] = ax.scale.to_units(counts) + offset;
                     counts
                 }
-                None => match ax.scale.to_counts(command[i]) {
+                None => match ax.scale.to_counts(command[i] - offset) {
                     Ok(c) => c,
                     // Outside the 32-bit range: cannot be sent; the soft limits trip
                     // long before, so hold where the drive is.

@@ -735,6 +735,10 @@ fn check_codes_are_the_protocols_numbers() {
         (Check::SpindleOrient, 13, "spindle_orient"),
         (Check::ToolChange, 14, "tool_change"),
         (Check::SpindleDrive, 15, "spindle_drive"),
+        (Check::HomeSearch, 16, "home_search"),
+        (Check::HomeRelease, 17, "home_release"),
+        (Check::HomeLatch, 18, "home_latch"),
+        (Check::HardLimit, 19, "hard_limit"),
     ];
     assert_eq!(Check::ALL.len(), expected.len());
     for (check, (want, code, name)) in Check::ALL.iter().zip(expected) {
@@ -805,4 +809,64 @@ fn a_stop_profile_moves_until_its_end_then_rests() {
     assert_eq!((v_end, a_end), (0.0, 0.0));
     // v·t/2: the velocity falls point-symmetrically.
     assert!((x_end - 50.0 * 0.07 / 2.0).abs() < 1e-9, "{x_end}");
+}
+
+/// An unhomed axis has no soft limits: a setpoint beyond them passes; once they are on
+/// again, the same setpoint trips `soft_limit`.
+#[test]
+fn soft_limits_apply_only_while_on() {
+    let mut r = Rig::new(config(mill_axis()));
+    r.s.set_soft_limits(0, false);
+    // Creep past the upper limit (500) at 50 mm/s.
+    let mut x: f64 = 0.0;
+    let mut path = Vec::new();
+    // A jump is refused by the velocity check whatever the limits: move within the
+    // velocity limit (50 mm/s) and the acceleration limit (from rest at 50 µm per cycle
+    // is a step of 50 m/s² in the first cycle: within 1000).
+    // 500 mm/s² up to 50 mm/s, then on at that speed.
+    let mut v: f64 = 0.0;
+    while x < 510.0 {
+        v = (v + 500.0 * T).min(50.0);
+        x += v * T;
+        path.push(x);
+    }
+    for &p in &path {
+        let v = r.step(Some(on(0, p)));
+        assert_eq!(v.tripped, None, "at {p} with the soft limits off");
+    }
+    // On again beyond 510: the next setpoint (on at the same speed) trips.
+    r.s.set_soft_limits(0, true);
+    let v = r.step(Some(on(0, x + 50.0 * T)));
+    assert_eq!(v.tripped.map(|f| f.check), Some(Check::SoftLimit));
+}
+
+/// Homing's shift moves every held position: the stream continues from the shifted
+/// position without a velocity or following-error trip; with a fault latched it is
+/// refused.
+#[test]
+fn a_shift_at_rest_moves_the_held_positions_with_the_coordinates() {
+    let mut r = Rig::new(config(mill_axis()));
+    for _ in 0..5 {
+        r.step(Some(on(1, 0.0)));
+    }
+    assert!(r.s.shift(1, 123.25), "at rest");
+    assert_eq!(r.s.command()[1], 123.25);
+    // The drive reads the shifted coordinate at once (its offset moved with it); the
+    // stream goes on from there at 500 mm/s².
+    for k in 0..5 {
+        let sp = on(1, 123.25 + 0.5 * 500.0 * (T * f64::from(k)).powi(2));
+        let v = r.step_actual(Some(sp), r.s.command());
+        assert_eq!(v.tripped, None, "cycle {k} after the shift");
+    }
+    // Moving: the differences are kept, the stream goes on from the shifted positions.
+    assert!(r.s.shift(1, -100.0));
+    let x = r.s.command()[1];
+    let v = r.step(Some(on(
+        1,
+        x + 0.5 * 500.0 * (T * 5.0).powi(2) - 0.5 * 500.0 * (T * 4.0).powi(2),
+    )));
+    assert_eq!(v.tripped, None, "on after a shift while moving");
+    // A latched fault: refused.
+    r.s.trip(Check::DriveFault, Some(0), 1.0, 0.0, 1);
+    assert!(!r.s.shift(1, 1.0));
 }

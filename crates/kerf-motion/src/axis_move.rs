@@ -393,9 +393,19 @@ impl AxisMove {
         if !self.at_rest() || !position.is_finite() {
             return false;
         }
-        self.rest_at(position);
-        self.command = Command::None;
+        self.reset(position);
         true
+    }
+
+    /// Drops whatever motion was planned and rests at `position` at once, moving or not:
+    /// for an axis that something else brought to rest there (a fault's quick stop). Not
+    /// a motion: the caller makes sure the axis really is there. A position that is not
+    /// finite is ignored.
+    pub fn reset(&mut self, position: f64) {
+        if position.is_finite() {
+            self.rest_at(position);
+            self.command = Command::None;
+        }
     }
 
     /// Samples the running profile `t_s` after its start. `Some(leftover)` when it ended

@@ -22,6 +22,9 @@ pub const STATE_STOPPING: u32 = 5;
 /// stop, a manual tool change or single block (cycle start, [`REQUEST_RESUME`], goes on),
 /// the spindle, an input or the tool changer (it goes on by itself).
 pub const STATE_PAUSED: u32 = 6;
+/// Daemon state: no program runs and an axis moves by hand: a jog, or homing (the status's
+/// `jogging` and `homing` say which).
+pub const STATE_MANUAL: u32 = 7;
 
 /// The daemon's state, decoded from a `state` field with [`TryFrom<u32>`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -40,6 +43,8 @@ pub enum MachineState {
     Stopping,
     /// [`STATE_PAUSED`].
     Paused,
+    /// [`STATE_MANUAL`].
+    Manual,
 }
 
 /// A `state` value that is none of the `STATE_*` constants.
@@ -58,6 +63,7 @@ impl MachineState {
             MachineState::Fault => STATE_FAULT,
             MachineState::Stopping => STATE_STOPPING,
             MachineState::Paused => STATE_PAUSED,
+            MachineState::Manual => STATE_MANUAL,
         }
     }
 
@@ -71,6 +77,7 @@ impl MachineState {
             MachineState::Fault => "fault",
             MachineState::Stopping => "stopping",
             MachineState::Paused => "paused",
+            MachineState::Manual => "manual",
         }
     }
 }
@@ -87,6 +94,7 @@ impl TryFrom<u32> for MachineState {
             STATE_FAULT => MachineState::Fault,
             STATE_STOPPING => MachineState::Stopping,
             STATE_PAUSED => MachineState::Paused,
+            STATE_MANUAL => MachineState::Manual,
             other => return Err(UnknownState(other)),
         })
     }
@@ -95,7 +103,7 @@ impl TryFrom<u32> for MachineState {
 /// One real-time cycle's output, published on the setpoints service every cycle.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.SetpointMsg.v5")]
+#[type_name("kerf.SetpointMsg.v6")]
 pub struct SetpointMsg {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
@@ -206,6 +214,37 @@ pub const REQUEST_SET_INPUT: u32 = 14;
 /// Request kind: set simulated analog input `index` (0..=15) to `value`; refused with
 /// [`REASON_NOT_ALLOWED`] for an input that is not simulated.
 pub const REQUEST_SET_ANALOG_INPUT: u32 = 15;
+/// Request kind: jog axis `index` (0–5 = X–C): `mode` is `JOG_*`, `value` its direction,
+/// step or target, `speed` the speed in mm/s or deg/s (0: the configured default). A
+/// continuous jog moves while the same request is renewed within the configured dead-man
+/// time and stops on a jerk-limited ramp when the renewals stop.
+pub const REQUEST_JOG: u32 = 16;
+/// Request kind: stop the jog of axis `index` on a jerk-limited ramp.
+pub const REQUEST_JOG_STOP: u32 = 17;
+/// Request kind: home the axes of bit mask `index` (bit i: axis i), in the configured
+/// sequence; the status tells the progress (`homing`, `home_phase`) and the end (`homed`,
+/// or a fault).
+pub const REQUEST_HOME: u32 = 18;
+/// [`REQUEST_JOG`] mode: move while renewed; `value` +1 or -1 is the direction.
+pub const JOG_CONTINUOUS: u32 = 1;
+/// [`REQUEST_JOG`] mode: move by `value` (signed, not 0) and stop there exactly.
+pub const JOG_STEP: u32 = 2;
+/// [`REQUEST_JOG`] mode: move to machine coordinate `value` and stop there exactly.
+pub const JOG_TO: u32 = 3;
+/// `StatusMsg::home_phase`: not homing.
+pub const HOME_PHASE_IDLE: u8 = 0;
+/// `StatusMsg::home_phase`: waiting for the axes of an earlier home sequence number.
+pub const HOME_PHASE_WAITING: u8 = 1;
+/// `StatusMsg::home_phase`: moving off a home switch that was already active.
+pub const HOME_PHASE_MOVE_OFF: u8 = 2;
+/// `StatusMsg::home_phase`: searching for the home switch at the search velocity.
+pub const HOME_PHASE_SEARCH: u8 = 3;
+/// `StatusMsg::home_phase`: backing off the switch before the latch.
+pub const HOME_PHASE_BACK_OFF: u8 = 4;
+/// `StatusMsg::home_phase`: latching the switch's edge at the latch velocity.
+pub const HOME_PHASE_LATCH: u8 = 5;
+/// `StatusMsg::home_phase`: moving to the home position.
+pub const HOME_PHASE_FINAL: u8 = 6;
 /// The highest spindle override [`REQUEST_SPINDLE_OVERRIDE`] accepts, percent.
 pub const MAX_SPINDLE_OVERRIDE_PCT: f64 = 200.0;
 /// Digital inputs and outputs a machine has at most (numbers 0 to 63).
@@ -236,7 +275,7 @@ pub const PROGRAM_FATE_REFUSED: u32 = 5;
 /// A request from a client to the daemon on the control service.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.Request.v5")]
+#[type_name("kerf.Request.v6")]
 pub struct Request {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
@@ -248,11 +287,15 @@ pub struct Request {
     pub value: f64,
     /// [`REQUEST_PROGRAM`]: the program asked about (not 0); 0 for every other kind.
     pub program_id: u64,
-    /// [`REQUEST_SET_INPUT`], [`REQUEST_SET_ANALOG_INPUT`]: the input's number; 0 for
-    /// every other kind.
+    /// [`REQUEST_SET_INPUT`], [`REQUEST_SET_ANALOG_INPUT`]: the input's number;
+    /// [`REQUEST_JOG`], [`REQUEST_JOG_STOP`]: the axis (0–5 = X–C); [`REQUEST_HOME`]: the
+    /// axes' bit mask; 0 for every other kind.
     pub index: u32,
-    /// Must be zero.
-    pub reserved: u32,
+    /// [`REQUEST_JOG`]: `JOG_*`; 0 for every other kind.
+    pub mode: u32,
+    /// [`REQUEST_JOG`]: the speed, mm/s or deg/s (0: the configured default); 0 for every
+    /// other kind.
+    pub speed: f64,
 }
 
 /// A validated request.
@@ -306,6 +349,47 @@ pub enum ControlCommand {
         /// The value (digital: 1 or 0).
         value: f64,
     },
+    /// [`REQUEST_JOG`].
+    Jog {
+        /// The axis, 0–5 = X–C.
+        axis: u8,
+        /// How it moves.
+        jog: Jog,
+        /// mm/s or deg/s; 0: the configured default.
+        speed: f64,
+    },
+    /// [`REQUEST_JOG_STOP`].
+    JogStop {
+        /// The axis, 0–5 = X–C.
+        axis: u8,
+    },
+    /// [`REQUEST_HOME`].
+    Home {
+        /// Bit i: home axis i.
+        axes: u32,
+    },
+}
+
+/// How a [`ControlCommand::Jog`] moves its axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Jog {
+    /// While renewed, in the positive (`true`) or negative direction ([`JOG_CONTINUOUS`]).
+    Continuous(bool),
+    /// By this distance, signed, mm or deg ([`JOG_STEP`]).
+    Step(f64),
+    /// To this machine coordinate, mm or deg ([`JOG_TO`]).
+    To(f64),
+}
+
+impl Jog {
+    /// The `JOG_*` mode and the request's `value`.
+    pub fn mode_value(self) -> (u32, f64) {
+        match self {
+            Jog::Continuous(positive) => (JOG_CONTINUOUS, if positive { 1.0 } else { -1.0 }),
+            Jog::Step(d) => (JOG_STEP, d),
+            Jog::To(x) => (JOG_TO, x),
+        }
+    }
 }
 
 /// The operator's switches ([`ControlCommand::Switch`]; `StatusMsg::switches` bits).
@@ -374,7 +458,8 @@ impl Request {
             value,
             program_id: 0,
             index: 0,
-            reserved: 0,
+            mode: 0,
+            speed: 0.0,
         }
     }
 
@@ -417,6 +502,24 @@ impl Request {
                 r.index = index;
                 return r;
             }
+            ControlCommand::Jog { axis, jog, speed } => {
+                let (mode, value) = jog.mode_value();
+                let mut r = Request::new(REQUEST_JOG, id, value);
+                r.index = u32::from(axis);
+                r.mode = mode;
+                r.speed = speed;
+                return r;
+            }
+            ControlCommand::JogStop { axis } => {
+                let mut r = Request::new(REQUEST_JOG_STOP, id, 0.0);
+                r.index = u32::from(axis);
+                return r;
+            }
+            ControlCommand::Home { axes } => {
+                let mut r = Request::new(REQUEST_HOME, id, 0.0);
+                r.index = axes;
+                return r;
+            }
         };
         Request::new(kind, id, value)
     }
@@ -426,7 +529,10 @@ impl Request {
         if self.version != PROTOCOL_VERSION {
             return Err(RequestReject::WrongVersion(self.version));
         }
-        if self.reserved != 0 {
+        if let REQUEST_JOG..=REQUEST_HOME = self.kind {
+            return self.manual_command();
+        }
+        if self.mode != 0 || self.speed.to_bits() != 0 {
             return Err(RequestReject::BadValue);
         }
         if let REQUEST_SET_INPUT | REQUEST_SET_ANALOG_INPUT = self.kind {
@@ -517,6 +623,44 @@ impl Request {
     }
 }
 
+impl Request {
+    /// Validates a [`REQUEST_JOG`], [`REQUEST_JOG_STOP`] or [`REQUEST_HOME`].
+    fn manual_command(&self) -> Result<ControlCommand, RequestReject> {
+        let axis_ok = (self.index as usize) < AXES;
+        if self.program_id != 0 {
+            return Err(RequestReject::BadValue);
+        }
+        let still = self.value.to_bits() == 0 && self.mode == 0 && self.speed.to_bits() == 0;
+        match self.kind {
+            REQUEST_JOG => {
+                if !(axis_ok && self.speed.is_finite() && self.speed >= 0.0) {
+                    return Err(RequestReject::BadValue);
+                }
+                let v = self.value;
+                let jog = match self.mode {
+                    JOG_CONTINUOUS if v == 1.0 || v == -1.0 => Jog::Continuous(v > 0.0),
+                    JOG_STEP if v.is_finite() && v != 0.0 => Jog::Step(v),
+                    JOG_TO if v.is_finite() => Jog::To(v),
+                    _ => return Err(RequestReject::BadValue),
+                };
+                Ok(ControlCommand::Jog {
+                    // Below 6: the cast is exact.
+                    axis: self.index as u8,
+                    jog,
+                    speed: self.speed,
+                })
+            }
+            REQUEST_JOG_STOP if axis_ok && still => Ok(ControlCommand::JogStop {
+                axis: self.index as u8,
+            }),
+            REQUEST_HOME if still && self.index != 0 && self.index < 1 << AXES => {
+                Ok(ControlCommand::Home { axes: self.index })
+            }
+            _ => Err(RequestReject::BadValue),
+        }
+    }
+}
+
 /// Response reason: accepted.
 pub const REASON_OK: u32 = 0;
 /// Response reason: the request has another protocol version.
@@ -533,7 +677,7 @@ pub const REASON_NOT_IMPLEMENTED: u32 = 5;
 /// The daemon's status, embedded in every [`Response`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.StatusMsg.v5")]
+#[type_name("kerf.StatusMsg.v6")]
 pub struct StatusMsg {
     /// `STATE_*`.
     pub state: u32,
@@ -692,6 +836,26 @@ pub struct StatusMsg {
     /// What the pause waits for in words ("insert tool T3 (length 45.200 mm)"), UTF-8,
     /// NUL-padded; empty when nothing.
     pub pause_text: [u8; 96],
+    /// Bit i: axis i is homed (its machine coordinates are known).
+    pub homed: u32,
+    /// 1 when programs and MDI are refused until every axis is homed
+    /// (`[homing] required`), else 0.
+    pub homing_required: u32,
+    /// Bit i: axis i is homing (a `REQUEST_HOME` is carrying it out or waits to).
+    pub homing: u32,
+    /// Bit i: axis i is jogging (moving under a jog request, or ramping to rest after one).
+    pub jogging: u32,
+    /// Bit i: axis i's home switch is active.
+    pub home_switches: u32,
+    /// Bit i: axis i's lower hard limit switch is active.
+    pub min_limit_switches: u32,
+    /// Bit i: axis i's upper hard limit switch is active.
+    pub max_limit_switches: u32,
+    /// Bit i: axis i stands on a hard limit switch after a reset and may be jogged away
+    /// from it only.
+    pub limit_released: u32,
+    /// Each axis's homing phase, X to C (`HOME_PHASE_*`); the last two bytes are 0.
+    pub home_phase: [u8; 8],
 }
 
 /// `StatusMsg::pause_reason`: nothing.
@@ -806,6 +970,18 @@ pub const SAFETY_TOOL_CHANGE: u32 = 14;
 /// a fault, `safety_value` its error code; 1: it did not enable, the value the timeout in
 /// cycles; 2: it left Operation enabled on its own).
 pub const SAFETY_SPINDLE_DRIVE: u32 = 15;
+/// Safety check: homing found no home switch within the search distance (`safety_value`
+/// the distance travelled, `safety_limit` the configured search distance, mm or deg).
+pub const SAFETY_HOME_SEARCH: u32 = 16;
+/// Safety check: homing moved off (or backed off) the home switch for the search distance
+/// and it did not release (value, limit as [`SAFETY_HOME_SEARCH`]).
+pub const SAFETY_HOME_RELEASE: u32 = 17;
+/// Safety check: homing found no latch edge of the home switch within the search distance
+/// (value, limit as [`SAFETY_HOME_SEARCH`]).
+pub const SAFETY_HOME_LATCH: u32 = 18;
+/// Safety check: a hard limit switch is active (`safety_value` -1 the lower, +1 the upper
+/// one).
+pub const SAFETY_HARD_LIMIT: u32 = 19;
 /// `StatusMsg::safety_axis` of a fault that is not an axis's (a stream stall).
 pub const SAFETY_AXIS_NONE: u32 = 255;
 
@@ -893,6 +1069,15 @@ impl StatusMsg {
             input_result_program: 0,
             input_result_value: 0.0,
             pause_text: [0; 96],
+            homed: 0,
+            homing_required: 0,
+            homing: 0,
+            jogging: 0,
+            home_switches: 0,
+            min_limit_switches: 0,
+            max_limit_switches: 0,
+            limit_released: 0,
+            home_phase: [HOME_PHASE_IDLE; 8],
         }
     }
 
@@ -949,7 +1134,7 @@ impl Default for StatusMsg {
 /// after handling it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.Response.v5")]
+#[type_name("kerf.Response.v6")]
 pub struct Response {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
@@ -1009,12 +1194,14 @@ mod tests {
             MachineState::Fault,
             MachineState::Stopping,
             MachineState::Paused,
+            MachineState::Manual,
         ];
         for s in all {
             assert_eq!(MachineState::try_from(s.as_u32()), Ok(s));
         }
         assert_eq!(MachineState::Paused.as_u32(), 6);
-        assert_eq!(MachineState::try_from(7), Err(UnknownState(7)));
+        assert_eq!(MachineState::Manual.as_u32(), 7);
+        assert_eq!(MachineState::try_from(8), Err(UnknownState(8)));
         assert_eq!(
             MachineState::try_from(u32::MAX),
             Err(UnknownState(u32::MAX))
@@ -1151,11 +1338,75 @@ mod tests {
             req(REQUEST_SPINDLE_OVERRIDE, 200.1, 0),
             Err(RequestReject::BadValue)
         );
-        // The index belongs to the input requests only, and the reserved word is 0.
+        // The index belongs to the input and manual requests only, mode and speed to the
+        // jog.
         assert_eq!(req(REQUEST_HOLD, 0.0, 1), Err(RequestReject::BadValue));
         let mut r = Request::new(REQUEST_STATUS, 1, 0.0);
-        r.reserved = 1;
+        r.mode = 1;
         assert_eq!(r.command(), Err(RequestReject::BadValue));
+        let mut r = Request::new(REQUEST_STATUS, 1, 0.0);
+        r.speed = 1.0;
+        assert_eq!(r.command(), Err(RequestReject::BadValue));
+    }
+
+    #[test]
+    fn manual_requests_validate() {
+        for c in [
+            ControlCommand::Jog {
+                axis: 0,
+                jog: Jog::Continuous(true),
+                speed: 0.0,
+            },
+            ControlCommand::Jog {
+                axis: 5,
+                jog: Jog::Continuous(false),
+                speed: 12.5,
+            },
+            ControlCommand::Jog {
+                axis: 2,
+                jog: Jog::Step(-0.1),
+                speed: 1.0,
+            },
+            ControlCommand::Jog {
+                axis: 1,
+                jog: Jog::To(-250.0),
+                speed: 0.0,
+            },
+            ControlCommand::JogStop { axis: 3 },
+            ControlCommand::Home { axes: 0b111 },
+            ControlCommand::Home { axes: 0b10_0000 },
+        ] {
+            assert_eq!(Request::from_command(c, 4).command(), Ok(c));
+        }
+        let jog = |index: u32, mode: u32, value: f64, speed: f64| {
+            let mut r = Request::new(REQUEST_JOG, 1, value);
+            r.index = index;
+            r.mode = mode;
+            r.speed = speed;
+            r.command()
+        };
+        let bad = Err(RequestReject::BadValue);
+        assert_eq!(jog(6, JOG_STEP, 1.0, 0.0), bad, "axis 6 does not exist");
+        assert_eq!(jog(0, 0, 1.0, 0.0), bad, "no mode");
+        assert_eq!(jog(0, 4, 1.0, 0.0), bad, "unknown mode");
+        assert_eq!(jog(0, JOG_CONTINUOUS, 0.5, 0.0), bad, "a direction is +-1");
+        assert_eq!(jog(0, JOG_STEP, 0.0, 0.0), bad, "a step of nothing");
+        assert_eq!(jog(0, JOG_STEP, f64::NAN, 0.0), bad);
+        assert_eq!(jog(0, JOG_TO, f64::INFINITY, 0.0), bad);
+        assert_eq!(jog(0, JOG_TO, 1.0, -1.0), bad, "a negative speed");
+        assert_eq!(jog(0, JOG_TO, 1.0, f64::NAN), bad);
+        let mut r = Request::new(REQUEST_HOME, 1, 0.0);
+        assert_eq!(r.command(), bad, "no axis to home");
+        r.index = 64;
+        assert_eq!(r.command(), bad, "bit 6 is no axis");
+        r.index = 1;
+        r.speed = 1.0;
+        assert_eq!(r.command(), bad, "homing takes no speed");
+        let mut r = Request::new(REQUEST_JOG_STOP, 1, 1.0);
+        assert_eq!(r.command(), bad, "a stop takes no value");
+        r.value = 0.0;
+        r.program_id = 3;
+        assert_eq!(r.command(), bad);
     }
 
     #[test]

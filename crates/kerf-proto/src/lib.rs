@@ -48,15 +48,15 @@ pub use stream::{CONTINUITY_TOL, StreamCheck, StreamError};
 /// The protocol version carried by every message. A change to any layout or to the meaning
 /// of any field is a new version (and new iceoryx2 type names); receivers refuse messages
 /// of another version.
-pub const PROTOCOL_VERSION: u32 = 5;
+pub const PROTOCOL_VERSION: u32 = 6;
 
 // The sizes in docs/PROTOCOL.md; a layout change must fail the build, not only the tests.
 const _: () = {
     assert!(size_of::<MoveMsg>() == 256);
     assert!(size_of::<SetpointMsg>() == 160);
-    assert!(size_of::<Request>() == 40);
-    assert!(size_of::<StatusMsg>() == 1160);
-    assert!(size_of::<Response>() == 1408);
+    assert!(size_of::<Request>() == 48);
+    assert!(size_of::<StatusMsg>() == 1200);
+    assert!(size_of::<Response>() == 1448);
 };
 
 /// The number of axes in positions and velocities: X, Y, Z (mm), A, B, C (degrees).

@@ -704,7 +704,7 @@ fn reasons_read_as_plain_words() {
     );
     assert_eq!(
         Reject::WrongVersion { found: 3 }.to_string(),
-        "protocol version 3, expected 5"
+        "protocol version 3, expected 6"
     );
     assert_eq!(
         Reject::EventValueMissing(EventCode::T).to_string(),

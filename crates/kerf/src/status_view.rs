@@ -17,6 +17,7 @@ pub(crate) fn state_name(s: &StatusMsg) -> &'static str {
         Ok(MachineState::Fault) => "fault",
         Ok(MachineState::Stopping) => "stopping",
         Ok(MachineState::Paused) => "paused",
+        Ok(MachineState::Manual) => "manual",
         Err(_) => "unknown",
     }
 }
@@ -164,6 +165,104 @@ pub fn machine_text(s: &StatusMsg) -> String {
         bit_list(s.digital_outputs),
         bit_list(s.digital_inputs)
     );
+    out
+}
+
+/// The homing phase's name in `kerf status` (`none` when not homing).
+pub fn home_phase_name(phase: u8) -> &'static str {
+    match phase {
+        kerf_proto::HOME_PHASE_WAITING => "waiting",
+        kerf_proto::HOME_PHASE_MOVE_OFF => "move_off",
+        kerf_proto::HOME_PHASE_SEARCH => "search",
+        kerf_proto::HOME_PHASE_BACK_OFF => "back_off",
+        kerf_proto::HOME_PHASE_LATCH => "latch",
+        kerf_proto::HOME_PHASE_FINAL => "final",
+        _ => "none",
+    }
+}
+
+/// `kerf status`'s axes line: per axis homed or not (and the homing phase), jogging, and
+/// the active home and limit switches.
+pub fn axes_text(s: &StatusMsg) -> String {
+    let mut out = String::from("  axes:");
+    let mut first = true;
+    for (i, key) in AXIS_KEYS.iter().enumerate() {
+        let bit = 1u32 << i;
+        if s.axes_mask & bit == 0 {
+            continue;
+        }
+        out.push_str(if first { " " } else { "; " });
+        first = false;
+        let _ = write!(
+            out,
+            "{} {}",
+            key.to_ascii_uppercase(),
+            if s.homed & bit != 0 {
+                "homed"
+            } else {
+                "not homed"
+            }
+        );
+        if s.homing & bit != 0 {
+            let _ = write!(out, ", homing ({})", home_phase_name(s.home_phase[i]));
+        }
+        if s.jogging & bit != 0 {
+            out.push_str(", jogging");
+        }
+        if s.home_switches & bit != 0 {
+            out.push_str(", home switch");
+        }
+        if s.min_limit_switches & bit != 0 {
+            out.push_str(", lower limit switch");
+        }
+        if s.max_limit_switches & bit != 0 {
+            out.push_str(", upper limit switch");
+        }
+        if s.limit_released & bit != 0 {
+            out.push_str(" (jog off it)");
+        }
+    }
+    if s.homing_required != 0 && s.homed & s.axes_mask != s.axes_mask & 0b11_1111 {
+        out.push_str("; programs need every axis homed: `kerf home --all`");
+    }
+    out
+}
+
+/// The `axes` object of `kerf status --json` (with its leading comma): per configured
+/// axis `homed`, `homing` (the phase's name, or null), `jogging`, `home_switch`,
+/// `min_limit_switch`, `max_limit_switch`, `limit_released`; and `homing_required`.
+fn axes_json(s: &StatusMsg) -> String {
+    let mut out = format!(
+        ",\"homing_required\":{},\"axes\":{{",
+        s.homing_required != 0
+    );
+    let mut first = true;
+    for (i, key) in AXIS_KEYS.iter().enumerate() {
+        let bit = 1u32 << i;
+        if s.axes_mask & bit == 0 {
+            continue;
+        }
+        if !first {
+            out.push(',');
+        }
+        first = false;
+        let homing = if s.homing & bit != 0 {
+            format!("\"{}\"", home_phase_name(s.home_phase[i]))
+        } else {
+            "null".to_string()
+        };
+        let _ = write!(
+            out,
+            "\"{key}\":{{\"homed\":{},\"homing\":{homing},\"jogging\":{},\"home_switch\":{},\"min_limit_switch\":{},\"max_limit_switch\":{},\"limit_released\":{}}}",
+            s.homed & bit != 0,
+            s.jogging & bit != 0,
+            s.home_switches & bit != 0,
+            s.min_limit_switches & bit != 0,
+            s.max_limit_switches & bit != 0,
+            s.limit_released & bit != 0
+        );
+    }
+    out.push('}');
     out
 }
 
@@ -448,6 +547,7 @@ pub fn status_json(machine: &str, names: &[String], s: &StatusMsg) -> String {
         }
     }
     out.push_str(&machine_json(s, &num));
+    out.push_str(&axes_json(s));
     let _ = write!(out, ",\"ethercat\":{}", ethercat_json(names, s));
     out.push('}');
     out
@@ -563,6 +663,8 @@ pub fn status_text(machine: &str, names: &[String], s: &StatusMsg) -> String {
     }
     out.push('\n');
     out.push_str(&machine_text(s));
+    out.push('\n');
+    out.push_str(&axes_text(s));
     if let Some(block) = ethercat_text(names, s) {
         out.push('\n');
         out.push_str(&block);

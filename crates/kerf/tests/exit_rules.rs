@@ -160,7 +160,9 @@ fn the_smallest_override_is_accepted_by_the_argument_check() {
 /// The bundled configuration with the first `key = ...` line replaced by `key = value`,
 /// and the `LINE:COL` of the value in it.
 fn config_with(key: &str, old: &str, value: &str) -> (String, String) {
-    let base = std::fs::read_to_string(root().join("config/kerf.toml")).unwrap();
+    let base = kerf_testkit::config_text::without_homing(
+        &std::fs::read_to_string(root().join("config/kerf.toml")).unwrap(),
+    );
     let from = format!("\n{key} = {old}\n");
     let at = base.find(&from).expect("key in the bundled config") + 1;
     let text = base.replacen(&from, &format!("\n{key} = {value}\n"), 1);

@@ -76,7 +76,9 @@ impl Env {
         let _ = fs::remove_dir_all(&dir);
         fs::create_dir_all(&dir).unwrap();
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-        let mut text = fs::read_to_string(root.join("config/kerf.toml")).unwrap();
+        let mut text = kerf_testkit::config_text::without_homing(
+            &fs::read_to_string(root.join("config/kerf.toml")).unwrap(),
+        );
         let mut all = vec![
             ("machine = \"default\"", format!("machine = \"{machine}\"")),
             (

@@ -135,7 +135,9 @@ impl Env {
         )
         .unwrap();
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-        let text = fs::read_to_string(root.join("config/kerf.toml")).unwrap();
+        let text = kerf_testkit::config_text::without_homing(
+            &fs::read_to_string(root.join("config/kerf.toml")).unwrap(),
+        );
         assert!(text.contains("machine = \"default\""));
         let text = text.replacen(
             "machine = \"default\"",

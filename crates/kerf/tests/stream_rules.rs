@@ -39,7 +39,9 @@ impl Machine {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-        let text = std::fs::read_to_string(root.join("config/kerf.toml")).unwrap();
+        let text = kerf_testkit::config_text::without_homing(
+            &std::fs::read_to_string(root.join("config/kerf.toml")).unwrap(),
+        );
         let text = text.replacen(
             "machine = \"default\"",
             &format!("machine = \"{machine}\""),

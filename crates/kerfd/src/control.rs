@@ -71,6 +71,7 @@ pub(crate) fn control_thread(
         next_tag: 1,
         pushed: 0,
         inputs: machine::SimInputs::of(config),
+        manual: worker::Manual::new(config, &kerf_config::machine_limits(config), [0.0; 6])?,
     };
     let apply_patience = apply_patience(config);
     let mut view = CycleView {
@@ -184,6 +185,8 @@ struct Requests {
     pushed: u64,
     /// Which inputs an operator (or a test) may set: the simulated ones.
     inputs: machine::SimInputs,
+    /// The machine's axes as jogging sees them: the checks of a jog request.
+    manual: worker::Manual,
 }
 
 impl Requests {
@@ -287,6 +290,44 @@ impl Requests {
             Ok(ControlCommand::Override { percent }) => {
                 push(commands, CycleCommand::Override(percent))
             }
+            Ok(ControlCommand::Jog { axis, jog, speed }) => {
+                let axis = usize::from(axis);
+                let latest = &view.latest;
+                let position = latest.position[axis];
+                match manual_refusal(latest, "jog").map_or_else(
+                    || {
+                        self.manual
+                            .check_jog(axis, jog, speed, position, &latest.manual)
+                            .err()
+                    },
+                    Some,
+                ) {
+                    Some(why) => (REASON_NOT_ALLOWED, why),
+                    None => push(commands, CycleCommand::Jog { axis, jog, speed }),
+                }
+            }
+            Ok(ControlCommand::JogStop { axis }) => {
+                push(commands, CycleCommand::JogStop(usize::from(axis)))
+            }
+            Ok(ControlCommand::Home { axes }) => {
+                let latest = &view.latest;
+                let missing = (0..6).find(|i| axes & (1 << i) != 0 && !self.manual.has_axis(*i));
+                if let Some(i) = missing {
+                    (
+                        REASON_NOT_ALLOWED,
+                        format!("this machine has no axis {}", kerf_geom::AXIS_NAMES[i]),
+                    )
+                } else if let Some(why) = manual_refusal(latest, "home") {
+                    (REASON_NOT_ALLOWED, why)
+                } else if latest.manual.jogging != 0 {
+                    (
+                        REASON_NOT_ALLOWED,
+                        "cannot home: an axis is jogging".to_string(),
+                    )
+                } else {
+                    push(commands, CycleCommand::Home(axes))
+                }
+            }
             Ok(ControlCommand::Reset) => {
                 let tag = self.next_tag;
                 self.next_tag += 1;
@@ -325,6 +366,30 @@ impl Requests {
         };
         (reason, message, fate)
     }
+}
+
+/// Why a jog or homing (`what`) is refused in the machine's present state, if it is: a
+/// fault latched, a program running, homing under way.
+fn manual_refusal(latest: &Snapshot, what: &str) -> Option<String> {
+    if latest.drives.fault.is_some() {
+        return Some(format!(
+            "cannot {what}: a fault is latched; clear it with `kerf reset`"
+        ));
+    }
+    if latest.drives.phase != kerf_drive::stage::Phase::Active {
+        return Some(format!("cannot {what}: the drives are not enabled yet"));
+    }
+    let program_runs = latest.program_id != 0 && !latest.program_done;
+    if program_runs || !matches!(latest.state, MachineState::Idle | MachineState::Manual) {
+        return Some(format!(
+            "cannot {what} while a program runs ({}): jog and home when the machine is idle",
+            latest.state.as_str()
+        ));
+    }
+    if latest.manual.homing != 0 {
+        return Some(format!("cannot {what}: the machine is homing"));
+    }
+    None
 }
 
 pub(crate) fn lock_fates(counters: &PlanningCounters) -> std::sync::MutexGuard<'_, fates::Fates> {

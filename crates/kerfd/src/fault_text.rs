@@ -65,6 +65,19 @@ pub fn safety_text(s: &StatusMsg) -> Option<String> {
             1 => format!("the spindle drive did not enable within {value} cycles"),
             _ => "the spindle drive left Operation enabled on its own".to_string(),
         },
+        kerf_proto::SAFETY_HOME_SEARCH => format!(
+            "homing: the home switch was not found within {limit:.3} {unit} (searched {value:.3} {unit})"
+        ),
+        kerf_proto::SAFETY_HOME_RELEASE => format!(
+            "homing: the home switch did not release within {limit:.3} {unit} (moved {value:.3} {unit} off it)"
+        ),
+        kerf_proto::SAFETY_HOME_LATCH => format!(
+            "homing: the home switch's latch edge was not found within {limit:.3} {unit} (moved {value:.3} {unit})"
+        ),
+        kerf_proto::SAFETY_HARD_LIMIT => format!(
+            "the {} hard limit switch is active; after `kerf reset`, jog the axis off it",
+            if value < 0.0 { "lower" } else { "upper" }
+        ),
         _ => "the drive left Operation enabled on its own".to_string(),
     };
     Some(format!(
@@ -99,6 +112,10 @@ mod tests {
             (Check::SpindleOrient, kerf_proto::SAFETY_SPINDLE_ORIENT),
             (Check::ToolChange, kerf_proto::SAFETY_TOOL_CHANGE),
             (Check::SpindleDrive, kerf_proto::SAFETY_SPINDLE_DRIVE),
+            (Check::HomeSearch, kerf_proto::SAFETY_HOME_SEARCH),
+            (Check::HomeRelease, kerf_proto::SAFETY_HOME_RELEASE),
+            (Check::HomeLatch, kerf_proto::SAFETY_HOME_LATCH),
+            (Check::HardLimit, kerf_proto::SAFETY_HARD_LIMIT),
         ];
         assert_eq!(wire.len(), Check::ALL.len());
         for (check, code) in wire {

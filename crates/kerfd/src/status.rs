@@ -1,6 +1,7 @@
 //! The status message the control thread answers with, from the cycle's snapshot.
 
 use super::*;
+use crate::worker::ManualStatus;
 
 // The status carries one entry per ring position of the bus the daemon runs: the same
 // number of positions, or the status would drop subdevices (or describe ones that cannot
@@ -14,6 +15,7 @@ const _: () = assert!(kerf_proto::BUS_STATE_SAFE_OP == kerf_ethercat::al::SAFE_O
 pub(crate) fn idle_snapshot() -> Snapshot {
     Snapshot {
         cycles: 0,
+        manual: ManualStatus::default(),
         state: MachineState::Idle,
         line: 0,
         position: [0.0; 6],
@@ -82,6 +84,12 @@ pub(crate) fn status_msg(
         // the fault is the drive side's, shown while it is latched (below); once reset,
         // the machine is idle.
         (MachineState::Idle, Some(Refusal::Safety(_) | Refusal::Faulted(_))) => MachineState::Idle,
+        // A program refused because the machine was not ready for programs (not homed, on
+        // a limit switch, moving by hand) left the machine as it was.
+        (
+            MachineState::Idle,
+            Some(Refusal::NotHomed(_) | Refusal::OnLimitSwitch(_) | Refusal::ManualMotion),
+        ) => MachineState::Idle,
         // The refused program's fault is shown until the next program begins.
         (MachineState::Idle, Some(_)) => MachineState::Fault,
         (state, _) => state,
@@ -89,6 +97,16 @@ pub(crate) fn status_msg(
     .as_u32();
     msg.line = s.line;
     msg.position_mm_deg = s.position;
+    let m = &s.manual;
+    msg.homed = m.homed;
+    msg.homing_required = u32::from(m.required);
+    msg.homing = m.homing;
+    msg.jogging = m.jogging;
+    msg.home_switches = m.home_switches;
+    msg.min_limit_switches = m.min_limit_switches;
+    msg.max_limit_switches = m.max_limit_switches;
+    msg.limit_released = m.limit_released;
+    msg.home_phase[..6].copy_from_slice(&m.home_phase);
     msg.override_pct = s.override_pct;
     msg.queued_moves = s.queued_segments;
     msg.queued_s = s.queued_s;

@@ -130,7 +130,11 @@ fn take_dumps(rings: &mut DumpWriterRings, reasons: &mut Vec<DumpReason>, rows: 
 
 #[test]
 fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
-    let mut config = Config::builtin();
+    let mut config = Config::from_toml_str(
+        &kerf_testkit::config_text::without_homing(kerf_config::BUILTIN_TOML),
+        "kerf.toml",
+    )
+    .expect("the bundled machine without homing");
     config.machine = format!("alloc_{}", std::process::id());
     let (items_tx, items_rx) = rtrb::RingBuffer::new(kerfd::PLANNED_RING);
     let (mut commands_tx, commands_rx) = rtrb::RingBuffer::<CycleCommand>::new(64);

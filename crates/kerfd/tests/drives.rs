@@ -160,7 +160,11 @@ fn machine_variant(
     counts_per_mm: f64,
     direction: i32,
 ) -> Config {
-    let mut c = Config::builtin();
+    let mut c = Config::from_toml_str(
+        &kerf_testkit::config_text::without_homing(kerf_config::BUILTIN_TOML),
+        "kerf.toml",
+    )
+    .expect("the bundled machine without homing");
     for ax in [&mut c.axes.x, &mut c.axes.y, &mut c.axes.z] {
         ax.acceleration_mm_s2 *= accel_scale;
         ax.jerk_mm_s3 *= accel_scale;

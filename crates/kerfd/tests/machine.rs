@@ -32,7 +32,9 @@ mod common;
 /// in.
 fn config(extra: &str) -> Config {
     let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../../config/kerf.toml");
-    let mut text = std::fs::read_to_string(root).unwrap();
+    // Not about homing: every axis counts as homed at start.
+    let mut text =
+        kerf_testkit::config_text::without_homing(&std::fs::read_to_string(root).unwrap());
     let state = std::env::temp_dir().join(format!(
         "kerfd-machine-test-{}-{}.state",
         std::process::id(),

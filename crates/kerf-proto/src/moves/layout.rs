@@ -48,7 +48,7 @@ pub const CORNER_BLEND_TOLERANCE: u32 = 3;
 /// `docs/PROTOCOL.md`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[type_name("kerf.MoveMsg.v5")]
+#[type_name("kerf.MoveMsg.v6")]
 pub struct MoveMsg {
     /// [`PROTOCOL_VERSION`].
     ///

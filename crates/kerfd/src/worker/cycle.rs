@@ -2,10 +2,15 @@
 //! the drive side and the black box.
 
 mod commands;
+mod manual;
 mod program;
 mod report;
 
+pub(crate) use manual::Manual;
+pub use manual::ManualStatus;
+
 use super::*;
+use kerf_drive::safety::Check;
 use kerf_geom::PerAxis;
 
 use super::fieldbus::{BusCounters, BusReport, BusTrip, Fieldbus, MachineDrive, Recovered};
@@ -109,6 +114,7 @@ pub fn drive_stage(
     position: PerAxis<f64>,
 ) -> Result<DriveStage<MachineDrive>, String> {
     let setups = config.drive_configs();
+    let sims = config.axis_setups();
     let mut images = match config.ethercat() {
         Some(ec) => Some(kerf_ethercat::bus::Bus::drive_images(ec).map_err(|e| e.to_string())?),
         None => None,
@@ -129,9 +135,11 @@ pub fn drive_stage(
             });
             continue;
         }
+        // The simulated motor's power-up position: the caller's plus the configured one.
+        let start = position[i] + sims[i].map_or(0.0, |s| s.sim.start_units);
         let counts = setup
             .scale
-            .to_counts(position[i])
+            .to_counts(start)
             .map_err(|e| format!("axis {name}: the start position: {e}"))?;
         let sim = kerf_drive::sim::SimConfig {
             initial_position_counts: f64::from(counts),
@@ -217,6 +225,10 @@ pub struct Cycle {
     /// The last wait on an input seen ended (its sequence number) and the program it
     /// ended in.
     input_result: (u64, u64),
+    /// Jogging, homing and the axes' switches.
+    manual: Manual,
+    /// The drives' actual positions of the last cycle (machine coordinates).
+    actual: PerAxis<f64>,
 }
 
 impl Cycle {
@@ -233,8 +245,19 @@ impl Cycle {
     ) -> Result<Self, String> {
         let limits = kerf_config::machine_limits(config);
         let capacity = config.daemon.queue_segments as usize;
-        let stage = drive_stage(config, position)?;
+        let mut stage = drive_stage(config, position)?;
+        let mut manual = Manual::new(config, &limits, position)?;
+        // An absolute encoder's axis knows its machine coordinates from the start.
+        for (i, offset) in manual.absolute_offsets().iter().enumerate() {
+            if let Some(o) = offset {
+                stage.set_offset(i, *o);
+            }
+        }
+        for (i, on) in manual.soft_limits().iter().enumerate() {
+            stage.set_soft_limits(i, *on);
+        }
         let start = stage.command();
+        manual.rest_at(&start);
         let mut core = MotionCore::new(limits.period_s, capacity);
         core.set_position(start);
         let machine = Machine::new(crate::machine::machine_config(config)?)
@@ -283,6 +306,8 @@ impl Cycle {
             machine_fault_tripped: false,
             feed_override_enabled: true,
             input_result: (0, 0),
+            manual,
+            actual: start,
         })
     }
 
@@ -380,6 +405,7 @@ impl Cycle {
             bus.receive_machine(&mut self.machine);
         }
         self.machine.cycle(feeding);
+        self.check_hard_limits();
         if self.program.is_none() {
             self.begin_next();
         }
@@ -402,6 +428,13 @@ impl Cycle {
         let mut program_id = self.last_program.0;
         let mut program_cycle = 0;
         self.apply_feed_override_enable();
+        let mut previous = previous;
+        if !started && self.program.is_none() && self.manual.active() && self.stage.ready() {
+            for (i, d) in self.manual_step().iter().enumerate() {
+                // Homing redefined the axis's coordinates: no motion.
+                previous[i] += d;
+            }
+        }
         if started {
             let mut sp = Setpoint::default();
             self.interp.step(&mut sp);
@@ -524,6 +557,15 @@ impl Cycle {
                 _ => {}
             }
         }
+        self.actual = out.actual;
+        if self.bus.is_none() {
+            // The simulated machine's switches follow its motors.
+            let mut drive = out.actual;
+            for (i, d) in drive.iter_mut().enumerate() {
+                *d -= self.stage.offset(i);
+            }
+            self.manual.simulate_switches(&drive, &mut self.machine);
+        }
         if let Some(p) = out.enabled_at {
             self.rest_at(p);
         }
@@ -541,6 +583,8 @@ impl Cycle {
                 // The drives are back: the machine's own fault (if any) clears with them.
                 self.machine.reset();
                 self.machine_fault_tripped = false;
+                // An axis on a hard limit switch may now be jogged off it.
+                self.manual.after_reset(self.machine.io());
             }
             self.last_reset = Some((tag, r));
         }
@@ -558,9 +602,11 @@ impl Cycle {
         }
     }
 
-    /// The motion core drops everything and rests at `position`.
+    /// The motion core (and every axis's manual mover) drops everything and rests at
+    /// `position`.
     fn rest_at(&mut self, position: PerAxis<f64>) {
         self.interp.core_mut().reset_to(position);
+        self.manual.rest_at(&position);
         self.setpoint.position = position;
         self.setpoint.feed_mm_s = 0.0;
     }
@@ -569,7 +615,6 @@ impl Cycle {
     /// once, as any fault: the axes stop on the quick stop and the program is dropped.
     fn check_machine(&mut self) {
         use kerf_drive::machine::MachineFault as F;
-        use kerf_drive::safety::Check;
         let Some(fault) = self.machine.fault() else {
             return;
         };
@@ -608,6 +653,75 @@ impl Cycle {
         }
     }
 
+    /// A hard limit switch that becomes active latches a fault (the axes stop on the quick
+    /// stop); after a reset the axis may be jogged off it, away from it only.
+    fn check_hard_limits(&mut self) {
+        if self.stage.fault().is_some() || !self.stage.ready() {
+            return;
+        }
+        if let Some((axis, side)) = self.manual.hard_limit(self.machine.io()) {
+            let line = self.setpoint.line;
+            if let Some(f) = self.stage.trip_axis(
+                Check::HardLimit,
+                axis,
+                f64::from(side),
+                f64::from(side),
+                line,
+            ) {
+                self.safety_stop(f);
+            }
+        }
+    }
+
+    /// One period of manual motion (no program runs): the jogs and homing move their
+    /// axes; homing's coordinate shifts are applied to the drive side; a homing failure
+    /// latches its fault. Returns the shift applied to each axis (0 for none).
+    fn manual_step(&mut self) -> PerAxis<f64> {
+        let factor = if self.feed_override_enabled {
+            self.override_pct / 100.0
+        } else {
+            1.0
+        };
+        let out = self
+            .manual
+            .cycle(self.machine.io(), &self.actual, factor, self.cycles);
+        for i in 0..6 {
+            if out.moved & (1 << i) != 0 {
+                self.setpoint.position[i] = out.position[i];
+            }
+        }
+        let mut shifted = [0.0; 6];
+        for (i, shift) in out.shift.iter().enumerate() {
+            let Some(d) = *shift else { continue };
+            if self.stage.shift_axis(i, d) {
+                self.setpoint.position[i] += d;
+                self.sent[i] += d;
+                self.actual[i] += d;
+                self.manual.shifted(i, d);
+                shifted[i] = d;
+            } else {
+                self.manual.shift_refused(i);
+            }
+        }
+        for (i, on) in self.manual.soft_limits().iter().enumerate() {
+            if self.stage.safety().soft_limits(i) != *on {
+                self.stage.set_soft_limits(i, *on);
+            }
+        }
+        if let Some((check, axis, value, limit)) = out.fault
+            && let Some(f) = self.stage.trip_axis(check, axis, value, limit, 0)
+        {
+            self.safety_stop(f);
+        }
+        self.setpoint.feed_mm_s = 0.0;
+        self.setpoint.line = 0;
+        if !self.manual.active() {
+            // Manual motion is over: the motion core rests where it left the axes.
+            self.interp.core_mut().reset_to(self.setpoint.position);
+        }
+        shifted
+    }
+
     /// The feed override applies while enabled (M48, M50); disabled, the motion runs at
     /// 100 %.
     fn apply_feed_override_enable(&mut self) {
@@ -627,6 +741,7 @@ impl Cycle {
     /// The safety layer tripped: the program is dropped (its rest is refused), the
     /// motion core forgets its queue.
     fn safety_stop(&mut self, fault: Fault) {
+        self.manual.abort();
         self.machine
             .end_program(kerf_drive::machine::EndCause::Fault);
         if let Some(p) = self.program.as_mut() {

@@ -33,6 +33,7 @@ mod events;
 pub mod fieldbus;
 mod planning;
 
+pub(crate) use cycle::Manual;
 pub use cycle::*;
 pub use events::input_of_event;
 pub use planning::*;
@@ -110,6 +111,15 @@ pub enum Refusal {
         /// Its value (the speed, or the input or output's number).
         value: f64,
     },
+    /// The program began while an axis was not homed and the machine requires homing.
+    #[error("not started: axis {0} is not homed; home the machine first (`kerf home --all`)")]
+    NotHomed(char),
+    /// The program began while an axis stood on a hard limit switch.
+    #[error("not started: axis {0} stands on a hard limit switch; jog it off first")]
+    OnLimitSwitch(char),
+    /// The program began while an axis moved by hand (a jog, homing).
+    #[error("not started: an axis is moving by hand (a jog or homing); wait until it is at rest")]
+    ManualMotion,
     /// The program does not start where the machine is.
     #[error("the program starts at {axis} {start}, but the machine is at {axis} {actual}")]
     WrongStart {
@@ -170,6 +180,20 @@ pub enum CycleCommand {
     Switch(kerf_proto::Switch, bool),
     /// The spindle override, percent (0 to 200).
     SpindleOverride(f64),
+    /// Jog an axis (the control thread checked the request; the cycle checks it again
+    /// against the machine as it is now and ignores it when refused).
+    Jog {
+        /// The axis, 0–5.
+        axis: usize,
+        /// How.
+        jog: kerf_proto::Jog,
+        /// mm/s or deg/s; 0: the configured default.
+        speed: f64,
+    },
+    /// Stop the jog of an axis.
+    JogStop(usize),
+    /// Home the axes of the bit mask.
+    Home(u32),
     /// A simulated input's new value (digital: 1 or 0).
     SetInput {
         /// An analog input (else digital).
@@ -292,6 +316,8 @@ pub struct Snapshot {
     pub commands_applied: u64,
     /// The machine around the axes: pause, switches, tool, spindle, coolant, I/O.
     pub machine: MachineStatus,
+    /// Homing, jogging and the axes' switches.
+    pub manual: ManualStatus,
     /// The program during which the last wait on an input (its result in
     /// `machine.last_input`) ended; 0 when none.
     pub input_result_program: u64,

@@ -166,7 +166,7 @@ fn parse_percent(text: &str, what: &str, max: f64) -> Result<f64, String> {
     }
 }
 
-fn client_failure(e: ClientError) -> Failure {
+pub(crate) fn client_failure(e: ClientError) -> Failure {
     match e {
         ClientError::NoDaemon { .. } | ClientError::Gone { .. } => {
             Failure::Exit(1, format!("kerf: error: {e}"))
@@ -175,7 +175,7 @@ fn client_failure(e: ClientError) -> Failure {
     }
 }
 
-fn connect(args: &MachineArgs) -> Result<(Client, kerf_config::Config), Failure> {
+pub(crate) fn connect(args: &MachineArgs) -> Result<(Client, kerf_config::Config), Failure> {
     let config = load_config(args.config.as_deref())?;
     let client = Client::connect(&config.machine).map_err(client_failure)?;
     Ok((client, config))
@@ -274,7 +274,7 @@ pub fn dump(args: &DumpArgs) -> Result<(), Failure> {
 
 /// Stops a command at SIGINT or SIGTERM (the first; a second one ends the process as
 /// usual).
-fn stop_flag() -> Result<Arc<AtomicBool>, Failure> {
+pub(crate) fn stop_flag() -> Result<Arc<AtomicBool>, Failure> {
     let signals = kerf_rt::Signals::install()
         .map_err(|e| Failure::Error(format!("kerf: error: cannot handle signals: {e}")))?;
     let flag = Arc::new(AtomicBool::new(false));
@@ -494,7 +494,21 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         None
     };
     let mut client = Client::connect(&config.machine).map_err(client_failure)?;
-    let status = idle_status(&mut client, &config.machine)?;
+    let mut status = idle_status(&mut client, &config.machine)?;
+    let unhomed = status.axes_mask & 0b11_1111 & !status.homed;
+    if status.homing_required != 0 && unhomed != 0 {
+        if !args.embedded {
+            let axis = kerf_geom::AXIS_NAMES[unhomed.trailing_zeros() as usize];
+            return Err(Failure::Error(format!(
+                "kerf: error: the machine is not homed (axis {axis}): programs need every axis homed; run `kerf home --all` first"
+            )));
+        }
+        // The embedded daemon is a machine just switched on: it homes first, as the
+        // machinist would.
+        eprintln!("kerf: the machine is not homed: homing every axis first");
+        crate::manual::home_axes(&mut client, unhomed, &*stop_flag()?)?;
+        status = idle_status(&mut client, &config.machine)?;
+    }
     let start = status.position_mm_deg;
     let mut settings =
         crate::settings_for(crate::program_settings(&config)?, &args.program.program);

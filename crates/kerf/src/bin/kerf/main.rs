@@ -27,6 +27,7 @@ use kerf_pipeline::ProgramActions;
 mod ethercat;
 mod from_line;
 mod machine;
+mod manual;
 mod output;
 
 use output::Output;
@@ -80,8 +81,14 @@ enum Command {
     /// Set a simulated input (the machine's own inputs are set by its wiring): `kerf input
     /// 3 on`, `kerf input 0 --analog 2.5`.
     Input(machine::InputArgs),
-    /// Stop on the path and drop the rest of the program.
+    /// Stop on the path and drop the rest of the program (and any jog or homing).
     Abort(machine::MachineArgs),
+    /// Jog an axis by hand: `kerf jog X+` moves while the command runs (Ctrl-C stops it;
+    /// `--for S` after S seconds), `kerf jog X --step 0.1`, `kerf jog X --to 12.5`.
+    Jog(manual::JogArgs),
+    /// Home axes (`kerf home Z`, `kerf home --all`) in the configured home sequence, with
+    /// the progress on standard error.
+    Home(manual::HomeArgs),
     /// Set the feed override, 0 to 200 percent.
     Override(machine::OverrideArgs),
     /// Write the daemon's setpoint stream to CSV.
@@ -247,6 +254,8 @@ fn main() -> ExitCode {
         ),
         Command::Input(args) => machine::input(&args),
         Command::Abort(args) => machine::command(&args, kerf_proto::ControlCommand::Abort),
+        Command::Jog(args) => manual::jog(&args),
+        Command::Home(args) => manual::home(&args),
         Command::Override(args) => machine::command(
             &args.machine,
             kerf_proto::ControlCommand::Override {

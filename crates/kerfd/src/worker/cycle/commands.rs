@@ -30,6 +30,7 @@ impl Cycle {
                 }
             }
             CycleCommand::Abort => {
+                self.manual.abort();
                 if let Some(p) = self.program.as_mut() {
                     p.aborted = true;
                     self.machine.end_program(EndCause::Abort);
@@ -77,6 +78,27 @@ impl Cycle {
                 kerf_proto::Switch::SingleBlock => self.machine.set_single_block(on),
             },
             CycleCommand::SpindleOverride(pct) => self.machine.set_spindle_override_pct(pct),
+            CycleCommand::Jog { axis, jog, speed } => {
+                // One source of motion at a time; the control thread said why already.
+                if self.program.is_some() || !self.stage.ready() {
+                    return;
+                }
+                if !self.manual.active() {
+                    self.manual.rest_at(&self.setpoint.position);
+                }
+                let at = self.setpoint.position.get(axis).copied().unwrap_or(0.0);
+                let _ = self.manual.jog(axis, jog, speed, at, self.cycles);
+            }
+            CycleCommand::JogStop(axis) => self.manual.jog_stop(axis),
+            CycleCommand::Home(mask) => {
+                if self.program.is_some() || !self.stage.ready() {
+                    return;
+                }
+                if !self.manual.active() {
+                    self.manual.rest_at(&self.setpoint.position);
+                }
+                let _ = self.manual.home(mask);
+            }
             CycleCommand::SetInput {
                 analog,
                 index,

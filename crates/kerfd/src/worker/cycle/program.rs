@@ -50,6 +50,28 @@ impl Cycle {
             dropped: self.shutting_down || aborted,
             planned: 0,
         };
+        // Programs start on a homed machine, off the limit switches, at rest.
+        let manual = if self.manual.active() {
+            Some(Refusal::ManualMotion)
+        } else {
+            self.manual.blocks_programs().map(|(i, on_limit)| {
+                let axis = kerf_plan::AXIS_NAMES[i];
+                if on_limit {
+                    Refusal::OnLimitSwitch(axis)
+                } else {
+                    Refusal::NotHomed(axis)
+                }
+            })
+        };
+        if let Some(r) = manual
+            && !aborted
+        {
+            run.refusal = Some(r);
+            run.dropped = true;
+            self.setpoint.line = 0;
+            self.program = Some(run);
+            return;
+        }
         for (i, (&s, &p)) in start.iter().zip(self.setpoint.position.iter()).enumerate() {
             // A start that is not a number is refused too.
             let at_machine = (s - p).abs() <= START_TOL;

@@ -16,6 +16,7 @@ impl Cycle {
             }
             _ if self.program.is_some() && self.starved => MachineState::Starved,
             _ if self.program.is_some() => MachineState::Running,
+            _ if self.manual.active() => MachineState::Manual,
             MotionState::Idle => MachineState::Idle,
             _ => MachineState::Running,
         }
@@ -58,6 +59,7 @@ impl Cycle {
             bus: self.bus_report(),
             reset: self.last_reset,
             commands_applied: self.commands_applied,
+            manual: self.manual.status(self.machine.io()),
             machine,
             input_result_program: self.input_result.1,
         };
