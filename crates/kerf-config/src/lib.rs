@@ -2,7 +2,8 @@
 //!
 //! - this module: the file read and checked once into a plain [`Config`] record;
 //! - [`reference`](mod@reference): the reference of every key (docs/CONFIG.md is generated from it);
-//! - [`tooltable`]: LinuxCNC tool tables and parameter files;
+//! - [`tooltable`]: LinuxCNC tool tables and parameter files; the machine's own copies,
+//!   which `kerf run`, `mdi`, `offset` and `tool` keep ([`Config::machine_parameter_file`]);
 //! - [`travel`]: the configured travel checked on the exact path before any motion;
 //! - [`machine_limits`]: the motion core's view of the axes;
 //! - [`ethercat`]: the EtherCAT bus (`[ethercat]`), when the machine's drives are on one;
@@ -34,6 +35,7 @@ mod machine;
 mod model;
 mod ranges;
 mod raw;
+mod state_files;
 mod toml_words;
 mod views;
 
@@ -52,6 +54,7 @@ pub use machine::*;
 pub use model::*;
 pub use ranges::*;
 pub use raw::valid_machine_name;
+pub use state_files::{SYSTEM_STATE_DIRECTORY, ToolFileError};
 
 /// The bundled example configuration (`config/kerf.toml`), used when no `--config` is given.
 pub const BUILTIN_TOML: &str = include_str!("../../../config/kerf.toml");

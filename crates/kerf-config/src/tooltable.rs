@@ -271,20 +271,122 @@ pub fn parse_parameter_file(text: &str, origin: &str) -> Result<Vec<(u32, f64)>,
 }
 
 /// Writes a parameter file (number, tab, value with six decimals, as LinuxCNC writes
-/// it), through a temporary file renamed over the old one, so that a crash leaves
-/// either the old or the new file.
+/// it) atomically ([`write_atomically`]): a crash leaves either the old or the new file.
 pub fn write_parameter_file(path: &Path, params: &[(u32, f64)]) -> io::Result<()> {
-    let mut tmp_name = path.as_os_str().to_owned();
-    tmp_name.push(".tmp");
-    let tmp = std::path::PathBuf::from(tmp_name);
-    {
-        let mut f = io::BufWriter::new(std::fs::File::create(&tmp)?);
-        for &(n, v) in params {
-            writeln!(f, "{n}\t{v:.6}")?;
-        }
-        f.into_inner().map_err(|e| e.into_error())?.sync_all()?;
+    let mut text = String::with_capacity(params.len() * 16);
+    for &(n, v) in params {
+        text.push_str(&format!("{n}\t{v:.6}\n"));
     }
-    std::fs::rename(&tmp, path)
+    write_atomically(path, text.as_bytes())
+}
+
+/// One tool table line for `tool`, as LinuxCNC writes them: `T` and `P`, the offsets
+/// that are not zero (`Z` always), `D` (the diameter), and the lathe words that are not
+/// zero; numbers in their shortest exact form.
+pub fn tool_table_line(tool: &Tool) -> String {
+    let mut line = format!("T{} P{}", tool.number, tool.pocket);
+    let words = [
+        ('X', tool.offset_xy_mm[0]),
+        ('Y', tool.offset_xy_mm[1]),
+        ('Z', tool.length_mm),
+        ('A', tool.offset_abc_deg[0]),
+        ('B', tool.offset_abc_deg[1]),
+        ('C', tool.offset_abc_deg[2]),
+        ('D', 2.0 * tool.radius_mm),
+        ('I', tool.front_angle_deg),
+        ('J', tool.back_angle_deg),
+        ('Q', f64::from(tool.orientation)),
+    ];
+    for (letter, value) in words {
+        if value != 0.0 || matches!(letter, 'Z' | 'D') {
+            // `-0` reads back as 0 and says nothing more.
+            let value = if value == 0.0 { 0.0 } else { value };
+            line.push_str(&format!(" {letter}{value}"));
+        }
+    }
+    line
+}
+
+/// The text of a tool table with `tools` written in: the line of each tool already in
+/// `text` gets its new words (its comment kept), the other tools are appended in the
+/// order given; every other line (comments, other tools, blank lines) stays as it was.
+pub fn update_tool_table_text(text: &str, tools: &[Tool]) -> String {
+    let mut out = String::with_capacity(text.len() + 64 * tools.len());
+    let mut written = vec![false; tools.len()];
+    for raw_line in text.lines() {
+        let (words, comment) = match raw_line.find(';') {
+            Some(i) => (&raw_line[..i], Some(&raw_line[i..])),
+            None => (raw_line, None),
+        };
+        let number = parse_line(words, 0, "")
+            .ok()
+            .flatten()
+            .map(|(t, _)| t.number);
+        let changed = number.and_then(|n| tools.iter().position(|t| t.number == n));
+        match changed {
+            Some(i) if !written[i] => {
+                written[i] = true;
+                out.push_str(&tool_table_line(&tools[i]));
+                if let Some(c) = comment {
+                    out.push(' ');
+                    out.push_str(c);
+                }
+            }
+            _ => out.push_str(raw_line),
+        }
+        out.push('\n');
+    }
+    for (tool, done) in tools.iter().zip(written) {
+        if !done {
+            out.push_str(&tool_table_line(tool));
+            out.push('\n');
+        }
+    }
+    out
+}
+
+/// Writes `tools` into the tool table at `path` ([`update_tool_table_text`]; a missing
+/// file is an empty one), atomically ([`write_atomically`]).
+pub fn write_tool_table(path: &Path, tools: &[Tool]) -> io::Result<()> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == io::ErrorKind::NotFound => String::new(),
+        Err(e) => return Err(e),
+    };
+    write_atomically(path, update_tool_table_text(&text, tools).as_bytes())
+}
+
+/// Replaces the file at `path` with `bytes` so that a crash or a power cut leaves either
+/// the old or the new file, never a mix: the bytes go to a temporary file in the same
+/// directory (created when missing), which is synced to the disk, then renamed over
+/// `path`, and the directory is synced so that the rename is kept.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    std::fs::create_dir_all(dir)?;
+    let name = path
+        .file_name()
+        .map_or_else(|| "file".into(), |n| n.to_string_lossy());
+    // Unique per process: two commands writing at once each rename a whole file.
+    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    let written = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e);
+    }
+    // The rename is in the directory: sync it too (not every file system lets a
+    // directory be opened for that; the file itself is safe either way).
+    if let Ok(d) = std::fs::File::open(dir) {
+        let _ = d.sync_all();
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -374,6 +476,31 @@ mod tests {
             e.to_string()
                 .starts_with("p.var:1:1: error: parameter number 6000")
         );
+    }
+
+    #[test]
+    fn tool_table_writer_keeps_comments_and_other_tools_and_reads_back() {
+        let text = "; shop tools\nT1 P1 Z0.511 D0.125 ;1/8 end mill\n\nT2 P2 Z3 D6\n";
+        let mut t1 = parse_tool_table(text, "t").expect("valid")[0];
+        t1.length_mm = -42.25;
+        let t7 = Tool {
+            number: 7,
+            pocket: 7,
+            length_mm: 12.0,
+            radius_mm: 1.5,
+            offset_xy_mm: [0.5, 0.0],
+            orientation: 2,
+            ..Tool::default()
+        };
+        let out = update_tool_table_text(text, &[t7, t1]);
+        assert_eq!(
+            out,
+            "; shop tools\nT1 P1 Z-42.25 D0.125 ;1/8 end mill\n\nT2 P2 Z3 D6\nT7 P7 X0.5 Z12 D3 Q2\n"
+        );
+        let back = parse_tool_table(&out, "t").expect("reads back");
+        assert_eq!(back.len(), 3);
+        assert_eq!(back[0], t1);
+        assert_eq!(back[2], t7);
     }
 
     #[test]

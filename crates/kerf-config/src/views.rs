@@ -1,7 +1,7 @@
 //! What the daemon's parts read off a configuration: the safety layer's and the drives'
 //! settings, the black box, the period.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use kerf_drive::MAX_AXES;
 use kerf_drive::cia402::Enabler;
@@ -96,7 +96,8 @@ impl Config {
 
     /// Where the daemon writes black-box files: `safety.dump_dir` when set; else the
     /// directory systemd gives the service (`$STATE_DIRECTORY`, `/var/lib/kerf` with the
-    /// shipped unit); else the system's temporary directory.
+    /// shipped unit), else /var/lib/kerf when it exists; else the system's temporary
+    /// directory.
     pub fn dump_dir(&self) -> PathBuf {
         if let Some(d) = &self.dump_dir {
             return d.clone();
@@ -105,8 +106,8 @@ impl Config {
     }
 
     /// `daemon.state_file`, or by default `MACHINE.state.toml` (the machine's name) in
-    /// `$STATE_DIRECTORY` (the shipped systemd unit's /var/lib/kerf), else in the
-    /// temporary directory.
+    /// the state directory: `$STATE_DIRECTORY`, else /var/lib/kerf when it exists (the
+    /// shipped systemd unit's), else the temporary directory.
     pub fn state_file(&self) -> PathBuf {
         if let Some(f) = &self.daemon.state_file {
             return f.clone();
@@ -144,15 +145,18 @@ impl Config {
     }
 }
 
-/// The daemon's state directory: the first of systemd's `$STATE_DIRECTORY`, else the
-/// temporary directory.
-fn state_directory() -> PathBuf {
+/// The machine's state directory, shared by the daemon and the `kerf` commands: the first
+/// of systemd's `$STATE_DIRECTORY`; else `/var/lib/kerf` when it is a directory (the
+/// shipped unit's `StateDirectory`, so that an operator's `kerf` finds the files the
+/// service keeps); else the temporary directory.
+pub(crate) fn state_directory() -> PathBuf {
     match std::env::var_os("STATE_DIRECTORY") {
         // systemd may list several, separated by colons: the first is ours.
         Some(dirs) if !dirs.is_empty() => {
             let dirs = dirs.to_string_lossy().into_owned();
             PathBuf::from(dirs.split(':').next().unwrap_or(&dirs))
         }
+        _ if Path::new(SYSTEM_STATE_DIRECTORY).is_dir() => PathBuf::from(SYSTEM_STATE_DIRECTORY),
         _ => std::env::temp_dir(),
     }
 }

@@ -168,6 +168,38 @@ impl State {
         self.settings.block_delete
     }
 
+    /// MDI input ([`Settings::mdi`]).
+    pub(crate) fn mdi(&self) -> bool {
+        self.settings.mdi
+    }
+
+    /// The tool table with the program's G10 L1/L10/L11 changes.
+    pub(crate) fn tools(&self) -> &[Tool] {
+        &self.settings.tools
+    }
+
+    /// The current point in program coordinates (see
+    /// [`crate::Interpreter::program_position`]).
+    pub(crate) fn program_position(&self) -> PerAxis<f64> {
+        self.program_point()
+    }
+
+    /// The active coordinate system, 0 = G54 (`None`: none).
+    pub(crate) fn coordinate_system(&self) -> Option<usize> {
+        self.coord_system
+    }
+
+    /// The current point becomes the machine position `m` (see
+    /// [`crate::Interpreter::set_position`]).
+    pub(crate) fn set_machine_position(&mut self, m: PerAxis<f64>) {
+        self.pos = self.machine_to_frame(Vec3::new(m[0], m[1], m[2]));
+        self.abc = [m[3], m[4], m[5]];
+        self.polar_last = None;
+        self.readback_from = None;
+        self.tool_offset_at_move = self.tool_offset;
+        self.arc_tail = None;
+    }
+
     pub(crate) fn new(dialect: Dialect, settings: Settings) -> Self {
         let tool_loaded = settings.tool_in_spindle;
         let coord_system = match dialect {

@@ -111,6 +111,42 @@ impl<R: std::io::BufRead> Interpreter<R> {
         self.state.done
     }
 
+    /// The tool table as it is now: the settings' table with the changes the program made
+    /// (G10 L1, L10, L11), in the order of the settings.
+    pub fn tools(&self) -> &[crate::Tool] {
+        self.state.tools()
+    }
+
+    /// MDI ([`Settings::mdi`]): the current point becomes `machine_mm_deg` (X, Y, Z mm,
+    /// A, B, C degrees, machine coordinates), where the machine stands, as LinuxCNC's
+    /// interpreter synchronises with the machine before an MDI command (after a motion
+    /// that was aborted or refused, the interpreter's idea of the position is not the
+    /// machine's). The modal state, offsets and parameters stay.
+    pub fn set_position(&mut self, machine_mm_deg: kerf_geom::PerAxis<f64>) {
+        self.state.set_machine_position(machine_mm_deg);
+    }
+
+    /// The current point in the program coordinates of the active coordinate system, with
+    /// every offset in force taken off (work offset and its rotation, G52/G92, tool
+    /// offsets): X, Y, Z mm and A, B, C degrees whatever G20/G21 (LinuxCNC's
+    /// #5420–#5425 in mm). What a DRO shows as the work position.
+    pub fn program_position(&self) -> kerf_geom::PerAxis<f64> {
+        self.state.program_position()
+    }
+
+    /// The active coordinate system: 0 = G54, 1 = G55, … 8 = G59.3; `None` for none
+    /// (Sinumerik G500, Heidenhain before a datum shift).
+    pub fn coordinate_system(&self) -> Option<usize> {
+        self.state.coordinate_system()
+    }
+
+    /// MDI: a LinuxCNC structure (a subroutine definition, a loop, an `if`) begun on a
+    /// line read so far and not yet ended: the line it began on and what it is. The
+    /// interpreter waits for more lines before it runs it.
+    pub fn unfinished_structure(&self) -> Option<(u32, String)> {
+        self.ngc.unfinished()
+    }
+
     fn diag(&self, col: u32, message: impl Into<String>) -> Diagnostic {
         Diagnostic {
             line: self.line_no,
@@ -309,6 +345,10 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
             };
             match got {
                 Ok(true) => {}
+                Ok(false) if self.state.mdi() => {
+                    // MDI: what was typed so far has run; the next call reads on.
+                    return None;
+                }
                 Ok(false) => {
                     self.finished = true;
                     if let Some((line, m)) = self.ngc.unfinished() {
@@ -337,6 +377,13 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
                 }
             }
             if let Err(e) = self.process_line() {
+                if self.state.mdi() {
+                    // MDI: the error ends its line only (what the block changed before
+                    // it stays, as in LinuxCNC); the next call reads the next line.
+                    self.pending.clear();
+                    self.ngc.abandon();
+                    return Some(Err(e));
+                }
                 self.error = Some(e);
                 self.finished = true;
             }

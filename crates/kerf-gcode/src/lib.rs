@@ -504,3 +504,5 @@ pub use settings::{Settings, Tool};
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_mdi;

@@ -86,6 +86,13 @@ pub struct Settings {
     /// daemon): the current tool until the program's first change (`#5400`, `G43`
     /// without `H`). `None`: none (as rs274 starts).
     pub tool_in_spindle: Option<u32>,
+    /// MDI (`kerf mdi`): the input is lines typed one at a time, not a program file.
+    /// LinuxCNC's rule that a file ends with M2, M30 or `%` does not apply; the end of the
+    /// reader's input is a pause, not the program's end (the [`crate::Interpreter`]
+    /// returns `None`, and reads on at the next call once the reader has more); an error
+    /// ends its line only (the next call reads the next line); cutter radius compensation
+    /// (G41/G42, whose moves wait for the next one) is refused. Off by default.
+    pub mdi: bool,
 }
 
 impl Default for Settings {
@@ -105,6 +112,7 @@ impl Default for Settings {
             block_delete: false,
             simulated_inputs: crate::SimulatedInputs::default(),
             tool_in_spindle: None,
+            mdi: false,
         }
     }
 }

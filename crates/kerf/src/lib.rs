@@ -5,6 +5,7 @@
 //! - [`sim_plot`]: its plot (`kerf sim --plot FILE.svg|FILE.png`).
 //! - [`client`]: requests, status and the setpoint stream for `kerf run`, `status`,
 //!   `hold`, `resume`, `abort`, `override`, `record`, `reset` and `dump`.
+//! - [`dro`]: the machine's offsets and the work position (`kerf status`, `kerf offset`).
 //! - [`blackbox`]: the drive side's black-box files read and drawn (`kerf plot`).
 //! - [`clidoc`]: shell completions and man pages from the binaries' clap definitions.
 //!
@@ -21,6 +22,7 @@
 pub mod blackbox;
 pub mod clidoc;
 pub mod client;
+pub mod dro;
 pub mod plan;
 pub mod sim;
 pub mod sim_plot;

@@ -7,6 +7,8 @@ use kerf_proto::{MachineState, StatusMsg};
 
 use kerfd::fault_text::check_name;
 
+use crate::dro::Dro;
+
 /// The name of a status state in `kerf status`.
 pub(crate) fn state_name(s: &StatusMsg) -> &'static str {
     match s.state() {
@@ -462,9 +464,67 @@ fn ethercat_json(names: &[String], s: &StatusMsg) -> String {
     out
 }
 
+/// The DRO object of `kerf status --json`: the active system, the machine and work
+/// positions and the offsets between them, per axis the machine has.
+pub fn dro_json(d: &Dro, axes_mask: u32) -> String {
+    let num = |v: f64| {
+        let mut b = zmij::Buffer::new();
+        if v.is_finite() {
+            b.format(v).to_string()
+        } else {
+            "null".to_string()
+        }
+    };
+    let axes = |v: &[f64; 6]| {
+        let keys = AXIS_KEYS.iter().enumerate();
+        let pairs: Vec<String> = keys
+            .filter(|(i, _)| axes_mask & (1 << i) != 0)
+            .map(|(i, k)| format!("\"{k}\":{}", num(v[i])))
+            .collect();
+        format!("{{{}}}", pairs.join(","))
+    };
+    format!(
+        "{{\"system\":\"{}\",\"machine\":{},\"work\":{},\"work_offset\":{},\"rotation_deg\":{},\"g92\":{},\"tool\":{},\"tool_offset\":{}}}",
+        crate::dro::system_name(d.system),
+        axes(&d.machine_mm_deg),
+        axes(&d.work_mm_deg),
+        axes(&d.work_offset.offset_mm_deg),
+        num(d.work_offset.rotation_deg),
+        axes(&d.g92_mm_deg),
+        d.tool,
+        axes(&d.tool_offset_mm_deg)
+    )
+}
+
+/// The DRO line of `kerf status`: `work G54 X 1.000 Y 2.000 Z 3.000`, then the offsets
+/// in force (`G54 offset X … Y … Z …`, its rotation and G92 when not zero).
+pub fn dro_text(d: &Dro, axes_mask: u32) -> String {
+    let axes = |v: &[f64; 6]| {
+        let mut out = String::new();
+        for (i, key) in AXIS_KEYS.iter().enumerate() {
+            if axes_mask & (1 << i) != 0 {
+                let _ = write!(out, " {} {:.3}", key.to_ascii_uppercase(), v[i]);
+            }
+        }
+        out
+    };
+    let name = crate::dro::system_name(d.system);
+    let mut out = format!("work {name}{}", axes(&d.work_mm_deg));
+    if d.system.is_some() {
+        let _ = write!(out, "; {name} offset{}", axes(&d.work_offset.offset_mm_deg));
+        if d.work_offset.rotation_deg != 0.0 {
+            let _ = write!(out, ", rotation {} deg", d.work_offset.rotation_deg);
+        }
+    }
+    if d.g92_mm_deg.iter().any(|v| *v != 0.0) {
+        let _ = write!(out, "; G92{}", axes(&d.g92_mm_deg));
+    }
+    out
+}
+
 /// `kerf status --json`: one JSON object; `names` are the EtherCAT subdevices' names by
-/// ring position ([`subdevice_names`]).
-pub fn status_json(machine: &str, names: &[String], s: &StatusMsg) -> String {
+/// ring position ([`subdevice_names`]); `dro` the DRO (`null` when it could not be read).
+pub fn status_json(machine: &str, names: &[String], s: &StatusMsg, dro: Option<&Dro>) -> String {
     let mut out = String::new();
     let num = |v: f64| {
         if v.is_finite() {
@@ -548,6 +608,12 @@ pub fn status_json(machine: &str, names: &[String], s: &StatusMsg) -> String {
     }
     out.push_str(&machine_json(s, &num));
     out.push_str(&axes_json(s));
+    match dro {
+        Some(d) => {
+            let _ = write!(out, ",\"dro\":{}", dro_json(d, s.axes_mask));
+        }
+        None => out.push_str(",\"dro\":null"),
+    }
     let _ = write!(out, ",\"ethercat\":{}", ethercat_json(names, s));
     out.push('}');
     out
@@ -654,10 +720,13 @@ pub fn ethercat_text(names: &[String], s: &StatusMsg) -> Option<String> {
     Some(out)
 }
 
-/// `kerf status`: [`status_line`], then the EtherCAT block ([`ethercat_text`]) when the
-/// drives are on a bus; `names` as for [`status_json`].
-pub fn status_text(machine: &str, names: &[String], s: &StatusMsg) -> String {
+/// `kerf status`: [`status_line`], the DRO's line ([`dro_text`]), then the EtherCAT block
+/// ([`ethercat_text`]) when the drives are on a bus; `names` as for [`status_json`].
+pub fn status_text(machine: &str, names: &[String], s: &StatusMsg, dro: Option<&Dro>) -> String {
     let mut out = status_line(machine, s);
+    if let Some(d) = dro {
+        let _ = write!(out, "\n  {}", dro_text(d, s.axes_mask));
+    }
     if let Some(pause) = pause_text(s) {
         let _ = write!(out, "\n  {pause}");
     }
@@ -778,12 +847,13 @@ mod tests {
 
     #[test]
     fn status_text_shows_the_bus_per_subdevice() {
-        let text = status_text("m", &names(), &on_a_bus());
+        let text = status_text("m", &names(), &on_a_bus(), None);
         assert_eq!(
             text,
             "m: idle, X 1.000 Y 2.000 Z 3.000, override 100 %, 0 queued (0.0 s), 123460 cycles, 0 overruns, rt: yes, drives: running\n\
              \x20 spindle: none; coolant: off; tool: none\n\
              \x20 switches: optional stop off, block delete off, single block off; outputs on: none; inputs on: none\n\
+             \x20 axes: X not homed; Y not homed; Z not homed\n\
              EtherCAT: 4 subdevices, all in OP; 123456 cycles exchanged, 0 lost, 0 short, 0 out of OP, at most 0 incomplete in a row\n\
              \x20 0  X drive  OP\n\
              \x20 1  Y drive  OP\n\
@@ -838,9 +908,43 @@ mod tests {
         s.bus_subdevices = 0;
         assert_eq!(ethercat_text(&names(), &s), None);
         assert_eq!(
-            status_text("m", &names(), &s),
-            format!("{}\n{}", status_line("m", &s), machine_text(&s))
+            status_text("m", &names(), &s, None),
+            format!(
+                "{}\n{}\n{}",
+                status_line("m", &s),
+                machine_text(&s),
+                axes_text(&s)
+            )
         );
+    }
+
+    #[test]
+    fn the_axes_line_and_object_tell_homing_jogging_and_the_switches() {
+        let mut s = StatusMsg::zeroed();
+        s.axes_mask = 0b111;
+        s.homing_required = 1;
+        s.homed = 0b100;
+        s.homing = 0b001;
+        s.home_phase[0] = kerf_proto::HOME_PHASE_LATCH;
+        s.jogging = 0b010;
+        s.home_switches = 0b001;
+        s.max_limit_switches = 0b010;
+        s.limit_released = 0b010;
+        assert_eq!(
+            axes_text(&s),
+            "  axes: X not homed, homing (latch), home switch; Y not homed, jogging, upper limit switch (jog off it); Z homed; programs need every axis homed: `kerf home --all`"
+        );
+        let v: serde_json::Value =
+            serde_json::from_str(&format!("{{{}}}", &axes_json(&s)[1..])).unwrap();
+        assert_eq!(v["homing_required"], true);
+        assert_eq!(v["axes"]["x"]["homing"], "latch");
+        assert_eq!(v["axes"]["x"]["home_switch"], true);
+        assert_eq!(v["axes"]["y"]["jogging"], true);
+        assert_eq!(v["axes"]["y"]["max_limit_switch"], true);
+        assert_eq!(v["axes"]["y"]["limit_released"], true);
+        assert_eq!(v["axes"]["z"]["homed"], true);
+        assert_eq!(v["axes"]["z"]["homing"], serde_json::Value::Null);
+        assert!(v["axes"].get("a").is_none(), "only the configured axes");
     }
 
     /// A machine paused at a manual tool change with the spindle stopped, flood on,
@@ -875,7 +979,7 @@ mod tests {
             pause_text(&s).unwrap(),
             "paused at line 30 (M6): insert tool T3 (length 45.200 mm), then `kerf resume`"
         );
-        let text = status_text("m", &names(), &s);
+        let text = status_text("m", &names(), &s, None);
         assert_eq!(
             text.lines().collect::<Vec<_>>()[1..],
             [
@@ -898,7 +1002,7 @@ mod tests {
     #[test]
     fn status_json_has_the_machine() {
         let s = at_a_tool_change();
-        let json = status_json("m", &names(), &s);
+        let json = status_json("m", &names(), &s, None);
         let v: serde_json::Value = serde_json::from_str(&json).expect("JSON");
         assert_eq!(v["state"], "paused");
         assert_eq!(v["pause"]["reason"], "tool_change");
@@ -928,14 +1032,14 @@ mod tests {
         none.spindle_kind = kerf_proto::SPINDLE_NONE;
         none.pause_reason = kerf_proto::PAUSE_NONE;
         let v: serde_json::Value =
-            serde_json::from_str(&status_json("m", &names(), &none)).expect("JSON");
+            serde_json::from_str(&status_json("m", &names(), &none, None)).expect("JSON");
         assert_eq!(v["spindle"], serde_json::Value::Null);
         assert_eq!(v["pause"], serde_json::Value::Null);
     }
 
     #[test]
     fn status_json_has_the_ethercat_object() {
-        let json = status_json("m", &names(), &y_drive_left_op());
+        let json = status_json("m", &names(), &y_drive_left_op(), None);
         let parsed: serde_json::Value = serde_json::from_str(&json).expect("JSON");
         assert_eq!(parsed["ethercat"]["dc"]["offset_ns"], -1240);
         let ethercat = json
@@ -959,7 +1063,7 @@ mod tests {
         // Without distributed clocks, and a position the configuration does not name.
         let mut s = y_drive_left_op();
         s.dc_used = 0;
-        let json = status_json("m", &names()[..1], &s);
+        let json = status_json("m", &names()[..1], &s, None);
         assert!(json.ends_with(",\"dc\":null}}"), "{json}");
         assert!(
             json.contains("{\"position\":1,\"name\":null,\"state\":\"SAFE-OP\""),
@@ -968,10 +1072,40 @@ mod tests {
     }
 
     #[test]
+    fn the_dro_shows_the_work_position_and_the_offsets() {
+        let dro = Dro {
+            system: Some(1),
+            work_offset: crate::dro::WorkOffset {
+                offset_mm_deg: [10.0, 20.0, -5.0, 0.0, 0.0, 0.0],
+                rotation_deg: 0.0,
+            },
+            g92_mm_deg: [0.0, 0.0, 1.5, 0.0, 0.0, 0.0],
+            tool: 2,
+            tool_offset_mm_deg: [0.0; 6],
+            machine_mm_deg: [11.0, 22.0, -3.0, 0.0, 0.0, 0.0],
+            work_mm_deg: [1.0, 2.0, 0.5, 0.0, 0.0, 0.0],
+        };
+        assert_eq!(
+            dro_text(&dro, 0b111),
+            "work G55 X 1.000 Y 2.000 Z 0.500; G55 offset X 10.000 Y 20.000 Z -5.000; G92 X 0.000 Y 0.000 Z 1.500"
+        );
+        let json = status_json("m", &names(), &on_a_bus(), Some(&dro));
+        let v: serde_json::Value = serde_json::from_str(&json).expect("JSON");
+        assert_eq!(v["dro"]["system"], "G55");
+        assert_eq!(v["dro"]["work"]["z"], 0.5);
+        assert_eq!(v["dro"]["machine"]["x"], 11.0);
+        assert_eq!(v["dro"]["g92"]["z"], 1.5);
+        assert_eq!(v["dro"]["tool"], 2);
+        assert!(v["dro"]["work"].get("a").is_none(), "{json}");
+        let text = status_text("m", &names(), &on_a_bus(), Some(&dro));
+        assert!(text.contains("\n  work G55 X 1.000"), "{text}");
+    }
+
+    #[test]
     fn status_json_without_a_bus_has_ethercat_null() {
         let mut s = on_a_bus();
         s.bus_subdevices = 0;
-        let json = status_json("m", &names(), &s);
+        let json = status_json("m", &names(), &s, None);
         assert!(json.contains(",\"safety\":null,\"pause\":null,"), "{json}");
         assert!(json.ends_with(",\"ethercat\":null}"), "{json}");
     }

@@ -186,7 +186,7 @@ impl State {
     }
 
     /// The current point in program coordinates of the active system, mm and degrees.
-    fn program_point(&self) -> PerAxis<f64> {
+    pub(super) fn program_point(&self) -> PerAxis<f64> {
         let mut p = [0.0; 6];
         for i in 0..3 {
             p[i] = self.pos[i] - self.origin[i];

@@ -279,6 +279,20 @@ impl Ngc {
             .collect()
     }
 
+    /// MDI, after an error: every call, loop and structure being collected is dropped
+    /// (the next line is read from the input, in the main program's scope). Definitions
+    /// of subroutines already complete are kept.
+    pub(crate) fn abandon(&mut self) {
+        self.frames.clear();
+        self.capture = None;
+        self.from_frame = false;
+        self.cur_file = None;
+        self.locals.truncate(1);
+        self.assignments.clear();
+        self.messages.clear();
+        self.restored.clear();
+    }
+
     /// An unfinished structure at the end of the input.
     pub(crate) fn unfinished(&self) -> Option<(u32, String)> {
         self.capture.as_ref().map(|c| {

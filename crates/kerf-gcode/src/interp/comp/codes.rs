@@ -28,6 +28,12 @@ impl State {
                 return Ok(());
             }
         };
+        if self.mdi() && !matches!(g, G::Comp(Comp::Off)) {
+            return fail(
+                col,
+                "cutter radius compensation is not available in MDI (a compensated move waits for the next one)",
+            );
+        }
         match g {
             G::Comp(Comp::Off) => {
                 if blk.has(KL) {

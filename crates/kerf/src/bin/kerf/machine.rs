@@ -186,10 +186,19 @@ pub fn status(args: &StatusArgs) -> Result<(), Failure> {
     let (mut client, config) = connect(&args.machine)?;
     let s = client.status().map_err(client_failure)?;
     let names = kerf::status_view::subdevice_names(&config);
+    // The DRO from the machine's parameter file: a file that cannot be read is said,
+    // and the rest of the status shown.
+    let dro = match kerf::dro::Dro::read(&config, s.position_mm_deg, s.tool_in_spindle) {
+        Ok(d) => Some(d),
+        Err(e) => {
+            writeln!(io::stderr().lock(), "{e} (no work coordinates shown)")?;
+            None
+        }
+    };
     let line = if args.json {
-        kerf::status_view::status_json(&config.machine, &names, &s)
+        kerf::status_view::status_json(&config.machine, &names, &s, dro.as_ref())
     } else {
-        kerf::status_view::status_text(&config.machine, &names, &s)
+        kerf::status_view::status_text(&config.machine, &names, &s, dro.as_ref())
     };
     writeln!(io::stdout().lock(), "{line}")?;
     Ok(())
@@ -342,7 +351,7 @@ pub fn record(args: &RecordArgs) -> Result<(), Failure> {
     out.commit()
 }
 
-fn setpoint_of(m: &SetpointMsg) -> Setpoint {
+pub(crate) fn setpoint_of(m: &SetpointMsg) -> Setpoint {
     Setpoint {
         position: m.position_mm_deg,
         line: m.line,
@@ -358,14 +367,14 @@ fn setpoint_of(m: &SetpointMsg) -> Setpoint {
 /// the program has run to its end, or when the safety layer stopped it (then it ends with
 /// the cycle of the trip: the diagnosis, as `kerf sim` keeps the CSV of a run stopped by a
 /// limit fault); a run that fails otherwise leaves the target as it was.
-struct Recording {
+pub(crate) struct Recording {
     out: Output,
     rotary: bool,
     period_s: f64,
 }
 
 impl Recording {
-    fn create(
+    pub(crate) fn create(
         path: &Path,
         rotary: bool,
         period_s: f64,
@@ -395,24 +404,24 @@ impl Recording {
         write_row(&mut self.out, t, &setpoint_of(m), self.rotary).map_err(|e| self.error(e))
     }
 
-    fn finish(self) -> Result<(), Failure> {
+    pub(crate) fn finish(self) -> Result<(), Failure> {
         self.out.commit()
     }
 }
 
 /// What `kerf run` watches on the setpoint stream.
-struct Watch {
-    program_id: u64,
-    recording: Option<Recording>,
+pub(crate) struct Watch {
+    pub(crate) program_id: u64,
+    pub(crate) recording: Option<Recording>,
     /// Highest program cycle seen.
-    cycle: u64,
-    line: u32,
-    feed_mm_s: f64,
-    last_seq: u64,
+    pub(crate) cycle: u64,
+    pub(crate) line: u32,
+    pub(crate) feed_mm_s: f64,
+    pub(crate) last_seq: u64,
 }
 
 impl Watch {
-    fn take(&mut self, reader: &mut SetpointReader) -> Result<(), Failure> {
+    pub(crate) fn take(&mut self, reader: &mut SetpointReader) -> Result<(), Failure> {
         let mut failure = None;
         let result = reader.drain(true, |m| {
             self.last_seq = m.seq;
@@ -458,7 +467,7 @@ impl Watch {
 /// The status while a program runs: a request that goes unanswered for
 /// [`LIVE_REQUEST_TIMEOUT`] is retried as long as the setpoint stream shows the daemon
 /// alive; a stalled stream ([`kerf::client::STREAM_TIMEOUT`]) ends the run.
-fn live_status(
+pub(crate) fn live_status(
     client: &mut Client,
     watch: &mut Watch,
     reader: &mut SetpointReader,
@@ -473,7 +482,7 @@ fn live_status(
 }
 
 /// A program id no other run on this PC picks: the process id and the time.
-fn program_id() -> u64 {
+pub(crate) fn program_id() -> u64 {
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos() as u64);
@@ -510,8 +519,15 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         status = idle_status(&mut client, &config.machine)?;
     }
     let start = status.position_mm_deg;
-    let mut settings =
-        crate::settings_for(crate::program_settings(&config)?, &args.program.program);
+    // The machine's own files: its parameter file and tool table (docs/MACHINE.md).
+    let machine_settings = config
+        .machine_settings()
+        .map_err(|e| Failure::Error(e.to_string()))?;
+    let mut settings = crate::settings_for(machine_settings, &args.program.program);
+    // The persistent parameters the program starts with: the file is written only when
+    // the program changed them.
+    let start_parameters =
+        Interpreter::new(&[][..], source.dialect, settings.clone()).persistent_parameters();
     settings.start_mm_deg = start;
     // Block delete is the operator's switch on the machine (`kerf block-delete on|off`),
     // and the current tool is the one in its spindle.
@@ -687,7 +703,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
             if let Some(r) = watch.recording.take() {
                 r.finish()?;
             }
-            return program_ended(&scan, &s, &config, &interpreter, &name);
+            return program_ended(&scan, &s, &config, &interpreter, &start_parameters, &name);
         }
         check(&mut client, &mut watch, &mut reader, &s)?;
         std::thread::sleep(STATUS_EVERY);
@@ -786,7 +802,7 @@ fn wait_for_input(
 /// Tells a pause of the program once, when it begins: "paused at line 12 (M0, program
 /// stop): `kerf resume` to continue" (above the progress bar on a terminal, else on
 /// standard error). `kerf run` keeps waiting: it ends only when the program does.
-fn tell_pause(
+pub(crate) fn tell_pause(
     bar: &ProgressBar,
     told: &std::sync::atomic::AtomicU64,
     s: &StatusMsg,
@@ -808,7 +824,7 @@ fn tell_pause(
 
 /// The machine's status when it can take a program: idle (no other program unfinished)
 /// and not in fault; otherwise the error that says what to do.
-fn idle_status(client: &mut Client, machine: &str) -> Result<StatusMsg, Failure> {
+pub(crate) fn idle_status(client: &mut Client, machine: &str) -> Result<StatusMsg, Failure> {
     let status = client.status().map_err(client_failure)?;
     if status.program_id != 0 && status.program_end == PROGRAM_END_NONE {
         return Err(Failure::Error(format!(
@@ -827,12 +843,13 @@ fn idle_status(client: &mut Client, machine: &str) -> Result<StatusMsg, Failure>
 
 /// What `kerf run` does once the daemon reports the program over and every setpoint has
 /// been read: the end point checked (exit 0 means the program ran to it), the persistent
-/// parameters written, a program without motion noted.
+/// parameters written when the program changed them, a program without motion noted.
 fn program_ended(
     scan: &kerf::sim::Scan,
     s: &StatusMsg,
     config: &kerf_config::Config,
     interpreter: &Interpreter<Box<dyn io::BufRead + Send>>,
+    start_parameters: &[(u32, f64)],
     name: &str,
 ) -> Result<(), Failure> {
     // Exit 0 means the program ran to its end point (known when the whole program was
@@ -843,15 +860,16 @@ fn program_ended(
             .map_err(|e| Failure::Error(format!("{name}: error: {e}")))?;
     }
     // The program ended normally: its persistent parameters (G28/G30 positions,
-    // work offsets, G92) are kept for the next one, as LinuxCNC keeps its .var file.
-    if let Some(path) = &config.parameter_file {
-        kerf_config::tooltable::write_parameter_file(path, &interpreter.persistent_parameters())
-            .map_err(|e| {
-                Failure::Error(format!(
-                    "{}: error: cannot write the parameter file: {e}",
-                    path.display()
-                ))
-            })?;
+    // work offsets, G92) are kept for the next one, as LinuxCNC keeps its .var file
+    // (written when the program changed them).
+    let parameters = interpreter.persistent_parameters();
+    if parameters != start_parameters {
+        config.save_machine_parameters(&parameters).map_err(|e| {
+            Failure::Error(format!(
+                "{}: error: cannot write the parameter file: {e}",
+                config.machine_parameter_file().display()
+            ))
+        })?;
     }
     if scan.moves == 0 {
         writeln!(io::stderr().lock(), "note: no motion in {name}")?;
@@ -861,7 +879,7 @@ fn program_ended(
 
 /// A program that ended early (aborted, or refused by the daemon) or that another
 /// client's program replaced is reported at once.
-fn check_program_state(
+pub(crate) fn check_program_state(
     client: &mut Client,
     watch: &mut Watch,
     reader: &mut SetpointReader,

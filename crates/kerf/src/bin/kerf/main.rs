@@ -28,7 +28,9 @@ mod ethercat;
 mod from_line;
 mod machine;
 mod manual;
+mod mdi;
 mod output;
+mod setup;
 
 use output::Output;
 
@@ -59,6 +61,14 @@ enum Command {
     Run(machine::RunArgs),
     /// Print the daemon's status.
     Status(machine::StatusArgs),
+    /// Run G-code lines typed by hand on the machine, each to its end, in the machine's
+    /// state (its offsets, tool and position): one LINE, or a session reading lines.
+    Mdi(mdi::MdiArgs),
+    /// Show the work offsets, or set one from where the machine stands (touch-off).
+    Offset(setup::OffsetArgs),
+    /// Show the tool table, or set a tool's length from where the machine stands
+    /// (touch-off).
+    Tool(setup::ToolArgs),
     /// Feed hold: a jerk-limited stop on the path.
     Hold(machine::MachineArgs),
     /// Cycle start: resume after a hold, or go on after a pause that waits for the
@@ -203,7 +213,7 @@ fn parse_override(text: &str) -> Result<f64, String> {
     }
 }
 
-fn parse_dialect(name: &str) -> Result<Dialect, String> {
+pub(crate) fn parse_dialect(name: &str) -> Result<Dialect, String> {
     Dialect::from_name(name).ok_or_else(|| {
         let known: Vec<&str> = Dialect::ALL.iter().map(|d| d.name()).collect();
         format!(
@@ -241,6 +251,9 @@ fn main() -> ExitCode {
         Command::Sim(args) => run_sim(&args),
         Command::Run(args) => machine::run(&args),
         Command::Status(args) => machine::status(&args),
+        Command::Mdi(args) => mdi::run(&args),
+        Command::Offset(args) => setup::offset(&args),
+        Command::Tool(args) => setup::tool(&args),
         Command::Hold(args) => machine::command(&args, kerf_proto::ControlCommand::Hold),
         Command::Resume(args) => machine::command(&args, kerf_proto::ControlCommand::Resume),
         Command::OptionalStop(args) => machine::switch(&args, kerf_proto::Switch::OptionalStop),
@@ -303,9 +316,9 @@ pub fn load_config(path: Option<&Path>) -> Result<Config, Failure> {
     Ok(config)
 }
 
-/// The interpreter settings of a program run: the configuration's, with the numbered
-/// parameters of `gcode.parameter_file` restored. Every command reads the file; only
-/// `kerf run` writes it (after a program that ended normally).
+/// The interpreter settings of `kerf plan` and `kerf sim`: the configuration's, with the
+/// numbered parameters of `gcode.parameter_file` restored (the files the configuration
+/// names only; `kerf run` and `kerf mdi` use the machine's, `Config::machine_settings`).
 pub fn program_settings(config: &Config) -> Result<kerf_gcode::Settings, Failure> {
     config
         .program_settings()
