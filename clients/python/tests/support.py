@@ -97,11 +97,33 @@ class Machine:
             try:
                 c = self.client()
                 c.status()
+                self.home(c)
                 return c
             except kerf_client.KerfError as e:
                 last = e
                 time.sleep(0.05)
         self.test.fail(f"kerfd never answered ({last}): {self.daemon_stderr()}")
+
+    def home(self, c):
+        """Homes every axis (the bundled machine refuses programs until it is homed) as
+        a client does: REQUEST_HOME once the drives are enabled, then the status until
+        every axis is homed."""
+        deadline = time.monotonic() + PATIENCE_S
+        while c.status().status.drives == kerf_client.DRIVES_ENABLING:
+            if time.monotonic() > deadline:
+                self.test.fail(f"the drives never enabled: {self.daemon_stderr()}")
+            time.sleep(0.02)
+        mask = c.status().status.axes_mask & 0b111111
+        r = c.home(mask)
+        self.test.assertTrue(r.accepted, r.message)
+        while True:
+            s = c.status().status
+            if s.homing & mask == 0:
+                self.test.assertEqual(s.homed & mask, mask, s.fault_text)
+                return
+            if time.monotonic() > deadline:
+                self.test.fail(f"homing never ended: {s.home_phase}")
+            time.sleep(0.02)
 
     def client(self):
         c = kerf_client.Client(self.machine)

@@ -578,12 +578,15 @@ class Switches(unittest.TestCase):
         self.assertEqual((r.accepted, r.reason), (False, p.REASON_BAD_VALUE), r)
         r = c.spindle_override(250)
         self.assertEqual((r.accepted, r.reason), (False, p.REASON_BAD_VALUE), r)
-        # config/kerf.toml has no input 3: in range, but not allowed.
-        r = c.set_input(3, True)
-        self.assertEqual((r.accepted, r.reason), (False, p.REASON_NOT_ALLOWED), r)
-        self.assertTrue(r.message, r)
+        # config/kerf.toml has no input 30: in range, but not allowed; nor is input 3, the
+        # X axis's simulated home switch (it follows the axis).
+        for n in (30, 3):
+            r = c.set_input(n, True)
+            self.assertEqual((r.accepted, r.reason), (False, p.REASON_NOT_ALLOWED), r)
+            self.assertTrue(r.message, r)
         s = c.status().status
-        # Inputs 0 and 1 (part_present, door_closed) start on in config/kerf.toml.
+        # Inputs 0 and 1 (part_present, door_closed) start on in config/kerf.toml; the
+        # switches of the homed axes (3 to 11) are off.
         self.assertEqual((s.switches, s.digital_inputs), (0, 0b11), s)
         self.assertEqual(s.state, p.STATE_IDLE, s)
 

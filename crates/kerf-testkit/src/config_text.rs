@@ -1,9 +1,10 @@
 //! Configuration text for tests: the bundled example machine without its homing.
 
 /// `text` (a machine configuration in TOML) without `[homing]` and without every axis's
-/// `[axes.*.homing]` and `[axes.*.sim]` tables: every axis counts as homed at start with
-/// the drive's coordinates from power-up at 0, as before homing existed. For the tests
-/// whose subject is not homing but that run programs on the bundled example machine
+/// `[axes.*.homing]`, `[axes.*.limit_switches]` and `[axes.*.sim]` tables: every axis
+/// counts as homed at start with the drive's coordinates from power-up at 0, as before
+/// homing existed, and no input is a home or limit switch. For the tests whose subject is
+/// neither homing nor limit switches but that run programs on the bundled example machine
 /// (which homes on simulated switches and refuses programs until it is homed).
 pub fn without_homing(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
@@ -19,7 +20,9 @@ pub fn without_homing(text: &str) -> String {
                 .trim();
             skipping = name == "homing"
                 || (name.starts_with("axes.")
-                    && (name.ends_with(".homing") || name.ends_with(".sim")));
+                    && (name.ends_with(".homing")
+                        || name.ends_with(".sim")
+                        || name.ends_with(".limit_switches")));
         }
         if !skipping {
             out.push_str(line);
@@ -38,7 +41,7 @@ mod tests {
         let text = "machine = \"m\"\n[axes.x]\nvelocity_mm_s = 1\n[axes.x.homing]\nkind = \"switch\"\n[axes.x.limit_switches]\nmin = \"a\"\n[axes.x.sim]\nstart_mm = 3\n[homing]\nrequired = true\n[jog]\ndeadman_ms = 100\n";
         assert_eq!(
             without_homing(text),
-            "machine = \"m\"\n[axes.x]\nvelocity_mm_s = 1\n[axes.x.limit_switches]\nmin = \"a\"\n[jog]\ndeadman_ms = 100\n"
+            "machine = \"m\"\n[axes.x]\nvelocity_mm_s = 1\n[jog]\ndeadman_ms = 100\n"
         );
     }
 }

@@ -986,6 +986,7 @@ mod tests {
                 "  paused at line 30 (M6): insert tool T3 (length 45.200 mm), then `kerf resume`",
                 "  spindle: stopped, S12000 → 0 rpm commanded, 0 rpm actual, override 100 %; coolant: flood; tool: T1 (12.500 mm)",
                 "  switches: optional stop on, block delete on, single block off; outputs on: 1,4; inputs on: 0",
+                "  axes: X not homed; Y not homed; Z not homed",
             ]
         );
         let mut m0 = s;

@@ -650,14 +650,18 @@ fn sim_feed_override_scales_the_feed() {
 #[test]
 fn sim_rejects_a_path_outside_the_travel_before_any_motion() {
     // The bundled mill's Y travel is ±1000 mm; widen X to ±3000 mm so only Y matters.
-    let config = std::fs::read_to_string(root().join("config/kerf.toml")).unwrap();
+    // (Without its homing tables: `kerf sim` does not home, and X's table is then one.)
+    let config = kerf_testkit::config_text::without_homing(
+        &std::fs::read_to_string(root().join("config/kerf.toml")).unwrap(),
+    );
+    // The first travel in the file is X's.
     let config = config.replacen(
-        "min_mm = -1000.0\nmax_mm = 1000.0\n\n[axes.y]",
-        "min_mm = -3000.0\nmax_mm = 3000.0\n\n[axes.y]",
+        "min_mm = -1000.0\nmax_mm = 1000.0\n",
+        "min_mm = -3000.0\nmax_mm = 3000.0\n",
         1,
     );
     assert!(
-        config.contains("3000"),
+        config.contains("min_mm = -3000.0"),
         "the X table changed: fix this test"
     );
     let config = scratch("sim-travel.toml", &config);
@@ -1187,12 +1191,16 @@ fn sim_summary_never_shows_more_than_101_percent_on_success() {
     }
 }
 
-/// The bundled config with X travel `-1000 ..= x_max_mm`.
+/// The bundled config (without its homing tables: `kerf sim` does not home) with X travel
+/// `-1000 ..= x_max_mm`.
 fn config_with_x_max(name: &str, x_max_mm: f64) -> PathBuf {
-    let config = std::fs::read_to_string(root().join("config/kerf.toml")).unwrap();
+    let config = kerf_testkit::config_text::without_homing(
+        &std::fs::read_to_string(root().join("config/kerf.toml")).unwrap(),
+    );
+    // The first travel in the file is X's.
     let changed = config.replacen(
-        "min_mm = -1000.0\nmax_mm = 1000.0\n\n[axes.y]",
-        &format!("min_mm = -1000.0\nmax_mm = {x_max_mm:?}\n\n[axes.y]"),
+        "min_mm = -1000.0\nmax_mm = 1000.0\n",
+        &format!("min_mm = -1000.0\nmax_mm = {x_max_mm:?}\n"),
         1,
     );
     assert_ne!(changed, config, "the X table changed: fix this test");

@@ -658,15 +658,15 @@ impl Env {
 // ---------------------------------------------------------------------------------------
 
 /// A digital input of the test machine, off at start.
-const TEST_INPUT: u32 = 5;
+const TEST_INPUT: u32 = 20;
 
 /// The bundled configuration with digital input [`TEST_INPUT`] added (simulated, off).
 const ADD_INPUT: (&str, &str) = (
     "{ number = 2, name = \"tool_changed\" },",
-    "{ number = 2, name = \"tool_changed\" },\n    { number = 5, name = \"test_in\", sim = false },",
+    "{ number = 2, name = \"tool_changed\" },\n    { number = 20, name = \"test_in\", sim = false },",
 );
 
-/// `M66 P5 L3 Q<timeout>` (wait for the input to be high), then a branch on `#5399`: the
+/// `M66 P20 L3 Q<timeout>` (wait for the input to be high), then a branch on `#5399`: the
 /// "if" side ends at X2 Y0, the "else" side at X0 Y2.
 fn m66_program(timeout_s: f64) -> String {
     format!(

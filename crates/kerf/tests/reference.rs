@@ -475,6 +475,8 @@ fn completions_and_man_pages_come_from_the_binaries() {
         "mdi",
         "offset",
         "tool",
+        "jog",
+        "home",
         "hold",
         "resume",
         "optional-stop",

@@ -52,7 +52,9 @@ impl Env {
         let _ = fs::remove_dir_all(&dir);
         fs::create_dir_all(&dir).unwrap();
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-        let text = fs::read_to_string(root.join("config/kerf.toml")).unwrap();
+        let text = kerf_testkit::config_text::without_homing(
+            &fs::read_to_string(root.join("config/kerf.toml")).unwrap(),
+        );
         let from = "machine = \"default\"";
         assert!(text.contains(from));
         let text = text.replacen(from, &format!("machine = \"{machine}\""), 1);

@@ -86,6 +86,7 @@ pub(crate) fn control_thread(
     // `kerf status` answers).
     let mut cycle_runs = false;
     let mut saved_tool = machine::load_tool(&config.state_file()).unwrap_or(0);
+    let mut tools = machine::ToolLengths::of(config);
     let mut state_warned = false;
     loop {
         cycle_runs |= view.pull();
@@ -139,7 +140,8 @@ pub(crate) fn control_thread(
                 axes_mask,
                 period_ns,
             );
-            machine::fill_status(&mut msg, &view.latest.machine, config);
+            tools.refresh(config);
+            machine::fill_status(&mut msg, &view.latest.machine, config, &tools);
             msg.input_result_program = view.latest.input_result_program;
             if view.latest.drives.fault.is_some()
                 && let Some(path) = writer.fault_path()
@@ -294,7 +296,7 @@ impl Requests {
                 let axis = usize::from(axis);
                 let latest = &view.latest;
                 let position = latest.position[axis];
-                match manual_refusal(latest, "jog").map_or_else(
+                match manual_refusal(latest, "jog", latest.waits_for_operator()).map_or_else(
                     || {
                         self.manual
                             .check_jog(axis, jog, speed, position, &latest.manual)
@@ -317,7 +319,7 @@ impl Requests {
                         REASON_NOT_ALLOWED,
                         format!("this machine has no axis {}", kerf_geom::AXIS_NAMES[i]),
                     )
-                } else if let Some(why) = manual_refusal(latest, "home") {
+                } else if let Some(why) = manual_refusal(latest, "home", false) {
                     (REASON_NOT_ALLOWED, why)
                 } else if latest.manual.jogging != 0 {
                     (
@@ -369,8 +371,9 @@ impl Requests {
 }
 
 /// Why a jog or homing (`what`) is refused in the machine's present state, if it is: a
-/// fault latched, a program running, homing under way.
-fn manual_refusal(latest: &Snapshot, what: &str) -> Option<String> {
+/// fault latched, a program running (unless `paused_ok` and it waits for cycle start),
+/// homing under way.
+fn manual_refusal(latest: &Snapshot, what: &str, paused_ok: bool) -> Option<String> {
     if latest.drives.fault.is_some() {
         return Some(format!(
             "cannot {what}: a fault is latched; clear it with `kerf reset`"
@@ -380,9 +383,11 @@ fn manual_refusal(latest: &Snapshot, what: &str) -> Option<String> {
         return Some(format!("cannot {what}: the drives are not enabled yet"));
     }
     let program_runs = latest.program_id != 0 && !latest.program_done;
-    if program_runs || !matches!(latest.state, MachineState::Idle | MachineState::Manual) {
+    let idle = matches!(latest.state, MachineState::Idle | MachineState::Manual);
+    let paused = paused_ok && latest.state == MachineState::Paused;
+    if !paused && (program_runs || !idle) {
         return Some(format!(
-            "cannot {what} while a program runs ({}): jog and home when the machine is idle",
+            "cannot {what} while a program runs ({}): jog when the machine is idle or the program waits for cycle start, home when it is idle",
             latest.state.as_str()
         ));
     }

@@ -114,16 +114,35 @@ pub struct SimInputs {
     digital: u64,
     analog: u16,
     simulated: bool,
+    /// Digital inputs the simulated axes drive (their home and limit switches).
+    driven: u64,
 }
 
 impl SimInputs {
     /// The inputs of `config`'s machine.
     pub fn of(config: &Config) -> Self {
         let c = io_config(config);
+        let mut driven = 0u64;
+        for setup in config.axis_setups().iter().flatten() {
+            let sim = &setup.sim;
+            let inputs = [
+                (sim.home_switch_units, setup.homing.switch_input),
+                (sim.min_limit_units, setup.limit_switches.min_input),
+                (sim.max_limit_units, setup.limit_switches.max_input),
+            ];
+            for (placed, input) in inputs {
+                if let (Some(_), Some(n)) = (placed, input)
+                    && n < 64
+                {
+                    driven |= 1 << n;
+                }
+            }
+        }
         SimInputs {
             digital: c.digital_inputs,
             analog: c.analog_inputs,
             simulated: c.simulated_inputs,
+            driven,
         }
     }
 
@@ -145,20 +164,65 @@ impl SimInputs {
                 "{kind} input {index} is wired on the EtherCAT bus: only a simulated input can be set"
             ));
         }
+        if !analog && self.driven & (1 << index) != 0 {
+            return Err(format!(
+                "digital input {index} is a simulated home or limit switch: it follows its axis's position ([axes.*.sim])"
+            ));
+        }
         Ok(())
     }
 }
 
-/// The machine's part of the status: the pause, switches, tool, spindle, coolant and I/O
-/// from the cycle's report; `tool_length_mm` from the tool table.
-pub fn fill_status(msg: &mut StatusMsg, m: &MachineStatus, config: &Config) {
-    let length_of = |tool: u32| {
-        config
-            .tools
+/// The machine's tool table as the status reports it: the configuration's tools with the
+/// machine tool table file's entries (touched-off lengths) over them, read again when the
+/// file changes.
+pub struct ToolLengths {
+    path: std::path::PathBuf,
+    modified: Option<std::time::SystemTime>,
+    tools: Vec<kerf_config::ToolEntry>,
+}
+
+impl ToolLengths {
+    /// The table of `config`'s machine as it is now.
+    pub fn of(config: &Config) -> ToolLengths {
+        let mut t = ToolLengths {
+            path: config.machine_tool_table(),
+            modified: None,
+            tools: config.tools.clone(),
+        };
+        t.refresh(config);
+        t
+    }
+
+    /// Reads the table again when its file changed since the last read (a touch-off by
+    /// `kerf tool`); a file that cannot be read keeps the table as it was.
+    pub fn refresh(&mut self, config: &Config) {
+        let modified = std::fs::metadata(&self.path)
+            .and_then(|m| m.modified())
+            .ok();
+        if modified == self.modified {
+            return;
+        }
+        self.modified = modified;
+        match config.machine_tools() {
+            Ok(tools) => self.tools = tools,
+            Err(e) => tracing::warn!("the tool table: {e}; the status keeps the lengths it had"),
+        }
+    }
+
+    /// The length of `tool` in the table, mm.
+    pub fn length_mm(&self, tool: u32) -> Option<f64> {
+        self.tools
             .iter()
             .find(|t| t.number == tool)
             .map(|t| t.length_mm)
-    };
+    }
+}
+
+/// The machine's part of the status: the pause, switches, tool, spindle, coolant and I/O
+/// from the cycle's report; `tool_length_mm` from the machine's tool table.
+pub fn fill_status(msg: &mut StatusMsg, m: &MachineStatus, config: &Config, tools: &ToolLengths) {
+    let length_of = |tool: u32| tools.length_mm(tool);
     if let Some(p) = m.pause {
         msg.pause_line = p.line;
         let (reason, value) = match p.reason {
@@ -330,10 +394,18 @@ mod tests {
     #[test]
     fn only_configured_simulated_inputs_may_be_set() {
         let inputs = SimInputs {
-            digital: 0b101,
+            digital: 0b1101,
             analog: 0b1,
             simulated: true,
+            driven: 0b1000,
         };
+        // Input 3 is a simulated switch: it follows its axis, nobody sets it.
+        assert!(
+            inputs
+                .check(false, 3)
+                .unwrap_err()
+                .contains("simulated home or limit switch")
+        );
         assert_eq!(inputs.check(false, 0), Ok(()));
         assert_eq!(inputs.check(false, 2), Ok(()));
         assert!(

@@ -571,3 +571,77 @@ fn a_hard_limit_switch_stops_the_machine_and_the_axis_jogs_off_it_the_other_way_
     assert_eq!(s.manual.limit_released, 0, "off the switch: released ends");
     assert_eq!(s.manual.max_limit_switches, 0);
 }
+
+#[test]
+fn jogs_in_a_pause_return_z_last_before_the_program_goes_on_unchanged() {
+    let axes = [
+        plain_axis(100.0, 1000.0, 20_000.0, -100.0, 100.0),
+        plain_axis(100.0, 1000.0, 20_000.0, -100.0, 100.0),
+        plain_axis(100.0, 1000.0, 20_000.0, -100.0, 100.0),
+    ];
+    let text = machine_toml(&axes, "");
+    let program = "G21 G90\nG1 X10 F600\nM0\nG1 X20 Y5\nM2\n";
+    // `jog`: jog in the pause (else cycle start at once). The positions after the program
+    // resumed (from its first cycle that moves on the path after the pause).
+    let run = |jog: bool| {
+        let mut m = Machine::new(config(&text));
+        let start = m.position();
+        common::feed_program(&mut m.planning, &m.config, 1, start, program);
+        assert!(m.run_until(100_000, |s| s.waits_for_operator()));
+        let paused_at = m.position();
+        if jog {
+            m.command(CycleCommand::Jog {
+                axis: 2,
+                jog: Jog::Step(5.0),
+                speed: 20.0,
+            });
+            m.run();
+            assert!(m.run_until(100_000, |s| s.manual.jogging == 0));
+            m.command(CycleCommand::Jog {
+                axis: 0,
+                jog: Jog::Step(-3.0),
+                speed: 20.0,
+            });
+            m.run();
+            assert!(m.run_until(100_000, |s| s.manual.jogging == 0));
+            let p = m.position();
+            assert_eq!((p[0], p[2]), (paused_at[0] - 3.0, paused_at[2] + 5.0));
+        }
+        let from = m.log.len();
+        m.command(CycleCommand::Resume);
+        assert!(m.run_until(100_000, |s| s.program_id == 1 && s.program_done));
+        let s = m.snapshot();
+        assert!(s.refusal.is_none() && !s.aborted, "{:?}", s.refusal);
+        let tail: Vec<[f64; 6]> = m.log[from..]
+            .iter()
+            .map(|r| r.0.setpoint.position)
+            .collect();
+        (paused_at, tail, m.log.clone())
+    };
+    let (paused_ref, reference, _) = run(false);
+    let (paused_at, jogged, log) = run(true);
+    assert_eq!(paused_ref, paused_at);
+    // The way back: X returns while Z is still up; Z comes down last.
+    let back = jogged
+        .iter()
+        .position(|p| p[0] == paused_at[0] && p[2] == paused_at[2])
+        .expect("back at the pause position");
+    let x_home = jogged.iter().position(|p| p[0] == paused_at[0]).unwrap();
+    assert!(
+        jogged[..=x_home].iter().all(|p| p[2] == paused_at[2] + 5.0),
+        "Z stays up until X is back"
+    );
+    assert!(x_home < back, "Z comes down after X is back");
+    // Then the program goes on as if nobody had jogged: the same positions, cycle for
+    // cycle, from its first move after the pause.
+    let first_move = |t: &[[f64; 6]], from: usize| {
+        (from..t.len())
+            .find(|&k| t[k] != t[from])
+            .expect("it moves on")
+            - 1
+    };
+    let a = first_move(&reference, 0);
+    let b = first_move(&jogged, back);
+    assert_eq!(&reference[a..], &jogged[b..], "the program after the pause");
+    assert_limits(&log, &axes, "jog in a pause");
+}

@@ -227,6 +227,12 @@ pub struct Cycle {
     input_result: (u64, u64),
     /// Jogging, homing and the axes' switches.
     manual: Manual,
+    /// Where the running program paused, when the operator has jogged since: the program
+    /// goes on only once the axes are back there.
+    paused_at: Option<PerAxis<f64>>,
+    /// Cycle start was pressed while the axes were away from `paused_at`: the way back
+    /// runs, then the program resumes.
+    resume_after_return: bool,
     /// The drives' actual positions of the last cycle (machine coordinates).
     actual: PerAxis<f64>,
 }
@@ -308,6 +314,8 @@ impl Cycle {
             input_result: (0, 0),
             manual,
             actual: start,
+            paused_at: None,
+            resume_after_return: false,
         })
     }
 
@@ -429,7 +437,21 @@ impl Cycle {
         let mut program_cycle = 0;
         self.apply_feed_override_enable();
         let mut previous = previous;
-        if !started && self.program.is_none() && self.manual.active() && self.stage.ready() {
+        let manual_moves = self.manual.active() && self.stage.ready();
+        if self.paused_at.is_some() {
+            // A paused program whose axes the operator jogged: the motion core stays where
+            // the program paused, the axes move by hand (or stand where they were jogged).
+            if manual_moves {
+                self.manual_step();
+            }
+            self.finish_return();
+            if let Some(p) = self.program.as_mut() {
+                p.cycle += 1;
+                program_id = p.id;
+                program_cycle = p.cycle;
+            }
+            started = false;
+        } else if !started && self.program.is_none() && manual_moves {
             for (i, d) in self.manual_step().iter().enumerate() {
                 // Homing redefined the axis's coordinates: no motion.
                 previous[i] += d;
@@ -714,12 +736,39 @@ impl Cycle {
             self.safety_stop(f);
         }
         self.setpoint.feed_mm_s = 0.0;
-        self.setpoint.line = 0;
-        if !self.manual.active() {
-            // Manual motion is over: the motion core rests where it left the axes.
-            self.interp.core_mut().reset_to(self.setpoint.position);
+        if self.program.is_none() {
+            self.setpoint.line = 0;
+            if !self.manual.active() {
+                // Manual motion is over: the motion core rests where it left the axes.
+                self.interp.core_mut().reset_to(self.setpoint.position);
+            }
         }
         shifted
+    }
+
+    /// Whether the running program waits at rest for cycle start (a program stop, an
+    /// optional stop, a manual tool change, single block): the operator may jog then.
+    pub(super) fn paused_for_operator(&self) -> bool {
+        self.program.is_some()
+            && self.interp.waiting_for().is_some()
+            && self
+                .machine
+                .pause()
+                .is_some_and(|p| p.reason.needs_cycle_start())
+    }
+
+    /// Cycle start after jogging in a pause: once the way back has brought every axis to
+    /// where the program paused, the program resumes.
+    fn finish_return(&mut self) {
+        if !self.resume_after_return || self.manual.active() {
+            return;
+        }
+        if self.paused_at == Some(self.setpoint.position) {
+            self.resume_after_return = false;
+            self.paused_at = None;
+            self.interp.apply(OperatorEvent::Resume);
+            self.machine.resume();
+        }
     }
 
     /// The feed override applies while enabled (M48, M50); disabled, the motion runs at

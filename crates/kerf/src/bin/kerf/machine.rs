@@ -507,10 +507,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     let unhomed = status.axes_mask & 0b11_1111 & !status.homed;
     if status.homing_required != 0 && unhomed != 0 {
         if !args.embedded {
-            let axis = kerf_geom::AXIS_NAMES[unhomed.trailing_zeros() as usize];
-            return Err(Failure::Error(format!(
-                "kerf: error: the machine is not homed (axis {axis}): programs need every axis homed; run `kerf home --all` first"
-            )));
+            require_homed(&status)?;
         }
         // The embedded daemon is a machine just switched on: it homes first, as the
         // machinist would.
@@ -838,7 +835,25 @@ pub(crate) fn idle_status(client: &mut Client, machine: &str) -> Result<StatusMs
             machine
         )));
     }
+    if status.state == kerf_proto::STATE_MANUAL {
+        return Err(Failure::Error(format!(
+            "kerf: error: machine `{machine}` is moving by hand (a jog or homing): wait until it is at rest"
+        )));
+    }
     Ok(status)
+}
+
+/// Refuses a machine whose axes are not all homed when it requires homing (programs,
+/// MDI, touch-off: its machine coordinates are not known yet).
+pub(crate) fn require_homed(status: &StatusMsg) -> Result<(), Failure> {
+    let unhomed = status.axes_mask & 0b11_1111 & !status.homed;
+    if status.homing_required != 0 && unhomed != 0 {
+        let axis = kerf_geom::AXIS_NAMES[unhomed.trailing_zeros() as usize];
+        return Err(Failure::Error(format!(
+            "kerf: error: the machine is not homed (axis {axis}): run `kerf home --all` first"
+        )));
+    }
+    Ok(())
 }
 
 /// What `kerf run` does once the daemon reports the program over and every setpoint has

@@ -207,6 +207,7 @@ impl Session {
     /// Runs one typed line on the machine, to its end.
     fn line(&mut self, text: &str, record: Option<&PathBuf>) -> Result<(), LineFailure> {
         let status = idle_status(&mut self.client, &self.config.machine)?;
+        crate::machine::require_homed(&status)?;
         self.interp.set_position(status.position_mm_deg);
         self.lines += 1;
         let n = self.lines;

@@ -246,6 +246,7 @@ fn axis_word(word: &str, axes: &[(char, usize)]) -> Result<(usize, f64), String>
 fn machine_state(config: &Config) -> Result<(StatusMsg, Settings), Failure> {
     let mut client = kerf::client::Client::connect(&config.machine).map_err(client_failure)?;
     let status = idle_status(&mut client, &config.machine)?;
+    crate::machine::require_homed(&status)?;
     let mut settings = config.machine_settings().map_err(config_error)?;
     settings.start_mm_deg = status.position_mm_deg;
     settings.tool_in_spindle = (status.tool_in_spindle != 0).then_some(status.tool_in_spindle);

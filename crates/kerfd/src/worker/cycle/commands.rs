@@ -11,8 +11,26 @@ impl Cycle {
             // A hold that arrives after its program ended holds nothing: it must not
             // stop the next program before its first move.
             CycleCommand::Hold if self.program.is_none() => {}
+            CycleCommand::Hold if self.resume_after_return => {
+                // The way back to a paused program's position stops; cycle start starts
+                // it again.
+                self.manual.abort();
+                self.resume_after_return = false;
+            }
             CycleCommand::Hold => self.interp.apply(OperatorEvent::Hold),
             CycleCommand::Resume => {
+                if let Some(at) = self.paused_at {
+                    // Jogged during the pause: back to where the program paused first.
+                    if !self.resume_after_return && self.manual.active() {
+                        // Still jogging: the jog stops, then the way back starts.
+                        self.manual.abort();
+                    }
+                    if !self.resume_after_return {
+                        self.manual.start_return(at);
+                        self.resume_after_return = true;
+                    }
+                    return;
+                }
                 // Cycle start: a hold resumes, and a pause that waits for the operator
                 // ends (both, when the operator held during a pause).
                 self.interp.apply(OperatorEvent::Resume);
@@ -31,6 +49,7 @@ impl Cycle {
             }
             CycleCommand::Abort => {
                 self.manual.abort();
+                self.forget_pause_position();
                 if let Some(p) = self.program.as_mut() {
                     p.aborted = true;
                     self.machine.end_program(EndCause::Abort);
@@ -40,6 +59,8 @@ impl Cycle {
             CycleCommand::AbortProgram(id) => match self.program.as_mut() {
                 Some(p) if p.id == id => {
                     p.aborted = true;
+                    self.manual.abort();
+                    self.forget_pause_position();
                     self.machine.end_program(EndCause::Abort);
                     self.interp.apply(OperatorEvent::Abort)
                 }
@@ -79,12 +100,20 @@ impl Cycle {
             },
             CycleCommand::SpindleOverride(pct) => self.machine.set_spindle_override_pct(pct),
             CycleCommand::Jog { axis, jog, speed } => {
-                // One source of motion at a time; the control thread said why already.
-                if self.program.is_some() || !self.stage.ready() {
+                // One source of motion at a time: idle, or a program paused for the
+                // operator; the control thread said why already.
+                let paused = self.paused_for_operator();
+                if (self.program.is_some() && !paused)
+                    || self.resume_after_return
+                    || !self.stage.ready()
+                {
                     return;
                 }
                 if !self.manual.active() {
                     self.manual.rest_at(&self.setpoint.position);
+                }
+                if paused {
+                    self.paused_at.get_or_insert(self.setpoint.position);
                 }
                 let at = self.setpoint.position.get(axis).copied().unwrap_or(0.0);
                 let _ = self.manual.jog(axis, jog, speed, at, self.cycles);
@@ -111,6 +140,15 @@ impl Cycle {
                     self.machine.set_input_digital(index, value != 0.0)
                 };
             }
+        }
+    }
+
+    /// An abort during a pause the operator jogged in: the program ends where the axes
+    /// are (its motion core rests there).
+    fn forget_pause_position(&mut self) {
+        if self.paused_at.take().is_some() {
+            self.resume_after_return = false;
+            self.interp.core_mut().reset_to(self.setpoint.position);
         }
     }
 

@@ -61,8 +61,19 @@ pub(crate) struct ManualOut {
     pub(crate) fault: Option<(Check, usize, f64, f64)>,
 }
 
+/// Where the way back to a paused program's position stands: Z up (never down) first,
+/// then the other axes, then Z down to where the program paused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum ReturnStage {
+    Up,
+    Across,
+    Down,
+}
+
 /// The manual side of the machine: jogs, homing, switches.
 pub(crate) struct Manual {
+    /// The way back to a paused program's position, while it runs.
+    back: Option<(PerAxis<f64>, ReturnStage)>,
     axes: [Option<ManualAxis>; 6],
     deadman_cycles: u64,
     required: bool,
@@ -198,6 +209,7 @@ impl Manual {
             default_speed_pct: config.jog.default_speed_pct,
             pending: 0,
             sequence: None,
+            back: None,
         })
     }
 
@@ -237,7 +249,8 @@ impl Manual {
 
     /// Whether any axis moves by hand, homes or waits to home.
     pub(crate) fn active(&self) -> bool {
-        self.pending != 0
+        self.back.is_some()
+            || self.pending != 0
             || self
                 .axes
                 .iter()
@@ -262,6 +275,7 @@ impl Manual {
     pub(crate) fn abort(&mut self) {
         self.pending = 0;
         self.sequence = None;
+        self.back = None;
         for ax in self.axes.iter_mut().flatten() {
             ax.jog = JogMode::Idle;
             if ax.phase != 0 {
@@ -518,6 +532,7 @@ impl Manual {
     ) -> ManualOut {
         let mut out = ManualOut::default();
         self.advance_sequence();
+        self.advance_return();
         for (i, slot) in self.axes.iter_mut().enumerate() {
             let Some(ax) = slot else { continue };
             if ax.phase > kerf_proto::HOME_PHASE_WAITING || ax.homing_started() {
@@ -611,6 +626,55 @@ impl Manual {
             ax.homing.abort();
             ax.phase = 0;
             self.pending &= !(1 << i);
+        }
+    }
+
+    /// Starts the way back to `target` (where a paused program stopped, before the
+    /// operator jogged): Z up to the higher of where it is and its target first, then
+    /// every other axis, then Z down to its target; each at its default jog speed. The
+    /// program resumes once it is done ([`Manual::active`] false again).
+    pub(crate) fn start_return(&mut self, target: PerAxis<f64>) {
+        for ax in self.axes.iter_mut().flatten() {
+            ax.jog = JogMode::Idle;
+        }
+        self.back = Some((target, ReturnStage::Up));
+    }
+
+    /// One cycle of the way back: gives each axis of the current stage its target, and
+    /// moves to the next stage once they are all at rest there.
+    fn advance_return(&mut self) {
+        let Some((target, stage)) = self.back else {
+            return;
+        };
+        let pct = self.default_speed_pct;
+        const Z: usize = 2;
+        let mut all_there = true;
+        for (i, ax) in self.axes.iter_mut().enumerate() {
+            let Some(ax) = ax else { continue };
+            let goal = match (stage, i) {
+                (ReturnStage::Up, Z) => Some(ax.mover.position().max(target[Z])),
+                (ReturnStage::Across, i) if i != Z => Some(target[i]),
+                (ReturnStage::Down, Z) => Some(target[Z]),
+                _ => None,
+            };
+            let Some(goal) = goal else { continue };
+            let there = ax.mover.at_rest() && ax.mover.position() == goal;
+            if !there {
+                all_there = false;
+                if ax.jog == JogMode::Idle {
+                    ax.jog = JogMode::Target {
+                        target: goal,
+                        speed: ax.velocity_limit * pct / 100.0,
+                    };
+                }
+            }
+        }
+        if all_there {
+            self.back = match stage {
+                ReturnStage::Up => Some((target, ReturnStage::Across)),
+                ReturnStage::Across => Some((target, ReturnStage::Down)),
+                ReturnStage::Down => None,
+            };
         }
     }
 

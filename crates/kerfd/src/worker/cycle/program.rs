@@ -177,6 +177,13 @@ impl Cycle {
     }
 
     pub(super) fn end_program(&mut self) {
+        if self.paused_at.take().is_some() {
+            // Ended during a pause the operator jogged in: the motion core rests where
+            // the axes are.
+            self.resume_after_return = false;
+            self.manual.abort();
+            self.interp.core_mut().reset_to(self.setpoint.position);
+        }
         if let Some(p) = self.program.take() {
             self.last_program = (p.id, p.refusal, p.aborted);
             self.ended_this_cycle = true;
