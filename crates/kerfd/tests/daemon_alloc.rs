@@ -10,6 +10,8 @@
 //! injected stall of the setpoint stream and its reset), and a last program after all
 //! that, with a setpoint reader connecting in the middle of a program (as `kerf record`
 //! does). The drive stage (simulated drives, safety layer, black box) runs in every cycle.
+//! A second test runs the cycle through homing, jogs (the dead man's switch included), a
+//! hard limit switch's fault, its reset and the jog off it.
 //!
 //! Only the cycle's thread counts (a thread-local flag), so the planning worker, which
 //! allocates freely on its own thread, does not disturb the count.
@@ -442,4 +444,109 @@ fn the_cycle_and_its_publish_allocate_nothing_over_whole_programs() {
         (0, 0, 0),
         "allocations in Cycle::run, allocations in send_copy, frees, over {cycles} cycles"
     );
+}
+
+/// The phase of the thread that runs the cycle while the machine homes and jogs.
+const PHASE_MANUAL: u8 = 3;
+
+/// Homing (Z first, then X and Y together, on the bundled machine's simulated switches),
+/// continuous jogs renewed and left to the dead man's switch, a step and a jog to a point,
+/// a jog stopped by hand, a jog into a hard limit switch (moved inside the travel here),
+/// its fault, the reset and the jog off the switch: no cycle allocates.
+#[test]
+fn the_cycle_allocates_nothing_while_the_machine_homes_and_jogs() {
+    let text =
+        kerf_config::BUILTIN_TOML.replacen("max_limit_mm = 505.0", "max_limit_mm = 300.0", 1);
+    assert_ne!(
+        text,
+        kerf_config::BUILTIN_TOML,
+        "Z's simulated upper limit switch moved"
+    );
+    let mut config = Config::from_toml_str(&text, "kerf.toml").expect("the bundled machine");
+    config.machine = format!("alloc_manual_{}", std::process::id());
+    let (_items_tx, items_rx) = rtrb::RingBuffer::new(16);
+    let (mut commands, commands_rx) = rtrb::RingBuffer::<CycleCommand>::new(64);
+    let (status_tx, mut status_rx) = rtrb::RingBuffer::<Snapshot>::new(1 << 16);
+    let (dump_rings, _dump_writer) = kerfd::worker::dump_rings();
+    let mut cycle = Cycle::new(
+        &config,
+        [0.0; 6],
+        items_rx,
+        commands_rx,
+        status_tx,
+        dump_rings,
+    )
+    .expect("the built-in machine's cycle");
+    let mut last: Option<Snapshot> = None;
+    let mut run = |cycle: &mut Cycle, n: usize, last: &mut Option<Snapshot>| {
+        for _ in 0..n {
+            set_phase(PHASE_MANUAL);
+            let _ = cycle.run();
+            set_phase(NOT_COUNTING);
+            while let Ok(s) = status_rx.pop() {
+                *last = Some(s);
+            }
+        }
+    };
+    run(&mut cycle, 200, &mut last);
+    assert!(cycle.stage().ready(), "the drives enabled");
+    commands.push(CycleCommand::Home(0b111)).unwrap();
+    for _ in 0..200 {
+        run(&mut cycle, 100, &mut last);
+        if last.is_some_and(|s| s.manual.homed == 0b111 && s.manual.homing == 0) {
+            break;
+        }
+    }
+    let s = last.expect("a snapshot");
+    assert_eq!(s.manual.homed, 0b111, "homed: {:?}", s.manual);
+    use kerf_proto::Jog;
+    let jog = |axis, jog, speed| CycleCommand::Jog { axis, jog, speed };
+    // Continuous X+ renewed for a while, then silence: the dead man's switch stops it.
+    for _ in 0..20 {
+        commands.push(jog(0, Jog::Continuous(true), 50.0)).unwrap();
+        run(&mut cycle, 30, &mut last);
+    }
+    run(&mut cycle, 1500, &mut last);
+    // A step, a jog to a point, one stopped by hand.
+    commands.push(jog(1, Jog::Step(-2.5), 20.0)).unwrap();
+    run(&mut cycle, 1500, &mut last);
+    commands.push(jog(2, Jog::To(-30.0), 0.0)).unwrap();
+    run(&mut cycle, 3000, &mut last);
+    commands
+        .push(jog(1, Jog::Continuous(false), 100.0))
+        .unwrap();
+    run(&mut cycle, 50, &mut last);
+    commands.push(CycleCommand::JogStop(1)).unwrap();
+    run(&mut cycle, 1000, &mut last);
+    // Z up into its limit switch at 300: the fault and the quick stop; the reset; the jog
+    // off the switch.
+    for _ in 0..150 {
+        commands.push(jog(2, Jog::Continuous(true), 100.0)).unwrap();
+        run(&mut cycle, 50, &mut last);
+        if last.is_some_and(|s| s.drives.fault.is_some()) {
+            break;
+        }
+    }
+    let s = last.expect("a snapshot");
+    assert_eq!(s.drives.fault.map(|f| f.check), Some(Check::HardLimit));
+    run(&mut cycle, 1000, &mut last);
+    commands.push(CycleCommand::Reset(7)).unwrap();
+    run(&mut cycle, 200, &mut last);
+    let s = last.expect("a snapshot");
+    assert!(
+        s.reset.is_some_and(|r| r.0 == 7 && r.1.is_ok()),
+        "{:?}",
+        s.reset
+    );
+    commands.push(jog(2, Jog::Step(-10.0), 20.0)).unwrap();
+    run(&mut cycle, 2000, &mut last);
+    let s = last.expect("a snapshot");
+    assert!(s.drives.fault.is_none(), "{:?}", s.drives.fault);
+    assert_eq!(s.manual.limit_released, 0, "off the switch");
+    assert_eq!(
+        allocations(PHASE_MANUAL),
+        0,
+        "the cycle allocated while homing and jogging"
+    );
+    assert_eq!(frees(PHASE_MANUAL), 0);
 }
