@@ -321,10 +321,10 @@ pub fn keys() -> Vec<KeyDoc> {
         k(
             "daemon.state_file",
             format!(
-                "$STATE_DIRECTORY/{DEFAULT_STATE_FILE_NAME}, else the same in the temporary directory"
+                "$STATE_DIRECTORY/{DEFAULT_STATE_FILE_NAME}, else /var/lib/kerf when it exists, else the temporary directory"
             ),
             "a file name".into(),
-            "Where the daemon keeps the machine state that survives a restart (the tool in the spindle), written atomically when it changes; relative to the configuration's directory. By default in the shipped systemd unit's state directory (/var/lib/kerf), named after the machine; without systemd's STATE_DIRECTORY in the temporary directory (it then survives a restart of the daemon but not of the computer).",
+            "Where the daemon keeps the machine state that survives a restart (the tool in the spindle), written atomically when it changes; relative to the configuration's directory. By default in the machine's state directory, named after the machine: systemd's STATE_DIRECTORY (/var/lib/kerf under the shipped unit), else /var/lib/kerf when it exists (so that the operator's `kerf` commands find the same files), else the temporary directory (it then survives a restart of the daemon but not of the computer). Offsets, tool lengths and, for absolute encoders, the homed state survive too (the parameter file, the tool table, the configuration); an axis homed on a switch is unhomed again after a restart.",
         ),
         k(
             "gcode",
@@ -348,7 +348,7 @@ pub fn keys() -> Vec<KeyDoc> {
             "gcode.tool_table",
             none(),
             "a file name".into(),
-            "LinuxCNC tool table file (tool.tbl format, mm), relative to the configuration's directory; its tools add to `[[tools]]`.",
+            "LinuxCNC tool table file (tool.tbl format, mm), relative to the configuration's directory; its tools add to `[[tools]]`. `kerf tool touch-off` writes it (atomically). Without it the machine keeps MACHINE.tbl in its state directory (see `daemon.state_file`), whose entries replace `[[tools]]` entries of the same number; `kerf plan` and `kerf sim` read only a configured file.",
         ),
         k(
             "gcode.subroutine_path",
@@ -384,7 +384,7 @@ pub fn keys() -> Vec<KeyDoc> {
             "gcode.parameter_file",
             none(),
             "a file name".into(),
-            "LinuxCNC numbered parameter file (.var format), read by every command, written by `kerf run` after a program that ended normally.",
+            "LinuxCNC numbered parameter file (.var format), read at the start of every program, written (atomically) by `kerf run` after a program that changed it and ended normally, by `kerf mdi` and by `kerf offset set`. Without it the machine keeps MACHINE.var in its state directory (see `daemon.state_file`), which `kerf plan` and `kerf sim` do not read.",
         ),
         k(
             "work_offsets",
