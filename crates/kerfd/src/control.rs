@@ -298,8 +298,15 @@ impl Requests {
                 let position = latest.position[axis];
                 match manual_refusal(latest, "jog", latest.waits_for_operator()).map_or_else(
                     || {
+                        let m = &latest.manual;
+                        let bit = 1u32 << axis;
+                        let released = match (m.limit_released & bit, m.min_limit_switches & bit) {
+                            (0, _) => 0,
+                            (_, 0) => 1,
+                            _ => -1,
+                        };
                         self.manual
-                            .check_jog(axis, jog, speed, position, &latest.manual)
+                            .check_jog(axis, jog, speed, position, m.homed & bit != 0, released)
                             .err()
                     },
                     Some,

@@ -315,19 +315,20 @@ impl Manual {
         Ok(speed)
     }
 
-    /// Checks a jog of `axis` from `position` against the machine as the status `m`
-    /// shows it: the speed (returned, the default filled in), the soft limits of a homed
-    /// axis, the direction off a hard limit switch. Err with the reason.
+    /// Checks a jog of `axis` from `position` on the machine as it is: `homed` (the axis),
+    /// `released` (the side of the hard limit switch it stands on after a reset: -1 the
+    /// lower, +1 the upper, 0 none): the speed (returned, the default filled in), the soft
+    /// limits of a homed axis, the direction off a hard limit switch. Returns the speed,
+    /// the target (none for a continuous jog) and the direction; Err with the reason.
     pub(crate) fn check_jog(
         &self,
         axis: usize,
         jog: Jog,
         speed: f64,
         position: f64,
-        m: &ManualStatus,
+        homed: bool,
+        released: i8,
     ) -> Result<(f64, Option<f64>, i8), String> {
-        let bit = 1u32 << axis;
-        let homed = m.homed & bit != 0;
         let speed = self.jog_speed(axis, speed, homed)?;
         let name = kerf_geom::AXIS_NAMES[axis];
         let Some(ax) = self.axes[axis].as_ref() else {
@@ -338,14 +339,11 @@ impl Manual {
             Jog::Step(d) => (if d > 0.0 { 1 } else { -1 }, Some(position + d)),
             Jog::To(x) => (if x >= position { 1 } else { -1 }, Some(x)),
         };
-        if m.limit_released & bit != 0 {
-            let lower = m.min_limit_switches & bit != 0;
-            if (lower && direction < 0) || (!lower && direction > 0) {
-                return Err(format!(
-                    "axis {name} stands on its {} hard limit switch: jog it the other way",
-                    if lower { "lower" } else { "upper" }
-                ));
-            }
+        if released != 0 && direction == released {
+            return Err(format!(
+                "axis {name} stands on its {} hard limit switch: jog it the other way",
+                if released < 0 { "lower" } else { "upper" }
+            ));
         }
         if let Some(t) = target
             && homed
@@ -377,17 +375,10 @@ impl Manual {
             Some(JogMode::Target { target, .. }) if matches!(jog, Jog::Step(_)) => target,
             _ => position,
         };
-        let status = self.status(&kerf_drive::machine::IoImage::default());
-        let mut m = status;
-        // The switches are the ones the axes saw last; the release marks carry them.
-        for (i, ax) in self.axes.iter().enumerate() {
-            if let Some(ax) = ax
-                && ax.released < 0
-            {
-                m.min_limit_switches |= 1 << i;
-            }
-        }
-        let (speed, target, direction) = self.check_jog(axis, jog, speed, from, &m)?;
+        let (homed, released) = self.axes[axis]
+            .as_ref()
+            .map_or((true, 0), |a| (a.homed, a.released));
+        let (speed, target, direction) = self.check_jog(axis, jog, speed, from, homed, released)?;
         let deadman = self.deadman_cycles;
         let Some(ax) = self.axes[axis].as_mut() else {
             return Err("no such axis".to_string());
@@ -403,9 +394,15 @@ impl Manual {
         Ok(())
     }
 
-    /// Stops the jog of `axis` on a jerk-limited ramp.
+    /// Stops the jog of `axis` on a jerk-limited ramp (not homing, nor the way back to a
+    /// paused program: those stop with an abort).
     pub(crate) fn jog_stop(&mut self, axis: usize) {
-        if let Some(Some(ax)) = self.axes.get_mut(axis) {
+        if self.back.is_some() {
+            return;
+        }
+        if let Some(Some(ax)) = self.axes.get_mut(axis)
+            && ax.phase == 0
+        {
             ax.jog = JogMode::Idle;
             ax.mover.stop();
         }
