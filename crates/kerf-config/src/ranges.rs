@@ -335,3 +335,12 @@ pub const DEFAULT_HOMING_SEQUENCE: u32 = 0;
 /// Default `axes.*.sim.start_mm`: the simulated motor is at 0 of its own frame at
 /// power-up, as the simulated drive always was.
 pub const DEFAULT_SIM_START_MM: f64 = 0.0;
+
+/// Accepted `axes.*.homing.method` of kind "drive" on an EtherCAT drive: the CiA 402
+/// homing methods (0x6098). On a simulated drive only those it supports
+/// (`kerf_drive::sim::SUPPORTED_METHODS`).
+pub const DRIVE_HOMING_METHOD_RANGE: RangeInclusive<i8> = 1..=37;
+
+/// Default `axes.*.homing.final_speed_mm_s` of kind "drive" without a search velocity
+/// (methods 35 and 37, which do not move), percent of the axis's velocity.
+pub const DEFAULT_DRIVE_FINAL_SPEED_PCT: f64 = 10.0;

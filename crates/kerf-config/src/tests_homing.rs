@@ -69,8 +69,10 @@ fn without_the_tables_every_axis_is_homed_at_start_and_homing_is_required() {
         homing: AxisHoming {
             kind: HomingKind::None,
             switch_input: None,
+            drive_method: 0,
             search_velocity_units_s: 0.0,
             latch_velocity_units_s: 0.0,
+            acceleration_units_s2: 0.0,
             search_distance_units: 0.0,
             home_offset_units: 0.0,
             home_units: 0.0,
@@ -136,8 +138,10 @@ fn every_key_is_read_into_the_axis_setups() {
             homing: AxisHoming {
                 kind: HomingKind::Switch,
                 switch_input: Some(0),
+                drive_method: 0,
                 search_velocity_units_s: -20.0,
                 latch_velocity_units_s: 1.5,
+                acceleration_units_s2: 0.0,
                 search_distance_units: 40.0,
                 home_offset_units: -7.5,
                 home_units: 2.0,
@@ -177,8 +181,10 @@ fn a_switch_homing_takes_its_defaults_from_the_axis() {
         AxisHoming {
             kind: HomingKind::Switch,
             switch_input: Some(0),
+            drive_method: 0,
             search_velocity_units_s: 15.0,
             latch_velocity_units_s: -15.0,
+            acceleration_units_s2: 0.0,
             search_distance_units: 30.0,
             home_offset_units: 0.0,
             home_units: 0.0,
@@ -207,8 +213,10 @@ fn rotary_axes_take_the_same_keys_in_degrees() {
             homing: AxisHoming {
                 kind: HomingKind::Switch,
                 switch_input: Some(1),
+                drive_method: 0,
                 search_velocity_units_s: 360.0,
                 latch_velocity_units_s: -2.0,
+                acceleration_units_s2: 0.0,
                 search_distance_units: 400.0,
                 home_offset_units: 90.0,
                 home_units: -180.0,
@@ -237,7 +245,7 @@ fn rotary_axes_take_the_same_keys_in_degrees() {
     assert_eq!(
         refused(&text),
         format!(
-            "{}unknown key `axes.a.homing.home_offset_mm` (known here: `kind`, `switch`, `search_velocity_deg_s`, `latch_velocity_deg_s`, `search_distance_deg`, `home_offset_deg`, `home_deg`, `final_speed_deg_s`, `sequence`)",
+            "{}unknown key `axes.a.homing.home_offset_mm` (known here: `kind`, `switch`, `method`, `search_velocity_deg_s`, `latch_velocity_deg_s`, `acceleration_deg_s2`, `search_distance_deg`, `home_offset_deg`, `home_deg`, `final_speed_deg_s`, `sequence`)",
             at(&text, "home_offset_mm")
         )
     );
@@ -605,7 +613,7 @@ fn the_kind_and_the_keys_of_its_kind_are_checked() {
         (
             machine("[axes.x.homing]\nkind = \"drive\"\n"),
             "\"drive\"",
-            "`axes.x.homing.kind` = \"drive\" (CiA 402 homing mode) is not supported yet; use \"switch\", \"absolute\" or \"none\"".into(),
+            "`axes.x.homing.kind` is \"drive\" needs `axes.x.homing.method`, the CiA 402 homing method (0x6098) the drive homes with".into(),
         ),
         (
             machine("[axes.x.homing]\nkind = \"absolute\"\nswitch = \"xh\"\n"),
@@ -615,37 +623,37 @@ fn the_kind_and_the_keys_of_its_kind_are_checked() {
         (
             machine("[axes.x.homing]\nkind = \"none\"\nsearch_velocity_mm_s = 5\n"),
             "5\n",
-            "`axes.x.homing.search_velocity_mm_s` is a key of kind \"switch\", but `axes.x.homing.kind` is \"none\"; remove it".into(),
+            "`axes.x.homing.search_velocity_mm_s` is a key of kinds \"switch\" and \"drive\", but `axes.x.homing.kind` is \"none\"; remove it".into(),
         ),
         (
             machine("[axes.x.homing]\nkind = \"absolute\"\nlatch_velocity_mm_s = 5\n"),
             "5\n",
-            "`axes.x.homing.latch_velocity_mm_s` is a key of kind \"switch\", but `axes.x.homing.kind` is \"absolute\"; remove it".into(),
+            "`axes.x.homing.latch_velocity_mm_s` is a key of kinds \"switch\" and \"drive\", but `axes.x.homing.kind` is \"absolute\"; remove it".into(),
         ),
         (
             machine("[axes.x.homing]\nkind = \"absolute\"\nsearch_distance_mm = 5\n"),
             "5\n",
-            "`axes.x.homing.search_distance_mm` is a key of kind \"switch\", but `axes.x.homing.kind` is \"absolute\"; remove it".into(),
+            "`axes.x.homing.search_distance_mm` is a key of kinds \"switch\" and \"drive\", but `axes.x.homing.kind` is \"absolute\"; remove it".into(),
         ),
         (
             machine("[axes.x.homing]\nkind = \"absolute\"\nhome_mm = 5\n"),
             "5\n",
-            "`axes.x.homing.home_mm` is a key of kind \"switch\", but `axes.x.homing.kind` is \"absolute\"; remove it".into(),
+            "`axes.x.homing.home_mm` is a key of kinds \"switch\" and \"drive\", but `axes.x.homing.kind` is \"absolute\"; remove it".into(),
         ),
         (
             machine("[axes.x.homing]\nkind = \"absolute\"\nfinal_speed_mm_s = 5\n"),
             "5\n",
-            "`axes.x.homing.final_speed_mm_s` is a key of kind \"switch\", but `axes.x.homing.kind` is \"absolute\"; remove it".into(),
+            "`axes.x.homing.final_speed_mm_s` is a key of kinds \"switch\" and \"drive\", but `axes.x.homing.kind` is \"absolute\"; remove it".into(),
         ),
         (
             machine("[axes.x.homing]\nkind = \"absolute\"\nsequence = 5\n"),
             "5\n",
-            "`axes.x.homing.sequence` is a key of kind \"switch\", but `axes.x.homing.kind` is \"absolute\"; remove it".into(),
+            "`axes.x.homing.sequence` is a key of kinds \"switch\" and \"drive\", but `axes.x.homing.kind` is \"absolute\"; remove it".into(),
         ),
         (
             machine("[axes.x.homing]\nkind = \"none\"\nhome_offset_mm = 5\n"),
             "5\n",
-            "`axes.x.homing.home_offset_mm` is a key of kinds \"switch\" and \"absolute\", but `axes.x.homing.kind` is \"none\"; remove it".into(),
+            "`axes.x.homing.home_offset_mm` is a key of kinds \"switch\", \"absolute\" and \"drive\", but `axes.x.homing.kind` is \"none\"; remove it".into(),
         ),
         (
             machine("[axes.x.homing]\nkind = \"switch\"\nsearch_velocity_mm_s = 5\nlatch_velocity_mm_s = 1\n"),
@@ -805,12 +813,12 @@ fn the_simulated_machine_drives_only_switches_it_has_inputs_for() {
         (
             machine("[axes.x.sim]\nhome_switch_mm = -8.0\n"),
             "-8.0",
-            "`axes.x.sim.home_switch_mm` places a simulated home switch, but axis x has no [axes.x.homing]: it needs kind \"switch\"; remove it or home the axis on a switch".into(),
+            "`axes.x.sim.home_switch_mm` places a simulated home switch, but axis x has no [axes.x.homing]: it needs kind \"switch\" or \"drive\"; remove it or home the axis on a switch".into(),
         ),
         (
             machine("[axes.x.homing]\nkind = \"absolute\"\n[axes.x.sim]\nhome_switch_mm = -8.0\n"),
             "-8.0",
-            "`axes.x.sim.home_switch_mm` places a simulated home switch, but `axes.x.homing.kind` is \"absolute\": it needs kind \"switch\"; remove it or home the axis on a switch".into(),
+            "`axes.x.sim.home_switch_mm` places a simulated home switch, but `axes.x.homing.kind` is \"absolute\": it needs kind \"switch\" or \"drive\"; remove it or home the axis on a switch".into(),
         ),
         // A simulated limit switch without its input.
         (
@@ -939,7 +947,7 @@ fn unknown_keys_and_wrong_types_are_named() {
         (
             "[axes.x.homing]\nkind = \"none\"\nhome_velocity_mm_s = 1\n",
             "home_velocity_mm_s",
-            "unknown key `axes.x.homing.home_velocity_mm_s` (known here: `kind`, `switch`, `search_velocity_mm_s`, `latch_velocity_mm_s`, `search_distance_mm`, `home_offset_mm`, `home_mm`, `final_speed_mm_s`, `sequence`)",
+            "unknown key `axes.x.homing.home_velocity_mm_s` (known here: `kind`, `switch`, `method`, `search_velocity_mm_s`, `latch_velocity_mm_s`, `acceleration_mm_s2`, `search_distance_mm`, `home_offset_mm`, `home_mm`, `final_speed_mm_s`, `sequence`)",
         ),
         (
             "[axes.z.limit_switches]\nhome = \"zh\"\n",
@@ -1006,8 +1014,10 @@ fn the_bundled_mill_homes_on_simulated_switches() {
         homing: AxisHoming {
             kind: HomingKind::Switch,
             switch_input: input(home),
+            drive_method: 0,
             search_velocity_units_s: -100.0,
             latch_velocity_units_s: 2.0,
+            acceleration_units_s2: 0.0,
             search_distance_units: 3000.0,
             home_offset_units: -100.0,
             home_units: 0.0,
@@ -1029,8 +1039,10 @@ fn the_bundled_mill_homes_on_simulated_switches() {
         homing: AxisHoming {
             kind: HomingKind::Switch,
             switch_input: input("z_home"),
+            drive_method: 0,
             search_velocity_units_s: 50.0,
             latch_velocity_units_s: -2.0,
+            acceleration_units_s2: 0.0,
             search_distance_units: 1500.0,
             home_offset_units: 50.0,
             home_units: 0.0,
@@ -1143,4 +1155,513 @@ fn the_quickstart_program_fits_the_homed_bundled_mill() {
             .collect();
     assert!(moves.len() > 40, "{} moves", moves.len());
     assert_eq!(travel::check_moves(&moves, &c.axes), Ok(()));
+}
+
+/// [`machine`] with `[axes.x.homing]` of kind "drive" and `keys`, then `extra`.
+fn x_drive(keys: &str, extra: &str) -> String {
+    machine(&format!("[axes.x.homing]\nkind = \"drive\"\n{keys}{extra}"))
+}
+
+#[test]
+fn a_drive_homing_reads_every_key_and_gives_its_objects_in_the_drives_counts() {
+    let c = config(&x_drive(
+        "method = 20\nsearch_velocity_mm_s = 20.0\nlatch_velocity_mm_s = 2.5\n\
+         acceleration_mm_s2 = 500.0\nsearch_distance_mm = 15.0\nhome_offset_mm = -7.5\n\
+         home_mm = 2.0\nfinal_speed_mm_s = 30.0\nsequence = 2\n",
+        "[axes.x.drive]\ncounts_per_mm = 400.0\ndirection = -1\n\
+         [axes.x.sim]\nstart_mm = 1.0\nhome_switch_mm = 4.25\n",
+    ));
+    assert_eq!(
+        setup(&c, 0).homing,
+        AxisHoming {
+            kind: HomingKind::Drive,
+            switch_input: None,
+            drive_method: 20,
+            search_velocity_units_s: 20.0,
+            latch_velocity_units_s: 2.5,
+            acceleration_units_s2: 500.0,
+            search_distance_units: 15.0,
+            home_offset_units: -7.5,
+            home_units: 2.0,
+            final_speed_units_s: 30.0,
+            sequence: 2,
+        }
+    );
+    assert_eq!(
+        setup(&c, 0).sim,
+        SimAxis {
+            start_units: 1.0,
+            home_switch_units: Some(4.25),
+            ..SimAxis::default()
+        }
+    );
+    assert!(!HomingKind::Drive.homed_at_start());
+    // 400 counts/mm: 8000 and 1000 counts/s, 200 000 counts/s²; the offset with the
+    // direction: -1 × 400 × -7.5 = 3000 counts.
+    assert_eq!(
+        c.drive_homing_objects(0),
+        Some(DriveHomingObjects {
+            method: 20,
+            search_speed_counts_s: 8000,
+            zero_speed_counts_s: 1000,
+            acceleration_counts_s2: 200_000,
+            home_offset_counts: 3000,
+        })
+    );
+    // The switch at 4.25 mm of the drive's frame is at -1700 counts; 15 mm are 6000.
+    assert_eq!(
+        c.sim_homing(0),
+        Some(kerf_drive::sim::SimHomingConfig {
+            method: 20,
+            search_speed_counts_s: 8000,
+            zero_speed_counts_s: 1000,
+            acceleration_counts_s2: 200_000,
+            home_offset_counts: 3000,
+            home_switch_counts: Some(-1700.0),
+            search_limit_counts: 6000.0,
+        })
+    );
+    // The other axes are not homed by their drives.
+    for axis in [1, 2, 3, 6] {
+        assert_eq!(c.drive_homing_objects(axis), None);
+        assert_eq!(c.sim_homing(axis), None);
+    }
+}
+
+#[test]
+fn a_drive_homing_takes_its_defaults_from_the_axis() {
+    // Method 37 moves nothing: no speeds needed, none written (0); the axis's
+    // acceleration; 1.5 × the travel of 20 mm; home and offset 0; the final move at 10 %
+    // of 100 mm/s.
+    let c = config(&x_drive("method = 37\n", ""));
+    assert_eq!(
+        setup(&c, 0).homing,
+        AxisHoming {
+            kind: HomingKind::Drive,
+            switch_input: None,
+            drive_method: 37,
+            search_velocity_units_s: 0.0,
+            latch_velocity_units_s: 0.0,
+            acceleration_units_s2: 1000.0,
+            search_distance_units: 30.0,
+            home_offset_units: 0.0,
+            home_units: 0.0,
+            final_speed_units_s: 10.0,
+            sequence: 0,
+        }
+    );
+    assert_eq!(
+        c.drive_homing_objects(0),
+        Some(DriveHomingObjects {
+            method: 37,
+            search_speed_counts_s: 0,
+            zero_speed_counts_s: 0,
+            acceleration_counts_s2: 1_000_000,
+            home_offset_counts: 0,
+        })
+    );
+    assert_eq!(
+        c.sim_homing(0),
+        Some(kerf_drive::sim::SimHomingConfig {
+            method: 37,
+            search_speed_counts_s: 0,
+            zero_speed_counts_s: 0,
+            acceleration_counts_s2: 1_000_000,
+            home_offset_counts: 0,
+            home_switch_counts: None,
+            search_limit_counts: 30_000.0,
+        })
+    );
+    // A method that moves: the final move at the search's speed; speeds of a fraction of
+    // a count per second round to the nearest count, and never to 0.
+    let c = config(&x_drive(
+        "method = 21\nsearch_velocity_mm_s = 12.5\nlatch_velocity_mm_s = 0.0001\n",
+        "",
+    ));
+    let h = setup(&c, 0).homing;
+    assert_eq!(
+        (
+            h.drive_method,
+            h.final_speed_units_s,
+            h.acceleration_units_s2
+        ),
+        (21, 12.5, 1000.0)
+    );
+    let o = c.drive_homing_objects(0).unwrap();
+    assert_eq!(
+        (o.search_speed_counts_s, o.zero_speed_counts_s),
+        (12_500, 1)
+    );
+    // Method 35 is 37's older number.
+    assert_eq!(
+        setup(&config(&x_drive("method = 35\n", "")), 0)
+            .homing
+            .drive_method,
+        35
+    );
+}
+
+#[test]
+fn a_rotary_axis_homed_by_its_drive_takes_degrees() {
+    let c = config(&with_a(
+        "[axes.a.homing]\nkind = \"drive\"\nmethod = 22\nsearch_velocity_deg_s = 90\n\
+         latch_velocity_deg_s = 9\nacceleration_deg_s2 = 3600\nhome_offset_deg = 45\nhome_deg = -90\n\
+         [axes.a.drive]\ncounts_per_deg = 100\n[axes.a.sim]\nhome_switch_deg = -170\n",
+    ));
+    let h = setup(&c, 3).homing;
+    assert_eq!(
+        (
+            h.kind,
+            h.drive_method,
+            h.search_velocity_units_s,
+            h.latch_velocity_units_s,
+            h.acceleration_units_s2,
+            h.search_distance_units,
+            h.home_offset_units,
+            h.home_units,
+            h.final_speed_units_s,
+        ),
+        (
+            HomingKind::Drive,
+            22,
+            90.0,
+            9.0,
+            3600.0,
+            540.0,
+            45.0,
+            -90.0,
+            90.0
+        )
+    );
+    assert_eq!(
+        c.sim_homing(3),
+        Some(kerf_drive::sim::SimHomingConfig {
+            method: 22,
+            search_speed_counts_s: 9000,
+            zero_speed_counts_s: 900,
+            acceleration_counts_s2: 360_000,
+            home_offset_counts: 4500,
+            home_switch_counts: Some(-17_000.0),
+            search_limit_counts: 54_000.0,
+        })
+    );
+    // Its messages speak degrees.
+    let text =
+        with_a("[axes.a.homing]\nkind = \"drive\"\nmethod = 37\nacceleration_deg_s2 = 3601\n");
+    assert_eq!(
+        refused(&text),
+        format!(
+            "{}`axes.a.homing.acceleration_deg_s2` must be above 0 and at most 3600 deg/s² (the axis's `acceleration_deg_s2`), found 3601",
+            at_value(&text, "acceleration_deg_s2 = 3601")
+        )
+    );
+}
+
+#[test]
+fn drive_homing_values_are_accepted_to_their_range_edges_and_refused_beyond() {
+    let moving = |extra: &str| {
+        x_drive(
+            &format!("method = 19\nsearch_velocity_mm_s = 20\nlatch_velocity_mm_s = 2\n{extra}"),
+            "",
+        )
+    };
+    let speed = "(the axis's `velocity_mm_s`; kind \"drive\" takes a speed: the method gives the direction)";
+    let err = |line: &str, message: String| Err((line.to_string(), message));
+    let mut cases: Vec<Case> = vec![
+        // The search's speed: above 0, at most the axis's 100 mm/s.
+        (
+            x_drive("method = 20\nsearch_velocity_mm_s = 100\nlatch_velocity_mm_s = 100\n", ""),
+            Ok(()),
+        ),
+        (
+            x_drive("method = 20\nsearch_velocity_mm_s = 100.01\nlatch_velocity_mm_s = 1\n", ""),
+            err(
+                "search_velocity_mm_s = 100.01",
+                format!("`axes.x.homing.search_velocity_mm_s` must be above 0 and at most 100 mm/s {speed}, found 100.01"),
+            ),
+        ),
+        (
+            x_drive("method = 20\nsearch_velocity_mm_s = -5\nlatch_velocity_mm_s = 1\n", ""),
+            err(
+                "search_velocity_mm_s = -5",
+                format!("`axes.x.homing.search_velocity_mm_s` must be above 0 and at most 100 mm/s {speed}, found -5"),
+            ),
+        ),
+        (
+            x_drive("method = 20\nsearch_velocity_mm_s = 0\nlatch_velocity_mm_s = 1\n", ""),
+            err(
+                "search_velocity_mm_s = 0",
+                format!("`axes.x.homing.search_velocity_mm_s` must be above 0 and at most 100 mm/s {speed}, found 0"),
+            ),
+        ),
+        // The zero speed: above 0, at most the search's.
+        (
+            x_drive("method = 20\nsearch_velocity_mm_s = 20\nlatch_velocity_mm_s = 20.5\n", ""),
+            err(
+                "latch_velocity_mm_s = 20.5",
+                "`axes.x.homing.latch_velocity_mm_s` must be above 0 and at most 20 mm/s (`axes.x.homing.search_velocity_mm_s`), found 20.5".into(),
+            ),
+        ),
+        (
+            x_drive("method = 20\nsearch_velocity_mm_s = 20\nlatch_velocity_mm_s = -1\n", ""),
+            err(
+                "latch_velocity_mm_s = -1",
+                "`axes.x.homing.latch_velocity_mm_s` must be above 0 and at most 20 mm/s (`axes.x.homing.search_velocity_mm_s`), found -1".into(),
+            ),
+        ),
+        // Without a search speed (method 37) the zero speed is bounded by the axis's.
+        (x_drive("method = 37\nlatch_velocity_mm_s = 100\n", ""), Ok(())),
+        (
+            x_drive("method = 37\nlatch_velocity_mm_s = 101\n", ""),
+            err(
+                "latch_velocity_mm_s = 101",
+                format!("`axes.x.homing.latch_velocity_mm_s` must be above 0 and at most 100 mm/s {speed}, found 101"),
+            ),
+        ),
+        // The acceleration: above 0, at most the axis's 1000 mm/s².
+        (moving("acceleration_mm_s2 = 1000\n"), Ok(())),
+        (moving("acceleration_mm_s2 = 0.001\n"), Ok(())),
+        (
+            moving("acceleration_mm_s2 = 1000.5\n"),
+            err(
+                "acceleration_mm_s2 = 1000.5",
+                "`axes.x.homing.acceleration_mm_s2` must be above 0 and at most 1000 mm/s² (the axis's `acceleration_mm_s2`), found 1000.5".into(),
+            ),
+        ),
+        (
+            moving("acceleration_mm_s2 = 0\n"),
+            err(
+                "acceleration_mm_s2 = 0",
+                "`axes.x.homing.acceleration_mm_s2` must be above 0 and at most 1000 mm/s² (the axis's `acceleration_mm_s2`), found 0".into(),
+            ),
+        ),
+        // The simulated drive's search limit, as kind "switch"'s search distance.
+        (moving("search_distance_mm = 1e7\n"), Ok(())),
+        (
+            moving("search_distance_mm = 0\n"),
+            err(
+                "search_distance_mm = 0",
+                "`axes.x.homing.search_distance_mm` must be above 0 and at most 1e7 mm, found 0".into(),
+            ),
+        ),
+        // The home offset: a coordinate, within 32-bit counts (1e6 mm at 1000 counts/mm
+        // is 1e9 counts).
+        (moving("home_offset_mm = -1e6\n"), Ok(())),
+        (
+            moving("home_offset_mm = 1000000.5\n"),
+            err(
+                "home_offset_mm = 1000000.5",
+                "`axes.x.homing.home_offset_mm` must be between -1000000 and 1000000 mm, found 1000000.5".into(),
+            ),
+        ),
+        // Home within the travel, the final speed within the axis's velocity, the
+        // sequence 0 to 9: as for kind "switch".
+        (moving("home_mm = 10\nfinal_speed_mm_s = 100\nsequence = 9\n"), Ok(())),
+        (
+            moving("home_mm = 10.5\n"),
+            err(
+                "home_mm = 10.5",
+                "`axes.x.homing.home_mm` (10.5 mm) must lie within the travel of axis x, -10 to 10 mm (`min_mm`, `max_mm`)".into(),
+            ),
+        ),
+        (
+            moving("final_speed_mm_s = 100.5\n"),
+            err(
+                "final_speed_mm_s = 100.5",
+                "`axes.x.homing.final_speed_mm_s` must be above 0 and at most 100 mm/s (the axis's `velocity_mm_s`), found 100.5".into(),
+            ),
+        ),
+        (
+            moving("sequence = 10\n"),
+            err(
+                "sequence = 10",
+                "`axes.x.homing.sequence` must be a homing sequence number from 0 to 9, found 10".into(),
+            ),
+        ),
+    ];
+    // The methods of the simulated drive, and no other.
+    for m in [19, 20, 21, 22] {
+        cases.push((
+            x_drive(
+                &format!("method = {m}\nsearch_velocity_mm_s = 20\nlatch_velocity_mm_s = 2\n"),
+                "",
+            ),
+            Ok(()),
+        ));
+    }
+    for m in [35, 37] {
+        cases.push((x_drive(&format!("method = {m}\n"), ""), Ok(())));
+    }
+    for m in ["0", "1", "17", "18", "23", "34", "36", "38", "-1", "300"] {
+        cases.push((
+            x_drive(&format!("method = {m}\n"), ""),
+            err(
+                &format!("method = {m}"),
+                format!("`axes.x.homing.method` must be a homing method the simulated drive supports (19, 20, 21, 22, 35, 37), found {m}"),
+            ),
+        ));
+    }
+    check_cases(cases);
+}
+
+#[test]
+fn a_drive_homing_refuses_what_its_drive_cannot_hold_in_counts() {
+    // 3000 counts/mm: 1e6 mm is 3e9 counts, beyond 0x607C's i32 (the travel of 10 mm
+    // fits).
+    let text = x_drive(
+        "method = 37\nhome_offset_mm = 1e6\n",
+        "[axes.x.drive]\ncounts_per_mm = 3000\n",
+    );
+    assert_eq!(
+        refused(&text),
+        format!(
+            "{}`axes.x.homing.home_offset_mm` is 3e9 counts at the drive's 3000 counts/mm, beyond the 32-bit home offset 0x607C (2147483647)",
+            at_value(&text, "home_offset_mm = 1e6")
+        )
+    );
+    // 1e8 counts/mm: 50 mm/s is 5e9 counts/s, beyond 0x6099's u32.
+    let text = x_drive(
+        "method = 20\nsearch_velocity_mm_s = 50\nlatch_velocity_mm_s = 1\nacceleration_mm_s2 = 0.01\n",
+        "[axes.x.drive]\ncounts_per_mm = 1e8\n",
+    );
+    assert_eq!(
+        refused(&text),
+        format!(
+            "{}`axes.x.homing.search_velocity_mm_s` is 5e9 counts/s at the drive's 1e8 counts/mm, beyond the 32-bit 0x6099:01 (4294967295)",
+            at_value(&text, "search_velocity_mm_s = 50")
+        )
+    );
+    // The default acceleration, the axis's 1000 mm/s², is 1e11 counts/s² there: refused
+    // at the kind, naming the key to give.
+    let text = x_drive(
+        "method = 20\nsearch_velocity_mm_s = 1\nlatch_velocity_mm_s = 1\n",
+        "[axes.x.drive]\ncounts_per_mm = 1e8\n",
+    );
+    assert_eq!(
+        refused(&text),
+        format!(
+            "{}`axes.x.homing.acceleration_mm_s2` is 1e11 counts/s² at the drive's 1e8 counts/mm, beyond the 32-bit 0x609A (4294967295)",
+            at(&text, "\"drive\"")
+        )
+    );
+}
+
+#[test]
+fn the_keys_of_a_drive_homing_are_its_own() {
+    let cases: Vec<(String, &str, String)> = vec![
+        (
+            x_drive("search_velocity_mm_s = 5\nlatch_velocity_mm_s = 1\n", ""),
+            "\"drive\"",
+            "`axes.x.homing.kind` is \"drive\" needs `axes.x.homing.method`, the CiA 402 homing method (0x6098) the drive homes with".into(),
+        ),
+        (
+            x_drive("method = 19\nlatch_velocity_mm_s = 1\n", ""),
+            "\"drive\"",
+            "`axes.x.homing.kind` is \"drive\" needs `axes.x.homing.search_velocity_mm_s`, the drive's speed during the search for the switch (0x6099:01), which method 19 needs".into(),
+        ),
+        (
+            x_drive("method = 22\nsearch_velocity_mm_s = 5\n", ""),
+            "\"drive\"",
+            "`axes.x.homing.kind` is \"drive\" needs `axes.x.homing.latch_velocity_mm_s`, the drive's speed during the search for zero (0x6099:02), which method 22 needs".into(),
+        ),
+        (
+            x_drive("method = 37\nswitch = \"xh\"\n", ""),
+            "switch = \"xh\"",
+            "`axes.x.homing.switch` is a key of kind \"switch\", but `axes.x.homing.kind` is \"drive\"; remove it".into(),
+        ),
+        (
+            machine(&x_switch("-20", "1", "method = 20\n")),
+            "method = 20",
+            "`axes.x.homing.method` is a key of kind \"drive\", but `axes.x.homing.kind` is \"switch\"; remove it".into(),
+        ),
+        (
+            machine(&x_switch("-20", "1", "acceleration_mm_s2 = 20\n")),
+            "acceleration_mm_s2 = 20",
+            "`axes.x.homing.acceleration_mm_s2` is a key of kind \"drive\", but `axes.x.homing.kind` is \"switch\"; remove it".into(),
+        ),
+        (
+            machine("[axes.x.homing]\nkind = \"absolute\"\nmethod = 37\n"),
+            "method = 37",
+            "`axes.x.homing.method` is a key of kind \"drive\", but `axes.x.homing.kind` is \"absolute\"; remove it".into(),
+        ),
+        (
+            machine("[axes.x.homing]\nkind = \"none\"\nacceleration_mm_s2 = 5\n"),
+            "acceleration_mm_s2 = 5",
+            "`axes.x.homing.acceleration_mm_s2` is a key of kind \"drive\", but `axes.x.homing.kind` is \"none\"; remove it".into(),
+        ),
+        (
+            x_drive("method = 37\n", "[axes.x.sim]\nhome_switch_mm = 3\n"),
+            "home_switch_mm = 3",
+            "`axes.x.sim.home_switch_mm` places a simulated home switch, but `axes.x.homing.method` 37 homes where the axis stands, without a switch; remove it".into(),
+        ),
+        (
+            x_drive("method = 1.5\n", ""),
+            "1.5",
+            "`axes.x.homing.method` must be a whole number, found 1.5".into(),
+        ),
+    ];
+    for (text, needle, message) in cases {
+        let place = if needle.contains(" = ") {
+            at_value(&text, needle)
+        } else {
+            at(&text, needle)
+        };
+        assert_eq!(refused(&text), format!("{place}{message}"), "{text}");
+    }
+    // A method with a switch may have none on the simulated machine: its search then
+    // ends in a homing error.
+    let c = config(&x_drive(
+        "method = 21\nsearch_velocity_mm_s = 5\nlatch_velocity_mm_s = 1\n",
+        "",
+    ));
+    assert_eq!(c.sim_homing(0).map(|s| s.home_switch_counts), Some(None));
+}
+
+#[test]
+fn on_ethercat_a_drive_homing_takes_any_cia_402_method_and_no_simulated_limit() {
+    let on_bus = |homing: &str| {
+        format!(
+            "{}[axes.x.homing]\nkind = \"drive\"\n{homing}",
+            bus("", "", "")
+        )
+    };
+    for m in [1, 17, 34, 35, 37] {
+        let c = config(&on_bus(&format!(
+            "method = {m}\nsearch_velocity_mm_s = 10\nlatch_velocity_mm_s = 1\nhome_offset_mm = 2.5\n"
+        )));
+        assert_eq!(
+            c.drive_homing_objects(0),
+            Some(DriveHomingObjects {
+                method: m,
+                search_speed_counts_s: 10_000,
+                zero_speed_counts_s: 1000,
+                acceleration_counts_s2: 1_000_000,
+                home_offset_counts: 2500,
+            })
+        );
+        // Not a simulated drive.
+        assert_eq!(c.sim_homing(0), None);
+    }
+    for m in ["0", "38", "-3", "128"] {
+        let text = on_bus(&format!(
+            "method = {m}\nsearch_velocity_mm_s = 10\nlatch_velocity_mm_s = 1\n"
+        ));
+        assert_eq!(
+            refused(&text),
+            format!(
+                "{}`axes.x.homing.method` must be a CiA 402 homing method from 1 to 37, found {m}",
+                at_value(&text, &format!("method = {m}"))
+            )
+        );
+    }
+    let text = on_bus(
+        "method = 20\nsearch_velocity_mm_s = 10\nlatch_velocity_mm_s = 1\nsearch_distance_mm = 30\n",
+    );
+    assert_eq!(
+        refused(&text),
+        format!(
+            "{}`axes.x.homing.search_distance_mm` is the simulated drive's search limit for kind \"drive\"; with [ethercat] the drive searches within its own limits; remove it",
+            at_value(&text, "search_distance_mm = 30")
+        )
+    );
 }

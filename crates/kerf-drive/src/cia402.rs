@@ -25,8 +25,53 @@ pub const FOLLOWING_ERROR_ACTUAL_INDEX: u16 = 0x60F4;
 /// Object index of the target position (counts).
 pub const TARGET_POSITION_INDEX: u16 = 0x607A;
 
+/// Object index of the homing method (i8; see [`homing_method`]).
+pub const HOMING_METHOD_INDEX: u16 = 0x6098;
+/// Object index of the homing speeds (u32, counts/s): sub-index
+/// [`HOMING_SPEED_SWITCH_SUBINDEX`] the speed during the search for the switch,
+/// [`HOMING_SPEED_ZERO_SUBINDEX`] the speed during the search for zero (the slow approach
+/// of the edge).
+pub const HOMING_SPEEDS_INDEX: u16 = 0x6099;
+/// Sub-index 1 of [`HOMING_SPEEDS_INDEX`]: speed during the search for the switch.
+pub const HOMING_SPEED_SWITCH_SUBINDEX: u8 = 0x01;
+/// Sub-index 2 of [`HOMING_SPEEDS_INDEX`]: speed during the search for zero.
+pub const HOMING_SPEED_ZERO_SUBINDEX: u8 = 0x02;
+/// Object index of the homing acceleration (u32, counts/s²).
+pub const HOMING_ACCELERATION_INDEX: u16 = 0x609A;
+/// Object index of the home offset (i32, counts): the position actual value the drive
+/// gives the home position once homing is attained.
+pub const HOME_OFFSET_INDEX: u16 = 0x607C;
+
+/// Mode of operation 6: homing (the drive moves on its own to find its home position).
+pub const MODE_HOMING: i8 = 6;
 /// Mode of operation 8: cyclic synchronous position.
 pub const MODE_CYCLIC_SYNC_POSITION: i8 = 8;
+
+/// The homing methods (0x6098) Kerf names; CiA 402 defines 1 to 37 (and negative numbers
+/// for the manufacturer's own).
+pub mod homing_method {
+    /// Method 19: positive home switch; the home position is where the switch falls
+    /// (becomes inactive) moving in the negative direction.
+    pub const POSITIVE_SWITCH_FALLING: i8 = 19;
+    /// Method 20: positive home switch; the home position is where the switch rises
+    /// (becomes active) moving in the positive direction.
+    pub const POSITIVE_SWITCH_RISING: i8 = 20;
+    /// Method 21: negative home switch; the home position is where the switch falls
+    /// moving in the positive direction.
+    pub const NEGATIVE_SWITCH_FALLING: i8 = 21;
+    /// Method 22: negative home switch; the home position is where the switch rises
+    /// moving in the negative direction.
+    pub const NEGATIVE_SWITCH_RISING: i8 = 22;
+    /// Method 35: the current position is the home position; no motion (the older number
+    /// of method 37, still found on drives).
+    pub const CURRENT_POSITION_35: i8 = 35;
+    /// Method 37: the current position is the home position; no motion.
+    pub const CURRENT_POSITION: i8 = 37;
+    /// The lowest method CiA 402 defines.
+    pub const FIRST: i8 = 1;
+    /// The highest method CiA 402 defines.
+    pub const LAST: i8 = 37;
+}
 
 /// Controlword bits (0x6040).
 pub mod cw {
@@ -38,6 +83,9 @@ pub mod cw {
     pub const QUICK_STOP: u16 = 1 << 2;
     /// Bit 3: enable operation.
     pub const ENABLE_OPERATION: u16 = 1 << 3;
+    /// Bit 4 in homing mode: homing operation start (its rising edge starts the homing,
+    /// its falling edge interrupts it).
+    pub const HOMING_START: u16 = 1 << 4;
     /// Bit 7: fault reset (acts on the rising edge).
     pub const FAULT_RESET: u16 = 1 << 7;
     /// Bit 8: halt.
@@ -85,6 +133,62 @@ pub mod sw {
     pub const DRIVE_FOLLOWS_TARGET: u16 = 1 << 12;
     /// Bit 13 in cyclic synchronous position: following error.
     pub const FOLLOWING_ERROR: u16 = 1 << 13;
+    /// Bit 12 in homing mode: homing attained (with bit 10: homing completed).
+    pub const HOMING_ATTAINED: u16 = 1 << 12;
+    /// Bit 13 in homing mode: homing error (with bit 10: the motor is at rest).
+    pub const HOMING_ERROR: u16 = 1 << 13;
+}
+
+/// What the statusword says of a homing in homing mode (bits 13, 12 and 10, as CiA 402
+/// defines them there).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum HomingStatus {
+    /// 0 0 0: the homing is in progress.
+    InProgress,
+    /// 0 0 1: the homing was interrupted or not started.
+    Idle,
+    /// 0 1 0: the home position was found but the target is not reached yet.
+    AttainedMoving,
+    /// 0 1 1: the homing completed: home found, at rest there.
+    Completed,
+    /// 1 0 0: a homing error; the motor still moves.
+    ErrorMoving,
+    /// 1 0 1: a homing error; the motor is at rest.
+    ErrorAtRest,
+    /// 1 1 x: reserved.
+    Reserved,
+}
+
+impl HomingStatus {
+    /// Decodes bits 13, 12 and 10 of a statusword read in homing mode.
+    pub fn from_statusword(statusword: u16) -> HomingStatus {
+        let error = statusword & sw::HOMING_ERROR != 0;
+        let attained = statusword & sw::HOMING_ATTAINED != 0;
+        let reached = statusword & sw::TARGET_REACHED != 0;
+        match (error, attained, reached) {
+            (false, false, false) => HomingStatus::InProgress,
+            (false, false, true) => HomingStatus::Idle,
+            (false, true, false) => HomingStatus::AttainedMoving,
+            (false, true, true) => HomingStatus::Completed,
+            (true, false, false) => HomingStatus::ErrorMoving,
+            (true, false, true) => HomingStatus::ErrorAtRest,
+            (true, true, _) => HomingStatus::Reserved,
+        }
+    }
+
+    /// The statusword bits 13, 12 and 10 that show this status (bit 13 and 12 for
+    /// [`HomingStatus::Reserved`]).
+    pub fn statusword_bits(self) -> u16 {
+        match self {
+            HomingStatus::InProgress => 0,
+            HomingStatus::Idle => sw::TARGET_REACHED,
+            HomingStatus::AttainedMoving => sw::HOMING_ATTAINED,
+            HomingStatus::Completed => sw::HOMING_ATTAINED | sw::TARGET_REACHED,
+            HomingStatus::ErrorMoving => sw::HOMING_ERROR,
+            HomingStatus::ErrorAtRest => sw::HOMING_ERROR | sw::TARGET_REACHED,
+            HomingStatus::Reserved => sw::HOMING_ERROR | sw::HOMING_ATTAINED,
+        }
+    }
 }
 
 /// A power state of the CiA 402 state machine.

@@ -179,6 +179,11 @@ pub enum Check {
     HomeLatch,
     /// A hard limit switch is active; the value is -1 for the lower, +1 for the upper one.
     HardLimit,
+    /// A drive homing itself (CiA 402 homing mode) reported a homing error (statusword
+    /// bit 13: e.g. its home switch not found); the value is the drive's error code
+    /// (0x603F, 0 when it gives none), the limit 0. Reported by the drive stage
+    /// ([`crate::stage::DriveStage::start_drive_homing`]).
+    DriveHoming,
 }
 
 impl Check {
@@ -205,11 +210,12 @@ impl Check {
             Check::HomeRelease => "home_release",
             Check::HomeLatch => "home_latch",
             Check::HardLimit => "hard_limit",
+            Check::DriveHoming => "drive_homing",
         }
     }
 
     /// Every check, in the order of their codes.
-    pub const ALL: [Check; 19] = [
+    pub const ALL: [Check; 20] = [
         Check::Velocity,
         Check::Acceleration,
         Check::SoftLimit,
@@ -229,9 +235,10 @@ impl Check {
         Check::HomeRelease,
         Check::HomeLatch,
         Check::HardLimit,
+        Check::DriveHoming,
     ];
 
-    /// The check's number on the wire (1 to 19, in the order of [`Check::ALL`]; 0 means
+    /// The check's number on the wire (1 to 20, in the order of [`Check::ALL`]; 0 means
     /// none).
     pub fn code(self) -> u32 {
         match self {
@@ -254,6 +261,7 @@ impl Check {
             Check::HomeRelease => 17,
             Check::HomeLatch => 18,
             Check::HardLimit => 19,
+            Check::DriveHoming => 20,
         }
     }
 }
@@ -839,6 +847,34 @@ impl Safety {
         self.latch(f);
         self.state = SafetyState::QuickStop;
         Some(f)
+    }
+
+    /// Takes `position` as everything held for axis `axis` (the commands, the setpoint
+    /// stream, the last actual position) and its quick stop, at rest there: for an axis
+    /// whose drive moves on its own (CiA 402 homing mode), called each cycle before
+    /// [`Safety::check`] with its actual position, which the cycle also gives as its
+    /// setpoint. Its following error, velocity and acceleration then read zero, so the
+    /// drive's own motion (and its coordinates redefined at the home position) trips
+    /// nothing; a quick stop holds it where it stands. The other axes are untouched.
+    /// Returns whether it was done (an axis of the machine, a finite position).
+    pub fn follow(&mut self, axis: usize, position: f64) -> bool {
+        if axis >= MAX_AXES || !position.is_finite() {
+            return false;
+        }
+        for out in self.out.iter_mut() {
+            out[axis] = position;
+        }
+        for s in self.stream.iter_mut() {
+            s[axis] = position;
+        }
+        if let Some(last) = self.last.as_mut() {
+            last.actual[axis] = position;
+            if let Some(sp) = last.setpoint.as_mut() {
+                sp[axis] = position;
+            }
+        }
+        self.stops[axis] = StopProfile::at_rest(position);
+        true
     }
 
     /// Takes `position` as the commanded position of `axis`, at rest: for a drive enabled

@@ -23,10 +23,26 @@
 //! rest at `quick_stop_decel_counts_s2`, then the drive goes to Switch on disabled.
 //! Without power (every state but Operation enabled and Quick stop active) the holding
 //! brake keeps the motor where it is.
+//!
+//! Homing mode (6, [`homing`]): the drive homes itself with the method and parameters of
+//! its [`SimHomingConfig`] ([`SimDrive::set_homing_config`], what a master writes to a
+//! real drive by SDO) once controlword bit 4 rises in Operation enabled; the falling edge
+//! of bit 4 or the halt bit (8) interrupt it. Statusword bits 10, 12 and 13 then say
+//! where it is ([`crate::cia402::HomingStatus`]). At the home position the drive
+//! redefines its coordinates: the position actual value there becomes the home offset.
+//! A change of the mode of operation away from homing takes effect only once the homing
+//! motion is at rest (until then the mode display stays 6); back in cyclic synchronous
+//! position the drive follows its targets from its new coordinates.
+
+pub mod homing;
+
+pub use homing::{SUPPORTED_METHODS, SimHomingConfig, is_supported_method};
 
 use crate::cia402::{
-    Drive, DriveCommand, DriveState, MODE_CYCLIC_SYNC_POSITION, is_fault_reset_edge, sw,
+    Drive, DriveCommand, DriveState, MODE_CYCLIC_SYNC_POSITION, MODE_HOMING, cw,
+    is_fault_reset_edge, sw,
 };
+use homing::HomingMotion;
 
 /// Error code 0x2310: continuous over current.
 pub const ERROR_OVERCURRENT: u16 = 0x2310;
@@ -119,7 +135,10 @@ impl SimConfig {
 pub struct SimDrive {
     config: SimConfig,
     state: DriveState,
+    /// The mode of operation in effect (the display).
     mode: i8,
+    /// The mode of operation the master wrote; takes effect once allowed.
+    requested_mode: i8,
     position_counts: f64,
     velocity_counts_s: f64,
     previous_target_counts: f64,
@@ -128,6 +147,7 @@ pub struct SimDrive {
     error_code: u16,
     pending_fault: Option<u16>,
     fault_cause: Option<u16>,
+    homing: HomingMotion,
 }
 
 fn saturate_i32(value: f64) -> i32 {
@@ -151,6 +171,7 @@ impl SimDrive {
             config,
             state: DriveState::NotReadyToSwitchOn,
             mode: MODE_CYCLIC_SYNC_POSITION,
+            requested_mode: MODE_CYCLIC_SYNC_POSITION,
             position_counts: config.initial_position_counts,
             velocity_counts_s: 0.0,
             previous_target_counts: config.initial_position_counts,
@@ -159,7 +180,20 @@ impl SimDrive {
             error_code: 0,
             pending_fault: None,
             fault_cause: None,
+            homing: HomingMotion::new(config.initial_position_counts),
         }
+    }
+
+    /// Sets the homing parameters (what a master writes to a real drive by SDO: 0x6098,
+    /// 0x6099, 0x609A, 0x607C) and where the simulated home switch is; they take effect
+    /// at the next start of a homing.
+    pub fn set_homing_config(&mut self, config: SimHomingConfig) {
+        self.homing.set_config(config);
+    }
+
+    /// The homing parameters.
+    pub fn homing_config(&self) -> &SimHomingConfig {
+        self.homing.config()
     }
 
     /// The configuration.
@@ -254,6 +288,9 @@ impl SimDrive {
         let substeps = self.config.substeps.max(1);
         let dt_s = period_s / f64::from(substeps);
         match self.state {
+            DriveState::OperationEnabled if self.mode == MODE_HOMING => {
+                self.homing_physics(substeps, dt_s, period_s);
+            }
             DriveState::OperationEnabled => {
                 let start = self.previous_target_counts;
                 let end = if self.mode == MODE_CYCLIC_SYNC_POSITION {
@@ -309,17 +346,101 @@ impl SimDrive {
                 self.demand_counts = saturate_i32(self.position_counts);
             }
         }
+        let homing_mode = self.state == DriveState::OperationEnabled && self.mode == MODE_HOMING;
+        if !homing_mode && !self.homing.at_rest() {
+            // Out of Operation enabled (a fault, a quick stop, a disable): the homing ends.
+            self.homing.hold(self.previous_target_counts);
+        }
+    }
+
+    /// The requested mode of operation takes effect unless it leaves homing mode while the
+    /// homing motion moves.
+    fn apply_mode(&mut self) {
+        if self.requested_mode == self.mode {
+            return;
+        }
+        if self.mode == MODE_HOMING && !self.homing.at_rest() {
+            return;
+        }
+        if self.requested_mode == MODE_HOMING {
+            // Homing mode starts holding where the position reference stands.
+            self.homing.hold(self.previous_target_counts);
+        }
+        self.mode = self.requested_mode;
+    }
+
+    /// Controlword bits 4 and 8 in homing mode: the rising edge of bit 4 starts a homing,
+    /// its falling edge or the halt bit interrupt it.
+    fn homing_control(&mut self, previous: u16, controlword: u16) {
+        if self.mode != MODE_HOMING || self.state != DriveState::OperationEnabled {
+            return;
+        }
+        let was = previous & cw::HOMING_START != 0;
+        let is = controlword & cw::HOMING_START != 0;
+        let halt = controlword & cw::HALT != 0;
+        if halt || (was && !is) {
+            self.homing.interrupt();
+        } else if is && !was {
+            let reference = self.previous_target_counts;
+            if let Some(delta) = self.homing.start(self.position_counts, reference) {
+                self.redefine(delta);
+            }
+        }
+    }
+
+    /// The drive's coordinates move by `delta` counts (homing attained): the motor does
+    /// not move, every position the drive holds reads `delta` more.
+    fn redefine(&mut self, delta: f64) {
+        self.position_counts += delta;
+        self.previous_target_counts = self.homing.reference();
+    }
+
+    /// One period of the homing motion: the servo model follows the drive's own reference
+    /// with full velocity and acceleration feed-forward.
+    fn homing_physics(&mut self, substeps: u32, dt_s: f64, period_s: f64) {
+        if self.homing.at_rest() {
+            // At rest the reference is the drive's position reference (the one it was
+            // enabled at, or where the last homing ended).
+            self.homing.hold(self.previous_target_counts);
+        }
+        let omega = 2.0 * core::f64::consts::PI * self.config.bandwidth_hz;
+        for _ in 0..substeps {
+            let (r, v_ref, a_ref) = self.homing.command(dt_s);
+            let accel = a_ref
+                + omega * omega * (r - self.position_counts)
+                + 2.0 * self.config.damping * omega * (v_ref - self.velocity_counts_s);
+            if accel.is_nan() || accel.abs() > self.config.overcurrent_accel_counts_s2 {
+                self.trip(ERROR_OVERCURRENT);
+                self.velocity_counts_s = 0.0;
+                break;
+            }
+            self.velocity_counts_s += accel / self.config.inertia_ratio * dt_s;
+            self.position_counts += self.velocity_counts_s * dt_s;
+            self.homing.advance(a_ref, dt_s);
+            if let Some(delta) =
+                self.homing
+                    .observe(self.position_counts, self.velocity_counts_s, dt_s, period_s)
+            {
+                self.redefine(delta);
+            }
+        }
+        self.previous_target_counts = self.homing.reference();
+        self.demand_counts = saturate_i32(self.previous_target_counts);
     }
 }
 
 impl Drive for SimDrive {
     fn write(&mut self, controlword: u16, target_position_counts: i32) {
+        self.apply_mode();
+        let previous = self.last_controlword;
         self.transition(controlword, target_position_counts);
+        self.homing_control(previous, controlword);
         self.physics(target_position_counts);
     }
 
     fn set_mode_of_operation(&mut self, mode: i8) {
-        self.mode = mode;
+        self.requested_mode = mode;
+        self.apply_mode();
     }
 
     fn mode_of_operation_display(&self) -> i8 {
@@ -328,6 +449,13 @@ impl Drive for SimDrive {
 
     fn statusword(&self) -> u16 {
         let mut word = self.state.statusword_bits() | sw::REMOTE;
+        if self.mode == MODE_HOMING {
+            // Bits 10, 12 and 13 are the homing's in homing mode.
+            if self.state == DriveState::OperationEnabled {
+                word |= self.homing.status().statusword_bits();
+            }
+            return word;
+        }
         if self.state == DriveState::OperationEnabled && self.mode == MODE_CYCLIC_SYNC_POSITION {
             word |= sw::DRIVE_FOLLOWS_TARGET;
         }

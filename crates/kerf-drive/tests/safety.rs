@@ -739,6 +739,7 @@ fn check_codes_are_the_protocols_numbers() {
         (Check::HomeRelease, 17, "home_release"),
         (Check::HomeLatch, 18, "home_latch"),
         (Check::HardLimit, 19, "hard_limit"),
+        (Check::DriveHoming, 20, "drive_homing"),
     ];
     assert_eq!(Check::ALL.len(), expected.len());
     for (check, (want, code, name)) in Check::ALL.iter().zip(expected) {

@@ -1,12 +1,13 @@
 //! Homing, jogging and the axes' switches checked: `[homing]`, `[jog]`, and per axis
 //! `[axes.*.homing]` (the keys of its kind, speeds within the axis's velocity, the home
-//! position within its travel), `[axes.*.limit_switches]` (each a digital input of
+//! position within its travel; for kind "drive" the method the drive supports and every
+//! object within its type in counts), `[axes.*.limit_switches]` (each a digital input of
 //! `[io]`), `[axes.*.sim]` (only beside simulated drives; each switch it drives a
 //! simulated input whose value the simulation sets); no input serves two functions.
 
-use std::ops::Range;
-
 use kerf_drive::MAX_AXES;
+use kerf_drive::cia402::Scale;
+use kerf_drive::sim::{SUPPORTED_METHODS, is_supported_method};
 use toml::Spanned;
 
 use crate::ethercat::EthercatConfig;
@@ -29,6 +30,10 @@ struct AxisFacts<'r> {
     travel: (f64, f64),
     /// `velocity_*`.
     velocity: f64,
+    /// `acceleration_*`.
+    acceleration: f64,
+    /// Its drive's scale.
+    scale: Option<Scale>,
     /// Its tables as the file gives them.
     tables: AxisSwitchTables<'r>,
 }
@@ -54,10 +59,15 @@ impl AxisFacts<'_> {
     fn velocity_key(&self) -> String {
         format!("velocity_{}_s", self.unit)
     }
+
+    /// `acceleration_mm_s2` or `acceleration_deg_s2`.
+    fn acceleration_key(&self) -> String {
+        format!("acceleration_{}_s2", self.unit)
+    }
 }
 
-/// The axes the file has, X to C.
-fn axis_facts<'r>(raw: &'r RawConfig, axes: &Axes) -> Vec<AxisFacts<'r>> {
+/// The axes the file has, X to C, with their drives' scales.
+fn axis_facts<'r>(raw: &'r RawConfig, axes: &Axes, drive: &DriveSide) -> Vec<AxisFacts<'r>> {
     let mut out = Vec::with_capacity(MAX_AXES);
     let linear = [
         ("x", &raw.axes.x, axes.x),
@@ -71,6 +81,8 @@ fn axis_facts<'r>(raw: &'r RawConfig, axes: &Axes) -> Vec<AxisFacts<'r>> {
             unit: "mm",
             travel: (a.min_mm, a.max_mm),
             velocity: a.velocity_mm_s,
+            acceleration: a.acceleration_mm_s2,
+            scale: drive.axes[index].map(|d| d.scale),
             tables: r.switch_tables(),
         });
     }
@@ -87,6 +99,8 @@ fn axis_facts<'r>(raw: &'r RawConfig, axes: &Axes) -> Vec<AxisFacts<'r>> {
                 unit: "deg",
                 travel: (a.min_deg, a.max_deg),
                 velocity: a.velocity_deg_s,
+                acceleration: a.acceleration_deg_s2,
+                scale: drive.axes[3 + i].map(|d| d.scale),
                 tables: r.switch_tables(),
             });
         }
@@ -135,14 +149,15 @@ impl Checker<'_> {
         &self,
         raw: &RawConfig,
         axes: &Axes,
+        drive: &DriveSide,
         io: &IoConfig,
         bus: Option<&EthercatConfig>,
     ) -> Result<[Option<AxisSetup>; MAX_AXES], ConfigError> {
-        let facts = axis_facts(raw, axes);
+        let facts = axis_facts(raw, axes, drive);
         let mut setups = [None; MAX_AXES];
         for a in &facts {
             setups[a.index] = Some(AxisSetup {
-                homing: self.axis_homing(a, io)?,
+                homing: self.axis_homing(a, io, bus)?,
                 limit_switches: self.limit_switches(a, io)?,
                 sim: SimAxis::default(),
             });
@@ -150,14 +165,19 @@ impl Checker<'_> {
         self.inputs_used_once(raw, &facts)?;
         for a in &facts {
             if let Some(setup) = &mut setups[a.index] {
-                setup.sim = self.sim_axis(a, setup.homing.kind, &raw.io, bus)?;
+                setup.sim = self.sim_axis(a, &setup.homing, &raw.io, bus)?;
             }
         }
         Ok(setups)
     }
 
     /// `[axes.*.homing]` of axis `a`: the keys of its kind.
-    fn axis_homing(&self, a: &AxisFacts, io: &IoConfig) -> Result<AxisHoming, ConfigError> {
+    fn axis_homing(
+        &self,
+        a: &AxisFacts,
+        io: &IoConfig,
+        bus: Option<&EthercatConfig>,
+    ) -> Result<AxisHoming, ConfigError> {
         let Some(h) = &a.tables.homing else {
             return Ok(AxisHoming::default());
         };
@@ -168,34 +188,60 @@ impl Checker<'_> {
             &["none", "switch", "absolute", "drive"],
             "none",
         )?;
-        if kind.name == "drive" {
-            return Err(self.error(
-                h.kind.span(),
-                format!(
-                    "`{table}.kind` = \"drive\" (CiA 402 homing mode) is not supported yet; use \"switch\", \"absolute\" or \"none\""
-                ),
-            ));
-        }
         let span = |v: Option<&Spanned<f64>>| v.map(|v| v.span());
-        let switch_only = [
-            ("switch".to_string(), h.switch.map(|v| v.span())),
-            (a.last("search_velocity", true), span(h.search_velocity)),
-            (a.last("latch_velocity", true), span(h.latch_velocity)),
-            (a.last("search_distance", false), span(h.search_distance)),
-            (a.last("home", false), span(h.home)),
-            (a.last("final_speed", true), span(h.final_speed)),
-            ("sequence".to_string(), h.sequence.map(|v| v.span())),
+        const SWITCH: &str = "kind \"switch\"";
+        const DRIVE: &str = "kind \"drive\"";
+        const MOVING: &str = "kinds \"switch\" and \"drive\"";
+        // Each key of a kind that moves the axis, with the kinds that take it, in the
+        // order of the reference.
+        let keys = [
+            ("switch".to_string(), h.switch.map(|v| v.span()), SWITCH),
+            ("method".to_string(), h.method.map(|v| v.span()), DRIVE),
+            (
+                a.last("search_velocity", true),
+                span(h.search_velocity),
+                MOVING,
+            ),
+            (
+                a.last("latch_velocity", true),
+                span(h.latch_velocity),
+                MOVING,
+            ),
+            (
+                format!("acceleration_{}_s2", a.unit),
+                span(h.acceleration),
+                DRIVE,
+            ),
+            (
+                a.last("search_distance", false),
+                span(h.search_distance),
+                MOVING,
+            ),
+            (a.last("home", false), span(h.home), MOVING),
+            (a.last("final_speed", true), span(h.final_speed), MOVING),
+            ("sequence".to_string(), h.sequence.map(|v| v.span()), MOVING),
         ];
-        let given: Vec<(&str, Option<Range<usize>>)> = switch_only
-            .iter()
-            .map(|(k, s)| (k.as_str(), s.clone()))
-            .collect();
-        self.keys_of_kind(&table, &kind, "switch", &given)?;
+        for (key, place, owners) in &keys {
+            let taken = match kind.name {
+                "switch" => *owners != DRIVE,
+                "drive" => *owners != SWITCH,
+                _ => false,
+            };
+            if let (false, Some(place)) = (taken, place) {
+                return Err(self.error(
+                    place.clone(),
+                    format!(
+                        "`{table}.{key}` is a key of {owners}, but {}; remove it",
+                        kind.said(&table)
+                    ),
+                ));
+            }
+        }
         if let ("none", Some(offset)) = (kind.name, h.home_offset) {
             return Err(self.error(
                 offset.span(),
                 format!(
-                    "`{}` is a key of kinds \"switch\" and \"absolute\", but {}; remove it",
+                    "`{}` is a key of kinds \"switch\", \"absolute\" and \"drive\", but {}; remove it",
                     a.key("homing", "home_offset", false),
                     kind.said(&table)
                 ),
@@ -215,6 +261,7 @@ impl Checker<'_> {
                 home_offset_units,
                 ..self.switch_homing(a, h, &table, &kind, io)?
             },
+            "drive" => self.drive_homing(a, h, &table, &kind, bus, home_offset_units)?,
             _ => AxisHoming::default(),
         })
     }
@@ -295,40 +342,7 @@ impl Checker<'_> {
                 d,
             )?,
         };
-        let home_key = a.key("homing", "home", false);
-        let travel_words = format!(
-            "the travel of axis {}, {} to {} {} (`min_{}`, `max_{}`)",
-            a.name,
-            number(min),
-            number(max),
-            a.unit,
-            a.unit,
-            a.unit
-        );
-        let home_units = match h.home {
-            None if (min..=max).contains(&DEFAULT_HOME_MM) => DEFAULT_HOME_MM,
-            None => {
-                return Err(self.error(
-                    h.kind.span(),
-                    format!(
-                        "`{home_key}` is not given, and its default, {} {}, is outside {travel_words}: give the position the axis goes to after homing",
-                        number(DEFAULT_HOME_MM),
-                        a.unit
-                    ),
-                ));
-            }
-            Some(v) if (min..=max).contains(v.get_ref()) => *v.get_ref(),
-            Some(v) => {
-                return Err(self.error(
-                    v.span(),
-                    format!(
-                        "`{home_key}` ({} {}) must lie within {travel_words}",
-                        number(*v.get_ref()),
-                        a.unit
-                    ),
-                ));
-            }
-        };
+        let home_units = self.home_position(a, h)?;
         let final_speed_units_s = match h.final_speed {
             None => search_velocity.abs(),
             Some(v) => self.above_zero(
@@ -339,26 +353,283 @@ impl Checker<'_> {
                 v,
             )?,
         };
-        let sequence = match h.sequence {
-            None => DEFAULT_HOMING_SEQUENCE,
-            Some(s) => self.integer(
-                &format!("{table}.sequence"),
-                "a homing sequence number",
-                HOMING_SEQUENCE_RANGE,
-                s,
-            )?,
-        };
+        let sequence = self.sequence(table, h)?;
         Ok(AxisHoming {
             kind: HomingKind::Switch,
             switch_input: Some(u32::from(switch_input.number)),
+            drive_method: 0,
             search_velocity_units_s: search_velocity,
             latch_velocity_units_s: latch_velocity,
+            acceleration_units_s2: 0.0,
             search_distance_units,
             home_offset_units: DEFAULT_HOME_OFFSET_MM,
             home_units,
             final_speed_units_s,
             sequence,
         })
+    }
+
+    /// The keys of a `"drive"` homing of axis `a`, whose `home_offset` is
+    /// `home_offset_units`: the method (one the simulated drive supports, or any of CiA
+    /// 402's on EtherCAT), the speeds and the acceleration as magnitudes within the axis's
+    /// limits, each within its object's type in counts; the keys shared with kind
+    /// "switch" as there.
+    fn drive_homing(
+        &self,
+        a: &AxisFacts,
+        h: &AxisHomingKeys,
+        table: &str,
+        kind: &Kind,
+        bus: Option<&EthercatConfig>,
+        home_offset_units: f64,
+    ) -> Result<AxisHoming, ConfigError> {
+        let Some(method) = h.method else {
+            return Err(self.missing(
+                table,
+                kind,
+                None,
+                "method",
+                "the CiA 402 homing method (0x6098) the drive homes with",
+            ));
+        };
+        let method_key = format!("{table}.method");
+        let found = *method.get_ref();
+        let drive_method = match (bus, i8::try_from(found)) {
+            (Some(_), Ok(m)) if DRIVE_HOMING_METHOD_RANGE.contains(&m) => m,
+            (None, Ok(m)) if is_supported_method(m) => m,
+            (Some(_), _) => {
+                return Err(self.error(
+                    method.span(),
+                    format!(
+                        "`{method_key}` must be a CiA 402 homing method from {} to {}, found {found}",
+                        DRIVE_HOMING_METHOD_RANGE.start(),
+                        DRIVE_HOMING_METHOD_RANGE.end()
+                    ),
+                ));
+            }
+            (None, _) => {
+                let list: Vec<String> = SUPPORTED_METHODS.iter().map(|m| m.to_string()).collect();
+                return Err(self.error(
+                    method.span(),
+                    format!(
+                        "`{method_key}` must be a homing method the simulated drive supports ({}), found {found}",
+                        list.join(", ")
+                    ),
+                ));
+            }
+        };
+        let moves = drive_method_moves(drive_method);
+        let search_key = a.key("homing", "search_velocity", true);
+        let speed_words = format!(
+            " (the axis's `{}`; kind \"drive\" takes a speed: the method gives the direction)",
+            a.velocity_key()
+        );
+        let search_velocity = match h.search_velocity {
+            None if moves => {
+                return Err(self.missing(
+                    table,
+                    kind,
+                    None,
+                    &a.last("search_velocity", true),
+                    &format!(
+                        "the drive's speed during the search for the switch (0x6099:01), which method {drive_method} needs"
+                    ),
+                ));
+            }
+            None => 0.0,
+            Some(v) => {
+                self.above_zero(&search_key, &a.speed_unit(), a.velocity, &speed_words, v)?
+            }
+        };
+        let latch_velocity = match h.latch_velocity {
+            None if moves => {
+                return Err(self.missing(
+                    table,
+                    kind,
+                    None,
+                    &a.last("latch_velocity", true),
+                    &format!(
+                        "the drive's speed during the search for zero (0x6099:02), which method {drive_method} needs"
+                    ),
+                ));
+            }
+            None => 0.0,
+            Some(v) if search_velocity > 0.0 => self.above_zero(
+                &a.key("homing", "latch_velocity", true),
+                &a.speed_unit(),
+                search_velocity,
+                &format!(" (`{search_key}`)"),
+                v,
+            )?,
+            Some(v) => self.above_zero(
+                &a.key("homing", "latch_velocity", true),
+                &a.speed_unit(),
+                a.velocity,
+                &speed_words,
+                v,
+            )?,
+        };
+        let acceleration_units_s2 = match h.acceleration {
+            None => a.acceleration,
+            Some(v) => self.above_zero(
+                &format!("{table}.acceleration_{}_s2", a.unit),
+                &format!("{}/s²", a.unit),
+                a.acceleration,
+                &format!(" (the axis's `{}`)", a.acceleration_key()),
+                v,
+            )?,
+        };
+        let (min, max) = a.travel;
+        let search_distance_units = match (h.search_distance, bus) {
+            (Some(d), Some(_)) => {
+                return Err(self.error(
+                    d.span(),
+                    format!(
+                        "`{}` is the simulated drive's search limit for kind \"drive\"; with [ethercat] the drive searches within its own limits; remove it",
+                        a.key("homing", "search_distance", false)
+                    ),
+                ));
+            }
+            (Some(d), None) => self.above_zero(
+                &a.key("homing", "search_distance", false),
+                a.unit,
+                MAX_SEARCH_DISTANCE_MM,
+                "",
+                d,
+            )?,
+            (None, _) => DEFAULT_SEARCH_DISTANCE_TRAVELS * (max - min),
+        };
+        let home_units = self.home_position(a, h)?;
+        let final_speed_units_s = match h.final_speed {
+            None if search_velocity > 0.0 => search_velocity,
+            None => a.velocity * DEFAULT_DRIVE_FINAL_SPEED_PCT / 100.0,
+            Some(v) => self.above_zero(
+                &a.key("homing", "final_speed", true),
+                &a.speed_unit(),
+                a.velocity,
+                &format!(" (the axis's `{}`)", a.velocity_key()),
+                v,
+            )?,
+        };
+        let sequence = self.sequence(table, h)?;
+        // Every object within its type in the drive's counts.
+        if let Some(scale) = a.scale {
+            let cpu = scale.counts_per_unit();
+            let objects = [
+                (
+                    search_key.clone(),
+                    h.search_velocity,
+                    search_velocity,
+                    "counts/s",
+                    "0x6099:01",
+                ),
+                (
+                    a.key("homing", "latch_velocity", true),
+                    h.latch_velocity,
+                    latch_velocity,
+                    "counts/s",
+                    "0x6099:02",
+                ),
+                (
+                    format!("{table}.acceleration_{}_s2", a.unit),
+                    h.acceleration,
+                    acceleration_units_s2,
+                    "counts/s²",
+                    "0x609A",
+                ),
+            ];
+            for (key, given, v, counts_unit, object) in objects {
+                let counts = (v * cpu).round();
+                if counts > f64::from(u32::MAX) {
+                    let message = format!(
+                        "`{key}` is {} {counts_unit} at the drive's {} counts/{}, beyond the 32-bit {object} ({})",
+                        number(counts),
+                        number(cpu),
+                        a.unit,
+                        u32::MAX
+                    );
+                    return Err(match given {
+                        Some(g) => self.error(g.span(), message),
+                        None => self.error(h.kind.span(), message),
+                    });
+                }
+            }
+            if let (Err(_), Some(v)) = (scale.to_counts(home_offset_units), h.home_offset) {
+                return Err(self.error(
+                    v.span(),
+                    format!(
+                        "`{}` is {} counts at the drive's {} counts/{}, beyond the 32-bit home offset 0x607C ({})",
+                        a.key("homing", "home_offset", false),
+                        number((home_offset_units * cpu).round()),
+                        number(cpu),
+                        a.unit,
+                        i32::MAX
+                    ),
+                ));
+            }
+        }
+        Ok(AxisHoming {
+            kind: HomingKind::Drive,
+            switch_input: None,
+            drive_method,
+            search_velocity_units_s: search_velocity,
+            latch_velocity_units_s: latch_velocity,
+            acceleration_units_s2,
+            search_distance_units,
+            home_offset_units,
+            home_units,
+            final_speed_units_s,
+            sequence,
+        })
+    }
+
+    /// `home_mm` (`home_deg`) of axis `a`: within its travel; by default
+    /// [`DEFAULT_HOME_MM`] when that is within it.
+    fn home_position(&self, a: &AxisFacts, h: &AxisHomingKeys) -> Result<f64, ConfigError> {
+        let (min, max) = a.travel;
+        let home_key = a.key("homing", "home", false);
+        let travel_words = format!(
+            "the travel of axis {}, {} to {} {} (`min_{}`, `max_{}`)",
+            a.name,
+            number(min),
+            number(max),
+            a.unit,
+            a.unit,
+            a.unit
+        );
+        match h.home {
+            None if (min..=max).contains(&DEFAULT_HOME_MM) => Ok(DEFAULT_HOME_MM),
+            None => Err(self.error(
+                h.kind.span(),
+                format!(
+                    "`{home_key}` is not given, and its default, {} {}, is outside {travel_words}: give the position the axis goes to after homing",
+                    number(DEFAULT_HOME_MM),
+                    a.unit
+                ),
+            )),
+            Some(v) if (min..=max).contains(v.get_ref()) => Ok(*v.get_ref()),
+            Some(v) => Err(self.error(
+                v.span(),
+                format!(
+                    "`{home_key}` ({} {}) must lie within {travel_words}",
+                    number(*v.get_ref()),
+                    a.unit
+                ),
+            )),
+        }
+    }
+
+    /// `sequence` of a homing table.
+    fn sequence(&self, table: &str, h: &AxisHomingKeys) -> Result<u32, ConfigError> {
+        match h.sequence {
+            None => Ok(DEFAULT_HOMING_SEQUENCE),
+            Some(s) => self.integer(
+                &format!("{table}.sequence"),
+                "a homing sequence number",
+                HOMING_SEQUENCE_RANGE,
+                s,
+            ),
+        }
     }
 
     /// A value above 0 and at most `max` (`max_words` says what `max` is).
@@ -446,16 +717,18 @@ impl Checker<'_> {
         Ok(())
     }
 
-    /// `[axes.*.sim]` of axis `a`, whose homing is of `kind`: refused beside `[ethercat]`;
-    /// each switch it places needs its input, and that input's value is the simulation's
-    /// (`sim` of `[io]` refused for it).
+    /// `[axes.*.sim]` of axis `a`, homed as `homing`: refused beside `[ethercat]`; each
+    /// switch it places needs its input (kind "drive": the home switch is the drive's own,
+    /// for a method that uses one), and that input's value is the simulation's (`sim` of
+    /// `[io]` refused for it).
     fn sim_axis(
         &self,
         a: &AxisFacts,
-        kind: HomingKind,
+        homing: &AxisHoming,
         raw_io: &RawIo,
         bus: Option<&EthercatConfig>,
     ) -> Result<SimAxis, ConfigError> {
+        let kind = homing.kind;
         let Some((table_span, s)) = &a.tables.sim else {
             return Ok(SimAxis::default());
         };
@@ -479,7 +752,18 @@ impl Checker<'_> {
         let max_limit_units = value("max_limit", s.max_limit)?;
 
         if let Some(v) = s.home_switch {
-            if kind != HomingKind::Switch {
+            if kind == HomingKind::Drive && !drive_method_moves(homing.drive_method) {
+                return Err(self.error(
+                    v.span(),
+                    format!(
+                        "`{}` places a simulated home switch, but `axes.{}.homing.method` {} homes where the axis stands, without a switch; remove it",
+                        key("home_switch"),
+                        a.name,
+                        homing.drive_method
+                    ),
+                ));
+            }
+            if !matches!(kind, HomingKind::Switch | HomingKind::Drive) {
                 let why = match &a.tables.homing {
                     Some(h) => format!("`axes.{}.homing.kind` is \"{}\"", a.name, h.kind.get_ref()),
                     None => format!("axis {} has no [axes.{}.homing]", a.name, a.name),
@@ -487,7 +771,7 @@ impl Checker<'_> {
                 return Err(self.error(
                     v.span(),
                     format!(
-                        "`{}` places a simulated home switch, but {why}: it needs kind \"switch\"; remove it or home the axis on a switch",
+                        "`{}` places a simulated home switch, but {why}: it needs kind \"switch\" or \"drive\"; remove it or home the axis on a switch",
                         key("home_switch")
                     ),
                 ));

@@ -89,7 +89,7 @@ impl Checker<'_> {
         let tool_changer = self.tool_changer(raw.tool_changer.as_ref(), &io)?;
         self.outputs_used_once(&raw)?;
         let operator = self.operator(&raw.operator);
-        let setups = self.axis_setups(&raw, &axes, &io, ethercat.as_ref())?;
+        let setups = self.axis_setups(&raw, &axes, &drive, &io, ethercat.as_ref())?;
         let homing = self.homing(&raw.homing)?;
         let jog = self.jog(&raw.jog)?;
         let dump_dir = match &raw.safety.dump_dir {

@@ -11,47 +11,75 @@ pub(super) fn axis_keys() -> Vec<KeyDoc> {
     let coord = || format!("±{}", f(MAX_COORDINATE_MM));
     let for_switch = || "required for \"switch\"".to_string();
     let input = || "a digital input of [io]".to_string();
+    let moving =
+        || "required for \"switch\"; for \"drive\" unless `method` is 35 or 37".to_string();
+    let methods: Vec<String> = kerf_drive::sim::SUPPORTED_METHODS
+        .iter()
+        .map(|m| m.to_string())
+        .collect();
     vec![
         k(
             "axes.*.homing",
             "kind \"none\"".into(),
             "table".into(),
-            "How the axis finds its machine coordinates (`[axes.x.homing]`, ...), keys below: lengths in mm, on A, B, C in degrees (`_deg`, `_deg_s`). The keys of kind \"switch\" are refused for the other kinds. `kerf home` homes the axes; until all are homed, programs and MDI are refused (`homing.required`).",
+            "How the axis finds its machine coordinates (`[axes.x.homing]`, ...), keys below: lengths in mm, on A, B, C in degrees (`_deg`, `_deg_s`, `_deg_s2`). Each key is refused for the kinds that do not take it. `kerf home` homes the axes; until all are homed, programs and MDI are refused (`homing.required`).",
         ),
         k(
             "axes.*.homing.kind",
             "required".into(),
-            "\"none\", \"switch\" or \"absolute\" (\"drive\" is refused: not supported yet)".into(),
-            "\"none\": homed at start, the machine coordinates are the drive's from power-up (as before homing existed). \"switch\": Kerf searches the home switch at `search_velocity`, latches its edge at `latch_velocity`, sets the latch point's machine coordinate to `home_offset` and moves to `home`. \"absolute\": an absolute encoder, homed at start without motion, machine coordinate = encoder position + `home_offset`. \"drive\" (CiA 402 homing mode) is refused at load.",
+            "\"none\", \"switch\", \"absolute\" or \"drive\"".into(),
+            "\"none\": homed at start, the machine coordinates are the drive's from power-up (as before homing existed). \"switch\": Kerf searches the home switch at `search_velocity`, latches its edge at `latch_velocity`, sets the latch point's machine coordinate to `home_offset` and moves to `home`. \"absolute\": an absolute encoder, homed at start without motion, machine coordinate = encoder position + `home_offset`. \"drive\": the drive homes itself in CiA 402 homing mode (6) with `method` (0x6098), `search_velocity` and `latch_velocity` (0x6099:01, :02), `acceleration` (0x609A) and `home_offset` (0x607C); its home position then reads `home_offset`, and Kerf moves the axis to `home` (docs/DRIVES.md, \"Homing by the drive\").",
         ),
         k(
             "axes.*.homing.switch",
             for_switch(),
             input(),
-            "The home switch's input (with [ethercat] a bit of the bus, as every input of [io]); no other function may use it.",
+            "Kind \"switch\": the home switch's input (with [ethercat] a bit of the bus, as every input of [io]); no other function may use it.",
+        ),
+        k(
+            "axes.*.homing.method",
+            "required for \"drive\"".into(),
+            format!(
+                "on simulated drives {}; on EtherCAT {}",
+                methods.join(", "),
+                ri(DRIVE_HOMING_METHOD_RANGE)
+            ),
+            "Kind \"drive\": the CiA 402 homing method (0x6098). The simulated drive's: 19, 20 (home switch on the positive side; the home position where it falls moving negative, or rises moving positive), 21, 22 (on the negative side; where it falls moving positive, or rises moving negative), 35 and 37 (the current position is home, no motion). On EtherCAT any method of CiA 402 the drive supports.",
         ),
         k(
             "axes.*.homing.search_velocity_mm_s",
-            for_switch(),
-            "non-zero, magnitude at most `velocity_mm_s`".into(),
-            "Speed of the search for the switch, signed: its sign is the direction.",
+            moving(),
+            "\"switch\": non-zero, magnitude at most `velocity_mm_s`; \"drive\": above 0, at most `velocity_mm_s`".into(),
+            "Kind \"switch\": speed of the search for the switch, signed: its sign is the direction. Kind \"drive\": the drive's speed during the search for the switch (0x6099:01, in counts/s through the axis's scale); the method gives the direction.",
         ),
         k(
             "axes.*.homing.search_velocity_deg_s",
-            for_switch(),
-            "non-zero, magnitude at most `velocity_deg_s`".into(),
+            moving(),
+            "as `search_velocity_mm_s`, with `velocity_deg_s`".into(),
             "The same on a rotary axis.",
         ),
         k(
             "axes.*.homing.latch_velocity_mm_s",
-            for_switch(),
-            "non-zero, magnitude at most that of `search_velocity_mm_s`".into(),
-            "Speed of the latch move, signed: the search's sign backs off and approaches the switch's edge again, the opposite sign leaves the switch and latches where it releases.",
+            moving(),
+            "\"switch\": non-zero, magnitude at most that of `search_velocity_mm_s`; \"drive\": above 0, at most `search_velocity_mm_s`".into(),
+            "Kind \"switch\": speed of the latch move, signed: the search's sign backs off and approaches the switch's edge again, the opposite sign leaves the switch and latches where it releases. Kind \"drive\": the drive's speed during the search for zero (0x6099:02), its slow approach of the edge.",
         ),
         k(
             "axes.*.homing.latch_velocity_deg_s",
-            for_switch(),
-            "non-zero, magnitude at most that of `search_velocity_deg_s`".into(),
+            moving(),
+            "as `latch_velocity_mm_s`".into(),
+            "The same on a rotary axis.",
+        ),
+        k(
+            "axes.*.homing.acceleration_mm_s2",
+            "`acceleration_mm_s2` of the axis".into(),
+            "above 0, at most the axis's `acceleration_mm_s2`".into(),
+            "Kind \"drive\": the homing acceleration (0x609A), also the drive's deceleration in its stops.",
+        ),
+        k(
+            "axes.*.homing.acceleration_deg_s2",
+            "`acceleration_deg_s2` of the axis".into(),
+            "above 0, at most the axis's `acceleration_deg_s2`".into(),
             "The same on a rotary axis.",
         ),
         k(
@@ -61,7 +89,7 @@ pub(super) fn axis_keys() -> Vec<KeyDoc> {
                 f(DEFAULT_SEARCH_DISTANCE_TRAVELS)
             ),
             format!("above 0, at most {}", f(MAX_SEARCH_DISTANCE_MM)),
-            "Kind \"switch\": the longest search; a switch not found within it is a fault naming the axis.",
+            "Kind \"switch\": the longest search; a switch not found within it is a fault naming the axis. Kind \"drive\" on a simulated drive: the simulated drive's search limit, after which it reports a homing error (refused with [ethercat]: a real drive has its own).",
         ),
         k(
             "axes.*.homing.search_distance_deg",
@@ -75,13 +103,13 @@ pub(super) fn axis_keys() -> Vec<KeyDoc> {
         k(
             "axes.*.homing.home_offset_mm",
             f(DEFAULT_HOME_OFFSET_MM),
-            coord(),
-            "Kind \"switch\": the machine coordinate of the switch's latch point; kind \"absolute\": the machine coordinate of encoder position 0.",
+            format!("{}; kind \"drive\": within the drive's 32-bit counts", coord()),
+            "Kind \"switch\": the machine coordinate of the switch's latch point; kind \"absolute\": the machine coordinate of encoder position 0; kind \"drive\": the machine coordinate of the drive's home position, written to the drive as its home offset (0x607C, in counts through the axis's scale).",
         ),
         k(
             "axes.*.homing.home_offset_deg",
             f(DEFAULT_HOME_OFFSET_MM),
-            coord(),
+            format!("{}; kind \"drive\": within the drive's 32-bit counts", coord()),
             "The same on a rotary axis.",
         ),
         k(
@@ -91,7 +119,7 @@ pub(super) fn axis_keys() -> Vec<KeyDoc> {
                 f(DEFAULT_HOME_MM)
             ),
             "within `min_mm` to `max_mm`".into(),
-            "Kind \"switch\": where the axis goes after homing, machine coordinates.",
+            "Kinds \"switch\" and \"drive\": where the axis goes after homing, machine coordinates.",
         ),
         k(
             "axes.*.homing.home_deg",
@@ -104,13 +132,19 @@ pub(super) fn axis_keys() -> Vec<KeyDoc> {
         ),
         k(
             "axes.*.homing.final_speed_mm_s",
-            "the magnitude of `search_velocity_mm_s`".into(),
+            format!(
+                "the magnitude of `search_velocity_mm_s` (kind \"drive\" without it: {} % of `velocity_mm_s`)",
+                f(DEFAULT_DRIVE_FINAL_SPEED_PCT)
+            ),
             "above 0, at most `velocity_mm_s`".into(),
-            "Kind \"switch\": the speed of the move to `home_mm`.",
+            "Kinds \"switch\" and \"drive\": the speed of the move to `home_mm`.",
         ),
         k(
             "axes.*.homing.final_speed_deg_s",
-            "the magnitude of `search_velocity_deg_s`".into(),
+            format!(
+                "the magnitude of `search_velocity_deg_s` (kind \"drive\" without it: {} % of `velocity_deg_s`)",
+                f(DEFAULT_DRIVE_FINAL_SPEED_PCT)
+            ),
             "above 0, at most `velocity_deg_s`".into(),
             "The same on a rotary axis.",
         ),
@@ -118,7 +152,7 @@ pub(super) fn axis_keys() -> Vec<KeyDoc> {
             "axes.*.homing.sequence",
             DEFAULT_HOMING_SEQUENCE.to_string(),
             ri(HOMING_SEQUENCE_RANGE),
-            "Kind \"switch\" (LinuxCNC `HOME_SEQUENCE`): `kerf home --all` homes sequence 0 first, then 1, ...; axes with the same number home together.",
+            "Kinds \"switch\" and \"drive\" (LinuxCNC `HOME_SEQUENCE`): `kerf home --all` homes sequence 0 first, then 1, ...; axes with the same number home together.",
         ),
         k(
             "axes.*.limit_switches",
@@ -160,7 +194,7 @@ pub(super) fn axis_keys() -> Vec<KeyDoc> {
             "axes.*.sim.home_switch_mm",
             none(),
             coord(),
-            "The simulated home switch (needs `homing.kind` \"switch\"): active at and beyond this point in the search direction.",
+            "The simulated home switch. Kind \"switch\": the input `homing.switch`, active at and beyond this point in the search direction. Kind \"drive\" (methods 19 to 22): the switch wired to the simulated drive, active beyond this point in the method's search direction in the drive's counts (increasing for 19 and 20, decreasing for 21 and 22: with `direction = -1` toward smaller mm); without it the drive's search ends in a homing error.",
         ),
         k(
             "axes.*.sim.home_switch_deg",
