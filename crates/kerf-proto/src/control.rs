@@ -982,6 +982,10 @@ pub const SAFETY_HOME_LATCH: u32 = 18;
 /// Safety check: a hard limit switch is active (`safety_value` -1 the lower, +1 the upper
 /// one).
 pub const SAFETY_HARD_LIMIT: u32 = 19;
+/// Safety check: the axis's drive ended its own homing (CiA 402 homing mode) in an error,
+/// or did not take the homing mode (`safety_value` the drive's error code, 0 when it
+/// gives none).
+pub const SAFETY_DRIVE_HOMING: u32 = 20;
 /// `StatusMsg::safety_axis` of a fault that is not an axis's (a stream stall).
 pub const SAFETY_AXIS_NONE: u32 = 255;
 

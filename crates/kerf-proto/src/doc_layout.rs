@@ -181,6 +181,7 @@ fn constants() -> BTreeMap<&'static str, u32> {
         SAFETY_HOME_RELEASE,
         SAFETY_HOME_LATCH,
         SAFETY_HARD_LIMIT,
+        SAFETY_DRIVE_HOMING,
         DIGITAL_IO,
         ANALOG_IO,
         PAUSE_NONE,

@@ -74,6 +74,11 @@ pub fn safety_text(s: &StatusMsg) -> Option<String> {
         kerf_proto::SAFETY_HOME_LATCH => format!(
             "homing: the home switch's latch edge was not found within {limit:.3} {unit} (moved {value:.3} {unit})"
         ),
+        kerf_proto::SAFETY_DRIVE_HOMING => match s.drive_error_code {
+            0 => "the drive's own homing ended in an error (or it did not take the homing mode)"
+                .to_string(),
+            code => format!("the drive's own homing ended in an error, 0x{code:04X}"),
+        },
         kerf_proto::SAFETY_HARD_LIMIT => format!(
             "the {} hard limit switch is active; after `kerf reset`, jog the axis off it",
             if value < 0.0 { "lower" } else { "upper" }
@@ -116,6 +121,7 @@ mod tests {
             (Check::HomeRelease, kerf_proto::SAFETY_HOME_RELEASE),
             (Check::HomeLatch, kerf_proto::SAFETY_HOME_LATCH),
             (Check::HardLimit, kerf_proto::SAFETY_HARD_LIMIT),
+            (Check::DriveHoming, kerf_proto::SAFETY_DRIVE_HOMING),
         ];
         assert_eq!(wire.len(), Check::ALL.len());
         for (check, code) in wire {

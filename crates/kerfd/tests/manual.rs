@@ -645,3 +645,81 @@ fn jogs_in_a_pause_return_z_last_before_the_program_goes_on_unchanged() {
     assert_eq!(&reference[a..], &jogged[b..], "the program after the pause");
     assert_limits(&log, &axes, "jog in a pause");
 }
+
+#[test]
+fn an_axis_whose_drive_homes_itself_is_homed_and_moves_to_its_home_position() {
+    let mut rng = Rng(0x5151_7a7a_0102_0304);
+    for case in 0..6 {
+        let mut axes = [
+            plain_axis(100.0, 1000.0, 20_000.0, -500.0, 500.0),
+            plain_axis(100.0, 1000.0, 20_000.0, -500.0, 500.0),
+            plain_axis(100.0, 1000.0, 20_000.0, -500.0, 500.0),
+        ];
+        // Methods 19/20 search towards increasing counts, 21/22 towards decreasing ones:
+        // the switch is placed on that side of where the motor powers up.
+        let method = [19, 20, 21, 22, 35, 37][case];
+        let gap = rng.range(5.0, 100.0);
+        let switch = if method <= 20 { gap } else { -gap };
+        let home_offset = rng.range(-50.0, 50.0);
+        let home = rng.range(-100.0, 100.0);
+        let speeds = if method >= 35 {
+            String::new()
+        } else {
+            "search_velocity_mm_s = 40.0\nlatch_velocity_mm_s = 2.0\n".to_string()
+        };
+        axes[0].extra = format!(
+            "[axes.x.homing]\nkind = \"drive\"\nmethod = {method}\n{speeds}home_offset_mm = {home_offset}\nhome_mm = {home}\nfinal_speed_mm_s = 50.0\n[axes.x.sim]\nhome_switch_mm = {switch}\n"
+        );
+        if method >= 35 {
+            // No switch for the methods that take the current position.
+            axes[0].extra = axes[0]
+                .extra
+                .replace(&format!("home_switch_mm = {switch}\n"), "");
+            axes[0].extra = axes[0].extra.replace("[axes.x.sim]\n", "");
+        }
+        let text = machine_toml(&axes, "[homing]\nrequired = true\n");
+        let mut m = Machine::new(config(&text));
+        assert_eq!(
+            m.snapshot().manual.homed & 1,
+            0,
+            "case {case}: X not homed at start"
+        );
+        m.command(CycleCommand::Home(0b001));
+        m.run();
+        // The cycle after which the drive handed the axis back (its homing mode left).
+        let (mut was_homing, mut back) = (false, None);
+        for _ in 0..1_000_000 {
+            m.run();
+            let homing = m.cycle.stage().drive_homing_active(0);
+            if was_homing && !homing && back.is_none() {
+                back = Some(m.log.len() - 1);
+            }
+            was_homing |= homing;
+            if m.last.is_some_and(|s| s.manual.homing == 0) {
+                break;
+            }
+        }
+        let back = back.expect("the drive homed and handed the axis back");
+        let s = m.snapshot();
+        assert!(
+            s.drives.fault.is_none(),
+            "case {case}: {:?}",
+            s.drives.fault
+        );
+        assert_eq!(
+            s.manual.homed & 1,
+            1,
+            "case {case} (method {method}): X homed"
+        );
+        assert_eq!(m.position()[0], home, "case {case}: at the home position");
+        // Kerf's move to the home position, after the drive's own homing (whose motion is
+        // the drive's), within the limits: from the cycle the drive handed the axis back
+        // in its new coordinates.
+        assert_limits(&m.log[back..], &axes, &format!("drive homing case {case}"));
+        // A program now runs.
+        let start = m.position();
+        common::feed_program(&mut m.planning, &m.config, 1, start, "G0 X0\nM2\n");
+        assert!(m.run_until(100_000, |s| s.program_id == 1 && s.program_done));
+        assert!(m.snapshot().refusal.is_none(), "{:?}", m.snapshot().refusal);
+    }
+}

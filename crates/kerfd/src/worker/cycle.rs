@@ -145,8 +145,13 @@ pub fn drive_stage(
             initial_position_counts: f64::from(counts),
             ..setup.sim
         };
+        let mut drive = SimDrive::new(sim);
+        // A drive that homes itself (CiA 402 homing mode) gets its homing objects.
+        if let Some(h) = config.sim_homing(i) {
+            drive.set_homing_config(h);
+        }
         *slot = Some(AxisDrive {
-            drive: MachineDrive::Sim(SimDrive::new(sim)),
+            drive: MachineDrive::Sim(drive),
             scale: setup.scale,
             enable_timeout_cycles: setup.enable_timeout_cycles,
         });
@@ -580,6 +585,14 @@ impl Cycle {
             }
         }
         self.actual = out.actual;
+        for (i, homed) in out.homed_by_drive.iter().enumerate() {
+            if let Some(p) = *homed {
+                // The drive redefined its coordinates: the axis rests where it reports.
+                self.setpoint.position[i] = p;
+                self.sent[i] = p;
+                self.manual.drive_homed(i, p);
+            }
+        }
         if self.bus.is_none() {
             // The simulated machine's switches follow its motors.
             let mut drive = out.actual;
@@ -710,6 +723,15 @@ impl Cycle {
         for i in 0..6 {
             if out.moved & (1 << i) != 0 {
                 self.setpoint.position[i] = out.position[i];
+            }
+        }
+        for i in 0..6 {
+            if out.drive_start & (1 << i) != 0 && self.stage.start_drive_homing(i).is_err() {
+                self.manual.drive_homing_failed(i);
+            }
+            if self.stage.drive_homing_active(i) {
+                // The drive moves the axis itself: the setpoint is where it is.
+                self.setpoint.position[i] = self.actual[i];
             }
         }
         let mut shifted = [0.0; 6];

@@ -31,8 +31,23 @@ enum JogMode {
     Target { target: f64, speed: f64 },
 }
 
+/// Where an axis homed by its drive (CiA 402 homing mode) stands.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum DriveStep {
+    /// Not homing by the drive.
+    Off,
+    /// The drive stage is to start the drive's homing this cycle.
+    Start,
+    /// The drive homes; the axis follows its actual position.
+    Running,
+    /// The drive has homed: the axis moves to its home position.
+    Final,
+}
+
 /// One axis's manual side.
 struct ManualAxis {
+    /// Homing by the drive: its step.
+    drive: DriveStep,
     mover: AxisMove,
     setup: AxisSetup,
     velocity_limit: f64,
@@ -53,6 +68,8 @@ struct ManualAxis {
 pub(crate) struct ManualOut {
     /// Axes the manual motion moved this cycle (their positions are in `position`).
     pub(crate) moved: u32,
+    /// Axes whose drive is to start homing (CiA 402 homing mode) this cycle.
+    pub(crate) drive_start: u32,
     /// The new positions of the moved axes.
     pub(crate) position: PerAxis<f64>,
     /// Coordinate shifts homing asks for (at rest), per axis.
@@ -90,7 +107,8 @@ fn home_setup(setup: &AxisSetup) -> HomeSetup {
     let h = &setup.homing;
     HomeSetup {
         kind: match h.kind {
-            HomingKind::None => HomeKind::None,
+            // The drive homes itself: Kerf's sequencer is not used (see `DriveStep`).
+            HomingKind::None | HomingKind::Drive => HomeKind::None,
             HomingKind::Switch => HomeKind::Switch,
             HomingKind::Absolute => HomeKind::Absolute,
         },
@@ -187,13 +205,14 @@ impl Manual {
                 Homing::new(home_setup(&setup)).map_err(|e| format!("axis {name}: homing: {e}"))?;
             let (min, max) = travel[i].unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
             *slot = Some(ManualAxis {
+                drive: DriveStep::Off,
                 mover,
                 setup,
                 velocity_limit: l.velocity_units_s,
                 min,
                 max,
                 homing,
-                homed: setup.homing.kind != HomingKind::Switch,
+                homed: setup.homing.kind.homed_at_start(),
                 jog: JogMode::Idle,
                 released: 0,
                 phase: kerf_proto::HOME_PHASE_IDLE,
@@ -278,6 +297,7 @@ impl Manual {
         self.back = None;
         for ax in self.axes.iter_mut().flatten() {
             ax.jog = JogMode::Idle;
+            ax.drive = DriveStep::Off;
             if ax.phase != 0 {
                 ax.homing.abort();
                 ax.phase = 0;
@@ -432,7 +452,7 @@ impl Manual {
             if mask & (1 << i) == 0 {
                 continue;
             }
-            if ax.setup.homing.kind == HomingKind::Switch {
+            if matches!(ax.setup.homing.kind, HomingKind::Switch | HomingKind::Drive) {
                 self.pending |= 1 << i;
                 ax.homed = false;
                 ax.phase = kerf_proto::HOME_PHASE_WAITING;
@@ -532,7 +552,31 @@ impl Manual {
         self.advance_return();
         for (i, slot) in self.axes.iter_mut().enumerate() {
             let Some(ax) = slot else { continue };
-            if ax.phase > kerf_proto::HOME_PHASE_WAITING || ax.homing_started() {
+            if ax.drive != DriveStep::Off {
+                match ax.drive {
+                    DriveStep::Start => {
+                        out.drive_start |= 1 << i;
+                        ax.drive = DriveStep::Running;
+                    }
+                    // The drive moves the axis; the cycle follows its actual position.
+                    DriveStep::Running | DriveStep::Off => {}
+                    DriveStep::Final => {
+                        let home = ax.setup.homing.home_units;
+                        if ax.mover.at_rest() && ax.mover.position() == home {
+                            ax.drive = DriveStep::Off;
+                            ax.homed = true;
+                            ax.phase = 0;
+                            self.pending &= !(1 << i);
+                        } else {
+                            let speed = match ax.setup.homing.final_speed_units_s {
+                                v if v > 0.0 => v,
+                                _ => ax.velocity_limit * self.default_speed_pct / 100.0,
+                            };
+                            let _ = ax.mover.move_to(home, speed);
+                        }
+                    }
+                }
+            } else if ax.phase > kerf_proto::HOME_PHASE_WAITING || ax.homing_started() {
                 let input = HomeInput {
                     switch: ax
                         .setup
@@ -601,6 +645,10 @@ impl Manual {
                     }
                 }
             }
+            if ax.drive == DriveStep::Running {
+                // Not the mover's: the cycle takes the drive's actual position.
+                continue;
+            }
             if !ax.mover.at_rest() || ax.jog != JogMode::Idle || ax.phase != 0 {
                 out.position[i] = ax.mover.step();
                 out.moved |= 1 << i;
@@ -614,6 +662,28 @@ impl Manual {
         if let Some(Some(ax)) = self.axes.get_mut(i) {
             let p = ax.mover.position() + delta;
             ax.mover.reset(p);
+        }
+    }
+
+    /// Axis `i`'s drive has homed and stands at `position` (the drive's new coordinates):
+    /// its mover rests there, and the axis moves on to its home position.
+    pub(crate) fn drive_homed(&mut self, i: usize, position: f64) {
+        if let Some(Some(ax)) = self.axes.get_mut(i)
+            && ax.drive == DriveStep::Running
+        {
+            ax.mover.reset(position);
+            ax.drive = DriveStep::Final;
+            ax.phase = kerf_proto::HOME_PHASE_FINAL;
+        }
+    }
+
+    /// The drive stage could not start axis `i`'s homing by its drive, or the drive's
+    /// homing ended without a position: its homing ends unhomed.
+    pub(crate) fn drive_homing_failed(&mut self, i: usize) {
+        if let Some(Some(ax)) = self.axes.get_mut(i) {
+            ax.drive = DriveStep::Off;
+            ax.phase = 0;
+            self.pending &= !(1 << i);
         }
     }
 
@@ -699,8 +769,13 @@ impl Manual {
         for (i, ax) in self.axes.iter_mut().enumerate() {
             let Some(ax) = ax else { continue };
             if self.pending & (1 << i) != 0 && Some(ax.setup.homing.sequence) == next {
-                ax.homing.start();
-                ax.phase = phase_code(ax.homing.phase()).max(kerf_proto::HOME_PHASE_MOVE_OFF);
+                if ax.setup.homing.kind == HomingKind::Drive {
+                    ax.drive = DriveStep::Start;
+                    ax.phase = kerf_proto::HOME_PHASE_SEARCH;
+                } else {
+                    ax.homing.start();
+                    ax.phase = phase_code(ax.homing.phase()).max(kerf_proto::HOME_PHASE_MOVE_OFF);
+                }
             }
         }
     }
