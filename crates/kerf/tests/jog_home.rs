@@ -15,137 +15,20 @@
 //! the outputs (`kerf status --json`, the commands' exit codes and words).
 
 use std::fs;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 use std::time::{Duration, Instant};
 
-use serde_json::Value;
-
-const KERF: &str = env!("CARGO_BIN_EXE_kerf");
 mod common;
-use common::{Proc, kerfd};
+use common::{MACHINE_PATIENCE as PATIENCE, MachineEnv, Proc};
 
-/// Upper bound on any wait, so that a broken daemon fails a test instead of hanging it.
-const PATIENCE: Duration = Duration::from_secs(60);
-
-/// One test's machine: a scratch directory with its configuration and state files.
-struct Env {
-    dir: PathBuf,
-    config_path: PathBuf,
+/// One test's machine (see [`MachineEnv`]), named `j<pid>_<tag>`; `homing`: as bundled.
+fn env(tag: &str, homing: bool) -> MachineEnv {
+    MachineEnv::new("kerf-jog-home-tests", "j", tag, homing)
 }
 
-impl Env {
-    /// A machine named `j<pid>_<tag>` from the bundled configuration (`homing`: as
-    /// bundled, else without its homing tables), with its state file in the scratch
-    /// directory.
-    fn new(tag: &str, homing: bool) -> Env {
-        let machine = format!("j{}_{tag}", std::process::id());
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-            .join("kerf-jog-home-tests")
-            .join(&machine);
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).unwrap();
-        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-        let bundled = fs::read_to_string(root.join("config/kerf.toml")).unwrap();
-        let mut text = if homing {
-            bundled
-        } else {
-            kerf_testkit::config_text::without_homing(&bundled)
-        };
-        for (from, to) in [
-            ("machine = \"default\"", format!("machine = \"{machine}\"")),
-            (
-                "# state_file = \"/var/lib/kerf/default.state.toml\"",
-                "state_file = \"state.toml\"".to_string(),
-            ),
-        ] {
-            assert!(text.contains(from), "config/kerf.toml has no `{from}`");
-            text = text.replacen(from, &to, 1);
-        }
-        let config_path = dir.join("kerf.toml");
-        fs::write(&config_path, text).unwrap();
-        Env { dir, config_path }
-    }
-
-    fn config_arg(&self) -> &str {
-        self.config_path.to_str().unwrap()
-    }
-
-    fn command(&self, subcommand: &str, args: &[&str]) -> Command {
-        let mut c = Command::new(KERF);
-        c.arg(subcommand)
-            .args(["--config", self.config_arg()])
-            .args(args);
-        c
-    }
-
-    /// `kerf SUBCOMMAND --config C ARGS…`, to completion.
-    fn kerf(&self, subcommand: &str, args: &[&str]) -> Output {
-        static RUNS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-        let n = RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let mut p = Proc::start(
-            &format!("kerf-{subcommand}-{n}"),
-            &self.dir,
-            self.command(subcommand, args),
-        );
-        let status = p.wait_within(PATIENCE);
-        let out = Output {
-            status,
-            stdout: fs::read(&p.stdout).unwrap(),
-            stderr: fs::read(&p.stderr).unwrap(),
-        };
-        let _ = fs::remove_file(&p.stdout);
-        let _ = fs::remove_file(&p.stderr);
-        out
-    }
-
-    fn kerf_ok(&self, subcommand: &str, args: &[&str]) -> Output {
-        let o = self.kerf(subcommand, args);
-        assert!(
-            o.status.success(),
-            "kerf {subcommand} {args:?} failed ({}): {}",
-            o.status,
-            String::from_utf8_lossy(&o.stderr)
-        );
-        o
-    }
-
-    /// Starts `kerfd --config C` and waits until its drives are enabled.
-    fn start_daemon(&self) -> Proc {
-        let mut d = Proc::start("kerfd", &self.dir, {
-            let mut c = Command::new(kerfd());
-            c.args(["--config", self.config_arg()]);
-            c
-        });
-        let deadline = Instant::now() + PATIENCE;
-        loop {
-            if let Some(status) = d.try_wait() {
-                panic!("kerfd exited at start ({status}): {}", d.stderr());
-            }
-            let o = self.kerf("status", &["--json"]);
-            if o.status.success() {
-                let s: Value = serde_json::from_slice(&o.stdout).unwrap();
-                if s["drives"] == "running" {
-                    return d;
-                }
-            }
-            assert!(
-                Instant::now() < deadline,
-                "kerfd never got ready: {}",
-                d.stderr()
-            );
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-
-    fn status(&self) -> Value {
-        let o = self.kerf_ok("status", &["--json"]);
-        serde_json::from_slice(&o.stdout).unwrap()
-    }
-
-    fn x(&self) -> f64 {
-        self.status()["position"]["x"].as_f64().unwrap()
-    }
+/// The X position in the status.
+fn x(env: &MachineEnv) -> f64 {
+    env.status()["position"]["x"].as_f64().unwrap()
 }
 
 fn stderr(o: &Output) -> String {
@@ -154,30 +37,30 @@ fn stderr(o: &Output) -> String {
 
 #[test]
 fn a_new_user_homes_the_example_machine_jogs_and_runs_a_program() {
-    let env = Env::new("setup", true);
-    let _d = env.start_daemon();
+    let env = env("setup", true);
+    let _d = env.start_daemon("kerfd");
     let s = env.status();
     assert_eq!(s["homing_required"], true);
     assert_eq!(s["axes"]["x"]["homed"], false);
     // Before homing the machine stands where its motors powered up (config/kerf.toml's
     // [axes.*.sim] start_mm), and programs are refused before any motion.
-    let x0 = env.x();
+    let x0 = x(&env);
     assert_eq!(x0, -80.0);
     let prog = env.dir.join("part.ngc");
     fs::write(&prog, "G21 G90\nG1 X10 Y5 F3000\nG0 X0 Y0\nM2\n").unwrap();
-    let o = env.kerf("run", &[prog.to_str().unwrap()]);
+    let o = env.kerf(&["run"], &[prog.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("not homed"), "{}", stderr(&o));
-    assert_eq!(env.x(), x0, "nothing moved");
+    assert_eq!(x(&env), x0, "nothing moved");
     // Unhomed, a jog may not be faster than 10 % of the axis's 200 mm/s.
-    let o = env.kerf("jog", &["X+", "--speed", "50", "--for", "0.2"]);
+    let o = env.kerf(&["jog"], &["X+", "--speed", "50", "--for", "0.2"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("not homed"), "{}", stderr(&o));
-    assert_eq!(env.x(), x0, "a refused jog does not move");
-    env.kerf_ok("jog", &["X", "--step", "2", "--speed", "20"]);
-    assert_eq!(env.x(), x0 + 2.0);
+    assert_eq!(x(&env), x0, "a refused jog does not move");
+    env.kerf_ok(&["jog"], &["X", "--step", "2", "--speed", "20"]);
+    assert_eq!(x(&env), x0 + 2.0);
     // Homing: Z first, then X and Y, to the home position 0, 0, 0.
-    let o = env.kerf_ok("home", &["--all"]);
+    let o = env.kerf_ok(&["home"], &["--all"]);
     let told = stderr(&o);
     assert!(
         told.contains("homing Z: searching for the home switch"),
@@ -190,24 +73,24 @@ fn a_new_user_homes_the_example_machine_jogs_and_runs_a_program() {
         assert_eq!(s["position"][axis], 0.0, "{axis} at its home position: {s}");
     }
     // Homed, jogs go where they are told, exactly.
-    let o = env.kerf_ok("jog", &["X", "--to", "12.5"]);
+    let o = env.kerf_ok(&["jog"], &["X", "--to", "12.5"]);
     assert_eq!(String::from_utf8_lossy(&o.stdout).trim(), "X 12.5000 mm");
-    assert_eq!(env.x(), 12.5);
-    env.kerf_ok("jog", &["X-", "--step", "2.5"]);
-    assert_eq!(env.x(), 10.0);
+    assert_eq!(x(&env), 12.5);
+    env.kerf_ok(&["jog"], &["X-", "--step", "2.5"]);
+    assert_eq!(x(&env), 10.0);
     // A target beyond the soft limits is refused with the reason, and nothing moves.
-    let o = env.kerf("jog", &["X", "--to", "1200"]);
+    let o = env.kerf(&["jog"], &["X", "--to", "1200"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(
         stderr(&o).contains("beyond the soft limits"),
         "{}",
         stderr(&o)
     );
-    assert_eq!(env.x(), 10.0);
+    assert_eq!(x(&env), 10.0);
     // The program now runs from where the machine stands.
     fs::write(&prog, "G21 G90\nG1 X20 Y5 F3000\nG0 X0 Y0\nM2\n").unwrap();
-    env.kerf_ok("run", &[prog.to_str().unwrap()]);
-    assert_eq!(env.x(), 0.0);
+    env.kerf_ok(&["run"], &[prog.to_str().unwrap()]);
+    assert_eq!(x(&env), 0.0);
 }
 
 /// The time a jerk-limited stop from speed `v` takes at most, s (from the limits, not from
@@ -222,20 +105,20 @@ fn stop_time_s(v: f64, a: f64, j: f64) -> f64 {
 
 #[test]
 fn a_killed_jog_client_stops_the_axis_by_the_dead_mans_switch() {
-    let env = Env::new("deadman", false);
-    let _d = env.start_daemon();
+    let env = env("deadman", false);
+    let _d = env.start_daemon("kerfd");
     let speed = 50.0;
     let mut jog = Proc::start(
         "jog",
         &env.dir,
-        env.command("jog", &["X+", "--speed", "50"]),
+        env.kerf_command(&["jog"], &["X+", "--speed", "50"]),
     );
     // Wait until it moves at its speed, then kill the client without a word.
     let deadline = Instant::now() + PATIENCE;
-    let mut last = env.x();
+    let mut last = x(&env);
     loop {
         std::thread::sleep(Duration::from_millis(300));
-        let x = env.x();
+        let x = x(&env);
         if x - last > 0.0 && x > 20.0 {
             break;
         }
@@ -249,7 +132,7 @@ fn a_killed_jog_client_stops_the_axis_by_the_dead_mans_switch() {
     }
     jog.signal("KILL");
     let _ = jog.wait_within(PATIENCE);
-    let x_killed = env.x();
+    let x_killed = x(&env);
     // It comes to rest by itself: within the dead-man time (100 ms, [jog] deadman_ms) at
     // the jog's speed plus the stop from it (X: 2000 mm/s², 50000 mm/s³), measured from
     // a position read after the kill.
@@ -262,7 +145,7 @@ fn a_killed_jog_client_stops_the_axis_by_the_dead_mans_switch() {
         assert!(Instant::now() < deadline, "the axis never stopped: {s}");
         std::thread::sleep(Duration::from_millis(20));
     }
-    let x_rest = env.x();
+    let x_rest = x(&env);
     let bound = speed * 0.1 + speed * stop_time_s(speed, 2000.0, 50_000.0) / 2.0;
     assert!(
         x_rest - x_killed <= bound + 1e-9,
@@ -274,9 +157,9 @@ fn a_killed_jog_client_stops_the_axis_by_the_dead_mans_switch() {
 
 #[test]
 fn bad_jogs_and_homing_requests_are_refused_with_the_reason() {
-    let env = Env::new("bad", false);
-    let _d = env.start_daemon();
-    let x0 = env.x();
+    let env = env("bad", false);
+    let _d = env.start_daemon("kerfd");
+    let x0 = x(&env);
     for (args, words) in [
         (vec!["Q+"], "unknown axis"),
         (vec!["X"], "needs a direction"),
@@ -288,12 +171,12 @@ fn bad_jogs_and_homing_requests_are_refused_with_the_reason() {
         (vec!["X+", "--to", "3"], "without a direction"),
         (vec!["A+"], "no axis A"),
     ] {
-        let o = env.kerf("jog", &args);
+        let o = env.kerf(&["jog"], &args);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
         assert!(stderr(&o).contains(words), "{args:?}: {}", stderr(&o));
     }
-    let o = env.kerf("home", &["W"]);
+    let o = env.kerf(&["home"], &["W"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("unknown axis"), "{}", stderr(&o));
-    assert_eq!(env.x(), x0, "nothing moved");
+    assert_eq!(x(&env), x0, "nothing moved");
 }

@@ -13,18 +13,15 @@
 
 use std::fs;
 use std::io::Write;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::path::Path;
+use std::process::{Output, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
 const KERF: &str = env!("CARGO_BIN_EXE_kerf");
 mod common;
-use common::{Proc, kerfd};
-
-/// Upper bound on any wait, so that a broken daemon fails a test instead of hanging it.
-const PATIENCE: Duration = Duration::from_secs(60);
+use common::{MACHINE_PATIENCE as PATIENCE, MachineEnv, Proc};
 
 /// Room for rounding when a position is compared with a computed one, mm.
 const EPS_MM: f64 = 1e-6;
@@ -36,116 +33,36 @@ fn stderr_of(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-/// One test's machine: a scratch directory with its configuration and state directory.
+/// One test's machine (see [`MachineEnv`]: its state directory is its scratch directory),
+/// with the commands these tests use.
 struct Env {
-    dir: PathBuf,
-    config_path: PathBuf,
-    machine: String,
+    m: MachineEnv,
+}
+
+impl std::ops::Deref for Env {
+    type Target = MachineEnv;
+
+    fn deref(&self) -> &MachineEnv {
+        &self.m
+    }
 }
 
 impl Env {
     fn new(tag: &str) -> Env {
-        let machine = format!("m{}_{tag}", std::process::id());
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-            .join("kerf-setup-ops-tests")
-            .join(&machine);
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).unwrap();
-        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-        let text = kerf_testkit::config_text::without_homing(
-            &fs::read_to_string(root.join("config/kerf.toml")).unwrap(),
-        );
-        let from = "machine = \"default\"";
-        assert!(text.contains(from));
-        let text = text.replacen(from, &format!("machine = \"{machine}\""), 1);
-        let config_path = dir.join("kerf.toml");
-        fs::write(&config_path, text).unwrap();
         Env {
-            dir,
-            config_path,
-            machine,
+            m: MachineEnv::new("kerf-setup-ops-tests", "m", tag, false),
         }
-    }
-
-    fn path(&self, name: &str) -> PathBuf {
-        self.dir.join(name)
-    }
-
-    fn write(&self, name: &str, text: &str) -> PathBuf {
-        let p = self.path(name);
-        fs::write(&p, text).unwrap();
-        p
-    }
-
-    /// A command of this machine: its state directory is the scratch directory.
-    fn command(&self, program: &str, args: &[&str]) -> Command {
-        let mut c = Command::new(program);
-        c.args(args).env("STATE_DIRECTORY", &self.dir);
-        c
-    }
-
-    /// `kerf SUBCOMMAND [SUB…] --config C ARGS…` to completion (`sub` are the words
-    /// before the options: `offset set`).
-    fn kerf(&self, sub: &[&str], args: &[&str]) -> Output {
-        static RUNS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-        let n = RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let mut all: Vec<&str> = sub.to_vec();
-        all.extend(["--config", self.config_path.to_str().unwrap()]);
-        all.extend_from_slice(args);
-        let name = format!("kerf-{}-{n}", sub.join("-"));
-        let mut p = Proc::start(&name, &self.dir, self.command(KERF, &all));
-        let status = p.wait_within(PATIENCE);
-        let out = Output {
-            status,
-            stdout: fs::read(&p.stdout).unwrap(),
-            stderr: fs::read(&p.stderr).unwrap(),
-        };
-        let _ = fs::remove_file(&p.stdout);
-        let _ = fs::remove_file(&p.stderr);
-        out
     }
 
     /// `kerf …`, asserted to exit 0; its standard output.
     fn kerf_ok(&self, sub: &[&str], args: &[&str]) -> String {
-        let o = self.kerf(sub, args);
-        assert!(
-            o.status.success(),
-            "kerf {sub:?} {args:?} failed ({}): {}",
-            o.status,
-            stderr_of(&o)
-        );
-        String::from_utf8(o.stdout).unwrap()
+        String::from_utf8(self.m.kerf_ok(sub, args).stdout).unwrap()
     }
 
     fn mdi(&self, line: &str, extra: &[&str]) -> String {
         let mut args = extra.to_vec();
         args.push(line);
         self.kerf_ok(&["mdi"], &args)
-    }
-
-    fn start_daemon(&self, name: &str) -> Proc {
-        let args = ["--config", self.config_path.to_str().unwrap()];
-        let mut d = Proc::start(name, &self.dir, self.command(kerfd(), &args));
-        let deadline = Instant::now() + PATIENCE;
-        loop {
-            if let Some(status) = d.try_wait() {
-                panic!("kerfd exited at start ({status}): {}", d.stderr());
-            }
-            if self.kerf(&["status"], &[]).status.success() {
-                return d;
-            }
-            assert!(
-                Instant::now() < deadline,
-                "kerfd never answered: {}",
-                d.stderr()
-            );
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-
-    fn status(&self) -> Value {
-        let text = self.kerf_ok(&["status"], &["--json"]);
-        serde_json::from_str(text.trim()).unwrap_or_else(|e| panic!("not JSON ({e}): {text}"))
     }
 
     fn offsets(&self) -> Value {
