@@ -385,6 +385,8 @@ impl<D: Drive> DriveStage<D> {
         if self.phase != Phase::Enabling || axis >= MAX_AXES || !offset.is_finite() {
             return false;
         }
+        // The position held so far (the drive's, read at construction) moves with it.
+        self.previous_command[axis] += offset - self.offsets[axis];
         self.offsets[axis] = offset;
         true
     }

@@ -132,7 +132,11 @@ impl Machine {
                 return m;
             }
         }
-        panic!("the drives did not enable");
+        panic!(
+            "the drives did not enable: {:?} {:?}",
+            m.cycle.stage().phase(),
+            m.cycle.stage().fault()
+        );
     }
 
     fn run(&mut self) -> CycleOutput {
@@ -722,4 +726,33 @@ fn an_axis_whose_drive_homes_itself_is_homed_and_moves_to_its_home_position() {
         assert!(m.run_until(100_000, |s| s.program_id == 1 && s.program_done));
         assert!(m.snapshot().refusal.is_none(), "{:?}", m.snapshot().refusal);
     }
+}
+
+#[test]
+fn an_absolute_encoder_is_homed_from_the_start_with_its_offset() {
+    let mut axes = [
+        plain_axis(100.0, 1000.0, 20_000.0, -500.0, 500.0),
+        plain_axis(100.0, 1000.0, 20_000.0, -500.0, 500.0),
+        plain_axis(100.0, 1000.0, 20_000.0, -500.0, 500.0),
+    ];
+    // The encoder reads 10 mm at power-up; machine = encoder + 123.5.
+    axes[0].extra =
+        "[axes.x.homing]\nkind = \"absolute\"\nhome_offset_mm = 123.5\n[axes.x.sim]\nstart_mm = 10.0\n"
+            .to_string();
+    let text = machine_toml(&axes, "[homing]\nrequired = true\n");
+    let mut m = Machine::new(config(&text));
+    m.run();
+    assert_eq!(m.snapshot().manual.homed, 0b111, "homed without motion");
+    assert_eq!(m.position()[0], 133.5);
+    // And a program runs at once, in those coordinates.
+    let start = m.position();
+    common::feed_program(&mut m.planning, &m.config, 1, start, "G0 X100\nM2\n");
+    assert!(m.run_until(100_000, |s| s.program_id == 1 && s.program_done));
+    assert!(m.snapshot().refusal.is_none(), "{:?}", m.snapshot().refusal);
+    assert_eq!(m.position()[0], 100.0);
+    let motor = m.log.last().unwrap().2[0];
+    assert!(
+        (motor - (100.0 - 123.5)).abs() < 0.01,
+        "the motor at {motor}"
+    );
 }
