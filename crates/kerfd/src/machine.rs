@@ -124,17 +124,12 @@ impl SimInputs {
         let c = io_config(config);
         let mut driven = 0u64;
         for setup in config.axis_setups().iter().flatten() {
-            let sim = &setup.sim;
-            let inputs = [
-                (sim.home_switch_units, setup.homing.switch_input),
-                (sim.min_limit_units, setup.limit_switches.min_input),
-                (sim.max_limit_units, setup.limit_switches.max_input),
-            ];
-            for (placed, input) in inputs {
-                if let (Some(_), Some(n)) = (placed, input)
-                    && n < 64
-                {
-                    driven |= 1 << n;
+            for s in crate::worker::simulated_switches(setup)
+                .into_iter()
+                .flatten()
+            {
+                if s.input < 64 {
+                    driven |= 1 << s.input;
                 }
             }
         }

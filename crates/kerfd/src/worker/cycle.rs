@@ -6,8 +6,8 @@ mod manual;
 mod program;
 mod report;
 
-pub(crate) use manual::Manual;
 pub use manual::ManualStatus;
+pub(crate) use manual::{Manual, simulated_switches};
 
 use super::*;
 use kerf_drive::safety::Check;

@@ -33,8 +33,8 @@ mod events;
 pub mod fieldbus;
 mod planning;
 
-pub(crate) use cycle::Manual;
 pub use cycle::*;
+pub(crate) use cycle::{Manual, simulated_switches};
 pub use events::input_of_event;
 pub use planning::*;
 

@@ -98,8 +98,6 @@ pub(crate) struct Manual {
     default_speed_pct: f64,
     /// Axes asked to home and not done yet.
     pending: u32,
-    /// The home sequence number now homing.
-    sequence: Option<u32>,
 }
 
 /// The sequencer's configuration of an axis.
@@ -173,16 +171,15 @@ pub struct ManualStatus {
 }
 
 impl Manual {
-    /// The manual side of `config`'s machine, at rest at `position`; `offsets` receives the
-    /// drive offsets of absolute encoders (machine = drive + offset), set before the
-    /// drives enable.
+    /// The manual side of `config`'s machine, at rest at `position`. Jogs keep to the soft
+    /// limits the safety layer checks (`Config::safety_config`).
     pub(crate) fn new(
         config: &kerf_config::Config,
         limits: &kerf_geom::MachineLimits,
         position: PerAxis<f64>,
     ) -> Result<Manual, String> {
         let setups = config.axis_setups();
-        let travel = travel(config);
+        let safety = config.safety_config();
         let mut axes: [Option<ManualAxis>; 6] = [None, None, None, None, None, None];
         for (i, slot) in axes.iter_mut().enumerate() {
             let (Some(setup), Some(l)) = (setups[i], limits.axes[i]) else {
@@ -203,7 +200,9 @@ impl Manual {
                 .map_err(|e| format!("axis {name}: {e}"))?;
             let homing =
                 Homing::new(home_setup(&setup)).map_err(|e| format!("axis {name}: homing: {e}"))?;
-            let (min, max) = travel[i].unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
+            let (min, max) = safety.axes[i].map_or((f64::NEG_INFINITY, f64::INFINITY), |a| {
+                (a.min_limit_units, a.max_limit_units)
+            });
             *slot = Some(ManualAxis {
                 drive: DriveStep::Off,
                 mover,
@@ -227,7 +226,6 @@ impl Manual {
             unhomed_jog_pct: config.homing.unhomed_jog_pct,
             default_speed_pct: config.jog.default_speed_pct,
             pending: 0,
-            sequence: None,
             back: None,
         })
     }
@@ -293,7 +291,6 @@ impl Manual {
     /// axes that were homing stay unhomed.
     pub(crate) fn abort(&mut self) {
         self.pending = 0;
-        self.sequence = None;
         self.back = None;
         for ax in self.axes.iter_mut().flatten() {
             ax.jog = JogMode::Idle;
@@ -507,21 +504,8 @@ impl Manual {
     ) {
         for (i, ax) in self.axes.iter().enumerate() {
             let Some(ax) = ax else { continue };
-            let sim = &ax.setup.sim;
-            let x = drive[i];
-            if let (Some(at), Some(n)) = (sim.home_switch_units, ax.setup.homing.switch_input) {
-                let on = if ax.setup.homing.search_velocity_units_s >= 0.0 {
-                    x >= at
-                } else {
-                    x <= at
-                };
-                machine.drive_input(n as u8, on);
-            }
-            if let (Some(at), Some(n)) = (sim.min_limit_units, ax.setup.limit_switches.min_input) {
-                machine.drive_input(n as u8, x <= at);
-            }
-            if let (Some(at), Some(n)) = (sim.max_limit_units, ax.setup.limit_switches.max_input) {
-                machine.drive_input(n as u8, x >= at);
+            for s in simulated_switches(&ax.setup).into_iter().flatten() {
+                machine.drive_input(s.input, s.active_at(drive[i]));
             }
         }
     }
@@ -568,11 +552,9 @@ impl Manual {
                             ax.phase = 0;
                             self.pending &= !(1 << i);
                         } else {
-                            let speed = match ax.setup.homing.final_speed_units_s {
-                                v if v > 0.0 => v,
-                                _ => ax.velocity_limit * self.default_speed_pct / 100.0,
-                            };
-                            let _ = ax.mover.move_to(home, speed);
+                            // Above 0 for every kind that homes (the configuration fills
+                            // in its default).
+                            let _ = ax.mover.move_to(home, ax.setup.homing.final_speed_units_s);
                         }
                     }
                 }
@@ -753,9 +735,6 @@ impl Manual {
             .flatten()
             .any(|a| a.phase > kerf_proto::HOME_PHASE_WAITING);
         if busy || self.pending == 0 {
-            if self.pending == 0 {
-                self.sequence = None;
-            }
             return;
         }
         let next = self
@@ -765,7 +744,6 @@ impl Manual {
             .filter(|(i, a)| a.is_some() && self.pending & (1 << i) != 0)
             .filter_map(|(_, a)| a.as_ref().map(|a| a.setup.homing.sequence))
             .min();
-        self.sequence = next;
         for (i, ax) in self.axes.iter_mut().enumerate() {
             let Some(ax) = ax else { continue };
             if self.pending & (1 << i) != 0 && Some(ax.setup.homing.sequence) == next {
@@ -832,6 +810,52 @@ impl ManualAxis {
     }
 }
 
+/// A switch that the simulated machine places on an axis (`[axes.*.sim]`) and whose input
+/// it sets from the axis's position.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct SimSwitch {
+    /// The digital input.
+    pub(crate) input: u8,
+    /// Where it is, in the drive's own frame.
+    pub(crate) at: f64,
+    /// Active at and above `at` (else at and below).
+    pub(crate) above: bool,
+}
+
+impl SimSwitch {
+    /// Whether the switch is active with the axis's drive at `x`.
+    fn active_at(self, x: f64) -> bool {
+        if self.above {
+            x >= self.at
+        } else {
+            x <= self.at
+        }
+    }
+}
+
+/// The switches the simulated machine places on the axis of `setup`: the home switch
+/// (active beyond its place in the search direction), the lower and the upper limit
+/// switch. The one list the simulation drives and `kerf input` refuses to set.
+pub(crate) fn simulated_switches(setup: &AxisSetup) -> [Option<SimSwitch>; 3] {
+    let switch = |at: Option<f64>, input: Option<u32>, above: bool| {
+        Some(SimSwitch {
+            input: u8::try_from(input?).ok()?,
+            at: at?,
+            above,
+        })
+    };
+    let sim = &setup.sim;
+    [
+        switch(
+            sim.home_switch_units,
+            setup.homing.switch_input,
+            setup.homing.search_velocity_units_s >= 0.0,
+        ),
+        switch(sim.min_limit_units, setup.limit_switches.min_input, false),
+        switch(sim.max_limit_units, setup.limit_switches.max_input, true),
+    ]
+}
+
 /// Axis `ax`'s hard limit switches (lower, upper) as `io` has them.
 fn limit_switches(ax: &ManualAxis, io: &kerf_drive::machine::IoImage) -> (bool, bool) {
     let on = |n: Option<u32>| n.is_some_and(|n| io.digital_input(n as u8));
@@ -839,13 +863,4 @@ fn limit_switches(ax: &ManualAxis, io: &kerf_drive::machine::IoImage) -> (bool, 
         on(ax.setup.limit_switches.min_input),
         on(ax.setup.limit_switches.max_input),
     )
-}
-
-/// Each axis's travel (soft limits), machine coordinates: `min_mm`/`max_mm`
-/// (`min_deg`/`max_deg`).
-fn travel(config: &kerf_config::Config) -> PerAxis<Option<(f64, f64)>> {
-    let a = &config.axes;
-    let lin = |l: kerf_config::LinearAxis| Some((l.min_mm, l.max_mm));
-    let rot = |r: Option<kerf_config::RotaryAxis>| r.map(|r| (r.min_deg, r.max_deg));
-    [lin(a.x), lin(a.y), lin(a.z), rot(a.a), rot(a.b), rot(a.c)]
 }
