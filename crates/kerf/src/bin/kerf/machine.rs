@@ -234,11 +234,16 @@ pub fn input(args: &InputArgs) -> Result<(), Failure> {
 /// `kerf hold`, `resume`, `abort`, `override`.
 pub fn command(args: &MachineArgs, command: ControlCommand) -> Result<(), Failure> {
     let (mut client, _) = connect(args)?;
-    client.command(command).map_err(|e| match e {
+    client.command(command).map_err(refused)?;
+    Ok(())
+}
+
+/// A command's failure: the daemon's refusal in its words, else as [`client_failure`].
+pub(crate) fn refused(e: ClientError) -> Failure {
+    match e {
         ClientError::Refused(m) => Failure::Error(format!("kerf: error: refused: {m}")),
         e => client_failure(e),
-    })?;
-    Ok(())
+    }
 }
 
 /// Sends `command` and waits for its answer as long as `patience` says the daemon may
@@ -504,11 +509,11 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     };
     let mut client = Client::connect(&config.machine).map_err(client_failure)?;
     let mut status = idle_status(&mut client, &config.machine)?;
-    let unhomed = status.axes_mask & 0b11_1111 & !status.homed;
-    if status.homing_required != 0 && unhomed != 0 {
-        if !args.embedded {
-            require_homed(&status)?;
-        }
+    if !args.embedded {
+        require_homed(&status)?;
+    }
+    let unhomed = unhomed_axes(&status);
+    if unhomed != 0 {
         // The embedded daemon is a machine just switched on: it homes first, as the
         // machinist would.
         eprintln!("kerf: the machine is not homed: homing every axis first");
@@ -843,11 +848,20 @@ pub(crate) fn idle_status(client: &mut Client, machine: &str) -> Result<StatusMs
     Ok(status)
 }
 
+/// The axes (bit i: axis i) that keep programs from running because the machine requires
+/// homing and they are not homed; 0 when none does.
+fn unhomed_axes(status: &StatusMsg) -> u32 {
+    if status.homing_required == 0 {
+        return 0;
+    }
+    status.axes_mask & 0b11_1111 & !status.homed
+}
+
 /// Refuses a machine whose axes are not all homed when it requires homing (programs,
 /// MDI, touch-off: its machine coordinates are not known yet).
 pub(crate) fn require_homed(status: &StatusMsg) -> Result<(), Failure> {
-    let unhomed = status.axes_mask & 0b11_1111 & !status.homed;
-    if status.homing_required != 0 && unhomed != 0 {
+    let unhomed = unhomed_axes(status);
+    if unhomed != 0 {
         let axis = kerf_geom::AXIS_NAMES[unhomed.trailing_zeros() as usize];
         return Err(Failure::Error(format!(
             "kerf: error: the machine is not homed (axis {axis}): run `kerf home --all` first"

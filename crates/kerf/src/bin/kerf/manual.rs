@@ -5,11 +5,11 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use kerf::client::{Client, ClientError};
+use kerf::client::Client;
 use kerf_proto::{ControlCommand, Jog, StatusMsg};
 
 use crate::Failure;
-use crate::machine::{MachineArgs, client_failure, connect, stop_flag};
+use crate::machine::{MachineArgs, client_failure, connect, refused, stop_flag};
 
 /// How often a command that waits polls the daemon's status.
 const POLL: Duration = Duration::from_millis(20);
@@ -61,13 +61,6 @@ fn axis_index(c: char) -> Option<usize> {
     kerf_geom::AXIS_NAMES
         .iter()
         .position(|a| a.eq_ignore_ascii_case(&c))
-}
-
-fn refused(e: ClientError) -> Failure {
-    match e {
-        ClientError::Refused(m) => Failure::Error(format!("kerf: error: refused: {m}")),
-        e => client_failure(e),
-    }
 }
 
 /// The latched fault or the refusal in the status, in words.
