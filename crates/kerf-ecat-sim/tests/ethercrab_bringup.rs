@@ -111,8 +111,8 @@ fn identity_options_are_seen_by_ethercrab_and_a_refused_safe_op_names_its_code()
             .map(|address| {
                 // The first read after the refused transition may time out: ethercrab
                 // dropped the transition's last frame in flight when its own timeout fired,
-                // and the answer to it can take the next frame's place. A read is
-                // idempotent; three tries.
+                // and the answer to it can take the next frame's place (the harness's pump
+                // ignores it and goes on). A read is idempotent; three tries.
                 let read = |register: u16| {
                     let once = || {
                         block_on(
