@@ -211,6 +211,19 @@ impl SimDrive {
         self.position_counts
     }
 
+    /// The motor position in its own frame, counts: where it is from power-up, before
+    /// any homing redefined the drive's coordinates (the frame the home switch of
+    /// [`SimHomingConfig::home_switch_counts`] is placed in).
+    pub fn motor_frame_position_counts(&self) -> f64 {
+        self.position_counts - self.homing.frame_shift()
+    }
+
+    /// Whether the simulated home switch is active (the drive's digital input 0x60FD bit
+    /// 2): never without one, or with a method that homes without a switch.
+    pub fn home_switch_active(&self) -> bool {
+        self.homing.switch_is_active(self.position_counts)
+    }
+
     /// The motor velocity, counts/s (not rounded).
     pub fn motor_velocity_counts_s(&self) -> f64 {
         self.velocity_counts_s

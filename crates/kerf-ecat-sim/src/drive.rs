@@ -37,8 +37,23 @@
 //! off) it runs down to rest at the same rate. The position actual integrates the
 //! velocity, the following error is 0, statusword bit 12 (drive follows the command value)
 //! is set while Operation enabled. A jammed motor stands still (velocity 0).
+//!
+//! Homing mode (6): the servo model's own homing (`kerf_drive::sim`'s homing, methods
+//! 19–22, 35 and 37) with the parameters the MainDevice writes by SDO: method 0x6098,
+//! speeds 0x6099:01 (search for the switch) and :02 (search for zero), acceleration
+//! 0x609A, home offset 0x607C (a write takes effect at the next start of a homing). The
+//! mode is 0x6060, written by SDO or, when the MainDevice maps it in the RxPDO, with every
+//! exchange; controlword bit 4 starts the homing, statusword bits 10, 12 and 13 are the
+//! homing's (attained, error; bit 13 is not the following error in this mode). The home
+//! switch is where [`DriveDevice::set_home_switch`] puts it (the emulator's
+//! `--home-switch`), in the motor's own frame; the drive's digital inputs 0x60FD show it
+//! in bit 2 (home switch), as CiA 402 assigns it.
 
-use kerf_drive::cia402::{Drive, DriveState, MODE_CYCLIC_SYNC_POSITION, cw, sw};
+use kerf_drive::cia402::{
+    Drive, DriveState, HOME_OFFSET_INDEX as HOME_OFFSET,
+    HOMING_ACCELERATION_INDEX as HOMING_ACCELERATION, HOMING_METHOD_INDEX as HOMING_METHOD,
+    HOMING_SPEEDS_INDEX as HOMING_SPEEDS, MODE_CYCLIC_SYNC_POSITION, MODE_HOMING, cw, sw,
+};
 
 /// Mode of operation 9: cyclic synchronous velocity.
 pub const MODE_CYCLIC_SYNC_VELOCITY: i8 = 9;
@@ -46,7 +61,10 @@ pub const MODE_CYCLIC_SYNC_VELOCITY: i8 = 9;
 /// The ramp of the motor's velocity in cyclic synchronous velocity unless set otherwise,
 /// counts/s²: 1e6, e.g. 6000 rpm/s at 10000 counts per revolution.
 pub const DEFAULT_VELOCITY_ACCEL_COUNTS_S2: f64 = 1.0e6;
-use kerf_drive::sim::{SimConfig, SimDrive};
+use kerf_drive::sim::{SimConfig, SimDrive, SimHomingConfig};
+
+/// Digital inputs (0x60FD) bit 2: the home switch.
+pub const DIGITAL_INPUT_HOME_SWITCH: u32 = 1 << 2;
 
 use crate::al::AlState;
 use crate::coe;
@@ -140,6 +158,11 @@ pub struct DriveSnapshot {
     pub mode: i8,
     /// The target velocity (0x60FF) last written, counts/s (used in mode 9).
     pub target_velocity_counts_s: i32,
+    /// The home switch is active (0x60FD bit 2).
+    pub home_switch: bool,
+    /// The motor's position in its own frame (from power-up, before any homing redefined
+    /// the drive's coordinates), counts, rounded.
+    pub motor_counts: i32,
 }
 
 /// A fresh servo model like `drive` (configuration, mode of operation, power state and
@@ -152,6 +175,7 @@ fn at_rest(drive: &SimDrive, position_counts: i32, last_controlword: u16) -> Sim
     let mut config = *drive.config();
     config.initial_position_counts = f64::from(position_counts);
     let mut fresh = SimDrive::new(config);
+    fresh.set_homing_config(*drive.homing_config());
     fresh.set_mode_of_operation(drive.mode_of_operation_display());
     let enable: &[u16] = &[
         cw::DISABLE_VOLTAGE,
@@ -256,6 +280,39 @@ impl DriveDevice {
         ] {
             od.insert(index, 0, &vec![0; len], access);
         }
+        // The homing objects, at the servo model's defaults.
+        let homing = *SimDrive::new(config).homing_config();
+        od.insert(
+            HOMING_METHOD,
+            0,
+            &homing.method.to_le_bytes(),
+            Access::ReadWrite,
+        );
+        od.insert(HOMING_SPEEDS, 0, &[2], Access::ReadOnly);
+        od.insert(
+            HOMING_SPEEDS,
+            1,
+            &homing.search_speed_counts_s.to_le_bytes(),
+            Access::ReadWrite,
+        );
+        od.insert(
+            HOMING_SPEEDS,
+            2,
+            &homing.zero_speed_counts_s.to_le_bytes(),
+            Access::ReadWrite,
+        );
+        od.insert(
+            HOMING_ACCELERATION,
+            0,
+            &homing.acceleration_counts_s2.to_le_bytes(),
+            Access::ReadWrite,
+        );
+        od.insert(
+            HOME_OFFSET,
+            0,
+            &homing.home_offset_counts.to_le_bytes(),
+            Access::ReadWrite,
+        );
         od.insert(0x60C2, 0, &[2], Access::ReadOnly);
         od.insert(0x60C2, 1, &[1], Access::PreOpOnly);
         od.insert(0x60C2, 2, &[(-3i8) as u8], Access::PreOpOnly);
@@ -288,6 +345,31 @@ impl DriveDevice {
         if accel_counts_s2.is_finite() && accel_counts_s2 > 0.0 {
             self.velocity_accel_counts_s2 = accel_counts_s2;
         }
+    }
+
+    /// Places the home switch at `counts` in the motor's own frame (its position from
+    /// power-up), active at and beyond it in the homing method's search direction; `None`
+    /// takes it away.
+    pub fn set_home_switch(&mut self, counts: Option<f64>) {
+        let mut homing = *self.drive.homing_config();
+        homing.home_switch_counts = counts;
+        self.drive.set_homing_config(homing);
+        self.refresh_inputs();
+    }
+
+    /// The servo model's homing parameters from the homing objects the MainDevice wrote
+    /// (the home switch and the search limit stay the emulator's).
+    fn homing_from_objects(&mut self) {
+        let od = &self.od;
+        let homing = SimHomingConfig {
+            method: od.get_u32(HOMING_METHOD, 0) as u8 as i8,
+            search_speed_counts_s: od.get_u32(HOMING_SPEEDS, 1),
+            zero_speed_counts_s: od.get_u32(HOMING_SPEEDS, 2),
+            acceleration_counts_s2: od.get_u32(HOMING_ACCELERATION, 0),
+            home_offset_counts: od.get_u32(HOME_OFFSET, 0) as i32,
+            ..*self.drive.homing_config()
+        };
+        self.drive.set_homing_config(homing);
     }
 
     /// Whether the drive runs in cyclic synchronous velocity.
@@ -388,8 +470,12 @@ impl DriveDevice {
     }
 
     /// The statusword the drive reports (0x6041): the servo model's, with bit 13
-    /// (following error) for the following error reported.
+    /// (following error) for the following error reported; in homing mode the servo
+    /// model's as it is (bit 13 is the homing error there).
     fn statusword(&self) -> u16 {
+        if self.drive.mode_of_operation_display() == MODE_HOMING {
+            return self.drive.statusword();
+        }
         let window = self.drive.config().following_error_window_counts;
         let beyond = self.following_error_counts().unsigned_abs() > window;
         let follows = self.csv() && self.drive.state() == DriveState::OperationEnabled;
@@ -410,6 +496,12 @@ impl DriveDevice {
             .set(0x606C, 0, &self.velocity_actual_counts_s().to_le_bytes());
         self.od
             .set(0x60F4, 0, &self.following_error_counts().to_le_bytes());
+        let inputs = if self.drive.home_switch_active() {
+            DIGITAL_INPUT_HOME_SWITCH
+        } else {
+            0
+        };
+        self.od.set(0x60FD, 0, &inputs.to_le_bytes());
     }
 
     /// Jams the motor where it is (`true`) or lets it turn again (`false`); see the
@@ -442,6 +534,12 @@ impl DriveDevice {
             stopped_after_ns: self.stopped_after_ns,
             mode: self.drive.mode_of_operation_display(),
             target_velocity_counts_s: self.od.get_u32(0x60FF, 0) as i32,
+            home_switch: self.drive.home_switch_active(),
+            motor_counts: if self.csv() {
+                saturate(self.csv_position_counts)
+            } else {
+                saturate(self.drive.motor_frame_position_counts())
+            },
         }
     }
 
@@ -522,14 +620,22 @@ impl Application for DriveDevice {
     fn mailbox(&mut self, request: &[u8], state: AlState) -> Option<Vec<u8>> {
         self.refresh_inputs();
         let mut mode = None;
+        let mut homing = false;
         let pre_op = state == AlState::PreOp;
         let response = self.sdo.serve(&mut self.od, request, pre_op, |i, _, v| {
             if i == 0x6060 {
                 mode = Some(v[0] as i8);
             }
+            homing |= matches!(
+                i,
+                HOMING_METHOD | HOMING_SPEEDS | HOMING_ACCELERATION | HOME_OFFSET
+            );
         });
         if let Some(mode) = mode {
             self.drive.set_mode_of_operation(mode);
+        }
+        if homing {
+            self.homing_from_objects();
         }
         response
     }
@@ -538,10 +644,17 @@ impl Application for DriveDevice {
         if !apply {
             return;
         }
+        let mut mode_mapped = false;
         for (index, sub, range) in layout(&self.assigned_mapping(0x1C12)) {
             if let Some(bytes) = data.get(range) {
                 self.od.set(index, sub, bytes);
+                mode_mapped |= index == 0x6060;
             }
+        }
+        if mode_mapped {
+            // The mode in the process data: the drive takes it with every exchange.
+            self.drive
+                .set_mode_of_operation(self.od.get_u32(0x6060, 0) as u8 as i8);
         }
         let controlword = self.od.get_u32(0x6040, 0) as u16;
         let target = self.od.get_u32(0x607A, 0) as i32;
@@ -615,7 +728,9 @@ impl Application for DriveDevice {
         config.initial_position_counts = self.drive.motor_position_counts();
         config.substeps = config.substeps.max(config.min_substeps());
         let mode = self.drive.mode_of_operation_display();
+        let homing = *self.drive.homing_config();
         self.drive = SimDrive::new(config);
+        self.drive.set_homing_config(homing);
         self.drive.set_mode_of_operation(mode);
         self.refresh_inputs();
     }
@@ -965,5 +1080,89 @@ mod tests {
         assert_eq!(interpolation_period_ns(0, -3), None);
         assert_eq!(interpolation_period_ns(1, -10), None);
         assert_eq!(interpolation_period_ns(2, 0), None);
+    }
+
+    /// An expedited SDO download of `value` (1, 2 or 4 bytes) to `index:sub` in PRE-OP,
+    /// as a MainDevice writes it; panics on an abort.
+    fn sdo_write(d: &mut DriveDevice, index: u16, sub: u8, value: &[u8]) {
+        let command = 0x23 | ((4 - value.len() as u8) << 2);
+        let mut sdo = vec![command, index as u8, (index >> 8) as u8, sub];
+        sdo.extend_from_slice(value);
+        sdo.resize(8, 0);
+        let mut m = 10u16.to_le_bytes().to_vec();
+        m.extend_from_slice(&[0x00, 0x00, 0x00, 0x23, 0x00, 0x20]);
+        m.extend_from_slice(&sdo);
+        m.resize(usize::from(MAILBOX_LEN), 0);
+        let out = Application::mailbox(d, &m, AlState::PreOp).expect("an answer");
+        assert_eq!(out[8] & 0xE0, 0x60, "{index:#06x}:{sub} aborted: {out:?}");
+    }
+
+    /// One exchange with the mode in the process data (RxPDO: controlword, target
+    /// position, modes of operation): the statusword, 0x60FD and the snapshot after it.
+    fn cycle_in(d: &mut DriveDevice, controlword: u16, target: i32, mode: i8) -> DriveSnapshot {
+        let mut data = [0u8; 7];
+        data[..2].copy_from_slice(&controlword.to_le_bytes());
+        data[2..6].copy_from_slice(&target.to_le_bytes());
+        data[6] = mode as u8;
+        Application::outputs(d, &data, true, 0);
+        d.snapshot()
+    }
+
+    #[test]
+    fn homing_mode_in_the_process_data_homes_on_the_switch_with_the_objects_written_by_sdo() {
+        let mut d = drive();
+        d.od.insert_record(
+            0x1600,
+            &[0x6040_0010, 0x607A_0020, 0x6060_0008],
+            4,
+            Access::PreOpOnly,
+        );
+        d.set_home_switch(Some(3000.0));
+        // Method 19 (positive home switch), 20 000 counts/s to the switch, 2000 back
+        // to its edge, 400 000 counts/s², home offset 1000 counts.
+        sdo_write(&mut d, 0x6098, 0, &[19]);
+        sdo_write(&mut d, 0x6099, 1, &20_000u32.to_le_bytes());
+        sdo_write(&mut d, 0x6099, 2, &2_000u32.to_le_bytes());
+        sdo_write(&mut d, 0x609A, 0, &400_000u32.to_le_bytes());
+        sdo_write(&mut d, 0x607C, 0, &1000i32.to_le_bytes());
+        for controlword in [0x0000, 0x0006, 0x0007, 0x000F] {
+            cycle_in(&mut d, controlword, 0, MODE_CYCLIC_SYNC_POSITION);
+        }
+        assert!(!d.snapshot().home_switch);
+        // Homing mode from the process data, then bit 4's rising edge starts it.
+        let entered = cycle_in(&mut d, 0x000F, 0, MODE_HOMING);
+        assert_eq!(entered.mode, MODE_HOMING);
+        let mut last = entered;
+        let mut saw_switch = false;
+        let mut cycles = 0;
+        while last.statusword & (1 << 12) == 0 {
+            last = cycle_in(&mut d, 0x001F, 0, MODE_HOMING);
+            saw_switch |= last.home_switch;
+            assert_eq!(last.statusword & (1 << 13), 0, "homing error: {last:?}");
+            cycles += 1;
+            assert!(cycles < 10_000, "never attained: {last:?}");
+        }
+        assert!(saw_switch, "the switch never showed in the inputs");
+        // At rest on the switch's edge, which now reads as the home offset.
+        assert_eq!(last.statusword & (1 << 10), 1 << 10, "{last:?}");
+        assert!((last.position_counts - 1000).abs() <= 1, "{last:?}");
+        assert!((last.motor_counts - 3000).abs() <= 1, "{last:?}");
+        let mut inputs = [0u8; 20];
+        Application::inputs(&mut d, &mut inputs);
+        let digital = u32::from_le_bytes(inputs[16..20].try_into().unwrap());
+        assert_eq!(
+            digital & DIGITAL_INPUT_HOME_SWITCH != 0,
+            last.home_switch,
+            "0x60FD bit 2"
+        );
+        // Back to cyclic synchronous position through the process data.
+        let back = cycle_in(
+            &mut d,
+            0x000F,
+            last.position_counts,
+            MODE_CYCLIC_SYNC_POSITION,
+        );
+        assert_eq!(back.mode, MODE_CYCLIC_SYNC_POSITION);
+        assert_eq!(back.state, DriveState::OperationEnabled);
     }
 }

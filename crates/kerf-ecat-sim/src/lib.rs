@@ -120,6 +120,15 @@ pub struct SafeOpRefusal {
     pub al_status_code: u16,
 }
 
+/// A drive's home switch ([`drive::DriveDevice::set_home_switch`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HomeSwitch {
+    /// The drive's position on the line (0 first).
+    pub position: u16,
+    /// Where the switch is in the motor's own frame, counts from power-up.
+    pub counts: f64,
+}
+
 /// What to emulate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NetworkSpec {
@@ -146,6 +155,8 @@ pub struct NetworkSpec {
     /// monotonic time (negative: slow): every subdevice's local clock advances
     /// `1 + dc_drift_ppm · 10⁻⁶` ns per host ns (see [`dc::oscillator_ns`]).
     pub dc_drift_ppm: f64,
+    /// Drives with a home switch.
+    pub home_switches: Vec<HomeSwitch>,
 }
 
 impl Default for NetworkSpec {
@@ -161,6 +172,7 @@ impl Default for NetworkSpec {
             velocity_accel_counts_s2: drive::DEFAULT_VELOCITY_ACCEL_COUNTS_S2,
             refuse_safe_op: Vec::new(),
             dc_drift_ppm: 0.0,
+            home_switches: Vec::new(),
         }
     }
 }
@@ -178,6 +190,14 @@ pub fn build(spec: &NetworkSpec) -> (Network, Vec<IoHandle>) {
         };
         let mut app = DriveDevice::new(identity, DRIVE_NAME, spec.sim);
         app.set_velocity_accel_counts_s2(spec.velocity_accel_counts_s2);
+        if let Some(switch) = spec
+            .home_switches
+            .iter()
+            .rev()
+            .find(|h| u32::from(h.position) == n)
+        {
+            app.set_home_switch(Some(switch.counts));
+        }
         let clock = DcClock::new(u64::from(n) * 1_000_000, spec.dc_drift_ppm);
         escs.push(Esc::new(Box::new(app), clock));
     }

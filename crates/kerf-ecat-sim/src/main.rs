@@ -18,7 +18,7 @@ use kerf_ecat_sim::io::IoHandle;
 use kerf_ecat_sim::network::Network;
 use kerf_ecat_sim::report;
 use kerf_ecat_sim::socket::RawSocket;
-use kerf_ecat_sim::{NetworkSpec, SafeOpRefusal, build};
+use kerf_ecat_sim::{HomeSwitch, NetworkSpec, SafeOpRefusal, build};
 
 fn parse_u32(text: &str) -> Result<u32, String> {
     let parsed = match text.strip_prefix("0x").or_else(|| text.strip_prefix("0X")) {
@@ -48,6 +48,24 @@ fn parse_refusal(text: &str) -> Result<SafeOpRefusal, String> {
     })
 }
 
+/// `P:COUNTS`: a drive's ring position and a position in counts (decimal, may be
+/// negative).
+fn parse_home_switch(text: &str) -> Result<HomeSwitch, String> {
+    let (position, counts) = text
+        .split_once(':')
+        .ok_or_else(|| format!("{text:?} is not POSITION:COUNTS"))?;
+    let position = position
+        .parse()
+        .map_err(|e| format!("position {position:?}: {e}"))?;
+    let counts: f64 = counts
+        .parse()
+        .map_err(|e| format!("counts {counts:?}: {e}"))?;
+    if !counts.is_finite() {
+        return Err(format!("counts {counts} is not a position"));
+    }
+    Ok(HomeSwitch { position, counts })
+}
+
 /// Emulated EtherCAT network: CiA 402 drives, then digital I/O subdevices, answering
 /// EtherCAT frames on INTERFACE.
 ///
@@ -73,7 +91,7 @@ fn parse_refusal(text: &str) -> Result<SafeOpRefusal, String> {
 ///     subdevice 0 kind=drive al=OP al_error=0 al_code=0x0000 watchdog_trips=0
 ///       cia402=operation_enabled statusword=0x1237 error_code=0x0000 position_counts=123
 ///       velocity_counts_s=0 following_error_counts=0 stalled=0 stopped_ms=- mode=8
-///       target_velocity_counts_s=0
+///       target_velocity_counts_s=0 home_switch=0 motor_counts=123
 ///     subdevice 1 kind=io al=SAFE-OP al_error=1 al_code=0x001B watchdog_trips=1
 ///       inputs=0xA5 outputs=0x00
 ///                   (each on one line). stopped_ms: from the last process-data watchdog
@@ -133,6 +151,13 @@ struct Args {
     /// (0x60FF) at A counts/s², and runs down to rest at A when not enabled.
     #[arg(long, value_name = "A", default_value_t = kerf_ecat_sim::drive::DEFAULT_VELOCITY_ACCEL_COUNTS_S2)]
     velocity_accel: f64,
+    /// The drive at POSITION (0 first; repeatable) has a home switch at COUNTS in its
+    /// motor's own frame (counts from power-up), active at and beyond it in the search
+    /// direction of the homing method the MainDevice writes (0x6098: positive for 19 and
+    /// 20, negative for 21 and 22). It homes on it in homing mode (6) and shows it in its
+    /// digital inputs (0x60FD bit 2).
+    #[arg(long, value_name = "POSITION:COUNTS", value_parser = parse_home_switch, allow_hyphen_values = true)]
+    home_switch: Vec<HomeSwitch>,
 }
 
 /// Carries out one control command from standard input; the answer to `state` goes to
@@ -203,6 +228,15 @@ fn main() -> anyhow::Result<()> {
             bad.position
         );
     }
+    if let Some(bad) = args.home_switch.iter().find(|h| h.position >= args.drives) {
+        anyhow::bail!(
+            "--home-switch {}:{}: the line has only {} drive(s), at positions 0 to {}",
+            bad.position,
+            bad.counts,
+            args.drives,
+            args.drives.saturating_sub(1)
+        );
+    }
     if args.dc_drift_ppm.is_nan() || args.dc_drift_ppm.abs() > kerf_ecat_sim::dc::MAX_DRIFT_PPM {
         anyhow::bail!(
             "--dc-drift-ppm {}: the drift must be a number from -{max} to {max}",
@@ -226,6 +260,7 @@ fn main() -> anyhow::Result<()> {
         refuse_safe_op: args.refuse_safe_op.clone(),
         dc_drift_ppm: args.dc_drift_ppm,
         velocity_accel_counts_s2: args.velocity_accel,
+        home_switches: args.home_switch.clone(),
         ..NetworkSpec::default()
     };
     let (mut network, handles) = build(&spec);

@@ -4,7 +4,7 @@
 //! come in the same order:
 //!
 //! ```text
-//! subdevice 0 kind=drive al=OP al_error=0 al_code=0x0000 watchdog_trips=0 cia402=operation_enabled statusword=0x1237 error_code=0x0000 position_counts=123 velocity_counts_s=0 following_error_counts=0 stalled=0 stopped_ms=- mode=8 target_velocity_counts_s=0
+//! subdevice 0 kind=drive al=OP al_error=0 al_code=0x0000 watchdog_trips=0 cia402=operation_enabled statusword=0x1237 error_code=0x0000 position_counts=123 velocity_counts_s=0 following_error_counts=0 stalled=0 stopped_ms=- mode=8 target_velocity_counts_s=0 home_switch=0 motor_counts=123
 //! subdevice 3 kind=io al=SAFE-OP al_error=1 al_code=0x001B watchdog_trips=1 inputs=0xA5 outputs=0x00
 //! ```
 //!
@@ -27,10 +27,15 @@
 //!   at rest by its own quick stop, in ms with 3 decimals (e.g. `20.000`), counted in the
 //!   servo model's periods; `-` when the watchdog has not expired, or the motor is not at
 //!   rest yet;
-//! - `mode`: the mode of operation (0x6061), `8` cyclic synchronous position or `9`
-//!   cyclic synchronous velocity (a spindle drive);
+//! - `mode`: the mode of operation (0x6061), `6` homing, `8` cyclic synchronous position or
+//!   `9` cyclic synchronous velocity (a spindle drive);
 //! - `target_velocity_counts_s`: the target velocity (0x60FF) last written, signed decimal
-//!   (what a drive in mode 9 follows).
+//!   (what a drive in mode 9 follows);
+//! - `home_switch`: `1` while its home switch is active (0x60FD bit 2; `--home-switch`),
+//!   else `0`;
+//! - `motor_counts`: where its motor is in the motor's own frame, counts from power-up
+//!   (signed decimal): `position_counts` until a homing by the drive redefines the drive's
+//!   coordinates, then `position_counts` less that shift.
 //!
 //! An I/O subdevice, then `inputs` and `outputs`: its bits (bit n is input or output n),
 //! `0x` and one upper-case hex digit per 4 bits (2 for 8 bits); `outputs` are those last
@@ -105,8 +110,11 @@ pub fn write_line(out: &mut impl Write, position: usize, esc: &Esc) -> fmt::Resu
             }
             write!(
                 out,
-                " mode={} target_velocity_counts_s={}",
-                d.mode, d.target_velocity_counts_s
+                " mode={} target_velocity_counts_s={} home_switch={} motor_counts={}",
+                d.mode,
+                d.target_velocity_counts_s,
+                u8::from(d.home_switch),
+                d.motor_counts
             )
         }
         AppSnapshot::Io(io) => {
@@ -152,11 +160,11 @@ mod tests {
             "subdevice 0 kind=drive al=INIT al_error=0 al_code=0x0000 watchdog_trips=0 \
              cia402=not_ready_to_switch_on statusword=0x0200 error_code=0x0000 \
              position_counts=0 velocity_counts_s=0 following_error_counts=0 stalled=0 \
-             stopped_ms=- mode=8 target_velocity_counts_s=0\n\
+             stopped_ms=- mode=8 target_velocity_counts_s=0 home_switch=0 motor_counts=0\n\
              subdevice 1 kind=drive al=INIT al_error=0 al_code=0x0000 watchdog_trips=0 \
              cia402=not_ready_to_switch_on statusword=0x0200 error_code=0x0000 \
              position_counts=0 velocity_counts_s=0 following_error_counts=0 stalled=0 \
-             stopped_ms=- mode=8 target_velocity_counts_s=0\n\
+             stopped_ms=- mode=8 target_velocity_counts_s=0 home_switch=0 motor_counts=0\n\
              subdevice 2 kind=io al=INIT al_error=0 al_code=0x0000 watchdog_trips=0 \
              inputs=0xA5 outputs=0x00\n"
         );

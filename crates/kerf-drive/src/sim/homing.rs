@@ -230,7 +230,13 @@ impl HomingMotion {
         }
     }
 
-    fn switch_is_active(&self, motor_counts: f64) -> bool {
+    /// Drive counts minus motor-frame counts: what homing added to the coordinates.
+    pub(super) fn frame_shift(&self) -> f64 {
+        self.frame_shift
+    }
+
+    /// Whether the home switch is active with the motor at `motor_counts` (drive counts).
+    pub(super) fn switch_is_active(&self, motor_counts: f64) -> bool {
         let Some(s) = self.config.home_switch_counts else {
             return false;
         };
