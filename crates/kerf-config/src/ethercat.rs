@@ -27,6 +27,11 @@ pub const SPINDLE_AXIS_INDEX: usize = 6;
 pub const MODES_OF_OPERATION: u16 = 0x6060;
 /// The CiA 402 interpolation time period (0x60C2), set from `period_us` at bring-up.
 pub const INTERPOLATION_PERIOD: u16 = 0x60C2;
+/// The homing objects of a drive that homes itself: method 0x6098, speeds 0x6099,
+/// acceleration 0x609A, home offset 0x607C.
+pub const HOMING_OBJECTS: [u16; 4] = [0x6098, 0x6099, 0x609A, 0x607C];
+/// Modes of operation display.
+pub const MODES_OF_OPERATION_DISPLAY: u16 = 0x6061;
 /// The SyncManager 2 (outputs) PDO assignment object.
 pub const RX_PDO_ASSIGN: u16 = 0x1C12;
 /// The SyncManager 3 (inputs) PDO assignment object.
@@ -235,6 +240,9 @@ pub struct EthercatDrive {
     pub tx_pdo: Pdo,
     /// `sdo`: the start-up writes.
     pub sdo: Vec<SdoWrite>,
+    /// The homing objects written at bring-up (after `sdo`) when the axis homes by its
+    /// drive (`[axes.*.homing] kind = "drive"`): [`crate::Config::drive_homing_objects`].
+    pub homing: Option<crate::DriveHomingObjects>,
 }
 
 /// A named bit of an I/O subdevice's process data.

@@ -226,6 +226,25 @@ impl Config {
         })
     }
 
+    /// The configuration with each EtherCAT drive's homing objects filled in (for the
+    /// axes homed by their drive): what the daemon writes at bring-up.
+    pub(crate) fn with_drive_homing_on_the_bus(mut self) -> Config {
+        let objects: Vec<Option<DriveHomingObjects>> = match &self.ethercat {
+            None => return self,
+            Some(bus) => bus
+                .drives
+                .iter()
+                .map(|d| self.drive_homing_objects(d.axis_index))
+                .collect(),
+        };
+        if let Some(bus) = &mut self.ethercat {
+            for (drive, homing) in bus.drives.iter_mut().zip(objects) {
+                drive.homing = homing;
+            }
+        }
+        self
+    }
+
     /// The simulated drive's homing configuration for axis `axis` (0 X to 5 C): `None`
     /// unless its `[axes.*.homing]` is of kind "drive" and its drive is simulated. The
     /// objects of [`Config::drive_homing_objects`]; the home switch of `[axes.*.sim]`

@@ -5,6 +5,8 @@
 
 use std::path::Path;
 
+use crate::ethercat::PdoEntry;
+
 use crate::tests_ethercat::{AXES, at, at_nth, bus, load, refused};
 use crate::tests_machine::at_value;
 use crate::*;
@@ -1664,4 +1666,76 @@ fn on_ethercat_a_drive_homing_takes_any_cia_402_method_and_no_simulated_limit() 
             at_value(&text, "search_distance_mm = 30")
         )
     );
+}
+
+#[test]
+fn on_ethercat_a_drive_homing_maps_the_mode_and_writes_its_objects_at_bring_up() {
+    let homing = "[axes.x.homing]\nkind = \"drive\"\nmethod = 19\nsearch_velocity_mm_s = 10\n\
+                  latch_velocity_mm_s = 1\nhome_offset_mm = 2.5\n";
+    let c = config(&format!("{}{homing}", bus("", "", "")));
+    let bus_side = c.ethercat.as_ref().expect("[ethercat]");
+    let x = &bus_side.drives[0];
+    let entry = |index, bits| PdoEntry {
+        index,
+        subindex: 0,
+        bits,
+    };
+    // The CSP default with the mode of operation out and its display in, 8 bits each,
+    // at the end: controlword, target position, 0x6060; and the six inputs, 0x6061.
+    assert_eq!(
+        x.rx_pdo.entries,
+        vec![entry(0x6040, 16), entry(0x607A, 32), entry(0x6060, 8)]
+    );
+    assert_eq!(x.tx_pdo.entries.last(), Some(&entry(0x6061, 8)));
+    assert_eq!(x.tx_pdo.entries.len(), 7);
+    // 1000 counts/mm (the bench's default scale): 10 000 and 1000 counts/s, the axis's
+    // 1000 mm/s², 2500 counts of offset.
+    assert_eq!(
+        x.homing,
+        Some(DriveHomingObjects {
+            method: 19,
+            search_speed_counts_s: 10_000,
+            zero_speed_counts_s: 1000,
+            acceleration_counts_s2: 1_000_000,
+            home_offset_counts: 2500,
+        })
+    );
+    // The axes not homed by their drives keep the default mapping and write nothing.
+    for d in &bus_side.drives[1..] {
+        assert_eq!(d.homing, None);
+        assert_eq!(d.rx_pdo.entries.len(), 2);
+        assert_eq!(d.tx_pdo.entries.len(), 6);
+    }
+    // A mapping of the file's must carry the mode: the homing switches it cyclically.
+    let rx = "rx_pdo = [\n    { index = 0x6040, subindex = 0, bits = 16 },\n    \
+              { index = 0x607A, subindex = 0, bits = 32 },\n]\n";
+    let text = format!("{}{homing}", bus("", rx, ""));
+    assert_eq!(
+        refused(&text),
+        format!(
+            "{}`ethercat.drives[0].rx_pdo` must map the modes of operation 0x6060:00 (8 bits): axis x homes by its drive (`axes.x.homing.kind = \"drive\"`), which the daemon switches to homing mode (6) and back in the cyclic data",
+            at(&text, "[\n    { index = 0x6040")
+        )
+    );
+    let with_mode = "rx_pdo = [\n    { index = 0x6040, subindex = 0, bits = 16 },\n    \
+                     { index = 0x607A, subindex = 0, bits = 32 },\n    \
+                     { index = 0x6060, subindex = 0, bits = 8 },\n]\n";
+    let c = config(&format!("{}{homing}", bus("", with_mode, "")));
+    assert_eq!(
+        c.ethercat.as_ref().unwrap().drives[0].rx_pdo.entries[2],
+        entry(0x6060, 8)
+    );
+    // Its objects are the homing table's, not the start-up list's.
+    let sdo = "sdo = [{ index = 0x6098, subindex = 0, type = \"i8\", value = 19 }]\n";
+    let text = format!("{}{homing}", bus("", sdo, ""));
+    assert_eq!(
+        refused(&text),
+        format!(
+            "{}`ethercat.drives[0].sdo[0]` writes 0x6098, which the bring-up sets from [axes.x.homing]; set it there",
+            at(&text, "0x6098")
+        )
+    );
+    // Without the homing, the start-up list may write them (a drive homed otherwise).
+    let c = config(&bus("", sdo, ""));
+    assert_eq!(c.ethercat.as_ref().unwrap().drives[0].sdo.len(), 1);
 }

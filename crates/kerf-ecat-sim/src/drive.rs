@@ -82,6 +82,9 @@ CSP mode 8, one model step per process data write; this text is 160 bytes long..
 /// Mailbox size each way, bytes.
 pub const MAILBOX_LEN: u16 = 128;
 
+/// Entries a PDO mapping object (0x1600, 0x1A00) can hold.
+pub const MAPPING_CAPACITY: usize = 16;
+
 const RX_MAPPING: [u32; 2] = [0x6040_0010, 0x607A_0020];
 const TX_MAPPING: [u32; 6] = [
     0x6041_0010,
@@ -261,8 +264,14 @@ impl DriveDevice {
             identity.serial,
         ];
         od.insert_record(0x1018, &id, 4, Access::ReadOnly);
-        od.insert_record(0x1600, &RX_MAPPING, 4, Access::PreOpOnly);
-        od.insert_record(0x1A00, &TX_MAPPING, 4, Access::PreOpOnly);
+        // The mapping objects hold up to MAPPING_CAPACITY entries, as a drive's do: the
+        // defaults, then free subindices.
+        for (index, mapping) in [(0x1600, &RX_MAPPING[..]), (0x1A00, &TX_MAPPING[..])] {
+            let mut entries = [0u32; MAPPING_CAPACITY];
+            entries[..mapping.len()].copy_from_slice(mapping);
+            od.insert_record(index, &entries, 4, Access::PreOpOnly);
+            od.set(index, 0, &[mapping.len() as u8]);
+        }
         od.insert_record(0x1C12, &[0x1600], 2, Access::PreOpOnly);
         od.insert_record(0x1C13, &[0x1A00], 2, Access::PreOpOnly);
         for (index, len, access) in [

@@ -59,6 +59,7 @@ fn exchanges_allocate_nothing(dc: bool) {
                 rx_pdo: Pdo::default_rx(DriveMode::Csp),
                 tx_pdo: Pdo::default_tx(),
                 sdo: Vec::new(),
+                homing: None,
             })
             .collect(),
         io: vec![EthercatIo {

@@ -25,6 +25,7 @@ fn drive(axis_index: usize, position: u16, product_code: u32) -> EthercatDrive {
         rx_pdo: Pdo::default_rx(DriveMode::Csp),
         tx_pdo: Pdo::default_tx(),
         sdo: Vec::new(),
+        homing: None,
     }
 }
 

@@ -6,8 +6,9 @@
 //!    against expected, on any difference ([`crate::identity::compare`]);
 //! 3. in PRE-OP, per subdevice: the configured start-up SDOs in order; for a drive, the
 //!    PDO mapping (mapping object entries, then the assignment 0x1C12/0x1C13), the mode
-//!    of operation 0x6060 and the interpolation period 0x60C2 = the cycle period; the
-//!    process-data watchdog (register 0x0420);
+//!    of operation 0x6060 and the interpolation period 0x60C2 = the cycle period; for a
+//!    drive that homes itself, its homing objects (0x6098, 0x6099, 0x609A, 0x607C,
+//!    [`homing_writes`]); the process-data watchdog (register 0x0420);
 //! 4. with distributed clocks (`dc = true`): every drive set to run on SYNC0, SYNC0
 //!    programmed at the cycle period, and the bus cycled until every subdevice's clock
 //!    agrees with the reference's (register 0x092C within [`SETTLED_NS`]) and the host's
@@ -34,8 +35,8 @@ use kerf_config::ethercat::{DriveMode, EthercatConfig, SPINDLE_AXIS_INDEX, SdoWr
 use thiserror::Error;
 
 pub use clocked::SETTLED_NS;
-pub use configure::drive_writes;
 pub(crate) use configure::sdo_write;
+pub use configure::{drive_writes, homing_writes};
 
 use crate::al::{
     AL_ACKNOWLEDGE, AL_CONTROL_REGISTER, ERROR_FLAG, al_code_text, read_status, state_text,
@@ -433,12 +434,16 @@ impl Bus {
                 position: e.position,
                 source,
             })?;
-            for write in drive_writes(
+            let writes = drive_writes(
                 &drive.rx_pdo,
                 &drive.tx_pdo,
                 drive.mode.mode_of_operation(),
                 period,
-            ) {
+            );
+            for write in writes
+                .into_iter()
+                .chain(homing_writes(drive.homing.as_ref()))
+            {
                 let step = || at(format!("SDO {:#06x}:{}", write.index, write.subindex));
                 run(&mut pump, step, sdo_write(&handle, write), sdo_bound)?;
             }

@@ -330,3 +330,70 @@ fn a_subdevice_leaving_op_is_named_with_its_al_status_code_and_a_reset_brings_it
         assert_eq!(Bench::field(line, "cia402"), "operation_enabled", "{line}");
     }
 }
+
+#[test]
+fn an_axis_homed_by_its_drive_homes_on_the_drives_switch_over_the_bus_and_runs_in_those_coordinates()
+ {
+    // X homes by its drive: CiA 402 method 19 (the home switch in the positive
+    // direction), 20 mm/s to the switch, 2 mm/s back to its edge; the edge reads 5 mm
+    // (0x607C), then Kerf moves X to 10 mm. The emulated X drive's switch is 30 mm from
+    // where its motor powers up (1000 counts/mm, the default scale).
+    let mut bench = Bench::with_sections(
+        "drive-homing",
+        "\n[axes.x.homing]\nkind = \"drive\"\nmethod = 19\nsearch_velocity_mm_s = 20.0\n\
+         latch_velocity_mm_s = 2.0\nhome_offset_mm = 5.0\nhome_mm = 10.0\n",
+        &["--home-switch", "0:30000"],
+    );
+    let mut daemon = bench.daemon();
+    let s = bench.status_until("idle", |s| s["state"] == "idle");
+    assert_eq!(s["axes"]["x"]["homed"], false, "{s}");
+    assert_eq!(s["axes"]["y"]["homed"], true, "{s}");
+    // Unhomed, a program is refused and nothing moves.
+    let program = bench.dir.join("part.ngc");
+    fs::write(&program, PART).unwrap();
+    let out = bench.kerf(&["run", program.to_str().unwrap()]);
+    assert!(!out.status.success(), "a program ran on an unhomed X");
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(said.contains("not homed"), "{said}");
+    let out = bench.kerf(&["home", "X"]);
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "kerf home X: {said}");
+    assert!(said.contains("homed X"), "{said}");
+    let s = bench.status();
+    assert_eq!(s["axes"]["x"]["homed"], true, "{s}");
+    let x = s["position"]["x"].as_f64().expect("x");
+    assert!(
+        (x - 10.0).abs() < 1e-6,
+        "X at {x} after homing, not 10: {s}"
+    );
+    // The drive's own account: back in cyclic synchronous position, at 10 mm of its
+    // redefined coordinates, which is the switch's edge (30 mm from power-up) + 10 − 5 mm
+    // of its motor's own frame.
+    let drive = &bench.emulator_state()[0];
+    assert_eq!(Bench::field(drive, "mode"), "8", "{drive}");
+    assert_eq!(
+        Bench::field(drive, "cia402"),
+        "operation_enabled",
+        "{drive}"
+    );
+    let counts = |field| -> i64 { Bench::field(drive, field).parse().unwrap() };
+    assert!((counts("position_counts") - 10_000).abs() <= 1, "{drive}");
+    assert!((counts("motor_counts") - 35_000).abs() <= 1, "{drive}");
+    // The part runs in those coordinates: it ends at X0, 25 mm from power-up.
+    let out = bench.kerf(&["run", program.to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "kerf run: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let drive = &bench.emulator_state()[0];
+    let counts = |field| -> i64 { Bench::field(drive, field).parse().unwrap() };
+    assert!(counts("position_counts").abs() <= 1, "{drive}");
+    assert!((counts("motor_counts") - 25_000).abs() <= 1, "{drive}");
+    daemon.signal("TERM");
+    assert!(
+        daemon.wait_within(PATIENCE).success(),
+        "{}",
+        daemon.stderr()
+    );
+}

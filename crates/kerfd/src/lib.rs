@@ -223,19 +223,6 @@ pub(crate) fn check_drives(config: &Config) -> Result<(), StartError> {
     let Some(bus) = config.ethercat() else {
         return Ok(());
     };
-    // Homing by the drive needs its homing objects written at bring-up and the mode of
-    // operation switched in the cyclic data: not done on EtherCAT yet.
-    if let Some(i) = config
-        .axis_setups()
-        .iter()
-        .position(|s| s.is_some_and(|s| s.homing.kind == kerf_config::HomingKind::Drive))
-    {
-        return Err(StartError::Config(format!(
-            "axis {}: `[axes.{}.homing] kind = \"drive\"` (homing by the drive, CiA 402 homing mode) is not supported on EtherCAT drives yet; home on a switch input (`kind = \"switch\"`) or use an absolute encoder (`kind = \"absolute\"`)",
-            kerf_geom::AXIS_NAMES[i],
-            kerf_geom::AXIS_NAMES[i].to_ascii_lowercase()
-        )));
-    }
     // Cyclic synchronous velocity is the spindle's drive's mode (its velocity setpoints
     // come from the machine's spindle); an axis's drive runs in position.
     match bus.drives.iter().find(|d| {

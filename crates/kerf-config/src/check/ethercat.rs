@@ -94,7 +94,7 @@ impl Checker<'_> {
                 &e.dc_settle_timeout_ms,
                 DEFAULT_DC_SETTLE_TIMEOUT_MS,
             )?,
-            drives: self.ecat_drives(e, table.span(), axes)?,
+            drives: self.ecat_drives(e, table.span(), axes, &homed_by_drive(raw))?,
             io: self.ecat_io(e)?,
         };
         self.positions(e)?;
@@ -179,6 +179,7 @@ impl Checker<'_> {
         e: &RawEthercat,
         table: std::ops::Range<usize>,
         axes: &Axes,
+        by_drive: &[bool; MAX_AXES],
     ) -> Result<Vec<EthercatDrive>, ConfigError> {
         let configured = [
             true,
@@ -230,7 +231,8 @@ impl Checker<'_> {
                     },
                 ));
             }
-            out.push(self.ecat_drive(&key, d, axis_index)?);
+            let homes = by_drive.get(axis_index).copied().unwrap_or(false);
+            out.push(self.ecat_drive(&key, d, axis_index, homes)?);
         }
         if let Some(missing) =
             (0..MAX_AXES).find(|&a| configured[a] && !out.iter().any(|d| d.axis_index == a))
@@ -246,12 +248,16 @@ impl Checker<'_> {
         Ok(out)
     }
 
-    /// One `[[ethercat.drives]]` at `key`, for axis `axis_index`.
+    /// One `[[ethercat.drives]]` at `key`, for axis `axis_index`; `homes` when the axis
+    /// homes by its drive: its default mapping carries the mode of operation (0x6060
+    /// out, 0x6061 in), which the daemon switches to homing mode and back in the cyclic
+    /// data, and a mapping of the file's must carry 0x6060.
     fn ecat_drive(
         &self,
         key: &str,
         d: &RawEcatDrive,
         axis_index: usize,
+        homes: bool,
     ) -> Result<EthercatDrive, ConfigError> {
         let spindle = axis_index == SPINDLE_AXIS_INDEX;
         let mode = match &d.mode {
@@ -293,13 +299,26 @@ impl Checker<'_> {
             DriveMode::Csp => "target position",
             DriveMode::Csv => "target velocity",
         };
+        let (mut default_rx, mut default_tx) = (Pdo::default_rx(mode), Pdo::default_tx());
+        if homes {
+            default_rx.entries.push(PdoEntry {
+                index: MODES_OF_OPERATION,
+                subindex: 0,
+                bits: 8,
+            });
+            default_tx.entries.push(PdoEntry {
+                index: MODES_OF_OPERATION_DISPLAY,
+                subindex: 0,
+                bits: 8,
+            });
+        }
         let rx_pdo = self.pdo(
             &format!("{key}.rx_pdo"),
             &format!("{key}.rx_pdo_index"),
             RX_PDO_INDEX_RANGE,
             &d.rx_pdo_index,
             &d.rx_pdo,
-            Pdo::default_rx(mode),
+            default_rx,
             &[
                 Needed {
                     object: CONTROLWORD,
@@ -332,7 +351,7 @@ impl Checker<'_> {
             TX_PDO_INDEX_RANGE,
             &d.tx_pdo_index,
             &d.tx_pdo,
-            Pdo::default_tx(),
+            default_tx,
             &[
                 Needed {
                     object: STATUSWORD,
@@ -357,7 +376,25 @@ impl Checker<'_> {
                 None => self.unplaced(message),
             });
         }
-        let reserved = [
+        if let (true, Some(raw)) = (homes, &d.rx_pdo)
+            && rx_pdo
+                .bit_offset(MODES_OF_OPERATION, 0)
+                .map(|(_, bits)| bits)
+                != Some(8)
+        {
+            return Err(self.error(
+                raw.span(),
+                format!(
+                    "`{key}.rx_pdo` must map the modes of operation 0x6060:00 (8 bits): axis {} homes by its drive (`axes.{}.homing.kind = \"drive\"`), which the daemon switches to homing mode (6) and back in the cyclic data",
+                    AXIS_KEYS[axis_index], AXIS_KEYS[axis_index]
+                ),
+            ));
+        }
+        let homing_table = format!(
+            "[axes.{}.homing]",
+            AXIS_KEYS.get(axis_index).unwrap_or(&"s")
+        );
+        let mut reserved = vec![
             (MODES_OF_OPERATION, "`mode`"),
             (INTERPOLATION_PERIOD, "`period_us`"),
             (RX_PDO_ASSIGN, "`rx_pdo_index`"),
@@ -365,6 +402,12 @@ impl Checker<'_> {
             (rx_pdo.index, "`rx_pdo`"),
             (tx_pdo.index, "`tx_pdo`"),
         ];
+        if homes {
+            // The homing objects come from the axis's homing table.
+            for index in HOMING_OBJECTS {
+                reserved.push((index, homing_table.as_str()));
+            }
+        }
         Ok(EthercatDrive {
             axis_index,
             position: self.integer(
@@ -378,6 +421,8 @@ impl Checker<'_> {
             sdo: self.sdo_list(&format!("{key}.sdo"), &d.sdo, &reserved)?,
             rx_pdo,
             tx_pdo,
+            // Filled in once the axis's homing is checked (`Config::drive_homing_objects`).
+            homing: None,
         })
     }
 
@@ -542,6 +587,33 @@ impl Checker<'_> {
 }
 
 /// The raw `[axes.*.drive]` tables, X to C.
+/// Per axis, X to C: whether `raw` homes it by its drive (`[axes.*.homing] kind =
+/// "drive"`; the kind itself is checked with the homing).
+fn homed_by_drive(raw: &RawConfig) -> [bool; MAX_AXES] {
+    let kind = |h: Option<&Spanned<String>>| h.is_some_and(|k| k.get_ref() == "drive");
+    let a = &raw.axes;
+    [
+        kind(a.x.homing.as_ref().map(|h| &h.kind)),
+        kind(a.y.homing.as_ref().map(|h| &h.kind)),
+        kind(a.z.homing.as_ref().map(|h| &h.kind)),
+        kind(
+            a.a.as_ref()
+                .and_then(|r| r.homing.as_ref())
+                .map(|h| &h.kind),
+        ),
+        kind(
+            a.b.as_ref()
+                .and_then(|r| r.homing.as_ref())
+                .map(|h| &h.kind),
+        ),
+        kind(
+            a.c.as_ref()
+                .and_then(|r| r.homing.as_ref())
+                .map(|h| &h.kind),
+        ),
+    ]
+}
+
 fn raw_axis_drives(raw: &RawConfig) -> [Option<&RawDrive>; MAX_AXES] {
     [
         raw.axes.x.drive.as_ref(),

@@ -147,7 +147,7 @@ impl Checker<'_> {
             .as_ref()
             .map(|f| self.dir.join(f.get_ref()));
 
-        Ok(Config {
+        let config = Config {
             machine,
             daemon,
             dialect,
@@ -176,7 +176,8 @@ impl Checker<'_> {
             homing,
             jog,
             setups,
-        })
+        };
+        Ok(config.with_drive_homing_on_the_bus())
     }
     /// `machine`: the name of the daemon's services.
     fn machine(&self, raw: &RawConfig) -> Result<String, ConfigError> {

@@ -152,7 +152,7 @@ pub(super) fn keys() -> Vec<KeyDoc> {
                 pdo_words(&Pdo::default_rx(DriveMode::Csv))
             ),
             format!("1 to {MAX_PDO_ENTRIES} entries, at most {MAX_PDO_BYTES} bytes"),
-            "The outputs mapping, an array of `{ index, subindex, bits }`: it must map the controlword 0x6040:0 (16 bits) and the target (32 bits); entries of 8 bits or more start on a whole byte, the whole is whole bytes; index 0 is a gap. An object is in `rx_pdo` or `tx_pdo`, once.",
+            "The outputs mapping, an array of `{ index, subindex, bits }`: it must map the controlword 0x6040:0 (16 bits) and the target (32 bits), and for an axis homed by its drive (`[axes.*.homing] kind = \"drive\"`) the modes of operation 0x6060:0 (8 bits), which the homing switches; entries of 8 bits or more start on a whole byte, the whole is whole bytes; index 0 is a gap. An object is in `rx_pdo` or `tx_pdo`, once. For an axis homed by its drive, the default mapping ends with 0x6060:0 (8 bits) and the default `tx_pdo` with the modes of operation display 0x6061:0 (8 bits); its homing objects (0x6098, 0x6099, 0x609A, 0x607C) are written after the mapping from `[axes.*.homing]`, not from `sdo`.",
         ),
         k(
             "ethercat.drives.rx_pdo.index",

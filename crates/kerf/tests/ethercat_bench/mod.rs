@@ -70,6 +70,20 @@ impl Bench {
         )
     }
 
+    /// [`Bench::new`] with `sections` appended to the machine's configuration (more
+    /// tables, e.g. `[axes.x.homing]`) and `emulator_args` for the emulator.
+    pub fn with_sections(tag: &str, sections: &str, emulator_args: &[&str]) -> Bench {
+        Bench::build(
+            tag,
+            "dc = false\n",
+            "",
+            "[[ethercat.io]]\nposition = 3\nvendor_id = 0x4B52\nproduct_code = 0x10\n",
+            sections,
+            emulator_args,
+            [("--drives", "3"), ("--io", "1")],
+        )
+    }
+
     /// A namespace with the emulator (4 drives and an I/O terminal, the 4th drive's motor
     /// ramping at `velocity_accel_counts_s2` in velocity mode) and a machine whose X, Y and
     /// Z drives are at positions 0 to 2, its spindle's drive (`axis = "s"`, cyclic
