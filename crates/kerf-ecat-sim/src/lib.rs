@@ -79,6 +79,7 @@ pub mod od;
 pub mod report;
 pub mod sii;
 pub mod socket;
+pub mod switches;
 
 use kerf_drive::sim::SimConfig;
 

@@ -18,6 +18,7 @@ use kerf_ecat_sim::io::IoHandle;
 use kerf_ecat_sim::network::Network;
 use kerf_ecat_sim::report;
 use kerf_ecat_sim::socket::RawSocket;
+use kerf_ecat_sim::switches::{SwitchInput, Switches};
 use kerf_ecat_sim::{HomeSwitch, NetworkSpec, SafeOpRefusal, build};
 
 fn parse_u32(text: &str) -> Result<u32, String> {
@@ -158,6 +159,14 @@ struct Args {
     /// digital inputs (0x60FD bit 2).
     #[arg(long, value_name = "POSITION:COUNTS", value_parser = parse_home_switch, allow_hyphen_values = true)]
     home_switch: Vec<HomeSwitch>,
+    /// A switch on the machine wired to an I/O terminal (repeatable): input BIT of the
+    /// IO-th I/O subdevice (0 first) is active while the motor of the drive at ring
+    /// position DRIVE is at or above (`>=`) or at or below (`<=`) COUNTS, in the motor's
+    /// own frame (counts from power-up). A home or limit switch that follows the axis;
+    /// set after each exchange, read by the MainDevice in the next. The other input bits
+    /// are those `inputs N BITS` sets.
+    #[arg(long, value_name = "IO:BIT:DRIVE:>=COUNTS", value_parser = SwitchInput::parse, allow_hyphen_values = true)]
+    switch: Vec<SwitchInput>,
 }
 
 /// Carries out one control command from standard input; the answer to `state` goes to
@@ -166,6 +175,7 @@ fn control(
     command: &str,
     network: &mut Network,
     handles: &[IoHandle],
+    switches: &mut Switches,
     muted: &mut bool,
     out: &mut impl Write,
 ) -> Result<(), String> {
@@ -192,10 +202,12 @@ fn control(
             }
         }
         ["inputs", n, bits] => {
-            let handle = handles
-                .get(index(n)?)
-                .ok_or_else(|| format!("no I/O subdevice number {n}"))?;
-            handle.set_inputs(u64::from(parse_u32(bits)?));
+            let n = index(n)?;
+            if n >= handles.len() {
+                return Err(format!("no I/O subdevice number {n}"));
+            }
+            switches.command(n, u64::from(parse_u32(bits)?));
+            switches.apply(network, handles);
         }
         ["state"] => {
             let mut text = String::new();
@@ -237,6 +249,22 @@ fn main() -> anyhow::Result<()> {
             args.drives.saturating_sub(1)
         );
     }
+    if let Some(bad) = args
+        .switch
+        .iter()
+        .find(|s| s.io >= args.io || s.drive >= args.drives)
+    {
+        anyhow::bail!(
+            "--switch {}:{}:{}:{}{}: the line has {} I/O subdevice(s) and {} drive(s)",
+            bad.io,
+            bad.bit,
+            bad.drive,
+            if bad.above { ">=" } else { "<=" },
+            bad.counts,
+            args.io,
+            args.drives
+        );
+    }
     if args.dc_drift_ppm.is_nan() || args.dc_drift_ppm.abs() > kerf_ecat_sim::dc::MAX_DRIFT_PPM {
         anyhow::bail!(
             "--dc-drift-ppm {}: the drift must be a number from -{max} to {max}",
@@ -264,6 +292,8 @@ fn main() -> anyhow::Result<()> {
         ..NetworkSpec::default()
     };
     let (mut network, handles) = build(&spec);
+    let mut switches = Switches::new(args.switch.clone(), handles.len());
+    switches.apply(&network, &handles);
     let signals = kerf_rt::Signals::install().context("installing signal handlers")?;
     let mut socket = RawSocket::open(&args.interface, Duration::from_millis(1))
         .with_context(|| format!("opening a raw socket on {}", args.interface))?;
@@ -287,7 +317,14 @@ fn main() -> anyhow::Result<()> {
         network.tick(now_ns);
         while let Ok(command) = control_rx.try_recv() {
             let mut stdout = std::io::stdout().lock();
-            match control(&command, &mut network, &handles, &mut muted, &mut stdout) {
+            match control(
+                &command,
+                &mut network,
+                &handles,
+                &mut switches,
+                &mut muted,
+                &mut stdout,
+            ) {
                 Ok(()) => eprintln!("kerf-ecat-sim: done: {command}"),
                 Err(e) => eprintln!("kerf-ecat-sim: {command:?} refused: {e}"),
             }
@@ -303,7 +340,10 @@ fn main() -> anyhow::Result<()> {
         }
         let now_ns = start.elapsed().as_nanos() as u64;
         match network.process(frame, now_ns) {
-            Ok(()) => socket.send(frame).context("sending")?,
+            Ok(()) => {
+                socket.send(frame).context("sending")?;
+                switches.apply(&network, &handles);
+            }
             Err(e) => eprintln!("kerf-ecat-sim: frame ignored: {e}"),
         }
     }

@@ -340,6 +340,7 @@ fn an_axis_homed_by_its_drive_homes_on_the_drives_switch_over_the_bus_and_runs_i
     // where its motor powers up (1000 counts/mm, the default scale).
     let mut bench = Bench::with_sections(
         "drive-homing",
+        "",
         "\n[axes.x.homing]\nkind = \"drive\"\nmethod = 19\nsearch_velocity_mm_s = 20.0\n\
          latch_velocity_mm_s = 2.0\nhome_offset_mm = 5.0\nhome_mm = 10.0\n",
         &["--home-switch", "0:30000"],
@@ -390,6 +391,90 @@ fn an_axis_homed_by_its_drive_homes_on_the_drives_switch_over_the_bus_and_runs_i
     let counts = |field| -> i64 { Bench::field(drive, field).parse().unwrap() };
     assert!(counts("position_counts").abs() <= 1, "{drive}");
     assert!((counts("motor_counts") - 25_000).abs() <= 1, "{drive}");
+    daemon.signal("TERM");
+    assert!(
+        daemon.wait_within(PATIENCE).success(),
+        "{}",
+        daemon.stderr()
+    );
+}
+
+#[test]
+fn a_home_switch_and_a_limit_switch_on_an_io_terminal_follow_the_axis_home_it_and_stop_it() {
+    // X's home switch and max limit switch are inputs 0 and 1 of the I/O terminal, wired
+    // (in the emulator) to the X drive's motor: the home switch active at and above 20 mm
+    // from where the motor powers up, the limit switch at and above 60 mm (1000
+    // counts/mm). X searches toward + at 50 mm/s, leaves the switch at 0.5 mm/s and
+    // latches where it releases: machine X = 100 there; then it goes to X = 90.
+    let mut bench = Bench::with_sections(
+        "switch-homing",
+        "inputs = { x_home = 0, x_max = 1 }\n",
+        "\n[io]\ndigital_inputs = [\n    { number = 0, name = \"x_home\" },\n    \
+         { number = 1, name = \"x_max\" },\n]\n\
+         \n[axes.x.homing]\nkind = \"switch\"\nswitch = \"x_home\"\nsearch_velocity_mm_s = 50.0\n\
+         latch_velocity_mm_s = -0.5\nhome_offset_mm = 100.0\nhome_mm = 90.0\n\
+         \n[axes.x.limit_switches]\nmax = \"x_max\"\n",
+        &["--switch", "0:0:0:>=20000", "--switch", "0:1:0:>=60000"],
+    );
+    let mut daemon = bench.daemon();
+    let s = bench.status_until("idle", |s| s["state"] == "idle");
+    assert_eq!(s["axes"]["x"]["homed"], false, "{s}");
+    assert_eq!(s["axes"]["x"]["home_switch"], false, "{s}");
+    let out = bench.kerf(&["home", "X"]);
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "kerf home X: {said}");
+    let s = bench.status();
+    assert_eq!(s["axes"]["x"]["homed"], true, "{s}");
+    let x = s["position"]["x"].as_f64().expect("x");
+    assert!(
+        (x - 90.0).abs() < 1e-6,
+        "X at {x} after homing, not 90: {s}"
+    );
+    // Machine X = 90 is 10 mm short of the release point, 20 mm from power-up: the
+    // motor at 10 mm of its own frame. The input reaches the daemon one exchange after
+    // the motor crossed (the emulator sets it after each exchange) and the latch moves 2
+    // counts per 4 ms period: within 3 counts.
+    let drive = &bench.emulator_state()[0];
+    let motor: i64 = Bench::field(drive, "motor_counts").parse().unwrap();
+    assert!((motor - 10_000).abs() <= 3, "{drive}");
+    // Toward the limit switch (machine X = 140) by a jog to 150: the switch stops every
+    // axis with the hard limit fault, the motor a short brake past it.
+    let out = bench.kerf(&["jog", "X", "--to", "150", "--speed", "20"]);
+    assert!(
+        !out.status.success(),
+        "the jog went through the limit switch"
+    );
+    let s = bench.status_until("stopped on the limit switch", |s| {
+        s["safety"]["check"] == "hard_limit" && s["drives"] == "stopped"
+    });
+    assert_eq!(s["axes"]["x"]["max_limit_switch"], true, "{s}");
+    let drive = &bench.emulator_state()[0];
+    let motor: i64 = Bench::field(drive, "motor_counts").parse().unwrap();
+    // At 20 mm/s: two periods of input delay (the emulator sets the input after an
+    // exchange, the daemon reads it in the next and stops from the one after), 0.16 mm,
+    // then a jerk-limited stop at 95 % of 50 000 mm/s³ (20 mm/s never needs the
+    // acceleration limit): v·√(v/j) = 20 · √(20/47 500) = 0.41 mm. 0.6 mm with rounding.
+    assert!((60_000..60_600).contains(&motor), "{drive}");
+    assert_eq!(Bench::field(drive, "velocity_counts_s"), "0", "{drive}");
+    assert_eq!(s["state"], "fault", "{s}");
+    // After the reset X jogs off the switch only away from it.
+    let out = bench.kerf(&["reset"]);
+    assert!(
+        out.status.success(),
+        "kerf reset: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = bench.kerf(&["jog", "X", "--step", "1"]);
+    assert!(!out.status.success(), "a jog further onto the limit switch");
+    let out = bench.kerf(&["jog", "X", "--step", "-2", "--speed", "5"]);
+    assert!(
+        out.status.success(),
+        "jog off the switch: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s = bench.status();
+    assert_eq!(s["axes"]["x"]["max_limit_switch"], false, "{s}");
+    assert_eq!(s["fault"], serde_json::Value::Null, "{s}");
     daemon.signal("TERM");
     assert!(
         daemon.wait_within(PATIENCE).success(),

@@ -70,14 +70,22 @@ impl Bench {
         )
     }
 
-    /// [`Bench::new`] with `sections` appended to the machine's configuration (more
+    /// [`Bench::new`] with `io_keys` appended to the I/O terminal's `[[ethercat.io]]`
+    /// (e.g. `inputs = { ... }`), `sections` to the machine's configuration (more
     /// tables, e.g. `[axes.x.homing]`) and `emulator_args` for the emulator.
-    pub fn with_sections(tag: &str, sections: &str, emulator_args: &[&str]) -> Bench {
+    pub fn with_sections(
+        tag: &str,
+        io_keys: &str,
+        sections: &str,
+        emulator_args: &[&str],
+    ) -> Bench {
         Bench::build(
             tag,
             "dc = false\n",
             "",
-            "[[ethercat.io]]\nposition = 3\nvendor_id = 0x4B52\nproduct_code = 0x10\n",
+            &format!(
+                "[[ethercat.io]]\nposition = 3\nvendor_id = 0x4B52\nproduct_code = 0x10\n{io_keys}"
+            ),
             sections,
             emulator_args,
             [("--drives", "3"), ("--io", "1")],
