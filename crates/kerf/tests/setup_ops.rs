@@ -230,8 +230,27 @@ fn offset_set_puts_the_program_where_the_offset_says() {
     let text = env.kerf_ok(&["status"], &[]);
     assert!(text.contains("work G54 X 4.000 Y 2.000 Z -1.000"), "{text}");
 
-    // G55 with the same point: a one-shot MDI selects it, and it persists.
-    env.kerf_ok(&["offset", "set"], &["G55", "X100"]);
+    // G55 with the same point: a one-shot MDI selects it, and it persists. (The options
+    // may follow the axis words, as the README writes them: `--config` after `X100`.)
+    let out = env
+        .command(
+            env!("CARGO_BIN_EXE_kerf"),
+            &[
+                "offset",
+                "set",
+                "G55",
+                "X100",
+                "--config",
+                env.config_path.to_str().unwrap(),
+            ],
+        )
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "kerf offset set G55 X100 --config …: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     env.mdi("G55", &[]);
     let offsets = env.offsets();
     assert_eq!(offsets["active"], "G55");

@@ -54,8 +54,9 @@ struct SetArgs {
     #[arg(value_name = "SYSTEM")]
     system: String,
     /// What the current position reads in it, axis by axis: `X0 Y0 Z12.5` (mm; A, B, C
-    /// in degrees). Axes not named keep their offset.
-    #[arg(value_name = "AXIS", allow_hyphen_values = true)]
+    /// in degrees). Axes not named keep their offset. (Options may follow them: a word
+    /// starting with `-` is an option, never an axis word.)
+    #[arg(value_name = "AXIS")]
     words: Vec<String>,
     /// Zero the offset instead (every axis and the rotation; G92: `G92.1`).
     #[arg(long, conflicts_with = "words")]
