@@ -291,37 +291,32 @@ impl DriveDevice {
         }
         // The homing objects, at the servo model's defaults.
         let homing = *SimDrive::new(config).homing_config();
-        od.insert(
-            HOMING_METHOD,
-            0,
-            &homing.method.to_le_bytes(),
-            Access::ReadWrite,
-        );
         od.insert(HOMING_SPEEDS, 0, &[2], Access::ReadOnly);
-        od.insert(
-            HOMING_SPEEDS,
-            1,
-            &homing.search_speed_counts_s.to_le_bytes(),
-            Access::ReadWrite,
-        );
-        od.insert(
-            HOMING_SPEEDS,
-            2,
-            &homing.zero_speed_counts_s.to_le_bytes(),
-            Access::ReadWrite,
-        );
-        od.insert(
-            HOMING_ACCELERATION,
-            0,
-            &homing.acceleration_counts_s2.to_le_bytes(),
-            Access::ReadWrite,
-        );
-        od.insert(
-            HOME_OFFSET,
-            0,
-            &homing.home_offset_counts.to_le_bytes(),
-            Access::ReadWrite,
-        );
+        for (index, sub, value) in [
+            (HOMING_METHOD, 0, homing.method.to_le_bytes().to_vec()),
+            (
+                HOMING_SPEEDS,
+                1,
+                homing.search_speed_counts_s.to_le_bytes().to_vec(),
+            ),
+            (
+                HOMING_SPEEDS,
+                2,
+                homing.zero_speed_counts_s.to_le_bytes().to_vec(),
+            ),
+            (
+                HOMING_ACCELERATION,
+                0,
+                homing.acceleration_counts_s2.to_le_bytes().to_vec(),
+            ),
+            (
+                HOME_OFFSET,
+                0,
+                homing.home_offset_counts.to_le_bytes().to_vec(),
+            ),
+        ] {
+            od.insert(index, sub, &value, Access::ReadWrite);
+        }
         od.insert(0x60C2, 0, &[2], Access::ReadOnly);
         od.insert(0x60C2, 1, &[1], Access::PreOpOnly);
         od.insert(0x60C2, 2, &[(-3i8) as u8], Access::PreOpOnly);
