@@ -18,12 +18,7 @@ mod common;
 
 use kerf_config::Config;
 use kerf_drive::safety::Check;
-use kerfd::worker::{
-    Cycle, CycleCommand, CycleOutput, Planning, PlanningCounters, Refusal, RtItem, Snapshot,
-    dump_rings,
-};
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
+use kerfd::worker::{Cycle, CycleCommand, CycleOutput, Planning, Refusal, Snapshot};
 
 /// The programs: the bundled examples and the LinuxCNC test programs.
 fn programs() -> Vec<(String, String)> {
@@ -59,23 +54,12 @@ impl Machine {
     fn new(config: Config) -> Machine {
         // A ring large enough for a whole program, so that one thread can plan it all
         // before the cycle runs.
-        let (items_tx, items_rx) = rtrb::RingBuffer::<RtItem>::new(1 << 20);
-        let (commands_tx, commands_rx) = rtrb::RingBuffer::<CycleCommand>::new(64);
-        let (status_tx, status_rx) = rtrb::RingBuffer::<Snapshot>::new(1 << 16);
-        let (dumps, _writer) = dump_rings();
-        let cycle = Cycle::new(&config, [0.0; 6], items_rx, commands_rx, status_tx, dumps)
-            .expect("a cycle");
-        let planning = Planning::new(
-            &config,
-            items_tx,
-            Arc::new(AtomicBool::new(false)),
-            &PlanningCounters::default(),
-        );
+        let w = common::wire(&config, 1 << 20);
         Machine {
-            cycle,
-            planning,
-            commands: commands_tx,
-            status: status_rx,
+            cycle: w.cycle,
+            planning: w.planning,
+            commands: w.commands,
+            status: w.status,
             config,
             last: None,
             next_id: 1,

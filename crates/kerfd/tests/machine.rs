@@ -13,16 +13,14 @@
 //! - the automatic tool changer's handshake, and a spindle that stalls while feeding is a
 //!   fault that stops the program and switches the spindle off.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 
 use kerf_config::Config;
 use kerf_drive::machine::PauseReason;
 use kerf_geom::machine::SpindleDir;
 use kerf_proto::MachineState;
 use kerfd::worker::{
-    Cycle, CycleCommand, CycleOutput, Injection, Planning, PlanningCounters, RtItem, Snapshot,
-    dump_rings,
+    Cycle, CycleCommand, CycleOutput, Injection, Planning, PlanningCounters, Snapshot,
 };
 
 mod common;
@@ -81,26 +79,14 @@ struct Row {
 
 impl Machine {
     fn new(config: Config) -> Machine {
-        let (items_tx, items_rx) = rtrb::RingBuffer::<RtItem>::new(1 << 16);
-        let (commands_tx, commands_rx) = rtrb::RingBuffer::<CycleCommand>::new(64);
-        let (status_tx, status_rx) = rtrb::RingBuffer::<Snapshot>::new(1 << 16);
-        let (dumps, _writer) = dump_rings();
-        let cycle = Cycle::new(&config, [0.0; 6], items_rx, commands_rx, status_tx, dumps)
-            .expect("a cycle");
-        let counters = PlanningCounters::default();
-        let planning = Planning::new(
-            &config,
-            items_tx,
-            Arc::new(AtomicBool::new(false)),
-            &counters,
-        );
+        let w = common::wire(&config, 1 << 16);
         let mut m = Machine {
-            cycle,
-            planning,
-            commands: commands_tx,
-            status: status_rx,
+            cycle: w.cycle,
+            planning: w.planning,
+            commands: w.commands,
+            status: w.status,
             config,
-            counters,
+            counters: w.counters,
             last: None,
             log: Vec::new(),
         };

@@ -15,16 +15,11 @@
 //!   fault naming the axis and the distance; a hard limit switch stops the machine, and
 //!   after a reset the axis may be jogged off it only away from it.
 
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
-
 use kerf_config::Config;
 use kerf_drive::safety::Check;
 use kerf_proto::{Jog, MachineState};
 use kerfd::worker::fieldbus::MachineDrive;
-use kerfd::worker::{
-    Cycle, CycleCommand, CycleOutput, Planning, PlanningCounters, RtItem, Snapshot, dump_rings,
-};
+use kerfd::worker::{Cycle, CycleCommand, CycleOutput, Planning, PlanningCounters, Snapshot};
 
 mod common;
 
@@ -102,26 +97,14 @@ struct Machine {
 
 impl Machine {
     fn new(config: Config) -> Machine {
-        let (items_tx, items_rx) = rtrb::RingBuffer::<RtItem>::new(1 << 14);
-        let (commands_tx, commands_rx) = rtrb::RingBuffer::<CycleCommand>::new(64);
-        let (status_tx, status_rx) = rtrb::RingBuffer::<Snapshot>::new(1 << 16);
-        let (dumps, _writer) = dump_rings();
-        let cycle = Cycle::new(&config, [0.0; 6], items_rx, commands_rx, status_tx, dumps)
-            .expect("a cycle");
-        let counters = PlanningCounters::default();
-        let planning = Planning::new(
-            &config,
-            items_tx,
-            Arc::new(AtomicBool::new(false)),
-            &counters,
-        );
+        let w = common::wire(&config, 1 << 14);
         let mut m = Machine {
-            cycle,
-            planning,
-            commands: commands_tx,
-            status: status_rx,
+            cycle: w.cycle,
+            planning: w.planning,
+            commands: w.commands,
+            status: w.status,
             config,
-            _counters: counters,
+            _counters: w.counters,
             last: None,
             log: Vec::new(),
         };

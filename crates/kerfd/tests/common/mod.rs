@@ -1,9 +1,51 @@
 //! Helpers shared by the daemon's in-process tests (`drives.rs`, `daemon_alloc.rs`,
-//! `machine.rs`).
+//! `machine.rs`, `manual.rs`).
+
+#![allow(dead_code)]
+
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 
 use kerf_config::Config;
 use kerf_proto::{MoveMsg, Resolved, StreamCheck};
-use kerfd::worker::{Incoming, Planning};
+use kerfd::worker::{
+    Cycle, CycleCommand, Incoming, Planning, PlanningCounters, RtItem, Snapshot, dump_rings,
+};
+
+/// The daemon's cycle and planning worker for `config`, wired as the daemon wires them
+/// (the drives at 0), with the test's ends of the rings: commands in, snapshots out.
+pub struct Wired {
+    pub cycle: Cycle,
+    pub planning: Planning,
+    pub commands: rtrb::Producer<CycleCommand>,
+    pub status: rtrb::Consumer<Snapshot>,
+    pub counters: PlanningCounters,
+}
+
+/// [`Wired`] with a ring of `items` planned items between planning and the cycle (large
+/// enough for a whole program where one thread plans it all before the cycle runs).
+pub fn wire(config: &Config, items: usize) -> Wired {
+    let (items_tx, items_rx) = rtrb::RingBuffer::<RtItem>::new(items);
+    let (commands_tx, commands_rx) = rtrb::RingBuffer::<CycleCommand>::new(64);
+    let (status_tx, status_rx) = rtrb::RingBuffer::<Snapshot>::new(1 << 16);
+    let (dumps, _writer) = dump_rings();
+    let cycle =
+        Cycle::new(config, [0.0; 6], items_rx, commands_rx, status_tx, dumps).expect("a cycle");
+    let counters = PlanningCounters::default();
+    let planning = Planning::new(
+        config,
+        items_tx,
+        Arc::new(AtomicBool::new(false)),
+        &counters,
+    );
+    Wired {
+        cycle,
+        planning,
+        commands: commands_tx,
+        status: status_rx,
+        counters,
+    }
+}
 
 /// Feeds program `id` (LinuxCNC text, starting at `start`) to the planning worker the way
 /// the daemon's planning thread does: every item as a message through the stream check.
