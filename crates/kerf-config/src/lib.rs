@@ -35,6 +35,7 @@ mod machine;
 mod model;
 mod ranges;
 mod raw;
+mod serve;
 mod state_files;
 mod toml_words;
 mod views;
@@ -54,6 +55,7 @@ pub use machine::*;
 pub use model::*;
 pub use ranges::*;
 pub use raw::valid_machine_name;
+pub use serve::*;
 pub use state_files::{SYSTEM_STATE_DIRECTORY, ToolFileError};
 
 /// The bundled example configuration (`config/kerf.toml`), used when no `--config` is given.

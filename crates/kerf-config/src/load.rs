@@ -60,6 +60,7 @@ impl Config {
             operator: OperatorConfig::default(),
             homing: HomingConfig::default(),
             jog: JogConfig::default(),
+            serve: ServeConfig::default(),
             setups: [
                 Some(AxisSetup::default()),
                 Some(AxisSetup::default()),

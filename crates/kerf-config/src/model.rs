@@ -11,6 +11,7 @@ use kerf_gcode::{Dialect, Tool};
 use crate::homing::*;
 use crate::machine::*;
 use crate::ranges::*;
+use crate::serve::ServeConfig;
 
 /// The kind of drive behind an axis (`[axes.*.drive] kind`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -255,6 +256,8 @@ pub struct Config {
     pub homing: HomingConfig,
     /// `[jog]`.
     pub jog: JogConfig,
+    /// `[serve]`.
+    pub serve: ServeConfig,
     /// `[axes.*.homing]`, `[axes.*.limit_switches]`, `[axes.*.sim]`, X to C: read with
     /// [`Config::axis_setups`].
     pub(crate) setups: [Option<AxisSetup>; MAX_AXES],

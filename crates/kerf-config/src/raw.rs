@@ -37,6 +37,8 @@ pub(crate) struct RawConfig {
     pub(crate) homing: RawHoming,
     #[serde(default)]
     pub(crate) jog: RawJog,
+    #[serde(default)]
+    pub(crate) serve: RawServe,
 }
 
 #[derive(Deserialize)]
@@ -332,6 +334,13 @@ pub(crate) struct RawHoming {
 pub(crate) struct RawJog {
     pub(crate) deadman_ms: Option<Spanned<i64>>,
     pub(crate) default_speed_pct: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawServe {
+    pub(crate) http: Option<Spanned<String>>,
+    pub(crate) control_token_sha256: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]

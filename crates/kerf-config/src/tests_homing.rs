@@ -1739,3 +1739,40 @@ fn on_ethercat_a_drive_homing_maps_the_mode_and_writes_its_objects_at_bring_up()
     let c = config(&bus("", sdo, ""));
     assert_eq!(c.ethercat.as_ref().unwrap().drives[0].sdo.len(), 1);
 }
+
+#[test]
+fn serve_takes_a_socket_address_and_a_token_hash_never_the_token() {
+    let c = config(&machine(""));
+    assert_eq!(c.serve.http, "127.0.0.1:8080".parse().unwrap());
+    assert_eq!(c.serve.control_token_sha256, None);
+    // SHA-256("kerf"), from `printf kerf | sha256sum`.
+    let hash = "ffc73d5ae8541990e4166e58bcbc85bfe63730015a1ae15616f228b997b953ba";
+    let c = config(&machine(&format!(
+        "[serve]\nhttp = \"[::1]:9000\"\ncontrol_token_sha256 = \"{hash}\"\n"
+    )));
+    assert_eq!(c.serve.http, "[::1]:9000".parse().unwrap());
+    let bytes = c.serve.control_token_sha256.expect("a hash");
+    assert_eq!((bytes[0], bytes[1], bytes[31]), (0xff, 0xc7, 0xba));
+    for (line, needle, message) in [
+        (
+            "http = \"localhost:80\"\n",
+            "\"localhost:80\"",
+            "`serve.http` must be an IP address and a port, such as \"127.0.0.1:8080\" or \"[::1]:8080\", found `localhost:80`",
+        ),
+        (
+            "control_token_sha256 = \"kerf\"\n",
+            "\"kerf\"",
+            "`serve.control_token_sha256` must be the SHA-256 of the control token, 64 hex digits (`kerf serve --hash-token` prints it), not the token itself",
+        ),
+    ] {
+        let text = machine(&format!("[serve]\n{line}"));
+        assert_eq!(refused(&text), format!("{}{message}", at(&text, needle)));
+    }
+    let text = machine("[serve]\nport = 80\n");
+    assert!(
+        refused(&text)
+            .contains("unknown key `serve.port` (known here: `http` or `control_token_sha256`)"),
+        "{}",
+        refused(&text)
+    );
+}

@@ -143,6 +143,48 @@ impl Checker<'_> {
         })
     }
 
+    /// `[serve]`: the address (a socket address, IP and port) and the control token's
+    /// SHA-256 (64 hex digits).
+    pub(crate) fn serve(&self, raw: &RawServe) -> Result<ServeConfig, ConfigError> {
+        let mut serve = ServeConfig::default();
+        if let Some(http) = &raw.http {
+            serve.http = http.get_ref().parse().map_err(|_| {
+                self.error(
+                    http.span(),
+                    format!(
+                        "`serve.http` must be an IP address and a port, such as \"{DEFAULT_SERVE_HTTP}\" or \"[::1]:8080\", found `{}`",
+                        http.get_ref()
+                    ),
+                )
+            })?;
+        }
+        if let Some(token) = &raw.control_token_sha256 {
+            let text = token.get_ref();
+            let mut hash = [0u8; 32];
+            let hex = |c: u8| (c as char).to_digit(16);
+            let valid = text.len() == 64
+                && text
+                    .as_bytes()
+                    .chunks(2)
+                    .zip(hash.iter_mut())
+                    .all(|(pair, out)| match (hex(pair[0]), hex(pair[1])) {
+                        (Some(hi), Some(lo)) => {
+                            *out = (hi * 16 + lo) as u8;
+                            true
+                        }
+                        _ => false,
+                    });
+            if !valid {
+                return Err(self.error(
+                    token.span(),
+                    "`serve.control_token_sha256` must be the SHA-256 of the control token, 64 hex digits (`kerf serve --hash-token` prints it), not the token itself".to_string(),
+                ));
+            }
+            serve.control_token_sha256 = Some(hash);
+        }
+        Ok(serve)
+    }
+
     /// Every axis's `[axes.*.homing]`, `[axes.*.limit_switches]` and `[axes.*.sim]`, with
     /// the checked axes, `[io]` and `[ethercat]`; then no input serving two functions.
     pub(crate) fn axis_setups(

@@ -92,6 +92,7 @@ impl Checker<'_> {
         let setups = self.axis_setups(&raw, &axes, &drive, &io, ethercat.as_ref())?;
         let homing = self.homing(&raw.homing)?;
         let jog = self.jog(&raw.jog)?;
+        let serve = self.serve(&raw.serve)?;
         let dump_dir = match &raw.safety.dump_dir {
             None => None,
             Some(d) if d.get_ref().is_empty() => {
@@ -175,6 +176,7 @@ impl Checker<'_> {
             operator,
             homing,
             jog,
+            serve,
             setups,
         };
         Ok(config.with_drive_homing_on_the_bus())

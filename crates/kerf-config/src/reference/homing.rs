@@ -272,3 +272,27 @@ pub(super) fn keys() -> Vec<KeyDoc> {
         ),
     ]
 }
+
+/// The rows of `[serve]`.
+pub(super) fn serve_keys() -> Vec<KeyDoc> {
+    vec![
+        k(
+            "serve",
+            "all defaults".into(),
+            "table".into(),
+            "`kerf serve`: the web page and the JSON API beside the daemon (docs/API.md).",
+        ),
+        k(
+            "serve.http",
+            format!("\"{DEFAULT_SERVE_HTTP}\""),
+            "an IP address and a port".into(),
+            "Where the web page and the JSON API listen (`kerf serve --http` overrides it). Loopback by default; for remote access put a TLS reverse proxy in front (docs/API.md).",
+        ),
+        k(
+            "serve.control_token_sha256",
+            "none: nobody controls the machine through `kerf serve`".into(),
+            "64 hex digits".into(),
+            "The SHA-256 of the token a client presents (`Authorization: Bearer TOKEN`) to control the machine (`kerf serve --hash-token` prints it from the token on standard input); the token itself is never stored. Without it every control request is refused; watching needs no token.",
+        ),
+    ]
+}

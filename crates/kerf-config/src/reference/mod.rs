@@ -504,6 +504,7 @@ pub fn keys() -> Vec<KeyDoc> {
     all.extend(ethercat::keys());
     all.extend(machine::keys());
     all.extend(homing::keys());
+    all.extend(homing::serve_keys());
     all
 }
 
@@ -628,6 +629,7 @@ mod tests {
         assert_eq!(documented("axes.*.sim"), sim_keys);
         assert_eq!(documented("homing"), accepted::<RawHoming>());
         assert_eq!(documented("jog"), accepted::<RawJog>());
+        assert_eq!(documented("serve"), accepted::<RawServe>());
         assert_eq!(documented("daemon"), accepted::<RawDaemon>());
         assert_eq!(documented("gcode"), accepted::<RawGcode>());
         assert_eq!(documented("work_offsets"), accepted::<RawWorkOffsets>());
