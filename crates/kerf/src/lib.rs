@@ -24,6 +24,7 @@ pub mod clidoc;
 pub mod client;
 pub mod dro;
 pub mod plan;
+pub mod serve;
 pub mod sim;
 pub mod sim_plot;
 pub mod status_view;

@@ -487,6 +487,7 @@ fn completions_and_man_pages_come_from_the_binaries() {
         "abort",
         "override",
         "record",
+        "serve",
         "reset",
         "dump",
         "plot",

@@ -30,6 +30,7 @@ mod machine;
 mod manual;
 mod mdi;
 mod output;
+mod serve;
 mod setup;
 
 use output::Output;
@@ -103,6 +104,9 @@ enum Command {
     Override(machine::OverrideArgs),
     /// Write the daemon's setpoint stream to CSV.
     Record(machine::RecordArgs),
+    /// Serve the machine's web page and JSON API (docs/API.md): watching for everybody,
+    /// control with the configured token.
+    Serve(serve::ServeArgs),
     /// Clear the drive side's latched fault once its cause is gone (refused, with the
     /// reason, while it persists).
     Reset(machine::MachineArgs),
@@ -276,6 +280,7 @@ fn main() -> ExitCode {
             },
         ),
         Command::Record(args) => machine::record(&args),
+        Command::Serve(args) => serve::run(&args),
         Command::Reset(args) => machine::reset(&args),
         Command::Dump(args) => machine::dump(&args),
         Command::Plot(args) => run_plot(&args),

@@ -1,0 +1,114 @@
+// Kerf's web page: the status from the WebSocket (/api/v1/ws, 20 Hz at most), control
+// through POST /api/v1/control with the token of this tab (docs/API.md).
+"use strict";
+
+const AXES = ["x", "y", "z", "a", "b", "c"];
+const $ = (id) => document.getElementById(id);
+let latest = null;
+
+// The token stays in this tab's session storage only.
+$("token").value = sessionStorage.getItem("kerf-token") || "";
+$("token").addEventListener("change", () => sessionStorage.setItem("kerf-token", $("token").value));
+
+async function control(body) {
+  const response = await fetch("/api/v1/control", {
+    method: "POST",
+    headers: { "Content-Type": "application/json", "Authorization": "Bearer " + $("token").value },
+    body: JSON.stringify(body),
+  });
+  const answer = await response.json();
+  $("answer").textContent = answer.ok ? "done: " + body.command : "refused: " + answer.error.message;
+  return answer;
+}
+
+for (const b of document.querySelectorAll("button[data-command]")) {
+  b.addEventListener("click", () => {
+    const body = { command: b.dataset.command };
+    if (b.dataset.axes) body.axes = b.dataset.axes;
+    control(body);
+  });
+}
+for (const [id, command] of [["override", "override"], ["spindle-override", "spindle_override"]]) {
+  $(id).addEventListener("change", () => control({ command, percent: Number($(id).value) }));
+}
+
+// Continuous jog: renewed every 50 ms while the button is held; released, or the tab
+// closed, the renewals stop and the daemon's dead man's switch stops the axis.
+function jogButton(axis, direction) {
+  const b = document.createElement("button");
+  b.textContent = axis.toUpperCase() + direction;
+  b.dataset.jog = axis + direction;
+  let timer = null;
+  const stop = () => {
+    if (timer === null) return;
+    clearInterval(timer);
+    timer = null;
+    control({ command: "jog_stop", axis });
+  };
+  b.addEventListener("pointerdown", () => {
+    if (timer !== null) return;
+    const renew = () => control({ command: "jog", axis, direction });
+    renew();
+    timer = setInterval(renew, 50);
+  });
+  b.addEventListener("pointerup", stop);
+  b.addEventListener("pointerleave", stop);
+  return b;
+}
+
+function fixed(v) { return typeof v === "number" ? v.toFixed(3) : "–"; }
+
+function show(message) {
+  latest = message;
+  if (!message.connected) {
+    $("state").textContent = "no daemon";
+    $("state").className = "state fault";
+    $("fault").textContent = message.reason || "";
+    return;
+  }
+  const s = message.status;
+  $("machine").textContent = s.machine;
+  $("state").textContent = s.state;
+  $("state").className = "state " + s.state;
+  $("line").textContent = s.line;
+  $("queued").textContent = (s.queued_s || 0).toFixed(1);
+  $("pause").textContent = s.pause ? "paused: " + (s.pause.reason || "") : "";
+  $("fault").textContent = s.fault || "";
+  $("override-value").textContent = s.override_pct;
+  if (document.activeElement !== $("override")) $("override").value = s.override_pct;
+  if (s.spindle) {
+    $("spindle-override-value").textContent = s.spindle.override_pct;
+    if (document.activeElement !== $("spindle-override")) $("spindle-override").value = s.spindle.override_pct;
+    $("spindle").textContent = "spindle " + Math.round(s.spindle.actual_rpm) + " rpm";
+  }
+  const body = $("dro").tBodies[0];
+  const present = AXES.filter((a) => a in s.position);
+  if (body.rows.length !== present.length) {
+    body.innerHTML = "";
+    $("jog").innerHTML = "";
+    for (const a of present) {
+      const row = body.insertRow();
+      row.id = "dro-" + a;
+      for (let i = 0; i < 4; i++) row.insertCell();
+      row.cells[0].textContent = a.toUpperCase();
+      $("jog").append(jogButton(a, "-"), jogButton(a, "+"));
+    }
+  }
+  for (const a of present) {
+    const row = $("dro-" + a);
+    row.cells[1].textContent = s.dro ? fixed(s.dro.work[a]) : "–";
+    row.cells[2].textContent = fixed(s.position[a]);
+    row.cells[3].textContent = s.axes && s.axes[a] && s.axes[a].homed ? "yes" : "no";
+  }
+  $("system").textContent = s.dro ? s.dro.system + ", tool " + s.dro.tool : "";
+}
+
+function connect() {
+  const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/api/v1/ws");
+  ws.onmessage = (event) => show(JSON.parse(event.data));
+  ws.onclose = () => {
+    $("state").textContent = "connecting…";
+    setTimeout(connect, 1000);
+  };
+}
+connect();

@@ -1,0 +1,354 @@
+//! `kerf serve` against a live `kerfd` with simulated drives, from a plain HTTP client and
+//! a WebSocket client (docs/API.md): the status, its stream at 20 Hz at most to two
+//! watchers at once, control refused without the token, from another site's page, with
+//! bad JSON, unknown fields or a body too large (nothing moves), and with the token a jog
+//! that ends exactly where asked, and hold and cycle start of a running program.
+
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+mod common;
+use common::{MACHINE_PATIENCE, MachineEnv, Proc, read_text};
+
+/// The control token of these tests, and its hash in the configuration.
+const TOKEN: &str = "serve-test-token-0123456789";
+
+/// A machine whose `[serve]` accepts [`TOKEN`], its daemon, and `kerf serve` on a free
+/// port of 127.0.0.1.
+struct Served {
+    env: MachineEnv,
+    addr: SocketAddr,
+    _daemon: Proc,
+    _serve: Proc,
+}
+
+fn served(tag: &str) -> Served {
+    let env = MachineEnv::new("kerf-serve-tests", "sv", tag, false);
+    let hash = kerf::serve::hex(&kerf::serve::hash_token(TOKEN.as_bytes()));
+    let text = std::fs::read_to_string(&env.config_path).unwrap();
+    std::fs::write(
+        &env.config_path,
+        format!("{text}\n[serve]\ncontrol_token_sha256 = \"{hash}\"\n"),
+    )
+    .unwrap();
+    let daemon = env.start_daemon("kerfd");
+    let serve = Proc::start(
+        "serve",
+        &env.dir,
+        env.kerf_command(&["serve"], &["--http", "127.0.0.1:0"]),
+    );
+    let deadline = Instant::now() + MACHINE_PATIENCE;
+    let addr = loop {
+        let said = read_text(&serve.stderr);
+        if let Some(rest) = said.split("on http://").nth(1) {
+            break rest.split('/').next().unwrap().parse().expect("an address");
+        }
+        assert!(
+            Instant::now() < deadline,
+            "kerf serve never listened: {said}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    Served {
+        env,
+        addr,
+        _daemon: daemon,
+        _serve: serve,
+    }
+}
+
+/// One HTTP/1.1 request (`Connection: close`): the status code and the body.
+fn http(
+    addr: SocketAddr,
+    method: &str,
+    path: &str,
+    headers: &[&str],
+    body: &[u8],
+) -> (u16, String) {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(MACHINE_PATIENCE)).unwrap();
+    let mut request = format!(
+        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Length: {}\r\n",
+        body.len()
+    );
+    for h in headers {
+        request.push_str(h);
+        request.push_str("\r\n");
+    }
+    request.push_str("\r\n");
+    s.write_all(request.as_bytes()).unwrap();
+    // A body the server refuses before reading it all may end the connection early.
+    let _ = s.write_all(body);
+    let mut answer = Vec::new();
+    let _ = s.read_to_end(&mut answer);
+    let text = String::from_utf8_lossy(&answer).to_string();
+    let code = text
+        .split(' ')
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or_else(|| panic!("not an HTTP answer: {text}"));
+    let body = text
+        .split_once("\r\n\r\n")
+        .map(|(_, b)| b.to_string())
+        .unwrap_or_default();
+    (code, body)
+}
+
+fn json(body: &str) -> Value {
+    serde_json::from_str(body).unwrap_or_else(|e| panic!("not JSON ({e}): {body}"))
+}
+
+/// `POST /api/v1/control` with `body` and the token (unless `token` is None).
+fn control(addr: SocketAddr, token: Option<&str>, body: &str) -> (u16, Value) {
+    let auth = token.map(|t| format!("Authorization: Bearer {t}"));
+    let mut headers = vec!["Content-Type: application/json"];
+    if let Some(a) = &auth {
+        headers.push(a);
+    }
+    let (code, text) = http(addr, "POST", "/api/v1/control", &headers, body.as_bytes());
+    (code, json(&text))
+}
+
+/// The API's status object, waited for until `done` holds.
+fn status_until(addr: SocketAddr, what: &str, done: impl Fn(&Value) -> bool) -> Value {
+    let deadline = Instant::now() + MACHINE_PATIENCE;
+    loop {
+        let (code, body) = http(addr, "GET", "/api/v1/status", &[], b"");
+        assert_eq!(code, 200, "{body}");
+        let m = json(&body);
+        if m["connected"] == true && done(&m["status"]) {
+            return m["status"].clone();
+        }
+        assert!(Instant::now() < deadline, "never {what}: {m}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn the_page_the_status_and_its_stream_are_served_to_several_watchers_at_20_hz_at_most() {
+    let s = served("watch");
+    let (code, page) = http(s.addr, "GET", "/", &[], b"");
+    assert_eq!(code, 200);
+    assert!(page.contains("<title>Kerf</title>"), "{page}");
+    for path in ["/app.js", "/style.css"] {
+        assert_eq!(http(s.addr, "GET", path, &[], b"").0, 200, "{path}");
+    }
+    let (code, body) = http(s.addr, "GET", "/nowhere", &[], b"");
+    assert_eq!(
+        (code, json(&body)["error"]["code"].clone()),
+        (404, Value::from("not_found"))
+    );
+    let st = status_until(s.addr, "idle", |st| st["state"] == "idle");
+    assert_eq!(st["machine"], Value::from(s.env.machine.clone()));
+    // The same object as `kerf status --json`'s, but for what moves (cycles, time).
+    let cli = s.env.status();
+    for key in [
+        "machine",
+        "state",
+        "position",
+        "override_pct",
+        "axes",
+        "dro",
+    ] {
+        assert_eq!(st[key], cli[key], "{key}");
+    }
+    // Two watchers at once; each message one status, sent at most every 50 ms of the
+    // link's clock (`t_ms`, when it read the status), in order.
+    let url = format!("ws://{}/api/v1/ws", s.addr);
+    let mut watchers: Vec<_> = (0..2)
+        .map(|_| {
+            let stream = TcpStream::connect(s.addr).unwrap();
+            stream.set_read_timeout(Some(MACHINE_PATIENCE)).unwrap();
+            tungstenite::client(url.as_str(), stream)
+                .expect("a WebSocket")
+                .0
+        })
+        .collect();
+    for w in &mut watchers {
+        let mut last: Option<(u64, u64)> = None;
+        for _ in 0..8 {
+            let m = match w.read().expect("a message") {
+                tungstenite::Message::Text(t) => json(t.as_str()),
+                other => panic!("not text: {other:?}"),
+            };
+            assert_eq!(m["api"], 1);
+            assert_eq!(m["connected"], true, "{m}");
+            assert_eq!(m["status"]["machine"], Value::from(s.env.machine.clone()));
+            let (seq, t_ms) = (m["seq"].as_u64().unwrap(), m["t_ms"].as_u64().unwrap());
+            if let Some((s0, t0)) = last {
+                assert!(seq > s0, "seq {s0} then {seq}");
+                assert!(t_ms >= t0 + 49, "two messages {} ms apart", t_ms - t0);
+            }
+            last = Some((seq, t_ms));
+        }
+    }
+}
+
+#[test]
+fn control_is_refused_without_the_token_from_another_site_or_malformed_and_nothing_moves() {
+    let s = served("refuse");
+    let before = status_until(s.addr, "idle", |st| st["state"] == "idle");
+    let step = r#"{"command":"jog_step","axis":"X","distance":5}"#;
+    for (token, headers, body, code, reason) in [
+        (None, &[][..], step, 401, "unauthorized"),
+        (
+            Some("wrong-token-0123456789"),
+            &[][..],
+            step,
+            401,
+            "unauthorized",
+        ),
+        (
+            Some(TOKEN),
+            &["Origin: http://elsewhere.example"][..],
+            step,
+            403,
+            "cross_origin",
+        ),
+        (
+            Some(TOKEN),
+            &["Sec-Fetch-Site: cross-site"][..],
+            step,
+            403,
+            "cross_origin",
+        ),
+        (Some(TOKEN), &[][..], "{\"command\":", 400, "bad_request"),
+        (
+            Some(TOKEN),
+            &[][..],
+            r#"{"command":"jog_step","axis":"X","distance":5,"x":1}"#,
+            400,
+            "bad_request",
+        ),
+        (
+            Some(TOKEN),
+            &[][..],
+            r#"{"command":"launch"}"#,
+            400,
+            "bad_request",
+        ),
+        (
+            Some(TOKEN),
+            &[][..],
+            r#"{"command":"jog_step","axis":"W","distance":5}"#,
+            400,
+            "bad_request",
+        ),
+        (
+            Some(TOKEN),
+            &[][..],
+            r#"{"command":"jog_step","axis":"X","distance":5000}"#,
+            409,
+            "refused",
+        ),
+    ] {
+        let auth = token.map(|t| format!("Authorization: Bearer {t}"));
+        let mut all: Vec<&str> = headers.to_vec();
+        if let Some(a) = &auth {
+            all.push(a);
+        }
+        let (got, text) = http(s.addr, "POST", "/api/v1/control", &all, body.as_bytes());
+        let answer = json(&text);
+        assert_eq!(
+            (got, answer["error"]["code"].clone()),
+            (code, Value::from(reason)),
+            "{body} {headers:?}: {answer}"
+        );
+        assert!(
+            answer["error"]["message"]
+                .as_str()
+                .is_some_and(|m| !m.is_empty())
+        );
+    }
+    // Too large: refused before it is read.
+    let big = format!(r#"{{"command":"hold","pad":"{}"}}"#, "x".repeat(100_000));
+    let (code, text) = http(
+        s.addr,
+        "POST",
+        "/api/v1/control",
+        &[&format!("Authorization: Bearer {TOKEN}")],
+        big.as_bytes(),
+    );
+    assert_eq!(
+        (code, json(&text)["error"]["code"].clone()),
+        (413, Value::from("too_large"))
+    );
+    // Nothing moved, and every refusal was logged with the client's address.
+    let after = status_until(s.addr, "idle", |st| st["state"] == "idle");
+    assert_eq!(after["position"], before["position"]);
+    let log = read_text(&s.env.dir.join("serve.stderr"));
+    assert_eq!(
+        log.matches("kerf serve: refused a control request from 127.0.0.1:")
+            .count(),
+        10,
+        "{log}"
+    );
+}
+
+#[test]
+fn with_the_token_a_jog_ends_where_asked_and_a_program_holds_and_resumes() {
+    let s = served("control");
+    let before = status_until(s.addr, "idle", |st| st["state"] == "idle");
+    let x0 = before["position"]["x"].as_f64().unwrap();
+    let (code, answer) = control(
+        s.addr,
+        Some(TOKEN),
+        r#"{"command":"jog_step","axis":"x","distance":2.5,"speed":20}"#,
+    );
+    assert_eq!(code, 200, "{answer}");
+    assert_eq!(answer["ok"], true);
+    // Exactly there (waited for until it is, or the test fails after the patience).
+    status_until(s.addr, "X exactly 2.5 mm on", |st| {
+        st["state"] == "idle" && st["position"]["x"].as_f64() == Some(x0 + 2.5)
+    });
+    let (code, answer) = control(
+        s.addr,
+        Some(TOKEN),
+        r#"{"command":"override","percent":50}"#,
+    );
+    assert_eq!(
+        (code, answer["status"]["override_pct"].clone()),
+        (200, Value::from(50.0))
+    );
+    // A program of 4 s at 50 %: held while it runs, then resumed to its end.
+    let program = s.env.write("long.ngc", "G21 G90 G1 X40 F1200\nG1 X0\nM2\n");
+    let mut run = Proc::start(
+        "run",
+        &s.env.dir,
+        s.env.kerf_command(&["run"], &[program.to_str().unwrap()]),
+    );
+    status_until(s.addr, "running", |st| st["state"] == "running");
+    let (code, answer) = control(s.addr, Some(TOKEN), r#"{"command":"hold"}"#);
+    assert_eq!(code, 200, "{answer}");
+    // Held: at rest on the path (two statuses 100 ms apart agree), and it stays there.
+    let deadline = Instant::now() + MACHINE_PATIENCE;
+    let x_held = loop {
+        let a = status_until(s.addr, "held", |st| st["state"] == "holding");
+        std::thread::sleep(Duration::from_millis(100));
+        let b = status_until(s.addr, "held", |st| st["state"] == "holding");
+        if a["position"] == b["position"] {
+            break b["position"]["x"].as_f64().unwrap();
+        }
+        assert!(Instant::now() < deadline, "never at rest while held: {b}");
+    };
+    assert!(
+        x_held > 0.0 && x_held < 40.0,
+        "held at X {x_held}, not on the way"
+    );
+    std::thread::sleep(Duration::from_millis(300));
+    let still = status_until(s.addr, "still held", |st| st["state"] == "holding");
+    assert_eq!(
+        still["position"]["x"].as_f64().unwrap(),
+        x_held,
+        "moved while held"
+    );
+    let (code, answer) = control(s.addr, Some(TOKEN), r#"{"command":"resume"}"#);
+    assert_eq!(code, 200, "{answer}");
+    let exit = run.wait_within(MACHINE_PATIENCE);
+    assert!(exit.success(), "kerf run: {}", run.stderr());
+    let end = status_until(s.addr, "idle", |st| st["state"] == "idle");
+    assert_eq!(end["position"]["x"].as_f64().unwrap(), 0.0);
+}
