@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# Checks deploy/kerfd.service with `systemd-analyze verify`. The unit's ExecStart names
-# /usr/bin/kerfd, which is not installed where this runs, so a temporary copy points
-# ExecStart at /bin/true; every other line is checked as written. Fails if systemd-analyze
-# fails or prints anything about the unit.
+# Checks deploy/kerfd.service and deploy/kerf-serve.service with `systemd-analyze verify`.
+# A unit's ExecStart names /usr/bin/kerfd or /usr/bin/kerf, which is not installed where
+# this runs, so a temporary copy points ExecStart at /bin/true; every other line is
+# checked as written. Fails if systemd-analyze fails or prints anything about the unit.
 #
 # Then, as root (CI), applies deploy/kerfd.tmpfiles with `systemd-tmpfiles --root` to a
 # scratch root whose /etc/passwd has a user kerf and whose /tmp/iceoryx2 holds what a
@@ -12,26 +12,27 @@
 set -euo pipefail
 
 here="$(cd "$(dirname "$0")" && pwd)"
-unit="$here/kerfd.service"
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 
-sed -E 's|^ExecStart=[^ ]+|ExecStart=/bin/true|' "$unit" >"$tmp/kerfd.service"
-if ! grep -q '^ExecStart=/bin/true ' "$tmp/kerfd.service"; then
-    echo "verify-unit: no ExecStart= line to rewrite in $unit" >&2
-    exit 1
-fi
-
-status=0
-output="$(systemd-analyze verify "$tmp/kerfd.service" 2>&1)" || status=$?
-# Lines about other units on this machine are not ours to fix; lines about kerfd are.
-ours="$(printf '%s\n' "$output" | grep -i 'kerfd' || true)"
-if [ "$status" -ne 0 ] || [ -n "$ours" ]; then
-    echo "verify-unit: systemd-analyze verify (exit $status) on $unit:" >&2
-    printf '%s\n' "$output" >&2
-    exit 1
-fi
-echo "verify-unit: kerfd.service OK (systemd $(systemd-analyze --version | head -n1 | awk '{print $2}'))"
+for name in kerfd kerf-serve; do
+    unit="$here/$name.service"
+    sed -E 's|^ExecStart=[^ ]+|ExecStart=/bin/true|' "$unit" >"$tmp/$name.service"
+    if ! grep -q '^ExecStart=/bin/true ' "$tmp/$name.service"; then
+        echo "verify-unit: no ExecStart= line to rewrite in $unit" >&2
+        exit 1
+    fi
+    status=0
+    output="$(systemd-analyze verify "$tmp/$name.service" 2>&1)" || status=$?
+    # Lines about other units on this machine are not ours to fix; lines about ours are.
+    ours="$(printf '%s\n' "$output" | grep -i "$name" || true)"
+    if [ "$status" -ne 0 ] || [ -n "$ours" ]; then
+        echo "verify-unit: systemd-analyze verify (exit $status) on $unit:" >&2
+        printf '%s\n' "$output" >&2
+        exit 1
+    fi
+    echo "verify-unit: $name.service OK (systemd $(systemd-analyze --version | head -n1 | awk '{print $2}'))"
+done
 
 # The tmpfiles entry: the whole iceoryx2 tree for user kerf.
 tmpfiles="$here/kerfd.tmpfiles"
