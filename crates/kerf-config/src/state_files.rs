@@ -67,6 +67,12 @@ impl Config {
         }
     }
 
+    /// Where programs sent to the machine through `kerf serve` are kept: `MACHINE-programs`
+    /// in the state directory.
+    pub fn machine_program_directory(&self) -> PathBuf {
+        state_directory().join(format!("{}-programs", self.machine))
+    }
+
     /// The machine's tool table file: `gcode.tool_table`, else `MACHINE.tbl` in the state
     /// directory.
     pub fn machine_tool_table(&self) -> PathBuf {

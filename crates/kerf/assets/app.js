@@ -21,6 +21,30 @@ async function control(body) {
   return answer;
 }
 
+// A program from this computer: sent as the body of POST /api/v1/program and run by the
+// machine's `kerf run`; the job's state and what it said come from GET /api/v1/job.
+$("run").addEventListener("click", async () => {
+  const file = $("program-file").files[0];
+  if (!file) { $("answer").textContent = "choose a program file first"; return; }
+  const response = await fetch("/api/v1/program?name=" + encodeURIComponent(file.name.replace(/[^A-Za-z0-9._-]/g, "_")), {
+    method: "POST",
+    headers: { "Authorization": "Bearer " + $("token").value },
+    body: await file.arrayBuffer(),
+  });
+  const answer = await response.json();
+  $("answer").textContent = answer.ok ? "started: " + file.name : "refused: " + answer.error.message;
+  showJob();
+});
+
+async function showJob() {
+  const answer = await (await fetch("/api/v1/job")).json();
+  const job = answer.job;
+  $("job").textContent = job ? job.name + ": " + job.state + (job.exit_code === null ? "" : " (exit " + job.exit_code + ")") : "none";
+  $("job-messages").textContent = job ? job.messages.join("\n") : "";
+}
+setInterval(showJob, 1000);
+showJob();
+
 for (const b of document.querySelectorAll("button[data-command]")) {
   b.addEventListener("click", () => {
     const body = { command: b.dataset.command };

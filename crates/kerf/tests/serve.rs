@@ -352,3 +352,121 @@ fn with_the_token_a_jog_ends_where_asked_and_a_program_holds_and_resumes() {
     let end = status_until(s.addr, "idle", |st| st["state"] == "idle");
     assert_eq!(end["position"]["x"].as_f64().unwrap(), 0.0);
 }
+
+/// `GET /api/v1/job`'s job, waited for until `done` holds.
+fn job_until(addr: SocketAddr, what: &str, done: impl Fn(&Value) -> bool) -> Value {
+    let deadline = Instant::now() + MACHINE_PATIENCE;
+    loop {
+        let (code, body) = http(addr, "GET", "/api/v1/job", &[], b"");
+        assert_eq!(code, 200, "{body}");
+        let job = json(&body)["job"].clone();
+        if done(&job) {
+            return job;
+        }
+        assert!(Instant::now() < deadline, "never {what}: {job}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn a_program_sent_through_the_api_runs_as_kerf_run_runs_it_and_a_bad_one_comes_back_with_its_place()
+{
+    let s = served("program");
+    let auth = format!("Authorization: Bearer {TOKEN}");
+    let post = |name: &str, text: &[u8], headers: &[&str]| {
+        let (code, body) = http(
+            s.addr,
+            "POST",
+            &format!("/api/v1/program?name={name}"),
+            headers,
+            text,
+        );
+        (code, json(&body))
+    };
+    assert_eq!(
+        json(&http(s.addr, "GET", "/api/v1/job", &[], b"").1)["job"],
+        Value::Null
+    );
+    // Refused, and nothing runs: no token, a name that is a path, too large.
+    let part = b"G21 G90\nG1 X12.5 Y-3 F3000\nG0 X0 Y0\nM2\n";
+    assert_eq!(post("part.ngc", part, &[]).0, 401);
+    let (code, answer) = post("..%2Fescape.ngc", part, &[&auth]);
+    assert_eq!(
+        (code, answer["error"]["code"].clone()),
+        (400, Value::from("bad_request")),
+        "{answer}"
+    );
+    let huge = vec![b'\n'; kerf::serve::jobs::PROGRAM_LIMIT + 1];
+    let (code, answer) = post("huge.ngc", &huge, &[&auth]);
+    assert_eq!(
+        (code, answer["error"]["code"].clone()),
+        (413, Value::from("too_large")),
+        "{answer}"
+    );
+    assert_eq!(
+        json(&http(s.addr, "GET", "/api/v1/job", &[], b"").1)["job"],
+        Value::Null
+    );
+    // A program with an error: `kerf run` refuses it before anything moves, and its
+    // `FILE:LINE:COL: error:` comes back in the job.
+    let before = status_until(s.addr, "idle", |st| st["state"] == "idle");
+    let (code, answer) = post("bad.ngc", b"G21 G90\nG1 X10 F100\nG1 X20 Q\nM2\n", &[&auth]);
+    assert_eq!(code, 202, "{answer}");
+    let job = job_until(s.addr, "the bad job ended", |j| j["state"] != "running");
+    assert_eq!(job["state"], "failed", "{job}");
+    assert_eq!(job["exit_code"], 2, "{job}");
+    let kept = s
+        .env
+        .dir
+        .join(format!("{}-programs/bad.ngc", s.env.machine));
+    let place = format!("{}:3:", kept.display());
+    assert!(
+        job["messages"].as_array().unwrap().iter().any(|m| m
+            .as_str()
+            .is_some_and(|m| m.starts_with(&place) && m.contains(": error: "))),
+        "no {place}…: error: in {job}"
+    );
+    assert_eq!(
+        status_until(s.addr, "idle", |st| st["state"] == "idle")["position"],
+        before["position"]
+    );
+    // While a job runs, a second program is refused; the first, aborted, is never
+    // reported finished.
+    let (code, answer) = post("long.ngc", b"G21 G90\nG1 X200 F600\nM2\n", &[&auth]);
+    assert_eq!(code, 202, "{answer}");
+    status_until(s.addr, "running", |st| st["state"] == "running");
+    let (code, again) = post("part.ngc", part, &[&auth]);
+    assert_eq!(
+        (code, again["error"]["code"].clone()),
+        (409, Value::from("busy")),
+        "{again}"
+    );
+    let (code, answer) = control(s.addr, Some(TOKEN), r#"{"command":"abort"}"#);
+    assert_eq!(code, 200, "{answer}");
+    let job = job_until(s.addr, "the aborted job ended", |j| j["state"] != "running");
+    assert_eq!(job["state"], "failed", "{job}");
+    assert_ne!(job["exit_code"], 0, "{job}");
+    let stopped = status_until(s.addr, "idle", |st| st["state"] == "idle");
+    let x_stopped = stopped["position"]["x"].as_f64().unwrap();
+    assert!(x_stopped > 0.0 && x_stopped < 200.0, "{stopped}");
+    // A good one runs to its end, exactly as `kerf run` of the same file: it starts from
+    // where the machine stands and ends at 0, 0.
+    let (code, answer) = post("part.ngc", part, &[&auth]);
+    assert_eq!(code, 202, "{answer}");
+    assert_eq!(answer["job"]["name"], "part.ngc");
+    assert_eq!(answer["job"]["state"], "running");
+    let job = job_until(s.addr, "the part ended", |j| j["state"] != "running");
+    assert_eq!(
+        (job["state"].clone(), job["exit_code"].clone()),
+        (Value::from("finished"), Value::from(0)),
+        "{job}"
+    );
+    let end = status_until(s.addr, "idle", |st| st["state"] == "idle");
+    assert_eq!(end["position"]["x"], 0.0);
+    assert_eq!(end["position"]["y"], 0.0);
+    let kept = s
+        .env
+        .dir
+        .join(format!("{}-programs/part.ngc", s.env.machine));
+    assert_eq!(std::fs::read(kept).unwrap(), part);
+}

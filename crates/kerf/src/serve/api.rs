@@ -21,6 +21,7 @@ use kerf_proto::{ControlCommand, Jog, Switch};
 use serde::Deserialize;
 use tokio::sync::{oneshot, watch};
 
+use super::jobs::{Jobs, PROGRAM_LIMIT, StartRefused, job_json, valid_name};
 use super::link::{Ask, Refused, STATUS_PERIOD, json_string};
 use super::page;
 
@@ -38,6 +39,8 @@ pub struct App {
     pub token_sha256: Option<[u8; 32]>,
     /// The axes the machine has, X to C.
     pub axes: [bool; 6],
+    /// Programs run from the page or the API.
+    pub jobs: Jobs,
 }
 
 /// The router of the page and the API.
@@ -49,6 +52,8 @@ pub fn router(app: App) -> Router {
         .route("/api/v1/status", get(status))
         .route("/api/v1/ws", get(ws))
         .route("/api/v1/control", post(control))
+        .route("/api/v1/program", post(program))
+        .route("/api/v1/job", get(job))
         .fallback(|| async { error(StatusCode::NOT_FOUND, "not_found", "no such page or API") })
         .with_state(app)
 }
@@ -301,37 +306,52 @@ fn authorized(headers: &HeaderMap, expected: &[u8; 32]) -> bool {
         == 0
 }
 
+/// Logs a refused request of `peer` and answers it.
+fn refuse(peer: SocketAddr, status: StatusCode, code: &str, message: &str) -> Response {
+    eprintln!("kerf serve: refused a control request from {peer}: {code}: {message}");
+    error(status, code, message)
+}
+
+/// The checks every control request passes first: from the page's own origin, control
+/// configured, the token presented. The refusal's answer, or None when it passes.
+fn guard(app: &App, peer: SocketAddr, headers: &HeaderMap) -> Option<Response> {
+    if cross_origin(headers) {
+        return Some(refuse(
+            peer,
+            StatusCode::FORBIDDEN,
+            "cross_origin",
+            "a control request from another site's page is refused",
+        ));
+    }
+    let Some(expected) = app.token_sha256 else {
+        return Some(refuse(
+            peer,
+            StatusCode::FORBIDDEN,
+            "control_disabled",
+            "control through kerf serve is not configured (serve.control_token_sha256); watching needs no token",
+        ));
+    };
+    if !authorized(headers, &expected) {
+        return Some(refuse(
+            peer,
+            StatusCode::UNAUTHORIZED,
+            "unauthorized",
+            "control needs the token: `Authorization: Bearer TOKEN`",
+        ));
+    }
+    None
+}
+
 async fn control(
     State(app): State<App>,
     ConnectInfo(peer): ConnectInfo<SocketAddr>,
     headers: HeaderMap,
     body: Body,
 ) -> Response {
-    let refuse = |status: StatusCode, code: &str, message: &str| {
-        eprintln!("kerf serve: refused a control request from {peer}: {code}: {message}");
-        error(status, code, message)
-    };
-    if cross_origin(&headers) {
-        return refuse(
-            StatusCode::FORBIDDEN,
-            "cross_origin",
-            "a control request from another site's page is refused",
-        );
+    if let Some(refused) = guard(&app, peer, &headers) {
+        return refused;
     }
-    let Some(expected) = app.token_sha256 else {
-        return refuse(
-            StatusCode::FORBIDDEN,
-            "control_disabled",
-            "control through kerf serve is not configured (serve.control_token_sha256); watching needs no token",
-        );
-    };
-    if !authorized(&headers, &expected) {
-        return refuse(
-            StatusCode::UNAUTHORIZED,
-            "unauthorized",
-            "control needs the token: `Authorization: Bearer TOKEN`",
-        );
-    }
+    let refuse = |status, code, message: &str| refuse(peer, status, code, message);
     let bytes = match to_bytes(body, CONTROL_BODY_LIMIT).await {
         Ok(b) => b,
         Err(_) => {
@@ -371,4 +391,78 @@ async fn control(
             "the link to the daemon stopped",
         ),
     }
+}
+
+/// The query of `POST /api/v1/program`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ProgramQuery {
+    name: String,
+}
+
+/// `POST /api/v1/program?name=NAME`: the body is the program's text; it is kept and run by
+/// `kerf run` (a job).
+async fn program(
+    State(app): State<App>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
+    query: Result<axum::extract::Query<ProgramQuery>, axum::extract::rejection::QueryRejection>,
+    headers: HeaderMap,
+    body: Body,
+) -> Response {
+    if let Some(refused) = guard(&app, peer, &headers) {
+        return refused;
+    }
+    let refuse = |status, code, message: &str| refuse(peer, status, code, message);
+    let name = match query {
+        Ok(q) if valid_name(&q.name) => q.0.name,
+        Ok(q) => {
+            return refuse(
+                StatusCode::BAD_REQUEST,
+                "bad_request",
+                &format!(
+                    "`name` must be a plain file name (1 to 100 of A-Z, a-z, 0-9, `.`, `_`, `-`, not starting with `.`), found `{}`",
+                    q.name
+                ),
+            );
+        }
+        Err(e) => return refuse(StatusCode::BAD_REQUEST, "bad_request", &e.body_text()),
+    };
+    let text = match to_bytes(body, PROGRAM_LIMIT).await {
+        Ok(b) => b,
+        Err(_) => {
+            return refuse(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                "too_large",
+                &format!("a program is at most {PROGRAM_LIMIT} bytes; nothing runs"),
+            );
+        }
+    };
+    match app.jobs.start(&name, &text) {
+        Ok(_) => json(
+            StatusCode::ACCEPTED,
+            format!(
+                "{{\"ok\":true,\"job\":{}}}",
+                job_json(app.jobs.current().as_ref())
+            ),
+        ),
+        Err(StartRefused::Busy(id)) => refuse(
+            StatusCode::CONFLICT,
+            "busy",
+            &format!("job {id} still runs: hold or abort it, or wait for its end"),
+        ),
+        Err(StartRefused::Name(n)) => refuse(
+            StatusCode::BAD_REQUEST,
+            "bad_request",
+            &format!("bad name `{n}`"),
+        ),
+        Err(StartRefused::Io(m)) => refuse(StatusCode::INTERNAL_SERVER_ERROR, "io", &m),
+    }
+}
+
+/// `GET /api/v1/job`: the current or last job, `null` before the first.
+async fn job(State(app): State<App>) -> Response {
+    json(
+        StatusCode::OK,
+        format!("{{\"job\":{}}}", job_json(app.jobs.current().as_ref())),
+    )
 }

@@ -7,10 +7,12 @@
 //! page, the status, its WebSocket stream and control. Nothing here touches the cycle.
 
 pub mod api;
+pub mod jobs;
 pub mod link;
 pub mod page;
 
 use std::net::SocketAddr;
+use std::path::PathBuf;
 use std::sync::Arc;
 
 use kerf_config::Config;
@@ -46,10 +48,12 @@ pub fn hex(hash: &[u8; 32]) -> String {
     hash.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-/// Serves the machine of `config` on `http` until SIGINT or SIGTERM. `ready` is called
-/// with the address listened on (its port when `http` asked for port 0).
+/// Serves the machine of `config` (read from `config_path`, or the default when None: the
+/// file programs are run with) on `http` until SIGINT or SIGTERM. `ready` is called with
+/// the address listened on (its port when `http` asked for port 0).
 pub fn run(
     config: Config,
+    config_path: Option<PathBuf>,
     http: SocketAddr,
     ready: impl FnOnce(SocketAddr),
 ) -> Result<(), ServeError> {
@@ -61,6 +65,9 @@ pub fn run(
         "{\"api\":1,\"seq\":0,\"t_ms\":0,\"connected\":false,\"reason\":\"starting\"}",
     )));
     let (asks_tx, asks_rx) = std::sync::mpsc::channel();
+    // Programs are run by this very binary's `kerf run`.
+    let kerf = std::env::current_exe()?;
+    let jobs = jobs::Jobs::new(kerf, config_path, config.machine_program_directory());
     let app = api::App {
         status: status_rx,
         asks: asks_tx,
@@ -73,6 +80,7 @@ pub fn run(
             config.axes.b.is_some(),
             config.axes.c.is_some(),
         ],
+        jobs,
     };
     let link_config = config.clone();
     std::thread::Builder::new()

@@ -46,7 +46,8 @@ pub fn run(args: &ServeArgs) -> Result<(), Failure> {
     } else {
         "watching only (no serve.control_token_sha256)"
     };
-    kerf::serve::run(config, http, |addr| {
+    let config_path = args.machine.config.clone();
+    kerf::serve::run(config, config_path, http, |addr| {
         let _ = writeln!(
             io::stderr().lock(),
             "kerf serve: machine `{machine}` on http://{addr}/ ({control})"

@@ -1,0 +1,223 @@
+//! Programs run from the page or the API: the uploaded text is kept in the machine's
+//! program directory (`Config::machine_program_directory`) and run by `kerf run` itself,
+//! as a child process of `kerf serve`, so that a program sent through the API is checked,
+//! streamed, paused and reported exactly as one run from a terminal. One job at a time;
+//! its state, exit code and what `kerf run` said on standard error (its errors as
+//! `FILE:LINE:COL: error: …`) are the API's `GET /api/v1/job`.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::{Arc, Mutex};
+
+use super::link::json_string;
+
+/// The largest program accepted, bytes.
+pub const PROGRAM_LIMIT: usize = 64 * 1024 * 1024;
+
+/// Lines of `kerf run`'s standard error kept per job (the last ones).
+const MESSAGE_LINES: usize = 200;
+
+/// Where a job stands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JobState {
+    /// `kerf run` runs: checking, streaming, waiting for the machine to finish.
+    Running,
+    /// It exited 0: the program was really done.
+    Finished,
+    /// It exited otherwise: refused, failed, aborted, or stopped by a fault.
+    Failed,
+}
+
+impl JobState {
+    fn name(self) -> &'static str {
+        match self {
+            JobState::Running => "running",
+            JobState::Finished => "finished",
+            JobState::Failed => "failed",
+        }
+    }
+}
+
+/// One job.
+#[derive(Debug, Clone)]
+pub struct Job {
+    /// Counts the jobs since `kerf serve` started, from 1.
+    pub id: u64,
+    /// The program's file name.
+    pub name: String,
+    /// Where it stands.
+    pub state: JobState,
+    /// `kerf run`'s exit code once it exited (None: killed by a signal).
+    pub exit_code: Option<i32>,
+    /// The last lines `kerf run` wrote on standard error.
+    pub messages: Vec<String>,
+}
+
+/// The jobs of one `kerf serve`.
+#[derive(Clone)]
+pub struct Jobs {
+    kerf: PathBuf,
+    config: Option<PathBuf>,
+    directory: PathBuf,
+    current: Arc<Mutex<Option<Job>>>,
+}
+
+/// Why a program was not started.
+#[derive(Debug, PartialEq, Eq)]
+pub enum StartRefused {
+    /// A job runs already.
+    Busy(u64),
+    /// The name is not a plain file name.
+    Name(String),
+    /// The program could not be kept or `kerf run` not started.
+    Io(String),
+}
+
+/// Whether `name` is a plain file name: 1 to 100 of `A-Z a-z 0-9 . _ -`, not starting
+/// with a dot.
+pub fn valid_name(name: &str) -> bool {
+    (1..=100).contains(&name.len())
+        && !name.starts_with('.')
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'_' | b'-'))
+}
+
+impl Jobs {
+    /// Jobs run by the `kerf` binary at `kerf` with `--config config` (none: its default),
+    /// their programs kept in `directory`.
+    pub fn new(kerf: PathBuf, config: Option<PathBuf>, directory: PathBuf) -> Jobs {
+        Jobs {
+            kerf,
+            config,
+            directory,
+            current: Arc::new(Mutex::new(None)),
+        }
+    }
+
+    /// The current (or last) job.
+    pub fn current(&self) -> Option<Job> {
+        self.current.lock().map(|j| j.clone()).unwrap_or(None)
+    }
+
+    /// Keeps `text` as `name` and starts `kerf run` on it; the new job's id.
+    pub fn start(&self, name: &str, text: &[u8]) -> Result<u64, StartRefused> {
+        if !valid_name(name) {
+            return Err(StartRefused::Name(name.to_owned()));
+        }
+        let mut current = self
+            .current
+            .lock()
+            .map_err(|_| StartRefused::Io("the job state is poisoned".into()))?;
+        if let Some(j) = current.as_ref()
+            && j.state == JobState::Running
+        {
+            return Err(StartRefused::Busy(j.id));
+        }
+        let path = self.keep(name, text).map_err(StartRefused::Io)?;
+        let mut command = Command::new(&self.kerf);
+        command.arg("run");
+        if let Some(c) = &self.config {
+            command.arg("--config").arg(c);
+        }
+        let mut child = command
+            .arg(&path)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| StartRefused::Io(format!("cannot start {}: {e}", self.kerf.display())))?;
+        let id = current.as_ref().map_or(1, |j| j.id + 1);
+        *current = Some(Job {
+            id,
+            name: name.to_owned(),
+            state: JobState::Running,
+            exit_code: None,
+            messages: Vec::new(),
+        });
+        let stderr = child.stderr.take();
+        let state = Arc::clone(&self.current);
+        std::thread::Builder::new()
+            .name("kerf-serve-job".into())
+            .spawn(move || {
+                if let Some(err) = stderr {
+                    for line in BufReader::new(err).lines().map_while(Result::ok) {
+                        if let Ok(mut j) = state.lock()
+                            && let Some(j) = j.as_mut()
+                        {
+                            if j.messages.len() == MESSAGE_LINES {
+                                j.messages.remove(0);
+                            }
+                            j.messages.push(line);
+                        }
+                    }
+                }
+                let exit = child.wait().ok().and_then(|s| s.code());
+                if let Ok(mut j) = state.lock()
+                    && let Some(j) = j.as_mut()
+                {
+                    j.exit_code = exit;
+                    j.state = if exit == Some(0) {
+                        JobState::Finished
+                    } else {
+                        JobState::Failed
+                    };
+                }
+            })
+            .map_err(|e| StartRefused::Io(e.to_string()))?;
+        Ok(id)
+    }
+
+    /// Writes `text` to `name` in the program directory (through a temporary file renamed
+    /// over it, so `kerf run` never reads half a file); its path.
+    fn keep(&self, name: &str, text: &[u8]) -> Result<PathBuf, String> {
+        let fail = |e: std::io::Error, what: &Path| format!("{}: {e}", what.display());
+        std::fs::create_dir_all(&self.directory).map_err(|e| fail(e, &self.directory))?;
+        let path = self.directory.join(name);
+        let partial = self.directory.join(format!(".{name}.partial"));
+        std::fs::write(&partial, text).map_err(|e| fail(e, &partial))?;
+        std::fs::rename(&partial, &path).map_err(|e| fail(e, &path))?;
+        Ok(path)
+    }
+}
+
+/// A job as the API's JSON: `{"id":…,"name":…,"state":…,"exit_code":…,"messages":[…]}`,
+/// `null` before the first.
+pub fn job_json(job: Option<&Job>) -> String {
+    let Some(j) = job else {
+        return "null".into();
+    };
+    let messages: Vec<String> = j.messages.iter().map(|m| json_string(m)).collect();
+    format!(
+        "{{\"id\":{},\"name\":{},\"state\":\"{}\",\"exit_code\":{},\"messages\":[{}]}}",
+        j.id,
+        json_string(&j.name),
+        j.state.name(),
+        j.exit_code.map_or("null".into(), |c| c.to_string()),
+        messages.join(",")
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_plain_file_names_are_kept() {
+        for good in ["part.ngc", "A-1_b.nc", "x"] {
+            assert!(valid_name(good), "{good}");
+        }
+        for bad in [
+            "",
+            ".hidden",
+            "../etc/passwd",
+            "a/b.ngc",
+            "a b.ngc",
+            "é.ngc",
+            &"x".repeat(101),
+        ] {
+            assert!(!valid_name(bad), "{bad}");
+        }
+    }
+}
