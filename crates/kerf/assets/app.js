@@ -36,9 +36,55 @@ $("run").addEventListener("click", async () => {
   showJob();
 });
 
+// The toolpath view: the job's toolpath (GET /api/v1/job/toolpath, machine mm), the part
+// already cut (the tool's positions from the stream while a program runs) and the tool.
+const view = { toolpath: null, jobId: null, cut: [], tool: null };
+const PLANES = { xy: [0, 1], xz: [0, 2], yz: [1, 2] };
+
+function draw() {
+  const canvas = $("view");
+  const ctx = canvas.getContext("2d");
+  ctx.clearRect(0, 0, canvas.width, canvas.height);
+  const [u, v] = PLANES[$("plane").value];
+  const all = [];
+  if (view.toolpath) for (const p of view.toolpath.paths) all.push(...p.points);
+  all.push(...view.cut);
+  if (view.tool) all.push(view.tool);
+  if (all.length === 0) return;
+  let [u0, u1, v0, v1] = [Infinity, -Infinity, Infinity, -Infinity];
+  for (const p of all) { u0 = Math.min(u0, p[u]); u1 = Math.max(u1, p[u]); v0 = Math.min(v0, p[v]); v1 = Math.max(v1, p[v]); }
+  const margin = 20;
+  const scale = Math.min((canvas.width - 2 * margin) / Math.max(u1 - u0, 1), (canvas.height - 2 * margin) / Math.max(v1 - v0, 1));
+  const at = (p) => [margin + (p[u] - u0) * scale, canvas.height - margin - (p[v] - v0) * scale];
+  const line = (points, style, dash) => {
+    if (points.length < 2) return;
+    ctx.strokeStyle = style; ctx.setLineDash(dash); ctx.beginPath();
+    points.forEach((p, i) => { const [x, y] = at(p); if (i === 0) ctx.moveTo(x, y); else ctx.lineTo(x, y); });
+    ctx.stroke();
+  };
+  ctx.lineWidth = 1;
+  if (view.toolpath) for (const p of view.toolpath.paths) line(p.points, p.rapid ? "#999" : "#2457a6", p.rapid ? [4, 4] : []);
+  ctx.lineWidth = 2.5;
+  line(view.cut, "#c0392b", []);
+  if (view.tool) {
+    const [x, y] = at(view.tool);
+    ctx.setLineDash([]); ctx.fillStyle = "#1a8f3c"; ctx.beginPath(); ctx.arc(x, y, 6, 0, 2 * Math.PI); ctx.fill();
+  }
+}
+$("plane").addEventListener("change", draw);
+
 async function showJob() {
   const answer = await (await fetch("/api/v1/job")).json();
   const job = answer.job;
+  if (job && job.id !== view.jobId) {
+    const response = await fetch("/api/v1/job/toolpath");
+    if (response.ok) {
+      view.toolpath = await response.json();
+      view.jobId = job.id;
+      view.cut = [];
+      draw();
+    }
+  }
   $("job").textContent = job ? job.name + ": " + job.state + (job.exit_code === null ? "" : " (exit " + job.exit_code + ")") : "none";
   $("job-messages").textContent = job ? job.messages.join("\n") : "";
 }
@@ -125,6 +171,16 @@ function show(message) {
     row.cells[3].textContent = s.axes && s.axes[a] && s.axes[a].homed ? "yes" : "no";
   }
   $("system").textContent = s.dro ? s.dro.system + ", tool " + s.dro.tool : "";
+  const p = s.position;
+  view.tool = [p.x, p.y, p.z];
+  if (s.state === "running" || s.state === "holding" || s.state === "paused") {
+    const last = view.cut[view.cut.length - 1];
+    if (!last || last[0] !== p.x || last[1] !== p.y || last[2] !== p.z) {
+      view.cut.push(view.tool);
+      if (view.cut.length > 20000) view.cut.shift();
+    }
+  }
+  draw();
 }
 
 function connect() {

@@ -470,3 +470,325 @@ fn a_program_sent_through_the_api_runs_as_kerf_run_runs_it_and_a_bad_one_comes_b
         .join(format!("{}-programs/part.ngc", s.env.machine));
     assert_eq!(std::fs::read(kept).unwrap(), part);
 }
+
+/// Headless Chromium (Debian's `chromium`) driven through its DevTools protocol over a
+/// WebSocket: one browser, pages opened and closed as tabs.
+struct Browser {
+    ws: tungstenite::WebSocket<TcpStream>,
+    next_id: u64,
+    _process: Proc,
+}
+
+impl Browser {
+    /// Starts `chromium --headless` with a profile of its own in `dir`. Fails, saying so,
+    /// where Chromium is not installed (`.ci/run` installs it).
+    fn start(dir: &std::path::Path) -> Browser {
+        let chromium = ["/usr/bin/chromium", "/usr/bin/chromium-browser"]
+            .into_iter()
+            .find(|p| std::path::Path::new(p).is_file())
+            .expect("Chromium is not installed: `apt-get install chromium` (.ci/run does)");
+        let profile = dir.join("chromium-profile");
+        let mut c = std::process::Command::new(chromium);
+        c.args([
+            "--headless=new",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--no-first-run",
+            "--remote-debugging-port=0",
+            "--window-size=1280,1000",
+        ])
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .arg("about:blank");
+        let process = Proc::start("chromium", dir, c);
+        let deadline = Instant::now() + MACHINE_PATIENCE;
+        let url = loop {
+            let said = read_text(&process.stderr);
+            if let Some(rest) = said.split("DevTools listening on ").nth(1) {
+                break rest.lines().next().unwrap().trim().to_owned();
+            }
+            assert!(Instant::now() < deadline, "Chromium never listened: {said}");
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        let host = url
+            .trim_start_matches("ws://")
+            .split('/')
+            .next()
+            .unwrap()
+            .to_owned();
+        let stream = TcpStream::connect(&host).unwrap();
+        stream.set_read_timeout(Some(MACHINE_PATIENCE)).unwrap();
+        let (ws, _) = tungstenite::client(url.as_str(), stream).expect("the DevTools socket");
+        Browser {
+            ws,
+            next_id: 1,
+            _process: process,
+        }
+    }
+
+    /// Calls `method` (in the tab of `session`, or on the browser) and returns its result.
+    fn call(&mut self, session: Option<&str>, method: &str, params: Value) -> Value {
+        let id = self.next_id;
+        self.next_id += 1;
+        let mut msg = serde_json::json!({"id": id, "method": method, "params": params});
+        if let Some(s) = session {
+            msg["sessionId"] = Value::from(s);
+        }
+        self.ws
+            .send(tungstenite::Message::Text(msg.to_string().into()))
+            .unwrap();
+        loop {
+            let m = match self.ws.read().expect("a DevTools message") {
+                tungstenite::Message::Text(t) => json(t.as_str()),
+                _ => continue,
+            };
+            if m["id"] == id {
+                assert!(m["error"].is_null(), "{method}: {m}");
+                return m["result"].clone();
+            }
+        }
+    }
+
+    /// Opens `url` in a new tab: its target and session.
+    fn open(&mut self, url: &str) -> (String, String) {
+        let target =
+            self.call(None, "Target.createTarget", serde_json::json!({"url": url}))["targetId"]
+                .as_str()
+                .unwrap()
+                .to_owned();
+        let session = self.call(
+            None,
+            "Target.attachToTarget",
+            serde_json::json!({"targetId": target, "flatten": true}),
+        )["sessionId"]
+            .as_str()
+            .unwrap()
+            .to_owned();
+        (target, session)
+    }
+
+    /// The value of JavaScript `expression` in the tab of `session` (promises awaited).
+    fn eval(&mut self, session: &str, expression: &str) -> Value {
+        let r = self.call(
+            Some(session),
+            "Runtime.evaluate",
+            serde_json::json!({"expression": expression, "returnByValue": true, "awaitPromise": true}),
+        );
+        assert!(r["exceptionDetails"].is_null(), "{expression}: {r}");
+        r["result"]["value"].clone()
+    }
+
+    /// Waits until `expression` is true in the tab of `session` (an exception, as while
+    /// the page still loads, counts as not yet).
+    fn until(&mut self, session: &str, what: &str, expression: &str) {
+        let deadline = Instant::now() + MACHINE_PATIENCE;
+        loop {
+            let r = self.call(
+                Some(session),
+                "Runtime.evaluate",
+                serde_json::json!({"expression": expression, "returnByValue": true}),
+            );
+            if r["exceptionDetails"].is_null() && r["result"]["value"] == true {
+                return;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "the page never showed {what}: {r}"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+/// How many pixels of the view canvas have (about) colour `rgb`.
+fn pixels(browser: &mut Browser, session: &str, rgb: [u8; 3]) -> u64 {
+    browser
+        .eval(
+            session,
+            &format!(
+                "(() => {{ const c = document.getElementById('view'); \
+                 const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; \
+                 let n = 0; for (let i = 0; i < d.length; i += 4) {{ \
+                 if (Math.abs(d[i] - {}) < 40 && Math.abs(d[i+1] - {}) < 40 && Math.abs(d[i+2] - {}) < 40 && d[i+3] > 200) n++; }} \
+                 return n; }})()",
+                rgb[0], rgb[1], rgb[2]
+            ),
+        )
+        .as_u64()
+        .unwrap()
+}
+
+#[test]
+fn in_a_real_browser_the_page_runs_holds_and_resumes_the_example_part_a_second_tab_watches_and_a_closed_tab_stops_its_jog()
+ {
+    let s = served("browser");
+    let mut b = Browser::start(&s.env.dir);
+    let url = format!("http://{}/", s.addr);
+    let (_, a) = b.open(&url);
+    b.until(
+        &a,
+        "the idle machine",
+        "document.getElementById('state').textContent === 'idle'",
+    );
+    b.until(
+        &a,
+        "the DRO",
+        "document.querySelectorAll('#dro tbody tr').length === 3",
+    );
+    b.eval(
+        &a,
+        &format!("(() => {{ const t = document.getElementById('token'); t.value = '{TOKEN}'; t.dispatchEvent(new Event('change')); return true; }})()"),
+    );
+    // The example part, chosen in the file input and run with the page's Run button.
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../config/examples/quickstart.ngc");
+    let part = root.canonicalize().unwrap();
+    let document =
+        b.call(Some(&a), "DOM.getDocument", serde_json::json!({}))["root"]["nodeId"].clone();
+    let input = b.call(
+        Some(&a),
+        "DOM.querySelector",
+        serde_json::json!({"nodeId": document, "selector": "#program-file"}),
+    )["nodeId"]
+        .clone();
+    b.call(
+        Some(&a),
+        "DOM.setFileInputFiles",
+        serde_json::json!({"files": [part.to_str().unwrap()], "nodeId": input}),
+    );
+    b.eval(&a, "document.getElementById('run').click(), true");
+    b.until(
+        &a,
+        "the part running",
+        "document.getElementById('state').textContent === 'running'",
+    );
+    // A second tab watches the same run.
+    let (watcher_target, w) = b.open(&url);
+    b.until(
+        &w,
+        "the run in the second tab",
+        "document.getElementById('state').textContent === 'running'",
+    );
+    // The toolpath and the tool on it, drawn; a screenshot of the page while it runs.
+    b.until(
+        &a,
+        "the toolpath",
+        "view.toolpath !== null && view.cut.length > 5",
+    );
+    assert!(
+        pixels(&mut b, &a, [0x24, 0x57, 0xa6]) > 100,
+        "no toolpath drawn"
+    );
+    assert!(pixels(&mut b, &a, [0x1a, 0x8f, 0x3c]) > 20, "no tool drawn");
+    assert!(pixels(&mut b, &a, [0xc0, 0x39, 0x2b]) > 10, "no cut drawn");
+    let shot = b.call(
+        Some(&a),
+        "Page.captureScreenshot",
+        serde_json::json!({"format": "png"}),
+    )["data"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let png = s.env.dir.join("page-running.png");
+    std::fs::write(&png, decode_base64(&shot)).unwrap();
+    assert!(
+        std::fs::read(&png).unwrap().starts_with(b"\x89PNG"),
+        "{}",
+        png.display()
+    );
+    // Hold and cycle start from the page; both tabs show it; the part ends finished.
+    b.eval(
+        &a,
+        "document.querySelector('button[data-command=hold]').click(), true",
+    );
+    b.until(
+        &a,
+        "the hold",
+        "document.getElementById('state').textContent === 'holding'",
+    );
+    b.until(
+        &w,
+        "the hold in the second tab",
+        "document.getElementById('state').textContent === 'holding'",
+    );
+    b.eval(
+        &a,
+        "document.querySelector('button[data-command=resume]').click(), true",
+    );
+    b.until(
+        &a,
+        "the part finished",
+        "document.getElementById('job').textContent.includes('finished (exit 0)')",
+    );
+    b.until(
+        &w,
+        "idle in the second tab",
+        "document.getElementById('state').textContent === 'idle'",
+    );
+    // A continuous jog held in the second tab, then the tab closed while the button is
+    // down: the renewals stop, and the daemon's dead man's switch stops the axis.
+    b.eval(
+        &w,
+        &format!("(() => {{ const t = document.getElementById('token'); t.value = '{TOKEN}'; return true; }})()"),
+    );
+    let rect = b.eval(
+        &w,
+        "(() => { const r = document.querySelector('button[data-jog=\"x+\"]').getBoundingClientRect(); return [r.x + r.width / 2, r.y + r.height / 2]; })()",
+    );
+    let (x, y) = (rect[0].as_f64().unwrap(), rect[1].as_f64().unwrap());
+    b.call(
+        Some(&w),
+        "Input.dispatchMouseEvent",
+        serde_json::json!({"type": "mousePressed", "x": x, "y": y, "button": "left", "clickCount": 1}),
+    );
+    status_until(s.addr, "X jogging", |st| st["axes"]["x"]["jogging"] == true);
+    b.call(
+        None,
+        "Target.closeTarget",
+        serde_json::json!({"targetId": watcher_target}),
+    );
+    let closed_at = status_until(s.addr, "a status after the close", |_| true)["position"]["x"]
+        .as_f64()
+        .unwrap();
+    let stopped = status_until(s.addr, "X stopped by the dead man's switch", |st| {
+        st["axes"]["x"]["jogging"] == false && st["state"] == "idle"
+    });
+    // The bound from the configuration: the default jog speed over the dead-man time and
+    // a renewal period, plus a generous stop (v²/a + v·√(v/j)).
+    let config = kerf_config::Config::load(&s.env.config_path).unwrap();
+    let x_axis = config.axes.x;
+    let v = x_axis.velocity_mm_s * config.jog.default_speed_pct / 100.0;
+    let bound = v * (f64::from(config.jog.deadman_ms) / 1000.0 + 0.05)
+        + v * v / x_axis.acceleration_mm_s2
+        + v * (v / x_axis.jerk_mm_s3).sqrt();
+    let ran_on = stopped["position"]["x"].as_f64().unwrap() - closed_at;
+    assert!(
+        ran_on <= bound,
+        "X ran {ran_on} mm after the tab closed (bound {bound})"
+    );
+    let still = status_until(s.addr, "a later status", |_| true);
+    assert_eq!(
+        still["position"]["x"], stopped["position"]["x"],
+        "X moved again"
+    );
+}
+
+/// Standard base64 (the screenshot), decoded.
+fn decode_base64(text: &str) -> Vec<u8> {
+    let value = |c: u8| match c {
+        b'A'..=b'Z' => c - b'A',
+        b'a'..=b'z' => c - b'a' + 26,
+        b'0'..=b'9' => c - b'0' + 52,
+        b'+' => 62,
+        b'/' => 63,
+        _ => panic!("not base64: {c}"),
+    };
+    let bytes: Vec<u8> = text.bytes().filter(|c| *c != b'=').collect();
+    let mut out = Vec::with_capacity(bytes.len() * 3 / 4);
+    for chunk in bytes.chunks(4) {
+        let v: Vec<u32> = chunk.iter().map(|c| u32::from(value(*c))).collect();
+        let n = v.iter().fold(0u32, |acc, x| (acc << 6) | x) << (6 * (4 - v.len()));
+        let take = v.len() * 6 / 8;
+        out.extend_from_slice(&n.to_be_bytes()[1..1 + take]);
+    }
+    out
+}

@@ -54,6 +54,7 @@ pub fn router(app: App) -> Router {
         .route("/api/v1/control", post(control))
         .route("/api/v1/program", post(program))
         .route("/api/v1/job", get(job))
+        .route("/api/v1/job/toolpath", get(job_toolpath))
         .fallback(|| async { error(StatusCode::NOT_FOUND, "not_found", "no such page or API") })
         .with_state(app)
 }
@@ -437,7 +438,14 @@ async fn program(
             );
         }
     };
-    match app.jobs.start(&name, &text) {
+    // The toolpath starts where the machine stands now.
+    let start = {
+        let latest = app.status.borrow().clone();
+        let m: serde_json::Value = serde_json::from_str(&latest).unwrap_or_default();
+        let axis = |a: &str| m["status"]["position"][a].as_f64().unwrap_or(0.0);
+        [axis("x"), axis("y"), axis("z")]
+    };
+    match app.jobs.start(&name, &text, start) {
         Ok(_) => json(
             StatusCode::ACCEPTED,
             format!(
@@ -465,4 +473,17 @@ async fn job(State(app): State<App>) -> Response {
         StatusCode::OK,
         format!("{{\"job\":{}}}", job_json(app.jobs.current().as_ref())),
     )
+}
+
+/// `GET /api/v1/job/toolpath`: the current or last job's toolpath (404 before the first,
+/// or while it is still being computed).
+async fn job_toolpath(State(app): State<App>) -> Response {
+    match app.jobs.current().and_then(|j| j.toolpath) {
+        Some(t) => json(StatusCode::OK, t.as_str().to_owned()),
+        None => error(
+            StatusCode::NOT_FOUND,
+            "not_found",
+            "no job, or its toolpath is not computed yet",
+        ),
+    }
 }

@@ -52,11 +52,14 @@ pub struct Job {
     pub exit_code: Option<i32>,
     /// The last lines `kerf run` wrote on standard error.
     pub messages: Vec<String>,
+    /// Its toolpath as the API's JSON ([`super::toolpath`]), once computed.
+    pub toolpath: Option<Arc<String>>,
 }
 
 /// The jobs of one `kerf serve`.
 #[derive(Clone)]
 pub struct Jobs {
+    machine: kerf_config::Config,
     kerf: PathBuf,
     config: Option<PathBuf>,
     directory: PathBuf,
@@ -85,10 +88,16 @@ pub fn valid_name(name: &str) -> bool {
 }
 
 impl Jobs {
-    /// Jobs run by the `kerf` binary at `kerf` with `--config config` (none: its default),
-    /// their programs kept in `directory`.
-    pub fn new(kerf: PathBuf, config: Option<PathBuf>, directory: PathBuf) -> Jobs {
+    /// Jobs on the machine of `machine`, run by the `kerf` binary at `kerf` with `--config
+    /// config` (none: its default), their programs kept in `directory`.
+    pub fn new(
+        machine: kerf_config::Config,
+        kerf: PathBuf,
+        config: Option<PathBuf>,
+        directory: PathBuf,
+    ) -> Jobs {
         Jobs {
+            machine,
             kerf,
             config,
             directory,
@@ -101,8 +110,9 @@ impl Jobs {
         self.current.lock().map(|j| j.clone()).unwrap_or(None)
     }
 
-    /// Keeps `text` as `name` and starts `kerf run` on it; the new job's id.
-    pub fn start(&self, name: &str, text: &[u8]) -> Result<u64, StartRefused> {
+    /// Keeps `text` as `name` and starts `kerf run` on it, the machine standing at `start`
+    /// (machine mm, where its toolpath begins); the new job's id.
+    pub fn start(&self, name: &str, text: &[u8], start: [f64; 3]) -> Result<u64, StartRefused> {
         if !valid_name(name) {
             return Err(StartRefused::Name(name.to_owned()));
         }
@@ -135,7 +145,28 @@ impl Jobs {
             state: JobState::Running,
             exit_code: None,
             messages: Vec::new(),
+            toolpath: None,
         });
+        // The toolpath for the page, beside the run.
+        let (machine, program, text, state) = (
+            self.machine.clone(),
+            name.to_owned(),
+            text.to_vec(),
+            Arc::clone(&self.current),
+        );
+        std::thread::Builder::new()
+            .name("kerf-serve-toolpath".into())
+            .spawn(move || {
+                let (lines, error) = super::toolpath::toolpath(&machine, &program, &text, start);
+                let json = Arc::new(super::toolpath::toolpath_json(&lines, error.as_deref()));
+                if let Ok(mut j) = state.lock()
+                    && let Some(j) = j.as_mut()
+                    && j.id == id
+                {
+                    j.toolpath = Some(json);
+                }
+            })
+            .map_err(|e| StartRefused::Io(e.to_string()))?;
         let stderr = child.stderr.take();
         let state = Arc::clone(&self.current);
         std::thread::Builder::new()

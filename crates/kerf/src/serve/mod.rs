@@ -10,6 +10,7 @@ pub mod api;
 pub mod jobs;
 pub mod link;
 pub mod page;
+pub mod toolpath;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -67,7 +68,12 @@ pub fn run(
     let (asks_tx, asks_rx) = std::sync::mpsc::channel();
     // Programs are run by this very binary's `kerf run`.
     let kerf = std::env::current_exe()?;
-    let jobs = jobs::Jobs::new(kerf, config_path, config.machine_program_directory());
+    let jobs = jobs::Jobs::new(
+        config.clone(),
+        kerf,
+        config_path,
+        config.machine_program_directory(),
+    );
     let app = api::App {
         status: status_rx,
         asks: asks_tx,
