@@ -340,6 +340,10 @@ pub(crate) struct RawJog {
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawServe {
     pub(crate) http: Option<Spanned<String>>,
+    pub(crate) opcua: Option<Spanned<String>>,
+    pub(crate) manufacturer: Option<Spanned<String>>,
+    pub(crate) model: Option<Spanned<String>>,
+    pub(crate) serial_number: Option<Spanned<String>>,
     pub(crate) control_token_sha256: Option<Spanned<String>>,
 }
 

@@ -1751,6 +1751,27 @@ fn serve_takes_a_socket_address_and_a_token_hash_never_the_token() {
         "[serve]\nhttp = \"[::1]:9000\"\ncontrol_token_sha256 = \"{hash}\"\n"
     )));
     assert_eq!(c.serve.http, "[::1]:9000".parse().unwrap());
+    assert_eq!(c.serve.opcua, "127.0.0.1:4840".parse().unwrap());
+    assert_eq!(
+        (
+            c.serve.manufacturer.as_str(),
+            c.serve.serial_number.as_str()
+        ),
+        ("Kerf", "")
+    );
+    let named = config(&machine(
+        "[serve]\nopcua = \"0.0.0.0:4841\"\nmanufacturer = \"Acme\"\nmodel = \"M1\"\nserial_number = \"42\"\n",
+    ));
+    assert_eq!(named.serve.opcua, "0.0.0.0:4841".parse().unwrap());
+    let s = &named.serve;
+    assert_eq!(
+        (
+            s.manufacturer.as_str(),
+            s.model.as_str(),
+            s.serial_number.as_str()
+        ),
+        ("Acme", "M1", "42")
+    );
     let bytes = c.serve.control_token_sha256.expect("a hash");
     assert_eq!((bytes[0], bytes[1], bytes[31]), (0xff, 0xc7, 0xba));
     for (line, needle, message) in [
@@ -1758,6 +1779,16 @@ fn serve_takes_a_socket_address_and_a_token_hash_never_the_token() {
             "http = \"localhost:80\"\n",
             "\"localhost:80\"",
             "`serve.http` must be an IP address and a port, such as \"127.0.0.1:8080\" or \"[::1]:8080\", found `localhost:80`",
+        ),
+        (
+            "opcua = \"4840\"\n",
+            "\"4840\"",
+            "`serve.opcua` must be an IP address and a port, such as \"127.0.0.1:4840\" or \"[::1]:8080\", found `4840`",
+        ),
+        (
+            "model = \"\"\n",
+            "\"\"",
+            "`serve.model` must be 1 to 100 characters without control characters",
         ),
         (
             "control_token_sha256 = \"kerf\"\n",
@@ -1770,8 +1801,9 @@ fn serve_takes_a_socket_address_and_a_token_hash_never_the_token() {
     }
     let text = machine("[serve]\nport = 80\n");
     assert!(
-        refused(&text)
-            .contains("unknown key `serve.port` (known here: `http` or `control_token_sha256`)"),
+        refused(&text).contains(
+            "unknown key `serve.port` (known here: `http`, `opcua`, `manufacturer`, `model`, `serial_number`, `control_token_sha256`)"
+        ),
         "{}",
         refused(&text)
     );

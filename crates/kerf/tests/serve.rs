@@ -38,7 +38,10 @@ fn served(tag: &str) -> Served {
     let serve = Proc::start(
         "serve",
         &env.dir,
-        env.kerf_command(&["serve"], &["--http", "127.0.0.1:0"]),
+        env.kerf_command(
+            &["serve"],
+            &["--http", "127.0.0.1:0", "--opcua", "127.0.0.1:0"],
+        ),
     );
     let deadline = Instant::now() + MACHINE_PATIENCE;
     let addr = loop {

@@ -147,16 +147,43 @@ impl Checker<'_> {
     /// SHA-256 (64 hex digits).
     pub(crate) fn serve(&self, raw: &RawServe) -> Result<ServeConfig, ConfigError> {
         let mut serve = ServeConfig::default();
-        if let Some(http) = &raw.http {
-            serve.http = http.get_ref().parse().map_err(|_| {
-                self.error(
-                    http.span(),
-                    format!(
-                        "`serve.http` must be an IP address and a port, such as \"{DEFAULT_SERVE_HTTP}\" or \"[::1]:8080\", found `{}`",
-                        http.get_ref()
-                    ),
-                )
-            })?;
+        for (key, raw, out, example) in [
+            ("http", &raw.http, &mut serve.http, DEFAULT_SERVE_HTTP),
+            ("opcua", &raw.opcua, &mut serve.opcua, DEFAULT_SERVE_OPCUA),
+        ] {
+            if let Some(addr) = raw {
+                *out = addr.get_ref().parse().map_err(|_| {
+                    self.error(
+                        addr.span(),
+                        format!(
+                            "`serve.{key}` must be an IP address and a port, such as \"{example}\" or \"[::1]:8080\", found `{}`",
+                            addr.get_ref()
+                        ),
+                    )
+                })?;
+            }
+        }
+        for (key, raw, out) in [
+            ("manufacturer", &raw.manufacturer, &mut serve.manufacturer),
+            ("model", &raw.model, &mut serve.model),
+            (
+                "serial_number",
+                &raw.serial_number,
+                &mut serve.serial_number,
+            ),
+        ] {
+            if let Some(text) = raw {
+                let t = text.get_ref();
+                if t.is_empty() || t.len() > 100 || t.chars().any(char::is_control) {
+                    return Err(self.error(
+                        text.span(),
+                        format!(
+                            "`serve.{key}` must be 1 to 100 characters without control characters"
+                        ),
+                    ));
+                }
+                *out = t.clone();
+            }
         }
         if let Some(token) = &raw.control_token_sha256 {
             let text = token.get_ref();

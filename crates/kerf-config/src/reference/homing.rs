@@ -289,6 +289,30 @@ pub(super) fn serve_keys() -> Vec<KeyDoc> {
             "Where the web page and the JSON API listen (`kerf serve --http` overrides it). Loopback by default; for remote access put a TLS reverse proxy in front (docs/API.md).",
         ),
         k(
+            "serve.opcua",
+            format!("\"{DEFAULT_SERVE_OPCUA}\""),
+            "an IP address and a port".into(),
+            "Where the OPC UA server listens (`kerf serve --opcua` overrides it), `opc.tcp://ADDRESS/`. Loopback by default (docs/API.md, \"OPC UA\").",
+        ),
+        k(
+            "serve.manufacturer",
+            format!("\"{DEFAULT_MANUFACTURER}\""),
+            "1 to 100 characters".into(),
+            "The machine's manufacturer in OPC UA (Identification/Manufacturer).",
+        ),
+        k(
+            "serve.model",
+            format!("\"{DEFAULT_MODEL}\""),
+            "1 to 100 characters".into(),
+            "The machine's model in OPC UA (Identification/Model).",
+        ),
+        k(
+            "serve.serial_number",
+            "the machine's name".into(),
+            "1 to 100 characters".into(),
+            "The machine's serial number in OPC UA (Identification/SerialNumber).",
+        ),
+        k(
             "serve.control_token_sha256",
             "none: nobody controls the machine through `kerf serve`".into(),
             "64 hex digits".into(),

@@ -9,6 +9,7 @@
 pub mod api;
 pub mod jobs;
 pub mod link;
+pub mod opcua;
 pub mod page;
 pub mod toolpath;
 
@@ -50,13 +51,15 @@ pub fn hex(hash: &[u8; 32]) -> String {
 }
 
 /// Serves the machine of `config` (read from `config_path`, or the default when None: the
-/// file programs are run with) on `http` until SIGINT or SIGTERM. `ready` is called with
-/// the address listened on (its port when `http` asked for port 0).
+/// file programs are run with): the page and the JSON API on `http`, OPC UA on `opcua`,
+/// until SIGINT or SIGTERM. `ready` is called with the addresses listened on (their ports
+/// when port 0 was asked for).
 pub fn run(
     config: Config,
     config_path: Option<PathBuf>,
     http: SocketAddr,
-    ready: impl FnOnce(SocketAddr),
+    opcua: SocketAddr,
+    ready: impl FnOnce(SocketAddr, SocketAddr),
 ) -> Result<(), ServeError> {
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_io()
@@ -74,6 +77,8 @@ pub fn run(
         config_path,
         config.machine_program_directory(),
     );
+    let opcua_status = status_rx.clone();
+    let opcua_jobs = jobs.clone();
     let app = api::App {
         status: status_rx,
         asks: asks_tx,
@@ -96,11 +101,22 @@ pub fn run(
         let listener = tokio::net::TcpListener::bind(http)
             .await
             .map_err(|source| ServeError::Listen { addr: http, source })?;
-        ready(listener.local_addr()?);
+        let opcua_listener = tokio::net::TcpListener::bind(opcua)
+            .await
+            .map_err(|source| ServeError::Listen {
+                addr: opcua,
+                source,
+            })?;
+        let opcua_addr = opcua_listener.local_addr()?;
+        let opcua_server = opcua::start(&config, opcua_listener, opcua_status, opcua_jobs)
+            .await
+            .map_err(|e| ServeError::Io(std::io::Error::other(format!("OPC UA: {e}"))))?;
+        ready(listener.local_addr()?, opcua_addr);
         let service = api::router(app).into_make_service_with_connect_info::<SocketAddr>();
         axum::serve(listener, service)
             .with_graceful_shutdown(stopped())
             .await?;
+        opcua_server.cancel();
         Ok(())
     })
 }

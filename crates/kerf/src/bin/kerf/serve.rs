@@ -16,6 +16,10 @@ pub struct ServeArgs {
     /// configuration's `serve.http`, 127.0.0.1:8080.
     #[arg(long, value_name = "ADDR:PORT")]
     http: Option<SocketAddr>,
+    /// Where the OPC UA server listens, IP:PORT (port 0: any free one); default the
+    /// configuration's `serve.opcua`, 127.0.0.1:4840.
+    #[arg(long, value_name = "ADDR:PORT")]
+    opcua: Option<SocketAddr>,
     /// Read a control token from standard input (one line) and print its SHA-256, the
     /// value of `serve.control_token_sha256`; serves nothing.
     #[arg(long)]
@@ -40,6 +44,7 @@ pub fn run(args: &ServeArgs) -> Result<(), Failure> {
     }
     let config = load_config(args.machine.config.as_deref())?;
     let http = args.http.unwrap_or(config.serve.http);
+    let opcua = args.opcua.unwrap_or(config.serve.opcua);
     let machine = config.machine.clone();
     let control = if config.serve.control_token_sha256.is_some() {
         "control with the configured token"
@@ -47,10 +52,10 @@ pub fn run(args: &ServeArgs) -> Result<(), Failure> {
         "watching only (no serve.control_token_sha256)"
     };
     let config_path = args.machine.config.clone();
-    kerf::serve::run(config, config_path, http, |addr| {
+    kerf::serve::run(config, config_path, http, opcua, |addr, opcua| {
         let _ = writeln!(
             io::stderr().lock(),
-            "kerf serve: machine `{machine}` on http://{addr}/ ({control})"
+            "kerf serve: machine `{machine}` on http://{addr}/ ({control}) and opc.tcp://{opcua}/"
         );
     })
     .map_err(|e| Failure::Error(format!("kerf: error: {e}")))
