@@ -2,7 +2,10 @@
 //! a WebSocket client (docs/API.md): the status, its stream at 20 Hz at most to two
 //! watchers at once, control refused without the token, from another site's page, with
 //! bad JSON, unknown fields or a body too large (nothing moves), and with the token a jog
-//! that ends exactly where asked, and hold and cycle start of a running program.
+//! that ends exactly where asked, and hold and cycle start of a running program; programs
+//! and MDI lines run as `kerf run` and `kerf mdi` run them; the control lease (one client
+//! controls, the others may only stop); the black box after a fault; the page in a real
+//! browser (headless Chromium); 20 watchers that change no setpoint.
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
@@ -12,6 +15,9 @@ use serde_json::Value;
 
 mod common;
 use common::{MACHINE_PATIENCE, MachineEnv, Proc, read_text};
+#[path = "serve/browser.rs"]
+mod browser;
+use browser::{Browser, decode_base64, pixels};
 
 /// The control token of these tests, and its hash in the configuration.
 const TOKEN: &str = "serve-test-token-0123456789";
@@ -26,6 +32,11 @@ struct Served {
 }
 
 fn served(tag: &str) -> Served {
+    served_with(tag, &[])
+}
+
+/// [`served`], the daemon started with `daemon_args` too.
+fn served_with(tag: &str, daemon_args: &[&str]) -> Served {
     let env = MachineEnv::new("kerf-serve-tests", "sv", tag, false);
     let hash = kerf::serve::hex(&kerf::serve::hash_token(TOKEN.as_bytes()));
     let text = std::fs::read_to_string(&env.config_path).unwrap();
@@ -34,7 +45,7 @@ fn served(tag: &str) -> Served {
         format!("{text}\n[serve]\ncontrol_token_sha256 = \"{hash}\"\n"),
     )
     .unwrap();
-    let daemon = env.start_daemon("kerfd");
+    let daemon = env.start_daemon_with("kerfd", daemon_args);
     let serve = Proc::start(
         "serve",
         &env.dir,
@@ -113,6 +124,27 @@ fn control(addr: SocketAddr, token: Option<&str>, body: &str) -> (u16, Value) {
     }
     let (code, text) = http(addr, "POST", "/api/v1/control", &headers, body.as_bytes());
     (code, json(&text))
+}
+
+/// `POST PATH` with the JSON `body`, the token and, when given, the client's id in
+/// `Kerf-Client`.
+fn post_as(addr: SocketAddr, path: &str, client: Option<&str>, body: &str) -> (u16, Value) {
+    let auth = format!("Authorization: Bearer {TOKEN}");
+    let id = client.map(|c| format!("Kerf-Client: {c}"));
+    let mut headers = vec!["Content-Type: application/json", auth.as_str()];
+    if let Some(i) = &id {
+        headers.push(i);
+    }
+    let (code, text) = http(addr, "POST", path, &headers, body.as_bytes());
+    (code, json(&text))
+}
+
+/// `GET /api/v1/control/lease` as `client`: the lease, `null` when nobody holds it.
+fn lease_as(addr: SocketAddr, client: &str) -> Value {
+    let id = format!("Kerf-Client: {client}");
+    let (code, text) = http(addr, "GET", "/api/v1/control/lease", &[&id], b"");
+    assert_eq!(code, 200, "{text}");
+    json(&text)["lease"].clone()
 }
 
 /// The API's status object, waited for until `done` holds.
@@ -474,150 +506,279 @@ fn a_program_sent_through_the_api_runs_as_kerf_run_runs_it_and_a_bad_one_comes_b
     assert_eq!(std::fs::read(kept).unwrap(), part);
 }
 
-/// Headless Chromium (Debian's `chromium`) driven through its DevTools protocol over a
-/// WebSocket: one browser, pages opened and closed as tabs.
-struct Browser {
-    ws: tungstenite::WebSocket<TcpStream>,
-    next_id: u64,
-    _process: Proc,
+/// The machine's work position on `axis` (the DRO), mm.
+fn work(status: &Value, axis: &str) -> f64 {
+    status["dro"]["work"][axis]
+        .as_f64()
+        .unwrap_or_else(|| panic!("no work position of {axis}: {status}"))
 }
 
-impl Browser {
-    /// Starts `chromium --headless` with a profile of its own in `dir`. Fails, saying so,
-    /// where Chromium is not installed (`.ci/run` installs it).
-    fn start(dir: &std::path::Path) -> Browser {
-        let chromium = ["/usr/bin/chromium", "/usr/bin/chromium-browser"]
-            .into_iter()
-            .find(|p| std::path::Path::new(p).is_file())
-            .expect("Chromium is not installed: `apt-get install chromium` (.ci/run does)");
-        let profile = dir.join("chromium-profile");
-        let mut c = std::process::Command::new(chromium);
-        c.args([
-            "--headless=new",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--no-first-run",
-            "--remote-debugging-port=0",
-            "--window-size=1280,1000",
-        ])
-        .arg(format!("--user-data-dir={}", profile.display()))
-        .arg("about:blank");
-        let process = Proc::start("chromium", dir, c);
-        let deadline = Instant::now() + MACHINE_PATIENCE;
-        let url = loop {
-            let said = read_text(&process.stderr);
-            if let Some(rest) = said.split("DevTools listening on ").nth(1) {
-                break rest.lines().next().unwrap().trim().to_owned();
-            }
-            assert!(Instant::now() < deadline, "Chromium never listened: {said}");
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        let host = url
-            .trim_start_matches("ws://")
-            .split('/')
-            .next()
-            .unwrap()
-            .to_owned();
-        let stream = TcpStream::connect(&host).unwrap();
-        stream.set_read_timeout(Some(MACHINE_PATIENCE)).unwrap();
-        let (ws, _) = tungstenite::client(url.as_str(), stream).expect("the DevTools socket");
-        Browser {
-            ws,
-            next_id: 1,
-            _process: process,
-        }
-    }
-
-    /// Calls `method` (in the tab of `session`, or on the browser) and returns its result.
-    fn call(&mut self, session: Option<&str>, method: &str, params: Value) -> Value {
-        let id = self.next_id;
-        self.next_id += 1;
-        let mut msg = serde_json::json!({"id": id, "method": method, "params": params});
-        if let Some(s) = session {
-            msg["sessionId"] = Value::from(s);
-        }
-        self.ws
-            .send(tungstenite::Message::Text(msg.to_string().into()))
-            .unwrap();
-        loop {
-            let m = match self.ws.read().expect("a DevTools message") {
-                tungstenite::Message::Text(t) => json(t.as_str()),
-                _ => continue,
-            };
-            if m["id"] == id {
-                assert!(m["error"].is_null(), "{method}: {m}");
-                return m["result"].clone();
-            }
-        }
-    }
-
-    /// Opens `url` in a new tab: its target and session.
-    fn open(&mut self, url: &str) -> (String, String) {
-        let target =
-            self.call(None, "Target.createTarget", serde_json::json!({"url": url}))["targetId"]
-                .as_str()
-                .unwrap()
-                .to_owned();
-        let session = self.call(
+#[test]
+fn mdi_lines_from_the_api_run_as_kerf_mdi_runs_them_and_a_bad_one_comes_back_with_its_place() {
+    let s = served("mdi");
+    let mdi = |line: &str| {
+        post_as(
+            s.addr,
+            "/api/v1/mdi",
             None,
-            "Target.attachToTarget",
-            serde_json::json!({"targetId": target, "flatten": true}),
-        )["sessionId"]
+            &serde_json::json!({ "line": line }).to_string(),
+        )
+    };
+    let finished = |what: &str| {
+        let job = job_until(s.addr, what, |j| j["state"] != "running");
+        assert_eq!(
+            (job["state"].clone(), job["exit_code"].clone()),
+            (Value::from("finished"), Value::from(0)),
+            "{what}: {job}"
+        );
+        status_until(s.addr, "idle", |st| st["state"] == "idle")
+    };
+    // A line goes where it says, in work coordinates.
+    let (code, answer) = mdi("G0 X12.5 Y-3");
+    assert_eq!(code, 202, "{answer}");
+    assert_eq!(
+        (answer["job"]["kind"].clone(), answer["job"]["name"].clone()),
+        (Value::from("mdi"), Value::from("G0 X12.5 Y-3"))
+    );
+    let at = finished("the first line");
+    assert!((work(&at, "x") - 12.5).abs() < 1e-9, "{at}");
+    assert!((work(&at, "y") + 3.0).abs() < 1e-9, "{at}");
+    // Each line starts in a program's modal state (docs/API.md): the G91 of one line does
+    // not carry into the next, which is absolute again.
+    let (code, answer) = mdi("G91 G0 X1");
+    assert_eq!(code, 202, "{answer}");
+    let at = finished("the incremental line");
+    assert!((work(&at, "x") - 13.5).abs() < 1e-9, "{at}");
+    let (code, answer) = mdi("G0 X1");
+    assert_eq!(code, 202, "{answer}");
+    let at = finished("the absolute line");
+    assert!((work(&at, "x") - 1.0).abs() < 1e-9, "{at}");
+    // A line the interpreter refuses: the error with its place, the job failed, nothing
+    // moved.
+    let (code, answer) = mdi("G1 X40");
+    assert_eq!(code, 202, "{answer}");
+    let job = job_until(s.addr, "the refused line", |j| j["state"] != "running");
+    assert_eq!(job["state"], "failed", "{job}");
+    assert_ne!(job["exit_code"], 0, "{job}");
+    let said = job["messages"].to_string();
+    assert!(said.contains("mdi:1:") && said.contains("error:"), "{job}");
+    let still = status_until(s.addr, "idle", |st| st["state"] == "idle");
+    assert_eq!(still["position"], at["position"], "a refused line moved");
+    // Not one line, too long, unknown fields, bad JSON: refused before anything runs.
+    let before = job_until(s.addr, "the last job", |_| true)["id"].clone();
+    for body in [
+        r#"{"line":"G0 X5\nG0 X6"}"#.to_owned(),
+        r#"{"line":"   "}"#.to_owned(),
+        serde_json::json!({ "line": format!("G0 X5 ({})", "x".repeat(300)) }).to_string(),
+        r#"{"line":"G0 X5","dialect":"fagor"}"#.to_owned(),
+        r#"{"line":"G0 X5""#.to_owned(),
+    ] {
+        let (code, answer) = post_as(s.addr, "/api/v1/mdi", None, &body);
+        assert_eq!(
+            (code, answer["error"]["code"].clone()),
+            (400, Value::from("bad_request")),
+            "{body}: {answer}"
+        );
+    }
+    assert_eq!(job_until(s.addr, "the last job", |_| true)["id"], before);
+    // A line while another runs: busy; the running one is aborted from the API.
+    let (code, answer) = mdi("G1 X80 F300");
+    assert_eq!(code, 202, "{answer}");
+    status_until(s.addr, "the slow line moving", |st| {
+        st["state"] == "running"
+    });
+    let (code, answer) = mdi("G0 X0");
+    assert_eq!(
+        (code, answer["error"]["code"].clone()),
+        (409, Value::from("busy")),
+        "{answer}"
+    );
+    let (code, answer) = control(s.addr, Some(TOKEN), r#"{"command":"abort"}"#);
+    assert_eq!(code, 200, "{answer}");
+    let job = job_until(s.addr, "the aborted line", |j| j["state"] != "running");
+    assert_eq!(job["state"], "failed", "{job}");
+    let stopped = status_until(s.addr, "idle", |st| st["state"] == "idle");
+    let x = work(&stopped, "x");
+    assert!(
+        x > 1.0 && x < 80.0,
+        "the aborted line stopped short: {stopped}"
+    );
+}
+
+#[test]
+fn one_client_holds_control_the_others_may_only_stop_and_a_take_over_is_explicit() {
+    let s = served("lease");
+    const A: &str = "page-aaaaaaaa";
+    const B: &str = "page-bbbbbbbb";
+    let lease = "/api/v1/control/lease";
+    assert_eq!(lease_as(s.addr, A), Value::Null, "nobody holds it at first");
+    // Taking it needs an id; A takes it.
+    let (code, answer) = post_as(s.addr, lease, None, r#"{"action":"take"}"#);
+    assert_eq!(
+        (code, answer["error"]["code"].clone()),
+        (400, Value::from("bad_request")),
+        "{answer}"
+    );
+    let (code, answer) = post_as(s.addr, lease, Some("bad id"), r#"{"action":"take"}"#);
+    assert_eq!(
+        (code, answer["error"]["code"].clone()),
+        (400, Value::from("bad_request")),
+        "{answer}"
+    );
+    let (code, answer) = post_as(s.addr, lease, Some(A), r#"{"action":"take"}"#);
+    assert_eq!(code, 200, "{answer}");
+    assert_eq!(answer["lease"]["yours"], true, "{answer}");
+    assert_eq!(lease_as(s.addr, B)["yours"], false);
+    assert!(
+        lease_as(s.addr, B)["peer"]
             .as_str()
             .unwrap()
-            .to_owned();
-        (target, session)
-    }
-
-    /// The value of JavaScript `expression` in the tab of `session` (promises awaited).
-    fn eval(&mut self, session: &str, expression: &str) -> Value {
-        let r = self.call(
-            Some(session),
-            "Runtime.evaluate",
-            serde_json::json!({"expression": expression, "returnByValue": true, "awaitPromise": true}),
+            .starts_with("127.0.0.1:")
+    );
+    // A moves the machine; B, and a client without an id, may not start anything.
+    let (code, answer) = post_as(s.addr, "/api/v1/mdi", Some(A), r#"{"line":"G1 X80 F300"}"#);
+    assert_eq!(code, 202, "{answer}");
+    status_until(s.addr, "A's line moving", |st| st["state"] == "running");
+    for (client, body) in [
+        (Some(B), r#"{"command":"override","percent":150}"#),
+        (None, r#"{"command":"override","percent":150}"#),
+        (Some(B), r#"{"command":"jog","axis":"y","direction":"+"}"#),
+    ] {
+        let (code, answer) = post_as(s.addr, "/api/v1/control", client, body);
+        assert_eq!(
+            (code, answer["error"]["code"].clone()),
+            (409, Value::from("controlled_elsewhere")),
+            "{client:?} {body}: {answer}"
         );
-        assert!(r["exceptionDetails"].is_null(), "{expression}: {r}");
-        r["result"]["value"].clone()
     }
-
-    /// Waits until `expression` is true in the tab of `session` (an exception, as while
-    /// the page still loads, counts as not yet).
-    fn until(&mut self, session: &str, what: &str, expression: &str) {
-        let deadline = Instant::now() + MACHINE_PATIENCE;
-        loop {
-            let r = self.call(
-                Some(session),
-                "Runtime.evaluate",
-                serde_json::json!({"expression": expression, "returnByValue": true}),
-            );
-            if r["exceptionDetails"].is_null() && r["result"]["value"] == true {
-                return;
-            }
-            assert!(
-                Instant::now() < deadline,
-                "the page never showed {what}: {r}"
-            );
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    }
+    let (code, answer) = post_as(s.addr, "/api/v1/mdi", Some(B), r#"{"line":"G0 Y5"}"#);
+    assert_eq!(
+        (code, answer["error"]["code"].clone()),
+        (409, Value::from("controlled_elsewhere")),
+        "{answer}"
+    );
+    // But B may stop it: hold (and not resume), then abort.
+    let (code, answer) = post_as(s.addr, "/api/v1/control", Some(B), r#"{"command":"hold"}"#);
+    assert_eq!(code, 200, "{answer}");
+    status_until(s.addr, "held by B", |st| st["state"] == "holding");
+    let (code, answer) = post_as(
+        s.addr,
+        "/api/v1/control",
+        Some(B),
+        r#"{"command":"resume"}"#,
+    );
+    assert_eq!(
+        (code, answer["error"]["code"].clone()),
+        (409, Value::from("controlled_elsewhere")),
+        "{answer}"
+    );
+    let (code, answer) = post_as(s.addr, "/api/v1/control", Some(B), r#"{"command":"abort"}"#);
+    assert_eq!(code, 200, "{answer}");
+    job_until(s.addr, "the aborted line", |j| j["state"] != "running");
+    status_until(s.addr, "idle", |st| st["state"] == "idle");
+    // B cannot take it without force; with force it can, and then A is refused.
+    let (code, answer) = post_as(s.addr, lease, Some(B), r#"{"action":"take"}"#);
+    assert_eq!(
+        (code, answer["error"]["code"].clone()),
+        (409, Value::from("controlled_elsewhere")),
+        "{answer}"
+    );
+    let (code, answer) = post_as(s.addr, lease, Some(B), r#"{"action":"take","force":true}"#);
+    assert_eq!(code, 200, "{answer}");
+    assert_eq!(lease_as(s.addr, A)["yours"], false);
+    let (code, answer) = post_as(
+        s.addr,
+        "/api/v1/control",
+        Some(A),
+        r#"{"command":"override","percent":120}"#,
+    );
+    assert_eq!(
+        (code, answer["error"]["code"].clone()),
+        (409, Value::from("controlled_elsewhere")),
+        "{answer}"
+    );
+    let (code, answer) = post_as(
+        s.addr,
+        "/api/v1/control",
+        Some(B),
+        r#"{"command":"override","percent":120}"#,
+    );
+    assert_eq!(code, 200, "{answer}");
+    assert_eq!(answer["status"]["override_pct"], 120.0, "{answer}");
+    // Released, anyone may control again.
+    let (code, answer) = post_as(s.addr, lease, Some(B), r#"{"action":"release"}"#);
+    assert_eq!(
+        (code, answer["lease"].clone()),
+        (200, Value::Null),
+        "{answer}"
+    );
+    let (code, answer) = post_as(
+        s.addr,
+        "/api/v1/control",
+        None,
+        r#"{"command":"override","percent":100}"#,
+    );
+    assert_eq!(code, 200, "{answer}");
+    // Every refusal was logged with the client's address.
+    let said = read_text(&s._serve.stderr);
+    assert!(said.matches("controlled_elsewhere").count() >= 7, "{said}");
+    assert!(said.contains("control taken over by 127.0.0.1:"), "{said}");
 }
 
-/// How many pixels of the view canvas have (about) colour `rgb`.
-fn pixels(browser: &mut Browser, session: &str, rgb: [u8; 3]) -> u64 {
-    browser
-        .eval(
-            session,
-            &format!(
-                "(() => {{ const c = document.getElementById('view'); \
-                 const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; \
-                 let n = 0; for (let i = 0; i < d.length; i += 4) {{ \
-                 if (Math.abs(d[i] - {}) < 40 && Math.abs(d[i+1] - {}) < 40 && Math.abs(d[i+2] - {}) < 40 && d[i+3] > 200) n++; }} \
-                 return n; }})()",
-                rgb[0], rgb[1], rgb[2]
-            ),
+#[test]
+fn after_a_drive_fault_the_black_box_is_served_as_kerf_plot_draws_it() {
+    use kerfd::worker::Injection;
+    let s = served_with("blackbox", &["--test-faults"]);
+    let svg = |addr| http(addr, "GET", "/api/v1/fault/blackbox.svg", &[], b"");
+    let (code, body) = svg(s.addr);
+    assert_eq!(
+        (code, json(&body)["error"]["code"].clone()),
+        (404, Value::from("not_found"))
+    );
+    // A jog, and a drive fault on X while it moves.
+    let (code, answer) = control(
+        s.addr,
+        Some(TOKEN),
+        r#"{"command":"jog_step","axis":"x","distance":20}"#,
+    );
+    assert_eq!(code, 200, "{answer}");
+    status_until(s.addr, "X moving", |st| st["axes"]["x"]["jogging"] == true);
+    let mut client = kerf::client::Client::connect(&s.env.machine).unwrap();
+    let code = Injection::DriveFault(0).code().unwrap();
+    client
+        .request(kerf_proto::ControlCommand::Inject { code })
+        .unwrap();
+    let fault = status_until(s.addr, "the fault and its black box", |st| {
+        st["state"] == "fault" && st["safety"]["dump"].is_string()
+    });
+    let dump = fault["safety"]["dump"].as_str().unwrap().to_owned();
+    let (code, body) = svg(s.addr);
+    assert_eq!(code, 200, "{body}");
+    // The drawing `kerf plot` makes of the daemon's file.
+    let out = s.env.path("plot.svg");
+    let plot = s
+        .env
+        .command(
+            env!("CARGO_BIN_EXE_kerf"),
+            &["plot", &dump, "--out", out.to_str().unwrap()],
         )
-        .as_u64()
-        .unwrap()
+        .output()
+        .unwrap();
+    assert!(plot.status.success(), "{plot:?}");
+    assert_eq!(body, std::fs::read_to_string(&out).unwrap());
+    assert!(
+        body.starts_with("<svg") && body.contains("X: following error"),
+        "{body}"
+    );
+    // The cause cleared and the fault reset: no black box any more.
+    let code = Injection::ClearDriveFault(0).code().unwrap();
+    client
+        .request(kerf_proto::ControlCommand::Inject { code })
+        .unwrap();
+    let (code, answer) = control(s.addr, Some(TOKEN), r#"{"command":"reset"}"#);
+    assert_eq!(code, 200, "{answer}");
+    status_until(s.addr, "idle after the reset", |st| st["state"] == "idle");
+    assert_eq!(svg(s.addr).0, 404);
 }
 
 #[test]
@@ -727,11 +888,69 @@ fn in_a_real_browser_the_page_runs_holds_and_resumes_the_example_part_a_second_t
         "idle in the second tab",
         "document.getElementById('state').textContent === 'idle'",
     );
+    // An MDI line typed in the first tab, which controls the machine since it ran the part.
+    b.until(
+        &a,
+        "control in the first tab",
+        "document.getElementById('lease').textContent === 'this tab'",
+    );
+    b.eval(
+        &a,
+        "(() => { const l = document.getElementById('mdi-line'); l.value = 'G0 X5 Y7'; l.dispatchEvent(new KeyboardEvent('keydown', { key: 'Enter' })); return true; })()",
+    );
+    b.until(
+        &a,
+        "the MDI line done",
+        "document.getElementById('job').textContent === 'MDI G0 X5 Y7: finished (exit 0)'",
+    );
+    b.until(
+        &a,
+        "the DRO after the MDI line",
+        "document.querySelector('#dro-x').cells[1].textContent === '5.000' && document.querySelector('#dro-y').cells[1].textContent === '7.000'",
+    );
+    // The part's toolpath, kept through the MDI line, and the cut (all of it now, drawn
+    // over the toolpath) in the 3D view: another picture than the XY view's.
+    let picture = "document.getElementById('view').toDataURL()";
+    let xy = b.eval(&a, picture);
+    b.eval(
+        &a,
+        "(() => { const p = document.getElementById('plane'); p.value = '3d'; p.dispatchEvent(new Event('change')); return true; })()",
+    );
+    assert!(
+        pixels(&mut b, &a, [0xc0, 0x39, 0x2b]) > 100,
+        "no cut drawn in 3D"
+    );
+    assert_ne!(b.eval(&a, picture), xy, "the 3D view is the XY view");
+    // A button to home each axis.
+    assert_eq!(
+        b.eval(
+            &a,
+            "['x', 'y', 'z'].every((a) => document.querySelector(`#home button[data-axes=${a}]`) !== null)"
+        ),
+        true
+    );
     // A continuous jog held in the second tab, then the tab closed while the button is
-    // down: the renewals stop, and the daemon's dead man's switch stops the axis.
+    // down: the renewals stop, and the daemon's dead man's switch stops the axis. The
+    // second tab first takes control over from the first.
     b.eval(
         &w,
         &format!("(() => {{ const t = document.getElementById('token'); t.value = '{TOKEN}'; return true; }})()"),
+    );
+    b.until(
+        &w,
+        "the first tab's control shown in the second",
+        "document.getElementById('lease').textContent.startsWith('another station') && document.getElementById('take').textContent === 'Take over'",
+    );
+    b.eval(&w, "document.getElementById('take').click(), true");
+    b.until(
+        &w,
+        "control taken over",
+        "document.getElementById('lease').textContent === 'this tab'",
+    );
+    b.until(
+        &a,
+        "control lost in the first tab",
+        "document.getElementById('lease').textContent.startsWith('another station')",
     );
     let rect = b.eval(
         &w,
@@ -773,27 +992,6 @@ fn in_a_real_browser_the_page_runs_holds_and_resumes_the_example_part_a_second_t
         still["position"]["x"], stopped["position"]["x"],
         "X moved again"
     );
-}
-
-/// Standard base64 (the screenshot), decoded.
-fn decode_base64(text: &str) -> Vec<u8> {
-    let value = |c: u8| match c {
-        b'A'..=b'Z' => c - b'A',
-        b'a'..=b'z' => c - b'a' + 26,
-        b'0'..=b'9' => c - b'0' + 52,
-        b'+' => 62,
-        b'/' => 63,
-        _ => panic!("not base64: {c}"),
-    };
-    let bytes: Vec<u8> = text.bytes().filter(|c| *c != b'=').collect();
-    let mut out = Vec::with_capacity(bytes.len() * 3 / 4);
-    for chunk in bytes.chunks(4) {
-        let v: Vec<u32> = chunk.iter().map(|c| u32::from(value(*c))).collect();
-        let n = v.iter().fold(0u32, |acc, x| (acc << 6) | x) << (6 * (4 - v.len()));
-        let take = v.len() * 6 / 8;
-        out.extend_from_slice(&n.to_be_bytes()[1..1 + take]);
-    }
-    out
 }
 
 /// CPU time (user + system) and peak resident memory of process `pid`, from /proc: s and

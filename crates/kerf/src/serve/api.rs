@@ -3,12 +3,14 @@
 //!
 //! Control needs the configured token (`Authorization: Bearer TOKEN`, compared by its
 //! SHA-256 with `serve.control_token_sha256`) and a request from the page's own origin
-//! (a browser's `Origin`, when sent, must name the host it asks); every refused control
-//! request is logged on standard error with the client's address and the reason.
+//! (a browser's `Origin`, when sent, must name the host it asks), and, while another
+//! client holds the control lease, only stops (the [`super::lease`]); every refused
+//! control request is logged on standard error with the client's address and the reason.
 
 use std::net::SocketAddr;
-use std::sync::Arc;
 use std::sync::mpsc::Sender;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 use axum::Router;
 use axum::body::{Body, to_bytes};
@@ -22,6 +24,7 @@ use serde::Deserialize;
 use tokio::sync::{oneshot, watch};
 
 use super::jobs::{Jobs, PROGRAM_LIMIT, StartRefused, job_json, valid_name};
+use super::lease::{Holder, LEASE_TTL, Lease, valid_client};
 use super::link::{Ask, Refused, STATUS_PERIOD, json_string};
 use super::page;
 
@@ -41,6 +44,8 @@ pub struct App {
     pub axes: [bool; 6],
     /// Programs run from the page or the API.
     pub jobs: Jobs,
+    /// Who controls the machine.
+    pub lease: Arc<Mutex<Lease>>,
 }
 
 /// The router of the page and the API.
@@ -52,9 +57,12 @@ pub fn router(app: App) -> Router {
         .route("/api/v1/status", get(status))
         .route("/api/v1/ws", get(ws))
         .route("/api/v1/control", post(control))
+        .route("/api/v1/control/lease", get(lease).post(take_lease))
         .route("/api/v1/program", post(program))
+        .route("/api/v1/mdi", post(mdi))
         .route("/api/v1/job", get(job))
         .route("/api/v1/job/toolpath", get(job_toolpath))
+        .route("/api/v1/fault/blackbox.svg", get(blackbox))
         .fallback(|| async { error(StatusCode::NOT_FOUND, "not_found", "no such page or API") })
         .with_state(app)
 }
@@ -313,34 +321,106 @@ fn refuse(peer: SocketAddr, status: StatusCode, code: &str, message: &str) -> Re
     error(status, code, message)
 }
 
+/// A refusal's answer, boxed (an `Err` as small as an `Ok`).
+type Refusal = Box<Response>;
+
 /// The checks every control request passes first: from the page's own origin, control
-/// configured, the token presented. The refusal's answer, or None when it passes.
-fn guard(app: &App, peer: SocketAddr, headers: &HeaderMap) -> Option<Response> {
+/// configured, the token presented, a well-formed `Kerf-Client` id if any. The client's
+/// id (None without the header), or the refusal's answer.
+fn guard(app: &App, peer: SocketAddr, headers: &HeaderMap) -> Result<Option<String>, Refusal> {
     if cross_origin(headers) {
-        return Some(refuse(
+        return Err(Box::new(refuse(
             peer,
             StatusCode::FORBIDDEN,
             "cross_origin",
             "a control request from another site's page is refused",
-        ));
+        )));
     }
     let Some(expected) = app.token_sha256 else {
-        return Some(refuse(
+        return Err(Box::new(refuse(
             peer,
             StatusCode::FORBIDDEN,
             "control_disabled",
             "control through kerf serve is not configured (serve.control_token_sha256); watching needs no token",
-        ));
+        )));
     };
     if !authorized(headers, &expected) {
-        return Some(refuse(
+        return Err(Box::new(refuse(
             peer,
             StatusCode::UNAUTHORIZED,
             "unauthorized",
             "control needs the token: `Authorization: Bearer TOKEN`",
-        ));
+        )));
     }
-    None
+    match headers.get(CLIENT_HEADER).map(|v| v.to_str()) {
+        None => Ok(None),
+        Some(Ok(id)) if valid_client(id) => Ok(Some(id.to_owned())),
+        Some(_) => Err(Box::new(refuse(
+            peer,
+            StatusCode::BAD_REQUEST,
+            "bad_request",
+            "`Kerf-Client` must be 8 to 64 of A-Z, a-z, 0-9 and `-`",
+        ))),
+    }
+}
+
+/// The header a client names itself with for the control lease.
+pub const CLIENT_HEADER: &str = "kerf-client";
+
+/// Where the lease's holder is, for a refusal.
+fn held_elsewhere(holder: &Holder, now: Instant) -> String {
+    format!(
+        "the machine is controlled from {} (for {:.0} s): stopping is allowed, anything else needs control (take it over with {{\"action\":\"take\",\"force\":true}} on /api/v1/control/lease)",
+        holder.peer,
+        now.saturating_duration_since(holder.since).as_secs_f64()
+    )
+}
+
+/// Whether `client` may go on under the lease (`stops`: the request only stops motion);
+/// the refusal's answer otherwise.
+fn leased(app: &App, peer: SocketAddr, client: Option<&str>, stops: bool) -> Result<(), Refusal> {
+    let now = Instant::now();
+    let Ok(mut lease) = app.lease.lock() else {
+        return Err(Box::new(refuse(
+            peer,
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "io",
+            "the control lease is poisoned",
+        )));
+    };
+    lease.permits(client, stops, now).map_err(|holder| {
+        Box::new(refuse(
+            peer,
+            StatusCode::CONFLICT,
+            "controlled_elsewhere",
+            &held_elsewhere(&holder, now),
+        ))
+    })
+}
+
+/// A JSON request body of at most [`CONTROL_BODY_LIMIT`] bytes (`what` it is, for the
+/// refusal), parsed.
+async fn json_body<T: serde::de::DeserializeOwned>(
+    peer: SocketAddr,
+    body: Body,
+    what: &str,
+) -> Result<T, Refusal> {
+    let Ok(bytes) = to_bytes(body, CONTROL_BODY_LIMIT).await else {
+        return Err(Box::new(refuse(
+            peer,
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "too_large",
+            &format!("{what} is at most {CONTROL_BODY_LIMIT} bytes"),
+        )));
+    };
+    serde_json::from_slice(&bytes).map_err(|e| {
+        Box::new(refuse(
+            peer,
+            StatusCode::BAD_REQUEST,
+            "bad_request",
+            &e.to_string(),
+        ))
+    })
 }
 
 async fn control(
@@ -349,28 +429,26 @@ async fn control(
     headers: HeaderMap,
     body: Body,
 ) -> Response {
-    if let Some(refused) = guard(&app, peer, &headers) {
-        return refused;
-    }
-    let refuse = |status, code, message: &str| refuse(peer, status, code, message);
-    let bytes = match to_bytes(body, CONTROL_BODY_LIMIT).await {
-        Ok(b) => b,
-        Err(_) => {
-            return refuse(
-                StatusCode::PAYLOAD_TOO_LARGE,
-                "too_large",
-                &format!("a control request is at most {CONTROL_BODY_LIMIT} bytes"),
-            );
-        }
+    let client = match guard(&app, peer, &headers) {
+        Ok(c) => c,
+        Err(refused) => return *refused,
     };
-    let request: ControlRequest = match serde_json::from_slice(&bytes) {
+    let refuse = |status, code, message: &str| refuse(peer, status, code, message);
+    let request: ControlRequest = match json_body(peer, body, "a control request").await {
         Ok(r) => r,
-        Err(e) => return refuse(StatusCode::BAD_REQUEST, "bad_request", &e.to_string()),
+        Err(refused) => return *refused,
     };
     let command = match command(&app, request) {
         Ok(c) => c,
         Err(m) => return refuse(StatusCode::BAD_REQUEST, "bad_request", &m),
     };
+    let stops = matches!(
+        command,
+        ControlCommand::Hold | ControlCommand::Abort | ControlCommand::JogStop { .. }
+    );
+    if let Err(refused) = leased(&app, peer, client.as_deref(), stops) {
+        return *refused;
+    }
     let (answer, answered) = oneshot::channel();
     if app.asks.send(Ask { command, answer }).is_err() {
         return refuse(
@@ -410,8 +488,12 @@ async fn program(
     headers: HeaderMap,
     body: Body,
 ) -> Response {
-    if let Some(refused) = guard(&app, peer, &headers) {
-        return refused;
+    let client = match guard(&app, peer, &headers) {
+        Ok(c) => c,
+        Err(refused) => return *refused,
+    };
+    if let Err(refused) = leased(&app, peer, client.as_deref(), false) {
+        return *refused;
     }
     let refuse = |status, code, message: &str| refuse(peer, status, code, message);
     let name = match query {
@@ -445,7 +527,13 @@ async fn program(
         let axis = |a: &str| m["status"]["position"][a].as_f64().unwrap_or(0.0);
         [axis("x"), axis("y"), axis("z")]
     };
-    match app.jobs.start(&name, &text, start) {
+    started(&app, peer, app.jobs.start(&name, &text, start))
+}
+
+/// The answer to a job started (or not).
+fn started(app: &App, peer: SocketAddr, result: Result<u64, StartRefused>) -> Response {
+    let refuse = |status, code, message: &str| refuse(peer, status, code, message);
+    match result {
         Ok(_) => json(
             StatusCode::ACCEPTED,
             format!(
@@ -463,7 +551,179 @@ async fn program(
             "bad_request",
             &format!("bad name `{n}`"),
         ),
+        Err(StartRefused::Line(m)) => refuse(StatusCode::BAD_REQUEST, "bad_request", &m),
         Err(StartRefused::Io(m)) => refuse(StatusCode::INTERNAL_SERVER_ERROR, "io", &m),
+    }
+}
+
+/// The body of `POST /api/v1/mdi`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MdiRequest {
+    line: String,
+}
+
+/// `POST /api/v1/mdi` with `{"line":"G0 X10"}`: the line is run by `kerf mdi LINE` (a job).
+async fn mdi(
+    State(app): State<App>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
+    headers: HeaderMap,
+    body: Body,
+) -> Response {
+    let client = match guard(&app, peer, &headers) {
+        Ok(c) => c,
+        Err(refused) => return *refused,
+    };
+    let request: MdiRequest = match json_body(peer, body, "an MDI request").await {
+        Ok(r) => r,
+        Err(refused) => return *refused,
+    };
+    if let Err(refused) = leased(&app, peer, client.as_deref(), false) {
+        return *refused;
+    }
+    started(&app, peer, app.jobs.start_mdi(&request.line))
+}
+
+/// The lease as the API's JSON (`null` when nobody holds it); `yours` when `client` holds
+/// it.
+fn lease_json(app: &App, client: Option<&str>) -> String {
+    let now = Instant::now();
+    let Ok(lease) = app.lease.lock() else {
+        return "null".into();
+    };
+    match lease.holder(now) {
+        None => "null".into(),
+        Some(h) => format!(
+            "{{\"peer\":{},\"held_s\":{:.1},\"expires_in_s\":{:.1},\"yours\":{}}}",
+            json_string(&h.peer.to_string()),
+            now.saturating_duration_since(h.since).as_secs_f64(),
+            LEASE_TTL
+                .saturating_sub(now.saturating_duration_since(h.renewed))
+                .as_secs_f64(),
+            client == Some(h.client.as_str())
+        ),
+    }
+}
+
+/// `GET /api/v1/control/lease`: who controls the machine.
+async fn lease(State(app): State<App>, headers: HeaderMap) -> Response {
+    let client = headers
+        .get(CLIENT_HEADER)
+        .and_then(|v| v.to_str().ok())
+        .filter(|id| valid_client(id));
+    json(
+        StatusCode::OK,
+        format!("{{\"lease\":{}}}", lease_json(&app, client)),
+    )
+}
+
+/// The body of `POST /api/v1/control/lease`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LeaseRequest {
+    action: LeaseAction,
+    #[serde(default)]
+    force: bool,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum LeaseAction {
+    Take,
+    Release,
+}
+
+/// `POST /api/v1/control/lease`: `{"action":"take"}` (also renews; `"force":true` takes it
+/// from another holder) or `{"action":"release"}`, with the client's `Kerf-Client` id.
+async fn take_lease(
+    State(app): State<App>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
+    headers: HeaderMap,
+    body: Body,
+) -> Response {
+    let client = match guard(&app, peer, &headers) {
+        Ok(Some(c)) => c,
+        Ok(None) => {
+            return refuse(
+                peer,
+                StatusCode::BAD_REQUEST,
+                "bad_request",
+                "the control lease needs the client's id in `Kerf-Client`",
+            );
+        }
+        Err(refused) => return *refused,
+    };
+    let request: LeaseRequest = match json_body(peer, body, "a lease request").await {
+        Ok(r) => r,
+        Err(refused) => return *refused,
+    };
+    let now = Instant::now();
+    let outcome = match app.lease.lock() {
+        Err(_) => Err("the control lease is poisoned".to_owned()),
+        Ok(mut lease) => match request.action {
+            LeaseAction::Release => {
+                lease.release(&client, now);
+                Ok(())
+            }
+            LeaseAction::Take => {
+                let before = lease.holder(now).cloned();
+                match lease.take(&client, peer, request.force, now) {
+                    Ok(()) => {
+                        if let Some(b) = before.filter(|b| b.client != client) {
+                            eprintln!("kerf serve: control taken over by {peer} from {}", b.peer);
+                        }
+                        Ok(())
+                    }
+                    Err(holder) => Err(held_elsewhere(&holder, now)),
+                }
+            }
+        },
+    };
+    match outcome {
+        Ok(()) => json(
+            StatusCode::OK,
+            format!(
+                "{{\"ok\":true,\"lease\":{}}}",
+                lease_json(&app, Some(&client))
+            ),
+        ),
+        Err(m) => refuse(peer, StatusCode::CONFLICT, "controlled_elsewhere", &m),
+    }
+}
+
+/// `GET /api/v1/fault/blackbox.svg`: the black box the daemon wrote at its fault (the
+/// status's `safety.dump`), drawn as `kerf plot` draws it; 404 when there is none.
+async fn blackbox(State(app): State<App>) -> Response {
+    let latest = app.status.borrow().clone();
+    let m: serde_json::Value = serde_json::from_str(&latest).unwrap_or_default();
+    let Some(path) = m["status"]["safety"]["dump"].as_str().map(str::to_owned) else {
+        return error(
+            StatusCode::NOT_FOUND,
+            "not_found",
+            "no black box: the daemon has written none since its last reset",
+        );
+    };
+    let drawn = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
+        let file = std::fs::File::open(&path).map_err(|e| format!("{path}: {e}"))?;
+        let bb = crate::blackbox::read(std::io::BufReader::new(file))
+            .map_err(|e| format!("{path}: {e}"))?;
+        let mut svg = Vec::new();
+        crate::blackbox::write_svg(&bb, &mut svg).map_err(|e| e.to_string())?;
+        Ok(svg)
+    })
+    .await;
+    match drawn {
+        Ok(Ok(svg)) => (
+            StatusCode::OK,
+            [
+                (header::CONTENT_TYPE, "image/svg+xml"),
+                (header::CACHE_CONTROL, "no-store"),
+            ],
+            svg,
+        )
+            .into_response(),
+        Ok(Err(m)) => error(StatusCode::INTERNAL_SERVER_ERROR, "io", &m),
+        Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, "io", &e.to_string()),
     }
 }
 

@@ -1,9 +1,10 @@
-//! Programs run from the page or the API: the uploaded text is kept in the machine's
-//! program directory (`Config::machine_program_directory`) and run by `kerf run` itself,
-//! as a child process of `kerf serve`, so that a program sent through the API is checked,
-//! streamed, paused and reported exactly as one run from a terminal. One job at a time;
-//! its state, exit code and what `kerf run` said on standard error (its errors as
-//! `FILE:LINE:COL: error: …`) are the API's `GET /api/v1/job`.
+//! Programs and MDI lines run from the page or the API: an uploaded program is kept in the
+//! machine's program directory (`Config::machine_program_directory`) and run by `kerf run`
+//! itself, an MDI line by `kerf mdi LINE`, as a child process of `kerf serve`, so that
+//! what is sent through the API is checked, streamed, paused and reported exactly as from
+//! a terminal. One job at a time; its state, exit code and what the child said on standard
+//! error (its errors as `FILE:LINE:COL: error: …`, `mdi:1:COL: error: …`) are the API's
+//! `GET /api/v1/job`.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -17,6 +18,27 @@ pub const PROGRAM_LIMIT: usize = 64 * 1024 * 1024;
 
 /// Lines of `kerf run`'s standard error kept per job (the last ones).
 const MESSAGE_LINES: usize = 200;
+
+/// The longest MDI line accepted, bytes (LinuxCNC's interpreter reads lines of up to 256).
+pub const MDI_LINE_LIMIT: usize = 256;
+
+/// What a job runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JobKind {
+    /// A program, by `kerf run`.
+    Program,
+    /// One MDI line, by `kerf mdi LINE`.
+    Mdi,
+}
+
+impl JobKind {
+    fn name(self) -> &'static str {
+        match self {
+            JobKind::Program => "program",
+            JobKind::Mdi => "mdi",
+        }
+    }
+}
 
 /// Where a job stands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -44,7 +66,9 @@ impl JobState {
 pub struct Job {
     /// Counts the jobs since `kerf serve` started, from 1.
     pub id: u64,
-    /// The program's file name.
+    /// What it runs.
+    pub kind: JobKind,
+    /// The program's file name, or the MDI line.
     pub name: String,
     /// Where it stands.
     pub state: JobState,
@@ -73,6 +97,8 @@ pub enum StartRefused {
     Busy(u64),
     /// The name is not a plain file name.
     Name(String),
+    /// The MDI line is empty, too long or more than one line.
+    Line(String),
     /// The program could not be kept or `kerf run` not started.
     Io(String),
 }
@@ -116,37 +142,14 @@ impl Jobs {
         if !valid_name(name) {
             return Err(StartRefused::Name(name.to_owned()));
         }
-        let mut current = self
-            .current
-            .lock()
-            .map_err(|_| StartRefused::Io("the job state is poisoned".into()))?;
-        if let Some(j) = current.as_ref()
-            && j.state == JobState::Running
-        {
-            return Err(StartRefused::Busy(j.id));
-        }
+        let mut current = self.idle()?;
         let path = self.keep(name, text).map_err(StartRefused::Io)?;
-        let mut command = Command::new(&self.kerf);
-        command.arg("run");
+        let mut args = vec![std::ffi::OsString::from("run")];
         if let Some(c) = &self.config {
-            command.arg("--config").arg(c);
+            args.extend(["--config".into(), c.clone().into_os_string()]);
         }
-        let mut child = command
-            .arg(&path)
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .map_err(|e| StartRefused::Io(format!("cannot start {}: {e}", self.kerf.display())))?;
-        let id = current.as_ref().map_or(1, |j| j.id + 1);
-        *current = Some(Job {
-            id,
-            name: name.to_owned(),
-            state: JobState::Running,
-            exit_code: None,
-            messages: Vec::new(),
-            toolpath: None,
-        });
+        args.push(path.into_os_string());
+        let id = self.spawn(&mut current, JobKind::Program, name, &args)?;
         // The toolpath for the page, beside the run.
         let (machine, program, text, state) = (
             self.machine.clone(),
@@ -167,6 +170,67 @@ impl Jobs {
                 }
             })
             .map_err(|e| StartRefused::Io(e.to_string()))?;
+        Ok(id)
+    }
+
+    /// Starts `kerf mdi LINE` (the machine's dialect, offsets and tool; its modal state
+    /// starts as a program's does); the new job's id.
+    pub fn start_mdi(&self, line: &str) -> Result<u64, StartRefused> {
+        if line.trim().is_empty() || line.len() > MDI_LINE_LIMIT || line.contains(['\n', '\r']) {
+            return Err(StartRefused::Line(format!(
+                "an MDI line is one line of 1 to {MDI_LINE_LIMIT} bytes"
+            )));
+        }
+        let mut current = self.idle()?;
+        let mut args = vec![std::ffi::OsString::from("mdi")];
+        if let Some(c) = &self.config {
+            args.extend(["--config".into(), c.clone().into_os_string()]);
+        }
+        // After `--`, a line starting with `-` is the line, not an option.
+        args.extend(["--".into(), line.into()]);
+        self.spawn(&mut current, JobKind::Mdi, line, &args)
+    }
+
+    /// The job state, locked, when no job runs.
+    fn idle(&self) -> Result<std::sync::MutexGuard<'_, Option<Job>>, StartRefused> {
+        let current = self
+            .current
+            .lock()
+            .map_err(|_| StartRefused::Io("the job state is poisoned".into()))?;
+        if let Some(j) = current.as_ref()
+            && j.state == JobState::Running
+        {
+            return Err(StartRefused::Busy(j.id));
+        }
+        Ok(current)
+    }
+
+    /// Starts this binary with `args` as the next job in `current`, and a thread that
+    /// keeps what it says and its exit; the job's id.
+    fn spawn(
+        &self,
+        current: &mut Option<Job>,
+        kind: JobKind,
+        name: &str,
+        args: &[std::ffi::OsString],
+    ) -> Result<u64, StartRefused> {
+        let mut child = Command::new(&self.kerf)
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| StartRefused::Io(format!("cannot start {}: {e}", self.kerf.display())))?;
+        let id = current.as_ref().map_or(1, |j| j.id + 1);
+        *current = Some(Job {
+            id,
+            kind,
+            name: name.to_owned(),
+            state: JobState::Running,
+            exit_code: None,
+            messages: Vec::new(),
+            toolpath: None,
+        });
         let stderr = child.stderr.take();
         let state = Arc::clone(&self.current);
         std::thread::Builder::new()
@@ -213,16 +277,17 @@ impl Jobs {
     }
 }
 
-/// A job as the API's JSON: `{"id":…,"name":…,"state":…,"exit_code":…,"messages":[…]}`,
-/// `null` before the first.
+/// A job as the API's JSON: `{"id":…,"kind":…,"name":…,"state":…,"exit_code":…,
+/// "messages":[…]}`, `null` before the first.
 pub fn job_json(job: Option<&Job>) -> String {
     let Some(j) = job else {
         return "null".into();
     };
     let messages: Vec<String> = j.messages.iter().map(|m| json_string(m)).collect();
     format!(
-        "{{\"id\":{},\"name\":{},\"state\":\"{}\",\"exit_code\":{},\"messages\":[{}]}}",
+        "{{\"id\":{},\"kind\":\"{}\",\"name\":{},\"state\":\"{}\",\"exit_code\":{},\"messages\":[{}]}}",
         j.id,
+        j.kind.name(),
         json_string(&j.name),
         j.state.name(),
         j.exit_code.map_or("null".into(), |c| c.to_string()),

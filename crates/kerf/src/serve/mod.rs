@@ -8,6 +8,7 @@
 
 pub mod api;
 pub mod jobs;
+pub mod lease;
 pub mod link;
 pub mod opcua;
 pub mod page;
@@ -92,6 +93,7 @@ pub fn run(
             config.axes.c.is_some(),
         ],
         jobs,
+        lease: Arc::default(),
     };
     let link_config = config.clone();
     std::thread::Builder::new()

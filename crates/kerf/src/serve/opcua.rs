@@ -351,7 +351,13 @@ fn address_space(config: &Config, manager: &SimpleNodeManager, ns: u16) -> (Node
         &program,
         DataTypeId::String,
         Variant::from(UAString::from("")),
-        |i| Variant::from(UAString::from(i.job.map_or("", |j| j.name.as_str()))),
+        |i| {
+            Variant::from(UAString::from(match i.job {
+                None => String::new(),
+                Some(j) if j.kind == super::jobs::JobKind::Mdi => format!("MDI: {}", j.name),
+                Some(j) => j.name.clone(),
+            }))
+        },
     );
     variable(
         &mut space,

@@ -243,7 +243,13 @@ impl MachineEnv {
 
     /// Starts `kerfd --config C` as `name` and waits until its drives are enabled.
     pub fn start_daemon(&self, name: &str) -> Proc {
-        let args = ["--config", self.config_path.to_str().unwrap()];
+        self.start_daemon_with(name, &[])
+    }
+
+    /// Starts `kerfd --config C EXTRA…` as `name` and waits until its drives are enabled.
+    pub fn start_daemon_with(&self, name: &str, extra: &[&str]) -> Proc {
+        let mut args = vec!["--config", self.config_path.to_str().unwrap()];
+        args.extend_from_slice(extra);
         let mut d = Proc::start(name, &self.dir, self.command(kerfd(), &args));
         let deadline = Instant::now() + MACHINE_PATIENCE;
         loop {
