@@ -2,7 +2,11 @@
 browses the machine's address space, subscribes to an axis position and the active
 program's state while a program runs (sent through the JSON API), sees the values change
 and the program end, and is refused a write; and one client reads two machines, each with
-its own daemon and ``kerf serve``, side by side (docs/API.md, "OPC UA").
+its own daemon and ``kerf serve``, side by side (docs/API.md, "OPC UA"); and with a
+certificate configured, the secure endpoints: a client's certificate rejected until an
+administrator trusts it, users logging in with passwords kept as PBKDF2 hashes (made here
+with Python's own hashlib), and only an operator holding, overriding and resuming a
+running program through the Control methods.
 
 Needs ``pip install asyncua`` (``.ci/run`` installs it) and the debug binaries.
 """
@@ -12,16 +16,23 @@ import hashlib
 import json
 import os
 import re
+import shutil
 import signal
+import socket
 import subprocess
 import time
 import unittest
+import urllib.error
 import urllib.request
+from pathlib import Path
 
 from support import KERF, PATIENCE_S, Machine
 
 try:
     from asyncua import Client, ua
+    from asyncua.crypto.cert_gen import setup_self_signed_certificate
+    from asyncua.crypto.security_policies import SecurityPolicyBasic256Sha256
+    from cryptography.x509.oid import ExtendedKeyUsageOID
 except ImportError:  # pragma: no cover - said by the test itself
     Client = None
 
@@ -31,12 +42,14 @@ TOKEN = "opcua-test-token-0123456789"
 class Served:
     """A homed machine with its daemon and ``kerf serve`` on free ports of 127.0.0.1."""
 
-    def __init__(self, test, tag):
+    def __init__(self, test, tag, serve_lines=None):
         self.m = Machine(test, tag)
         with open(self.m.config, "a", encoding="utf-8") as f:
             digest = hashlib.sha256(TOKEN.encode()).hexdigest()
             f.write(f'\n[serve]\ncontrol_token_sha256 = "{digest}"\n'
                     f'manufacturer = "Test Works"\nserial_number = "SN-{tag}"\n')
+            if serve_lines:
+                f.write(serve_lines(self.m))
         self.m.start()
         env = dict(os.environ, STATE_DIRECTORY=self.m.dir)
         self.err_path = self.m.path("serve.stderr")
@@ -65,6 +78,29 @@ class Served:
             headers={"Authorization": f"Bearer {TOKEN}"}, method="POST")
         with urllib.request.urlopen(request, timeout=PATIENCE_S) as r:
             return json.load(r)
+
+    def post_json(self, path, body, client=None):
+        """POST ``body`` to ``path`` with the token (and ``Kerf-Client``): the status code
+        and the answer."""
+        headers = {"Authorization": f"Bearer {TOKEN}", "Content-Type": "application/json"}
+        if client:
+            headers["Kerf-Client"] = client
+        request = urllib.request.Request(f"http://{self.http}{path}",
+                                         data=json.dumps(body).encode(), headers=headers,
+                                         method="POST")
+        try:
+            with urllib.request.urlopen(request, timeout=PATIENCE_S) as r:
+                return r.status, json.load(r)
+        except urllib.error.HTTPError as e:
+            return e.code, json.load(e)
+
+    def status(self):
+        with urllib.request.urlopen(f"http://{self.http}/api/v1/status", timeout=PATIENCE_S) as r:
+            return json.load(r)["status"]
+
+    def said(self):
+        with open(self.err_path, encoding="utf-8", errors="replace") as f:
+            return f.read()
 
     def close(self):
         if self.proc.poll() is None:
@@ -168,6 +204,172 @@ class OpcUaTest(unittest.TestCase):
                 x = await machine.get_child([f"{ns}:Monitoring", f"{ns}:X", f"{ns}:ActualPosition"])
                 serials[s.m.machine] = (await serial.read_value(), await x.read_value())
         self.assertEqual(serials, {a.m.machine: ("SN-mill_a", 0.0), b.m.machine: ("SN-mill_b", 0.0)})
+
+
+def password_hash(password, iterations=10000):
+    """``serve.opcua_users``' ``password_hash``, made with Python's hashlib (not Kerf's
+    code): PBKDF2-HMAC-SHA256 over a random salt. 10,000 iterations, the fewest the
+    configuration accepts, keep the test's logins quick."""
+    salt = os.urandom(16)
+    key = hashlib.pbkdf2_hmac("sha256", password.encode(), salt, iterations)
+    return f"pbkdf2-sha256${iterations}${salt.hex()}${key.hex()}"
+
+
+CLIENT_URI = "urn:kerf:test:opcua-client"
+
+
+class SecureOpcUaTest(unittest.TestCase):
+    def setUp(self):
+        if Client is None:
+            self.fail("Python asyncua is not installed: `pip install asyncua` (.ci/run does)")
+
+    def test_with_a_certificate_operators_log_in_on_secure_endpoints_and_only_they_hold_override_and_resume(self):
+        certs = {}
+
+        def serve_lines(m):
+            # The server's certificate and key, and this client's, made with asyncua's
+            # helper (cryptography), as an administrator would with openssl.
+            d = Path(m.dir)
+            for who, uri, host, use in [
+                ("server", f"urn:kerf:serve:{m.machine}", "localhost", ExtendedKeyUsageOID.SERVER_AUTH),
+                ("client", CLIENT_URI, socket.gethostname(), ExtendedKeyUsageOID.CLIENT_AUTH),
+            ]:
+                key, cert = d / f"{who}-key.pem", d / f"{who}-cert.der"
+                asyncio.run(setup_self_signed_certificate(
+                    key, cert, uri, host, [use], {"commonName": f"kerf test {who}"}))
+                certs[who] = (str(cert), str(key))
+            return (f'opcua_certificate = "{certs["server"][0]}"\n'
+                    f'opcua_private_key = "{certs["server"][1]}"\n'
+                    f'opcua_pki_dir = "{d / "pki"}"\n'
+                    f'opcua_users = [\n'
+                    f'  {{ name = "op", password_hash = "{password_hash("operator-pass")}", role = "operator" }},\n'
+                    f'  {{ name = "shop", password_hash = "{password_hash("viewer-pass")}", role = "viewer" }},\n'
+                    f']\n')
+
+        s = Served(self, "opcua_secure", serve_lines)
+        asyncio.run(self.secure(s, certs["client"]))
+
+    def secure_client(self, s, client_cert, user, password):
+        client = Client(url=f"opc.tcp://{s.opcua}/", timeout=PATIENCE_S)
+        client.application_uri = CLIENT_URI
+        client.set_user(user)
+        client.set_password(password)
+        return client
+
+    async def secure(self, s, client_cert):
+        url = f"opc.tcp://{s.opcua}/"
+        # The endpoints: None for anonymous reading, and signed and encrypted ones where
+        # users log in; no user name on the None endpoint.
+        async with Client(url=url, timeout=PATIENCE_S) as anonymous:
+            endpoints = await anonymous.get_endpoints()
+            offered = {(e.SecurityPolicyUri.split("#")[-1], e.SecurityMode.name,
+                        tuple(sorted(t.TokenType.name for t in e.UserIdentityTokens)))
+                       for e in endpoints}
+            self.assertEqual(offered, {
+                ("None", "None_", ("Anonymous",)),
+                ("Basic256Sha256", "SignAndEncrypt", ("Anonymous", "UserName")),
+                ("Aes128_Sha256_RsaOaep", "SignAndEncrypt", ("Anonymous", "UserName")),
+                ("Aes256_Sha256_RsaPss", "SignAndEncrypt", ("Anonymous", "UserName")),
+            })
+            ns, machine = await machine_node(anonymous, s.m.machine)
+            control = await machine.get_child([f"{ns}:Control"])
+            # Anonymous: reads, but may not call.
+            with self.assertRaises(ua.UaStatusCodeError) as refused:
+                await control.call_method(f"{ns}:Hold")
+            self.assertEqual(refused.exception.code, ua.StatusCodes.BadUserAccessDenied)
+
+        # The operator's first secure connection: this client's certificate is unknown, so
+        # it is refused and lands in rejected/; trusted by an administrator, it connects.
+        client = self.secure_client(s, client_cert, "op", "operator-pass")
+        with self.assertRaises(Exception):
+            await client.set_security(SecurityPolicyBasic256Sha256, client_cert[0], client_cert[1],
+                                      mode=ua.MessageSecurityMode.SignAndEncrypt)
+            await client.connect()
+        client.disconnect_socket()
+        pki = Path(s.m.dir) / "pki"
+        rejected = list((pki / "rejected").glob("*.der"))
+        self.assertEqual(len(rejected), 1, list(pki.rglob("*")))
+        (pki / "trusted").mkdir(exist_ok=True)
+        shutil.move(str(rejected[0]), str(pki / "trusted" / rejected[0].name))
+
+        async def login(user, password):
+            c = self.secure_client(s, client_cert, user, password)
+            await c.set_security(SecurityPolicyBasic256Sha256, client_cert[0], client_cert[1],
+                                 mode=ua.MessageSecurityMode.SignAndEncrypt)
+            await c.connect()
+            return c
+
+        # A wrong password: refused, and logged.
+        with self.assertRaises(Exception):
+            bad = await login("op", "operator-pasS")
+            await bad.disconnect()
+        self.assertIn("refused the OPC UA login of `op`: wrong password", s.said())
+
+        op = await login("op", "operator-pass")
+        try:
+            ns, machine = await machine_node(op, s.m.machine)
+            control = await machine.get_child([f"{ns}:Control"])
+            channel = await machine.get_child([f"{ns}:Monitoring", f"{ns}:Channel1"])
+            feed = await channel.get_child([f"{ns}:FeedOverride"])
+            state = await machine.get_child([f"{ns}:Production", f"{ns}:ActiveProgram", f"{ns}:State"])
+            answer = s.post_program("slow.ngc", "G21 G90\nG1 X30 F600\nG1 X0\nM2\n")
+            self.assertTrue(answer["ok"], answer)
+
+            async def until(what, predicate):
+                deadline = time.monotonic() + PATIENCE_S
+                while not await predicate():
+                    self.assertLess(time.monotonic(), deadline, f"never {what}: {s.status()}")
+                    await asyncio.sleep(0.02)
+
+            await until("running", lambda: self._eq(state, "Running"))
+            await until("moving", lambda: self._status_is(s, "running"))
+            await control.call_method(f"{ns}:Hold")
+            await until("held", lambda: self._status_is(s, "holding"))
+            await until("interrupted", lambda: self._eq(state, "Interrupted"))
+            x_held = s.status()["position"]["x"]
+            self.assertGreater(x_held, 0.0)
+            self.assertLess(x_held, 30.0)
+            await control.call_method(f"{ns}:SetFeedOverride", ua.Variant(50.0, ua.VariantType.Double))
+            await until("the override at 50 %", lambda: self._eq(feed, 50.0))
+            with self.assertRaises(ua.UaStatusCodeError) as refused:
+                await control.call_method(f"{ns}:SetFeedOverride", ua.Variant(250.0, ua.VariantType.Double))
+            self.assertEqual(refused.exception.code, ua.StatusCodes.BadOutOfRange)
+            # While a web client holds the control lease, the operator may only hold.
+            code, lease = s.post_json("/api/v1/control/lease", {"action": "take"}, "page-opcuatest")
+            self.assertEqual(code, 200, lease)
+            with self.assertRaises(ua.UaStatusCodeError) as refused:
+                await control.call_method(f"{ns}:Resume")
+            self.assertEqual(refused.exception.code, ua.StatusCodes.BadInvalidState)
+            self.assertIn("refused the OPC UA call Resume: the machine is controlled from", s.said())
+            await control.call_method(f"{ns}:Hold")
+            code, lease = s.post_json("/api/v1/control/lease", {"action": "release"}, "page-opcuatest")
+            self.assertEqual(code, 200, lease)
+            # Resumed by the operator, the program runs to its end.
+            await control.call_method(f"{ns}:Resume")
+            await until("ended", lambda: self._eq(state, "Ended"))
+            self.assertEqual(s.status()["position"]["x"], 0.0)
+        finally:
+            await op.disconnect()
+
+        # A viewer logs in and reads, but may not call.
+        shop = await login("shop", "viewer-pass")
+        try:
+            ns, machine = await machine_node(shop, s.m.machine)
+            control = await machine.get_child([f"{ns}:Control"])
+            with self.assertRaises(ua.UaStatusCodeError) as refused:
+                await control.call_method(f"{ns}:SetFeedOverride", ua.Variant(100.0, ua.VariantType.Double))
+            self.assertEqual(refused.exception.code, ua.StatusCodes.BadUserAccessDenied)
+        finally:
+            await shop.disconnect()
+        self.assertEqual(s.status()["override_pct"], 50.0, "the viewer changed nothing")
+
+    @staticmethod
+    async def _eq(node, value):
+        return await node.read_value() == value
+
+    @staticmethod
+    async def _status_is(s, state):
+        return s.status()["state"] == state
 
 
 if __name__ == "__main__":

@@ -128,3 +128,5 @@ mod tests_ethercat_objects;
 mod tests_homing;
 #[cfg(test)]
 mod tests_machine;
+#[cfg(test)]
+mod tests_serve;

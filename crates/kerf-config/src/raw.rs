@@ -345,6 +345,18 @@ pub(crate) struct RawServe {
     pub(crate) model: Option<Spanned<String>>,
     pub(crate) serial_number: Option<Spanned<String>>,
     pub(crate) control_token_sha256: Option<Spanned<String>>,
+    pub(crate) opcua_certificate: Option<Spanned<String>>,
+    pub(crate) opcua_private_key: Option<Spanned<String>>,
+    pub(crate) opcua_pki_dir: Option<Spanned<String>>,
+    pub(crate) opcua_users: Option<Spanned<Vec<RawOpcuaUser>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawOpcuaUser {
+    pub(crate) name: Spanned<String>,
+    pub(crate) password_hash: Spanned<String>,
+    pub(crate) role: Spanned<String>,
 }
 
 #[derive(Deserialize)]

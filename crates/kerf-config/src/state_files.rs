@@ -73,6 +73,15 @@ impl Config {
         state_directory().join(format!("{}-programs", self.machine))
     }
 
+    /// The OPC UA server's certificate store (`trusted/`, `rejected/`):
+    /// `serve.opcua_pki_dir`, else `MACHINE-opcua-pki` in the state directory.
+    pub fn machine_opcua_pki_directory(&self) -> PathBuf {
+        match &self.serve.opcua_pki_dir {
+            Some(p) => p.clone(),
+            None => state_directory().join(format!("{}-opcua-pki", self.machine)),
+        }
+    }
+
     /// The machine's tool table file: `gcode.tool_table`, else `MACHINE.tbl` in the state
     /// directory.
     pub fn machine_tool_table(&self) -> PathBuf {

@@ -14,7 +14,7 @@ use crate::*;
 /// [`AXES`] (X, Y, Z at ±10 mm, 100 mm/s) with `[io]`: digital inputs `xh` 0, `yh` 1,
 /// `xmin` 2, `xmax` 3, `door` 4 (`sim = true`), `done` 5; digital output `lamp` 0;
 /// analog output `num` 0; analog input `force` 0; then `rest`.
-fn machine(rest: &str) -> String {
+pub(crate) fn machine(rest: &str) -> String {
     format!(
         "{AXES}[io]\n\
          digital_inputs = [ {{ number = 0, name = \"xh\" }}, {{ number = 1, name = \"yh\" }}, \
@@ -1738,73 +1738,4 @@ fn on_ethercat_a_drive_homing_maps_the_mode_and_writes_its_objects_at_bring_up()
     // Without the homing, the start-up list may write them (a drive homed otherwise).
     let c = config(&bus("", sdo, ""));
     assert_eq!(c.ethercat.as_ref().unwrap().drives[0].sdo.len(), 1);
-}
-
-#[test]
-fn serve_takes_a_socket_address_and_a_token_hash_never_the_token() {
-    let c = config(&machine(""));
-    assert_eq!(c.serve.http, "127.0.0.1:8080".parse().unwrap());
-    assert_eq!(c.serve.control_token_sha256, None);
-    // SHA-256("kerf"), from `printf kerf | sha256sum`.
-    let hash = "ffc73d5ae8541990e4166e58bcbc85bfe63730015a1ae15616f228b997b953ba";
-    let c = config(&machine(&format!(
-        "[serve]\nhttp = \"[::1]:9000\"\ncontrol_token_sha256 = \"{hash}\"\n"
-    )));
-    assert_eq!(c.serve.http, "[::1]:9000".parse().unwrap());
-    assert_eq!(c.serve.opcua, "127.0.0.1:4840".parse().unwrap());
-    assert_eq!(
-        (
-            c.serve.manufacturer.as_str(),
-            c.serve.serial_number.as_str()
-        ),
-        ("Kerf", "")
-    );
-    let named = config(&machine(
-        "[serve]\nopcua = \"0.0.0.0:4841\"\nmanufacturer = \"Acme\"\nmodel = \"M1\"\nserial_number = \"42\"\n",
-    ));
-    assert_eq!(named.serve.opcua, "0.0.0.0:4841".parse().unwrap());
-    let s = &named.serve;
-    assert_eq!(
-        (
-            s.manufacturer.as_str(),
-            s.model.as_str(),
-            s.serial_number.as_str()
-        ),
-        ("Acme", "M1", "42")
-    );
-    let bytes = c.serve.control_token_sha256.expect("a hash");
-    assert_eq!((bytes[0], bytes[1], bytes[31]), (0xff, 0xc7, 0xba));
-    for (line, needle, message) in [
-        (
-            "http = \"localhost:80\"\n",
-            "\"localhost:80\"",
-            "`serve.http` must be an IP address and a port, such as \"127.0.0.1:8080\" or \"[::1]:8080\", found `localhost:80`",
-        ),
-        (
-            "opcua = \"4840\"\n",
-            "\"4840\"",
-            "`serve.opcua` must be an IP address and a port, such as \"127.0.0.1:4840\" or \"[::1]:8080\", found `4840`",
-        ),
-        (
-            "model = \"\"\n",
-            "\"\"",
-            "`serve.model` must be 1 to 100 characters without control characters",
-        ),
-        (
-            "control_token_sha256 = \"kerf\"\n",
-            "\"kerf\"",
-            "`serve.control_token_sha256` must be the SHA-256 of the control token, 64 hex digits (`kerf serve --hash-token` prints it), not the token itself",
-        ),
-    ] {
-        let text = machine(&format!("[serve]\n{line}"));
-        assert_eq!(refused(&text), format!("{}{message}", at(&text, needle)));
-    }
-    let text = machine("[serve]\nport = 80\n");
-    assert!(
-        refused(&text).contains(
-            "unknown key `serve.port` (known here: `http`, `opcua`, `manufacturer`, `model`, `serial_number`, `control_token_sha256`)"
-        ),
-        "{}",
-        refused(&text)
-    );
 }

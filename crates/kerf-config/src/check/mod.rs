@@ -6,6 +6,7 @@ mod ethercat;
 mod ethercat_objects;
 mod homing;
 mod machine;
+mod serve;
 mod top;
 
 use kerf_geom::PerAxis;

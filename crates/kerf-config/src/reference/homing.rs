@@ -318,5 +318,29 @@ pub(super) fn serve_keys() -> Vec<KeyDoc> {
             "64 hex digits".into(),
             "The SHA-256 of the token a client presents (`Authorization: Bearer TOKEN`) to control the machine (`kerf serve --hash-token` prints it from the token on standard input); the token itself is never stored. Without it every control request is refused; watching needs no token.",
         ),
+        k(
+            "serve.opcua_certificate",
+            "none: only the None endpoint, anonymous".into(),
+            "a .der or .pem file".into(),
+            "The OPC UA server's application instance certificate, relative to the configuration's directory. With it (and its key) the server also offers the Basic256Sha256, Aes128Sha256RsaOaep and Aes256Sha256RsaPss endpoints, where `serve.opcua_users` log in (docs/API.md, \"Security: certificates, users and roles\").",
+        ),
+        k(
+            "serve.opcua_private_key",
+            "none".into(),
+            "a PEM file".into(),
+            "The certificate's private key; given with `serve.opcua_certificate` or not at all.",
+        ),
+        k(
+            "serve.opcua_pki_dir",
+            "`MACHINE-opcua-pki` in the state directory".into(),
+            "a directory".into(),
+            "The OPC UA certificate store: a client's certificate lands in `rejected/` at its first secure connection and is trusted once an administrator moves it to `trusted/`.",
+        ),
+        k(
+            "serve.opcua_users",
+            "none: anonymous reading only".into(),
+            "a list of { name, password_hash, role }".into(),
+            "Who may log in to the OPC UA server (on the secure endpoints only; needs `serve.opcua_certificate`): `name`, `password_hash` (`pbkdf2-sha256$…`, printed by `kerf serve --hash-password` from the password on standard input; the password is never stored) and `role`: \"viewer\" reads, \"operator\" may also call the Control methods (hold, resume, the overrides).",
+        ),
     ]
 }

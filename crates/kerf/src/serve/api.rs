@@ -450,6 +450,9 @@ async fn control(
         return *refused;
     }
     let (answer, answered) = oneshot::channel();
+    let answer: super::link::Answer = Box::new(move |a| {
+        let _ = answer.send(a);
+    });
     if app.asks.send(Ask { command, answer }).is_err() {
         return refuse(
             StatusCode::SERVICE_UNAVAILABLE,

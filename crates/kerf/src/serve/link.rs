@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 
 use kerf_config::Config;
 use kerf_proto::{ControlCommand, REASON_OK};
-use tokio::sync::{oneshot, watch};
+use tokio::sync::watch;
 
 use crate::client::Client;
 use crate::dro::Dro;
@@ -26,12 +26,16 @@ pub const STATUS_PERIOD: Duration = Duration::from_millis(50);
 /// How often a missing daemon is looked for.
 pub const RECONNECT_PERIOD: Duration = Duration::from_millis(500);
 
-/// A control request of a web client, with where the answer goes.
+/// Where the answer to an [`Ask`] goes: the status after it (the API's status object), or
+/// why it was refused.
+pub type Answer = Box<dyn FnOnce(Result<String, Refused>) + Send>;
+
+/// A control request of a web or OPC UA client, with where the answer goes.
 pub struct Ask {
     /// What to ask the daemon.
     pub command: ControlCommand,
-    /// The answer: the status after it (the API's status object), or why it was refused.
-    pub answer: oneshot::Sender<Result<String, Refused>>,
+    /// Called with the answer.
+    pub answer: Answer,
 }
 
 /// Why a control request did not reach or was refused by the daemon.
@@ -123,7 +127,7 @@ pub fn run(config: Config, status: watch::Sender<Arc<String>>, asks: Receiver<As
                         }
                     }
                 };
-                let _ = ask.answer.send(answer);
+                (ask.answer)(answer);
             }
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => return,

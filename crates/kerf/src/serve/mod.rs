@@ -46,6 +46,41 @@ pub fn hash_token(token: &[u8]) -> [u8; 32] {
     Sha256::digest(token).into()
 }
 
+/// PBKDF2 iterations of a new password hash (OWASP's recommendation for
+/// PBKDF2-HMAC-SHA256).
+pub const PASSWORD_ITERATIONS: u32 = 600_000;
+
+/// The PBKDF2-HMAC-SHA256 of `password` with `salt` over `iterations`.
+pub fn derive_password(password: &[u8], salt: &[u8], iterations: u32) -> [u8; 32] {
+    let mut key = [0u8; 32];
+    pbkdf2::pbkdf2_hmac::<Sha256>(password, salt, iterations, &mut key);
+    key
+}
+
+/// A new hash of `password` for `serve.opcua_users`, with 16 random bytes of salt (from
+/// the kernel's random source).
+pub fn hash_password(password: &str) -> std::io::Result<kerf_config::PasswordHash> {
+    use std::io::Read;
+    let mut salt = vec![0u8; 16];
+    std::fs::File::open("/dev/urandom")?.read_exact(&mut salt)?;
+    let hash = derive_password(password.as_bytes(), &salt, PASSWORD_ITERATIONS);
+    Ok(kerf_config::PasswordHash {
+        iterations: PASSWORD_ITERATIONS,
+        salt,
+        hash,
+    })
+}
+
+/// Whether `password` is the one `kept` was made from; compared without an early exit.
+pub fn password_matches(password: &str, kept: &kerf_config::PasswordHash) -> bool {
+    let derived = derive_password(password.as_bytes(), &kept.salt, kept.iterations);
+    derived
+        .iter()
+        .zip(&kept.hash)
+        .fold(0u8, |acc, (a, b)| acc | (a ^ b))
+        == 0
+}
+
 /// `hash` as 64 lower-case hex digits.
 pub fn hex(hash: &[u8; 32]) -> String {
     hash.iter().map(|b| format!("{b:02x}")).collect()
@@ -78,8 +113,13 @@ pub fn run(
         config_path,
         config.machine_program_directory(),
     );
-    let opcua_status = status_rx.clone();
-    let opcua_jobs = jobs.clone();
+    let lease = Arc::new(std::sync::Mutex::new(lease::Lease::default()));
+    let feeds = opcua::Feeds {
+        status: status_rx.clone(),
+        jobs: jobs.clone(),
+        asks: asks_tx.clone(),
+        lease: Arc::clone(&lease),
+    };
     let app = api::App {
         status: status_rx,
         asks: asks_tx,
@@ -93,7 +133,7 @@ pub fn run(
             config.axes.c.is_some(),
         ],
         jobs,
-        lease: Arc::default(),
+        lease,
     };
     let link_config = config.clone();
     std::thread::Builder::new()
@@ -110,7 +150,7 @@ pub fn run(
                 source,
             })?;
         let opcua_addr = opcua_listener.local_addr()?;
-        let opcua_server = opcua::start(&config, opcua_listener, opcua_status, opcua_jobs)
+        let opcua_server = opcua::start(&config, opcua_listener, feeds)
             .await
             .map_err(|e| ServeError::Io(std::io::Error::other(format!("OPC UA: {e}"))))?;
         ready(listener.local_addr()?, opcua_addr);
@@ -136,5 +176,36 @@ async fn stopped() {
     tokio::select! {
         _ = term.recv() => {}
         _ = int.recv() => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn passwords_are_kept_as_pbkdf2_hmac_sha256() {
+        // RFC 7914, section 11: PBKDF2-HMAC-SHA256 (P="passwd", S="salt", c=1), the first
+        // 32 bytes of its 64.
+        let kept = kerf_config::PasswordHash {
+            iterations: 1,
+            salt: b"salt".to_vec(),
+            hash: [
+                0x55, 0xac, 0x04, 0x6e, 0x56, 0xe3, 0x08, 0x9f, 0xec, 0x16, 0x91, 0xc2, 0x25, 0x44,
+                0xb6, 0x05, 0xf9, 0x41, 0x85, 0x21, 0x6d, 0xde, 0x04, 0x65, 0xe6, 0x8b, 0x9d, 0x57,
+                0xc2, 0x0d, 0xac, 0xbc,
+            ],
+        };
+        assert!(password_matches("passwd", &kept));
+        assert!(!password_matches("passwe", &kept));
+        // A new hash: its own salt, read back by the configuration, matching only its
+        // password.
+        let a = hash_password("correct horse").unwrap();
+        let b = hash_password("correct horse").unwrap();
+        assert_ne!(a.salt, b.salt);
+        let read = kerf_config::PasswordHash::parse(&a.to_string()).expect("a kept form");
+        assert_eq!(read, a);
+        assert!(password_matches("correct horse", &read));
+        assert!(!password_matches("correct horsf", &read));
     }
 }

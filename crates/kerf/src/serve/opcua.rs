@@ -2,28 +2,42 @@
 //! Machines folder, laid out with the browse names of the OPC UA for Machine Tools
 //! companion specification (OPC 40501-1) as far as Kerf has the data (docs/API.md, "OPC
 //! UA"), its values taken from the same status the page shows, ten times a second.
-//! Read-only: no variable is writable, so a client's write is refused by the server
-//! (`BadNotWritable`); control stays with the JSON API and its token.
+//! No variable is writable, so a client's write is refused by the server
+//! (`BadNotWritable`). With a certificate configured (`serve.opcua_certificate`), the
+//! server also offers secure endpoints where the configured users log in
+//! (`serve.opcua_users`, passwords kept as salted PBKDF2 hashes); a user with the
+//! operator role may call the `Control` object's methods: hold, resume and the overrides,
+//! under the same control lease as the JSON API.
 
 use std::net::SocketAddr;
-use std::sync::Arc;
+use std::sync::mpsc::Sender;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
-use kerf_config::Config;
-use opcua::nodes::{AccessLevel, BaseEventType, ObjectBuilder, VariableBuilder};
+use kerf_config::{Config, OpcuaRole, OpcuaUser};
+use kerf_proto::ControlCommand;
+use opcua::crypto::{CertificateStore, SecurityPolicy};
+use opcua::nodes::{AccessLevel, BaseEventType, MethodBuilder, ObjectBuilder, VariableBuilder};
+use opcua::server::authenticator::{AuthManager, Password, UserToken};
 use opcua::server::diagnostics::NamespaceMetadata;
 use opcua::server::node_manager::memory::{SimpleNodeManager, simple_node_manager};
-use opcua::server::{ServerBuilder, ServerHandle, SubscriptionCache};
+use opcua::server::{
+    ANONYMOUS_USER_TOKEN_ID, ServerBuilder, ServerEndpoint, ServerHandle, SubscriptionCache,
+};
 use opcua::types::{
-    ByteString, DataTypeId, DataValue, DateTime, LocalizedText, NodeId, ObjectId, ObjectTypeId,
-    QualifiedName, UAString, Variant,
+    Argument, ByteString, DataTypeId, DataValue, DateTime, Error as UaError, LocalizedText, NodeId,
+    ObjectId, ObjectTypeId, QualifiedName, StatusCode, UAString, UserTokenPolicy, UserTokenType,
+    Variant,
 };
 use serde_json::Value;
 use tokio::sync::watch;
 
 use super::jobs::{JobState, Jobs};
+use super::lease::Lease;
+use super::link::{Ask, Refused};
 
 /// How often the values are refreshed.
-pub const REFRESH: std::time::Duration = std::time::Duration::from_millis(100);
+pub const REFRESH: Duration = Duration::from_millis(100);
 
 /// The namespace of a machine's nodes: one per machine name, so that the servers of two
 /// machines never share node ids.
@@ -92,24 +106,85 @@ fn program_state(i: &Inputs) -> Variant {
     Variant::from(UAString::from(name))
 }
 
-/// Starts the OPC UA server of `config`'s machine on `listener`, fed from `status` and
-/// `jobs`; returns its handle (cancel it to stop the server).
+/// What the OPC UA server needs of `kerf serve`: the status and jobs it shows, where its
+/// control methods' requests go and the control lease they are under.
+pub struct Feeds {
+    /// The latest status message.
+    pub status: watch::Receiver<Arc<String>>,
+    /// The jobs (the active program).
+    pub jobs: Jobs,
+    /// Control requests to the link.
+    pub asks: Sender<Ask>,
+    /// Who controls the machine.
+    pub lease: Arc<Mutex<Lease>>,
+}
+
+/// The endpoints offered with a certificate, besides None: signed and encrypted, with the
+/// policies the OPC UA specification does not deprecate.
+fn secure_endpoints() -> Vec<(&'static str, ServerEndpoint)> {
+    let ids = [ANONYMOUS_USER_TOKEN_ID.to_string()];
+    vec![
+        (
+            "basic256sha256_sign_encrypt",
+            ServerEndpoint::new_basic256sha256_sign_encrypt("/", &ids),
+        ),
+        (
+            "aes128_sha256_rsaoaep_sign_encrypt",
+            ServerEndpoint::new_aes128_sha256_rsaoaep_sign_encrypt("/", &ids),
+        ),
+        (
+            "aes256_sha256_rsapss_sign_encrypt",
+            ServerEndpoint::new_aes256_sha256_rsapss_sign_encrypt("/", &ids),
+        ),
+    ]
+}
+
+/// Starts the OPC UA server of `config`'s machine on `listener`, fed from `feeds`;
+/// returns its handle (cancel it to stop the server). Fails when the configured
+/// certificate or its key cannot be read.
 pub async fn start(
     config: &Config,
     listener: tokio::net::TcpListener,
-    status: watch::Receiver<Arc<String>>,
-    jobs: Jobs,
+    feeds: Feeds,
 ) -> Result<ServerHandle, String> {
     let addr: SocketAddr = listener.local_addr().map_err(|e| e.to_string())?;
     let machine = config.machine.clone();
     let ns_uri = namespace_uri(&machine);
-    let (server, handle) = ServerBuilder::new_anonymous(format!("Kerf {machine}"))
+    let mut builder = ServerBuilder::new_anonymous(format!("Kerf {machine}"))
         .application_uri(application_uri(&machine))
         .product_uri("urn:kerf")
         .host(addr.ip().to_string())
         .port(addr.port())
-        .pki_dir(std::env::temp_dir().join(format!("kerf-serve-pki-{machine}")))
+        .default_endpoint("none")
         .create_sample_keypair(false)
+        .with_authenticator(Arc::new(Users {
+            users: config.serve.opcua_users.clone(),
+        }));
+    match (
+        &config.serve.opcua_certificate,
+        &config.serve.opcua_private_key,
+    ) {
+        (Some(cert), Some(key)) => {
+            // Read here first: the server itself would go on without them, offering
+            // endpoints nobody can use.
+            CertificateStore::read_cert(cert)
+                .map_err(|e| format!("the certificate {}: {e}", cert.display()))?;
+            CertificateStore::read_pkey(key)
+                .map_err(|e| format!("the private key {}: {e}", key.display()))?;
+            builder = builder
+                .certificate_path(cert)
+                .private_key_path(key)
+                .pki_dir(config.machine_opcua_pki_directory());
+            for (id, endpoint) in secure_endpoints() {
+                builder = builder.add_endpoint(id, endpoint);
+            }
+        }
+        _ => {
+            builder =
+                builder.pki_dir(std::env::temp_dir().join(format!("kerf-serve-pki-{machine}")));
+        }
+    }
+    let (server, handle) = builder
         .with_node_manager(simple_node_manager(
             NamespaceMetadata {
                 namespace_uri: ns_uri.clone(),
@@ -126,6 +201,7 @@ pub async fn start(
         .get_namespace_index(&ns_uri)
         .ok_or("no namespace index")?;
     let (machine_id, vars) = address_space(config, &manager, ns);
+    control_methods(config, &manager, ns, &feeds);
     let subscriptions = handle.subscriptions().clone();
     tokio::spawn(async move {
         if let Err(e) = server.run_with(listener).await {
@@ -138,11 +214,219 @@ pub async fn start(
         vars,
         machine_id,
         machine,
-        status,
-        jobs,
+        feeds.status,
+        feeds.jobs,
         handle.clone(),
     ));
     Ok(handle)
+}
+
+/// The OPC UA users: anonymous clients read everywhere; the configured users log in on
+/// the secure endpoints only (never where a password would cross in clear), and only an
+/// operator may call the control methods.
+struct Users {
+    users: Vec<OpcuaUser>,
+}
+
+impl Users {
+    fn role(&self, token: &UserToken) -> Option<OpcuaRole> {
+        self.users
+            .iter()
+            .find(|u| !token.is_anonymous() && u.name == token.0)
+            .map(|u| u.role)
+    }
+}
+
+#[async_trait::async_trait]
+impl AuthManager for Users {
+    async fn authenticate_anonymous_token(
+        &self,
+        _endpoint: &ServerEndpoint,
+    ) -> Result<(), UaError> {
+        Ok(())
+    }
+
+    async fn authenticate_username_identity_token(
+        &self,
+        endpoint: &ServerEndpoint,
+        username: &str,
+        password: &Password,
+    ) -> Result<UserToken, UaError> {
+        let refused = |why: &str| {
+            eprintln!("kerf serve: refused the OPC UA login of `{username}`: {why}");
+            Err(UaError::new(
+                StatusCode::BadUserAccessDenied,
+                format!("cannot log in `{username}`"),
+            ))
+        };
+        if endpoint.security_policy() == SecurityPolicy::None {
+            return refused("not on an endpoint without security");
+        }
+        let Some(user) = self.users.iter().find(|u| u.name == username).cloned() else {
+            return refused("no such user");
+        };
+        // PBKDF2 takes a while on purpose: off the runtime's thread.
+        let given = password.get().to_owned();
+        let kept = user.password.clone();
+        let matches = tokio::task::spawn_blocking(move || super::password_matches(&given, &kept))
+            .await
+            .unwrap_or(false);
+        if !matches {
+            return refused("wrong password");
+        }
+        Ok(UserToken(user.name))
+    }
+
+    fn is_user_executable(&self, token: &UserToken, _method_id: &NodeId) -> bool {
+        self.role(token) == Some(OpcuaRole::Operator)
+    }
+
+    fn user_token_policies(&self, endpoint: &ServerEndpoint) -> Vec<UserTokenPolicy> {
+        let mut policies = vec![UserTokenPolicy {
+            policy_id: UAString::from("anonymous"),
+            token_type: UserTokenType::Anonymous,
+            issued_token_type: UAString::null(),
+            issuer_endpoint_url: UAString::null(),
+            security_policy_uri: UAString::null(),
+        }];
+        if !self.users.is_empty() && endpoint.security_policy() != SecurityPolicy::None {
+            policies.push(UserTokenPolicy {
+                policy_id: opcua::server::authenticator::user_pass_security_policy_id(endpoint),
+                token_type: UserTokenType::UserName,
+                issued_token_type: UAString::null(),
+                issuer_endpoint_url: UAString::null(),
+                security_policy_uri: UAString::null(),
+            });
+        }
+        policies
+    }
+}
+
+/// How long a control method waits for the daemon's answer.
+const CALL_PATIENCE: Duration = Duration::from_secs(5);
+
+/// Asks the daemon for `command` on behalf of an OPC UA operator (`method`, for the log):
+/// under the control lease (hold is a stop, always allowed), answered within
+/// [`CALL_PATIENCE`]. A refusal is logged and is `BadInvalidState`; no daemon is
+/// `BadNoCommunication`.
+fn call(
+    asks: &Sender<Ask>,
+    lease: &Mutex<Lease>,
+    method: &str,
+    command: ControlCommand,
+) -> Result<Vec<Variant>, StatusCode> {
+    let stops = matches!(command, ControlCommand::Hold);
+    let refuse = |why: String, code: StatusCode| {
+        eprintln!("kerf serve: refused the OPC UA call {method}: {why}");
+        Err(code)
+    };
+    let held = lease
+        .lock()
+        .map_err(|_| StatusCode::BadInternalError)?
+        .permits(None, stops, Instant::now());
+    if let Err(holder) = held {
+        return refuse(
+            format!("the machine is controlled from {}", holder.peer),
+            StatusCode::BadInvalidState,
+        );
+    }
+    let (tx, rx) = std::sync::mpsc::sync_channel(1);
+    let answer: super::link::Answer = Box::new(move |a| {
+        let _ = tx.send(a);
+    });
+    if asks.send(Ask { command, answer }).is_err() {
+        return refuse(
+            "the link to the daemon stopped".into(),
+            StatusCode::BadNoCommunication,
+        );
+    }
+    // The link answers within its own request timeout; this thread waits that long at
+    // most (a few milliseconds when the daemon answers).
+    match rx.recv_timeout(CALL_PATIENCE) {
+        Ok(Ok(_)) => Ok(Vec::new()),
+        Ok(Err(Refused::Daemon(m))) => refuse(m, StatusCode::BadInvalidState),
+        Ok(Err(Refused::NoDaemon(m))) => refuse(m, StatusCode::BadNoCommunication),
+        Err(_) => refuse(
+            "the daemon did not answer".into(),
+            StatusCode::BadNoCommunication,
+        ),
+    }
+}
+
+/// The percent of a SetFeedOverride or SetSpindleOverride call: one Double, 0 to 200.
+fn percent(args: &[Variant]) -> Result<f64, StatusCode> {
+    match args {
+        [Variant::Double(p)] if (0.0..=200.0).contains(p) => Ok(*p),
+        [Variant::Double(_)] => Err(StatusCode::BadOutOfRange),
+        _ => Err(StatusCode::BadInvalidArgument),
+    }
+}
+
+/// The daemon's command of a control method's call, from its arguments.
+type MethodCommand = fn(&[Variant]) -> Result<ControlCommand, StatusCode>;
+
+/// The machine's `Control` object and its methods: Hold, Resume, SetFeedOverride and
+/// SetSpindleOverride (executable by an operator only).
+fn control_methods(config: &Config, manager: &SimpleNodeManager, ns: u16, feeds: &Feeds) {
+    let machine = &config.machine;
+    let id = |path: &str| NodeId::new(ns, format!("{machine}.{path}"));
+    let name = |n: &str| QualifiedName::new(ns, n);
+    let root = NodeId::new(ns, machine.as_str());
+    let control = id("Control");
+    {
+        let mut space = manager.address_space().write();
+        ObjectBuilder::new(&control, name("Control"), "Control")
+            .component_of(root)
+            .has_type_definition(ObjectTypeId::BaseObjectType)
+            .insert(&mut *space);
+        for (method, percent_of) in [
+            ("Hold", None),
+            ("Resume", None),
+            ("SetFeedOverride", Some("the feed override, 0 to 200 %")),
+            (
+                "SetSpindleOverride",
+                Some("the spindle override, 0 to 200 %"),
+            ),
+        ] {
+            let node = id(&format!("Control.{method}"));
+            let mut b = MethodBuilder::new(&node, name(method), method)
+                .component_of(control.clone())
+                .executable(true)
+                .user_executable(true);
+            if let Some(what) = percent_of {
+                b = b.input_args(
+                    &mut *space,
+                    &id(&format!("Control.{method}.InputArguments")),
+                    &[Argument {
+                        name: UAString::from("Percent"),
+                        data_type: DataTypeId::Double.into(),
+                        value_rank: -1,
+                        array_dimensions: None,
+                        description: LocalizedText::from(what),
+                    }],
+                );
+            }
+            b.insert(&mut *space);
+        }
+    }
+    let callbacks: [(&str, MethodCommand); 4] = [
+        ("Hold", |_| Ok(ControlCommand::Hold)),
+        ("Resume", |_| Ok(ControlCommand::Resume)),
+        ("SetFeedOverride", |a| {
+            percent(a).map(|percent| ControlCommand::Override { percent })
+        }),
+        ("SetSpindleOverride", |a| {
+            percent(a).map(|percent| ControlCommand::SpindleOverride { percent })
+        }),
+    ];
+    for (method, command) in callbacks {
+        let (asks, lease) = (feeds.asks.clone(), Arc::clone(&feeds.lease));
+        manager
+            .inner()
+            .add_method_callback(id(&format!("Control.{method}")), move |args| {
+                call(&asks, &lease, method, command(args)?)
+            });
+    }
 }
 
 /// Builds the machine's nodes; the machine object's id and the variables to refresh.

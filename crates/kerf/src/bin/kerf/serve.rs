@@ -22,8 +22,13 @@ pub struct ServeArgs {
     opcua: Option<SocketAddr>,
     /// Read a control token from standard input (one line) and print its SHA-256, the
     /// value of `serve.control_token_sha256`; serves nothing.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "hash_password")]
     hash_token: bool,
+    /// Read an OPC UA user's password from standard input (one line) and print its salted
+    /// hash (PBKDF2-HMAC-SHA256), the `password_hash` of `serve.opcua_users`; serves
+    /// nothing.
+    #[arg(long)]
+    hash_password: bool,
 }
 
 /// `kerf serve`.
@@ -40,6 +45,20 @@ pub fn run(args: &ServeArgs) -> Result<(), Failure> {
         }
         let hash = kerf::serve::hash_token(token.as_bytes());
         writeln!(io::stdout().lock(), "{}", kerf::serve::hex(&hash))?;
+        return Ok(());
+    }
+    if args.hash_password {
+        let mut line = String::new();
+        io::stdin().lock().read_line(&mut line)?;
+        let password = line.trim_end_matches(['\r', '\n']);
+        if password.len() < 8 {
+            return Err(Failure::Error(
+                "kerf: error: an OPC UA password must be at least 8 characters".into(),
+            ));
+        }
+        let hash = kerf::serve::hash_password(password)
+            .map_err(|e| Failure::Error(format!("kerf: error: no random salt: {e}")))?;
+        writeln!(io::stdout().lock(), "{hash}")?;
         return Ok(());
     }
     let config = load_config(args.machine.config.as_deref())?;
