@@ -23,4 +23,4 @@ pub use clock::{PeriodicClock, Tick, now_ns};
 pub use error::RtError;
 pub use notify::{Watchdog, notify_ready, notify_stopping, notify_watchdog, watchdog_interval};
 pub use setup::{RtConfig, RtReport, rt_setup};
-pub use signals::Signals;
+pub use signals::{Signals, terminate};

@@ -17,6 +17,18 @@ extern "C" fn record_stop_signal(signal: libc::c_int) {
 
 const STOP_SIGNALS: [libc::c_int; 2] = [libc::SIGTERM, libc::SIGINT];
 
+/// Asks process `pid` to stop, as `kill PID` does (SIGTERM).
+pub fn terminate(pid: u32) -> io::Result<()> {
+    let pid =
+        libc::pid_t::try_from(pid).map_err(|_| io::Error::from(io::ErrorKind::InvalidInput))?;
+    // SAFETY: kill(2) has no memory-safety preconditions.
+    if unsafe { libc::kill(pid, libc::SIGTERM) } == 0 {
+        Ok(())
+    } else {
+        Err(io::Error::last_os_error())
+    }
+}
+
 /// SIGTERM and SIGINT handlers that record the signal instead of ending the process, so the
 /// daemon can stop the axes and notify systemd before it exits.
 ///

@@ -782,6 +782,46 @@ fn after_a_drive_fault_the_black_box_is_served_as_kerf_plot_draws_it() {
 }
 
 #[test]
+fn stopping_kerf_serve_stops_its_running_job_and_says_how_it_ended() {
+    let mut s = served("stop");
+    let auth = format!("Authorization: Bearer {TOKEN}");
+    let (code, text) = http(
+        s.addr,
+        "POST",
+        "/api/v1/program?name=slow.ngc",
+        &[&auth],
+        b"G21 G90\nG1 X60 F600\nM2\n",
+    );
+    assert_eq!(code, 202, "{text}");
+    status_until(s.addr, "the part moving", |st| {
+        st["state"] == "running" && st["position"]["x"].as_f64().unwrap() > 1.0
+    });
+    s._serve.signal("TERM");
+    let exit = s._serve.wait_within(MACHINE_PATIENCE);
+    assert!(exit.success(), "kerf serve: {exit}");
+    let said = read_text(&s._serve.stderr);
+    assert!(
+        said.contains("kerf serve: stopped job 1 (`slow.ngc`) at shutdown: exit "),
+        "{said}"
+    );
+    // The program was aborted, not left running without its `kerf run`: the machine
+    // stopped short of X60 and stays there.
+    let deadline = Instant::now() + MACHINE_PATIENCE;
+    let stopped = loop {
+        let st = s.env.status();
+        if st["state"] == "idle" {
+            break st;
+        }
+        assert!(Instant::now() < deadline, "never idle: {st}");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let x = stopped["position"]["x"].as_f64().unwrap();
+    assert!(x > 1.0 && x < 60.0, "{stopped}");
+    std::thread::sleep(Duration::from_millis(200));
+    assert_eq!(s.env.status()["position"]["x"], stopped["position"]["x"]);
+}
+
+#[test]
 fn in_a_real_browser_the_page_runs_holds_and_resumes_the_example_part_a_second_tab_watches_and_a_closed_tab_stops_its_jog()
  {
     let s = served("browser");

@@ -78,6 +78,8 @@ pub struct Job {
     pub messages: Vec<String>,
     /// Its toolpath as the API's JSON ([`super::toolpath`]), once computed.
     pub toolpath: Option<Arc<String>>,
+    /// The child process's id.
+    pub pid: u32,
 }
 
 /// The jobs of one `kerf serve`.
@@ -230,6 +232,7 @@ impl Jobs {
             exit_code: None,
             messages: Vec::new(),
             toolpath: None,
+            pid: child.id(),
         });
         let stderr = child.stderr.take();
         let state = Arc::clone(&self.current);
@@ -262,6 +265,26 @@ impl Jobs {
             })
             .map_err(|e| StartRefused::Io(e.to_string()))?;
         Ok(id)
+    }
+
+    /// Stops the running job, if any, as `kerf serve` stops: its `kerf run` (or `kerf mdi`)
+    /// is sent SIGTERM, so it aborts the motion on the daemon's jerk-limited stop and
+    /// exits, as it does at Ctrl-C; waits up to `patience` for that. The job as it ended
+    /// (or still stood), None when none ran.
+    pub fn stop_running(&self, patience: std::time::Duration) -> Option<Job> {
+        let pid = match self.current() {
+            Some(j) if j.state == JobState::Running => j.pid,
+            _ => return None,
+        };
+        let _ = kerf_rt::terminate(pid);
+        let deadline = std::time::Instant::now() + patience;
+        loop {
+            let job = self.current()?;
+            if job.state != JobState::Running || std::time::Instant::now() >= deadline {
+                return Some(job);
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
     }
 
     /// Writes `text` to `name` in the program directory (through a temporary file renamed

@@ -22,6 +22,9 @@ use kerf_config::Config;
 use sha2::{Digest, Sha256};
 use tokio::sync::watch;
 
+/// How long `kerf serve` waits, as it stops, for a running job to stop.
+pub const JOB_STOP_PATIENCE: std::time::Duration = std::time::Duration::from_secs(10);
+
 /// The API's version: the `api` field of every status message, the `v1` of the paths.
 pub const API_VERSION: u32 = 1;
 
@@ -120,6 +123,7 @@ pub fn run(
         asks: asks_tx.clone(),
         lease: Arc::clone(&lease),
     };
+    let jobs_at_exit = jobs.clone();
     let app = api::App {
         status: status_rx,
         asks: asks_tx,
@@ -159,6 +163,24 @@ pub fn run(
             .with_graceful_shutdown(stopped())
             .await?;
         opcua_server.cancel();
+        // A job does not outlive the process that started it and reports it: it is
+        // stopped (its program aborted on the daemon's stop ramp), as under systemd,
+        // which stops the whole unit.
+        if let Ok(Some(job)) =
+            tokio::task::spawn_blocking(move || jobs_at_exit.stop_running(JOB_STOP_PATIENCE)).await
+        {
+            let end = match (job.state, job.exit_code) {
+                (jobs::JobState::Running, _) => {
+                    format!("still running after {} s", JOB_STOP_PATIENCE.as_secs())
+                }
+                (_, Some(code)) => format!("exit {code}"),
+                (_, None) => "killed by a signal".to_owned(),
+            };
+            eprintln!(
+                "kerf serve: stopped job {} (`{}`) at shutdown: {end}",
+                job.id, job.name
+            );
+        }
         Ok(())
     })
 }
