@@ -961,6 +961,15 @@ fn in_a_real_browser_the_page_runs_holds_and_resumes_the_example_part_a_second_t
         "no cut drawn in 3D"
     );
     assert_ne!(b.eval(&a, picture), xy, "the 3D view is the XY view");
+    let shot = b.call(
+        Some(&a),
+        "Page.captureScreenshot",
+        serde_json::json!({"format": "png"}),
+    )["data"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    std::fs::write(s.env.dir.join("page-3d.png"), decode_base64(&shot)).unwrap();
     // A button to home each axis.
     assert_eq!(
         b.eval(
