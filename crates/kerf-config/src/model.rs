@@ -177,6 +177,18 @@ pub struct Axes {
 }
 
 impl Axes {
+    /// Which axes the machine has, X to C (X, Y and Z always).
+    pub fn present(&self) -> [bool; 6] {
+        [
+            true,
+            true,
+            true,
+            self.a.is_some(),
+            self.b.is_some(),
+            self.c.is_some(),
+        ]
+    }
+
     /// The linear axes in X, Y, Z order.
     pub fn linear(&self) -> [LinearAxis; 3] {
         [self.x, self.y, self.z]

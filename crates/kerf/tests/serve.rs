@@ -603,6 +603,18 @@ fn mdi_lines_from_the_api_run_as_kerf_mdi_runs_them_and_a_bad_one_comes_back_wit
         x > 1.0 && x < 80.0,
         "the aborted line stopped short: {stopped}"
     );
+    // A touch-off by MDI (G10 L20: G54 so that X here reads 0): the DRO of the status
+    // follows the parameter file `kerf mdi` wrote, the machine did not move.
+    let (code, answer) = mdi("G10 L20 P1 X0");
+    assert_eq!(code, 202, "{answer}");
+    finished("the touch-off");
+    let touched = status_until(s.addr, "X reading 0 in G54", |st| {
+        st["dro"]["work"]["x"]
+            .as_f64()
+            .is_some_and(|x| x.abs() < 1e-9)
+    });
+    assert_eq!(touched["position"]["x"], stopped["position"]["x"]);
+    assert_eq!(touched["dro"]["work_offset"]["x"], stopped["position"]["x"]);
 }
 
 #[test]

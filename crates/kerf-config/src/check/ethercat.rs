@@ -181,14 +181,7 @@ impl Checker<'_> {
         axes: &Axes,
         by_drive: &[bool; MAX_AXES],
     ) -> Result<Vec<EthercatDrive>, ConfigError> {
-        let configured = [
-            true,
-            true,
-            true,
-            axes.a.is_some(),
-            axes.b.is_some(),
-            axes.c.is_some(),
-        ];
+        let configured = axes.present();
         let mut out: Vec<EthercatDrive> = Vec::with_capacity(e.drives.len());
         for (i, d) in e.drives.iter().enumerate() {
             let key = format!("ethercat.drives[{i}]");

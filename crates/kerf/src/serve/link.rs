@@ -57,17 +57,59 @@ fn message(seq: u64, t_ms: u64, body: &str) -> String {
     )
 }
 
+/// The machine's settings (its parameter file and tool table read) for the DRO, read
+/// again only when one of the two files changed, not at every status.
+#[derive(Default)]
+struct MachineFiles {
+    /// The files' identity when last read: inode, size, modification time.
+    stamp: Option<[(u64, u64, i64, i64); 2]>,
+    /// The settings read then (None: they could not be read).
+    settings: Option<kerf_gcode::Settings>,
+}
+
+impl MachineFiles {
+    /// The DRO at `s`; None when the machine's files cannot be read (left out, as `kerf
+    /// status` does).
+    fn dro(&mut self, config: &Config, s: &kerf_proto::StatusMsg) -> Option<Dro> {
+        use std::os::unix::fs::MetadataExt;
+        let stamp_of = |p: std::path::PathBuf| {
+            std::fs::metadata(p).map_or((0, 0, 0, 0), |m| {
+                (m.ino(), m.size(), m.mtime(), m.mtime_nsec())
+            })
+        };
+        let stamp = [
+            stamp_of(config.machine_parameter_file()),
+            stamp_of(config.machine_tool_table()),
+        ];
+        if self.stamp != Some(stamp) {
+            self.stamp = Some(stamp);
+            self.settings = config.machine_settings().ok();
+        }
+        let settings = self.settings.clone()?;
+        Some(Dro::with_settings(
+            config,
+            settings,
+            s.position_mm_deg,
+            s.tool_in_spindle,
+        ))
+    }
+}
+
 /// The status object of the daemon's status `s` (`kerf status --json`'s).
-fn status_object(config: &Config, names: &[String], s: &kerf_proto::StatusMsg) -> String {
-    // The DRO from the machine's parameter file; a file that cannot be read leaves it
-    // out, as `kerf status` does.
-    let dro = Dro::read(config, s.position_mm_deg, s.tool_in_spindle).ok();
+fn status_object(
+    config: &Config,
+    names: &[String],
+    files: &mut MachineFiles,
+    s: &kerf_proto::StatusMsg,
+) -> String {
+    let dro = files.dro(config, s);
     status_json(&config.machine, names, s, dro.as_ref())
 }
 
 /// Runs the link until every sender of `asks` is gone and `status` has no receiver.
 pub fn run(config: Config, status: watch::Sender<Arc<String>>, asks: Receiver<Ask>) {
     let names = subdevice_names(&config);
+    let mut files = MachineFiles::default();
     let started = Instant::now();
     let mut seq = 0u64;
     let mut client: Option<Client> = None;
@@ -89,7 +131,7 @@ pub fn run(config: Config, status: watch::Sender<Arc<String>>, asks: Receiver<As
             let body = match client.as_mut().map(Client::status) {
                 Some(Ok(s)) => format!(
                     "\"connected\":true,\"status\":{}",
-                    status_object(&config, &names, &s)
+                    status_object(&config, &names, &mut files, &s)
                 ),
                 Some(Err(e)) => {
                     client = None;
@@ -116,7 +158,7 @@ pub fn run(config: Config, status: watch::Sender<Arc<String>>, asks: Receiver<As
                         };
                         match c.request_within(ask.command, patience) {
                             Ok(r) if r.reason == REASON_OK => {
-                                Ok(status_object(&config, &names, &r.status))
+                                Ok(status_object(&config, &names, &mut files, &r.status))
                             }
                             Ok(r) => Err(Refused::Daemon(r.message().to_string())),
                             Err(e) => {

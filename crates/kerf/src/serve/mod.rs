@@ -128,14 +128,7 @@ pub fn run(
         status: status_rx,
         asks: asks_tx,
         token_sha256: config.serve.control_token_sha256,
-        axes: [
-            true,
-            true,
-            true,
-            config.axes.a.is_some(),
-            config.axes.b.is_some(),
-            config.axes.c.is_some(),
-        ],
+        axes: config.axes.present(),
         jobs,
         lease,
     };

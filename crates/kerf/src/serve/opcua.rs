@@ -595,14 +595,7 @@ fn address_space(config: &Config, manager: &SimpleNodeManager, ns: u16) -> (Node
             )
         },
     );
-    let present = [
-        true,
-        true,
-        true,
-        config.axes.a.is_some(),
-        config.axes.b.is_some(),
-        config.axes.c.is_some(),
-    ];
+    let present = config.axes.present();
     let position: [fn(&Inputs) -> Variant; 6] = [
         |i| Variant::from(i.status["position"]["x"].as_f64().unwrap_or(0.0)),
         |i| Variant::from(i.status["position"]["y"].as_f64().unwrap_or(0.0)),
