@@ -1,5 +1,6 @@
 """``kerf serve``'s OPC UA server from a third-party client: Python ``asyncua`` (from PyPI)
-browses the machine's address space, subscribes to an axis position and the active
+browses the machine's address space (the Machine Tools specification's browse names, and
+its types, whose definitions resolve on the server), subscribes to an axis position and the active
 program's state while a program runs (sent through the JSON API), sees the values change
 and the program end, and is refused a write; and one client reads two machines, each with
 its own daemon and ``kerf serve``, side by side (docs/API.md, "OPC UA"); and with a
@@ -113,12 +114,27 @@ class Served:
 
 
 async def machine_node(client, machine):
-    """The machine's object: Objects / Machines / MACHINE, by browse names in its
-    namespace."""
-    ns = await client.get_namespace_index(f"urn:kerf:{machine}")
+    """The namespace indexes (``own``: the machine's, ``mt``: Machine Tools,
+    ``machinery``, ``di``, ``ua``: the base) and the machine's object: Objects / Machinery's
+    Machines / MACHINE."""
+    sp = {"own": await client.get_namespace_index(f"urn:kerf:{machine}"), "ua": 0}
+    for key, uri in [("mt", "http://opcfoundation.org/UA/MachineTool/"),
+                     ("machinery", "http://opcfoundation.org/UA/Machinery/"),
+                     ("di", "http://opcfoundation.org/UA/DI/")]:
+        sp[key] = await client.get_namespace_index(uri)
     objects = client.nodes.objects
-    node = await objects.get_child([f"{ns}:Machines", f"{ns}:{machine}"])
-    return ns, node
+    node = await objects.get_child([f"{sp['machinery']}:Machines", f"{sp['own']}:{machine}"])
+    return sp, node
+
+
+async def child(node, sp, path):
+    """The node at ``path`` under ``node``: browse names with their namespace's key, as
+    ``di:Identification/di:Manufacturer``."""
+    names = []
+    for step in path.split("/"):
+        key, name = step.split(":")
+        names.append(f"{sp[key]}:{name}")
+    return await node.get_child(names)
 
 
 class Collector:
@@ -142,29 +158,53 @@ class OpcUaTest(unittest.TestCase):
 
     async def browse_and_subscribe(self, s):
         async with Client(url=f"opc.tcp://{s.opcua}/", timeout=PATIENCE_S) as client:
-            ns, machine = await machine_node(client, s.m.machine)
-            child = lambda *path: machine.get_child([f"{ns}:{p}" for p in path])  # noqa: E731
-            # Identification from the configuration.
-            self.assertEqual(await (await child("Identification", "Manufacturer")).read_value(),
+            sp, machine = await machine_node(client, s.m.machine)
+            at = lambda path: child(machine, sp, path)  # noqa: E731
+            # Identification from the configuration (DI's browse names and types).
+            self.assertEqual((await (await at("di:Identification/di:Manufacturer")).read_value()).Text,
                              "Test Works")
-            self.assertEqual(await (await child("Identification", "SerialNumber")).read_value(),
+            self.assertEqual(await (await at("di:Identification/di:SerialNumber")).read_value(),
                              "SN-opcua")
+            # The Machine Tools types, imported from the OPC Foundation's NodeSet2 files:
+            # each object's type definition is the specification's, and resolves.
+            for path, type_id, type_name in [
+                    (None, 13, "MachineToolType"),
+                    ("di:Identification", 11, "MachineToolIdentificationType"),
+                    ("mt:Monitoring", 14, "MonitoringType"),
+                    ("mt:Monitoring/mt:MachineTool", 26, "MachineOperationMonitoringType"),
+                    ("mt:Monitoring/own:Channel1", 16, "ChannelMonitoringType"),
+                    ("mt:Monitoring/own:Spindle", 22, "SpindleMonitoringType"),
+                    ("mt:Production", 21, "ProductionType"),
+                    ("mt:Production/mt:ActiveProgram", 32, "ProductionActiveProgramType"),
+                    ("mt:Production/mt:ActiveProgram/mt:State", 15, "ProductionProgramStateMachineType"),
+                    ("mt:Notification", 7, "NotificationType"),
+                    ("mt:Equipment", 12, "EquipmentType")]:
+                node = machine if path is None else await at(path)
+                type_node = client.get_node(await node.read_type_definition())
+                self.assertEqual(type_node.nodeid, ua.NodeId(type_id, sp["mt"]), path)
+                self.assertEqual(await type_node.read_browse_name(),
+                                 ua.QualifiedName(type_name, sp["mt"]), path)
             # Every node the documentation lists is there.
-            for path in [("Monitoring", "MachineTool", "OperationMode"),
-                         ("Monitoring", "MachineTool", "PowerOnDuration"),
-                         ("Monitoring", "Channel1", "ChannelState"),
-                         ("Monitoring", "Channel1", "FeedOverride"),
-                         ("Monitoring", "Spindle", "Override"),
-                         ("Monitoring", "Spindle", "IsRotating"),
-                         ("Monitoring", "Y", "ActualPosition"),
-                         ("Monitoring", "Z", "ActualPosition"),
-                         ("Production", "ActiveProgram", "Name"),
-                         ("Production", "ActiveProgram", "Line")]:
-                await (await child(*path)).read_value()
-            x = await child("Monitoring", "X", "ActualPosition")
-            state = await child("Production", "ActiveProgram", "State")
-            self.assertEqual(await state.read_value(), "Initializing")
-            self.assertEqual(await (await child("Monitoring", "Channel1", "FeedOverride")).read_value(),
+            for path in ["mt:Monitoring/mt:MachineTool/mt:OperationMode",
+                         "mt:Monitoring/mt:MachineTool/mt:PowerOnDuration",
+                         "mt:Monitoring/own:Channel1/mt:ChannelState",
+                         "mt:Monitoring/own:Channel1/mt:FeedOverride",
+                         "mt:Monitoring/own:Spindle/mt:Override",
+                         "mt:Monitoring/own:Spindle/mt:IsRotating",
+                         "mt:Monitoring/own:Y/own:ActualPosition",
+                         "mt:Monitoring/own:Z/own:ActualPosition",
+                         "mt:Production/mt:ActiveProgram/mt:Name",
+                         "mt:Production/mt:ActiveProgram/own:Line"]:
+                await (await at(path)).read_value()
+            # Idle: Manual (MachineOperationMode 0), the channel Reset (ChannelState 2).
+            self.assertEqual(await (await at("mt:Monitoring/mt:MachineTool/mt:OperationMode")).read_value(), 0)
+            self.assertEqual(await (await at("mt:Monitoring/own:Channel1/mt:ChannelState")).read_value(), 2)
+            x = await at("mt:Monitoring/own:X/own:ActualPosition")
+            state = await at("mt:Production/mt:ActiveProgram/mt:State/ua:CurrentState")
+            self.assertEqual((await state.read_value()).Text, "Initializing")
+            state_id = await state.get_child(["0:Id"])
+            self.assertEqual(await state_id.read_value(), ua.NodeId(5039, sp["mt"]))
+            self.assertEqual(await (await at("mt:Monitoring/own:Channel1/mt:FeedOverride")).read_value(),
                              100.0)
             # Refused: the server has no writable variable.
             with self.assertRaises(ua.UaStatusCodeError):
@@ -177,18 +217,20 @@ class OpcUaTest(unittest.TestCase):
             answer = s.post_program("part.ngc", "G21 G90\nG1 X20 F1200\nG1 X0\nM2\n")
             self.assertTrue(answer["ok"], answer)
             deadline = time.monotonic() + PATIENCE_S
-            while "Ended" not in handler.values.get(state.nodeid.to_string(), []):
+            texts = lambda: [v.Text for v in handler.values.get(state.nodeid.to_string(), [])]  # noqa: E731
+            while "Ended" not in texts():
                 self.assertLess(time.monotonic(), deadline, f"never ended: {handler.values}")
                 await asyncio.sleep(0.05)
-            states = handler.values[state.nodeid.to_string()]
+            states = texts()
             self.assertIn("Running", states)
             self.assertEqual(states[-1], "Ended")
             positions = handler.values[x.nodeid.to_string()]
             self.assertGreater(len(set(positions)), 3, positions)
             self.assertGreater(max(positions), 10.0, positions)
             self.assertEqual(await x.read_value(), 0.0)
-            name = await child("Production", "ActiveProgram", "Name")
+            name = await at("mt:Production/mt:ActiveProgram/mt:Name")
             self.assertEqual(await name.read_value(), "part.ngc")
+            self.assertEqual(await state_id.read_value(), ua.NodeId(5038, sp["mt"]), "Ended")
             await subscription.delete()
 
     def test_one_client_reads_two_machines_side_by_side(self):
@@ -199,9 +241,9 @@ class OpcUaTest(unittest.TestCase):
         serials = {}
         for s in (a, b):
             async with Client(url=f"opc.tcp://{s.opcua}/", timeout=PATIENCE_S) as client:
-                ns, machine = await machine_node(client, s.m.machine)
-                serial = await machine.get_child([f"{ns}:Identification", f"{ns}:SerialNumber"])
-                x = await machine.get_child([f"{ns}:Monitoring", f"{ns}:X", f"{ns}:ActualPosition"])
+                sp, machine = await machine_node(client, s.m.machine)
+                serial = await child(machine, sp, "di:Identification/di:SerialNumber")
+                x = await child(machine, sp, "mt:Monitoring/own:X/own:ActualPosition")
                 serials[s.m.machine] = (await serial.read_value(), await x.read_value())
         self.assertEqual(serials, {a.m.machine: ("SN-mill_a", 0.0), b.m.machine: ("SN-mill_b", 0.0)})
 
@@ -271,7 +313,8 @@ class SecureOpcUaTest(unittest.TestCase):
                 ("Aes128_Sha256_RsaOaep", "SignAndEncrypt", ("Anonymous", "UserName")),
                 ("Aes256_Sha256_RsaPss", "SignAndEncrypt", ("Anonymous", "UserName")),
             })
-            ns, machine = await machine_node(anonymous, s.m.machine)
+            sp, machine = await machine_node(anonymous, s.m.machine)
+            ns = sp["own"]
             control = await machine.get_child([f"{ns}:Control"])
             # Anonymous: reads, but may not call.
             with self.assertRaises(ua.UaStatusCodeError) as refused:
@@ -307,11 +350,11 @@ class SecureOpcUaTest(unittest.TestCase):
 
         op = await login("op", "operator-pass")
         try:
-            ns, machine = await machine_node(op, s.m.machine)
+            sp, machine = await machine_node(op, s.m.machine)
+            ns = sp["own"]
             control = await machine.get_child([f"{ns}:Control"])
-            channel = await machine.get_child([f"{ns}:Monitoring", f"{ns}:Channel1"])
-            feed = await channel.get_child([f"{ns}:FeedOverride"])
-            state = await machine.get_child([f"{ns}:Production", f"{ns}:ActiveProgram", f"{ns}:State"])
+            feed = await child(machine, sp, "mt:Monitoring/own:Channel1/mt:FeedOverride")
+            state = await child(machine, sp, "mt:Production/mt:ActiveProgram/mt:State/ua:CurrentState")
             answer = s.post_program("slow.ngc", "G21 G90\nG1 X30 F600\nG1 X0\nM2\n")
             self.assertTrue(answer["ok"], answer)
 
@@ -354,7 +397,8 @@ class SecureOpcUaTest(unittest.TestCase):
         # A viewer logs in and reads, but may not call.
         shop = await login("shop", "viewer-pass")
         try:
-            ns, machine = await machine_node(shop, s.m.machine)
+            sp, machine = await machine_node(shop, s.m.machine)
+            ns = sp["own"]
             control = await machine.get_child([f"{ns}:Control"])
             with self.assertRaises(ua.UaStatusCodeError) as refused:
                 await control.call_method(f"{ns}:SetFeedOverride", ua.Variant(100.0, ua.VariantType.Double))
@@ -365,7 +409,8 @@ class SecureOpcUaTest(unittest.TestCase):
 
     @staticmethod
     async def _eq(node, value):
-        return await node.read_value() == value
+        v = await node.read_value()
+        return (v.Text if isinstance(v, ua.LocalizedText) else v) == value
 
     @staticmethod
     async def _status_is(s, state):

@@ -1,7 +1,10 @@
-//! The OPC UA server of `kerf serve` (async-opcua): the machine as an object of the
-//! Machines folder, laid out with the browse names of the OPC UA for Machine Tools
-//! companion specification (OPC 40501-1) as far as Kerf has the data (docs/API.md, "OPC
-//! UA"), its values taken from the same status the page shows, ten times a second.
+//! The OPC UA server of `kerf serve` (async-opcua): the machine as a `MachineToolType`
+//! object of the Machinery `Machines` folder, laid out as the OPC UA for Machine Tools
+//! companion specification (OPC 40501-1) lays it out as far as Kerf has the data
+//! (docs/API.md, "OPC UA"), with the specifications' types imported from the OPC
+//! Foundation's NodeSet2 files built into the binary, its values taken from the same
+//! status the page shows, ten times a second.
+//!
 //! No variable is writable, so a client's write is refused by the server
 //! (`BadNotWritable`). With a certificate configured (`serve.opcua_certificate`), the
 //! server also offers secure endpoints where the configured users log in
@@ -18,12 +21,13 @@ use kerf_config::{Config, OpcuaRole, OpcuaUser};
 use kerf_proto::ControlCommand;
 use opcua::crypto::{CertificateStore, SecurityPolicy};
 use opcua::nodes::{AccessLevel, BaseEventType, MethodBuilder, ObjectBuilder, VariableBuilder};
+use opcua::nodes::{ImportedItem, NodeSet2Import, NodeSetImport};
 use opcua::server::authenticator::{AuthManager, Password, UserToken};
-use opcua::server::diagnostics::NamespaceMetadata;
-use opcua::server::node_manager::memory::{SimpleNodeManager, simple_node_manager};
+use opcua::server::node_manager::memory::{SimpleNodeManager, simple_node_manager_imports};
 use opcua::server::{
     ANONYMOUS_USER_TOKEN_ID, ServerBuilder, ServerEndpoint, ServerHandle, SubscriptionCache,
 };
+use opcua::types::NodeSetNamespaceMapper;
 use opcua::types::{
     Argument, ByteString, DataTypeId, DataValue, DateTime, Error as UaError, LocalizedText, NodeId,
     ObjectId, ObjectTypeId, QualifiedName, StatusCode, UAString, UserTokenPolicy, UserTokenType,
@@ -61,19 +65,24 @@ struct Var {
 struct Inputs<'a> {
     status: &'a Value,
     job: Option<&'a super::jobs::Job>,
+    /// The Machine Tools namespace's index.
+    mt_ns: u16,
 }
 
 /// The axes' names as the status has them.
 const AXES: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
 
-/// Machine tool operation mode (the Machinery specification's MachineryOperationMode):
-/// 3 processing while a program runs or pauses, 2 setup while the machine moves by hand
-/// or homes, 0 otherwise (none).
+/// The machine tool's operation mode (OPC 40501-1 MachineOperationMode): Automatic (1)
+/// while a program runs or pauses, Setup (2) while an axis homes, Manual (0) otherwise
+/// (Kerf has no mode switch: an idle machine takes jogs and MDI).
 fn operation_mode(i: &Inputs) -> Variant {
     let state = i.status["state"].as_str().unwrap_or("");
-    let mode: u32 = match state {
-        "running" | "holding" | "paused" | "starved" | "stopping" => 3,
-        "manual" => 2,
+    let homing = AXES
+        .iter()
+        .any(|a| !i.status["axes"][a]["homing"].is_null());
+    let mode: i32 = match state {
+        "running" | "holding" | "paused" | "starved" | "stopping" => 1,
+        "manual" if homing => 2,
         _ => 0,
     };
     Variant::from(mode)
@@ -91,19 +100,21 @@ fn channel_state(i: &Inputs) -> Variant {
     Variant::from(value)
 }
 
-/// The active program's state (the ProductionProgramState names): "Running" while its
-/// job runs and the machine moves it, "Interrupted" while held or paused, "Ended" when
-/// it finished, "Aborted" when it failed, "Initializing" before the first.
-fn program_state(i: &Inputs) -> Variant {
+/// The active program's state in ProductionProgramStateMachineType: its name and the
+/// state's node (in the Machine Tools namespace): "Running" while its job runs and the
+/// machine moves it, "Interrupted" while held or paused, "Ended" when it finished,
+/// "Aborted" when it failed, "Initializing" before the first.
+fn program_state(i: &Inputs) -> (&'static str, u32) {
     let state = i.status["state"].as_str().unwrap_or("");
-    let name = match i.job.map(|j| j.state) {
-        None => "Initializing",
-        Some(JobState::Finished) => "Ended",
-        Some(JobState::Failed) => "Aborted",
-        Some(JobState::Running) if matches!(state, "holding" | "paused" | "fault") => "Interrupted",
-        Some(JobState::Running) => "Running",
-    };
-    Variant::from(UAString::from(name))
+    match i.job.map(|j| j.state) {
+        None => ("Initializing", mt::INITIALIZING),
+        Some(JobState::Finished) => ("Ended", mt::ENDED),
+        Some(JobState::Failed) => ("Aborted", mt::ABORTED),
+        Some(JobState::Running) if matches!(state, "holding" | "paused" | "fault") => {
+            ("Interrupted", mt::INTERRUPTED)
+        }
+        Some(JobState::Running) => ("Running", mt::RUNNING),
+    }
 }
 
 /// What the OPC UA server needs of `kerf serve`: the status and jobs it shows, where its
@@ -185,23 +196,25 @@ pub async fn start(
         }
     }
     let (server, handle) = builder
-        .with_node_manager(simple_node_manager(
-            NamespaceMetadata {
-                namespace_uri: ns_uri.clone(),
-                ..Default::default()
-            },
-            "kerf",
-        ))
+        .with_node_manager(simple_node_manager_imports(imports(&ns_uri), "kerf"))
         .build()?;
     let manager = handle
         .node_managers()
         .get_of_type::<SimpleNodeManager>()
         .ok_or("no node manager")?;
-    let ns = handle
-        .get_namespace_index(&ns_uri)
-        .ok_or("no namespace index")?;
-    let (machine_id, vars) = address_space(config, &manager, ns);
-    control_methods(config, &manager, ns, &feeds);
+    let index = |uri: &str| {
+        handle
+            .get_namespace_index(uri)
+            .ok_or_else(|| format!("no namespace index of {uri}"))
+    };
+    let spaces = Spaces {
+        own: index(&ns_uri)?,
+        mt: index(MACHINE_TOOL_NS)?,
+        machinery: index(MACHINERY_NS)?,
+        di: index(DI_NS)?,
+    };
+    let (machine_id, vars) = address_space(config, &manager, spaces);
+    control_methods(config, &manager, spaces.own, &feeds);
     let subscriptions = handle.subscriptions().clone();
     tokio::spawn(async move {
         if let Err(e) = server.run_with(listener).await {
@@ -217,6 +230,7 @@ pub async fn start(
         feeds.status,
         feeds.jobs,
         handle.clone(),
+        spaces.mt,
     ));
     Ok(handle)
 }
@@ -429,56 +443,262 @@ fn control_methods(config: &Config, manager: &SimpleNodeManager, ns: u16, feeds:
     }
 }
 
+/// The namespaces of the companion specifications the address space uses.
+pub const MACHINERY_NS: &str = "http://opcfoundation.org/UA/Machinery/";
+/// The Machine Tools namespace.
+pub const MACHINE_TOOL_NS: &str = "http://opcfoundation.org/UA/MachineTool/";
+/// The Devices (DI) namespace.
+pub const DI_NS: &str = "http://opcfoundation.org/UA/DI/";
+
+/// The companion specifications' NodeSet2 files, built into the binary, in the order they
+/// depend on each other (crates/kerf/assets/opcua/README.md).
+const NODESETS: [&str; 6] = [
+    include_str!("../../assets/opcua/Opc.Ua.Di.NodeSet2.xml"),
+    include_str!("../../assets/opcua/Opc.Ua.IA.NodeSet2.xml"),
+    include_str!("../../assets/opcua/Opc.Ua.Machinery.NodeSet2.xml"),
+    include_str!("../../assets/opcua/opc.ua.isa95-jobcontrol.nodeset2.xml"),
+    include_str!("../../assets/opcua/Opc.Ua.Machinery.Jobs.Nodeset2.xml"),
+    include_str!("../../assets/opcua/Opc.Ua.MachineTool.NodeSet2.xml"),
+];
+
+/// The machine's own namespace, as an import of no nodes, so that one node manager holds
+/// the specifications' types and the machine's instance (references between them stay
+/// within one address space).
+struct OwnNamespace(String);
+
+impl NodeSetImport for OwnNamespace {
+    fn register_namespaces(&self, namespaces: &mut NodeSetNamespaceMapper) {
+        namespaces.add_namespace(&self.0, 1);
+    }
+
+    fn get_own_namespaces(&self) -> Vec<String> {
+        vec![self.0.clone()]
+    }
+
+    fn load<'a>(
+        &'a self,
+        _namespaces: &'a NodeSetNamespaceMapper,
+    ) -> Box<dyn Iterator<Item = ImportedItem> + 'a> {
+        Box::new(std::iter::empty())
+    }
+}
+
+/// A companion specification's NodeSet2 file, imported with its namespace indexes
+/// rewritten to the server's. (async-opcua 0.18's `NodeSet2Import` resolves a file's
+/// indexes as if they were the server's: it registers the file's namespaces but does not
+/// map its node ids through them, so a file whose `ns=1` is not the server's namespace 1
+/// would land in the wrong namespace.)
+struct Spec {
+    /// The file's text.
+    text: &'static str,
+    /// The namespace URIs of the file, in its order (its index 1 first).
+    uris: Vec<String>,
+    /// Its indexes in the server, by its own (set when the namespaces are registered).
+    map: std::sync::OnceLock<std::collections::HashMap<u16, u16>>,
+    /// The file with the server's indexes (made at the import).
+    import: std::sync::OnceLock<Result<NodeSet2Import, String>>,
+}
+
+impl Spec {
+    fn new(text: &'static str) -> Spec {
+        let uris = text
+            .split_once("<NamespaceUris>")
+            .and_then(|(_, rest)| rest.split_once("</NamespaceUris>"))
+            .map(|(list, _)| {
+                list.split("<Uri>")
+                    .filter_map(|u| u.split_once("</Uri>").map(|(uri, _)| uri.trim().to_owned()))
+                    .collect()
+            })
+            .unwrap_or_default();
+        Spec {
+            text,
+            uris,
+            map: std::sync::OnceLock::new(),
+            import: std::sync::OnceLock::new(),
+        }
+    }
+}
+
+/// `text` with every namespace index of a node id (`ns=K;`), a browse name (`K:Name` in
+/// `BrowseName="…"`) and a value's `<NamespaceIndex>K</…>` replaced by `map[K]`.
+fn rewrite_indexes(text: &str, map: &std::collections::HashMap<u16, u16>) -> String {
+    let mut out = String::with_capacity(text.len() + text.len() / 50);
+    let mut rest = text;
+    // The three forms: what precedes the index, and what follows it.
+    let forms: [(&str, char); 3] = [
+        ("ns=", ';'),
+        ("BrowseName=\"", ':'),
+        ("NamespaceIndex>", '<'),
+    ];
+    loop {
+        let next = forms
+            .iter()
+            .filter_map(|(lead, end)| rest.find(lead).map(|at| (at, *lead, *end)))
+            .min_by_key(|(at, _, _)| *at);
+        let Some((at, lead, end)) = next else {
+            out.push_str(rest);
+            return out;
+        };
+        let after = &rest[at + lead.len()..];
+        let digits = after.bytes().take_while(u8::is_ascii_digit).count();
+        out.push_str(&rest[..at + lead.len()]);
+        let mapped = after[..digits]
+            .parse::<u16>()
+            .ok()
+            .filter(|_| after[digits..].starts_with(end))
+            .and_then(|k| {
+                if k == 0 {
+                    Some(0)
+                } else {
+                    map.get(&k).copied()
+                }
+            });
+        match mapped {
+            Some(k) => out.push_str(&k.to_string()),
+            None => out.push_str(&after[..digits]),
+        }
+        rest = &after[digits..];
+    }
+}
+
+impl NodeSetImport for Spec {
+    fn register_namespaces(&self, namespaces: &mut NodeSetNamespaceMapper) {
+        for (i, uri) in self.uris.iter().enumerate() {
+            namespaces.add_namespace(uri, i as u16 + 1);
+        }
+        let _ = self.map.set(
+            namespaces
+                .index_map()
+                .iter()
+                .map(|(k, v)| (*k, *v))
+                .collect(),
+        );
+    }
+
+    fn get_own_namespaces(&self) -> Vec<String> {
+        self.uris.clone()
+    }
+
+    fn load<'a>(
+        &'a self,
+        namespaces: &'a NodeSetNamespaceMapper,
+    ) -> Box<dyn Iterator<Item = ImportedItem> + 'a> {
+        let import = self.import.get_or_init(|| {
+            let map = self.map.get().cloned().unwrap_or_default();
+            NodeSet2Import::new_str("en", &rewrite_indexes(self.text, &map), Vec::new())
+                .map_err(|e| e.to_string())
+        });
+        match import {
+            Ok(i) => i.load(namespaces),
+            Err(e) => {
+                eprintln!("kerf serve: a built-in NodeSet2 file could not be read: {e}");
+                Box::new(std::iter::empty())
+            }
+        }
+    }
+}
+
+/// The imports of the node manager: the specifications, then the machine's namespace.
+fn imports(ns_uri: &str) -> Vec<Box<dyn NodeSetImport>> {
+    let mut all: Vec<Box<dyn NodeSetImport>> = Vec::new();
+    for text in NODESETS {
+        all.push(Box::new(Spec::new(text)));
+    }
+    all.push(Box::new(OwnNamespace(ns_uri.to_owned())));
+    all
+}
+
+/// The namespace indexes the address space uses.
+#[derive(Clone, Copy)]
+struct Spaces {
+    /// The machine's own.
+    own: u16,
+    /// Machines Tools.
+    mt: u16,
+    /// Machinery.
+    machinery: u16,
+    /// Devices.
+    di: u16,
+}
+
+/// Machine Tools type ids (OPC 40501-1's NodeSet2: `ns=MachineTool;i=N`).
+mod mt {
+    pub const MACHINE_TOOL_TYPE: u32 = 13;
+    pub const IDENTIFICATION_TYPE: u32 = 11;
+    pub const MONITORING_TYPE: u32 = 14;
+    pub const MACHINE_OPERATION_MONITORING_TYPE: u32 = 26;
+    pub const CHANNEL_MONITORING_TYPE: u32 = 16;
+    pub const SPINDLE_MONITORING_TYPE: u32 = 22;
+    pub const PRODUCTION_TYPE: u32 = 21;
+    pub const PRODUCTION_ACTIVE_PROGRAM_TYPE: u32 = 32;
+    pub const PRODUCTION_PROGRAM_STATE_MACHINE_TYPE: u32 = 15;
+    pub const NOTIFICATION_TYPE: u32 = 7;
+    pub const EQUIPMENT_TYPE: u32 = 12;
+    pub const MACHINE_OPERATION_MODE: u32 = 65;
+    pub const CHANNEL_STATE: u32 = 64;
+    /// The states of ProductionProgramStateMachineType.
+    pub const INITIALIZING: u32 = 5039;
+    pub const RUNNING: u32 = 5041;
+    pub const ENDED: u32 = 5038;
+    pub const INTERRUPTED: u32 = 5040;
+    pub const ABORTED: u32 = 5037;
+}
+
+/// The Machinery `Machines` folder (OPC 40001-1), `ns=Machinery;i=1001`.
+const MACHINES_FOLDER: u32 = 1001;
+
 /// Builds the machine's nodes; the machine object's id and the variables to refresh.
-fn address_space(config: &Config, manager: &SimpleNodeManager, ns: u16) -> (NodeId, Vec<Var>) {
+fn address_space(config: &Config, manager: &SimpleNodeManager, sp: Spaces) -> (NodeId, Vec<Var>) {
     let machine = &config.machine;
+    let ns = sp.own;
     let id = |path: &str| NodeId::new(ns, format!("{machine}.{path}"));
-    let name = |n: &str| QualifiedName::new(ns, n);
     let mut vars = Vec::new();
     let mut space = manager.address_space().write();
-    let machines = NodeId::new(ns, "Machines");
-    ObjectBuilder::new(&machines, name("Machines"), "Machines")
-        .organized_by(ObjectId::ObjectsFolder)
-        .has_type_definition(ObjectTypeId::FolderType)
-        .insert(&mut *space);
     let root = NodeId::new(ns, machine.as_str());
-    ObjectBuilder::new(&root, name(machine), machine.as_str())
-        .organized_by(&machines)
-        .has_type_definition(ObjectTypeId::BaseObjectType)
+    ObjectBuilder::new(&root, QualifiedName::new(ns, machine), machine.as_str())
+        .organized_by(NodeId::new(sp.machinery, MACHINES_FOLDER))
+        .has_type_definition(NodeId::new(sp.mt, mt::MACHINE_TOOL_TYPE))
         .event_notifier(opcua::nodes::EventNotifier::SUBSCRIBE_TO_EVENTS)
         .insert(&mut *space);
-    let object =
-        |space: &mut opcua::server::address_space::AddressSpace, path: &str, parent: &NodeId| {
-            let node = id(path);
-            let leaf = path.rsplit('.').next().unwrap_or(path);
-            ObjectBuilder::new(&node, name(leaf), leaf)
-                .component_of(parent.clone())
-                .has_type_definition(ObjectTypeId::BaseObjectType)
-                .insert(space);
-            node
-        };
+    // An object `path` (its last word the display name) named `browse`, of type `type_id`.
+    let object = |space: &mut opcua::server::address_space::AddressSpace,
+                  path: &str,
+                  browse: QualifiedName,
+                  parent: &NodeId,
+                  type_id: NodeId| {
+        let node = id(path);
+        let leaf = path.rsplit('.').next().unwrap_or(path);
+        ObjectBuilder::new(&node, browse, leaf)
+            .component_of(parent.clone())
+            .has_type_definition(type_id)
+            .insert(space);
+        node
+    };
+    let base = || NodeId::from(ObjectTypeId::BaseObjectType);
     let constant = |space: &mut opcua::server::address_space::AddressSpace,
                     path: &str,
                     parent: &NodeId,
-                    value: &str| {
+                    value: Variant,
+                    data_type: DataTypeId| {
         let leaf = path.rsplit('.').next().unwrap_or(path);
-        VariableBuilder::new(&id(path), name(leaf), leaf)
+        VariableBuilder::new(&id(path), QualifiedName::new(sp.di, leaf), leaf)
             .property_of(parent.clone())
-            .data_type(DataTypeId::String)
-            .value(UAString::from(value))
+            .data_type(data_type)
+            .value(value)
             .access_level(AccessLevel::CURRENT_READ)
             .user_access_level(AccessLevel::CURRENT_READ)
             .insert(space);
     };
     let mut variable = |space: &mut opcua::server::address_space::AddressSpace,
                         path: &str,
+                        browse_ns: u16,
                         parent: &NodeId,
-                        data_type: DataTypeId,
+                        data_type: NodeId,
                         initial: Variant,
                         value: fn(&Inputs) -> Variant| {
         let leaf = path.rsplit('.').next().unwrap_or(path);
         let node = id(path);
-        VariableBuilder::new(&node, name(leaf), leaf)
+        VariableBuilder::new(&node, QualifiedName::new(browse_ns, leaf), leaf)
             .component_of(parent.clone())
             .data_type(data_type)
             .value(initial)
@@ -487,60 +707,79 @@ fn address_space(config: &Config, manager: &SimpleNodeManager, ns: u16) -> (Node
             .insert(space);
         vars.push(Var { id: node, value });
     };
-    // Identification.
-    let identification = object(&mut space, "Identification", &root);
+    // Identification (DI's browse names).
+    let identification = object(
+        &mut space,
+        "Identification",
+        QualifiedName::new(sp.di, "Identification"),
+        &root,
+        NodeId::new(sp.mt, mt::IDENTIFICATION_TYPE),
+    );
     let s = &config.serve;
-    constant(
-        &mut space,
-        "Identification.Manufacturer",
-        &identification,
-        &s.manufacturer,
-    );
-    constant(
-        &mut space,
-        "Identification.Model",
-        &identification,
-        &s.model,
-    );
     let serial = if s.serial_number.is_empty() {
         machine.as_str()
     } else {
         s.serial_number.as_str()
     };
-    constant(
-        &mut space,
-        "Identification.SerialNumber",
-        &identification,
-        serial,
-    );
-    constant(
-        &mut space,
-        "Identification.ProductInstanceUri",
-        &identification,
-        &format!("urn:kerf:{machine}"),
-    );
-    constant(
-        &mut space,
-        "Identification.SoftwareRevision",
-        &identification,
-        env!("CARGO_PKG_VERSION"),
-    );
+    for (path, value, data_type) in [
+        (
+            "Identification.Manufacturer",
+            Variant::from(LocalizedText::from(s.manufacturer.as_str())),
+            DataTypeId::LocalizedText,
+        ),
+        (
+            "Identification.Model",
+            Variant::from(LocalizedText::from(s.model.as_str())),
+            DataTypeId::LocalizedText,
+        ),
+        (
+            "Identification.SerialNumber",
+            Variant::from(UAString::from(serial)),
+            DataTypeId::String,
+        ),
+        (
+            "Identification.ProductInstanceUri",
+            Variant::from(UAString::from(format!("urn:kerf:{machine}"))),
+            DataTypeId::String,
+        ),
+        (
+            "Identification.SoftwareRevision",
+            Variant::from(UAString::from(env!("CARGO_PKG_VERSION"))),
+            DataTypeId::String,
+        ),
+    ] {
+        constant(&mut space, path, &identification, value, data_type);
+    }
     // Monitoring.
-    let monitoring = object(&mut space, "Monitoring", &root);
-    let tool = object(&mut space, "Monitoring.MachineTool", &monitoring);
+    let monitoring = object(
+        &mut space,
+        "Monitoring",
+        QualifiedName::new(sp.mt, "Monitoring"),
+        &root,
+        NodeId::new(sp.mt, mt::MONITORING_TYPE),
+    );
+    let tool = object(
+        &mut space,
+        "Monitoring.MachineTool",
+        QualifiedName::new(sp.mt, "MachineTool"),
+        &monitoring,
+        NodeId::new(sp.mt, mt::MACHINE_OPERATION_MONITORING_TYPE),
+    );
     variable(
         &mut space,
         "Monitoring.MachineTool.OperationMode",
+        sp.mt,
         &tool,
-        DataTypeId::UInt32,
-        Variant::from(0u32),
+        NodeId::new(sp.mt, mt::MACHINE_OPERATION_MODE),
+        Variant::from(0i32),
         operation_mode,
     );
     variable(
         &mut space,
         "Monitoring.MachineTool.PowerOnDuration",
+        sp.mt,
         &tool,
-        DataTypeId::UInt32,
+        DataTypeId::UInt32.into(),
         Variant::from(0u32),
         |i| {
             // Hours the daemon has run: its cycles times its period.
@@ -549,29 +788,44 @@ fn address_space(config: &Config, manager: &SimpleNodeManager, ns: u16) -> (Node
             Variant::from((cycles * period_us / 3.6e9) as u32)
         },
     );
-    let channel = object(&mut space, "Monitoring.Channel1", &monitoring);
+    let channel = object(
+        &mut space,
+        "Monitoring.Channel1",
+        QualifiedName::new(ns, "Channel1"),
+        &monitoring,
+        NodeId::new(sp.mt, mt::CHANNEL_MONITORING_TYPE),
+    );
     variable(
         &mut space,
         "Monitoring.Channel1.ChannelState",
+        sp.mt,
         &channel,
-        DataTypeId::Int32,
+        NodeId::new(sp.mt, mt::CHANNEL_STATE),
         Variant::from(2i32),
         channel_state,
     );
     variable(
         &mut space,
         "Monitoring.Channel1.FeedOverride",
+        sp.mt,
         &channel,
-        DataTypeId::Double,
+        DataTypeId::Double.into(),
         Variant::from(100.0),
         |i| Variant::from(i.status["override_pct"].as_f64().unwrap_or(0.0)),
     );
-    let spindle = object(&mut space, "Monitoring.Spindle", &monitoring);
+    let spindle = object(
+        &mut space,
+        "Monitoring.Spindle",
+        QualifiedName::new(ns, "Spindle"),
+        &monitoring,
+        NodeId::new(sp.mt, mt::SPINDLE_MONITORING_TYPE),
+    );
     variable(
         &mut space,
         "Monitoring.Spindle.Override",
+        sp.mt,
         &spindle,
-        DataTypeId::Double,
+        DataTypeId::Double.into(),
         Variant::from(100.0),
         |i| {
             Variant::from(
@@ -584,8 +838,9 @@ fn address_space(config: &Config, manager: &SimpleNodeManager, ns: u16) -> (Node
     variable(
         &mut space,
         "Monitoring.Spindle.IsRotating",
+        sp.mt,
         &spindle,
-        DataTypeId::Boolean,
+        DataTypeId::Boolean.into(),
         Variant::from(false),
         |i| {
             Variant::from(
@@ -595,6 +850,7 @@ fn address_space(config: &Config, manager: &SimpleNodeManager, ns: u16) -> (Node
             )
         },
     );
+    // The axes: Kerf's own (the specification has no axis monitoring).
     let present = config.axes.present();
     let position: [fn(&Inputs) -> Variant; 6] = [
         |i| Variant::from(i.status["position"]["x"].as_f64().unwrap_or(0.0)),
@@ -609,24 +865,44 @@ fn address_space(config: &Config, manager: &SimpleNodeManager, ns: u16) -> (Node
             continue;
         }
         let upper = axis.to_ascii_uppercase();
-        let node = object(&mut space, &format!("Monitoring.{upper}"), &monitoring);
+        let node = object(
+            &mut space,
+            &format!("Monitoring.{upper}"),
+            QualifiedName::new(ns, upper.as_str()),
+            &monitoring,
+            base(),
+        );
         variable(
             &mut space,
             &format!("Monitoring.{upper}.ActualPosition"),
+            ns,
             &node,
-            DataTypeId::Double,
+            DataTypeId::Double.into(),
             Variant::from(0.0),
             position[k],
         );
     }
     // Production.
-    let production = object(&mut space, "Production", &root);
-    let program = object(&mut space, "Production.ActiveProgram", &production);
+    let production = object(
+        &mut space,
+        "Production",
+        QualifiedName::new(sp.mt, "Production"),
+        &root,
+        NodeId::new(sp.mt, mt::PRODUCTION_TYPE),
+    );
+    let program = object(
+        &mut space,
+        "Production.ActiveProgram",
+        QualifiedName::new(sp.mt, "ActiveProgram"),
+        &production,
+        NodeId::new(sp.mt, mt::PRODUCTION_ACTIVE_PROGRAM_TYPE),
+    );
     variable(
         &mut space,
         "Production.ActiveProgram.Name",
+        sp.mt,
         &program,
-        DataTypeId::String,
+        DataTypeId::String.into(),
         Variant::from(UAString::from("")),
         |i| {
             Variant::from(UAString::from(match i.job {
@@ -638,19 +914,64 @@ fn address_space(config: &Config, manager: &SimpleNodeManager, ns: u16) -> (Node
     );
     variable(
         &mut space,
-        "Production.ActiveProgram.State",
-        &program,
-        DataTypeId::String,
-        Variant::from(UAString::from("Initializing")),
-        program_state,
-    );
-    variable(
-        &mut space,
         "Production.ActiveProgram.Line",
+        ns,
         &program,
-        DataTypeId::UInt32,
+        DataTypeId::UInt32.into(),
         Variant::from(0u32),
         |i| Variant::from(i.status["line"].as_u64().unwrap_or(0) as u32),
+    );
+    let state = object(
+        &mut space,
+        "Production.ActiveProgram.State",
+        QualifiedName::new(sp.mt, "State"),
+        &program,
+        NodeId::new(sp.mt, mt::PRODUCTION_PROGRAM_STATE_MACHINE_TYPE),
+    );
+    let current = id("Production.ActiveProgram.State.CurrentState");
+    VariableBuilder::new(
+        &current,
+        QualifiedName::new(0, "CurrentState"),
+        "CurrentState",
+    )
+    .component_of(state.clone())
+    .data_type(DataTypeId::LocalizedText)
+    .value(LocalizedText::from("Initializing"))
+    .access_level(AccessLevel::CURRENT_READ)
+    .user_access_level(AccessLevel::CURRENT_READ)
+    .insert(&mut *space);
+    vars.push(Var {
+        id: current.clone(),
+        value: |i| Variant::from(LocalizedText::from(program_state(i).0)),
+    });
+    let state_id = id("Production.ActiveProgram.State.CurrentState.Id");
+    VariableBuilder::new(&state_id, QualifiedName::new(0, "Id"), "Id")
+        .property_of(current)
+        .data_type(DataTypeId::NodeId)
+        .value(NodeId::new(sp.mt, mt::INITIALIZING))
+        .access_level(AccessLevel::CURRENT_READ)
+        .user_access_level(AccessLevel::CURRENT_READ)
+        .insert(&mut *space);
+    let state_ids = Var {
+        id: state_id,
+        value: |i| Variant::from(NodeId::new(i.mt_ns, program_state(i).1)),
+    };
+    vars.push(state_ids);
+    // Notification (the faults' events are raised on the machine) and Equipment (none
+    // described yet): present, as the type has them.
+    object(
+        &mut space,
+        "Notification",
+        QualifiedName::new(sp.mt, "Notification"),
+        &root,
+        NodeId::new(sp.mt, mt::NOTIFICATION_TYPE),
+    );
+    object(
+        &mut space,
+        "Equipment",
+        QualifiedName::new(sp.mt, "Equipment"),
+        &root,
+        NodeId::new(sp.mt, mt::EQUIPMENT_TYPE),
     );
     (root, vars)
 }
@@ -667,6 +988,7 @@ async fn refresh(
     status: watch::Receiver<Arc<String>>,
     jobs: Jobs,
     handle: ServerHandle,
+    mt_ns: u16,
 ) {
     let mut tick = tokio::time::interval(REFRESH);
     let mut last_fault: Option<String> = None;
@@ -679,6 +1001,7 @@ async fn refresh(
         let inputs = Inputs {
             status: &message["status"],
             job: job.as_ref(),
+            mt_ns,
         };
         let now = DateTime::now();
         let values: Vec<(&NodeId, Option<&opcua::types::NumericRange>, DataValue)> = vars
@@ -702,5 +1025,37 @@ async fn refresh(
             subscriptions.notify_events([(raised, &machine_id), (raised, &server)].into_iter());
         }
         last_fault = fault;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_nodesets_indexes_are_rewritten_to_the_servers_and_nothing_else() {
+        let map: std::collections::HashMap<u16, u16> = [(1, 7), (2, 3)].into_iter().collect();
+        let text = r#"<UAObject NodeId="ns=1;i=13" BrowseName="1:MachineToolType" ParentNodeId="ns=2;i=5">
+<Reference ReferenceType="HasSubtype" IsForward="false">ns=2;i=1001</Reference>
+<Reference ReferenceType="HasComponent">i=85</Reference>
+<Alias Alias="Ops">ns=0;i=9</Alias><NamespaceIndex>1</NamespaceIndex>
+<Description>ns=9 BrowseName="x" 12:00</Description>"#;
+        let out = rewrite_indexes(text, &map);
+        assert_eq!(
+            out,
+            r#"<UAObject NodeId="ns=7;i=13" BrowseName="7:MachineToolType" ParentNodeId="ns=3;i=5">
+<Reference ReferenceType="HasSubtype" IsForward="false">ns=3;i=1001</Reference>
+<Reference ReferenceType="HasComponent">i=85</Reference>
+<Alias Alias="Ops">ns=0;i=9</Alias><NamespaceIndex>7</NamespaceIndex>
+<Description>ns=9 BrowseName="x" 12:00</Description>"#
+        );
+    }
+
+    #[test]
+    fn every_built_in_nodeset_names_its_namespaces() {
+        let uris: Vec<Vec<String>> = NODESETS.iter().map(|t| Spec::new(t).uris).collect();
+        assert_eq!(uris[0], ["http://opcfoundation.org/UA/DI/"]);
+        assert_eq!(uris[5][0], MACHINE_TOOL_NS);
+        assert!(uris[5].iter().any(|u| u == MACHINERY_NS) && uris[5].iter().any(|u| u == DI_NS));
     }
 }
