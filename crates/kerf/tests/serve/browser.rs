@@ -114,6 +114,19 @@ impl Browser {
         r["result"]["value"].clone()
     }
 
+    /// A PNG screenshot of the tab of `session`, written to `path`.
+    pub fn screenshot(&mut self, session: &str, path: &std::path::Path) {
+        let shot = self.call(
+            Some(session),
+            "Page.captureScreenshot",
+            serde_json::json!({"format": "png"}),
+        )["data"]
+            .as_str()
+            .unwrap()
+            .to_owned();
+        std::fs::write(path, decode_base64(&shot)).unwrap();
+    }
+
     /// Waits until `expression` is true in the tab of `session` (an exception, as while
     /// the page still loads, counts as not yet).
     pub fn until(&mut self, session: &str, what: &str, expression: &str) {
@@ -155,7 +168,7 @@ pub fn pixels(browser: &mut Browser, session: &str, rgb: [u8; 3]) -> u64 {
 }
 
 /// Standard base64 (the screenshot), decoded.
-pub fn decode_base64(text: &str) -> Vec<u8> {
+fn decode_base64(text: &str) -> Vec<u8> {
     let value = |c: u8| match c {
         b'A'..=b'Z' => c - b'A',
         b'a'..=b'z' => c - b'a' + 26,

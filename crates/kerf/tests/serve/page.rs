@@ -2,7 +2,7 @@
 //! a second tab watching, the toolpath in 2D and 3D, an MDI line, control taken over, and
 //! a closed tab's jog stopped by the daemon's dead man's switch.
 
-use crate::browser::{Browser, decode_base64, pixels};
+use crate::browser::{Browser, pixels};
 use crate::{TOKEN, served, status_until};
 
 #[test]
@@ -68,16 +68,8 @@ fn in_a_real_browser_the_page_runs_holds_and_resumes_the_example_part_a_second_t
     );
     assert!(pixels(&mut b, &a, [0x1a, 0x8f, 0x3c]) > 20, "no tool drawn");
     assert!(pixels(&mut b, &a, [0xc0, 0x39, 0x2b]) > 10, "no cut drawn");
-    let shot = b.call(
-        Some(&a),
-        "Page.captureScreenshot",
-        serde_json::json!({"format": "png"}),
-    )["data"]
-        .as_str()
-        .unwrap()
-        .to_owned();
     let png = s.env.dir.join("page-running.png");
-    std::fs::write(&png, decode_base64(&shot)).unwrap();
+    b.screenshot(&a, &png);
     assert!(
         std::fs::read(&png).unwrap().starts_with(b"\x89PNG"),
         "{}",
@@ -145,15 +137,7 @@ fn in_a_real_browser_the_page_runs_holds_and_resumes_the_example_part_a_second_t
         "no cut drawn in 3D"
     );
     assert_ne!(b.eval(&a, picture), xy, "the 3D view is the XY view");
-    let shot = b.call(
-        Some(&a),
-        "Page.captureScreenshot",
-        serde_json::json!({"format": "png"}),
-    )["data"]
-        .as_str()
-        .unwrap()
-        .to_owned();
-    std::fs::write(s.env.dir.join("page-3d.png"), decode_base64(&shot)).unwrap();
+    b.screenshot(&a, &s.env.dir.join("page-3d.png"));
     // A button to home each axis.
     assert_eq!(
         b.eval(
