@@ -194,7 +194,8 @@ class OpcUaTest(unittest.TestCase):
                          "mt:Monitoring/own:Y/own:ActualPosition",
                          "mt:Monitoring/own:Z/own:ActualPosition",
                          "mt:Production/mt:ActiveProgram/mt:Name",
-                         "mt:Production/mt:ActiveProgram/own:Line"]:
+                         "mt:Production/mt:ActiveProgram/own:Line",
+                         "mt:Production/mt:ActiveProgram/own:Progress"]:
                 await (await at(path)).read_value()
             # Idle: Manual (MachineOperationMode 0), the channel Reset (ChannelState 2).
             self.assertEqual(await (await at("mt:Monitoring/mt:MachineTool/mt:OperationMode")).read_value(), 0)
@@ -231,6 +232,8 @@ class OpcUaTest(unittest.TestCase):
             name = await at("mt:Production/mt:ActiveProgram/mt:Name")
             self.assertEqual(await name.read_value(), "part.ngc")
             self.assertEqual(await state_id.read_value(), ua.NodeId(5038, sp["mt"]), "Ended")
+            progress = await at("mt:Production/mt:ActiveProgram/own:Progress")
+            self.assertEqual(await progress.read_value(), 100.0)
             await subscription.delete()
 
     def test_one_client_reads_two_machines_side_by_side(self):

@@ -91,7 +91,7 @@ $("mdi-line").addEventListener("keydown", (e) => { if (e.key === "Enter") runMdi
 // The toolpath view: the job's toolpath (GET /api/v1/job/toolpath, machine mm), the part
 // already cut (the tool's positions from the stream while a program runs) and the tool;
 // in a plane, or in 3D (an orthographic view turned by dragging).
-const view = { toolpath: null, jobId: null, cut: [], tool: null, yaw: -0.6, pitch: 0.9 };
+const view = { toolpath: null, jobId: null, job: null, cut: [], tool: null, yaw: -0.6, pitch: 0.9 };
 const PLANES = { xy: [0, 1], xz: [0, 2], yz: [1, 2] };
 
 // The projection of a point (machine mm) on the view's plane: [u, v].
@@ -159,6 +159,7 @@ $("plane").addEventListener("change", draw);
 async function showJob() {
   const answer = await (await fetch("/api/v1/job")).json();
   const job = answer.job;
+  view.job = job;
   if (job && job.kind === "program" && job.id !== view.jobId) {
     const response = await fetch("/api/v1/job/toolpath");
     if (response.ok) {
@@ -222,19 +223,30 @@ function jogButton(axis, direction) {
 
 function fixed(v) { return typeof v === "number" ? v.toFixed(3) : "–"; }
 
+let previous = null;
 function show(message) {
   latest = message;
   if (!message.connected) {
     $("state").textContent = "no daemon";
     $("state").className = "state fault";
     $("fault").textContent = message.reason || "";
+    previous = message;
     return;
   }
   const s = message.status;
   $("machine").textContent = s.machine;
   $("state").textContent = s.state;
   $("state").className = "state " + s.state;
-  $("line").textContent = s.line;
+  // The program's progress: the line being executed of its lines (GET /api/v1/job).
+  const lines = view.job && view.job.kind === "program" ? view.job.lines : 0;
+  $("line").textContent = lines > 0 ? s.line + " of " + lines + " (" + Math.min(100, Math.round(100 * s.line / lines)) + " %)" : s.line;
+  // The path speed, from the positions of this message and the last (about 50 ms apart).
+  if (previous && previous.connected && message.t_ms > previous.t_ms) {
+    const p0 = previous.status.position, p1 = s.position;
+    const mm = Math.hypot(p1.x - p0.x, p1.y - p0.y, p1.z - p0.z);
+    $("feed").textContent = Math.round(mm / (message.t_ms - previous.t_ms) * 60000);
+  }
+  previous = message;
   $("queued").textContent = (s.queued_s || 0).toFixed(1);
   $("pause").textContent = s.pause ? "paused: " + (s.pause.reason || "") : "";
   $("fault").textContent = s.fault || "";

@@ -493,6 +493,9 @@ fn a_program_sent_through_the_api_runs_as_kerf_run_runs_it_and_a_bad_one_comes_b
     assert_eq!(code, 202, "{answer}");
     assert_eq!(answer["job"]["name"], "part.ngc");
     assert_eq!(answer["job"]["state"], "running");
+    // Its lines, for its progress (counted here with the standard library's lines()).
+    let lines = std::str::from_utf8(part).unwrap().lines().count();
+    assert_eq!(answer["job"]["lines"], lines, "{answer}");
     let job = job_until(s.addr, "the part ended", |j| j["state"] != "running");
     assert_eq!(
         (job["state"].clone(), job["exit_code"].clone()),

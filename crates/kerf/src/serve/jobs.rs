@@ -80,6 +80,15 @@ pub struct Job {
     pub toolpath: Option<Arc<String>>,
     /// The child process's id.
     pub pid: u32,
+    /// The program's lines (an MDI line: 1), for its progress.
+    pub lines: u32,
+}
+
+/// How many lines `text` has (a last line without its newline counts).
+pub fn line_count(text: &[u8]) -> u32 {
+    let newlines = text.iter().filter(|b| **b == b'\n').count();
+    let unterminated = usize::from(!text.is_empty() && !text.ends_with(b"\n"));
+    u32::try_from(newlines + unterminated).unwrap_or(u32::MAX)
 }
 
 /// The jobs of one `kerf serve`.
@@ -151,7 +160,13 @@ impl Jobs {
             args.extend(["--config".into(), c.clone().into_os_string()]);
         }
         args.push(path.into_os_string());
-        let id = self.spawn(&mut current, JobKind::Program, name, &args)?;
+        let id = self.spawn(
+            &mut current,
+            JobKind::Program,
+            name,
+            line_count(text),
+            &args,
+        )?;
         // The toolpath for the page, beside the run.
         let (machine, program, text, state) = (
             self.machine.clone(),
@@ -190,7 +205,7 @@ impl Jobs {
         }
         // After `--`, a line starting with `-` is the line, not an option.
         args.extend(["--".into(), line.into()]);
-        self.spawn(&mut current, JobKind::Mdi, line, &args)
+        self.spawn(&mut current, JobKind::Mdi, line, 1, &args)
     }
 
     /// The job state, locked, when no job runs.
@@ -214,6 +229,7 @@ impl Jobs {
         current: &mut Option<Job>,
         kind: JobKind,
         name: &str,
+        lines: u32,
         args: &[std::ffi::OsString],
     ) -> Result<u64, StartRefused> {
         let mut child = Command::new(&self.kerf)
@@ -233,6 +249,7 @@ impl Jobs {
             messages: Vec::new(),
             toolpath: None,
             pid: child.id(),
+            lines,
         });
         let stderr = child.stderr.take();
         let state = Arc::clone(&self.current);
@@ -300,18 +317,19 @@ impl Jobs {
     }
 }
 
-/// A job as the API's JSON: `{"id":…,"kind":…,"name":…,"state":…,"exit_code":…,
-/// "messages":[…]}`, `null` before the first.
+/// A job as the API's JSON: `{"id":…,"kind":…,"name":…,"lines":…,"state":…,
+/// "exit_code":…,"messages":[…]}`, `null` before the first.
 pub fn job_json(job: Option<&Job>) -> String {
     let Some(j) = job else {
         return "null".into();
     };
     let messages: Vec<String> = j.messages.iter().map(|m| json_string(m)).collect();
     format!(
-        "{{\"id\":{},\"kind\":\"{}\",\"name\":{},\"state\":\"{}\",\"exit_code\":{},\"messages\":[{}]}}",
+        "{{\"id\":{},\"kind\":\"{}\",\"name\":{},\"lines\":{},\"state\":\"{}\",\"exit_code\":{},\"messages\":[{}]}}",
         j.id,
         j.kind.name(),
         json_string(&j.name),
+        j.lines,
         j.state.name(),
         j.exit_code.map_or("null".into(), |c| c.to_string()),
         messages.join(",")
@@ -321,6 +339,15 @@ pub fn job_json(job: Option<&Job>) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_programs_lines_are_counted_as_an_editor_numbers_them() {
+        assert_eq!(line_count(b""), 0);
+        assert_eq!(line_count(b"G0 X1"), 1);
+        assert_eq!(line_count(b"G0 X1\n"), 1);
+        assert_eq!(line_count(b"G0 X1\nG0 X2"), 2);
+        assert_eq!(line_count(b"%\nG0 X1\r\nM2\n%\n"), 4);
+    }
 
     #[test]
     fn only_plain_file_names_are_kept() {

@@ -100,6 +100,23 @@ fn channel_state(i: &Inputs) -> Variant {
     Variant::from(value)
 }
 
+/// The active program's progress, %: the line being executed of its lines while it runs,
+/// 100 once it finished, 0 before the first program (an MDI line has none: 0).
+fn progress(i: &Inputs) -> Variant {
+    let percent = match i.job {
+        Some(j) if j.kind == super::jobs::JobKind::Program => match j.state {
+            JobState::Finished => 100.0,
+            _ if j.lines == 0 => 0.0,
+            _ => {
+                let line = i.status["line"].as_f64().unwrap_or(0.0);
+                (line / f64::from(j.lines) * 100.0).clamp(0.0, 100.0)
+            }
+        },
+        _ => 0.0,
+    };
+    Variant::from(percent)
+}
+
 /// The active program's state in ProductionProgramStateMachineType: its name and the
 /// state's node (in the Machine Tools namespace): "Running" while its job runs and the
 /// machine moves it, "Interrupted" while held or paused, "Ended" when it finished,
@@ -920,6 +937,15 @@ fn address_space(config: &Config, manager: &SimpleNodeManager, sp: Spaces) -> (N
         DataTypeId::UInt32.into(),
         Variant::from(0u32),
         |i| Variant::from(i.status["line"].as_u64().unwrap_or(0) as u32),
+    );
+    variable(
+        &mut space,
+        "Production.ActiveProgram.Progress",
+        ns,
+        &program,
+        DataTypeId::Double.into(),
+        Variant::from(0.0),
+        progress,
     );
     let state = object(
         &mut space,

@@ -49,6 +49,15 @@ fn in_a_real_browser_the_page_runs_holds_and_resumes_the_example_part_a_second_t
         "the part running",
         "document.getElementById('state').textContent === 'running'",
     );
+    // Its progress: the line being executed of the part's lines.
+    let lines = std::fs::read_to_string(&part).unwrap().lines().count();
+    b.until(
+        &a,
+        "the progress",
+        &format!(
+            "/^\\d+ of {lines} \\(\\d+ %\\)$/.test(document.getElementById('line').textContent)"
+        ),
+    );
     // A second tab watches the same run.
     let (watcher_target, w) = b.open(&url);
     b.until(
