@@ -574,6 +574,7 @@ fn mdi_lines_from_the_api_run_as_kerf_mdi_runs_them_and_a_bad_one_comes_back_wit
     let before = job_until(s.addr, "the last job", |_| true)["id"].clone();
     for body in [
         r#"{"line":"G0 X5\nG0 X6"}"#.to_owned(),
+        r#"{"line":"G0 X5\u0000"}"#.to_owned(),
         r#"{"line":"   "}"#.to_owned(),
         serde_json::json!({ "line": format!("G0 X5 ({})", "x".repeat(300)) }).to_string(),
         r#"{"line":"G0 X5","dialect":"fagor"}"#.to_owned(),

@@ -193,9 +193,11 @@ impl Jobs {
     /// Starts `kerf mdi LINE` (the machine's dialect, offsets and tool; its modal state
     /// starts as a program's does); the new job's id.
     pub fn start_mdi(&self, line: &str) -> Result<u64, StartRefused> {
-        if line.trim().is_empty() || line.len() > MDI_LINE_LIMIT || line.contains(['\n', '\r']) {
+        // One line: no line break, nor another control character but the tab.
+        let controls = line.chars().any(|c| c.is_control() && c != '\t');
+        if line.trim().is_empty() || line.len() > MDI_LINE_LIMIT || controls {
             return Err(StartRefused::Line(format!(
-                "an MDI line is one line of 1 to {MDI_LINE_LIMIT} bytes"
+                "an MDI line is one line of 1 to {MDI_LINE_LIMIT} bytes without control characters"
             )));
         }
         let mut current = self.idle()?;
