@@ -85,13 +85,20 @@ pub const PASSWORD_HASH_SCHEME: &str = "pbkdf2-sha256";
 /// cheap to guess.
 pub const MIN_PASSWORD_ITERATIONS: u32 = 10_000;
 
-fn from_hex(text: &str) -> Option<Vec<u8>> {
-    if !text.len().is_multiple_of(2) {
+/// `bytes` as lower-case hex digits, two per byte.
+pub fn to_hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// The bytes of `text`, pairs of hex digits (either case); None for anything else (a sign
+/// included, which `from_str_radix` alone would take).
+pub(crate) fn from_hex(text: &str) -> Option<Vec<u8>> {
+    if !text.len().is_multiple_of(2) || !text.bytes().all(|b| b.is_ascii_hexdigit()) {
         return None;
     }
     (0..text.len())
         .step_by(2)
-        .map(|i| u8::from_str_radix(text.get(i..i + 2)?, 16).ok())
+        .map(|i| u8::from_str_radix(&text[i..i + 2], 16).ok())
         .collect()
 }
 
@@ -121,13 +128,12 @@ impl PasswordHash {
 
 impl std::fmt::Display for PasswordHash {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let hex = |b: &[u8]| b.iter().map(|x| format!("{x:02x}")).collect::<String>();
         write!(
             f,
             "{PASSWORD_HASH_SCHEME}${}${}${}",
             self.iterations,
-            hex(&self.salt),
-            hex(&self.hash)
+            to_hex(&self.salt),
+            to_hex(&self.hash)
         )
     }
 }

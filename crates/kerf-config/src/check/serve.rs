@@ -52,27 +52,13 @@ impl Checker<'_> {
             }
         }
         if let Some(token) = &raw.control_token_sha256 {
-            let text = token.get_ref();
-            let mut hash = [0u8; 32];
-            let hex = |c: u8| (c as char).to_digit(16);
-            let valid = text.len() == 64
-                && text
-                    .as_bytes()
-                    .chunks(2)
-                    .zip(hash.iter_mut())
-                    .all(|(pair, out)| match (hex(pair[0]), hex(pair[1])) {
-                        (Some(hi), Some(lo)) => {
-                            *out = (hi * 16 + lo) as u8;
-                            true
-                        }
-                        _ => false,
-                    });
-            if !valid {
+            let hash: Option<[u8; 32]> = from_hex(token.get_ref()).and_then(|b| b.try_into().ok());
+            let Some(hash) = hash else {
                 return Err(self.error(
                     token.span(),
                     "`serve.control_token_sha256` must be the SHA-256 of the control token, 64 hex digits (`kerf serve --hash-token` prints it), not the token itself".to_string(),
                 ));
-            }
+            };
             serve.control_token_sha256 = Some(hash);
         }
         self.opcua_security(raw, &mut serve)?;

@@ -77,16 +77,18 @@ pub fn hash_password(password: &str) -> std::io::Result<kerf_config::PasswordHas
 /// Whether `password` is the one `kept` was made from; compared without an early exit.
 pub fn password_matches(password: &str, kept: &kerf_config::PasswordHash) -> bool {
     let derived = derive_password(password.as_bytes(), &kept.salt, kept.iterations);
-    derived
-        .iter()
-        .zip(&kept.hash)
-        .fold(0u8, |acc, (a, b)| acc | (a ^ b))
-        == 0
+    same_hash(&derived, &kept.hash)
+}
+
+/// Whether two hashes are equal, compared without an early exit, so that the time says
+/// nothing of where they differ.
+pub fn same_hash(a: &[u8; 32], b: &[u8; 32]) -> bool {
+    a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
 }
 
 /// `hash` as 64 lower-case hex digits.
 pub fn hex(hash: &[u8; 32]) -> String {
-    hash.iter().map(|b| format!("{b:02x}")).collect()
+    kerf_config::to_hex(hash)
 }
 
 /// Serves the machine of `config` (read from `config_path`, or the default when None: the
