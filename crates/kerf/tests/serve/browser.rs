@@ -152,19 +152,21 @@ impl Browser {
 /// How many pixels of the view canvas have (about) colour `rgb`.
 pub fn pixels(browser: &mut Browser, session: &str, rgb: [u8; 3]) -> u64 {
     browser
-        .eval(
-            session,
-            &format!(
-                "(() => {{ const c = document.getElementById('view'); \
-                 const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; \
-                 let n = 0; for (let i = 0; i < d.length; i += 4) {{ \
-                 if (Math.abs(d[i] - {}) < 40 && Math.abs(d[i+1] - {}) < 40 && Math.abs(d[i+2] - {}) < 40 && d[i+3] > 200) n++; }} \
-                 return n; }})()",
-                rgb[0], rgb[1], rgb[2]
-            ),
-        )
+        .eval(session, &pixels_expression(rgb))
         .as_u64()
         .unwrap()
+}
+
+/// The JavaScript expression that counts the view canvas's pixels of (about) colour `rgb`.
+pub fn pixels_expression(rgb: [u8; 3]) -> String {
+    format!(
+        "(() => {{ const c = document.getElementById('view'); \
+         const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; \
+         let n = 0; for (let i = 0; i < d.length; i += 4) {{ \
+         if (Math.abs(d[i] - {}) < 40 && Math.abs(d[i+1] - {}) < 40 && Math.abs(d[i+2] - {}) < 40 && d[i+3] > 200) n++; }} \
+         return n; }})()",
+        rgb[0], rgb[1], rgb[2]
+    )
 }
 
 /// Standard base64 (the screenshot), decoded.

@@ -2,7 +2,7 @@
 //! a second tab watching, the toolpath in 2D and 3D, an MDI line, control taken over, and
 //! a closed tab's jog stopped by the daemon's dead man's switch.
 
-use crate::browser::{Browser, pixels};
+use crate::browser::{Browser, pixels, pixels_expression};
 use crate::{TOKEN, served, status_until};
 
 #[test]
@@ -66,10 +66,15 @@ fn in_a_real_browser_the_page_runs_holds_and_resumes_the_example_part_a_second_t
         "document.getElementById('state').textContent === 'running'",
     );
     // The toolpath and the tool on it, drawn; a screenshot of the page while it runs.
+    // The cut is waited for until it shows in XY: its first points may be plunges along Z,
+    // which the XY view draws as a dot.
     b.until(
         &a,
-        "the toolpath",
-        "view.toolpath !== null && view.cut.length > 5",
+        "the toolpath and the cut in XY",
+        &format!(
+            "view.toolpath !== null && view.cut.length > 5 && {} > 10",
+            pixels_expression([0xc0, 0x39, 0x2b])
+        ),
     );
     assert!(
         pixels(&mut b, &a, [0x24, 0x57, 0xa6]) > 100,
