@@ -401,3 +401,65 @@ pub fn s_chain(arcs: usize) -> CamProgram {
         pieces,
     }
 }
+
+/// A non-repeating dense finishing raster of `segments` G1 moves, the same for the same
+/// `seed`: rows of 30 mm along X, 0.5 mm apart, a point every 0.05 mm, F3000, G64 P0.01,
+/// Z on a gentle surface (two waves whose amplitudes and wavelengths change from row to
+/// row, drawn from the seed) plus a seeded noise of ±`noise_mm` at every point, written
+/// with 4 decimals. No two moves have the same shape, so the planner's memos of repeated
+/// shapes never help: this is planning's cost on code that never repeats.
+pub fn noisy_surface(segments: usize, seed: u64, noise_mm: f64) -> String {
+    let mut rng = SplitMix64(seed);
+    let points = (30.0 / RASTER_STEP_MM).round() as usize;
+    let mut text = String::with_capacity(segments * 28 + 64);
+    text.push_str(&header(3000.0));
+    let mut written = 0usize;
+    let mut row = 0usize;
+    let mut first = true;
+    while written < segments {
+        let y = row as f64 * RASTER_ROW_GAP_MM;
+        let forward = row.is_multiple_of(2);
+        let (a1, l1) = (0.2 + 1.3 * rng.unit(), 2.0 + 6.0 * rng.unit());
+        let (a2, l2) = (0.3 * rng.unit(), 0.5 + 2.5 * rng.unit());
+        // The row change is the first point of the row (a move along Y and Z).
+        for i in 0..=points {
+            if written == segments {
+                break;
+            }
+            if row == 0 && i == 0 {
+                continue;
+            }
+            let k = if forward { i } else { points - i };
+            let x = k as f64 * RASTER_STEP_MM;
+            let z = a1 * (x / l1).sin() * (y / 7.0).cos()
+                + a2 * ((x + y) / l2).sin()
+                + noise_mm * (2.0 * rng.unit() - 1.0);
+            let g = if first { "G1 " } else { "" };
+            first = false;
+            let _ = writeln!(text, "{g}X{} Y{} Z{}", num(x, 4), num(y, 4), num(z, 4));
+            written += 1;
+        }
+        row += 1;
+    }
+    text.push_str("M2\n");
+    text
+}
+
+/// A small, fixed pseudo-random generator (SplitMix64): the generated programs are the
+/// same on every machine without a dependency.
+struct SplitMix64(u64);
+
+impl SplitMix64 {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1).
+    fn unit(&mut self) -> f64 {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+}

@@ -17,6 +17,9 @@ use kerf_benches::{cam, measure};
 use kerf_pipeline::{Input, plan_input};
 use kerf_plan::Planner;
 
+/// Moves of the non-repeating surface.
+const NOISY_SEGMENTS: usize = 20_000;
+
 fn main() -> ExitCode {
     match run() {
         Ok(()) => ExitCode::SUCCESS,
@@ -35,9 +38,18 @@ fn run() -> anyhow::Result<()> {
         "| program | moves | planning, µs per move | planning total | motion time | real-time factor |"
     );
     println!("|---|---:|---:|---:|---:|---:|");
-    for p in cam::corpus().iter().filter(|p| p.name.contains(&filter)) {
-        let moves = measure::programmed_moves(&p.name, &p.text, &config)?;
-        let motion = measure::run_kerf(&p.name, &moves, &config)?;
+    // The corpus, and a surface whose moves never repeat (the memos cannot help).
+    let mut programs: Vec<(String, String)> = cam::corpus()
+        .into_iter()
+        .map(|p| (p.name, p.text))
+        .collect();
+    programs.push((
+        "noisy surface 20000 (non-repeating)".to_string(),
+        cam::noisy_surface(NOISY_SEGMENTS, 1, 0.002),
+    ));
+    for (name, text) in programs.iter().filter(|(n, _)| n.contains(&filter)) {
+        let moves = measure::programmed_moves(name, text, &config)?;
+        let motion = measure::run_kerf(name, &moves, &config)?;
         let mut best_s = f64::INFINITY;
         let mut segments = 0usize;
         for _ in 0..5 {
@@ -47,7 +59,7 @@ fn run() -> anyhow::Result<()> {
             let start = Instant::now();
             for m in &moves {
                 plan_input(&mut planner, &Input::Move(*m), &mut buf)
-                    .with_context(|| format!("planning {}", p.name))?;
+                    .with_context(|| format!("planning {name}"))?;
                 count += buf.len();
                 buf.clear();
             }
@@ -56,10 +68,10 @@ fn run() -> anyhow::Result<()> {
             best_s = best_s.min(start.elapsed().as_secs_f64());
             segments = count;
         }
-        assert!(segments > 0, "{}: nothing planned", p.name);
+        assert!(segments > 0, "{name}: nothing planned");
         println!(
             "| {} | {} | {:.2} | {:.2} ms | {:.3} s | {:.0}× |",
-            p.name,
+            name,
             moves.len(),
             best_s * 1e6 / moves.len() as f64,
             best_s * 1e3,
