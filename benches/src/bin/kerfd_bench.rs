@@ -19,6 +19,10 @@
 //!     resumes. Prints the delay from the request (CLOCK_MONOTONIC, compared with the
 //!     setpoints' time stamps) and the request round trip. With `--config FILE` it talks
 //!     to a running `kerfd` of that machine instead of starting one.
+//! kerfd_bench roundtrip [--period-us N] [--requests N] [--fifo] [--config FILE]
+//!     The request round trip of a status request (the machine idle: no command for the
+//!     cycle to apply), N times (10,000 unless given), 100 µs apart: min, median, p99,
+//!     p99.9, max.
 //! kerfd_bench send-copy [--samples N]
 //!     The cost of iceoryx2's `send_copy` of one setpoint called inline.
 //! ```
@@ -39,9 +43,10 @@ fn main() -> ExitCode {
         Some("timing") => timing(&args[1..]),
         Some("throughput") => throughput(&args[1..]),
         Some("hold") => hold(&args[1..]),
+        Some("roundtrip") => roundtrip(&args[1..]),
         Some("send-copy") => send_copy(&args[1..]),
         _ => Err(
-            "usage: kerfd_bench timing|throughput|hold|send-copy [options] (see the source's header)"
+            "usage: kerfd_bench timing|throughput|hold|roundtrip|send-copy [options] (see the source's header)"
                 .to_string(),
         ),
     };
@@ -446,6 +451,48 @@ fn send_copy(args: &[String]) -> Result<(), String> {
         "inline send_copy of a SetpointMsg, {n} samples: {}",
         h.percentiles()
     );
+    Ok(())
+}
+
+fn roundtrip(args: &[String]) -> Result<(), String> {
+    let period_us: u32 = opt(args, "--period-us", 1000)?;
+    let requests: usize = opt(args, "--requests", 10_000)?;
+    let fifo = flag(args, "--fifo");
+    let external: Option<String> =
+        opt(args, "--config", String::new()).map(|s| if s.is_empty() { None } else { Some(s) })?;
+    let (config, daemon) = match &external {
+        Some(path) => {
+            let c = Config::load(std::path::Path::new(path)).map_err(|e| e.to_string())?;
+            (c, None)
+        }
+        None => {
+            let c = bench_config(period_us);
+            let d = kerfd::start(&c, fifo).map_err(|e| e.to_string())?;
+            (c, Some(d))
+        }
+    };
+    let mut client = Client::connect(&config.machine).map_err(|e| e.to_string())?;
+    let mut rtt_us = Vec::with_capacity(requests);
+    for _ in 0..requests {
+        let sent_ns = kerf_rt::now_ns();
+        client.status().map_err(|e| e.to_string())?;
+        rtt_us.push(us(kerf_rt::now_ns() - sent_ns));
+        std::thread::sleep(Duration::from_micros(100));
+    }
+    rtt_us.sort_by(f64::total_cmp);
+    let at = |q: f64| rtt_us[((rtt_us.len() - 1) as f64 * q).round() as usize];
+    println!(
+        "status round trip over {requests} requests, µs: min {:.1}, median {:.1}, p99 {:.1}, p99.9 {:.1}, max {:.1}",
+        at(0.0),
+        at(0.5),
+        at(0.99),
+        at(0.999),
+        at(1.0)
+    );
+    if let Some(d) = daemon {
+        d.shutdown();
+        d.join()?;
+    }
     Ok(())
 }
 

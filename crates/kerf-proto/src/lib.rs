@@ -73,6 +73,13 @@ pub const SERVICE_MOVES: &str = "moves";
 pub const SERVICE_SETPOINTS: &str = "setpoints";
 /// Service for [`Request`] / [`Response`] between clients and the daemon (request/response).
 pub const SERVICE_CONTROL: &str = "control";
+/// Event service a client notifies after sending a [`Request`], so that the daemon takes
+/// it at once instead of at its next look (optional: requests of a client that does not
+/// notify are still taken, every 200 µs at the latest).
+pub const SERVICE_CONTROL_REQUEST: &str = "control-request";
+/// Event service the daemon notifies after each [`Response`] it sends, so that a waiting
+/// client wakes at once instead of polling (optional for clients).
+pub const SERVICE_CONTROL_ANSWER: &str = "control-answer";
 
 /// The longest machine name accepted by [`service_name`], bytes.
 pub const MAX_MACHINE_NAME: usize = 64;
@@ -99,8 +106,11 @@ pub enum ServiceNameError {
         /// Its byte offset.
         at: usize,
     },
-    /// `which` is not one of "moves", "setpoints", "control".
-    #[error("unknown service (expected \"moves\", \"setpoints\" or \"control\")")]
+    /// `which` is not one of "moves", "setpoints", "control", "control-request",
+    /// "control-answer".
+    #[error(
+        "unknown service (expected \"moves\", \"setpoints\", \"control\", \"control-request\" or \"control-answer\")"
+    )]
     UnknownService,
 }
 
@@ -122,7 +132,8 @@ pub fn validate_machine_name(machine: &str) -> Result<(), ServiceNameError> {
 }
 
 /// The iceoryx2 service name `kerf/<machine>/<which>`, with `which` one of
-/// [`SERVICE_MOVES`], [`SERVICE_SETPOINTS`], [`SERVICE_CONTROL`].
+/// [`SERVICE_MOVES`], [`SERVICE_SETPOINTS`], [`SERVICE_CONTROL`],
+/// [`SERVICE_CONTROL_REQUEST`], [`SERVICE_CONTROL_ANSWER`].
 ///
 /// ```
 /// assert_eq!(kerf_proto::service_name("mill-1", "moves").unwrap(), "kerf/mill-1/moves");
@@ -130,7 +141,15 @@ pub fn validate_machine_name(machine: &str) -> Result<(), ServiceNameError> {
 /// ```
 pub fn service_name(machine: &str, which: &str) -> Result<String, ServiceNameError> {
     validate_machine_name(machine)?;
-    if ![SERVICE_MOVES, SERVICE_SETPOINTS, SERVICE_CONTROL].contains(&which) {
+    if ![
+        SERVICE_MOVES,
+        SERVICE_SETPOINTS,
+        SERVICE_CONTROL,
+        SERVICE_CONTROL_REQUEST,
+        SERVICE_CONTROL_ANSWER,
+    ]
+    .contains(&which)
+    {
         return Err(ServiceNameError::UnknownService);
     }
     Ok(format!("kerf/{machine}/{which}"))

@@ -233,3 +233,31 @@ fn set_fifo(priority: u8) -> io::Result<()> {
         Err(io::Error::from_raw_os_error(rc))
     }
 }
+
+/// Sets the calling thread's timer slack to 1 ns (`prctl(PR_SET_TIMERSLACK)`, no
+/// privilege needed), so that its short sleeps and timed waits end when asked instead of
+/// up to 50 µs later (the default slack of a normal thread). For threads outside the
+/// cycle that wait for it in short steps (the daemon's control thread). `Err` with the
+/// system's reason if refused.
+pub fn fine_timer_slack() -> io::Result<()> {
+    // SAFETY: PR_SET_TIMERSLACK takes an integer argument only.
+    if unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong) } == 0 {
+        Ok(())
+    } else {
+        Err(io::Error::last_os_error())
+    }
+}
+
+/// Switches the calling thread to `SCHED_FIFO` at `priority` (1..=99), nothing else: for
+/// a helper thread that must wake promptly but is not the cycle (no pinning, no memory
+/// locking of its own). `Err` with the system's reason if refused (`EPERM` without
+/// `CAP_SYS_NICE` or `RLIMIT_RTPRIO`), or for a priority outside 1..=99.
+pub fn fifo(priority: u8) -> Result<(), RtError> {
+    if !(1..=99).contains(&priority) {
+        return Err(RtError::InvalidPriority { priority });
+    }
+    set_fifo(priority).map_err(|source| RtError::Os {
+        call: "pthread_setschedparam(SCHED_FIFO)",
+        source,
+    })
+}

@@ -56,7 +56,35 @@ pub struct Client {
     _control: ipc::ControlService,
     client: iceoryx2::port::client::Client<ipc::Ipc, Request, (), Response, ()>,
     next_id: u64,
+    /// The control wake-ups: `None` if they could not be opened (then the client polls).
+    wake: Option<Wake>,
 }
+
+/// A client's ends of the control event services (see [`ipc::ControlEvents`]).
+struct Wake {
+    _events: ipc::ControlEvents,
+    /// Tells the daemon a request was sent.
+    request: iceoryx2::port::notifier::Notifier<ipc::Ipc>,
+    /// Woken when the daemon has sent an answer (to this client or another).
+    answer: iceoryx2::port::listener::Listener<ipc::Ipc>,
+}
+
+impl Wake {
+    fn open(node: &Node<ipc::Ipc>, machine: &str) -> Option<Wake> {
+        let events = ipc::open_control_events(node, machine).ok()?;
+        let request = events.request.notifier_builder().create().ok()?;
+        let answer = events.answer.listener_builder().create().ok()?;
+        Some(Wake {
+            _events: events,
+            request,
+            answer,
+        })
+    }
+}
+
+/// How long a waiting client sleeps between looks for its answer when it cannot be woken
+/// (the event services could not be opened), and at most while it can.
+const ANSWER_POLL: Duration = Duration::from_micros(200);
 
 impl Client {
     /// Connects to the daemon of `machine` and checks that it answers.
@@ -84,12 +112,14 @@ impl Client {
             .client_builder()
             .create()
             .map_err(|e| ClientError::Ipc(format!("cannot create a control client: {e:?}")))?;
+        let wake = Wake::open(&node, machine);
         let mut c = Client {
             machine: machine.to_string(),
             node,
             _control: control,
             client,
             next_id: 1,
+            wake,
         };
         c.status().map_err(|e| match e {
             ClientError::NoDaemon { .. } => explained(e),
@@ -128,6 +158,9 @@ impl Client {
             .map_err(|_| ClientError::NoDaemon {
                 machine: self.machine.clone(),
             })?;
+        if let Some(wake) = &self.wake {
+            let _ = wake.request.notify();
+        }
         let deadline = Instant::now() + timeout;
         loop {
             match pending.receive() {
@@ -140,12 +173,20 @@ impl Client {
                     });
                 }
             }
-            if Instant::now() > deadline {
+            let now = Instant::now();
+            if now > deadline {
                 return Err(ClientError::NoDaemon {
                     machine: self.machine.clone(),
                 });
             }
-            std::thread::sleep(Duration::from_micros(200));
+            // An answer's notification ends the wait at once (a notification that came
+            // before the wait began is kept, so none is missed); the poll stays as a
+            // bound on how long a lost one could delay the answer.
+            let wait = ANSWER_POLL.min(deadline - now);
+            match &self.wake {
+                Some(wake) if wake.answer.timed_wait(|_| {}, wait).is_ok() => {}
+                _ => std::thread::sleep(wait),
+            }
         }
     }
 

@@ -443,3 +443,65 @@ fn consistent_extreme_arcs_run_without_a_safety_trip() {
         assert_eq!(at, arc.end_mm, "radius {radius_mm}: ends at end_mm");
     }
 }
+
+/// The control wake-ups are optional for a foreign client (PROTOCOL.md): one that sends a
+/// request on the control service without notifying `control-request`, and polls for
+/// the answer, is answered; the daemon notifies `control-answer` after the answer; and a
+/// client that notifies `control-request` is answered too.
+#[test]
+fn a_client_that_never_notifies_is_answered_and_the_daemon_notifies_each_answer() {
+    use iceoryx2::prelude::*;
+    let m = Machine::start("wake");
+    let machine = m.client.machine().to_string();
+    let node = NodeBuilder::new()
+        .create::<ipc::Service>()
+        .expect("a node of the foreign client");
+    let name = |which: &str| {
+        ServiceName::new(&kerf_proto::service_name(&machine, which).unwrap()).unwrap()
+    };
+    let control = node
+        .service_builder(&name(kerf_proto::SERVICE_CONTROL))
+        .request_response::<kerf_proto::Request, Response>()
+        .open()
+        .expect("the control service");
+    let client = control.client_builder().create().unwrap();
+    let answers = node
+        .service_builder(&name(kerf_proto::SERVICE_CONTROL_ANSWER))
+        .event()
+        .open()
+        .expect("the daemon creates the answer event service");
+    let answered = answers.listener_builder().create().unwrap();
+    let requests = node
+        .service_builder(&name(kerf_proto::SERVICE_CONTROL_REQUEST))
+        .event()
+        .open()
+        .expect("the daemon creates the request event service");
+    let wake = requests.notifier_builder().create().unwrap();
+    // Notifications of answers to other clients (the Machine's own) are gone first.
+    answered.try_wait(|_| {}).unwrap();
+
+    for (id, notify) in [(901u64, false), (902, true)] {
+        let request = kerf_proto::Request::from_command(ControlCommand::Status, id);
+        let pending = client.send_copy(request).unwrap();
+        if notify {
+            wake.notify().unwrap();
+        }
+        let deadline = Instant::now() + PATIENCE;
+        let response = loop {
+            if let Some(r) = pending.receive().unwrap() {
+                break *r;
+            }
+            assert!(Instant::now() < deadline, "request {id} was never answered");
+            std::thread::sleep(Duration::from_millis(1));
+        };
+        assert_eq!(response.request_id, id);
+        assert_eq!(response.reason, kerf_proto::REASON_OK);
+        // The notification follows the answer: wait for it (bounded).
+        let mut notified = 0;
+        let deadline = Instant::now() + PATIENCE;
+        while notified == 0 && Instant::now() < deadline {
+            notified += answered.timed_wait(|_| {}, PATIENCE).unwrap();
+        }
+        assert!(notified > 0, "no answer notification after request {id}");
+    }
+}

@@ -14,10 +14,15 @@ pub(crate) struct ControlPorts {
 }
 
 /// The control thread's loop; `test_faults` accepts the fault injections of the tests.
+/// With `real_time` (the cycle runs under `SCHED_FIFO`) the thread runs under `SCHED_FIFO`
+/// too, two levels below the cycle (below its publishing helper), so that a request is
+/// taken within microseconds even when other work keeps the CPUs busy; it only ever waits
+/// or answers, so it takes little from them.
 pub(crate) fn control_thread(
     config: &Config,
     shared: Shared,
     test_faults: bool,
+    real_time: bool,
     ready: Ready,
     ports: ControlPorts,
 ) -> Result<(), String> {
@@ -45,9 +50,19 @@ pub(crate) fn control_thread(
             .server_builder()
             .create()
             .map_err(|_| StartError::AlreadyRunning(machine.to_string()))?;
-        Ok((node, service, server))
+        // The wake-ups: a client's request wakes this thread, an answer wakes the client.
+        let events = ipc::create_control_events(&node, machine)?;
+        let woken = events.request.listener_builder().create().map_err(|e| {
+            StartError::Ipc(ipc::IpcError::refused("cannot listen for requests", e))
+        })?;
+        let answered = events
+            .answer
+            .notifier_builder()
+            .create()
+            .map_err(|e| StartError::Ipc(ipc::IpcError::refused("cannot notify answers", e)))?;
+        Ok((node, service, server, events, woken, answered))
     };
-    let (_node, _service, server) = match setup() {
+    let (_node, _service, server, _events, woken, answered) = match setup() {
         Ok(ports) => {
             let _ = ready.send(Ok(None));
             ports
@@ -59,6 +74,20 @@ pub(crate) fn control_thread(
         }
     };
 
+    if real_time {
+        let priority = config.daemon.priority.saturating_sub(2).max(1);
+        if let Err(e) = kerf_rt::fifo(priority) {
+            tracing::warn!(
+                "the control thread runs under the normal scheduler ({e}): answers may come late while the CPUs are busy"
+            );
+        }
+    }
+    // The waits for the cycle and for requests are short: end them on time.
+    if let Err(e) = kerf_rt::fine_timer_slack() {
+        tracing::warn!(
+            "the control thread's timer slack stays at its default ({e}): answers may come up to 50 µs later"
+        );
+    }
     let period_ns = config.period_us as u64 * 1000;
     let axes_mask = axes_mask(config);
     let window = config.daemon.move_window as u64;
@@ -151,6 +180,8 @@ pub(crate) fn control_thread(
             let mut response = Response::new(request.id, reason, &message, msg);
             response.program_fate = fate;
             let _ = active.send_copy(response);
+            // Wakes the clients waiting for an answer (each looks whether it is its own).
+            let _ = answered.notify();
         }
         if rt_flag == 0 && rt_ok.load(Ordering::Acquire) {
             rt_flag = 1;
@@ -168,7 +199,10 @@ pub(crate) fn control_thread(
             stop.store(true, Ordering::Release);
             return Ok(());
         }
-        std::thread::sleep(POLL);
+        // Until the next look: a request's notification ends the wait at once.
+        if woken.timed_wait(|_| {}, POLL).is_err() {
+            std::thread::sleep(POLL);
+        }
     }
 }
 
@@ -494,7 +528,7 @@ pub fn dump_patience(config: &Config) -> Duration {
     period.saturating_mul(u32::try_from(cycles).unwrap_or(u32::MAX)) + Duration::from_secs(2)
 }
 
-/// Polls the cycle every [`POLL`] (the latest status snapshot into `latest`) until
+/// Polls the cycle every [`APPLY_POLL`] (the latest status snapshot into `latest`) until
 /// `outcome` has an answer, at most `patience`; `None` if it ran out.
 pub(crate) fn poll_cycle<T>(
     view: &mut CycleView,
@@ -510,9 +544,14 @@ pub(crate) fn poll_cycle<T>(
         if Instant::now() > deadline {
             return None;
         }
-        std::thread::sleep(POLL);
+        std::thread::sleep(APPLY_POLL);
     }
 }
+
+/// How often a request waiting for the cycle (a command to be applied, a reset, a dump)
+/// looks at its snapshots: the cycle applies a command at its next period, so the answer
+/// waits at most this much longer than the cycle took. Only while a request waits.
+pub(crate) const APPLY_POLL: Duration = Duration::from_micros(20);
 
 /// Waits for the outcome of reset `tag` (the status snapshots carry it), writing the
 /// dumps that come out meanwhile.

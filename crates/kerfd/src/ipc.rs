@@ -440,6 +440,66 @@ fn remove_broken_service(machine: &str, which: &str) -> bool {
     removed
 }
 
+/// An event service (the control service's wake-ups).
+pub type EventService = iceoryx2::service::port_factory::event::PortFactory<ipc::Service>;
+
+/// The two event services beside the control service: clients notify `request` after
+/// sending a request, the daemon notifies `answer` after sending a response. They replace
+/// polling at both ends (a request is taken and its answer seen within microseconds); the
+/// daemon still looks for requests every [`crate::POLL`], so a client that does not
+/// notify is answered too.
+pub struct ControlEvents {
+    /// `kerf/<machine>/control-request`.
+    pub request: EventService,
+    /// `kerf/<machine>/control-answer`.
+    pub answer: EventService,
+}
+
+/// Creates the control event services (daemon): one listener (the daemon) and up to
+/// [`MAX_CONTROL_CLIENTS`] notifiers on `request`, the reverse on `answer`.
+pub(crate) fn create_control_events(
+    node: &Node<ipc::Service>,
+    machine: &str,
+) -> Result<ControlEvents, IpcError> {
+    let create = |which: &str, notifiers: usize, listeners: usize| {
+        repaired(machine, which, || {
+            node.service_builder(&service_name(machine, which)?)
+                .event()
+                .max_notifiers(notifiers)
+                .max_listeners(listeners)
+                .open_or_create()
+                .map_err(|e| IpcError::refused("cannot create a control event service", e))
+        })
+    };
+    Ok(ControlEvents {
+        request: create(kerf_proto::SERVICE_CONTROL_REQUEST, MAX_CONTROL_CLIENTS, 1)?,
+        answer: create(kerf_proto::SERVICE_CONTROL_ANSWER, 1, MAX_CONTROL_CLIENTS)?,
+    })
+}
+
+/// Opens the control event services (clients).
+pub fn open_control_events(
+    node: &Node<ipc::Service>,
+    machine: &str,
+) -> Result<ControlEvents, IpcError> {
+    let open = |which: &str| {
+        node.service_builder(&service_name(machine, which)?)
+            .event()
+            .open()
+            .map_err(|e| {
+                open_error(
+                    "cannot open a control event service",
+                    e == iceoryx2::service::builder::event::EventOpenError::DoesNotExist,
+                    e,
+                )
+            })
+    };
+    Ok(ControlEvents {
+        request: open(kerf_proto::SERVICE_CONTROL_REQUEST)?,
+        answer: open(kerf_proto::SERVICE_CONTROL_ANSWER)?,
+    })
+}
+
 /// Opens the control service (clients).
 pub fn open_control(node: &Node<ipc::Service>, machine: &str) -> Result<ControlService, IpcError> {
     node.service_builder(&service_name(machine, kerf_proto::SERVICE_CONTROL)?)
