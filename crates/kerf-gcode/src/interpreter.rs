@@ -210,16 +210,39 @@ impl<R: std::io::BufRead> Interpreter<R> {
             }
         }
         let dialect = self.state.dialect();
-        if dialect == Dialect::LinuxCnc
-            && (self.ngc.busy() || ngc::needs_language(&self.line))
-            && self.process_ngc_line()?
-        {
-            return Ok(());
-        }
         let mut pos = 0;
+        // A LinuxCNC line of plain words is lexed once: the lexer refuses `#`, `[` and
+        // O-words and flags a message comment, so only a line it refuses, flags or ends
+        // early (block delete, `%`) is scanned for the language layer's bytes.
+        let mut lexed = None;
+        if dialect == Dialect::LinuxCnc {
+            let language = self.ngc.busy() || {
+                let first = self.lexer.next_block(&self.line, &mut pos, &mut self.words);
+                let language = match &first {
+                    Ok(None) => false,
+                    Ok(Some(f)) if !(f.message || f.deleted || f.percent) => false,
+                    Ok(Some(f)) if f.message => true,
+                    _ => ngc::needs_language(&self.line),
+                };
+                lexed = Some(first);
+                language
+            };
+            if language {
+                if self.process_ngc_line()? {
+                    return Ok(());
+                }
+                // The plain path runs the line after all: lex it afresh.
+                lexed = None;
+                pos = 0;
+            }
+        }
         loop {
             let start = self.pending.len();
-            let flags = match self.lexer.next_block(&self.line, &mut pos, &mut self.words) {
+            let next = match lexed.take() {
+                Some(first) => first,
+                None => self.lexer.next_block(&self.line, &mut pos, &mut self.words),
+            };
+            let flags = match next {
                 Ok(Some(f)) => f,
                 Ok(None) => return Ok(()),
                 Err(e) => return Err(self.diag(e.col, e.message)),

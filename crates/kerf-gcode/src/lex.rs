@@ -48,6 +48,22 @@ pub(crate) struct BlockFlags {
     /// The block holds a `%` program delimiter (a Heidenhain `%NAME G71 *` header or end,
     /// or a `%` line of the other dialects).
     pub percent: bool,
+    /// LinuxCNC: the block holds a message comment (`(MSG,`, `(DEBUG,`, `(PRINT,`,
+    /// `(LOG…`), which the language layer runs.
+    pub message: bool,
+}
+
+/// True when the text after a `(` starts a LinuxCNC message comment: `MSG,`, `DEBUG,`,
+/// `PRINT,` or `LOG…` (any case), spaces and tabs before it aside.
+pub(crate) fn is_message_comment(after_paren: &[u8]) -> bool {
+    let start = after_paren
+        .iter()
+        .position(|&b| b != b' ' && b != b'\t')
+        .unwrap_or(after_paren.len());
+    let rest = &after_paren[start..];
+    [&b"msg,"[..], b"debug,", b"print,", b"log"]
+        .iter()
+        .any(|key| rest.len() >= key.len() && rest[..key.len()].eq_ignore_ascii_case(key))
 }
 
 /// An error in a block, from any stage (reading, the language layer, resolution): a
@@ -129,7 +145,12 @@ impl Lexer {
             };
             match c {
                 b'(' if self.paren_comments() => match line[i..].iter().position(|&b| b == b')') {
-                    Some(off) => i += off + 1,
+                    Some(off) => {
+                        if self.dialect == Dialect::LinuxCnc && is_message_comment(&line[i + 1..]) {
+                            flags.message = true;
+                        }
+                        i += off + 1;
+                    }
                     None => return err(i, "unclosed comment: '(' without ')'"),
                 },
                 b'(' | b')' => {

@@ -59,18 +59,11 @@ pub(crate) fn needs_language(line: &[u8]) -> bool {
             b';' => return false,
             b'(' => {
                 let rest = &line[i + 1..];
-                let start = rest
-                    .iter()
-                    .position(|&b| b != b' ' && b != b'\t')
-                    .unwrap_or(rest.len());
-                let rest = &rest[start..];
-                for key in [&b"msg,"[..], b"debug,", b"print,", b"log"] {
-                    if rest.len() >= key.len() && rest[..key.len()].eq_ignore_ascii_case(key) {
-                        return true;
-                    }
+                if crate::lex::is_message_comment(rest) {
+                    return true;
                 }
                 match rest.iter().position(|&b| b == b')') {
-                    Some(off) => i += 1 + start + off,
+                    Some(off) => i += 1 + off,
                     None => return false,
                 }
             }
