@@ -101,11 +101,13 @@ impl State {
         self.cycles.block_plane = self.plane;
         self.comp_begin_block(out);
 
-        let slots = self.g_slots(blk)?;
+        let mut slots: Slots = [None; N_GROUPS];
+        self.g_slots(blk, &mut slots)?;
         if matches!(slots[0], Some((G::BlankForm, _))) {
             return blank_form(blk);
         }
-        let m = self.m_codes(blk)?;
+        let mut m = MCodes::NONE;
+        self.m_codes(blk, &mut m)?;
 
         // LinuxCNC sets the modes after F, S, T, the M codes and the dwell (its order of
         // execution: `G20 F40` is 40 mm/min); the other controls read every value of the
@@ -193,9 +195,9 @@ impl State {
 
     /// Classifies the G codes of a block and checks the modal groups. Each group holds at
     /// most one code per block, so the block's codes are kept in one slot per group.
-    fn g_slots(&self, blk: &Block) -> Result<Slots, BlockError> {
+    /// `slots` comes in empty and is filled in place (a returned array is copied).
+    fn g_slots(&self, blk: &Block, slots: &mut Slots) -> Result<(), BlockError> {
         let d = self.dialect;
-        let mut slots: Slots = [None; N_GROUPS];
         for &(code, col) in &blk.gs[..blk.ng] {
             let g = classify_g(d, code).ok_or_else(|| BlockError {
                 col,
@@ -227,7 +229,7 @@ impl State {
             }
             slots[grp] = Some((g, col));
         }
-        Ok(slots)
+        Ok(())
     }
 
     /// Units, then the modal G codes of distance, arc distance, plane, path control and

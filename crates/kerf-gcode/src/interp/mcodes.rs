@@ -28,10 +28,30 @@ pub(super) struct MCodes {
     pub(super) io: Option<(EventCode, u32)>,
 }
 
+impl MCodes {
+    /// A block without M codes.
+    pub(super) const NONE: MCodes = MCodes {
+        pre: [None; 8],
+        post: [None; 8],
+        state_op: None,
+        user_m: None,
+        m61: None,
+        orient: false,
+        override_p: false,
+        io: None,
+    };
+}
+
 impl State {
-    /// Classifies the M codes of a block and checks their modal groups: they are all
-    /// known before anything is emitted.
-    pub(super) fn m_codes(&mut self, blk: &Block) -> Result<MCodes, BlockError> {
+    /// Classifies the M codes of a block into `mc` and checks their modal groups: they
+    /// are all known before anything is emitted. Filled in place (not returned) so that
+    /// a block without M codes, nearly every block, costs no copy of the record.
+    pub(super) fn m_codes(&mut self, blk: &Block, mc: &mut MCodes) -> Result<(), BlockError> {
+        if blk.nm == 0 {
+            self.m19_in_block = false;
+            *mc = MCodes::NONE;
+            return Ok(());
+        }
         let d = self.dialect;
         let mut m_pre: [Option<EventCode>; 8] = [None; 8];
         let mut m_post: [Option<EventCode>; 8] = [None; 8];
@@ -143,7 +163,7 @@ impl State {
         .iter()
         .any(|&ev| m_pre.contains(&Some(ev)));
         self.m19_in_block = orient;
-        Ok(MCodes {
+        *mc = MCodes {
             pre: m_pre,
             post: m_post,
             state_op,
@@ -152,7 +172,8 @@ impl State {
             orient,
             override_p,
             io,
-        })
+        };
+        Ok(())
     }
 
     /// The M codes that run before the motion, in LinuxCNC's order: M6, the spindle
