@@ -118,12 +118,20 @@ impl State {
         }
         let dwell = self.dwell_of(blk, &slots)?;
         self.exec_feed(blk, &slots, dwell.word)?;
-        // Spindle, tool and coolant events run before the motion of the block.
+        // Spindle, tool and coolant events run before the motion of the block. (The
+        // stages below are only called when the block holds what they act on: each
+        // does nothing otherwise, and a plain move should not pay for the calls.)
         self.exec_spindle_speed(blk, dwell.word, out)?;
-        self.exec_tool_call(blk, &slots, out)?;
+        if blk.has(KT) {
+            self.exec_tool_call(blk, &slots, out)?;
+        }
         // LinuxCNC: the I/O codes M62–M68 after T, before M6.
-        self.exec_io(blk, &m, out)?;
-        self.exec_m_before_motion(blk, &m, out)?;
+        if m.io.is_some() {
+            self.exec_io(blk, &m, out)?;
+        }
+        if blk.nm > 0 {
+            self.exec_m_before_motion(blk, &m, out)?;
+        }
 
         // The dwell runs after the spindle and coolant events and before the motion (the
         // LinuxCNC order of execution); a G4 without a time word still stops the motion.
@@ -158,9 +166,14 @@ impl State {
             return fail(col, "Cannot use two g codes that both use axis values");
         }
 
-        let mut consumed_axes = self.exec_tool_length_code(blk, slots[7], motion_in_block)?;
-        consumed_axes |= self.exec_axis_code(blk, slots[0], out)?;
-        consumed_axes |= self.exec_pole(blk, slots[0])?;
+        let mut consumed_axes = false;
+        if slots[7].is_some() || blk.has(KH) {
+            consumed_axes = self.exec_tool_length_code(blk, slots[7], motion_in_block)?;
+        }
+        if slots[0].is_some() {
+            consumed_axes |= self.exec_axis_code(blk, slots[0], out)?;
+            consumed_axes |= self.exec_pole(blk, slots[0])?;
+        }
         if let Some((_, col)) = slots[0].filter(|&(g, _)| g == G::PolarOrigin) {
             self.exec_polar_origin(blk, col)?;
             return self.finish_block(blk, &m.post, out);
