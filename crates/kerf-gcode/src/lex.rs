@@ -242,6 +242,10 @@ impl Lexer {
                     });
                 }
                 _ if c.is_ascii_alphabetic() => {
+                    if let Some(j) = self.plain_word(line, i, c, words) {
+                        i = j;
+                        continue;
+                    }
                     if let Some(end) = self.letter_word(line, &mut i, c, words)? {
                         // A Rockwell program number: the rest of the line is skipped.
                         *pos = end;
@@ -255,10 +259,41 @@ impl Lexer {
         }
     }
 
-    /// A word that starts with the letter `c` at `*i`, pushed to `words` (Sinumerik words
-    /// by `sinumerik_word`). Returns the end of the block when the word ends it (a
-    /// Rockwell program number `O1234` at the start of a block).
-    #[inline]
+    /// The overwhelmingly common `X-12.345` word: a letter `c` at `i` directly followed by
+    /// a plain number and then a separator, pushed to `words`. Returns the offset after
+    /// it, or `None` (nothing pushed) for any other word, which `letter_word` reads.
+    #[inline(always)]
+    fn plain_word(self, line: &[u8], i: usize, c: u8, words: &mut Vec<Word>) -> Option<usize> {
+        let letter = c.to_ascii_uppercase();
+        if letter == b'O' {
+            return None;
+        }
+        let (value, j) = fast_number(line, i + 1)?;
+        let plain_end = match line.get(j) {
+            None | Some(b'(' | b';' | b'*' | b'\r') => true,
+            // LinuxCNC ignores spaces, so `X1 0` is X10: let the general path look further.
+            Some(b' ' | b'\t') => {
+                self.dialect != Dialect::LinuxCnc
+                    || !matches!(next_non_space(line, j), Some(b'0'..=b'9' | b'.'))
+            }
+            Some(c) => c.is_ascii_alphabetic(),
+        };
+        if !plain_end {
+            return None;
+        }
+        words.push(Word {
+            key: key(letter),
+            value,
+            col: col_of(i),
+            form: Form::Plain,
+        });
+        Some(j)
+    }
+
+    /// A word that starts with the letter `c` at `*i` and is not a plain word (see
+    /// `plain_word`), pushed to `words` (Sinumerik words by `sinumerik_word`). Returns the
+    /// end of the block when the word ends it (a Rockwell program number `O1234` at the
+    /// start of a block).
     fn letter_word(
         self,
         line: &[u8],
@@ -266,33 +301,6 @@ impl Lexer {
         c: u8,
         words: &mut Vec<Word>,
     ) -> Result<Option<usize>, BlockError> {
-        // Fast path for the overwhelmingly common `X-12.345` word: a letter
-        // directly followed by a plain number and then a separator.
-        let letter = c.to_ascii_uppercase();
-        if letter != b'O'
-            && let Some((value, j)) = fast_number(line, *i + 1)
-        {
-            let plain_end = match line.get(j) {
-                None | Some(b'(' | b';' | b'*' | b'\r') => true,
-                // LinuxCNC ignores spaces, so `X1 0` is X10: let the
-                // general path look further.
-                Some(b' ' | b'\t') => {
-                    self.dialect != Dialect::LinuxCnc
-                        || !matches!(next_non_space(line, j), Some(b'0'..=b'9' | b'.'))
-                }
-                Some(c) => c.is_ascii_alphabetic(),
-            };
-            if plain_end {
-                words.push(Word {
-                    key: key(letter),
-                    value,
-                    col: col_of(*i),
-                    form: Form::Plain,
-                });
-                *i = j;
-                return Ok(None);
-            }
-        }
         if self.dialect == Dialect::Sinumerik {
             self.sinumerik_word(line, i, words)?;
         } else {
