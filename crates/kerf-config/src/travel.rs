@@ -114,6 +114,55 @@ pub fn check_move(m: &Move, axes: &Axes) -> Result<(), TravelError> {
     Ok(())
 }
 
+/// How far `m`'s exact path stays inside the linear travel of `axes`, mm: the least
+/// distance from any point of it (a line's end points; an arc's end points and the
+/// points where a coordinate is stationary, as [`check_move`] finds them) to any
+/// `min_mm`/`max_mm` plane. Negative if the move leaves the travel. Zero if the move
+/// drives a rotary axis the machine limits (the planner's rotary curves at corners have
+/// no distance bound to measure against), so such a move always counts as at the edge.
+///
+/// A planned path stays within the tolerance of the moves it is made of, so the planned
+/// path of moves whose clearance exceeds that tolerance cannot leave the travel: this is
+/// what lets `kerf run` check those moves without planning them (docs/MACHINE.md).
+pub fn clearance_mm(m: &Move, axes: &Axes) -> f64 {
+    let linear = axes.linear();
+    let mut clearance = f64::INFINITY;
+    let mut point = |p: &Vec3| {
+        for (i, limits) in linear.iter().enumerate() {
+            clearance = clearance
+                .min(p[i] - limits.min_mm)
+                .min(limits.max_mm - p[i]);
+        }
+    };
+    match &m.path {
+        Path::Line(l) => {
+            point(&l.start);
+            point(&l.end);
+        }
+        Path::Arc(a) => {
+            point(&a.start);
+            point(&a.end);
+            if let Curve::Helix(h) = Curve::from_path(&m.path) {
+                for p in helix_extremes(&h).into_iter().flatten() {
+                    point(&p);
+                }
+            }
+        }
+    }
+    if let Some((start, end)) = m.abc_deg {
+        let rotary_moves = axes
+            .rotary()
+            .iter()
+            .enumerate()
+            .any(|(i, l)| l.is_some() && start[i] != end[i]);
+        if rotary_moves {
+            clearance = clearance.min(0.0);
+        }
+    }
+    // NaN (a non-finite coordinate) counts as no clearance at all.
+    if clearance.is_nan() { 0.0 } else { clearance }
+}
+
 /// Checks every move in order and reports the first one that leaves the travel.
 pub fn check_moves<'a, I>(moves: I, axes: &Axes) -> Result<(), TravelError>
 where

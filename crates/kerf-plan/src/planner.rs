@@ -357,7 +357,10 @@ impl Planner {
         }
     }
 
-    fn check(&self, mv: &Move) -> Result<(), PlanError> {
+    /// What [`Planner::push`] refuses before planning `mv`: a non-finite coordinate or
+    /// feed, a feed move without a positive feed, motion of an axis the machine does not
+    /// have. For a check of a program without planning it (`kerf run`'s first pass).
+    pub fn check(&self, mv: &Move) -> Result<(), PlanError> {
         let line = mv.line;
         let finite = |v: &Vec3| v.iter().all(|c| c.is_finite());
         let ok = match &mv.path {

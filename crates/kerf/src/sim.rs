@@ -34,7 +34,7 @@ use std::io::{self, BufWriter, Write};
 
 use kerf_config::machine_limits;
 use kerf_geom::machine::Action;
-use kerf_geom::{Move, Path, Vec3, line_distance};
+use kerf_geom::{CornerMode, Move, Path, Vec3, line_distance};
 use kerf_motion::monitor::{LimitMonitor, LimitViolation};
 use kerf_motion::{MachineLimits, PlannedSegment, Setpoint};
 use kerf_pipeline::{
@@ -241,6 +241,21 @@ impl Scan {
 }
 
 impl Scan {
+    /// Counts the next move `m` (rapids at `rapid_mm_s` in the estimate).
+    fn add_move(&mut self, m: &Move, rapid_mm_s: f64) {
+        if let Some((s, e)) = m.abc_deg
+            && s != e
+        {
+            self.rotary_used = true;
+        }
+        self.estimated_s += estimated_seconds(m, rapid_mm_s);
+        self.moves += 1;
+        let e = m.path.end();
+        let end = &self.end;
+        let abc = m.abc_deg.map_or([end[3], end[4], end[5]], |(_, b)| b);
+        self.end = [e.x, e.y, e.z, abc[0], abc[1], abc[2]];
+    }
+
     /// The rough number of CSV rows of [`Scan::estimated_s`].
     pub fn estimated_rows(&self, config: &Config) -> u64 {
         let rows = self.estimated_s / (f64::from(config.period_us) * 1e-6);
@@ -295,6 +310,9 @@ pub struct Prepass {
     kept: Option<Kept>,
     /// Where the actions synchronised with the motion go among the kept segments.
     order: ActionOrder,
+    /// The highest `move_index` of the planned segments checked so far (see
+    /// [`Prepass::has_passed`]).
+    checked_past: Option<u64>,
 }
 
 impl Prepass {
@@ -302,12 +320,7 @@ impl Prepass {
     pub fn new(config: &Config, options: &SimOptions) -> Self {
         let mut planner = Planner::new(machine_limits(config));
         planner.set_design_override(options.feed_override);
-        let rapid_mm_s = config
-            .axes
-            .linear()
-            .iter()
-            .map(|a| a.velocity_mm_s)
-            .fold(f64::INFINITY, f64::min);
+        let rapid_mm_s = slowest_linear_mm_s(config);
         Prepass {
             planner,
             axes: config.axes,
@@ -317,6 +330,7 @@ impl Prepass {
             rapid_mm_s,
             scan: Scan::default(),
             order: ActionOrder::new(),
+            checked_past: None,
             kept: Some(Kept {
                 moves: Vec::new(),
                 segments: Vec::new(),
@@ -327,17 +341,7 @@ impl Prepass {
     /// Checks the next move and the segments planned so far.
     pub fn push(&mut self, m: &Move) -> Result<(), PrepassError> {
         travel::check_move(m, &self.axes)?;
-        if let Some((s, e)) = m.abc_deg
-            && s != e
-        {
-            self.scan.rotary_used = true;
-        }
-        self.scan.estimated_s += estimated_seconds(m, self.rapid_mm_s);
-        self.scan.moves += 1;
-        let e = m.path.end();
-        let end = &self.scan.end;
-        let abc = m.abc_deg.map_or([end[3], end[4], end[5]], |(_, b)| b);
-        self.scan.end = [e.x, e.y, e.z, abc[0], abc[1], abc[2]];
+        self.scan.add_move(m, self.rapid_mm_s);
         if self.recent.len() == RECENT_MOVES {
             self.recent.pop_front();
             self.recent_base += 1;
@@ -389,6 +393,16 @@ impl Prepass {
         })
     }
 
+    /// `true` once every planned segment that involves move `index` (0-based, in program
+    /// order) has been checked: the planner emits segments in path order, and a segment
+    /// involves its own `move_index` and later moves only (a corner blend carries the
+    /// index of the move before the corner), so once a segment of move `index + 2` or
+    /// later has been checked, so has every segment of move `index` and of the corner
+    /// after it. [`QuickCheck`]'s caller plans up to here.
+    pub fn has_passed(&self, index: u64) -> bool {
+        self.checked_past.is_some_and(|i| i > index + 1)
+    }
+
     fn check_planned(&mut self) -> Result<(), PrepassError> {
         if let Some(k) = self.kept.as_mut() {
             let known = self.scan.moves as usize;
@@ -402,6 +416,10 @@ impl Prepass {
             }
         }
         for seg in self.buf.drain(..) {
+            self.checked_past = Some(
+                self.checked_past
+                    .map_or(seg.move_index, |i| i.max(seg.move_index)),
+            );
             if let Err(mut e) = travel::check_segment(&seg, &self.axes) {
                 if seg.move_count > 1 {
                     // Name the move of the piece nearest to where it leaves the travel.
@@ -426,6 +444,108 @@ impl Prepass {
             }
         }
         Ok(())
+    }
+}
+
+/// The velocity limit of the slowest linear axis, mm/s: the rapids' speed in the rough
+/// estimate of [`Scan::estimated_s`].
+fn slowest_linear_mm_s(config: &Config) -> f64 {
+    config
+        .axes
+        .linear()
+        .iter()
+        .map(|a| a.velocity_mm_s)
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The first half of `kerf run`'s check, at the speed of reading the program (no
+/// planning): every move's exact path against the travel ([`travel::check_move`]), what
+/// the planner would refuse ([`Planner::check`]), and how close the move comes to an
+/// edge of the travel ([`travel::clearance_mm`]).
+///
+/// The planned path stays within the path tolerance of the moves it is made of (corner
+/// blends and transitions within the tolerance of the corner, smoothed pieces within the
+/// tolerance of the lines they replace), so the planned path of a move whose clearance
+/// exceeds twice the tolerance that applies to it cannot leave the travel: it needs no
+/// planning to be checked. The twice is a safety factor over the planner's sampled
+/// deviation checks. The moves closer to an edge than that are the ones whose planned
+/// path must be checked exactly: [`QuickCheck::last_near`] is the index of the last of
+/// them, and the caller plans and checks the program ([`Prepass`]) up to where the
+/// planned path has passed it ([`Prepass::has_passed`]); for the rest, this pass is
+/// the check.
+pub struct QuickCheck {
+    axes: kerf_config::Axes,
+    /// For [`Planner::check`] only (nothing is planned).
+    planner: Planner,
+    default_tolerance_mm: f64,
+    /// The blending tolerance of the previous move (0 after an exact stop): a corner takes
+    /// the smaller of its two moves' tolerances, but the arriving move's governs when
+    /// the leaving move is in exact-stop mode, so the corner at a move's start may take
+    /// the previous move's.
+    previous_tolerance_mm: f64,
+    rapid_mm_s: f64,
+    scan: Scan,
+    next_index: u64,
+    last_near: Option<(u64, u32)>,
+    near_moves: u64,
+}
+
+impl QuickCheck {
+    /// The quick check for the machine of `config`.
+    pub fn new(config: &Config) -> Self {
+        let limits = machine_limits(config);
+        QuickCheck {
+            axes: config.axes,
+            default_tolerance_mm: limits.tolerance_mm,
+            planner: Planner::new(limits),
+            previous_tolerance_mm: 0.0,
+            rapid_mm_s: slowest_linear_mm_s(config),
+            scan: Scan::default(),
+            next_index: 0,
+            last_near: None,
+            near_moves: 0,
+        }
+    }
+
+    /// Checks the next move of the program.
+    pub fn push(&mut self, m: &Move) -> Result<(), PrepassError> {
+        travel::check_move(m, &self.axes)?;
+        self.planner.check(m)?;
+        self.scan.add_move(m, self.rapid_mm_s);
+        let own_mm = match m.corner {
+            CornerMode::Blend { tolerance_mm, .. } => {
+                tolerance_mm.unwrap_or(self.default_tolerance_mm)
+            }
+            CornerMode::ExactStop => 0.0,
+        };
+        let margin_mm = 2.0 * own_mm.max(self.previous_tolerance_mm);
+        // A NaN tolerance or clearance counts as near.
+        let clear = travel::clearance_mm(m, &self.axes)
+            .partial_cmp(&margin_mm)
+            .is_some_and(|o| o == std::cmp::Ordering::Greater);
+        if !clear {
+            self.last_near = Some((self.next_index, m.line));
+            self.near_moves += 1;
+        }
+        self.previous_tolerance_mm = own_mm;
+        self.next_index += 1;
+        Ok(())
+    }
+
+    /// The index (0-based, in program order, as the planner counts moves) and line of the
+    /// last move whose planned path must be checked exactly; `None` if there is none.
+    pub fn last_near(&self) -> Option<(u64, u32)> {
+        self.last_near
+    }
+
+    /// How many moves come near an edge of the travel.
+    pub fn near_moves(&self) -> u64 {
+        self.near_moves
+    }
+
+    /// What the pass learned.
+    pub fn scan(&self) -> Scan {
+        self.scan
     }
 }
 

@@ -540,7 +540,8 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         ..SimOptions::default()
     };
     // Pass 1: the whole program, checked before any motion.
-    let (checked, last_line) = check_program(&source, &config, settings.clone(), &options, true)?;
+    let (checked, last_line) =
+        check_program(&source, &config, settings.clone(), &options, true, true)?;
     let scan = checked.scan;
     drop(checked.kept);
     if let (Some(n), Some(read)) = (args.from_line, scan.checked_to_line) {

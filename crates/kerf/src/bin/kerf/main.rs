@@ -459,7 +459,7 @@ fn run_sim(args: &SimArgs) -> Result<(), Failure> {
     // limits (the programmed moves and the planned path) before the first setpoint: a
     // program that would leave the machine's travel never starts.
     let settings = settings_for(program_settings(&config)?, &args.program.program);
-    let (checked, _) = check_program(&source, &config, settings.clone(), &options, false)?;
+    let (checked, _) = check_program(&source, &config, settings.clone(), &options, false, false)?;
     let scan = checked.scan;
 
     if args.plot.as_deref().is_some_and(output::is_stdout) && output::is_stdout(&args.out) {
@@ -582,32 +582,148 @@ fn with_dialect_note(error: String, dialect: Dialect, assumed: bool) -> String {
     }
 }
 
-/// Pass 1 of `kerf sim` and `kerf run`: the whole program is resolved with `settings`,
-/// planned and checked against the travel limits (the programmed moves and the planned
-/// path). Returns what the check kept and the last source line with a move or event.
+/// Pass 1 of `kerf sim` and `kerf run`: the whole program is resolved with `settings`
+/// and checked against the travel limits (the programmed moves and the planned path).
+/// Returns what the check kept and the last source line with a move or event.
 ///
 /// With `machine_inputs` (`kerf run`), the inputs an `M66` waits on are the machine's:
 /// the check ends at the first line that reads `#5399` after an `M66` (what follows
 /// depends on the input's value, which only the machine knows), and the scan says so
 /// ([`kerf::sim::Scan::checked_to_line`]).
+///
+/// Without `quick` (`kerf sim`) every move is planned and every planned segment checked
+/// (and a small program's segments are kept for the run). With `quick` (`kerf run`) the
+/// program is first read without planning ([`kerf::sim::QuickCheck`]: the exact path of
+/// every move, and which moves come within twice the tolerance of an edge); only if some
+/// do is it read again and planned, up to where the planned path has passed the last of
+/// them. The guarantee is the same (no part of the planned path leaves the travel), and a
+/// program that stays clear of the edges starts at the speed of reading it.
 pub fn check_program(
     source: &SimSource,
     config: &Config,
     settings: kerf_gcode::Settings,
     options: &SimOptions,
     machine_inputs: bool,
+    quick: bool,
 ) -> Result<(kerf::sim::Checked, u32), Failure> {
     let name = &source.name;
-    let mut prepass = Prepass::new(config, options);
     let refused = |e: PrepassError| match e.line() {
         Some(line) => Failure::Error(format!("{name}:{line}:1: error: {e}")),
         None => Failure::Error(format!("{name}: error: {e}")),
     };
+    if !quick {
+        let mut prepass = Prepass::new(config, options);
+        let mut actions = ProgramActions::new();
+        let walked = walk(
+            source,
+            config,
+            settings,
+            machine_inputs,
+            "checking the program",
+            |item| {
+                match item {
+                    Walked::Move(m) => {
+                        if let Some(wait) = actions.before_move(m) {
+                            prepass.input(&wait).map_err(refused)?;
+                        }
+                        prepass.push(m).map_err(refused)?;
+                    }
+                    Walked::Event(e) => {
+                        if let Some(input) = actions.event(e) {
+                            prepass.input(&input).map_err(refused)?;
+                        }
+                    }
+                }
+                Ok(true)
+            },
+        )?;
+        let mut checked = prepass.finish().map_err(refused)?;
+        checked.scan.checked_to_line = walked.checked_to;
+        return Ok((checked, walked.last_line));
+    }
+
+    // The quick pass: no planning.
+    let mut quick_check = kerf::sim::QuickCheck::new(config);
+    let walked = walk(
+        source,
+        config,
+        settings.clone(),
+        machine_inputs,
+        "checking the program",
+        |item| {
+            if let Walked::Move(m) = item {
+                quick_check.push(m).map_err(refused)?;
+            }
+            Ok(true)
+        },
+    )?;
+    let mut scan = quick_check.scan();
+    scan.checked_to_line = walked.checked_to;
+    if let Some((last_near, line)) = quick_check.last_near() {
+        // The planned path near the edges: planned and checked exactly, from the start
+        // (the planner is deterministic: these are the segments the run will plan) until
+        // it has passed the last move near an edge.
+        let mut prepass = Prepass::new(config, options);
+        let mut actions = ProgramActions::new();
+        let mut passed = false;
+        let label =
+            format!("checking the planned path near the edge of the travel (to line {line})");
+        walk(source, config, settings, machine_inputs, &label, |item| {
+            match item {
+                Walked::Move(m) => {
+                    if let Some(wait) = actions.before_move(m) {
+                        prepass.input(&wait).map_err(refused)?;
+                    }
+                    prepass.push(m).map_err(refused)?;
+                }
+                Walked::Event(e) => {
+                    if let Some(input) = actions.event(e) {
+                        prepass.input(&input).map_err(refused)?;
+                    }
+                }
+            }
+            passed = prepass.has_passed(last_near);
+            Ok(!passed)
+        })?;
+        if !passed {
+            prepass.finish().map_err(refused)?;
+        }
+    }
+    Ok((kerf::sim::Checked { scan, kept: None }, walked.last_line))
+}
+
+/// An item of the program for [`walk`]'s callback.
+enum Walked<'a> {
+    Move(&'a kerf_geom::Move),
+    Event(&'a kerf_gcode::Event),
+}
+
+/// What [`walk`] saw.
+struct WalkEnd {
+    /// The last source line with a move or event.
+    last_line: u32,
+    /// The line the walk stopped at because the program reads a machine input there.
+    checked_to: Option<u32>,
+}
+
+/// Reads the program of `source` with `settings` and hands every move and event to
+/// `each` (which returns `false` to stop early), after checking each event against what
+/// the machine has. A program error ends the walk with its message; with
+/// `machine_inputs`, the first read of `#5399` after an `M66` ends it quietly (see
+/// [`check_program`]). A long walk shows a spinner labelled `label` on a terminal.
+fn walk(
+    source: &SimSource,
+    config: &Config,
+    settings: kerf_gcode::Settings,
+    machine_inputs: bool,
+    label: &str,
+    mut each: impl FnMut(Walked<'_>) -> Result<bool, Failure>,
+) -> Result<WalkEnd, Failure> {
+    let name = &source.name;
     let started = Instant::now();
     let mut spinner: Option<ProgressBar> = None;
     let mut moves = 0u64;
     let mut last_line = 0;
-    let mut actions = ProgramActions::new();
     let caps = config.machine_check();
     let mut interpreter = Interpreter::new(source.reader()?, source.dialect, settings);
     let read_input = Arc::new(AtomicBool::new(false));
@@ -616,36 +732,31 @@ pub fn check_program(
     }
     let mut checked_to = None;
     for item in interpreter {
-        match item {
+        let go_on = match item {
             Ok(Item::Move(m)) => {
                 last_line = m.line;
-                if let Some(wait) = actions.before_move(&m) {
-                    prepass.input(&wait).map_err(refused)?;
-                }
-                prepass.push(&m).map_err(refused)?;
                 moves += 1;
                 // A long program takes a while to check: say so on a terminal.
                 if moves.is_multiple_of(16384) && started.elapsed() > PROGRESS_AFTER {
                     let bar = spinner.get_or_insert_with(|| {
                         // Cleared when dropped, also when the check fails.
                         let bar = ProgressBar::new_spinner().with_finish(ProgressFinish::AndClear);
-                        if let Ok(style) = ProgressStyle::with_template(
-                            "checking the program {spinner} {pos} moves, {elapsed}",
-                        ) {
+                        if let Ok(style) = ProgressStyle::with_template(&format!(
+                            "{label} {{spinner}} {{pos}} moves, {{elapsed}}"
+                        )) {
                             bar.set_style(style);
                         }
                         bar
                     });
                     bar.set_position(moves);
                 }
+                each(Walked::Move(&m))?
             }
             Ok(Item::Event(e)) => {
                 last_line = e.line;
                 caps.check_event(&e)
                     .map_err(|why| Failure::Error(format!("{name}:{}:1: error: {why}", e.line)))?;
-                if let Some(input) = actions.event(&e) {
-                    prepass.input(&input).map_err(refused)?;
-                }
+                each(Walked::Event(&e))?
             }
             Err(d) if read_input.load(Ordering::Acquire) => {
                 // The program reads an input here: the check covers what comes before.
@@ -659,14 +770,18 @@ pub fn check_program(
                     source.assumed_dialect,
                 )));
             }
+        };
+        if !go_on {
+            break;
         }
     }
-    let mut checked = prepass.finish().map_err(refused)?;
-    checked.scan.checked_to_line = checked_to;
     if let Some(bar) = spinner {
         bar.finish_and_clear();
     }
-    Ok((checked, last_line))
+    Ok(WalkEnd {
+        last_line,
+        checked_to,
+    })
 }
 
 /// The input wait of pass 1 in `kerf run`: the machine's inputs are not known before the
