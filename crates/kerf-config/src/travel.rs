@@ -123,7 +123,8 @@ pub fn check_move(m: &Move, axes: &Axes) -> Result<(), TravelError> {
 ///
 /// A planned path stays within the tolerance of the moves it is made of, so the planned
 /// path of moves whose clearance exceeds that tolerance cannot leave the travel: this is
-/// what lets `kerf run` check those moves without planning them (docs/MACHINE.md).
+/// what lets `kerf run` check those moves without planning them (it asks for twice the
+/// tolerance; `kerf::sim::QuickCheck`).
 pub fn clearance_mm(m: &Move, axes: &Axes) -> f64 {
     let linear = axes.linear();
     let mut clearance = f64::INFINITY;

@@ -19,6 +19,10 @@ pub enum Poll {
     Pending,
     /// The program has been received to its end.
     End,
+    /// More of the program is there but cannot be taken now: the daemon's tracker holds
+    /// all the programmed moves it can until the motion passes some (the daemon's source
+    /// only). The motion starts as it would with a full queue.
+    Full,
 }
 
 /// What the run is fed after planning: a segment with the number of moves the planner had
@@ -198,11 +202,16 @@ impl Interpolator {
             self.synced_len = 0;
         }
         self.fire_synced(machine);
+        let mut source_full = false;
         loop {
             if self.hand.is_none() && !self.ended {
                 match source() {
                     Poll::Ready(item) => self.hand = Some(item),
                     Poll::Pending => break,
+                    Poll::Full => {
+                        source_full = true;
+                        break;
+                    }
                     Poll::End => {
                         self.ended = true;
                         break;
@@ -243,8 +252,9 @@ impl Interpolator {
             }
         }
         if !self.started {
-            // The queue is full, or the motion must stop at a dwell or the end anyway.
-            self.started = self.hand.is_some() || self.ended;
+            // The queue is full (or the source cannot hand over more now), or the motion
+            // must stop at a dwell or the end anyway.
+            self.started = self.hand.is_some() || self.ended || source_full;
         }
         Ok(self.started)
     }

@@ -70,14 +70,15 @@ pub(crate) struct Measure<'a> {
 }
 
 impl Measure<'_> {
-    /// Nothing measured yet, setpoints `period_s` apart; no monitor.
-    pub(crate) fn new(period_s: f64) -> Self {
+    /// Nothing measured yet, setpoints `period_s` apart, a tracker of `tracked_moves`
+    /// moves (the daemon's, see [`crate::TRACKED_MOVES_PER_SEGMENT`]); no monitor.
+    pub(crate) fn new(period_s: f64, tracked_moves: usize) -> Self {
         Measure {
             period_s,
             hist: [[0.0; 6]; 4],
             hist_len: 0,
             summary: Summary::default(),
-            tracker: Tracker::default(),
+            tracker: Tracker::with_capacity(tracked_moves),
             monitor: None,
             fault: None,
         }
@@ -113,6 +114,11 @@ impl Measure<'_> {
             self.summary.max_deviation_mm = self.summary.max_deviation_mm.max(d);
         }
         self.summary.last = *sp;
+    }
+
+    /// `true` when the tracker holds all the moves it can (as the daemon's would).
+    pub(crate) fn tracker_full(&self) -> bool {
+        self.tracker.is_full()
     }
 
     /// Records a programmed move for the deviation check.

@@ -62,6 +62,8 @@ pub(crate) struct Runner<'a, F: Sink> {
     max_cycles: u64,
     /// Programmed moves recorded so far.
     known: usize,
+    /// A segment taken from the source whose moves the tracker could not hold yet.
+    held: Option<Poll>,
 }
 
 impl<'a, F: Sink> Runner<'a, F> {
@@ -70,7 +72,11 @@ impl<'a, F: Sink> Runner<'a, F> {
         core.set_feed_override(options.feed_override);
         let mut runner = Runner {
             interp: Interpolator::new(core),
-            measure: Measure::new(limits.period_s),
+            measure: Measure::new(
+                limits.period_s,
+                options.capacity * crate::TRACKED_MOVES_PER_SEGMENT,
+            ),
+            held: None,
             period_s: limits.period_s,
             sink,
             cycle: 0,
@@ -118,6 +124,7 @@ impl<'a, F: Sink> Runner<'a, F> {
     fn cycle<S: Source>(&mut self, source: &mut S) -> Result<StepResult, RunError> {
         let measure = &mut self.measure;
         let known = &mut self.known;
+        let held = &mut self.held;
         let aborted = self.interp.aborted();
         let mut machine = SinkMachine {
             sink: &mut self.sink,
@@ -125,9 +132,18 @@ impl<'a, F: Sink> Runner<'a, F> {
         };
         let started = self.interp.feed(
             || {
-                let polled = source.poll();
-                if let Poll::Ready(Planned::Segment(_, moves_known)) = &polled {
-                    while *known < *moves_known {
+                let polled = held.take().unwrap_or_else(|| source.poll());
+                // The moves the segment's tracking looks at (its own and the next one),
+                // of those the planner had taken, as the daemon's planning thread sends
+                // them; a full tracker holds the segment back, as the daemon's cycle does.
+                if let Poll::Ready(Planned::Segment(seg, moves_known)) = &polled {
+                    let needed =
+                        (seg.move_index + u64::from(seg.move_count) + 1).min(*moves_known as u64);
+                    while (*known as u64) < needed {
+                        if measure.tracker_full() {
+                            *held = Some(polled);
+                            return Poll::Full;
+                        }
                         let Some(mv) = source.next_move() else {
                             break;
                         };

@@ -1586,3 +1586,45 @@ fn an_abort_while_kerf_run_still_streams_ends_the_program_for_the_client() {
     assert_eq!(position(&later), position(&s));
     assert!(received <= 601, "{received} items of a 601-item program");
 }
+
+/// A dense CAM surface whose smoothed pieces each stand for many programmed moves fills
+/// the daemon's move tracker (16 moves per queued segment) before its motion queue:
+/// the queue then counts as full and the motion starts (it used to wait for a full queue
+/// that could never come, the machine "running" without moving), and the setpoints are
+/// still `kerf sim`'s. A 16-segment queue makes it show on a short program.
+#[test]
+fn a_dense_surface_whose_pieces_outnumber_the_tracker_starts_and_equals_kerf_sim() {
+    let env = Env::new(
+        "tracker",
+        &[("queue_segments = 4096", "queue_segments = 16")],
+    );
+    let mut text = String::from("G21 G90 G17 G94 G64 P0.01 F3000\n");
+    for k in 1..=3000 {
+        let x = f64::from(k) * 0.05;
+        text += &format!("G1 X{x:.4} Z{:.4}\n", 0.5 * (x / 4.0).sin());
+    }
+    text += "M2\n";
+    let program = env.write("surface.ngc", &text);
+    let run_csv = env.path("run.csv");
+    let mut run = spawn(
+        "run",
+        &env.dir,
+        KERF,
+        &[
+            "run",
+            "--embedded",
+            "--config",
+            env.config_arg(),
+            "--record",
+            run_csv.to_str().unwrap(),
+            program.to_str().unwrap(),
+        ],
+    );
+    let status = wait(&mut run, 2);
+    assert!(status.success(), "{}", run.stderr());
+    let sim = env.sim(&program, "sim.csv");
+    assert!(
+        fs::read(&sim).unwrap() == fs::read(&run_csv).unwrap(),
+        "the daemon's setpoints differ from kerf sim's"
+    );
+}

@@ -69,11 +69,6 @@ impl CycleOutput {
 /// Commands taken per cycle at most (the rest wait for the next cycle).
 pub(crate) const COMMANDS_PER_CYCLE: usize = 8;
 
-/// Programmed moves the cycle's tracker holds without allocating: far more than the
-/// moves of a full queue of smoothed pieces (a smoothing window drops its oldest moves
-/// beyond 4,096).
-pub(crate) const TRACKED_MOVES: usize = 65_536;
-
 /// The ends of the rings that carry black-box dumps out of the cycle and their rings back.
 pub struct DumpRings {
     /// Finished dumps, to the thread that writes them.
@@ -276,7 +271,7 @@ impl Cycle {
             .map_err(|e| format!("the machine's configuration: {e}"))?;
         Ok(Cycle {
             interp: Interpolator::new(core),
-            tracker: Tracker::with_capacity(TRACKED_MOVES),
+            tracker: Tracker::with_capacity(capacity * kerf_pipeline::TRACKED_MOVES_PER_SEGMENT),
             period_s: limits.period_s,
             items,
             commands,

@@ -22,6 +22,8 @@ pub struct Planning {
     buf: Vec<PlannedSegment>,
     /// Moves taken by the planner and not yet sent to the cycle.
     taken: std::collections::VecDeque<Move>,
+    /// Program index (0-based) of `taken[0]`.
+    taken_base: u64,
     /// The program's modal machine state (spindle, coolant, tool), which turns its
     /// events into actions.
     actions: ProgramActions,
@@ -74,6 +76,7 @@ impl Planning {
             failed: false,
             buf: Vec::new(),
             taken: std::collections::VecDeque::new(),
+            taken_base: 0,
             actions: ProgramActions::new(),
             order: ActionOrder::new(),
             caps: config.machine_check(),
@@ -116,6 +119,7 @@ impl Planning {
                 }
                 self.failed = false;
                 self.taken.clear();
+                self.taken_base = 0;
                 self.actions = ProgramActions::new();
                 self.order = ActionOrder::new();
                 self.last_line = 0;
@@ -254,20 +258,25 @@ impl Planning {
         Ok(())
     }
 
-    /// Sends the planned segments in `buf`, each after the moves taken before it was
-    /// planned.
+    /// Sends the planned segments in `buf`, each after the programmed moves it needs
+    /// tracked (its own, and the one after it, whose corner a blend may cut: what the
+    /// cycle's tracker looks at for it), and no more: the planner may hold back 30 mm of
+    /// moves or more (a smoothing run's design distance), which the cycle's tracker need
+    /// not hold while the motion has not reached them.
     fn flush(&mut self) -> bool {
         let mut buf = std::mem::take(&mut self.buf);
         let mut ok = true;
-        if !buf.is_empty() {
-            while let Some(m) = self.taken.pop_front() {
+        'segments: for seg in buf.drain(..) {
+            let needed_to = seg.move_index + u64::from(seg.move_count);
+            while self.taken_base <= needed_to
+                && let Some(m) = self.taken.pop_front()
+            {
+                self.taken_base += 1;
                 if !self.send(RtItem::Move(m)) {
-                    self.buf = buf;
-                    return false;
+                    ok = false;
+                    break 'segments;
                 }
             }
-        }
-        for seg in buf.drain(..) {
             let due: Vec<Planned> = self.order.before(&seg).collect();
             // The count of moves known is only used by the offline deviation check.
             let sent = due.into_iter().all(|p| self.send(RtItem::Planned(p)))

@@ -127,7 +127,10 @@ impl Cycle {
                         // The next program's beginning: this one ended without its end (cannot
                         // happen: the planning worker always ends a program before the next).
                         RtItem::Begin { .. } => return Poll::End,
-                        RtItem::Move(_) if tracker.is_full() => return Poll::Pending,
+                        // The tracker holds the moves of the queued segments: full, the
+                        // queue counts as full (the motion starts, and the tracker
+                        // empties as it passes the moves).
+                        RtItem::Move(_) if tracker.is_full() => return Poll::Full,
                         // Programmed moves go to the tracker until the next planned item;
                         // after an abort they are not needed (as in `kerf sim`).
                         RtItem::Move(m) => {
