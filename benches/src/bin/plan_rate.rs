@@ -19,6 +19,8 @@ use kerf_plan::Planner;
 
 /// Moves of the non-repeating surface.
 const NOISY_SEGMENTS: usize = 20_000;
+/// Moves of the non-repeating surface with noise above the tolerance.
+const ROUGH_SEGMENTS: usize = 5_000;
 
 fn main() -> ExitCode {
     match run() {
@@ -46,6 +48,11 @@ fn run() -> anyhow::Result<()> {
     programs.push((
         "noisy surface 20000 (non-repeating)".to_string(),
         cam::noisy_surface(NOISY_SEGMENTS, 1, 0.002),
+    ));
+    // Noise above the tolerance: every vertex a real corner.
+    programs.push((
+        "rough surface 5000 (non-repeating, noise 0.02 mm)".to_string(),
+        cam::noisy_surface(ROUGH_SEGMENTS, 1, 0.02),
     ));
     for (name, text) in programs.iter().filter(|(n, _)| n.contains(&filter)) {
         let moves = measure::programmed_moves(name, text, &config)?;

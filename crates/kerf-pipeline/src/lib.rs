@@ -27,11 +27,26 @@
 
 /// Programmed moves the daemon's tracker holds (without allocating) per segment of its
 /// motion queue, and the offline runs' tracker as well, so that both take the same
-/// segments at the same cycles: 65,536 moves for the default 4,096 segments. Smoothed
-/// pieces of dense CAM code can stand for more moves each than this on average; the
-/// tracker is then full before the queue, and the queue counts as full ([`Poll::Full`]:
-/// the motion starts, and takes more as it passes the moves).
+/// segments at the same cycles (see [`tracked_moves`]). Smoothed pieces of dense CAM code
+/// can stand for more moves each than this on average; the tracker is then full before
+/// the queue, and the queue counts as full ([`Poll::Full`]: the motion starts, and takes
+/// more as it passes the moves).
 pub const TRACKED_MOVES_PER_SEGMENT: usize = 16;
+
+/// Programmed moves tracked beyond [`TRACKED_MOVES_PER_SEGMENT`] per segment: room for
+/// the moves kept behind the running segment and for one smoothed piece of many moves
+/// even on a short queue. (A piece standing for more moves than the tracker holds, with
+/// nothing else queued, is taken with the moves that do not fit untracked, in the daemon
+/// and the offline runs alike, rather than wait for room that cannot come.)
+pub const TRACKED_MOVES_EXTRA: usize = 4096;
+
+/// The tracker's capacity for a motion queue of `queue_segments` segments: 69,632 moves
+/// for the default 4,096.
+pub fn tracked_moves(queue_segments: usize) -> usize {
+    queue_segments
+        .saturating_mul(TRACKED_MOVES_PER_SEGMENT)
+        .saturating_add(TRACKED_MOVES_EXTRA)
+}
 
 mod actions;
 mod command;

@@ -72,10 +72,7 @@ impl<'a, F: Sink> Runner<'a, F> {
         core.set_feed_override(options.feed_override);
         let mut runner = Runner {
             interp: Interpolator::new(core),
-            measure: Measure::new(
-                limits.period_s,
-                options.capacity * crate::TRACKED_MOVES_PER_SEGMENT,
-            ),
+            measure: Measure::new(limits.period_s, crate::tracked_moves(options.capacity)),
             held: None,
             period_s: limits.period_s,
             sink,
@@ -126,6 +123,8 @@ impl<'a, F: Sink> Runner<'a, F> {
         let known = &mut self.known;
         let held = &mut self.held;
         let aborted = self.interp.aborted();
+        // As the daemon's cycle: with nothing queued a full tracker cannot empty.
+        let mut queue_empty = self.interp.core().queued() == 0;
         let mut machine = SinkMachine {
             sink: &mut self.sink,
             t_s: cycle_time_s(self.cycle + 1, self.period_s),
@@ -140,16 +139,19 @@ impl<'a, F: Sink> Runner<'a, F> {
                     let needed =
                         (seg.move_index + u64::from(seg.move_count) + 1).min(*moves_known as u64);
                     while (*known as u64) < needed {
-                        if measure.tracker_full() {
+                        if measure.tracker_full() && !queue_empty {
                             *held = Some(polled);
                             return Poll::Full;
                         }
                         let Some(mv) = source.next_move() else {
                             break;
                         };
-                        measure.add_move(&mv, aborted);
+                        if !measure.tracker_full() {
+                            measure.add_move(&mv, aborted);
+                        }
                         *known += 1;
                     }
+                    queue_empty = false;
                 }
                 polled
             },

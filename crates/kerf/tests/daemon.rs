@@ -1588,10 +1588,11 @@ fn an_abort_while_kerf_run_still_streams_ends_the_program_for_the_client() {
 }
 
 /// A dense CAM surface whose smoothed pieces each stand for many programmed moves fills
-/// the daemon's move tracker (16 moves per queued segment) before its motion queue:
-/// the queue then counts as full and the motion starts (it used to wait for a full queue
-/// that could never come, the machine "running" without moving), and the setpoints are
-/// still `kerf sim`'s. A 16-segment queue makes it show on a short program.
+/// the daemon's move tracker (16 moves per queued segment and 4,096 more) before its
+/// motion queue: the queue then counts as full and the motion starts (it used to wait for
+/// a full queue that could never come, the machine "running" without moving), and the
+/// setpoints are still `kerf sim`'s. A 16-segment queue and 0.005 mm steps make it show
+/// on a short program.
 #[test]
 fn a_dense_surface_whose_pieces_outnumber_the_tracker_starts_and_equals_kerf_sim() {
     let env = Env::new(
@@ -1599,8 +1600,8 @@ fn a_dense_surface_whose_pieces_outnumber_the_tracker_starts_and_equals_kerf_sim
         &[("queue_segments = 4096", "queue_segments = 16")],
     );
     let mut text = String::from("G21 G90 G17 G94 G64 P0.01 F3000\n");
-    for k in 1..=3000 {
-        let x = f64::from(k) * 0.05;
+    for k in 1..=20_000 {
+        let x = f64::from(k) * 0.005;
         text += &format!("G1 X{x:.4} Z{:.4}\n", 0.5 * (x / 4.0).sin());
     }
     text += "M2\n";

@@ -271,7 +271,7 @@ impl Cycle {
             .map_err(|e| format!("the machine's configuration: {e}"))?;
         Ok(Cycle {
             interp: Interpolator::new(core),
-            tracker: Tracker::with_capacity(capacity * kerf_pipeline::TRACKED_MOVES_PER_SEGMENT),
+            tracker: Tracker::with_capacity(kerf_pipeline::tracked_moves(capacity)),
             period_s: limits.period_s,
             items,
             commands,

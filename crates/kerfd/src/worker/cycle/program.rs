@@ -113,6 +113,8 @@ impl Cycle {
         let queued = &mut self.queued;
         let machine = &mut self.machine;
         let aborted = self.interp.aborted();
+        // Nothing queued (not even a running segment): a full tracker cannot empty.
+        let mut queue_empty = self.interp.core().queued() == 0;
         let mut refusal = None;
         let mut pending = false;
         let mut planned = 0u64;
@@ -130,17 +132,24 @@ impl Cycle {
                         // The tracker holds the moves of the queued segments: full, the
                         // queue counts as full (the motion starts, and the tracker
                         // empties as it passes the moves).
-                        RtItem::Move(_) if tracker.is_full() => return Poll::Full,
+                        RtItem::Move(_) if tracker.is_full() && !queue_empty => {
+                            return Poll::Full;
+                        }
                         // Programmed moves go to the tracker until the next planned item;
-                        // after an abort they are not needed (as in `kerf sim`).
+                        // after an abort they are not needed (as in `kerf sim`). With
+                        // nothing queued a full tracker would never empty (one smoothed
+                        // piece standing for more moves than it holds): the move is then
+                        // taken untracked (as in `kerf sim`), the setpoints of its piece
+                        // naming the nearest move tracked.
                         RtItem::Move(m) => {
-                            if !aborted || tracker.is_empty() {
+                            if !tracker.is_full() && (!aborted || tracker.is_empty()) {
                                 tracker.add(&m);
                             }
                         }
                         RtItem::Planned(p) => {
                             if let Planned::Segment(seg, _) = &p {
                                 queued.push(segment_time_s(seg));
+                                queue_empty = false;
                             }
                             planned += 1;
                             let _ = items.pop();

@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# Time from starting `kerf run` to the machine's first motion (issue 31): starts `kerfd` on
+# CONFIG, waits until it answers, starts `kerf run PROGRAM` and polls `kerf status --json`
+# every 10 ms until the position leaves where it was; prints the seconds to the first
+# acknowledged move (the check before motion is over) and to the first motion, then
+# aborts the program and stops the daemon. Wall-clock figures for docs/PERFORMANCE.md,
+# never a test.
+#
+#   benches/first_motion.sh BIN_DIR PROGRAM [CONFIG]
+#   e.g. target/release/gen_surface --segments 3000000 --seed 5 > /tmp/s3m.ngc
+#        benches/first_motion.sh target/release /tmp/s3m.ngc
+# CONFIG defaults to benches/cam-mill.toml (no homing: the machine is ready at start).
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+bin="$1"
+program="$2"
+config="${3:-$here/cam-mill.toml}"
+log="$(mktemp)"
+"$bin/kerfd" --config "$config" >"$log" 2>&1 &
+daemon=$!
+cleanup() {
+    kill "$daemon" 2>/dev/null || true
+    wait "$daemon" 2>/dev/null || true
+    rm -f "$log"
+}
+trap cleanup EXIT
+for _ in $(seq 100); do
+    "$bin/kerf" status --config "$config" >/dev/null 2>&1 && break
+    sleep 0.1
+done
+field() { # the status's JSON, one field
+    "$bin/kerf" status --json --config "$config" | python3 -c "import json,sys; s=json.load(sys.stdin); print($1)"
+}
+from="$(field 's["position"]')"
+start=$EPOCHREALTIME
+"$bin/kerf" run --config "$config" "$program" >/dev/null 2>&1 &
+run=$!
+acked=""
+while :; do
+    now=$EPOCHREALTIME
+    line="$(field '(s["moves_received"], s["position"])')"
+    if [ -z "$acked" ] && [ "${line%%,*}" != "(0" ]; then
+        acked=$(python3 -c "print(round($now - $start, 3))")
+    fi
+    if [ "$(field 's["position"]')" != "$from" ]; then
+        moved=$(python3 -c "print(round($now - $start, 3))")
+        break
+    fi
+    if ! kill -0 "$run" 2>/dev/null; then
+        echo "first_motion: kerf run ended before any motion" >&2
+        exit 1
+    fi
+    sleep 0.01
+done
+"$bin/kerf" abort --config "$config" >/dev/null 2>&1 || true
+wait "$run" 2>/dev/null || true
+echo "$(basename "$program"): first move acknowledged after ${acked:-?} s, first motion after $moved s"
