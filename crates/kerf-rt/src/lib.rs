@@ -22,5 +22,5 @@ mod signals;
 pub use clock::{PeriodicClock, Tick, now_ns};
 pub use error::RtError;
 pub use notify::{Watchdog, notify_ready, notify_stopping, notify_watchdog, watchdog_interval};
-pub use setup::{RtConfig, RtReport, fifo, fine_timer_slack, rt_setup};
+pub use setup::{RtConfig, RtReport, fine_timer_slack, rt_setup};
 pub use signals::{Signals, terminate};

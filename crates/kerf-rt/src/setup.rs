@@ -247,17 +247,3 @@ pub fn fine_timer_slack() -> io::Result<()> {
         Err(io::Error::last_os_error())
     }
 }
-
-/// Switches the calling thread to `SCHED_FIFO` at `priority` (1..=99), nothing else: for
-/// a helper thread that must wake promptly but is not the cycle (no pinning, no memory
-/// locking of its own). `Err` with the system's reason if refused (`EPERM` without
-/// `CAP_SYS_NICE` or `RLIMIT_RTPRIO`), or for a priority outside 1..=99.
-pub fn fifo(priority: u8) -> Result<(), RtError> {
-    if !(1..=99).contains(&priority) {
-        return Err(RtError::InvalidPriority { priority });
-    }
-    set_fifo(priority).map_err(|source| RtError::Os {
-        call: "pthread_setschedparam(SCHED_FIFO)",
-        source,
-    })
-}

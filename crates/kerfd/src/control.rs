@@ -14,15 +14,10 @@ pub(crate) struct ControlPorts {
 }
 
 /// The control thread's loop; `test_faults` accepts the fault injections of the tests.
-/// With `real_time` (the cycle runs under `SCHED_FIFO`) the thread runs under `SCHED_FIFO`
-/// too, two levels below the cycle (below its publishing helper), so that a request is
-/// taken within microseconds even when other work keeps the CPUs busy; it only ever waits
-/// or answers, so it takes little from them.
 pub(crate) fn control_thread(
     config: &Config,
     shared: Shared,
     test_faults: bool,
-    real_time: bool,
     ready: Ready,
     ports: ControlPorts,
 ) -> Result<(), String> {
@@ -74,14 +69,6 @@ pub(crate) fn control_thread(
         }
     };
 
-    if real_time {
-        let priority = config.daemon.priority.saturating_sub(2).max(1);
-        if let Err(e) = kerf_rt::fifo(priority) {
-            tracing::warn!(
-                "the control thread runs under the normal scheduler ({e}): answers may come late while the CPUs are busy"
-            );
-        }
-    }
     // The waits for the cycle and for requests are short: end them on time.
     if let Err(e) = kerf_rt::fine_timer_slack() {
         tracing::warn!(

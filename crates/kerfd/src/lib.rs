@@ -296,14 +296,7 @@ pub fn start_with(
     {
         let (config, shared, ready) = (config.clone(), shared.clone(), ready_tx.clone());
         threads.push(spawn("kerfd-control", move || {
-            control_thread(
-                &config,
-                shared,
-                test_faults,
-                real_time,
-                ready,
-                control_ports,
-            )
+            control_thread(&config, shared, test_faults, ready, control_ports)
         })?);
     }
     wait_ready(&ready_rx)?;
