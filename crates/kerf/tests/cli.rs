@@ -1457,3 +1457,41 @@ fn sim_stops_exactly_where_the_spindle_changes() {
     let (_, rows) = sim_rows("t1", &program, &[]);
     assert!(!on_the_lines(&rows), "T1: the corner should be blended");
 }
+
+/// `--out` naming a device or a pipe writes into it: the temporary file renamed over the
+/// target, right for a regular file, would replace `/dev/null` with a regular file when
+/// run as root (it did). A FIFO stands in for the device here (replacing the real
+/// `/dev/null` would break everything after a failure).
+#[test]
+fn sim_out_to_a_pipe_writes_into_it_and_leaves_it_a_pipe() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("kerf-cli-tests");
+    std::fs::create_dir_all(&dir).unwrap();
+    let fifo = dir.join("out.fifo");
+    let _ = std::fs::remove_file(&fifo);
+    let made = Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .expect("mkfifo runs");
+    assert!(made.success());
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read_to_string(&fifo).unwrap())
+    };
+    let program = scratch("fifo.ngc", "G21 G90 G1 X2 F600\nM2\n");
+    let out = kerf(&[
+        "sim",
+        program.to_str().unwrap(),
+        "--out",
+        fifo.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    // Checked before joining the reader, which waits for a writer that never came if
+    // the pipe was replaced.
+    let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
+    assert!(kind.is_fifo(), "the pipe was replaced: {kind:?}");
+    let text = reader.join().unwrap();
+    assert!(text.starts_with("t,x,y,z,line,feed_mm_s\n"), "{text}");
+    assert!(text.lines().count() > 10, "{text}");
+    std::fs::remove_file(&fifo).unwrap();
+}

@@ -53,6 +53,21 @@ impl Output {
         let name = path.display().to_string();
         let cannot_create =
             |e: io::Error| Failure::Error(format!("{name}: error: cannot create: {e}"));
+        // A device, pipe or socket (`--out /dev/null`, a FIFO) is written in place: a
+        // temporary file renamed over it would replace the device with a regular file.
+        if let Ok(meta) = std::fs::metadata(path)
+            && !meta.is_file()
+            && !meta.is_dir()
+        {
+            let file = std::fs::OpenOptions::new()
+                .write(true)
+                .open(path)
+                .map_err(cannot_create)?;
+            return Ok(Output {
+                sink: Sink::Live(BufWriter::new(file)),
+                name,
+            });
+        }
         let file_name = path
             .file_name()
             .ok_or_else(|| cannot_create(io::Error::other("not a file name")))?;
