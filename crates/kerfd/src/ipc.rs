@@ -446,7 +446,7 @@ pub type EventService = iceoryx2::service::port_factory::event::PortFactory<ipc:
 /// The two event services beside the control service: clients notify `request` after
 /// sending a request, the daemon notifies `answer` after sending a response. They replace
 /// polling at both ends (a request is taken and its answer seen within microseconds); the
-/// daemon still looks for requests every [`crate::POLL`], so a client that does not
+/// daemon still looks for requests every 200 µs, so a client that does not
 /// notify is answered too.
 pub struct ControlEvents {
     /// `kerf/<machine>/control-request`.
