@@ -621,19 +621,7 @@ pub fn check_program(
             machine_inputs,
             "checking the program",
             |item| {
-                match item {
-                    Walked::Move(m) => {
-                        if let Some(wait) = actions.before_move(m) {
-                            prepass.input(&wait).map_err(refused)?;
-                        }
-                        prepass.push(m).map_err(refused)?;
-                    }
-                    Walked::Event(e) => {
-                        if let Some(input) = actions.event(e) {
-                            prepass.input(&input).map_err(refused)?;
-                        }
-                    }
-                }
+                plan_item(&mut prepass, &mut actions, item).map_err(refused)?;
                 Ok(true)
             },
         )?;
@@ -669,19 +657,7 @@ pub fn check_program(
         let label =
             format!("checking the planned path near the edge of the travel (to line {line})");
         walk(source, config, settings, machine_inputs, &label, |item| {
-            match item {
-                Walked::Move(m) => {
-                    if let Some(wait) = actions.before_move(m) {
-                        prepass.input(&wait).map_err(refused)?;
-                    }
-                    prepass.push(m).map_err(refused)?;
-                }
-                Walked::Event(e) => {
-                    if let Some(input) = actions.event(e) {
-                        prepass.input(&input).map_err(refused)?;
-                    }
-                }
-            }
+            plan_item(&mut prepass, &mut actions, item).map_err(refused)?;
             passed = prepass.has_passed(last_near);
             Ok(!passed)
         })?;
@@ -690,6 +666,27 @@ pub fn check_program(
         }
     }
     Ok((kerf::sim::Checked { scan, kept: None }, walked.last_line))
+}
+
+/// Hands one item of the walk to the planned check: a move after the stop or wait the
+/// program's actions put before it, an event as the input it makes, if any.
+fn plan_item(
+    prepass: &mut Prepass,
+    actions: &mut ProgramActions,
+    item: Walked<'_>,
+) -> Result<(), PrepassError> {
+    match item {
+        Walked::Move(m) => {
+            if let Some(wait) = actions.before_move(m) {
+                prepass.input(&wait)?;
+            }
+            prepass.push(m)
+        }
+        Walked::Event(e) => match actions.event(e) {
+            Some(input) => prepass.input(&input),
+            None => Ok(()),
+        },
+    }
 }
 
 /// An item of the program for [`walk`]'s callback.
