@@ -454,23 +454,30 @@ fn send_copy(args: &[String]) -> Result<(), String> {
     Ok(())
 }
 
-fn roundtrip(args: &[String]) -> Result<(), String> {
-    let period_us: u32 = opt(args, "--period-us", 1000)?;
-    let requests: usize = opt(args, "--requests", 10_000)?;
+/// The machine a measurement talks to: the running `kerfd` of `--config FILE`, or a
+/// daemon started in this process at `period_us` (`--fifo`: SCHED_FIFO, as kerfd), which
+/// the caller shuts down.
+fn daemon_of(args: &[String], period_us: u32) -> Result<(Config, Option<kerfd::Daemon>), String> {
     let fifo = flag(args, "--fifo");
     let external: Option<String> =
         opt(args, "--config", String::new()).map(|s| if s.is_empty() { None } else { Some(s) })?;
-    let (config, daemon) = match &external {
+    match &external {
         Some(path) => {
             let c = Config::load(std::path::Path::new(path)).map_err(|e| e.to_string())?;
-            (c, None)
+            Ok((c, None))
         }
         None => {
             let c = bench_config(period_us);
             let d = kerfd::start(&c, fifo).map_err(|e| e.to_string())?;
-            (c, Some(d))
+            Ok((c, Some(d)))
         }
-    };
+    }
+}
+
+fn roundtrip(args: &[String]) -> Result<(), String> {
+    let period_us: u32 = opt(args, "--period-us", 1000)?;
+    let requests: usize = opt(args, "--requests", 10_000)?;
+    let (config, daemon) = daemon_of(args, period_us)?;
     let mut client = Client::connect(&config.machine).map_err(|e| e.to_string())?;
     let mut rtt_us = Vec::with_capacity(requests);
     for _ in 0..requests {
@@ -499,20 +506,7 @@ fn roundtrip(args: &[String]) -> Result<(), String> {
 fn hold(args: &[String]) -> Result<(), String> {
     let period_us: u32 = opt(args, "--period-us", 1000)?;
     let repeats: usize = opt(args, "--repeats", 20)?;
-    let fifo = flag(args, "--fifo");
-    let external: Option<String> =
-        opt(args, "--config", String::new()).map(|s| if s.is_empty() { None } else { Some(s) })?;
-    let (config, daemon) = match &external {
-        Some(path) => {
-            let c = Config::load(std::path::Path::new(path)).map_err(|e| e.to_string())?;
-            (c, None)
-        }
-        None => {
-            let c = bench_config(period_us);
-            let d = kerfd::start(&c, fifo).map_err(|e| e.to_string())?;
-            (c, Some(d))
-        }
-    };
+    let (config, daemon) = daemon_of(args, period_us)?;
     let mut client = Client::connect(&config.machine).map_err(|e| e.to_string())?;
     let status = client.status().map_err(|e| e.to_string())?;
     let period_ns = status.period_ns;
