@@ -973,11 +973,8 @@ fn programs_back_to_back() {
     check_stream(&env, &recorded, &moves, "record");
 }
 
-#[test]
-fn embedded_run_equals_kerf_sim() {
-    let env = Env::new("emb", &[]);
-    let program = env.write("part.ngc", PART);
-    let run_csv = env.path("run.csv");
+/// `kerf run --embedded --record RUN_CSV PROGRAM` on `env`'s machine, which must succeed.
+fn run_embedded_recorded(env: &Env, program: &Path, run_csv: &Path) {
     let mut run = spawn(
         "run",
         &env.dir,
@@ -994,6 +991,14 @@ fn embedded_run_equals_kerf_sim() {
     );
     let status = wait(&mut run, 2);
     assert!(status.success(), "{}", run.stderr());
+}
+
+#[test]
+fn embedded_run_equals_kerf_sim() {
+    let env = Env::new("emb", &[]);
+    let program = env.write("part.ngc", PART);
+    let run_csv = env.path("run.csv");
+    run_embedded_recorded(&env, &program, &run_csv);
     let sim = env.sim(&program, "sim.csv");
     assert!(fs::read(&sim).unwrap() == fs::read(&run_csv).unwrap());
     check_stream(
@@ -1607,22 +1612,7 @@ fn a_dense_surface_whose_pieces_outnumber_the_tracker_starts_and_equals_kerf_sim
     text += "M2\n";
     let program = env.write("surface.ngc", &text);
     let run_csv = env.path("run.csv");
-    let mut run = spawn(
-        "run",
-        &env.dir,
-        KERF,
-        &[
-            "run",
-            "--embedded",
-            "--config",
-            env.config_arg(),
-            "--record",
-            run_csv.to_str().unwrap(),
-            program.to_str().unwrap(),
-        ],
-    );
-    let status = wait(&mut run, 2);
-    assert!(status.success(), "{}", run.stderr());
+    run_embedded_recorded(&env, &program, &run_csv);
     let sim = env.sim(&program, "sim.csv");
     assert!(
         fs::read(&sim).unwrap() == fs::read(&run_csv).unwrap(),
