@@ -485,7 +485,6 @@ pub struct QuickCheck {
     previous_tolerance_mm: f64,
     rapid_mm_s: f64,
     scan: Scan,
-    next_index: u64,
     last_near: Option<(u64, u32)>,
     near_moves: u64,
 }
@@ -501,7 +500,6 @@ impl QuickCheck {
             previous_tolerance_mm: 0.0,
             rapid_mm_s: slowest_linear_mm_s(config),
             scan: Scan::default(),
-            next_index: 0,
             last_near: None,
             near_moves: 0,
         }
@@ -524,11 +522,11 @@ impl QuickCheck {
             .partial_cmp(&margin_mm)
             .is_some_and(|o| o == std::cmp::Ordering::Greater);
         if !clear {
-            self.last_near = Some((self.next_index, m.line));
+            // Its index in program order: the moves counted before it.
+            self.last_near = Some((self.scan.moves - 1, m.line));
             self.near_moves += 1;
         }
         self.previous_tolerance_mm = own_mm;
-        self.next_index += 1;
         Ok(())
     }
 
