@@ -6,8 +6,10 @@
 # Prints the comparison, the daemon's overruns and the wall time. A measurement for
 # docs/PERFORMANCE.md, never a test.
 #
-#   benches/keep_up.sh BIN_DIR SEGMENTS PERIOD_US [SEED]
+#   benches/keep_up.sh BIN_DIR SEGMENTS PERIOD_US [SEED [NOISE_MM]]
 #   e.g. benches/keep_up.sh target/release 200000 250
+#        benches/keep_up.sh target/release 1500 1000 1 0.02   # slow to plan: the motion
+#                                                             # starts before a full queue
 # The machine is benches/cam-mill.toml with the Y travel widened for long programs and
 # the period given; it runs under SCHED_FIFO where allowed (as kerfd does).
 set -euo pipefail
@@ -16,6 +18,7 @@ bin="$1"
 segments="$2"
 period_us="$3"
 seed="${4:-1}"
+noise_mm="${5:-}"
 dir="$(mktemp -d)"
 cleanup() {
     [ -n "${daemon:-}" ] && kill "$daemon" 2>/dev/null && wait "$daemon" 2>/dev/null
@@ -34,7 +37,7 @@ j = s.index("max_mm = 1000.0", i)
 s = s[:j] + "max_mm = 100000.0" + s[j + len("max_mm = 1000.0"):]
 open(dst, "w").write(s)
 PY
-"$bin/gen_surface" --segments "$segments" --seed "$seed" > "$dir/surface.ngc"
+"$bin/gen_surface" --segments "$segments" --seed "$seed" ${noise_mm:+--noise-mm "$noise_mm"} > "$dir/surface.ngc"
 "$bin/kerfd" --config "$dir/kerf.toml" > "$dir/kerfd.log" 2>&1 &
 daemon=$!
 for _ in $(seq 100); do

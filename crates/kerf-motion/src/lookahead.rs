@@ -13,6 +13,9 @@ pub(crate) const BACKWARD_MARGIN: f64 = 0.998;
 pub(crate) const PLAN_MARGIN: f64 = 0.999;
 /// Most sections one `push` revisits in the backward pass (bounds its work).
 pub(crate) const MAX_BACKWARD_SECTIONS: usize = 256;
+/// Most sections after the front one [`MotionCore::lookahead_settled`] looks at (bounds
+/// its work in the cycle).
+const SETTLED_SCAN_SECTIONS: u64 = 64;
 
 impl MotionCore {
     /// Recomputes the lookahead speeds from the tail until they stop changing.
@@ -86,6 +89,48 @@ impl MotionCore {
             soft_end = soft;
             k -= 1;
         }
+    }
+
+    /// `true` when a section after the front one and before the tail has start speeds
+    /// bound by its own limits and its junction cap alone (hard, hard at the boost level,
+    /// and soft at the present override), not by the stop at the queue's end.
+    ///
+    /// No segment pushed later can then change the lookahead of the sections before it:
+    /// the backward pass of every later push stops at that section (its speeds are at
+    /// their caps: hard speeds only grow as the queue grows, and soft ones at a given
+    /// override too), and later segments join the tail section, never the front one. So
+    /// the motion through the sections before it is the same whether the rest of the
+    /// program is queued now or later, as long as such a section stays ahead of the
+    /// motion; a source that cannot hand over the whole lookahead at once (the daemon's
+    /// planner) may start the motion then. Looks at most 64 sections after the front
+    /// one (no allocation; a few hundred nanoseconds).
+    pub fn lookahead_settled(&self) -> bool {
+        if self.sec_count < 3 {
+            return false;
+        }
+        let ovr = self.override_factor;
+        let tail = self.sec_head + self.sec_count - 1;
+        let last = tail.min(self.sec_head + 1 + SETTLED_SCAN_SECTIONS);
+        (self.sec_head + 1..last).any(|k| {
+            let s = self.sec(k);
+            let hard = s
+                .c_v_mm_s
+                .min(s.c_feed_mm_s * MAX_OVERRIDE)
+                .min(s.start_cap_mm_s);
+            let hard_boost = s
+                .c_v_boost_mm_s
+                .min(s.c_feed_mm_s * MAX_OVERRIDE)
+                .min(s.start_cap_mm_s);
+            let level = s.wants_boost(ovr);
+            let soft = s.v_eff(ovr, level).min(s.start_cap_mm_s).min(if level {
+                hard_boost
+            } else {
+                hard
+            });
+            s.hard_start_mm_s == hard
+                && s.hard_start_boost_mm_s == hard_boost
+                && s.soft_start_mm_s == soft
+        })
     }
 
     /// Recomputes the whole soft lookahead (after an override change).

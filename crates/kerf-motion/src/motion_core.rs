@@ -192,6 +192,13 @@ impl MotionCore {
         self.mode == Mode::Held
     }
 
+    /// `true` while the core follows its plan: no hold pending, no stop on the path, not
+    /// held. Only then does a pushed segment join the tail section where it can (see
+    /// [`push`](Self::push)).
+    pub fn follows_plan(&self) -> bool {
+        self.mode == Mode::Run
+    }
+
     /// A status snapshot.
     pub fn status(&self) -> Status {
         let state = match self.mode {

@@ -17,6 +17,11 @@ pub enum Poll {
     /// Nothing yet: the planner has not produced the next item (the daemon's source only;
     /// the simulator's source waits for it).
     Pending,
+    /// Nothing yet, and the planner is still working through what it has been given (the
+    /// daemon's planner behind the moves it has received): unlike [`Poll::Pending`], the
+    /// motion may then start before the queue is full, once that changes nothing (see
+    /// [`Interpolator::feed`]).
+    Planning,
     /// The program has been received to its end.
     End,
     /// More of the program is there but cannot be taken now: the daemon's tracker holds
@@ -45,6 +50,22 @@ pub enum Planned {
 /// until the segments before them are done; one more waits in hand.
 pub const SYNCED_ACTIONS: usize = 16;
 
+/// Motion at the programmed feed a source whose planner is behind ([`Poll::Planning`])
+/// must have handed over before the motion starts without a full queue, s (see
+/// [`Interpolator::feed`]): a buffer against the planner's hiccups.
+pub const START_LEAD_S: f64 = 1.0;
+
+/// A segment's motion time at its programmed feed (capped by its speed limit), s; 0 for
+/// a segment without a speed.
+pub fn segment_time_s(seg: &PlannedSegment) -> f64 {
+    let v = seg.v_max_mm_s.min(seg.feed_mm_s);
+    if v > 0.0 && v.is_finite() {
+        seg.length_mm / v
+    } else {
+        0.0
+    }
+}
+
 /// The per-cycle step of a program run, shared by `kerf sim` and the daemon's real-time
 /// thread (allocation-free): [`feed`](Self::feed) the motion core from a source, apply
 /// commands ([`apply`](Self::apply)), then [`step`](Self::step) one period.
@@ -58,9 +79,20 @@ pub const SYNCED_ACTIONS: usize = 16;
 /// once the motion has come to rest and everything before it has taken effect
 /// ([`Sync::AtRest`]: it stays in hand, asked again every cycle, until the machine says it
 /// is done). After an abort every item up to the program's end is dropped, and the
-/// synchronised actions not yet due with it (their move never starts). The motion of a program starts only when the queue is full,
-/// or a dwell or the program's end has been received: the core then has the same
-/// lookahead in the simulator and in the daemon.
+/// synchronised actions not yet due with it (their move never starts).
+///
+/// The motion of a program starts when the queue is full, or a dwell or the program's
+/// end has been received, or the source's planner is behind ([`Poll::Planning`]) once it
+/// has handed over [`START_LEAD_S`] of motion at the programmed feed and the core's
+/// lookahead has settled ([`MotionCore::lookahead_settled`]): a section ahead has speeds
+/// that no later segment can change, so the motion before it is the one a full queue
+/// gives. The simulator's source never pends, so it starts with a full queue; the
+/// daemon's setpoints equal it as long as its planner keeps a settled section ahead of
+/// the motion. While a hold is pending, stopping or held, no segment is pushed (a
+/// segment pushed then joins no section, so the sections would depend on when the
+/// planner had it). A source that has nothing because its client has not sent more
+/// ([`Poll::Pending`]) never starts the motion early: a program that trickles in moves
+/// only once its end has come or the queue is full.
 pub struct Interpolator {
     core: MotionCore,
     period_s: f64,
@@ -68,6 +100,8 @@ pub struct Interpolator {
     /// While resting at the dwell in hand: periods left.
     dwell_left: Option<u64>,
     started: bool,
+    /// Motion time at the programmed feed of the segments pushed before the start, s.
+    lead_s: f64,
     ended: bool,
     aborted: bool,
     last: Option<StepResult>,
@@ -98,6 +132,7 @@ impl Interpolator {
             hand: None,
             dwell_left: None,
             started: false,
+            lead_s: 0.0,
             ended: false,
             aborted: false,
             last: None,
@@ -182,6 +217,7 @@ impl Interpolator {
         self.hand = None;
         self.dwell_left = None;
         self.started = false;
+        self.lead_s = 0.0;
         self.ended = false;
         self.aborted = false;
         self.last = None;
@@ -203,11 +239,16 @@ impl Interpolator {
         }
         self.fire_synced(machine);
         let mut source_full = false;
+        let mut planning = false;
         loop {
             if self.hand.is_none() && !self.ended {
                 match source() {
                     Poll::Ready(item) => self.hand = Some(item),
                     Poll::Pending => break,
+                    Poll::Planning => {
+                        planning = true;
+                        break;
+                    }
                     Poll::Full => {
                         source_full = true;
                         break;
@@ -227,9 +268,17 @@ impl Interpolator {
                     self.acting = false;
                     self.hand = None;
                 }
+                // Not while a hold is pending, stopping or held: a segment pushed then
+                // joins no section, so the sections would depend on when the source had
+                // it (the daemon's planner may still be filling the queue); it waits in
+                // hand for the resume, as the segments of a full queue wait for room.
+                Some(Planned::Segment(..)) if self.started && !self.core.follows_plan() => break,
                 Some(Planned::Segment(seg, _)) => match self.core.push(seg) {
                     Ok(()) => {
                         self.pushed += 1;
+                        if !self.started {
+                            self.lead_s += segment_time_s(seg);
+                        }
                         self.hand = None;
                     }
                     Err(PushError::Full) => break,
@@ -253,8 +302,12 @@ impl Interpolator {
         }
         if !self.started {
             // The queue is full (or the source cannot hand over more now), or the motion
-            // must stop at a dwell or the end anyway.
-            self.started = self.hand.is_some() || self.ended || source_full;
+            // must stop at a dwell or the end anyway, or enough is queued that more
+            // cannot change the motion ahead.
+            self.started = self.hand.is_some()
+                || self.ended
+                || source_full
+                || (planning && self.lead_s >= START_LEAD_S && self.core.lookahead_settled());
         }
         Ok(self.started)
     }

@@ -11,7 +11,9 @@
 //!   thread has the next item (it is never [`Poll::Pending`]).
 //! - Motion starts once the queue is full, or the program has been received to its end
 //!   (or to a dwell, where the motion must stop anyway): with a planner that keeps up,
-//!   the core then sees the same segments at every cycle in both.
+//!   the core then sees the same segments at every cycle in both. A daemon whose planner
+//!   is behind starts earlier, once the lookahead has settled: segments queued later then
+//!   change nothing of the motion ahead (see [`Interpolator::feed`]).
 //! - [`plan_input`] is the planning step both planning threads run: a move is planned; at
 //!   a stop or dwell the path ends at rest.
 //! - [`Sink`] consumes setpoints: the CSV writer of `kerf sim`, the daemon's publisher.
@@ -67,7 +69,7 @@ pub use actions::{ActionOrder, ProgramActions};
 pub use command::OperatorEvent;
 pub use error::RunError;
 pub use input::{Input, dwell_periods, plan_input};
-pub use interpolator::{Interpolator, Planned, Poll, SYNCED_ACTIONS};
+pub use interpolator::{Interpolator, Planned, Poll, START_LEAD_S, SYNCED_ACTIONS, segment_time_s};
 pub use measure::{AxisPeak, Summary};
 pub use runner::RunOptions;
 pub use runs::{run, run_parallel, run_planned, run_stream};

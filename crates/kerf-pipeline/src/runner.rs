@@ -39,7 +39,8 @@ impl Default for RunOptions {
 /// programmed moves in order (each [`Planned::Segment`] says how many moves the planner
 /// had taken when it made it; the deviation check records them before the segment runs).
 pub(crate) trait Source {
-    /// The next item; never [`Poll::Pending`] (the offline runs wait for the planner).
+    /// The next item; never [`Poll::Pending`] or [`Poll::Planning`] (the offline runs wait
+    /// for the planner).
     fn poll(&mut self) -> Poll;
     /// The next programmed move.
     fn next_move(&mut self) -> Option<Move>;

@@ -26,6 +26,7 @@ pub(crate) fn cycle_thread(
         cycles,
         overruns,
         rt_ok,
+        counters,
         ..
     } = shared;
     let (items, commands, status, dump_rings) = parts;
@@ -49,6 +50,7 @@ pub(crate) fn cycle_thread(
             return Err(e);
         }
     };
+    cycle.watch_planner(counters.behind.clone());
     let rt = if real_time {
         let report = kerf_rt::rt_setup(&kerf_rt::RtConfig {
             priority: Some(config.daemon.priority),

@@ -47,9 +47,15 @@ pub fn planning_thread(
         loop {
             let msg: MoveMsg = match subscriber.receive() {
                 Ok(Some(sample)) => *sample,
-                Ok(None) => break,
+                Ok(None) => {
+                    counters.behind.store(false, Ordering::Relaxed);
+                    break;
+                }
                 Err(e) => return Err(format!("receiving moves: {e:?}")),
             };
+            // Behind: a second message waited while the first was planned (a client that
+            // sends one at a time, slower than the planning, never sets it).
+            counters.behind.store(got, Ordering::Relaxed);
             got = true;
             if let Some(incoming) = take_message(&msg, &mut intake, &counters)
                 && !planning.handle(incoming)

@@ -236,6 +236,10 @@ pub struct Cycle {
     resume_after_return: bool,
     /// The drives' actual positions of the last cycle (machine coordinates).
     actual: PerAxis<f64>,
+    /// Set while the planning thread works through messages it has received (see
+    /// [`Cycle::watch_planner`]); without it a program's motion starts only with a full
+    /// queue or its end.
+    planner_behind: Option<Arc<AtomicBool>>,
 }
 
 impl Cycle {
@@ -317,7 +321,18 @@ impl Cycle {
             actual: start,
             paused_at: None,
             resume_after_return: false,
+            planner_behind: None,
         })
+    }
+
+    /// Lets a program's motion start before the queue is full while `behind` says the
+    /// planning thread is still working through what it has received
+    /// ([`PlanningCounters::behind`]): once the queue holds
+    /// [`kerf_pipeline::START_LEAD_S`] of motion and its lookahead has settled, the
+    /// segments still to come change nothing of the motion ahead (see
+    /// [`kerf_pipeline::Interpolator::feed`]).
+    pub fn watch_planner(&mut self, behind: Arc<AtomicBool>) {
+        self.planner_behind = Some(behind);
     }
 
     /// The drive stage (for tests: its black box and drives).
@@ -735,16 +750,6 @@ pub(crate) const START_TOL: f64 = 1e-6;
 
 /// Cycles a shutdown waits for the drives to power off before the cycle ends anyway.
 pub(crate) const DISABLE_WAIT_CYCLES: u32 = 1000;
-
-/// The estimated motion time of a segment at its planned speed limit, s.
-pub(crate) fn segment_time_s(seg: &PlannedSegment) -> f64 {
-    let v = seg.v_max_mm_s.min(seg.feed_mm_s);
-    if v > 0.0 && v.is_finite() {
-        seg.length_mm / v
-    } else {
-        0.0
-    }
-}
 
 /// The estimated motion times of the segments in the motion queue, in push order, and
 /// their sum: preallocated for the whole queue, so that it never allocates.

@@ -56,6 +56,11 @@ pub struct PlanningCounters {
     /// The single-block switch: while on, the planning thread puts a pause after every
     /// block it plans.
     pub single_block: Arc<AtomicBool>,
+    /// The planning thread is working through a backlog of messages (set when the moves
+    /// service hands it another message right after one it planned, cleared when it has
+    /// none): the cycle may then start a program's motion before the queue is full
+    /// ([`kerf_pipeline::Poll::Planning`]).
+    pub behind: Arc<AtomicBool>,
 }
 
 impl Planning {

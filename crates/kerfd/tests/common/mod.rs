@@ -75,11 +75,26 @@ pub fn feed_program_in(
     text: &str,
     dialect: kerf_gcode::Dialect,
 ) {
+    for incoming in program_messages(config, id, start, text, dialect) {
+        assert!(planning.handle(incoming), "the planning worker stopped");
+    }
+}
+
+/// Program `id` (text in `dialect`, starting at `start`) as the planning thread hands it
+/// to the planning worker: every item as a message through the stream check, BEGIN to END.
+pub fn program_messages(
+    config: &Config,
+    id: u64,
+    start: [f64; 6],
+    text: &str,
+    dialect: kerf_gcode::Dialect,
+) -> Vec<Incoming> {
     let mut check = StreamCheck::new();
     let mut settings = config.settings();
     settings.start_mm_deg = start;
-    let mut handle = |msg: MoveMsg| {
-        let incoming = match check.check(&msg).expect("a valid message") {
+    let mut out = Vec::new();
+    let mut take = |msg: MoveMsg| {
+        out.push(match check.check(&msg).expect("a valid message") {
             Resolved::Begin {
                 program_id,
                 start_mm_deg,
@@ -91,15 +106,15 @@ pub fn feed_program_in(
             Resolved::Move(m) => Incoming::Move(m),
             Resolved::Event(e) => Incoming::Event(e),
             Resolved::End { .. } => Incoming::End,
-        };
-        assert!(planning.handle(incoming), "the planning worker stopped");
+        });
     };
-    handle(MoveMsg::begin(id, start, 0));
+    take(MoveMsg::begin(id, start, 0));
     let mut seq = 0;
     for item in kerf_gcode::Interpreter::new(text.as_bytes(), dialect, settings) {
         let item = item.expect("the program is valid");
         seq += 1;
-        handle(MoveMsg::from_item(id, seq, &item));
+        take(MoveMsg::from_item(id, seq, &item));
     }
-    handle(MoveMsg::end(id, seq));
+    take(MoveMsg::end(id, seq));
+    out
 }

@@ -118,12 +118,20 @@ impl Cycle {
         let mut refusal = None;
         let mut pending = false;
         let mut planned = 0u64;
+        let behind = self
+            .planner_behind
+            .as_ref()
+            .is_some_and(|b| b.load(Ordering::Relaxed));
         let result = self.interp.feed(
             || {
                 loop {
                     let Ok(item) = items.peek() else {
                         pending = true;
-                        return Poll::Pending;
+                        return if behind {
+                            Poll::Planning
+                        } else {
+                            Poll::Pending
+                        };
                     };
                     match *item {
                         // The next program's beginning: this one ended without its end (cannot
@@ -148,7 +156,7 @@ impl Cycle {
                         }
                         RtItem::Planned(p) => {
                             if let Planned::Segment(seg, _) = &p {
-                                queued.push(segment_time_s(seg));
+                                queued.push(kerf_pipeline::segment_time_s(seg));
                                 queue_empty = false;
                             }
                             planned += 1;
