@@ -23,8 +23,9 @@ pub struct Interpreter<R: std::io::BufRead> {
     words: Vec<lex::Word>,
     block: interp::Block,
     state: interp::State,
+    /// The items of the line just resolved, last first: each is moved out by `pop`, in
+    /// program order, instead of being cloned out of a buffer read from the front.
     pending: Vec<Item>,
-    next_pending: usize,
     error: Option<Diagnostic>,
     finished: bool,
     percent_seen: bool,
@@ -73,7 +74,6 @@ impl<R: std::io::BufRead> Interpreter<R> {
             block: interp::Block::new(),
             state: interp::State::new(dialect, settings),
             pending: Vec::with_capacity(16),
-            next_pending: 0,
             error: None,
             finished: false,
             percent_seen: false,
@@ -341,12 +341,9 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
 
     fn next(&mut self) -> Option<Self::Item> {
         loop {
-            if let Some(item) = self.pending.get(self.next_pending) {
-                self.next_pending += 1;
-                return Some(Ok(item.clone()));
+            if let Some(item) = self.pending.pop() {
+                return Some(Ok(item));
             }
-            self.pending.clear();
-            self.next_pending = 0;
             if let Some(e) = self.error.take() {
                 self.finished = true;
                 return Some(Err(e));
@@ -392,6 +389,7 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
                     }
                     // Moves held back by cutter compensation run at the end of the file.
                     self.state.comp_finish(&mut self.pending);
+                    self.pending.reverse();
                     continue;
                 }
                 Err(e) => {
@@ -410,6 +408,8 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
                 self.error = Some(e);
                 self.finished = true;
             }
+            // The line's items (those before an error) go out first, in program order.
+            self.pending.reverse();
         }
     }
 }
