@@ -430,6 +430,11 @@ pub(crate) const fn allowed_keys(d: Dialect) -> u32 {
 /// A G or M number times ten (G59.1 → 591), if it has at most one decimal.
 pub(crate) fn code10(v: f64) -> Option<u16> {
     let t = v * 10.0;
+    // A whole number in range (G1 is 10.0), the common case, is its own rounding; `round`
+    // is a library call on the baseline x86-64 target.
+    if (0.0..=65535.0).contains(&t) && f64::from(t as u16) == t {
+        return Some(t as u16);
+    }
     let r = t.round();
     if !(0.0..=65535.0).contains(&r) || (t - r).abs() > 1e-6 {
         return None;

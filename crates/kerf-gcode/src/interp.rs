@@ -24,6 +24,7 @@ mod modal;
 mod motion;
 mod offsets;
 pub(crate) mod params;
+mod plain;
 mod polar;
 mod query;
 mod tooling;
@@ -34,6 +35,8 @@ pub(crate) use modal::FeedMode;
 pub(crate) use modal::linuxcnc_m_refusal_of;
 use modal::{ModalFrame, Spindle};
 pub(crate) use offsets::ToolLength;
+#[cfg(test)]
+pub(crate) use plain::GENERAL_PATH_ONLY;
 
 const MM_PER_INCH: f64 = 25.4;
 

@@ -23,8 +23,9 @@ pub struct Interpreter<R: std::io::BufRead> {
     words: Vec<lex::Word>,
     block: interp::Block,
     state: interp::State,
+    /// The items of the line just resolved, last first: each is moved out by `pop`, in
+    /// program order, instead of being cloned out of a buffer read from the front.
     pending: Vec<Item>,
-    next_pending: usize,
     error: Option<Diagnostic>,
     finished: bool,
     percent_seen: bool,
@@ -73,7 +74,6 @@ impl<R: std::io::BufRead> Interpreter<R> {
             block: interp::Block::new(),
             state: interp::State::new(dialect, settings),
             pending: Vec::with_capacity(16),
-            next_pending: 0,
             error: None,
             finished: false,
             percent_seen: false,
@@ -160,21 +160,13 @@ impl<R: std::io::BufRead> Interpreter<R> {
     /// Reads the next line into `self.line` without its line end. `Ok(false)` at the end
     /// of the input.
     fn read_line(&mut self) -> Result<bool, Diagnostic> {
-        use std::io::{BufRead, Read};
         self.line.clear();
-        let limit = MAX_LINE_BYTES as u64 + 1;
-        let n = loop {
-            match (&mut self.reader)
-                .take(limit)
-                .read_until(b'\n', &mut self.line)
-            {
-                Ok(n) => break n,
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                Err(e) => {
-                    self.reader_line = self.reader_line.saturating_add(1);
-                    self.line_no = self.reader_line;
-                    return Err(self.diag(1, format!("read error: {e}")));
-                }
+        let n = match read_line_into(&mut self.reader, &mut self.line, MAX_LINE_BYTES + 1) {
+            Ok(n) => n,
+            Err(e) => {
+                self.reader_line = self.reader_line.saturating_add(1);
+                self.line_no = self.reader_line;
+                return Err(self.diag(1, format!("read error: {e}")));
             }
         };
         if n == 0 {
@@ -201,7 +193,7 @@ impl<R: std::io::BufRead> Interpreter<R> {
     /// Resolves every block of the current line into `pending`, stopping at the first error.
     fn process_line(&mut self) -> Result<(), Diagnostic> {
         // Plain ASCII without NUL is the common case and needs no further check.
-        if self.line.iter().any(|&b| b == 0 || b >= 0x80) {
+        if nul_or_non_ascii(&self.line) {
             if let Some(i) = self.line.iter().position(|&b| b == 0) {
                 return Err(self.diag(lex::col_of(i), "NUL byte in program"));
             }
@@ -292,6 +284,79 @@ impl<R: std::io::BufRead> Interpreter<R> {
     }
 }
 
+/// Appends the bytes of `reader` up to and including the next `\n` to `line`, at most
+/// `limit` of them, and returns how many: `reader.take(limit).read_until(b'\n', line)`
+/// without the adapter, and with a search for the line end that suits short lines.
+fn read_line_into<R: std::io::BufRead>(
+    reader: &mut R,
+    line: &mut Vec<u8>,
+    limit: usize,
+) -> std::io::Result<usize> {
+    let mut read = 0;
+    while read < limit {
+        let available = match reader.fill_buf() {
+            Ok(b) => b,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        };
+        let available = &available[..available.len().min(limit - read)];
+        if available.is_empty() {
+            break;
+        }
+        let (used, done) = match newline_at(available) {
+            Some(i) => (i + 1, true),
+            None => (available.len(), false),
+        };
+        line.extend_from_slice(&available[..used]);
+        reader.consume(used);
+        read += used;
+        if done {
+            break;
+        }
+    }
+    Ok(read)
+}
+
+/// The offset of the first `\n` in `bytes`, eight bytes at a time.
+fn newline_at(bytes: &[u8]) -> Option<usize> {
+    const ONES: u64 = 0x0101_0101_0101_0101;
+    const HIGH: u64 = 0x8080_8080_8080_8080;
+    let mut chunks = bytes.chunks_exact(8);
+    let mut at = 0;
+    for chunk in &mut chunks {
+        let x = u64::from_le_bytes(chunk.try_into().expect("a chunk of 8 bytes")) ^ (ONES * 10);
+        // The lowest high bit of `(x - ONES) & !x` marks the first zero byte of `x` (the
+        // bytes above it can be marked wrongly, never the ones below).
+        let zero = x.wrapping_sub(ONES) & !x & HIGH;
+        if zero != 0 {
+            return Some(at + zero.trailing_zeros() as usize / 8);
+        }
+        at += 8;
+    }
+    chunks
+        .remainder()
+        .iter()
+        .position(|&b| b == b'\n')
+        .map(|i| at + i)
+}
+
+/// Whether `line` holds a NUL byte or a byte of 0x80 or above (anything but plain ASCII
+/// without NUL), tested eight bytes at a time.
+fn nul_or_non_ascii(line: &[u8]) -> bool {
+    const ONES: u64 = 0x0101_0101_0101_0101;
+    const HIGH: u64 = 0x8080_8080_8080_8080;
+    let mut chunks = line.chunks_exact(8);
+    for chunk in &mut chunks {
+        let x = u64::from_le_bytes(chunk.try_into().expect("a chunk of 8 bytes"));
+        // `(x - ONES) & !x` has the high bit of a byte set where the first zero byte is
+        // (exact as a yes/no answer); `x` where a byte is 0x80 or above.
+        if ((x.wrapping_sub(ONES) & !x) | x) & HIGH != 0 {
+            return true;
+        }
+    }
+    chunks.remainder().iter().any(|&b| b == 0 || b >= 0x80)
+}
+
 impl<R: std::io::BufRead> Interpreter<R> {
     /// A LinuxCNC line through the language layer. `Ok(false)`: the plain path handles it.
     fn process_ngc_line(&mut self) -> Result<bool, Diagnostic> {
@@ -341,12 +406,9 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
 
     fn next(&mut self) -> Option<Self::Item> {
         loop {
-            if let Some(item) = self.pending.get(self.next_pending) {
-                self.next_pending += 1;
-                return Some(Ok(item.clone()));
+            if let Some(item) = self.pending.pop() {
+                return Some(Ok(item));
             }
-            self.pending.clear();
-            self.next_pending = 0;
             if let Some(e) = self.error.take() {
                 self.finished = true;
                 return Some(Err(e));
@@ -392,6 +454,7 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
                     }
                     // Moves held back by cutter compensation run at the end of the file.
                     self.state.comp_finish(&mut self.pending);
+                    self.pending.reverse();
                     continue;
                 }
                 Err(e) => {
@@ -409,6 +472,96 @@ impl<R: std::io::BufRead> Iterator for Interpreter<R> {
                 }
                 self.error = Some(e);
                 self.finished = true;
+            }
+            // The line's items (those before an error) go out first, in program order.
+            self.pending.reverse();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::io::{BufRead, BufReader, Read};
+
+    use super::{newline_at, nul_or_non_ascii, read_line_into};
+
+    #[test]
+    fn newline_at_finds_the_first_line_end() {
+        for len in 0..=40 {
+            for at in 0..len {
+                for other in [
+                    None,
+                    Some(0u8),
+                    Some(b'\n' - 1),
+                    Some(b'\n' + 1),
+                    Some(0x8a),
+                ] {
+                    let mut bytes = vec![b'X'; len];
+                    bytes[at] = b'\n';
+                    if let Some(o) = other {
+                        bytes[(at + 1) % len] = o;
+                        if at > 0 {
+                            bytes[at - 1] = o;
+                        }
+                    }
+                    let expected = bytes.iter().position(|&b| b == b'\n');
+                    assert_eq!(newline_at(&bytes), expected, "{bytes:?}");
+                    let later = at + 1 + (len - at) / 2;
+                    if later < len {
+                        bytes[later] = b'\n';
+                        assert_eq!(newline_at(&bytes), expected, "{bytes:?}");
+                    }
+                }
+            }
+            assert_eq!(newline_at(&vec![b'Y'; len]), None);
+        }
+    }
+
+    #[test]
+    fn read_line_into_reads_what_take_read_until_reads() {
+        let text: Vec<u8> = b"G1 X1\n\nG2 X2 Y0.5 I1 J0 (a longer line than the buffer)\nlast"
+            .iter()
+            .copied()
+            .chain(std::iter::repeat_n(b'A', 70))
+            .chain(*b"\r\n\n")
+            .collect();
+        for capacity in [1, 2, 3, 7, 8, 9, 64, 8192] {
+            for limit in [1, 2, 5, 8, 30, 100, 10_000] {
+                let mut ours = BufReader::with_capacity(capacity, text.as_slice());
+                let mut theirs = BufReader::with_capacity(capacity, text.as_slice());
+                loop {
+                    let (mut a, mut b) = (Vec::new(), Vec::new());
+                    let n = read_line_into(&mut ours, &mut a, limit).unwrap();
+                    let m = (&mut theirs)
+                        .take(limit as u64)
+                        .read_until(b'\n', &mut b)
+                        .unwrap();
+                    assert_eq!((n, &a), (m, &b), "capacity {capacity}, limit {limit}");
+                    if n == 0 {
+                        break;
+                    }
+                }
+                assert!(ours.fill_buf().unwrap().is_empty());
+            }
+        }
+    }
+
+    #[test]
+    fn the_eight_byte_test_answers_as_the_byte_by_byte_one() {
+        let bytewise = |l: &[u8]| l.iter().any(|&b| b == 0 || b >= 0x80);
+        for len in 0..=24 {
+            for at in 0..len {
+                for b in 0..=255u8 {
+                    let mut line = vec![b'G'; len];
+                    line[at] = b;
+                    assert_eq!(nul_or_non_ascii(&line), bytewise(&line), "{line:?}");
+                    // Next to a byte that borrows in the subtraction (0x00, 0x01, 0x80).
+                    for other in [0u8, 1, 0x7f, 0x80, 0xff] {
+                        let mut two = line.clone();
+                        two[(at + 1) % len] = other;
+                        assert_eq!(nul_or_non_ascii(&two), bytewise(&two), "{two:?}");
+                    }
+                }
             }
         }
     }

@@ -506,3 +506,5 @@ pub use settings::{Settings, Tool};
 mod tests;
 #[cfg(test)]
 mod tests_mdi;
+#[cfg(test)]
+mod tests_plain;

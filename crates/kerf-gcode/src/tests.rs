@@ -283,6 +283,27 @@ fn linuxcnc_errors_name_the_word() {
 }
 
 #[test]
+fn a_refused_m_code_is_named_before_any_other_error_of_its_block() {
+    let d = Dialect::LinuxCnc;
+    for (src, col, code) in [
+        ("X1 X2 M98 P100", 7, "M98"),
+        ("U1 M99", 4, "M99"),
+        ("M3 M5 M98", 7, "M98"),
+        ("M0 M1 M2 M3 M5 M6 M7 M8 M9 M99", 28, "M99"),
+        ("M0.5 M98", 6, "M98"),
+        ("M99 M98", 1, "M99"),
+    ] {
+        let e = error(d, src);
+        assert_eq!(e.col, col, "{src}: {e}");
+        assert!(
+            e.message.starts_with(&format!("{code} is not supported")),
+            "{src}: {e}"
+        );
+    }
+    assert_eq!(error(d, "X1 X2 M3").message, "word X repeated");
+}
+
+#[test]
 fn nothing_after_a_failing_block() {
     // Rockwell: `;` ends a block; the first block of the line is produced, the failing
     // second one and everything after it is not.

@@ -309,7 +309,7 @@ impl State {
 
     /// The centre of an arc in the plane (frame coordinates): from I, J, K, the pole or
     /// polar origin, or the Heidenhain circle centre.
-    fn arc_centre(
+    pub(super) fn arc_centre(
         &self,
         blk: &Block,
         start: Vec3,

@@ -62,7 +62,32 @@ impl Block {
 
 impl State {
     /// Fills `blk` from the lexed words, checking repeats and per-dialect letters.
+    ///
+    /// A code Kerf refuses (M98 P100) is named before any error of its words: the words are
+    /// searched for one only when the block fails (every M word is checked for a refusal
+    /// as it is met, so a block without error has none).
     pub(crate) fn build_block(&self, words: &[Word], blk: &mut Block) -> Result<(), BlockError> {
+        self.fill_block(words, blk).map_err(|e| {
+            match words
+                .iter()
+                .filter(|w| w.key == crate::lex::key(b'M'))
+                .find_map(|w| Some((w.col, self.m_refusal(w.value)?)))
+            {
+                Some((col, message)) => BlockError {
+                    col,
+                    message: message.into(),
+                },
+                None => e,
+            }
+        })
+    }
+
+    /// The refusal of the M code with the value `v`, if Kerf refuses it.
+    fn m_refusal(&self, v: f64) -> Option<&'static str> {
+        code10(v).and_then(|c| self.linuxcnc_m_refusal(c / 10))
+    }
+
+    fn fill_block(&self, words: &[Word], blk: &mut Block) -> Result<(), BlockError> {
         blk.present = 0;
         blk.ng = 0;
         blk.nm = 0;
@@ -72,12 +97,7 @@ impl State {
         // the block), which exec() would otherwise replace before reading them.
         let mut local: Option<bool> = None;
         let modal = if self.absolute { Form::Abs } else { Form::Inc };
-        // A code Kerf refuses (M98 P100) is named before any error of its words.
-        for w in words.iter().filter(|w| w.key == crate::lex::key(b'M')) {
-            if let Some(msg) = code10(w.value).and_then(|c| self.linuxcnc_m_refusal(c / 10)) {
-                return fail(w.col, msg);
-            }
-        }
+        let allowed = allowed_keys(self.dialect);
         for w in words {
             let letter = if w.key < 26 { b'A' + w.key } else { 0 };
             match letter {
@@ -107,6 +127,9 @@ impl State {
                     continue;
                 }
                 b'M' => {
+                    if let Some(msg) = self.m_refusal(w.value) {
+                        return fail(w.col, msg);
+                    }
                     if blk.nm == blk.ms.len() {
                         return fail(w.col, "too many M codes in one block");
                     }
@@ -124,7 +147,9 @@ impl State {
                 b'N' => continue,
                 _ => {}
             }
-            self.check_letter(w)?;
+            if allowed & (1u32 << w.key) == 0 {
+                self.check_letter(w)?;
+            }
             if blk.has(w.key) {
                 return fail(w.col, format!("word {} repeated", key_name(w.key)));
             }

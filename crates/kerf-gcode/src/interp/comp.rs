@@ -446,9 +446,38 @@ impl State {
         }
     }
 
+    /// Cutter compensation has no part in the next block: it is off, holds nothing back,
+    /// and no move after G40 starts away from the programmed point. (The plain-move fast
+    /// path, `plain`, runs only then.)
+    pub(super) fn comp_idle(&self) -> bool {
+        let c = &self.crc;
+        c.side.is_none()
+            && c.held.is_empty()
+            && c.exit_ref.is_none()
+            && c.exit_actual.is_none()
+            && c.actual.is_none()
+    }
+
+    /// The end of a block while nothing is held (`hold_block_output` then only marks the
+    /// output as in order).
+    pub(super) fn comp_end_idle_block(&mut self, out: &Out<'_>) {
+        debug_assert!(self.crc.held.is_empty());
+        self.crc.mark = out.items.len();
+    }
+
+    /// A move clears the arc-after-G40 rule (`comp_check_arc` without an arc).
+    pub(super) fn comp_arc_clear(&mut self) {
+        self.crc.arc_not_allowed = false;
+    }
+
+    /// Whether an arc now breaks the arc-after-G40 rule (`comp_check_arc`'s error).
+    pub(super) fn comp_arc_refused(&self, is_arc: bool) -> bool {
+        is_arc && self.crc.arc_not_allowed
+    }
+
     /// Checks the arc-after-G40 rule; a straight move clears it.
     pub(super) fn comp_check_arc(&mut self, is_arc: bool, col: u32) -> Result<(), BlockError> {
-        if is_arc && self.crc.arc_not_allowed {
+        if self.comp_arc_refused(is_arc) {
             return fail(
                 col,
                 "The move just after exiting cutter compensation mode must be straight, not an arc",

@@ -207,17 +207,20 @@ impl State {
                 if blk.any(&XYZ) || blk.any(&ABC) || blk.has(K_AT) || blk.has(K_CARET) {
                     return fail(col, "Cannot use axis values with g80");
                 }
-                self.cycles.last = None;
-                self.cycles.initial_level = None;
+                self.cycle_forget();
             }
             Some((G::Motion(Motion::Cycle(_)), _)) => {}
-            Some((G::Motion(_), _)) => {
-                self.cycles.last = None;
-                self.cycles.initial_level = None;
-            }
+            Some((G::Motion(_), _)) => self.cycle_forget(),
             _ => {}
         }
         Ok(())
+    }
+
+    /// A motion code other than a cycle (or G80) ends the cycle: the next one starts
+    /// afresh (its initial level, its sticky words' check).
+    pub(super) fn cycle_forget(&mut self) {
+        self.cycles.last = None;
+        self.cycles.initial_level = None;
     }
 
     /// LinuxCNC: axis words without a motion mode, an error rs274 reports before the words

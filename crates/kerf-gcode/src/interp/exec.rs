@@ -38,8 +38,11 @@ impl State {
         percent: bool,
         out: &mut Out<'_>,
     ) -> Result<(), BlockError> {
-        let start = out.items.len();
         self.m6_in_block = false;
+        if !percent && self.exec_plain(blk, out) {
+            return Ok(());
+        }
+        let start = out.items.len();
         let readback = self.readback_from;
         self.exec_block(blk, percent, out)?;
         let mut moved = false;

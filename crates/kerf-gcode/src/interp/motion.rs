@@ -367,7 +367,7 @@ struct MotionWords {
 }
 
 /// Whether every coordinate of the path is finite.
-fn path_is_finite(path: &Path) -> bool {
+pub(super) fn path_is_finite(path: &Path) -> bool {
     let finite = |p: &Vec3| p.iter().all(|x| x.is_finite());
     match path {
         Path::Line(l) => finite(&l.start) && finite(&l.end),
