@@ -3,7 +3,6 @@
 
 use kerf_geom::ramp::bisect;
 
-use crate::MAX_OVERRIDE;
 use crate::motion_core::MotionCore;
 use crate::reach::{change_distance, reach, reach_back};
 
@@ -49,30 +48,21 @@ impl MotionCore {
                 break;
             }
             let d_mm = s.length_mm * BACKWARD_MARGIN;
-            let hard = s
-                .c_v_mm_s
-                .min(s.c_feed_mm_s * MAX_OVERRIDE)
-                .min(s.start_cap_mm_s)
-                .min({
-                    let (c_accel_mm_s2, c_jerk_mm_s3) = s.c_accel_jerk();
-                    reach_back(hard_end, d_mm, c_accel_mm_s2, c_jerk_mm_s3)
-                });
-            let hard_boost = s
-                .c_v_boost_mm_s
-                .min(s.c_feed_mm_s * MAX_OVERRIDE)
-                .min(s.start_cap_mm_s)
-                .min(reach_back(
-                    hard_end_boost,
-                    d_mm,
-                    s.c_accel_boost_mm_s2,
-                    s.c_jerk_boost_mm_s3,
-                ));
+            let (hard_cap, hard_boost_cap) = s.hard_start_caps();
+            let hard = hard_cap.min({
+                let (c_accel_mm_s2, c_jerk_mm_s3) = s.c_accel_jerk();
+                reach_back(hard_end, d_mm, c_accel_mm_s2, c_jerk_mm_s3)
+            });
+            let hard_boost = hard_boost_cap.min(reach_back(
+                hard_end_boost,
+                d_mm,
+                s.c_accel_boost_mm_s2,
+                s.c_jerk_boost_mm_s3,
+            ));
             let level = s.wants_boost(ovr);
             let (_, a, j) = s.limits(level);
             let soft = s
-                .v_eff(ovr, level)
-                .min(s.start_cap_mm_s)
-                .min(if level { hard_boost } else { hard })
+                .soft_start_cap(ovr, level, if level { hard_boost } else { hard })
                 .min(reach_back(soft_end, d_mm, a, j));
             let changed = hard != s.hard_start_mm_s
                 || hard_boost != s.hard_start_boost_mm_s
@@ -111,22 +101,13 @@ impl MotionCore {
         let ovr = self.override_factor;
         let tail = self.sec_head + self.sec_count - 1;
         let last = tail.min(self.sec_head + 1 + SETTLED_SCAN_SECTIONS);
+        // The caps are the backward pass's own terms (`Section::hard_start_caps`,
+        // `soft_start_cap`): a start speed equal to its cap is final.
         (self.sec_head + 1..last).any(|k| {
             let s = self.sec(k);
-            let hard = s
-                .c_v_mm_s
-                .min(s.c_feed_mm_s * MAX_OVERRIDE)
-                .min(s.start_cap_mm_s);
-            let hard_boost = s
-                .c_v_boost_mm_s
-                .min(s.c_feed_mm_s * MAX_OVERRIDE)
-                .min(s.start_cap_mm_s);
+            let (hard, hard_boost) = s.hard_start_caps();
             let level = s.wants_boost(ovr);
-            let soft = s.v_eff(ovr, level).min(s.start_cap_mm_s).min(if level {
-                hard_boost
-            } else {
-                hard
-            });
+            let soft = s.soft_start_cap(ovr, level, if level { hard_boost } else { hard });
             s.hard_start_mm_s == hard
                 && s.hard_start_boost_mm_s == hard_boost
                 && s.soft_start_mm_s == soft

@@ -4,6 +4,8 @@
 
 use kerf_geom::{MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SPEED, PlannedSegment};
 
+use crate::MAX_OVERRIDE;
+
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Section {
     /// Absolute index of the first segment.
@@ -146,6 +148,25 @@ impl Section {
         } else {
             self.hard_end_mm_s
         }
+    }
+
+    /// The caps on the hard lookahead's start speeds, at the base and the boost level, from
+    /// the section's own conservative limits and its junction cap: the start speeds where
+    /// the stop at the queue's end does not reach back to the section.
+    pub(crate) fn hard_start_caps(&self) -> (f64, f64) {
+        let feed_mm_s = self.c_feed_mm_s * MAX_OVERRIDE;
+        (
+            self.c_v_mm_s.min(feed_mm_s).min(self.start_cap_mm_s),
+            self.c_v_boost_mm_s.min(feed_mm_s).min(self.start_cap_mm_s),
+        )
+    }
+
+    /// The cap on the soft lookahead's start speed at override `ovr` and `level`, below the
+    /// hard start speed of that level `hard_mm_s`.
+    pub(crate) fn soft_start_cap(&self, ovr: f64, level: bool, hard_mm_s: f64) -> f64 {
+        self.v_eff(ovr, level)
+            .min(self.start_cap_mm_s)
+            .min(hard_mm_s)
     }
 
     /// Speed at override `ovr` and a level: the machine limit or the scaled feed.
