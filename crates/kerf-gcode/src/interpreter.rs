@@ -317,17 +317,29 @@ fn read_line_into<R: std::io::BufRead>(
     Ok(read)
 }
 
+/// A byte of ones in every byte of a word.
+const ONES: u64 = 0x0101_0101_0101_0101;
+/// The high bit of every byte of a word.
+const HIGH: u64 = 0x8080_8080_8080_8080;
+
+/// Eight bytes, the first in the lowest byte of the word.
+fn word_of(chunk: &[u8]) -> u64 {
+    u64::from_le_bytes(chunk.try_into().expect("a chunk of 8 bytes"))
+}
+
+/// `(x - ONES) & !x`, high bits only: nonzero exactly when a byte of `x` is zero, and its
+/// lowest set bit marks the first zero byte (the bytes above it can be marked wrongly,
+/// never the ones below).
+fn zero_bytes(x: u64) -> u64 {
+    x.wrapping_sub(ONES) & !x & HIGH
+}
+
 /// The offset of the first `\n` in `bytes`, eight bytes at a time.
 fn newline_at(bytes: &[u8]) -> Option<usize> {
-    const ONES: u64 = 0x0101_0101_0101_0101;
-    const HIGH: u64 = 0x8080_8080_8080_8080;
     let mut chunks = bytes.chunks_exact(8);
     let mut at = 0;
     for chunk in &mut chunks {
-        let x = u64::from_le_bytes(chunk.try_into().expect("a chunk of 8 bytes")) ^ (ONES * 10);
-        // The lowest high bit of `(x - ONES) & !x` marks the first zero byte of `x` (the
-        // bytes above it can be marked wrongly, never the ones below).
-        let zero = x.wrapping_sub(ONES) & !x & HIGH;
+        let zero = zero_bytes(word_of(chunk) ^ (ONES * u64::from(b'\n')));
         if zero != 0 {
             return Some(at + zero.trailing_zeros() as usize / 8);
         }
@@ -343,14 +355,11 @@ fn newline_at(bytes: &[u8]) -> Option<usize> {
 /// Whether `line` holds a NUL byte or a byte of 0x80 or above (anything but plain ASCII
 /// without NUL), tested eight bytes at a time.
 fn nul_or_non_ascii(line: &[u8]) -> bool {
-    const ONES: u64 = 0x0101_0101_0101_0101;
-    const HIGH: u64 = 0x8080_8080_8080_8080;
     let mut chunks = line.chunks_exact(8);
     for chunk in &mut chunks {
-        let x = u64::from_le_bytes(chunk.try_into().expect("a chunk of 8 bytes"));
-        // `(x - ONES) & !x` has the high bit of a byte set where the first zero byte is
-        // (exact as a yes/no answer); `x` where a byte is 0x80 or above.
-        if ((x.wrapping_sub(ONES) & !x) | x) & HIGH != 0 {
+        let x = word_of(chunk);
+        // A zero byte, or one with its high bit set (0x80 or above).
+        if zero_bytes(x) | (x & HIGH) != 0 {
             return true;
         }
     }
