@@ -7,16 +7,18 @@
 //! It is used by the criterion benches (in memory) and by the `gen_program` binary (for
 //! the memory test on a program of a gigabyte, see docs/PERFORMANCE.md).
 //!
-//! The CAM benchmark of issue 11 lives in three modules: [`cam`] (the corpus of
+//! The CAM benchmark of issue 11 lives in four modules: [`cam`] (the corpus of
 //! generated CAM programs with their exact geometry), [`bound`] (the acceleration-limited
-//! time-optimal lower bound) and [`measure`] (Kerf's run, the feed time and the table the
-//! `cam_table` binary prints).
+//! time-optimal lower bound), [`jerk`] (the jerk-limited one, issue 31) and [`measure`]
+//! (Kerf's run, the feed time and the table the `cam_table` binary prints).
 #![deny(missing_docs)]
 
 #[path = "src/bound.rs"]
 pub mod bound;
 #[path = "src/cam.rs"]
 pub mod cam;
+#[path = "src/jerk.rs"]
+pub mod jerk;
 #[path = "src/measure.rs"]
 pub mod measure;
 

@@ -74,6 +74,12 @@ pub enum Shape {
         /// Last x, mm.
         x_to: f64,
     },
+    /// `Σ coeffs[j] u^j` for u in [0, 1]: a quintic, the curvature-continuous corner
+    /// blends of the jerk-limited reference ([`crate::jerk::g2_blended`]).
+    Quintic {
+        /// Coefficients of u⁰ to u⁵, mm.
+        coeffs: [Vec3; 6],
+    },
 }
 
 /// A piece of path with its feed.
@@ -86,15 +92,15 @@ pub struct Piece {
 }
 
 /// A point of a piece: position, first and second derivative by the parameter.
-struct Eval {
-    p: Vec3,
-    d1: Vec3,
-    d2: Vec3,
+pub(crate) struct Eval {
+    pub(crate) p: Vec3,
+    pub(crate) d1: Vec3,
+    pub(crate) d2: Vec3,
 }
 
 impl Shape {
     /// Position and derivatives at `u` in [0, 1].
-    fn eval(&self, u: f64) -> Eval {
+    pub(crate) fn eval(&self, u: f64) -> Eval {
         match *self {
             Shape::Line { start, end } => Eval {
                 p: start + (end - start) * u,
@@ -134,6 +140,20 @@ impl Shape {
                     d2: Vec3::new(0.0, 0.0, zxx * w * w),
                 }
             }
+            Shape::Quintic { coeffs: c } => {
+                let mut e = Eval {
+                    p: Vec3::zeros(),
+                    d1: Vec3::zeros(),
+                    d2: Vec3::zeros(),
+                };
+                // Horner's rule on the polynomial and its two derivatives.
+                for j in (0..6).rev() {
+                    e.d2 = e.d2 * u + e.d1 * 2.0;
+                    e.d1 = e.d1 * u + e.p;
+                    e.p = e.p * u + c[j];
+                }
+                e
+            }
         }
     }
 
@@ -152,11 +172,12 @@ impl Shape {
         self.eval(u).d1.normalize()
     }
 
-    /// Length, mm (exact for lines and arcs, Simpson's rule over 256 intervals for rows).
+    /// Length, mm (exact for lines and arcs, Simpson's rule over 256 intervals for rows
+    /// and quintics).
     pub fn length_mm(&self) -> f64 {
         match self {
             Shape::Line { .. } | Shape::Arc { .. } => self.eval(0.0).d1.norm(),
-            Shape::Row { .. } => {
+            Shape::Row { .. } | Shape::Quintic { .. } => {
                 let n = 256;
                 let f = |k: usize| self.eval(k as f64 / n as f64).d1.norm();
                 let sum: f64 = (0..=n)
@@ -179,7 +200,7 @@ impl Shape {
     /// The piece without `from_start_mm` at its start and `from_end_mm` at its end
     /// (exact for lines and arcs; rows use the speed of the parameter at each end, which
     /// is exact to second order over the short lengths a corner blend removes).
-    fn trimmed(&self, from_start_mm: f64, from_end_mm: f64) -> Shape {
+    pub(crate) fn trimmed(&self, from_start_mm: f64, from_end_mm: f64) -> Shape {
         let du0 = from_start_mm / self.eval(0.0).d1.norm();
         let du1 = from_end_mm / self.eval(1.0).d1.norm();
         match *self {
@@ -220,6 +241,19 @@ impl Shape {
                     x_from: x_from + w * du0,
                     x_to: x_to - w * du1,
                 }
+            }
+            Shape::Quintic { coeffs } => {
+                // p(u0 + w v) expanded in v: coefficient j is Σ_{m≥j} C(m, j) c_m u0^(m-j) w^j.
+                let (u0, w) = (du0, 1.0 - du0 - du1);
+                let mut out = [Vec3::zeros(); 6];
+                for (m, c) in coeffs.iter().enumerate() {
+                    let mut binom = 1.0;
+                    for (j, o) in out.iter_mut().enumerate().take(m + 1) {
+                        *o += c * (binom * u0.powi((m - j) as i32) * w.powi(j as i32));
+                        binom = binom * (m - j) as f64 / (j + 1) as f64;
+                    }
+                }
+                Shape::Quintic { coeffs: out }
             }
         }
     }
@@ -287,15 +321,15 @@ pub fn blended(pieces: &[Piece], tolerance_mm: f64) -> Vec<Piece> {
 
 /// One sample of the path for the phase-plane passes.
 #[derive(Clone, Copy, Debug)]
-struct Sample {
+pub(crate) struct Sample {
     /// Arc length from the start, mm.
-    s_mm: f64,
+    pub(crate) s_mm: f64,
     /// Unit tangent.
-    t: Vec3,
+    pub(crate) t: Vec3,
     /// Curvature vector (second derivative by arc length), 1/mm.
-    k: Vec3,
+    pub(crate) k: Vec3,
     /// Largest admissible ṡ², mm²/s².
-    x_max: f64,
+    pub(crate) x_max: f64,
 }
 
 /// Below this |tangent component| an axis takes no part in the tangential acceleration.
@@ -303,7 +337,7 @@ const TINY: f64 = 1e-12;
 
 impl Sample {
     /// The admissible range of s̈ at ṡ² = x, mm/s² (empty when lo > hi).
-    fn accel_range(&self, x: f64, a: &[f64; 3]) -> (f64, f64) {
+    pub(crate) fn accel_range(&self, x: f64, a: &[f64; 3]) -> (f64, f64) {
         let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
         for (i, a_i) in a.iter().enumerate() {
             if self.t[i].abs() > TINY {
@@ -355,16 +389,18 @@ pub struct Bound {
     pub time_s: f64,
 }
 
-/// The acceleration-limited time-optimal traversal of `pieces` (after [`blended`]) from
-/// rest to rest, sampled at most every `ds_mm` (and at least 16 samples per piece).
-pub fn lower_bound(pieces: &[Piece], machine: &BoundMachine, ds_mm: f64) -> Bound {
-    let path = blended(pieces, machine.tolerance_mm);
+/// The path sampled at most every `ds_mm` (and at least 16 samples per piece), with the
+/// indices of samples at unblended corners (reversals, the only joins [`blended`] leaves
+/// turning by more than a right angle), where a traversal passes at rest.
+pub(crate) fn sample(
+    path: &[Piece],
+    machine: &BoundMachine,
+    ds_mm: f64,
+) -> (Vec<Sample>, Vec<usize>) {
     let mut samples: Vec<Sample> = Vec::new();
-    // Indices of samples at unblended corners (reversals, the only joins [`blended`]
-    // leaves turning by more than a right angle), where the bound passes at rest.
     let mut stops: Vec<usize> = Vec::new();
     let mut s_mm = 0.0;
-    for piece in &path {
+    for piece in path {
         let len = piece.shape.length_mm();
         let n = ((len / ds_mm).ceil() as usize).max(16);
         let mut prev = piece.shape.eval(0.0).p;
@@ -392,11 +428,22 @@ pub fn lower_bound(pieces: &[Piece], machine: &BoundMachine, ds_mm: f64) -> Boun
             }
         }
     }
+    (samples, stops)
+}
+
+/// The acceleration-limited time-optimal `ṡ²` at each sample, from rest to rest and at
+/// rest at `stops`: the largest admissible profile, so every traversal within the
+/// acceleration limits (jerk-limited ones included) is at or below it everywhere.
+pub(crate) fn accel_profile(
+    samples: &[Sample],
+    stops: &[usize],
+    machine: &BoundMachine,
+) -> Vec<f64> {
     let n = samples.len();
     let mut x: Vec<f64> = samples.iter().map(|s| s.x_max).collect();
     x[0] = 0.0;
     x[n - 1] = 0.0;
-    for &i in &stops {
+    for &i in stops {
         x[i] = 0.0;
     }
     let a = &machine.acceleration_mm_s2;
@@ -414,16 +461,33 @@ pub fn lower_bound(pieces: &[Piece], machine: &BoundMachine, ds_mm: f64) -> Boun
         let reach = (x[i + 1] - 2.0 * h * lo.min(0.0)).max(0.0);
         x[i] = x[i].min(reach);
     }
-    let speed_mm_s: Vec<f64> = x.iter().map(|v| v.sqrt()).collect();
+    x
+}
+
+/// Time of a traversal with speed `speed_mm_s[i]` at arc length `s_mm[i]` and a constant
+/// s̈ between samples, s: `Σ 2 Δs / (v_k + v_{k+1})`.
+pub(crate) fn traversal_time_s(s_mm: &[f64], speed_mm_s: &[f64]) -> f64 {
     let mut time_s = 0.0;
-    for i in 0..n - 1 {
-        let h = samples[i + 1].s_mm - samples[i].s_mm;
+    for i in 0..s_mm.len() - 1 {
+        let h = s_mm[i + 1] - s_mm[i];
         if h > 0.0 {
             time_s += 2.0 * h / (speed_mm_s[i] + speed_mm_s[i + 1]);
         }
     }
+    time_s
+}
+
+/// The acceleration-limited time-optimal traversal of `pieces` (after [`blended`]) from
+/// rest to rest, sampled at most every `ds_mm` (and at least 16 samples per piece).
+pub fn lower_bound(pieces: &[Piece], machine: &BoundMachine, ds_mm: f64) -> Bound {
+    let path = blended(pieces, machine.tolerance_mm);
+    let (samples, stops) = sample(&path, machine, ds_mm);
+    let x = accel_profile(&samples, &stops, machine);
+    let speed_mm_s: Vec<f64> = x.iter().map(|v| v.sqrt()).collect();
+    let s_mm: Vec<f64> = samples.iter().map(|s| s.s_mm).collect();
+    let time_s = traversal_time_s(&s_mm, &speed_mm_s);
     Bound {
-        s_mm: samples.iter().map(|s| s.s_mm).collect(),
+        s_mm,
         speed_mm_s,
         time_s,
     }

@@ -47,6 +47,7 @@ pub fn corpus() -> Vec<CamProgram> {
         out.push(raster("raster B", curved_surface, d, 3, 40.0));
     }
     out.push(raster("raster C", wavy_surface, 4, 3, 40.0));
+    out.push(faceted("faceted A", gentle_surface, 6, 20.0));
     for d in [3, 4, 6] {
         out.push(dense_circle(d, 3600));
     }
@@ -120,6 +121,67 @@ pub fn wavy_surface(x: f64, y: f64) -> (f64, f64, f64) {
         0.6 / 1.25 * c1 * cy + 0.1 / 0.5 * c2,
         -0.6 / 1.5625 * s1 * cy - 0.1 / 0.25 * s2,
     )
+}
+
+/// Facet size of the faceted rasters, mm.
+pub const FACET_MM: f64 = 1.0;
+
+/// A raster over a triangulated surface as mesh-based CAM writes it, named `name`: `rows`
+/// rows of `row_mm` along X, 0.5 mm apart, with a G1 point where the row crosses a facet
+/// edge (every [`FACET_MM`] along X), Z taken from `surface` at those points and written
+/// with 4 decimals, F3000; rows joined by one move along Y (and Z). Between its points
+/// the path is flat: its exact geometry is the lines between the unrounded points, which
+/// meet at small angles (a few degrees on the gentle surface).
+pub fn faceted(
+    name: &str,
+    surface: fn(f64, f64) -> (f64, f64, f64),
+    rows: usize,
+    row_mm: f64,
+) -> CamProgram {
+    let feed_mm_min = 3000.0;
+    let feed_mm_s = feed_mm_min / 60.0;
+    let points = (row_mm / FACET_MM).round() as usize;
+    let mut text = header(feed_mm_min);
+    let mut pieces = Vec::new();
+    let mut at = Vec3::zeros();
+    let mut first = true;
+    let mut go = |text: &mut String, pieces: &mut Vec<Piece>, x: f64, y: f64| {
+        let p = Vec3::new(x, y, surface(x, y).0);
+        let g = if first { "G1 " } else { "" };
+        first = false;
+        let _ = writeln!(
+            text,
+            "{g}X{} Y{} Z{}",
+            num(p.x, 4),
+            num(p.y, 4),
+            num(p.z, 4)
+        );
+        pieces.push(Piece {
+            shape: Shape::Line { start: at, end: p },
+            feed_mm_s,
+        });
+        at = p;
+    };
+    for r in 0..rows {
+        let y = r as f64 * RASTER_ROW_GAP_MM;
+        let forward = r % 2 == 0;
+        let x_at = |i: usize| {
+            let k = if forward { i } else { points - i };
+            k as f64 * FACET_MM
+        };
+        for i in 1..=points {
+            go(&mut text, &mut pieces, x_at(i), y);
+        }
+        if r + 1 < rows {
+            go(&mut text, &mut pieces, x_at(points), y + RASTER_ROW_GAP_MM);
+        }
+    }
+    text.push_str("M2\n");
+    CamProgram {
+        name: name.to_string(),
+        text,
+        pieces,
+    }
 }
 
 /// A 3D raster finishing pass named `name`: `rows` rows of `row_mm` along X, 0.5 mm

@@ -11,6 +11,7 @@ use kerf_geom::{Move, Path, Vec3};
 
 use crate::bound::{self, BoundMachine};
 use crate::cam::CamProgram;
+use crate::jerk::{self, JerkError, JerkMachine};
 
 /// The machine of issue 11 (`benches/cam-mill.toml`): X/Y 200 mm/s, 2,000 mm/s²,
 /// 50,000 mm/s³; Z 100 mm/s, 1,000 mm/s², 20,000 mm/s³; 1 ms; tolerance 0.01 mm.
@@ -18,6 +19,13 @@ pub const MACHINE_TOML: &str = include_str!("../cam-mill.toml");
 
 /// Sample spacing of the lower bound, mm.
 pub const BOUND_DS_MM: f64 = 0.005;
+
+/// Sample spacing of the jerk-limited bound, mm (its cone program grows with the
+/// samples), widened on long paths to [`JERK_SAMPLES`] samples (the rasters at 0.02 mm:
+/// raster A 3.2246 s, at 0.01 mm 3.2280 s, at 0.005 mm 3.2298 s).
+pub const JERK_DS_MM: f64 = 0.01;
+/// Samples of the jerk-limited bound at most (about; every piece has at least 16).
+pub const JERK_SAMPLES: f64 = 6000.0;
 
 /// Why a program could not be measured.
 #[derive(Debug, thiserror::Error)]
@@ -43,6 +51,14 @@ pub enum MeasureError {
         name: String,
         /// The failure.
         source: SimError,
+    },
+    /// The jerk-limited bound could not be computed.
+    #[error("{name}: jerk-limited bound: {source}")]
+    Jerk {
+        /// Program name.
+        name: String,
+        /// The failure.
+        source: JerkError,
     },
     /// The run did not end at the program's end point.
     #[error("{name}: the run ended at {end:?}, not at the program's end {expected:?}")]
@@ -72,6 +88,15 @@ pub fn bound_machine(config: &Config) -> BoundMachine {
         velocity_mm_s: axes.map(|a| a.velocity_mm_s),
         acceleration_mm_s2: axes.map(|a| a.acceleration_mm_s2),
         tolerance_mm: config.tolerance_mm,
+    }
+}
+
+/// The jerk-limited bound's view of a configuration: [`bound_machine`] and the
+/// linear axes' jerk limits.
+pub fn jerk_machine(config: &Config) -> JerkMachine {
+    JerkMachine {
+        base: bound_machine(config),
+        jerk_mm_s3: config.axes.linear().map(|a| a.jerk_mm_s3),
     }
 }
 
@@ -242,45 +267,88 @@ pub struct Row {
     pub feed_time_s: f64,
     /// The acceleration-limited time-optimal traversal of the exact path, s.
     pub bound_s: f64,
+    /// The jerk-limited lower bound on the exact path ([`crate::jerk`]), s, when asked
+    /// for.
+    pub jerk_s: Option<f64>,
     /// Kerf's run.
     pub kerf: KerfRun,
 }
 
-/// Measures one program on the machine of `config`.
-pub fn measure(program: &CamProgram, config: &Config) -> Result<Row, MeasureError> {
+/// Measures one program on the machine of `config`, with the jerk-limited bound when
+/// `with_jerk` (up to a few seconds a program in a release build).
+pub fn measure(
+    program: &CamProgram,
+    config: &Config,
+    with_jerk: bool,
+) -> Result<Row, MeasureError> {
     let moves = programmed_moves(&program.name, &program.text, config)?;
     let machine = bound_machine(config);
     let feed_time_s = feed_times(&moves, &machine).iter().map(|(t, _)| t).sum();
     let bound_s = bound::lower_bound(&program.pieces, &machine, BOUND_DS_MM).time_s;
+    let jerk_s = if with_jerk {
+        let length_mm: f64 = program.pieces.iter().map(|p| p.shape.length_mm()).sum();
+        let ds_mm = JERK_DS_MM.max(length_mm / JERK_SAMPLES);
+        let r = jerk::jerk_lower_bound(&program.pieces, &jerk_machine(config), ds_mm).map_err(
+            |source| MeasureError::Jerk {
+                name: program.name.clone(),
+                source,
+            },
+        )?;
+        Some(r.time_s)
+    } else {
+        None
+    };
     let kerf = run_kerf(&program.name, &moves, config)?;
     Ok(Row {
         name: program.name.clone(),
         lines: program.lines(),
         feed_time_s,
         bound_s,
+        jerk_s,
         kerf,
     })
 }
 
-/// The table as Markdown.
+/// The table as Markdown (with the jerk-limited bound's columns when every row has it).
 pub fn table(rows: &[Row]) -> String {
+    let with_jerk = !rows.is_empty() && rows.iter().all(|r| r.jerk_s.is_some());
     let mut out = String::new();
-    out.push_str(
-        "| program | lines | feed time | lower bound | Kerf | Kerf/feed | Kerf/bound \
-         | cycles < ½ feed | max dev |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
-    );
+    out.push_str("| program | lines | feed time | lower bound |");
+    if with_jerk {
+        out.push_str(" jerk bound |");
+    }
+    out.push_str(" Kerf | Kerf/feed | Kerf/bound |");
+    if with_jerk {
+        out.push_str(" Kerf/jerk bound |");
+    }
+    out.push_str(" cycles < ½ feed | max dev |\n|---|---:|---:|---:|");
+    if with_jerk {
+        out.push_str("---:|---:|");
+    }
+    out.push_str("---:|---:|---:|---:|---:|\n");
     for r in rows {
         let below = r.kerf.below_half_feed as f64 / r.kerf.cycles.max(1) as f64;
-        let _ = writeln!(
+        let _ = write!(
             out,
-            "| {} | {} | {:.3} s | {:.3} s | {:.3} s | {:.2} | {:.2} | {:.0} % | {:.4} mm |",
-            r.name,
-            r.lines,
-            r.feed_time_s,
-            r.bound_s,
+            "| {} | {} | {:.3} s | {:.3} s |",
+            r.name, r.lines, r.feed_time_s, r.bound_s
+        );
+        if let (true, Some(j)) = (with_jerk, r.jerk_s) {
+            let _ = write!(out, " {j:.3} s |");
+        }
+        let _ = write!(
+            out,
+            " {:.3} s | {:.2} | {:.2} |",
             r.kerf.time_s,
             r.kerf.time_s / r.feed_time_s,
-            r.kerf.time_s / r.bound_s,
+            r.kerf.time_s / r.bound_s
+        );
+        if let (true, Some(j)) = (with_jerk, r.jerk_s) {
+            let _ = write!(out, " {:.2} |", r.kerf.time_s / j);
+        }
+        let _ = writeln!(
+            out,
+            " {:.0} % | {:.4} mm |",
             below * 100.0,
             r.kerf.max_deviation_mm
         );

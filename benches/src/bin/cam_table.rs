@@ -1,10 +1,12 @@
 //! Prints the CAM benchmark table of issue 11 (docs/PERFORMANCE.md, "CAM code against the
 //! feed and the time-optimal bound"): every program of the generated corpus run through
 //! Kerf's planner and motion core on the small mill of `benches/cam-mill.toml`, against
-//! the time at the programmed feed and the acceleration-limited time-optimal lower bound.
+//! the time at the programmed feed and two time-optimal lower bounds: acceleration-limited
+//! (`kerf_benches::bound`) and jerk-limited (`kerf_benches::jerk`).
 //!
-//! Usage: `cargo run --release -p kerf-benches --bin cam_table [NAME_PART]` (only the
-//! programs whose name contains NAME_PART), or `--write DIR` to write the programs as
+//! Usage: `cargo run --release -p kerf-benches --bin cam_table [--no-jerk] [NAME_PART]`
+//! (only the programs whose name contains NAME_PART; `--no-jerk` leaves out the
+//! jerk-limited bound of `kerf_benches::jerk`, about 30 s of the whole table's 45), or `--write DIR` to write the programs as
 //! `.ngc` files into DIR (to run them with `kerf sim --config benches/cam-mill.toml`).
 
 use std::process::ExitCode;
@@ -23,7 +25,9 @@ fn main() -> ExitCode {
 }
 
 fn run() -> anyhow::Result<()> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let with_jerk = !args.iter().any(|a| a == "--no-jerk");
+    args.retain(|a| a != "--no-jerk");
     let corpus = cam::corpus();
     if let [flag, dir] = &args[..]
         && flag == "--write"
@@ -40,7 +44,7 @@ fn run() -> anyhow::Result<()> {
     let config = measure::machine()?;
     let mut rows = Vec::new();
     for p in corpus.iter().filter(|p| p.name.contains(filter)) {
-        rows.push(measure::measure(p, &config)?);
+        rows.push(measure::measure(p, &config, with_jerk)?);
     }
     println!(
         "Machine: benches/cam-mill.toml (X/Y 200 mm/s, 2000 mm/s², 50000 mm/s³; \

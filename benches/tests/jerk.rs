@@ -1,0 +1,135 @@
+//! The jerk-limited lower bound of the CAM table (`kerf_benches::jerk`) against closed
+//! forms worked out by hand (S-curve times on straight lines), against the
+//! acceleration-limited bound of `kerf_benches::bound` (another method) where jerk is out
+//! of the way, and monotonic in every limit.
+
+use std::f64::consts::TAU;
+
+use kerf_benches::bound::{self, BoundMachine, Piece, Shape};
+use kerf_benches::jerk::{self, JerkMachine};
+use kerf_geom::Vec3;
+
+const MILL: JerkMachine = JerkMachine {
+    base: BoundMachine {
+        velocity_mm_s: [200.0, 200.0, 100.0],
+        acceleration_mm_s2: [2000.0, 2000.0, 1000.0],
+        tolerance_mm: 0.01,
+    },
+    jerk_mm_s3: [50_000.0, 50_000.0, 20_000.0],
+};
+
+const DS_MM: f64 = 0.01;
+
+fn line(end: [f64; 3], feed_mm_s: f64) -> Piece {
+    Piece {
+        shape: Shape::Line {
+            start: Vec3::zeros(),
+            end: Vec3::from(end),
+        },
+        feed_mm_s,
+    }
+}
+
+/// A circle in XY of radius `r` about (r, 0, 0), from the origin, `turns` times round.
+fn circle(r: f64, turns: f64, feed_mm_s: f64) -> Piece {
+    Piece {
+        shape: Shape::Arc {
+            center: Vec3::new(r, 0.0, 0.0),
+            e1: Vec3::new(-1.0, 0.0, 0.0),
+            e2: Vec3::new(0.0, 1.0, 0.0),
+            radius_mm: r,
+            from_rad: 0.0,
+            to_rad: TAU * turns,
+            axial_per_rad: Vec3::zeros(),
+        },
+        feed_mm_s,
+    }
+}
+
+fn assert_rel(got: f64, want: f64, rel: f64, what: &str) {
+    assert!(
+        (got - want).abs() <= rel * want.abs(),
+        "{what}: got {got}, expected {want} (±{rel:.1e} relative)"
+    );
+}
+
+#[test]
+fn straight_lines_take_the_s_curve_time() {
+    // Rest to rest along one axis, the S-curve by hand:
+    // - X, 10 mm at 100 mm/s (2,000 mm/s², 50,000 mm/s³): v ≥ a²/j = 80 mm/s, so the
+    //   speed-up reaches the acceleration limit: t = L/v + v/a + a/j = 0.19 s;
+    // - X at 50 mm/s (< 80): the acceleration peaks at √(v j) under its limit:
+    //   t = L/v + 2 √(v/j);
+    // - Z, 20 mm with 200 mm/s asked: Z's own 100 mm/s, 1,000 mm/s², 20,000 mm/s³
+    //   (v ≥ a²/j = 50): t = 0.2 + 0.1 + 0.05.
+    // The bound is at or a hair under (discretisation), and far above the acceleration
+    // bound (L/v + v/a).
+    for (end, feed, exact) in [
+        ([10.0, 0.0, 0.0], 100.0, 0.1 + 0.05 + 0.04),
+        (
+            [10.0, 0.0, 0.0],
+            50.0,
+            0.2 + 2.0 * (50.0f64 / 50_000.0).sqrt(),
+        ),
+        ([0.0, 0.0, -20.0], 200.0, 0.2 + 0.1 + 0.05),
+    ] {
+        let b = jerk::jerk_lower_bound(&[line(end, feed)], &MILL, DS_MM).unwrap();
+        assert_rel(b.time_s, exact, 1e-3, &format!("{end:?} at {feed}"));
+        assert!(
+            b.time_s <= exact * (1.0 + 1e-5),
+            "{end:?}: {} above {exact}",
+            b.time_s
+        );
+        let a = bound::lower_bound(&[line(end, feed)], &MILL.base, DS_MM);
+        assert!(
+            a.time_s < 0.9 * exact,
+            "{end:?}: acceleration bound {}",
+            a.time_s
+        );
+    }
+}
+
+#[test]
+fn without_jerk_it_is_the_acceleration_bound() {
+    // With jerk limits a million times higher the program has the acceleration-limited
+    // optimum of `bound` (another method: closed-form phase-plane passes) on the same
+    // path, a circle without joins; with the real limits it is above it.
+    let turn = [circle(10.0, 1.0, 100.0)];
+    let accel = bound::lower_bound(&turn, &MILL.base, 0.005).time_s;
+    let loose = JerkMachine {
+        jerk_mm_s3: [5e10, 5e10, 2e10],
+        ..MILL
+    };
+    let b = jerk::jerk_lower_bound(&turn, &loose, DS_MM).unwrap();
+    assert_rel(b.time_s, accel, 2e-3, "circle without jerk");
+    let b = jerk::jerk_lower_bound(&turn, &MILL, DS_MM).unwrap();
+    assert!(b.time_s > accel * 1.03, "{} against {accel}", b.time_s);
+}
+
+#[test]
+fn higher_limits_never_raise_the_bound() {
+    // A pocket loop (sharp corners, blended) and a turn: doubling any one limit of any
+    // one axis leaves the bound the same or lower (to the solver's accuracy: its scaled
+    // units change with the limits, and a solve may end at reduced accuracy, 1e-6 to
+    // 1e-5 relative seen).
+    let pocket = kerf_benches::cam::pocket(1).pieces;
+    let turn = vec![circle(5.0, 1.0, 80.0)];
+    for path in [&pocket, &turn] {
+        let base = jerk::jerk_lower_bound(path, &MILL, 0.02).unwrap().time_s;
+        for axis in 0..3 {
+            for which in 0..3 {
+                let mut m = MILL;
+                match which {
+                    0 => m.base.velocity_mm_s[axis] *= 2.0,
+                    1 => m.base.acceleration_mm_s2[axis] *= 2.0,
+                    _ => m.jerk_mm_s3[axis] *= 2.0,
+                }
+                let t = jerk::jerk_lower_bound(path, &m, 0.02).unwrap().time_s;
+                assert!(
+                    t <= base * (1.0 + 1e-4),
+                    "axis {axis} limit {which}: {t} > {base}"
+                );
+            }
+        }
+    }
+}
