@@ -75,7 +75,7 @@ pub enum Shape {
         x_to: f64,
     },
     /// `Σ coeffs[j] u^j` for u in [0, 1]: a quintic, the curvature-continuous corner
-    /// blends of the jerk-limited reference ([`crate::jerk::g2_blended`]).
+    /// blends of the jerk-limited bound ([`crate::jerk::g2_blended`]).
     Quintic {
         /// Coefficients of u⁰ to u⁵, mm.
         coeffs: [Vec3; 6],
