@@ -6,8 +6,9 @@
 //!
 //! Usage: `cargo run --release -p kerf-benches --bin cam_table [--no-jerk] [NAME_PART]`
 //! (only the programs whose name contains NAME_PART; `--no-jerk` leaves out the
-//! jerk-limited bound of `kerf_benches::jerk`, about 30 s of the whole table's 45), or `--write DIR` to write the programs as
-//! `.ngc` files into DIR (to run them with `kerf sim --config benches/cam-mill.toml`).
+//! jerk-limited bound of `kerf_benches::jerk`, nearly all of the whole table's 45 s: under
+//! 1 s without it), or `--write DIR` to write the programs as `.ngc` files into DIR (to
+//! run them with `kerf sim --config benches/cam-mill.toml`).
 
 use std::process::ExitCode;
 
