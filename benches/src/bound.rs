@@ -305,15 +305,29 @@ pub fn blended(pieces: &[Piece], tolerance_mm: f64) -> Vec<Piece> {
             feed_mm_s: pieces[k].feed_mm_s.min(pieces[k + 1].feed_mm_s),
         });
     }
-    let mut out = Vec::with_capacity(2 * n);
-    for k in 0..n {
+    spliced(pieces, &lengths, &cut, &arcs)
+}
+
+/// `pieces` (of `lengths`) with `cut[k]` taken from the end of piece `k` and the start of
+/// piece `k + 1`, and `blends[k]` put in between: the path of [`blended`] and of
+/// [`crate::jerk::g2_blended`]. A piece both its blends take whole is left out.
+pub(crate) fn spliced(
+    pieces: &[Piece],
+    lengths: &[f64],
+    cut: &[f64],
+    blends: &[Option<Piece>],
+) -> Vec<Piece> {
+    let mut out = Vec::with_capacity(2 * pieces.len());
+    for (k, piece) in pieces.iter().enumerate() {
         let before = if k > 0 { cut[k - 1] } else { 0.0 };
-        out.push(Piece {
-            shape: pieces[k].shape.trimmed(before, cut[k]),
-            feed_mm_s: pieces[k].feed_mm_s,
-        });
-        if let Some(a) = arcs[k] {
-            out.push(a);
+        if lengths[k] - before - cut[k] > 1e-9 {
+            out.push(Piece {
+                shape: piece.shape.trimmed(before, cut[k]),
+                feed_mm_s: piece.feed_mm_s,
+            });
+        }
+        if let Some(b) = blends[k] {
+            out.push(b);
         }
     }
     out
@@ -337,7 +351,7 @@ const TINY: f64 = 1e-12;
 
 impl Sample {
     /// The admissible range of s̈ at ṡ² = x, mm/s² (empty when lo > hi).
-    pub(crate) fn accel_range(&self, x: f64, a: &[f64; 3]) -> (f64, f64) {
+    fn accel_range(&self, x: f64, a: &[f64; 3]) -> (f64, f64) {
         let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
         for (i, a_i) in a.iter().enumerate() {
             if self.t[i].abs() > TINY {
@@ -434,11 +448,7 @@ pub(crate) fn sample(
 /// The acceleration-limited time-optimal `ṡ²` at each sample, from rest to rest and at
 /// rest at `stops`: the largest admissible profile, so every traversal within the
 /// acceleration limits (jerk-limited ones included) is at or below it everywhere.
-pub(crate) fn accel_profile(
-    samples: &[Sample],
-    stops: &[usize],
-    machine: &BoundMachine,
-) -> Vec<f64> {
+fn accel_profile(samples: &[Sample], stops: &[usize], machine: &BoundMachine) -> Vec<f64> {
     let n = samples.len();
     let mut x: Vec<f64> = samples.iter().map(|s| s.x_max).collect();
     x[0] = 0.0;
@@ -466,7 +476,7 @@ pub(crate) fn accel_profile(
 
 /// Time of a traversal with speed `speed_mm_s[i]` at arc length `s_mm[i]` and a constant
 /// s̈ between samples, s: `Σ 2 Δs / (v_k + v_{k+1})`.
-pub(crate) fn traversal_time_s(s_mm: &[f64], speed_mm_s: &[f64]) -> f64 {
+fn traversal_time_s(s_mm: &[f64], speed_mm_s: &[f64]) -> f64 {
     let mut time_s = 0.0;
     for i in 0..s_mm.len() - 1 {
         let h = s_mm[i + 1] - s_mm[i];

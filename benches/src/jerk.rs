@@ -158,21 +158,7 @@ pub fn g2_blended(pieces: &[Piece], tolerance_mm: f64) -> Vec<Piece> {
             feed_mm_s: pieces[k].feed_mm_s.min(pieces[k + 1].feed_mm_s),
         });
     }
-    let mut out = Vec::with_capacity(2 * n);
-    for k in 0..n {
-        let before = if k > 0 { cut[k - 1] } else { 0.0 };
-        // A piece both blends take whole (a short line between two tangent arcs) is gone.
-        if lengths[k] - before - cut[k] > 1e-9 {
-            out.push(Piece {
-                shape: pieces[k].shape.trimmed(before, cut[k]),
-                feed_mm_s: pieces[k].feed_mm_s,
-            });
-        }
-        if let Some(b) = blends[k] {
-            out.push(b);
-        }
-    }
-    out
+    bound::spliced(pieces, &lengths, &cut, &blends)
 }
 
 /// Levels of the grading at rest points: the first interval is split at 1/2, 1/4, …
