@@ -69,6 +69,20 @@ fn num(v: f64, decimals: usize) -> String {
     }
 }
 
+/// Appends the block moving to `p` with `decimals` decimals, `G1` on the `first` one
+/// (modal after it).
+fn g1_point(text: &mut String, first: &mut bool, p: Vec3, decimals: usize) {
+    let g = if *first { "G1 " } else { "" };
+    *first = false;
+    let _ = writeln!(
+        text,
+        "{g}X{} Y{} Z{}",
+        num(p.x, decimals),
+        num(p.y, decimals),
+        num(p.z, decimals)
+    );
+}
+
 /// The program's first block: millimetres, absolute, XY plane, feed per minute, blending
 /// within 0.01 mm, and the feed.
 fn header(feed_mm_min: f64) -> String {
@@ -147,15 +161,7 @@ pub fn faceted(
     let mut first = true;
     let mut go = |text: &mut String, pieces: &mut Vec<Piece>, x: f64, y: f64| {
         let p = Vec3::new(x, y, surface(x, y).0);
-        let g = if first { "G1 " } else { "" };
-        first = false;
-        let _ = writeln!(
-            text,
-            "{g}X{} Y{} Z{}",
-            num(p.x, 4),
-            num(p.y, 4),
-            num(p.z, 4)
-        );
+        g1_point(text, &mut first, p, 4);
         pieces.push(Piece {
             shape: Shape::Line { start: at, end: p },
             feed_mm_s,
@@ -202,16 +208,7 @@ pub fn raster(
     let mut pieces = Vec::new();
     let mut first = true;
     let mut point = |text: &mut String, x: f64, y: f64| {
-        let z = surface(x, y).0;
-        let g = if first { "G1 " } else { "" };
-        first = false;
-        let _ = writeln!(
-            text,
-            "{g}X{} Y{} Z{}",
-            num(x, decimals),
-            num(y, decimals),
-            num(z, decimals)
-        );
+        g1_point(text, &mut first, Vec3::new(x, y, surface(x, y).0), decimals);
     };
     for r in 0..rows {
         let y = r as f64 * RASTER_ROW_GAP_MM;

@@ -4,7 +4,10 @@
 
 use std::f64::consts::{FRAC_PI_2, PI, SQRT_2, TAU};
 
-use kerf_benches::bound::{self, BoundMachine, Piece, Shape};
+mod common;
+use common::{assert_rel, circle, line};
+
+use kerf_benches::bound::{self, BoundMachine};
 use kerf_benches::{cam, measure};
 use kerf_geom::Vec3;
 
@@ -16,40 +19,6 @@ const MILL: BoundMachine = BoundMachine {
 };
 
 const DS_MM: f64 = 0.002;
-
-fn line(start: [f64; 3], end: [f64; 3], feed_mm_s: f64) -> Piece {
-    Piece {
-        shape: Shape::Line {
-            start: Vec3::from(start),
-            end: Vec3::from(end),
-        },
-        feed_mm_s,
-    }
-}
-
-/// A circle in XY of radius `r` about (r, 0, 0), from the origin, `turns` times round.
-fn circle(r: f64, turns: f64, feed_mm_s: f64) -> Piece {
-    Piece {
-        shape: Shape::Arc {
-            center: Vec3::new(r, 0.0, 0.0),
-            e1: Vec3::new(-1.0, 0.0, 0.0),
-            e2: Vec3::new(0.0, 1.0, 0.0),
-            radius_mm: r,
-            from_rad: 0.0,
-            to_rad: TAU * turns,
-            axial_per_rad: Vec3::zeros(),
-        },
-        feed_mm_s,
-    }
-}
-
-fn assert_rel(got: f64, want: f64, rel: f64, what: &str) {
-    assert!(
-        (got - want).abs() <= rel * want.abs(),
-        "{what}: got {got}, expected {want} (±{:.1e} relative)",
-        rel
-    );
-}
 
 #[test]
 fn straight_line_takes_the_trapezoid_time() {

@@ -3,11 +3,11 @@
 //! acceleration-limited bound of `kerf_benches::bound` (another method) where jerk is out
 //! of the way, and monotonic in every limit.
 
-use std::f64::consts::TAU;
+mod common;
+use common::{assert_rel, circle, line};
 
-use kerf_benches::bound::{self, BoundMachine, Piece, Shape};
+use kerf_benches::bound::{self, BoundMachine};
 use kerf_benches::jerk::{self, JerkMachine};
-use kerf_geom::Vec3;
 
 const MILL: JerkMachine = JerkMachine {
     base: BoundMachine {
@@ -19,39 +19,6 @@ const MILL: JerkMachine = JerkMachine {
 };
 
 const DS_MM: f64 = 0.01;
-
-fn line(end: [f64; 3], feed_mm_s: f64) -> Piece {
-    Piece {
-        shape: Shape::Line {
-            start: Vec3::zeros(),
-            end: Vec3::from(end),
-        },
-        feed_mm_s,
-    }
-}
-
-/// A circle in XY of radius `r` about (r, 0, 0), from the origin, `turns` times round.
-fn circle(r: f64, turns: f64, feed_mm_s: f64) -> Piece {
-    Piece {
-        shape: Shape::Arc {
-            center: Vec3::new(r, 0.0, 0.0),
-            e1: Vec3::new(-1.0, 0.0, 0.0),
-            e2: Vec3::new(0.0, 1.0, 0.0),
-            radius_mm: r,
-            from_rad: 0.0,
-            to_rad: TAU * turns,
-            axial_per_rad: Vec3::zeros(),
-        },
-        feed_mm_s,
-    }
-}
-
-fn assert_rel(got: f64, want: f64, rel: f64, what: &str) {
-    assert!(
-        (got - want).abs() <= rel * want.abs(),
-        "{what}: got {got}, expected {want} (±{rel:.1e} relative)"
-    );
-}
 
 #[test]
 fn straight_lines_take_the_s_curve_time() {
@@ -73,14 +40,14 @@ fn straight_lines_take_the_s_curve_time() {
         ),
         ([0.0, 0.0, -20.0], 200.0, 0.2 + 0.1 + 0.05),
     ] {
-        let b = jerk::jerk_lower_bound(&[line(end, feed)], &MILL, DS_MM).unwrap();
+        let b = jerk::jerk_lower_bound(&[line([0.0; 3], end, feed)], &MILL, DS_MM).unwrap();
         assert_rel(b.time_s, exact, 1e-3, &format!("{end:?} at {feed}"));
         assert!(
             b.time_s <= exact * (1.0 + 1e-5),
             "{end:?}: {} above {exact}",
             b.time_s
         );
-        let a = bound::lower_bound(&[line(end, feed)], &MILL.base, DS_MM);
+        let a = bound::lower_bound(&[line([0.0; 3], end, feed)], &MILL.base, DS_MM);
         assert!(
             a.time_s < 0.9 * exact,
             "{end:?}: acceleration bound {}",
