@@ -149,6 +149,7 @@ pub use limits::{
 pub use program::{Event, EventCode, Item};
 pub use segment::{
     MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED,
-    PlannedSegment, limits_merge, poly5, rotary_derivatives, speeds_merge,
+    MERGE_SHORT_SHARE, PlannedSegment, limits_merge, limits_merge_into, poly5, rotary_derivatives,
+    speeds_merge,
 };
 pub use transition::{ARC_MID_RELATIVE, ARC_TABLE_RELATIVE, TABLE_POINTS, Transition};

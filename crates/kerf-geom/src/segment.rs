@@ -49,6 +49,37 @@ pub fn limits_merge(accel_mm_s2: f64, jerk_mm_s3: f64, first: (f64, f64)) -> boo
         && accel_mm_s2 <= MERGE_ABOVE * first.0
         && jerk_mm_s3 <= MERGE_ABOVE * first.1
 }
+/// A straight segment no longer than this share of a section's first segment joins it
+/// however much higher its acceleration and jerk are ([`MERGE_ABOVE`] does not bound
+/// them; see [`limits_merge_into`]).
+///
+/// A line carries the axes' own acceleration and jerk, several times what a curve's
+/// budget on the same axes leaves, and it scales with them where the curve's does not:
+/// raising an axis limit lifted the short lines of a chain of corner blends (the 2 µm
+/// remnants between narrowed blends, the short facets between them) above
+/// [`MERGE_ABOVE`] times the blends', and every one of them became a section boundary, a
+/// return to `a = 0`: the raise slowed the chain by 2–4 %. Run at the section's limits, a
+/// line no longer than the curve before it costs little. Curved pieces keep the bound
+/// (letting short smoothed pieces join from above slowed raster A by 0.4 %).
+pub const MERGE_SHORT_SHARE: f64 = 1.0;
+/// [`limits_merge`] for a segment of `length_mm` (`straight`: a line) joining a section
+/// whose first segment is `first_mm` long: a line at most [`MERGE_SHORT_SHARE`] of that
+/// needs only the lower bounds ([`MERGE_RATIO`], [`MERGE_RATIO_JERK`]). The motion core
+/// merges by this function; the planner's ramp budgets estimate with [`limits_merge`]
+/// (their pieces are curves).
+pub fn limits_merge_into(
+    accel_mm_s2: f64,
+    jerk_mm_s3: f64,
+    (straight, length_mm): (bool, f64),
+    first: (f64, f64),
+    first_mm: f64,
+) -> bool {
+    limits_merge(accel_mm_s2, jerk_mm_s3, first)
+        || (straight
+            && length_mm <= MERGE_SHORT_SHARE * first_mm
+            && accel_mm_s2 >= MERGE_RATIO * first.0
+            && jerk_mm_s3 >= MERGE_RATIO_JERK * first.1)
+}
 /// Whether a segment with speed limit `v_mm_s` passes the speed part of the motion core's
 /// merge rule for a section whose first segment has `first_v_mm_s`: at least
 /// [`MERGE_RATIO_SLOWER`] of it (below [`MERGE_RATIO_SPEED`] of it the motion core also

@@ -17,7 +17,10 @@
 //!   its minima, so a long fast segment merged behind a short slow one (a low feed, a
 //!   tight G2 transition) would otherwise crawl at the slow one's speed. For the same
 //!   reason its acceleration and jerk must not exceed [`MERGE_ABOVE`] times the first
-//!   segment's (a line behind a short corner blend would stop with the blend's jerk). A
+//!   segment's (a line behind a short corner blend would stop with the blend's jerk),
+//!   unless it is a line no longer than the first segment ([`MERGE_SHORT_SHARE`]: the short
+//!   lines between narrowed corner blends carry the axes' own limits, and a raised axis
+//!   limit must not make each of them a section boundary). A
 //!   segment up to 3 % slower than the first ([`MERGE_RATIO_SLOWER`]) still joins, the
 //!   section then running at its speed, where nothing was committed faster: the tail
 //!   section's hard lookahead (it must stop within itself) is below the segment's
@@ -113,7 +116,7 @@
 use kerf_geom::PerAxis;
 pub use kerf_geom::{
     AxisLimits, MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED,
-    MachineLimits, PlannedSegment,
+    MERGE_SHORT_SHARE, MachineLimits, PlannedSegment,
 };
 pub mod axis_move;
 mod carry;

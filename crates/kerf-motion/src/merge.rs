@@ -3,7 +3,7 @@
 //! [`kerf_geom::speeds_merge`] and [`kerf_geom::limits_merge`] to judge its ramp budgets;
 //! the test `the_planners_merge_estimate_is_the_motion_cores_rule` ties the two.
 
-use kerf_geom::{MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED, PlannedSegment, limits_merge};
+use kerf_geom::{Curve, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED, PlannedSegment, limits_merge_into};
 
 use crate::MAX_OVERRIDE;
 use crate::section::Section;
@@ -31,7 +31,7 @@ impl Section {
     ///
     /// Its speed must be within [`MERGE_RATIO_SPEED`] of the section's conservative speed
     /// (or within [`MERGE_RATIO_SLOWER`] of the first segment's where nothing was committed
-    /// faster), its acceleration and jerk must pass [`limits_merge`], and the junction must
+    /// faster), its acceleration and jerk must pass [`limits_merge_into`], and the junction must
     /// be passable at the section's conservative speed, at both levels.
     ///
     /// The speed part is not [`kerf_geom::speeds_merge`], the planner's estimate of it,
@@ -75,7 +75,13 @@ impl Section {
                 <= t.c_v_mm_s.min(t.c_feed_mm_s)
             // Not much weaker, nor much stronger (it would ramp at the section's
             // limits): the planner judges ramp budgets by the same function.
-            && limits_merge(seg.accel_mm_s2, seg.jerk_mm_s3, t.accel_jerk_first)
+            && limits_merge_into(
+                seg.accel_mm_s2,
+                seg.jerk_mm_s3,
+                (matches!(seg.curve, Curve::Line { .. }), seg.length_mm),
+                t.accel_jerk_first,
+                t.length_first_mm,
+            )
             && prev_cap_mm_s >= c_v.min(t.c_feed_mm_s * MAX_OVERRIDE)
             && (seg_vb >= t.c_v_boost_mm_s
                 || slower(seg_vb, t.c_v_boost_mm_s, t.v_first_boost_mm_s, t.hard_start_boost_mm_s))

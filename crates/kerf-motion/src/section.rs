@@ -30,6 +30,9 @@ pub(crate) struct Section {
     /// ([`limits_merge`](kerf_geom::limits_merge)); the hard lookahead's are their merge ratios
     /// ([`Section::c_accel_jerk`]).
     pub(crate) accel_jerk_first: (f64, f64),
+    /// Length of the first segment, mm: the measure of a short segment in the merge rule
+    /// ([`limits_merge_into`](kerf_geom::limits_merge_into)).
+    pub(crate) length_first_mm: f64,
     /// Conservative limits fixed at creation (hard lookahead); the speeds are lowered when
     /// a slightly slower segment joins (see [`MERGE_RATIO_SLOWER`](crate::MERGE_RATIO_SLOWER)).
     pub(crate) c_v_mm_s: f64,
@@ -70,6 +73,7 @@ impl Section {
         c_v_mm_s: 0.0,
         c_feed_mm_s: 0.0,
         accel_jerk_first: (0.0, 0.0),
+        length_first_mm: 0.0,
         c_v_boost_mm_s: 0.0,
         c_accel_boost_mm_s2: 0.0,
         c_jerk_boost_mm_s3: 0.0,
@@ -105,6 +109,7 @@ impl Section {
             c_v_mm_s: MERGE_RATIO_SPEED * seg.v_max_mm_s,
             c_feed_mm_s: MERGE_RATIO_SPEED * seg.feed_mm_s,
             accel_jerk_first: (seg.accel_mm_s2, seg.jerk_mm_s3),
+            length_first_mm: seg.length_mm,
             v_boost_mm_s: seg_vb,
             accel_boost_mm_s2: seg_ab,
             jerk_boost_mm_s3: seg_jb,

@@ -331,10 +331,12 @@ fn a_slow_down_across_pieces_of_nearly_equal_speed_makes_no_stair() {
 /// same: for two segments with the given speed limits and limits ratios, at the tail
 /// of a queue (where the slower-merge condition holds), it makes one section exactly
 /// when both functions say so.
+/// (The second segment is longer than the first: a line no longer than the first joins
+/// by the wider rule of `kerf_geom::limits_merge_into`, tested below.)
 #[test]
 fn the_planners_merge_estimate_is_the_motion_cores_rule() {
     let mut log_uniform = profile::tests::log_uniform_source(0x5eed_cafe);
-    let seg = |x0: f64, v: f64, a: f64, j: f64| x_line(x0, 2.0, (v, 1000.0), (a, j), 1e6);
+    let seg = |x0: f64, len: f64, v: f64, a: f64, j: f64| x_line(x0, len, (v, 1000.0), (a, j), 1e6);
     let (mut merged, mut split, mut slower) = (0, 0, 0);
     for _ in 0..2000 {
         let v1 = log_uniform(20.0, 200.0);
@@ -343,8 +345,8 @@ fn the_planners_merge_estimate_is_the_motion_cores_rule() {
         let a2 = a1 * log_uniform(0.8, 5.0);
         let j2 = j1 * log_uniform(0.7, 5.0);
         let mut core = MotionCore::new(0.001, 8);
-        core.push(&seg(0.0, v1, a1, j1)).unwrap();
-        core.push(&seg(2.0, v2, a2, j2)).unwrap();
+        core.push(&seg(0.0, 2.0, v1, a1, j1)).unwrap();
+        core.push(&seg(2.0, 3.0, v2, a2, j2)).unwrap();
         let expected = kerf_geom::speeds_merge(v2, v1) && limits_merge(a2, j2, (a1, j1));
         let one_section = core.sec_count == 1;
         assert_eq!(
@@ -365,6 +367,57 @@ fn the_planners_merge_estimate_is_the_motion_cores_rule() {
         merged > 100 && split > 100 && slower > 20,
         "{merged} merged ({slower} slower), {split} split"
     );
+}
+
+/// A line no longer than a section's first segment joins it however much higher its
+/// acceleration and jerk (`kerf_geom::MERGE_SHORT_SHARE`), not when it is longer, nor
+/// when its limits are lower than the merge ratios allow, nor when it is a curve; and the
+/// section runs at the lesser limits: its acceleration and jerk from the positions stay
+/// within the first segment's.
+#[test]
+fn a_short_line_joins_the_section_before_it() {
+    let (a1, j1) = (500.0, 10_000.0);
+    let first = x_line(0.0, 1.0, (50.0, 3000.0), (a1, j1), 50.0);
+    let sections = |len: f64, a: f64, j: f64, curved: bool| {
+        let mut second = x_line(1.0, len, (50.0, 3000.0), (a, j), 0.0);
+        if curved {
+            // The same straight path as a transition: a curve to the merge rule.
+            second.curve = Curve::Transition(
+                kerf_geom::Transition::hermite(
+                    Vec3::new(1.0, 0.0, 0.0),
+                    Vec3::x(),
+                    Vec3::zeros(),
+                    Vec3::new(1.0 + len, 0.0, 0.0),
+                    Vec3::x(),
+                    Vec3::zeros(),
+                    len,
+                )
+                .and_then(|t| t.with_arc_length())
+                .unwrap(),
+            );
+        }
+        let mut core = MotionCore::new(0.001, 8);
+        core.push(&first).unwrap();
+        core.push(&second).unwrap();
+        let count = core.sec_count;
+        let xs = x_positions(&mut core);
+        assert!((xs.last().unwrap() - (1.0 + len)).abs() < 1e-9);
+        if count == 1 {
+            for w in xs.windows(4) {
+                let acc = (w[3] - 2.0 * w[2] + w[1]).abs() / 1e-6;
+                let jerk = (w[3] - 3.0 * w[2] + 3.0 * w[1] - w[0]).abs() / 1e-9;
+                assert!(acc <= a1 * 1.01 && jerk <= j1 * 1.01, "{acc} {jerk}");
+            }
+        }
+        count
+    };
+    assert_eq!(sections(0.002, 10.0 * a1, 10.0 * j1, false), 1);
+    assert_eq!(sections(1.0, 10.0 * a1, 10.0 * j1, false), 1);
+    assert_eq!(sections(1.5, 10.0 * a1, 10.0 * j1, false), 2);
+    assert_eq!(sections(0.002, 0.5 * a1, j1, false), 2);
+    assert_eq!(sections(0.002, 10.0 * a1, 10.0 * j1, true), 2);
+    // Within MERGE_ABOVE any length joins, as before.
+    assert_eq!(sections(1.5, 2.0 * a1, 2.0 * j1, false), 1);
 }
 
 /// With every solver call failing, the closed-form fallback runs the whole program:

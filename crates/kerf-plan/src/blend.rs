@@ -23,10 +23,11 @@ const BLEND_TOL_MARGIN: f64 = 0.98;
 /// Largest share of the outgoing line a blend may take: half, so the next corner's blend
 /// has the other half and neighbouring blends never overlap.
 const BLEND_SHARE_OF_OUTGOING: f64 = 0.5;
-/// A G2 blend is tried only where the room exceeds this share of the arc's reach: a G2
-/// blend within the tolerance takes more than half of what the arc would, so below that
-/// it cannot fit (dense polylines) and trying would only cost time.
-const G2_MIN_ROOM_OF_ARC: f64 = 0.5;
+/// A G2 blend narrowed to its room is taken over the arc unconditionally only where it
+/// reaches at least this share of the arc's distance (see [`Planner::blend`]): on facets of
+/// a few micrometres the remnants it must leave ([`MIN_REMNANT_MM`]) would make it much
+/// tighter than the arc, and the time estimate decides there.
+const G2_NARROWED_MIN_OF_ARC: f64 = 0.5;
 /// Tries confirming a G2 blend on the programmed lines after scaling it from 1 mm.
 const G2_CONFIRM_TRIES: usize = 8;
 /// Shrink per confirming try: 0.1 %, so the eight tries cover the rounding of the scaled
@@ -40,8 +41,10 @@ pub const G2_LAMBDA_RATIOS: [f64; 3] = [1.0, 1.2, 1.5];
 
 impl Planner {
     /// The blend for the corner between `prev` and `next` and the distance it takes from
-    /// each, if the corner is blended: a circular arc, or at an isolated corner a G2 blend
-    /// ([`Planner::g2_blend`]) where that costs less time ([`corner_time_s`]).
+    /// each, if the corner is blended: a circular arc, or a G2 blend
+    /// ([`Planner::g2_blend`]) where that costs less time ([`corner_time_s`]) or where the
+    /// widest G2 blend within the tolerance does not fit between the neighbouring corners
+    /// (see below).
     pub(crate) fn blend(&self, prev: &Pending, next: &Pending) -> Option<(PlannedSegment, f64)> {
         let tol = corner_tolerance(prev.mv.corner, next.mv.corner, self.limits.tolerance_mm)?;
         if tol <= 0.0 || !tol.is_finite() {
@@ -107,13 +110,11 @@ impl Planner {
             )
         };
         self.set_limits(&mut seg);
-        // Isolated: both lines keep a remnant of at least [`MIN_REMNANT_MM`], so the
-        // neighbouring blends do not meet. A G2 blend within the tolerance takes more than
-        // half of what the arc would (about as much, except near reversals); where that
-        // does not fit (dense polylines) the arc is kept without trying.
+        // The G2 blend's room: both lines keep a remnant of at least [`MIN_REMNANT_MM`], so
+        // the neighbouring blends do not meet.
         let room_mm = (len1 - prev.start_trim - MIN_REMNANT_MM)
             .min(BLEND_SHARE_OF_OUTGOING * len2 - MIN_REMNANT_MM);
-        if room_mm <= G2_MIN_ROOM_OF_ARC * d_tol {
+        if room_mm <= 0.0 {
             return Some((seg, d));
         }
         let corner_g2 = G2Corner {
@@ -124,8 +125,13 @@ impl Planner {
             line2: Curve::line(l2.start, l2.end),
             tol_mm: tol,
             room_mm,
+            run_in_mm: 0.0,
         };
         let mut lines = self.corner_lines(&seg, u1, u2, (len1 - prev.start_trim).min(len2));
+        let corner_g2 = G2Corner {
+            run_in_mm: self.chain_before(&lines.0) + len1 - prev.start_trim,
+            ..corner_g2
+        };
         // Each side at its own move's feed (the blend runs at the lesser).
         lines.0.feed_mm_s = feed_of(&prev.mv);
         lines.1.feed_mm_s = feed_of(&next.mv);
@@ -137,8 +143,21 @@ impl Planner {
         // any, begins where it ends, so it is left into that blend, not into a line.
         let chained_out = d >= BLEND_SHARE_OF_OUTGOING * len2 - MIN_REMNANT_MM;
         let arc_time_s = corner_time_s(&seg, d, &lines, (chained_in, chained_out), &self.limits);
+        // A G2 blend narrowed to its room (on a polygon of short facets turning by a few
+        // degrees, as mesh-based CAM writes) is taken over the arc whatever the estimate
+        // says: there the arc takes its whole room too and meets the neighbouring corners'
+        // blends through curvature steps, whose caps the estimate does not charge (chained,
+        // it is judged as entered from and left into arcs like itself); the G2 blend meets
+        // them at zero curvature (unless the remnants it leaves make it much tighter than
+        // the arc, on facets of a few micrometres). The faceted raster of the CAM table ran at 3.57 times its
+        // feed time with arcs there (to rest at most facet edges), 2.11 times with these.
         let (best, best_time_s) = match self.g2_blend(&corner_g2, &seg, &lines) {
-            Some((g2, d_g2, time_s)) if time_s < arc_time_s => ((g2, d_g2), time_s),
+            Some(g2)
+                if (g2.narrowed && g2.d_mm >= G2_NARROWED_MIN_OF_ARC * d)
+                    || g2.time_s < arc_time_s =>
+            {
+                ((g2.seg, g2.d_mm), g2.time_s)
+            }
             _ => ((seg, d), arc_time_s),
         };
         // A sharp corner at a small tolerance must slow down nearly to a stop for any
@@ -191,7 +210,7 @@ impl Planner {
         c: &G2Corner,
         template: &PlannedSegment,
         lines: &(PlannedSegment, PlannedSegment),
-    ) -> Option<(PlannedSegment, f64, f64)> {
+    ) -> Option<G2Blend> {
         if c.room_mm.is_nan() || c.room_mm <= 0.0 {
             return None;
         }
@@ -203,7 +222,7 @@ impl Planner {
             line2: Curve::line(Vec3::zeros(), c.u2 * 2.0),
             ..*c
         };
-        let mut best: Option<(PlannedSegment, f64, f64)> = None;
+        let mut best: Option<G2Blend> = None;
         for rho in G2_LAMBDA_RATIOS {
             let Some(dev_1mm) = unit.curve(1.0, rho).map(|t| unit.deviation(&t)) else {
                 continue;
@@ -211,10 +230,9 @@ impl Planner {
             if !(dev_1mm > 0.0 && dev_1mm.is_finite()) {
                 continue;
             }
-            let mut d = limit_mm / dev_1mm;
-            if d >= c.room_mm {
-                continue;
-            }
+            let widest_mm = limit_mm / dev_1mm;
+            let narrowed = widest_mm >= c.room_mm;
+            let mut d = widest_mm.min(c.room_mm);
             // Rounding: confirm against the programmed lines, shrinking slightly if needed.
             let mut found = None;
             for _ in 0..G2_CONFIRM_TRIES {
@@ -241,14 +259,35 @@ impl Planner {
             // the 90° blend at 0.01 mm chose 1.91 mm/s, 72 % of what its shape allows at
             // constant speed, for tangential budget it never uses; now 2.31 mm/s (87 %:
             // the profile's share, the sampling margin and the centripetal share).
-            self.set_limits_for_run(&mut seg, DESIGN_RUN_MM);
+            let run_mm = if narrowed {
+                (c.run_in_mm - d + seg.length_mm).min(DESIGN_RUN_MM)
+            } else {
+                DESIGN_RUN_MM
+            };
+            self.set_limits_for_run(&mut seg, run_mm);
             let time_s = corner_time_s(&seg, d, lines, (false, false), &self.limits);
-            if best.as_ref().is_none_or(|b| time_s < b.2) {
-                best = Some((seg, d, time_s));
+            if best.as_ref().is_none_or(|b| time_s < b.time_s) {
+                best = Some(G2Blend {
+                    seg,
+                    d_mm: d,
+                    time_s,
+                    narrowed,
+                });
             }
         }
         best
     }
+}
+
+/// A G2 corner blend ([`Planner::g2_blend`]).
+struct G2Blend {
+    seg: PlannedSegment,
+    /// The distance it takes from each line, mm.
+    d_mm: f64,
+    /// Its [`corner_time_s`].
+    time_s: f64,
+    /// Narrowed to the room: the widest blend within the tolerance would not fit.
+    narrowed: bool,
 }
 
 /// A line-line corner for a G2 blend.
@@ -268,6 +307,9 @@ struct G2Corner {
     tol_mm: f64,
     /// Largest distance the blend may take from the corner along each line, mm.
     room_mm: f64,
+    /// The path without a corner that ends at the corner: the incoming line's untrimmed
+    /// part and the chain of segments tangent to it before, mm.
+    run_in_mm: f64,
 }
 
 impl G2Corner {

@@ -580,7 +580,7 @@ impl Planner {
     /// The length of the path that runs on without a corner into `seg`: the chain ending
     /// at the held-back segment if `seg` continues it in tangent (all six axes) and the
     /// junction is not an exact stop, else 0.
-    fn chain_before(&self, seg: &PlannedSegment) -> f64 {
+    pub(crate) fn chain_before(&self, seg: &PlannedSegment) -> f64 {
         let Some(last) = &self.last else { return 0.0 };
         if matches!(self.last_corner, CornerMode::ExactStop) || seg.length_mm <= 0.0 {
             return 0.0;
