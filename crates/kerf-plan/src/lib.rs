@@ -10,9 +10,9 @@
 //!
 //! Design decisions:
 //! - **Corner blends between two lines are circular arcs** (G2 blends or a stop where
-//!   quicker, and G2 blends narrowed to their room on faceted code, below), tangent to both, as large as the tolerance allows and
-//!   taking at most half of the outgoing move (and at most what the previous blend left of
-//!   the incoming move). Dense polylines are smoothed instead (below). Joints touching an
+//!   quicker, and G2 blends narrowed to their room on faceted code, below), tangent to
+//!   both, as large as the tolerance allows and taking at most half of the outgoing move
+//!   (and at most what the previous blend left of the incoming move). Dense polylines are smoothed instead (below). Joints touching an
 //!   arc get G2 transitions (below).
 //!   The deviation of a circular blend from the two lines is `r (1 - cos(θ/2))` at its
 //!   midpoint (θ = turn angle), which is what the tolerance bounds.
@@ -135,9 +135,10 @@
 //!   through curvature steps that the estimate (which judges chained arcs as entered from
 //!   arcs like themselves) does not charge, and the speed fell to rest at most facet
 //!   edges; the narrowed G2 blends meet at zero curvature. The CAM table's faceted raster:
-//!   9.05 s → 5.36 s (1.36× the jerk-limited bound).
-//!   Corners whose blends use up the lines (coarse polygons that are not smoothed) keep
-//!   circular arcs. Rotary motion and exact stops are left alone as for arcs.
+//!   9.05 s → 5.34 s (1.36× the jerk-limited bound). A narrowed blend is tried at the
+//!   first parameter scale that reaches its room only (planning cost). Circular arcs stay
+//!   where the lines leave no room, and where the narrowed blend would reach under half
+//!   the arc's distance and the estimate prefers the arc. Rotary motion and exact stops are left alone as for arcs.
 //! - **A corner takes the smaller tolerance of its two moves**, as in LinuxCNC's `tp`:
 //!   every decision at the junction of two moves (circular or G2 blend, G2 transition,
 //!   whether a smoothed run ends on the next move's tangent or a run continues the frame
