@@ -250,6 +250,23 @@ pub fn raster(
     }
 }
 
+/// The circle in XY of radius `r_mm` about (r, 0, 0), from the origin, counter-clockwise,
+/// `turns` times round, at `feed_mm_s`: the exact path of [`dense_circle`].
+pub fn circle_piece(r_mm: f64, turns: f64, feed_mm_s: f64) -> Piece {
+    Piece {
+        shape: Shape::Arc {
+            center: Vec3::new(r_mm, 0.0, 0.0),
+            e1: Vec3::new(-1.0, 0.0, 0.0),
+            e2: Vec3::new(0.0, 1.0, 0.0),
+            radius_mm: r_mm,
+            from_rad: 0.0,
+            to_rad: TAU * turns,
+            axial_per_rad: Vec3::zeros(),
+        },
+        feed_mm_s,
+    }
+}
+
 /// The dense circle of docs/PERFORMANCE.md: radius 10 mm through the origin, centre
 /// (10, 0), clockwise, in `chords` G1 lines with `decimals` decimals, F6000.
 pub fn dense_circle(decimals: usize, chords: usize) -> CamProgram {
@@ -266,18 +283,7 @@ pub fn dense_circle(decimals: usize, chords: usize) -> CamProgram {
         );
     }
     text.push_str("M2\n");
-    let pieces = vec![Piece {
-        shape: Shape::Arc {
-            center: Vec3::new(r, 0.0, 0.0),
-            e1: Vec3::new(-1.0, 0.0, 0.0),
-            e2: Vec3::new(0.0, 1.0, 0.0),
-            radius_mm: r,
-            from_rad: 0.0,
-            to_rad: TAU,
-            axial_per_rad: Vec3::zeros(),
-        },
-        feed_mm_s: feed_mm_min / 60.0,
-    }];
+    let pieces = vec![circle_piece(r, 1.0, feed_mm_min / 60.0)];
     CamProgram {
         name: format!("circle {chords} {decimals} dec"),
         text,

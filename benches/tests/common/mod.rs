@@ -1,8 +1,6 @@
 //! Helpers shared by the CAM benchmark's tests (`cam.rs`, `jerk.rs`): pieces of path
 //! and a relative comparison.
 
-use std::f64::consts::TAU;
-
 use kerf_benches::bound::{Piece, Shape};
 use kerf_geom::Vec3;
 
@@ -19,18 +17,7 @@ pub fn line(start: [f64; 3], end: [f64; 3], feed_mm_s: f64) -> Piece {
 
 /// A circle in XY of radius `r` about (r, 0, 0), from the origin, `turns` times round.
 pub fn circle(r: f64, turns: f64, feed_mm_s: f64) -> Piece {
-    Piece {
-        shape: Shape::Arc {
-            center: Vec3::new(r, 0.0, 0.0),
-            e1: Vec3::new(-1.0, 0.0, 0.0),
-            e2: Vec3::new(0.0, 1.0, 0.0),
-            radius_mm: r,
-            from_rad: 0.0,
-            to_rad: TAU * turns,
-            axial_per_rad: Vec3::zeros(),
-        },
-        feed_mm_s,
-    }
+    kerf_benches::cam::circle_piece(r, turns, feed_mm_s)
 }
 
 /// `got` within `rel` of `want`, relative.
