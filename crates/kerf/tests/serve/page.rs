@@ -58,6 +58,9 @@ fn in_a_real_browser_the_page_runs_holds_and_resumes_the_example_part_a_second_t
             "/^\\d+ of {lines} \\(\\d+ %\\)$/.test(document.getElementById('line').textContent)"
         ),
     );
+    // The feed override slowed to 20 % from the page's slider, so that the part cannot end
+    // before the hold below, however loaded the machine running the test is.
+    set_feed_override(&mut b, &a, 20);
     // A second tab watches the same run.
     let (watcher_target, w) = b.open(&url);
     b.until(
@@ -104,6 +107,7 @@ fn in_a_real_browser_the_page_runs_holds_and_resumes_the_example_part_a_second_t
         "the hold in the second tab",
         "document.getElementById('state').textContent === 'holding'",
     );
+    set_feed_override(&mut b, &a, 100);
     b.eval(
         &a,
         "document.querySelector('button[data-command=resume]').click(), true",
@@ -222,5 +226,19 @@ fn in_a_real_browser_the_page_runs_holds_and_resumes_the_example_part_a_second_t
     assert_eq!(
         still["position"]["x"], stopped["position"]["x"],
         "X moved again"
+    );
+}
+
+/// Sets the feed override with the page's slider (as a user dragging it does: a value, then
+/// `change`) and waits until the daemon's status shows it.
+fn set_feed_override(b: &mut Browser, tab: &str, percent: u32) {
+    b.eval(
+        tab,
+        &format!("(() => {{ const o = document.getElementById('override'); o.value = '{percent}'; o.dispatchEvent(new Event('change')); return true; }})()"),
+    );
+    b.until(
+        tab,
+        "the feed override",
+        &format!("document.getElementById('override-value').textContent === '{percent}'"),
     );
 }
