@@ -25,6 +25,13 @@ impl MotionCore {
             self.a_mm_s2 = 0.0;
             self.last.feed_mm_s = 0.0;
             *out = self.last;
+            if self.mode == Mode::HoldPending {
+                // At rest with nothing queued: the pending hold is in force now.
+                self.try_brake();
+                if self.mode == Mode::Held {
+                    return StepResult::Held;
+                }
+            }
             return StepResult::Idle;
         }
         if !self.running {
@@ -65,6 +72,14 @@ impl MotionCore {
             if self.sec_count == 0 {
                 self.finish_at_end();
                 self.emit(out);
+                if self.mode == Mode::HoldPending {
+                    // A hold asked for when the stop could no longer start before the
+                    // queue's end (its last deceleration): at rest there, it is in force.
+                    self.try_brake();
+                    if self.mode == Mode::Held {
+                        return StepResult::Held;
+                    }
+                }
                 return StepResult::Idle;
             }
             self.v_mm_s = end_v_mm_s;

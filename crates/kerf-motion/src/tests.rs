@@ -504,3 +504,65 @@ fn the_fallback_runs_a_program_within_the_limits() {
         }
     }
 }
+
+/// A hold asked for at any moment of a move, its final deceleration included (where the
+/// stop cannot start before the queue's end and the core waits for the next section),
+/// ends held: the status says so once the machine is at rest, a move queued afterwards
+/// does not start, and cycle start runs it. (The web page's test found a hold asked for
+/// in a rapid's last milliseconds, with nothing queued behind it, that the status showed
+/// as running.)
+#[test]
+fn a_hold_in_the_last_deceleration_ends_held_and_keeps_the_next_move_waiting() {
+    let run = |core: &mut MotionCore, sp: &mut Setpoint| {
+        let mut xs = Vec::new();
+        for _ in 0..100_000 {
+            core.step(sp);
+            xs.push(sp.position[0]);
+            let n = xs.len();
+            if n > 3 && xs[n - 1] == xs[n - 2] && xs[n - 2] == xs[n - 3] {
+                return xs;
+            }
+        }
+        panic!("never at rest");
+    };
+    // How many cycles the move takes without a hold.
+    let mut core = MotionCore::new(0.001, 64);
+    core.push(&x_line(0.0, 10.0, (40.0, 40.0), (2000.0, 50_000.0), 0.0))
+        .unwrap();
+    let cycles = x_positions(&mut core).len();
+    for hold_at in 1..cycles {
+        let mut core = MotionCore::new(0.001, 64);
+        core.push(&x_line(0.0, 10.0, (40.0, 40.0), (2000.0, 50_000.0), 0.0))
+            .unwrap();
+        let mut sp = Setpoint::default();
+        for _ in 0..hold_at {
+            core.step(&mut sp);
+        }
+        core.hold();
+        let xs = run(&mut core, &mut sp);
+        let at_rest = *xs.last().unwrap();
+        assert_eq!(
+            core.status().state,
+            MotionState::Held,
+            "hold at cycle {hold_at} of {cycles}: at rest at X{at_rest} but not held"
+        );
+        // The next move waits for cycle start.
+        core.push(&x_line(10.0, 5.0, (40.0, 40.0), (2000.0, 50_000.0), 0.0))
+            .unwrap();
+        for _ in 0..200 {
+            core.step(&mut sp);
+            assert_eq!(
+                sp.position[0], at_rest,
+                "hold at cycle {hold_at}: moved while held"
+            );
+        }
+        assert_eq!(core.status().state, MotionState::Held);
+        core.resume();
+        let xs = x_positions(&mut core);
+        assert!(
+            (xs.last().unwrap() - 15.0).abs() < 1e-9,
+            "hold at cycle {hold_at}: ends at X{}",
+            xs.last().unwrap()
+        );
+    }
+}

@@ -140,10 +140,22 @@ impl Browser {
             if r["exceptionDetails"].is_null() && r["result"]["value"] == true {
                 return;
             }
-            assert!(
-                Instant::now() < deadline,
-                "the page never showed {what}: {r}"
-            );
+            if Instant::now() >= deadline {
+                // What the page shows instead, for the failure's message.
+                let shown = self.call(
+                    Some(session),
+                    "Runtime.evaluate",
+                    serde_json::json!({
+                        "expression": "(async () => ['state', 'answer', 'job', 'line', 'lease', 'override-value'].map((id) => { const e = document.getElementById(id); return id + ': ' + (e ? e.textContent : '-'); }).join('; ') + '; the last message of the status stream: ' + JSON.stringify(latest) + '; GET /api/v1/status now: ' + await (await fetch('/api/v1/status')).text())()",
+                        "returnByValue": true,
+                        "awaitPromise": true
+                    }),
+                );
+                panic!(
+                    "the page never showed {what}: {r}; it shows {}",
+                    shown["result"]["value"]
+                );
+            }
             std::thread::sleep(Duration::from_millis(50));
         }
     }
