@@ -23,6 +23,11 @@
 //!     The request round trip of a status request (the machine idle: no command for the
 //!     cycle to apply), N times (10,000 unless given), 100 µs apart: min, median, p99,
 //!     p99.9, max.
+//!
+//! `hold` and `roundtrip` take `--cpu-latency-us N` for the daemon they start
+//! (`daemon.cpu_latency_us`, requested with `--fifo`; 1000000 asks nothing of the CPUs)
+//! and `--cpu N` (`daemon.cpu`: the cycle pinned to CPU N, the daemon's other threads and
+//! this process's client kept off it, as on a machine that isolates the cycle's CPU).
 //! kerfd_bench send-copy [--samples N]
 //!     The cost of iceoryx2's `send_copy` of one setpoint called inline.
 //! ```
@@ -467,8 +472,28 @@ fn daemon_of(args: &[String], period_us: u32) -> Result<(Config, Option<kerfd::D
             Ok((c, None))
         }
         None => {
-            let c = bench_config(period_us);
+            let mut c = bench_config(period_us);
+            c.daemon.cpu_latency_us = opt(args, "--cpu-latency-us", c.daemon.cpu_latency_us)?;
+            let cpu: i64 = opt(args, "--cpu", -1)?;
+            c.daemon.cpu = u32::try_from(cpu).ok();
+            if let Some(cpu) = c.daemon.cpu {
+                // The client (this thread) off the cycle's CPU too, as on a machine whose
+                // cycle has an isolated CPU (deploy/README.md).
+                kerf_rt::avoid_cpu(cpu as usize).map_err(|e| e.to_string())?;
+            }
             let d = kerfd::start(&c, fifo).map_err(|e| e.to_string())?;
+            let rt = d.rt();
+            println!(
+                "daemon in this process: real-time {}, CPU wake-up latency request {}{}",
+                rt.rt,
+                rt.cpu_latency_us
+                    .map_or("none".to_owned(), |us| format!("{us} µs")),
+                if rt.messages.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", rt.messages.join("; "))
+                }
+            );
             Ok((c, Some(d)))
         }
     }

@@ -107,6 +107,9 @@ pub struct DaemonConfig {
     pub priority: u8,
     /// CPU the cycle thread is pinned to, if any.
     pub cpu: Option<u32>,
+    /// The CPU wake-up latency asked of the kernel while the daemon runs with real-time
+    /// scheduling, µs (`/dev/cpu_dma_latency`; 0: idle CPUs poll).
+    pub cpu_latency_us: u32,
     /// Motion core queue capacity, segments (the lookahead window).
     pub queue_segments: u32,
     /// Resolved moves in flight from a planner process (flow-control window).
@@ -122,6 +125,7 @@ impl Default for DaemonConfig {
         DaemonConfig {
             priority: DEFAULT_PRIORITY,
             cpu: None,
+            cpu_latency_us: DEFAULT_CPU_LATENCY_US,
             queue_segments: DEFAULT_QUEUE_SEGMENTS,
             move_window: DEFAULT_MOVE_WINDOW,
             state_file: None,

@@ -59,6 +59,15 @@ pub const DEFAULT_MACHINE: &str = "default";
 /// the kernel's threaded interrupt handlers (50) and below the watchdog threads (99).
 pub const DEFAULT_PRIORITY: u8 = 80;
 
+/// Default CPU wake-up latency the daemon asks of the kernel while it runs, µs (PM QoS,
+/// `/dev/cpu_dma_latency`): 0 keeps idle CPUs polling, so that the threads outside the
+/// cycle (the control thread, its clients) wake without the exit from a deep idle state.
+pub const DEFAULT_CPU_LATENCY_US: u32 = 0;
+
+/// Accepted CPU wake-up latencies, µs: no idle state takes a second to leave, so the
+/// largest asks nothing of the CPUs.
+pub const CPU_LATENCY_RANGE_US: RangeInclusive<u32> = 0..=1_000_000;
+
 /// Default capacity of the motion core's queue, segments: the lookahead window. `kerf sim`
 /// uses the same number, so that the daemon's setpoints equal the simulator's.
 pub const DEFAULT_QUEUE_SEGMENTS: u32 = 4096;

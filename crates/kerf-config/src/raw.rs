@@ -144,6 +144,7 @@ pub(crate) struct RawWorkOffsets {
 pub(crate) struct RawDaemon {
     pub(crate) priority: Option<Spanned<i64>>,
     pub(crate) cpu: Option<Spanned<i64>>,
+    pub(crate) cpu_latency_us: Option<Spanned<i64>>,
     pub(crate) queue_segments: Option<Spanned<i64>>,
     pub(crate) move_window: Option<Spanned<i64>>,
     pub(crate) state_file: Option<Spanned<String>>,

@@ -793,6 +793,7 @@ fn machine_name_and_daemon_table_default_and_are_checked() {
         DaemonConfig {
             priority: 80,
             cpu: None,
+            cpu_latency_us: 0,
             queue_segments: 4096,
             move_window: 4096,
             state_file: None,
@@ -800,7 +801,7 @@ fn machine_name_and_daemon_table_default_and_are_checked() {
     );
     let c = Config::from_toml_str_in(
         &format!(
-            "machine = \"mill-2_a\"\n{MINIMAL}[daemon]\npriority = 90\ncpu = 3\nqueue_segments = 16\nmove_window = 65536\nstate_file = \"state/m.toml\"\n"
+            "machine = \"mill-2_a\"\n{MINIMAL}[daemon]\npriority = 90\ncpu = 3\ncpu_latency_us = 75\nqueue_segments = 16\nmove_window = 65536\nstate_file = \"state/m.toml\"\n"
         ),
         "m.toml",
         Path::new("/etc/kerf"),
@@ -812,6 +813,7 @@ fn machine_name_and_daemon_table_default_and_are_checked() {
         DaemonConfig {
             priority: 90,
             cpu: Some(3),
+            cpu_latency_us: 75,
             queue_segments: 16,
             move_window: 65536,
             // Relative to the configuration's directory.
@@ -829,6 +831,8 @@ fn machine_name_and_daemon_table_default_and_are_checked() {
         ("priority", "0"),
         ("priority", "100"),
         ("cpu", "-1"),
+        ("cpu_latency_us", "-1"),
+        ("cpu_latency_us", "1000001"),
         ("queue_segments", "15"),
         ("queue_segments", "65537"),
         ("move_window", "8"),

@@ -247,3 +247,32 @@ pub fn fine_timer_slack() -> io::Result<()> {
         Err(io::Error::last_os_error())
     }
 }
+
+/// Keeps the calling thread off `cpu`, the real-time cycle's CPU: its affinity becomes
+/// the CPUs it may run on now, without `cpu` (`sched_getaffinity`/`sched_setaffinity`).
+/// For the daemon's threads outside the cycle (control, planning), which the cycle would
+/// otherwise preempt there, and which would in turn delay nothing of the cycle's but
+/// their own answers. `Ok(false)` leaves the affinity as it is: `cpu` is not among the
+/// thread's CPUs, or is the only one. Threads the caller starts afterwards inherit it.
+pub fn avoid_cpu(cpu: usize) -> io::Result<bool> {
+    if cpu >= libc::CPU_SETSIZE as usize {
+        return Ok(false);
+    }
+    // SAFETY: an all-zero cpu_set_t is a valid empty set.
+    let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+    // SAFETY: pid 0 is the calling thread; `set` is a writable cpu_set_t of the given size.
+    if unsafe { libc::sched_getaffinity(0, size_of::<libc::cpu_set_t>(), &mut set) } != 0 {
+        return Err(io::Error::last_os_error());
+    }
+    // SAFETY: `set` is a valid cpu_set_t; `cpu` < CPU_SETSIZE.
+    if !unsafe { libc::CPU_ISSET(cpu, &set) } || unsafe { libc::CPU_COUNT(&set) } < 2 {
+        return Ok(false);
+    }
+    // SAFETY: as above.
+    unsafe { libc::CPU_CLR(cpu, &mut set) };
+    // SAFETY: pid 0 is the calling thread; `set` is a valid cpu_set_t of the given size.
+    if unsafe { libc::sched_setaffinity(0, size_of::<libc::cpu_set_t>(), &set) } != 0 {
+        return Err(io::Error::last_os_error());
+    }
+    Ok(true)
+}

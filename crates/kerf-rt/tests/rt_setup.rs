@@ -1,6 +1,6 @@
 //! `rt_setup` on a spawned thread, checked against what the kernel reports afterwards.
 
-use kerf_rt::{RtConfig, RtError, rt_setup};
+use kerf_rt::{RtConfig, RtError, avoid_cpu, rt_setup};
 
 fn current_policy_and_priority() -> (libc::c_int, libc::c_int) {
     let mut policy = 0;
@@ -127,4 +127,39 @@ fn rt_setup_does_what_it_reports_and_rejects_bad_arguments() {
 
     // SAFETY: undoes this test's mlockall for the rest of the process.
     unsafe { libc::munlockall() };
+}
+
+/// `avoid_cpu` takes the one CPU out of the thread's set, leaves the set alone when the
+/// CPU is not in it or is the only one, and threads started afterwards inherit it.
+#[test]
+fn avoid_cpu_keeps_the_thread_and_its_children_off_the_cycles_cpu() {
+    std::thread::spawn(|| {
+        let all = allowed_cpus();
+        assert!(!all.is_empty());
+        if all.len() >= 2 {
+            let cycle = all[all.len() - 1];
+            assert!(avoid_cpu(cycle).unwrap());
+            let rest: Vec<usize> = all.iter().copied().filter(|&c| c != cycle).collect();
+            assert_eq!(allowed_cpus(), rest);
+            let child = std::thread::spawn(allowed_cpus).join().unwrap();
+            assert_eq!(child, rest, "a thread started afterwards");
+            // Not in the set any more: nothing changes.
+            assert!(!avoid_cpu(cycle).unwrap());
+            assert_eq!(allowed_cpus(), rest);
+        }
+        // The only CPU left is kept.
+        let only = allowed_cpus();
+        let mut last = only.clone();
+        for &c in &only[..only.len() - 1] {
+            assert!(avoid_cpu(c).unwrap());
+            last.retain(|&x| x != c);
+        }
+        assert_eq!(allowed_cpus(), last);
+        assert!(!avoid_cpu(last[0]).unwrap());
+        assert_eq!(allowed_cpus(), last);
+        // A CPU index beyond any set.
+        assert!(!avoid_cpu(1 << 20).unwrap());
+    })
+    .join()
+    .unwrap();
 }

@@ -1619,3 +1619,68 @@ fn a_dense_surface_whose_pieces_outnumber_the_tracker_starts_and_equals_kerf_sim
         "the daemon's setpoints differ from kerf sim's"
     );
 }
+
+/// The CPUs a thread of process `pid` whose name starts with `name` may run on
+/// (`Cpus_allowed_list` of /proc/PID/task/TID/status), one entry per such thread.
+fn threads_cpus(pid: u32, name: &str) -> Vec<String> {
+    let mut found = Vec::new();
+    for task in fs::read_dir(format!("/proc/{pid}/task")).unwrap() {
+        let dir = task.unwrap().path();
+        let comm = read_text(&dir.join("comm"));
+        if comm.trim().starts_with(name) {
+            let status = read_text(&dir.join("status"));
+            let cpus = status
+                .lines()
+                .find_map(|l| l.strip_prefix("Cpus_allowed_list:"))
+                .unwrap_or_else(|| panic!("no Cpus_allowed_list for {comm}"));
+            found.push(cpus.trim().to_owned());
+        }
+    }
+    found
+}
+
+/// `daemon.cpu` and `daemon.cpu_latency_us` as the running process shows them: the cycle
+/// (and its publishing helper) on the configured CPU, the control and planning threads
+/// off it, and, as root, the CPU wake-up latency request held open in
+/// /dev/cpu_dma_latency and named in the log (as another user, the log says why not).
+#[test]
+fn kerfd_keeps_its_other_threads_off_the_cycles_cpu_and_holds_its_latency_request() {
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    assert!(
+        cpus >= 2,
+        "this test needs two CPUs (one for the cycle); this machine has {cpus}"
+    );
+    let env = Env::new("cpus", &[("# cpu = 3", "cpu = 1")]);
+    let daemon = env.start_daemon("kerfd");
+    let pid = daemon.pid();
+    assert_eq!(threads_cpus(pid, "kerfd-cycle"), ["1"]);
+    for name in ["kerfd-control", "kerfd-planning"] {
+        let sets = threads_cpus(pid, name);
+        assert_eq!(sets.len(), 1, "{name}: {sets:?}");
+        let allowed: Vec<usize> = sets[0]
+            .split(',')
+            .flat_map(|r| match r.split_once('-') {
+                Some((a, b)) => (a.parse::<usize>().unwrap()..=b.parse().unwrap()).collect(),
+                None => vec![r.parse::<usize>().unwrap()],
+            })
+            .collect();
+        assert!(
+            !allowed.is_empty() && !allowed.contains(&1),
+            "{name} may run on CPUs {} (the cycle's is 1)",
+            sets[0]
+        );
+    }
+    let root = std::os::unix::fs::MetadataExt::uid(&fs::metadata("/proc/self").unwrap()) == 0;
+    let held = fs::read_dir(format!("/proc/{pid}/fd"))
+        .unwrap()
+        .filter_map(|e| fs::read_link(e.unwrap().path()).ok())
+        .any(|target| target == Path::new("/dev/cpu_dma_latency"));
+    let log = daemon.stderr();
+    if root {
+        assert!(held, "kerfd holds no /dev/cpu_dma_latency open: {log}");
+        assert!(log.contains("CPU wake-up latency 0 µs"), "{log}");
+    } else {
+        assert!(!held);
+        assert!(log.contains("CPU wake-up latency of 0 µs refused"), "{log}");
+    }
+}

@@ -63,6 +63,7 @@ pub(crate) fn cycle_thread(
                 rt_ok.store(ok, Ordering::Release);
                 RtStatus {
                     rt: ok,
+                    cpu_latency_us: None,
                     messages: r.messages,
                 }
             }
@@ -74,6 +75,7 @@ pub(crate) fn cycle_thread(
     } else {
         RtStatus {
             rt: false,
+            cpu_latency_us: None,
             messages: vec!["real-time scheduling not requested".to_string()],
         }
     };

@@ -102,6 +102,9 @@ pub enum StartError {
 pub struct RtStatus {
     /// SCHED_FIFO and mlockall both took effect.
     pub rt: bool,
+    /// The CPU wake-up latency request in force while the daemon runs, µs
+    /// (`daemon.cpu_latency_us`); `None` when not requested or refused.
+    pub cpu_latency_us: Option<u32>,
     /// What was refused, for the log.
     pub messages: Vec<String>,
 }
@@ -134,6 +137,8 @@ pub struct Daemon {
     shared: Shared,
     threads: Vec<JoinHandle<Result<(), String>>>,
     rt: RtStatus,
+    /// Held while the daemon runs; dropping it withdraws the request.
+    _cpu_latency: Option<kerf_rt::CpuLatencyRequest>,
 }
 
 impl Daemon {
@@ -291,11 +296,23 @@ pub fn start_with(
     let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<Option<RtStatus>, StartError>>();
 
     let mut threads = Vec::new();
+    // The cycle's CPU (`daemon.cpu`, with real-time scheduling) is the cycle's: the
+    // control and planning threads keep off it, where the cycle would preempt them (a
+    // request's answer then waits for the cycle's compute and publishing).
+    let cycle_cpu = config.daemon.cpu.filter(|_| real_time).map(|c| c as usize);
+    let off_cycle_cpu = move || {
+        if let Some(cpu) = cycle_cpu
+            && let Err(e) = kerf_rt::avoid_cpu(cpu)
+        {
+            tracing::warn!("cannot keep this thread off the cycle's CPU {cpu}: {e}");
+        }
+    };
 
     // The control thread first: its service tells whether another daemon runs.
     {
         let (config, shared, ready) = (config.clone(), shared.clone(), ready_tx.clone());
         threads.push(spawn("kerfd-control", move || {
+            off_cycle_cpu();
             control_thread(&config, shared, test_faults, ready, control_ports)
         })?);
     }
@@ -305,12 +322,13 @@ pub fn start_with(
         let (config, machine, ready) = (config.clone(), machine.clone(), ready_tx.clone());
         let (stop, counters) = (shared.stop.clone(), shared.counters.clone());
         threads.push(spawn("kerfd-planning", move || {
+            off_cycle_cpu();
             planning_thread(&config, &machine, window, ready, stop, counters, items_tx)
         })?);
     }
     wait_ready(&ready_rx)?;
 
-    let rt_status;
+    let mut rt_status: RtStatus;
     {
         let (config, shared, ready) = (config.clone(), shared.clone(), ready_tx.clone());
         threads.push(spawn("kerfd-cycle", move || {
@@ -318,12 +336,34 @@ pub fn start_with(
         })?);
         rt_status = wait_ready(&ready_rx)?.unwrap_or_default();
     }
+    // With real-time scheduling, idle CPUs kept quick to wake (see kerf_rt's latency
+    // module): the cycle wakes on its own timer, the threads around it do not.
+    let cpu_latency = if real_time {
+        let latency_us = config.daemon.cpu_latency_us;
+        match kerf_rt::CpuLatencyRequest::new(latency_us) {
+            Ok(request) => {
+                rt_status.cpu_latency_us = Some(latency_us);
+                Some(request)
+            }
+            Err(e) => {
+                rt_status.messages.push(format!(
+                    "CPU wake-up latency of {latency_us} µs refused ({}: {e}): threads \
+                     outside the cycle may wake late from idle CPUs",
+                    kerf_rt::CPU_LATENCY_FILE
+                ));
+                None
+            }
+        }
+    } else {
+        None
+    };
 
     Ok(Daemon {
         machine,
         shared,
         threads,
         rt: rt_status,
+        _cpu_latency: cpu_latency,
     })
 }
 

@@ -66,10 +66,24 @@ fn run(args: &Args) -> Result<(), String> {
     if args.test_faults {
         tracing::warn!("--test-faults: the control service accepts injected faults (tests only)");
     }
+    if let Some(cpu) = config.daemon.cpu
+        && let Err(e) = kerf_rt::avoid_cpu(cpu as usize)
+    {
+        tracing::warn!("cannot keep the main thread off the cycle's CPU {cpu}: {e}");
+    }
     let daemon = kerfd::start_with(&config, true, args.test_faults).map_err(|e| e.to_string())?;
     let rt = daemon.rt();
     if rt.rt {
-        tracing::info!("real-time scheduling and locked memory in effect");
+        tracing::info!(
+            "real-time scheduling and locked memory in effect{}",
+            match rt.cpu_latency_us {
+                Some(us) => format!(", CPU wake-up latency {us} µs"),
+                None => String::new(),
+            }
+        );
+        if rt.cpu_latency_us.is_none() {
+            tracing::warn!("{}", rt.messages.join("; "));
+        }
     } else {
         // Once, then the status says `rt: false`.
         tracing::warn!(

@@ -22,6 +22,15 @@ impl Checker<'_> {
             None => None,
             Some(c) => Some(self.integer("daemon.cpu", "a CPU number", 0..=4095, c)?),
         };
+        let cpu_latency_us = match &raw.cpu_latency_us {
+            None => d.cpu_latency_us,
+            Some(l) => self.integer(
+                "daemon.cpu_latency_us",
+                "a latency in µs",
+                CPU_LATENCY_RANGE_US,
+                l,
+            )?,
+        };
         let queue_segments = match &raw.queue_segments {
             None => d.queue_segments,
             Some(q) => self.integer(
@@ -53,6 +62,7 @@ impl Checker<'_> {
         Ok(DaemonConfig {
             priority,
             cpu,
+            cpu_latency_us,
             queue_segments,
             move_window,
             state_file,

@@ -307,6 +307,12 @@ pub fn keys() -> Vec<KeyDoc> {
             "CPU to pin the cycle thread to, normally an isolated one.",
         ),
         k(
+            "daemon.cpu_latency_us",
+            daemon.cpu_latency_us.to_string(),
+            ri(CPU_LATENCY_RANGE_US),
+            "The CPU wake-up latency, µs, that `kerfd` asks of the kernel while it runs with real-time scheduling (PM QoS through /dev/cpu_dma_latency, as root; refused otherwise, with a warning): idle CPUs use no idle state that takes longer to leave. 0 keeps idle CPUs polling, so that the threads outside the cycle (the control thread answering a request, the client waiting for the answer) wake at once instead of after the exit from a deep C-state or, in a virtual machine, a halt; the cost is idle CPUs that never sleep (power and heat). 1000000 asks nothing of the CPUs.",
+        ),
+        k(
             "daemon.queue_segments",
             daemon.queue_segments.to_string(),
             ri(QUEUE_SEGMENTS_RANGE),
