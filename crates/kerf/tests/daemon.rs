@@ -1620,6 +1620,47 @@ fn a_dense_surface_whose_pieces_outnumber_the_tracker_starts_and_equals_kerf_sim
     );
 }
 
+/// One smoothed piece standing for more programmed moves than the daemon's tracker holds
+/// (20,000 steps of 0.1 µm in one 2 mm line; a 16-segment queue tracks 4,352 moves), with
+/// nothing else queued: the moves that do not fit are taken untracked rather than wait
+/// for room that cannot come, as `kerf sim` does, so the run ends at the program's end
+/// with `kerf sim`'s setpoints, and the line each setpoint names never goes back.
+#[test]
+fn a_piece_standing_for_more_moves_than_the_tracker_holds_runs_as_in_kerf_sim() {
+    let env = Env::new(
+        "untracked",
+        &[("queue_segments = 4096", "queue_segments = 16")],
+    );
+    let capacity = kerf_pipeline::tracked_moves(16);
+    let steps = 30_000;
+    assert!(steps * 2 / 3 > capacity, "the first piece fits the tracker");
+    let mut text = String::from("G21 G90 G17 G94 G64 P0.01 F3000\n");
+    for k in 1..=steps {
+        text += &format!("G1 X{:.4}\n", k as f64 * 0.0001);
+    }
+    text += "M2\n";
+    let program = env.write("steps.ngc", &text);
+    let run_csv = env.path("run.csv");
+    run_embedded_recorded(&env, &program, &run_csv);
+    let sim = env.sim(&program, "sim.csv");
+    assert!(
+        fs::read(&sim).unwrap() == fs::read(&run_csv).unwrap(),
+        "the daemon's setpoints differ from kerf sim's"
+    );
+    let rows = read_csv(&run_csv);
+    let last = rows.last().unwrap();
+    assert!((last.position[0] - 3.0).abs() < 1e-9, "ends at {last:?}");
+    let last_line = steps as u32 + 1;
+    for pair in rows.windows(2) {
+        assert!(
+            pair[1].line >= pair[0].line && pair[1].line <= last_line,
+            "line {} after {}",
+            pair[1].line,
+            pair[0].line
+        );
+    }
+}
+
 /// The CPUs a thread of process `pid` whose name starts with `name` may run on
 /// (`Cpus_allowed_list` of /proc/PID/task/TID/status), one entry per such thread.
 fn threads_cpus(pid: u32, name: &str) -> Vec<String> {
