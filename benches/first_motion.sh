@@ -11,19 +11,33 @@
 #   benches/first_motion.sh BIN_DIR PROGRAM [CONFIG]
 #   e.g. target/release/gen_surface --segments 3000000 --seed 5 > /tmp/s3m.ngc
 #        benches/first_motion.sh target/release /tmp/s3m.ngc
-# CONFIG defaults to benches/cam-mill.toml (no homing: the machine is ready at start).
+# CONFIG defaults to benches/cam-mill.toml (no homing: the machine is ready at start). The
+# run uses a copy of it in a scratch directory, named `first_motion_PID`, so that it meets
+# no other daemon of the same configuration (a CONFIG whose keys name files relative to
+# it needs absolute paths there).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 bin="$1"
 program="$2"
-config="${3:-$here/cam-mill.toml}"
-log="$(mktemp)"
+source_config="${3:-$here/cam-mill.toml}"
+scratch="$(mktemp -d)"
+log="$scratch/kerfd.log"
+config="$scratch/kerf.toml"
+python3 - "$source_config" "$config" "first_motion_$$" <<'PY'
+import re, sys
+src, dst, machine = sys.argv[1:]
+text = open(src).read()
+named = re.sub(r'(?m)^machine\s*=\s*"[^"]*"', f'machine = "{machine}"', text, count=1)
+if named == text:
+    named = f'machine = "{machine}"\n' + text
+open(dst, "w").write(named)
+PY
 "$bin/kerfd" --config "$config" >"$log" 2>&1 &
 daemon=$!
 cleanup() {
     kill "$daemon" 2>/dev/null || true
     wait "$daemon" 2>/dev/null || true
-    rm -f "$log"
+    rm -rf "$scratch"
 }
 trap cleanup EXIT
 for _ in $(seq 100); do
