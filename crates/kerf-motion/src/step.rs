@@ -25,14 +25,7 @@ impl MotionCore {
             self.a_mm_s2 = 0.0;
             self.last.feed_mm_s = 0.0;
             *out = self.last;
-            if self.mode == Mode::HoldPending {
-                // At rest with nothing queued: the pending hold is in force now.
-                self.try_brake();
-                if self.mode == Mode::Held {
-                    return StepResult::Held;
-                }
-            }
-            return StepResult::Idle;
+            return self.at_rest_with_nothing_queued();
         }
         if !self.running {
             self.running = true;
@@ -72,15 +65,7 @@ impl MotionCore {
             if self.sec_count == 0 {
                 self.finish_at_end();
                 self.emit(out);
-                if self.mode == Mode::HoldPending {
-                    // A hold asked for when the stop could no longer start before the
-                    // queue's end (its last deceleration): at rest there, it is in force.
-                    self.try_brake();
-                    if self.mode == Mode::Held {
-                        return StepResult::Held;
-                    }
-                }
-                return StepResult::Idle;
+                return self.at_rest_with_nothing_queued();
             }
             self.v_mm_s = end_v_mm_s;
             self.a_mm_s2 = end_a;
@@ -102,6 +87,19 @@ impl MotionCore {
         self.sample(t);
         self.emit(out);
         StepResult::Moving
+    }
+
+    /// The step's result at rest with nothing queued: idle, or held where a hold is
+    /// pending (one asked for when its stop could no longer start before the queue's end,
+    /// in the last deceleration, is in force once at rest there; an abort still clears).
+    fn at_rest_with_nothing_queued(&mut self) -> StepResult {
+        if self.mode == Mode::HoldPending {
+            self.try_brake();
+            if self.mode == Mode::Held {
+                return StepResult::Held;
+            }
+        }
+        StepResult::Idle
     }
 
     /// Duration of the running profile (or coast), seconds.

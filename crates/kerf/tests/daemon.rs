@@ -973,8 +973,10 @@ fn programs_back_to_back() {
     check_stream(&env, &recorded, &moves, "record");
 }
 
-/// `kerf run --embedded --record RUN_CSV PROGRAM` on `env`'s machine, which must succeed.
-fn run_embedded_recorded(env: &Env, program: &Path, run_csv: &Path) {
+/// `kerf run --embedded --record run.csv PROGRAM` on `env`'s machine, which must succeed
+/// with setpoints byte for byte `kerf sim`'s (`sim.csv`); the recorded file.
+fn embedded_run_equal_to_sim(env: &Env, program: &Path) -> PathBuf {
+    let run_csv = env.path("run.csv");
     let mut run = spawn(
         "run",
         &env.dir,
@@ -991,16 +993,19 @@ fn run_embedded_recorded(env: &Env, program: &Path, run_csv: &Path) {
     );
     let status = wait(&mut run, 2);
     assert!(status.success(), "{}", run.stderr());
+    let sim = env.sim(program, "sim.csv");
+    assert!(
+        fs::read(&sim).unwrap() == fs::read(&run_csv).unwrap(),
+        "the daemon's setpoints differ from kerf sim's"
+    );
+    run_csv
 }
 
 #[test]
 fn embedded_run_equals_kerf_sim() {
     let env = Env::new("emb", &[]);
     let program = env.write("part.ngc", PART);
-    let run_csv = env.path("run.csv");
-    run_embedded_recorded(&env, &program, &run_csv);
-    let sim = env.sim(&program, "sim.csv");
-    assert!(fs::read(&sim).unwrap() == fs::read(&run_csv).unwrap());
+    let run_csv = embedded_run_equal_to_sim(&env, &program);
     check_stream(
         &env,
         &run_csv,
@@ -1611,13 +1616,7 @@ fn a_dense_surface_whose_pieces_outnumber_the_tracker_starts_and_equals_kerf_sim
     }
     text += "M2\n";
     let program = env.write("surface.ngc", &text);
-    let run_csv = env.path("run.csv");
-    run_embedded_recorded(&env, &program, &run_csv);
-    let sim = env.sim(&program, "sim.csv");
-    assert!(
-        fs::read(&sim).unwrap() == fs::read(&run_csv).unwrap(),
-        "the daemon's setpoints differ from kerf sim's"
-    );
+    embedded_run_equal_to_sim(&env, &program);
 }
 
 /// One smoothed piece standing for more programmed moves than the daemon's tracker holds
@@ -1640,14 +1639,7 @@ fn a_piece_standing_for_more_moves_than_the_tracker_holds_runs_as_in_kerf_sim() 
     }
     text += "M2\n";
     let program = env.write("steps.ngc", &text);
-    let run_csv = env.path("run.csv");
-    run_embedded_recorded(&env, &program, &run_csv);
-    let sim = env.sim(&program, "sim.csv");
-    assert!(
-        fs::read(&sim).unwrap() == fs::read(&run_csv).unwrap(),
-        "the daemon's setpoints differ from kerf sim's"
-    );
-    let rows = read_csv(&run_csv);
+    let rows = read_csv(&embedded_run_equal_to_sim(&env, &program));
     let last = rows.last().unwrap();
     assert!((last.position[0] - 3.0).abs() < 1e-9, "ends at {last:?}");
     let last_line = steps as u32 + 1;

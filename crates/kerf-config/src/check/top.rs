@@ -22,33 +22,27 @@ impl Checker<'_> {
             None => None,
             Some(c) => Some(self.integer("daemon.cpu", "a CPU number", 0..=4095, c)?),
         };
-        let cpu_latency_us = match &raw.cpu_latency_us {
-            None => d.cpu_latency_us,
-            Some(l) => self.integer(
-                "daemon.cpu_latency_us",
-                "a latency in µs",
-                CPU_LATENCY_RANGE_US,
-                l,
-            )?,
-        };
-        let queue_segments = match &raw.queue_segments {
-            None => d.queue_segments,
-            Some(q) => self.integer(
-                "daemon.queue_segments",
-                "a number of segments",
-                QUEUE_SEGMENTS_RANGE,
-                q,
-            )?,
-        };
-        let move_window = match &raw.move_window {
-            None => d.move_window,
-            Some(w) => self.integer(
-                "daemon.move_window",
-                "a number of moves",
-                MOVE_WINDOW_RANGE,
-                w,
-            )?,
-        };
+        let cpu_latency_us = self.integer_or(
+            "daemon.cpu_latency_us",
+            "a latency in µs",
+            CPU_LATENCY_RANGE_US,
+            &raw.cpu_latency_us,
+            d.cpu_latency_us,
+        )?;
+        let queue_segments = self.integer_or(
+            "daemon.queue_segments",
+            "a number of segments",
+            QUEUE_SEGMENTS_RANGE,
+            &raw.queue_segments,
+            d.queue_segments,
+        )?;
+        let move_window = self.integer_or(
+            "daemon.move_window",
+            "a number of moves",
+            MOVE_WINDOW_RANGE,
+            &raw.move_window,
+            d.move_window,
+        )?;
         let state_file = match &raw.state_file {
             None => d.state_file,
             Some(f) if f.get_ref().is_empty() => {
