@@ -36,11 +36,18 @@
 pub const TRACKED_MOVES_PER_SEGMENT: usize = 16;
 
 /// Programmed moves tracked beyond [`TRACKED_MOVES_PER_SEGMENT`] per segment: room for
-/// the moves kept behind the running segment and for one smoothed piece of many moves
-/// even on a short queue. (A piece standing for more moves than the tracker holds, with
-/// nothing else queued, is taken with the moves that do not fit untracked, in the daemon
-/// and the offline runs alike, rather than wait for room that cannot come.)
+/// the moves kept behind the running segment and for smoothed pieces of many moves even on
+/// a short queue: the running piece and the next one at least, each of at most
+/// [`kerf_plan::MAX_PIECE_MOVES`] moves (and the move after it), so that the next piece is
+/// always queued before the running one ends and the motion never stops between them for
+/// the tracker's sake.
 pub const TRACKED_MOVES_EXTRA: usize = 4096;
+
+const _: () = assert!(
+    TRACKED_MOVES_EXTRA
+        >= 2 * (kerf_plan::MAX_PIECE_MOVES as usize + 1) + 2 * tracker::MOVES_KEPT_BEHIND,
+    "the tracker holds two pieces"
+);
 
 /// The tracker's capacity for a motion queue of `queue_segments` segments: 69,632 moves
 /// for the default 4,096.

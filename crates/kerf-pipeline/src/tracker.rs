@@ -35,7 +35,7 @@ pub struct Tracker {
 
 /// Moves kept before the first move of the segment being run, for the deviation check
 /// (it looks one back; the rest is a margin).
-const MOVES_KEPT_BEHIND: usize = 16;
+pub(crate) const MOVES_KEPT_BEHIND: usize = 16;
 
 /// Programmed moves per block of the tracker's search.
 const BLOCK_MOVES: usize = 16;

@@ -181,6 +181,7 @@ pub use blend::G2_LAMBDA_RATIOS;
 pub use budget::{CURVATURE_SAFETY, DESIGN_RUN_MM, LIMIT_SAFETY, RATE_SAFETY, segment_limits};
 pub use junction::junction_cap;
 pub use planner::Planner;
+pub use smooth::MAX_PIECE_MOVES;
 pub use transition::TRANSITION_SHARE_OF_MOVE;
 
 /// Highest feed override curved segments are designed for: the machine's highest override

@@ -26,8 +26,8 @@
 //!   control's manual sets a rotary tolerance for blending; LinuxCNC's `G64 P` is in
 //!   length units. A degree per millimetre of tolerance is the choice made here.)
 //! - **Knots** are at vertices of the polyline, every [`WINDOW_MM`] or less of chord
-//!   length. Where the vertices are coarsely rounded ([`POSITION_NOISE_SHARE`]), a knot
-//!   inside a run lies where a quadratic fitted over [`POSITION_WINDOW_MM`] each side puts
+//!   length and every [`MAX_PIECE_MOVES`] vertices or fewer. Where the vertices are
+//!   coarsely rounded ([`POSITION_NOISE_SHARE`]), a knot inside a run lies where a quadratic fitted over [`POSITION_WINDOW_MM`] each side puts
 //!   its vertex (within half the band of it), not on the rounded vertex itself: the band,
 //!   not the vertices, holds the curve, so rounding does not bend it between knots. At a
 //!   knot the unit tangent and the curvature vector come from
@@ -100,6 +100,12 @@ pub const SAG_TOL_SHARE: f64 = 0.5;
 pub const MIN_RUN_MOVES: usize = 8;
 /// Half-width of the widest fitting window, and the longest piece, mm of chord.
 pub const WINDOW_MM: f64 = 2.0;
+/// Most programmed moves one piece stands for: a piece ends after this many vertices even
+/// short of [`WINDOW_MM`] (only code with steps under 2 µm reaches it). The daemon's cycle
+/// tracks the moves of the segments it holds, in room for the running piece and the next
+/// one at least (`kerf_pipeline::TRACKED_MOVES_EXTRA`); a longer piece would leave the
+/// next one waiting until the running one ended, and the motion would stop between them.
+pub const MAX_PIECE_MOVES: u64 = 1024;
 /// Largest residual of the window's fit, as a share of the tolerance: the fit may leave a
 /// vertex by up to 70 % of the band, so that rounding noise up to that size is averaged
 /// over the whole window instead of shrinking it (the pieces themselves are still checked
@@ -366,15 +372,18 @@ impl Run {
             if !finish && (s_last - sa < 2.0 * WINDOW_MM + 1e-9 || last < ka.idx + 6) {
                 break;
             }
-            // Furthest vertex within the window (at least the next one); a short rest of
-            // the run is taken whole rather than left as a sliver.
+            // Furthest vertex within the window (at least the next one, at most
+            // [`MAX_PIECE_MOVES`] on); a short rest of the run is taken whole rather than
+            // left as a sliver.
             let mut ib = ka.idx + 1;
-            while ib < last && self.v(ib + 1).sigma - sa <= WINDOW_MM {
+            let cap = ka.idx + MAX_PIECE_MOVES;
+            while ib < last.min(cap) && self.v(ib + 1).sigma - sa <= WINDOW_MM {
                 ib += 1;
             }
             if finish
                 && s_last - self.v(ib).sigma < 0.5 * WINDOW_MM
                 && s_last - sa <= 1.5 * WINDOW_MM
+                && last <= cap
             {
                 ib = last;
             }

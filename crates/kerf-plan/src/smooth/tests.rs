@@ -428,6 +428,43 @@ fn a_long_run_is_streamed_in_bounded_memory() {
     assert_eq!(covered as usize, moves.len());
 }
 
+/// Code of steps far under the tolerance (0.5 µm along an arc of radius 10): no piece
+/// stands for more than [`MAX_PIECE_MOVES`] moves, the pieces cover the moves in order,
+/// each from where the one before ended, and every piece stays within the tolerance of
+/// the programmed polyline.
+#[test]
+fn no_piece_stands_for_more_than_the_most_moves() {
+    let step_mm = 0.0005;
+    let n = 6000;
+    let pts: Vec<Vec3> = (0..=n)
+        .map(|k| {
+            let a = k as f64 * step_mm / 10.0;
+            Vec3::new(10.0 * a.sin(), 10.0 - 10.0 * a.cos(), 0.0)
+        })
+        .collect();
+    let out = plan(&lines(&pts, 3000.0));
+    let mut next = 0;
+    for seg in &out {
+        assert!(
+            u64::from(seg.move_count) <= MAX_PIECE_MOVES,
+            "{} moves",
+            seg.move_count
+        );
+        assert_eq!(seg.move_index, next, "pieces in order");
+        next += u64::from(seg.move_count.max(1));
+        for i in 0..=16 {
+            let q = seg.curve.point_at(seg.length_mm * f64::from(i) / 16.0);
+            assert!(polyline_distance(&q, &pts) <= 0.01, "{q:?}");
+        }
+    }
+    assert_eq!(next, n as u64, "every move covered");
+    assert!(
+        out.len() >= n as usize / MAX_PIECE_MOVES as usize,
+        "{} pieces",
+        out.len()
+    );
+}
+
 #[test]
 fn feed_and_tolerance_changes_keep_the_curve_smooth() {
     // The rounded circle with the feed alternating between F6000 and F5900 every 50

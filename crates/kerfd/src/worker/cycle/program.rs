@@ -144,11 +144,12 @@ impl Cycle {
                             return Poll::Full;
                         }
                         // Programmed moves go to the tracker until the next planned item;
-                        // after an abort they are not needed (as in `kerf sim`). With
-                        // nothing queued a full tracker would never empty (one smoothed
-                        // piece standing for more moves than it holds): the move is then
-                        // taken untracked (as in `kerf sim`), the setpoints of its piece
-                        // naming the nearest move tracked.
+                        // after an abort they are not needed (as in `kerf sim`). A full
+                        // tracker with nothing queued cannot happen with the planner's
+                        // segments (it holds two pieces of the most moves a piece stands
+                        // for); should it, the move is taken untracked (as in `kerf sim`)
+                        // rather than hold the motion for ever, as a full tracker with
+                        // nothing queued would never empty.
                         RtItem::Move(m) => {
                             if !tracker.is_full() && (!aborted || tracker.is_empty()) {
                                 tracker.add(&m);
