@@ -27,12 +27,12 @@
 //!   length units. A degree per millimetre of tolerance is the choice made here.)
 //! - **Knots** are at vertices of the polyline, every [`WINDOW_MM`] or less of chord
 //!   length and every [`MAX_PIECE_MOVES`] vertices or fewer. Where the vertices are
-//!   coarsely rounded ([`POSITION_NOISE_SHARE`]), a knot inside a run lies where a quadratic fitted over [`POSITION_WINDOW_MM`] each side puts
-//!   its vertex (within half the band of it), not on the rounded vertex itself: the band,
-//!   not the vertices, holds the curve, so rounding does not bend it between knots. At a
-//!   knot the unit tangent and the curvature vector come from
-//!   a weighted least-squares quartic (a cubic in windows of fewer than
-//!   [`QUARTIC_MIN_VERTICES`] vertices besides the knot's own) fitted to the vertices
+//!   coarsely rounded ([`POSITION_NOISE_SHARE`]), a knot inside a run lies where a
+//!   quadratic fitted over [`POSITION_WINDOW_MM`] each side puts its vertex (within half
+//!   the band of it), not on the rounded vertex itself: the band, not the vertices, holds
+//!   the curve, so rounding does not bend it between knots. At a knot the unit tangent and
+//!   the curvature vector come from a weighted least-squares quartic (a cubic in windows
+//!   of fewer than [`QUARTIC_MIN_VERTICES`] vertices besides the knot's own) fitted to the vertices
 //!   within a window around it (biweight weights in chord length, uniform for the
 //!   one-sided window at a run end; at least two vertices each side) with a free constant
 //!   (held through the vertex only at a run end), so that the vertex's own rounding does
