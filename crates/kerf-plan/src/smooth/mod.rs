@@ -25,21 +25,21 @@
 //!   interpolation; the rate change at a vertex must sag within the same share of it. (No
 //!   control's manual sets a rotary tolerance for blending; LinuxCNC's `G64 P` is in
 //!   length units. A degree per millimetre of tolerance is the choice made here.)
-//! - **Knots** are at vertices of the polyline, every [`WINDOW_MM`] or less of chord
-//!   length and every [`MAX_PIECE_MOVES`] vertices or fewer. Where the vertices are
-//!   coarsely rounded ([`POSITION_NOISE_SHARE`]), a knot inside a run lies where a
-//!   quadratic fitted over [`POSITION_WINDOW_MM`] each side puts its vertex (within half
-//!   the band of it), not on the rounded vertex itself: the band, not the vertices, holds
-//!   the curve, so rounding does not bend it between knots. At a knot the unit tangent and
-//!   the curvature vector come from a weighted least-squares quartic (a cubic in windows
-//!   of fewer than [`QUARTIC_MIN_VERTICES`] vertices besides the knot's own) fitted to the vertices
-//!   within a window around it (biweight weights in chord length, uniform for the
-//!   one-sided window at a run end; at least two vertices each side) with a free constant
-//!   (held through the vertex only at a run end), so that the vertex's own rounding does
-//!   not tilt the tangent: rounding noise averages out over the window. The window halves
-//!   (down to two vertices each side) until the fit explains every vertex in it within
-//!   [`RESIDUAL_TOL_SHARE`] of the tolerance, so that it does not reach across a change
-//!   of shape.
+//! - **Knots** are at vertices of the polyline, every [`WINDOW_MM`] or less of chord length
+//!   and every [`MAX_PIECE_MOVES`] vertices or fewer. Where the vertices are coarsely
+//!   rounded ([`POSITION_NOISE_SHARE`]), a knot inside a run lies where a quadratic fitted
+//!   over [`POSITION_WINDOW_MM`] each side puts its vertex (within half the band of it),
+//!   not on the rounded vertex itself: the band, not the vertices, holds the curve, so
+//!   rounding does not bend it between knots. At a knot the unit tangent and the curvature
+//!   vector come from a weighted least-squares quartic (a cubic in windows of fewer than
+//!   [`QUARTIC_MIN_VERTICES`] vertices besides the knot's own) fitted to the vertices
+//!   within a window around it (biweight weights in chord length, uniform for the one-sided
+//!   window at a run end; at least two vertices each side) with a free constant (held
+//!   through the vertex only at a run end), so that the vertex's own rounding does not tilt
+//!   the tangent: rounding noise averages out over the window. The window halves (down to
+//!   two vertices each side) until the fit explains every vertex in it within
+//!   [`RESIDUAL_TOL_SHARE`] of the tolerance, so that it does not reach across a change of
+//!   shape.
 //! - **Pieces** between consecutive knots are quintic Hermite curves
 //!   ([`kerf_geom::Transition`]) matching position, tangent and curvature at both knots, so
 //!   the chain is curvature-continuous and the joints cost no speed. Their parameter scale
