@@ -101,7 +101,7 @@ pub const MIN_RUN_MOVES: usize = 8;
 /// Half-width of the widest fitting window, and the longest piece, mm of chord.
 pub const WINDOW_MM: f64 = 2.0;
 /// Most programmed moves one piece stands for: a piece ends after this many vertices even
-/// short of [`WINDOW_MM`] (only code with steps under 2 µm reaches it). The daemon's cycle
+/// short of `WINDOW_MM` (only code with steps under 2 µm reaches it). The daemon's cycle
 /// tracks the moves of the segments it holds, in room for the running piece and the next
 /// one at least (`kerf_pipeline::TRACKED_MOVES_EXTRA`); a longer piece would leave the
 /// next one waiting until the running one ended, and the motion would stop between them.
