@@ -530,14 +530,17 @@ fn mdi_lines_from_the_api_run_as_kerf_mdi_runs_them_and_a_bad_one_comes_back_wit
             &serde_json::json!({ "line": line }).to_string(),
         )
     };
-    let finished = |what: &str| {
+    // The job finished, then the status idle where `there` holds: kerf serve reads the
+    // daemon's status every 50 ms, so a short line's job may end before the status
+    // shows its motion (the test fails if it never gets there within the patience).
+    let finished = |what: &str, there: &dyn Fn(&Value) -> bool| {
         let job = job_until(s.addr, what, |j| j["state"] != "running");
         assert_eq!(
             (job["state"].clone(), job["exit_code"].clone()),
             (Value::from("finished"), Value::from(0)),
             "{what}: {job}"
         );
-        status_until(s.addr, "idle", |st| st["state"] == "idle")
+        status_until(s.addr, what, |st| st["state"] == "idle" && there(st))
     };
     // A line goes where it says, in work coordinates.
     let (code, answer) = mdi("G0 X12.5 Y-3");
@@ -546,19 +549,21 @@ fn mdi_lines_from_the_api_run_as_kerf_mdi_runs_them_and_a_bad_one_comes_back_wit
         (answer["job"]["kind"].clone(), answer["job"]["name"].clone()),
         (Value::from("mdi"), Value::from("G0 X12.5 Y-3"))
     );
-    let at = finished("the first line");
-    assert!((work(&at, "x") - 12.5).abs() < 1e-9, "{at}");
-    assert!((work(&at, "y") + 3.0).abs() < 1e-9, "{at}");
+    finished("the first line at X12.5 Y-3", &|st| {
+        (work(st, "x") - 12.5).abs() < 1e-9 && (work(st, "y") + 3.0).abs() < 1e-9
+    });
     // Each line starts in a program's modal state (docs/API.md): the G91 of one line does
     // not carry into the next, which is absolute again.
     let (code, answer) = mdi("G91 G0 X1");
     assert_eq!(code, 202, "{answer}");
-    let at = finished("the incremental line");
-    assert!((work(&at, "x") - 13.5).abs() < 1e-9, "{at}");
+    finished("the incremental line at X13.5", &|st| {
+        (work(st, "x") - 13.5).abs() < 1e-9
+    });
     let (code, answer) = mdi("G0 X1");
     assert_eq!(code, 202, "{answer}");
-    let at = finished("the absolute line");
-    assert!((work(&at, "x") - 1.0).abs() < 1e-9, "{at}");
+    let at = finished("the absolute line at X1", &|st| {
+        (work(st, "x") - 1.0).abs() < 1e-9
+    });
     // A line the interpreter refuses: the error with its place, the job failed, nothing
     // moved.
     let (code, answer) = mdi("G1 X40");
@@ -614,7 +619,7 @@ fn mdi_lines_from_the_api_run_as_kerf_mdi_runs_them_and_a_bad_one_comes_back_wit
     // follows the parameter file `kerf mdi` wrote, the machine did not move.
     let (code, answer) = mdi("G10 L20 P1 X0");
     assert_eq!(code, 202, "{answer}");
-    finished("the touch-off");
+    finished("the touch-off", &|_| true);
     // The parameter file keeps 6 decimals, as LinuxCNC's does: within 0.5e-6 mm.
     let touched = status_until(s.addr, "X reading 0 in G54", |st| {
         st["dro"]["work"]["x"]
