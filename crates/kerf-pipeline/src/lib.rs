@@ -81,4 +81,4 @@ pub use measure::{AxisPeak, Summary};
 pub use runner::RunOptions;
 pub use runs::{run, run_parallel, run_planned, run_stream};
 pub use sink::{Sink, cycle_time_s};
-pub use tracker::Tracker;
+pub use tracker::{Taking, Tracker};

@@ -8,7 +8,7 @@ use kerf_motion::Setpoint;
 use kerf_motion::monitor::{LimitMonitor, LimitViolation};
 use kerf_plan::MachineLimits;
 
-use crate::Tracker;
+use crate::{Taking, Tracker};
 
 /// Peak per-axis values by finite differences of the setpoints.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -116,23 +116,22 @@ impl Measure<'_> {
         self.summary.last = *sp;
     }
 
-    /// `true` when the tracker holds all the moves it can (as the daemon's would).
-    pub(crate) fn tracker_full(&self) -> bool {
-        self.tracker.is_full()
+    /// What to do with the next programmed move (as the daemon's cycle does).
+    pub(crate) fn taking(&self, queue_empty: bool, aborted: bool) -> Taking {
+        self.tracker.taking(queue_empty, aborted)
     }
 
-    /// Records a programmed move for the deviation check.
-    pub(crate) fn add_move(&mut self, mv: &Move, aborted: bool) {
+    /// Takes the next programmed move as `taking` says (not [`Taking::Wait`]): tracked for
+    /// the deviation check, or passed.
+    pub(crate) fn take_move(&mut self, mv: &Move, taking: Taking) {
         if let Some((s, e)) = mv.abc_deg
             && s != e
         {
             self.summary.rotary_used = true;
         }
-        if aborted && !self.tracker.is_empty() {
-            // Nothing more is run after an abort: the deviation check needs no more moves.
-            return;
+        if taking == Taking::Track {
+            self.tracker.add(mv);
         }
-        self.tracker.add(mv);
     }
 
     /// Checks a setpoint with the monitor, if any; keeps the first fault.

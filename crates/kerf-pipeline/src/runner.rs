@@ -8,7 +8,9 @@ use kerf_plan::{MachineLimits, PlanError};
 
 use crate::measure::Measure;
 use crate::sink::SinkMachine;
-use crate::{Interpolator, OperatorEvent, Planned, Poll, RunError, Sink, Summary, cycle_time_s};
+use crate::{
+    Interpolator, OperatorEvent, Planned, Poll, RunError, Sink, Summary, Taking, cycle_time_s,
+};
 
 /// Options of a run.
 #[derive(Clone, Debug, PartialEq)]
@@ -140,16 +142,15 @@ impl<'a, F: Sink> Runner<'a, F> {
                     let needed =
                         (seg.move_index + u64::from(seg.move_count) + 1).min(*moves_known as u64);
                     while (*known as u64) < needed {
-                        if measure.tracker_full() && !queue_empty {
+                        let taking = measure.taking(queue_empty, aborted);
+                        if taking == Taking::Wait {
                             *held = Some(polled);
                             return Poll::Full;
                         }
                         let Some(mv) = source.next_move() else {
                             break;
                         };
-                        if !measure.tracker_full() {
-                            measure.add_move(&mv, aborted);
-                        }
+                        measure.take_move(&mv, taking);
                         *known += 1;
                     }
                     queue_empty = false;

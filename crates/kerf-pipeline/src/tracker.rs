@@ -33,6 +33,17 @@ pub struct Tracker {
     cursor: usize,
 }
 
+/// What a cycle does with the next programmed move ([`Tracker::taking`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Taking {
+    /// Add it to the tracker.
+    Track,
+    /// Pass it without tracking it.
+    Untracked,
+    /// Leave it (and the segment that needs it) for a later cycle: the tracker is full.
+    Wait,
+}
+
 /// Moves kept before the first move of the segment being run, for the deviation check
 /// (it looks one back; the rest is a margin).
 pub(crate) const MOVES_KEPT_BEHIND: usize = 16;
@@ -89,6 +100,29 @@ impl Tracker {
         self.curves.len() >= self.curves.capacity()
             || self.lines.len() >= self.lines.capacity()
             || self.blocks.len() >= self.blocks.capacity()
+    }
+
+    /// What a cycle does with the next programmed move before the planned items that
+    /// need it: the one rule of the daemon's cycle and the offline runs, so that both
+    /// name the same lines. `queue_empty`: no segment queued, not even a running one;
+    /// `aborted`: the program was aborted (nothing more runs, so no more moves are
+    /// needed once the tracker holds one).
+    pub fn taking(&self, queue_empty: bool, aborted: bool) -> Taking {
+        if self.is_full() {
+            // Full, the queue counts as full: the motion runs on, and the tracker empties
+            // as it passes the moves. With nothing queued it would never empty; the
+            // planner's pieces never fill it so (see `TRACKED_MOVES_EXTRA`), and should
+            // anything else, the move is passed untracked rather than hold the motion.
+            if queue_empty {
+                Taking::Untracked
+            } else {
+                Taking::Wait
+            }
+        } else if aborted && !self.is_empty() {
+            Taking::Untracked
+        } else {
+            Taking::Track
+        }
     }
 
     /// Forgets every move (a new program; the capacity stays).
@@ -275,22 +309,27 @@ mod tests {
     fn tracker_of(points: &[[f64; 2]]) -> Tracker {
         let mut t = Tracker::with_capacity(64);
         for (k, w) in points.windows(2).enumerate() {
-            t.add(&Move {
-                line: k as u32 + 1,
-                rapid: false,
-                path: Path::Line(kerf_geom::Line {
-                    start: Vec3::new(w[0][0], w[0][1], 0.0),
-                    end: Vec3::new(w[1][0], w[1][1], 0.0),
-                }),
-                feed_mm_min: Some(600.0),
-                abc_deg: None,
-                corner: kerf_geom::CornerMode::Blend {
-                    tolerance_mm: None,
-                    naive_cam_mm: None,
-                },
-            });
+            t.add(&line_move(k, w[0], w[1]));
         }
         t
+    }
+
+    /// Move `k` (on source line `k + 1`), the line from `a` to `b`.
+    fn line_move(k: usize, a: [f64; 2], b: [f64; 2]) -> Move {
+        Move {
+            line: k as u32 + 1,
+            rapid: false,
+            path: Path::Line(kerf_geom::Line {
+                start: Vec3::new(a[0], a[1], 0.0),
+                end: Vec3::new(b[0], b[1], 0.0),
+            }),
+            feed_mm_min: Some(600.0),
+            abc_deg: None,
+            corner: kerf_geom::CornerMode::Blend {
+                tolerance_mm: None,
+                naive_cam_mm: None,
+            },
+        }
     }
 
     /// Tracks a setpoint at `(x, y)` on a smoothed piece of `count` moves from `first`:
@@ -307,6 +346,41 @@ mod tests {
         let d = t.track(&mut sp).unwrap();
         assert_eq!((sp.move_index, sp.move_count), (u64::from(sp.line) - 1, 1));
         (sp.line, d)
+    }
+
+    /// The taking rule: moves are tracked until the tracker is full; full, they wait while
+    /// a segment is queued (the motion runs on and frees room) and pass untracked with
+    /// nothing queued (room would never come); after an abort one move is enough.
+    #[test]
+    fn moves_are_tracked_until_full_then_wait_for_the_motion_unless_nothing_is_queued() {
+        let empty = Tracker::with_capacity(64);
+        assert_eq!(empty.taking(false, false), Taking::Track);
+        assert_eq!(empty.taking(true, false), Taking::Track);
+        assert_eq!(
+            empty.taking(false, true),
+            Taking::Track,
+            "one move after an abort"
+        );
+        let points: Vec<[f64; 2]> = (0..200).map(|k| [f64::from(k), 0.0]).collect();
+        let mut t = tracker_of(&points[..3]);
+        assert_eq!(t.curves.len(), 2);
+        assert_eq!(t.taking(false, false), Taking::Track);
+        assert_eq!(
+            t.taking(true, true),
+            Taking::Untracked,
+            "not needed after an abort"
+        );
+        // Filled move by move to its capacity (at least the 64 asked for).
+        let mut added = 0;
+        while t.taking(false, false) == Taking::Track {
+            t.add(&line_move(added, points[added], points[added + 1]));
+            added += 1;
+            assert!(added < 199, "never full");
+        }
+        assert!(t.is_full() && t.curves.len() >= 64, "{added}");
+        assert_eq!(t.taking(false, false), Taking::Wait);
+        assert_eq!(t.taking(true, false), Taking::Untracked);
+        assert_eq!(t.taking(false, true), Taking::Wait);
     }
 
     #[test]

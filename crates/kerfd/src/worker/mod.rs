@@ -20,7 +20,7 @@ use kerf_geom::Move;
 use kerf_motion::{MotionCore, MotionState, Setpoint};
 use kerf_pipeline::{
     ActionOrder, Input, Interpolator, OperatorEvent, Planned, Poll, ProgramActions, RunError,
-    Tracker, plan_input,
+    Taking, Tracker, plan_input,
 };
 use kerf_plan::{MachineLimits, PlanError, PlannedSegment, Planner};
 use kerf_proto::{MachineState, SetpointMsg, StreamError};

@@ -137,24 +137,13 @@ impl Cycle {
                         // The next program's beginning: this one ended without its end (cannot
                         // happen: the planning worker always ends a program before the next).
                         RtItem::Begin { .. } => return Poll::End,
-                        // The tracker holds the moves of the queued segments: full, the
-                        // queue counts as full (the motion starts, and the tracker
-                        // empties as it passes the moves).
-                        RtItem::Move(_) if tracker.is_full() && !queue_empty => {
-                            return Poll::Full;
-                        }
-                        // Programmed moves go to the tracker until the next planned item;
-                        // after an abort they are not needed (as in `kerf sim`). A full
-                        // tracker with nothing queued cannot happen with the planner's
-                        // segments (it holds two pieces of the most moves a piece stands
-                        // for); should it, the move is taken untracked (as in `kerf sim`)
-                        // rather than hold the motion for ever, as a full tracker with
-                        // nothing queued would never empty.
-                        RtItem::Move(m) => {
-                            if !tracker.is_full() && (!aborted || tracker.is_empty()) {
-                                tracker.add(&m);
-                            }
-                        }
+                        // Programmed moves go to the tracker until the next planned item,
+                        // by the rule `kerf sim` follows too.
+                        RtItem::Move(m) => match tracker.taking(queue_empty, aborted) {
+                            Taking::Wait => return Poll::Full,
+                            Taking::Track => tracker.add(&m),
+                            Taking::Untracked => {}
+                        },
                         RtItem::Planned(p) => {
                             if let Planned::Segment(seg, _) = &p {
                                 queued.push(kerf_pipeline::segment_time_s(seg));
