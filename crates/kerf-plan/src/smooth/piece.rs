@@ -49,10 +49,18 @@ impl Run {
         // samples the distance to a line changes by spacing² · κ / 8 at most, which the
         // tenth of the tolerance that `TRANSITION_TOL_SHARE` leaves must cover); fewer
         // let a piece leave the tolerance between samples on random dense polylines.
+        // Without rotary axes, never more than one per twentieth of the tolerance of the
+        // polyline's length: the distance to the polyline grows no faster than the point
+        // moves, so between samples that close it rises by a fortieth of the tolerance
+        // (twice that where the quintic runs at twice its mean speed), within the tenth
+        // left; this bounds the cost of code whose steps are far under the tolerance.
         let segments = (kb.idx - ka.idx) as usize;
-        let n = (12 * segments)
-            .max((chord / 0.0125) as usize)
-            .clamp(128, 4096);
+        let per_line = if self.rotary {
+            12 * segments
+        } else {
+            (12 * segments).min((poly_len / (0.05 * self.tol)).ceil() as usize)
+        };
+        let n = per_line.max((chord / 0.0125) as usize).clamp(128, 4096);
         let limit = TRANSITION_TOL_SHARE * self.tol;
         let mut cursor = ka.idx;
         for i in 1..n {

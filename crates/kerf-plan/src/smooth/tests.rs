@@ -465,6 +465,48 @@ fn no_piece_stands_for_more_than_the_most_moves() {
     );
 }
 
+/// Code whose steps are far under the tolerance (1 µm) with noise of up to 0.05 µm across
+/// them (as 4 decimals round): a piece is checked against the polyline at fewer samples than
+/// twelve per line there (one per twentieth of the tolerance), and still every point of
+/// every piece, checked every 0.2 µm, lies within the tolerance of the moves it stands
+/// for and their neighbours.
+#[test]
+fn pieces_of_steps_far_under_the_tolerance_stay_within_it_between_their_samples() {
+    let mut seed = 12345u64;
+    let mut noise = || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.0001
+    };
+    let pts: Vec<Vec3> = (0..=3000)
+        .map(|k| {
+            let x = f64::from(k) * 0.001;
+            Vec3::new(x, noise(), 0.2 * (x * 2.0).sin() + noise())
+        })
+        .collect();
+    let out = plan(&lines(&pts, 3000.0));
+    let most = out.iter().map(|s| s.move_count).max().unwrap();
+    assert!(most >= 100, "pieces of {most} moves at most: not smoothed");
+    let mut next = 0;
+    for seg in &out {
+        let first = seg.move_index as usize;
+        let count = seg.move_count.max(1) as usize;
+        assert_eq!(first as u64, next, "pieces in order");
+        next += count as u64;
+        let near = &pts[first.saturating_sub(1)..(first + count + 2).min(pts.len())];
+        let samples = (seg.length_mm / 0.0002).ceil() as usize;
+        for i in 0..=samples {
+            let q = seg
+                .curve
+                .point_at(seg.length_mm * i as f64 / samples as f64);
+            let d = polyline_distance(&q, near);
+            assert!(d <= 0.01, "piece at move {first}: {d} mm off at {q:?}");
+        }
+    }
+    assert_eq!(next, 3000, "every move covered");
+}
+
 #[test]
 fn feed_and_tolerance_changes_keep_the_curve_smooth() {
     // The rounded circle with the feed alternating between F6000 and F5900 every 50
