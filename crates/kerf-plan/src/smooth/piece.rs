@@ -49,16 +49,18 @@ impl Run {
         // samples the distance to a line changes by spacing² · κ / 8 at most, which the
         // tenth of the tolerance that `TRANSITION_TOL_SHARE` leaves must cover); fewer
         // let a piece leave the tolerance between samples on random dense polylines.
-        // Without rotary axes, never more than one per twentieth of the tolerance of the
-        // polyline's length: the distance to the polyline grows no faster than the point
-        // moves, so between samples that close it rises by a fortieth of the tolerance
-        // (twice that where the quintic runs at twice its mean speed), within the tenth
-        // left; this bounds the cost of code whose steps are far under the tolerance.
+        // Without rotary axes, never more than the samples that leave at most a tenth of
+        // the tolerance of the quintic's length between two of them: the distance to the
+        // polyline grows no faster than the point moves, so between them it rises by a
+        // twentieth of the tolerance at most, within the tenth left. (The quintic's speed
+        // `|p'(u)|` is at most `Σ i·|cᵢ|` on [0, 1].) This bounds the cost of code whose
+        // steps are far under the tolerance.
         let segments = (kb.idx - ka.idx) as usize;
         let per_line = if self.rotary {
             12 * segments
         } else {
-            (12 * segments).min((poly_len / (0.05 * self.tol)).ceil() as usize)
+            let speed_bound: f64 = (1..6).map(|i| i as f64 * tr.coef[i].norm()).sum();
+            (12 * segments).min((speed_bound / (0.1 * self.tol)).ceil() as usize)
         };
         let n = per_line.max((chord / 0.0125) as usize).clamp(128, 4096);
         let limit = TRANSITION_TOL_SHARE * self.tol;

@@ -466,8 +466,8 @@ fn no_piece_stands_for_more_than_the_most_moves() {
 }
 
 /// Code whose steps are far under the tolerance (1 µm) with noise of up to 0.05 µm across
-/// them (as 4 decimals round): a piece is checked against the polyline at fewer samples than
-/// twelve per line there (one per twentieth of the tolerance), and still every point of
+/// them (as 4 decimals round): a piece is checked against the polyline at fewer samples
+/// than twelve per line there (a tenth of the tolerance apart), and still every point of
 /// every piece, checked every 0.2 µm, lies within the tolerance of the moves it stands
 /// for and their neighbours.
 #[test]
