@@ -92,7 +92,11 @@
 //!   form at each sample, with a bound on the rise between samples and [`RATE_SAFETY`];
 //!   for the rotary axes A, B, C (`K_i = d²A/ds²`) by central differences on the
 //!   samples, with [`LIMIT_SAFETY`] on both their bounds): with arc-length parametrisation
-//!   `x_i'' = t_i a + K_i v²` and `x_i''' = t_i j + 3K_i v a + K'_i v³`.
+//!   `x_i'' = t_i a + K_i v²` and `x_i''' = t_i j + 3K_i v a + K'_i v³`. The bounds are
+//!   taken on each of eight equal stretches of the parameter and the budget is the least
+//!   of the stretches' (`budget::bounds`): one set of maxima over the whole curve counts
+//!   the steepest tangent, the largest curvature and its fastest change as if they came
+//!   together, where on a 2 mm piece of a wavy surface they lie a millimetre apart.
 //!   Example: r = 5 mm, 0.01 mm tolerance, F3000 on a 2,000 mm/s², 50,000 mm/s³ mill: the
 //!   joints run at the full 50 mm/s instead of 3.5 mm/s.
 //! - **Dense polylines are smoothed** (module `smooth`): runs of short feed lines with small

@@ -8,6 +8,7 @@ use kerf_geom::{Transition, Vec3, rotary_derivatives};
 use super::{CURVATURE_SAFETY, LIMIT_SAFETY, RATE_SAFETY, TANGENT_SAFETY};
 
 /// Sampled bounds of a transition (with the safety factors above on the curvature terms).
+#[derive(Clone, Copy)]
 pub(super) struct TransitionBounds {
     /// Per axis X..C: largest `|t_i|` (unit tangent; for rotary axes `dA/ds`).
     pub(super) tangent: PerAxis<f64>,
@@ -24,28 +25,32 @@ pub(super) struct TransitionBounds {
     pub(super) plane: [f64; 3],
 }
 
-/// Bounds of a transition, sampled densely along it.
+/// Bounds of a transition, sampled densely along it: one [`TransitionBounds`] for each of
+/// `windows` equal stretches of its parameter (each covering its own samples and what
+/// may rise between them, so each holds on its stretch alone). The budget of the whole
+/// transition is the least of the stretches' budgets: tighter than one set of maxima over
+/// the whole curve, where the steepest tangent, the largest curvature and its fastest
+/// change count as if they came together even where they are a millimetre apart.
 pub(super) fn transition_bounds(
     t: &Transition,
     abc: Option<&[[f64; 6]; 3]>,
     samples: usize,
-) -> TransitionBounds {
-    let mut b = TransitionBounds {
-        tangent: [0.0; 6],
-        curvature: [0.0; 6],
-        curvature_rate: [0.0; 6],
-        kappa: 0.0,
-        kappa_rate: 0.0,
-        plane: [1.0; 3],
-    };
+    windows: usize,
+) -> Vec<TransitionBounds> {
     let n = samples;
+    let windows = windows.clamp(1, n);
     // Frames on a grid in u. X, Y, Z: the curvature's derivative in closed form
     // ([`Transition::frame_rate_at_param`]), its rise between samples bounded by
     // [`rate_rise`]. Rotary axes: their derivatives with respect to the XYZ arc length,
     // the second one's rate by central differences on the grid (one-sided at the ends).
     let mut rate: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n + 1]);
     let mut tangent: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n + 1]);
+    let mut curvature: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n + 1]);
+    let mut kappa = vec![0.0; n + 1];
     let mut kappa_rate = vec![0.0; n + 1];
+    // Rotary axes per sample: |dA/ds|, |d²A/ds²| and the rate of the latter.
+    let mut rot: [[Vec<f64>; 3]; 3] =
+        std::array::from_fn(|_| std::array::from_fn(|_| vec![0.0; n + 1]));
     let rotary = |i: usize| {
         let u = i as f64 / n as f64;
         abc.map_or(([0.0; 3], [0.0; 3]), |c| rotary_derivatives(t, c, u))
@@ -57,63 +62,100 @@ pub(super) fn transition_bounds(
         let next = if i < n { rotary(i + 1) } else { cur };
         for ax in 0..3 {
             tangent[ax][i] = tan[ax];
-            b.curvature[ax] = b.curvature[ax].max(k[ax].abs());
+            curvature[ax][i] = k[ax].abs();
             rate[ax][i] = dk[ax];
         }
-        let kappa = k.norm();
-        b.kappa = b.kappa.max(kappa);
-        kappa_rate[i] = (dk + tan * (kappa * kappa)).norm();
+        let kap = k.norm();
+        kappa[i] = kap;
+        kappa_rate[i] = (dk + tan * (kap * kap)).norm();
         if abc.is_some() {
             let (ia, ib) = (i.saturating_sub(1), (i + 1).min(n));
             let ka = if i == 0 { cur.1 } else { prev.1 };
             let kb = if i == n { cur.1 } else { next.1 };
             let ds = (ib - ia) as f64 / n as f64 * t.speed(u);
             for r in 0..3 {
-                let ax = 3 + r;
-                b.tangent[ax] = b.tangent[ax].max(cur.0[r].abs());
-                b.curvature[ax] = b.curvature[ax].max(cur.1[r].abs());
-                b.curvature_rate[ax] = b.curvature_rate[ax].max(((kb[r] - ka[r]) / ds).abs());
+                rot[0][r][i] = cur.0[r].abs();
+                rot[1][r][i] = cur.1[r].abs();
+                rot[2][r][i] = ((kb[r] - ka[r]) / ds).abs();
             }
         }
         prev = cur;
         cur = next;
     }
-    for (bound, f) in b.curvature_rate.iter_mut().zip(&rate) {
-        *bound = rate_rise(f) * RATE_SAFETY;
-    }
-    // The tangent's components too can rise between samples, where the curvature bends
-    // them over (by up to 0.08 % at 64 samples, more than `TANGENT_SAFETY` alone covers).
-    for (bound, f) in b.tangent.iter_mut().zip(&tangent) {
-        *bound = rate_rise(f);
-    }
-    b.kappa_rate = rate_rise(&kappa_rate) * RATE_SAFETY;
-    for ax in 0..6 {
-        b.tangent[ax] *= TANGENT_SAFETY;
-        if ax < 3 {
-            b.tangent[ax] = b.tangent[ax].min(1.0);
-        }
-        // Rotary derivatives come from central differences, which smooth the peaks:
-        // the larger factor.
-        if ax < 3 {
-            b.curvature[ax] *= CURVATURE_SAFETY;
-        } else {
-            b.curvature[ax] *= LIMIT_SAFETY;
-            b.curvature_rate[ax] *= LIMIT_SAFETY;
-        }
-    }
-    b.kappa *= CURVATURE_SAFETY;
-    if let Some(normal) = plane_normal(&t.coef) {
-        for ax in 0..3 {
-            b.plane[ax] = (1.0 - normal[ax] * normal[ax]).max(0.0).sqrt();
-        }
-    }
-    b
+    let plane = plane_normal(&t.coef).map_or([1.0; 3], |normal| {
+        std::array::from_fn(|ax| (1.0 - normal[ax] * normal[ax]).max(0.0).sqrt())
+    });
+    let max_of = |f: &[f64]| f.iter().fold(0.0, |m: f64, x| m.max(*x));
+    (0..windows)
+        .map(|w| {
+            // Samples lo..=hi are the stretch's (its end sample is the next one's start).
+            let (lo, hi) = (w * n / windows, (w + 1) * n / windows);
+            let within = |f: &[f64]| rate_rise(f, lo, hi);
+            let mut b = TransitionBounds {
+                tangent: [0.0; 6],
+                curvature: [0.0; 6],
+                curvature_rate: [0.0; 6],
+                kappa: max_of(&kappa[lo..=hi]) * CURVATURE_SAFETY,
+                kappa_rate: within(&kappa_rate) * RATE_SAFETY,
+                plane,
+            };
+            for ax in 0..3 {
+                // The tangent's components too can rise between samples, where the
+                // curvature bends them over (by up to 0.08 % at 64 samples, more than
+                // `TANGENT_SAFETY` alone covers).
+                b.tangent[ax] = (within(&tangent[ax]) * TANGENT_SAFETY).min(1.0);
+                b.curvature[ax] = max_of(&curvature[ax][lo..=hi]) * CURVATURE_SAFETY;
+                b.curvature_rate[ax] = within(&rate[ax]) * RATE_SAFETY;
+                // Rotary derivatives come from central differences, which smooth the
+                // peaks: the larger factor.
+                b.tangent[3 + ax] = max_of(&rot[0][ax][lo..=hi]) * TANGENT_SAFETY;
+                b.curvature[3 + ax] = max_of(&rot[1][ax][lo..=hi]) * LIMIT_SAFETY;
+                b.curvature_rate[3 + ax] = max_of(&rot[2][ax][lo..=hi]) * LIMIT_SAFETY;
+            }
+            b
+        })
+        .collect()
 }
 
-/// A bound on `|f|` between equally spaced samples `f_k` of a smooth function: the largest
-/// `|f_k|` plus [`rise_between_samples`].
-pub(super) fn rate_rise(f: &[f64]) -> f64 {
-    f.iter().fold(0.0, |m: f64, x| m.max(x.abs())) + rise_between_samples(f)
+/// The stretches of `all` whose budget may be the least: a stretch whose every bound is
+/// at most another's has at least that one's budget at every speed and acceleration, so
+/// dropping it changes no result and saves the budget searches its evaluations.
+pub(super) fn without_covered(all: Vec<TransitionBounds>) -> Vec<TransitionBounds> {
+    let mut kept: Vec<TransitionBounds> = Vec::with_capacity(all.len());
+    for (i, b) in all.iter().enumerate() {
+        // Of two equal stretches the first is kept.
+        let covered = all
+            .iter()
+            .enumerate()
+            .any(|(k, c)| k != i && c.covers(b) && (k < i || !b.covers(c)));
+        if !covered {
+            kept.push(*b);
+        }
+    }
+    kept
+}
+
+impl TransitionBounds {
+    /// Every bound of `self` at least `other`'s (same plane): `self`'s budget is then at
+    /// most `other`'s at every speed and acceleration.
+    fn covers(&self, other: &TransitionBounds) -> bool {
+        let ge = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x >= y);
+        ge(&self.tangent, &other.tangent)
+            && ge(&self.curvature, &other.curvature)
+            && ge(&self.curvature_rate, &other.curvature_rate)
+            && self.kappa >= other.kappa
+            && self.kappa_rate >= other.kappa_rate
+            && ge(&self.plane, &other.plane)
+    }
+}
+
+/// A bound on `|f|` between the equally spaced samples `f_lo ..= f_hi` of a smooth
+/// function: the largest of their `|f_k|` plus [`rise_between_samples`] over the second
+/// differences around them (one sample either side more, where there is one).
+pub(super) fn rate_rise(f: &[f64], lo: usize, hi: usize) -> f64 {
+    let max = f[lo..=hi].iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+    let around = &f[lo.saturating_sub(1)..=(hi + 1).min(f.len() - 1)];
+    max + rise_between_samples(around)
 }
 
 /// How far a smooth function may rise between equally spaced samples `f_k` above the
@@ -164,6 +206,7 @@ pub(super) fn plane_normal(coef: &[Vec3; 6]) -> Option<Vec3> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::budget::transition_limits::BOUND_WINDOWS;
     use crate::budget::{LIMIT_SAMPLES, PIECE_LIMIT_SAMPLES};
 
     /// splitmix64: a fixed-seed stream of draws, no dependency.
@@ -191,14 +234,42 @@ mod tests {
         }
     }
 
+    /// Stretches whose every bound is at most another's are dropped (their budget is at
+    /// least that one's), of two equal ones the first is kept, and a stretch that is
+    /// larger in one bound and smaller in another stays.
+    #[test]
+    fn only_stretches_that_may_hold_the_least_budget_are_kept() {
+        let stretch = |tangent: f64, rate: f64, kappa: f64| TransitionBounds {
+            tangent: [tangent, 0.1, 0.0, 0.0, 0.0, 0.0],
+            curvature: [0.2; 6],
+            curvature_rate: [rate, 0.0, 0.0, 0.0, 0.0, 0.0],
+            kappa,
+            kappa_rate: rate,
+            plane: [1.0; 3],
+        };
+        let steep = stretch(0.9, 0.1, 0.2);
+        let bent = stretch(0.5, 0.8, 0.2);
+        let under_both = stretch(0.5, 0.1, 0.2);
+        let kept = without_covered(vec![under_both, steep, bent, steep]);
+        let tangents: Vec<f64> = kept.iter().map(|b| b.tangent[0]).collect();
+        let rates: Vec<f64> = kept.iter().map(|b| b.curvature_rate[0]).collect();
+        assert_eq!(tangents, [0.9, 0.5]);
+        assert_eq!(rates, [0.1, 0.8]);
+        // A stretch larger in the curvature alone covers the other.
+        let kept = without_covered(vec![steep, stretch(0.9, 0.1, 0.3)]);
+        assert_eq!(kept.len(), 1);
+        assert_eq!(kept[0].kappa, 0.3);
+    }
+
     /// The sampled bounds of a quintic, on which the budgets of every smoothed piece and G2
     /// transition rest (the curvature's derivative in closed form at 64 or 128 samples, plus
     /// a bound on its rise between them), against the same quantities at 20,000 points of
     /// random quintics in space: chords of 0.2 to 3 mm, end tangents up to about 50° off the
     /// chord, end curvatures up to 2/mm, parameter scales from 0.8 to 1.6 × the chord
     /// (smoothed pieces use about the arc length, G2 blends 1 to 1.5 × the chord). Each bound
-    /// must hold at every dense point: a miss between samples would be a budget above what
-    /// the axis limits allow. The dense values come from the closed forms of `kerf-geom`,
+    /// must hold at every dense point, of the whole curve and of each of the stretches the
+    /// budgets take separately (`BOUND_WINDOWS`): a miss between samples, or near a
+    /// stretch's end, would be a budget above what the axis limits allow. The dense values come from the closed forms of `kerf-geom`,
     /// which its own test checks against differences of the curve's points.
     #[test]
     fn sampled_bounds_of_a_quintic_hold_between_the_samples() {
@@ -220,49 +291,60 @@ mod tests {
                 continue;
             };
             cases += 1;
-            for samples in [PIECE_LIMIT_SAMPLES, LIMIT_SAMPLES] {
-                let b = transition_bounds(&tr, None, samples);
-                let n = 20_000;
-                let mut dense = [[0.0f64; 3]; 3];
-                let (mut kappa, mut kappa_rate) = (0.0f64, 0.0f64);
-                for i in 0..=n {
-                    let (tan, k, dk) = tr.frame_rate_at_param(f64::from(i) / f64::from(n));
-                    for ax in 0..3 {
-                        dense[0][ax] = dense[0][ax].max(tan[ax].abs());
-                        dense[1][ax] = dense[1][ax].max(k[ax].abs());
-                        dense[2][ax] = dense[2][ax].max(dk[ax].abs());
+            for (samples, windows) in [
+                (PIECE_LIMIT_SAMPLES, 1),
+                (LIMIT_SAMPLES, 1),
+                (PIECE_LIMIT_SAMPLES, BOUND_WINDOWS),
+                (LIMIT_SAMPLES, BOUND_WINDOWS),
+            ] {
+                let stretches = transition_bounds(&tr, None, samples, windows);
+                assert_eq!(stretches.len(), windows);
+                for (w, b) in stretches.iter().enumerate() {
+                    // Dense points of this stretch of the parameter, its ends included.
+                    let n = 20_000 / windows;
+                    let (u0, du) = (w as f64 / windows as f64, 1.0 / windows as f64);
+                    let mut dense = [[0.0f64; 3]; 3];
+                    let (mut kappa, mut kappa_rate) = (0.0f64, 0.0f64);
+                    for i in 0..=n {
+                        let u = u0 + du * i as f64 / n as f64;
+                        let (tan, k, dk) = tr.frame_rate_at_param(u);
+                        for ax in 0..3 {
+                            dense[0][ax] = dense[0][ax].max(tan[ax].abs());
+                            dense[1][ax] = dense[1][ax].max(k[ax].abs());
+                            dense[2][ax] = dense[2][ax].max(dk[ax].abs());
+                        }
+                        kappa = kappa.max(k.norm());
+                        kappa_rate = kappa_rate.max((dk + tan * k.norm_squared()).norm());
                     }
-                    kappa = kappa.max(k.norm());
-                    kappa_rate = kappa_rate.max((dk + tan * k.norm_squared()).norm());
-                }
-                let bounds = [b.tangent, b.curvature, b.curvature_rate];
-                for (what, (dense, bound)) in ["tangent", "curvature", "curvature rate"]
-                    .iter()
-                    .zip(dense.iter().zip(bounds))
-                {
-                    for ax in 0..3 {
-                        assert!(
-                            dense[ax] <= bound[ax] + 1e-9,
-                            "case {cases}, {samples} samples, axis {ax}: {what} {} above its \
-                             bound {}",
-                            dense[ax],
-                            bound[ax]
-                        );
-                        if dense[ax] > 1e-6 {
-                            closest = closest.max(dense[ax] / bound[ax]);
+                    let bounds = [b.tangent, b.curvature, b.curvature_rate];
+                    for (what, (dense, bound)) in ["tangent", "curvature", "curvature rate"]
+                        .iter()
+                        .zip(dense.iter().zip(bounds))
+                    {
+                        for ax in 0..3 {
+                            assert!(
+                                dense[ax] <= bound[ax] + 1e-9,
+                                "case {cases}, {samples} samples, stretch {w} of {windows}, \
+                                 axis {ax}: {what} {} above its bound {}",
+                                dense[ax],
+                                bound[ax]
+                            );
+                            if dense[ax] > 1e-6 {
+                                closest = closest.max(dense[ax] / bound[ax]);
+                            }
                         }
                     }
+                    assert!(
+                        kappa <= b.kappa + 1e-9,
+                        "case {cases}, stretch {w} of {windows}: κ {kappa} > {}",
+                        b.kappa
+                    );
+                    assert!(
+                        kappa_rate <= b.kappa_rate + 1e-9,
+                        "case {cases}, stretch {w} of {windows}: κ' {kappa_rate} > {}",
+                        b.kappa_rate
+                    );
                 }
-                assert!(
-                    kappa <= b.kappa + 1e-9,
-                    "case {cases}: κ {kappa} > {}",
-                    b.kappa
-                );
-                assert!(
-                    kappa_rate <= b.kappa_rate + 1e-9,
-                    "case {cases}: κ' {kappa_rate} > {}",
-                    b.kappa_rate
-                );
             }
         }
         // The bounds are tight somewhere (not merely huge).
