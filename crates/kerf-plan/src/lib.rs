@@ -2,9 +2,10 @@
 //!
 //! [`Planner`] turns the front end's [`Move`](kerf_geom::Move)s, in program order, into
 //! [`PlannedSegment`]s for the motion core. It runs off the real-time path and may
-//! allocate (it does not, per move, beyond its output). Its job is everything about a
-//! segment that does not depend on time: geometry, corner blends, and the kinematic limits
-//! along and between segments. The code is split by concern: `planner` (streaming),
+//! allocate (per transition, its sampled bounds), within bounded memory: the smoother
+//! holds a window of the run, the memos a fixed number of slots. Its job is everything
+//! about a segment that does not depend on time: geometry, corner blends, and the
+//! kinematic limits along and between segments. The code is split by concern: `planner` (streaming),
 //! `run` and `smooth` (dense polylines), `blend` (corners), `transition` (joints with
 //! arcs), `budget` (limits along a segment), `junction` (caps between segments).
 //!
