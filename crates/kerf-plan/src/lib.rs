@@ -5,9 +5,10 @@
 //! allocate (per transition, its sampled bounds), within bounded memory: the smoother
 //! holds a window of the run, the memos a fixed number of slots. Its job is everything
 //! about a segment that does not depend on time: geometry, corner blends, and the
-//! kinematic limits along and between segments. The code is split by concern: `planner` (streaming),
-//! `run` and `smooth` (dense polylines), `blend` (corners), `transition` (joints with
-//! arcs), `budget` (limits along a segment), `junction` (caps between segments).
+//! kinematic limits along and between segments. The code is split by concern: `planner`
+//! (streaming), `run` and `smooth` (dense polylines), `blend` (corners), `transition`
+//! (joints with arcs), `budget` (limits along a segment), `junction` (caps between
+//! segments).
 //!
 //! Design decisions:
 //! - **Corner blends between two lines are circular arcs** (G2 blends or a stop where
