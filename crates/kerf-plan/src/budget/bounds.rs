@@ -269,8 +269,9 @@ mod tests {
     /// (smoothed pieces use about the arc length, G2 blends 1 to 1.5 × the chord). Each bound
     /// must hold at every dense point, of the whole curve and of each of the stretches the
     /// budgets take separately (`BOUND_WINDOWS`): a miss between samples, or near a
-    /// stretch's end, would be a budget above what the axis limits allow. The dense values come from the closed forms of `kerf-geom`,
-    /// which its own test checks against differences of the curve's points.
+    /// stretch's end, would be a budget above what the axis limits allow. The dense values
+    /// come from the closed forms of `kerf-geom`, which its own test checks against
+    /// differences of the curve's points.
     #[test]
     fn sampled_bounds_of_a_quintic_hold_between_the_samples() {
         let mut draws = Draws(0x6b65_7266);
