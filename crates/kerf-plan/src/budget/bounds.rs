@@ -48,9 +48,11 @@ pub(super) fn transition_bounds(
     let mut curvature: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n + 1]);
     let mut kappa = vec![0.0; n + 1];
     let mut kappa_rate = vec![0.0; n + 1];
-    // Rotary axes per sample: |dA/ds|, |d²A/ds²| and the rate of the latter.
+    // Rotary axes per sample: |dA/ds|, |d²A/ds²| and the rate of the latter (none
+    // without rotary motion: their bounds stay 0).
+    let rot_len = if abc.is_some() { n + 1 } else { 0 };
     let mut rot: [[Vec<f64>; 3]; 3] =
-        std::array::from_fn(|_| std::array::from_fn(|_| vec![0.0; n + 1]));
+        std::array::from_fn(|_| std::array::from_fn(|_| vec![0.0; rot_len]));
     let rotary = |i: usize| {
         let u = i as f64 / n as f64;
         abc.map_or(([0.0; 3], [0.0; 3]), |c| rotary_derivatives(t, c, u))
@@ -108,9 +110,11 @@ pub(super) fn transition_bounds(
                 b.curvature_rate[ax] = within(&rate[ax]) * RATE_SAFETY;
                 // Rotary derivatives come from central differences, which smooth the
                 // peaks: the larger factor.
-                b.tangent[3 + ax] = max_of(&rot[0][ax][lo..=hi]) * TANGENT_SAFETY;
-                b.curvature[3 + ax] = max_of(&rot[1][ax][lo..=hi]) * LIMIT_SAFETY;
-                b.curvature_rate[3 + ax] = max_of(&rot[2][ax][lo..=hi]) * LIMIT_SAFETY;
+                if abc.is_some() {
+                    b.tangent[3 + ax] = max_of(&rot[0][ax][lo..=hi]) * TANGENT_SAFETY;
+                    b.curvature[3 + ax] = max_of(&rot[1][ax][lo..=hi]) * LIMIT_SAFETY;
+                    b.curvature_rate[3 + ax] = max_of(&rot[2][ax][lo..=hi]) * LIMIT_SAFETY;
+                }
             }
             b
         })

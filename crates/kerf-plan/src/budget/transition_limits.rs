@@ -62,64 +62,127 @@ pub(super) fn transition_limits(
             }
         }
     }
-    // Largest tangential acceleration at speed vd on one stretch, by either bound.
-    let accel_in = |b: &TransitionBounds, vd: f64| -> f64 {
-        let (tm, km) = (b.tangent, b.curvature);
-        let mut per_axis = f64::INFINITY;
-        let mut frenet = f64::INFINITY;
-        for i in 0..6 {
-            let Some(l) = limits.axes[i] else { continue };
-            let own = axis_rate(share * l.acceleration_units_s2 - km[i] * vd * vd, tm[i]);
-            per_axis = per_axis.min(own);
-            if i >= 3 {
-                // Rotary axes have only the per-axis bound, under either choice.
-                frenet = frenet.min(own);
-            } else if b.plane[i] > 0.0 {
-                let c = share * l.acceleration_units_s2 / b.plane[i];
-                let n = b.kappa * vd * vd;
-                frenet = frenet.min((c * c - n * n).max(0.0).sqrt());
-            }
-        }
-        per_axis.max(frenet)
-    };
-    // ... and on the whole transition: the least over its stretches.
+    let stretches: Vec<StretchTerms> = windows
+        .iter()
+        .map(|b| StretchTerms::new(b, limits))
+        .collect();
+    // The budget on the whole transition: the least over its stretches.
     let accel_at = |vd: f64| -> Option<f64> {
-        let a = windows
+        let a = stretches
             .iter()
-            .map(|b| accel_in(b, vd))
+            .map(|s| s.accel(vd))
             .fold(f64::INFINITY, f64::min);
         (a > 0.0 && a.is_finite()).then_some(a)
     };
-    let jerk_in = |b: &TransitionBounds, vd: f64, a: f64| -> f64 {
-        let (tm, km, kp) = (b.tangent, b.curvature, b.curvature_rate);
-        let mut per_axis = f64::INFINITY;
-        let mut frenet = f64::INFINITY;
-        for i in 0..6 {
-            let Some(l) = limits.axes[i] else { continue };
-            let room = share * l.jerk_units_s3 - 3.0 * km[i] * vd * a - kp[i] * vd * vd * vd;
-            let own = axis_rate(room, tm[i]);
-            per_axis = per_axis.min(own);
-            if i >= 3 {
-                frenet = frenet.min(own);
-            } else if b.plane[i] > 0.0 {
-                let c = share * l.jerk_units_s3 / b.plane[i];
-                let n = 3.0 * b.kappa * vd * a + b.kappa_rate * vd * vd * vd;
-                let tangential = (c * c - n * n).max(0.0).sqrt() - b.kappa * b.kappa * vd.powi(3);
-                frenet = frenet.min(tangential.max(0.0));
-            }
-        }
-        per_axis.max(frenet)
-    };
     let jerk_at = |vd: f64, a: f64| -> f64 {
-        windows
+        stretches
             .iter()
-            .map(|b| jerk_in(b, vd, a))
+            .map(|s| s.jerk(vd, a))
             .fold(f64::INFINITY, f64::min)
     };
     let budget = |vd: f64| envelope_budget(vd, &accel_at, &jerk_at);
     let run_mm = seg.length_mm.max(run_mm);
     let search = |v_start: f64| design_speed_search(run_mm, v_start, budget);
     boosted(v, seg.feed_mm_s, feed_scale, boost_scale, search)
+}
+
+/// One axis of a stretch: its limits within [`PROFILE_SHARE`] and the stretch's bounds.
+#[derive(Clone, Copy, Default)]
+struct AxisTerms {
+    accel: f64,
+    jerk: f64,
+    tangent: f64,
+    curvature: f64,
+    curvature_rate: f64,
+    rotary: bool,
+}
+
+/// A stretch's bounds joined with the axis limits once, for the design search's many
+/// evaluations of the budget at a speed: the axes that have limits, and the Frenet
+/// bound's least limit over X, Y and Z scaled by the axis' share of the curve's plane
+/// (its bound is the same increasing function of that limit on every axis, so the least
+/// limit gives the least bound, to the bit).
+struct StretchTerms {
+    axes: [AxisTerms; 6],
+    count: usize,
+    frenet_accel: f64,
+    frenet_jerk: f64,
+    kappa: f64,
+    kappa_rate: f64,
+}
+
+impl StretchTerms {
+    fn new(b: &TransitionBounds, limits: &MachineLimits) -> Self {
+        let share = PROFILE_SHARE;
+        let mut s = StretchTerms {
+            axes: [AxisTerms::default(); 6],
+            count: 0,
+            frenet_accel: f64::INFINITY,
+            frenet_jerk: f64::INFINITY,
+            kappa: b.kappa,
+            kappa_rate: b.kappa_rate,
+        };
+        for i in 0..6 {
+            let Some(l) = limits.axes[i] else { continue };
+            let (accel, jerk) = (share * l.acceleration_units_s2, share * l.jerk_units_s3);
+            s.axes[s.count] = AxisTerms {
+                accel,
+                jerk,
+                tangent: b.tangent[i],
+                curvature: b.curvature[i],
+                curvature_rate: b.curvature_rate[i],
+                rotary: i >= 3,
+            };
+            s.count += 1;
+            if i < 3 && b.plane[i] > 0.0 {
+                s.frenet_accel = s.frenet_accel.min(accel / b.plane[i]);
+                s.frenet_jerk = s.frenet_jerk.min(jerk / b.plane[i]);
+            }
+        }
+        s
+    }
+
+    /// Largest tangential acceleration at speed `vd` on the stretch, by either bound.
+    fn accel(&self, vd: f64) -> f64 {
+        let mut per_axis = f64::INFINITY;
+        // Rotary axes have only the per-axis bound, under either choice.
+        let mut frenet = f64::INFINITY;
+        for ax in &self.axes[..self.count] {
+            let own = axis_rate(ax.accel - ax.curvature * vd * vd, ax.tangent);
+            per_axis = per_axis.min(own);
+            if ax.rotary {
+                frenet = frenet.min(own);
+            }
+        }
+        let c = self.frenet_accel;
+        if c.is_finite() {
+            let n = self.kappa * vd * vd;
+            frenet = frenet.min((c * c - n * n).max(0.0).sqrt());
+        }
+        per_axis.max(frenet)
+    }
+
+    /// Largest tangential jerk at speed `vd` and tangential acceleration `a` on the
+    /// stretch, by either bound.
+    fn jerk(&self, vd: f64, a: f64) -> f64 {
+        let mut per_axis = f64::INFINITY;
+        let mut frenet = f64::INFINITY;
+        for ax in &self.axes[..self.count] {
+            let room = ax.jerk - 3.0 * ax.curvature * vd * a - ax.curvature_rate * vd * vd * vd;
+            let own = axis_rate(room, ax.tangent);
+            per_axis = per_axis.min(own);
+            if ax.rotary {
+                frenet = frenet.min(own);
+            }
+        }
+        let c = self.frenet_jerk;
+        if c.is_finite() {
+            let n = 3.0 * self.kappa * vd * a + self.kappa_rate * vd * vd * vd;
+            let tangential = (c * c - n * n).max(0.0).sqrt() - self.kappa * self.kappa * vd.powi(3);
+            frenet = frenet.min(tangential.max(0.0));
+        }
+        per_axis.max(frenet)
+    }
 }
 
 /// The largest tangential rate (acceleration or jerk) an axis allows when `room` of its
