@@ -150,6 +150,6 @@ pub use program::{Event, EventCode, Item};
 pub use segment::{
     MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED,
     MERGE_SHORT_SHARE, PlannedSegment, limits_merge, limits_merge_into, poly5, rotary_derivatives,
-    speeds_merge,
+    speeds_merge, speeds_merge_into,
 };
 pub use transition::{ARC_MID_RELATIVE, ARC_TABLE_RELATIVE, TABLE_POINTS, Transition};

@@ -88,6 +88,17 @@ pub fn limits_merge_into(
 pub fn speeds_merge(v_mm_s: f64, first_v_mm_s: f64) -> bool {
     v_mm_s >= MERGE_RATIO_SLOWER * first_v_mm_s && v_mm_s * MERGE_RATIO_SPEED <= first_v_mm_s
 }
+/// [`speeds_merge`] for a section that has taken segments since its first: the motion
+/// core keeps a conservative speed `c_v_mm_s` for it ([`MERGE_RATIO_SPEED`] of the least
+/// speed limit of its segments, `MERGE_RATIO_SPEED · first_v_mm_s` after the first), and
+/// a segment joins when its speed limit is at least the lesser of that and
+/// [`MERGE_RATIO_SLOWER`] of the first's, and at most `c_v_mm_s / MERGE_RATIO_SPEED²`: a
+/// segment after a slightly slower one is compared with that one. The planner's
+/// estimate of the section a piece runs in uses it.
+pub fn speeds_merge_into(v_mm_s: f64, first_v_mm_s: f64, c_v_mm_s: f64) -> bool {
+    v_mm_s >= (MERGE_RATIO_SLOWER * first_v_mm_s).min(c_v_mm_s)
+        && v_mm_s * MERGE_RATIO_SPEED * MERGE_RATIO_SPEED <= c_v_mm_s
+}
 /// One segment ready for the motion core: geometry plus its limits along the path.
 ///
 /// The path parameter `s` runs over `[0, length_mm]`; it is the XYZ arc length in mm, or,

@@ -1,7 +1,8 @@
 //! The section-merge rule: whether a segment joins the tail section, and how the
 //! section's limits change when it does. The planner estimates the same decision with
-//! [`kerf_geom::speeds_merge`] and [`kerf_geom::limits_merge`] to judge its ramp budgets;
-//! the test `the_planners_merge_estimate_is_the_motion_cores_rule` ties the two.
+//! [`kerf_geom::speeds_merge_into`] and [`kerf_geom::limits_merge`] to judge its ramp
+//! budgets; the tests `the_planners_merge_estimate_is_the_motion_cores_rule` and
+//! `the_planners_merge_estimate_follows_a_section_past_its_first_segment` tie the two.
 
 use kerf_geom::{Curve, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED, PlannedSegment, limits_merge_into};
 
@@ -34,14 +35,14 @@ impl Section {
     /// faster), its acceleration and jerk must pass [`limits_merge_into`], and the junction must
     /// be passable at the section's conservative speed, at both levels.
     ///
-    /// The speed part is not [`kerf_geom::speeds_merge`], the planner's estimate of it,
+    /// The speed part is not [`kerf_geom::speeds_merge_into`], the planner's estimate of it,
     /// and cannot call it without changing results: its lower bound
     /// `v >= MERGE_RATIO_SLOWER · v_first` is the same expression, but here it applies only
     /// below the conservative speed and with the further conditions above; its upper bound
     /// compares `min(v, feed)·R·R` with the section's `min(c_v_mm_s, c_feed_mm_s)` (`R` =
     /// [`MERGE_RATIO_SPEED`]; `c_v_mm_s` starts at `R·v_first` and falls as slower segments
-    /// join), where `speeds_merge` compares `v·R` with `v_first`: the roundings can differ
-    /// by an ulp, and the feed and the segments merged since count here only.
+    /// join), where `speeds_merge_into` compares `v·R·R` with the estimate's conservative
+    /// speed: the feed counts here only, and the slower merge's further conditions.
     pub(crate) fn takes(
         &self,
         seg: &PlannedSegment,

@@ -369,6 +369,47 @@ fn the_planners_merge_estimate_is_the_motion_cores_rule() {
     );
 }
 
+/// Past its first segment a section compares a newcomer's speed with its conservative
+/// speed, which a slightly slower segment lowers: the planner's estimate of the section a
+/// piece runs in (`kerf_geom::speeds_merge_into`, with `MERGE_RATIO_SPEED` of the least
+/// speed limit so far) decides as the motion core does for a third segment behind two
+/// that merged, where the first segment alone (`speeds_merge`) would say otherwise in
+/// some of the cases.
+#[test]
+fn the_planners_merge_estimate_follows_a_section_past_its_first_segment() {
+    let mut log_uniform = profile::tests::log_uniform_source(0x5ec7_1013);
+    let seg = |x0: f64, len: f64, v: f64| x_line(x0, len, (v, 1000.0), (2000.0, 40_000.0), 1e6);
+    let (mut merged, mut split, mut differs) = (0, 0, 0);
+    for _ in 0..2000 {
+        let v1 = log_uniform(20.0, 200.0);
+        let v2 = v1 * log_uniform(0.96, 1.0);
+        let v3 = v1 * log_uniform(0.94, 1.04);
+        let mut core = MotionCore::new(0.001, 8);
+        core.push(&seg(0.0, 2.0, v1)).unwrap();
+        core.push(&seg(2.0, 3.0, v2)).unwrap();
+        if core.sec_count != 1 {
+            continue;
+        }
+        core.push(&seg(5.0, 3.0, v3)).unwrap();
+        let c_v = (MERGE_RATIO_SPEED * v1).min(MERGE_RATIO_SPEED * v2);
+        let expected = kerf_geom::speeds_merge_into(v3, v1, c_v);
+        let one_section = core.sec_count == 1;
+        assert_eq!(one_section, expected, "v {v1} -> {v2} -> {v3}");
+        if one_section {
+            merged += 1;
+        } else {
+            split += 1;
+        }
+        if expected != kerf_geom::speeds_merge(v3, v1) {
+            differs += 1;
+        }
+    }
+    assert!(
+        merged > 100 && split > 100 && differs > 50,
+        "{merged} merged, {split} split, {differs} where the first segment alone differs"
+    );
+}
+
 /// A line no longer than a section's first segment joins it however much higher its
 /// acceleration and jerk (`kerf_geom::MERGE_SHORT_SHARE`), not when it is longer, nor
 /// when its limits are lower than the merge ratios allow, nor when it is a curve; and the

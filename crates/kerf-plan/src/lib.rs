@@ -67,9 +67,11 @@
 //!   speed, sample by sample, instead of at the design speed. Where only the start is
 //!   slow, the raised budget splits a motion-core section mid-ramp, so it is used only
 //!   where a rough estimate says that pays. Budgets are compared by the stop they give
-//!   where they run: a piece entered at speed joins the section of the segment before it
-//!   when its limits and speed are like that segment's (`kerf_geom::limits_merge`,
-//!   `kerf_geom::speeds_merge`), and then runs at the lesser of both. The curvature
+//!   where they run: a piece entered at speed joins the motion-core section the segment
+//!   before it runs in when its limits and speed are like that section's first segment's
+//!   and its conservative speed (`kerf_geom::limits_merge`, `kerf_geom::speeds_merge_into`;
+//!   the planner follows the sections as the core will group them, `section`), and then
+//!   runs at the least limits of the section and itself. The curvature
 //!   terms are checked under the jerk-limited envelope: at speed `u` a ramp whose top
 //!   speed is `v_max` has at most `sqrt(2j(v_max − u))` of acceleration left.
 //! - **G2 transitions at joints with arcs.** A tangent line→arc, arc→line or arc→arc joint
@@ -179,6 +181,7 @@ mod memo;
 mod planner;
 mod run;
 mod search;
+mod section;
 mod smooth;
 mod timing;
 mod transition;

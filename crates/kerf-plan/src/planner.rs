@@ -10,6 +10,7 @@ use crate::budget::{limits_key, ramp_budget, segment_limits_pair};
 use crate::junction::junction_cap;
 use crate::memo::{ArcMemo, LimitsMemo};
 use crate::run::{RunState, joining_frame, line_dir, line_len, next_start_frame, turn_fits};
+use crate::section::SectionEstimate;
 use crate::timing::{change_time_s, reach_speed};
 use crate::{
     AXIS_NAMES, DESIGN_RUN_MM, MAX_DESIGN_OVERRIDE, MIN_SEGMENT_MM, MachineLimits, PlanError,
@@ -53,8 +54,9 @@ pub struct Planner {
     pub(crate) last_full_length: f64,
     /// Speed cap at the start of `last` (its junction with the segment before), mm/s.
     pub(crate) last_start_cap: f64,
-    /// Speed limit, path acceleration and jerk of the segment emitted just before `last`.
-    pub(crate) before_last_limits: Option<(f64, f64, f64)>,
+    /// The motion-core section the segment emitted just before `last` is estimated to run
+    /// in.
+    pub(crate) section: Option<SectionEstimate>,
     pub(crate) next_index: u64,
     pub(crate) abc_current: [f64; 3],
     /// The dense-polyline run being collected, if any.
@@ -106,7 +108,7 @@ impl Planner {
             last_origin: None,
             last_full_length: 0.0,
             last_start_cap: 0.0,
-            before_last_limits: None,
+            section: None,
             next_index: 0,
             abc_current: [0.0; 3],
             run: None,
@@ -520,7 +522,7 @@ impl Planner {
 
     /// Emits a finished segment.
     fn push_out(&mut self, seg: PlannedSegment, out: &mut Vec<PlannedSegment>) {
-        self.before_last_limits = Some((seg.v_max_mm_s, seg.accel_mm_s2, seg.jerk_mm_s3));
+        self.section = Some(SectionEstimate::after(self.section, &seg));
         out.push(seg);
     }
 
@@ -534,9 +536,10 @@ impl Planner {
     /// 3 ms per ramp). A piece entered at speed and slow only at its end is raised without
     /// that check, but a raised budget can split a section there too: the piece joins the
     /// section before it only if its limits pass [`kerf_geom::limits_merge`] with the
-    /// section's (not much below them, nor more than `MERGE_ABOVE` = 4 × above) and its
-    /// speed limit passes [`kerf_geom::speeds_merge`], else it starts a section of its
-    /// own; [`ramp_budget`] prices each candidate budget by which of the two it makes.
+    /// section's first segment's (not much below them, nor more than `MERGE_ABOVE` = 4 ×
+    /// above) and its speed limit passes [`kerf_geom::speeds_merge_into`], else it starts
+    /// a section of its own ([`SectionEstimate`] follows the sections);
+    /// [`ramp_budget`] prices each candidate budget by which of the two it makes.
     fn ramp_upgrade(&self, seg: &mut PlannedSegment, next: Option<&PlannedSegment>) {
         let slow = RAMP_CAP_RATIO * seg.v_max_mm_s;
         // Smoothed pieces only, and only without a boost design (pieces keep the
@@ -547,15 +550,12 @@ impl Planner {
         {
             return;
         }
-        // A piece entered at speed whose limits are like those of the segment before it
-        // joins that segment's motion-core section and runs at the lesser of their limits
-        // (the section's first segment decides; the one before is the estimate here);
-        // each candidate budget is judged by whether it joins (`ramp_budget`), so the
+        // A piece entered at speed whose limits are like those of the section before it
+        // joins it and runs at the least of their limits (the section's first segment
+        // and its conservative speed decide, as in the motion core); each candidate budget is judged by whether it joins (`ramp_budget`), so the
         // section is passed whether or not the piece's own budget joins it: a candidate
         // is judged by where it itself would run.
-        let section = self
-            .before_last_limits
-            .filter(|_| self.last_start_cap >= slow);
+        let section = self.section.filter(|_| self.last_start_cap >= slow);
         let Some((a, j)) = ramp_budget(
             seg,
             &self.limits,

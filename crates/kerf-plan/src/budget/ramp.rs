@@ -4,12 +4,13 @@
 //! budget may fit.
 
 use kerf_geom::ramp::bisect;
-use kerf_geom::{Curve, Transition, Vec3, limits_merge, speeds_merge};
+use kerf_geom::{Curve, Transition, Vec3};
 
 use super::bounds::rise_between_samples;
 use super::transition_limits::axis_rate;
 use super::{CURVATURE_SAFETY, PIECE_LIMIT_SAMPLES, RATE_SAFETY, TANGENT_SAFETY};
 use crate::search::golden_min;
+use crate::section::SectionEstimate;
 use crate::timing::change_time_s;
 use crate::{MachineLimits, PROFILE_SHARE, PlannedSegment};
 
@@ -33,10 +34,10 @@ const STOP_SPLIT_STEPS: usize = 30;
 /// The tangential budget `(a, j)` of a smoothed piece (a [`Transition`] without rotary
 /// motion, designed at `seg.v_max_mm_s`) that is entered at most at `cap_start` or left
 /// at most at `cap_end`, with the quickest stop from `v_max` (by [`change_time_s`], the
-/// time lost against running on at `v_max`, judged in `section`, the speed limit,
-/// acceleration and jerk of the segment before, as the motion core would: with the
-/// lesser limits of both when the budget joins that segment's section
-/// ([`limits_merge`] and [`speeds_merge`]), else after that section slows to a speed from
+/// time lost against running on at `v_max`, judged in `section`, the estimate of the
+/// motion-core section the segment before runs in, as the motion core would: with the
+/// least limits of the section and the piece when the budget joins it
+/// ([`SectionEstimate::takes_curve`]), else after that section slows to a speed from
 /// which the piece can stop), if that is quicker than its own design: ramps at the
 /// acceleration the limits leave at each speed.
 ///
@@ -58,7 +59,7 @@ pub(crate) fn ramp_budget(
     limits: &MachineLimits,
     cap_start: f64,
     cap_end: f64,
-    section: Option<(f64, f64, f64)>,
+    section: Option<SectionEstimate>,
 ) -> Option<(f64, f64)> {
     let Curve::Transition(t) = &seg.curve else {
         return None;
@@ -269,7 +270,7 @@ impl Samples<'_> {
 struct StopLoss {
     v_max: f64,
     length_mm: f64,
-    section: Option<(f64, f64, f64)>,
+    section: Option<SectionEstimate>,
 }
 
 impl StopLoss {
@@ -284,16 +285,17 @@ impl StopLoss {
     fn loss(&self, a: f64, j: f64) -> f64 {
         let v_max = self.v_max;
         match self.section {
-            Some((sec_v, sec_a, sec_j))
-                if limits_merge(a, j, (sec_a, sec_j)) && speeds_merge(v_max, sec_v) =>
-            {
-                self.lost(v_max, 0.0, a.min(sec_a), j.min(sec_j))
+            Some(s) if s.takes_curve(v_max, (a, j)) => {
+                self.lost(v_max, 0.0, a.min(s.least.0), j.min(s.least.1))
             }
             // A budget the section would not take starts a section of its own at the
             // piece's start, passed with zero acceleration: the section before slows to
             // the speed from which the piece can stop within its length, and the piece
             // stops from there.
-            Some((_, sec_a, sec_j)) => {
+            Some(SectionEstimate {
+                least: (sec_a, sec_j),
+                ..
+            }) => {
                 let fits = |v: f64| 0.5 * v * change_time_s(v, a, j) <= self.length_mm;
                 let v_b = if fits(v_max) {
                     v_max
