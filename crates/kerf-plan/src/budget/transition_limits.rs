@@ -14,8 +14,9 @@ use crate::{MachineLimits, PROFILE_SHARE, PlannedSegment};
 /// least of theirs. With one, the maxima over the whole curve meet where they do not
 /// (steepest tangent, largest curvature, fastest change of it); eight took raster B from
 /// 3.755 s to 3.670 s and raster C from 5.223 s to 5.138 s (`cam_table`) for 2.5× the
-/// planning cost on raster B (`plan_rate`: 9.7 → 24 µs per move); sixteen, 8 ms more
-/// for 1.7× that cost again.
+/// planning cost on raster B (`plan_rate`: 9.7 → 24 µs per move; 0.70× that again in
+/// instructions since each stretch is joined with the limits once, [`StretchTerms`]);
+/// sixteen, 8 ms more for 1.7× that cost again.
 pub(super) const BOUND_WINDOWS: usize = 8;
 
 /// Path limits of a G2 transition. With arc-length parametrisation each axis sees
