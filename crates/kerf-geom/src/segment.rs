@@ -65,8 +65,9 @@ pub const MERGE_SHORT_SHARE: f64 = 1.0;
 /// [`limits_merge`] for a segment of `length_mm` (`straight`: a line) joining a section
 /// whose first segment is `first_mm` long: a line at most [`MERGE_SHORT_SHARE`] of that
 /// needs only the lower bounds ([`MERGE_RATIO`], [`MERGE_RATIO_JERK`]). The motion core
-/// merges by this function; the planner's ramp budgets estimate with [`limits_merge`]
-/// (their pieces are curves).
+/// merges by this function, and so does the planner's estimate of the sections its
+/// segments form; its ramp budgets price a piece with [`limits_merge`] (pieces are
+/// curves).
 pub fn limits_merge_into(
     accel_mm_s2: f64,
     jerk_mm_s3: f64,

@@ -552,9 +552,10 @@ impl Planner {
         }
         // A piece entered at speed whose limits are like those of the section before it
         // joins it and runs at the least of their limits (the section's first segment
-        // and its conservative speed decide, as in the motion core); each candidate budget is judged by whether it joins (`ramp_budget`), so the
-        // section is passed whether or not the piece's own budget joins it: a candidate
-        // is judged by where it itself would run.
+        // and its conservative speed decide, as in the motion core); each candidate
+        // budget is judged by whether it joins (`ramp_budget`), so the section is passed
+        // whether or not the piece's own budget joins it: a candidate is judged by where
+        // it itself would run.
         let section = self.section.filter(|_| self.last_start_cap >= slow);
         let Some((a, j)) = ramp_budget(
             seg,
