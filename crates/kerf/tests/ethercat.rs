@@ -420,10 +420,12 @@ fn a_home_switch_and_a_limit_switch_on_an_io_terminal_follow_the_axis_home_it_an
     let s = bench.status_until("idle", |s| s["state"] == "idle");
     assert_eq!(s["axes"]["x"]["homed"], false, "{s}");
     assert_eq!(s["axes"]["x"]["home_switch"], false, "{s}");
+    let before = late_periods(&bench.status());
     let out = bench.kerf(&["home", "X"]);
     let said = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "kerf home X: {said}");
     let s = bench.status();
+    let late = late_periods(&s) - before;
     assert_eq!(s["axes"]["x"]["homed"], true, "{s}");
     let x = s["position"]["x"].as_f64().expect("x");
     assert!(
@@ -433,12 +435,17 @@ fn a_home_switch_and_a_limit_switch_on_an_io_terminal_follow_the_axis_home_it_an
     // Machine X = 90 is 10 mm short of the release point, 20 mm from power-up: the
     // motor at 10 mm of its own frame. The input reaches the daemon one exchange after
     // the motor crossed (the emulator sets it after each exchange) and the latch moves 2
-    // counts per 4 ms period: within 3 counts.
+    // counts per 4 ms period: within 3 counts, and 2 more for each period the daemon's
+    // inputs came late while homing (see the limit switch below).
     let drive = &bench.emulator_state()[0];
     let motor: i64 = Bench::field(drive, "motor_counts").parse().unwrap();
-    assert!((motor - 10_000).abs() <= 3, "{drive}");
+    assert!(
+        (motor - 10_000).abs() <= 3 + 2 * late,
+        "{drive}\n{late} late periods while homing: {s}"
+    );
     // Toward the limit switch (machine X = 140) by a jog to 150: the switch stops every
     // axis with the hard limit fault, the motor a short brake past it.
+    let before = late_periods(&bench.status());
     let out = bench.kerf(&["jog", "X", "--to", "150", "--speed", "20"]);
     assert!(
         !out.status.success(),
@@ -468,7 +475,18 @@ fn a_home_switch_and_a_limit_switch_on_an_io_terminal_follow_the_axis_home_it_an
     // exchange, the daemon reads it in the next and stops from the one after), 0.16 mm,
     // then a jerk-limited stop at 95 % of 50 000 mm/s³ (20 mm/s never needs the
     // acceleration limit): v·√(v/j) = 20 · √(20/47 500) = 0.41 mm. 0.6 mm with rounding.
-    assert!((60_000..60_600).contains(&motor), "{drive}");
+    // An exchange whose answer came back after the daemon's half-period timeout or
+    // incomplete moved the motor but gave the daemon no inputs: it reads the switch one
+    // period later, 0.08 mm further at 20 mm/s. The emulator is an ordinary process and
+    // answers late now and then (a few exchanges in a thousand on an idle 2-core VM,
+    // more on a loaded one); the daemon counts those exchanges, and its missed periods,
+    // in its status, and each allows one period more.
+    let late = late_periods(&s) - before;
+    let reach = 60_600 + 80 * late;
+    assert!(
+        (60_000..reach).contains(&motor),
+        "{drive}\n{late} late periods during the jog: {s}"
+    );
     assert_eq!(s["state"], "fault", "{s}");
     // After the reset X jogs off the switch only away from it.
     let out = bench.kerf(&["reset"]);
@@ -494,4 +512,12 @@ fn a_home_switch_and_a_limit_switch_on_an_io_terminal_follow_the_axis_home_it_an
         "{}",
         daemon.stderr()
     );
+}
+
+/// The periods in which the daemon's inputs could come late, counted so far in its status
+/// `s`: exchanges lost or with a short working counter, and periods the cycle missed.
+fn late_periods(s: &serde_json::Value) -> i64 {
+    let count = |v: &serde_json::Value| v.as_i64().unwrap_or_else(|| panic!("not a count: {s}"));
+    let cycles = &s["ethercat"]["cycles"];
+    count(&cycles["lost"]) + count(&cycles["short"]) + count(&s["overruns"])
 }
