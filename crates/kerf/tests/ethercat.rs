@@ -479,8 +479,9 @@ fn a_home_switch_and_a_limit_switch_on_an_io_terminal_follow_the_axis_home_it_an
     // incomplete moved the motor but gave the daemon no inputs: it reads the switch one
     // period later, 0.08 mm further at 20 mm/s. The emulator is an ordinary process and
     // answers late now and then (a few exchanges in a thousand on an idle 2-core VM,
-    // more on a loaded one); the daemon counts those exchanges, and its missed periods,
-    // in its status, and each allows one period more.
+    // more on a loaded one); the daemon counts those exchanges in its status, and each
+    // allows one period more. Its missed periods are counted too, as a margin only: a
+    // missed period sends no frame, so the motor does not move in it.
     let late = late_periods(&s) - before;
     let reach = 60_600 + 80 * late;
     assert!(
@@ -515,7 +516,8 @@ fn a_home_switch_and_a_limit_switch_on_an_io_terminal_follow_the_axis_home_it_an
 }
 
 /// The periods in which the daemon's inputs could come late, counted so far in its status
-/// `s`: exchanges lost or with a short working counter, and periods the cycle missed.
+/// `s`: exchanges lost or with a short working counter, and (a margin) periods the cycle
+/// missed.
 fn late_periods(s: &serde_json::Value) -> i64 {
     let count = |v: &serde_json::Value| v.as_i64().unwrap_or_else(|| panic!("not a count: {s}"));
     let cycles = &s["ethercat"]["cycles"];
