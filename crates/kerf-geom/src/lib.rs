@@ -149,7 +149,8 @@ pub use limits::{
 pub use program::{Event, EventCode, Item};
 pub use segment::{
     MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED,
-    MERGE_SHORT_SHARE, PlannedSegment, limits_merge, limits_merge_into, poly5, rotary_derivatives,
-    speeds_merge, speeds_merge_into,
+    MERGE_RATIO_WEAKER, MERGE_SHORT_SHARE, PlannedSegment, limits_merge, limits_merge_into,
+    limits_merge_weaker, poly5, rotary_derivatives, speeds_merge, speeds_merge_into,
+    tail_hard_start, weaker_merge_keeps_lookahead,
 };
 pub use transition::{ARC_MID_RELATIVE, ARC_TABLE_RELATIVE, TABLE_POINTS, Transition};

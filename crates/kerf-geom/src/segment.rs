@@ -18,6 +18,14 @@ pub const MERGE_RATIO: f64 = 0.9;
 /// piece with far less jerk than its neighbours slow a whole section's ramps; tighter
 /// splits sections where a path changes slope.
 pub const MERGE_RATIO_JERK: f64 = 0.8;
+/// A segment whose acceleration is below [`MERGE_RATIO`] of a section's first one's but
+/// not below this fraction of it still joins the section where the section is at the
+/// queue's end, short enough that the stop there reaches back into it, and the join
+/// lowers no speed the lookahead has given ([`limits_merge_weaker`],
+/// [`weaker_merge_keeps_lookahead`]). Near a stop a boundary between such pieces is a
+/// return to `a = 0` in the middle of the braking, where running the pieces as one
+/// section at the weaker one's limits brakes through.
+pub const MERGE_RATIO_WEAKER: f64 = 0.8;
 /// Nor does a segment join a section whose first segment has less than `1/MERGE_ABOVE` of
 /// its acceleration or jerk: it would run its own ramps at the section's much lower
 /// limits (a line behind a short corner blend would stop with the blend's much lower
@@ -48,6 +56,55 @@ pub fn limits_merge(accel_mm_s2: f64, jerk_mm_s3: f64, first: (f64, f64)) -> boo
         && jerk_mm_s3 >= MERGE_RATIO_JERK * first.1
         && accel_mm_s2 <= MERGE_ABOVE * first.0
         && jerk_mm_s3 <= MERGE_ABOVE * first.1
+}
+/// Whether a segment with path acceleration `accel_mm_s2` and jerk `jerk_mm_s3`, weaker
+/// than [`limits_merge`] allows, is within the window of the weaker merge
+/// ([`MERGE_RATIO_WEAKER`]) of a section whose first segment has `first = (acceleration,
+/// jerk)`: its acceleration at least [`MERGE_RATIO_WEAKER`] of the first's (and not above
+/// it), its jerk within the merge rule's bounds ([`MERGE_RATIO_JERK`] below, [`MERGE_ABOVE`]
+/// above). The join also needs [`weaker_merge_keeps_lookahead`]. A segment that joins so
+/// becomes the section's reference for the merge rule where its limits are lower: `first`
+/// becomes the lesser of the two in each.
+///
+/// (Bounding the jerk from above by `1/MERGE_RATIO_JERK` instead, so that a stop piece with
+/// far more jerk keeps its own section, lost the 14 ms this rule gains on the sweep case it
+/// was made for and made the sweep's worst losses 3 ms instead of up to 16 ms against the
+/// build before it; with the merge rule's bound no sweep case is slower than the build issue
+/// 31 started from: `docs/PERFORMANCE.md`.)
+pub fn limits_merge_weaker(accel_mm_s2: f64, jerk_mm_s3: f64, first: (f64, f64)) -> bool {
+    accel_mm_s2 >= MERGE_RATIO_WEAKER * first.0
+        && accel_mm_s2 <= first.0
+        && jerk_mm_s3 >= MERGE_RATIO_JERK * first.1
+        && jerk_mm_s3 <= MERGE_ABOVE * first.1
+}
+/// The hard start speed of the section at the end of the motion core's queue (which must
+/// stop within it), mm/s: its cap (conservative speed, junction before it) or the speed it
+/// can stop from within its length ([`BACKWARD_MARGIN`](crate::ramp::BACKWARD_MARGIN) of
+/// it) at its conservative acceleration and jerk `c = (acceleration, jerk)`, whichever is
+/// less.
+pub fn tail_hard_start(cap_mm_s: f64, length_mm: f64, c: (f64, f64)) -> f64 {
+    cap_mm_s.min(crate::ramp::reach_back(
+        0.0,
+        length_mm * crate::ramp::BACKWARD_MARGIN,
+        c.0,
+        c.1,
+    ))
+}
+/// The lookahead condition of the weaker merge ([`MERGE_RATIO_WEAKER`]): the tail
+/// section's hard start speed `hard_mm_s` is below its cap `cap_mm_s` (the stop at the
+/// queue's end reaches back into it: it is short, and the pieces near a stop are what the
+/// rule is for), and with the segment in it (`cap_after_mm_s`, `length_after_mm`, the
+/// conservative limits after `c_after`, see [`tail_hard_start`]) it is not below
+/// `hard_mm_s`: the section before may have been given, and committed to, that speed.
+pub fn weaker_merge_keeps_lookahead(
+    (hard_mm_s, cap_mm_s): (f64, f64),
+    cap_after_mm_s: f64,
+    length_after_mm: f64,
+    c_after: (f64, f64),
+) -> bool {
+    hard_mm_s >= 0.0
+        && hard_mm_s < cap_mm_s
+        && tail_hard_start(cap_after_mm_s, length_after_mm, c_after) >= hard_mm_s
 }
 /// A straight segment no longer than this share of a section's first segment joins it
 /// however much higher its acceleration and jerk are ([`MERGE_ABOVE`] does not bound

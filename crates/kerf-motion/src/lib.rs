@@ -26,7 +26,15 @@
 //!   section's hard lookahead (it must stop within itself) is below the segment's
 //!   conservative speed, so no boundary speed falls. A slow-down across smoothed pieces
 //!   whose speeds differ by a per cent or two is then one ramp, not a stair of sections
-//!   each ending at `a = 0`. The running
+//!   each ending at `a = 0`. Likewise a segment with down to [`MERGE_RATIO_WEAKER`] of the
+//!   first's acceleration (its jerk within [`MERGE_RATIO_JERK`] of it) joins a tail
+//!   section short enough that the stop at the queue's end reaches back into it, where
+//!   the section's hard start speed, recomputed over the longer section at the lower
+//!   conservative limits, does not fall (nothing committed against it), and it is not
+//!   the section after the running one (a speed-up may be carried into that): the braking
+//!   before a stop then runs through pieces whose budgets differ by 10–20 % without a
+//!   return to `a = 0` between them; the weaker segment becomes the section's reference
+//!   for the merge rule. The running
 //!   section is frozen; segments it has passed are released at once, so a program longer
 //!   than the queue never stops for room. Dense CAM code thus becomes a few long
 //!   sections, and the one-dimensional path profile only has `a = 0` at section
@@ -116,7 +124,7 @@
 use kerf_geom::PerAxis;
 pub use kerf_geom::{
     AxisLimits, MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED,
-    MERGE_SHORT_SHARE, MachineLimits, PlannedSegment,
+    MERGE_RATIO_WEAKER, MERGE_SHORT_SHARE, MachineLimits, PlannedSegment,
 };
 pub mod axis_move;
 mod carry;

@@ -6,8 +6,7 @@ use kerf_geom::ramp::bisect;
 use crate::motion_core::MotionCore;
 use crate::reach::{change_distance, reach, reach_back};
 
-/// Fraction of the remaining distance the lookahead assumes available (numerical margin).
-pub(crate) const BACKWARD_MARGIN: f64 = 0.998;
+pub(crate) use kerf_geom::ramp::BACKWARD_MARGIN;
 /// Fraction of the remaining distance a profile plan may use in its own checks.
 pub(crate) const PLAN_MARGIN: f64 = 0.999;
 /// Most sections one `push` revisits in the backward pass (bounds its work).

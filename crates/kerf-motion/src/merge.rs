@@ -1,10 +1,15 @@
 //! The section-merge rule: whether a segment joins the tail section, and how the
 //! section's limits change when it does. The planner estimates the same decision with
-//! [`kerf_geom::speeds_merge_into`] and [`kerf_geom::limits_merge`] to judge its ramp
-//! budgets; the tests `the_planners_merge_estimate_is_the_motion_cores_rule` and
-//! `the_planners_merge_estimate_follows_a_section_past_its_first_segment` tie the two.
+//! [`kerf_geom::speeds_merge_into`], [`kerf_geom::limits_merge`] and the weaker merge's
+//! [`kerf_geom::limits_merge_weaker`] and [`kerf_geom::weaker_merge_keeps_lookahead`] to
+//! judge its ramp budgets; the tests `the_planners_merge_estimate_is_the_motion_cores_rule`,
+//! `the_planners_merge_estimate_follows_a_section_past_its_first_segment` and
+//! `the_planners_estimate_of_the_weaker_merge_is_the_motion_cores_rule` tie the two.
 
-use kerf_geom::{Curve, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED, PlannedSegment, limits_merge_into};
+use kerf_geom::{
+    Curve, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED, PlannedSegment,
+    limits_merge_into, limits_merge_weaker, tail_hard_start, weaker_merge_keeps_lookahead,
+};
 
 use crate::MAX_OVERRIDE;
 use crate::section::Section;
@@ -28,12 +33,14 @@ pub(crate) fn boost_limits(seg: &PlannedSegment) -> (f64, f64, f64) {
 impl Section {
     /// Whether `seg` (boost-level limits `boost`, see [`boost_limits`]) joins this section,
     /// the queue's tail, across a junction capped at `prev_cap_mm_s`; `plain_run` is
-    /// `true` while the core follows its plan with no hold pending or stopping.
+    /// `true` while the core follows its plan with no hold pending or stopping, and
+    /// `weaker_ok` where the weaker merge may also apply (see `MotionCore::push`).
     ///
     /// Its speed must be within [`MERGE_RATIO_SPEED`] of the section's conservative speed
     /// (or within [`MERGE_RATIO_SLOWER`] of the first segment's where nothing was committed
-    /// faster), its acceleration and jerk must pass [`limits_merge_into`], and the junction must
-    /// be passable at the section's conservative speed, at both levels.
+    /// faster), its acceleration and jerk must pass [`limits_merge_into`] (or, where
+    /// `weaker_ok`, the weaker merge: [`Section::weaker_joins`]), and the junction
+    /// must be passable at the section's conservative speed, at both levels.
     ///
     /// The speed part is not [`kerf_geom::speeds_merge_into`], the planner's estimate of it,
     /// and cannot call it without changing results: its lower bound
@@ -48,7 +55,7 @@ impl Section {
         seg: &PlannedSegment,
         (seg_vb, seg_ab, seg_jb): (f64, f64, f64),
         prev_cap_mm_s: f64,
-        plain_run: bool,
+        (plain_run, weaker_ok): (bool, bool),
     ) -> bool {
         let t = self;
         let seg_v_mm_s = seg.v_max_mm_s;
@@ -74,21 +81,81 @@ impl Section {
             // a slow one (a slow feed, a tight transition) would crawl through it.
             && seg_v_mm_s.min(seg_feed_mm_s) * MERGE_RATIO_SPEED * MERGE_RATIO_SPEED
                 <= t.c_v_mm_s.min(t.c_feed_mm_s)
+            && prev_cap_mm_s >= c_v.min(t.c_feed_mm_s * MAX_OVERRIDE)
+            && (seg_vb >= t.c_v_boost_mm_s
+                || slower(seg_vb, t.c_v_boost_mm_s, t.v_first_boost_mm_s, t.hard_start_boost_mm_s))
+            && prev_cap_mm_s >= c_v_boost.min(t.c_feed_mm_s * MAX_OVERRIDE)
             // Not much weaker, nor much stronger (it would ramp at the section's
             // limits): the planner judges ramp budgets by the same function.
-            && limits_merge_into(
+            && ((limits_merge_into(
                 seg.accel_mm_s2,
                 seg.jerk_mm_s3,
                 (matches!(seg.curve, Curve::Line { .. }), seg.length_mm),
                 t.accel_jerk_first,
                 t.length_first_mm,
-            )
-            && prev_cap_mm_s >= c_v.min(t.c_feed_mm_s * MAX_OVERRIDE)
-            && (seg_vb >= t.c_v_boost_mm_s
-                || slower(seg_vb, t.c_v_boost_mm_s, t.v_first_boost_mm_s, t.hard_start_boost_mm_s))
-            && seg_ab >= t.c_accel_boost_mm_s2
-            && seg_jb >= t.c_jerk_boost_mm_s3
-            && prev_cap_mm_s >= c_v_boost.min(t.c_feed_mm_s * MAX_OVERRIDE)
+            ) && seg_ab >= t.c_accel_boost_mm_s2
+                && seg_jb >= t.c_jerk_boost_mm_s3)
+                || (weaker_ok && t.weaker_joins(seg, (seg_vb, seg_ab, seg_jb), c_v, c_v_boost)))
+    }
+
+    /// Whether `seg`, weaker than [`limits_merge_into`] allows, joins this section (the
+    /// queue's tail) by the weaker merge
+    /// ([`MERGE_RATIO_WEAKER`](kerf_geom::MERGE_RATIO_WEAKER)): its limits within
+    /// [`limits_merge_weaker`] of the first segment's, and the hard start speeds, at the
+    /// base and the boost level, recomputed over the longer section at the lower
+    /// conservative limits, not below the ones the lookahead has already given the section
+    /// before ([`weaker_merge_keeps_lookahead`]): what the motion before has been planned
+    /// against stays valid. `c_v`, `c_v_boost`: the conservative speeds after the join.
+    fn weaker_joins(
+        &self,
+        seg: &PlannedSegment,
+        (_, seg_ab, seg_jb): (f64, f64, f64),
+        c_v: f64,
+        c_v_boost: f64,
+    ) -> bool {
+        let t = self;
+        let (a, j) = (seg.accel_mm_s2, seg.jerk_mm_s3);
+        let first = t.accel_jerk_first;
+        if !limits_merge_weaker(a, j, first) {
+            return false;
+        }
+        let joined = t.refounded(seg, (seg_ab, seg_jb), c_v, c_v_boost);
+        let (cap, _) = t.hard_start_caps();
+        let (cap_after, cap_boost_after) = joined.hard_start_caps();
+        // At the boost level only the lookahead's promise counts.
+        weaker_merge_keeps_lookahead(
+            (t.hard_start_mm_s, cap),
+            cap_after,
+            joined.length_mm,
+            joined.c_accel_jerk(),
+        ) && tail_hard_start(
+            cap_boost_after,
+            joined.length_mm,
+            (joined.c_accel_boost_mm_s2, joined.c_jerk_boost_mm_s3),
+        ) >= t.hard_start_boost_mm_s
+    }
+
+    /// This section's length, conservative speeds `c_v`, `c_v_boost` and merge reference
+    /// after `seg` (boost-level acceleration and jerk `boost`) joins it by the weaker
+    /// merge: the reference limits the lesser of the first segment's and `seg`'s, the
+    /// conservative ones following from them.
+    fn refounded(
+        &self,
+        seg: &PlannedSegment,
+        (seg_ab, seg_jb): (f64, f64),
+        c_v: f64,
+        c_v_boost: f64,
+    ) -> Section {
+        let first = self.accel_jerk_first;
+        Section {
+            length_mm: self.length_mm + seg.length_mm,
+            c_v_mm_s: c_v,
+            c_v_boost_mm_s: c_v_boost,
+            accel_jerk_first: (first.0.min(seg.accel_mm_s2), first.1.min(seg.jerk_mm_s3)),
+            c_accel_boost_mm_s2: self.c_accel_boost_mm_s2.min(MERGE_RATIO * seg_ab),
+            c_jerk_boost_mm_s3: self.c_jerk_boost_mm_s3.min(MERGE_RATIO_JERK * seg_jb),
+            ..*self
+        }
     }
 
     /// Adds `seg` (boost-level limits `boost`) at the section's end, across a junction
@@ -115,6 +182,19 @@ impl Section {
         t.jerk_boost_mm_s3 = t.jerk_boost_mm_s3.min(seg_jb);
         t.c_v_mm_s = t.c_v_mm_s.min(MERGE_RATIO_SPEED * seg_v_mm_s);
         t.c_v_boost_mm_s = t.c_v_boost_mm_s.min(MERGE_RATIO_SPEED * seg_vb);
+        let first = t.accel_jerk_first;
+        if seg.accel_mm_s2 < MERGE_RATIO * first.0
+            || seg.jerk_mm_s3 < MERGE_RATIO_JERK * first.1
+            || seg_ab < t.c_accel_boost_mm_s2
+            || seg_jb < t.c_jerk_boost_mm_s3
+        {
+            // Joined by the weaker merge ([`Section::weaker_joins`]): the reference and
+            // the conservative limits are founded anew.
+            let r = t.refounded(seg, (seg_ab, seg_jb), t.c_v_mm_s, t.c_v_boost_mm_s);
+            t.accel_jerk_first = r.accel_jerk_first;
+            t.c_accel_boost_mm_s2 = r.c_accel_boost_mm_s2;
+            t.c_jerk_boost_mm_s3 = r.c_jerk_boost_mm_s3;
+        }
         offset_mm
     }
 }

@@ -410,6 +410,169 @@ fn the_planners_merge_estimate_follows_a_section_past_its_first_segment() {
     );
 }
 
+/// A stop that brakes across two pieces whose accelerations differ by 15 % (smoothed
+/// pieces before a row end) brakes through their junction: the weaker piece joins the
+/// section of the one before ([`MERGE_RATIO_WEAKER`]), and the two run as one at its
+/// limits. Measured from the positions against the same chain with both pieces at the
+/// weaker one's limits (one section by any rule): no slower (without the rule 5.5 ms
+/// slower, the braking coming back to `a = 0` at about 52 mm/s at the junction), and the
+/// acceleration within the weaker piece's limit through both.
+#[test]
+fn a_stop_braking_across_a_slightly_weaker_piece_brakes_through_the_junction() {
+    let period_s = 0.0005;
+    let (v, j) = (60.0, 20_000.0);
+    let run = |a_before: f64, a_weak: f64| -> (f64, Vec<f64>) {
+        let mut core = MotionCore::new(period_s, 8);
+        // A fast line of its own (far stronger), then the two pieces and the stop.
+        core.push(&x_line(0.0, 20.0, (v, v), (3000.0, 60_000.0), v))
+            .unwrap();
+        core.push(&x_line(20.0, 3.0, (v, v), (a_before, j), v))
+            .unwrap();
+        core.push(&x_line(23.0, 3.0, (v, v), (a_weak, j), 0.0))
+            .unwrap();
+        let mut sp = Setpoint::default();
+        let mut xs = vec![0.0];
+        while core.step(&mut sp) != StepResult::Idle {
+            xs.push(sp.position[0]);
+            assert!(xs.len() < 100_000);
+        }
+        assert!((sp.position[0] - 26.0).abs() < 1e-9, "{}", sp.position[0]);
+        assert_eq!(core.plan_failures(), 0);
+        ((xs.len() - 1) as f64 * period_s, xs)
+    };
+    let a_weak = 850.0;
+    // Not by the merge ratio: by the weaker merge only.
+    assert!(!limits_merge(a_weak, j, (1000.0, j)));
+    let (varied_s, xs) = run(1000.0, a_weak);
+    let (equal_s, _) = run(a_weak, a_weak);
+    assert!(
+        varied_s <= equal_s + 1e-9,
+        "{varied_s} s with the pieces as they are, {equal_s} s both at {a_weak} mm/s²"
+    );
+    // From the first piece's start on, the acceleration from the positions.
+    let start = xs.iter().position(|&x| x >= 20.0).unwrap();
+    let worst = xs[start - 1..]
+        .windows(3)
+        .map(|w| ((w[2] - 2.0 * w[1] + w[0]) / (period_s * period_s)).abs())
+        .fold(0.0, f64::max);
+    assert!(worst <= a_weak * 1.001, "{worst} mm/s²");
+}
+
+/// A weaker piece (85 % of the acceleration) pushed while the first of two short
+/// sections runs a speed-up from rest (a short queue: the daemon's planner a little ahead
+/// of the motion) does not join the second, the section a speed-up may be carried into:
+/// a carried acceleration is chosen within that section's conservative limits and end
+/// speed, which the weaker merge would change under it. Measured from the positions: the
+/// speed-up goes on across the first boundary in every case (the acceleration there at
+/// least 250 mm/s²; where the piece joined, the second section ended at the program's
+/// stop, into which no speed-up is carried: 5–12 mm/s² at the boundary, the cases from 2 ms
+/// quicker to 21 ms slower), every acceleration within the limit of the segment it is in,
+/// no solver failure, the program's end reached.
+#[test]
+fn a_weaker_piece_does_not_join_a_section_a_speed_up_is_carried_into() {
+    let feed = 50.0;
+    let seg =
+        |x0: f64, len: f64, a: f64, j: f64, cap: f64| x_line(x0, len, (feed, feed), (a, j), cap);
+    let (accel, weak, jerk) = (1200.0, 1020.0, 13_000.0);
+    assert!(!limits_merge(weak, jerk, (accel, jerk)));
+    assert!(kerf_geom::limits_merge_weaker(weak, jerk, (accel, jerk)));
+    for first_mm in [0.3, 0.5, 0.8, 1.2] {
+        for second_mm in [1.0, 1.5, 2.0, 2.5] {
+            let case = format!("{first_mm} + {second_mm} mm");
+            let mut core = MotionCore::new(0.001, 8);
+            core.push(&seg(0.0, first_mm, accel, 18_000.0, feed))
+                .unwrap();
+            core.push(&seg(first_mm, second_mm, accel, jerk, feed))
+                .unwrap();
+            let mut sp = Setpoint::default();
+            let mut xs = vec![0.0];
+            core.step(&mut sp);
+            xs.push(sp.position[0]);
+            let end_mm = first_mm + second_mm;
+            core.push(&seg(end_mm, 10.0, weak, jerk, 0.0)).unwrap();
+            while core.step(&mut sp) != StepResult::Idle {
+                xs.push(sp.position[0]);
+                assert!(xs.len() < 100_000);
+            }
+            assert!((sp.position[0] - end_mm - 10.0).abs() < 1e-9, "{case}");
+            assert_eq!(core.plan_failures(), 0, "{case}");
+            let dt = 0.001;
+            for k in 1..xs.len() - 1 {
+                let a = accel_at(&xs, k, dt);
+                let limit = if xs[k] > end_mm { weak } else { accel };
+                assert!(
+                    a.abs() <= limit * 1.01,
+                    "{a} mm/s² at x = {} ({case})",
+                    xs[k]
+                );
+            }
+            let boundary = xs.iter().position(|&x| x > first_mm).unwrap();
+            let carried = accel_at(&xs, boundary, dt);
+            assert!(carried >= 250.0, "{carried} mm/s² at the boundary ({case})");
+        }
+    }
+}
+
+/// The acceleration from the positions `xs` (period `dt`) at sample `k`.
+fn accel_at(xs: &[f64], k: usize, dt: f64) -> f64 {
+    (xs[k + 1] - 2.0 * xs[k] + xs[k - 1]) / (dt * dt)
+}
+
+/// The planner's estimate of the section a segment runs in (`kerf-plan`'s
+/// `SectionEstimate`, built from `kerf_geom`'s functions) decides the weaker merge as the
+/// motion core does: behind a section of its own (a much stronger line, passed at speed),
+/// a short piece and a weaker one after it make one section exactly when
+/// [`kerf_geom::limits_merge`] or [`kerf_geom::limits_merge_weaker`] with
+/// [`kerf_geom::weaker_merge_keeps_lookahead`] (the piece's hard start from
+/// [`kerf_geom::tail_hard_start`] below its cap and not lowered by the join) say so.
+#[test]
+fn the_planners_estimate_of_the_weaker_merge_is_the_motion_cores_rule() {
+    use kerf_geom::{limits_merge_weaker, tail_hard_start, weaker_merge_keeps_lookahead};
+    let mut log_uniform = profile::tests::log_uniform_source(0x3ea6_e12d);
+    let (mut weaker, mut merged, mut split) = (0, 0, 0);
+    for _ in 0..3000 {
+        let v1 = log_uniform(20.0, 200.0);
+        let len1 = log_uniform(0.2, 20.0);
+        let len2 = len1 * log_uniform(1.01, 3.0);
+        let cap0 = v1 * log_uniform(0.5, 2.0);
+        let (a1, j1) = (log_uniform(300.0, 3000.0), log_uniform(5e3, 1e5));
+        let a2 = a1 * log_uniform(0.7, 1.2);
+        let j2 = j1 * log_uniform(0.7, 5.0);
+        let mut core = MotionCore::new(0.001, 8);
+        let lead = x_line(0.0, 5.0, (v1, 1000.0), (1e5, 1e7), cap0);
+        core.push(&lead).unwrap();
+        core.push(&x_line(5.0, len1, (v1, 1000.0), (a1, j1), 1e6))
+            .unwrap();
+        assert_eq!(core.sec_count, 2);
+        core.push(&x_line(5.0 + len1, len2, (v1, 1000.0), (a2, j2), 1e6))
+            .unwrap();
+        let c = |(a, j): (f64, f64)| (MERGE_RATIO * a, MERGE_RATIO_JERK * j);
+        let cap = (MERGE_RATIO_SPEED * v1).min(cap0);
+        let by_weaker = limits_merge_weaker(a2, j2, (a1, j1))
+            && weaker_merge_keeps_lookahead(
+                (tail_hard_start(cap, len1, c((a1, j1))), cap),
+                cap,
+                len1 + len2,
+                c((a1.min(a2), j1.min(j2))),
+            );
+        let expected = limits_merge(a2, j2, (a1, j1)) || by_weaker;
+        let one_section = core.sec_count == 2;
+        assert_eq!(
+            one_section, expected,
+            "len {len1} + {len2}, cap {cap0}, a {a1} -> {a2}, j {j1} -> {j2}"
+        );
+        match (one_section, by_weaker && !limits_merge(a2, j2, (a1, j1))) {
+            (true, true) => weaker += 1,
+            (true, false) => merged += 1,
+            _ => split += 1,
+        }
+    }
+    assert!(
+        weaker > 100 && merged > 100 && split > 100,
+        "{weaker} by the weaker merge, {merged} by the ratios, {split} split"
+    );
+}
+
 /// A line no longer than a section's first segment joins it however much higher its
 /// acceleration and jerk (`kerf_geom::MERGE_SHORT_SHARE`), not when it is longer, nor
 /// when its limits are lower than the merge ratios allow, nor when it is a curve; and the

@@ -2,21 +2,25 @@
 //! will run as one profile, for the ramp budgets to judge a piece where it runs.
 
 use kerf_geom::{
-    Curve, MERGE_RATIO_SPEED, PlannedSegment, limits_merge, limits_merge_into, speeds_merge_into,
+    Curve, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SPEED, PlannedSegment, limits_merge,
+    limits_merge_into, limits_merge_weaker, speeds_merge_into, weaker_merge_keeps_lookahead,
 };
 
 /// The section the planner's last emitted segment is estimated to run in, by the motion
 /// core's merge rule as far as the planner can see it: the speeds by
 /// [`speeds_merge_into`] (against the first segment and the section's conservative speed),
-/// the acceleration and jerk by [`limits_merge_into`] against the first segment's, and the
+/// the acceleration and jerk by [`limits_merge_into`] against the first segment's (or by
+/// the weaker merge, [`limits_merge_weaker`] and [`weaker_merge_keeps_lookahead`], with
+/// the section at the queue's end as the core sees it when the segment arrives), and the
 /// junction passable at the section's speed. The core's further conditions (what it has
-/// committed, the boost level, the feed) are run-time state or rare, and are not
-/// estimated.
+/// committed, whether a hold is pending, the boost level, the feed) are run-time state or
+/// rare, and are not estimated.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct SectionEstimate {
     /// Speed limit of its first segment, mm/s.
     first_v_mm_s: f64,
-    /// Acceleration and jerk of its first segment: the merge rule's reference.
+    /// Acceleration and jerk of its first segment: the merge rule's reference (the lesser
+    /// of it and a segment's that joined by the weaker merge).
     first_accel_jerk: (f64, f64),
     /// Length of its first segment, mm (the merge rule's measure of a short line).
     first_mm: f64,
@@ -26,6 +30,10 @@ pub(crate) struct SectionEstimate {
     pub(crate) least: (f64, f64),
     /// Cap at the end of its last segment, mm/s.
     end_cap_mm_s: f64,
+    /// Cap at the junction before it, mm/s (0 for the program's first section).
+    start_cap_mm_s: f64,
+    /// Its length, mm.
+    length_mm: f64,
 }
 
 impl SectionEstimate {
@@ -35,12 +43,20 @@ impl SectionEstimate {
     pub(crate) fn after(before: Option<SectionEstimate>, seg: &PlannedSegment) -> Self {
         match before {
             Some(mut s) if s.takes(seg) => {
+                if !s.takes_limits(seg) {
+                    // Joined by the weaker merge: the reference is founded anew.
+                    s.first_accel_jerk = (
+                        s.first_accel_jerk.0.min(seg.accel_mm_s2),
+                        s.first_accel_jerk.1.min(seg.jerk_mm_s3),
+                    );
+                }
                 s.least = (
                     s.least.0.min(seg.accel_mm_s2),
                     s.least.1.min(seg.jerk_mm_s3),
                 );
                 s.c_v_mm_s = s.c_v_mm_s.min(MERGE_RATIO_SPEED * seg.v_max_mm_s);
                 s.end_cap_mm_s = seg.end_cap_mm_s;
+                s.length_mm += seg.length_mm;
                 s
             }
             _ => SectionEstimate {
@@ -50,6 +66,8 @@ impl SectionEstimate {
                 c_v_mm_s: MERGE_RATIO_SPEED * seg.v_max_mm_s,
                 least: (seg.accel_mm_s2, seg.jerk_mm_s3),
                 end_cap_mm_s: seg.end_cap_mm_s,
+                start_cap_mm_s: before.map_or(0.0, |s| s.end_cap_mm_s),
+                length_mm: seg.length_mm,
             },
         }
     }
@@ -63,15 +81,41 @@ impl SectionEstimate {
 
     /// Whether `seg`, emitted next, joins this section.
     fn takes(&self, seg: &PlannedSegment) -> bool {
+        let c_v_after = self.c_v_mm_s.min(MERGE_RATIO_SPEED * seg.v_max_mm_s);
         speeds_merge_into(seg.v_max_mm_s, self.first_v_mm_s, self.c_v_mm_s)
-            && limits_merge_into(
-                seg.accel_mm_s2,
-                seg.jerk_mm_s3,
-                (matches!(seg.curve, Curve::Line { .. }), seg.length_mm),
-                self.first_accel_jerk,
-                self.first_mm,
+            && self.end_cap_mm_s >= c_v_after
+            && (self.takes_limits(seg) || self.takes_weaker(seg, c_v_after))
+    }
+
+    /// Whether `seg`'s acceleration and jerk pass the merge rule ([`limits_merge_into`]).
+    fn takes_limits(&self, seg: &PlannedSegment) -> bool {
+        limits_merge_into(
+            seg.accel_mm_s2,
+            seg.jerk_mm_s3,
+            (matches!(seg.curve, Curve::Line { .. }), seg.length_mm),
+            self.first_accel_jerk,
+            self.first_mm,
+        )
+    }
+
+    /// Whether `seg` joins by the weaker merge, the section being the queue's end with the
+    /// conservative speed `c_v_after_mm_s` after the join (the motion core's
+    /// `Section::weaker_joins` at the base level).
+    fn takes_weaker(&self, seg: &PlannedSegment, c_v_after_mm_s: f64) -> bool {
+        let first = self.first_accel_jerk;
+        let (a, j) = (seg.accel_mm_s2, seg.jerk_mm_s3);
+        let cap = self.c_v_mm_s.min(self.start_cap_mm_s);
+        let conservative = |(a, j): (f64, f64)| (MERGE_RATIO * a, MERGE_RATIO_JERK * j);
+        limits_merge_weaker(a, j, first)
+            && weaker_merge_keeps_lookahead(
+                (
+                    kerf_geom::tail_hard_start(cap, self.length_mm, conservative(first)),
+                    cap,
+                ),
+                c_v_after_mm_s.min(self.start_cap_mm_s),
+                self.length_mm + seg.length_mm,
+                conservative((first.0.min(a), first.1.min(j))),
             )
-            && self.end_cap_mm_s >= self.c_v_mm_s.min(MERGE_RATIO_SPEED * seg.v_max_mm_s)
     }
 }
 
@@ -141,5 +185,48 @@ mod tests {
         assert!(s[1].takes_curve(49.0, lim));
         assert!(!s[1].takes_curve(50.0, lim));
         assert!(!s[1].takes_curve(49.0, (3.0 * 1000.0, 90_000.0)));
+    }
+
+    /// The weaker merge (numbers worked out by hand from the jerk-limited stop): a piece
+    /// with 85 % of the acceleration of the 2 mm piece before it joins that piece's
+    /// section where the piece is entered at speed (its hard start, stopping within
+    /// 2 mm at 900 mm/s² and 16,000 mm/s³, about 40 mm/s, is below its cap of 49.5 mm/s;
+    /// over 5 mm at 765 mm/s² it is at the cap again), and becomes the reference; not where
+    /// the piece starts from rest (a junction capped at 0: its hard start is its cap),
+    /// nor behind a 200 mm piece (the stop does not reach back into it), nor with 75 %.
+    #[test]
+    fn a_slightly_weaker_piece_joins_a_short_section_near_a_stop() {
+        let lim = (1000.0, 20_000.0);
+        let weak = (850.0, 20_000.0);
+        let lead = |cap: f64| line(-5.0, 5.0, 50.0, (1e5, 1e7), cap);
+        let s = sections(&[
+            lead(50.0),
+            line(0.0, 2.0, 50.0, lim, 50.0),
+            line(2.0, 3.0, 50.0, weak, 0.0),
+        ]);
+        assert_eq!((s[2].first_mm, s[2].length_mm), (2.0, 5.0));
+        assert_eq!((s[2].first_accel_jerk, s[2].least), (weak, weak));
+        // From rest.
+        let s = sections(&[
+            lead(0.0),
+            line(0.0, 2.0, 50.0, lim, 50.0),
+            line(2.0, 3.0, 50.0, weak, 0.0),
+        ]);
+        assert_eq!((s[2].first_mm, s[2].first_accel_jerk), (3.0, weak));
+        assert_eq!(s[1].least, lim);
+        // Behind a long piece.
+        let s = sections(&[
+            lead(50.0),
+            line(0.0, 200.0, 50.0, lim, 50.0),
+            line(200.0, 3.0, 50.0, weak, 0.0),
+        ]);
+        assert_eq!(s[2].first_mm, 3.0);
+        // Too weak.
+        let s = sections(&[
+            lead(50.0),
+            line(0.0, 2.0, 50.0, lim, 50.0),
+            line(2.0, 3.0, 50.0, (750.0, 20_000.0), 0.0),
+        ]);
+        assert_eq!(s[2].first_mm, 3.0);
     }
 }
