@@ -27,7 +27,7 @@
 //!   conservative speed, so no boundary speed falls. A slow-down across smoothed pieces
 //!   whose speeds differ by a per cent or two is then one ramp, not a stair of sections
 //!   each ending at `a = 0`. Likewise a segment with down to [`MERGE_RATIO_WEAKER`] of the
-//!   first's acceleration (its jerk within [`MERGE_RATIO_JERK`] of it) joins a tail
+//!   first's acceleration (its jerk within the merge rule's bounds) joins a tail
 //!   section short enough that the stop at the queue's end reaches back into it, where
 //!   the section's hard start speed, recomputed over the longer section at the lower
 //!   conservative limits, does not fall (nothing committed against it), and it is not

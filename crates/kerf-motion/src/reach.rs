@@ -1,6 +1,7 @@
 //! Closed-form jerk-limited reachability along the path (`a = 0` at both ends unless
 //! said otherwise): the distance to change speed, the highest speed reachable within a
-//! distance, and the quickest rise to a given end acceleration.
+//! distance (these two from `kerf_geom::ramp`, which the planner's estimate of the
+//! sections shares), and the quickest rise to a given end acceleration.
 
 use kerf_geom::ramp::bisect;
 pub use kerf_geom::ramp::{change_distance, reach, reach_back};
