@@ -77,24 +77,41 @@ pub fn limits_merge_weaker(accel_mm_s2: f64, jerk_mm_s3: f64, first: (f64, f64))
         && jerk_mm_s3 >= MERGE_RATIO_JERK * first.1
         && jerk_mm_s3 <= MERGE_ABOVE * first.1
 }
-/// The hard start speed of the section at the end of the motion core's queue (which must
-/// stop within it), mm/s: its cap (conservative speed, junction before it) or the speed it
-/// can stop from within its length ([`BACKWARD_MARGIN`](crate::ramp::BACKWARD_MARGIN) of
-/// it) at its conservative acceleration and jerk `c = (acceleration, jerk)`, whichever is
-/// less.
-pub fn tail_hard_start(cap_mm_s: f64, length_mm: f64, c: (f64, f64)) -> f64 {
+/// The highest speed a section `length_mm` long can be entered at, mm/s: its cap
+/// `cap_mm_s`, or the speed from which it can come down to `end_mm_s` (or to rest) within
+/// its length ([`BACKWARD_MARGIN`](crate::ramp::BACKWARD_MARGIN) of it) at acceleration
+/// and jerk `limits`, whichever is less. The motion core's backward pass computes every
+/// start speed of its lookahead by it; the section at the queue's end has `end_mm_s` 0.
+pub fn entry_speed(cap_mm_s: f64, end_mm_s: f64, length_mm: f64, limits: (f64, f64)) -> f64 {
     cap_mm_s.min(crate::ramp::reach_back(
-        0.0,
+        end_mm_s,
         length_mm * crate::ramp::BACKWARD_MARGIN,
-        c.0,
-        c.1,
+        limits.0,
+        limits.1,
     ))
+}
+/// The conservative acceleration and jerk of a section whose merge reference (its first
+/// segment's, see [`limits_merge`]) is `reference`: [`MERGE_RATIO`] and
+/// [`MERGE_RATIO_JERK`] of it, which every segment of the section has at least. The motion
+/// core's hard lookahead runs at them.
+pub fn conservative_limits(reference: (f64, f64)) -> (f64, f64) {
+    (MERGE_RATIO * reference.0, MERGE_RATIO_JERK * reference.1)
+}
+/// How a segment joins a section: by the merge rule ([`limits_merge_into`]), or by the
+/// weaker merge ([`MERGE_RATIO_WEAKER`]), which founds the section's reference anew.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MergeKind {
+    /// By the merge rule: the section's reference stays.
+    Plain,
+    /// By the weaker merge: the reference becomes the lesser of the two.
+    Weaker,
 }
 /// The lookahead condition of the weaker merge ([`MERGE_RATIO_WEAKER`]): the tail
 /// section's hard start speed `hard_mm_s` is below its cap `cap_mm_s` (the stop at the
 /// queue's end reaches back into it: it is short, and the pieces near a stop are what the
 /// rule is for), and with the segment in it (`cap_after_mm_s`, `length_after_mm`, the
-/// conservative limits after `c_after`, see [`tail_hard_start`]) it is not below
+/// conservative limits after `c_after`, see [`entry_speed`] with an end speed of 0) it is
+/// not below
 /// `hard_mm_s`: the section before may have been given, and committed to, that speed.
 pub fn weaker_merge_keeps_lookahead(
     (hard_mm_s, cap_mm_s): (f64, f64),
@@ -104,7 +121,7 @@ pub fn weaker_merge_keeps_lookahead(
 ) -> bool {
     hard_mm_s >= 0.0
         && hard_mm_s < cap_mm_s
-        && tail_hard_start(cap_after_mm_s, length_after_mm, c_after) >= hard_mm_s
+        && entry_speed(cap_after_mm_s, 0.0, length_after_mm, c_after) >= hard_mm_s
 }
 /// A straight segment no longer than this share of a section's first segment joins it
 /// however much higher its acceleration and jerk are ([`MERGE_ABOVE`] does not bound

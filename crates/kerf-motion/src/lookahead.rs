@@ -1,10 +1,11 @@
 //! The lookahead: the backward pass over the sections that fixes their hard and soft
 //! boundary speeds, and the end speed the front section aims at.
 
+use kerf_geom::entry_speed;
 use kerf_geom::ramp::bisect;
 
 use crate::motion_core::MotionCore;
-use crate::reach::{change_distance, reach, reach_back};
+use crate::reach::{change_distance, reach};
 
 pub(crate) use kerf_geom::ramp::BACKWARD_MARGIN;
 /// Fraction of the remaining distance a profile plan may use in its own checks.
@@ -46,23 +47,23 @@ impl MotionCore {
                 }
                 break;
             }
-            let d_mm = s.length_mm * BACKWARD_MARGIN;
+            let length_mm = s.length_mm;
             let (hard_cap, hard_boost_cap) = s.hard_start_caps();
-            let hard = hard_cap.min({
-                let (c_accel_mm_s2, c_jerk_mm_s3) = s.c_accel_jerk();
-                reach_back(hard_end, d_mm, c_accel_mm_s2, c_jerk_mm_s3)
-            });
-            let hard_boost = hard_boost_cap.min(reach_back(
+            let hard = entry_speed(hard_cap, hard_end, length_mm, s.c_accel_jerk());
+            let hard_boost = entry_speed(
+                hard_boost_cap,
                 hard_end_boost,
-                d_mm,
-                s.c_accel_boost_mm_s2,
-                s.c_jerk_boost_mm_s3,
-            ));
+                length_mm,
+                (s.c_accel_boost_mm_s2, s.c_jerk_boost_mm_s3),
+            );
             let level = s.wants_boost(ovr);
             let (_, a, j) = s.limits(level);
-            let soft = s
-                .soft_start_cap(ovr, level, if level { hard_boost } else { hard })
-                .min(reach_back(soft_end, d_mm, a, j));
+            let soft = entry_speed(
+                s.soft_start_cap(ovr, level, if level { hard_boost } else { hard }),
+                soft_end,
+                length_mm,
+                (a, j),
+            );
             let changed = hard != s.hard_start_mm_s
                 || hard_boost != s.hard_start_boost_mm_s
                 || soft != s.soft_start_mm_s;
@@ -138,7 +139,7 @@ impl MotionCore {
             return (want_mm_s, true);
         }
         // The soft target is out of reach; slowing down partially can be out of reach too
-        // while a full stop is not (see [`reach_back`]). Take the lowest reachable speed at
+        // while a full stop is not (see [`reach_back`](crate::reach::reach_back)). Take the lowest reachable speed at
         // or above the soft target, else the hard end speed, else a stop.
         let top = v0_mm_s.min(hard);
         if v0_mm_s <= hard {

@@ -7,8 +7,8 @@
 //! `the_planners_estimate_of_the_weaker_merge_is_the_motion_cores_rule` tie the two.
 
 use kerf_geom::{
-    Curve, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED, PlannedSegment,
-    limits_merge_into, limits_merge_weaker, tail_hard_start, weaker_merge_keeps_lookahead,
+    Curve, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED, MergeKind, PlannedSegment, conservative_limits,
+    entry_speed, limits_merge_into, limits_merge_weaker, weaker_merge_keeps_lookahead,
 };
 
 use crate::MAX_OVERRIDE;
@@ -31,8 +31,8 @@ pub(crate) fn boost_limits(seg: &PlannedSegment) -> (f64, f64, f64) {
 }
 
 impl Section {
-    /// Whether `seg` (boost-level limits `boost`, see [`boost_limits`]) joins this section,
-    /// the queue's tail, across a junction capped at `prev_cap_mm_s`; `plain_run` is
+    /// Whether and how `seg` (boost-level limits `boost`, see [`boost_limits`]) joins this
+    /// section, the queue's tail, across a junction capped at `prev_cap_mm_s`; `plain_run` is
     /// `true` while the core follows its plan with no hold pending or stopping, and
     /// `weaker_ok` where the weaker merge may also apply (see `MotionCore::push`).
     ///
@@ -50,13 +50,13 @@ impl Section {
     /// [`MERGE_RATIO_SPEED`]; `c_v_mm_s` starts at `R·v_first` and falls as slower segments
     /// join), where `speeds_merge_into` compares `v·R·R` with the estimate's conservative
     /// speed: the feed counts here only, and the slower merge's further conditions.
-    pub(crate) fn takes(
+    pub(crate) fn joins(
         &self,
         seg: &PlannedSegment,
         (seg_vb, seg_ab, seg_jb): (f64, f64, f64),
         prev_cap_mm_s: f64,
         (plain_run, weaker_ok): (bool, bool),
-    ) -> bool {
+    ) -> Option<MergeKind> {
         let t = self;
         let seg_v_mm_s = seg.v_max_mm_s;
         let seg_feed_mm_s = seg.feed_mm_s;
@@ -75,7 +75,8 @@ impl Section {
         // The conservative speeds after the merge.
         let c_v = t.c_v_mm_s.min(MERGE_RATIO_SPEED * seg_v_mm_s);
         let c_v_boost = t.c_v_boost_mm_s.min(MERGE_RATIO_SPEED * seg_vb);
-        (seg_v_mm_s >= t.c_v_mm_s || slower(seg_v_mm_s, t.c_v_mm_s, t.v_first_mm_s, t.hard_start_mm_s))
+        let passable = (seg_v_mm_s >= t.c_v_mm_s
+            || slower(seg_v_mm_s, t.c_v_mm_s, t.v_first_mm_s, t.hard_start_mm_s))
             && seg_feed_mm_s >= t.c_feed_mm_s
             // Nor much faster: the section runs at its minima, so a fast segment behind
             // a slow one (a slow feed, a tight transition) would crawl through it.
@@ -84,42 +85,48 @@ impl Section {
             && prev_cap_mm_s >= c_v.min(t.c_feed_mm_s * MAX_OVERRIDE)
             && (seg_vb >= t.c_v_boost_mm_s
                 || slower(seg_vb, t.c_v_boost_mm_s, t.v_first_boost_mm_s, t.hard_start_boost_mm_s))
-            && prev_cap_mm_s >= c_v_boost.min(t.c_feed_mm_s * MAX_OVERRIDE)
-            // Not much weaker, nor much stronger (it would ramp at the section's
-            // limits): the planner judges ramp budgets by the same function.
-            && ((limits_merge_into(
-                seg.accel_mm_s2,
-                seg.jerk_mm_s3,
-                (matches!(seg.curve, Curve::Line { .. }), seg.length_mm),
-                t.accel_jerk_first,
-                t.length_first_mm,
-            ) && seg_ab >= t.c_accel_boost_mm_s2
-                && seg_jb >= t.c_jerk_boost_mm_s3)
-                || (weaker_ok && t.weaker_joins(seg, (seg_vb, seg_ab, seg_jb), c_v, c_v_boost)))
+            && prev_cap_mm_s >= c_v_boost.min(t.c_feed_mm_s * MAX_OVERRIDE);
+        // Not much weaker, nor much stronger (it would ramp at the section's limits): the
+        // planner judges ramp budgets by the same function.
+        let plain = limits_merge_into(
+            seg.accel_mm_s2,
+            seg.jerk_mm_s3,
+            (matches!(seg.curve, Curve::Line { .. }), seg.length_mm),
+            t.accel_jerk_first,
+            t.length_first_mm,
+        ) && seg_ab >= t.c_accel_boost_mm_s2
+            && seg_jb >= t.c_jerk_boost_mm_s3;
+        if !passable {
+            None
+        } else if plain {
+            Some(MergeKind::Plain)
+        } else if weaker_ok && t.weaker_joins(seg, (seg_vb, seg_ab, seg_jb), prev_cap_mm_s) {
+            Some(MergeKind::Weaker)
+        } else {
+            None
+        }
     }
 
     /// Whether `seg`, weaker than [`limits_merge_into`] allows, joins this section (the
     /// queue's tail) by the weaker merge
     /// ([`MERGE_RATIO_WEAKER`](kerf_geom::MERGE_RATIO_WEAKER)): its limits within
     /// [`limits_merge_weaker`] of the first segment's, and the hard start speeds, at the
-    /// base and the boost level, recomputed over the longer section at the lower
-    /// conservative limits, not below the ones the lookahead has already given the section
-    /// before ([`weaker_merge_keeps_lookahead`]): what the motion before has been planned
-    /// against stays valid. `c_v`, `c_v_boost`: the conservative speeds after the join.
+    /// base and the boost level, of the section as [`Section::absorb`] leaves it (longer,
+    /// at the lower conservative limits) not below the ones the lookahead has already
+    /// given the section before ([`weaker_merge_keeps_lookahead`]): what the motion before
+    /// has been planned against stays valid.
     fn weaker_joins(
         &self,
         seg: &PlannedSegment,
-        (_, seg_ab, seg_jb): (f64, f64, f64),
-        c_v: f64,
-        c_v_boost: f64,
+        boost: (f64, f64, f64),
+        prev_cap_mm_s: f64,
     ) -> bool {
         let t = self;
-        let (a, j) = (seg.accel_mm_s2, seg.jerk_mm_s3);
-        let first = t.accel_jerk_first;
-        if !limits_merge_weaker(a, j, first) {
+        if !limits_merge_weaker(seg.accel_mm_s2, seg.jerk_mm_s3, t.accel_jerk_first) {
             return false;
         }
-        let joined = t.refounded(seg, (seg_ab, seg_jb), c_v, c_v_boost);
+        let mut joined = *t;
+        joined.absorb(seg, boost, prev_cap_mm_s, MergeKind::Weaker);
         let (cap, _) = t.hard_start_caps();
         let (cap_after, cap_boost_after) = joined.hard_start_caps();
         // At the boost level only the lookahead's promise counts.
@@ -128,44 +135,24 @@ impl Section {
             cap_after,
             joined.length_mm,
             joined.c_accel_jerk(),
-        ) && tail_hard_start(
+        ) && entry_speed(
             cap_boost_after,
+            0.0,
             joined.length_mm,
             (joined.c_accel_boost_mm_s2, joined.c_jerk_boost_mm_s3),
         ) >= t.hard_start_boost_mm_s
     }
 
-    /// This section's length, conservative speeds `c_v`, `c_v_boost` and merge reference
-    /// after `seg` (boost-level acceleration and jerk `boost`) joins it by the weaker
-    /// merge: the reference limits the lesser of the first segment's and `seg`'s, the
-    /// conservative ones following from them.
-    fn refounded(
-        &self,
-        seg: &PlannedSegment,
-        (seg_ab, seg_jb): (f64, f64),
-        c_v: f64,
-        c_v_boost: f64,
-    ) -> Section {
-        let first = self.accel_jerk_first;
-        Section {
-            length_mm: self.length_mm + seg.length_mm,
-            c_v_mm_s: c_v,
-            c_v_boost_mm_s: c_v_boost,
-            accel_jerk_first: (first.0.min(seg.accel_mm_s2), first.1.min(seg.jerk_mm_s3)),
-            c_accel_boost_mm_s2: self.c_accel_boost_mm_s2.min(MERGE_RATIO * seg_ab),
-            c_jerk_boost_mm_s3: self.c_jerk_boost_mm_s3.min(MERGE_RATIO_JERK * seg_jb),
-            ..*self
-        }
-    }
-
     /// Adds `seg` (boost-level limits `boost`) at the section's end, across a junction
-    /// capped at `prev_cap_mm_s`: the limits become the minima. Returns the segment's
-    /// offset within the section, mm.
+    /// capped at `prev_cap_mm_s`, as [`Section::joins`] found (`kind`): the limits become the
+    /// minima, and a segment that joined by the weaker merge founds the reference and the
+    /// conservative limits anew. Returns the segment's offset within the section, mm.
     pub(crate) fn absorb(
         &mut self,
         seg: &PlannedSegment,
         (seg_vb, seg_ab, seg_jb): (f64, f64, f64),
         prev_cap_mm_s: f64,
+        kind: MergeKind,
     ) -> f64 {
         let t = self;
         let seg_v_mm_s = seg.v_max_mm_s;
@@ -182,18 +169,12 @@ impl Section {
         t.jerk_boost_mm_s3 = t.jerk_boost_mm_s3.min(seg_jb);
         t.c_v_mm_s = t.c_v_mm_s.min(MERGE_RATIO_SPEED * seg_v_mm_s);
         t.c_v_boost_mm_s = t.c_v_boost_mm_s.min(MERGE_RATIO_SPEED * seg_vb);
-        let first = t.accel_jerk_first;
-        if seg.accel_mm_s2 < MERGE_RATIO * first.0
-            || seg.jerk_mm_s3 < MERGE_RATIO_JERK * first.1
-            || seg_ab < t.c_accel_boost_mm_s2
-            || seg_jb < t.c_jerk_boost_mm_s3
-        {
-            // Joined by the weaker merge ([`Section::weaker_joins`]): the reference and
-            // the conservative limits are founded anew.
-            let r = t.refounded(seg, (seg_ab, seg_jb), t.c_v_mm_s, t.c_v_boost_mm_s);
-            t.accel_jerk_first = r.accel_jerk_first;
-            t.c_accel_boost_mm_s2 = r.c_accel_boost_mm_s2;
-            t.c_jerk_boost_mm_s3 = r.c_jerk_boost_mm_s3;
+        if kind == MergeKind::Weaker {
+            let first = t.accel_jerk_first;
+            t.accel_jerk_first = (first.0.min(seg.accel_mm_s2), first.1.min(seg.jerk_mm_s3));
+            let c_boost = conservative_limits((seg_ab, seg_jb));
+            t.c_accel_boost_mm_s2 = t.c_accel_boost_mm_s2.min(c_boost.0);
+            t.c_jerk_boost_mm_s3 = t.c_jerk_boost_mm_s3.min(c_boost.1);
         }
         offset_mm
     }

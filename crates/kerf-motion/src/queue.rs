@@ -54,13 +54,16 @@ impl MotionCore {
         // after the running one, which a speed-up may already be carried into at the
         // acceleration its old conservative limits allow (see `carry_target`).
         let weaker_ok = plain_run && !(self.sec_count == 2 && self.running);
-        let can_merge = self.sec_count > 0
-            && !(self.sec_count == 1 && self.running)
-            && self
-                .sec(tail - 1)
-                .takes(seg, boost, prev_cap_mm_s, (plain_run, weaker_ok));
-        if can_merge {
-            let offset_mm = self.sec_mut(tail - 1).absorb(seg, boost, prev_cap_mm_s);
+        let join = if self.sec_count > 0 && !(self.sec_count == 1 && self.running) {
+            self.sec(tail - 1)
+                .joins(seg, boost, prev_cap_mm_s, (plain_run, weaker_ok))
+        } else {
+            None
+        };
+        if let Some(kind) = join {
+            let offset_mm = self
+                .sec_mut(tail - 1)
+                .absorb(seg, boost, prev_cap_mm_s, kind);
             self.seg_offset_mm[slot] = offset_mm;
         } else {
             if self.sec_count as usize >= self.secs.len() {

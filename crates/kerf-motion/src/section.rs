@@ -2,7 +2,7 @@
 //! limits (actual and conservative, at the base and the boost level) and the lookahead
 //! speeds the core keeps for it.
 
-use kerf_geom::{MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SPEED, PlannedSegment};
+use kerf_geom::{MERGE_RATIO_SPEED, PlannedSegment, conservative_limits};
 
 use crate::MAX_OVERRIDE;
 
@@ -96,6 +96,7 @@ impl Section {
         (seg_vb, seg_ab, seg_jb): (f64, f64, f64),
         start_cap_mm_s: f64,
     ) -> Section {
+        let c_boost = conservative_limits((seg_ab, seg_jb));
         Section {
             first,
             count: 1,
@@ -114,8 +115,8 @@ impl Section {
             accel_boost_mm_s2: seg_ab,
             jerk_boost_mm_s3: seg_jb,
             c_v_boost_mm_s: MERGE_RATIO_SPEED * seg_vb,
-            c_accel_boost_mm_s2: MERGE_RATIO * seg_ab,
-            c_jerk_boost_mm_s3: MERGE_RATIO_JERK * seg_jb,
+            c_accel_boost_mm_s2: c_boost.0,
+            c_jerk_boost_mm_s3: c_boost.1,
             start_cap_mm_s,
             hard_start_mm_s: -1.0,
             hard_end_mm_s: 0.0,
@@ -127,10 +128,10 @@ impl Section {
         }
     }
     /// The conservative acceleration and jerk of the hard lookahead: the merge ratios of
-    /// the first segment's, which every segment of the section has at least.
+    /// the reference (the first segment's, or a weaker one's that joined), which every
+    /// segment of the section has at least ([`conservative_limits`]).
     pub(crate) fn c_accel_jerk(&self) -> (f64, f64) {
-        let (a, j) = self.accel_jerk_first;
-        (MERGE_RATIO * a, MERGE_RATIO_JERK * j)
+        conservative_limits(self.accel_jerk_first)
     }
 
     /// Speed limit, acceleration and jerk at a level.

@@ -524,10 +524,12 @@ fn accel_at(xs: &[f64], k: usize, dt: f64) -> f64 {
 /// a short piece and a weaker one after it make one section exactly when
 /// [`kerf_geom::limits_merge`] or [`kerf_geom::limits_merge_weaker`] with
 /// [`kerf_geom::weaker_merge_keeps_lookahead`] (the piece's hard start from
-/// [`kerf_geom::tail_hard_start`] below its cap and not lowered by the join) say so.
+/// [`kerf_geom::entry_speed`] with an end speed of 0, below its cap and not lowered by the join) say so.
 #[test]
 fn the_planners_estimate_of_the_weaker_merge_is_the_motion_cores_rule() {
-    use kerf_geom::{limits_merge_weaker, tail_hard_start, weaker_merge_keeps_lookahead};
+    use kerf_geom::{
+        conservative_limits, entry_speed, limits_merge_weaker, weaker_merge_keeps_lookahead,
+    };
     let mut log_uniform = profile::tests::log_uniform_source(0x3ea6_e12d);
     let (mut weaker, mut merged, mut split) = (0, 0, 0);
     for _ in 0..3000 {
@@ -546,14 +548,16 @@ fn the_planners_estimate_of_the_weaker_merge_is_the_motion_cores_rule() {
         assert_eq!(core.sec_count, 2);
         core.push(&x_line(5.0 + len1, len2, (v1, 1000.0), (a2, j2), 1e6))
             .unwrap();
-        let c = |(a, j): (f64, f64)| (MERGE_RATIO * a, MERGE_RATIO_JERK * j);
         let cap = (MERGE_RATIO_SPEED * v1).min(cap0);
         let by_weaker = limits_merge_weaker(a2, j2, (a1, j1))
             && weaker_merge_keeps_lookahead(
-                (tail_hard_start(cap, len1, c((a1, j1))), cap),
+                (
+                    entry_speed(cap, 0.0, len1, conservative_limits((a1, j1))),
+                    cap,
+                ),
                 cap,
                 len1 + len2,
-                c((a1.min(a2), j1.min(j2))),
+                conservative_limits((a1.min(a2), j1.min(j2))),
             );
         let expected = limits_merge(a2, j2, (a1, j1)) || by_weaker;
         let one_section = core.sec_count == 2;

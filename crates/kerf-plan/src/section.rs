@@ -2,8 +2,9 @@
 //! will run as one profile, for the ramp budgets to judge a piece where it runs.
 
 use kerf_geom::{
-    Curve, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SPEED, PlannedSegment, limits_merge,
-    limits_merge_into, limits_merge_weaker, speeds_merge_into, weaker_merge_keeps_lookahead,
+    Curve, MERGE_RATIO_SPEED, MergeKind, PlannedSegment, conservative_limits, entry_speed,
+    limits_merge, limits_merge_into, limits_merge_weaker, speeds_merge_into,
+    weaker_merge_keeps_lookahead,
 };
 
 /// The section the planner's last emitted segment is estimated to run in, by the motion
@@ -41,10 +42,10 @@ impl SectionEstimate {
     /// emitted before it, if any): `before` with `seg` in it, or a new one that `seg`
     /// starts.
     pub(crate) fn after(before: Option<SectionEstimate>, seg: &PlannedSegment) -> Self {
-        match before {
-            Some(mut s) if s.takes(seg) => {
-                if !s.takes_limits(seg) {
-                    // Joined by the weaker merge: the reference is founded anew.
+        match before.map(|s| (s, s.joins(seg))) {
+            Some((mut s, Some(kind))) => {
+                if kind == MergeKind::Weaker {
+                    // The reference is founded anew.
                     s.first_accel_jerk = (
                         s.first_accel_jerk.0.min(seg.accel_mm_s2),
                         s.first_accel_jerk.1.min(seg.jerk_mm_s3),
@@ -79,23 +80,26 @@ impl SectionEstimate {
             && limits_merge(a, j, self.first_accel_jerk)
     }
 
-    /// Whether `seg`, emitted next, joins this section.
-    fn takes(&self, seg: &PlannedSegment) -> bool {
+    /// Whether and how `seg`, emitted next, joins this section.
+    fn joins(&self, seg: &PlannedSegment) -> Option<MergeKind> {
         let c_v_after = self.c_v_mm_s.min(MERGE_RATIO_SPEED * seg.v_max_mm_s);
-        speeds_merge_into(seg.v_max_mm_s, self.first_v_mm_s, self.c_v_mm_s)
-            && self.end_cap_mm_s >= c_v_after
-            && (self.takes_limits(seg) || self.takes_weaker(seg, c_v_after))
-    }
-
-    /// Whether `seg`'s acceleration and jerk pass the merge rule ([`limits_merge_into`]).
-    fn takes_limits(&self, seg: &PlannedSegment) -> bool {
-        limits_merge_into(
+        if !speeds_merge_into(seg.v_max_mm_s, self.first_v_mm_s, self.c_v_mm_s)
+            || self.end_cap_mm_s < c_v_after
+        {
+            None
+        } else if limits_merge_into(
             seg.accel_mm_s2,
             seg.jerk_mm_s3,
             (matches!(seg.curve, Curve::Line { .. }), seg.length_mm),
             self.first_accel_jerk,
             self.first_mm,
-        )
+        ) {
+            Some(MergeKind::Plain)
+        } else if self.takes_weaker(seg, c_v_after) {
+            Some(MergeKind::Weaker)
+        } else {
+            None
+        }
     }
 
     /// Whether `seg` joins by the weaker merge, the section being the queue's end with the
@@ -105,16 +109,15 @@ impl SectionEstimate {
         let first = self.first_accel_jerk;
         let (a, j) = (seg.accel_mm_s2, seg.jerk_mm_s3);
         let cap = self.c_v_mm_s.min(self.start_cap_mm_s);
-        let conservative = |(a, j): (f64, f64)| (MERGE_RATIO * a, MERGE_RATIO_JERK * j);
         limits_merge_weaker(a, j, first)
             && weaker_merge_keeps_lookahead(
                 (
-                    kerf_geom::tail_hard_start(cap, self.length_mm, conservative(first)),
+                    entry_speed(cap, 0.0, self.length_mm, conservative_limits(first)),
                     cap,
                 ),
                 c_v_after_mm_s.min(self.start_cap_mm_s),
                 self.length_mm + seg.length_mm,
-                conservative((first.0.min(a), first.1.min(j))),
+                conservative_limits((first.0.min(a), first.1.min(j))),
             )
     }
 }
