@@ -220,7 +220,10 @@ pub struct PlannedSegment {
     /// Path jerk limit valid up to `v_boost_mm_s` (at most `jerk_mm_s3`), mm/s³.
     pub jerk_boost_mm_s3: f64,
     /// Speed cap at the junction with the next segment, mm/s (0 = stop): the geometric
-    /// cap, at most the neighbours' `v_boost_mm_s` (their `v_max_mm_s` bounds it at 100 %).
+    /// cap, at most this segment's `v_boost_mm_s` and, as designed, the next one's (their
+    /// `v_max_mm_s` bounds it at 100 %). The planner may lower a smoothed piece's design
+    /// speed at a stop after the cap before it was sent, so the motion core passes every
+    /// junction at most at the lesser of the cap and the speed limits on both sides.
     pub end_cap_mm_s: f64,
     /// `true` if the segment is a corner blend (not a programmed move).
     pub blend: bool,

@@ -6,7 +6,7 @@
 
 use kerf_geom::{CornerMode, Curve, Move, Path, Vec3};
 
-use crate::budget::{limits_key, ramp_budget, segment_limits_pair};
+use crate::budget::{limits_key, lowered_ramp_design, ramp_budget, segment_limits_pair};
 use crate::junction::junction_cap;
 use crate::memo::{ArcMemo, LimitsMemo};
 use crate::run::{RunState, joining_frame, line_dir, line_len, next_start_frame, turn_fits};
@@ -530,16 +530,20 @@ impl Planner {
     /// it starts or ends at a junction much slower than its design speed, to what the
     /// axis limits leave at the low speeds the ramp there runs at ([`ramp_budget`]).
     ///
-    /// A piece slow only at its start keeps its budget unless [`ramp_split_pays`]: raised,
-    /// it runs in a motion-core section of its own, and the return to zero acceleration
-    /// at its end, mid-ramp, can cost more than the raised budget gains (the dense circle:
-    /// 3 ms per ramp). A piece entered at speed and slow only at its end is raised without
+    /// A piece slow only at its start keeps its budget unless raising it loses less by
+    /// [`ramp_split_losses`]: raised, it runs in a motion-core section of its own, and the
+    /// return to zero acceleration at its end, mid-ramp, can cost more than the raised
+    /// budget gains (the dense circle: 3 ms per ramp). A piece entered at speed and slow only at its end is raised without
     /// that check, but a raised budget can split a section there too: the piece joins the
     /// section before it only if its limits pass [`kerf_geom::limits_merge`] with the
     /// section's first segment's (not much below them, nor more than `MERGE_ABOVE` = 4 ×
     /// above) and its speed limit passes [`kerf_geom::speeds_merge_into`], else it starts
     /// a section of its own ([`SectionEstimate`] follows the sections);
     /// [`ramp_budget`] prices each candidate budget by which of the two it makes.
+    ///
+    /// A piece slow at one end only may instead be designed for a lower speed, with the
+    /// budget the axes leave there, where that is estimated to lose clearly less than
+    /// the choice at its design speed ([`lowered_ramp_design`]).
     fn ramp_upgrade(&self, seg: &mut PlannedSegment, next: Option<&PlannedSegment>) {
         let slow = RAMP_CAP_RATIO * seg.v_max_mm_s;
         // Smoothed pieces only, and only without a boost design (pieces keep the
@@ -557,21 +561,41 @@ impl Planner {
         // whether or not the piece's own budget joins it: a candidate is judged by where
         // it itself would run.
         let section = self.section.filter(|_| self.last_start_cap >= slow);
-        let Some((a, j)) = ramp_budget(
-            seg,
-            &self.limits,
-            self.last_start_cap,
-            seg.end_cap_mm_s,
-            section,
-        ) else {
+        let (cap_start, cap_end) = (self.last_start_cap, seg.end_cap_mm_s);
+        let Some((a, j, stop_loss)) = ramp_budget(seg, &self.limits, cap_start, cap_end, section)
+        else {
             return;
         };
-        if seg.end_cap_mm_s >= slow
-            && let Some(n) = next
-            && !ramp_split_pays(seg, n, self.last_start_cap, (a, j))
-        {
-            return;
-        }
+        let own = (seg.accel_mm_s2, seg.jerk_mm_s3);
+        // The budget at the design speed, and its estimated loss.
+        let ((a, j), loss) = match next {
+            Some(n) if cap_end >= slow => {
+                let (split, merged) = ramp_split_losses(seg, n, cap_start, (a, j));
+                if (a, j) != own && split < merged {
+                    ((a, j), split)
+                } else {
+                    (own, merged)
+                }
+            }
+            _ => ((a, j), stop_loss),
+        };
+        // Or a lower design speed, whose budget may pay for the slower run: where exactly
+        // one end is slow, priced with the limits of the ramp outside the piece (the
+        // segment after a start, the section before a stop).
+        let outer = if cap_end >= slow {
+            next.map(|n| (n.accel_mm_s2, n.jerk_mm_s3))
+        } else if cap_start >= slow {
+            section.map(|s| s.least)
+        } else {
+            None
+        };
+        let lowered = outer.and_then(|outer| {
+            lowered_ramp_design(seg, &self.limits, cap_start, cap_end, outer, loss)
+        });
+        let (v, a, j) = lowered.unwrap_or((seg.v_max_mm_s, a, j));
+        seg.v_max_mm_s = v;
+        seg.v_boost_mm_s = seg.v_boost_mm_s.min(v);
+        seg.end_cap_mm_s = seg.end_cap_mm_s.min(v);
         seg.accel_mm_s2 = a;
         seg.jerk_mm_s3 = j;
         seg.accel_boost_mm_s2 = a;
@@ -641,21 +665,22 @@ impl Planner {
     }
 }
 
-/// Whether raising the budget of `seg`, which starts at `cap_start` (slow) and runs on
-/// into `next` at speed, to `(a, j)` saves time by a rough estimate (each ramp's time less
-/// its distance at the top speed `v`): one ramp from rest to `v` with the limits the
-/// section of `seg` and `next` would have (the smaller of each), against a ramp in `seg`
-/// to the speed `v_b` it reaches with `(a, j)` plus the rest of the ramp, from `v_b` to
-/// `v`, with `next`'s limits after a return to zero acceleration.
-fn ramp_split_pays(
+/// The estimated losses of raising the budget of `seg`, which starts at `cap_start`
+/// (slow) and runs on into `next` at speed, to `(a, j)`, and of keeping its own budget,
+/// `(raised, kept)`: each ramp's time less its distance at the top speed `v`. Kept, one
+/// ramp from rest to `v` with the limits the section of `seg` and `next` would have (the
+/// smaller of each); raised, a ramp in `seg` to the speed `v_b` it reaches with `(a, j)`
+/// plus the rest of the ramp, from `v_b` to `v`, with `next`'s limits after a return to
+/// zero acceleration.
+fn ramp_split_losses(
     seg: &PlannedSegment,
     next: &PlannedSegment,
     cap_start: f64,
     (a, j): (f64, f64),
-) -> bool {
+) -> (f64, f64) {
     let v = seg.v_max_mm_s.min(seg.feed_mm_s);
     if !(v > 0.0 && v.is_finite()) {
-        return false;
+        return (f64::INFINITY, 0.0);
     }
     let v0 = cap_start.min(v);
     let merged = change_time_s(
@@ -667,7 +692,7 @@ fn ramp_split_pays(
     let v_b = v0 + reach_speed(seg.length_mm, v - v0, a, j);
     let first = change_time_s(v_b - v0, a, j) * (1.0 - (v0 + v_b) / (2.0 * v));
     let rest = change_time_s(v - v_b, next.accel_mm_s2, next.jerk_mm_s3) * (v - v_b) / (2.0 * v);
-    first + rest < merged
+    (first + rest, merged)
 }
 
 pub(crate) fn feed_of(mv: &Move) -> f64 {

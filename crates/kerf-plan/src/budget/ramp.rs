@@ -54,13 +54,16 @@ const STOP_SPLIT_STEPS: usize = 30;
 /// [`crate::PROFILE_SHARE`], with `a_u = min(a, sqrt(2j(v_max − u)))`, the acceleration the
 /// jerk-limited envelope leaves at `u` (see [`Samples::jerk_for`]): near `v_max` a ramp has
 /// little acceleration left, which is where the curvature terms are largest.
+///
+/// Returns the budget with its loss (see [`StopLoss`]); the piece's own design, with its
+/// loss, where no candidate loses less.
 pub(crate) fn ramp_budget(
     seg: &PlannedSegment,
     limits: &MachineLimits,
     cap_start: f64,
     cap_end: f64,
     section: Option<SectionEstimate>,
-) -> Option<(f64, f64)> {
+) -> Option<(f64, f64, f64)> {
     let Curve::Transition(t) = &seg.curve else {
         return None;
     };
@@ -86,7 +89,9 @@ pub(crate) fn ramp_budget(
         section,
     };
     let own = stop.loss(seg.accel_mm_s2, seg.jerk_mm_s3);
-    let (grid_loss, a_grid, j_grid) = best_on_grid(&samples, &stop, a_top, own)?;
+    let Some((grid_loss, a_grid, j_grid)) = best_on_grid(&samples, &stop, a_top, own) else {
+        return Some((seg.accel_mm_s2, seg.jerk_mm_s3, own));
+    };
     // Refined between the best point's neighbours, so that the choice hardly depends on
     // where the grid's points fall.
     let cost = |a: f64| {
@@ -104,9 +109,78 @@ pub(crate) fn ramp_budget(
         cost,
     );
     if loss < grid_loss {
-        return Some((a, samples.jerk_for(a)));
+        return Some((a, samples.jerk_for(a), loss));
     }
-    Some((a_grid, j_grid))
+    Some((a_grid, j_grid, grid_loss))
+}
+
+/// Lower design speeds tried for a piece at a stop ([`lowered_ramp_design`]), as shares of
+/// its design speed: a fixed grid, so that the candidates do not move with the limits.
+const LOWERED_DESIGN_FACTORS: [f64; 9] = [0.95, 0.9, 0.85, 0.8, 0.75, 0.7, 0.65, 0.6, 0.5];
+/// A lowered design is taken only where its estimated loss is at most this share of the
+/// design speed's: the estimate leaves out how the sections around the piece really
+/// form, and a margin of 5 % kept every random surface of `benches/surface_sweep.py`
+/// from coming out slower (at 1.0, a lowered piece estimated 2 % quicker ran 5 ms
+/// slower on one of 300).
+const LOWERED_DESIGN_GAIN: f64 = 0.95;
+
+/// A lower design speed for a smoothed piece slow at exactly one end (entered from a stop
+/// at `cap_start`, or stopping at `cap_end`), where the budget the axes leave at that
+/// lower speed ([`ramp_budget`] of the piece designed for it) pays for running slower:
+/// `Some((v, a, j))`, else `None`. Every term of an axis's jerk bound
+/// `|t_i| j + 3|K_i| v a + |K'_i| v³` but the first falls with the speed: at raster B's
+/// row ends, where the curvature's rate held the budget, pieces designed 15–30 % slower
+/// have 1.5 to 2.5 times the jerk for their ramps.
+///
+/// Each candidate speed `v` of [`LOWERED_DESIGN_FACTORS`] is priced against running at
+/// the design speed `v0`, as [`StopLoss`] prices budgets: the ramp between `v0` and `v`
+/// outside the piece with `outer` (the section before a stop, the segment after a start),
+/// the piece at `v` instead of `v0` (`L/v − L/v0`), and the piece's own ramp with the
+/// lowered budget. The piece is then a motion-core section of its own (its speed is too
+/// far below its neighbours' to join them, see `kerf_geom::speeds_merge_into`), and its
+/// ramp must fit within it. Taken only where the loss is at most [`LOWERED_DESIGN_GAIN`] of
+/// `base_loss`, the loss of the piece's choice at `v0`.
+///
+/// Safe for the same reason as [`ramp_budget`]: the motion core never runs a segment
+/// above its `v_max_mm_s` (a piece with a ramp budget has no boost design), and the
+/// budget is found for the lowered speed.
+pub(crate) fn lowered_ramp_design(
+    seg: &PlannedSegment,
+    limits: &MachineLimits,
+    cap_start: f64,
+    cap_end: f64,
+    outer: (f64, f64),
+    base_loss: f64,
+) -> Option<(f64, f64, f64)> {
+    let v0 = seg.v_max_mm_s;
+    // The cap at the slow end.
+    let slow = cap_start.min(cap_end);
+    let lost = |from: f64, to: f64, a: f64, j: f64| {
+        let t = change_time_s((from - to).abs(), a, j);
+        t * (1.0 - 0.5 * (from + to) / v0)
+    };
+    let mut best: Option<(f64, (f64, f64, f64))> = None;
+    for f in LOWERED_DESIGN_FACTORS {
+        let v = f * v0;
+        let mut low = *seg;
+        low.v_max_mm_s = v;
+        low.v_boost_mm_s = v;
+        let Some((a, j, own_loss)) =
+            ramp_budget(&low, limits, cap_start.min(v), cap_end.min(v), None)
+        else {
+            continue;
+        };
+        let c = slow.min(v);
+        if 0.5 * (v + c) * change_time_s(v - c, a, j) > seg.length_mm {
+            continue;
+        }
+        let loss =
+            lost(v0, v, outer.0, outer.1) + seg.length_mm / v - seg.length_mm / v0 + own_loss;
+        if loss <= LOWERED_DESIGN_GAIN * base_loss && best.is_none_or(|b| loss < b.0) {
+            best = Some((loss, (v, a, j)));
+        }
+    }
+    best.map(|b| b.1)
 }
 
 /// A sample of a piece for [`ramp_budget`]: the maxima over it and its two neighbours,
