@@ -64,6 +64,21 @@ pub(crate) fn ramp_budget(
     cap_end: f64,
     section: Option<SectionEstimate>,
 ) -> Option<(f64, f64, f64)> {
+    let window = piece_samples(seg)?;
+    let samples = Samples {
+        samples: &window,
+        limits,
+        v_max: seg.v_max_mm_s,
+        cap_start,
+        cap_end,
+        length_mm: seg.length_mm,
+    };
+    budget_on(&samples, seg, section)
+}
+
+/// The samples of a smoothed piece without rotary motion with a positive, finite design
+/// speed and length ([`window_samples`]), else `None`.
+fn piece_samples(seg: &PlannedSegment) -> Option<Vec<Sample>> {
     let Curve::Transition(t) = &seg.curve else {
         return None;
     };
@@ -74,14 +89,18 @@ pub(crate) fn ramp_budget(
     {
         return None;
     }
-    let samples = Samples {
-        samples: window_samples(t, seg.length_mm)?,
-        limits,
-        v_max,
-        cap_start,
-        cap_end,
-        length_mm: seg.length_mm,
-    };
+    window_samples(t, seg.length_mm)
+}
+
+/// [`ramp_budget`] on `samples` (the piece's, with the speed it is designed for and its
+/// caps): `seg`'s own acceleration and jerk are the budget to beat, `seg`'s length the
+/// room for a stop.
+fn budget_on(
+    samples: &Samples<'_>,
+    seg: &PlannedSegment,
+    section: Option<SectionEstimate>,
+) -> Option<(f64, f64, f64)> {
+    let v_max = samples.v_max;
     let a_top = samples.a_top()?;
     let stop = StopLoss {
         v_max,
@@ -89,7 +108,7 @@ pub(crate) fn ramp_budget(
         section,
     };
     let own = stop.loss(seg.accel_mm_s2, seg.jerk_mm_s3);
-    let Some((grid_loss, a_grid, j_grid)) = best_on_grid(&samples, &stop, a_top, own) else {
+    let Some((grid_loss, a_grid, j_grid)) = best_on_grid(samples, &stop, a_top, own) else {
         return Some((seg.accel_mm_s2, seg.jerk_mm_s3, own));
     };
     // Refined between the best point's neighbours, so that the choice hardly depends on
@@ -139,7 +158,9 @@ const LOWERED_DESIGN_GAIN: f64 = 0.95;
 /// lowered budget. The piece is then a motion-core section of its own (its speed is too
 /// far below its neighbours' to join them, see `kerf_geom::speeds_merge_into`), and its
 /// ramp must fit within it. Taken only where the loss is at most [`LOWERED_DESIGN_GAIN`] of
-/// `base_loss`, the loss of the piece's choice at `v0`.
+/// `base_loss`, the loss of the piece's choice at `v0`. The candidates are tried from the
+/// fastest down, until the loss first rises (each costs a budget search, the planner's
+/// largest cost on raster B).
 ///
 /// Safe for the same reason as [`ramp_budget`]: the motion core never runs a segment
 /// above its `v_max_mm_s` (a piece with a ramp budget has no boost design), and the
@@ -153,6 +174,7 @@ pub(crate) fn lowered_ramp_design(
     base_loss: f64,
 ) -> Option<(f64, f64, f64)> {
     let v0 = seg.v_max_mm_s;
+    let window = piece_samples(seg)?;
     // The cap at the slow end.
     let slow = cap_start.min(cap_end);
     let lost = |from: f64, to: f64, a: f64, j: f64| {
@@ -160,14 +182,18 @@ pub(crate) fn lowered_ramp_design(
         t * (1.0 - 0.5 * (from + to) / v0)
     };
     let mut best: Option<(f64, (f64, f64, f64))> = None;
+    let mut last_loss = f64::INFINITY;
     for f in LOWERED_DESIGN_FACTORS {
         let v = f * v0;
-        let mut low = *seg;
-        low.v_max_mm_s = v;
-        low.v_boost_mm_s = v;
-        let Some((a, j, own_loss)) =
-            ramp_budget(&low, limits, cap_start.min(v), cap_end.min(v), None)
-        else {
+        let samples = Samples {
+            samples: &window,
+            limits,
+            v_max: v,
+            cap_start: cap_start.min(v),
+            cap_end: cap_end.min(v),
+            length_mm: seg.length_mm,
+        };
+        let Some((a, j, own_loss)) = budget_on(&samples, seg, None) else {
             continue;
         };
         let c = slow.min(v);
@@ -179,6 +205,12 @@ pub(crate) fn lowered_ramp_design(
         if loss <= LOWERED_DESIGN_GAIN * base_loss && best.is_none_or(|b| loss < b.0) {
             best = Some((loss, (v, a, j)));
         }
+        // The loss falls with the speed while the budget gains more than the slower run
+        // costs, then rises: the first rise ends the search.
+        if loss > last_loss {
+            break;
+        }
+        last_loss = loss;
     }
     best.map(|b| b.1)
 }
@@ -245,7 +277,7 @@ fn window_samples(t: &Transition, length_mm: f64) -> Option<Vec<Sample>> {
 /// The samples of a piece with what bounds its speed: the design speed and the caps at
 /// its ends.
 struct Samples<'a> {
-    samples: Vec<Sample>,
+    samples: &'a [Sample],
     limits: &'a MachineLimits,
     v_max: f64,
     cap_start: f64,
@@ -275,7 +307,7 @@ impl Samples<'_> {
     fn jerk_for(&self, a: f64) -> f64 {
         let (limits, v_max, share) = (self.limits, self.v_max, PROFILE_SHARE);
         let mut j = f64::INFINITY;
-        for x in &self.samples {
+        for x in self.samples {
             let v = self.speed(x, a);
             for k in 0..RAMP_ENVELOPE_INTERVALS {
                 let n = RAMP_ENVELOPE_INTERVALS as f64;
@@ -411,7 +443,15 @@ fn best_on_grid(
     // Where `a_top` is above the reach, both grids: the loss has several local minima
     // (a budget joins the section before or not), and each grid alone can miss one.
     let candidates = below_top.chain(below_reach.filter(|_| a_reach < a_top));
+    // Without a section to join, the loss is one ramp's and falls as the jerk rises, and
+    // `jerk_for(a)` is at most `j_most`: a point whose loss even with `j_most` does not
+    // beat the best so far is passed over without its `jerk_for` (the same choice, for a
+    // fraction of the work).
+    let monotone = stop.section.is_none() && j_most.is_finite() && j_most > 0.0;
     for a in candidates {
+        if monotone && stop.loss(a, j_most) >= best.map_or(own, |b| b.0) {
+            continue;
+        }
         let j = samples.jerk_for(a);
         if !(j > 0.0 && j.is_finite()) {
             continue;
