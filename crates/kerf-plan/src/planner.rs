@@ -6,7 +6,9 @@
 
 use kerf_geom::{CornerMode, Curve, Move, Path, Vec3};
 
-use crate::budget::{limits_key, lowered_ramp_design, ramp_budget, segment_limits_pair};
+use crate::budget::{
+    PieceSamples, limits_key, lowered_ramp_design, ramp_budget, segment_limits_pair,
+};
 use crate::junction::junction_cap;
 use crate::memo::{ArcMemo, LimitsMemo};
 use crate::run::{RunState, joining_frame, line_dir, line_len, next_start_frame, turn_fits};
@@ -562,7 +564,11 @@ impl Planner {
         // it itself would run.
         let section = self.section.filter(|_| self.last_start_cap >= slow);
         let (cap_start, cap_end) = (self.last_start_cap, seg.end_cap_mm_s);
-        let Some((a, j, stop_loss)) = ramp_budget(seg, &self.limits, cap_start, cap_end, section)
+        let Some(window) = PieceSamples::of(seg) else {
+            return;
+        };
+        let Some((a, j, stop_loss)) =
+            ramp_budget(&window, seg, &self.limits, cap_start, cap_end, section)
         else {
             return;
         };
@@ -590,7 +596,7 @@ impl Planner {
             None
         };
         let lowered = outer.and_then(|outer| {
-            lowered_ramp_design(seg, &self.limits, cap_start, cap_end, outer, loss)
+            lowered_ramp_design(&window, seg, &self.limits, cap_start, cap_end, outer, loss)
         });
         let (v, a, j) = lowered.unwrap_or((seg.v_max_mm_s, a, j));
         seg.v_max_mm_s = v;

@@ -19,7 +19,7 @@ mod transition_limits;
 
 pub use design::DESIGN_RUN_MM;
 pub(crate) use key::limits_key;
-pub(crate) use ramp::{lowered_ramp_design, ramp_budget};
+pub(crate) use ramp::{PieceSamples, lowered_ramp_design, ramp_budget};
 
 use crate::memo::Limits;
 use crate::{MachineLimits, PlannedSegment};

@@ -58,15 +58,15 @@ const STOP_SPLIT_STEPS: usize = 30;
 /// Returns the budget with its loss (see [`StopLoss`]); the piece's own design, with its
 /// loss, where no candidate loses less.
 pub(crate) fn ramp_budget(
+    window: &PieceSamples,
     seg: &PlannedSegment,
     limits: &MachineLimits,
     cap_start: f64,
     cap_end: f64,
     section: Option<SectionEstimate>,
 ) -> Option<(f64, f64, f64)> {
-    let window = piece_samples(seg)?;
     let samples = Samples {
-        samples: &window,
+        samples: &window.0,
         limits,
         v_max: seg.v_max_mm_s,
         cap_start,
@@ -76,20 +76,26 @@ pub(crate) fn ramp_budget(
     budget_on(&samples, seg, section)
 }
 
-/// The samples of a smoothed piece without rotary motion with a positive, finite design
-/// speed and length ([`window_samples`]), else `None`.
-fn piece_samples(seg: &PlannedSegment) -> Option<Vec<Sample>> {
-    let Curve::Transition(t) = &seg.curve else {
-        return None;
-    };
-    let v_max = seg.v_max_mm_s;
-    if seg.abc_poly.is_some()
-        || seg.abc_start_deg != seg.abc_end_deg
-        || !(v_max > 0.0 && v_max.is_finite() && seg.length_mm > 0.0)
-    {
-        return None;
+/// The samples of a smoothed piece ([`window_samples`]) that its ramp budgets are found
+/// on, taken once for [`ramp_budget`] and [`lowered_ramp_design`].
+pub(crate) struct PieceSamples(Vec<Sample>);
+
+impl PieceSamples {
+    /// The samples of `seg` if it is a smoothed piece without rotary motion with a
+    /// positive, finite design speed and length, else `None`.
+    pub(crate) fn of(seg: &PlannedSegment) -> Option<Self> {
+        let Curve::Transition(t) = &seg.curve else {
+            return None;
+        };
+        let v_max = seg.v_max_mm_s;
+        if seg.abc_poly.is_some()
+            || seg.abc_start_deg != seg.abc_end_deg
+            || !(v_max > 0.0 && v_max.is_finite() && seg.length_mm > 0.0)
+        {
+            return None;
+        }
+        window_samples(t, seg.length_mm).map(Self)
     }
-    window_samples(t, seg.length_mm)
 }
 
 /// [`ramp_budget`] on `samples` (the piece's, with the speed it is designed for and its
@@ -166,6 +172,7 @@ const LOWERED_DESIGN_GAIN: f64 = 0.95;
 /// above its `v_max_mm_s` (a piece with a ramp budget has no boost design), and the
 /// budget is found for the lowered speed.
 pub(crate) fn lowered_ramp_design(
+    window: &PieceSamples,
     seg: &PlannedSegment,
     limits: &MachineLimits,
     cap_start: f64,
@@ -174,19 +181,14 @@ pub(crate) fn lowered_ramp_design(
     base_loss: f64,
 ) -> Option<(f64, f64, f64)> {
     let v0 = seg.v_max_mm_s;
-    let window = piece_samples(seg)?;
     // The cap at the slow end.
     let slow = cap_start.min(cap_end);
-    let lost = |from: f64, to: f64, a: f64, j: f64| {
-        let t = change_time_s((from - to).abs(), a, j);
-        t * (1.0 - 0.5 * (from + to) / v0)
-    };
     let mut best: Option<(f64, (f64, f64, f64))> = None;
     let mut last_loss = f64::INFINITY;
     for f in LOWERED_DESIGN_FACTORS {
         let v = f * v0;
         let samples = Samples {
-            samples: &window,
+            samples: &window.0,
             limits,
             v_max: v,
             cap_start: cap_start.min(v),
@@ -200,8 +202,8 @@ pub(crate) fn lowered_ramp_design(
         if 0.5 * (v + c) * change_time_s(v - c, a, j) > seg.length_mm {
             continue;
         }
-        let loss =
-            lost(v0, v, outer.0, outer.1) + seg.length_mm / v - seg.length_mm / v0 + own_loss;
+        let loss = time_lost(v0, v0, v, outer.0, outer.1) + seg.length_mm / v - seg.length_mm / v0
+            + own_loss;
         if loss <= LOWERED_DESIGN_GAIN * base_loss && best.is_none_or(|b| loss < b.0) {
             best = Some((loss, (v, a, j)));
         }
@@ -369,6 +371,14 @@ impl Samples<'_> {
     }
 }
 
+/// The time a jerk-limited change of speed from `v_from` down to `v_to` with `a` and `j`
+/// loses against running on at `v_ref` over the same distance: its duration less its
+/// distance at `v_ref`.
+fn time_lost(v_ref: f64, v_from: f64, v_to: f64, a: f64, j: f64) -> f64 {
+    let t = change_time_s(v_from - v_to, a, j);
+    t - 0.5 * (v_from + v_to) * t / v_ref
+}
+
 /// How budgets are compared: by the time the stop from `v_max` loses against running on
 /// at `v_max` (a ramp's duration less its distance at `v_max`), where they run: within
 /// `section`, at the lesser of each limit (a budget that trades acceleration for jerk
@@ -383,8 +393,7 @@ impl StopLoss {
     /// The time a change of speed from `v_from` to `v_to` with `a` and `j` loses against
     /// running on at `v_max`.
     fn lost(&self, v_from: f64, v_to: f64, a: f64, j: f64) -> f64 {
-        let t = change_time_s(v_from - v_to, a, j);
-        t - 0.5 * (v_from + v_to) * t / self.v_max
+        time_lost(self.v_max, v_from, v_to, a, j)
     }
 
     /// The time a stop with budget `(a, j)` loses where the piece runs.
