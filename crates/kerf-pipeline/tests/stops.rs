@@ -10,7 +10,6 @@ mod common;
 use common::*;
 use kerf_geom::{Curve, Move, PlannedSegment, Vec3};
 use kerf_motion::{AxisLimits, MachineLimits};
-use kerf_pipeline::{RunOptions, run};
 use kerf_plan::Planner;
 
 /// Height over X, mm.
@@ -98,22 +97,7 @@ fn rows_stopping_in_pieces_designed_slower_keep_every_limit() {
                     cases += 1;
                     lowered += usize::from(lowered_at_a_stop(&segs));
 
-                    let mut positions = Vec::new();
-                    let s = run(
-                        moves.iter().copied(),
-                        &m,
-                        &RunOptions::default(),
-                        |_, sp| positions.push(sp.position),
-                    )
-                    .unwrap_or_else(|e| panic!("{case}: {e}"));
-                    check_axis_limits(&case, &positions, &m);
-                    assert!(
-                        s.max_deviation_mm <= m.tolerance_mm * 1.0001,
-                        "{case}: deviation {} mm",
-                        s.max_deviation_mm
-                    );
-                    let end = moves.last().unwrap().path.end();
-                    assert_eq!(s.last.position[..3], [end.x, end.y, end.z], "{case}: end");
+                    let s = run_checked(&case, &moves, &m, |_| {});
                     assert_eq!(s.last.feed_mm_s, 0.0, "{case}: at rest");
                     assert_eq!(s.plan_failures, 0, "{case}");
                 }

@@ -2,7 +2,8 @@
 #![allow(dead_code)]
 
 use kerf_geom::{Arc, CornerMode, Line, Move, Path, Vec3};
-use kerf_motion::MachineLimits;
+use kerf_motion::{MachineLimits, Setpoint};
+use kerf_pipeline::{RunOptions, Summary, run};
 
 /// A mill with the same limits on X, Y, Z.
 #[allow(unused_imports)]
@@ -194,4 +195,36 @@ pub fn check_axis_limits(name: &str, positions: &[[f64; 6]], limits: &MachineLim
             );
         }
     }
+}
+
+/// Runs `moves` on `limits` with the default options, handing each setpoint to `sink`,
+/// and checks what a program must always give, naming `name`: every axis limit from the
+/// positions ([`check_axis_limits`]), the path within the tolerance, and the end exactly
+/// on the program's end. Returns the run's summary.
+pub fn run_checked(
+    name: &str,
+    moves: &[Move],
+    limits: &MachineLimits,
+    mut sink: impl FnMut(&Setpoint),
+) -> Summary {
+    let mut positions = Vec::new();
+    let s = run(
+        moves.iter().copied(),
+        limits,
+        &RunOptions::default(),
+        |_, sp| {
+            positions.push(sp.position);
+            sink(sp);
+        },
+    )
+    .unwrap_or_else(|e| panic!("{name}: {e}"));
+    check_axis_limits(name, &positions, limits);
+    assert!(
+        s.max_deviation_mm <= limits.tolerance_mm * 1.0001,
+        "{name}: deviation {} mm",
+        s.max_deviation_mm
+    );
+    let end = moves.last().unwrap().path.end();
+    assert_eq!(s.last.position[..3], [end.x, end.y, end.z], "{name}: end");
+    s
 }
