@@ -19,6 +19,16 @@ segments="$2"
 period_us="$3"
 seed="${4:-1}"
 noise_mm="${5:-}"
+# A stale binary would measure another build: refuse one older than any source it is
+# built from.
+for b in kerf kerfd gen_surface; do
+    [ -x "$bin/$b" ] || { echo "keep_up.sh: error: $bin/$b not found; build with: cargo build --release -p kerf -p kerfd -p kerf-benches --bins" >&2; exit 2; }
+    newer="$(find "$here"/../crates/*/src "$here"/../crates/*/Cargo.toml "$here/src" "$here/Cargo.toml" "$here/../Cargo.toml" "$here/../Cargo.lock" -newer "$bin/$b" \( -name '*.rs' -o -name 'Cargo.*' \) -print -quit)"
+    if [ -n "$newer" ]; then
+        echo "keep_up.sh: error: $bin/$b is older than $newer; build with: cargo build --release -p kerf -p kerfd -p kerf-benches --bins" >&2
+        exit 2
+    fi
+done
 dir="$(mktemp -d)"
 cleanup() {
     [ -n "${daemon:-}" ] && kill "$daemon" 2>/dev/null && wait "$daemon" 2>/dev/null
