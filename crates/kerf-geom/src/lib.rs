@@ -151,6 +151,6 @@ pub use segment::{
     MERGE_ABOVE, MERGE_RATIO, MERGE_RATIO_JERK, MERGE_RATIO_SLOWER, MERGE_RATIO_SPEED,
     MERGE_RATIO_WEAKER, MERGE_SHORT_SHARE, MergeKind, PlannedSegment, conservative_limits,
     entry_speed, limits_merge, limits_merge_into, limits_merge_weaker, poly5, rotary_derivatives,
-    speeds_merge, speeds_merge_into, weaker_merge_keeps_lookahead,
+    speeds_merge_into, weaker_merge_keeps_lookahead,
 };
 pub use transition::{ARC_MID_RELATIVE, ARC_TABLE_RELATIVE, TABLE_POINTS, Transition};

@@ -156,20 +156,14 @@ pub fn limits_merge_into(
             && jerk_mm_s3 >= MERGE_RATIO_JERK * first.1)
 }
 /// Whether a segment with speed limit `v_mm_s` passes the speed part of the motion core's
-/// merge rule for a section whose first segment has `first_v_mm_s`: at least
-/// [`MERGE_RATIO_SLOWER`] of it (below [`MERGE_RATIO_SPEED`] of it the motion core also
-/// asks that nothing was committed faster, which at the tail holds almost always) and at
-/// most `first_v_mm_s / MERGE_RATIO_SPEED`.
-pub fn speeds_merge(v_mm_s: f64, first_v_mm_s: f64) -> bool {
-    v_mm_s >= MERGE_RATIO_SLOWER * first_v_mm_s && v_mm_s * MERGE_RATIO_SPEED <= first_v_mm_s
-}
-/// [`speeds_merge`] for a section that has taken segments since its first: the motion
-/// core keeps a conservative speed `c_v_mm_s` for it ([`MERGE_RATIO_SPEED`] of the least
-/// speed limit of its segments, `MERGE_RATIO_SPEED · first_v_mm_s` after the first), and
-/// a segment joins when its speed limit is at least the lesser of that and
-/// [`MERGE_RATIO_SLOWER`] of the first's, and at most `c_v_mm_s / MERGE_RATIO_SPEED²`: a
-/// segment after a slightly slower one is compared with that one. The planner's
-/// estimate of the section a piece runs in uses it.
+/// merge rule for a section whose first segment has `first_v_mm_s`: the motion core keeps
+/// a conservative speed `c_v_mm_s` for the section ([`MERGE_RATIO_SPEED`] of the least
+/// speed limit of its segments, `MERGE_RATIO_SPEED · first_v_mm_s` for the first alone),
+/// and a segment joins when its speed limit is at least the lesser of that and
+/// [`MERGE_RATIO_SLOWER`] of the first's (below the conservative speed the motion core
+/// also asks that nothing was committed faster, which at the tail holds almost always),
+/// and at most `c_v_mm_s / MERGE_RATIO_SPEED²`: a segment after a slightly slower one is
+/// compared with that one. The planner's estimate of the section a piece runs in uses it.
 pub fn speeds_merge_into(v_mm_s: f64, first_v_mm_s: f64, c_v_mm_s: f64) -> bool {
     v_mm_s >= (MERGE_RATIO_SLOWER * first_v_mm_s).min(c_v_mm_s)
         && v_mm_s * MERGE_RATIO_SPEED * MERGE_RATIO_SPEED <= c_v_mm_s

@@ -327,8 +327,8 @@ fn a_slow_down_across_pieces_of_nearly_equal_speed_makes_no_stair() {
 }
 
 /// The planner judges ramp budgets by whether a piece joins the section before it
-/// (`kerf_geom::speeds_merge`, `kerf_geom::limits_merge`); the motion core decides the
-/// same: for two segments with the given speed limits and limits ratios, at the tail
+/// (`kerf_geom::speeds_merge_into` with the conservative speed of a section of one
+/// segment, `kerf_geom::limits_merge`); the motion core decides the same: for two segments with the given speed limits and limits ratios, at the tail
 /// of a queue (where the slower-merge condition holds), it makes one section exactly
 /// when both functions say so.
 /// (The second segment is longer than the first: a line no longer than the first joins
@@ -347,7 +347,8 @@ fn the_planners_merge_estimate_is_the_motion_cores_rule() {
         let mut core = MotionCore::new(0.001, 8);
         core.push(&seg(0.0, 2.0, v1, a1, j1)).unwrap();
         core.push(&seg(2.0, 3.0, v2, a2, j2)).unwrap();
-        let expected = kerf_geom::speeds_merge(v2, v1) && limits_merge(a2, j2, (a1, j1));
+        let expected = kerf_geom::speeds_merge_into(v2, v1, MERGE_RATIO_SPEED * v1)
+            && limits_merge(a2, j2, (a1, j1));
         let one_section = core.sec_count == 1;
         assert_eq!(
             one_section, expected,
@@ -373,8 +374,8 @@ fn the_planners_merge_estimate_is_the_motion_cores_rule() {
 /// speed, which a slightly slower segment lowers: the planner's estimate of the section a
 /// piece runs in (`kerf_geom::speeds_merge_into`, with `MERGE_RATIO_SPEED` of the least
 /// speed limit so far) decides as the motion core does for a third segment behind two
-/// that merged, where the first segment alone (`speeds_merge`) would say otherwise in
-/// some of the cases.
+/// that merged, where the first segment alone (its conservative speed,
+/// `MERGE_RATIO_SPEED · v1`) would say otherwise in some of the cases.
 #[test]
 fn the_planners_merge_estimate_follows_a_section_past_its_first_segment() {
     let mut log_uniform = profile::tests::log_uniform_source(0x5ec7_1013);
@@ -400,7 +401,7 @@ fn the_planners_merge_estimate_follows_a_section_past_its_first_segment() {
         } else {
             split += 1;
         }
-        if expected != kerf_geom::speeds_merge(v3, v1) {
+        if expected != kerf_geom::speeds_merge_into(v3, v1, MERGE_RATIO_SPEED * v1) {
             differs += 1;
         }
     }
