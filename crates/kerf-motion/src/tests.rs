@@ -328,9 +328,10 @@ fn a_slow_down_across_pieces_of_nearly_equal_speed_makes_no_stair() {
 
 /// The planner judges ramp budgets by whether a piece joins the section before it
 /// (`kerf_geom::speeds_merge_into` with the conservative speed of a section of one
-/// segment, `kerf_geom::limits_merge`); the motion core decides the same: for two segments with the given speed limits and limits ratios, at the tail
-/// of a queue (where the slower-merge condition holds), it makes one section exactly
-/// when both functions say so.
+/// segment, `kerf_geom::limits_merge`); the motion core decides the same: for two
+/// segments with the given speed limits and limits ratios, at the tail of a queue (where
+/// the slower-merge condition holds), it makes one section exactly when both functions
+/// say so.
 /// (The second segment is longer than the first: a line no longer than the first joins
 /// by the wider rule of `kerf_geom::limits_merge_into`, tested below.)
 #[test]
