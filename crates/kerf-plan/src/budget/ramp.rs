@@ -3,7 +3,7 @@
 //! terms are checked at that lower speed, sample by sample, and a larger tangential
 //! budget may fit.
 
-use kerf_geom::ramp::bisect;
+use kerf_geom::ramp::{bisect, change_distance};
 use kerf_geom::{Curve, Transition, Vec3};
 
 use super::bounds::rise_between_samples;
@@ -65,14 +65,7 @@ pub(crate) fn ramp_budget(
     cap_end: f64,
     section: Option<SectionEstimate>,
 ) -> Option<(f64, f64, f64)> {
-    let samples = Samples {
-        samples: &window.0,
-        limits,
-        v_max: seg.v_max_mm_s,
-        cap_start,
-        cap_end,
-        length_mm: seg.length_mm,
-    };
+    let samples = window.bounded(seg, limits, seg.v_max_mm_s, cap_start, cap_end);
     budget_on(&samples, seg, section)
 }
 
@@ -95,6 +88,26 @@ impl PieceSamples {
             return None;
         }
         window_samples(t, seg.length_mm).map(Self)
+    }
+
+    /// The samples of `seg` with what bounds its speed: designed for `v_max`, entered at
+    /// most at `cap_start` and left at most at `cap_end`.
+    fn bounded<'a>(
+        &'a self,
+        seg: &PlannedSegment,
+        limits: &'a MachineLimits,
+        v_max: f64,
+        cap_start: f64,
+        cap_end: f64,
+    ) -> Samples<'a> {
+        Samples {
+            samples: &self.0,
+            limits,
+            v_max,
+            cap_start,
+            cap_end,
+            length_mm: seg.length_mm,
+        }
     }
 }
 
@@ -187,19 +200,11 @@ pub(crate) fn lowered_ramp_design(
     let mut last_loss = f64::INFINITY;
     for f in LOWERED_DESIGN_FACTORS {
         let v = f * v0;
-        let samples = Samples {
-            samples: &window.0,
-            limits,
-            v_max: v,
-            cap_start: cap_start.min(v),
-            cap_end: cap_end.min(v),
-            length_mm: seg.length_mm,
-        };
+        let samples = window.bounded(seg, limits, v, cap_start.min(v), cap_end.min(v));
         let Some((a, j, own_loss)) = budget_on(&samples, seg, None) else {
             continue;
         };
-        let c = slow.min(v);
-        if 0.5 * (v + c) * change_time_s(v - c, a, j) > seg.length_mm {
+        if change_distance(slow.min(v), v, a, j) > seg.length_mm {
             continue;
         }
         let loss = time_lost(v0, v0, v, outer.0, outer.1) + seg.length_mm / v - seg.length_mm / v0
