@@ -228,3 +228,13 @@ pub fn run_checked(
     assert_eq!(s.last.position[..3], [end.x, end.y, end.z], "{name}: end");
     s
 }
+
+/// Asserts that the first `axes` axes stayed within 1 % of their limits, by the run's
+/// summary ([`Summary::fractions`]).
+pub fn assert_within_limits(s: &Summary, limits: &MachineLimits, axes: usize) {
+    for i in 0..axes {
+        for f in s.fractions(limits, i).unwrap() {
+            assert!(f <= 1.01, "axis {i}: {f}");
+        }
+    }
+}
