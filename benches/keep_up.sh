@@ -21,11 +21,12 @@ seed="${4:-1}"
 noise_mm="${5:-}"
 # A stale binary would measure another build: refuse one older than any source it is
 # built from.
+build="cargo build --release -p kerf -p kerfd -p kerf-benches --bins"
 for b in kerf kerfd gen_surface; do
-    [ -x "$bin/$b" ] || { echo "keep_up.sh: error: $bin/$b not found; build with: cargo build --release -p kerf -p kerfd -p kerf-benches --bins" >&2; exit 2; }
+    [ -x "$bin/$b" ] || { echo "keep_up.sh: error: $bin/$b not found; build with: $build" >&2; exit 2; }
     newer="$(find "$here"/../crates/*/src "$here"/../crates/*/Cargo.toml "$here/src" "$here/Cargo.toml" "$here/../Cargo.toml" "$here/../Cargo.lock" -newer "$bin/$b" \( -name '*.rs' -o -name 'Cargo.*' \) -print -quit)"
     if [ -n "$newer" ]; then
-        echo "keep_up.sh: error: $bin/$b is older than $newer; build with: cargo build --release -p kerf -p kerfd -p kerf-benches --bins" >&2
+        echo "keep_up.sh: error: $bin/$b is older than $newer; build with: $build" >&2
         exit 2
     fi
 done
