@@ -3,7 +3,9 @@
 
 use crate::lookahead::{BACKWARD_MARGIN, PLAN_MARGIN};
 use crate::motion_core::{Mode, MotionCore};
-use crate::reach::{reach, rise_reach, rise_with_peak, settle};
+use crate::reach::{
+    bisect, change_distance, fall_distance, falls_within, reach, rise_reach, rise_with_peak, settle,
+};
 
 /// Share of the section the quickest rise of a carried speed-up may take (see
 /// `MotionCore::carry_target`): the rest is the solver's room.
@@ -16,6 +18,12 @@ pub(crate) const CARRY_MIN_RISE: f64 = 0.05;
 /// `MotionCore::carry_target`).
 pub(crate) const CARRY_SHARE_RATIO: f64 = 0.85;
 pub(crate) const CARRY_SHARE_STEPS: i32 = 15;
+/// Share of the envelope `v + a²/2j ≤ v_max` a carried slow-down's end state keeps within
+/// (see `MotionCore::carry_target`).
+const ENVELOPE_INSIDE: f64 = 1.0 - 1e-6;
+/// Bisection steps on a carried slow-down's end speed (see `MotionCore::carry_target`):
+/// to 1/65,536 of its range, as `RISE_STEPS`.
+const CARRY_SPEED_STEPS: usize = 16;
 
 impl MotionCore {
     /// A speed-up that goes on into the next section: the end state `(v1, a1)`, `a1 > 0`,
@@ -44,9 +52,19 @@ impl MotionCore {
         a0_mm_s2: f64,
         rem_mm: f64,
     ) -> Option<(f64, f64)> {
-        if self.mode != Mode::Run || self.sec_count < 2 || a0_mm_s2 < 0.0 {
+        if self.mode != Mode::Run || self.sec_count < 2 {
             return None;
         }
+        if a0_mm_s2 >= 0.0
+            && let Some(up) = self.carry_up(v0_mm_s, a0_mm_s2, rem_mm)
+        {
+            return Some(up);
+        }
+        self.carry_down(v0_mm_s, a0_mm_s2, rem_mm)
+    }
+
+    /// The speed-up half of [`MotionCore::carry_target`] (`a0 ≥ 0`).
+    fn carry_up(&self, v0_mm_s: f64, a0_mm_s2: f64, rem_mm: f64) -> Option<(f64, f64)> {
         let ovr = self.override_factor;
         let sec = self.sec(self.sec_head);
         let next = self.sec(self.sec_head + 1);
@@ -123,6 +141,153 @@ impl MotionCore {
             reach_with(a1_mm_s2)
                 .filter(|&v1_mm_s| room(v1_mm_s, a1_mm_s2) && settles(v1_mm_s, a1_mm_s2))
                 .map(|v1_mm_s| (v1_mm_s, a1_mm_s2))
+        };
+        let (mut bad, mut good) = (-1, CARRY_SHARE_STEPS - 1);
+        let mut found = carry_at(good)?;
+        while good - bad > 1 {
+            let mid = (bad + good) / 2;
+            match carry_at(mid) {
+                Some(c) => (good, found) = (mid, c),
+                None => bad = mid,
+            }
+        }
+        Some(found)
+    }
+
+    /// A slow-down that goes on into the next section: the end state `(v1, a1)`, `a1 < 0`,
+    /// for the front section entered (or re-planned) at `(v0, a0)`, `a0 ≤ 0`, with `rem`
+    /// left, or `None`.
+    ///
+    /// Where the next section slows down further (its end speed below its start speed),
+    /// ending this one at `a = 0` makes a stair: the deceleration comes down to zero at the
+    /// boundary and builds up again after it. Carried on, the boundary is crossed faster,
+    /// at the highest `v1` from which the quickest fall on to the next section's end
+    /// speed, at its conservative limits, fits in its length: the lookahead's guarantee
+    /// (every section ends within its hard end speed, so the queue can stop within itself)
+    /// holds as for an entry at `a = 0` within its hard start speed, which `v1` may exceed.
+    /// Within:
+    /// - the envelope `v + a²/2j ≤ v_max` under which the planner's budgets hold, in this
+    ///   section (its jerk) and the next (its conservative jerk and speeds), and under the
+    ///   junction's cap as well (as a carried speed-up keeps under the next section's hard
+    ///   start speed, which is within that cap): a corner whose cap is low is crossed
+    ///   with little acceleration, whose step in direction there is a step in the axes'
+    ///   acceleration;
+    /// - where the next section is the queue's tail, its hard start speed too: a segment
+    ///   slightly slower than its conservative speed may still join it, down to that speed
+    ///   ([`MERGE_RATIO_SLOWER`](crate::MERGE_RATIO_SLOWER));
+    /// - this section: the quickest way to `(v1, a1)` (a fall, or a settle, a rise and a
+    ///   fall) fits in `CARRY_FILL` of what is left.
+    ///
+    /// Only at the base level of both sections, and only where the next section, once it
+    /// has brought the acceleration to zero (at its conservative jerk), is not below the
+    /// end speed this section would aim at with `a = 0`.
+    fn carry_down(&self, v0_mm_s: f64, a0_mm_s2: f64, rem_mm: f64) -> Option<(f64, f64)> {
+        if a0_mm_s2 > 0.0 {
+            return None;
+        }
+        let ovr = self.override_factor;
+        let sec = self.sec(self.sec_head);
+        let next = self.sec(self.sec_head + 1);
+        if sec.boosted
+            || next.wants_boost(ovr)
+            || next.hard_start_mm_s < 0.0
+            || next.soft_start_mm_s < 0.0
+        {
+            return None;
+        }
+        let want_mm_s = self.want_end();
+        let next_end_mm_s = next.hard_end_mm_s.min(next.soft_end_mm_s);
+        if next_end_mm_s >= want_mm_s {
+            return None;
+        }
+        let (v_machine_mm_s, accel_mm_s2, jerk_mm_s3) = sec.limits(false);
+        let v_max_mm_s = sec.v_eff(ovr, false).min(v_machine_mm_s);
+        let (c_accel_mm_s2, c_jerk_mm_s3) = next.c_accel_jerk();
+        let tail = self.sec_count == 2;
+        let next_env_mm_s = next
+            .v_eff(ovr, false)
+            .min(next.c_v_mm_s)
+            .min(next.c_feed_mm_s * ovr)
+            .min(next.start_cap_mm_s)
+            .min(if tail {
+                next.hard_start_mm_s
+            } else {
+                f64::INFINITY
+            });
+        let d_mm = rem_mm * PLAN_MARGIN * CARRY_FILL;
+        let (v_at_mm_s, d0_mm) = settle(v0_mm_s, a0_mm_s2, jerk_mm_s3);
+        if d0_mm >= d_mm || v_at_mm_s > v_max_mm_s {
+            return None;
+        }
+        let room_mm = next.length_mm * BACKWARD_MARGIN.min(PLAN_MARGIN) * CARRY_FILL;
+        let a_top_mm_s2 = accel_mm_s2.min(c_accel_mm_s2);
+        let carry_at = |k: i32| {
+            let b_mm_s2 = CARRY_SHARE_RATIO.powi(k) * a_top_mm_s2;
+            let a1_mm_s2 = -b_mm_s2;
+            let (lift_mm_s, c_lift_mm_s) = (
+                b_mm_s2 * b_mm_s2 / (2.0 * jerk_mm_s3),
+                b_mm_s2 * b_mm_s2 / (2.0 * c_jerk_mm_s3),
+            );
+            // Inside the envelopes by a hair: the solver refuses an end state right on its
+            // speed limit's envelope (found by the extreme machines' sweep).
+            let cap_mm_s = (v_max_mm_s * ENVELOPE_INSIDE - lift_mm_s)
+                .min(next_env_mm_s * ENVELOPE_INSIDE - c_lift_mm_s);
+            // Not below the wanted end speed once the next section has brought the
+            // acceleration to zero: where it would rather not slow down at once (it is
+            // long), the carry must not leave it slower than an entry at `a = 0` would.
+            let least_mm_s = want_mm_s + c_lift_mm_s;
+            if cap_mm_s < least_mm_s {
+                return None;
+            }
+            // The next section falls on to its end speed within its length (at its
+            // conservative limits, which every segment in it has at least), and to its
+            // hard end speed, which its start checks (`choose_level`); the fall grows
+            // with the speed it starts from.
+            let next_fits = |v1_mm_s: f64| {
+                [next_end_mm_s, next.hard_end_mm_s]
+                    .into_iter()
+                    .all(|v_end_mm_s| {
+                        falls_within(
+                            v1_mm_s,
+                            a1_mm_s2,
+                            v_end_mm_s,
+                            room_mm,
+                            c_accel_mm_s2,
+                            c_jerk_mm_s3,
+                        )
+                    })
+            };
+            let v1_mm_s = if next_fits(cap_mm_s) {
+                cap_mm_s
+            } else if next_fits(least_mm_s) {
+                bisect(least_mm_s, cap_mm_s, CARRY_SPEED_STEPS, next_fits)
+            } else {
+                return None;
+            };
+            // This section. Where the speed it settles to from the entry state is at least
+            // `v1 + a1²/2j` (the least speed a fall to `(v1, a1)` starts from at `a = 0`),
+            // every distance from the quickest fall on is a profile (the fall, held back
+            // by less, by a cruise, by a rise); else the distances that are split in two:
+            // falls that never bring the acceleration up to zero, and, from a settle, a rise
+            // to that least speed and the fall on, profiles that rise first. Only the
+            // second kind is used, whose least distance is known in closed form (the
+            // solver refuses the gap between them).
+            let need_mm_s = v1_mm_s + lift_mm_s;
+            let least_mm = if v_at_mm_s >= need_mm_s {
+                fall_distance(
+                    v0_mm_s,
+                    a0_mm_s2,
+                    v1_mm_s,
+                    a1_mm_s2,
+                    accel_mm_s2,
+                    jerk_mm_s3,
+                )?
+            } else {
+                d0_mm
+                    + change_distance(v_at_mm_s, need_mm_s, accel_mm_s2, jerk_mm_s3)
+                    + fall_distance(need_mm_s, 0.0, v1_mm_s, a1_mm_s2, accel_mm_s2, jerk_mm_s3)?
+            };
+            (least_mm <= d_mm).then_some((v1_mm_s, a1_mm_s2))
         };
         let (mut bad, mut good) = (-1, CARRY_SHARE_STEPS - 1);
         let mut found = carry_at(good)?;

@@ -49,7 +49,13 @@
 //!   within its length (see `MotionCore::carry_target`). The next section is then entered
 //!   as if at `a = 0` within its hard lookahead, a few jerk-limited milliseconds later, so
 //!   every lookahead argument below still holds; a ramp across short sections is one ramp,
-//!   not a stair of `a = 0` steps. `calculate()` runs once per section and per event
+//!   not a stair of `a = 0` steps. A slow-down whose next section slows down further goes
+//!   on into it the same way, with some deceleration `a1 < 0`, at the highest speed from
+//!   which the next section's quickest fall (at its conservative limits) still reaches its
+//!   end speed and its hard end speed within its length, within the envelope of both
+//!   sections and the junction's cap, and into the queue's tail only within its hard start
+//!   speed; the next section counts such an entry as within its hard lookahead by that
+//!   fall (see `MotionCore::carry_target`). `calculate()` runs once per section and per event
 //!   (override, hold, resume, more queue); `at_time()` samples it every cycle. Time left
 //!   over when a profile ends inside a cycle carries into the next section, so a segment
 //!   shorter than one period never slows the feed.
@@ -90,10 +96,12 @@
 //! - **Bounded cycle**: evaluating a segment is O(1) on every curve kind, G2 transitions
 //!   included (table lookup, a cubic interpolation and one Newton step on the arc length,
 //!   see `kerf_geom::Transition`). `step` does at most a few `calculate()` calls (the running
-//!   section's re-plan, the next section's profile, a carried speed-up's target and the
-//!   plain one if that fails, a hold's stop; choosing a carried end acceleration tries at
-//!   most five end accelerations, each a rise in closed form or by a bisection of
-//!   `RISE_STEPS` closed-form rises, see `MotionCore::carry_target`) and crosses at most
+//!   section's re-plan, the next section's profile, a carried speed-up's or slow-down's
+//!   target and the plain one if that fails, a hold's stop; choosing a carried end
+//!   acceleration tries at most five end accelerations for a speed-up, each a rise in
+//!   closed form or by a bisection of `RISE_STEPS` closed-form rises, and, where none is
+//!   carried, at most five for a slow-down, each a bisection of `CARRY_SPEED_STEPS` steps
+//!   of two closed-form falls, see `MotionCore::carry_target`) and crosses at most
 //!   `MAX_SECTIONS_PER_STEP` section ends in one cycle; past that the leftover time of the
 //!   cycle is dropped (a delay of under one period, the motion stays continuous).
 //! - **Slivers**: a section shorter than [`COAST_BELOW_MM`], or taking less than

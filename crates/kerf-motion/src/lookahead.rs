@@ -5,7 +5,7 @@ use kerf_geom::entry_speed;
 use kerf_geom::ramp::bisect;
 
 use crate::motion_core::MotionCore;
-use crate::reach::{change_distance, reach};
+use crate::reach::{change_distance, fall_distance, reach, settle};
 
 pub(crate) use kerf_geom::ramp::BACKWARD_MARGIN;
 /// Fraction of the remaining distance a profile plan may use in its own checks.
@@ -150,6 +150,27 @@ impl MotionCore {
         } else {
             (0.0, false)
         }
+    }
+
+    /// [`MotionCore::end_target`] from state `(v0, a0)` with `rem` left: with a slow-down
+    /// carried in (`a0 < 0`, see `MotionCore::carry_target`), the wanted end speed where
+    /// the quickest fall on to it fits (the continued slow-down the carry was checked
+    /// for); else the target from where the acceleration has come to zero at the running
+    /// level's jerk, as for any entry.
+    pub(crate) fn end_target_from(&self, v0_mm_s: f64, a0_mm_s2: f64, rem_mm: f64) -> (f64, bool) {
+        let sec = self.sec(self.sec_head);
+        let (_, a, j) = sec.limits(sec.boosted);
+        let (v_at_mm_s, d0_mm) = settle(v0_mm_s, a0_mm_s2, j);
+        if a0_mm_s2 < 0.0 {
+            let want_mm_s = self.want_end();
+            if want_mm_s <= v_at_mm_s
+                && fall_distance(v0_mm_s, a0_mm_s2, want_mm_s, 0.0, a, j)
+                    .is_some_and(|d_mm| d_mm <= rem_mm * PLAN_MARGIN)
+            {
+                return (want_mm_s, true);
+            }
+        }
+        self.end_target(v_at_mm_s.max(0.0), (rem_mm - d0_mm).max(0.0))
     }
 
     /// The end speed the front section aims at: its soft lookahead within its own and the

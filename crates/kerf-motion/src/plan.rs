@@ -2,9 +2,10 @@
 //! re-plan (more queue, an override change, a move to the boost level), and the
 //! closed-form fallbacks and emergency stop when the solver fails.
 
+use crate::lookahead::BACKWARD_MARGIN;
 use crate::motion_core::{Mode, MotionCore};
 use crate::profile::JerkProfile;
-use crate::reach::{change_distance, settle};
+use crate::reach::{change_distance, falls_within, settle};
 use crate::solver::{PathLimits, PathState, ProfileRequest};
 
 impl MotionCore {
@@ -14,14 +15,15 @@ impl MotionCore {
         self.boost_pending = false;
         self.choose_level();
         let sec = *self.sec(self.sec_head);
-        // Entered accelerating where the section before carried its speed-up over (see
-        // `carry_target`); else `a0 = 0`. Reachability is judged from where the acceleration
-        // has come down to zero.
+        // Entered accelerating or decelerating where the section before carried its
+        // speed-up or slow-down over (see `carry_target`); else `a0 = 0`. Reachability is
+        // judged from where the acceleration has come down to zero, or for a carried
+        // slow-down by the fall it continues (`end_target_from`).
         let (v0_mm_s, a0_mm_s2) = (self.v_mm_s, self.a_mm_s2);
         let rem_mm = (sec.length_mm - self.s_local_mm).max(0.0);
         let (v_machine_mm_s, accel_mm_s2, jerk_mm_s3) = sec.limits(sec.boosted);
-        let (v_at_mm_s, d0_mm) = settle(v0_mm_s, a0_mm_s2, jerk_mm_s3);
-        let (target_mm_s, _) = self.end_target(v_at_mm_s.max(0.0), (rem_mm - d0_mm).max(0.0));
+        let (v_at_mm_s, _) = settle(v0_mm_s, a0_mm_s2, jerk_mm_s3);
+        let (target_mm_s, _) = self.end_target_from(v0_mm_s, a0_mm_s2, rem_mm);
         let v_max_mm_s = sec
             .v_eff(self.override_factor, sec.boosted)
             .min(v_machine_mm_s);
@@ -158,18 +160,44 @@ impl MotionCore {
         let (v0_mm_s, a0_mm_s2) = (self.v_mm_s, self.a_mm_s2);
         let head = self.sec_head;
         let sec = self.sec_mut(head);
-        let fits = |v: f64, hard: f64| {
-            v0_mm_s <= v * (1.0 + 1e-9) && v0_mm_s <= hard * (1.0 + 1e-9) + 1e-9
+        // Entered with a slow-down carried over (see `carry_target`): within a level's
+        // hard lookahead where the speed can come down to its hard end speed within the
+        // section at its conservative limits, as the carry was checked for (or where the
+        // speed the section settles to is within its hard start speed).
+        let length_mm = sec.length_mm;
+        let fits = |v: f64, (hard_start, hard_end): (f64, f64), (c_a, c_j): (f64, f64)| {
+            let within = if a0_mm_s2 < 0.0 {
+                v0_mm_s - a0_mm_s2 * a0_mm_s2 / (2.0 * c_j) <= hard_start
+                    || falls_within(
+                        v0_mm_s,
+                        a0_mm_s2,
+                        hard_end,
+                        length_mm * BACKWARD_MARGIN,
+                        c_a,
+                        c_j,
+                    )
+            } else {
+                v0_mm_s <= hard_start * (1.0 + 1e-9) + 1e-9
+            };
+            v0_mm_s <= v * (1.0 + 1e-9) && within
         };
-        let base_ok = fits(sec.v_machine_mm_s, sec.hard_start_mm_s);
+        let base_ok = fits(
+            sec.v_machine_mm_s,
+            (sec.hard_start_mm_s, sec.hard_end_mm_s),
+            sec.c_accel_jerk(),
+        );
         // Entered with a speed-up carried over (planned for the base level, see
         // `carry_target`): the boost level only if the acceleration is within its limit and
         // its envelope, as `replan_running` asks before moving a running section there.
-        let carry_fits_boost = a0_mm_s2 <= 0.0
-            || (a0_mm_s2 <= sec.accel_boost_mm_s2 * (1.0 + 1e-9)
+        let carry_fits_boost = a0_mm_s2 == 0.0
+            || (a0_mm_s2.abs() <= sec.accel_boost_mm_s2 * (1.0 + 1e-9)
                 && v0_mm_s + a0_mm_s2 * a0_mm_s2 / (2.0 * sec.jerk_boost_mm_s3)
                     <= sec.v_boost_mm_s * (1.0 + 1e-9));
-        let boost_speed_ok = fits(sec.v_boost_mm_s, sec.hard_start_boost_mm_s);
+        let boost_speed_ok = fits(
+            sec.v_boost_mm_s,
+            (sec.hard_start_boost_mm_s, sec.hard_end_boost_mm_s),
+            (sec.c_accel_boost_mm_s2, sec.c_jerk_boost_mm_s3),
+        );
         let boost_ok = boost_speed_ok && carry_fits_boost;
         let wants = sec.wants_boost(ovr);
         sec.boosted = if wants {
@@ -225,7 +253,7 @@ impl MotionCore {
         if v_at_mm_s < 0.0 || d0_mm >= rem_mm || rem_mm <= 0.0 {
             return false;
         }
-        let (target_mm_s, sure) = self.end_target(v_at_mm_s, rem_mm - d0_mm);
+        let (target_mm_s, sure) = self.end_target_from(v0_mm_s, a0_mm_s2, rem_mm);
         if !sure {
             return false;
         }

@@ -1,9 +1,9 @@
 //! Closed-form jerk-limited reachability along the path (`a = 0` at both ends unless
 //! said otherwise): the distance to change speed, the highest speed reachable within a
 //! distance (these two from `kerf_geom::ramp`, which the planner's estimate of the
-//! sections shares), and the quickest rise to a given end acceleration.
+//! sections shares), and the quickest rise and fall to a given end acceleration.
 
-use kerf_geom::ramp::bisect;
+pub(crate) use kerf_geom::ramp::bisect;
 pub use kerf_geom::ramp::{change_distance, reach, reach_back};
 
 /// Bisection steps on the peak acceleration in `rise_reach`: to 1/65,536 of its range
@@ -91,9 +91,67 @@ pub(crate) fn rise_reach(
     Some(rise_with_peak(v0_mm_s, a0_mm_s2, a1_mm_s2, peak, jerk_mm_s3).1)
 }
 
+/// Distance of the quickest fall from `(v0, a0)` to speed `v1` with acceleration `a1`
+/// (`a0, a1 ≤ 0`; accelerations in `[-accel, 0]`) at jerk `jerk`: the acceleration down
+/// at the jerk limit to a peak deceleration, held at `accel` if need be, and back up to
+/// `a1`. The quickest fall covers the least distance. `None` when no such fall ends at
+/// `v1` (the drop `v0 - v1` is less than bringing the acceleration from `a0` to `a1`
+/// takes), `v1` is below rest, or an input is out of range.
+pub(crate) fn fall_distance(
+    v0_mm_s: f64,
+    a0_mm_s2: f64,
+    v1_mm_s: f64,
+    a1_mm_s2: f64,
+    accel_mm_s2: f64,
+    jerk_mm_s3: f64,
+) -> Option<f64> {
+    let in_range = |a: f64| (-accel_mm_s2..=0.0).contains(&a);
+    if !(in_range(a0_mm_s2) && in_range(a1_mm_s2) && jerk_mm_s3 > 0.0 && v1_mm_s >= 0.0) {
+        return None;
+    }
+    let drop_mm_s = v0_mm_s - v1_mm_s;
+    let (b0, b1) = (-a0_mm_s2, -a1_mm_s2);
+    // With no hold, the drop fixes the peak: `(2 peak² - b0² - b1²) / 2j`.
+    let peak_sq = 0.5 * (2.0 * jerk_mm_s3 * drop_mm_s + b0 * b0 + b1 * b1);
+    if peak_sq.is_nan() || peak_sq < b0.max(b1).powi(2) {
+        return None;
+    }
+    let peak = peak_sq.sqrt().min(accel_mm_s2);
+    // The drop the ramps make at that peak; the rest at `accel`, held for `h`.
+    let ramps_mm_s = (2.0 * peak * peak - b0 * b0 - b1 * b1) / (2.0 * jerk_mm_s3);
+    let h_s = ((drop_mm_s - ramps_mm_s) / peak).max(0.0);
+    let t1 = (peak - b0) / jerk_mm_s3;
+    let d1 = t1 * (v0_mm_s - t1 * (b0 / 2.0 + t1 * jerk_mm_s3 / 6.0));
+    let v_down = v0_mm_s - (peak * peak - b0 * b0) / (2.0 * jerk_mm_s3);
+    let d_hold = h_s * (v_down - peak * h_s / 2.0);
+    let v_held = v_down - peak * h_s;
+    let t3 = (peak - b1) / jerk_mm_s3;
+    let d3 = t3 * (v_held - t3 * (peak / 2.0 - t3 * jerk_mm_s3 / 6.0));
+    Some(d1 + d_hold + d3)
+}
+
+/// Whether the speed can be brought from `(v0, a0)`, `a0 ≤ 0`, to at most `v_end` with
+/// `a = 0` within `d`: by bringing the acceleration to zero (where the speed that leaves
+/// is within `v_end`), else by the quickest fall on to `v_end`.
+pub(crate) fn falls_within(
+    v0_mm_s: f64,
+    a0_mm_s2: f64,
+    v_end_mm_s: f64,
+    d_mm: f64,
+    accel_mm_s2: f64,
+    jerk_mm_s3: f64,
+) -> bool {
+    let (v_at_mm_s, d0_mm) = settle(v0_mm_s, a0_mm_s2, jerk_mm_s3);
+    if v_at_mm_s <= v_end_mm_s {
+        return d0_mm <= d_mm;
+    }
+    fall_distance(v0_mm_s, a0_mm_s2, v_end_mm_s, 0.0, accel_mm_s2, jerk_mm_s3)
+        .is_some_and(|fall_mm| fall_mm <= d_mm)
+}
+
 #[cfg(test)]
 mod tests {
-    use super::rise_reach;
+    use super::{fall_distance, rise_reach};
     use kerf_geom::ramp::bisect;
 
     /// `rise_reach` against a search by numerical integration: each candidate rise (jerk up
@@ -155,5 +213,62 @@ mod tests {
             compared += 1;
         }
         assert!(compared > 20, "{compared}");
+    }
+
+    /// `fall_distance` against numerical integration: a fall with a random peak
+    /// deceleration (held at the acceleration limit for a random time where it reaches
+    /// it) is stepped through in small time steps; the closed form, asked for the end
+    /// speed the steps reach, must give the distance they covered.
+    #[test]
+    fn the_quickest_fall_matches_numerical_integration() {
+        let mut log_uniform = crate::profile::tests::log_uniform_source(0x5eed_fa11);
+        let mut compared = 0;
+        for _ in 0..200 {
+            let accel = log_uniform(100.0, 1e4);
+            let jerk = log_uniform(1e3, 1e6);
+            let v0 = log_uniform(1.0, 300.0);
+            let b0 = accel * log_uniform(1e-3, 1.0);
+            let b1 = accel * log_uniform(1e-3, 1.0);
+            let low = b0.max(b1);
+            let held = log_uniform(1.0, 4.0) < 2.0;
+            let peak = if held {
+                accel
+            } else {
+                low + (accel - low) * log_uniform(1e-3, 1.0)
+            };
+            let hold_s = if held { log_uniform(1e-4, 0.1) } else { 0.0 };
+            let phases = [
+                ((peak - b0) / jerk, -jerk),
+                (hold_s, 0.0),
+                ((peak - b1) / jerk, jerk),
+            ];
+            let (mut p, mut v, mut a) = (0.0, v0, -b0);
+            for (t, j) in phases {
+                let n = 400;
+                let dt = t / n as f64;
+                for _ in 0..n {
+                    let a_mid = a + j * dt / 2.0;
+                    p += (v + a * dt / 2.0 + j * dt * dt / 8.0) * dt + j * dt * dt * dt / 24.0;
+                    v += a_mid * dt;
+                    a += j * dt;
+                }
+            }
+            if v < 0.0 {
+                // Passed through rest: out of range for the closed form.
+                assert_eq!(fall_distance(v0, -b0, v, -b1, accel, jerk), None);
+                continue;
+            }
+            let d = fall_distance(v0, -b0, v, -b1, accel, jerk).unwrap_or_else(|| {
+                panic!("no fall found (v0 {v0} b0 {b0} b1 {b1} peak {peak} hold {hold_s})")
+            });
+            assert!(
+                (d - p).abs() <= 1e-6 * p.max(1e-6),
+                "closed form {d} mm, steps {p} mm (v0 {v0} b0 {b0} b1 {b1} peak {peak} hold {hold_s} accel {accel} jerk {jerk})"
+            );
+            compared += 1;
+        }
+        assert!(compared > 50, "{compared}");
+        // A drop smaller than the change of acceleration allows has no such fall.
+        assert_eq!(fall_distance(10.0, -500.0, 9.99, 0.0, 1000.0, 5000.0), None);
     }
 }
