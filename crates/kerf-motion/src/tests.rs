@@ -851,3 +851,94 @@ fn a_hold_in_the_last_deceleration_ends_held_and_keeps_the_next_move_waiting() {
         );
     }
 }
+
+/// Random chains of lines along X whose speed limits, accelerations, jerks and junction
+/// caps differ from segment to segment (so they split into sections that slow down into
+/// one another): every chain ends exactly at its end with no solver failure and no
+/// emergency stop, and the positions keep every limit. A finite difference is an average
+/// of its quantity over the periods it spans, so it is held to the highest limit of the
+/// segments those periods touch (the segment's own limit inside a segment); a period
+/// that spans a junction holds the average speed to the junction's cap plus what the
+/// acceleration can change in one period. Many profiles end with a slow-down carried on
+/// (counted, so that the sweep is known to exercise it: 6,756 periods); with the carry
+/// offered wherever the quickest fall fits, inside the distances the solver refuses (see
+/// `MotionCore::carry_target`), case 51 counts plan failures.
+#[test]
+fn random_chains_with_carried_slow_downs_keep_their_limits() {
+    let mut log_uniform = profile::tests::log_uniform_source(0x51_0d0e);
+    let dt = 0.001;
+    let mut carried = 0;
+    for case in 0..300 {
+        let n = 3 + (log_uniform(1.0, 10.0) as usize);
+        let (mut segs, mut x) = (Vec::new(), 0.0);
+        for k in 0..n {
+            let len = log_uniform(0.05, 6.0);
+            let v = log_uniform(5.0, 150.0);
+            let (a, j) = (log_uniform(200.0, 5_000.0), log_uniform(2_000.0, 200_000.0));
+            segs.push(x_line(x, len, (v, v), (a, j), 0.0));
+            if k > 0 {
+                let prev: &mut PlannedSegment = &mut segs[k - 1];
+                let cap = prev.v_max_mm_s.min(v) * log_uniform(0.3, 1.0);
+                // One junction in about eight is an exact stop.
+                prev.end_cap_mm_s = if log_uniform(1.0, 8.0) < 1.3 {
+                    0.0
+                } else {
+                    cap
+                };
+            }
+            x += len;
+        }
+        let mut core = MotionCore::new(dt, 64);
+        for s in &segs {
+            core.push(s).unwrap();
+        }
+        let mut sp = Setpoint::default();
+        let mut xs = vec![0.0];
+        loop {
+            let r = core.step(&mut sp);
+            xs.push(sp.position[0]);
+            if core.running && core.traj_end_a_mm_s2 < 0.0 {
+                carried += 1;
+            }
+            if r == StepResult::Idle {
+                break;
+            }
+            assert!(xs.len() < 1_000_000, "case {case}: no end");
+        }
+        assert!((xs[xs.len() - 1] - x).abs() < 1e-9, "case {case}");
+        assert_eq!(core.plan_failures(), 0, "case {case}");
+        assert_eq!(core.emergency_stops(), 0, "case {case}");
+        // The segments a span of positions touches (by their starts).
+        let starts: Vec<f64> = segs.iter().map(|s| s.curve.start().x).collect();
+        let touched = |lo: f64, hi: f64| {
+            let first = starts.partition_point(|&s| s <= lo).saturating_sub(1);
+            let last = starts.partition_point(|&s| s < hi).saturating_sub(1);
+            &segs[first..=last.max(first)]
+        };
+        let max_of = |lo: f64, hi: f64, f: &dyn Fn(&PlannedSegment) -> f64| {
+            touched(lo, hi).iter().map(f).fold(0.0, f64::max)
+        };
+        for (k, w) in xs.windows(4).enumerate() {
+            let at = format!("case {case}, step {k}, x = {} mm", w[0]);
+            let v = (w[1] - w[0]) / dt;
+            let span = touched(w[0], w[1]);
+            let cap = span[..span.len() - 1]
+                .iter()
+                .map(|s| s.end_cap_mm_s)
+                .fold(f64::INFINITY, f64::min);
+            let a_max = max_of(w[0], w[1], &|s| s.accel_mm_s2);
+            let v_lim = max_of(w[0], w[1], &|s| s.v_max_mm_s).min(cap + a_max * dt);
+            assert!(v <= v_lim * 1.01 + 1e-9, "{at}: v {v} mm/s");
+            let a = (w[2] - 2.0 * w[1] + w[0]) / (dt * dt);
+            let a_lim = max_of(w[0], w[2], &|s| s.accel_mm_s2);
+            assert!(a.abs() <= a_lim * 1.01 + 1e-6, "{at}: a {a} mm/s²");
+            let j = (w[3] - 3.0 * w[2] + 3.0 * w[1] - w[0]) / (dt * dt * dt);
+            let j_lim = max_of(w[0], w[3], &|s| s.jerk_mm_s3);
+            assert!(j.abs() <= j_lim * 1.01 + 1e-3, "{at}: j {j} mm/s³");
+        }
+    }
+    assert!(
+        carried > 100,
+        "{carried} periods ran a profile ending in a carried slow-down"
+    );
+}
