@@ -1,5 +1,6 @@
-//! A speed-up carried on into the next section: the end state `(v1, a1 > 0)` a section
-//! too short to finish its speed-up hands on (see [`MotionCore::carry_target`]).
+//! A speed-up or slow-down carried on into the next section: the end state `(v1, a1)`,
+//! `a1 ≠ 0`, a section hands on where ending at `a = 0` would make a stair (see
+//! [`MotionCore::carry_target`]).
 
 use crate::lookahead::{BACKWARD_MARGIN, PLAN_MARGIN};
 use crate::motion_core::{Mode, MotionCore};
@@ -46,6 +47,9 @@ impl MotionCore {
     ///   an entry at `a = 0` within its hard start speed, once the acceleration is down,
     ///   which must fit in its length. (Without this the speed-up could overshoot what the
     ///   next section has to slow down to, and then lose more than it gained.)
+    ///
+    /// Where no speed-up is carried and the next section slows down further, a slow-down
+    /// may be carried instead: `(v1, a1)` with `a1 < 0` (see `carry_down`).
     pub(crate) fn carry_target(
         &self,
         v0_mm_s: f64,
