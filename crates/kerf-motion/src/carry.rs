@@ -59,6 +59,17 @@ impl MotionCore {
         if self.mode != Mode::Run || self.sec_count < 2 {
             return None;
         }
+        // Both kinds only at the base level of both sections, and only once the next
+        // section's lookahead has been computed.
+        let ovr = self.override_factor;
+        let next = self.sec(self.sec_head + 1);
+        if self.sec(self.sec_head).boosted
+            || next.wants_boost(ovr)
+            || next.hard_start_mm_s < 0.0
+            || next.soft_start_mm_s < 0.0
+        {
+            return None;
+        }
         if a0_mm_s2 >= 0.0
             && let Some(up) = self.carry_up(v0_mm_s, a0_mm_s2, rem_mm)
         {
@@ -72,13 +83,6 @@ impl MotionCore {
         let ovr = self.override_factor;
         let sec = self.sec(self.sec_head);
         let next = self.sec(self.sec_head + 1);
-        if sec.boosted
-            || next.wants_boost(ovr)
-            || next.hard_start_mm_s < 0.0
-            || next.soft_start_mm_s < 0.0
-        {
-            return None;
-        }
         let (v_machine_mm_s, accel_mm_s2, jerk_mm_s3) = sec.limits(false);
         let v_max_mm_s = sec.v_eff(ovr, false).min(v_machine_mm_s);
         let want_mm_s = self.want_end();
@@ -146,16 +150,7 @@ impl MotionCore {
                 .filter(|&v1_mm_s| room(v1_mm_s, a1_mm_s2) && settles(v1_mm_s, a1_mm_s2))
                 .map(|v1_mm_s| (v1_mm_s, a1_mm_s2))
         };
-        let (mut bad, mut good) = (-1, CARRY_SHARE_STEPS - 1);
-        let mut found = carry_at(good)?;
-        while good - bad > 1 {
-            let mid = (bad + good) / 2;
-            match carry_at(mid) {
-                Some(c) => (good, found) = (mid, c),
-                None => bad = mid,
-            }
-        }
-        Some(found)
+        highest_share(carry_at)
     }
 
     /// A slow-down that goes on into the next section: the end state `(v1, a1)`, `a1 < 0`,
@@ -192,13 +187,6 @@ impl MotionCore {
         let ovr = self.override_factor;
         let sec = self.sec(self.sec_head);
         let next = self.sec(self.sec_head + 1);
-        if sec.boosted
-            || next.wants_boost(ovr)
-            || next.hard_start_mm_s < 0.0
-            || next.soft_start_mm_s < 0.0
-        {
-            return None;
-        }
         let want_mm_s = self.want_end();
         let next_end_mm_s = next.hard_end_mm_s.min(next.soft_end_mm_s);
         if next_end_mm_s >= want_mm_s {
@@ -293,15 +281,23 @@ impl MotionCore {
             };
             (least_mm <= d_mm).then_some((v1_mm_s, a1_mm_s2))
         };
-        let (mut bad, mut good) = (-1, CARRY_SHARE_STEPS - 1);
-        let mut found = carry_at(good)?;
-        while good - bad > 1 {
-            let mid = (bad + good) / 2;
-            match carry_at(mid) {
-                Some(c) => (good, found) = (mid, c),
-                None => bad = mid,
-            }
-        }
-        Some(found)
+        highest_share(carry_at)
     }
+}
+
+/// The carry at the highest share of the acceleration limit on the grid
+/// `CARRY_SHARE_RATIO^k`, `k < CARRY_SHARE_STEPS`, that `carry_at(k)` finds, by bisection
+/// on the grid (each condition of a carry fails from some share up): a handful of
+/// evaluations at most. `None` when even the lowest share has none.
+fn highest_share(carry_at: impl Fn(i32) -> Option<(f64, f64)>) -> Option<(f64, f64)> {
+    let (mut bad, mut good) = (-1, CARRY_SHARE_STEPS - 1);
+    let mut found = carry_at(good)?;
+    while good - bad > 1 {
+        let mid = (bad + good) / 2;
+        match carry_at(mid) {
+            Some(c) => (good, found) = (mid, c),
+            None => bad = mid,
+        }
+    }
+    Some(found)
 }
