@@ -154,6 +154,26 @@ mod tests {
     use super::{fall_distance, rise_reach};
     use kerf_geom::ramp::bisect;
 
+    /// Distance and end speed of a motion from speed `v0` and acceleration `a0` through
+    /// `phases` of (duration, jerk), stepped through numerically in 400 midpoint steps per
+    /// phase (exact for the cubic up to rounding): the reference the closed forms are
+    /// checked against.
+    fn integrate(v0: f64, a0: f64, phases: [(f64, f64); 3]) -> (f64, f64) {
+        let (mut p, mut v, mut a) = (0.0, v0, a0);
+        for (t, j) in phases {
+            let n = 400;
+            let dt = t / n as f64;
+            for _ in 0..n {
+                let a_mid = a + j * dt / 2.0;
+                let v_mid = v + a * dt / 2.0 + j * dt * dt / 8.0;
+                p += v_mid * dt + j * dt * dt * dt / 24.0;
+                v += a_mid * dt;
+                a += j * dt;
+            }
+        }
+        (p, v)
+    }
+
     /// `rise_reach` against a search by numerical integration: each candidate rise (jerk up
     /// to a peak, a hold there, jerk down to `a1`) is stepped through in small time steps,
     /// and the highest peak, then the longest hold at the acceleration limit, that fits in
@@ -175,25 +195,15 @@ mod tests {
             };
             // Numerical integration of one rise: distance and end speed.
             let simulate = |peak: f64, hold_s: f64| {
-                let phases = [
-                    ((peak - a0) / jerk, jerk),
-                    (hold_s, 0.0),
-                    ((peak - a1) / jerk, -jerk),
-                ];
-                let (mut p, mut v, mut a) = (0.0, v0, a0);
-                for (t, j) in phases {
-                    let n = 400;
-                    let dt = t / n as f64;
-                    for _ in 0..n {
-                        // Midpoint steps: exact for the cubic up to rounding.
-                        let a_mid = a + j * dt / 2.0;
-                        let v_mid = v + a * dt / 2.0 + j * dt * dt / 8.0;
-                        p += v_mid * dt + j * dt * dt * dt / 24.0;
-                        v += a_mid * dt;
-                        a += j * dt;
-                    }
-                }
-                (p, v)
+                integrate(
+                    v0,
+                    a0,
+                    [
+                        ((peak - a0) / jerk, jerk),
+                        (hold_s, 0.0),
+                        ((peak - a1) / jerk, -jerk),
+                    ],
+                )
             };
             // The distance grows with the peak and the hold: the highest peak that fits,
             // by bisection on the simulated distance, and at the acceleration limit the
@@ -237,22 +247,15 @@ mod tests {
                 low + (accel - low) * log_uniform(1e-3, 1.0)
             };
             let hold_s = if held { log_uniform(1e-4, 0.1) } else { 0.0 };
-            let phases = [
-                ((peak - b0) / jerk, -jerk),
-                (hold_s, 0.0),
-                ((peak - b1) / jerk, jerk),
-            ];
-            let (mut p, mut v, mut a) = (0.0, v0, -b0);
-            for (t, j) in phases {
-                let n = 400;
-                let dt = t / n as f64;
-                for _ in 0..n {
-                    let a_mid = a + j * dt / 2.0;
-                    p += (v + a * dt / 2.0 + j * dt * dt / 8.0) * dt + j * dt * dt * dt / 24.0;
-                    v += a_mid * dt;
-                    a += j * dt;
-                }
-            }
+            let (p, v) = integrate(
+                v0,
+                -b0,
+                [
+                    ((peak - b0) / jerk, -jerk),
+                    (hold_s, 0.0),
+                    ((peak - b1) / jerk, jerk),
+                ],
+            );
             if v < 0.0 {
                 // Passed through rest: out of range for the closed form.
                 assert_eq!(fall_distance(v0, -b0, v, -b1, accel, jerk), None);
