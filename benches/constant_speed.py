@@ -14,10 +14,17 @@ the path can now and then pass a point faster than at constant speed. It says ho
 a raster's time its geometry costs under jerk limits, which the acceleration-limited lower
 bound of `cam_table` ignores.
 
-Usage: python3 benches/constant_speed.py [--window MM]   (standard library only, seconds)
+Usage: python3 benches/constant_speed.py [--window MM] [--pieces MM] [--share S]
+(standard library only, seconds)
   --window MM also gives each point the slowest speed within MM of it along its row
   (measured in X, the row's direction): what a planner that cannot change its speed within
   that distance could at best do.
+  --pieces MM also gives each consecutive stretch of MM along its row (in X) the slowest
+  speed within it: pieces that each run at one speed, as Kerf's smoothed pieces of up to
+  2 mm have one speed limit (ramps between them free).
+  --share S holds the acceleration and jerk to S of their limits (velocity as it is): 0.8075
+  is what Kerf's pieces leave the curvature terms (CENTRIPETAL_SHARE 0.85 of the profile's
+  0.95).
 """
 import argparse
 import math
@@ -64,19 +71,20 @@ def axes_at(v, z1, z2, z3):
     return (xd, xdd, xddd), (zd, zdd, zddd)
 
 
-def within(v, z1, z2, z3):
+def within(v, z1, z2, z3, share=1.0):
     (x, z) = axes_at(v, z1, z2, z3)
-    return all(abs(q) <= lim for q, lim in zip(x, LIMITS["x"])) and all(
-        abs(q) <= lim for q, lim in zip(z, LIMITS["z"]))
+    scale = (1.0, share, share)
+    return all(abs(q) <= k * lim for q, k, lim in zip(x, scale, LIMITS["x"])) and all(
+        abs(q) <= k * lim for q, k, lim in zip(z, scale, LIMITS["z"]))
 
 
-def speed(z1, z2, z3):
-    if within(FEED, z1, z2, z3):
+def speed(z1, z2, z3, share=1.0):
+    if within(FEED, z1, z2, z3, share):
         return FEED
     lo, hi = 0.0, FEED
     for _ in range(50):
         mid = 0.5 * (lo + hi)
-        if within(mid, z1, z2, z3):
+        if within(mid, z1, z2, z3, share):
             lo = mid
         else:
             hi = mid
@@ -87,16 +95,21 @@ def main():
     ap = argparse.ArgumentParser(description="Constant-speed reference of the CAM rasters.")
     ap.add_argument("--window", type=float, metavar="MM",
                     help="also the slowest speed within MM of each point along its row")
-    window = ap.parse_args().window
+    ap.add_argument("--pieces", type=float, metavar="MM",
+                    help="also the slowest speed of each consecutive MM along its row")
+    ap.add_argument("--share", type=float, default=1.0, metavar="S",
+                    help="acceleration and jerk held to S of their limits (1)")
+    args = ap.parse_args()
+    window, pieces, share = args.window, args.pieces, args.share
     for name, (surface, rows, length) in SURFACES.items():
-        total, windowed, slowest, n = 0.0, 0.0, FEED, 8000
+        total, windowed, pieced, slowest, n = 0.0, 0.0, 0.0, FEED, 8000
         h = length / n
         for r in range(rows):
             y = 0.5 * r
             ds, vs = [], []
             for i in range(n):
                 z, z1, z2, z3 = surface((i + 0.5) * h, y)
-                v = speed(z1, z2, z3)
+                v = speed(z1, z2, z3, share)
                 slowest = min(slowest, v)
                 ds.append(h * math.sqrt(1.0 + z1 * z1))
                 vs.append(v)
@@ -105,10 +118,18 @@ def main():
                 k = int(round(window / h))
                 for i in range(n):
                     windowed += ds[i] / min(vs[max(0, i - k):i + k + 1])
+            if pieces is not None:
+                k = max(1, int(round(pieces / h)))
+                for i in range(0, n, k):
+                    pieced += sum(ds[i:i + k]) / min(vs[i:i + k])
         joins = (rows - 1) * 0.5 / FEED
         line = f"{name}: constant-speed reference {total + joins:.3f} s, slowest {slowest:.1f} mm/s"
         if window is not None:
             line += f"; at the slowest within {window} mm: {windowed + joins:.3f} s"
+        if pieces is not None:
+            line += f"; in pieces of {pieces} mm: {pieced + joins:.3f} s"
+        if share != 1.0:
+            line += f" (acceleration and jerk at {share} of their limits)"
         print(line)
 
 

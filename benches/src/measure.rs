@@ -274,6 +274,20 @@ pub struct Row {
     pub kerf: KerfRun,
 }
 
+/// The jerk-limited lower bound of `program` on the machine of `config`
+/// ([`jerk::jerk_lower_bound`]), sampled as in the table: every [`JERK_DS_MM`], at most
+/// [`JERK_SAMPLES`] samples.
+pub fn jerk_bound(program: &CamProgram, config: &Config) -> Result<jerk::JerkBound, MeasureError> {
+    let length_mm: f64 = program.pieces.iter().map(|p| p.shape.length_mm()).sum();
+    let ds_mm = JERK_DS_MM.max(length_mm / JERK_SAMPLES);
+    jerk::jerk_lower_bound(&program.pieces, &jerk_machine(config), ds_mm).map_err(|source| {
+        MeasureError::Jerk {
+            name: program.name.clone(),
+            source,
+        }
+    })
+}
+
 /// Measures one program on the machine of `config`, with the jerk-limited bound when
 /// `with_jerk` (up to a few seconds a program in a release build).
 pub fn measure(
@@ -286,15 +300,7 @@ pub fn measure(
     let feed_time_s = feed_times(&moves, &machine).iter().map(|(t, _)| t).sum();
     let bound_s = bound::lower_bound(&program.pieces, &machine, BOUND_DS_MM).time_s;
     let jerk_s = if with_jerk {
-        let length_mm: f64 = program.pieces.iter().map(|p| p.shape.length_mm()).sum();
-        let ds_mm = JERK_DS_MM.max(length_mm / JERK_SAMPLES);
-        let r = jerk::jerk_lower_bound(&program.pieces, &jerk_machine(config), ds_mm).map_err(
-            |source| MeasureError::Jerk {
-                name: program.name.clone(),
-                source,
-            },
-        )?;
-        Some(r.time_s)
+        Some(jerk_bound(program, config)?.time_s)
     } else {
         None
     };

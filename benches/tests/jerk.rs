@@ -100,3 +100,29 @@ fn higher_limits_never_raise_the_bound() {
         }
     }
 }
+
+#[test]
+fn bound_speeds_follow_the_s_curve_and_add_up_to_its_time() {
+    // What `cam_table --bound-speeds` prints and `benches/speed_bins.py` integrates: the
+    // optimum's speed along the path. On 10 mm of X at 100 mm/s (the S-curve of
+    // `straight_lines_take_the_s_curve_time`: 0.19 s) it starts and ends at rest, cruises
+    // at the feed between the ramps (each 0.05 + 0.04 s, over v·t/2 = 4.5 mm), and
+    // ∫ ds / v over its samples is the S-curve's time.
+    let b =
+        jerk::jerk_lower_bound(&[line([0.0; 3], [10.0, 0.0, 0.0], 100.0)], &MILL, DS_MM).unwrap();
+    assert_eq!(b.s_mm.len(), b.speed_mm_s.len());
+    assert!(b.speed_mm_s[0] < 1.0 && b.speed_mm_s[b.speed_mm_s.len() - 1] < 1.0);
+    let top = b.speed_mm_s.iter().copied().fold(0.0, f64::max);
+    assert_rel(top, 100.0, 1e-3, "top speed");
+    let mid = b.s_mm.iter().position(|&s| s >= 5.0).unwrap();
+    assert_rel(b.speed_mm_s[mid], 100.0, 1e-3, "speed at 5 mm");
+    let quarter = b.s_mm.iter().position(|&s| s >= 2.0).unwrap();
+    assert!(b.speed_mm_s[quarter] < 95.0, "still ramping at 2 mm");
+    let integral: f64 = (1..b.s_mm.len())
+        .map(|k| {
+            let v = 0.5 * (b.speed_mm_s[k] + b.speed_mm_s[k - 1]);
+            (b.s_mm[k] - b.s_mm[k - 1]) / v
+        })
+        .sum();
+    assert_rel(integral, 0.19, 0.02, "integral of ds / v");
+}

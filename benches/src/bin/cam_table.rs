@@ -8,7 +8,9 @@
 //! (only the programs whose name contains NAME_PART; `--no-jerk` leaves out the
 //! jerk-limited bound of `kerf_benches::jerk`, nearly all of the whole table's 45 s: under
 //! 1 s without it), or `--write DIR` to write the programs as `.ngc` files into DIR (to
-//! run them with `kerf sim --config benches/cam-mill.toml`).
+//! run them with `kerf sim --config benches/cam-mill.toml`), or `--bound-speeds NAME` to
+//! print the jerk-limited bound's path speed along the program named NAME as CSV lines
+//! `s_mm,speed_mm_s` (compared with `kerf sim`'s setpoints by `benches/speed_bins.py`).
 
 use std::process::ExitCode;
 
@@ -41,8 +43,22 @@ fn run() -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    let filter = args.first().map(String::as_str).unwrap_or("");
     let config = measure::machine()?;
+    if let [flag, name] = &args[..]
+        && flag == "--bound-speeds"
+    {
+        let program = corpus
+            .iter()
+            .find(|p| &p.name == name)
+            .with_context(|| format!("no program named {name:?} in the corpus"))?;
+        let bound = measure::jerk_bound(program, &config)?;
+        println!("s_mm,speed_mm_s");
+        for (s_mm, v_mm_s) in bound.s_mm.iter().zip(&bound.speed_mm_s) {
+            println!("{s_mm},{v_mm_s}");
+        }
+        return Ok(());
+    }
+    let filter = args.first().map(String::as_str).unwrap_or("");
     let mut rows = Vec::new();
     for p in corpus.iter().filter(|p| p.name.contains(filter)) {
         rows.push(measure::measure(p, &config, with_jerk)?);
