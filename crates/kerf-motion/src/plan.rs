@@ -167,7 +167,7 @@ impl MotionCore {
         let length_mm = sec.length_mm;
         let fits = |v: f64, (hard_start, hard_end): (f64, f64), (c_a, c_j): (f64, f64)| {
             let within = if a0_mm_s2 < 0.0 {
-                v0_mm_s - a0_mm_s2 * a0_mm_s2 / (2.0 * c_j) <= hard_start
+                settle(v0_mm_s, a0_mm_s2, c_j).0 <= hard_start
                     || falls_within(
                         v0_mm_s,
                         a0_mm_s2,
