@@ -10,7 +10,8 @@
 //! The CAM benchmark of issue 11 lives in four modules: [`cam`] (the corpus of
 //! generated CAM programs with their exact geometry), [`bound`] (the acceleration-limited
 //! time-optimal lower bound), [`jerk`] (the jerk-limited one, issue 31) and [`measure`]
-//! (Kerf's run, the feed time and the table the `cam_table` binary prints).
+//! (Kerf's run, the feed time and the table the `cam_table` binary prints); [`pointwise`]
+//! is a prototype of a motion core that checks each point of the path at its own speed.
 #![deny(missing_docs)]
 
 #[path = "src/bound.rs"]
@@ -21,6 +22,8 @@ pub mod cam;
 pub mod jerk;
 #[path = "src/measure.rs"]
 pub mod measure;
+#[path = "src/pointwise.rs"]
+pub mod pointwise;
 
 use std::io::{self, Write};
 

@@ -7,7 +7,8 @@ use std::fmt::Write as _;
 use kerf::sim::{SimError, SimOptions};
 use kerf_config::{Config, ConfigError};
 use kerf_gcode::{Dialect, Interpreter, Item};
-use kerf_geom::{Move, Path, Vec3};
+use kerf_geom::{Move, Path, PlannedSegment, Vec3};
+use kerf_plan::Planner;
 
 use crate::bound::{self, BoundMachine};
 use crate::cam::CamProgram;
@@ -59,6 +60,14 @@ pub enum MeasureError {
         name: String,
         /// The failure.
         source: JerkError,
+    },
+    /// The planner refused a move.
+    #[error("{name}: planning: {source}")]
+    Plan {
+        /// Program name.
+        name: String,
+        /// The failure.
+        source: kerf_plan::PlanError,
     },
     /// The run did not end at the program's end point.
     #[error("{name}: the run ended at {end:?}, not at the program's end {expected:?}")]
@@ -122,6 +131,27 @@ pub fn programmed_moves(
         }
     }
     Ok(moves)
+}
+
+/// The segments the planner makes of `moves` on the machine of `config`, as the motion
+/// core receives them.
+pub fn planned_segments(
+    name: &str,
+    moves: &[Move],
+    config: &Config,
+) -> Result<Vec<PlannedSegment>, MeasureError> {
+    let mut planner = Planner::new(kerf_config::machine_limits(config));
+    let mut out = Vec::new();
+    for m in moves {
+        planner
+            .push(m, &mut out)
+            .map_err(|source| MeasureError::Plan {
+                name: name.to_string(),
+                source,
+            })?;
+    }
+    planner.finish(&mut out);
+    Ok(out)
 }
 
 /// Unit tangents of a move at `n + 1` evenly spaced points, and its length, mm.

@@ -10,12 +10,15 @@
 //! 1 s without it), or `--write DIR` to write the programs as `.ngc` files into DIR (to
 //! run them with `kerf sim --config benches/cam-mill.toml`), or `--bound-speeds NAME` to
 //! print the jerk-limited bound's path speed along the program named NAME as CSV lines
-//! `s_mm,speed_mm_s` (compared with `kerf sim`'s setpoints by `benches/speed_bins.py`).
+//! `s_mm,speed_mm_s` (compared with `kerf sim`'s setpoints by `benches/speed_bins.py`), or
+//! `--pointwise [NAME_PART]` to run the point-wise prototype (`kerf_benches::pointwise`)
+//! on the exact path and on the planner's segments of each program (about 40 s for the
+//! whole corpus).
 
 use std::process::ExitCode;
 
 use anyhow::Context as _;
-use kerf_benches::{cam, measure};
+use kerf_benches::{cam, measure, pointwise};
 
 fn main() -> ExitCode {
     match run() {
@@ -58,6 +61,12 @@ fn run() -> anyhow::Result<()> {
         }
         return Ok(());
     }
+    if let Some(flag) = args.first()
+        && flag == "--pointwise"
+    {
+        let filter = args.get(1).map(String::as_str).unwrap_or("");
+        return pointwise_table(&corpus, &config, filter);
+    }
     let filter = args.first().map(String::as_str).unwrap_or("");
     let mut rows = Vec::new();
     for p in corpus.iter().filter(|p| p.name.contains(filter)) {
@@ -70,3 +79,53 @@ fn run() -> anyhow::Result<()> {
     print!("{}", measure::table(&rows));
     Ok(())
 }
+
+/// Prints the table of the point-wise prototype (`kerf_benches::pointwise`) on the
+/// programs whose name contains `filter`: on the exact path and on the planner's
+/// segments.
+fn pointwise_table(
+    corpus: &[cam::CamProgram],
+    config: &kerf_config::Config,
+    filter: &str,
+) -> anyhow::Result<()> {
+    let limits = kerf_config::machine_limits(config);
+    let machine = measure::jerk_machine(config);
+    println!(
+        "| program | path | time | fallbacks | peak v / a / j | µs per cycle | points | stops | gap |"
+    );
+    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|");
+    for p in corpus.iter().filter(|p| p.name.contains(filter)) {
+        let moves = measure::programmed_moves(&p.name, &p.text, config)?;
+        let segments = measure::planned_segments(&p.name, &moves, config)?;
+        for (path, grid) in [
+            (
+                "exact",
+                pointwise::Grid::from_pieces(&p.pieces, &machine, POINTWISE_DS_MM),
+            ),
+            (
+                "planned",
+                pointwise::Grid::from_segments(&segments, &machine, POINTWISE_DS_MM),
+            ),
+        ] {
+            let run = grid.run(&limits);
+            println!(
+                "| {} | {path} | {:.3} s | {} | {:.3} / {:.3} / {:.3} | {:.0} | {} | {} | {:.0e} mm |",
+                p.name,
+                run.time_s,
+                run.fallbacks,
+                run.peaks[0],
+                run.peaks[1],
+                run.peaks[2],
+                run.us_per_cycle,
+                run.points,
+                run.stops,
+                run.gap_mm
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Grid spacing of the point-wise prototype, mm: a corner blend within 0.01 mm is a few
+/// hundredths of a millimetre long.
+const POINTWISE_DS_MM: f64 = 0.002;

@@ -1,0 +1,639 @@
+//! A prototype of a motion core that checks every point of the path at its own speed and
+//! acceleration (docs/PERFORMANCE.md, "What it would take"): benchmark-only, to measure
+//! what such a core would reach on the CAM corpus and what one cycle of it costs, before
+//! anything of it goes into the real-time core.
+//!
+//! **The path** is tabulated every `ds` mm of arc length with the unit tangent `t = p'`,
+//! the curvature vector `κ = p''` and its derivative `κ' = p'''` (differences of `κ`
+//! within each curve); between grid points they are interpolated linearly, and positions are cubic
+//! Hermite interpolations of the points and their tangents. Two paths:
+//! [`Grid::from_pieces`] takes the exact geometry with the jerk-limited bound's
+//! curvature-continuous corner blends ([`crate::jerk::g2_blended`]), and
+//! [`Grid::from_segments`] takes the planner's segments, the path Kerf's motion core runs.
+//!
+//! **The limits at a point.** With path speed `v`, acceleration `a` and jerk `j`, axis `i`
+//! moves with velocity `tᵢ v`, acceleration `tᵢ a + κᵢ v²` and jerk
+//! `tᵢ j + 3 κᵢ v a + κ'ᵢ v³`. At a given `v` (and `a`), each axis's limit is an interval
+//! of `a` (of `j`), not a symmetric budget: the intersection over the axes is what the
+//! point allows (`Section::accel_range`, `Section::jerk_range`). The speed limit of a point
+//! (`v_max`) is the largest speed that leaves a non-empty interval of `a` at `a = 0`, with
+//! [`CENTRIPETAL_SHARE`] of the acceleration, and of `j` at `a = 0`, with [`JERK_SHARE`]
+//! of the jerk, within the feed and the axis velocities.
+//!
+//! **The cycle.** The state is `(s, v, a)`; each period applies one constant path jerk.
+//! The controller takes the largest jerk (a scan down the point's jerk interval, then
+//! bisection) whose period is admissible (the speed never below zero and within `v_max`
+//! over the stretch it passes; the acceleration and the jerk within the intervals at the
+//! middle and the end of the period) and ends in a state from which a braking comes to
+//! rest before the next stop (a reversal, a stop the planner set, or the end of the path)
+//! with every period admissible (`Section::can_stop`). A braking heads for a share of the
+//! most negative acceleration each point allows and turns back to zero acceleration as
+//! the speed runs out, landing on rest within a period (the jerk `a²/2v` brings speed and
+//! acceleration to zero together). Braking is itself a continuation the controller may
+//! take, so a state it accepts has one: the motion can stop within the known path, as
+//! today's core can.
+//!
+//! What it does not do yet: bound its cost (every bisection step simulates a braking to
+//! rest), or take the allocation-free, fixed-window form of the real-time core. Its output
+//! is measured as Kerf's is: positions at the period through
+//! `kerf_motion::monitor::LimitMonitor`.
+#![allow(clippy::many_single_char_names)]
+
+use std::time::Instant;
+
+use kerf_geom::{MachineLimits, PlannedSegment, Vec3};
+use kerf_motion::monitor::LimitMonitor;
+
+use crate::bound::{BoundMachine, Piece, max_speed_squared};
+use crate::jerk::{JerkMachine, g2_blended};
+
+/// Share of each axis's acceleration the speed limit of a point leaves to the centripetal
+/// term at `a = 0`.
+pub const CENTRIPETAL_SHARE: f64 = 0.85;
+/// Share of each axis's jerk the speed limit of a point leaves to the `κ' v³` term.
+pub const JERK_SHARE: f64 = 0.85;
+/// Share of the acceleration and jerk limits the controller plans with: the rest covers
+/// what the checks at the middle and the end of a period do not see.
+pub const PLAN_SHARE: f64 = 0.97;
+/// Bisection steps on the jerk of a period.
+const BISECTION_STEPS: usize = 20;
+/// Steps of the scan down the jerk interval for a first admissible jerk.
+const SCAN_STEPS: usize = 16;
+/// The brakings tried from a state, as shares of the most negative acceleration of each
+/// point: the hardest one can run into a point whose jerk interval is empty at that
+/// deceleration (the `3 κ v a` term).
+const BRAKE_SHARES: [f64; 3] = [1.0, 0.5, 0.25];
+/// A period whose lowest speed, where its acceleration turns from negative to positive,
+/// is below this lands on rest there, mm/s.
+const LANDED_MM_S: f64 = 1e-6;
+/// A motion at rest this close short of its stop has reached it, mm.
+const STOP_GAP_MM: f64 = 1e-6;
+/// Slack of the intervals checked within a period, as a share of their width: a
+/// braking's jerk is fitted to the end point's interval once, at a state a little
+/// different from the one it ends in.
+const END_SLACK: f64 = 1e-3;
+/// Below this |tangent component| an axis takes no part in the tangential terms.
+const TINY: f64 = 1e-12;
+/// Step of the curve parameter (of [0, 1]) for the derivative of the curvature vector.
+const KP_DU: f64 = 1e-5;
+/// Junctions of planned segments whose tangents turn by more than this (rad) are passed
+/// at rest: a kink has no finite jerk at any other speed.
+const KINK_RAD: f64 = 1e-6;
+
+/// The path between two stops, tabulated along its arc length with each point's speed
+/// limit.
+struct Section {
+    /// Length, mm: the section ends at rest.
+    length_mm: f64,
+    /// Spacing of the points, mm.
+    ds_mm: f64,
+    /// Position of each point, mm.
+    p: Vec<Vec3>,
+    /// Unit tangent.
+    t: Vec<Vec3>,
+    /// Curvature vector, 1/mm.
+    k: Vec<Vec3>,
+    /// Derivative of the curvature vector by arc length, 1/mm².
+    kp: Vec<Vec3>,
+    /// Speed limit, mm/s.
+    v_max: Vec<f64>,
+    /// Axis acceleration and jerk limits at [`PLAN_SHARE`] (the velocities are in `v_max`).
+    acc: [f64; 3],
+    jerk: [f64; 3],
+}
+
+/// A path from rest to rest, in sections between the stops on it (reversals, kinks, the
+/// stops the planner set).
+pub struct Grid {
+    sections: Vec<Section>,
+}
+
+/// What the controller did on one program.
+#[derive(Clone, Copy, Debug)]
+pub struct Run {
+    /// Periods from the start to rest times the period, s.
+    pub time_s: f64,
+    /// Periods stepped.
+    pub cycles: u64,
+    /// Periods where no jerk of the point's interval was admissible (the controller then
+    /// braked as hard as the point allows): each is a defect of the prototype.
+    pub fallbacks: u64,
+    /// The largest velocity, acceleration and jerk over the axes as fractions of their
+    /// limits, from the positions at the period.
+    pub peaks: [f64; 3],
+    /// Mean wall time of the controller per period, µs (the positions and their check
+    /// not included).
+    pub us_per_cycle: f64,
+    /// Points of the grid.
+    pub points: usize,
+    /// Stops along the path, the end included.
+    pub stops: usize,
+    /// The largest distance short of a stop where the motion came to rest, mm (the
+    /// braking lands on the period, not on the stop; at the end the run ends there, at a
+    /// reversal it goes on from the stop).
+    pub gap_mm: f64,
+}
+
+/// A curve of the path by a parameter in [0, 1]: point and first two derivatives.
+struct Parametric {
+    /// `(p, dp/du, d²p/du²)` at `u`.
+    eval: Box<dyn Fn(f64) -> (Vec3, Vec3, Vec3)>,
+    /// Programmed feed, mm/s.
+    feed_mm_s: f64,
+    /// The motion comes to rest where this curve starts.
+    stop_before: bool,
+}
+
+/// The state of the motion: arc length, mm; speed, mm/s; acceleration, mm/s².
+type State = (f64, f64, f64);
+
+/// The interval of `x` with `|c x + m| ≤ w` for every `(c, m, w)`, intersected over the
+/// axes; an axis with `c = 0` needs `|m| ≤ w` (else the interval is empty).
+fn interval(terms: [(f64, f64, f64); 3]) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+    for (c, m, w) in terms {
+        if c.abs() > TINY {
+            let a = (-w - m) / c;
+            let b = (w - m) / c;
+            lo = lo.max(a.min(b));
+            hi = hi.min(a.max(b));
+        } else if m.abs() > w {
+            return (1.0, -1.0);
+        }
+    }
+    (lo, hi)
+}
+
+/// The state after `dt` of jerk `j` from `(s, v, a)`.
+fn step((s, v, a): State, j: f64, dt: f64) -> State {
+    (
+        s + v * dt + a * dt * dt / 2.0 + j * dt * dt * dt / 6.0,
+        v + a * dt + j * dt * dt / 2.0,
+        a + j * dt,
+    )
+}
+
+impl Grid {
+    /// The exact path of `pieces` after [`g2_blended`], tabulated every `ds_mm` at most
+    /// for `machine`; reversals are stops.
+    pub fn from_pieces(pieces: &[Piece], machine: &JerkMachine, ds_mm: f64) -> Grid {
+        let path = g2_blended(pieces, machine.base.tolerance_mm);
+        let curves: Vec<Parametric> = path
+            .iter()
+            .map(|piece| {
+                let shape = piece.shape;
+                Parametric {
+                    eval: Box::new(move |u| {
+                        let e = shape.eval(u);
+                        (e.p, e.d1, e.d2)
+                    }),
+                    feed_mm_s: piece.feed_mm_s,
+                    stop_before: false,
+                }
+            })
+            .collect();
+        Grid::from_curves(curves, machine, ds_mm)
+    }
+
+    /// The planner's path, `segments` (XYZ only), tabulated every `ds_mm` at most for
+    /// `machine`. A junction where the planner set a stop (`end_cap_mm_s` 0) is a stop.
+    pub fn from_segments(segments: &[PlannedSegment], machine: &JerkMachine, ds_mm: f64) -> Grid {
+        let curves: Vec<Parametric> = segments
+            .iter()
+            .enumerate()
+            .map(|(n, seg)| {
+                let (curve, len) = (seg.curve, seg.length_mm);
+                Parametric {
+                    // The curve's own parameter, scaled to [0, 1]: its derivatives by it.
+                    eval: Box::new(move |u| {
+                        let e = curve.eval(u * len);
+                        (e.point, e.tangent * len, e.curvature * (len * len))
+                    }),
+                    feed_mm_s: seg.feed_mm_s,
+                    stop_before: n > 0 && segments[n - 1].end_cap_mm_s <= 0.0,
+                }
+            })
+            .collect();
+        Grid::from_curves(curves, machine, ds_mm)
+    }
+
+    /// Tabulates a chain of curves by arc length (each finely in its parameter, with the
+    /// chord lengths from its start, the points between by the parameter interpolated in
+    /// them). A junction is a stop where the curve asks for one, where the direction
+    /// reverses, or where the tangent turns by more than [`KINK_RAD`].
+    fn from_curves(curves: Vec<Parametric>, machine: &JerkMachine, ds_mm: f64) -> Grid {
+        // The curves of non-zero length, each with its chord lengths and length.
+        let mut live: Vec<(&Parametric, Vec<f64>, f64)> = Vec::with_capacity(curves.len());
+        let mut total = 0.0;
+        let mut stops = Vec::new();
+        let mut stop_pending = false;
+        for c in &curves {
+            let (p0, d0, _) = (c.eval)(0.0);
+            let (p1, _, _) = (c.eval)(1.0);
+            // Sized by the chord and the tangent's length, whichever is longer.
+            let rough = (p1 - p0).norm().max(d0.norm());
+            let m = (((rough / ds_mm).ceil() as usize) * 8).max(64);
+            let mut cum = Vec::with_capacity(m + 1);
+            let mut prev = p0;
+            let mut acc = 0.0;
+            for j in 0..=m {
+                let q = (c.eval)(j as f64 / m as f64).0;
+                acc += (q - prev).norm();
+                prev = q;
+                cum.push(acc);
+            }
+            stop_pending |= c.stop_before;
+            if acc <= 0.0 {
+                continue;
+            }
+            if let Some((before, _, _)) = live.last() {
+                let t_end = (before.eval)(1.0).1;
+                let turn = t_end
+                    .normalize()
+                    .dot(&d0.normalize())
+                    .clamp(-1.0, 1.0)
+                    .acos();
+                if stop_pending || turn > KINK_RAD {
+                    stops.push(total);
+                }
+            }
+            stop_pending = false;
+            total += acc;
+            live.push((c, cum, acc));
+        }
+        let (mut piece, mut start, mut j) = (0usize, 0.0, 0usize);
+        // The geometry at arc length `s`; at a junction, of the curve before it unless
+        // `after`.
+        let mut sample = |s: f64, after: bool| {
+            while piece + 1 < live.len()
+                && (s > start + live[piece].2 || (after && s >= start + live[piece].2))
+            {
+                start += live[piece].2;
+                piece += 1;
+                j = 0;
+            }
+            let (curve, cum, len) = &live[piece];
+            let local = (s - start).clamp(0.0, *len);
+            while j + 1 < cum.len() - 1 && cum[j + 1] < local {
+                j += 1;
+            }
+            let span = cum[j + 1] - cum[j];
+            let frac = if span > 0.0 {
+                ((local - cum[j]) / span).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let u = (j as f64 + frac) / (cum.len() - 1) as f64;
+            let frame = |u: f64| {
+                let (p, d1, d2) = (curve.eval)(u);
+                let speed = d1.norm();
+                let t = d1 / speed;
+                (p, t, (d2 - t * d2.dot(&t)) / (speed * speed), speed)
+            };
+            let (p, t, k, speed) = frame(u);
+            // κ' by differences within the curve (one-sided at its ends): a junction
+            // of two curves is continuous in κ, not in κ'.
+            let (u0, u1) = ((u - KP_DU).max(0.0), (u + KP_DU).min(1.0));
+            let kp = (frame(u1).2 - frame(u0).2) / ((u1 - u0) * speed);
+            (p, t, k, kp, curve.feed_mm_s)
+        };
+        stops.push(total);
+        let mut sections = Vec::with_capacity(stops.len());
+        let mut from = 0.0;
+        for &to in &stops {
+            if to > from {
+                sections.push(Section::tabulate(to - from, ds_mm, machine, |s, first| {
+                    sample(from + s, first)
+                }));
+            }
+            from = to;
+        }
+        Grid { sections }
+    }
+
+    /// Stops on the path, the end included.
+    pub fn stops(&self) -> usize {
+        self.sections.len()
+    }
+
+    /// Points of the tabulation.
+    pub fn points(&self) -> usize {
+        self.sections.iter().map(|s| s.p.len()).sum()
+    }
+}
+
+impl Section {
+    /// Tabulates a section of length `total` mm every `ds_mm` at most: `sample(s, first)`
+    /// gives the point, unit tangent, curvature vector, its derivative and the feed at arc length `s` from the
+    /// section's start (called in ascending order; `first` at the start).
+    fn tabulate(
+        total: f64,
+        ds_mm: f64,
+        machine: &JerkMachine,
+        mut sample: impl FnMut(f64, bool) -> (Vec3, Vec3, Vec3, Vec3, f64),
+    ) -> Section {
+        let n = ((total / ds_mm).ceil() as usize).max(2);
+        let ds = total / n as f64;
+        let mut grid = Section {
+            length_mm: total,
+            ds_mm: ds,
+            p: Vec::with_capacity(n + 1),
+            t: Vec::with_capacity(n + 1),
+            k: Vec::with_capacity(n + 1),
+            kp: vec![Vec3::zeros(); n + 1],
+            v_max: Vec::with_capacity(n + 1),
+            acc: machine.base.acceleration_mm_s2.map(|a| a * PLAN_SHARE),
+            jerk: machine.jerk_mm_s3.map(|j| j * PLAN_SHARE),
+        };
+        let mut feed = Vec::with_capacity(n + 1);
+        for i in 0..=n {
+            let (p, t, k, kp, f) = sample((i as f64 * ds).min(total), i == 0);
+            grid.p.push(p);
+            grid.t.push(t);
+            grid.k.push(k);
+            grid.kp[i] = kp;
+            feed.push(f);
+        }
+        let centripetal = BoundMachine {
+            acceleration_mm_s2: machine
+                .base
+                .acceleration_mm_s2
+                .map(|a| a * CENTRIPETAL_SHARE * PLAN_SHARE),
+            ..machine.base
+        };
+        let jerk = BoundMachine {
+            velocity_mm_s: [f64::INFINITY; 3],
+            acceleration_mm_s2: machine.jerk_mm_s3.map(|j| j * JERK_SHARE * PLAN_SHARE),
+            tolerance_mm: 0.0,
+        };
+        for (i, &feed_mm_s) in feed.iter().enumerate() {
+            // The same pairwise condition as the centripetal one, on `κ' v³` and the jerk
+            // (the jerk interval at a = 0 not empty: the path jerk may make up for the
+            // tangential part of `κ' v³`).
+            let x = max_speed_squared(&grid.t[i], &grid.k[i], feed_mm_s, &centripetal);
+            let v3 = max_speed_squared(&grid.t[i], &grid.kp[i], f64::INFINITY, &jerk);
+            grid.v_max.push(x.sqrt().min(v3.cbrt()));
+        }
+        grid
+    }
+
+    /// The grid interval holding `s` and the fraction of it.
+    fn locate(&self, s: f64) -> (usize, f64) {
+        let n = self.p.len() - 1;
+        let x = (s / self.ds_mm).clamp(0.0, n as f64);
+        let i = (x.floor() as usize).min(n - 1);
+        (i, x - i as f64)
+    }
+
+    /// Tangent, curvature vector and its derivative at `s`, interpolated linearly.
+    fn geometry(&self, s: f64) -> (Vec3, Vec3, Vec3) {
+        let (i, u) = self.locate(s);
+        let mix = |v: &[Vec3]| v[i] * (1.0 - u) + v[i + 1] * u;
+        (mix(&self.t), mix(&self.k), mix(&self.kp))
+    }
+
+    /// The lowest speed limit of the grid points around the stretch from `s0` to `s1`.
+    fn v_max_over(&self, s0: f64, s1: f64) -> f64 {
+        let (i0, _) = self.locate(s0);
+        let (i1, _) = self.locate(s1);
+        self.v_max[i0..=i1 + 1]
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The path accelerations the point at `s` allows at speed `v`, mm/s² (empty:
+    /// `lo > hi`).
+    fn accel_range(&self, s: f64, v: f64) -> (f64, f64) {
+        let (t, k, _) = self.geometry(s);
+        let v2 = v * v;
+        interval([0, 1, 2].map(|x| (t[x], k[x] * v2, self.acc[x])))
+    }
+
+    /// The path jerks the point at `s` allows at speed `v` and acceleration `a`, mm/s³.
+    fn jerk_range(&self, s: f64, v: f64, a: f64) -> (f64, f64) {
+        let (t, k, kp) = self.geometry(s);
+        let (va, v3) = (3.0 * v * a, v * v * v);
+        interval([0, 1, 2].map(|x| (t[x], k[x] * va + kp[x] * v3, self.jerk[x])))
+    }
+
+    /// Position at arc length `s`: the cubic Hermite interpolation of the neighbouring
+    /// points and their tangents.
+    pub fn position(&self, s: f64) -> Vec3 {
+        let (i, u) = self.locate(s);
+        let (h00, h10) = (
+            (1.0 + 2.0 * u) * (1.0 - u) * (1.0 - u),
+            u * (1.0 - u) * (1.0 - u),
+        );
+        let (h01, h11) = (u * u * (3.0 - 2.0 * u), u * u * (u - 1.0));
+        self.p[i] * h00
+            + self.t[i] * (h10 * self.ds_mm)
+            + self.p[i + 1] * h01
+            + self.t[i + 1] * (h11 * self.ds_mm)
+    }
+
+    /// The state after a period `dt` of jerk `j` from `x`, if the period is admissible
+    /// (see the module's documentation) and ends by `stop`. A period that lands on rest
+    /// ends there, at rest.
+    fn period(&self, x: State, j: f64, dt: f64, stop: f64) -> Option<State> {
+        let (_, v, a) = x;
+        let mut span = dt;
+        let mut landed = false;
+        if a < 0.0 && a + j * dt > 0.0 {
+            // The lowest speed of the period, where the acceleration turns positive.
+            let v_min = v - a * a / (2.0 * j);
+            if v_min < -1e-9 {
+                return None;
+            }
+            if v_min <= LANDED_MM_S {
+                span = -a / j;
+                landed = true;
+            }
+        }
+        let (s1, v1, a1) = step(x, j, span);
+        if v1 < -1e-9 || s1 > stop + 1e-9 || v1 > self.v_max_over(x.0, s1) {
+            return None;
+        }
+        for (s_x, v_x, a_x) in [step(x, j, span / 2.0), (s1, v1, a1)] {
+            let v_x = v_x.max(0.0);
+            let (lo, hi) = self.accel_range(s_x, v_x);
+            let (j_lo, j_hi) = self.jerk_range(s_x, v_x, a_x);
+            let (da, dj) = (END_SLACK * (hi - lo).abs(), END_SLACK * (j_hi - j_lo).abs());
+            if !(lo - da <= a_x && a_x <= hi + da && j_lo - dj <= j && j <= j_hi + dj) {
+                return None;
+            }
+        }
+        Some(if landed {
+            (s1, 0.0, 0.0)
+        } else {
+            (s1, v1.max(0.0), a1)
+        })
+    }
+
+    /// The jerk of a braking at `x` over a period `dt`: towards `share` of the most
+    /// negative acceleration the point allows, and back to zero acceleration as the speed
+    /// runs out (the jerk `a²/2v` brings both to zero together) once braking on for
+    /// another period would leave that return above the jerk allowed; within the jerk
+    /// intervals of the start point and (re-evaluated once) of the end point. `None`
+    /// where the point allows no jerk.
+    fn brake_jerk(&self, x: State, dt: f64, share: f64) -> Option<f64> {
+        let (s, v, a) = x;
+        let (j_lo, j_hi) = self.jerk_range(s, v, a);
+        if j_lo > j_hi {
+            return None;
+        }
+        let (a_lo, _) = self.accel_range(s, v);
+        let choose = |j_lo: f64, j_hi: f64| {
+            let hard = ((share * a_lo.min(0.0) - a) / dt).clamp(j_lo, j_hi);
+            if a < 0.0 && v > 0.0 {
+                let (_, v1, a1) = step(x, hard, dt);
+                let land_now = a * a / (2.0 * v);
+                if v1 <= 0.0 || (a1 < 0.0 && a1 * a1 / (2.0 * v1) > j_hi) || land_now >= j_hi {
+                    return land_now.clamp(j_lo, j_hi);
+                }
+            }
+            hard
+        };
+        let j = choose(j_lo, j_hi);
+        let (s1, v1, a1) = step(x, j, dt);
+        let (e_lo, e_hi) = self.jerk_range(s1, v1.max(0.0), a1);
+        let (lo, hi) = (j_lo.max(e_lo), j_hi.min(e_hi));
+        Some(if lo <= hi { choose(lo, hi) } else { j })
+    }
+
+    /// Whether one of the brakings of [`BRAKE_SHARES`] from `x` comes to rest by `stop`.
+    fn can_stop(&self, x: State, dt: f64, stop: f64) -> bool {
+        BRAKE_SHARES
+            .iter()
+            .any(|&share| self.brakes(x, dt, stop, share))
+    }
+
+    /// Whether the braking towards `share` of the most negative acceleration from `x`
+    /// comes to rest by `stop`, every period on the way admissible.
+    fn brakes(&self, mut x: State, dt: f64, stop: f64, share: f64) -> bool {
+        for _ in 0..100_000 {
+            if x.1 <= 1e-9 && x.2.abs() <= 1e-9 {
+                return x.0 <= stop + 1e-9;
+            }
+            let Some(j) = self.brake_jerk(x, dt, share) else {
+                return false;
+            };
+            let Some(next) = self.period(x, j, dt, stop) else {
+                return false;
+            };
+            x = next;
+        }
+        false
+    }
+
+    /// The state after the period of jerk `j` from `x`, if it is admissible and ends in a
+    /// state that can stop by `stop`.
+    fn admissible(&self, x: State, j: f64, dt: f64, stop: f64) -> Option<State> {
+        self.period(x, j, dt, stop)
+            .filter(|&next| self.can_stop(next, dt, stop))
+    }
+
+    /// The largest jerk of the point's interval whose period is [`Section::admissible`], with
+    /// the state it ends in: the interval scanned from the top in [`SCAN_STEPS`] steps for
+    /// a first admissible jerk (else a braking's), then bisection between it and the step
+    /// above.
+    fn largest_admissible(&self, x: State, dt: f64, stop: f64) -> Option<(f64, State)> {
+        let (j_lo, j_hi) = self.jerk_range(x.0, x.1, x.2);
+        if j_lo > j_hi {
+            return None;
+        }
+        if let Some(next) = self.admissible(x, j_hi, dt, stop) {
+            return Some((j_hi, next));
+        }
+        let width = j_hi - j_lo;
+        let mut hi = j_hi;
+        let mut found = None;
+        for k in 1..=SCAN_STEPS {
+            let j = j_hi - width * k as f64 / SCAN_STEPS as f64;
+            if let Some(next) = self.admissible(x, j, dt, stop) {
+                found = Some((j, next));
+                break;
+            }
+            hi = j;
+        }
+        let mut best = match found {
+            Some(b) => b,
+            None => {
+                // A braking continuation: admissible whenever the state before was.
+                let b = BRAKE_SHARES.iter().find_map(|&share| {
+                    let j = self.brake_jerk(x, dt, share)?;
+                    self.admissible(x, j, dt, stop).map(|next| (j, next))
+                })?;
+                hi = j_hi.min(b.0 + width / SCAN_STEPS as f64);
+                b
+            }
+        };
+        for _ in 0..BISECTION_STEPS {
+            let mid = 0.5 * (best.0 + hi);
+            match self.admissible(x, mid, dt, stop) {
+                Some(next) => best = (mid, next),
+                None => hi = mid,
+            }
+        }
+        Some(best)
+    }
+}
+
+impl Grid {
+    /// Runs the path from rest to rest at the period of `limits`, section by section,
+    /// checking the positions against `limits`.
+    pub fn run(&self, limits: &MachineLimits) -> Run {
+        let dt = limits.period_s;
+        let p0 = self.sections[0].position(0.0);
+        let mut monitor = LimitMonitor::at_rest(limits, &[p0.x, p0.y, p0.z, 0.0, 0.0, 0.0]);
+        let (mut cycles, mut fallbacks) = (0u64, 0u64);
+        let mut planning_s = 0.0;
+        let mut gap_mm = 0.0f64;
+        // A run that takes more than an hour of periods is stuck.
+        let max_cycles = (3600.0 / dt) as u64;
+        for section in &self.sections {
+            let stop = section.length_mm;
+            let mut x: State = (0.0, 0.0, 0.0);
+            while cycles < max_cycles {
+                let at_rest = x.1 < 1e-6 && x.2.abs() < 1e-3;
+                if stop - x.0 < 1e-9 || (at_rest && stop - x.0 < STOP_GAP_MM) {
+                    gap_mm = gap_mm.max(stop - x.0);
+                    break;
+                }
+                let clock = Instant::now();
+                x = match section.largest_admissible(x, dt, stop) {
+                    Some((_, next)) => next,
+                    None => {
+                        fallbacks += 1;
+                        let (j_lo, j_hi) = section.jerk_range(x.0, x.1, x.2);
+                        let j = section.brake_jerk(x, dt, 1.0).unwrap_or(j_lo.min(j_hi));
+                        let (s1, v1, a1) = step(x, j, dt);
+                        (s1.min(stop), v1.max(0.0), if v1 <= 0.0 { 0.0 } else { a1 })
+                    }
+                };
+                planning_s += clock.elapsed().as_secs_f64();
+                cycles += 1;
+                let p = section.position(x.0);
+                let _ = monitor.check(&[p.x, p.y, p.z, 0.0, 0.0, 0.0]);
+            }
+        }
+        let mut peaks = [0.0f64; 3];
+        for axis in 0..3 {
+            if let Some(r) = monitor.peak_ratios(axis) {
+                for (peak, ratio) in peaks.iter_mut().zip(r) {
+                    *peak = peak.max(ratio);
+                }
+            }
+        }
+        Run {
+            time_s: cycles as f64 * dt,
+            cycles,
+            fallbacks,
+            peaks,
+            us_per_cycle: planning_s * 1e6 / cycles.max(1) as f64,
+            points: self.points(),
+            stops: self.stops(),
+            gap_mm,
+        }
+    }
+}

@@ -1,0 +1,226 @@
+//! The point-wise prototype of the CAM table (`kerf_benches::pointwise`): its times against
+//! closed forms worked out by hand (an S-curve on a line, the centripetal speed on a
+//! circle), and its output within the limits, measured from the positions at the period,
+//! on machines and paths drawn at random and on the planner's segments.
+
+mod common;
+use common::{assert_rel, circle, line};
+
+use kerf_benches::bound::{BoundMachine, Piece, Shape};
+use kerf_benches::jerk::JerkMachine;
+use kerf_benches::measure;
+use kerf_benches::pointwise::{CENTRIPETAL_SHARE, Grid, PLAN_SHARE};
+use kerf_geom::{AxisLimits, MachineLimits, Vec3};
+use kerf_motion::monitor::LIMIT_MARGIN;
+
+const DS_MM: f64 = 0.002;
+
+/// The machine of the bound and the monitor's limits with the same numbers, at a period
+/// of 1 ms.
+fn machine(
+    velocity_mm_s: [f64; 3],
+    acceleration_mm_s2: [f64; 3],
+    jerk_mm_s3: [f64; 3],
+    tolerance_mm: f64,
+) -> (JerkMachine, MachineLimits) {
+    let mut axes = [None; 6];
+    for (i, axis) in axes.iter_mut().take(3).enumerate() {
+        *axis = Some(AxisLimits {
+            velocity_units_s: velocity_mm_s[i],
+            acceleration_units_s2: acceleration_mm_s2[i],
+            jerk_units_s3: jerk_mm_s3[i],
+        });
+    }
+    (
+        JerkMachine {
+            base: BoundMachine {
+                velocity_mm_s,
+                acceleration_mm_s2,
+                tolerance_mm,
+            },
+            jerk_mm_s3,
+        },
+        MachineLimits {
+            axes,
+            period_s: 0.001,
+            tolerance_mm,
+        },
+    )
+}
+
+fn mill() -> (JerkMachine, MachineLimits) {
+    machine(
+        [200.0, 200.0, 100.0],
+        [2000.0, 2000.0, 1000.0],
+        [50_000.0, 50_000.0, 20_000.0],
+        0.01,
+    )
+}
+
+#[test]
+fn a_line_takes_the_s_curve_time() {
+    // X, 10 mm at 100 mm/s, planned with PLAN_SHARE of 2,000 mm/s² and 50,000 mm/s³:
+    // a = 1,940, j = 48,500, so v ≥ a²/j = 77.6 mm/s and each ramp reaches the
+    // acceleration limit: t = L/v + v/a + a/j. The controller lands on whole periods.
+    let (m, limits) = mill();
+    let (a, j) = (2000.0 * PLAN_SHARE, 50_000.0 * PLAN_SHARE);
+    let exact = 10.0 / 100.0 + 100.0 / a + a / j;
+    let run = Grid::from_pieces(&[line([0.0; 3], [10.0, 0.0, 0.0], 100.0)], &m, DS_MM).run(&limits);
+    assert!(
+        run.time_s >= exact - 0.001 && run.time_s <= exact + 0.003,
+        "{} s against the S-curve's {exact} s",
+        run.time_s
+    );
+    assert_eq!(run.fallbacks, 0);
+    assert_eq!(run.gap_mm, 0.0, "the run ends at the end");
+    // Cruise at the feed, half of X's velocity; ramps at the planned share (and the
+    // slack of 1e-3 of an interval's width the checks within a period allow: 2e-3 of
+    // the acceleration limit).
+    assert_rel(run.peaks[0], 0.5, 1e-3, "velocity peak");
+    assert!(run.peaks[1] <= PLAN_SHARE + 2.5e-3, "{:?}", run.peaks);
+    assert!(run.peaks[2] <= PLAN_SHARE + 2.5e-3, "{:?}", run.peaks);
+    assert!(
+        run.peaks[1] >= 0.95 * PLAN_SHARE,
+        "the ramps use the acceleration"
+    );
+}
+
+#[test]
+fn a_small_circle_runs_between_its_steady_and_its_centripetal_speed() {
+    // r = 1 mm at 100 mm/s asked, three turns. Two speeds by hand:
+    // - the cap: where the tangent is along X, Y alone takes the centripetal acceleration
+    //   v²/r, held to CENTRIPETAL_SHARE · PLAN_SHARE of 2,000 mm/s²:
+    //   v = √(0.85 · 0.97 · 2000 · 1) ≈ 40.6 mm/s (the jerk's pairwise condition at a = 0
+    //   leaves it free: κ' = −t/r², the same κ'ᵢ/tᵢ on every axis);
+    // - steady: at a constant speed the jerk is v³/r² along the tangent, so X (tangent
+    //   along X) holds it to PLAN_SHARE of 50,000 mm/s³: v = (0.97 · 50,000)^(1/3) ≈ 36.5.
+    // The controller may dither above the steady speed (the jerk then changes sign every
+    // period, within the limits) but never above the cap. The velocity peak is from the
+    // positions (a period's chord is shorter than its arc by (v T)²/24r² ≈ 7e-5).
+    let (m, limits) = mill();
+    let cap = (CENTRIPETAL_SHARE * PLAN_SHARE * 2000.0 * 1.0f64).sqrt();
+    let steady = (PLAN_SHARE * 50_000.0 * 1.0f64).cbrt();
+    let run = Grid::from_pieces(&[circle(1.0, 3.0, 100.0)], &m, DS_MM).run(&limits);
+    let top = run.peaks[0] * 200.0;
+    assert!(
+        top >= 0.99 * steady && top <= 1.001 * cap,
+        "top speed {top} mm/s, steady {steady}, cap {cap}"
+    );
+    assert!(
+        run.peaks.iter().all(|&p| p <= LIMIT_MARGIN),
+        "{:?}",
+        run.peaks
+    );
+    assert_eq!(run.fallbacks, 0);
+    // At least the time at the cap.
+    assert!(
+        run.time_s >= 3.0 * std::f64::consts::TAU / cap,
+        "{}",
+        run.time_s
+    );
+}
+
+/// Draws from [0, 1) (a 64-bit linear congruential generator, the high bits).
+struct Draw(u64);
+
+impl Draw {
+    fn unit(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+}
+
+/// A helix about Z from the origin: radius `r`, `turns`, rising `rise_mm` a turn.
+fn helix(r: f64, turns: f64, rise_mm: f64, feed_mm_s: f64) -> Piece {
+    Piece {
+        shape: Shape::Arc {
+            center: Vec3::new(-r, 0.0, 0.0),
+            e1: Vec3::x(),
+            e2: Vec3::y(),
+            radius_mm: r,
+            from_rad: 0.0,
+            to_rad: turns * std::f64::consts::TAU,
+            axial_per_rad: Vec3::new(0.0, 0.0, rise_mm / std::f64::consts::TAU),
+        },
+        feed_mm_s,
+    }
+}
+
+#[test]
+fn swept_machines_and_paths_stay_within_the_limits() {
+    // Machines from slow and soft to fast and stiff, axis by axis, and paths with corners
+    // (blended within the tolerance), a reversal, a helix: the positions at the period
+    // within every limit, every run to the end without a fallback, and no quicker than
+    // the feed allows.
+    let mut draw = Draw(31);
+    for case in 0..8 {
+        let v = [0, 1, 2].map(|_| draw.range(50.0, 300.0));
+        let a = [0, 1, 2].map(|_| draw.range(300.0, 3000.0));
+        let j = [0, 1, 2].map(|_| draw.range(5_000.0, 80_000.0));
+        let tolerance = draw.range(0.005, 0.05);
+        let feed = draw.range(20.0, 150.0);
+        let (m, limits) = machine(v, a, j, tolerance);
+        let paths: [(&str, Vec<Piece>); 3] = [
+            (
+                "corners",
+                vec![
+                    line([0.0; 3], [3.0, 0.0, 0.0], feed),
+                    line([3.0, 0.0, 0.0], [3.0, 2.0, 0.5], feed),
+                    line([3.0, 2.0, 0.5], [1.0, 3.0, 0.5], feed),
+                ],
+            ),
+            (
+                "reversal",
+                vec![
+                    line([0.0; 3], [2.0, 1.0, 0.0], feed),
+                    line([2.0, 1.0, 0.0], [0.0, 0.0, 0.0], feed),
+                ],
+            ),
+            ("helix", vec![helix(1.5, 1.25, 1.0, feed)]),
+        ];
+        for (name, pieces) in paths {
+            let length: f64 = pieces.iter().map(|p| p.shape.length_mm()).sum();
+            let run = Grid::from_pieces(&pieces, &m, DS_MM).run(&limits);
+            let what = format!("case {case} ({v:?}, {a:?}, {j:?}, feed {feed}), {name}");
+            assert!(
+                run.peaks.iter().all(|&p| p <= LIMIT_MARGIN),
+                "{what}: peaks {:?}",
+                run.peaks
+            );
+            assert_eq!(run.fallbacks, 0, "{what}");
+            assert_eq!(run.gap_mm, 0.0, "{what}: ends at the end");
+            assert!(run.time_s >= length / feed, "{what}: {} s", run.time_s);
+            assert!(run.time_s < 60.0, "{what}: {} s", run.time_s);
+        }
+    }
+}
+
+#[test]
+fn the_planners_segments_run_within_the_limits() {
+    // A program of the CAM table's kind through the planner of `kerf sim` on the CAM
+    // mill: the prototype on those segments within the limits, to the end, and its time
+    // at least the programmed path's length at the feed.
+    let config = measure::machine().expect("the bundled CAM machine");
+    let text = "G21 G90 G17 G64 P0.01\nF3000\nG1 X10 Y0\nG1 X10 Y0.5 Z-0.2\n\
+                G2 X12 Y2.5 I2 J0\nG1 X2 Y3\nG1 X0 Y6 Z0\nM2\n";
+    let moves = measure::programmed_moves("corners", text, &config).expect("the program");
+    let segments = measure::planned_segments("corners", &moves, &config).expect("planned");
+    let limits = kerf_config::machine_limits(&config);
+    let run = Grid::from_segments(&segments, &measure::jerk_machine(&config), DS_MM).run(&limits);
+    let length: f64 = segments.iter().map(|s| s.length_mm).sum();
+    assert!(
+        run.peaks.iter().all(|&p| p <= LIMIT_MARGIN),
+        "{:?}",
+        run.peaks
+    );
+    assert_eq!(run.fallbacks, 0);
+    assert_eq!(run.gap_mm, 0.0);
+    assert!(run.time_s >= length / 50.0, "{} s", run.time_s);
+}
