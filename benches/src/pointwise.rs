@@ -39,6 +39,7 @@
 //! `kerf_motion::monitor::LimitMonitor`.
 #![allow(clippy::many_single_char_names)]
 
+use std::cell::Cell;
 use std::time::Instant;
 
 use kerf_geom::{MachineLimits, PlannedSegment, Vec3};
@@ -48,10 +49,13 @@ use crate::bound::{BoundMachine, Piece, max_speed_squared};
 use crate::jerk::{JerkMachine, g2_blended};
 
 /// Share of each axis's acceleration the speed limit of a point leaves to the centripetal
-/// term at `a = 0`.
-pub const CENTRIPETAL_SHARE: f64 = 0.85;
-/// Share of each axis's jerk the speed limit of a point leaves to the `κ' v³` term.
-pub const JERK_SHARE: f64 = 0.85;
+/// term at `a = 0`. The speed limit is only a cap (every period is checked against the
+/// intervals themselves): 1.0 makes it the point's own limit; 0.85 and 0.95 measured
+/// slower on raster C and the obround (docs/PERFORMANCE.md).
+pub const CENTRIPETAL_SHARE: f64 = 1.0;
+/// Share of each axis's jerk the speed limit of a point leaves to the `κ' v³` term (a cap
+/// as [`CENTRIPETAL_SHARE`]).
+pub const JERK_SHARE: f64 = 1.0;
 /// Share of the acceleration and jerk limits the controller plans with: the rest covers
 /// what the checks at the middle and the end of a period do not see.
 pub const PLAN_SHARE: f64 = 0.97;
@@ -100,6 +104,8 @@ struct Section {
     /// Axis acceleration and jerk limits at [`PLAN_SHARE`] (the velocities are in `v_max`).
     acc: [f64; 3],
     jerk: [f64; 3],
+    /// Periods checked so far (the measure of the controller's work).
+    checked: Cell<u64>,
 }
 
 /// A path from rest to rest, in sections between the stops on it (reversals, kinks, the
@@ -124,6 +130,9 @@ pub struct Run {
     /// Mean wall time of the controller per period, µs (the positions and their check
     /// not included).
     pub us_per_cycle: f64,
+    /// Mean number of periods checked per period run (the candidates' and the brakings'
+    /// simulated to rest).
+    pub checks_per_cycle: f64,
     /// Points of the grid.
     pub points: usize,
     /// Stops along the path, the end included.
@@ -344,6 +353,7 @@ impl Section {
             v_max: Vec::with_capacity(n + 1),
             acc: machine.base.acceleration_mm_s2.map(|a| a * PLAN_SHARE),
             jerk: machine.jerk_mm_s3.map(|j| j * PLAN_SHARE),
+            checked: Cell::new(0),
         };
         let mut feed = Vec::with_capacity(n + 1);
         for i in 0..=n {
@@ -436,6 +446,7 @@ impl Section {
     /// (see the module's documentation) and ends by `stop`. A period that lands on rest
     /// ends there, at rest.
     fn period(&self, x: State, j: f64, dt: f64, stop: f64) -> Option<State> {
+        self.checked.set(self.checked.get() + 1);
         let (_, v, a) = x;
         let mut span = dt;
         let mut landed = false;
@@ -631,6 +642,8 @@ impl Grid {
             fallbacks,
             peaks,
             us_per_cycle: planning_s * 1e6 / cycles.max(1) as f64,
+            checks_per_cycle: self.sections.iter().map(|s| s.checked.get()).sum::<u64>() as f64
+                / cycles.max(1) as f64,
             points: self.points(),
             stops: self.stops(),
             gap_mm,

@@ -90,7 +90,7 @@ fn a_small_circle_runs_between_its_steady_and_its_centripetal_speed() {
     // r = 1 mm at 100 mm/s asked, three turns. Two speeds by hand:
     // - the cap: where the tangent is along X, Y alone takes the centripetal acceleration
     //   v²/r, held to CENTRIPETAL_SHARE · PLAN_SHARE of 2,000 mm/s²:
-    //   v = √(0.85 · 0.97 · 2000 · 1) ≈ 40.6 mm/s (the jerk's pairwise condition at a = 0
+    //   v = √(1.0 · 0.97 · 2000 · 1) ≈ 44.0 mm/s (the jerk's pairwise condition at a = 0
     //   leaves it free: κ' = −t/r², the same κ'ᵢ/tᵢ on every axis);
     // - steady: at a constant speed the jerk is v³/r² along the tangent, so X (tangent
     //   along X) holds it to PLAN_SHARE of 50,000 mm/s³: v = (0.97 · 50,000)^(1/3) ≈ 36.5.

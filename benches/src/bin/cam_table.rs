@@ -91,9 +91,9 @@ fn pointwise_table(
     let limits = kerf_config::machine_limits(config);
     let machine = measure::jerk_machine(config);
     println!(
-        "| program | path | time | fallbacks | peak v / a / j | µs per cycle | points | stops | gap |"
+        "| program | path | time | fallbacks | peak v / a / j | µs per cycle | checks per cycle | points | stops | gap |"
     );
-    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|");
     for p in corpus.iter().filter(|p| p.name.contains(filter)) {
         let moves = measure::programmed_moves(&p.name, &p.text, config)?;
         let segments = measure::planned_segments(&p.name, &moves, config)?;
@@ -109,7 +109,7 @@ fn pointwise_table(
         ] {
             let run = grid.run(&limits);
             println!(
-                "| {} | {path} | {:.3} s | {} | {:.3} / {:.3} / {:.3} | {:.0} | {} | {} | {:.0e} mm |",
+                "| {} | {path} | {:.3} s | {} | {:.3} / {:.3} / {:.3} | {:.0} | {:.0} | {} | {} | {:.0e} mm |",
                 p.name,
                 run.time_s,
                 run.fallbacks,
@@ -117,6 +117,7 @@ fn pointwise_table(
                 run.peaks[1],
                 run.peaks[2],
                 run.us_per_cycle,
+                run.checks_per_cycle,
                 run.points,
                 run.stops,
                 run.gap_mm
