@@ -24,12 +24,15 @@
 //! The controller takes the largest jerk (a scan down the point's jerk interval, then
 //! bisection) whose period is admissible (the speed never below zero and within `v_max`
 //! over the stretch it passes; the acceleration and the jerk within the intervals at the
-//! middle and the end of the period) and ends in a state from which a braking comes to
+//! middle and the end of the period; the finite differences of the new position at the
+//! period, as the output monitor takes them, within the whole limits) and ends in a
+//! state from which a braking comes to
 //! rest before the next stop (a reversal, a stop the planner set, or the end of the path)
 //! with every period admissible (`Section::can_stop`). A braking heads for a share of the
 //! most negative acceleration each point allows and turns back to zero acceleration as
 //! the speed runs out, landing on rest within a period (the jerk `a²/2v` brings speed and
-//! acceleration to zero together). Braking is itself a continuation the controller may
+//! acceleration to zero together; where braking harder would leave no landing, the most
+//! negative jerk that still does). Braking is itself a continuation the controller may
 //! take, so a state it accepts has one: the motion can stop within the known path, as
 //! today's core can.
 //!
@@ -60,9 +63,9 @@ pub const JERK_SHARE: f64 = 1.0;
 /// what the checks at the middle and the end of a period do not see.
 pub const PLAN_SHARE: f64 = 0.97;
 /// Bisection steps on the jerk of a period.
-const BISECTION_STEPS: usize = 20;
+const BISECTION_STEPS: usize = 10;
 /// Steps of the scan down the jerk interval for a first admissible jerk.
-const SCAN_STEPS: usize = 16;
+const SCAN_STEPS: usize = 8;
 /// The brakings tried from a state, as shares of the most negative acceleration of each
 /// point: the hardest one can run into a point whose jerk interval is empty at that
 /// deceleration (the `3 κ v a` term).
@@ -104,6 +107,9 @@ struct Section {
     /// Axis acceleration and jerk limits at [`PLAN_SHARE`] (the velocities are in `v_max`).
     acc: [f64; 3],
     jerk: [f64; 3],
+    /// Axis velocity, acceleration and jerk limits, whole: what the finite differences of
+    /// the positions at the period are checked against.
+    whole: [[f64; 3]; 3],
     /// Periods checked so far (the measure of the controller's work).
     checked: Cell<u64>,
 }
@@ -141,6 +147,9 @@ pub struct Run {
     /// braking lands on the period, not on the stop; at the end the run ends there, at a
     /// reversal it goes on from the stop).
     pub gap_mm: f64,
+    /// The run stood still short of a stop for a second of periods (or ran an hour), and
+    /// was ended there: the controller found no admissible way on.
+    pub stuck: bool,
 }
 
 /// A curve of the path by a parameter in [0, 1]: point and first two derivatives.
@@ -155,6 +164,10 @@ struct Parametric {
 
 /// The state of the motion: arc length, mm; speed, mm/s; acceleration, mm/s².
 type State = (f64, f64, f64);
+
+/// The positions of the last three periods, oldest first, mm: what the next position's
+/// finite differences are taken with.
+type Hist = [Vec3; 3];
 
 /// The interval of `x` with `|c x + m| ≤ w` for every `(c, m, w)`, intersected over the
 /// axes; an axis with `c = 0` needs `|m| ≤ w` (else the interval is empty).
@@ -353,6 +366,11 @@ impl Section {
             v_max: Vec::with_capacity(n + 1),
             acc: machine.base.acceleration_mm_s2.map(|a| a * PLAN_SHARE),
             jerk: machine.jerk_mm_s3.map(|j| j * PLAN_SHARE),
+            whole: [
+                machine.base.velocity_mm_s,
+                machine.base.acceleration_mm_s2,
+                machine.jerk_mm_s3,
+            ],
             checked: Cell::new(0),
         };
         let mut feed = Vec::with_capacity(n + 1);
@@ -442,10 +460,10 @@ impl Section {
             + self.t[i + 1] * (h11 * self.ds_mm)
     }
 
-    /// The state after a period `dt` of jerk `j` from `x`, if the period is admissible
-    /// (see the module's documentation) and ends by `stop`. A period that lands on rest
-    /// ends there, at rest.
-    fn period(&self, x: State, j: f64, dt: f64, stop: f64) -> Option<State> {
+    /// The state after a period `dt` of jerk `j` from `x`, and the positions with the new
+    /// one, if the period is admissible (see the module's documentation) and ends by
+    /// `stop`. A period that lands on rest ends there, at rest.
+    fn period(&self, x: State, h: &Hist, j: f64, dt: f64, stop: f64) -> Option<(State, Hist)> {
         self.checked.set(self.checked.get() + 1);
         let (_, v, a) = x;
         let mut span = dt;
@@ -474,11 +492,45 @@ impl Section {
                 return None;
             }
         }
-        Some(if landed {
+        // The position the drive gets, and its finite differences at the period as the
+        // output monitor takes them, within the whole limits.
+        let p = self.position(s1);
+        if !self.differences_within(h, p, dt) {
+            return None;
+        }
+        let state = if landed {
             (s1, 0.0, 0.0)
         } else {
             (s1, v1.max(0.0), a1)
+        };
+        Some((state, [h[1], h[2], p]))
+    }
+
+    /// Whether the position `p` after the positions `h` keeps the finite differences at
+    /// the period `dt` (as the output monitor takes them) within the whole limits.
+    fn differences_within(&self, h: &Hist, p: Vec3, dt: f64) -> bool {
+        let (inv, inv2, inv3) = (1.0 / dt, 1.0 / (dt * dt), 1.0 / (dt * dt * dt));
+        let vel = (p - h[2]) * inv;
+        let acc = (p - h[2] * 2.0 + h[1]) * inv2;
+        let jerk = (p - h[2] * 3.0 + h[1] * 3.0 - h[0]) * inv3;
+        (0..3).all(|i| {
+            vel[i].abs() <= self.whole[0][i]
+                && acc[i].abs() <= self.whole[1][i]
+                && jerk[i].abs() <= self.whole[2][i]
         })
+    }
+
+    /// Whether standing still after the positions `h` keeps the finite differences within
+    /// the whole limits (the three periods until they all see rest).
+    fn rest_within(&self, h: &Hist, dt: f64) -> bool {
+        let mut h = *h;
+        for _ in 0..3 {
+            if !self.differences_within(&h, h[2], dt) {
+                return false;
+            }
+            h = [h[1], h[2], h[2]];
+        }
+        true
     }
 
     /// The jerk of a braking at `x` over a period `dt`: towards `share` of the most
@@ -496,14 +548,37 @@ impl Section {
         let (a_lo, _) = self.accel_range(s, v);
         let choose = |j_lo: f64, j_hi: f64| {
             let hard = ((share * a_lo.min(0.0) - a) / dt).clamp(j_lo, j_hi);
+            let mut j = hard;
             if a < 0.0 && v > 0.0 {
                 let (_, v1, a1) = step(x, hard, dt);
                 let land_now = a * a / (2.0 * v);
                 if v1 <= 0.0 || (a1 < 0.0 && a1 * a1 / (2.0 * v1) > j_hi) || land_now >= j_hi {
-                    return land_now.clamp(j_lo, j_hi);
+                    j = land_now.clamp(j_lo, j_hi);
                 }
             }
-            hard
+            // A jerk after which the braking can still land (the speed left at least
+            // what the return of the acceleration to zero takes); else the most negative
+            // one that can, by bisection.
+            let landable = |j: f64| {
+                if a < 0.0 && a + j * dt >= 0.0 {
+                    return v - a * a / (2.0 * j) >= -1e-9;
+                }
+                let (_, v1, a1) = step(x, j, dt);
+                v1 >= -1e-9 && (a1 >= 0.0 || v1 >= a1 * a1 / (2.0 * j_hi))
+            };
+            if landable(j) || !landable(j_hi) {
+                return j;
+            }
+            let (mut lo, mut hi) = (j, j_hi);
+            for _ in 0..BISECTION_STEPS {
+                let mid = 0.5 * (lo + hi);
+                if landable(mid) {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            hi
         };
         let j = choose(j_lo, j_hi);
         let (s1, v1, a1) = step(x, j, dt);
@@ -513,47 +588,54 @@ impl Section {
     }
 
     /// Whether one of the brakings of [`BRAKE_SHARES`] from `x` comes to rest by `stop`.
-    fn can_stop(&self, x: State, dt: f64, stop: f64) -> bool {
+    fn can_stop(&self, x: State, h: &Hist, dt: f64, stop: f64) -> bool {
         BRAKE_SHARES
             .iter()
-            .any(|&share| self.brakes(x, dt, stop, share))
+            .any(|&share| self.brakes(x, h, dt, stop, share))
     }
 
     /// Whether the braking towards `share` of the most negative acceleration from `x`
     /// comes to rest by `stop`, every period on the way admissible.
-    fn brakes(&self, mut x: State, dt: f64, stop: f64, share: f64) -> bool {
+    fn brakes(&self, mut x: State, h: &Hist, dt: f64, stop: f64, share: f64) -> bool {
+        let mut h = *h;
         for _ in 0..100_000 {
             if x.1 <= 1e-9 && x.2.abs() <= 1e-9 {
-                return x.0 <= stop + 1e-9;
+                return x.0 <= stop + 1e-9 && self.rest_within(&h, dt);
             }
             let Some(j) = self.brake_jerk(x, dt, share) else {
                 return false;
             };
-            let Some(next) = self.period(x, j, dt, stop) else {
+            let Some(next) = self.period(x, &h, j, dt, stop) else {
                 return false;
             };
-            x = next;
+            (x, h) = next;
         }
         false
     }
 
     /// The state after the period of jerk `j` from `x`, if it is admissible and ends in a
     /// state that can stop by `stop`.
-    fn admissible(&self, x: State, j: f64, dt: f64, stop: f64) -> Option<State> {
-        self.period(x, j, dt, stop)
-            .filter(|&next| self.can_stop(next, dt, stop))
+    fn admissible(&self, x: State, h: &Hist, j: f64, dt: f64, stop: f64) -> Option<(State, Hist)> {
+        self.period(x, h, j, dt, stop)
+            .filter(|(next, h1)| self.can_stop(*next, h1, dt, stop))
     }
 
     /// The largest jerk of the point's interval whose period is [`Section::admissible`], with
     /// the state it ends in: the interval scanned from the top in [`SCAN_STEPS`] steps for
     /// a first admissible jerk (else a braking's), then bisection between it and the step
     /// above.
-    fn largest_admissible(&self, x: State, dt: f64, stop: f64) -> Option<(f64, State)> {
+    fn largest_admissible(
+        &self,
+        x: State,
+        h: &Hist,
+        dt: f64,
+        stop: f64,
+    ) -> Option<(f64, (State, Hist))> {
         let (j_lo, j_hi) = self.jerk_range(x.0, x.1, x.2);
         if j_lo > j_hi {
             return None;
         }
-        if let Some(next) = self.admissible(x, j_hi, dt, stop) {
+        if let Some(next) = self.admissible(x, h, j_hi, dt, stop) {
             return Some((j_hi, next));
         }
         let width = j_hi - j_lo;
@@ -561,7 +643,7 @@ impl Section {
         let mut found = None;
         for k in 1..=SCAN_STEPS {
             let j = j_hi - width * k as f64 / SCAN_STEPS as f64;
-            if let Some(next) = self.admissible(x, j, dt, stop) {
+            if let Some(next) = self.admissible(x, h, j, dt, stop) {
                 found = Some((j, next));
                 break;
             }
@@ -573,7 +655,7 @@ impl Section {
                 // A braking continuation: admissible whenever the state before was.
                 let b = BRAKE_SHARES.iter().find_map(|&share| {
                     let j = self.brake_jerk(x, dt, share)?;
-                    self.admissible(x, j, dt, stop).map(|next| (j, next))
+                    self.admissible(x, h, j, dt, stop).map(|next| (j, next))
                 })?;
                 hi = j_hi.min(b.0 + width / SCAN_STEPS as f64);
                 b
@@ -581,7 +663,7 @@ impl Section {
         };
         for _ in 0..BISECTION_STEPS {
             let mid = 0.5 * (best.0 + hi);
-            match self.admissible(x, mid, dt, stop) {
+            match self.admissible(x, h, mid, dt, stop) {
                 Some(next) => best = (mid, next),
                 None => hi = mid,
             }
@@ -596,36 +678,51 @@ impl Grid {
     pub fn run(&self, limits: &MachineLimits) -> Run {
         let dt = limits.period_s;
         let p0 = self.sections[0].position(0.0);
+        let mut h: Hist = [p0; 3];
         let mut monitor = LimitMonitor::at_rest(limits, &[p0.x, p0.y, p0.z, 0.0, 0.0, 0.0]);
         let (mut cycles, mut fallbacks) = (0u64, 0u64);
         let mut planning_s = 0.0;
         let mut gap_mm = 0.0f64;
-        // A run that takes more than an hour of periods is stuck.
+        // A run that takes more than an hour of periods, or stands still for a second
+        // short of its stop, is stuck.
         let max_cycles = (3600.0 / dt) as u64;
+        let max_still = (1.0 / dt) as u64;
+        let mut stuck = false;
         for section in &self.sections {
             let stop = section.length_mm;
             let mut x: State = (0.0, 0.0, 0.0);
-            while cycles < max_cycles {
+            let mut still = 0u64;
+            loop {
+                if cycles >= max_cycles || still >= max_still {
+                    stuck = true;
+                    break;
+                }
                 let at_rest = x.1 < 1e-6 && x.2.abs() < 1e-3;
                 if stop - x.0 < 1e-9 || (at_rest && stop - x.0 < STOP_GAP_MM) {
                     gap_mm = gap_mm.max(stop - x.0);
                     break;
                 }
                 let clock = Instant::now();
-                x = match section.largest_admissible(x, dt, stop) {
+                (x, h) = match section.largest_admissible(x, &h, dt, stop) {
                     Some((_, next)) => next,
                     None => {
                         fallbacks += 1;
                         let (j_lo, j_hi) = section.jerk_range(x.0, x.1, x.2);
                         let j = section.brake_jerk(x, dt, 1.0).unwrap_or(j_lo.min(j_hi));
                         let (s1, v1, a1) = step(x, j, dt);
-                        (s1.min(stop), v1.max(0.0), if v1 <= 0.0 { 0.0 } else { a1 })
+                        let s1 = s1.min(stop);
+                        let next = (s1, v1.max(0.0), if v1 <= 0.0 { 0.0 } else { a1 });
+                        (next, [h[1], h[2], section.position(s1)])
                     }
                 };
                 planning_s += clock.elapsed().as_secs_f64();
                 cycles += 1;
-                let p = section.position(x.0);
+                still = if x.1 == 0.0 { still + 1 } else { 0 };
+                let p = h[2];
                 let _ = monitor.check(&[p.x, p.y, p.z, 0.0, 0.0, 0.0]);
+            }
+            if stuck {
+                break;
             }
         }
         let mut peaks = [0.0f64; 3];
@@ -647,6 +744,7 @@ impl Grid {
             points: self.points(),
             stops: self.stops(),
             gap_mm,
+            stuck,
         }
     }
 }

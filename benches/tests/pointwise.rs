@@ -72,7 +72,8 @@ fn a_line_takes_the_s_curve_time() {
         run.time_s
     );
     assert_eq!(run.fallbacks, 0);
-    assert_eq!(run.gap_mm, 0.0, "the run ends at the end");
+    // Not stuck: the run came to rest within STOP_GAP_MM (1e-6 mm) of the end.
+    assert!(!run.stuck, "the run ends at the end");
     // Cruise at the feed, half of X's velocity; ramps at the planned share (and the
     // slack of 1e-3 of an interval's width the checks within a period allow: 2e-3 of
     // the acceleration limit).
@@ -159,8 +160,15 @@ fn swept_machines_and_paths_stay_within_the_limits() {
     // (blended within the tolerance), a reversal, a helix: the positions at the period
     // within every limit, every run to the end without a fallback, and no quicker than
     // the feed allows.
-    let mut draw = Draw(31);
-    for case in 0..8 {
+    // KERF_POINTWISE_SEED and KERF_POINTWISE_CASES widen the search (default 31, 8).
+    let env = |name: &str, default: u64| {
+        std::env::var(name)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(default)
+    };
+    let mut draw = Draw(env("KERF_POINTWISE_SEED", 31));
+    for case in 0..env("KERF_POINTWISE_CASES", 8) {
         let v = [0, 1, 2].map(|_| draw.range(50.0, 300.0));
         let a = [0, 1, 2].map(|_| draw.range(300.0, 3000.0));
         let j = [0, 1, 2].map(|_| draw.range(5_000.0, 80_000.0));
@@ -195,7 +203,7 @@ fn swept_machines_and_paths_stay_within_the_limits() {
                 run.peaks
             );
             assert_eq!(run.fallbacks, 0, "{what}");
-            assert_eq!(run.gap_mm, 0.0, "{what}: ends at the end");
+            assert!(!run.stuck, "{what}: ends at the end");
             assert!(run.time_s >= length / feed, "{what}: {} s", run.time_s);
             assert!(run.time_s < 60.0, "{what}: {} s", run.time_s);
         }
@@ -221,6 +229,6 @@ fn the_planners_segments_run_within_the_limits() {
         run.peaks
     );
     assert_eq!(run.fallbacks, 0);
-    assert_eq!(run.gap_mm, 0.0);
+    assert!(!run.stuck, "ends at the end");
     assert!(run.time_s >= length / 50.0, "{} s", run.time_s);
 }

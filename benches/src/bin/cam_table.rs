@@ -12,7 +12,7 @@
 //! print the jerk-limited bound's path speed along the program named NAME as CSV lines
 //! `s_mm,speed_mm_s` (compared with `kerf sim`'s setpoints by `benches/speed_bins.py`), or
 //! `--pointwise [NAME_PART]` to run the point-wise prototype (`kerf_benches::pointwise`)
-//! on the exact path and on the planner's segments of each program (about 40 s for the
+//! on the exact path and on the planner's segments of each program (about 25 s for the
 //! whole corpus).
 
 use std::process::ExitCode;
@@ -109,9 +109,10 @@ fn pointwise_table(
         ] {
             let run = grid.run(&limits);
             println!(
-                "| {} | {path} | {:.3} s | {} | {:.3} / {:.3} / {:.3} | {:.0} | {:.0} | {} | {} | {:.0e} mm |",
+                "| {} | {path} | {:.3} s{} | {} | {:.3} / {:.3} / {:.3} | {:.0} | {:.0} | {} | {} | {:.0e} mm |",
                 p.name,
                 run.time_s,
+                if run.stuck { " (stuck)" } else { "" },
                 run.fallbacks,
                 run.peaks[0],
                 run.peaks[1],
