@@ -11,7 +11,7 @@
 //! run them with `kerf sim --config benches/cam-mill.toml`), or `--bound-speeds NAME` to
 //! print the jerk-limited bound's path speed along the program named NAME as CSV lines
 //! `s_mm,speed_mm_s` (compared with `kerf sim`'s setpoints by `benches/speed_bins.py`), or
-//! `--pointwise [NAME_PART]` to run the point-wise prototype (`kerf_benches::pointwise`)
+//! `--pointwise [--period-us N] [NAME_PART]` to run the point-wise prototype (`kerf_benches::pointwise`)
 //! on the exact path and on the planner's segments of each program (about 25 s for the
 //! whole corpus).
 
@@ -64,8 +64,21 @@ fn run() -> anyhow::Result<()> {
     if let Some(flag) = args.first()
         && flag == "--pointwise"
     {
-        let filter = args.get(1).map(String::as_str).unwrap_or("");
-        return pointwise_table(&corpus, &config, filter);
+        let mut rest = &args[1..];
+        let mut period_s = None;
+        if let [flag, us, tail @ ..] = rest
+            && flag == "--period-us"
+        {
+            let us: f64 = us
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite() && *v > 0.0)
+                .with_context(|| format!("--period-us wants a positive number, not {us:?}"))?;
+            period_s = Some(us * 1e-6);
+            rest = tail;
+        }
+        let filter = rest.first().map(String::as_str).unwrap_or("");
+        return pointwise_table(&corpus, &config, period_s, filter);
     }
     let filter = args.first().map(String::as_str).unwrap_or("");
     let mut rows = Vec::new();
@@ -82,13 +95,18 @@ fn run() -> anyhow::Result<()> {
 
 /// Prints the table of the point-wise prototype (`kerf_benches::pointwise`) on the
 /// programs whose name contains `filter`: on the exact path and on the planner's
-/// segments.
+/// segments (planned at the configuration's period), run at `period_s` (else the
+/// configuration's).
 fn pointwise_table(
     corpus: &[cam::CamProgram],
     config: &kerf_config::Config,
+    period_s: Option<f64>,
     filter: &str,
 ) -> anyhow::Result<()> {
-    let limits = kerf_config::machine_limits(config);
+    let mut limits = kerf_config::machine_limits(config);
+    if let Some(period_s) = period_s {
+        limits.period_s = period_s;
+    }
     let machine = measure::jerk_machine(config);
     println!(
         "| program | path | time | fallbacks | peak v / a / j | µs per cycle | checks per cycle | points | stops | gap |"
