@@ -59,8 +59,9 @@ pub const CENTRIPETAL_SHARE: f64 = 1.0;
 /// Share of each axis's jerk the speed limit of a point leaves to the `κ' v³` term (a cap
 /// as [`CENTRIPETAL_SHARE`]).
 pub const JERK_SHARE: f64 = 1.0;
-/// Share of the acceleration and jerk limits the controller plans with: the rest covers
-/// what the checks at the middle and the end of a period do not see.
+/// Share of the acceleration and jerk limits the controller plans with (the intervals):
+/// the rest is the room the finite differences at the period, checked against the whole
+/// limits, need (at 1.0 the two collide and the rasters crawl; docs/PERFORMANCE.md).
 pub const PLAN_SHARE: f64 = 0.97;
 /// Bisection steps on the jerk of a period.
 const BISECTION_STEPS: usize = 10;
@@ -346,8 +347,9 @@ impl Grid {
 
 impl Section {
     /// Tabulates a section of length `total` mm every `ds_mm` at most: `sample(s, first)`
-    /// gives the point, unit tangent, curvature vector, its derivative and the feed at arc length `s` from the
-    /// section's start (called in ascending order; `first` at the start).
+    /// gives the point, unit tangent, curvature vector, its derivative and the feed at
+    /// arc length `s` from the section's start (called in ascending order; `first` at
+    /// the start).
     fn tabulate(
         total: f64,
         ds_mm: f64,
@@ -362,7 +364,7 @@ impl Section {
             p: Vec::with_capacity(n + 1),
             t: Vec::with_capacity(n + 1),
             k: Vec::with_capacity(n + 1),
-            kp: vec![Vec3::zeros(); n + 1],
+            kp: Vec::with_capacity(n + 1),
             v_max: Vec::with_capacity(n + 1),
             acc: machine.base.acceleration_mm_s2.map(|a| a * PLAN_SHARE),
             jerk: machine.jerk_mm_s3.map(|j| j * PLAN_SHARE),
@@ -379,7 +381,7 @@ impl Section {
             grid.p.push(p);
             grid.t.push(t);
             grid.k.push(k);
-            grid.kp[i] = kp;
+            grid.kp.push(kp);
             feed.push(f);
         }
         let centripetal = BoundMachine {
@@ -447,7 +449,7 @@ impl Section {
 
     /// Position at arc length `s`: the cubic Hermite interpolation of the neighbouring
     /// points and their tangents.
-    pub fn position(&self, s: f64) -> Vec3 {
+    fn position(&self, s: f64) -> Vec3 {
         let (i, u) = self.locate(s);
         let (h00, h10) = (
             (1.0 + 2.0 * u) * (1.0 - u) * (1.0 - u),
