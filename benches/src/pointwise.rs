@@ -68,9 +68,11 @@ const BISECTION_STEPS: usize = 10;
 /// Steps of the scan down the jerk interval for a first admissible jerk.
 const SCAN_STEPS: usize = 8;
 /// The brakings tried from a state, as shares of the most negative acceleration of each
-/// point: the hardest one can run into a point whose jerk interval is empty at that
-/// deceleration (the `3 κ v a` term).
-const BRAKE_SHARES: [f64; 3] = [1.0, 0.5, 0.25];
+/// point: a hard one can run into a point whose jerk interval is empty at that
+/// deceleration (the `3 κ v a` term), where a gentle one, longer, still lands. Down to
+/// 1/16: with 1/4 the lowest, raster B took 3.248 s and raster C 4.649 s (3.079 and
+/// 4.215 s now); 1/32 and 1/64 as well changed them by 0.3 % (docs/PERFORMANCE.md).
+const BRAKE_SHARES: [f64; 5] = [1.0, 0.5, 0.25, 0.125, 0.0625];
 /// A period whose lowest speed, where its acceleration turns from negative to positive,
 /// is below this lands on rest there, mm/s.
 const LANDED_MM_S: f64 = 1e-6;
