@@ -98,6 +98,15 @@ pub(crate) struct Eval {
     pub(crate) d2: Vec3,
 }
 
+/// The unit tangent and the curvature vector (the second derivative by arc length) of a
+/// curve whose first and second derivatives by its parameter are `d1` and `d2`, and the
+/// parameter's speed `|d1|`.
+pub(crate) fn unit_frame(d1: Vec3, d2: Vec3) -> (Vec3, Vec3, f64) {
+    let speed = d1.norm();
+    let t = d1 / speed;
+    (t, (d2 - t * d2.dot(&t)) / (speed * speed), speed)
+}
+
 impl Shape {
     /// Position and derivatives at `u` in [0, 1].
     pub(crate) fn eval(&self, u: f64) -> Eval {
@@ -422,9 +431,7 @@ pub(crate) fn sample(
             let e = piece.shape.eval(j as f64 / n as f64);
             s_mm += (e.p - prev).norm();
             prev = e.p;
-            let speed = e.d1.norm();
-            let t = e.d1 / speed;
-            let k = (e.d2 - t * e.d2.dot(&t)) / (speed * speed);
+            let (t, k, _) = unit_frame(e.d1, e.d2);
             let x_max = max_speed_squared(&t, &k, piece.feed_mm_s, machine);
             let count = samples.len();
             match samples.last_mut() {

@@ -82,9 +82,7 @@ const SAME_CURVATURE: f64 = 1e-9;
 /// Direction and curvature vector of a shape at `u`.
 fn frame(shape: &Shape, u: f64) -> (Vec3, Vec3, Vec3) {
     let e = shape.eval(u);
-    let speed = e.d1.norm();
-    let t = e.d1 / speed;
-    let k = (e.d2 - t * e.d2.dot(&t)) / (speed * speed);
+    let (t, k, _) = bound::unit_frame(e.d1, e.d2);
     (e.p, t, k)
 }
 

@@ -45,10 +45,11 @@
 use std::cell::Cell;
 use std::time::Instant;
 
+use kerf_geom::ramp::bisect;
 use kerf_geom::{MachineLimits, PlannedSegment, Vec3};
 use kerf_motion::monitor::LimitMonitor;
 
-use crate::bound::{BoundMachine, Piece, max_speed_squared};
+use crate::bound::{BoundMachine, Piece, max_speed_squared, unit_frame};
 use crate::jerk::{JerkMachine, g2_blended};
 
 /// Share of each axis's acceleration the speed limit of a point leaves to the centripetal
@@ -113,7 +114,7 @@ struct Section {
     /// Axis velocity, acceleration and jerk limits, whole: what the finite differences of
     /// the positions at the period are checked against.
     whole: [[f64; 3]; 3],
-    /// Periods checked so far (the measure of the controller's work).
+    /// Periods checked in the current run (the measure of the controller's work).
     checked: Cell<u64>,
 }
 
@@ -311,15 +312,13 @@ impl Grid {
             let u = (j as f64 + frac) / (cum.len() - 1) as f64;
             let frame = |u: f64| {
                 let (p, d1, d2) = (curve.eval)(u);
-                let speed = d1.norm();
-                let t = d1 / speed;
-                (p, t, (d2 - t * d2.dot(&t)) / (speed * speed), speed)
+                (p, unit_frame(d1, d2))
             };
-            let (p, t, k, speed) = frame(u);
+            let (p, (t, k, speed)) = frame(u);
             // κ' by differences within the curve (one-sided at its ends): a junction
             // of two curves is continuous in κ, not in κ'.
             let (u0, u1) = ((u - KP_DU).max(0.0), (u + KP_DU).min(1.0));
-            let kp = (frame(u1).2 - frame(u0).2) / ((u1 - u0) * speed);
+            let kp = (frame(u1).1.1 - frame(u0).1.1) / ((u1 - u0) * speed);
             (p, t, k, kp, curve.feed_mm_s)
         };
         stops.push(total);
@@ -573,16 +572,7 @@ impl Section {
             if landable(j) || !landable(j_hi) {
                 return j;
             }
-            let (mut lo, mut hi) = (j, j_hi);
-            for _ in 0..BISECTION_STEPS {
-                let mid = 0.5 * (lo + hi);
-                if landable(mid) {
-                    hi = mid;
-                } else {
-                    lo = mid;
-                }
-            }
-            hi
+            bisect(j_hi, j, BISECTION_STEPS, landable)
         };
         let j = choose(j_lo, j_hi);
         let (s1, v1, a1) = step(x, j, dt);
@@ -692,6 +682,9 @@ impl Grid {
         let max_cycles = (3600.0 / dt) as u64;
         let max_still = (1.0 / dt) as u64;
         let mut stuck = false;
+        for section in &self.sections {
+            section.checked.set(0);
+        }
         for section in &self.sections {
             let stop = section.length_mm;
             let mut x: State = (0.0, 0.0, 0.0);

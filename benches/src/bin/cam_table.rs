@@ -11,9 +11,9 @@
 //! run them with `kerf sim --config benches/cam-mill.toml`), or `--bound-speeds NAME` to
 //! print the jerk-limited bound's path speed along the program named NAME as CSV lines
 //! `s_mm,speed_mm_s` (compared with `kerf sim`'s setpoints by `benches/speed_bins.py`), or
-//! `--pointwise [--period-us N] [NAME_PART]` to run the point-wise prototype (`kerf_benches::pointwise`)
-//! on the exact path and on the planner's segments of each program (about 25 s for the
-//! whole corpus).
+//! `--pointwise [--period-us N] [NAME_PART]` to run the point-wise prototype
+//! (`kerf_benches::pointwise`) on the exact path and on the planner's segments of each
+//! program (about 25 s for the whole corpus).
 
 use std::process::ExitCode;
 
