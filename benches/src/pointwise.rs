@@ -21,25 +21,33 @@
 //! of the jerk, within the feed and the axis velocities.
 //!
 //! **The cycle.** The state is `(s, v, a)`; each period applies one constant path jerk.
-//! The controller takes the largest jerk (a scan down the point's jerk interval, then
-//! bisection) whose period is admissible (the speed never below zero and within `v_max`
-//! over the stretch it passes; the acceleration and the jerk within the intervals at the
-//! middle and the end of the period; the finite differences of the new position at the
-//! period, as the output monitor takes them, within the whole limits) and ends in a
-//! state from which a braking comes to
-//! rest before the next stop (a reversal, a stop the planner set, or the end of the path)
-//! with every period admissible (`Section::can_stop`). A braking heads for a share of the
-//! most negative acceleration each point allows and turns back to zero acceleration as
-//! the speed runs out, landing on rest within a period (the jerk `a²/2v` brings speed and
-//! acceleration to zero together; where braking harder would leave no landing, the most
-//! negative jerk that still does). Braking is itself a continuation the controller may
-//! take, so a state it accepts has one: the motion can stop within the known path, as
-//! today's core can.
+//! A period is admissible if the speed never falls below zero and stays within `v_max`
+//! over the stretch it passes, the acceleration and the jerk stay within the intervals
+//! at the middle and the end of the period, and the finite differences of the new
+//! position at the period, as the output monitor takes them, stay within the whole
+//! limits. A jerk is admissible if its period is and it ends in a state from which a
+//! braking comes to rest before the next stop (a reversal, a stop the planner set, or
+//! the end of the path) with every period admissible (`Section::can_stop`). A braking
+//! heads for a share of the most negative acceleration each point allows and turns back
+//! to zero acceleration as the speed runs out, landing on rest within a period (the jerk
+//! `a²/2v` brings speed and acceleration to zero together; where braking harder would
+//! leave no landing, the most negative jerk that still does). Braking is itself a
+//! continuation the controller may take, so a state it accepts has one: the motion can
+//! stop within the known path, as today's core can.
 //!
-//! What it does not do yet: bound its cost (every bisection step simulates a braking to
-//! rest), or take the allocation-free, fixed-window form of the real-time core. Its output
-//! is measured as Kerf's is: positions at the period through
-//! `kerf_motion::monitor::LimitMonitor`.
+//! **The search** for each period's jerk ([`Search`]) is where the work is, since every
+//! candidate simulates brakings to rest. [`Search::Largest`] takes the largest admissible
+//! jerk (a scan down the point's interval, then bisection: about 18 candidates).
+//! [`Search::Candidates`], the default, tries a few jerks around the period before's,
+//! from the largest, and takes the first admissible; where none is, it continues the
+//! braking that certified the state before, whose tail is already checked to rest, so
+//! that continuation costs one period's check. It does 6 to 12 times less work, for
+//! times within 1.3 % (docs/PERFORMANCE.md).
+//!
+//! What it does not do yet: bound its cost per cycle (one braking simulated to rest is
+//! still the least a moving period costs), or take the allocation-free, fixed-window
+//! form of the real-time core. Its output is measured as Kerf's is: positions at the
+//! period through `kerf_motion::monitor::LimitMonitor`.
 #![allow(clippy::many_single_char_names)]
 
 use std::cell::Cell;
@@ -64,10 +72,14 @@ pub const JERK_SHARE: f64 = 1.0;
 /// the rest is the room the finite differences at the period, checked against the whole
 /// limits, need (at 1.0 the two collide and the rasters crawl; docs/PERFORMANCE.md).
 pub const PLAN_SHARE: f64 = 0.97;
-/// Bisection steps on the jerk of a period.
-const BISECTION_STEPS: usize = 10;
-/// Steps of the scan down the jerk interval for a first admissible jerk.
-const SCAN_STEPS: usize = 8;
+/// Bisection steps on the jerk of a period ([`Search::Largest`]).
+pub const BISECTION_STEPS: usize = 10;
+/// Steps of the scan down the jerk interval for a first admissible jerk
+/// ([`Search::Largest`]).
+pub const SCAN_STEPS: usize = 8;
+/// [`Search::Candidates`] tries the previous period's jerk and that jerk moved by 1 and 4
+/// of this many parts of the point's jerk interval, either way.
+const CANDIDATE_STEPS: f64 = 64.0;
 /// The brakings tried from a state, as shares of the most negative acceleration of each
 /// point: a hard one can run into a point whose jerk interval is empty at that
 /// deceleration (the `3 κ v a` term), where a gentle one, longer, still lands. Down to
@@ -77,6 +89,12 @@ const BRAKE_SHARES: [f64; 5] = [1.0, 0.5, 0.25, 0.125, 0.0625];
 /// A period whose lowest speed, where its acceleration turns from negative to positive,
 /// is below this lands on rest there, mm/s.
 const LANDED_MM_S: f64 = 1e-6;
+/// A braking whose hard jerk would leave no landing lands at once (the jerk `a²/2v`)
+/// only if that jerk is at least this share of the point's largest: at an acceleration
+/// near zero it is near zero, and the speed would never run out (a braking from
+/// 0.024 mm/s ran 100,000 periods); below it the braking takes the most negative jerk
+/// that still lands.
+const LAND_FLOOR: f64 = 0.25;
 /// A motion at rest this close short of its stop has reached it, mm.
 const STOP_GAP_MM: f64 = 1e-6;
 /// Slack of the intervals checked within a period, as a share of their width: a
@@ -143,6 +161,9 @@ pub struct Run {
     /// Mean number of periods checked per period run (the candidates' and the brakings'
     /// simulated to rest).
     pub checks_per_cycle: f64,
+    /// The most periods checked in one period run: the work of the worst cycle, counted,
+    /// not timed.
+    pub most_checks: u64,
     /// Points of the grid.
     pub points: usize,
     /// Stops along the path, the end included.
@@ -168,6 +189,39 @@ struct Parametric {
 
 /// The state of the motion: arc length, mm; speed, mm/s; acceleration, mm/s².
 type State = (f64, f64, f64);
+
+/// How the controller chooses each period's jerk.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Search {
+    /// The largest admissible jerk of the point's interval: a scan down it in
+    /// [`SCAN_STEPS`] steps, then [`BISECTION_STEPS`] bisections, every candidate's
+    /// brakings simulated to rest (about 18 candidates a period).
+    Largest,
+    /// A few candidates around the period before's jerk, tried from the largest, the
+    /// first admissible taken; where none is, the braking that certified the state
+    /// before, continued (its tail is already checked, so it costs no simulation). The
+    /// full search only at rest.
+    Candidates,
+}
+
+/// Why a period is refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Refusal {
+    /// It ends past the stop, or over a point's speed limit.
+    TooFast,
+    /// Any other check.
+    Other,
+}
+
+/// A period the controller took: its jerk, the state and positions it ends in, and the
+/// braking (an index of [`BRAKE_SHARES`]) that stops that state within the section.
+#[derive(Clone, Copy, Debug)]
+struct Next {
+    j: f64,
+    x: State,
+    h: Hist,
+    share: usize,
+}
 
 /// The positions of the last three periods, oldest first, mm: what the next position's
 /// finite differences are taken with.
@@ -467,6 +521,18 @@ impl Section {
     /// one, if the period is admissible (see the module's documentation) and ends by
     /// `stop`. A period that lands on rest ends there, at rest.
     fn period(&self, x: State, h: &Hist, j: f64, dt: f64, stop: f64) -> Option<(State, Hist)> {
+        self.period_or_why(x, h, j, dt, stop).ok()
+    }
+
+    /// [`Section::period`], or why the period is refused.
+    fn period_or_why(
+        &self,
+        x: State,
+        h: &Hist,
+        j: f64,
+        dt: f64,
+        stop: f64,
+    ) -> Result<(State, Hist), Refusal> {
         self.checked.set(self.checked.get() + 1);
         let (_, v, a) = x;
         let mut span = dt;
@@ -475,7 +541,7 @@ impl Section {
             // The lowest speed of the period, where the acceleration turns positive.
             let v_min = v - a * a / (2.0 * j);
             if v_min < -1e-9 {
-                return None;
+                return Err(Refusal::Other);
             }
             if v_min <= LANDED_MM_S {
                 span = -a / j;
@@ -483,8 +549,11 @@ impl Section {
             }
         }
         let (s1, v1, a1) = step(x, j, span);
-        if v1 < -1e-9 || s1 > stop + 1e-9 || v1 > self.v_max_over(x.0, s1) {
-            return None;
+        if s1 > stop + 1e-9 || v1 > self.v_max_over(x.0, s1) {
+            return Err(Refusal::TooFast);
+        }
+        if v1 < -1e-9 {
+            return Err(Refusal::Other);
         }
         for (s_x, v_x, a_x) in [step(x, j, span / 2.0), (s1, v1, a1)] {
             let v_x = v_x.max(0.0);
@@ -492,21 +561,21 @@ impl Section {
             let (j_lo, j_hi) = self.jerk_range(s_x, v_x, a_x);
             let (da, dj) = (END_SLACK * (hi - lo).abs(), END_SLACK * (j_hi - j_lo).abs());
             if !(lo - da <= a_x && a_x <= hi + da && j_lo - dj <= j && j <= j_hi + dj) {
-                return None;
+                return Err(Refusal::Other);
             }
         }
         // The position the drive gets, and its finite differences at the period as the
         // output monitor takes them, within the whole limits.
         let p = self.position(s1);
         if !self.differences_within(h, p, dt) {
-            return None;
+            return Err(Refusal::Other);
         }
         let state = if landed {
             (s1, 0.0, 0.0)
         } else {
             (s1, v1.max(0.0), a1)
         };
-        Some((state, [h[1], h[2], p]))
+        Ok((state, [h[1], h[2], p]))
     }
 
     /// Whether the position `p` after the positions `h` keeps the finite differences at
@@ -555,7 +624,8 @@ impl Section {
             if a < 0.0 && v > 0.0 {
                 let (_, v1, a1) = step(x, hard, dt);
                 let land_now = a * a / (2.0 * v);
-                if v1 <= 0.0 || (a1 < 0.0 && a1 * a1 / (2.0 * v1) > j_hi) || land_now >= j_hi {
+                let must = v1 <= 0.0 || (a1 < 0.0 && a1 * a1 / (2.0 * v1) > j_hi);
+                if (must && land_now >= LAND_FLOOR * j_hi) || land_now >= j_hi {
                     j = land_now.clamp(j_lo, j_hi);
                 }
             }
@@ -581,40 +651,139 @@ impl Section {
         Some(if lo <= hi { choose(lo, hi) } else { j })
     }
 
-    /// Whether one of the brakings of [`BRAKE_SHARES`] from `x` comes to rest by `stop`.
-    fn can_stop(&self, x: State, h: &Hist, dt: f64, stop: f64) -> bool {
-        BRAKE_SHARES
-            .iter()
-            .any(|&share| self.brakes(x, h, dt, stop, share))
+    /// The first of the brakings of [`BRAKE_SHARES`] from `x` that comes to rest by
+    /// `stop` (its index), tried from the hardest. With `quick`, a braking refused for
+    /// being too fast (past `stop`, or over a point's speed limit) ends the search, as a
+    /// gentler one is mostly faster still. That is a guess, not a rule (the search for
+    /// the largest jerk, without a continuation of its own to fall back on, met states
+    /// that only a gentler braking certified), and it only ever refuses: it cannot let
+    /// a state through that has no braking. It spares the gentler brakings'
+    /// simulations where the stop or a slow stretch is near (15 to 50 % of the work).
+    fn can_stop(&self, x: State, h: &Hist, dt: f64, stop: f64, quick: bool) -> Option<usize> {
+        for (k, &share) in BRAKE_SHARES.iter().enumerate() {
+            match self.brakes(x, h, dt, stop, share) {
+                Ok(()) => return Some(k),
+                Err(Refusal::TooFast) if quick => return None,
+                Err(_) => {}
+            }
+        }
+        None
     }
 
     /// Whether the braking towards `share` of the most negative acceleration from `x`
-    /// comes to rest by `stop`, every period on the way admissible.
-    fn brakes(&self, mut x: State, h: &Hist, dt: f64, stop: f64, share: f64) -> bool {
+    /// comes to rest by `stop`, every period on the way admissible; if not, why its
+    /// first refused period was.
+    fn brakes(
+        &self,
+        mut x: State,
+        h: &Hist,
+        dt: f64,
+        stop: f64,
+        share: f64,
+    ) -> Result<(), Refusal> {
         let mut h = *h;
         for _ in 0..100_000 {
             if x.1 <= 1e-9 && x.2.abs() <= 1e-9 {
-                return x.0 <= stop + 1e-9 && self.rest_within(&h, dt);
+                return if x.0 <= stop + 1e-9 && self.rest_within(&h, dt) {
+                    Ok(())
+                } else {
+                    Err(Refusal::Other)
+                };
             }
-            let Some(j) = self.brake_jerk(x, dt, share) else {
-                return false;
-            };
-            let Some(next) = self.period(x, &h, j, dt, stop) else {
-                return false;
-            };
-            (x, h) = next;
+            let j = self.brake_jerk(x, dt, share).ok_or(Refusal::Other)?;
+            (x, h) = self.period_or_why(x, &h, j, dt, stop)?;
         }
-        false
+        Err(Refusal::Other)
     }
 
-    /// The state after the period of jerk `j` from `x`, if it is admissible and ends in a
-    /// state that can stop by `stop`.
-    fn admissible(&self, x: State, h: &Hist, j: f64, dt: f64, stop: f64) -> Option<(State, Hist)> {
-        self.period(x, h, j, dt, stop)
-            .filter(|(next, h1)| self.can_stop(*next, h1, dt, stop))
+    /// The period of jerk `j` from `x`, if it is admissible and ends in a state that can
+    /// stop by `stop` ([`Section::can_stop`], `quick` or not): the state, the positions
+    /// and the braking that stops it.
+    #[allow(clippy::too_many_arguments)]
+    fn admissible(
+        &self,
+        x: State,
+        h: &Hist,
+        j: f64,
+        dt: f64,
+        stop: f64,
+        quick: bool,
+    ) -> Option<Next> {
+        let (next, h1) = self.period(x, h, j, dt, stop)?;
+        let share = self.can_stop(next, &h1, dt, stop, quick)?;
+        Some(Next {
+            j,
+            x: next,
+            h: h1,
+            share,
+        })
     }
 
-    /// The largest jerk of the point's interval whose period is [`Section::admissible`], with
+    /// The next period under `search`, from `x` with the positions `h`, where `memo` is
+    /// what the period before chose (none at rest). `None` where no jerk of the point's
+    /// interval is admissible.
+    fn next(
+        &self,
+        x: State,
+        h: &Hist,
+        dt: f64,
+        stop: f64,
+        search: Search,
+        memo: Option<Next>,
+    ) -> Option<Next> {
+        let (j_lo, j_hi) = self.jerk_range(x.0, x.1, x.2);
+        if j_lo > j_hi {
+            return None;
+        }
+        let memo = match (search, memo) {
+            // At rest (a start, or short of a stop) the full search: its bisection finds
+            // the small jerks that creep the last distance.
+            (Search::Candidates, Some(memo)) if x.1 > 0.0 || x.2 != 0.0 => memo,
+            _ => return self.largest_admissible(x, h, dt, stop, j_lo, j_hi),
+        };
+        // The previous state's braking, a period on: its tail is the braking already
+        // checked to rest, so the state it reaches needs no new simulation.
+        let backup = self
+            .brake_jerk(x, dt, BRAKE_SHARES[memo.share])
+            .and_then(|j| {
+                let (next, h1) = self.period(x, h, j, dt, stop)?;
+                Some(Next {
+                    j,
+                    x: next,
+                    h: h1,
+                    share: memo.share,
+                })
+            });
+        let step = (j_hi - j_lo) / CANDIDATE_STEPS;
+        let previous = memo.j.clamp(j_lo, j_hi);
+        let toward_backup = backup.map_or(j_lo, |b| 0.5 * (previous + b.j));
+        let mut tried = f64::INFINITY;
+        for j in [
+            j_hi,
+            previous + 4.0 * step,
+            previous + step,
+            previous,
+            previous - step,
+            previous - 4.0 * step,
+            toward_backup,
+        ] {
+            let j = j.clamp(j_lo, j_hi);
+            // Descending: a jerk at or above one refused already is not tried again.
+            if j >= tried {
+                continue;
+            }
+            tried = j;
+            if backup.is_some_and(|b| j <= b.j) {
+                break;
+            }
+            if let Some(next) = self.admissible(x, h, j, dt, stop, true) {
+                return Some(next);
+            }
+        }
+        backup.or_else(|| self.largest_admissible(x, h, dt, stop, j_lo, j_hi))
+    }
+
+    /// The largest jerk of `[j_lo, j_hi]` whose period is [`Section::admissible`], with
     /// the state it ends in: the interval scanned from the top in [`SCAN_STEPS`] steps for
     /// a first admissible jerk (else a braking's), then bisection between it and the step
     /// above.
@@ -624,21 +793,19 @@ impl Section {
         h: &Hist,
         dt: f64,
         stop: f64,
-    ) -> Option<(f64, (State, Hist))> {
-        let (j_lo, j_hi) = self.jerk_range(x.0, x.1, x.2);
-        if j_lo > j_hi {
-            return None;
-        }
-        if let Some(next) = self.admissible(x, h, j_hi, dt, stop) {
-            return Some((j_hi, next));
+        j_lo: f64,
+        j_hi: f64,
+    ) -> Option<Next> {
+        if let Some(next) = self.admissible(x, h, j_hi, dt, stop, false) {
+            return Some(next);
         }
         let width = j_hi - j_lo;
         let mut hi = j_hi;
         let mut found = None;
         for k in 1..=SCAN_STEPS {
             let j = j_hi - width * k as f64 / SCAN_STEPS as f64;
-            if let Some(next) = self.admissible(x, h, j, dt, stop) {
-                found = Some((j, next));
+            if let Some(next) = self.admissible(x, h, j, dt, stop, false) {
+                found = Some(next);
                 break;
             }
             hi = j;
@@ -649,16 +816,16 @@ impl Section {
                 // A braking continuation: admissible whenever the state before was.
                 let b = BRAKE_SHARES.iter().find_map(|&share| {
                     let j = self.brake_jerk(x, dt, share)?;
-                    self.admissible(x, h, j, dt, stop).map(|next| (j, next))
+                    self.admissible(x, h, j, dt, stop, false)
                 })?;
-                hi = j_hi.min(b.0 + width / SCAN_STEPS as f64);
+                hi = j_hi.min(b.j + width / SCAN_STEPS as f64);
                 b
             }
         };
         for _ in 0..BISECTION_STEPS {
-            let mid = 0.5 * (best.0 + hi);
-            match self.admissible(x, h, mid, dt, stop) {
-                Some(next) => best = (mid, next),
+            let mid = 0.5 * (best.j + hi);
+            match self.admissible(x, h, mid, dt, stop, false) {
+                Some(next) => best = next,
                 None => hi = mid,
             }
         }
@@ -667,15 +834,22 @@ impl Section {
 }
 
 impl Grid {
-    /// Runs the path from rest to rest at the period of `limits`, section by section,
-    /// checking the positions against `limits`.
+    /// Runs the path from rest to rest at the period of `limits` with the candidates'
+    /// search ([`Search::Candidates`]), checking the positions against `limits`.
     pub fn run(&self, limits: &MachineLimits) -> Run {
+        self.run_with(limits, Search::Candidates)
+    }
+
+    /// Runs the path from rest to rest at the period of `limits` with `search`, section
+    /// by section, checking the positions against `limits`.
+    pub fn run_with(&self, limits: &MachineLimits, search: Search) -> Run {
         let dt = limits.period_s;
         let p0 = self.sections[0].position(0.0);
         let mut h: Hist = [p0; 3];
         let mut monitor = LimitMonitor::at_rest(limits, &[p0.x, p0.y, p0.z, 0.0, 0.0, 0.0]);
         let (mut cycles, mut fallbacks) = (0u64, 0u64);
         let mut planning_s = 0.0;
+        let mut most_checks = 0u64;
         let mut gap_mm = 0.0f64;
         // A run that takes more than an hour of periods, or stands still for a second
         // short of its stop, is stuck.
@@ -688,6 +862,7 @@ impl Grid {
         for section in &self.sections {
             let stop = section.length_mm;
             let mut x: State = (0.0, 0.0, 0.0);
+            let mut memo: Option<Next> = None;
             let mut still = 0u64;
             loop {
                 if cycles >= max_cycles || still >= max_still {
@@ -700,8 +875,11 @@ impl Grid {
                     break;
                 }
                 let clock = Instant::now();
-                (x, h) = match section.largest_admissible(x, &h, dt, stop) {
-                    Some((_, next)) => next,
+                let checked_before = section.checked.get();
+                let chosen = section.next(x, &h, dt, stop, search, memo);
+                memo = chosen;
+                (x, h) = match chosen {
+                    Some(next) => (next.x, next.h),
                     None => {
                         fallbacks += 1;
                         let (j_lo, j_hi) = section.jerk_range(x.0, x.1, x.2);
@@ -713,6 +891,7 @@ impl Grid {
                     }
                 };
                 planning_s += clock.elapsed().as_secs_f64();
+                most_checks = most_checks.max(section.checked.get() - checked_before);
                 cycles += 1;
                 still = if x.1 == 0.0 { still + 1 } else { 0 };
                 let p = h[2];
@@ -738,6 +917,7 @@ impl Grid {
             us_per_cycle: planning_s * 1e6 / cycles.max(1) as f64,
             checks_per_cycle: self.sections.iter().map(|s| s.checked.get()).sum::<u64>() as f64
                 / cycles.max(1) as f64,
+            most_checks,
             points: self.points(),
             stops: self.stops(),
             gap_mm,

@@ -9,7 +9,7 @@ use common::{assert_rel, circle, line};
 use kerf_benches::bound::{BoundMachine, Piece, Shape};
 use kerf_benches::jerk::JerkMachine;
 use kerf_benches::measure;
-use kerf_benches::pointwise::{CENTRIPETAL_SHARE, Grid, PLAN_SHARE};
+use kerf_benches::pointwise::{CENTRIPETAL_SHARE, Grid, PLAN_SHARE, Search};
 use kerf_geom::{AxisLimits, MachineLimits, Vec3};
 use kerf_motion::monitor::LIMIT_MARGIN;
 
@@ -157,9 +157,9 @@ fn helix(r: f64, turns: f64, rise_mm: f64, feed_mm_s: f64) -> Piece {
 #[test]
 fn swept_machines_and_paths_stay_within_the_limits() {
     // Machines from slow and soft to fast and stiff, axis by axis, and paths with corners
-    // (blended within the tolerance), a reversal, a helix: the positions at the period
-    // within every limit, every run to the end without a fallback, and no quicker than
-    // the feed allows.
+    // (blended within the tolerance), a reversal, a helix, under both searches: the
+    // positions at the period within every limit, every run to the end without a
+    // fallback, and no quicker than the feed allows.
     // KERF_POINTWISE_SEED and KERF_POINTWISE_CASES widen the search (default 31, 8).
     let env = |name: &str, default: u64| {
         std::env::var(name)
@@ -193,10 +193,14 @@ fn swept_machines_and_paths_stay_within_the_limits() {
             ),
             ("helix", vec![helix(1.5, 1.25, 1.0, feed)]),
         ];
-        for (name, pieces) in paths {
+        for ((name, pieces), search) in paths
+            .into_iter()
+            .flat_map(|p| [Search::Candidates, Search::Largest].map(move |s| (p.clone(), s)))
+        {
             let length: f64 = pieces.iter().map(|p| p.shape.length_mm()).sum();
-            let run = Grid::from_pieces(&pieces, &m, DS_MM).run(&limits);
-            let what = format!("case {case} ({v:?}, {a:?}, {j:?}, feed {feed}), {name}");
+            let run = Grid::from_pieces(&pieces, &m, DS_MM).run_with(&limits, search);
+            let what =
+                format!("case {case} ({v:?}, {a:?}, {j:?}, feed {feed}), {name}, {search:?}");
             assert!(
                 run.peaks.iter().all(|&p| p <= LIMIT_MARGIN),
                 "{what}: peaks {:?}",

@@ -11,9 +11,10 @@
 //! run them with `kerf sim --config benches/cam-mill.toml`), or `--bound-speeds NAME` to
 //! print the jerk-limited bound's path speed along the program named NAME as CSV lines
 //! `s_mm,speed_mm_s` (compared with `kerf sim`'s setpoints by `benches/speed_bins.py`), or
-//! `--pointwise [--period-us N] [NAME_PART]` to run the point-wise prototype
+//! `--pointwise [--largest] [--period-us N] [NAME_PART]` to run the point-wise prototype
 //! (`kerf_benches::pointwise`) on the exact path and on the planner's segments of each
-//! program (about 25 s for the whole corpus).
+//! program (about 10 s for the whole corpus; `--largest` with the search for the largest
+//! admissible jerk each period, about 25 s).
 
 use std::process::ExitCode;
 
@@ -65,6 +66,13 @@ fn run() -> anyhow::Result<()> {
         && flag == "--pointwise"
     {
         let mut rest = &args[1..];
+        let mut search = pointwise::Search::Candidates;
+        if let [flag, tail @ ..] = rest
+            && flag == "--largest"
+        {
+            search = pointwise::Search::Largest;
+            rest = tail;
+        }
         let mut period_s = None;
         if let [flag, us, tail @ ..] = rest
             && flag == "--period-us"
@@ -78,7 +86,7 @@ fn run() -> anyhow::Result<()> {
             rest = tail;
         }
         let filter = rest.first().map(String::as_str).unwrap_or("");
-        return pointwise_table(&corpus, &config, period_s, filter);
+        return pointwise_table(&corpus, &config, period_s, search, filter);
     }
     let filter = args.first().map(String::as_str).unwrap_or("");
     let mut rows = Vec::new();
@@ -96,11 +104,12 @@ fn run() -> anyhow::Result<()> {
 /// Prints the table of the point-wise prototype (`kerf_benches::pointwise`) on the
 /// programs whose name contains `filter`: on the exact path and on the planner's
 /// segments (planned at the configuration's period), run at `period_s` (else the
-/// configuration's).
+/// configuration's) with `search`.
 fn pointwise_table(
     corpus: &[cam::CamProgram],
     config: &kerf_config::Config,
     period_s: Option<f64>,
+    search: pointwise::Search,
     filter: &str,
 ) -> anyhow::Result<()> {
     let mut limits = kerf_config::machine_limits(config);
@@ -109,9 +118,9 @@ fn pointwise_table(
     }
     let machine = measure::jerk_machine(config);
     println!(
-        "| program | path | time | fallbacks | peak v / a / j | µs per cycle | checks per cycle | points | stops | gap |"
+        "| program | path | time | fallbacks | peak v / a / j | µs per cycle | checks per cycle | most in a cycle | points | stops | gap |"
     );
-    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for p in corpus.iter().filter(|p| p.name.contains(filter)) {
         let moves = measure::programmed_moves(&p.name, &p.text, config)?;
         let segments = measure::planned_segments(&p.name, &moves, config)?;
@@ -125,9 +134,9 @@ fn pointwise_table(
                 pointwise::Grid::from_segments(&segments, &machine, POINTWISE_DS_MM),
             ),
         ] {
-            let run = grid.run(&limits);
+            let run = grid.run_with(&limits, search);
             println!(
-                "| {} | {path} | {:.3} s{} | {} | {:.3} / {:.3} / {:.3} | {:.0} | {:.0} | {} | {} | {:.0e} mm |",
+                "| {} | {path} | {:.3} s{} | {} | {:.3} / {:.3} / {:.3} | {:.0} | {:.0} | {} | {} | {} | {:.0e} mm |",
                 p.name,
                 run.time_s,
                 if run.stuck { " (stuck)" } else { "" },
@@ -137,6 +146,7 @@ fn pointwise_table(
                 run.peaks[2],
                 run.us_per_cycle,
                 run.checks_per_cycle,
+                run.most_checks,
                 run.points,
                 run.stops,
                 run.gap_mm
