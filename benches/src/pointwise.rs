@@ -15,7 +15,7 @@
 //! moves with velocity `tᵢ v`, acceleration `tᵢ a + κᵢ v²` and jerk
 //! `tᵢ j + 3 κᵢ v a + κ'ᵢ v³`. At a given `v` (and `a`), each axis's limit is an interval
 //! of `a` (of `j`), not a symmetric budget: the intersection over the axes is what the
-//! point allows (`Section::accel_range`, `Section::jerk_range`). The speed limit of a point
+//! point allows (`Section::ranges`). The speed limit of a point
 //! (`v_max`) is the largest speed that leaves a non-empty interval of `a` at `a = 0`, with
 //! [`CENTRIPETAL_SHARE`] of the acceleration, and of `j` at `a = 0`, with [`JERK_SHARE`]
 //! of the jerk, within the feed and the axis velocities.
@@ -101,6 +101,11 @@ const STOP_GAP_MM: f64 = 1e-6;
 /// braking's jerk is fitted to the end point's interval once, at a state a little
 /// different from the one it ends in.
 const END_SLACK: f64 = 1e-3;
+/// A braking holds each jerk this long (whole periods, at least one), with the intervals
+/// checked about its middle and end and the finite differences every period: at periods
+/// shorter than this, a braking's simulation to rest checks no more points per second
+/// of motion than at this period.
+pub const BRAKE_PIECE_S: f64 = 0.001;
 /// Below this |tangent component| an axis takes no part in the tangential terms.
 const TINY: f64 = 1e-12;
 /// Step of the curve parameter (of [0, 1]) for the derivative of the curvature vector.
@@ -214,13 +219,60 @@ enum Refusal {
 }
 
 /// A period the controller took: its jerk, the state and positions it ends in, and the
-/// braking (an index of [`BRAKE_SHARES`]) that stops that state within the section.
+/// braking that stops that state within the section.
 #[derive(Clone, Copy, Debug)]
 struct Next {
     j: f64,
     x: State,
     h: Hist,
-    share: usize,
+    braking: Braking,
+}
+
+/// A braking under way: its share of the deceleration (one of [`BRAKE_SHARES`]), the
+/// periods of its current piece done (0: a new piece starts) and that piece's jerk. A
+/// braking holds each jerk for a piece of [`BRAKE_PIECE_S`]; its state a period on is
+/// what its simulation to rest met there, so continuing it repeats that simulation
+/// period by period.
+#[derive(Clone, Copy, Debug)]
+struct Braking {
+    share: f64,
+    phase: usize,
+    j: f64,
+}
+
+/// Where a period's acceleration and jerk are checked against the point's intervals
+/// (its finite differences always are).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Intervals {
+    /// At its middle and its end: every period the controller chooses, and a braking's
+    /// at a period of [`BRAKE_PIECE_S`] or more.
+    MidAndEnd,
+    /// At its end only.
+    End,
+    /// Not at all.
+    Neither,
+}
+
+impl Intervals {
+    /// The checks of period `phase` (from 0) of a braking piece of `m` periods: with one
+    /// period a piece, at its middle and end; else at the end of every `m / 2`-th period
+    /// and of the last, about the middle and the end of the piece.
+    fn of_piece(phase: usize, m: usize) -> Intervals {
+        let stride = (m / 2).max(1);
+        if m == 1 {
+            Intervals::MidAndEnd
+        } else if (phase + 1).is_multiple_of(stride) || phase + 1 == m {
+            Intervals::End
+        } else {
+            Intervals::Neither
+        }
+    }
+}
+
+/// Periods of a braking's piece at the period `dt`: [`BRAKE_PIECE_S`] in whole periods,
+/// at least one.
+fn piece_periods(dt: f64) -> usize {
+    ((BRAKE_PIECE_S / dt).round() as usize).max(1)
 }
 
 /// The positions of the last three periods, oldest first, mm: what the next position's
@@ -466,7 +518,8 @@ impl Section {
     fn locate(&self, s: f64) -> (usize, f64) {
         let n = self.p.len() - 1;
         let x = (s / self.ds_mm).clamp(0.0, n as f64);
-        let i = (x.floor() as usize).min(n - 1);
+        // `x` is not negative: the conversion truncates as `floor` would.
+        let i = (x as usize).min(n - 1);
         (i, x - i as f64)
     }
 
@@ -481,18 +534,26 @@ impl Section {
     fn v_max_over(&self, s0: f64, s1: f64) -> f64 {
         let (i0, _) = self.locate(s0);
         let (i1, _) = self.locate(s1);
-        self.v_max[i0..=i1 + 1]
-            .iter()
-            .copied()
-            .fold(f64::INFINITY, f64::min)
+        // (Not `f64::min`: the limits are never NaN, and its NaN handling costs a tenth
+        // of a braking's simulation.)
+        let mut low = f64::INFINITY;
+        for &v in &self.v_max[i0..=i1 + 1] {
+            if v < low {
+                low = v;
+            }
+        }
+        low
     }
 
-    /// The path accelerations the point at `s` allows at speed `v`, mm/s² (empty:
-    /// `lo > hi`).
-    fn accel_range(&self, s: f64, v: f64) -> (f64, f64) {
-        let (t, k, _) = self.geometry(s);
-        let v2 = v * v;
-        interval([0, 1, 2].map(|x| (t[x], k[x] * v2, self.acc[x])))
+    /// The path accelerations the point at `s` allows at speed `v`, mm/s², and the path
+    /// jerks it allows at speed `v` and acceleration `a`, mm/s³ (empty: `lo > hi`).
+    fn ranges(&self, s: f64, v: f64, a: f64) -> ((f64, f64), (f64, f64)) {
+        let (t, k, kp) = self.geometry(s);
+        let (v2, va, v3) = (v * v, 3.0 * v * a, v * v * v);
+        (
+            interval([0, 1, 2].map(|x| (t[x], k[x] * v2, self.acc[x]))),
+            interval([0, 1, 2].map(|x| (t[x], k[x] * va + kp[x] * v3, self.jerk[x]))),
+        )
     }
 
     /// The path jerks the point at `s` allows at speed `v` and acceleration `a`, mm/s³.
@@ -521,10 +582,12 @@ impl Section {
     /// one, if the period is admissible (see the module's documentation) and ends by
     /// `stop`. A period that lands on rest ends there, at rest.
     fn period(&self, x: State, h: &Hist, j: f64, dt: f64, stop: f64) -> Option<(State, Hist)> {
-        self.period_or_why(x, h, j, dt, stop).ok()
+        self.period_or_why(x, h, j, dt, stop, Intervals::MidAndEnd)
+            .ok()
     }
 
-    /// [`Section::period`], or why the period is refused.
+    /// [`Section::period`] with the intervals checked where `intervals` says, or why the
+    /// period is refused.
     fn period_or_why(
         &self,
         x: State,
@@ -532,6 +595,7 @@ impl Section {
         j: f64,
         dt: f64,
         stop: f64,
+        intervals: Intervals,
     ) -> Result<(State, Hist), Refusal> {
         self.checked.set(self.checked.get() + 1);
         let (_, v, a) = x;
@@ -555,10 +619,14 @@ impl Section {
         if v1 < -1e-9 {
             return Err(Refusal::Other);
         }
-        for (s_x, v_x, a_x) in [step(x, j, span / 2.0), (s1, v1, a1)] {
+        let points = match intervals {
+            Intervals::MidAndEnd => &[step(x, j, span / 2.0), (s1, v1, a1)][..],
+            Intervals::End => &[(s1, v1, a1)][..],
+            Intervals::Neither => &[][..],
+        };
+        for &(s_x, v_x, a_x) in points {
             let v_x = v_x.max(0.0);
-            let (lo, hi) = self.accel_range(s_x, v_x);
-            let (j_lo, j_hi) = self.jerk_range(s_x, v_x, a_x);
+            let ((lo, hi), (j_lo, j_hi)) = self.ranges(s_x, v_x, a_x);
             let (da, dj) = (END_SLACK * (hi - lo).abs(), END_SLACK * (j_hi - j_lo).abs());
             if !(lo - da <= a_x && a_x <= hi + da && j_lo - dj <= j && j <= j_hi + dj) {
                 return Err(Refusal::Other);
@@ -613,11 +681,10 @@ impl Section {
     /// where the point allows no jerk.
     fn brake_jerk(&self, x: State, dt: f64, share: f64) -> Option<f64> {
         let (s, v, a) = x;
-        let (j_lo, j_hi) = self.jerk_range(s, v, a);
+        let ((a_lo, _), (j_lo, j_hi)) = self.ranges(s, v, a);
         if j_lo > j_hi {
             return None;
         }
-        let (a_lo, _) = self.accel_range(s, v);
         let choose = |j_lo: f64, j_hi: f64| {
             let hard = ((share * a_lo.min(0.0) - a) / dt).clamp(j_lo, j_hi);
             let mut j = hard;
@@ -682,6 +749,11 @@ impl Section {
         share: f64,
     ) -> Result<(), Refusal> {
         let mut h = *h;
+        let mut braking = Braking {
+            share,
+            phase: 0,
+            j: 0.0,
+        };
         for _ in 0..100_000 {
             if x.1 <= 1e-9 && x.2.abs() <= 1e-9 {
                 return if x.0 <= stop + 1e-9 && self.rest_within(&h, dt) {
@@ -690,10 +762,40 @@ impl Section {
                     Err(Refusal::Other)
                 };
             }
-            let j = self.brake_jerk(x, dt, share).ok_or(Refusal::Other)?;
-            (x, h) = self.period_or_why(x, &h, j, dt, stop)?;
+            (x, h, braking) = self.brake_period(x, &h, dt, stop, braking)?;
         }
         Err(Refusal::Other)
+    }
+
+    /// One period of `braking` from `x`: a new piece's jerk at its first period, the
+    /// intervals checked as [`Intervals::of_piece`] says; the state, the positions and
+    /// the braking a period on.
+    fn brake_period(
+        &self,
+        x: State,
+        h: &Hist,
+        dt: f64,
+        stop: f64,
+        braking: Braking,
+    ) -> Result<(State, Hist, Braking), Refusal> {
+        let m = piece_periods(dt);
+        let j = if braking.phase == 0 {
+            self.brake_jerk(x, m as f64 * dt, braking.share)
+                .ok_or(Refusal::Other)?
+        } else {
+            braking.j
+        };
+        let (x, h) =
+            self.period_or_why(x, h, j, dt, stop, Intervals::of_piece(braking.phase, m))?;
+        Ok((
+            x,
+            h,
+            Braking {
+                share: braking.share,
+                phase: (braking.phase + 1) % m,
+                j,
+            },
+        ))
     }
 
     /// The period of jerk `j` from `x`, if it is admissible and ends in a state that can
@@ -715,7 +817,11 @@ impl Section {
             j,
             x: next,
             h: h1,
-            share,
+            braking: Braking {
+                share: BRAKE_SHARES[share],
+                phase: 0,
+                j: 0.0,
+            },
         })
     }
 
@@ -732,28 +838,33 @@ impl Section {
         memo: Option<Next>,
     ) -> Option<Next> {
         let (j_lo, j_hi) = self.jerk_range(x.0, x.1, x.2);
+        let at_rest = x.1 == 0.0 && x.2 == 0.0;
+        // The previous state's braking, a period on: its tail is the braking already
+        // checked to rest, so the state it reaches needs no new simulation.
+        let backup = memo.filter(|_| !at_rest).and_then(|memo| {
+            let (next, h1, braking) = self.brake_period(x, h, dt, stop, memo.braking).ok()?;
+            Some(Next {
+                j: braking.j,
+                x: next,
+                h: h1,
+                braking,
+            })
+        });
         if j_lo > j_hi {
-            return None;
+            // A state within a braking's piece, where the intervals are not checked, may
+            // lie outside them: only the braking goes on from it.
+            return backup;
         }
         let memo = match (search, memo) {
             // At rest (a start, or short of a stop) the full search: its bisection finds
             // the small jerks that creep the last distance.
-            (Search::Candidates, Some(memo)) if x.1 > 0.0 || x.2 != 0.0 => memo,
-            _ => return self.largest_admissible(x, h, dt, stop, j_lo, j_hi),
+            (Search::Candidates, Some(memo)) if !at_rest => memo,
+            _ => {
+                return self
+                    .largest_admissible(x, h, dt, stop, j_lo, j_hi)
+                    .or(backup);
+            }
         };
-        // The previous state's braking, a period on: its tail is the braking already
-        // checked to rest, so the state it reaches needs no new simulation.
-        let backup = self
-            .brake_jerk(x, dt, BRAKE_SHARES[memo.share])
-            .and_then(|j| {
-                let (next, h1) = self.period(x, h, j, dt, stop)?;
-                Some(Next {
-                    j,
-                    x: next,
-                    h: h1,
-                    share: memo.share,
-                })
-            });
         let step = (j_hi - j_lo) / CANDIDATE_STEPS;
         let previous = memo.j.clamp(j_lo, j_hi);
         let toward_backup = backup.map_or(j_lo, |b| 0.5 * (previous + b.j));

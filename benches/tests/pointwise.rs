@@ -157,9 +157,9 @@ fn helix(r: f64, turns: f64, rise_mm: f64, feed_mm_s: f64) -> Piece {
 #[test]
 fn swept_machines_and_paths_stay_within_the_limits() {
     // Machines from slow and soft to fast and stiff, axis by axis, and paths with corners
-    // (blended within the tolerance), a reversal, a helix, under both searches: the
-    // positions at the period within every limit, every run to the end without a
-    // fallback, and no quicker than the feed allows.
+    // (blended within the tolerance), a reversal, a helix, under both searches and at
+    // periods of 1 ms and 250 µs: the positions at the period within every limit, every
+    // run to the end without a fallback, and no quicker than the feed allows.
     // KERF_POINTWISE_SEED and KERF_POINTWISE_CASES widen the search (default 31, 8).
     let env = |name: &str, default: u64| {
         std::env::var(name)
@@ -174,7 +174,11 @@ fn swept_machines_and_paths_stay_within_the_limits() {
         let j = [0, 1, 2].map(|_| draw.range(5_000.0, 80_000.0));
         let tolerance = draw.range(0.005, 0.05);
         let feed = draw.range(20.0, 150.0);
-        let (m, limits) = machine(v, a, j, tolerance);
+        let (m, mut limits) = machine(v, a, j, tolerance);
+        // Every other case at 250 µs, where a braking holds each jerk for four periods.
+        if case % 2 == 1 {
+            limits.period_s = 0.00025;
+        }
         let paths: [(&str, Vec<Piece>); 3] = [
             (
                 "corners",
@@ -193,14 +197,22 @@ fn swept_machines_and_paths_stay_within_the_limits() {
             ),
             ("helix", vec![helix(1.5, 1.25, 1.0, feed)]),
         ];
+        // The full search at 250 µs only on the corners: it checks about ten times the
+        // periods, four times as many at that period.
+        let fast = limits.period_s < 0.001;
         for ((name, pieces), search) in paths
             .into_iter()
             .flat_map(|p| [Search::Candidates, Search::Largest].map(move |s| (p.clone(), s)))
+            .filter(|((name, _), search)| {
+                !fast || *search == Search::Candidates || *name == "corners"
+            })
         {
             let length: f64 = pieces.iter().map(|p| p.shape.length_mm()).sum();
             let run = Grid::from_pieces(&pieces, &m, DS_MM).run_with(&limits, search);
-            let what =
-                format!("case {case} ({v:?}, {a:?}, {j:?}, feed {feed}), {name}, {search:?}");
+            let what = format!(
+                "case {case} ({v:?}, {a:?}, {j:?}, feed {feed}, period {} s), {name}, {search:?}",
+                limits.period_s
+            );
             assert!(
                 run.peaks.iter().all(|&p| p <= LIMIT_MARGIN),
                 "{what}: peaks {:?}",
