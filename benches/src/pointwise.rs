@@ -180,6 +180,11 @@ pub struct Run {
     /// The run stood still short of a stop for a second of periods (or ran an hour), and
     /// was ended there: the controller found no admissible way on.
     pub stuck: bool,
+    /// Periods from a hold ([`Grid::run_held`]) to rest; 0 without a hold or where it
+    /// came at rest.
+    pub hold_periods: u64,
+    /// Periods checked over those: one each, the braking's own period.
+    pub hold_checks: u64,
 }
 
 /// A curve of the path by a parameter in [0, 1]: point and first two derivatives.
@@ -954,6 +959,18 @@ impl Grid {
     /// Runs the path from rest to rest at the period of `limits` with `search`, section
     /// by section, checking the positions against `limits`.
     pub fn run_with(&self, limits: &MachineLimits, search: Search) -> Run {
+        self.run_inner(limits, search, None)
+    }
+
+    /// Runs the path as [`Grid::run`] until the period `hold_at` (counted from 0), then
+    /// holds: from there every period continues the braking that certified the state
+    /// the motion is in, as a real-time cycle would on a feed hold, until rest, where the
+    /// run ends ([`Run::hold_periods`], [`Run::hold_checks`]).
+    pub fn run_held(&self, limits: &MachineLimits, hold_at: u64) -> Run {
+        self.run_inner(limits, Search::Candidates, Some(hold_at))
+    }
+
+    fn run_inner(&self, limits: &MachineLimits, search: Search, hold_at: Option<u64>) -> Run {
         let dt = limits.period_s;
         let p0 = self.sections[0].position(0.0);
         let mut h: Hist = [p0; 3];
@@ -967,10 +984,11 @@ impl Grid {
         let max_cycles = (3600.0 / dt) as u64;
         let max_still = (1.0 / dt) as u64;
         let mut stuck = false;
+        let (mut hold_periods, mut hold_checks) = (0u64, 0u64);
         for section in &self.sections {
             section.checked.set(0);
         }
-        for section in &self.sections {
+        'sections: for section in &self.sections {
             let stop = section.length_mm;
             let mut x: State = (0.0, 0.0, 0.0);
             let mut memo: Option<Next> = None;
@@ -987,7 +1005,27 @@ impl Grid {
                 }
                 let clock = Instant::now();
                 let checked_before = section.checked.get();
-                let chosen = section.next(x, &h, dt, stop, search, memo);
+                let chosen = if hold_at.is_some_and(|at| cycles >= at) {
+                    // Held: only the certified braking goes on, to rest.
+                    if x.1 == 0.0 && x.2 == 0.0 {
+                        break 'sections;
+                    }
+                    let braking = memo.and_then(|m| {
+                        let (next, h1, braking) =
+                            section.brake_period(x, &h, dt, stop, m.braking).ok()?;
+                        Some(Next {
+                            j: braking.j,
+                            x: next,
+                            h: h1,
+                            braking,
+                        })
+                    });
+                    hold_periods += 1;
+                    hold_checks += section.checked.get() - checked_before;
+                    braking
+                } else {
+                    section.next(x, &h, dt, stop, search, memo)
+                };
                 memo = chosen;
                 (x, h) = match chosen {
                     Some(next) => (next.x, next.h),
@@ -1033,6 +1071,8 @@ impl Grid {
             stops: self.stops(),
             gap_mm,
             stuck,
+            hold_periods,
+            hold_checks,
         }
     }
 }

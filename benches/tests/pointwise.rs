@@ -248,3 +248,58 @@ fn the_planners_segments_run_within_the_limits() {
     assert!(!run.stuck, "ends at the end");
     assert!(run.time_s >= length / 50.0, "{} s", run.time_s);
 }
+
+#[test]
+fn a_hold_continues_the_certified_braking_to_rest() {
+    // A feed hold at points spread over a run, on swept machines at 1 ms and 250 µs: from
+    // the hold every period continues the braking that certified the state before (one
+    // period checked a period), and the motion comes to rest within every limit, from
+    // the positions, without a fallback (every period of the braking is checked to end
+    // by the path's end).
+    let mut draw = Draw(77);
+    for case in 0..4 {
+        let v = [0, 1, 2].map(|_| draw.range(50.0, 300.0));
+        let a = [0, 1, 2].map(|_| draw.range(300.0, 3000.0));
+        let j = [0, 1, 2].map(|_| draw.range(5_000.0, 80_000.0));
+        let feed = draw.range(20.0, 150.0);
+        let (m, mut limits) = machine(v, a, j, 0.01);
+        if case % 2 == 1 {
+            limits.period_s = 0.00025;
+        }
+        // Three quarters of a helix from the origin (ending at (-1, -1, 0.375)), then two
+        // lines with a corner, blended.
+        let pieces = vec![
+            helix(1.0, 0.75, 0.5, feed),
+            line([-1.0, -1.0, 0.375], [2.0, -1.0, 0.375], feed),
+            line([2.0, -1.0, 0.375], [2.0, 1.0, 0.8], feed),
+        ];
+        let grid = Grid::from_pieces(&pieces, &m, DS_MM);
+        let whole = grid.run(&limits);
+        assert!(
+            !whole.stuck && whole.fallbacks == 0,
+            "case {case}: {whole:?}"
+        );
+        let mut moving_holds = 0;
+        for k in 1..8 {
+            let at = whole.cycles * k / 8;
+            let run = grid.run_held(&limits, at);
+            let what = format!("case {case}, hold at period {at} of {}", whole.cycles);
+            assert!(
+                run.peaks.iter().all(|&p| p <= LIMIT_MARGIN),
+                "{what}: peaks {:?}",
+                run.peaks
+            );
+            assert_eq!(run.fallbacks, 0, "{what}");
+            assert!(!run.stuck, "{what}");
+            assert_eq!(run.cycles, at + run.hold_periods, "{what}: ends at rest");
+            assert_eq!(
+                run.hold_checks, run.hold_periods,
+                "{what}: one check a period"
+            );
+            if run.hold_periods > 0 {
+                moving_holds += 1;
+            }
+        }
+        assert!(moving_holds >= 5, "case {case}: most holds came in motion");
+    }
+}
