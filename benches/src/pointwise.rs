@@ -18,7 +18,8 @@
 //! point allows (`Section::ranges`). The speed limit of a point
 //! (`v_max`) is the largest speed that leaves a non-empty interval of `a` at `a = 0`, with
 //! [`CENTRIPETAL_SHARE`] of the acceleration, and of `j` at `a = 0`, with [`JERK_SHARE`]
-//! of the jerk, within the feed and the axis velocities.
+//! of the jerk, within the feed and the axis velocities, and within the speed from which
+//! [`BACKWARD_SHARE`] of the tangential deceleration reaches every later point's limit.
 //!
 //! **The cycle.** The state is `(s, v, a)`; each period applies one constant path jerk.
 //! A period is admissible if the speed never falls below zero and stays within `v_max`
@@ -65,6 +66,17 @@ use crate::jerk::{JerkMachine, g2_blended};
 /// intervals themselves): 1.0 makes it the point's own limit; 0.85 and 0.95 measured
 /// slower on raster C and the obround (docs/PERFORMANCE.md).
 pub const CENTRIPETAL_SHARE: f64 = 1.0;
+/// Share of the tangential deceleration the axes allow (each axis's acceleration over its
+/// tangent component, centripetal part left out) with which the speed limit of a point
+/// is carried backwards along the path: the limit is also the speed from which that
+/// deceleration comes down to every later point's limit in time. Only ever a lower cap,
+/// so it cannot admit what the checks refuse; it makes the controller, greedy for the
+/// largest jerk, slow down before a curve at a moderate deceleration rather than brake
+/// hard into it, where the `3 κ v a` term of the jerk then forced it far below the
+/// curve's limit (the obround on the planner's segments: 2.424 s without it, 2.149 s
+/// with 0.5; 2.155 s with 0.4, 2.167 s with 0.6; the rest within 0.1 % on the planner's
+/// segments; docs/PERFORMANCE.md).
+pub const BACKWARD_SHARE: f64 = 0.5;
 /// Share of each axis's jerk the speed limit of a point leaves to the `κ' v³` term (a cap
 /// as [`CENTRIPETAL_SHARE`]).
 pub const JERK_SHARE: f64 = 1.0;
@@ -515,6 +527,23 @@ impl Section {
             let x = max_speed_squared(&grid.t[i], &grid.k[i], feed_mm_s, &centripetal);
             let v3 = max_speed_squared(&grid.t[i], &grid.kp[i], f64::INFINITY, &jerk);
             grid.v_max.push(x.sqrt().min(v3.cbrt()));
+        }
+        // The approach cap: backwards from each point, the speed from which
+        // BACKWARD_SHARE of the tangential deceleration the axes allow brings the motion
+        // down to that point's limit.
+        for i in (0..grid.v_max.len() - 1).rev() {
+            let t = grid.t[i];
+            let mut decel = f64::INFINITY;
+            for x in 0..3 {
+                if t[x].abs() > TINY {
+                    decel = decel.min(grid.acc[x] / t[x].abs());
+                }
+            }
+            let next = grid.v_max[i + 1];
+            let reach = (next * next + 2.0 * BACKWARD_SHARE * decel * grid.ds_mm).sqrt();
+            if reach < grid.v_max[i] {
+                grid.v_max[i] = reach;
+            }
         }
         grid
     }
