@@ -902,8 +902,19 @@ impl Section {
         let step = (j_hi - j_lo) / CANDIDATE_STEPS;
         let previous = memo.j.clamp(j_lo, j_hi);
         let toward_backup = backup.map_or(j_lo, |b| 0.5 * (previous + b.j));
-        let mut tried = f64::INFINITY;
-        for j in [
+        let (_, v, a) = x;
+        // The jerk that levels the acceleration off within the period, and the one that
+        // brings it to zero as the speed reaches the point's limit (the landing's jerk
+        // `a²/2Δv`, upwards): at a speed limit the search would otherwise dither below
+        // it.
+        let v_cap = self.v_max_over(x.0, x.0);
+        let level = -a / dt;
+        let arrive = if a > 0.0 && v < v_cap {
+            -a * a / (2.0 * (v_cap - v))
+        } else {
+            level
+        };
+        let mut candidates = [
             j_hi,
             previous + 4.0 * step,
             previous + step,
@@ -911,7 +922,12 @@ impl Section {
             previous - step,
             previous - 4.0 * step,
             toward_backup,
-        ] {
+            level,
+            arrive,
+        ];
+        candidates.sort_by(|p, q| q.total_cmp(p));
+        let mut tried = f64::INFINITY;
+        for j in candidates {
             let j = j.clamp(j_lo, j_hi);
             // Descending: a jerk at or above one refused already is not tried again.
             if j >= tried {
