@@ -39,11 +39,15 @@
 //! **The search** for each period's jerk ([`Search`]) is where the work is, since every
 //! candidate simulates brakings to rest. [`Search::Largest`] takes the largest admissible
 //! jerk (a scan down the point's interval, then bisection: about 18 candidates).
-//! [`Search::Candidates`], the default, tries a few jerks around the period before's,
-//! from the largest, and takes the first admissible; where none is, it continues the
-//! braking that certified the state before, whose tail is already checked to rest, so
-//! that continuation costs one period's check. It does 6 to 12 times less work, for
-//! times within 1.3 % (docs/PERFORMANCE.md).
+//! [`Search::Candidates`], the default, tries a few jerks (around the period before's,
+//! the top of the interval, the jerks that level the acceleration off and that arrive
+//! at the speed limit), from the largest, and takes the first admissible; where none
+//! is, it continues the braking that certified the state before, whose tail is already
+//! checked to rest, so that continuation costs one period's check. It does a tenth of
+//! the work or less, for times within about 1 % (docs/PERFORMANCE.md).
+//!
+//! It is not monotonic in the limits: raising an axis's acceleration can slow a run by a
+//! quarter (`cam_table --pointwise-raise`; docs/PERFORMANCE.md).
 //!
 //! What it does not do yet: bound its cost per cycle (one braking simulated to rest is
 //! still the least a moving period costs), or take the allocation-free, fixed-window
@@ -219,10 +223,11 @@ pub enum Search {
     /// [`SCAN_STEPS`] steps, then [`BISECTION_STEPS`] bisections, every candidate's
     /// brakings simulated to rest (about 18 candidates a period).
     Largest,
-    /// A few candidates around the period before's jerk, tried from the largest, the
-    /// first admissible taken; where none is, the braking that certified the state
-    /// before, continued (its tail is already checked, so it costs no simulation). The
-    /// full search only at rest.
+    /// A few candidates (around the period before's jerk, the top of the interval, the
+    /// jerks that level the acceleration off and that arrive at the speed limit), tried
+    /// from the largest, the first admissible taken; where none is, the braking that
+    /// certified the state before, continued (its tail is already checked, so it costs
+    /// no simulation). The full search only at rest.
     Candidates,
 }
 
