@@ -44,7 +44,7 @@
 //! at the speed limit), from the largest, and takes the first admissible; where none
 //! is, it continues the braking that certified the state before, whose tail is already
 //! checked to rest, so that continuation costs one period's check. It does a tenth of
-//! the work or less, for times within about 1 % (docs/PERFORMANCE.md).
+//! the work or less, for times within 1.5 % (docs/PERFORMANCE.md).
 //!
 //! It is not monotonic in the limits: raising an axis's acceleration can slow a run by a
 //! quarter (`cam_table --pointwise-raise`; docs/PERFORMANCE.md).
