@@ -837,6 +837,19 @@ impl Section {
         ))
     }
 
+    /// `braking`, certified from the state before, continued a period from `x`: the
+    /// controller's fallback and a hold's every period ([`Section::brake_period`] as a
+    /// [`Next`]).
+    fn continued(&self, x: State, h: &Hist, dt: f64, stop: f64, braking: Braking) -> Option<Next> {
+        let (next, h1, braking) = self.brake_period(x, h, dt, stop, braking).ok()?;
+        Some(Next {
+            j: braking.j,
+            x: next,
+            h: h1,
+            braking,
+        })
+    }
+
     /// The period of jerk `j` from `x`, if it is admissible and ends in a state that can
     /// stop by `stop` ([`Section::can_stop`], `quick` or not): the state, the positions
     /// and the braking that stops it.
@@ -880,15 +893,9 @@ impl Section {
         let at_rest = x.1 == 0.0 && x.2 == 0.0;
         // The previous state's braking, a period on: its tail is the braking already
         // checked to rest, so the state it reaches needs no new simulation.
-        let backup = memo.filter(|_| !at_rest).and_then(|memo| {
-            let (next, h1, braking) = self.brake_period(x, h, dt, stop, memo.braking).ok()?;
-            Some(Next {
-                j: braking.j,
-                x: next,
-                h: h1,
-                braking,
-            })
-        });
+        let backup = memo
+            .filter(|_| !at_rest)
+            .and_then(|memo| self.continued(x, h, dt, stop, memo.braking));
         if j_lo > j_hi {
             // A state within a braking's piece, where the intervals are not checked, may
             // lie outside them: only the braking goes on from it.
@@ -1060,16 +1067,7 @@ impl Grid {
                     if x.1 == 0.0 && x.2 == 0.0 {
                         break 'sections;
                     }
-                    let braking = memo.and_then(|m| {
-                        let (next, h1, braking) =
-                            section.brake_period(x, &h, dt, stop, m.braking).ok()?;
-                        Some(Next {
-                            j: braking.j,
-                            x: next,
-                            h: h1,
-                            braking,
-                        })
-                    });
+                    let braking = memo.and_then(|m| section.continued(x, &h, dt, stop, m.braking));
                     hold_periods += 1;
                     hold_checks += section.checked.get() - checked_before;
                     braking
