@@ -11,7 +11,8 @@
 //! generated CAM programs with their exact geometry), [`bound`] (the acceleration-limited
 //! time-optimal lower bound), [`jerk`] (the jerk-limited one, issue 31) and [`measure`]
 //! (Kerf's run, the feed time and the table the `cam_table` binary prints); [`pointwise`]
-//! is a prototype of a motion core that checks each point of the path at its own speed.
+//! is a prototype of a motion core that checks each point of the path at its own speed,
+//! [`swept`] the random machines and paths it is tested and measured on.
 #![deny(missing_docs)]
 
 #[path = "src/bound.rs"]
@@ -24,6 +25,8 @@ pub mod jerk;
 pub mod measure;
 #[path = "src/pointwise.rs"]
 pub mod pointwise;
+#[path = "src/swept.rs"]
+pub mod swept;
 
 use std::io::{self, Write};
 

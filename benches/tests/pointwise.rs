@@ -6,11 +6,11 @@
 mod common;
 use common::{assert_rel, circle, line};
 
-use kerf_benches::bound::{BoundMachine, Piece, Shape};
 use kerf_benches::jerk::JerkMachine;
 use kerf_benches::measure;
 use kerf_benches::pointwise::{CENTRIPETAL_SHARE, Grid, PLAN_SHARE, Search};
-use kerf_geom::{AxisLimits, MachineLimits, Vec3};
+use kerf_benches::swept::{self, Draw, Drawn, helix};
+use kerf_geom::MachineLimits;
 use kerf_motion::monitor::LIMIT_MARGIN;
 
 const DS_MM: f64 = 0.002;
@@ -23,28 +23,12 @@ fn machine(
     jerk_mm_s3: [f64; 3],
     tolerance_mm: f64,
 ) -> (JerkMachine, MachineLimits) {
-    let mut axes = [None; 6];
-    for (i, axis) in axes.iter_mut().take(3).enumerate() {
-        *axis = Some(AxisLimits {
-            velocity_units_s: velocity_mm_s[i],
-            acceleration_units_s2: acceleration_mm_s2[i],
-            jerk_units_s3: jerk_mm_s3[i],
-        });
-    }
-    (
-        JerkMachine {
-            base: BoundMachine {
-                velocity_mm_s,
-                acceleration_mm_s2,
-                tolerance_mm,
-            },
-            jerk_mm_s3,
-        },
-        MachineLimits {
-            axes,
-            period_s: 0.001,
-            tolerance_mm,
-        },
+    swept::machine(
+        velocity_mm_s,
+        acceleration_mm_s2,
+        jerk_mm_s3,
+        tolerance_mm,
+        0.001,
     )
 }
 
@@ -121,39 +105,6 @@ fn a_small_circle_runs_between_its_steady_and_its_centripetal_speed() {
     );
 }
 
-/// Draws from [0, 1) (a 64-bit linear congruential generator, the high bits).
-struct Draw(u64);
-
-impl Draw {
-    fn unit(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-}
-
-/// A helix about Z from the origin: radius `r`, `turns`, rising `rise_mm` a turn.
-fn helix(r: f64, turns: f64, rise_mm: f64, feed_mm_s: f64) -> Piece {
-    Piece {
-        shape: Shape::Arc {
-            center: Vec3::new(-r, 0.0, 0.0),
-            e1: Vec3::x(),
-            e2: Vec3::y(),
-            radius_mm: r,
-            from_rad: 0.0,
-            to_rad: turns * std::f64::consts::TAU,
-            axial_per_rad: Vec3::new(0.0, 0.0, rise_mm / std::f64::consts::TAU),
-        },
-        feed_mm_s,
-    }
-}
-
 #[test]
 fn swept_machines_and_paths_stay_within_the_limits() {
     // Machines from slow and soft to fast and stiff, axis by axis, and paths with corners
@@ -169,34 +120,19 @@ fn swept_machines_and_paths_stay_within_the_limits() {
     };
     let mut draw = Draw(env("KERF_POINTWISE_SEED", 31));
     for case in 0..env("KERF_POINTWISE_CASES", 8) {
-        let v = [0, 1, 2].map(|_| draw.range(50.0, 300.0));
-        let a = [0, 1, 2].map(|_| draw.range(300.0, 3000.0));
-        let j = [0, 1, 2].map(|_| draw.range(5_000.0, 80_000.0));
-        let tolerance = draw.range(0.005, 0.05);
-        let feed = draw.range(20.0, 150.0);
+        let Drawn {
+            velocity_mm_s: v,
+            acceleration_mm_s2: a,
+            jerk_mm_s3: j,
+            tolerance_mm: tolerance,
+            feed_mm_s: feed,
+        } = Drawn::draw(&mut draw);
         let (m, mut limits) = machine(v, a, j, tolerance);
         // Every other case at 250 µs, where a braking holds each jerk for four periods.
         if case % 2 == 1 {
             limits.period_s = 0.00025;
         }
-        let paths: [(&str, Vec<Piece>); 3] = [
-            (
-                "corners",
-                vec![
-                    line([0.0; 3], [3.0, 0.0, 0.0], feed),
-                    line([3.0, 0.0, 0.0], [3.0, 2.0, 0.5], feed),
-                    line([3.0, 2.0, 0.5], [1.0, 3.0, 0.5], feed),
-                ],
-            ),
-            (
-                "reversal",
-                vec![
-                    line([0.0; 3], [2.0, 1.0, 0.0], feed),
-                    line([2.0, 1.0, 0.0], [0.0, 0.0, 0.0], feed),
-                ],
-            ),
-            ("helix", vec![helix(1.5, 1.25, 1.0, feed)]),
-        ];
+        let paths = swept::paths(feed);
         // The full search at 250 µs only on the corners: it checks about ten times the
         // periods, four times as many at that period.
         let fast = limits.period_s < 0.001;

@@ -66,14 +66,7 @@ fn run() -> anyhow::Result<()> {
     if let Some(flag) = args.first()
         && flag == "--pointwise-raise"
     {
-        let mut rest = &args[1..];
-        let mut search = pointwise::Search::Candidates;
-        if let [flag, tail @ ..] = rest
-            && flag == "--largest"
-        {
-            search = pointwise::Search::Largest;
-            rest = tail;
-        }
+        let (search, rest) = search_flag(&args[1..]);
         let number = |i: usize, default: u64| -> anyhow::Result<u64> {
             rest.get(i).map_or(Ok(default), |v| {
                 v.parse()
@@ -85,14 +78,7 @@ fn run() -> anyhow::Result<()> {
     if let Some(flag) = args.first()
         && flag == "--pointwise"
     {
-        let mut rest = &args[1..];
-        let mut search = pointwise::Search::Candidates;
-        if let [flag, tail @ ..] = rest
-            && flag == "--largest"
-        {
-            search = pointwise::Search::Largest;
-            rest = tail;
-        }
+        let (search, mut rest) = search_flag(&args[1..]);
         let mut period_s = None;
         if let [flag, us, tail @ ..] = rest
             && flag == "--period-us"
@@ -176,21 +162,12 @@ fn pointwise_table(
     Ok(())
 }
 
-/// Draws from [0, 1) (a 64-bit linear congruential generator, the high bits), as the
-/// point-wise prototype's tests do.
-struct Draw(u64);
-
-impl Draw {
-    fn unit(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
+/// The point-wise prototype's search: `--largest` at the head of `args` (taken off) for
+/// the full search, else the candidates'.
+fn search_flag(args: &[String]) -> (pointwise::Search, &[String]) {
+    match args {
+        [flag, rest @ ..] if flag == "--largest" => (pointwise::Search::Largest, rest),
+        _ => (pointwise::Search::Candidates, args),
     }
 }
 
@@ -201,91 +178,28 @@ impl Draw {
 /// one axis's velocity, acceleration or jerk raised 1.1 to 3-fold. Prints every case
 /// that slowed by more than that, and a summary line.
 fn raise_sweep(seed: u64, cases: u64, search: pointwise::Search) -> anyhow::Result<()> {
-    use kerf_benches::bound::{BoundMachine, Piece, Shape};
-    use kerf_benches::jerk::JerkMachine;
-    use kerf_geom::{AxisLimits, MachineLimits, Vec3};
-    let line = |a: [f64; 3], b: [f64; 3], feed_mm_s: f64| Piece {
-        shape: Shape::Line {
-            start: Vec3::from(a),
-            end: Vec3::from(b),
-        },
-        feed_mm_s,
-    };
-    // A helix about Z from the origin: radius 1.5 mm, 1.25 turns, 1 mm a turn.
-    let helix = |feed_mm_s: f64| Piece {
-        shape: Shape::Arc {
-            center: Vec3::new(-1.5, 0.0, 0.0),
-            e1: Vec3::x(),
-            e2: Vec3::y(),
-            radius_mm: 1.5,
-            from_rad: 0.0,
-            to_rad: 1.25 * std::f64::consts::TAU,
-            axial_per_rad: Vec3::new(0.0, 0.0, 1.0 / std::f64::consts::TAU),
-        },
-        feed_mm_s,
-    };
-    let machine = |v: [f64; 3], a: [f64; 3], j: [f64; 3], tolerance_mm: f64, period_s: f64| {
-        let mut axes = [None; 6];
-        for (i, axis) in axes.iter_mut().take(3).enumerate() {
-            *axis = Some(AxisLimits {
-                velocity_units_s: v[i],
-                acceleration_units_s2: a[i],
-                jerk_units_s3: j[i],
-            });
-        }
-        (
-            JerkMachine {
-                base: BoundMachine {
-                    velocity_mm_s: v,
-                    acceleration_mm_s2: a,
-                    tolerance_mm,
-                },
-                jerk_mm_s3: j,
-            },
-            MachineLimits {
-                axes,
-                period_s,
-                tolerance_mm,
-            },
-        )
-    };
+    use kerf_benches::swept::{self, Draw, Drawn};
     let mut draw = Draw(seed);
     let (mut runs, mut slower) = (0u64, 0u64);
     let mut worst = 1.0f64;
     for case in 0..cases {
-        let v = [0, 1, 2].map(|_| draw.range(50.0, 300.0));
-        let a = [0, 1, 2].map(|_| draw.range(300.0, 3000.0));
-        let j = [0, 1, 2].map(|_| draw.range(5_000.0, 80_000.0));
-        let tolerance = draw.range(0.005, 0.05);
-        let feed = draw.range(20.0, 150.0);
+        let Drawn {
+            velocity_mm_s: v,
+            acceleration_mm_s2: a,
+            jerk_mm_s3: j,
+            tolerance_mm: tolerance,
+            feed_mm_s: feed,
+        } = Drawn::draw(&mut draw);
         let axis = ((draw.unit() * 3.0) as usize).min(2);
         let which = ((draw.unit() * 3.0) as usize).min(2);
         let factor = draw.range(1.1, 3.0);
         let period_s = if case % 2 == 1 { 0.00025 } else { 0.001 };
         let mut raised = [v, a, j];
         raised[which][axis] *= factor;
-        let paths = [
-            (
-                "corners",
-                vec![
-                    line([0.0; 3], [3.0, 0.0, 0.0], feed),
-                    line([3.0, 0.0, 0.0], [3.0, 2.0, 0.5], feed),
-                    line([3.0, 2.0, 0.5], [1.0, 3.0, 0.5], feed),
-                ],
-            ),
-            (
-                "reversal",
-                vec![
-                    line([0.0; 3], [2.0, 1.0, 0.0], feed),
-                    line([2.0, 1.0, 0.0], [0.0, 0.0, 0.0], feed),
-                ],
-            ),
-            ("helix", vec![helix(feed)]),
-        ];
-        for (name, pieces) in paths {
+        for (name, pieces) in swept::paths(feed) {
             let mut times = [0.0; 2];
             for (k, [vv, aa, jj]) in [[v, a, j], raised].into_iter().enumerate() {
-                let (m, limits) = machine(vv, aa, jj, tolerance, period_s);
+                let (m, limits) = swept::machine(vv, aa, jj, tolerance, period_s);
                 let run = pointwise::Grid::from_pieces(&pieces, &m, POINTWISE_DS_MM)
                     .run_with(&limits, search);
                 anyhow::ensure!(

@@ -1,18 +1,11 @@
 //! Helpers shared by the CAM benchmark's tests (`cam.rs`, `jerk.rs`): pieces of path
 //! and a relative comparison.
 
-use kerf_benches::bound::{Piece, Shape};
-use kerf_geom::Vec3;
+use kerf_benches::bound::Piece;
 
 /// A line from `start` to `end` at `feed_mm_s`.
 pub fn line(start: [f64; 3], end: [f64; 3], feed_mm_s: f64) -> Piece {
-    Piece {
-        shape: Shape::Line {
-            start: Vec3::from(start),
-            end: Vec3::from(end),
-        },
-        feed_mm_s,
-    }
+    kerf_benches::swept::line(start, end, feed_mm_s)
 }
 
 /// A circle in XY of radius `r` about (r, 0, 0), from the origin, `turns` times round.
