@@ -597,9 +597,7 @@ impl Section {
 
     /// The path jerks the point at `s` allows at speed `v` and acceleration `a`, mm/s³.
     fn jerk_range(&self, s: f64, v: f64, a: f64) -> (f64, f64) {
-        let (t, k, kp) = self.geometry(s);
-        let (va, v3) = (3.0 * v * a, v * v * v);
-        interval([0, 1, 2].map(|x| (t[x], k[x] * va + kp[x] * v3, self.jerk[x])))
+        self.ranges(s, v, a).1
     }
 
     /// Position at arc length `s`: the cubic Hermite interpolation of the neighbouring
