@@ -29,10 +29,13 @@
 //! limits. A jerk is admissible if its period is and it ends in a state from which a
 //! braking comes to rest before the next stop (a reversal, a stop the planner set, or
 //! the end of the path) with every period admissible (`Section::can_stop`). A braking
-//! heads for a share of the most negative acceleration each point allows and turns back
-//! to zero acceleration as the speed runs out, landing on rest within a period (the jerk
-//! `a²/2v` brings speed and acceleration to zero together; where braking harder would
-//! leave no landing, the most negative jerk that still does). Braking is itself a
+//! heads for one of a fixed ladder of decelerations ([`BRAKE_DECELS_MM_S2`]) at a jerk
+//! fixed by that deceleration ([`BRAKE_JERK_PER_S`]), fitted into each point's jerk
+//! interval where it falls outside, and turns back to zero acceleration as the speed runs
+//! out, landing on rest within a period (the jerk `a²/2v` brings speed and acceleration
+//! to zero together; where braking harder would leave no landing, the most negative jerk
+//! that still does). The brakings do not move with the limits, so that what certifies a
+//! state on one machine certifies it on a machine with higher limits. Braking is itself a
 //! continuation the controller may take, so a state it accepts has one: the motion can
 //! stop within the known path, as today's core can.
 //!
@@ -46,8 +49,12 @@
 //! checked to rest, so that continuation costs one period's check. It does a tenth of
 //! the work or less, for times within 1.5 % (docs/PERFORMANCE.md).
 //!
-//! It is not monotonic in the limits: raising an axis's acceleration can slow a run by a
-//! quarter (`cam_table --pointwise-raise`; docs/PERFORMANCE.md).
+//! It is not quite monotonic in the limits: a raised limit slowed 4 of 1,440 runs of the
+//! sweep (`cam_table --pointwise-raise`, seeds 1 to 8) by more than 1 % and a period,
+//! by 5.6 % at worst; the greedy choice of each period's jerk can run a quicker machine
+//! faster into a tight corner, where it then has to slow further (docs/PERFORMANCE.md).
+//! With brakings that were shares of each point's deceleration, 28 runs were, by up to
+//! 49 %.
 //!
 //! What it does not do yet: bound its cost per cycle (one braking simulated to rest is
 //! still the least a moving period costs), or take the allocation-free, fixed-window
@@ -96,17 +103,49 @@ pub const SCAN_STEPS: usize = 8;
 /// [`Search::Candidates`] tries the previous period's jerk and that jerk moved by 1 and 4
 /// of this many parts of the point's jerk interval, either way.
 const CANDIDATE_STEPS: f64 = 64.0;
-/// The brakings tried from a state, as shares of the most negative acceleration of each
-/// point: a hard one can run into a point whose jerk interval is empty at that
-/// deceleration (the `3 κ v a` term), where a gentle one, longer, still lands. Down to
-/// 1/16: with 1/4 the lowest, raster B took 3.248 s and raster C 4.649 s (3.079 and
-/// 4.215 s now); 1/32 and 1/64 as well changed them by 0.3 % (docs/PERFORMANCE.md).
-const BRAKE_SHARES: [f64; 5] = [1.0, 0.5, 0.25, 0.125, 0.0625];
+/// The decelerations the brakings that certify a state head for, hardest first, mm/s².
+/// First the hardest each point allows (`∞`: its most negative acceleration, at the
+/// largest jerk its interval allows), which stops a line in the S-curve's time; then
+/// halves from 64 m/s² down to 8 mm/s², a ladder that does not move with the machine's
+/// limits, so that a braking of it that lands on a machine also lands, the same motion,
+/// on any machine with higher limits (as far as its jerk is not fitted into a point's
+/// interval, see `Section::brake_jerk`).
+///
+/// The former family, shares (1 to 1/16) of each point's most negative acceleration,
+/// made every braking harder as an acceleration limit rose; at speed on a curve the
+/// harder braking then failed the `3 κ v a` jerk term, and a raised limit slowed 28 of
+/// the 1,440 runs of the monotonic sweep, by up to 49 % (4 now, by up to 5.6 %;
+/// docs/PERFORMANCE.md, "Monotonic in the limits"). Halves rather than steps of 1/√2:
+/// half the brakings, and that sweep no worse.
+pub const BRAKE_DECELS_MM_S2: [f64; 15] = [
+    f64::INFINITY,
+    65536.0,
+    32768.0,
+    16384.0,
+    8192.0,
+    4096.0,
+    2048.0,
+    1024.0,
+    512.0,
+    256.0,
+    128.0,
+    64.0,
+    32.0,
+    16.0,
+    8.0,
+];
+/// The jerk of a braking, per mm/s² of its deceleration, 1/s: the most it turns its
+/// acceleration down to its deceleration with, and back to zero with as it lands (40 ms
+/// each way), unless a point's jerk interval asks for more. Fixed, like the
+/// decelerations, and near the ratio of the axes' limits on the CAM mill (25 and 20 /s).
+/// Brakings at 40 and 10 /s as well (twice the brakings) made one run of the monotonic
+/// sweep 40 % slower (docs/PERFORMANCE.md).
+pub const BRAKE_JERK_PER_S: f64 = 25.0;
 /// A period whose lowest speed, where its acceleration turns from negative to positive,
 /// is below this lands on rest there, mm/s.
 const LANDED_MM_S: f64 = 1e-6;
 /// A braking whose hard jerk would leave no landing lands at once (the jerk `a²/2v`)
-/// only if that jerk is at least this share of the point's largest: at an acceleration
+/// only if that jerk is at least this share of the braking's largest: at an acceleration
 /// near zero it is near zero, and the speed would never run out (a braking from
 /// 0.024 mm/s ran 100,000 periods); below it the braking takes the most negative jerk
 /// that still lands.
@@ -250,14 +289,14 @@ struct Next {
     braking: Braking,
 }
 
-/// A braking under way: its share of the deceleration (one of [`BRAKE_SHARES`]), the
+/// A braking under way: its rung of [`BRAKE_DECELS_MM_S2`], the
 /// periods of its current piece done (0: a new piece starts) and that piece's jerk. A
 /// braking holds each jerk for a piece of [`BRAKE_PIECE_S`]; its state a period on is
 /// what its simulation to rest met there, so continuing it repeats that simulation
 /// period by period.
 #[derive(Clone, Copy, Debug)]
 struct Braking {
-    share: f64,
+    rung: usize,
     phase: usize,
     j: f64,
 }
@@ -316,6 +355,24 @@ fn interval(terms: [(f64, f64, f64); 3]) -> (f64, f64) {
         }
     }
     (lo, hi)
+}
+
+/// A floor of the distance a braking towards the deceleration `decel` with the descent
+/// jerk `j_d` takes from speed `v` and acceleration `a`, where its jerk is not fitted
+/// into a point's interval: its acceleration then never falls faster than `j_d` nor
+/// below `-decel` (or `a`, where that is lower), so the ramp at `j_d` down to `-decel`
+/// and then `-decel` to rest stop no later.
+fn braking_distance_floor(v: f64, a: f64, decel: f64, j_d: f64) -> f64 {
+    if a <= -decel {
+        return v * v / (-2.0 * a);
+    }
+    let t1 = (a + decel) / j_d;
+    let v1 = v + a * t1 - j_d * t1 * t1 / 2.0;
+    if v1 <= 0.0 {
+        return v * v / (2.0 * decel.max(-a));
+    }
+    let s1 = v * t1 + a * t1 * t1 / 2.0 - j_d * t1 * t1 * t1 / 6.0;
+    s1 + v1 * v1 / (2.0 * decel)
 }
 
 /// The state after `dt` of jerk `j` from `(s, v, a)`.
@@ -710,27 +767,38 @@ impl Section {
         true
     }
 
-    /// The jerk of a braking at `x` over a period `dt`: towards `share` of the most
-    /// negative acceleration the point allows, and back to zero acceleration as the speed
-    /// runs out (the jerk `a²/2v` brings both to zero together) once braking on for
-    /// another period would leave that return above the jerk allowed; within the jerk
-    /// intervals of the start point and (re-evaluated once) of the end point. `None`
-    /// where the point allows no jerk.
-    fn brake_jerk(&self, x: State, dt: f64, share: f64) -> Option<f64> {
+    /// The jerk of a braking at `x` over a period `dt`: towards the acceleration
+    /// `-decel_mm_s2` at a jerk of at most [`BRAKE_JERK_PER_S`] times `decel_mm_s2`, and
+    /// back to zero acceleration as the speed runs out (the jerk `a²/2v` brings both to
+    /// zero together) once braking on for another period would leave that return above
+    /// that jerk; fitted into the jerk intervals of the start point and (re-evaluated
+    /// once) of the end point where it falls outside them. Only that fitting depends on
+    /// the machine's limits: a braking that needs none is the same motion on every
+    /// machine. `decel_mm_s2` = `∞` is the hardest braking instead: towards the point's
+    /// most negative acceleration, at any jerk its interval allows (limits and all).
+    /// `None` where the point allows no jerk.
+    fn brake_jerk(&self, x: State, dt: f64, decel_mm_s2: f64) -> Option<f64> {
         let (s, v, a) = x;
-        let ((a_lo, _), (j_lo, j_hi)) = self.ranges(s, v, a);
+        let (j_lo, j_hi) = self.jerk_range(s, v, a);
         if j_lo > j_hi {
             return None;
         }
-        let choose = |j_lo: f64, j_hi: f64| {
-            let hard = ((share * a_lo.min(0.0) - a) / dt).clamp(j_lo, j_hi);
+        // The hardest: the point's most negative acceleration, at any jerk it allows.
+        let (decel_mm_s2, j_d) = if decel_mm_s2.is_infinite() {
+            (-self.ranges(s, v, a).0.0.min(0.0), f64::INFINITY)
+        } else {
+            (decel_mm_s2, decel_mm_s2 * BRAKE_JERK_PER_S)
+        };
+        let choose = |lo: f64, hi: f64| {
+            let top = j_d.min(hi).max(lo);
+            let hard = ((-decel_mm_s2 - a) / dt).clamp(-j_d, j_d).clamp(lo, hi);
             let mut j = hard;
             if a < 0.0 && v > 0.0 {
                 let (_, v1, a1) = step(x, hard, dt);
                 let land_now = a * a / (2.0 * v);
-                let must = v1 <= 0.0 || (a1 < 0.0 && a1 * a1 / (2.0 * v1) > j_hi);
-                if (must && land_now >= LAND_FLOOR * j_hi) || land_now >= j_hi {
-                    j = land_now.clamp(j_lo, j_hi);
+                let must = v1 <= 0.0 || (a1 < 0.0 && a1 * a1 / (2.0 * v1) > top);
+                if (must && land_now >= LAND_FLOOR * top) || land_now >= top {
+                    j = land_now.clamp(lo, hi);
                 }
             }
             // A jerk after which the braking can still land (the speed left at least
@@ -741,12 +809,12 @@ impl Section {
                     return v - a * a / (2.0 * j) >= -1e-9;
                 }
                 let (_, v1, a1) = step(x, j, dt);
-                v1 >= -1e-9 && (a1 >= 0.0 || v1 >= a1 * a1 / (2.0 * j_hi))
+                v1 >= -1e-9 && (a1 >= 0.0 || v1 >= a1 * a1 / (2.0 * top))
             };
-            if landable(j) || !landable(j_hi) {
+            if landable(j) || !landable(top) {
                 return j;
             }
-            bisect(j_hi, j, BISECTION_STEPS, landable)
+            bisect(top, j, BISECTION_STEPS, landable)
         };
         let j = choose(j_lo, j_hi);
         let (s1, v1, a1) = step(x, j, dt);
@@ -755,18 +823,30 @@ impl Section {
         Some(if lo <= hi { choose(lo, hi) } else { j })
     }
 
-    /// The first of the brakings of [`BRAKE_SHARES`] from `x` that comes to rest by
-    /// `stop` (its index), tried from the hardest. With `quick`, a braking refused for
-    /// being too fast (past `stop`, or over a point's speed limit) ends the search, as a
-    /// gentler one is mostly faster still. That is a guess, not a rule (the search for
-    /// the largest jerk, without a continuation of its own to fall back on, met states
-    /// that only a gentler braking certified), and it only ever refuses: it cannot let
-    /// a state through that has no braking. It spares the gentler brakings'
-    /// simulations where the stop or a slow stretch is near (15 to 50 % of the work).
+    /// The first of the brakings of [`BRAKE_DECELS_MM_S2`] from `x` that comes to rest by
+    /// `stop` (its rung), tried from the hardest. The rungs of the ladder harder than the
+    /// point allows at `x` are left out: half the work, the times within 0.4 %, and the
+    /// monotonic sweep about the same (4 of 1,440 runs slower, by up to 5.6 %, against 3,
+    /// by up to 6.0 %). Every other rung is tried: starting three rungs harder than the
+    /// one that certified the state before did a fifth less work, but left the motion on
+    /// a gentle braking that certified none of its candidates (a run 5 % slower with a
+    /// raised jerk). With `quick`, a braking refused for being too fast (past `stop`, or
+    /// over a point's speed limit) ends the search, as a gentler one is mostly faster
+    /// still. That is a guess, not a rule (the search for the largest jerk, without a
+    /// continuation of its own to fall back on, met states that only a gentler braking
+    /// certified), and it only ever refuses: it cannot let a state through that has no
+    /// braking. It spares the gentler brakings' simulations where the stop or a slow
+    /// stretch is near.
     fn can_stop(&self, x: State, h: &Hist, dt: f64, stop: f64, quick: bool) -> Option<usize> {
-        for (k, &share) in BRAKE_SHARES.iter().enumerate() {
-            match self.brakes(x, h, dt, stop, share) {
-                Ok(()) => return Some(k),
+        // Rungs harder than the point allows at `x` are left out (the hardest braking
+        // stands for them): a raised limit only adds rungs.
+        let hardest = -self.ranges(x.0, x.1, x.2).0.0;
+        for (rung, &decel) in BRAKE_DECELS_MM_S2.iter().enumerate() {
+            if rung > 0 && decel > hardest {
+                continue;
+            }
+            match self.brakes(x, h, dt, stop, rung) {
+                Ok(()) => return Some(rung),
                 Err(Refusal::TooFast) if quick => return None,
                 Err(_) => {}
             }
@@ -774,20 +854,28 @@ impl Section {
         None
     }
 
-    /// Whether the braking towards `share` of the most negative acceleration from `x`
-    /// comes to rest by `stop`, every period on the way admissible; if not, why its
-    /// first refused period was.
+    /// Whether the braking of `rung` from `x` comes to rest by `stop`, every period on the
+    /// way admissible; if not, why its first refused period was.
     fn brakes(
         &self,
         mut x: State,
         h: &Hist,
         dt: f64,
         stop: f64,
-        share: f64,
+        rung: usize,
     ) -> Result<(), Refusal> {
+        // Unfitted, it would stop no shorter than the floor: too fast for `stop` without
+        // a simulation. (A jerk fitted into an interval can brake harder, so this may
+        // refuse a braking that lands; it only ever refuses.)
+        let decel = BRAKE_DECELS_MM_S2[rung];
+        if decel.is_finite()
+            && braking_distance_floor(x.1, x.2, decel, decel * BRAKE_JERK_PER_S) > stop - x.0 + 1e-9
+        {
+            return Err(Refusal::TooFast);
+        }
         let mut h = *h;
         let mut braking = Braking {
-            share,
+            rung,
             phase: 0,
             j: 0.0,
         };
@@ -817,7 +905,7 @@ impl Section {
     ) -> Result<(State, Hist, Braking), Refusal> {
         let m = piece_periods(dt);
         let j = if braking.phase == 0 {
-            self.brake_jerk(x, m as f64 * dt, braking.share)
+            self.brake_jerk(x, m as f64 * dt, BRAKE_DECELS_MM_S2[braking.rung])
                 .ok_or(Refusal::Other)?
         } else {
             braking.j
@@ -828,7 +916,7 @@ impl Section {
             x,
             h,
             Braking {
-                share: braking.share,
+                rung: braking.rung,
                 phase: (braking.phase + 1) % m,
                 j,
             },
@@ -862,13 +950,13 @@ impl Section {
         quick: bool,
     ) -> Option<Next> {
         let (next, h1) = self.period(x, h, j, dt, stop)?;
-        let share = self.can_stop(next, &h1, dt, stop, quick)?;
+        let rung = self.can_stop(next, &h1, dt, stop, quick)?;
         Some(Next {
             j,
             x: next,
             h: h1,
             braking: Braking {
-                share: BRAKE_SHARES[share],
+                rung,
                 phase: 0,
                 j: 0.0,
             },
@@ -985,8 +1073,8 @@ impl Section {
             Some(b) => b,
             None => {
                 // A braking continuation: admissible whenever the state before was.
-                let b = BRAKE_SHARES.iter().find_map(|&share| {
-                    let j = self.brake_jerk(x, dt, share)?;
+                let b = BRAKE_DECELS_MM_S2.iter().find_map(|&decel| {
+                    let j = self.brake_jerk(x, dt, decel)?;
                     self.admissible(x, h, j, dt, stop, false)
                 })?;
                 hi = j_hi.min(b.j + width / SCAN_STEPS as f64);
@@ -1078,7 +1166,9 @@ impl Grid {
                     None => {
                         fallbacks += 1;
                         let (j_lo, j_hi) = section.jerk_range(x.0, x.1, x.2);
-                        let j = section.brake_jerk(x, dt, 1.0).unwrap_or(j_lo.min(j_hi));
+                        let j = section
+                            .brake_jerk(x, dt, f64::INFINITY)
+                            .unwrap_or(j_lo.min(j_hi));
                         let (s1, v1, a1) = step(x, j, dt);
                         let s1 = s1.min(stop);
                         let next = (s1, v1.max(0.0), if v1 <= 0.0 { 0.0 } else { a1 });

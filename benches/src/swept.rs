@@ -138,3 +138,86 @@ pub fn paths(feed_mm_s: f64) -> [(&'static str, Vec<Piece>); 3] {
         ("helix", vec![helix(1.5, 1.25, 1.0, feed_mm_s)]),
     ]
 }
+
+/// One pair of runs of [`raise_sweep`]: a path on a drawn machine, and again with one
+/// axis's limit raised.
+#[derive(Clone, Copy, Debug)]
+pub struct Raised {
+    /// The case (machine) drawn, from 0.
+    pub case: u64,
+    /// The path's name ([`paths`]).
+    pub path: &'static str,
+    /// The period of both runs, s.
+    pub period_s: f64,
+    /// The programmed feed, mm/s.
+    pub feed_mm_s: f64,
+    /// The limit raised: 0 velocity, 1 acceleration, 2 jerk.
+    pub which: usize,
+    /// The axis whose limit was raised.
+    pub axis: usize,
+    /// The factor it was raised by (1.1 to 3).
+    pub factor: f64,
+    /// The time of the drawn machine's run and of the raised one's, s.
+    pub times_s: [f64; 2],
+}
+
+impl Raised {
+    /// Whether the raised machine took more than 1 % and a period longer: what
+    /// kerf-pipeline's `monotonic` property calls slower.
+    pub fn slower(&self) -> bool {
+        self.times_s[1] > 1.01 * self.times_s[0] + self.period_s
+    }
+}
+
+/// Whether the point-wise prototype is monotonic in the limits, as Kerf's core is:
+/// `cases` machines drawn from `seed` as the swept tests draw them (every other one at
+/// 250 µs), the three [`paths`] on each, run again with one axis's velocity,
+/// acceleration or jerk raised 1.1 to 3-fold, on a grid of `ds_mm`. Every pair of runs,
+/// or why a run failed (stuck, or a fallback).
+pub fn raise_sweep(
+    seed: u64,
+    cases: u64,
+    search: crate::pointwise::Search,
+    ds_mm: f64,
+) -> Result<Vec<Raised>, String> {
+    let mut draw = Draw(seed);
+    let mut out = Vec::new();
+    for case in 0..cases {
+        let Drawn {
+            velocity_mm_s: v,
+            acceleration_mm_s2: a,
+            jerk_mm_s3: j,
+            tolerance_mm,
+            feed_mm_s,
+        } = Drawn::draw(&mut draw);
+        let axis = ((draw.unit() * 3.0) as usize).min(2);
+        let which = ((draw.unit() * 3.0) as usize).min(2);
+        let factor = draw.range(1.1, 3.0);
+        let period_s = if case % 2 == 1 { 0.00025 } else { 0.001 };
+        let mut raised = [v, a, j];
+        raised[which][axis] *= factor;
+        for (path, pieces) in paths(feed_mm_s) {
+            let mut times_s = [0.0; 2];
+            for (k, [vv, aa, jj]) in [[v, a, j], raised].into_iter().enumerate() {
+                let (m, limits) = machine(vv, aa, jj, tolerance_mm, period_s);
+                let run = crate::pointwise::Grid::from_pieces(&pieces, &m, ds_mm)
+                    .run_with(&limits, search);
+                if run.stuck || run.fallbacks > 0 {
+                    return Err(format!("case {case} {path}: stuck or fell back"));
+                }
+                times_s[k] = run.time_s;
+            }
+            out.push(Raised {
+                case,
+                path,
+                period_s,
+                feed_mm_s,
+                which,
+                axis,
+                factor,
+                times_s,
+            });
+        }
+    }
+    Ok(out)
+}

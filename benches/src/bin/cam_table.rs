@@ -173,58 +173,35 @@ fn search_flag(args: &[String]) -> (pointwise::Search, &[String]) {
 
 /// Whether the point-wise prototype is monotonic in the limits, as Kerf's core is
 /// (kerf-pipeline's `monotonic` property: raising one limit never makes a program more
-/// than 1 % and a period slower): `cases` machines drawn from `seed` as in its swept
-/// test (every other one at 250 µs), three paths each (corners, a reversal, a helix),
-/// one axis's velocity, acceleration or jerk raised 1.1 to 3-fold. Prints every case
-/// that slowed by more than that, and a summary line.
+/// than 1 % and a period slower), over [`kerf_benches::swept::raise_sweep`]. Prints every
+/// case that slowed by more than that, and a summary line.
 fn raise_sweep(seed: u64, cases: u64, search: pointwise::Search) -> anyhow::Result<()> {
-    use kerf_benches::swept::{self, Draw, Drawn};
-    let mut draw = Draw(seed);
-    let (mut runs, mut slower) = (0u64, 0u64);
+    let runs = kerf_benches::swept::raise_sweep(seed, cases, search, POINTWISE_DS_MM)
+        .map_err(anyhow::Error::msg)?;
     let mut worst = 1.0f64;
-    for case in 0..cases {
-        let Drawn {
-            velocity_mm_s: v,
-            acceleration_mm_s2: a,
-            jerk_mm_s3: j,
-            tolerance_mm: tolerance,
-            feed_mm_s: feed,
-        } = Drawn::draw(&mut draw);
-        let axis = ((draw.unit() * 3.0) as usize).min(2);
-        let which = ((draw.unit() * 3.0) as usize).min(2);
-        let factor = draw.range(1.1, 3.0);
-        let period_s = if case % 2 == 1 { 0.00025 } else { 0.001 };
-        let mut raised = [v, a, j];
-        raised[which][axis] *= factor;
-        for (name, pieces) in swept::paths(feed) {
-            let mut times = [0.0; 2];
-            for (k, [vv, aa, jj]) in [[v, a, j], raised].into_iter().enumerate() {
-                let (m, limits) = swept::machine(vv, aa, jj, tolerance, period_s);
-                let run = pointwise::Grid::from_pieces(&pieces, &m, POINTWISE_DS_MM)
-                    .run_with(&limits, search);
-                anyhow::ensure!(
-                    !run.stuck && run.fallbacks == 0,
-                    "case {case} {name}: stuck or fell back"
-                );
-                times[k] = run.time_s;
-            }
-            runs += 1;
-            worst = worst.max(times[1] / times[0]);
-            if times[1] > 1.01 * times[0] + period_s {
-                slower += 1;
-                println!(
-                    "case {case} {name} (period {period_s} s, feed {feed:.1}): {} of axis {axis} \
-                     x{factor:.2}: {:.4} s -> {:.4} s ({:+.1} %)",
-                    ["velocity", "acceleration", "jerk"][which],
-                    times[0],
-                    times[1],
-                    100.0 * (times[1] / times[0] - 1.0)
-                );
-            }
+    let mut slower = 0;
+    for r in &runs {
+        let [before, after] = r.times_s;
+        worst = worst.max(after / before);
+        if r.slower() {
+            slower += 1;
+            println!(
+                "case {} {} (period {} s, feed {:.1}): {} of axis {} x{:.2}: {before:.4} s -> \
+                 {after:.4} s ({:+.1} %)",
+                r.case,
+                r.path,
+                r.period_s,
+                r.feed_mm_s,
+                ["velocity", "acceleration", "jerk"][r.which],
+                r.axis,
+                r.factor,
+                100.0 * (after / before - 1.0)
+            );
         }
     }
     println!(
-        "{search:?}: {slower} of {runs} runs slower by more than 1 % and a period; worst {:+.1} %",
+        "{search:?}: {slower} of {} runs slower by more than 1 % and a period; worst {:+.1} %",
+        runs.len(),
         100.0 * (worst - 1.0)
     );
     Ok(())
