@@ -779,13 +779,13 @@ impl Section {
     /// `None` where the point allows no jerk.
     fn brake_jerk(&self, x: State, dt: f64, decel_mm_s2: f64) -> Option<f64> {
         let (s, v, a) = x;
-        let (j_lo, j_hi) = self.jerk_range(s, v, a);
+        let ((a_lo, _), (j_lo, j_hi)) = self.ranges(s, v, a);
         if j_lo > j_hi {
             return None;
         }
         // The hardest: the point's most negative acceleration, at any jerk it allows.
         let (decel_mm_s2, j_d) = if decel_mm_s2.is_infinite() {
-            (-self.ranges(s, v, a).0.0.min(0.0), f64::INFINITY)
+            (-a_lo.min(0.0), f64::INFINITY)
         } else {
             (decel_mm_s2, decel_mm_s2 * BRAKE_JERK_PER_S)
         };
