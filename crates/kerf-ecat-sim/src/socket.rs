@@ -1,5 +1,5 @@
 //! The raw socket (AF_PACKET, EtherType 0x88A4) the emulator answers on: the only unsafe
-//! code of the crate, three libc calls with their SAFETY notes; reads and writes then go
+//! code of the crate, its libc calls each with a SAFETY note; reads and writes then go
 //! through a safe `File` over the owned descriptor.
 
 #![allow(unsafe_code)]
@@ -7,7 +7,7 @@
 use std::ffi::CString;
 use std::fs::File;
 use std::io::{self, Read, Write};
-use std::os::fd::{FromRawFd, OwnedFd};
+use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
 use std::time::Duration;
 
 use crate::frame::ETHERTYPE;
@@ -94,6 +94,29 @@ impl RawSocket {
                 Ok(None)
             }
             Err(e) => Err(e),
+        }
+    }
+
+    /// Whether a frame is waiting to be received (a poll that does not wait).
+    pub fn pending(&self) -> io::Result<bool> {
+        let mut poll = libc::pollfd {
+            fd: self.file.as_raw_fd(),
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        // SAFETY: one valid `pollfd`, alive for the call; a zero timeout never blocks.
+        let ready = unsafe { libc::poll(&raw mut poll, 1, 0) };
+        match ready {
+            n if n < 0 => {
+                let e = io::Error::last_os_error();
+                if e.kind() == io::ErrorKind::Interrupted {
+                    Ok(false)
+                } else {
+                    Err(e)
+                }
+            }
+            0 => Ok(false),
+            _ => Ok(poll.revents & libc::POLLIN != 0),
         }
     }
 
