@@ -49,9 +49,9 @@
 //! checked to rest, so that continuation costs one period's check. It does a tenth of
 //! the work or less, for times within 1.5 % (docs/PERFORMANCE.md).
 //!
-//! It is not quite monotonic in the limits: a raised limit slowed 4 of 1,440 runs of the
+//! It is not quite monotonic in the limits: a raised limit slowed 5 of 1,440 runs of the
 //! sweep (`cam_table --pointwise-raise`, seeds 1 to 8) by more than 1 % and a period,
-//! by 5.6 % at worst; the greedy choice of each period's jerk can run a quicker machine
+//! by 2.8 % at worst; the greedy choice of each period's jerk can run a quicker machine
 //! faster into a tight corner, where it then has to slow further (docs/PERFORMANCE.md).
 //! With brakings that were shares of each point's deceleration, 28 runs were, by up to
 //! 49 %.
@@ -163,6 +163,9 @@ const END_SLACK: f64 = 1e-3;
 pub const BRAKE_PIECE_S: f64 = 0.001;
 /// Below this |tangent component| an axis takes no part in the tangential terms.
 const TINY: f64 = 1e-12;
+/// Most fits of a braking's jerk into the intervals at its piece's middle and end
+/// (`Section::brake_jerk`).
+const FIT_ROUNDS: usize = 3;
 /// Step of the curve parameter (of [0, 1]) for the derivative of the curvature vector.
 const KP_DU: f64 = 1e-5;
 /// Junctions of planned segments whose tangents turn by more than this (rad) are passed
@@ -339,6 +342,10 @@ fn piece_periods(dt: f64) -> usize {
 /// The positions of the last three periods, oldest first, mm: what the next position's
 /// finite differences are taken with.
 type Hist = [Vec3; 3];
+
+/// A point's intervals of the path acceleration and of the path jerk
+/// ([`Section::ranges`]).
+type Ranges = ((f64, f64), (f64, f64));
 
 /// The interval of `x` with `|c x + m| ≤ w` for every `(c, m, w)`, intersected over the
 /// axes; an axis with `c = 0` needs `|m| ≤ w` (else the interval is empty).
@@ -676,12 +683,14 @@ impl Section {
     /// one, if the period is admissible (see the module's documentation) and ends by
     /// `stop`. A period that lands on rest ends there, at rest.
     fn period(&self, x: State, h: &Hist, j: f64, dt: f64, stop: f64) -> Option<(State, Hist)> {
-        self.period_or_why(x, h, j, dt, stop, Intervals::MidAndEnd)
+        self.period_or_why(x, h, j, dt, stop, Intervals::MidAndEnd, None)
             .ok()
     }
 
     /// [`Section::period`] with the intervals checked where `intervals` says, or why the
-    /// period is refused.
+    /// period is refused. `known`: the intervals at the period's middle and end where the
+    /// caller has them already (a braking's fit); used where the period runs whole.
+    #[allow(clippy::too_many_arguments)]
     fn period_or_why(
         &self,
         x: State,
@@ -690,6 +699,7 @@ impl Section {
         dt: f64,
         stop: f64,
         intervals: Intervals,
+        known: Option<[Ranges; 2]>,
     ) -> Result<(State, Hist), Refusal> {
         self.checked.set(self.checked.get() + 1);
         let (_, v, a) = x;
@@ -718,9 +728,13 @@ impl Section {
             Intervals::End => &[(s1, v1, a1)][..],
             Intervals::Neither => &[][..],
         };
-        for &(s_x, v_x, a_x) in points {
+        let known = known.filter(|_| !landed && intervals == Intervals::MidAndEnd);
+        for (n, &(s_x, v_x, a_x)) in points.iter().enumerate() {
             let v_x = v_x.max(0.0);
-            let ((lo, hi), (j_lo, j_hi)) = self.ranges(s_x, v_x, a_x);
+            let ((lo, hi), (j_lo, j_hi)) = match known {
+                Some(known) => known[n],
+                None => self.ranges(s_x, v_x, a_x),
+            };
             let (da, dj) = (END_SLACK * (hi - lo).abs(), END_SLACK * (j_hi - j_lo).abs());
             if !(lo - da <= a_x && a_x <= hi + da && j_lo - dj <= j && j <= j_hi + dj) {
                 return Err(Refusal::Other);
@@ -772,12 +786,23 @@ impl Section {
     /// back to zero acceleration as the speed runs out (the jerk `a²/2v` brings both to
     /// zero together) once braking on for another period would leave that return above
     /// that jerk; fitted into the jerk intervals of the start point and (re-evaluated
-    /// once) of the end point where it falls outside them. Only that fitting depends on
-    /// the machine's limits: a braking that needs none is the same motion on every
-    /// machine. `decel_mm_s2` = `∞` is the hardest braking instead: towards the point's
+    /// up to [`FIT_ROUNDS`] times) of the middle and the end of `dt` where it falls
+    /// outside them. Only that fitting depends on the machine's limits: a braking that
+    /// needs none is the same motion on every machine. `decel_mm_s2` = `∞` is the hardest braking instead: towards the point's
     /// most negative acceleration, at any jerk its interval allows (limits and all).
     /// `None` where the point allows no jerk.
     fn brake_jerk(&self, x: State, dt: f64, decel_mm_s2: f64) -> Option<f64> {
+        self.brake_jerk_ranges(x, dt, decel_mm_s2).map(|(j, _)| j)
+    }
+
+    /// [`Section::brake_jerk`], with the intervals at the middle and the end of `dt` at
+    /// that jerk where the fit has them.
+    fn brake_jerk_ranges(
+        &self,
+        x: State,
+        dt: f64,
+        decel_mm_s2: f64,
+    ) -> Option<(f64, Option<[Ranges; 2]>)> {
         let (s, v, a) = x;
         let ((a_lo, _), (j_lo, j_hi)) = self.ranges(s, v, a);
         if j_lo > j_hi {
@@ -816,11 +841,28 @@ impl Section {
             }
             bisect(top, j, BISECTION_STEPS, landable)
         };
-        let j = choose(j_lo, j_hi);
-        let (s1, v1, a1) = step(x, j, dt);
-        let (e_lo, e_hi) = self.jerk_range(s1, v1.max(0.0), a1);
-        let (lo, hi) = (j_lo.max(e_lo), j_hi.min(e_hi));
-        Some(if lo <= hi { choose(lo, hi) } else { j })
+        // Fitted into the intervals at the piece's middle and end too, where the period
+        // checks them. Those move with the jerk (the state they are taken at does), so
+        // the fit is repeated from the jerk it gave, up to FIT_ROUNDS times: fitted once,
+        // a braking turning down hard on a curve whose interval closes in (raster C's
+        // rows, 2,400 mm/s³ a period) missed the end's bound by a few mm/s³ and was
+        // refused, with every gentler rung, which were on the same bound.
+        let mut j = choose(j_lo, j_hi);
+        for _ in 0..FIT_ROUNDS {
+            let (s_m, v_m, a_m) = step(x, j, dt / 2.0);
+            let mid = self.ranges(s_m, v_m.max(0.0), a_m);
+            let (s1, v1, a1) = step(x, j, dt);
+            let end = self.ranges(s1, v1.max(0.0), a1);
+            let (lo, hi) = (
+                j_lo.max(mid.1.0).max(end.1.0),
+                j_hi.min(mid.1.1).min(end.1.1),
+            );
+            if lo > hi || (lo <= j && j <= hi) {
+                return Some((j, Some([mid, end])));
+            }
+            j = choose(lo, hi);
+        }
+        Some((j, None))
     }
 
     /// The first of the brakings of [`BRAKE_DECELS_MM_S2`] from `x` that comes to rest by
@@ -904,14 +946,23 @@ impl Section {
         braking: Braking,
     ) -> Result<(State, Hist, Braking), Refusal> {
         let m = piece_periods(dt);
-        let j = if braking.phase == 0 {
-            self.brake_jerk(x, m as f64 * dt, BRAKE_DECELS_MM_S2[braking.rung])
+        let (j, known) = if braking.phase == 0 {
+            self.brake_jerk_ranges(x, m as f64 * dt, BRAKE_DECELS_MM_S2[braking.rung])
                 .ok_or(Refusal::Other)?
         } else {
-            braking.j
+            (braking.j, None)
         };
-        let (x, h) =
-            self.period_or_why(x, h, j, dt, stop, Intervals::of_piece(braking.phase, m))?;
+        // The fit's intervals are the period's own where the piece is one period.
+        let known = known.filter(|_| m == 1);
+        let (x, h) = self.period_or_why(
+            x,
+            h,
+            j,
+            dt,
+            stop,
+            Intervals::of_piece(braking.phase, m),
+            known,
+        )?;
         Ok((
             x,
             h,
