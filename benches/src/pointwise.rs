@@ -3,13 +3,16 @@
 //! what such a core would reach on the CAM corpus and what one cycle of it costs, before
 //! anything of it goes into the real-time core.
 //!
-//! **The path** is tabulated every `ds` mm of arc length with the unit tangent `t = p'`,
-//! the curvature vector `κ = p''` and its derivative `κ' = p'''` (differences of `κ`
-//! within each curve); between grid points they are interpolated linearly, and positions are cubic
-//! Hermite interpolations of the points and their tangents. Two paths:
-//! [`Grid::from_pieces`] takes the exact geometry with the jerk-limited bound's
-//! curvature-continuous corner blends ([`crate::jerk::g2_blended`]), and
-//! [`Grid::from_segments`] takes the planner's segments, the path Kerf's motion core runs.
+//! **The path** is tabulated every `ds` mm of arc length with the tangent `t = p'`, the
+//! curvature vector `κ = p''` and its derivative `κ' = p'''` (differences of `κ` within
+//! each curve), over the six axes X Y Z A B C; between grid points they are interpolated
+//! linearly, and positions are cubic Hermite interpolations of the points and their
+//! tangents. Two paths: [`Grid::from_pieces`] takes the exact geometry (XYZ) with the
+//! jerk-limited bound's curvature-continuous corner blends ([`crate::jerk::g2_blended`]),
+//! and [`Grid::from_segments`] takes the planner's segments, the path Kerf's motion core
+//! runs, rotary axes included (`PlannedSegment::derivatives_at`: the path parameter is the
+//! XYZ arc length, degrees on a move of the rotary axes alone). Axes that do not move in
+//! a section are left out of its checks.
 //!
 //! **The limits at a point.** With path speed `v`, acceleration `a` and jerk `j`, axis `i`
 //! moves with velocity `tᵢ v`, acceleration `tᵢ a + κᵢ v²` and jerk
@@ -68,8 +71,9 @@ use std::time::Instant;
 use kerf_geom::ramp::bisect;
 use kerf_geom::{MachineLimits, PlannedSegment, Vec3};
 use kerf_motion::monitor::LimitMonitor;
+use nalgebra::Vector6;
 
-use crate::bound::{BoundMachine, Piece, max_speed_squared, unit_frame};
+use crate::bound::{Piece, unit_frame};
 use crate::jerk::{JerkMachine, g2_blended};
 
 /// Share of each axis's acceleration the speed limit of a point leaves to the centripetal
@@ -179,22 +183,27 @@ struct Section {
     length_mm: f64,
     /// Spacing of the points, mm.
     ds_mm: f64,
-    /// Position of each point, mm.
-    p: Vec<Vec3>,
-    /// Unit tangent.
-    t: Vec<Vec3>,
-    /// Curvature vector, 1/mm.
-    k: Vec<Vec3>,
-    /// Derivative of the curvature vector by arc length, 1/mm².
-    kp: Vec<Vec3>,
+    /// Position of each point, X Y Z mm and A B C degrees.
+    p: Vec<Vec6>,
+    /// Tangent: the axes' derivatives by the path parameter (a unit vector in XYZ).
+    t: Vec<Vec6>,
+    /// Curvature vector: the second derivatives, 1/mm.
+    k: Vec<Vec6>,
+    /// Its derivative by the path parameter, 1/mm².
+    kp: Vec<Vec6>,
     /// Speed limit, mm/s.
     v_max: Vec<f64>,
     /// Axis acceleration and jerk limits at [`PLAN_SHARE`] (the velocities are in `v_max`).
-    acc: [f64; 3],
-    jerk: [f64; 3],
+    acc: [f64; 6],
+    jerk: [f64; 6],
     /// Axis velocity, acceleration and jerk limits, whole: what the finite differences of
     /// the positions at the period are checked against.
-    whole: [[f64; 3]; 3],
+    whole: [[f64; 6]; 3],
+    /// The axes that move in the section (a tangent, curvature or position that is not
+    /// the same at every point), ascending: the others are left out of the intervals and
+    /// the differences (a machine of three axes costs what it did before the six).
+    moving: [usize; 6],
+    n_moving: usize,
     /// Periods checked in the current run (the measure of the controller's work).
     checked: Cell<u64>,
 }
@@ -341,17 +350,98 @@ fn piece_periods(dt: f64) -> usize {
 
 /// The positions of the last three periods, oldest first, mm: what the next position's
 /// finite differences are taken with.
-type Hist = [Vec3; 3];
+type Hist = [Vec6; 3];
+
+/// A vector over the six axes, X Y Z A B C.
+type Vec6 = Vector6<f64>;
+
+/// XYZ `v` with A, B and C at zero.
+fn lift(v: Vec3) -> Vec6 {
+    Vec6::new(v.x, v.y, v.z, 0.0, 0.0, 0.0)
+}
+
+/// Velocity, acceleration and jerk limits of the six axes (infinite for an axis the
+/// machine does not have).
+#[derive(Clone, Copy, Debug)]
+struct Axes {
+    velocity: [f64; 6],
+    acceleration: [f64; 6],
+    jerk: [f64; 6],
+}
+
+impl Axes {
+    /// X, Y and Z of the bound's `machine`.
+    fn of_machine(machine: &JerkMachine) -> Axes {
+        let six = |xyz: [f64; 3]| {
+            [
+                xyz[0],
+                xyz[1],
+                xyz[2],
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::INFINITY,
+            ]
+        };
+        Axes {
+            velocity: six(machine.base.velocity_mm_s),
+            acceleration: six(machine.base.acceleration_mm_s2),
+            jerk: six(machine.jerk_mm_s3),
+        }
+    }
+
+    /// Every axis of `limits`.
+    fn of_limits(limits: &MachineLimits) -> Axes {
+        let each = |f: fn(&kerf_geom::AxisLimits) -> f64| {
+            limits.axes.map(|a| a.as_ref().map_or(f64::INFINITY, f))
+        };
+        Axes {
+            velocity: each(|a| a.velocity_units_s),
+            acceleration: each(|a| a.acceleration_units_s2),
+            jerk: each(|a| a.jerk_units_s3),
+        }
+    }
+}
+
+/// [`crate::bound::max_speed_squared`] over six axes: the largest `ṡ²` at a point of
+/// tangent `t` and curvature vector `k` within `feed_mm_s` and the axis `velocity`, that
+/// leaves an admissible tangential acceleration within `acceleration`.
+fn max_speed_squared6(
+    t: &Vec6,
+    k: &Vec6,
+    feed_mm_s: f64,
+    velocity: &[f64; 6],
+    acceleration: &[f64; 6],
+) -> f64 {
+    let a = acceleration;
+    let mut x = feed_mm_s * feed_mm_s;
+    for i in 0..6 {
+        if t[i].abs() > TINY {
+            x = x.min((velocity[i] / t[i].abs()).powi(2));
+            for j in i + 1..6 {
+                if t[j].abs() > TINY {
+                    let d = (k[i] / t[i] - k[j] / t[j]).abs();
+                    if d > 0.0 {
+                        x = x.min((a[i] / t[i].abs() + a[j] / t[j].abs()) / d);
+                    }
+                }
+            }
+        } else if k[i].abs() > 0.0 {
+            x = x.min(a[i] / k[i].abs());
+        }
+    }
+    x
+}
 
 /// A point's intervals of the path acceleration and of the path jerk
 /// ([`Section::ranges`]).
 type Ranges = ((f64, f64), (f64, f64));
 
-/// The interval of `x` with `|c x + m| ≤ w` for every `(c, m, w)`, intersected over the
-/// axes; an axis with `c = 0` needs `|m| ≤ w` (else the interval is empty).
-fn interval(terms: [(f64, f64, f64); 3]) -> (f64, f64) {
+/// The interval of `x` with `|c x + m| ≤ w` for every `(c, m, w)` of `term` over `axes`,
+/// intersected; an axis with `c = 0` needs `|m| ≤ w` (else the interval is empty).
+fn interval(axes: &[usize], term: impl Fn(usize) -> (f64, f64, f64)) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
-    for (c, m, w) in terms {
+    for &axis in axes {
+        let (c, m, w) = term(axis);
         if c.abs() > TINY {
             let a = (-w - m) / c;
             let b = (w - m) / c;
@@ -413,26 +503,78 @@ impl Grid {
         Grid::from_curves(curves, machine, ds_mm)
     }
 
-    /// The planner's path, `segments` (XYZ only), tabulated every `ds_mm` at most for
-    /// `machine`. A junction where the planner set a stop (`end_cap_mm_s` 0) is a stop.
-    pub fn from_segments(segments: &[PlannedSegment], machine: &JerkMachine, ds_mm: f64) -> Grid {
-        let curves: Vec<Parametric> = segments
-            .iter()
-            .enumerate()
-            .map(|(n, seg)| {
-                let (curve, len) = (seg.curve, seg.length_mm);
-                Parametric {
-                    // The curve's own parameter, scaled to [0, 1]: its derivatives by it.
-                    eval: Box::new(move |u| {
-                        let e = curve.eval(u * len);
-                        (e.point, e.tangent * len, e.curvature * (len * len))
-                    }),
-                    feed_mm_s: seg.feed_mm_s,
-                    stop_before: n > 0 && segments[n - 1].end_cap_mm_s <= 0.0,
+    /// The planner's path, `segments` (all six axes, by the segments' own path parameter:
+    /// the XYZ arc length, degrees on a move of the rotary axes alone), tabulated every
+    /// `ds_mm` at most for the axes of `limits`. A junction where the planner set a stop
+    /// (`end_cap_mm_s` 0) is a stop, and so is one where the direction (of all six axes)
+    /// reverses or turns by more than a micro-radian.
+    pub fn from_segments(segments: &[PlannedSegment], limits: &MachineLimits, ds_mm: f64) -> Grid {
+        let axes = Axes::of_limits(limits);
+        let six = |v: [f64; 6]| Vec6::from_column_slice(&v);
+        // The segments of non-zero length, and the stops between them.
+        let mut live: Vec<&PlannedSegment> = Vec::with_capacity(segments.len());
+        let mut stops = Vec::new();
+        let mut total = 0.0;
+        let mut stop_pending = false;
+        for (n, seg) in segments.iter().enumerate() {
+            stop_pending |= n > 0 && segments[n - 1].end_cap_mm_s <= 0.0;
+            if seg.length_mm <= 0.0 {
+                continue;
+            }
+            if let Some(before) = live.last() {
+                let t_end = six(before.derivatives_at(before.length_mm).0);
+                let t_start = six(seg.derivatives_at(0.0).0);
+                let turn = t_end
+                    .normalize()
+                    .dot(&t_start.normalize())
+                    .clamp(-1.0, 1.0)
+                    .acos();
+                if stop_pending || turn > KINK_RAD {
+                    stops.push(total);
                 }
-            })
-            .collect();
-        Grid::from_curves(curves, machine, ds_mm)
+            }
+            stop_pending = false;
+            total += seg.length_mm;
+            live.push(seg);
+        }
+        stops.push(total);
+        let (mut piece, mut start) = (0usize, 0.0);
+        // The geometry at `s` from the path's start; at a junction, of the segment before
+        // it unless `after`.
+        let mut sample = |s: f64, after: bool| {
+            while piece + 1 < live.len()
+                && (s > start + live[piece].length_mm
+                    || (after && s >= start + live[piece].length_mm))
+            {
+                start += live[piece].length_mm;
+                piece += 1;
+            }
+            let seg = live[piece];
+            let len = seg.length_mm;
+            let local = (s - start).clamp(0.0, len);
+            let (t, k) = seg.derivatives_at(local);
+            let mut p = [0.0; 6];
+            seg.position_at(local, &mut p);
+            // κ' by differences within the segment (one-sided at its ends): a junction
+            // is continuous in κ, not in κ'.
+            let (s0, s1) = (
+                (local - KP_DU * len).max(0.0),
+                (local + KP_DU * len).min(len),
+            );
+            let kp = (six(seg.derivatives_at(s1).1) - six(seg.derivatives_at(s0).1)) / (s1 - s0);
+            (six(p), six(t), six(k), kp, seg.feed_mm_s)
+        };
+        let mut sections = Vec::with_capacity(stops.len());
+        let mut from = 0.0;
+        for &to in &stops {
+            if to > from {
+                sections.push(Section::tabulate(to - from, ds_mm, &axes, |s, first| {
+                    sample(from + s, first)
+                }));
+            }
+            from = to;
+        }
+        Grid { sections }
     }
 
     /// Tabulates a chain of curves by arc length (each finely in its parameter, with the
@@ -440,6 +582,7 @@ impl Grid {
     /// them). A junction is a stop where the curve asks for one, where the direction
     /// reverses, or where the tangent turns by more than [`KINK_RAD`].
     fn from_curves(curves: Vec<Parametric>, machine: &JerkMachine, ds_mm: f64) -> Grid {
+        let axes = Axes::of_machine(machine);
         // The curves of non-zero length, each with its chord lengths and length.
         let mut live: Vec<(&Parametric, Vec<f64>, f64)> = Vec::with_capacity(curves.len());
         let mut total = 0.0;
@@ -511,14 +654,14 @@ impl Grid {
             // of two curves is continuous in κ, not in κ'.
             let (u0, u1) = ((u - KP_DU).max(0.0), (u + KP_DU).min(1.0));
             let kp = (frame(u1).1.1 - frame(u0).1.1) / ((u1 - u0) * speed);
-            (p, t, k, kp, curve.feed_mm_s)
+            (lift(p), lift(t), lift(k), lift(kp), curve.feed_mm_s)
         };
         stops.push(total);
         let mut sections = Vec::with_capacity(stops.len());
         let mut from = 0.0;
         for &to in &stops {
             if to > from {
-                sections.push(Section::tabulate(to - from, ds_mm, machine, |s, first| {
+                sections.push(Section::tabulate(to - from, ds_mm, &axes, |s, first| {
                     sample(from + s, first)
                 }));
             }
@@ -546,8 +689,8 @@ impl Section {
     fn tabulate(
         total: f64,
         ds_mm: f64,
-        machine: &JerkMachine,
-        mut sample: impl FnMut(f64, bool) -> (Vec3, Vec3, Vec3, Vec3, f64),
+        axes: &Axes,
+        mut sample: impl FnMut(f64, bool) -> (Vec6, Vec6, Vec6, Vec6, f64),
     ) -> Section {
         let n = ((total / ds_mm).ceil() as usize).max(2);
         let ds = total / n as f64;
@@ -559,13 +702,11 @@ impl Section {
             k: Vec::with_capacity(n + 1),
             kp: Vec::with_capacity(n + 1),
             v_max: Vec::with_capacity(n + 1),
-            acc: machine.base.acceleration_mm_s2.map(|a| a * PLAN_SHARE),
-            jerk: machine.jerk_mm_s3.map(|j| j * PLAN_SHARE),
-            whole: [
-                machine.base.velocity_mm_s,
-                machine.base.acceleration_mm_s2,
-                machine.jerk_mm_s3,
-            ],
+            acc: axes.acceleration.map(|a| a * PLAN_SHARE),
+            jerk: axes.jerk.map(|j| j * PLAN_SHARE),
+            whole: [axes.velocity, axes.acceleration, axes.jerk],
+            moving: [0; 6],
+            n_moving: 0,
             checked: Cell::new(0),
         };
         let mut feed = Vec::with_capacity(n + 1);
@@ -577,24 +718,30 @@ impl Section {
             grid.kp.push(kp);
             feed.push(f);
         }
-        let centripetal = BoundMachine {
-            acceleration_mm_s2: machine
-                .base
-                .acceleration_mm_s2
-                .map(|a| a * CENTRIPETAL_SHARE * PLAN_SHARE),
-            ..machine.base
-        };
-        let jerk = BoundMachine {
-            velocity_mm_s: [f64::INFINITY; 3],
-            acceleration_mm_s2: machine.jerk_mm_s3.map(|j| j * JERK_SHARE * PLAN_SHARE),
-            tolerance_mm: 0.0,
-        };
+        for axis in 0..6 {
+            let p0 = grid.p[0][axis];
+            let moves = (0..grid.p.len()).any(|i| {
+                grid.p[i][axis] != p0
+                    || grid.t[i][axis] != 0.0
+                    || grid.k[i][axis] != 0.0
+                    || grid.kp[i][axis] != 0.0
+            });
+            if moves {
+                grid.moving[grid.n_moving] = axis;
+                grid.n_moving += 1;
+            }
+        }
+        let centripetal = axes
+            .acceleration
+            .map(|a| a * CENTRIPETAL_SHARE * PLAN_SHARE);
+        let jerk = axes.jerk.map(|j| j * JERK_SHARE * PLAN_SHARE);
         for (i, &feed_mm_s) in feed.iter().enumerate() {
             // The same pairwise condition as the centripetal one, on `κ' v³` and the jerk
             // (the jerk interval at a = 0 not empty: the path jerk may make up for the
             // tangential part of `κ' v³`).
-            let x = max_speed_squared(&grid.t[i], &grid.k[i], feed_mm_s, &centripetal);
-            let v3 = max_speed_squared(&grid.t[i], &grid.kp[i], f64::INFINITY, &jerk);
+            let (t, k, kp) = (&grid.t[i], &grid.k[i], &grid.kp[i]);
+            let x = max_speed_squared6(t, k, feed_mm_s, &axes.velocity, &centripetal);
+            let v3 = max_speed_squared6(t, kp, f64::INFINITY, &[f64::INFINITY; 6], &jerk);
             grid.v_max.push(x.sqrt().min(v3.cbrt()));
         }
         // The approach cap: backwards from each point, the speed from which
@@ -603,7 +750,7 @@ impl Section {
         for i in (0..grid.v_max.len() - 1).rev() {
             let t = grid.t[i];
             let mut decel = f64::INFINITY;
-            for x in 0..3 {
+            for x in 0..6 {
                 if t[x].abs() > TINY {
                     decel = decel.min(grid.acc[x] / t[x].abs());
                 }
@@ -627,9 +774,9 @@ impl Section {
     }
 
     /// Tangent, curvature vector and its derivative at `s`, interpolated linearly.
-    fn geometry(&self, s: f64) -> (Vec3, Vec3, Vec3) {
+    fn geometry(&self, s: f64) -> (Vec6, Vec6, Vec6) {
         let (i, u) = self.locate(s);
-        let mix = |v: &[Vec3]| v[i] * (1.0 - u) + v[i + 1] * u;
+        let mix = |v: &[Vec6]| v[i] * (1.0 - u) + v[i + 1] * u;
         (mix(&self.t), mix(&self.k), mix(&self.kp))
     }
 
@@ -653,9 +800,10 @@ impl Section {
     fn ranges(&self, s: f64, v: f64, a: f64) -> ((f64, f64), (f64, f64)) {
         let (t, k, kp) = self.geometry(s);
         let (v2, va, v3) = (v * v, 3.0 * v * a, v * v * v);
+        let axes = &self.moving[..self.n_moving];
         (
-            interval([0, 1, 2].map(|x| (t[x], k[x] * v2, self.acc[x]))),
-            interval([0, 1, 2].map(|x| (t[x], k[x] * va + kp[x] * v3, self.jerk[x]))),
+            interval(axes, |x| (t[x], k[x] * v2, self.acc[x])),
+            interval(axes, |x| (t[x], k[x] * va + kp[x] * v3, self.jerk[x])),
         )
     }
 
@@ -666,7 +814,7 @@ impl Section {
 
     /// Position at arc length `s`: the cubic Hermite interpolation of the neighbouring
     /// points and their tangents.
-    fn position(&self, s: f64) -> Vec3 {
+    fn position(&self, s: f64) -> Vec6 {
         let (i, u) = self.locate(s);
         let (h00, h10) = (
             (1.0 + 2.0 * u) * (1.0 - u) * (1.0 - u),
@@ -755,13 +903,15 @@ impl Section {
     }
 
     /// Whether the position `p` after the positions `h` keeps the finite differences at
-    /// the period `dt` (as the output monitor takes them) within the whole limits.
-    fn differences_within(&self, h: &Hist, p: Vec3, dt: f64) -> bool {
+    /// the period `dt` (as the output monitor takes them) within the whole limits, on the
+    /// section's moving axes (the others stand still, up to the rounding of their
+    /// interpolation, which the monitor allows for).
+    fn differences_within(&self, h: &Hist, p: Vec6, dt: f64) -> bool {
         let (inv, inv2, inv3) = (1.0 / dt, 1.0 / (dt * dt), 1.0 / (dt * dt * dt));
         let vel = (p - h[2]) * inv;
         let acc = (p - h[2] * 2.0 + h[1]) * inv2;
         let jerk = (p - h[2] * 3.0 + h[1] * 3.0 - h[0]) * inv3;
-        (0..3).all(|i| {
+        self.moving[..self.n_moving].iter().all(|&i| {
             vel[i].abs() <= self.whole[0][i]
                 && acc[i].abs() <= self.whole[1][i]
                 && jerk[i].abs() <= self.whole[2][i]
@@ -1168,7 +1318,7 @@ impl Grid {
         let dt = limits.period_s;
         let p0 = self.sections[0].position(0.0);
         let mut h: Hist = [p0; 3];
-        let mut monitor = LimitMonitor::at_rest(limits, &[p0.x, p0.y, p0.z, 0.0, 0.0, 0.0]);
+        let mut monitor = LimitMonitor::at_rest(limits, &p0.into());
         let (mut cycles, mut fallbacks) = (0u64, 0u64);
         let mut planning_s = 0.0;
         let mut most_checks = 0u64;
@@ -1231,14 +1381,14 @@ impl Grid {
                 cycles += 1;
                 still = if x.1 == 0.0 { still + 1 } else { 0 };
                 let p = h[2];
-                let _ = monitor.check(&[p.x, p.y, p.z, 0.0, 0.0, 0.0]);
+                let _ = monitor.check(&p.into());
             }
             if stuck {
                 break;
             }
         }
         let mut peaks = [0.0f64; 3];
-        for axis in 0..3 {
+        for axis in 0..6 {
             if let Some(r) = monitor.peak_ratios(axis) {
                 for (peak, ratio) in peaks.iter_mut().zip(r) {
                     *peak = peak.max(ratio);

@@ -173,7 +173,7 @@ fn the_planners_segments_run_within_the_limits() {
     let moves = measure::programmed_moves("corners", text, &config).expect("the program");
     let segments = measure::planned_segments("corners", &moves, &config).expect("planned");
     let limits = kerf_config::machine_limits(&config);
-    let run = Grid::from_segments(&segments, &measure::jerk_machine(&config), DS_MM).run(&limits);
+    let run = Grid::from_segments(&segments, &limits, DS_MM).run(&limits);
     let length: f64 = segments.iter().map(|s| s.length_mm).sum();
     assert!(
         run.peaks.iter().all(|&p| p <= LIMIT_MARGIN),
@@ -183,6 +183,43 @@ fn the_planners_segments_run_within_the_limits() {
     assert_eq!(run.fallbacks, 0);
     assert!(!run.stuck, "ends at the end");
     assert!(run.time_s >= length / 50.0, "{} s", run.time_s);
+}
+
+#[test]
+fn a_rotary_axis_on_the_planners_segments_is_held_to_its_limits() {
+    // The CAM mill with an A axis slow enough to hold the path speed on the moves that
+    // turn it (40 °/s: 3 °/mm at the feed of 20 mm/s would ask 60 °/s), a move of A alone
+    // among them. On the planner's segments the run ends within every axis's limits, A's
+    // included, from the positions, and A's velocity is what binds: no linear axis can
+    // reach a tenth of its own at this feed, so a peak of more than half is A's.
+    let text = format!(
+        "{}\n[axes.a]\nvelocity_deg_s = 40.0\nacceleration_deg_s2 = 400.0\n\
+         jerk_deg_s3 = 8000.0\nmin_deg = -720.0\nmax_deg = 720.0\n",
+        measure::MACHINE_TOML
+    );
+    let config = kerf_config::Config::from_toml_str(&text, "mill-with-a.toml").expect("config");
+    let program = "G21 G90 G17 G64 P0.01\nF1200\nG1 X10 A30\nG1 X20 Y5 A90\nG1 A60\n\
+                   G2 X30 Y5 I5 J0 A120\nG1 X30 Y15 A0\nM2\n";
+    let moves = measure::programmed_moves("rotary", program, &config).expect("the program");
+    let segments = measure::planned_segments("rotary", &moves, &config).expect("planned");
+    let limits = kerf_config::machine_limits(&config);
+    assert!(limits.axes[3].is_some(), "the machine has an A axis");
+    let run = Grid::from_segments(&segments, &limits, DS_MM).run(&limits);
+    assert_eq!(run.fallbacks, 0);
+    assert!(!run.stuck, "ends at the end");
+    assert!(
+        run.peaks.iter().all(|&p| p <= LIMIT_MARGIN),
+        "{:?}",
+        run.peaks
+    );
+    assert!(run.peaks[0] > 0.5, "A's velocity binds: {:?}", run.peaks);
+    // No segment runs faster than its feed (the A-only move's feed is in °/s).
+    let at_feed: f64 = segments.iter().map(|s| s.length_mm / s.feed_mm_s).sum();
+    assert!(
+        run.time_s >= at_feed,
+        "{} s against {at_feed} s",
+        run.time_s
+    );
 }
 
 #[test]

@@ -137,7 +137,7 @@ fn pointwise_table(
             ),
             (
                 "planned",
-                pointwise::Grid::from_segments(&segments, &machine, POINTWISE_DS_MM),
+                pointwise::Grid::from_segments(&segments, &limits, POINTWISE_DS_MM),
             ),
         ] {
             let run = grid.run_with(&limits, search);
