@@ -200,8 +200,8 @@ struct Section {
     /// the positions at the period are checked against.
     whole: [[f64; 6]; 3],
     /// The axes that move in the section (a tangent, curvature or position that is not
-    /// the same at every point), ascending: the others are left out of the intervals and
-    /// the differences (a machine of three axes costs what it did before the six).
+    /// the same at every point), ascending: the others are left out of the intervals,
+    /// where they ask nothing (a machine of three axes costs about what it did before).
     moving: [usize; 6],
     n_moving: usize,
     /// Periods checked in the current run (the measure of the controller's work).
@@ -903,15 +903,15 @@ impl Section {
     }
 
     /// Whether the position `p` after the positions `h` keeps the finite differences at
-    /// the period `dt` (as the output monitor takes them) within the whole limits, on the
-    /// section's moving axes (the others stand still, up to the rounding of their
-    /// interpolation, which the monitor allows for).
+    /// the period `dt` (as the output monitor takes them) within the whole limits, on
+    /// every axis: one that stands still in the section may still be coming to rest from
+    /// the section before in the positions `h`.
     fn differences_within(&self, h: &Hist, p: Vec6, dt: f64) -> bool {
         let (inv, inv2, inv3) = (1.0 / dt, 1.0 / (dt * dt), 1.0 / (dt * dt * dt));
         let vel = (p - h[2]) * inv;
         let acc = (p - h[2] * 2.0 + h[1]) * inv2;
         let jerk = (p - h[2] * 3.0 + h[1] * 3.0 - h[0]) * inv3;
-        self.moving[..self.n_moving].iter().all(|&i| {
+        (0..6).all(|i| {
             vel[i].abs() <= self.whole[0][i]
                 && acc[i].abs() <= self.whole[1][i]
                 && jerk[i].abs() <= self.whole[2][i]
