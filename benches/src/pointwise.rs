@@ -42,6 +42,14 @@
 //! continuation the controller may take, so a state it accepts has one: the motion can
 //! stop within the known path, as today's core can.
 //!
+//! **Stops exactly.** A braking lands where its period ends, a little short of the stop
+//! (10⁻⁷ to 10⁻⁶ mm). The last periods onto a stop are an exact approach: three periods
+//! whose jerks solve the end's acceleration, speed and position (from the landing, or
+//! from rest short of the stop), else, from rest, four phases `+j, −j, −j, +j` of as many
+//! periods as their jerk needs; every period checked as any other. The motion comes to
+//! rest on the stop within 10⁻⁹ mm, the end of the program included, and the next section
+//! starts where it is (a step of 10⁻⁶ mm is 64,000 mm/s³ in the differences at 250 µs).
+//!
 //! **The search** for each period's jerk ([`Search`]) is where the work is, since every
 //! candidate simulates brakings to rest. [`Search::Largest`] takes the largest admissible
 //! jerk (a scan down the point's interval, then bisection: about 18 candidates).
@@ -154,8 +162,13 @@ const LANDED_MM_S: f64 = 1e-6;
 /// 0.024 mm/s ran 100,000 periods); below it the braking takes the most negative jerk
 /// that still lands.
 const LAND_FLOOR: f64 = 0.25;
-/// A motion at rest this close short of its stop has reached it, mm.
-const STOP_GAP_MM: f64 = 1e-6;
+/// A motion at rest this close short of its stop has reached it, mm: within rounding.
+const STOP_GAP_MM: f64 = 1e-9;
+/// At rest at most this far short of a stop, the motion goes there by an exact approach
+/// (`Section::final_approach`), mm.
+const FINAL_APPROACH_MM: f64 = 0.01;
+/// Most periods of each of the four phases of a final approach.
+const FINAL_APPROACH_PERIODS: usize = 256;
 /// Slack of the intervals checked within a period, as a share of their width: a
 /// braking's jerk is fitted to the end point's interval once, at a state a little
 /// different from the one it ends in.
@@ -240,9 +253,9 @@ pub struct Run {
     pub points: usize,
     /// Stops along the path, the end included.
     pub stops: usize,
-    /// The largest distance short of a stop where the motion came to rest, mm (the
-    /// braking lands on the period, not on the stop; at the end the run ends there, at a
-    /// reversal it goes on from the stop).
+    /// The largest distance short of a stop where the motion came to rest, mm: rounding
+    /// (a braking lands where its period ends, and the last periods onto the stop are
+    /// an exact approach: 10⁻⁹ mm at most).
     pub gap_mm: f64,
     /// The run stood still short of a stop for a second of periods (or ran an hour), and
     /// was ended there: the controller found no admissible way on.
@@ -299,6 +312,39 @@ struct Next {
     x: State,
     h: Hist,
     braking: Braking,
+}
+
+/// The last periods onto a stop, exactly ([`Section::finish`], [`Section::final_approach`]).
+#[derive(Clone, Copy, Debug)]
+enum Approach {
+    /// Three periods at these jerks, from a motion still landing.
+    Finish([f64; 3]),
+    /// From rest: four phases of `n` periods at the jerks `+j, −j, −j, +j`.
+    FromRest(f64, usize),
+}
+
+impl Approach {
+    /// Its periods.
+    fn periods(self) -> usize {
+        match self {
+            Approach::Finish(_) => 3,
+            Approach::FromRest(_, n) => 4 * n,
+        }
+    }
+
+    /// The jerk of period `k`.
+    fn jerk(self, k: usize) -> f64 {
+        match self {
+            Approach::Finish(j) => j[k],
+            Approach::FromRest(j, n) => {
+                if k < n || k >= 3 * n {
+                    j
+                } else {
+                    -j
+                }
+            }
+        }
+    }
 }
 
 /// A braking under way: its rung of [`BRAKE_DECELS_MM_S2`], the
@@ -1015,6 +1061,96 @@ impl Section {
         Some((j, None))
     }
 
+    /// The periods that take the motion from rest at `x` to rest on `stop` exactly (the
+    /// braking lands where the period ends, a little short of the stop): four phases of
+    /// `n` periods at the path jerks `+j, −j, −j, +j` with `j = gap / 2 (n dt)³`, which
+    /// come to rest after `2 j (n dt)³`, for the fewest `n` whose every period is
+    /// admissible (the jerk within the intervals, the finite differences within the
+    /// limits) and after which standing still is too: `(j, n)`, for `n` of 1, 2, 4, …
+    /// up to [`FINAL_APPROACH_PERIODS`] (`None` where none is). Playing it
+    /// ([`Section::approach_period`]) repeats these periods exactly.
+    fn final_approach(&self, x: State, h: &Hist, dt: f64, stop: f64) -> Option<Approach> {
+        let gap = stop - x.0;
+        let (j_lo, j_hi) = self.jerk_range(x.0, 0.0, 0.0);
+        let mut n = 1;
+        while n <= FINAL_APPROACH_PERIODS {
+            let t = n as f64 * dt;
+            let j = gap / (2.0 * t * t * t);
+            if j > j_hi || -j < j_lo {
+                n *= 2;
+                continue;
+            }
+            let approach = Approach::FromRest(j, n);
+            if self.approach_holds(x, h, dt, stop, approach) {
+                return Some(approach);
+            }
+            n *= 2;
+        }
+        None
+    }
+
+    /// Whether every period of `approach` from `x` is admissible, it ends at rest on
+    /// `stop`, and standing still after it is admissible too.
+    fn approach_holds(&self, x: State, h: &Hist, dt: f64, stop: f64, approach: Approach) -> bool {
+        let (mut y, mut hy) = (x, *h);
+        for k in 0..approach.periods() {
+            match self.approach_period(y, &hy, dt, stop, approach, k) {
+                Some((y1, h1)) => (y, hy) = (y1, h1),
+                None => return false,
+            }
+        }
+        self.rest_within(&hy, dt)
+    }
+
+    /// The three periods that bring the motion at `x` (landing, or at rest short of the
+    /// stop) to rest on `stop` exactly: the jerks of the linear system of the end's
+    /// acceleration, speed and position (from rest `g/dt³ · (1, −2, 1)`), where every
+    /// period, and standing still after them, is admissible. Tried where the motion is
+    /// slow enough for three periods of the point's jerk to stop it (the speed at most
+    /// twice that jerk times the period squared) and within [`FINAL_APPROACH_MM`] of the
+    /// stop.
+    fn finish(&self, x: State, h: &Hist, dt: f64, stop: f64) -> Option<Approach> {
+        let (s0, v0, a0) = x;
+        let (j_lo, j_hi) = self.jerk_range(s0, v0, a0);
+        if v0 < 0.0 || stop - s0 > FINAL_APPROACH_MM || v0 > 2.0 * j_hi.max(-j_lo) * dt * dt {
+            return None;
+        }
+        // a₃ = a₀ + dt Σ jᵢ = 0; v₃ = v₀ + 3 a₀ dt + dt² (5/2 j₁ + 3/2 j₂ + 1/2 j₃) = 0;
+        // s₃ = s₀ + 3 v₀ dt + 9/2 a₀ dt² + dt³ (19/6 j₁ + 7/6 j₂ + 1/6 j₃) = stop.
+        let r1 = -a0 / dt;
+        let r2 = -(v0 + 3.0 * a0 * dt) / (dt * dt);
+        let r3 = (stop - s0 - 3.0 * v0 * dt - 4.5 * a0 * dt * dt) / (dt * dt * dt);
+        let approach = Approach::Finish([
+            r1 / 3.0 - r2 + r3,
+            -7.0 / 6.0 * r1 + 3.0 * r2 - 2.0 * r3,
+            11.0 / 6.0 * r1 - 2.0 * r2 + r3,
+        ]);
+        self.approach_holds(x, h, dt, stop, approach)
+            .then_some(approach)
+    }
+
+    /// Period `k` of `approach` from `x`: the state and positions after it, if
+    /// admissible; the last one ends at rest on `stop` (within [`STOP_GAP_MM`], and the
+    /// rounding of its speed and acceleration, some 1e-15, set to rest).
+    fn approach_period(
+        &self,
+        x: State,
+        h: &Hist,
+        dt: f64,
+        stop: f64,
+        approach: Approach,
+        k: usize,
+    ) -> Option<(State, Hist)> {
+        let (y, hy) = self
+            .period_or_why(x, h, approach.jerk(k), dt, stop, Intervals::MidAndEnd, None)
+            .ok()?;
+        if k + 1 < approach.periods() {
+            return Some((y, hy));
+        }
+        let at_rest = y.1.abs() <= 1e-9 && y.2.abs() <= 1e-6;
+        ((stop - y.0).abs() <= STOP_GAP_MM && at_rest).then_some(((stop, 0.0, 0.0), hy))
+    }
+
     /// The first of the brakings of [`BRAKE_DECELS_MM_S2`] from `x` that comes to rest by
     /// `stop` (its rung), tried from the hardest. The rungs of the ladder harder than the
     /// point allows at `x` are left out: half the work, the times within 0.4 %, and the
@@ -1337,6 +1473,8 @@ impl Grid {
             let mut x: State = (0.0, 0.0, 0.0);
             let mut memo: Option<Next> = None;
             let mut still = 0u64;
+            // The approach onto the stop under way, and its periods done.
+            let mut approach: Option<(Approach, usize)> = None;
             loop {
                 if cycles >= max_cycles || still >= max_still {
                     stuck = true;
@@ -1349,7 +1487,44 @@ impl Grid {
                 }
                 let clock = Instant::now();
                 let checked_before = section.checked.get();
-                let chosen = if hold_at.is_some_and(|at| cycles >= at) {
+                let held = hold_at.is_some_and(|at| cycles >= at);
+                if approach.is_none() && !held {
+                    let gap = stop - x.0;
+                    if x.1 == 0.0 && x.2 == 0.0 {
+                        // At rest a little short of the stop (a braking lands where its
+                        // period ends): the exact approach onto it.
+                        if gap > STOP_GAP_MM && gap <= FINAL_APPROACH_MM {
+                            approach = section
+                                .finish(x, &h, dt, stop)
+                                .or_else(|| section.final_approach(x, &h, dt, stop))
+                                .map(|a| (a, 0));
+                        }
+                    } else {
+                        // Landing near the stop: three periods onto it, where they hold.
+                        approach = section.finish(x, &h, dt, stop).map(|a| (a, 0));
+                    }
+                }
+                let chosen = if let Some((a, k)) = approach {
+                    // The approach goes on to its end, held or not (a few periods, to
+                    // rest; each checked again as it is played).
+                    approach = (k + 1 < a.periods()).then_some((a, k + 1));
+                    let period = section.approach_period(x, &h, dt, stop, a, k);
+                    let j = a.jerk(k);
+                    if held {
+                        hold_periods += 1;
+                        hold_checks += section.checked.get() - checked_before;
+                    }
+                    period.map(|(x1, h1)| Next {
+                        j,
+                        x: x1,
+                        h: h1,
+                        braking: Braking {
+                            rung: 0,
+                            phase: 0,
+                            j: 0.0,
+                        },
+                    })
+                } else if held {
                     // Held: only the certified braking goes on, to rest.
                     if x.1 == 0.0 && x.2 == 0.0 {
                         break 'sections;

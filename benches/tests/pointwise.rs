@@ -58,6 +58,11 @@ fn a_line_takes_the_s_curve_time() {
     assert_eq!(run.fallbacks, 0);
     // Not stuck: the run came to rest within STOP_GAP_MM (1e-6 mm) of the end.
     assert!(!run.stuck, "the run ends at the end");
+    assert!(
+        run.gap_mm <= 1e-9,
+        "rests {} mm short of the end",
+        run.gap_mm
+    );
     // Cruise at the feed, half of X's velocity; ramps at the planned share (and the
     // slack of 1e-3 of an interval's width the checks within a period allow: 2e-3 of
     // the acceleration limit).
@@ -156,6 +161,7 @@ fn swept_machines_and_paths_stay_within_the_limits() {
             );
             assert_eq!(run.fallbacks, 0, "{what}");
             assert!(!run.stuck, "{what}: ends at the end");
+            assert!(run.gap_mm <= 1e-9, "{what}: rests {} mm short", run.gap_mm);
             assert!(run.time_s >= length / feed, "{what}: {} s", run.time_s);
             assert!(run.time_s < 60.0, "{what}: {} s", run.time_s);
         }
@@ -182,6 +188,11 @@ fn the_planners_segments_run_within_the_limits() {
     );
     assert_eq!(run.fallbacks, 0);
     assert!(!run.stuck, "ends at the end");
+    assert!(
+        run.gap_mm <= 1e-9,
+        "rests {} mm short of a stop",
+        run.gap_mm
+    );
     assert!(run.time_s >= length / 50.0, "{} s", run.time_s);
 }
 
@@ -207,6 +218,11 @@ fn a_rotary_axis_on_the_planners_segments_is_held_to_its_limits() {
     let run = Grid::from_segments(&segments, &limits, DS_MM).run(&limits);
     assert_eq!(run.fallbacks, 0);
     assert!(!run.stuck, "ends at the end");
+    assert!(
+        run.gap_mm <= 1e-9,
+        "rests {} mm short of a stop",
+        run.gap_mm
+    );
     assert!(
         run.peaks.iter().all(|&p| p <= LIMIT_MARGIN),
         "{:?}",
