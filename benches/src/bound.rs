@@ -381,12 +381,30 @@ impl Sample {
 /// intervals meet while `x |k_i/t_i - k_j/t_j| ≤ a_i/|t_i| + a_j/|t_j|`, and an axis with
 /// no tangent component needs `|k_i| x ≤ a_i`.
 pub fn max_speed_squared(t: &Vec3, k: &Vec3, feed_mm_s: f64, machine: &BoundMachine) -> f64 {
-    let a = &machine.acceleration_mm_s2;
+    max_speed_squared_axes(
+        t.as_slice(),
+        k.as_slice(),
+        feed_mm_s,
+        &machine.velocity_mm_s,
+        &machine.acceleration_mm_s2,
+    )
+}
+
+/// [`max_speed_squared`] over any number of axes, their velocity and acceleration limits
+/// by axis (the point-wise prototype's six).
+pub(crate) fn max_speed_squared_axes(
+    t: &[f64],
+    k: &[f64],
+    feed_mm_s: f64,
+    velocity: &[f64],
+    acceleration: &[f64],
+) -> f64 {
+    let a = acceleration;
     let mut x = feed_mm_s * feed_mm_s;
-    for i in 0..3 {
+    for i in 0..t.len() {
         if t[i].abs() > TINY {
-            x = x.min((machine.velocity_mm_s[i] / t[i].abs()).powi(2));
-            for j in i + 1..3 {
+            x = x.min((velocity[i] / t[i].abs()).powi(2));
+            for j in i + 1..t.len() {
                 if t[j].abs() > TINY {
                     let d = (k[i] / t[i] - k[j] / t[j]).abs();
                     if d > 0.0 {

@@ -88,7 +88,7 @@ use kerf_geom::{MachineLimits, PlannedSegment, Vec3};
 use kerf_motion::monitor::LimitMonitor;
 use nalgebra::Vector6;
 
-use crate::bound::{Piece, unit_frame};
+use crate::bound::{Piece, max_speed_squared_axes, unit_frame};
 use crate::jerk::{JerkMachine, g2_blended};
 
 /// Share of each axis's acceleration the speed limit of a point leaves to the centripetal
@@ -475,36 +475,6 @@ impl Axes {
     }
 }
 
-/// [`crate::bound::max_speed_squared`] over six axes: the largest `ṡ²` at a point of
-/// tangent `t` and curvature vector `k` within `feed_mm_s` and the axis `velocity`, that
-/// leaves an admissible tangential acceleration within `acceleration`.
-fn max_speed_squared6(
-    t: &Vec6,
-    k: &Vec6,
-    feed_mm_s: f64,
-    velocity: &[f64; 6],
-    acceleration: &[f64; 6],
-) -> f64 {
-    let a = acceleration;
-    let mut x = feed_mm_s * feed_mm_s;
-    for i in 0..6 {
-        if t[i].abs() > TINY {
-            x = x.min((velocity[i] / t[i].abs()).powi(2));
-            for j in i + 1..6 {
-                if t[j].abs() > TINY {
-                    let d = (k[i] / t[i] - k[j] / t[j]).abs();
-                    if d > 0.0 {
-                        x = x.min((a[i] / t[i].abs() + a[j] / t[j].abs()) / d);
-                    }
-                }
-            }
-        } else if k[i].abs() > 0.0 {
-            x = x.min(a[i] / k[i].abs());
-        }
-    }
-    x
-}
-
 /// A point's intervals of the path acceleration and of the path jerk
 /// ([`Section::ranges`]).
 type Ranges = ((f64, f64), (f64, f64));
@@ -614,7 +584,7 @@ impl Grid {
         let (mut piece, mut start) = (0usize, 0.0);
         // The geometry at `s` from the path's start; at a junction, of the segment before
         // it unless `after`.
-        let mut sample = |s: f64, after: bool| {
+        let sample = |s: f64, after: bool| {
             while piece + 1 < live.len()
                 && (s > start + live[piece].length_mm
                     || (after && s >= start + live[piece].length_mm))
@@ -637,17 +607,7 @@ impl Grid {
             let kp = (six(seg.derivatives_at(s1).1) - six(seg.derivatives_at(s0).1)) / (s1 - s0);
             (six(p), six(t), six(k), kp, seg.feed_mm_s)
         };
-        let mut sections = Vec::with_capacity(stops.len());
-        let mut from = 0.0;
-        for &to in &stops {
-            if to > from {
-                sections.push(Section::tabulate(to - from, ds_mm, &axes, |s, first| {
-                    sample(from + s, first)
-                }));
-            }
-            from = to;
-        }
-        Grid { sections }
+        Grid::of_stops(&stops, ds_mm, &axes, sample)
     }
 
     /// Tabulates a chain of curves by arc length (each finely in its parameter, with the
@@ -698,7 +658,7 @@ impl Grid {
         let (mut piece, mut start, mut j) = (0usize, 0.0, 0usize);
         // The geometry at arc length `s`; at a junction, of the curve before it unless
         // `after`.
-        let mut sample = |s: f64, after: bool| {
+        let sample = |s: f64, after: bool| {
             while piece + 1 < live.len()
                 && (s > start + live[piece].2 || (after && s >= start + live[piece].2))
             {
@@ -730,11 +690,23 @@ impl Grid {
             (lift(p), lift(t), lift(k), lift(kp), curve.feed_mm_s)
         };
         stops.push(total);
+        Grid::of_stops(&stops, ds_mm, &axes, sample)
+    }
+
+    /// The sections between `stops` (arc lengths from the path's start, the end the
+    /// last), each tabulated every `ds_mm` at most for `axes` from `sample(s, first)`:
+    /// the point at `s` from the path's start, of the curve after it where `first`.
+    fn of_stops(
+        stops: &[f64],
+        ds_mm: f64,
+        axes: &Axes,
+        mut sample: impl FnMut(f64, bool) -> (Vec6, Vec6, Vec6, Vec6, f64),
+    ) -> Grid {
         let mut sections = Vec::with_capacity(stops.len());
         let mut from = 0.0;
-        for &to in &stops {
+        for &to in stops {
             if to > from {
-                sections.push(Section::tabulate(to - from, ds_mm, &axes, |s, first| {
+                sections.push(Section::tabulate(to - from, ds_mm, axes, |s, first| {
                     sample(from + s, first)
                 }));
             }
@@ -813,8 +785,9 @@ impl Section {
             // (the jerk interval at a = 0 not empty: the path jerk may make up for the
             // tangential part of `κ' v³`).
             let (t, k, kp) = (&grid.t[i], &grid.k[i], &grid.kp[i]);
-            let x = max_speed_squared6(t, k, feed_mm_s, &axes.velocity, &centripetal);
-            let v3 = max_speed_squared6(t, kp, f64::INFINITY, &[f64::INFINITY; 6], &jerk);
+            let (t, k, kp) = (t.as_slice(), k.as_slice(), kp.as_slice());
+            let x = max_speed_squared_axes(t, k, feed_mm_s, &axes.velocity, &centripetal);
+            let v3 = max_speed_squared_axes(t, kp, f64::INFINITY, &[f64::INFINITY; 6], &jerk);
             grid.v_max.push(x.sqrt().min(v3.cbrt()));
         }
         // The approach cap: backwards from each point, the speed from which

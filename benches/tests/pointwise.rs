@@ -8,7 +8,7 @@ use common::{assert_rel, circle, line};
 
 use kerf_benches::jerk::JerkMachine;
 use kerf_benches::measure;
-use kerf_benches::pointwise::{CENTRIPETAL_SHARE, Grid, PLAN_SHARE, Search};
+use kerf_benches::pointwise::{CENTRIPETAL_SHARE, Grid, PLAN_SHARE, Run, Search};
 use kerf_benches::swept::{self, Draw, Drawn, helix};
 use kerf_geom::MachineLimits;
 use kerf_motion::monitor::LIMIT_MARGIN;
@@ -39,6 +39,19 @@ fn mill() -> (JerkMachine, MachineLimits) {
         [50_000.0, 50_000.0, 20_000.0],
         0.01,
     )
+}
+
+/// The run ended at its end, within every limit from the positions (the monitor's
+/// margin), without a fallback, and at rest on every stop (within 10⁻⁹ mm).
+fn assert_ran_clean(run: &Run, what: &str) {
+    assert!(
+        run.peaks.iter().all(|&p| p <= LIMIT_MARGIN),
+        "{what}: peaks {:?}",
+        run.peaks
+    );
+    assert_eq!(run.fallbacks, 0, "{what}");
+    assert!(!run.stuck, "{what}: ends at the end");
+    assert!(run.gap_mm <= 1e-9, "{what}: rests {} mm short", run.gap_mm);
 }
 
 #[test]
@@ -154,14 +167,7 @@ fn swept_machines_and_paths_stay_within_the_limits() {
                 "case {case} ({v:?}, {a:?}, {j:?}, feed {feed}, period {} s), {name}, {search:?}",
                 limits.period_s
             );
-            assert!(
-                run.peaks.iter().all(|&p| p <= LIMIT_MARGIN),
-                "{what}: peaks {:?}",
-                run.peaks
-            );
-            assert_eq!(run.fallbacks, 0, "{what}");
-            assert!(!run.stuck, "{what}: ends at the end");
-            assert!(run.gap_mm <= 1e-9, "{what}: rests {} mm short", run.gap_mm);
+            assert_ran_clean(&run, &what);
             assert!(run.time_s >= length / feed, "{what}: {} s", run.time_s);
             assert!(run.time_s < 60.0, "{what}: {} s", run.time_s);
         }
@@ -181,18 +187,7 @@ fn the_planners_segments_run_within_the_limits() {
     let limits = kerf_config::machine_limits(&config);
     let run = Grid::from_segments(&segments, &limits, DS_MM).run(&limits);
     let length: f64 = segments.iter().map(|s| s.length_mm).sum();
-    assert!(
-        run.peaks.iter().all(|&p| p <= LIMIT_MARGIN),
-        "{:?}",
-        run.peaks
-    );
-    assert_eq!(run.fallbacks, 0);
-    assert!(!run.stuck, "ends at the end");
-    assert!(
-        run.gap_mm <= 1e-9,
-        "rests {} mm short of a stop",
-        run.gap_mm
-    );
+    assert_ran_clean(&run, "corners");
     assert!(run.time_s >= length / 50.0, "{} s", run.time_s);
 }
 
@@ -216,18 +211,7 @@ fn a_rotary_axis_on_the_planners_segments_is_held_to_its_limits() {
     let limits = kerf_config::machine_limits(&config);
     assert!(limits.axes[3].is_some(), "the machine has an A axis");
     let run = Grid::from_segments(&segments, &limits, DS_MM).run(&limits);
-    assert_eq!(run.fallbacks, 0);
-    assert!(!run.stuck, "ends at the end");
-    assert!(
-        run.gap_mm <= 1e-9,
-        "rests {} mm short of a stop",
-        run.gap_mm
-    );
-    assert!(
-        run.peaks.iter().all(|&p| p <= LIMIT_MARGIN),
-        "{:?}",
-        run.peaks
-    );
+    assert_ran_clean(&run, "rotary");
     assert!(run.peaks[0] > 0.5, "A's velocity binds: {:?}", run.peaks);
     // No segment runs faster than its feed (the A-only move's feed is in °/s).
     let at_feed: f64 = segments.iter().map(|s| s.length_mm / s.feed_mm_s).sum();
